@@ -1,0 +1,45 @@
+// The design file (`rodfab.design/1`, JSON, millimetres and MPa): reading with full validation, and writing.
+#pragma once
+
+#include "geometry/rod.hpp"
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace rodfab::geometry {
+
+inline constexpr const char* kDesignFormat = "rodfab.design/1";
+
+// One violation: where (a JSON path such as `rods[3].centerline.knots[5]`) and what was expected.
+struct DesignIssue {
+  std::string path;
+  std::string message;
+};
+
+// Every violation found in one file (reading does not stop at the first). what() lists them all,
+// one per line, as `FILE: PATH: MESSAGE`.
+class DesignError : public std::runtime_error {
+public:
+  DesignError(std::string file, std::vector<DesignIssue> issues);
+  const std::string& file() const { return file_; }
+  const std::vector<DesignIssue>& issues() const { return issues_; }
+
+private:
+  std::string file_;
+  std::vector<DesignIssue> issues_;
+};
+
+// Throws DesignError (also for an unreadable file, with path "").
+RodStructure readDesign(const std::filesystem::path& file);
+// `sourceName` names the text in messages.
+RodStructure parseDesign(const std::string& text, const std::string& sourceName);
+
+nlohmann::json designToJson(const RodStructure& structure, const std::string& description = {});
+// Written to a temporary name beside `file` and renamed, so a reader never sees half a file.
+void writeDesign(const RodStructure& structure, const std::filesystem::path& file, const std::string& description = {});
+
+}  // namespace rodfab::geometry

@@ -1,0 +1,74 @@
+// Cross-section frames along a centerline: rotation-minimizing from a reference normal, or a
+// quaternion B-spline as produced by Cosserat rod solvers.
+#pragma once
+
+#include "geometry/nurbs.hpp"
+
+#include <Eigen/Geometry>
+
+#include <vector>
+
+namespace rodfab::geometry {
+
+// Orthonormal, right-handed: d3 is the unit tangent, d1 and d2 span the cross-section plane.
+struct Frame {
+  Vec3 d1, d2, d3;
+};
+
+// q(u) = sum N_i(u) q_i, normalized at evaluation. Quaternions are (w, x, y, z).
+class QuaternionSpline {
+public:
+  QuaternionSpline() = default;
+  QuaternionSpline(int degree, std::vector<double> knots, std::vector<Eigen::Vector4d> quaternions);
+
+  int degree() const { return degree_; }
+  const std::vector<double>& knots() const { return knots_; }
+  const std::vector<Eigen::Vector4d>& quaternions() const { return quaternions_; }
+  double domainBegin() const { return knots_[degree_]; }
+  double domainEnd() const { return knots_[quaternions_.size()]; }
+
+  Eigen::Quaterniond rotation(double u) const;
+
+private:
+  int degree_ = 0;
+  std::vector<double> knots_;
+  std::vector<Eigen::Vector4d> quaternions_;
+};
+
+// The frame field of one rod. Both kinds are evaluated at a centerline point already known to the
+// caller (the voxelizer has r(u) and r'(u) from its closest-point search), so no curve work repeats.
+class RodFrame {
+public:
+  enum class Kind { RotationMinimizing, Orientation };
+
+  RodFrame() = default;
+  // Rotation-minimizing frame (double reflection, Wang et al. 2008) seeded with d1 = the reference
+  // normal projected onto the first cross-section plane. Throws std::invalid_argument if the normal
+  // is parallel to the initial tangent.
+  static RodFrame rotationMinimizing(const NurbsCurve& curve, const Vec3& referenceNormal);
+  // d1, d2 from the rotation q(u); they are projected onto the plane normal to the tangent so the
+  // cross-section stays perpendicular to the centerline even where the solver's frame shears.
+  static RodFrame fromOrientation(const NurbsCurve& curve, QuaternionSpline orientation);
+
+  Kind kind() const { return kind_; }
+  const QuaternionSpline& orientation() const { return orientation_; }
+
+  // Frame at parameter u, where `point` = r(u) and `unitTangent` = r'(u)/|r'(u)|.
+  Frame at(double u, const Vec3& point, const Vec3& unitTangent) const;
+  // Convenience overload that evaluates the curve.
+  Frame at(const NurbsCurve& curve, double u) const;
+
+private:
+  Kind kind_ = Kind::RotationMinimizing;
+  // Rotation-minimizing: frames at a dense parameter sampling; between samples one more double
+  // reflection step from the sample below, which is how the samples themselves were propagated.
+  std::vector<double> sampleU_;
+  std::vector<Vec3> samplePoint_, sampleTangent_, sampleD1_;
+  QuaternionSpline orientation_;
+};
+
+// Unit tangent r'/|r'|, falling back to the second derivative where r' vanishes (a cusp-free
+// curve with a zero-length first derivative at a clamped end).
+Vec3 unitTangent(const Vec3& firstDerivative, const Vec3& secondDerivative);
+
+}  // namespace rodfab::geometry

@@ -1,0 +1,209 @@
+#include "geometry/nurbs.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace rodfab::geometry {
+
+namespace {
+
+void checkKnotVector(const std::vector<double>& knots, int degree, std::size_t controlCount, const char* what) {
+  if (degree < 1 || degree > kMaxDegree)
+    throw std::invalid_argument(std::string(what) + ": degree must be in 1.." + std::to_string(kMaxDegree));
+  if (controlCount < static_cast<std::size_t>(degree) + 1)
+    throw std::invalid_argument(std::string(what) + ": needs at least degree+1 control values");
+  if (knots.size() != controlCount + degree + 1)
+    throw std::invalid_argument(std::string(what) + ": knot count must be control count + degree + 1");
+  for (std::size_t i = 1; i < knots.size(); ++i)
+    if (!(knots[i] >= knots[i - 1])) throw std::invalid_argument(std::string(what) + ": knots must be non-decreasing");
+  if (!(knots[controlCount] > knots[degree])) throw std::invalid_argument(std::string(what) + ": empty parameter domain");
+}
+
+// 8-point Gauss-Legendre nodes and weights on [-1, 1].
+constexpr std::array<double, 8> kGaussNodes = {-0.9602898564975363, -0.7966664774136267, -0.5255324099163290,
+                                               -0.1834346424956498, 0.1834346424956498,  0.5255324099163290,
+                                               0.7966664774136267,  0.9602898564975363};
+constexpr std::array<double, 8> kGaussWeights = {0.1012285362903763, 0.2223810344533745, 0.3137066458778873,
+                                                 0.3626837833783620, 0.3626837833783620, 0.3137066458778873,
+                                                 0.2223810344533745, 0.1012285362903763};
+
+}  // namespace
+
+int findKnotSpan(const std::vector<double>& knots, int degree, int controlCount, double u) {
+  const int n = controlCount - 1;
+  if (u >= knots[n + 1]) {
+    // At (or past) the domain end: use the last non-empty span so the curve is closed at its end.
+    int span = n;
+    while (span > degree && knots[span] >= knots[n + 1]) --span;
+    return span;
+  }
+  if (u <= knots[degree]) {
+    int span = degree;
+    while (span < n && knots[span + 1] <= knots[degree]) ++span;
+    return span;
+  }
+  // Largest i in [degree, n] with knots[i] <= u.
+  const auto first = knots.begin() + degree;
+  const auto last = knots.begin() + n + 1;
+  return static_cast<int>(std::upper_bound(first, last, u) - knots.begin()) - 1;
+}
+
+void basisFunctionDerivatives(const std::vector<double>& knots, int p, int span, double u, int order,
+                              BasisDerivatives& ders) {
+  // Piegl & Tiller, The NURBS Book, algorithm A2.3, with fixed-size arrays.
+  std::array<std::array<double, kMaxDegree + 1>, kMaxDegree + 1> ndu{};
+  std::array<double, kMaxDegree + 1> left{}, right{};
+  ndu[0][0] = 1.0;
+  for (int j = 1; j <= p; ++j) {
+    left[j] = u - knots[span + 1 - j];
+    right[j] = knots[span + j] - u;
+    double saved = 0.0;
+    for (int r = 0; r < j; ++r) {
+      ndu[j][r] = right[r + 1] + left[j - r];
+      const double temp = ndu[r][j - 1] / ndu[j][r];
+      ndu[r][j] = saved + right[r + 1] * temp;
+      saved = left[j - r] * temp;
+    }
+    ndu[j][j] = saved;
+  }
+  for (int j = 0; j <= p; ++j) ders[0][j] = ndu[j][p];
+  if (order == 0) return;
+
+  std::array<std::array<double, kMaxDegree + 1>, 2> a{};
+  for (int r = 0; r <= p; ++r) {
+    int s1 = 0, s2 = 1;
+    a[0][0] = 1.0;
+    for (int k = 1; k <= order; ++k) {
+      double d = 0.0;
+      const int rk = r - k, pk = p - k;
+      if (r >= k) {
+        a[s2][0] = a[s1][0] / ndu[pk + 1][rk];
+        d = a[s2][0] * ndu[rk][pk];
+      }
+      const int j1 = rk >= -1 ? 1 : -rk;
+      const int j2 = (r - 1 <= pk) ? k - 1 : p - r;
+      for (int j = j1; j <= j2; ++j) {
+        a[s2][j] = (a[s1][j] - a[s1][j - 1]) / ndu[pk + 1][rk + j];
+        d += a[s2][j] * ndu[rk + j][pk];
+      }
+      if (r <= pk) {
+        a[s2][k] = -a[s1][k - 1] / ndu[pk + 1][r];
+        d += a[s2][k] * ndu[r][pk];
+      }
+      ders[k][r] = d;
+      std::swap(s1, s2);
+    }
+  }
+  double factor = p;
+  for (int k = 1; k <= order; ++k) {
+    for (int j = 0; j <= p; ++j) ders[k][j] *= factor;
+    factor *= (p - k);
+  }
+}
+
+NurbsCurve::NurbsCurve(int degree, std::vector<double> knots, std::vector<Vec3> points, std::vector<double> weights)
+    : degree_(degree), knots_(std::move(knots)), points_(std::move(points)), weights_(std::move(weights)) {
+  checkKnotVector(knots_, degree_, points_.size(), "NurbsCurve");
+  if (weights_.empty()) weights_.assign(points_.size(), 1.0);
+  if (weights_.size() != points_.size()) throw std::invalid_argument("NurbsCurve: one weight per control point");
+  for (double w : weights_)
+    if (!(w > 0.0) || !std::isfinite(w)) throw std::invalid_argument("NurbsCurve: weights must be positive");
+  rational_ = std::any_of(weights_.begin(), weights_.end(), [&](double w) { return w != weights_.front(); });
+}
+
+Vec3 NurbsCurve::point(double u) const {
+  Vec3 d[3];
+  derivatives(u, 0, d);
+  return d[0];
+}
+
+void NurbsCurve::derivatives(double u, int order, Vec3* out) const {
+  u = std::clamp(u, domainBegin(), domainEnd());
+  const int span = findKnotSpan(knots_, degree_, static_cast<int>(points_.size()), u);
+  BasisDerivatives ders;
+  basisFunctionDerivatives(knots_, degree_, span, u, order, ders);
+  // Homogeneous form: A(u) = sum N_i w_i P_i, w(u) = sum N_i w_i, C = A / w.
+  Vec3 a[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
+  double w[3] = {0.0, 0.0, 0.0};
+  for (int j = 0; j <= degree_; ++j) {
+    const int i = span - degree_ + j;
+    const double wi = weights_[i];
+    for (int k = 0; k <= order; ++k) {
+      a[k] += (ders[k][j] * wi) * points_[i];
+      w[k] += ders[k][j] * wi;
+    }
+  }
+  out[0] = a[0] / w[0];
+  if (order >= 1) out[1] = (a[1] - w[1] * out[0]) / w[0];
+  if (order >= 2) out[2] = (a[2] - 2.0 * w[1] * out[1] - w[2] * out[0]) / w[0];
+}
+
+std::vector<double> NurbsCurve::breakpoints() const {
+  std::vector<double> result;
+  const std::size_t n = points_.size();
+  for (std::size_t i = degree_; i < n; ++i)
+    if (knots_[i + 1] > knots_[i]) result.push_back(knots_[i]);
+  result.push_back(domainEnd());
+  return result;
+}
+
+double NurbsCurve::arcLength(double u0, double u1) const {
+  if (u1 < u0) std::swap(u0, u1);
+  u0 = std::max(u0, domainBegin());
+  u1 = std::min(u1, domainEnd());
+  if (!(u1 > u0)) return 0.0;
+  // Each knot span is split into 8 pieces, each integrated with 8 Gauss points: exact enough
+  // (better than 1e-10 relative) for the smooth, moderately curved spans of rod designs.
+  constexpr int kPiecesPerSpan = 8;
+  double length = 0.0;
+  const std::vector<double> bp = breakpoints();
+  for (std::size_t s = 0; s + 1 < bp.size(); ++s) {
+    const double a = std::max(bp[s], u0), b = std::min(bp[s + 1], u1);
+    if (!(b > a)) continue;
+    const double h = (b - a) / kPiecesPerSpan;
+    for (int piece = 0; piece < kPiecesPerSpan; ++piece) {
+      const double mid = a + (piece + 0.5) * h;
+      for (std::size_t g = 0; g < kGaussNodes.size(); ++g) {
+        Vec3 d[2];
+        derivatives(mid + 0.5 * h * kGaussNodes[g], 1, d);
+        length += 0.5 * h * kGaussWeights[g] * d[1].norm();
+      }
+    }
+  }
+  return length;
+}
+
+BSplineField::BSplineField(int degree, std::vector<double> knots, std::vector<double> values)
+    : degree_(degree), knots_(std::move(knots)), values_(std::move(values)) {
+  checkKnotVector(knots_, degree_, values_.size(), "BSplineField");
+}
+
+BSplineField BSplineField::constant(double value, double begin, double end) {
+  BSplineField field(1, {begin, begin, end, end}, {value, value});
+  field.constant_ = true;
+  return field;
+}
+
+double BSplineField::value(double u) const {
+  u = std::clamp(u, domainBegin(), domainEnd());
+  const int span = findKnotSpan(knots_, degree_, static_cast<int>(values_.size()), u);
+  BasisDerivatives ders;
+  basisFunctionDerivatives(knots_, degree_, span, u, 0, ders);
+  double f = 0.0;
+  for (int j = 0; j <= degree_; ++j) f += ders[0][j] * values_[span - degree_ + j];
+  return f;
+}
+
+double BSplineField::derivative(double u) const {
+  u = std::clamp(u, domainBegin(), domainEnd());
+  const int span = findKnotSpan(knots_, degree_, static_cast<int>(values_.size()), u);
+  BasisDerivatives ders;
+  basisFunctionDerivatives(knots_, degree_, span, u, 1, ders);
+  double f = 0.0;
+  for (int j = 0; j <= degree_; ++j) f += ders[1][j] * values_[span - degree_ + j];
+  return f;
+}
+
+}  // namespace rodfab::geometry

@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Installs every Debian 12 package rodfab needs to build, test and benchmark.
+# Idempotent: does nothing (and prints nothing) when everything is already installed.
+set -euo pipefail
+
+packages=(
+  cmake g++ make pkg-config
+  libeigen3-dev
+  libopenvdb-dev libopenvdb-tools libboost-iostreams-dev   # FindOpenVDB needs Boost.Iostreams
+  libtbb-dev
+  libpng-dev
+  libzip-dev zipcmp zipmerge ziptool                         # libzip's CMake config refers to these
+  libboost-program-options-dev
+  catch2
+  libbenchmark-dev
+  nlohmann-json3-dev
+  libcairo2-dev                                              # calibration plots
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+[ ${#missing[@]} -eq 0 ] && exit 0
+
+as_root=()
+if [ "$(id -u)" -ne 0 ]; then
+  command -v sudo >/dev/null || { echo "install-deps: need root (or sudo) to install: ${missing[*]}" >&2; exit 1; }
+  as_root=(sudo)
+fi
+echo "install-deps: installing ${missing[*]}" >&2
+"${as_root[@]}" apt-get update -qq
+DEBIAN_FRONTEND=noninteractive "${as_root[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null

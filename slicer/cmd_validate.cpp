@@ -1,0 +1,69 @@
+#include "geometry/geometry.hpp"
+#include "slicer/command.hpp"
+#include "slicer/options.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <iostream>
+
+namespace rodfab::cli {
+
+namespace {
+
+std::string formatPoint(const geometry::Vec3& p) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "(%.3f, %.3f, %.3f)", p.x(), p.y(), p.z());
+  return buf;
+}
+
+}  // namespace
+
+int runValidate(const std::vector<std::string>& args) {
+  po::options_description options("options");
+  options.add_options()
+      ("design", po::value<std::string>()->required(), "design file (rodfab.design/1 JSON)")
+      ("json", "print the summary as JSON on stdout");
+  po::positional_options_description positional;
+  positional.add("design", 1);
+  po::variables_map vm;
+  if (auto code = parseOptions("validate", "DESIGN.json [--json]", options, positional, args, vm)) return *code;
+
+  const std::string file = vm["design"].as<std::string>();
+  geometry::RodStructure design;
+  try {
+    design = geometry::readDesign(file);
+  } catch (const geometry::DesignError& e) {
+    std::cerr << e.what() << '\n'
+              << file << ": " << e.issues().size() << (e.issues().size() == 1 ? " error" : " errors")
+              << "; the design is not valid\n";
+    return kFailed;
+  }
+  const geometry::DesignSummary s = geometry::summarize(design);
+  if (vm.count("json")) {
+    nlohmann::json j{{"design", file},
+                     {"valid", true},
+                     {"rods", s.rodCount},
+                     {"total_length_mm", s.totalLength},
+                     {"bounds_mm", {{"min", {s.bounds.min().x(), s.bounds.min().y(), s.bounds.min().z()}},
+                                    {"max", {s.bounds.max().x(), s.bounds.max().y(), s.bounds.max().z()}}}},
+                     {"modulus_mpa", {{"min", s.modulusMin}, {"max", s.modulusMax}}},
+                     {"sections", {{"circle", s.circles}, {"ellipse", s.ellipses}, {"rectangle", s.rectangles}}},
+                     {"caps", {{"round", s.roundCaps}, {"flat", s.flatCaps}}}};
+    std::cout << j.dump(2) << '\n';
+    return kOk;
+  }
+  const geometry::Vec3 size = s.bounds.sizes();
+  std::printf("design:        %s\n", file.c_str());
+  std::printf("rods:          %zu\n", s.rodCount);
+  std::printf("sections:      %zu circle, %zu ellipse, %zu rectangle\n", s.circles, s.ellipses, s.rectangles);
+  std::printf("caps:          %zu round, %zu flat\n", s.roundCaps, s.flatCaps);
+  std::printf("centerlines:   %.3f mm in total\n", s.totalLength);
+  std::printf("bounding box:  %s .. %s mm\n", formatPoint(s.bounds.min()).c_str(), formatPoint(s.bounds.max()).c_str());
+  std::printf("size:          %.3f x %.3f x %.3f mm\n", size.x(), size.y(), size.z());
+  std::printf("modulus E(s):  %.3f .. %.3f MPa\n", s.modulusMin, s.modulusMax);
+  std::printf("valid:         yes\n");
+  return kOk;
+}
+
+}  // namespace rodfab::cli

@@ -1,0 +1,25 @@
+// The rodfab subcommands: each lives in its own cmd_*.cpp and is listed in main.cpp.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace rodfab::cli {
+
+// Exit codes shared by every subcommand.
+enum ExitCode : int {
+  kOk = 0,
+  kFailed = 1,  // bad input file, failed check, I/O error
+  kUsage = 2,   // bad command line
+};
+
+struct Command {
+  const char* name;
+  const char* summary;
+  // `args` excludes the program and subcommand names.
+  int (*run)(const std::vector<std::string>& args);
+};
+
+int runValidate(const std::vector<std::string>& args);
+
+}  // namespace rodfab::cli

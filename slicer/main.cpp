@@ -1,0 +1,49 @@
+#include "slicer/command.hpp"
+
+#include <cstring>
+#include <exception>
+#include <iostream>
+
+namespace {
+
+using namespace rodfab::cli;
+
+constexpr Command kCommands[] = {
+    {"validate", "check a design file and summarize it", runValidate},
+};
+
+void usage(std::ostream& out) {
+  out << "rodfab: slicer and print-job driver for 4D-printed multi-material rod structures\n\n"
+         "usage: rodfab COMMAND [options]   (rodfab COMMAND --help for the options of one command)\n\ncommands:\n";
+  for (const Command& c : kCommands) out << "  " << c.name << std::string(12 - std::strlen(c.name), ' ') << c.summary << '\n';
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    usage(std::cerr);
+    return kUsage;
+  }
+  const std::string name = argv[1];
+  if (name == "--help" || name == "-h" || name == "help") {
+    usage(std::cout);
+    return kOk;
+  }
+  if (name == "--version") {
+    std::cout << "rodfab " << RODFAB_VERSION << '\n';
+    return kOk;
+  }
+  for (const Command& c : kCommands) {
+    if (name != c.name) continue;
+    try {
+      return c.run(std::vector<std::string>(argv + 2, argv + argc));
+    } catch (const std::exception& e) {
+      std::cerr << "rodfab " << name << ": " << e.what() << '\n';
+      return kFailed;
+    }
+  }
+  std::cerr << "rodfab: unknown command '" << name << "'\n\n";
+  usage(std::cerr);
+  return kUsage;
+}

@@ -1,0 +1,28 @@
+#include "slicer/options.hpp"
+
+#include "slicer/command.hpp"
+
+#include <iostream>
+
+namespace rodfab::cli {
+
+std::optional<int> parseOptions(const std::string& command, const std::string& synopsis,
+                                po::options_description& options, const po::positional_options_description& positional,
+                                const std::vector<std::string>& args, po::variables_map& vm) {
+  options.add_options()("help,h", "show this help");
+  try {
+    po::store(po::command_line_parser(args).options(options).positional(positional).run(), vm);
+    if (vm.count("help")) {
+      std::cout << "usage: rodfab " << command << ' ' << synopsis << "\n\n" << options << '\n';
+      return kOk;
+    }
+    po::notify(vm);
+  } catch (const po::error& e) {
+    std::cerr << "rodfab " << command << ": " << e.what() << "\nusage: rodfab " << command << ' ' << synopsis
+              << "\n(rodfab " << command << " --help lists the options)\n";
+    return kUsage;
+  }
+  return std::nullopt;
+}
+
+}  // namespace rodfab::cli

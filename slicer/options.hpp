@@ -1,0 +1,20 @@
+// Shared Boost.Program_options plumbing for the subcommands: --help and consistent usage errors.
+#pragma once
+
+#include <boost/program_options.hpp>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace rodfab::cli {
+
+namespace po = boost::program_options;
+
+// Parses `args` against `options` (+ positionals). Prints help and returns kOk for --help, prints a
+// usage error and returns kUsage for bad options; returns nullopt when the command should go on.
+std::optional<int> parseOptions(const std::string& command, const std::string& synopsis,
+                                po::options_description& options, const po::positional_options_description& positional,
+                                const std::vector<std::string>& args, po::variables_map& vm);
+
+}  // namespace rodfab::cli

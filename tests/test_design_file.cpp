@@ -1,0 +1,234 @@
+// geometry/design_file: every bad-input case names the file, the JSON path and what was expected.
+#include "geometry/geometry.hpp"
+
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+
+using namespace rodfab::geometry;
+using nlohmann::json;
+
+namespace {
+
+json validDesign() {
+  return json::parse(R"({ "format": "rodfab.design/1", "units": "mm",
+    "rods": [ { "name": "edge-0",
+      "centerline": { "degree": 3, "knots": [0,0,0,0,1,1,1,1],
+                      "points": [[0,0,0],[1,0,0],[2,1,0],[3,1,0]], "weights": [1,1,1,1] },
+      "section": { "shape": "circle", "diameter": 1.5 },
+      "normal": [0,0,1],
+      "modulus": { "degree": 1, "knots": [0,0,0.5,1,1], "values": [8, 120, 40] } } ] })");
+}
+
+// Parses `doc` expecting failure; returns the issues.
+std::vector<DesignIssue> issuesOf(const std::string& text) {
+  try {
+    parseDesign(text, "bad.json");
+  } catch (const DesignError& e) {
+    REQUIRE(e.file() == "bad.json");
+    return e.issues();
+  }
+  FAIL("expected a DesignError");
+  return {};
+}
+std::vector<DesignIssue> issuesOf(const json& doc) { return issuesOf(doc.dump()); }
+
+bool hasIssue(const std::vector<DesignIssue>& issues, const std::string& path, const std::string& fragment) {
+  for (const auto& i : issues)
+    if (i.path == path && i.message.find(fragment) != std::string::npos) return true;
+  return false;
+}
+
+#define REQUIRE_ISSUE(doc, path, fragment)                 \
+  do {                                                     \
+    const auto issues_ = issuesOf(doc);                    \
+    INFO(DesignError("bad.json", issues_).what());         \
+    REQUIRE(hasIssue(issues_, path, fragment));            \
+  } while (0)
+
+}  // namespace
+
+TEST_CASE("The design from the format description reads and evaluates", "[design]") {
+  const RodStructure s = parseDesign(validDesign().dump(), "ok.json");
+  REQUIRE(s.rods.size() == 1);
+  const Rod& r = s.rods[0];
+  REQUIRE(r.name() == "edge-0");
+  REQUIRE(r.caps() == CapStyle::Round);
+  REQUIRE(r.modulus().value(0.5) == Approx(120.0));
+  REQUIRE(r.modulus().value(0.25) == Approx(64.0));
+  const DesignSummary sum = summarize(s);
+  REQUIRE(sum.modulusMin == Approx(8.0));
+  REQUIRE(sum.modulusMax == Approx(120.0));
+  REQUIRE(sum.circles == 1);
+}
+
+TEST_CASE("Design files round-trip through the writer", "[design]") {
+  json doc = validDesign();
+  doc["rods"].push_back(doc["rods"][0]);
+  doc["rods"][1]["name"] = "edge-1";
+  doc["rods"][1]["section"] = {{"shape", "rectangle"}, {"width", 2.0}, {"height", 0.5}};
+  doc["rods"][1]["caps"] = "flat";
+  doc["rods"][1]["modulus"] = 42.5;
+  doc["rods"][1].erase("normal");
+  doc["rods"][1]["orientation"] = {{"degree", 1}, {"knots", {0, 0, 1, 1}}, {"quaternions", {{1, 0, 0, 0}, {0.9, 0.1, 0, 0}}}};
+  const RodStructure a = parseDesign(doc.dump(), "a.json");
+  const auto path = std::filesystem::temp_directory_path() / "rodfab_roundtrip.json";
+  writeDesign(a, path);
+  const RodStructure b = readDesign(path);
+  std::filesystem::remove(path);
+  REQUIRE(designToJson(a) == designToJson(b));
+  REQUIRE(b.rods[1].caps() == CapStyle::Flat);
+  REQUIRE(b.rods[1].modulus().isConstant());
+  REQUIRE(b.rods[1].orientation().has_value());
+  REQUIRE(b.rods[1].section().shape == SectionShape::Rectangle);
+}
+
+TEST_CASE("Every kind of bad design is reported with its path", "[design][errors]") {
+  SECTION("malformed JSON, with line and column") {
+    const auto issues = issuesOf(std::string("{\n  \"format\": \"rodfab.design/1\",\n  \"rods\": [ }"));
+    REQUIRE(issues.size() == 1);
+    REQUIRE(issues[0].message.find("malformed JSON at line 3") != std::string::npos);
+  }
+  SECTION("unknown format version") {
+    json d = validDesign();
+    d["format"] = "rodfab.design/2";
+    REQUIRE_ISSUE(d, "format", "unsupported format");
+  }
+  SECTION("wrong units") {
+    json d = validDesign();
+    d["units"] = "inch";
+    REQUIRE_ISSUE(d, "units", "expected \"mm\"");
+  }
+  SECTION("knot count inconsistent with points and degree") {
+    json d = validDesign();
+    d["rods"][0]["centerline"]["knots"] = {0, 0, 0, 1, 1, 1, 1};
+    REQUIRE_ISSUE(d, "rods[0].centerline.knots", "expected 8 knots");
+  }
+  SECTION("too few points for the degree") {
+    json d = validDesign();
+    d["rods"][0]["centerline"]["points"] = {{0, 0, 0}, {1, 0, 0}};
+    REQUIRE_ISSUE(d, "rods[0].centerline.points", "at least 4 control points");
+  }
+  SECTION("decreasing knots") {
+    json d = validDesign();
+    d["rods"][0]["centerline"]["knots"] = {0, 0, 0, 0, 1, 1, 0.5, 1};
+    REQUIRE_ISSUE(d, "rods[0].centerline.knots[6]", "non-decreasing");
+  }
+  SECTION("non-finite numbers") {
+    std::string text = validDesign().dump();
+    text.replace(text.find("[2,1,0]"), 7, "[2,1e999,0]");
+    REQUIRE_ISSUE(text, "", "expected finite numbers at line 1");
+  }
+  SECTION("non-numeric coordinates") {
+    json d = validDesign();
+    d["rods"][0]["centerline"]["points"][1][0] = "one";
+    REQUIRE_ISSUE(d, "rods[0].centerline.points[1][0]", "expected a number");
+  }
+  SECTION("zero and negative weights") {
+    json d = validDesign();
+    d["rods"][0]["centerline"]["weights"] = {1, 0, -1, 1};
+    const auto issues = issuesOf(d);
+    REQUIRE(hasIssue(issues, "rods[0].centerline.weights[1]", "> 0"));
+    REQUIRE(hasIssue(issues, "rods[0].centerline.weights[2]", "> 0"));
+  }
+  SECTION("negative diameter") {
+    json d = validDesign();
+    d["rods"][0]["section"]["diameter"] = -1.5;
+    REQUIRE_ISSUE(d, "rods[0].section.diameter", "> 0");
+  }
+  SECTION("zero modulus, plain and in a spline") {
+    json d = validDesign();
+    d["rods"][0]["modulus"] = 0;
+    REQUIRE_ISSUE(d, "rods[0].modulus", "> 0");
+    d = validDesign();
+    d["rods"][0]["modulus"]["values"][2] = -3;
+    REQUIRE_ISSUE(d, "rods[0].modulus.values[2]", "> 0");
+  }
+  SECTION("modulus over a different parameter domain") {
+    json d = validDesign();
+    d["rods"][0]["modulus"]["knots"] = {0, 0, 1, 2, 2};
+    REQUIRE_ISSUE(d, "rods[0].modulus.knots", "must equal the centerline's");
+  }
+  SECTION("degenerate (zero-length) centerline") {
+    json d = validDesign();
+    d["rods"][0]["centerline"]["points"] = {{1, 1, 1}, {1, 1, 1}, {1, 1, 1}, {1, 1, 1}};
+    d["rods"][0].erase("normal");
+    REQUIRE_ISSUE(d, "rods[0].centerline", "degenerate centerline");
+  }
+  SECTION("normal parallel to the tangent") {
+    json d = validDesign();
+    d["rods"][0]["normal"] = {2, 0, 0};
+    REQUIRE_ISSUE(d, "rods[0].normal", "parallel");
+  }
+  SECTION("unknown section shape") {
+    json d = validDesign();
+    d["rods"][0]["section"] = {{"shape", "hexagon"}, {"diameter", 1}};
+    REQUIRE_ISSUE(d, "rods[0].section.shape", "unknown section shape");
+  }
+  SECTION("unknown keys at every level") {
+    json d = validDesign();
+    d["colour"] = "red";
+    d["rods"][0]["centerline"]["wieghts"] = {1, 1, 1, 1};
+    d["rods"][0]["section"]["width"] = 2;
+    const auto issues = issuesOf(d);
+    REQUIRE(hasIssue(issues, "colour", "unknown key"));
+    REQUIRE(hasIssue(issues, "rods[0].centerline.wieghts", "unknown key"));
+    REQUIRE(hasIssue(issues, "rods[0].section.width", "unknown key"));
+  }
+  SECTION("non-circular section without a frame, and both frames at once") {
+    json d = validDesign();
+    d["rods"][0]["section"] = {{"shape", "ellipse"}, {"width", 2}, {"height", 1}};
+    d["rods"][0].erase("normal");
+    REQUIRE_ISSUE(d, "rods[0]", "needs a frame");
+    d["rods"][0]["normal"] = {0, 0, 1};
+    d["rods"][0]["orientation"] = {{"degree", 1}, {"knots", {0, 0, 1, 1}}, {"quaternions", {{1, 0, 0, 0}, {1, 0, 0, 0}}}};
+    REQUIRE_ISSUE(d, "rods[0]", "not both");
+  }
+  SECTION("bad caps, missing fields, empty rods, duplicate names") {
+    json d = validDesign();
+    d["rods"][0]["caps"] = "pointy";
+    REQUIRE_ISSUE(d, "rods[0].caps", "\"round\" or \"flat\"");
+    d = validDesign();
+    d["rods"][0].erase("modulus");
+    REQUIRE_ISSUE(d, "rods[0].modulus", "missing");
+    d = validDesign();
+    d["rods"] = json::array();
+    REQUIRE_ISSUE(d, "rods", "non-empty");
+    d = validDesign();
+    d["rods"].push_back(d["rods"][0]);
+    REQUIRE_ISSUE(d, "rods[1].name", "duplicate rod name");
+  }
+  SECTION("interior knot repeated past the degree") {
+    json d = validDesign();
+    d["rods"][0]["centerline"]["degree"] = 1;
+    d["rods"][0]["centerline"]["knots"] = {0, 0, 0.5, 0.5, 1, 1};
+    REQUIRE_ISSUE(d, "rods[0].centerline.knots[2]", "repeated 2 times");
+  }
+}
+
+TEST_CASE("All errors of a file are collected, not only the first", "[design][errors]") {
+  json d = validDesign();
+  d["rods"].push_back(d["rods"][0]);
+  d["rods"][0]["section"]["diameter"] = 0;
+  d["rods"][1]["name"] = "edge-1";
+  d["rods"][1]["centerline"]["knots"][5] = -1;
+  d["rods"][1]["modulus"] = "stiff";
+  const auto issues = issuesOf(d);
+  REQUIRE(issues.size() >= 3);
+  REQUIRE(hasIssue(issues, "rods[0].section.diameter", "> 0"));
+  REQUIRE(hasIssue(issues, "rods[1].centerline.knots[5]", "non-decreasing"));
+  REQUIRE(hasIssue(issues, "rods[1].modulus", "expected a modulus"));
+  const std::string all = DesignError("bad.json", issues).what();
+  REQUIRE(all.find("bad.json: rods[1].modulus: ") != std::string::npos);
+}
+
+TEST_CASE("A missing file is reported with its name", "[design][errors]") {
+  try {
+    readDesign("/nonexistent/design.json");
+    FAIL("expected a DesignError");
+  } catch (const DesignError& e) {
+    REQUIRE(std::string(e.what()).find("/nonexistent/design.json: cannot open") != std::string::npos);
+  }
+}

@@ -1,0 +1,236 @@
+// geometry/: NURBS evaluation, frames, sections and closest points against analytic truth.
+#include "geometry/geometry.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+
+using namespace rodfab::geometry;
+
+namespace {
+
+// Full circle of radius R in the xy-plane centred at c: rational quadratic, 9 control points.
+NurbsCurve nurbsCircle(double R, const Vec3& c = Vec3::Zero()) {
+  const double w = std::sqrt(0.5);
+  std::vector<Vec3> pts = {{R, 0, 0}, {R, R, 0}, {0, R, 0}, {-R, R, 0}, {-R, 0, 0},
+                           {-R, -R, 0}, {0, -R, 0}, {R, -R, 0}, {R, 0, 0}};
+  for (auto& p : pts) p += c;
+  return NurbsCurve(2, {0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1}, pts, {1, w, 1, w, 1, w, 1, w, 1});
+}
+
+NurbsCurve wigglyCubic() {
+  return NurbsCurve(3, {0, 0, 0, 0, 0.3, 0.5, 0.8, 1, 1, 1, 1},
+                    {{0, 0, 0}, {1, 2, 0}, {3, -1, 1}, {4, 2, 2}, {6, 0, 1}, {7, 1, -1}, {8, 3, 0}},
+                    {1, 0.7, 1.3, 1, 2, 0.8, 1});
+}
+
+// A helix as a dense interpolating-ish cubic B-spline (control points on a slightly larger helix).
+NurbsCurve helix(double radius, double pitch, double turns, int pointsPerTurn = 16) {
+  const int n = static_cast<int>(turns * pointsPerTurn) + 1;
+  std::vector<Vec3> pts;
+  for (int i = 0; i < n; ++i) {
+    const double a = 2 * std::numbers::pi * i / pointsPerTurn;
+    pts.emplace_back(radius * std::cos(a), radius * std::sin(a), pitch * a / (2 * std::numbers::pi));
+  }
+  std::vector<double> knots(4, 0.0);
+  for (int i = 1; i < n - 3; ++i) knots.push_back(static_cast<double>(i) / (n - 3));
+  knots.insert(knots.end(), 4, 1.0);
+  return NurbsCurve(3, knots, pts);
+}
+
+}  // namespace
+
+TEST_CASE("A rational quadratic NURBS circle has constant radius and the exact length", "[nurbs]") {
+  const double R = 2.5;
+  const NurbsCurve c = nurbsCircle(R, Vec3(1, -2, 3));
+  for (int k = 0; k <= 1000; ++k) {
+    const double u = k / 1000.0;
+    REQUIRE((c.point(u) - Vec3(1, -2, 3)).norm() == Approx(R).epsilon(1e-12));
+  }
+  REQUIRE(c.isRational());
+  REQUIRE(c.arcLength() == Approx(2 * std::numbers::pi * R).epsilon(1e-9));
+  REQUIRE(c.arcLength(0.0, 0.25) == Approx(0.5 * std::numbers::pi * R).epsilon(1e-9));
+}
+
+TEST_CASE("NURBS first and second derivatives match finite differences", "[nurbs]") {
+  const NurbsCurve c = wigglyCubic();
+  const double h = 1e-5;
+  for (double u : {0.05, 0.2, 0.31, 0.5 + 1e-3, 0.65, 0.9, 0.97}) {
+    Vec3 d[3], dp[3], dm[3];
+    c.derivatives(u, 2, d);
+    c.derivatives(u + h, 2, dp);
+    c.derivatives(u - h, 2, dm);
+    const Vec3 fd1 = (dp[0] - dm[0]) / (2 * h);
+    const Vec3 fd2 = (dp[1] - dm[1]) / (2 * h);
+    CAPTURE(u);
+    REQUIRE((d[1] - fd1).norm() <= 1e-6 * (1 + d[1].norm()));
+    REQUIRE((d[2] - fd2).norm() <= 1e-5 * (1 + d[2].norm()));
+  }
+  // The clamped curve interpolates its end control points.
+  REQUIRE((c.point(0.0) - c.points().front()).norm() < 1e-14);
+  REQUIRE((c.point(1.0) - c.points().back()).norm() < 1e-14);
+}
+
+TEST_CASE("B-spline basis functions form a partition of unity", "[nurbs]") {
+  const std::vector<double> knots = {0, 0, 0, 0, 0.1, 0.4, 0.4, 0.7, 1, 1, 1, 1};
+  const BSplineField ones(3, knots, std::vector<double>(8, 1.0));
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<double> uni(0.0, 1.0);
+  for (int k = 0; k < 500; ++k) {
+    const double u = uni(rng);
+    REQUIRE(ones.value(u) == Approx(1.0).epsilon(1e-14));
+    REQUIRE(ones.derivative(u) == Approx(0.0).margin(1e-12));
+    BasisDerivatives ders;
+    const int span = findKnotSpan(knots, 3, 8, u);
+    basisFunctionDerivatives(knots, 3, span, u, 0, ders);
+    for (int j = 0; j <= 3; ++j) REQUIRE(ders[0][j] >= 0.0);
+  }
+  // A linear field with values at the Greville abscissae reproduces the identity exactly.
+  std::vector<double> greville;
+  for (int i = 0; i < 8; ++i) greville.push_back((knots[i + 1] + knots[i + 2] + knots[i + 3]) / 3.0);
+  const BSplineField identity(3, knots, greville);
+  for (double u : {0.0, 0.05, 0.33, 0.4, 0.77, 1.0}) {
+    REQUIRE(identity.value(u) == Approx(u).margin(1e-14));
+    REQUIRE(identity.derivative(u) == Approx(1.0).epsilon(1e-12));
+  }
+}
+
+TEST_CASE("Closest point agrees with brute-force sampling", "[closest]") {
+  const Rod rod("w", wigglyCubic(), Section::circle(0.5), std::nullopt, std::nullopt, CapStyle::Round,
+                BSplineField::constant(10, 0, 1));
+  std::vector<Vec3> dense;
+  const int N = 200000;
+  for (int k = 0; k <= N; ++k) dense.push_back(rod.centerline().point(static_cast<double>(k) / N));
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> x(-2, 10), y(-3, 5), z(-3, 4);
+  for (int k = 0; k < 300; ++k) {
+    const Vec3 p(x(rng), y(rng), z(rng));
+    double brute = 1e300;
+    for (const Vec3& q : dense) brute = std::min(brute, (q - p).norm());
+    const ClosestPoint c = rod.closestPoint(p);
+    CAPTURE(p.transpose(), c.u);
+    REQUIRE(c.distance <= brute + 1e-9);
+    REQUIRE(c.distance >= brute - 1e-3);  // the dense sampling itself is only that fine
+    REQUIRE((c.point - rod.centerline().point(c.u)).norm() < 1e-12);
+  }
+}
+
+TEST_CASE("Closest point is exact for points equidistant from several spans", "[closest]") {
+  const double R = 3.0;
+  const Rod ring("ring", nurbsCircle(R), Section::circle(1.0), std::nullopt, std::nullopt, CapStyle::Round,
+                 BSplineField::constant(10, 0, 1));
+  // The centre is equidistant from every point of the circle; points on the axis too.
+  for (double h : {0.0, 0.5, 2.0}) {
+    const ClosestPoint c = ring.closestPoint(Vec3(0, 0, h));
+    REQUIRE(c.distance == Approx(std::hypot(R, h)).epsilon(1e-12));
+  }
+  // Off-centre points: the exact answer is along the ray from the centre.
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> uni(-5, 5);
+  for (int k = 0; k < 200; ++k) {
+    const Vec3 p(uni(rng), uni(rng), uni(rng));
+    const double rho = std::hypot(p.x(), p.y());
+    if (rho < 1e-3) continue;
+    const ClosestPoint c = ring.closestPoint(p);
+    REQUIRE(c.distance == Approx(std::hypot(rho - R, p.z())).epsilon(1e-10));
+  }
+}
+
+TEST_CASE("Rotation-minimizing frames are orthonormal and do not twist", "[frame]") {
+  SECTION("planar curve: d1 seeded with the plane normal stays the plane normal") {
+    const NurbsCurve c = wigglyCubic();
+    // Flatten the wiggly curve into the xy-plane.
+    std::vector<Vec3> pts = c.points();
+    for (auto& p : pts) p.z() = 0;
+    const NurbsCurve flat(3, c.knots(), pts, c.weights());
+    const RodFrame f = RodFrame::rotationMinimizing(flat, Vec3(0, 0, 1));
+    for (int k = 0; k <= 400; ++k) {
+      const Frame fr = f.at(flat, k / 400.0);
+      REQUIRE(std::abs(fr.d1.dot(Vec3(0, 0, 1))) == Approx(1.0).epsilon(1e-9));
+      REQUIRE(fr.d1.dot(fr.d2) == Approx(0).margin(1e-12));
+      REQUIRE(fr.d1.dot(fr.d3) == Approx(0).margin(1e-12));
+      REQUIRE(fr.d2.dot(fr.d3) == Approx(0).margin(1e-12));
+      REQUIRE(fr.d1.cross(fr.d2).dot(fr.d3) == Approx(1.0).epsilon(1e-12));
+    }
+  }
+  SECTION("helix: the frame's angular velocity has no tangential component") {
+    const NurbsCurve h = helix(2.0, 1.5, 3.0);
+    const RodFrame f = RodFrame::rotationMinimizing(h, Vec3(1, 0, 0));
+    const double du = 1e-6;
+    for (int k = 1; k < 100; ++k) {
+      const double u = k / 100.0;
+      const Frame a = f.at(h, u - du), b = f.at(h, u + du);
+      const Vec3 dd1 = (b.d1 - a.d1) / (2 * du);
+      Vec3 d[3];
+      h.derivatives(u, 1, d);
+      // For an RMF, d1' is parallel to the tangent: twist rate d1' . d2 vanishes.
+      const Frame m = f.at(h, u);
+      REQUIRE(std::abs(dd1.dot(m.d2)) <= 1e-5 * d[1].norm());
+    }
+  }
+}
+
+TEST_CASE("Quaternion frames follow the spline's rotation", "[frame]") {
+  // A straight rod along z whose section turns by 90 degrees about z from start to end.
+  const NurbsCurve line(1, {0, 0, 1, 1}, {{0, 0, 0}, {0, 0, 10}});
+  const double s = std::sqrt(0.5);
+  QuaternionSpline q(1, {0, 0, 1, 1}, {{1, 0, 0, 0}, {s, 0, 0, s}});
+  const RodFrame f = RodFrame::fromOrientation(line, q);
+  const Frame start = f.at(line, 0.0), end = f.at(line, 1.0), mid = f.at(line, 0.5);
+  REQUIRE((start.d1 - Vec3(1, 0, 0)).norm() < 1e-12);
+  REQUIRE((end.d1 - Vec3(0, 1, 0)).norm() < 1e-12);
+  // Normalized linear interpolation of the quaternion turns by 45 degrees at the midpoint.
+  REQUIRE((mid.d1 - Vec3(s, s, 0)).norm() < 1e-12);
+  REQUIRE((mid.d3 - Vec3(0, 0, 1)).norm() < 1e-12);
+}
+
+TEST_CASE("Sections: normalized radius, inside test, areas", "[section]") {
+  const Section e = Section::ellipse(4.0, 2.0);
+  REQUIRE(e.normalizedRadius(2.0, 0.0) == Approx(1.0));
+  REQUIRE(e.normalizedRadius(0.0, 1.0) == Approx(1.0));
+  REQUIRE(e.contains(1.9, 0.0));
+  REQUIRE_FALSE(e.contains(1.5, 0.8));
+  const Section r = Section::rectangle(4.0, 2.0);
+  REQUIRE(r.contains(1.9, 0.9));
+  REQUIRE_FALSE(r.contains(2.1, 0.0));
+  REQUIRE(r.boundingRadius() == Approx(std::sqrt(5.0)));
+  REQUIRE(r.capRadius() == Approx(1.0));
+  REQUIRE(Section::circle(2.0).area() == Approx(std::numbers::pi));
+  REQUIRE(e.area() == Approx(2.0 * std::numbers::pi));
+}
+
+TEST_CASE("Rod inside test covers the swept section and the caps", "[rod]") {
+  const NurbsCurve line(1, {0, 0, 1, 1}, {{0, 0, 0}, {10, 0, 0}});
+  const auto rod = [&](CapStyle caps) {
+    return Rod("r", line, Section::rectangle(2.0, 1.0), Vec3(0, 1, 0), std::nullopt, caps, BSplineField::constant(5, 0, 1));
+  };
+  const Rod round = rod(CapStyle::Round), flat = rod(CapStyle::Flat);
+  // d1 = y (width 2), d2 = z (height 1).
+  REQUIRE(round.classify(Vec3(5, 0.99, 0)).inside);
+  REQUIRE_FALSE(round.classify(Vec3(5, 0, 0.51)).inside);
+  REQUIRE(round.classify(Vec3(5, 0, 0)).depth == Approx(1.0));
+  // Round cap: half-ball of radius 0.5 beyond x = 10.
+  REQUIRE(round.classify(Vec3(10.45, 0, 0)).inside);
+  REQUIRE_FALSE(round.classify(Vec3(10.55, 0, 0)).inside);
+  REQUIRE_FALSE(flat.classify(Vec3(10.05, 0, 0)).inside);
+  REQUIRE(flat.classify(Vec3(9.95, 0.9, 0.4)).inside);
+  // Bounds: exact for a straight rod.
+  const Box3 b = round.bounds();
+  REQUIRE(b.min().x() == Approx(-0.5).margin(1e-6));
+  REQUIRE(b.max().x() == Approx(10.5).margin(1e-6));
+  REQUIRE(b.max().y() == Approx(1.0).margin(1e-6));
+  REQUIRE(b.max().z() == Approx(0.5).margin(1e-6));
+  REQUIRE(flat.bounds().max().x() == Approx(10.0).margin(1e-6));
+}
+
+TEST_CASE("Bounds of a torus-like ring contain every sampled surface point", "[rod]") {
+  const Rod ring("ring", nurbsCircle(5.0), Section::circle(2.0), std::nullopt, std::nullopt, CapStyle::Round,
+                 BSplineField::constant(10, 0, 1));
+  const Box3 b = ring.bounds();
+  REQUIRE(b.max().x() == Approx(6.0).margin(1e-3));
+  REQUIRE(b.max().x() >= 6.0);
+  REQUIRE(b.max().z() == Approx(1.0).margin(1e-3));
+  REQUIRE(ring.length() == Approx(10 * std::numbers::pi).epsilon(1e-9));
+}
