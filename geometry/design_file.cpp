@@ -429,7 +429,9 @@ std::pair<int, int> lineAndColumn(const std::string& text, std::size_t byte) {
   return {line, column};
 }
 
-json curveJson(int degree, const std::vector<double>& knots) { return json{{"degree", degree}, {"knots", knots}}; }
+using ordered = nlohmann::ordered_json;
+
+ordered curveJson(int degree, const std::vector<double>& knots) { return ordered{{"degree", degree}, {"knots", knots}}; }
 
 }  // namespace
 
@@ -496,17 +498,17 @@ RodStructure readDesign(const std::filesystem::path& file) {
   return parseDesign(text.str(), file.string());
 }
 
-json designToJson(const RodStructure& structure, const std::string& description) {
-  json rods = json::array();
+nlohmann::ordered_json designToJson(const RodStructure& structure, const std::string& description) {
+  ordered rods = ordered::array();
   for (const Rod& rod : structure.rods) {
     const NurbsCurve& c = rod.centerline();
-    json centerline = curveJson(c.degree(), c.knots());
-    json points = json::array();
+    ordered centerline = curveJson(c.degree(), c.knots());
+    ordered points = ordered::array();
     for (const Vec3& p : c.points()) points.push_back({p.x(), p.y(), p.z()});
     centerline["points"] = points;
     if (c.isRational()) centerline["weights"] = c.weights();
 
-    json r{{"name", rod.name()}, {"centerline", centerline}};
+    ordered r{{"name", rod.name()}, {"centerline", centerline}};
     const Section& s = rod.section();
     if (s.shape == SectionShape::Circle) r["section"] = {{"shape", "circle"}, {"diameter", s.width}};
     else r["section"] = {{"shape", std::string(toString(s.shape))}, {"width", s.width}, {"height", s.height}};
@@ -516,8 +518,8 @@ json designToJson(const RodStructure& structure, const std::string& description)
     }
     if (rod.orientation()) {
       const QuaternionSpline& q = *rod.orientation();
-      json o = curveJson(q.degree(), q.knots());
-      json quats = json::array();
+      ordered o = curveJson(q.degree(), q.knots());
+      ordered quats = ordered::array();
       for (const auto& v : q.quaternions()) quats.push_back({v[0], v[1], v[2], v[3]});
       o["quaternions"] = quats;
       r["orientation"] = o;
@@ -527,13 +529,13 @@ json designToJson(const RodStructure& structure, const std::string& description)
     if (e.isConstant()) {
       r["modulus"] = e.values().front();
     } else {
-      json m = curveJson(e.degree(), e.knots());
+      ordered m = curveJson(e.degree(), e.knots());
       m["values"] = e.values();
       r["modulus"] = m;
     }
     rods.push_back(std::move(r));
   }
-  json doc{{"format", kDesignFormat}, {"units", "mm"}};
+  ordered doc{{"format", kDesignFormat}, {"units", "mm"}};
   if (!description.empty()) doc["description"] = description;
   doc["rods"] = std::move(rods);
   return doc;
@@ -544,7 +546,16 @@ void writeDesign(const RodStructure& structure, const std::filesystem::path& fil
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) throw std::runtime_error(tmp.string() + ": cannot open for writing");
-    out << designToJson(structure, description).dump(1) << '\n';
+    const auto doc = designToJson(structure, description);
+    out << "{\n";
+    for (auto it = doc.begin(); it != doc.end(); ++it) {
+      if (it.key() == "rods") continue;
+      out << "  " << ordered(it.key()).dump() << ": " << it.value().dump() << ",\n";
+    }
+    out << "  \"rods\": [\n";
+    const auto& rods = doc["rods"];
+    for (std::size_t i = 0; i < rods.size(); ++i) out << "    " << rods[i].dump() << (i + 1 < rods.size() ? ",\n" : "\n");
+    out << "  ]\n}\n";
     out.close();
     if (!out) {
       std::filesystem::remove(tmp);

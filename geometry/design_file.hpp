@@ -38,8 +38,10 @@ RodStructure readDesign(const std::filesystem::path& file);
 // `sourceName` names the text in messages.
 RodStructure parseDesign(const std::string& text, const std::string& sourceName);
 
-nlohmann::json designToJson(const RodStructure& structure, const std::string& description = {});
-// Written to a temporary name beside `file` and renamed, so a reader never sees half a file.
+// Keys in the order of the format description (name, centerline, section, frame, caps, modulus).
+nlohmann::ordered_json designToJson(const RodStructure& structure, const std::string& description = {});
+// One rod per line, so diffs of generated designs stay readable. Written to a temporary name beside
+// `file` and renamed, so a reader never sees half a file.
 void writeDesign(const RodStructure& structure, const std::filesystem::path& file, const std::string& description = {});
 
 }  // namespace rodfab::geometry

@@ -1,0 +1,263 @@
+#include "examples/example_designs.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <functional>
+#include <map>
+#include <numbers>
+#include <string>
+#include <tuple>
+
+namespace rodfab::examples {
+
+using geometry::BSplineField;
+using geometry::CapStyle;
+using geometry::NurbsCurve;
+using geometry::Rod;
+using geometry::RodStructure;
+using geometry::Section;
+using geometry::Vec3;
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+NurbsCurve straight(const Vec3& a, const Vec3& b) { return NurbsCurve(1, {0, 0, 1, 1}, {a, b}); }
+
+// Control points of the cubic Bezier that passes through s[0..3] at t = 0, 1/3, 2/3, 1.
+template <class T>
+std::vector<T> bezierThrough(const std::array<T, 4>& s) {
+  return {s[0], T((-5.0 * s[0] + 18.0 * s[1] - 9.0 * s[2] + 2.0 * s[3]) / 6.0),
+          T((2.0 * s[0] - 9.0 * s[1] + 18.0 * s[2] - 5.0 * s[3]) / 6.0), s[3]};
+}
+
+NurbsCurve cubicThrough(const std::function<Vec3(double)>& q) {
+  return NurbsCurve(3, {0, 0, 0, 0, 1, 1, 1, 1}, bezierThrough<Vec3>({q(0.0), q(1.0 / 3.0), q(2.0 / 3.0), q(1.0)}));
+}
+
+// Cubic quaternion spline through four samples of a rotation path (kept in one hemisphere, since
+// q and -q are the same rotation but would interpolate through zero).
+geometry::QuaternionSpline quaternionsThrough(const std::function<Eigen::Vector4d(double)>& q) {
+  std::array<Eigen::Vector4d, 4> s = {q(0.0), q(1.0 / 3.0), q(2.0 / 3.0), q(1.0)};
+  for (int i = 1; i < 4; ++i)
+    if (s[i].dot(s[i - 1]) < 0.0) s[i] = -s[i];
+  return geometry::QuaternionSpline(3, {0, 0, 0, 0, 1, 1, 1, 1}, bezierThrough(s));
+}
+
+// Circular arc about the z axis at height z, from angle a0 to a1 (|a1 - a0| < pi): one rational
+// quadratic span, exact.
+NurbsCurve ringArc(double radius, double a0, double a1, double z) {
+  const double half = 0.5 * (a1 - a0), mid = 0.5 * (a0 + a1);
+  const double w = std::cos(half);
+  const Vec3 p0(radius * std::cos(a0), radius * std::sin(a0), z);
+  const Vec3 p1(radius / w * std::cos(mid), radius / w * std::sin(mid), z);
+  const Vec3 p2(radius * std::cos(a1), radius * std::sin(a1), z);
+  return NurbsCurve(2, {0, 0, 0, 1, 1, 1}, {p0, p1, p2}, {1, w, 1});
+}
+
+// Piecewise-linear E(s) through the start, middle and end values.
+BSplineField threePointModulus(double start, double middle, double end) {
+  return BSplineField(1, {0, 0, 0.5, 1, 1}, {start, middle, end});
+}
+
+std::string numbered(const std::string& prefix, std::size_t i) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "%03zu", i);
+  return prefix + buf;
+}
+
+Rod circleRod(std::string name, NurbsCurve curve, double diameter, BSplineField modulus) {
+  return Rod(std::move(name), std::move(curve), Section::circle(diameter), std::nullopt, std::nullopt,
+             CapStyle::Round, std::move(modulus));
+}
+
+}  // namespace
+
+RodStructure unfoldingBox() {
+  constexpr double kSide = 20.0, kGap = 2.5, kPitch = kSide + kGap;
+  constexpr double kEdgeDiameter = 1.5;
+  // The cross-shaped net of a cube: a column of four squares with one on each side of the second.
+  const std::pair<int, int> cells[] = {{1, 0}, {1, 1}, {1, 2}, {1, 3}, {0, 1}, {2, 1}};
+  RodStructure s;
+  s.source = "unfolding-box";
+  // Stiff in the middle of each edge, softer towards the corners so the frames stay square when folded.
+  const BSplineField edgeModulus(1, {0, 0, 0.25, 0.75, 1, 1}, {40, 120, 120, 40});
+  for (const auto& [cx, cy] : cells) {
+    const Vec3 o(cx * kPitch, cy * kPitch, 0.0);
+    const Vec3 c[4] = {o, o + Vec3(kSide, 0, 0), o + Vec3(kSide, kSide, 0), o + Vec3(0, kSide, 0)};
+    for (int e = 0; e < 4; ++e)
+      s.rods.push_back(circleRod("square" + std::to_string(cx) + std::to_string(cy) + "-edge" + std::to_string(e),
+                                 straight(c[e], c[(e + 1) % 4]), kEdgeDiameter, edgeModulus));
+  }
+  // Hinges: two short soft rods across each gap between neighbouring squares, at a quarter and three
+  // quarters of the shared side. Elliptic, thin out of the plane (d1 = the plane normal), at the floor.
+  const std::tuple<std::pair<int, int>, std::pair<int, int>> neighbours[] = {
+      {{1, 0}, {1, 1}}, {{1, 1}, {1, 2}}, {{1, 2}, {1, 3}}, {{0, 1}, {1, 1}}, {{1, 1}, {2, 1}}};
+  int hinge = 0;
+  for (const auto& [a, b] : neighbours) {
+    const bool vertical = a.first == b.first;  // b above a: hinge runs along y across the gap
+    for (double f : {0.25, 0.75}) {
+      Vec3 from, to;
+      if (vertical) {
+        from = Vec3(a.first * kPitch + f * kSide, a.second * kPitch + kSide, 0);
+        to = Vec3(b.first * kPitch + f * kSide, b.second * kPitch, 0);
+      } else {
+        from = Vec3(a.first * kPitch + kSide, a.second * kPitch + f * kSide, 0);
+        to = Vec3(b.first * kPitch, b.second * kPitch + f * kSide, 0);
+      }
+      s.rods.emplace_back("hinge-" + std::to_string(hinge++), straight(from, to), Section::ellipse(0.9, 1.5),
+                          Vec3(0, 0, 1), std::nullopt, CapStyle::Round, BSplineField::constant(8.0, 0, 1));
+    }
+  }
+  return s;
+}
+
+RodStructure bucklingSpring(const SpringParameters& p) {
+  RodStructure s;
+  s.source = "buckling-spring";
+  const double dTheta = 2.0 * kPi / p.nodesAround;
+  auto modulusAt = [&](double z) {
+    const double t = std::abs(z / p.height - 0.5) * 2.0;
+    return p.modulusMiddle + (p.modulusEnds - p.modulusMiddle) * t * t;
+  };
+  auto nodeAngle = [&](int i, int level) { return dTheta * (i + 0.5 * (level % 2)); };
+  std::size_t strut = 0;
+  for (int level = 0; level < p.levels; ++level) {
+    const double z0 = p.height * level / p.levels, z1 = p.height * (level + 1) / p.levels;
+    for (int i = 0; i < p.nodesAround; ++i) {
+      const double a0 = nodeAngle(i, level);
+      for (double side : {-0.5, 0.5}) {
+        const double a1 = a0 + side * dTheta;
+        auto helix = [&](double t) {
+          const double a = a0 + t * (a1 - a0);
+          return Vec3(p.radius * std::cos(a), p.radius * std::sin(a), z0 + t * (z1 - z0));
+        };
+        s.rods.push_back(circleRod(numbered("strut-", strut++), cubicThrough(helix), p.rodDiameter,
+                                   threePointModulus(modulusAt(z0), modulusAt(0.5 * (z0 + z1)), modulusAt(z1))));
+      }
+    }
+  }
+  std::size_t arc = 0;
+  for (int level : {0, p.levels}) {
+    const double z = p.height * level / p.levels;
+    for (int i = 0; i < p.nodesAround; ++i)
+      s.rods.push_back(circleRod(numbered("ring-", arc++),
+                                 ringArc(p.radius, nodeAngle(i, level), nodeAngle(i + 1, level), z), p.rodDiameter,
+                                 BSplineField::constant(modulusAt(z), 0, 1)));
+  }
+  return s;
+}
+
+RodStructure bucklingSpringScaledTo(const Vec3& envelope, double rodDiameter) {
+  SpringParameters p;
+  p.rodDiameter = rodDiameter;
+  // The solid's size is scale * (centerline extent) + d per axis; measure the extent once at scale 1
+  // (the struts bulge slightly past the nominal radius) and take the largest scale that fits.
+  const Vec3 extent = bucklingSpring(p).bounds().sizes() - Vec3::Constant(rodDiameter);
+  const double scale = ((envelope - Vec3::Constant(rodDiameter)).array() / extent.array()).minCoeff();
+  p.radius *= scale;
+  p.height *= scale;
+  RodStructure s = bucklingSpring(p);
+  s.source = "buckling-spring-scaled";
+  return s;
+}
+
+RodStructure armCast() {
+  constexpr double kRadius = 30.0, kLength = 70.0, kCell = 7.25;  // mm; kCell = hexagon edge length
+  const double arcLength = kPi * kRadius;
+  using Point = Eigen::Vector2d;  // unrolled cast: x = arc length around, y = axial
+  using Key = std::pair<long, long>;
+  auto key = [](const Point& q) { return Key(std::lround(q.x() * 1000.0), std::lround(q.y() * 1000.0)); };
+  // Pointy-top hexagons clipped to the unrolled rectangle; a sorted map keeps the order deterministic.
+  std::map<std::pair<Key, Key>, std::pair<Point, Point>> edges;
+  auto addEdge = [&](Point a, Point b) {
+    Key ka = key(a), kb = key(b);
+    if (ka == kb) return;
+    if (kb < ka) std::swap(ka, kb), std::swap(a, b);
+    edges.emplace(std::make_pair(ka, kb), std::make_pair(a, b));
+  };
+  // Liang-Barsky clipping of a segment to [0, arcLength] x [0, kLength].
+  auto clip = [&](const Point& a, const Point& b, Point& ca, Point& cb) {
+    double t0 = 0.0, t1 = 1.0;
+    const Point d = b - a;
+    const double p[4] = {-d.x(), d.x(), -d.y(), d.y()};
+    const double q[4] = {a.x(), arcLength - a.x(), a.y(), kLength - a.y()};
+    for (int i = 0; i < 4; ++i) {
+      if (p[i] == 0.0) {
+        if (q[i] < 0.0) return false;
+        continue;
+      }
+      const double t = q[i] / p[i];
+      if (p[i] < 0.0) t0 = std::max(t0, t); else t1 = std::min(t1, t);
+    }
+    if (t1 - t0 < 1e-9) return false;
+    ca = a + t0 * d;
+    cb = a + t1 * d;
+    return true;
+  };
+  const double dx = std::sqrt(3.0) * kCell, dy = 1.5 * kCell;
+  for (int row = -1; row * dy <= kLength + 2 * kCell; ++row) {
+    for (int col = -1; col * dx <= arcLength + 2 * kCell; ++col) {
+      const Point centre(dx * (col + 0.5 * (row & 1)), dy * row);
+      for (int k = 0; k < 6; ++k) {
+        const double a0 = kPi / 6 + k * kPi / 3, a1 = a0 + kPi / 3;
+        Point ca, cb;
+        if (!clip(centre + kCell * Point(std::cos(a0), std::sin(a0)), centre + kCell * Point(std::cos(a1), std::sin(a1)), ca, cb))
+          continue;
+        // Drop slivers along the border: they duplicate the rim rods.
+        const bool alongBorder = (std::abs(ca.x() - cb.x()) < 1e-9 && (std::abs(ca.x()) < 1e-9 || std::abs(ca.x() - arcLength) < 1e-9)) ||
+                                 (std::abs(ca.y() - cb.y()) < 1e-9 && (std::abs(ca.y()) < 1e-9 || std::abs(ca.y() - kLength) < 1e-9));
+        if ((cb - ca).norm() > 0.25 * kCell && !alongBorder) addEdge(ca, cb);
+      }
+    }
+  }
+  // The rim: the border of the rectangle, split where lattice edges end on it so joints are rod ends.
+  std::vector<Point> border = {{0, 0}, {arcLength, 0}, {arcLength, kLength}, {0, kLength}};
+  for (const auto& [k, e] : edges)
+    for (const Point& q : {e.first, e.second})
+      if (q.x() < 1e-9 || q.x() > arcLength - 1e-9 || q.y() < 1e-9 || q.y() > kLength - 1e-9) border.push_back(q);
+  auto perimeter = [&](const Point& q) {  // position along the border, counter-clockwise from (0, 0)
+    if (q.y() < 1e-9) return q.x();
+    if (q.x() > arcLength - 1e-9) return arcLength + q.y();
+    if (q.y() > kLength - 1e-9) return 2 * arcLength + kLength - q.x();
+    return 2 * arcLength + 2 * kLength - q.y();
+  };
+  std::sort(border.begin(), border.end(), [&](const Point& a, const Point& b) { return perimeter(a) < perimeter(b); });
+  for (std::size_t i = 0; i < border.size(); ++i) addEdge(border[i], border[(i + 1) % border.size()]);
+
+  auto onCylinder = [&](const Point& q) {
+    const double theta = q.x() / kRadius;
+    return Vec3(q.y(), kRadius * std::cos(theta), kRadius * std::sin(theta));
+  };
+  auto modulusAt = [&](double s) {
+    const double t = std::abs(s / arcLength - 0.5) * 2.0;  // 0 on the crown, 1 on the rims
+    return 8.0 + 112.0 * t * t;
+  };
+  RodStructure cast;
+  cast.source = "arm-cast";
+  std::size_t n = 0;
+  for (const auto& [k, e] : edges) {
+    const auto& [p0, p1] = e;
+    auto path = [&](double t) { return onCylinder(p0 + t * (p1 - p0)); };
+    // d1 = the surface normal: the strip is 1.0 mm thick through the cast and 2.0 mm wide across it.
+    // A rotation-minimizing frame would drift off the normal along these helical paths, so the frame
+    // is given as a quaternion spline, the way a rod solver writes it.
+    auto frame = [&](double t) {
+      const Point q = p0 + t * (p1 - p0);
+      const double theta = q.x() / kRadius;
+      const Vec3 normal(0, std::cos(theta), std::sin(theta));
+      const Vec3 tangent = Vec3(p1.y() - p0.y(), -std::sin(theta) * (p1.x() - p0.x()), std::cos(theta) * (p1.x() - p0.x())).normalized();
+      Eigen::Matrix3d r;
+      r << normal, tangent.cross(normal), tangent;
+      const Eigen::Quaterniond quat(r);
+      return Eigen::Vector4d(quat.w(), quat.x(), quat.y(), quat.z());
+    };
+    cast.rods.emplace_back(numbered("strip-", n++), cubicThrough(path), Section::rectangle(1.0, 2.0), std::nullopt,
+                           quaternionsThrough(frame), CapStyle::Round,
+                           threePointModulus(modulusAt(p0.x()), modulusAt(0.5 * (p0.x() + p1.x())), modulusAt(p1.x())));
+  }
+  return cast;
+}
+
+}  // namespace rodfab::examples

@@ -1,0 +1,111 @@
+// examples/: the bundled designs are what the generator makes, and they are sound structures.
+#include "examples/example_designs.hpp"
+#include "geometry/geometry.hpp"
+
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+#include <numeric>
+
+using namespace rodfab;
+using geometry::Vec3;
+
+namespace {
+
+// Rods touch when an end of one lies on the other's centerline: union them and count components.
+std::size_t connectedComponents(const geometry::RodStructure& s, double tolerance) {
+  std::vector<std::size_t> parent(s.rods.size());
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](std::size_t i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  for (std::size_t a = 0; a < s.rods.size(); ++a) {
+    const auto& ca = s.rods[a].centerline();
+    for (const Vec3& end : {ca.point(ca.domainBegin()), ca.point(ca.domainEnd())}) {
+      for (std::size_t b = 0; b < s.rods.size(); ++b) {
+        if (b == a || s.rods[b].bounds().exteriorDistance(end) > tolerance) continue;
+        if (s.rods[b].closestPoint(end).distance < tolerance) parent[find(a)] = find(b);
+      }
+    }
+  }
+  std::size_t roots = 0;
+  for (std::size_t i = 0; i < parent.size(); ++i) roots += find(i) == i;
+  return roots;
+}
+
+void requireMatchesCommittedFile(const geometry::RodStructure& generated, const std::string& file) {
+  const geometry::RodStructure committed = geometry::readDesign(std::string(RODFAB_SOURCE_DIR "/examples/") + file);
+  INFO(file << ": regenerate with rodfab_generate_examples");
+  REQUIRE(geometry::designToJson(committed) == geometry::designToJson(generated));
+}
+
+}  // namespace
+
+TEST_CASE("Unfolding box: 34 rods, flat, one connected net", "[examples]") {
+  const auto box = examples::unfoldingBox();
+  requireMatchesCommittedFile(box, "unfolding-box.json");
+  REQUIRE(box.rods.size() == 34);
+  const auto summary = geometry::summarize(box);
+  REQUIRE(summary.bounds.sizes().z() == Approx(1.5).margin(1e-6));  // printed flat: one rod thick
+  REQUIRE(summary.ellipses == 10);
+  REQUIRE(summary.modulusMin == Approx(8.0));
+  REQUIRE(summary.modulusMax == Approx(120.0));
+  // Six 20 mm squares: 24 edges of 20 mm, 10 hinges of 2.5 mm.
+  REQUIRE(summary.totalLength == Approx(24 * 20.0 + 10 * 2.5).epsilon(1e-9));
+  REQUIRE(connectedComponents(box, 1e-9) == 1);
+}
+
+TEST_CASE("Buckling spring: 312 rods on the cylinder, softest at mid-height", "[examples]") {
+  const examples::SpringParameters p;
+  const auto spring = examples::bucklingSpring(p);
+  requireMatchesCommittedFile(spring, "buckling-spring.json");
+  REQUIRE(spring.rods.size() == 312);
+  REQUIRE(connectedComponents(spring, 1e-9) == 1);
+  for (const auto& rod : spring.rods) {
+    const auto& c = rod.centerline();
+    for (int k = 0; k <= 10; ++k) {
+      const Vec3 q = c.point(k / 10.0);
+      // Struts interpolate the helix at four points: they stay within 0.05 mm of the cylinder.
+      REQUIRE(std::hypot(q.x(), q.y()) == Approx(p.radius).margin(0.05));
+      const double t = std::abs(q.z() / p.height - 0.5) * 2.0;
+      const double expected = p.modulusMiddle + (p.modulusEnds - p.modulusMiddle) * t * t;
+      // E is piecewise linear along each strut: close to the quadratic profile in z.
+      REQUIRE(rod.modulus().value(k / 10.0) == Approx(expected).margin(0.03 * p.modulusEnds));
+    }
+  }
+  const auto summary = geometry::summarize(spring);
+  REQUIRE(summary.modulusMin == Approx(p.modulusMiddle));
+  REQUIRE(summary.bounds.sizes().z() == Approx(p.height + p.rodDiameter).margin(1e-3));
+}
+
+TEST_CASE("Scaled buckling spring fills the 6-gigavoxel envelope", "[examples]") {
+  const Vec3 envelope(84.6, 84.6, 90.0);
+  const auto spring = examples::bucklingSpringScaledTo(envelope, 1.2);
+  REQUIRE(spring.rods.size() == 312);
+  const Vec3 size = spring.bounds().sizes();
+  REQUIRE((size.array() <= envelope.array() + 1e-6).all());
+  // Limited by one dimension, and the design fills it.
+  REQUIRE(std::max({size.x() / envelope.x(), size.z() / envelope.z()}) == Approx(1.0).margin(2e-3));
+}
+
+TEST_CASE("Arm cast: rectangular strips on a half cylinder, surface-normal frames", "[examples]") {
+  const auto cast = examples::armCast();
+  requireMatchesCommittedFile(cast, "arm-cast.json");
+  REQUIRE(cast.rods.size() > 150);
+  REQUIRE(connectedComponents(cast, 1e-9) == 1);
+  const auto summary = geometry::summarize(cast);
+  REQUIRE(summary.rectangles == cast.rods.size());
+  for (const auto& rod : cast.rods) {
+    const auto& c = rod.centerline();
+    for (double u : {0.0, 0.5, 1.0}) {
+      const Vec3 q = c.point(u);
+      REQUIRE(std::hypot(q.y(), q.z()) == Approx(30.0).margin(0.05));
+      REQUIRE(q.z() >= -1e-9);
+      // d1 (the 1 mm thickness) stays along the surface normal.
+      const auto f = rod.frame().at(c, u);
+      const Vec3 radial = Vec3(0, q.y(), q.z()).normalized();
+      REQUIRE(std::abs(f.d1.dot(radial)) == Approx(1.0).margin(2e-3));
+    }
+  }
+}
