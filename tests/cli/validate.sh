@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# rodfab validate from the command line: exit codes and messages a technician sees.
+#   validate.sh RODFAB SOURCE_DIR
+set -u
+rodfab=$1 src=$2
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+
+for f in "$src"/examples/*.json; do
+  "$rodfab" validate "$f" > "$tmp/out" 2>&1 || fail "bundled $f does not validate: $(cat "$tmp/out")"
+  grep -q "valid:         yes" "$tmp/out" || fail "no verdict for $f"
+done
+
+"$rodfab" validate --json "$src/examples/unfolding-box.json" > "$tmp/json" || fail "--json"
+grep -q '"rods": 34' "$tmp/json" || fail "--json lacks the rod count"
+
+# A file with two errors: both are named with their JSON path, exit code 1.
+cat > "$tmp/bad.json" <<'JSON'
+{ "format": "rodfab.design/1", "units": "mm",
+  "rods": [ { "name": "a", "centerline": { "degree": 1, "knots": [0, 0, 1], "points": [[0,0,0],[1,0,0]] },
+              "section": { "shape": "circle", "diameter": -2 }, "modulus": 10 } ] }
+JSON
+"$rodfab" validate "$tmp/bad.json" > "$tmp/out" 2> "$tmp/err"
+code=$?
+[ $code -eq 1 ] || fail "bad design: exit code $code, expected 1"
+grep -q "bad.json: rods\[0\].centerline.knots: expected 4 knots" "$tmp/err" || fail "knot error not reported: $(cat "$tmp/err")"
+grep -q "bad.json: rods\[0\].section.diameter: expected a diameter in mm > 0" "$tmp/err" || fail "diameter error not reported: $(cat "$tmp/err")"
+[ ! -s "$tmp/out" ] || fail "a failed validation printed a summary"
+
+"$rodfab" validate "$tmp/missing.json" 2> "$tmp/err"
+[ $? -eq 1 ] || fail "missing file: expected exit 1"
+grep -q "missing.json: cannot open" "$tmp/err" || fail "missing file not named"
+
+"$rodfab" validate 2> /dev/null
+[ $? -eq 2 ] || fail "no design argument: expected usage exit 2"
+"$rodfab" validate --bogus x.json 2> /dev/null
+[ $? -eq 2 ] || fail "unknown option: expected usage exit 2"
+"$rodfab" validate --help | grep -q "usage: rodfab validate" || fail "--help"
+"$rodfab" frobnicate 2> /dev/null
+[ $? -eq 2 ] || fail "unknown command: expected exit 2"
+echo "validate CLI: all checks passed"
