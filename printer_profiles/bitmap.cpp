@@ -1,0 +1,312 @@
+#include "printer_profiles/bitmap.hpp"
+
+#include <png.h>
+
+#include <bit>
+#include <cmath>
+#include <csetjmp>
+#include <cstdio>
+#include <cstring>
+
+namespace rodfab::printer_profiles {
+
+Bitmap::Bitmap(int width, int height) : width_(width), height_(height) {
+  if (width <= 0 || height <= 0) throw std::invalid_argument("bitmap size must be positive");
+  stride_ = (static_cast<std::size_t>(width) + 7) / 8;
+  bits_.assign(stride_ * static_cast<std::size_t>(height), 0);
+}
+
+std::size_t Bitmap::count() const {
+  std::size_t n = 0;
+  for (std::uint8_t b : bits_) n += static_cast<std::size_t>(std::popcount(b));
+  return n;
+}
+
+RgbImage::RgbImage(int w, int h, std::uint8_t r, std::uint8_t g, std::uint8_t b) : width(w), height(h) {
+  pixels.resize(static_cast<std::size_t>(w) * h * 3);
+  for (std::size_t i = 0; i < pixels.size(); i += 3) {
+    pixels[i] = r;
+    pixels[i + 1] = g;
+    pixels[i + 2] = b;
+  }
+}
+
+std::uint32_t pixelsPerMetre(int dpi) { return static_cast<std::uint32_t>(std::lround(dpi / 0.0254)); }
+
+// ---------------------------------------------------------------------------------------------- BMP
+
+namespace {
+
+constexpr std::size_t kFileHeaderSize = 14;
+constexpr std::size_t kInfoHeaderSize = 40;
+constexpr std::size_t kPaletteSize = 8;
+
+void put16(Bytes& out, std::size_t at, std::uint16_t v) {
+  out[at] = static_cast<std::uint8_t>(v);
+  out[at + 1] = static_cast<std::uint8_t>(v >> 8);
+}
+void put32(Bytes& out, std::size_t at, std::uint32_t v) {
+  for (int i = 0; i < 4; ++i) out[at + i] = static_cast<std::uint8_t>(v >> (8 * i));
+}
+std::uint16_t get16(std::span<const std::uint8_t> in, std::size_t at) {
+  return static_cast<std::uint16_t>(in[at] | (in[at + 1] << 8));
+}
+std::uint32_t get32(std::span<const std::uint8_t> in, std::size_t at) {
+  return static_cast<std::uint32_t>(in[at]) | (static_cast<std::uint32_t>(in[at + 1]) << 8) |
+         (static_cast<std::uint32_t>(in[at + 2]) << 16) | (static_cast<std::uint32_t>(in[at + 3]) << 24);
+}
+
+// BMP rows are padded to whole 32-bit words.
+std::size_t bmpStride(int width) { return (static_cast<std::size_t>(width) + 31) / 32 * 4; }
+
+}  // namespace
+
+Bytes encodeBmp(const Bitmap& bitmap, int xDpi, int yDpi) {
+  const std::size_t stride = bmpStride(bitmap.width());
+  const std::size_t offset = kFileHeaderSize + kInfoHeaderSize + kPaletteSize;
+  const std::size_t imageSize = stride * static_cast<std::size_t>(bitmap.height());
+  Bytes out(offset + imageSize, 0);
+  out[0] = 'B';
+  out[1] = 'M';
+  put32(out, 2, static_cast<std::uint32_t>(out.size()));
+  put32(out, 10, static_cast<std::uint32_t>(offset));
+  put32(out, 14, kInfoHeaderSize);
+  put32(out, 18, static_cast<std::uint32_t>(bitmap.width()));
+  put32(out, 22, static_cast<std::uint32_t>(bitmap.height()));  // positive: bottom-up, the form every reader takes
+  put16(out, 26, 1);                                              // planes
+  put16(out, 28, 1);                                              // bits per pixel
+  put32(out, 30, 0);                                              // BI_RGB, uncompressed
+  put32(out, 34, static_cast<std::uint32_t>(imageSize));
+  put32(out, 38, pixelsPerMetre(xDpi));
+  put32(out, 42, pixelsPerMetre(yDpi));
+  put32(out, 46, 2);  // palette entries
+  put32(out, 50, 2);
+  // Palette (blue, green, red, reserved): index 0 black, index 1 white.
+  out[58] = out[59] = out[60] = 0xff;
+  for (int r = 0; r < bitmap.height(); ++r) {
+    const std::uint8_t* src = bitmap.row(bitmap.height() - 1 - r);
+    std::memcpy(out.data() + offset + static_cast<std::size_t>(r) * stride, src, bitmap.stride());
+  }
+  return out;
+}
+
+DecodedBitmap decodeBmp(std::span<const std::uint8_t> in) {
+  if (in.size() < kFileHeaderSize + kInfoHeaderSize || in[0] != 'B' || in[1] != 'M')
+    throw ImageError("not a BMP file (expected the 'BM' signature and a 54-byte header)");
+  const std::uint32_t headerSize = get32(in, 14);
+  if (headerSize < kInfoHeaderSize) throw ImageError("BMP header of " + std::to_string(headerSize) + " bytes; expected >= 40");
+  const auto width = static_cast<std::int32_t>(get32(in, 18));
+  const auto rawHeight = static_cast<std::int32_t>(get32(in, 22));
+  const std::uint16_t bpp = get16(in, 28);
+  const std::uint32_t compression = get32(in, 30);
+  DecodedBitmap result;
+  result.bitDepth = bpp;
+  result.xPixelsPerMetre = get32(in, 38);
+  result.yPixelsPerMetre = get32(in, 42);
+  if (bpp != 1) throw ImageError("BMP has " + std::to_string(bpp) + " bits per pixel; expected 1");
+  if (compression != 0) throw ImageError("BMP is compressed (method " + std::to_string(compression) + "); expected none");
+  if (width <= 0 || rawHeight == 0 || rawHeight == INT32_MIN)
+    throw ImageError("BMP size " + std::to_string(width) + " x " + std::to_string(rawHeight) + " is not a valid image size");
+  const bool bottomUp = rawHeight > 0;
+  const int height = bottomUp ? rawHeight : -rawHeight;
+
+  std::uint32_t colours = get32(in, 46);
+  if (colours == 0) colours = 2;
+  const std::size_t paletteAt = kFileHeaderSize + headerSize;
+  if (colours != 2 || in.size() < paletteAt + 8) throw ImageError("BMP palette is not the expected two entries");
+  const auto brightness = [&](std::size_t at) { return in[at] + in[at + 1] + in[at + 2]; };
+  if (brightness(paletteAt) != 0 || brightness(paletteAt + 4) != 3 * 255)
+    throw ImageError("BMP palette is not (0 = black, 1 = white); expected 1 = deposit in white");
+
+  const std::uint32_t offset = get32(in, 10);
+  const std::size_t stride = bmpStride(width);
+  const std::size_t need = static_cast<std::size_t>(offset) + stride * static_cast<std::size_t>(height);
+  if (offset < paletteAt + 8 || in.size() < need)
+    throw ImageError("BMP is truncated: " + std::to_string(in.size()) + " bytes, expected " + std::to_string(need));
+  result.bitmap = Bitmap(width, height);
+  for (int r = 0; r < height; ++r) {
+    const int fileRow = bottomUp ? height - 1 - r : r;
+    std::memcpy(result.bitmap.row(r), in.data() + offset + static_cast<std::size_t>(fileRow) * stride,
+                result.bitmap.stride());
+  }
+  // Bits past the last column are padding; clear them so equal images compare equal.
+  if (const int spare = width % 8) {
+    const auto keep = static_cast<std::uint8_t>(0xffu << (8 - spare));
+    for (int r = 0; r < height; ++r) result.bitmap.row(r)[result.bitmap.stride() - 1] &= keep;
+  }
+  return result;
+}
+
+// ---------------------------------------------------------------------------------------------- PNG
+
+namespace {
+
+// libpng reports errors by longjmp; nothing with a destructor may live in a frame it jumps over, so
+// the calls into libpng sit in small functions of plain data and C++ objects stay in the callers.
+struct PngIo {
+  Bytes* out = nullptr;
+  const std::uint8_t* in = nullptr;
+  std::size_t inSize = 0, pos = 0;
+  bool outOfMemory = false;
+  char error[256] = {};
+};
+
+void pngError(png_structp png, png_const_charp message) {
+  auto* io = static_cast<PngIo*>(png_get_error_ptr(png));
+  std::snprintf(io->error, sizeof io->error, "%s", message);
+  png_longjmp(png, 1);
+}
+void pngWarning(png_structp, png_const_charp) {}
+
+void pngWrite(png_structp png, png_bytep data, png_size_t length) {
+  auto* io = static_cast<PngIo*>(png_get_io_ptr(png));
+  try {
+    io->out->insert(io->out->end(), data, data + length);
+  } catch (const std::bad_alloc&) {
+    io->outOfMemory = true;
+    png_error(png, "out of memory");
+  }
+}
+void pngFlush(png_structp) {}
+
+void pngRead(png_structp png, png_bytep data, png_size_t length) {
+  auto* io = static_cast<PngIo*>(png_get_io_ptr(png));
+  if (io->inSize - io->pos < length) png_error(png, "file is truncated");
+  std::memcpy(data, io->in + io->pos, length);
+  io->pos += length;
+}
+
+struct PngWriteSpec {
+  png_uint_32 width, height;
+  int bitDepth, colourType;
+  png_uint_32 xPpm, yPpm;  // 0: no pHYs chunk
+  int compressionLevel;
+  const std::uint8_t* rows;
+  std::size_t stride;
+};
+
+bool writePng(PngIo& io, const PngWriteSpec& spec) {
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &io, pngError, pngWarning);
+  if (!png) return false;
+  png_infop info = png_create_info_struct(png);
+  if (!info || setjmp(png_jmpbuf(png))) {
+    png_destroy_write_struct(&png, &info);
+    return false;
+  }
+  png_set_write_fn(png, &io, pngWrite, pngFlush);
+  png_set_IHDR(png, info, spec.width, spec.height, spec.bitDepth, spec.colourType, PNG_INTERLACE_NONE,
+               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  if (spec.xPpm) png_set_pHYs(png, info, spec.xPpm, spec.yPpm, PNG_RESOLUTION_METER);
+  png_set_compression_level(png, spec.compressionLevel);
+  if (spec.bitDepth == 1) png_set_filter(png, 0, PNG_FILTER_NONE);  // filters do not help 1-bit rows
+  png_write_info(png, info);
+  for (png_uint_32 r = 0; r < spec.height; ++r) png_write_row(png, spec.rows + r * spec.stride);
+  png_write_end(png, nullptr);
+  png_destroy_write_struct(&png, &info);
+  return true;
+}
+
+Bytes writePngOrThrow(const PngWriteSpec& spec) {
+  Bytes out;
+  PngIo io;
+  io.out = &out;
+  if (!writePng(io, spec)) {
+    if (io.outOfMemory) throw std::bad_alloc();
+    throw ImageError(std::string("PNG encoding failed: ") + io.error);
+  }
+  return out;
+}
+
+struct PngHeader {
+  png_uint_32 width = 0, height = 0;
+  int bitDepth = 0, colourType = 0, interlace = 0;
+  png_uint_32 xPpm = 0, yPpm = 0;
+};
+
+class PngReader {
+public:
+  explicit PngReader(std::span<const std::uint8_t> file) {
+    io_.in = file.data();
+    io_.inSize = file.size();
+    png_ = png_create_read_struct(PNG_LIBPNG_VER_STRING, &io_, pngError, pngWarning);
+    if (png_) info_ = png_create_info_struct(png_);
+    if (!png_ || !info_) throw std::bad_alloc();
+  }
+  ~PngReader() { png_destroy_read_struct(&png_, &info_, nullptr); }
+  PngReader(const PngReader&) = delete;
+  PngReader& operator=(const PngReader&) = delete;
+
+  PngHeader header() {
+    if (io_.inSize < 8 || png_sig_cmp(io_.in, 0, 8) != 0) throw ImageError("not a PNG file (no PNG signature)");
+    PngHeader h;
+    if (!readHeader(h)) fail();
+    return h;
+  }
+  void rows(std::uint8_t* data, std::size_t stride, png_uint_32 height) {
+    if (!readRows(data, stride, height)) fail();
+  }
+
+private:
+  [[noreturn]] void fail() { throw ImageError(std::string("PNG is damaged: ") + io_.error); }
+
+  bool readHeader(PngHeader& h) {
+    if (setjmp(png_jmpbuf(png_))) return false;
+    png_set_read_fn(png_, &io_, pngRead);
+    png_read_info(png_, info_);
+    png_get_IHDR(png_, info_, &h.width, &h.height, &h.bitDepth, &h.colourType, &h.interlace, nullptr, nullptr);
+    int unit = 0;
+    if (png_get_pHYs(png_, info_, &h.xPpm, &h.yPpm, &unit) && unit != PNG_RESOLUTION_METER) h.xPpm = h.yPpm = 0;
+    return true;
+  }
+  bool readRows(std::uint8_t* data, std::size_t stride, png_uint_32 height) {
+    if (setjmp(png_jmpbuf(png_))) return false;
+    for (png_uint_32 r = 0; r < height; ++r) png_read_row(png_, data + r * stride, nullptr);
+    png_read_end(png_, nullptr);
+    return true;
+  }
+
+  PngIo io_;
+  png_structp png_ = nullptr;
+  png_infop info_ = nullptr;
+};
+
+}  // namespace
+
+Bytes encodePng1(const Bitmap& bitmap, int xDpi, int yDpi) {
+  return writePngOrThrow({static_cast<png_uint_32>(bitmap.width()), static_cast<png_uint_32>(bitmap.height()), 1,
+                          PNG_COLOR_TYPE_GRAY, pixelsPerMetre(xDpi), pixelsPerMetre(yDpi), 1, bitmap.row(0),
+                          bitmap.stride()});
+}
+
+DecodedBitmap decodePng1(std::span<const std::uint8_t> file) {
+  PngReader reader(file);
+  const PngHeader h = reader.header();
+  DecodedBitmap result;
+  result.bitDepth = h.bitDepth;
+  result.xPixelsPerMetre = h.xPpm;
+  result.yPixelsPerMetre = h.yPpm;
+  if (h.colourType != PNG_COLOR_TYPE_GRAY)
+    throw ImageError("PNG colour type " + std::to_string(h.colourType) + "; expected 0 (grayscale)");
+  if (h.bitDepth != 1) throw ImageError("PNG has " + std::to_string(h.bitDepth) + " bits per pixel; expected 1");
+  if (h.interlace != PNG_INTERLACE_NONE) throw ImageError("PNG is interlaced; expected no interlacing");
+  result.bitmap = Bitmap(static_cast<int>(h.width), static_cast<int>(h.height));
+  reader.rows(result.bitmap.row(0), result.bitmap.stride(), h.height);
+  return result;
+}
+
+Bytes encodePngRgb(const RgbImage& image) {
+  return writePngOrThrow({static_cast<png_uint_32>(image.width), static_cast<png_uint_32>(image.height), 8,
+                          PNG_COLOR_TYPE_RGB, 0, 0, 6, image.pixels.data(), static_cast<std::size_t>(image.width) * 3});
+}
+
+RgbImage decodePngRgb(std::span<const std::uint8_t> file) {
+  PngReader reader(file);
+  const PngHeader h = reader.header();
+  if (h.colourType != PNG_COLOR_TYPE_RGB || h.bitDepth != 8 || h.interlace != PNG_INTERLACE_NONE)
+    throw ImageError("PNG is not 8-bit RGB without interlacing");
+  RgbImage image(static_cast<int>(h.width), static_cast<int>(h.height), 0, 0, 0);
+  reader.rows(image.pixels.data(), static_cast<std::size_t>(image.width) * 3, h.height);
+  return image;
+}
+
+}  // namespace rodfab::printer_profiles

@@ -1,0 +1,88 @@
+// 1-bit layer bitmaps in memory and their encodings: 1-bit BMP (our own small writer and reader: no
+// well-kept library for it is packaged), 1-bit PNG (libpng), and RGB PNG for previews (libpng).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace rodfab::printer_profiles {
+
+using Bytes = std::vector<std::uint8_t>;
+
+// A 1-bit image, row 0 at the top, bits packed most significant first (pixel 0 in bit 7 of byte 0),
+// as both BMP and PNG store them. 1 = deposit the material.
+class Bitmap {
+public:
+  Bitmap() = default;
+  Bitmap(int width, int height);
+
+  int width() const { return width_; }
+  int height() const { return height_; }
+  std::size_t stride() const { return stride_; }  // bytes per row, ceil(width / 8)
+
+  bool get(int column, int row) const {
+    return (bits_[row * stride_ + (column >> 3)] >> (7 - (column & 7))) & 1u;
+  }
+  void set(int column, int row, bool value = true) {
+    std::uint8_t& b = bits_[row * stride_ + (column >> 3)];
+    const std::uint8_t mask = static_cast<std::uint8_t>(0x80u >> (column & 7));
+    b = value ? static_cast<std::uint8_t>(b | mask) : static_cast<std::uint8_t>(b & ~mask);
+  }
+  std::uint8_t* row(int r) { return bits_.data() + r * stride_; }
+  const std::uint8_t* row(int r) const { return bits_.data() + r * stride_; }
+  std::span<std::uint8_t> bytes() { return bits_; }
+  std::span<const std::uint8_t> bytes() const { return bits_; }
+
+  std::size_t count() const;  // pixels set
+  bool operator==(const Bitmap& other) const = default;
+
+private:
+  int width_ = 0, height_ = 0;
+  std::size_t stride_ = 0;
+  std::vector<std::uint8_t> bits_;
+};
+
+// A decoded 1-bit image with the resolution its file declared.
+struct DecodedBitmap {
+  Bitmap bitmap;
+  int bitDepth = 0;
+  // Pixels per metre as stored (BMP header fields; PNG pHYs chunk), 0 when the file has none.
+  std::uint32_t xPixelsPerMetre = 0, yPixelsPerMetre = 0;
+};
+
+// Raised for files that are not the images they should be; the message says what was expected.
+class ImageError : public std::runtime_error {
+public:
+  using std::runtime_error::runtime_error;
+};
+
+// Nearest whole pixels per metre for a dpi, as BMP and PNG store resolution.
+std::uint32_t pixelsPerMetre(int dpi);
+
+// BMP: BITMAPINFOHEADER, two-entry palette (0 black, 1 white), rows bottom-up as the format's default.
+Bytes encodeBmp(const Bitmap& bitmap, int xDpi, int yDpi);
+// Accepts 1-bit BMPs with either row order; the pixel value is the palette index (1 = deposit).
+DecodedBitmap decodeBmp(std::span<const std::uint8_t> file);
+
+// PNG: grayscale, bit depth 1 (1 = white = deposit), pHYs in pixels per metre, fastest deflate.
+Bytes encodePng1(const Bitmap& bitmap, int xDpi, int yDpi);
+// 1-bit grayscale PNGs only (anything else is reported as the wrong bit depth or colour type).
+DecodedBitmap decodePng1(std::span<const std::uint8_t> file);
+
+// 8-bit RGB image, row-major, 3 bytes per pixel.
+struct RgbImage {
+  int width = 0, height = 0;
+  std::vector<std::uint8_t> pixels;
+  RgbImage() = default;
+  RgbImage(int w, int h, std::uint8_t r, std::uint8_t g, std::uint8_t b);
+  std::uint8_t* at(int x, int y) { return pixels.data() + (static_cast<std::size_t>(y) * width + x) * 3; }
+  const std::uint8_t* at(int x, int y) const { return pixels.data() + (static_cast<std::size_t>(y) * width + x) * 3; }
+};
+Bytes encodePngRgb(const RgbImage& image);
+RgbImage decodePngRgb(std::span<const std::uint8_t> file);  // 8-bit RGB PNGs only
+
+}  // namespace rodfab::printer_profiles

@@ -1,0 +1,60 @@
+// A job on disk, as a zip archive (libzip) or a plain directory: reading its files, writing the zip
+// in a fixed entry order with fixed timestamps, and SHA-256 checksums (OpenSSL EVP).
+#pragma once
+
+#include "printer_profiles/bitmap.hpp"
+
+#include <filesystem>
+#include <memory>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace rodfab::printer_profiles {
+
+enum class ArchiveFormat { Zip, Directory };
+const char* toString(ArchiveFormat format);
+ArchiveFormat parseArchiveFormat(const std::string& text);  // "zip" | "dir"
+
+// Lowercase hex SHA-256 of `data`.
+std::string sha256Hex(std::span<const std::uint8_t> data);
+
+// Raised when a job cannot be opened or one of its files cannot be read; names the job and file.
+class JobReadError : public std::runtime_error {
+public:
+  using std::runtime_error::runtime_error;
+};
+
+// Read access to the files of a job, by their names inside the job ('/' separated).
+class JobFiles {
+public:
+  virtual ~JobFiles() = default;
+  virtual const std::filesystem::path& path() const = 0;
+  virtual ArchiveFormat format() const = 0;
+  // Every file, sorted by name.
+  virtual std::vector<std::string> names() const = 0;
+  virtual bool contains(const std::string& name) const = 0;
+  // Safe to call from several threads at once.
+  virtual Bytes read(const std::string& name) const = 0;
+};
+
+// A directory is read as a directory job, anything else as a zip archive.
+std::unique_ptr<JobFiles> openJobFiles(const std::filesystem::path& job);
+
+// When a file's contents go into the zip deflated (fast level) or as they are.
+enum class ZipStorage { Deflate, Store };
+struct ZipEntry {
+  std::string name;                  // inside the archive
+  std::filesystem::path source;      // file on disk, read by libzip when the archive is closed
+  ZipStorage storage = ZipStorage::Deflate;
+};
+
+// The DOS timestamp of every entry (zip stores local time; this is noon, 1 January 2020 UTC).
+inline constexpr long long kZipEntryTime = 1577880000;
+
+// Writes a new zip holding `entries` in the given order; the bytes depend on nothing but the
+// entries' contents, names and storage (fixed timestamps and attributes).
+void writeZip(const std::filesystem::path& zipPath, const std::vector<ZipEntry>& entries);
+
+}  // namespace rodfab::printer_profiles

@@ -1,0 +1,556 @@
+#include "printer_profiles/job_writer.hpp"
+
+#include "printer_profiles/inspect.hpp"
+#include "printer_profiles/leaf_bits.hpp"
+#include "printer_profiles/previews.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <bit>
+#include <cerrno>
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+namespace rodfab::printer_profiles {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+constexpr const char* kPartialTag = ".rodfab-partial-";
+
+// Integer sums of voxel indices: exact, so order and thread count cannot change them.
+struct Moments {
+  std::uint64_t count = 0;
+  std::int64_t sum[3] = {0, 0, 0};
+  openvdb::Coord min = openvdb::Coord::max(), max = openvdb::Coord::min();
+
+  void add(std::uint8_t bits, int firstI, int j, int k) {
+    if (!bits) return;
+    const int n = std::popcount(bits);
+    count += static_cast<std::uint64_t>(n);
+    int sumX = 0;
+    for (int x = 0; x < 8; ++x)
+      if ((bits >> (7 - x)) & 1) sumX += x;
+    sum[0] += static_cast<std::int64_t>(n) * firstI + sumX;
+    sum[1] += static_cast<std::int64_t>(n) * j;
+    sum[2] += static_cast<std::int64_t>(n) * k;
+    const openvdb::Coord lo(firstI + std::countl_zero(bits), j, k), hi(firstI + 7 - std::countr_zero(bits), j, k);
+    min.minComponent(lo);
+    max.maxComponent(hi);
+  }
+  void merge(const Moments& o) {
+    count += o.count;
+    for (int a = 0; a < 3; ++a) sum[a] += o.sum[a];
+    min.minComponent(o.min);
+    max.maxComponent(o.max);
+  }
+};
+
+struct FileRecord {
+  std::string name;
+  std::uintmax_t bytes = 0;
+  std::string sha256;
+};
+
+struct LayerRecord {
+  std::array<std::uint64_t, 3> voxels{};  // by MaterialRole
+  std::array<Moments, 2> moments;         // rigid, rubbery, from the grid
+  std::vector<FileRecord> files;          // in profile material order
+};
+
+void writeFile(const fs::path& path, std::span<const std::uint8_t> data) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size()));
+  out.close();
+  if (!out) throw std::runtime_error(path.string() + ": cannot write (disk full or no permission?)");
+}
+
+std::string describeVoxelSize(const openvdb::Vec3d& v) {
+  std::ostringstream s;
+  s << v.x() << " x " << v.y() << " x " << v.z() << " mm";
+  return s.str();
+}
+
+bool processAlive(long pid) { return pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM); }
+
+// Leftovers of killed writers for the same target: hidden, tagged with a pid that no longer runs.
+void removeStalePartials(const fs::path& target) {
+  const std::string prefix = "." + target.filename().string() + kPartialTag;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(target.parent_path().empty() ? "." : target.parent_path(), ec)) {
+    const std::string name = entry.path().filename().string();
+    if (!name.starts_with(prefix)) continue;
+    const long pid = std::strtol(name.c_str() + prefix.size(), nullptr, 10);
+    if (!processAlive(pid)) fs::remove_all(entry.path(), ec);
+  }
+}
+
+}  // namespace
+
+openvdb::math::Transform::Ptr gridTransform(const Profile& profile, const openvdb::Vec3d& originMm) {
+  auto xform = openvdb::math::Transform::createLinearTransform(
+      openvdb::math::scale<openvdb::Mat4d>(openvdb::Vec3d(profile.voxelSizeMm[0], profile.voxelSizeMm[1], profile.voxelSizeMm[2])));
+  xform->postTranslate(originMm);
+  return xform;
+}
+
+struct JobWriter::Impl {
+  JobSpec spec;
+  JobGeometry geometry;
+  ImageFormat imageFormat;
+  SupportPolicy support;
+  std::vector<const ProfileMaterial*> emitted;  // materials with bitmap stacks, in profile order
+  fs::path target, staging, zipTemp;
+  int nextK = 0;
+  std::vector<LayerRecord> layers;
+  std::unique_ptr<Previews> previews;
+  tbb::task_group encoding;
+  bool bandRunning = false;
+  bool finished = false;
+
+  explicit Impl(JobSpec s) : spec(std::move(s)) {
+    geometry = planJob(spec.profile, spec.partBounds);
+    imageFormat = spec.options.imageFormat.value_or(spec.profile.imageFormat);
+    support = spec.options.support.value_or(spec.profile.supportPolicy);
+    if (support == SupportPolicy::Explicit) {
+      if (!spec.supportTops) throw std::invalid_argument("the explicit support policy needs the part's ColumnTops");
+      if (spec.supportTops->width() != geometry.width || spec.supportTops->height() != geometry.height)
+        throw std::invalid_argument("ColumnTops was built for another job geometry");
+    }
+    for (const ProfileMaterial& m : spec.profile.materials)
+      if (m.role != MaterialRole::Support || support == SupportPolicy::Explicit) emitted.push_back(&m);
+    std::sort(emitted.begin(), emitted.end(), [](const ProfileMaterial* a, const ProfileMaterial* b) { return a->role < b->role; });
+
+    target = spec.options.output;
+    if (target.empty()) throw std::invalid_argument("no output path given for the job");
+    if (target.filename().empty()) target = target.parent_path();
+    target = fs::absolute(target);
+    if (fs::exists(target) && !spec.options.force)
+      throw std::runtime_error(target.string() + ": a job (or other file) already exists there; use --force to replace it");
+    if (!fs::is_directory(target.parent_path()))
+      throw std::runtime_error(target.parent_path().string() + ": the output directory does not exist");
+    removeStalePartials(target);
+    static std::atomic<int> counter{0};
+    const std::string partial = "." + target.filename().string() + kPartialTag + std::to_string(::getpid()) + "-" +
+                                std::to_string(counter++);
+    staging = target.parent_path() / partial;
+    zipTemp = target.parent_path() / (partial + ".zip");
+    fs::create_directories(staging / "previews");
+    nextK = geometry.firstLayerK;
+    layers.resize(static_cast<std::size_t>(geometry.layers));
+    previews = std::make_unique<Previews>(geometry, spec.profile, spec.options.contactSheetLayers);
+  }
+
+  void checkBand(const LayerBand& band) const {
+    if (!band.material) throw std::invalid_argument("addBand: no material grid");
+    if (band.kBegin != nextK)
+      throw std::invalid_argument("addBand: bands must follow each other in increasing k: expected a band from k = " +
+                                  std::to_string(nextK) + ", got k = " + std::to_string(band.kBegin));
+    if (band.kEnd <= band.kBegin || band.kEnd > geometry.partBounds.max().z() + 1)
+      throw std::invalid_argument("addBand: band [" + std::to_string(band.kBegin) + ", " + std::to_string(band.kEnd) +
+                                  ") is empty or runs past the part's top layer k = " +
+                                  std::to_string(geometry.partBounds.max().z()));
+    // The grid's transform must say the same voxel size as the profile: this catches a 600/300 dpi swap.
+    const auto& xform = band.material->transform();
+    const openvdb::Vec3d size = xform.voxelSize();
+    const openvdb::Vec3d want(spec.profile.voxelSizeMm[0], spec.profile.voxelSizeMm[1], spec.profile.voxelSizeMm[2]);
+    const auto close = [](double a, double b) { return std::abs(a - b) <= 0.005 * b; };
+    if (!xform.isLinear() || !close(size.x(), want.x()) || !close(size.y(), want.y()) || !close(size.z(), want.z())) {
+      std::string hint;
+      if (close(size.x(), want.y()) && close(size.y(), want.x())) hint = " (x and y are swapped: 600 dpi is x, the image columns)";
+      throw std::invalid_argument("addBand: grid '" + band.material->getName() + "' has voxel size " +
+                                  describeVoxelSize(size) + "; the " + spec.profile.name + " profile needs " +
+                                  describeVoxelSize(want) + hint);
+    }
+    const openvdb::Vec3d origin = xform.indexToWorld(openvdb::Vec3d(0, 0, 0));
+    if ((origin - spec.originMm).length() > 1e-6) {
+      std::ostringstream msg;
+      msg << "addBand: grid '" << band.material->getName() << "' puts voxel (0,0,0) at " << origin
+          << " mm; the job was planned with origin " << spec.originMm << " mm";
+      throw std::invalid_argument(msg.str());
+    }
+    const openvdb::CoordBBox active = band.material->evalActiveVoxelBoundingBox();
+    if (!active.empty()) {
+      const openvdb::CoordBBox& part = geometry.partBounds;
+      if (active.min().x() < part.min().x() || active.max().x() > part.max().x() || active.min().y() < part.min().y() ||
+          active.max().y() > part.max().y() || active.min().z() < band.kBegin || active.max().z() >= band.kEnd) {
+        std::ostringstream msg;
+        msg << "addBand: grid '" << band.material->getName() << "' has voxels in " << active
+            << ", outside the band's layers k in [" << band.kBegin << ", " << band.kEnd << ") or the part bounds " << part;
+        throw std::invalid_argument(msg.str());
+      }
+    }
+  }
+
+  struct BandLeaf {
+    openvdb::Coord origin;
+    LeafBytes active, value;
+  };
+
+  void encodeBand(const LayerBand& band) {
+    const int firstLayer = geometry.layer(band.kBegin);
+    const int count = band.kEnd - band.kBegin;
+    const int zBase = band.kBegin & ~7;
+    // Leaves bucketed by their 8-layer slab; their bytes read once per band.
+    std::vector<std::vector<BandLeaf>> slabs(static_cast<std::size_t>((band.kEnd - 1 - zBase) / 8 + 1));
+    for (auto leaf = band.material->tree().cbeginLeaf(); leaf; ++leaf)
+      slabs[static_cast<std::size_t>((leaf->origin().z() - zBase) / 8)].push_back(
+          {leaf->origin(), maskBytes(leaf->getValueMask()), boolValueBytes(*leaf)});
+    std::vector<std::pair<openvdb::CoordBBox, bool>> tiles;
+    forEachActiveTile(band.material->tree(), [&](const openvdb::CoordBBox& box, bool value) { tiles.emplace_back(box, value); });
+
+    std::vector<LayerBitmaps> bitmaps(static_cast<std::size_t>(count));
+    const openvdb::FloatGrid* modulus = band.modulus.get();
+    tbb::parallel_for(tbb::blocked_range<int>(0, count, 1), [&](const tbb::blocked_range<int>& range) {
+      for (int n = range.begin(); n != range.end(); ++n) {
+        const int k = band.kBegin + n, layer = firstLayer + n;
+        LayerBitmaps& b = bitmaps[static_cast<std::size_t>(n)];
+        LayerRecord& record = layers[static_cast<std::size_t>(layer)];
+        rasterize(k, slabs[static_cast<std::size_t>((k - zBase) / 8)], tiles, b, record);
+        if (support == SupportPolicy::Explicit) addSupport(layer, b);
+        record.voxels = {b.rigid.count(), b.rubbery.count(), b.hasSupport ? b.support.count() : 0};
+        previews->addLayer(layer, b, modulus);
+        writeLayerFiles(layer, b, record);
+      }
+    });
+    previews->addTopLayers(firstLayer, bitmaps, modulus);
+  }
+
+  void rasterize(int k, const std::vector<BandLeaf>& leaves, const std::vector<std::pair<openvdb::CoordBBox, bool>>& tiles,
+                 LayerBitmaps& b, LayerRecord& record) const {
+    b.rigid = Bitmap(geometry.width, geometry.height);
+    b.rubbery = Bitmap(geometry.width, geometry.height);
+    for (const BandLeaf& leaf : leaves) {
+      const int z = k - leaf.origin.z();
+      const auto byte = static_cast<std::size_t>(geometry.column(leaf.origin.x()) / 8);
+      for (int y = 0; y < 8; ++y) {
+        const std::uint8_t active = leaf.active.row(y, z);
+        if (!active) continue;
+        const std::uint8_t value = leaf.value.row(y, z);
+        const int j = leaf.origin.y() + y, row = geometry.row(j);
+        const auto rigid = static_cast<std::uint8_t>(active & value), rubbery = static_cast<std::uint8_t>(active & ~value);
+        b.rigid.row(row)[byte] |= rigid;
+        b.rubbery.row(row)[byte] |= rubbery;
+        record.moments[0].add(rigid, leaf.origin.x(), j, k);
+        record.moments[1].add(rubbery, leaf.origin.x(), j, k);
+      }
+    }
+    for (const auto& [box, value] : tiles) {
+      if (k < box.min().z() || k > box.max().z()) continue;
+      Bitmap& target = value ? b.rigid : b.rubbery;
+      for (int j = box.min().y(); j <= box.max().y(); ++j)
+        for (int i = box.min().x(); i <= box.max().x(); i += 8) {
+          target.row(geometry.row(j))[geometry.column(i) / 8] = 0xff;  // tiles are 8-aligned in x
+          record.moments[value ? 0 : 1].add(0xff, i, j, k);
+        }
+    }
+  }
+
+  // Support fills each column from the tray up to its highest model voxel, wherever the model is not.
+  void addSupport(int layer, LayerBitmaps& b) const {
+    const ColumnTops& tops = *spec.supportTops;
+    b.support = Bitmap(geometry.width, geometry.height);
+    b.hasSupport = true;
+    for (int r = 0; r < geometry.height; ++r) {
+      if (tops.rowMaximum()[static_cast<std::size_t>(r)] <= layer) continue;
+      std::uint8_t* out = b.support.row(r);
+      const std::uint8_t* rigid = b.rigid.row(r);
+      const std::uint8_t* rubbery = b.rubbery.row(r);
+      for (std::size_t byte = 0; byte < b.support.stride(); ++byte) {
+        std::uint8_t above = 0;
+        for (int bit = 0; bit < 8; ++bit)
+          if (tops.top(static_cast<int>(byte) * 8 + bit, r) > layer) above = static_cast<std::uint8_t>(above | (0x80u >> bit));
+        out[byte] = static_cast<std::uint8_t>(above & ~(rigid[byte] | rubbery[byte]));
+      }
+    }
+  }
+
+  void writeLayerFiles(int layer, const LayerBitmaps& b, LayerRecord& record) const {
+    record.files.clear();
+    for (const ProfileMaterial* m : emitted) {
+      const Bitmap& bitmap = m->role == MaterialRole::Rigid ? b.rigid : m->role == MaterialRole::Rubbery ? b.rubbery : b.support;
+      const Bytes data = imageFormat == ImageFormat::Bmp ? encodeBmp(bitmap, spec.profile.xDpi, spec.profile.yDpi)
+                                                         : encodePng1(bitmap, spec.profile.xDpi, spec.profile.yDpi);
+      FileRecord f{spec.profile.layerFileName(*m, layer, imageFormat), data.size(), sha256Hex(data)};
+      writeFile(staging / f.name, data);
+      record.files.push_back(std::move(f));
+    }
+  }
+
+  void wait() {
+    if (!bandRunning) return;
+    bandRunning = false;
+    encoding.wait();  // rethrows the band's exception
+  }
+
+  FileRecord writeStaged(const std::string& name, std::span<const std::uint8_t> data) const {
+    writeFile(staging / name, data);
+    return {name, data.size(), sha256Hex(data)};
+  }
+
+  std::string buildFileText() const {
+    std::ostringstream out;
+    const Profile& p = spec.profile;
+    out << "[Build]\n"
+        << "Format version = " << p.buildFormatVersion << ";\n"
+        << "Layer thickness = " << p.layerThicknessMm() << ";\n"
+        << "Number of slices = " << geometry.layers << ";\n"
+        << "[Resin Type]\n"
+        << "Support = " << p.material(MaterialRole::Support).name << ";\n";
+    int slot = 1;
+    for (const ProfileMaterial* m : emitted)
+      if (m->role != MaterialRole::Support) out << "Model" << slot++ << " = " << m->name << ";\n";
+    out << "[Materials]\n";
+    for (const ProfileMaterial* m : emitted) out << m->name << " = " << p.layerFilePattern(*m, imageFormat) << ";\n";
+    return out.str();
+  }
+
+  json manifest(const std::vector<FileRecord>& files, const std::vector<std::string>& previewNames) const {
+    const Profile& p = spec.profile;
+    const auto& v = p.voxelSizeMm;
+    const auto toMm = [&](const openvdb::Vec3d& ijk) {
+      return json::array({spec.originMm.x() + ijk.x() * v[0], spec.originMm.y() + ijk.y() * v[1], spec.originMm.z() + ijk.z() * v[2]});
+    };
+    json j;
+    j["format"] = kJobFormat;
+    j["profile"] = {{"name", p.name},
+                    {"printer", p.printer},
+                    {"x_dpi", p.xDpi},
+                    {"y_dpi", p.yDpi},
+                    {"voxel_size_mm", v},
+                    {"layer_thickness_mm", p.layerThicknessMm()},
+                    {"tray_mm", p.trayMm},
+                    {"column_alignment", p.columnAlignment}};
+    j["image"] = {{"format", toString(imageFormat)},
+                  {"bit_depth", 1},
+                  {"width", geometry.width},
+                  {"height", geometry.height},
+                  {"x_pixels_per_metre", pixelsPerMetre(p.xDpi)},
+                  {"y_pixels_per_metre", pixelsPerMetre(p.yDpi)},
+                  {"origin", "top-left"},
+                  {"row_order", p.rowOrder}};
+    j["layer_count"] = geometry.layers;
+    const openvdb::CoordBBox& part = geometry.partBounds;
+    j["frame"] = {
+        {"origin_mm", {spec.originMm.x(), spec.originMm.y(), spec.originMm.z()}},
+        {"origin_note", "design position of the centre of voxel (0, 0, 0)"},
+        {"first_column_i", geometry.firstColumnI},
+        {"top_row_j", geometry.topRowJ},
+        {"first_layer_k", geometry.firstLayerK},
+        {"pixel_to_design_mm",
+         "x = origin_x + (first_column_i + column) * voxel_x; y = origin_y + (top_row_j - row) * voxel_y; "
+         "z = origin_z + (first_layer_k + layer) * voxel_z"},
+        {"part_voxels", {{"min", {part.min().x(), part.min().y(), part.min().z()}}, {"max", {part.max().x(), part.max().y(), part.max().z()}}}},
+        {"part_size_mm", {part.dim().x() * v[0], part.dim().y() * v[1], part.dim().z() * v[2]}}};
+    json materials = json::array();
+    for (const ProfileMaterial* m : emitted)
+      materials.push_back({{"name", m->name},
+                           {"role", toString(m->role)},
+                           {"density_g_per_ml", m->densityGPerMl},
+                           {"file_pattern", p.layerFilePattern(*m, imageFormat)}});
+    j["materials"] = materials;
+    j["support"] = {{"policy", toString(support)},
+                    {"material", p.material(MaterialRole::Support).name},
+                    {"note", support == SupportPolicy::Printer ? "no support bitmaps: the printer software adds support"
+                                                               : "support bitmaps fill every column from the tray up to its "
+                                                                 "highest model voxel, never overlapping the model"}};
+    j["build_file"] = p.buildFileName;
+
+    json layerFiles = json::array();
+    std::array<std::uint64_t, 3> totals{};
+    std::array<Moments, 2> moments;
+    for (int l = 0; l < geometry.layers; ++l) {
+      const LayerRecord& r = layers[static_cast<std::size_t>(l)];
+      json filesOf = json::object(), voxelsOf = json::object();
+      for (std::size_t n = 0; n < emitted.size(); ++n) {
+        filesOf[emitted[n]->name] = r.files[n].name;
+        voxelsOf[emitted[n]->name] = r.voxels[static_cast<std::size_t>(emitted[n]->role)];
+      }
+      layerFiles.push_back({{"layer", l}, {"files", filesOf}, {"voxels", voxelsOf}});
+      for (int role = 0; role < 3; ++role) totals[role] += r.voxels[role];
+      moments[0].merge(r.moments[0]);
+      moments[1].merge(r.moments[1]);
+    }
+    j["layers"] = layerFiles;
+    j["dithering"] = {{"ditherer", spec.metadata.ditherer}, {"seed", spec.metadata.seed}};
+    j["calibration"] = spec.metadata.calibration
+                           ? json{{"file", spec.metadata.calibration->file}, {"sha256", spec.metadata.calibration->sha256}}
+                           : json(nullptr);
+    json stats = json::object();
+    std::uint64_t model = 0;
+    for (const ProfileMaterial* m : emitted) {
+      const std::uint64_t n = totals[static_cast<std::size_t>(m->role)];
+      const double ml = static_cast<double>(n) * p.voxelVolumeMm3() / 1000.0;
+      stats[m->name] = {{"role", toString(m->role)}, {"voxels", n}, {"volume_ml", ml}, {"mass_g", ml * m->densityGPerMl}};
+      if (m->role != MaterialRole::Support) model += n;
+    }
+    j["statistics"] = {{"materials", stats}, {"model_voxels", model}};
+    if (spec.metadata.clamping) {
+      const ModulusClamping& c = *spec.metadata.clamping;
+      j["statistics"]["clamped_modulus"] = {{"floor_mpa", c.floorMpa},
+                                            {"ceiling_mpa", c.ceilingMpa},
+                                            {"below_floor_voxels", c.belowFloor},
+                                            {"above_ceiling_voxels", c.aboveCeiling}};
+    } else {
+      j["statistics"]["clamped_modulus"] = nullptr;
+    }
+    // Computed from the grid, not the images: `inspect` decodes the images, maps pixels back with the
+    // frame above and must land on the same boxes and centroids, or the images are mirrored or rotated.
+    json orientation = json::object();
+    for (int m = 0; m < 2; ++m) {
+      const Moments& mo = moments[static_cast<std::size_t>(m)];
+      const std::string& name = p.material(m == 0 ? MaterialRole::Rigid : MaterialRole::Rubbery).name;
+      if (!mo.count) {
+        orientation[name] = {{"voxels", 0}};
+        continue;
+      }
+      const double n = static_cast<double>(mo.count);
+      orientation[name] = {{"voxels", mo.count},
+                           {"min_mm", toMm(mo.min.asVec3d())},
+                           {"max_mm", toMm(mo.max.asVec3d())},
+                           {"centroid_mm", toMm(openvdb::Vec3d(mo.sum[0] / n, mo.sum[1] / n, mo.sum[2] / n))}};
+    }
+    j["orientation_check"] = orientation;
+    j["previews"] = previewNames;
+    j["contact_sheet_layers"] = previews->contactLayers();
+    json meta = spec.metadata.extra.is_object() ? spec.metadata.extra : json::object();
+    meta["design"] = spec.metadata.design;
+    j["metadata"] = meta;
+    json fileTable = json::object();
+    for (const FileRecord& f : files) fileTable[f.name] = {{"bytes", f.bytes}, {"sha256", f.sha256}};
+    j["files"] = fileTable;
+    return j;
+  }
+
+  JobResult finalize() {
+    wait();
+    if (nextK != geometry.partBounds.max().z() + 1)
+      throw std::runtime_error("finalize: layers k = " + std::to_string(nextK) + " .. " +
+                               std::to_string(geometry.partBounds.max().z()) + " were never added");
+    std::vector<FileRecord> files;
+    const std::string build = buildFileText();
+    files.push_back(writeStaged(spec.profile.buildFileName, std::span(reinterpret_cast<const std::uint8_t*>(build.data()), build.size())));
+    std::vector<std::string> previewNames;
+    const std::string title = target.filename().string() + "  -  " + spec.profile.printer + ", " +
+                              std::to_string(geometry.width) + " x " + std::to_string(geometry.height) + " px x " +
+                              std::to_string(geometry.layers) + " layers";
+    for (const auto& [name, data] : previews->render(title)) {
+      files.push_back(writeStaged(name, data));
+      previewNames.push_back(name);
+    }
+    for (const LayerRecord& r : layers) files.insert(files.end(), r.files.begin(), r.files.end());
+    const std::string text = manifest(files, previewNames).dump(1) + "\n";
+    writeStaged(kManifestName, std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
+
+    fs::path written = staging;
+    if (spec.options.archive == ArchiveFormat::Zip) {
+      // Fixed order: manifest, build file, previews, then the layers bottom-up, materials in profile order.
+      std::vector<ZipEntry> entries;
+      entries.push_back({kManifestName, staging / kManifestName, ZipStorage::Deflate});
+      for (std::size_t n = 0; n < files.size(); ++n) {
+        const bool png = files[n].name.ends_with(".png");
+        entries.push_back({files[n].name, staging / files[n].name, png ? ZipStorage::Store : ZipStorage::Deflate});
+      }
+      writeZip(zipTemp, entries);
+      written = zipTemp;
+    }
+    if (spec.options.verify) {
+      const InspectReport report = inspectJobFiles(*openJobFiles(written));
+      if (!report.ok()) {
+        std::string list;
+        for (const std::string& d : report.defects) list += "\n  " + d;
+        throw std::runtime_error(target.string() + ": the written job failed verification:" + list);
+      }
+    }
+    moveIntoPlace(written);
+    std::error_code ec;
+    if (written != staging) fs::remove_all(staging, ec);
+    finished = true;
+
+    JobResult result;
+    result.path = target;
+    result.geometry = geometry;
+    result.files = files.size() + 1;
+    result.bytes = spec.options.archive == ArchiveFormat::Zip ? fs::file_size(target) : 0;
+    if (spec.options.archive == ArchiveFormat::Directory)
+      for (const auto& e : fs::recursive_directory_iterator(target))
+        if (e.is_regular_file()) result.bytes += e.file_size();
+    std::array<std::uint64_t, 3> totals{};
+    for (const LayerRecord& r : layers)
+      for (int role = 0; role < 3; ++role) totals[role] += r.voxels[role];
+    for (const ProfileMaterial* m : emitted) {
+      const std::uint64_t n = totals[static_cast<std::size_t>(m->role)];
+      const double ml = static_cast<double>(n) * spec.profile.voxelVolumeMm3() / 1000.0;
+      result.materials.push_back({m->name, m->role, n, ml, ml * m->densityGPerMl});
+    }
+    return result;
+  }
+
+  void moveIntoPlace(const fs::path& written) {
+    std::error_code ec;
+    if (fs::exists(target)) {
+      if (!spec.options.force)
+        throw std::runtime_error(target.string() + ": appeared while the job was being written; use --force to replace it");
+      if (!fs::is_directory(target) && !fs::is_directory(written)) {
+        fs::rename(written, target);  // atomic replacement of one file by another
+        return;
+      }
+      // A directory cannot be replaced in one step: move the old one aside first.
+      const fs::path old = target.parent_path() / ("." + target.filename().string() + kPartialTag + std::to_string(::getpid()) + "-old");
+      fs::rename(target, old);
+      fs::rename(written, target);
+      fs::remove_all(old, ec);
+      return;
+    }
+    fs::rename(written, target);
+  }
+
+  void discard() {
+    std::error_code ec;
+    fs::remove_all(staging, ec);
+    fs::remove(zipTemp, ec);
+  }
+};
+
+JobWriter::JobWriter(JobSpec spec) : impl_(std::make_unique<Impl>(std::move(spec))) {}
+
+JobWriter::~JobWriter() {
+  if (!impl_) return;
+  try {
+    impl_->wait();
+  } catch (...) {
+    // The band's error was or will be reported by addBand/finalize; here only the files matter.
+  }
+  if (!impl_->finished) impl_->discard();
+}
+
+const JobGeometry& JobWriter::geometry() const { return impl_->geometry; }
+ImageFormat JobWriter::imageFormat() const { return impl_->imageFormat; }
+SupportPolicy JobWriter::supportPolicy() const { return impl_->support; }
+
+void JobWriter::addBand(LayerBand band) {
+  if (impl_->finished) throw std::logic_error("addBand after finalize");
+  impl_->wait();
+  impl_->checkBand(band);
+  impl_->nextK = band.kEnd;
+  impl_->bandRunning = true;
+  impl_->encoding.run([impl = impl_.get(), band = std::move(band)] { impl->encodeBand(band); });
+}
+
+JobResult JobWriter::finalize() {
+  if (impl_->finished) throw std::logic_error("finalize called twice");
+  return impl_->finalize();
+}
+
+}  // namespace rodfab::printer_profiles

@@ -1,0 +1,123 @@
+// The job emitter: turns the material grid, band by band of layers, into the printer's bitmap stacks,
+// its build file, previews and a manifest, written atomically as a zip archive or a directory.
+#pragma once
+
+#include "printer_profiles/job_archive.hpp"
+#include "printer_profiles/job_layout.hpp"
+#include "printer_profiles/profile.hpp"
+
+#include <nlohmann/json.hpp>
+#include <openvdb/openvdb.h>
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+
+namespace rodfab::printer_profiles {
+
+inline constexpr const char* kJobFormat = "rodfab.job/1";
+inline constexpr const char* kManifestName = "manifest.json";
+
+struct CalibrationRecord {
+  std::string file;    // the calibration file the modulus-to-fraction mapping came from
+  std::string sha256;  // its checksum, so a job can be traced to the exact data
+};
+
+// Voxels whose requested modulus lay outside what the materials can make (counted by materials/).
+struct ModulusClamping {
+  double floorMpa = 0.0, ceilingMpa = 0.0;
+  std::uint64_t belowFloor = 0, aboveCeiling = 0;
+};
+
+struct JobMetadata {
+  std::string design;          // design file the job was made from ("" if none)
+  std::string ditherer;        // e.g. "white-noise", "blue-noise"
+  std::uint64_t seed = 0;
+  std::optional<CalibrationRecord> calibration;
+  std::optional<ModulusClamping> clamping;
+  nlohmann::json extra = nlohmann::json::object();  // caller's own records (e.g. coupon labels)
+};
+
+struct JobOptions {
+  std::filesystem::path output;                  // the job: "NAME.zip" or a directory
+  ArchiveFormat archive = ArchiveFormat::Zip;
+  std::optional<ImageFormat> imageFormat;        // default: the profile's
+  std::optional<SupportPolicy> support;          // default: the profile's
+  bool force = false;                            // replace an existing job at `output`
+  int contactSheetLayers = 16;                   // layers shown in previews/contact-sheet.png
+  bool verify = true;                            // re-open and inspect before the rename
+};
+
+struct JobSpec {
+  Profile profile;
+  openvdb::CoordBBox partBounds;   // index box of every model voxel (the whole part, all bands)
+  openvdb::Vec3d originMm;         // design-space position of the centre of voxel (0, 0, 0)
+  JobMetadata metadata;
+  JobOptions options;
+  // Required by SupportPolicy::Explicit: the column tops of the whole part (see ColumnTops).
+  std::shared_ptr<const ColumnTops> supportTops;
+};
+
+// Layers [kBegin, kEnd) of the part. `material` holds every model voxel of those layers (active =
+// deposit; true = the rigid material, false = the rubbery one) and nothing outside them; its transform
+// must be the profile's voxel size placed at JobSpec::originMm (see gridTransform). `modulus`
+// (optional, MPa) colours the modulus previews.
+struct LayerBand {
+  openvdb::BoolGrid::ConstPtr material;
+  openvdb::FloatGrid::ConstPtr modulus;
+  int kBegin = 0, kEnd = 0;
+};
+
+struct MaterialTotals {
+  std::string name;
+  MaterialRole role = MaterialRole::Rigid;
+  std::uint64_t voxels = 0;
+  double volumeMl = 0.0, massG = 0.0;
+};
+
+struct JobResult {
+  std::filesystem::path path;
+  JobGeometry geometry;
+  std::vector<MaterialTotals> materials;  // in profile order
+  std::size_t files = 0;                  // including the manifest
+  std::uintmax_t bytes = 0;               // of the job on disk
+};
+
+// The transform of a printer-space grid for `profile`: voxel (0,0,0) centred at `originMm`.
+openvdb::math::Transform::Ptr gridTransform(const Profile& profile, const openvdb::Vec3d& originMm);
+
+// Writes one job. Usage: construct, addBand() for consecutive bands covering every layer of the
+// part in increasing k, finalize(). Each band is encoded (bitmaps, PNG/BMP, checksums, previews) on
+// TBB workers while the caller builds the next one; addBand waits only for the band before. The
+// bytes written depend on the grids alone, not on the thread count or the band sizes.
+// Until finalize() returns, everything lives under hidden temporary names beside the target
+// (".NAME.rodfab-partial-PID-N"); the destructor removes them if finalize() was not reached, and a
+// killed process leaves only such hidden names, which `inspect` refuses and the next job removes.
+class JobWriter {
+public:
+  // Checks the profile and part against the tray (TrayFitError) and that the target is free
+  // (std::runtime_error naming it, unless options.force).
+  explicit JobWriter(JobSpec spec);
+  ~JobWriter();
+  JobWriter(const JobWriter&) = delete;
+  JobWriter& operator=(const JobWriter&) = delete;
+
+  const JobGeometry& geometry() const;
+  ImageFormat imageFormat() const;
+  SupportPolicy supportPolicy() const;
+
+  // std::invalid_argument for a band out of order, a grid with the wrong voxel size or origin (a
+  // 600/300 dpi swap is named as such), or voxels outside the band or the part bounds.
+  void addBand(LayerBand band);
+  // Writes the build file, previews and manifest, builds the zip, re-opens and inspects the job,
+  // then renames it into place. std::runtime_error if a layer is missing or verification fails.
+  JobResult finalize();
+
+private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace rodfab::printer_profiles

@@ -1,0 +1,62 @@
+// Internal: reading OpenVDB leaf masks a byte at a time. A leaf holds 8 x 8 x 8 voxels at linear
+// offset (x << 6) | (y << 3) | z, so byte x * 8 + y of its mask holds the 8 voxels of column (x, y)
+// along z, bit z. Image rows need the 8 voxels along x of one (y, z) instead, gathered below.
+#pragma once
+
+#include <openvdb/openvdb.h>
+
+#include <array>
+#include <bit>
+#include <cstdint>
+#include <cstring>
+
+namespace rodfab::printer_profiles {
+
+static_assert(std::endian::native == std::endian::little, "leaf mask bytes are read as little-endian words");
+static_assert(openvdb::BoolTree::LeafNodeType::DIM == 8 && openvdb::FloatTree::LeafNodeType::DIM == 8,
+              "the bitmap packing assumes 8-voxel leaves");
+
+// The 64 bytes of one leaf's 512 bits (a mask or a bool leaf's values).
+struct LeafBytes {
+  std::array<std::uint8_t, 64> bytes{};
+
+  // The 8 voxels along z of column (x, y), bit z.
+  std::uint8_t column(int x, int y) const { return bytes[static_cast<std::size_t>(x * 8 + y)]; }
+  // The 8 voxels along x of row y, layer z, packed as image bits (x = 0 in bit 7).
+  std::uint8_t row(int y, int z) const {
+    std::uint8_t out = 0;
+    for (int x = 0; x < 8; ++x) out = static_cast<std::uint8_t>(out | (((column(x, y) >> z) & 1u) << (7 - x)));
+    return out;
+  }
+};
+
+template <typename MaskT>
+LeafBytes maskBytes(const MaskT& mask) {
+  LeafBytes out;
+  for (openvdb::Index n = 0; n < 8; ++n) {
+    const auto word = mask.template getWord<openvdb::Index64>(n);
+    std::memcpy(out.bytes.data() + 8 * n, &word, 8);
+  }
+  return out;
+}
+
+inline LeafBytes boolValueBytes(const openvdb::BoolTree::LeafNodeType& leaf) {
+  LeafBytes out;
+  std::memcpy(out.bytes.data(), leaf.buffer().data(), 64);
+  return out;
+}
+
+// Calls fn(box, value) for every active tile above the leaf level (a region pruned to one value).
+template <typename TreeT, typename Fn>
+void forEachActiveTile(const TreeT& tree, Fn&& fn) {
+  typename TreeT::ValueOnCIter it = tree.cbeginValueOn();
+  it.setMaxDepth(TreeT::ValueOnCIter::LEAF_DEPTH - 1);
+  for (; it; ++it) {
+    if (it.isVoxelValue()) continue;
+    openvdb::CoordBBox box;
+    it.getBoundingBox(box);
+    fn(box, *it);
+  }
+}
+
+}  // namespace rodfab::printer_profiles

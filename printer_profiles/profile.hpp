@@ -1,0 +1,100 @@
+// Printer profiles (`rodfab.printer-profile/1`, JSON): what one printer takes as voxel-printing input.
+// Bundled profiles live in this folder and are selected by name; any other file is selected by path.
+#pragma once
+
+#include <array>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace rodfab::printer_profiles {
+
+inline constexpr const char* kProfileFormat = "rodfab.printer-profile/1";
+
+enum class MaterialRole {
+  Rigid,    // model material written where the material grid holds `true`
+  Rubbery,  // model material written where the material grid holds `false`
+  Support,  // deposited by the printer around the model, or by us under overhangs (SupportPolicy::Explicit)
+};
+const char* toString(MaterialRole role);
+
+enum class ImageFormat { Bmp, Png };
+const char* toString(ImageFormat format);
+ImageFormat parseImageFormat(const std::string& text);  // "bmp" | "png"; std::invalid_argument otherwise
+
+enum class SupportPolicy {
+  Printer,   // emit no support bitmaps: the printer software adds support around the model
+  Explicit,  // emit a support bitmap under every overhang, down to the tray, never overlapping the model
+};
+const char* toString(SupportPolicy policy);
+SupportPolicy parseSupportPolicy(const std::string& text);  // "printer" | "explicit"
+
+struct ProfileMaterial {
+  std::string name;      // as the printer software spells it; also the stem of its bitmap files
+  MaterialRole role = MaterialRole::Rigid;
+  double densityGPerMl = 0.0;  // cured density, for mass estimates
+  std::array<unsigned char, 3> previewRgb{};
+};
+
+struct Profile {
+  std::filesystem::path source;  // the file it was read from
+  std::string name;              // e.g. "stratasys-objet500-connex3"
+  std::string printer;           // human-readable printer name
+  std::string description;
+
+  int xDpi = 0, yDpi = 0;                   // image columns (x) and rows (y)
+  std::array<double, 3> voxelSizeMm{};      // x, y, z; x and y agree with 25.4 / dpi
+  std::array<double, 3> trayMm{};           // usable build volume x, y, z
+  int modelMaterialSlots = 0;
+  std::vector<ProfileMaterial> materials;   // exactly one rigid, one rubbery and one support material
+
+  ImageFormat imageFormat = ImageFormat::Bmp;  // native format; PNG may be chosen per job
+  int columnAlignment = 32;                    // image widths are multiples of this
+  std::array<int, 2> paddingVoxels{};          // blank margin around the part in columns (x) and rows (y)
+  int layerDigits = 4;                         // layer numbers are zero-padded to this many digits
+  std::string rowOrder;                        // why rows run the way they do (documentation for technicians)
+
+  std::string buildFileName;   // the printer's plain-text build file
+  int buildFormatVersion = 1;
+
+  SupportPolicy supportPolicy = SupportPolicy::Printer;  // default; a job may choose the other one
+
+  const ProfileMaterial& material(MaterialRole role) const;
+  double layerThicknessMm() const { return voxelSizeMm[2]; }
+  double voxelVolumeMm3() const { return voxelSizeMm[0] * voxelSizeMm[1] * voxelSizeMm[2]; }
+  // `<material>_<layer>.<ext>`; layer zero-padded to layerDigits (more digits when it needs them).
+  std::string layerFileName(const ProfileMaterial& material, int layer, ImageFormat format) const;
+  // The same with the layer number replaced by x's, as the build file names a whole stack.
+  std::string layerFilePattern(const ProfileMaterial& material, ImageFormat format) const;
+};
+
+struct ProfileIssue {
+  std::string path;     // JSON path such as `materials[1].density_g_per_ml`, or "" for the whole file
+  std::string message;  // what was expected
+};
+
+// Every violation found in one profile file; what() lists them as `FILE: PATH: MESSAGE`, one per line.
+class ProfileError : public std::runtime_error {
+public:
+  ProfileError(std::string file, std::vector<ProfileIssue> issues);
+  const std::string& file() const { return file_; }
+  const std::vector<ProfileIssue>& issues() const { return issues_; }
+
+private:
+  std::string file_;
+  std::vector<ProfileIssue> issues_;
+};
+
+// The folder holding the bundled profiles (this source folder unless RODFAB_PROFILE_DIR is set).
+std::filesystem::path bundledProfileDir();
+// Names of the bundled profiles, sorted.
+std::vector<std::string> bundledProfileNames();
+
+// `nameOrPath` is a bundled profile name (no '/' and no ".json") or the path of a profile file.
+// Throws ProfileError (an unknown name lists the bundled ones).
+Profile loadProfile(const std::string& nameOrPath);
+Profile readProfile(const std::filesystem::path& file);
+Profile parseProfile(const std::string& text, const std::string& sourceName);
+
+}  // namespace rodfab::printer_profiles
