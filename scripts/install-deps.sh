@@ -14,7 +14,8 @@ packages=(
   catch2
   libbenchmark-dev
   nlohmann-json3-dev
-  libcairo2-dev                                              # calibration plots
+  libcairo2-dev                                              # calibration plots, previews
+  libssl-dev                                                 # SHA-256 checksums (libcrypto)
 )
 
 missing=()
