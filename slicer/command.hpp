@@ -21,5 +21,7 @@ struct Command {
 };
 
 int runValidate(const std::vector<std::string>& args);
+int runProfiles(const std::vector<std::string>& args);
+int runInspect(const std::vector<std::string>& args);
 
 }  // namespace rodfab::cli

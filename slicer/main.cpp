@@ -10,6 +10,8 @@ using namespace rodfab::cli;
 
 constexpr Command kCommands[] = {
     {"validate", "check a design file and summarize it", runValidate},
+    {"profiles", "list the bundled printer profiles, or show one", runProfiles},
+    {"inspect", "re-read a print job and verify every file, size, DPI and orientation", runInspect},
 };
 
 void usage(std::ostream& out) {
