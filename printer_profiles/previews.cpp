@@ -208,7 +208,7 @@ std::vector<std::pair<std::string, Bytes>> Previews::render(const std::string& t
   const double xMm = geometry_.width * vx[0], yMm = geometry_.height * vx[1], zMm = geometry_.layers * vx[2];
   // Pixels per mm: the third-angle layout (top above front, side right of front) fits ~1400 x 1000.
   const double scale = std::min({1400.0 / (xMm + yMm), 1000.0 / (yMm + zMm), 60.0});
-  const int gap = 56, margin = 24, header = 64;
+  const int gap = 56, margin = 24, header = 84;
   const auto px = [&](double mmLength) { return std::max(1, static_cast<int>(std::lround(mmLength * scale))); };
   const int topW = px(xMm), topH = px(yMm), frontH = px(zMm), sideW = px(yMm);
   const int width = std::max(margin * 2 + topW + gap + sideW, 720);
@@ -321,10 +321,10 @@ std::vector<std::pair<std::string, Bytes>> Previews::render(const std::string& t
   const int columns = std::min<int>(4, static_cast<int>(contactLayers_.size()));
   const int rows = (static_cast<int>(contactLayers_.size()) + columns - 1) / columns;
   const int cellW = tileWidth_ + 24, cellH = tileHeight_ + 40;
-  const int sheetW = std::max(margin * 2 + columns * cellW, 560), sheetH = header + rows * cellH + margin;
+  const int sheetW = std::max(margin * 2 + columns * cellW, 560), sheetH = 64 + rows * cellH + margin;
   Canvas sheet(sheetW, sheetH);
   for (std::size_t s = 0; s < contactLayers_.size(); ++s) {
-    const int ox = margin + static_cast<int>(s % columns) * cellW, oy = header + static_cast<int>(s / columns) * cellH + 20;
+    const int ox = margin + static_cast<int>(s % columns) * cellW, oy = 64 + static_cast<int>(s / columns) * cellH + 20;
     const std::vector<std::uint8_t>& tile = tiles_[s];
     for (int y = 0; y < tileHeight_; ++y)
       for (int x = 0; x < tileWidth_; ++x) {
@@ -343,7 +343,7 @@ std::vector<std::pair<std::string, Bytes>> Previews::render(const std::string& t
            " amber",
        12);
   for (std::size_t s = 0; s < contactLayers_.size(); ++s) {
-    const int ox = margin + static_cast<int>(s % columns) * cellW, oy = header + static_cast<int>(s / columns) * cellH + 14;
+    const int ox = margin + static_cast<int>(s % columns) * cellW, oy = 64 + static_cast<int>(s / columns) * cellH + 14;
     text(sheet.cr, ox, oy, "layer " + std::to_string(contactLayers_[s]) + "  z " +
                                format("%.2f mm", contactLayers_[s] * profile_.voxelSizeMm[2]), 12);
   }

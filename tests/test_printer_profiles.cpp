@@ -37,9 +37,19 @@ openvdb::BoolGrid::Ptr newGrid() {
   return grid;
 }
 
+fs::path scratchRoot() { return fs::temp_directory_path() / ("rodfab-test-printer-profiles-" + std::to_string(::getpid())); }
+
+// Removes this process's scratch folder when the test program ends.
+struct ScratchCleanup {
+  ~ScratchCleanup() {
+    std::error_code ec;
+    fs::remove_all(scratchRoot(), ec);
+  }
+} scratchCleanup;
+
 // A fresh, empty scratch directory per test.
 fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("rodfab-test-printer-profiles-" + std::to_string(::getpid())) / name;
+  const fs::path dir = scratchRoot() / name;
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;

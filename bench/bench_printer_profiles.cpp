@@ -1,0 +1,107 @@
+// printer_profiles/: layer encoding and whole-job throughput (bitmaps, PNG/BMP, zip, verification).
+#include "printer_profiles/printer_profiles.hpp"
+
+#include <benchmark/benchmark.h>
+#include <tbb/global_control.h>
+
+#include <unistd.h>
+
+#include <cmath>
+#include <random>
+
+namespace pp = rodfab::printer_profiles;
+namespace fs = std::filesystem;
+
+namespace {
+
+const pp::Profile& connex3() {
+  static const pp::Profile p = pp::loadProfile("stratasys-objet500-connex3");
+  return p;
+}
+
+// A layer of a rod lattice: ~8% of the pixels set, in runs, like a sliced rod structure.
+pp::Bitmap latticeLayer(int width, int height) {
+  pp::Bitmap b(width, height);
+  for (int r = 0; r < height; ++r)
+    for (int c = 0; c < width; ++c)
+      if ((c % 200) < 24 || (r % 100) < 6) b.set(c, r, ((c * 7 + r * 13) % 5) < 2);
+  return b;
+}
+
+void BM_EncodeBmp(benchmark::State& state) {
+  const pp::Bitmap b = latticeLayer(2048, 1024);
+  for (auto _ : state) benchmark::DoNotOptimize(pp::encodeBmp(b, 600, 300));
+  state.SetBytesProcessed(state.iterations() * static_cast<int64_t>(b.bytes().size()));
+}
+BENCHMARK(BM_EncodeBmp)->Unit(benchmark::kMicrosecond);
+
+void BM_EncodePng1(benchmark::State& state) {
+  const pp::Bitmap b = latticeLayer(2048, 1024);
+  for (auto _ : state) benchmark::DoNotOptimize(pp::encodePng1(b, 600, 300));
+  state.SetBytesProcessed(state.iterations() * static_cast<int64_t>(b.bytes().size()));
+}
+BENCHMARK(BM_EncodePng1)->Unit(benchmark::kMicrosecond);
+
+void BM_Sha256(benchmark::State& state) {
+  const pp::Bitmap b = latticeLayer(2048, 1024);
+  for (auto _ : state) benchmark::DoNotOptimize(pp::sha256Hex(b.bytes()));
+  state.SetBytesProcessed(state.iterations() * static_cast<int64_t>(b.bytes().size()));
+}
+BENCHMARK(BM_Sha256)->Unit(benchmark::kMicrosecond);
+
+// Rods along x and y through a 20 x 20 x 3 mm block, white-noise Vero/Tango: ~470 x 236 px x 100 layers.
+openvdb::BoolGrid::Ptr rodLattice() {
+  openvdb::initialize();
+  auto grid = openvdb::BoolGrid::create(false);
+  grid->setTransform(pp::gridTransform(connex3(), openvdb::Vec3d(0, 0, 0)));
+  auto acc = grid->getAccessor();
+  std::mt19937 rng(5);
+  std::bernoulli_distribution vero(0.45);
+  const auto& v = connex3().voxelSizeMm;
+  const double radius = 0.7;
+  for (int k = 0; k < 100; ++k)
+    for (int j = 0; j < 236; ++j)
+      for (int i = 0; i < 472; ++i) {
+        const double x = i * v[0], y = j * v[1], z = k * v[2];
+        const double dy = std::fmod(y, 4.0) - 2.0, dx = std::fmod(x, 4.0) - 2.0, dz = z - 1.5;
+        if (dy * dy + dz * dz < radius * radius || dx * dx + dz * dz < radius * radius) acc.setValueOn({i, j, k}, vero(rng));
+      }
+  return grid;
+}
+
+// A whole zip job (bands of 16 layers) at a given thread count; arg 1 = verify by re-reading.
+void BM_WriteJob(benchmark::State& state) {
+  static const openvdb::BoolGrid::Ptr grid = rodLattice();
+  tbb::global_control threads(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(state.range(0)));
+  const fs::path dir = fs::temp_directory_path() / ("rodfab-bench-job-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const openvdb::CoordBBox box = grid->evalActiveVoxelBoundingBox();
+  std::uintmax_t bytes = 0;
+  for (auto _ : state) {
+    pp::JobSpec spec;
+    spec.profile = connex3();
+    spec.partBounds = box;
+    spec.originMm = openvdb::Vec3d(0, 0, 0);
+    spec.options.output = dir / "job.zip";
+    spec.options.force = true;
+    spec.options.verify = state.range(1) != 0;
+    pp::JobWriter writer(spec);
+    for (int k = box.min().z(); k <= box.max().z(); k += 16) {
+      const int end = std::min(k + 16, box.max().z() + 1);
+      auto band = openvdb::BoolGrid::create(false);
+      band->setTransform(grid->transform().copy());
+      auto acc = band->getAccessor();
+      for (auto it = grid->cbeginValueOn(); it; ++it)
+        if (it.getCoord().z() >= k && it.getCoord().z() < end) acc.setValueOn(it.getCoord(), *it);
+      writer.addBand({band, nullptr, k, end});
+    }
+    bytes = writer.finalize().bytes;
+  }
+  fs::remove_all(dir);
+  state.counters["voxels/s"] = benchmark::Counter(static_cast<double>(grid->activeVoxelCount()) * state.iterations(),
+                                                  benchmark::Counter::kIsRate);
+  state.counters["zip_MB"] = static_cast<double>(bytes) / 1e6;
+}
+BENCHMARK(BM_WriteJob)->Args({1, 0})->Args({2, 0})->Args({2, 1})->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace

@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# rodfab profiles and rodfab inspect from the command line: listings, exit codes, messages.
+#   printer_profiles.sh RODFAB SOURCE_DIR
+set -u
+rodfab=$1 src=$2
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+
+"$rodfab" profiles > "$tmp/out" || fail "profiles: exit $?"
+grep -q "stratasys-objet500-connex3 .*600 x 300 dpi" "$tmp/out" || fail "profiles does not list the Connex3: $(cat "$tmp/out")"
+"$rodfab" profiles stratasys-objet500-connex3 > "$tmp/out" || fail "profiles NAME"
+grep -q "x 600 dpi (image columns), y 300 dpi (image rows)" "$tmp/out" || fail "profile detail lacks the axes"
+grep -q "VeroWhitePlus" "$tmp/out" || fail "profile detail lacks the materials"
+"$rodfab" profiles --json | grep -q '"voxel_size_mm"' || fail "profiles --json"
+"$rodfab" profiles "$src/printer_profiles/stratasys-objet500-connex3.json" > /dev/null || fail "profile by path"
+
+"$rodfab" profiles objet-9000 2> "$tmp/err"
+[ $? -eq 1 ] || fail "unknown profile: expected exit 1"
+grep -q "objet-9000: no bundled profile of that name" "$tmp/err" || fail "unknown profile not named: $(cat "$tmp/err")"
+sed 's/"x_dpi": 600/"x_dpi": 300/' "$src/printer_profiles/stratasys-objet500-connex3.json" > "$tmp/swapped.json"
+"$rodfab" profiles "$tmp/swapped.json" 2> "$tmp/err"
+[ $? -eq 1 ] || fail "bad profile: expected exit 1"
+grep -q "swapped.json: resolution.voxel_size_mm\[0\]: .*x_dpi = 300" "$tmp/err" || fail "dpi mismatch not named: $(cat "$tmp/err")"
+
+mkdir "$tmp/empty-job"
+"$rodfab" inspect "$tmp/empty-job" > "$tmp/out" 2> "$tmp/err"
+[ $? -eq 1 ] || fail "inspect of an empty folder: expected exit 1"
+grep -q "no manifest.json" "$tmp/err" || fail "missing manifest not reported: $(cat "$tmp/err")"
+grep -q "verdict:       DEFECTIVE" "$tmp/out" || fail "no verdict"
+head -c 1000 /dev/urandom > "$tmp/junk.zip"
+"$rodfab" inspect --json "$tmp/junk.zip" > "$tmp/out"
+[ $? -eq 1 ] || fail "inspect of junk: expected exit 1"
+grep -q '"ok": false' "$tmp/out" || fail "inspect --json verdict"
+"$rodfab" inspect "$tmp/none.zip" 2> "$tmp/err" > /dev/null
+[ $? -eq 1 ] || fail "inspect of a missing job: expected exit 1"
+
+"$rodfab" inspect 2> /dev/null
+[ $? -eq 2 ] || fail "inspect without a job: expected usage exit 2"
+"$rodfab" profiles --bogus 2> /dev/null
+[ $? -eq 2 ] || fail "unknown option: expected usage exit 2"
+"$rodfab" inspect --help | grep -q "usage: rodfab inspect" || fail "inspect --help"
+"$rodfab" profiles --help | grep -q "usage: rodfab profiles" || fail "profiles --help"
+echo "printer_profiles CLI: all checks passed"
