@@ -1,0 +1,35 @@
+// The calibration file (`rodfab.calibration/1`, JSON): what a fit produced, for the slicer to load.
+#pragma once
+
+#include "calibration/model.hpp"
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+
+namespace rodfab::calibration {
+
+inline constexpr const char* kCalibrationFormat = "rodfab.calibration/1";
+
+// what() is `FILE: JSON.PATH: what was expected`.
+class CalibrationFileError : public std::runtime_error {
+public:
+  CalibrationFileError(const std::string& file, const std::string& path, const std::string& message);
+};
+
+nlohmann::ordered_json calibrationToJson(const Calibration& calibration);
+// Checks every field, and that the stored floor fraction and maximum modulus agree with the model.
+Calibration calibrationFromJson(const nlohmann::json& json, const std::string& sourceName);
+
+// Written under a temporary name and renamed, so no reader sees half a file.
+void writeCalibration(const Calibration& calibration, const std::filesystem::path& file);
+Calibration readCalibration(const std::filesystem::path& file);
+
+// The bundled default, fitted from the published 60 C figures:
+// <source tree>/examples/calibration/default-60C.json.
+std::filesystem::path defaultCalibrationPath();
+Calibration loadDefaultCalibration();
+
+}  // namespace rodfab::calibration

@@ -1,0 +1,214 @@
+#include "calibration/data.hpp"
+
+#include <boost/algorithm/string/case_conv.hpp>
+#include <boost/algorithm/string/trim.hpp>
+#include <boost/tokenizer.hpp>
+#include <openssl/evp.h>
+
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <sstream>
+
+namespace rodfab::calibration {
+
+namespace {
+
+std::string formatIssues(const std::string& file, const std::vector<DataIssue>& issues) {
+  std::ostringstream out;
+  for (std::size_t i = 0; i < issues.size(); ++i) {
+    if (i) out << '\n';
+    out << file << ": ";
+    if (issues[i].line > 0) out << "line " << issues[i].line << ": ";
+    out << issues[i].message;
+  }
+  return out.str();
+}
+
+enum class Column { VeroFraction, ModulusMpa, TemperatureC, Specimen, Dither, Date, Notes };
+
+const std::map<std::string, Column, std::less<>> kColumns = {
+    {"vero_fraction", Column::VeroFraction}, {"modulus_mpa", Column::ModulusMpa},
+    {"temperature_c", Column::TemperatureC}, {"specimen", Column::Specimen},
+    {"dither", Column::Dither},              {"date", Column::Date},
+    {"notes", Column::Notes}};
+
+constexpr const char* kColumnList = "vero_fraction, modulus_mpa, temperature_c, specimen, dither, date, notes";
+
+// A header name close to a known column but with another unit is the mistake worth naming: a modulus
+// in GPa or a fraction in percent would otherwise fit silently wrong.
+std::string unknownColumnMessage(const std::string& name) {
+  const auto startsWith = [&](const char* prefix) { return name.rfind(prefix, 0) == 0; };
+  if (startsWith("modulus") || startsWith("e_") || name == "e" || startsWith("storage_modulus"))
+    return "column '" + name + "': the modulus must be given in MPa, in a column named 'modulus_mpa'";
+  if (startsWith("vero") || startsWith("fraction"))
+    return "column '" + name + "': the Vero share must be a fraction from 0 to 1, in a column named 'vero_fraction'";
+  if (startsWith("temp"))
+    return "column '" + name + "': the temperature must be given in degrees Celsius, in a column named 'temperature_c'";
+  return std::string("unknown column '") + name + "' (expected: " + kColumnList + ")";
+}
+
+std::string shown(std::string_view s) {
+  std::string q(s.substr(0, 40));
+  if (s.size() > 40) q += "...";
+  return "'" + q + "'";
+}
+
+std::optional<double> parseNumber(const std::string& field) {
+  const char* first = field.data();
+  const char* last = field.data() + field.size();
+  if (first != last && *first == '+') ++first;  // from_chars refuses a leading '+', people write it
+  double value = 0.0;
+  const auto [end, ec] = std::from_chars(first, last, value);
+  if (ec != std::errc() || end != last || first == last || !std::isfinite(value)) return std::nullopt;
+  return value;
+}
+
+using Tokenizer = boost::tokenizer<boost::escaped_list_separator<char>>;
+
+// Splits one CSV line (quotes allowed around fields); nullopt when the quoting is broken.
+std::optional<std::vector<std::string>> splitFields(const std::string& line) {
+  // The tokenizer accepts an unterminated quote silently; an odd count of unescaped quotes finds it.
+  std::size_t quotes = 0;
+  for (std::size_t i = 0; i < line.size(); ++i) {
+    if (line[i] == '\\') ++i;
+    else if (line[i] == '"') ++quotes;
+  }
+  if (quotes % 2) return std::nullopt;
+  try {
+    std::vector<std::string> fields;
+    for (std::string field : Tokenizer(line, boost::escaped_list_separator<char>('\\', ',', '"'))) {
+      boost::algorithm::trim(field);
+      fields.push_back(std::move(field));
+    }
+    return fields;
+  } catch (const boost::escaped_list_error&) {
+    return std::nullopt;
+  }
+}
+
+}  // namespace
+
+DataError::DataError(std::string file, std::vector<DataIssue> issues)
+    : std::runtime_error(formatIssues(file, issues)), file_(std::move(file)), issues_(std::move(issues)) {}
+
+DataSet parseData(std::string_view text, const std::string& sourceName) {
+  DataSet data;
+  data.source = sourceName;
+  data.sha256 = sha256Hex(text);
+  std::vector<DataIssue> issues;
+  const auto fail = [&](int line, std::string message) { issues.push_back({line, std::move(message)}); };
+
+  if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);  // spreadsheet exports start with a BOM
+
+  std::vector<std::optional<Column>> header;  // per field position; nullopt for a rejected name
+  std::map<Column, std::size_t> position;
+  bool haveHeader = false;
+  std::istringstream lines{std::string(text)};
+  std::string raw;
+  int lineNumber = 0;
+  while (std::getline(lines, raw)) {
+    ++lineNumber;
+    if (!raw.empty() && raw.back() == '\r') raw.pop_back();
+    std::string line = boost::algorithm::trim_copy(raw);
+    if (line.empty() || line.front() == '#') continue;
+    const auto fields = splitFields(line);
+    if (!fields) {
+      fail(lineNumber, "unbalanced quotes or a bad escape in " + shown(line));
+      continue;
+    }
+    if (!haveHeader) {
+      haveHeader = true;
+      for (std::size_t i = 0; i < fields->size(); ++i) {
+        const std::string name = boost::algorithm::to_lower_copy((*fields)[i]);
+        const auto known = kColumns.find(name);
+        if (known == kColumns.end()) {
+          fail(lineNumber, unknownColumnMessage(name));
+          header.push_back(std::nullopt);
+          continue;
+        }
+        if (position.count(known->second)) fail(lineNumber, "column '" + name + "' appears twice");
+        position[known->second] = i;
+        header.push_back(known->second);
+      }
+      for (const char* required : {"vero_fraction", "modulus_mpa"})
+        if (!position.count(kColumns.find(required)->second))
+          fail(lineNumber, std::string("the header lacks the required column '") + required + "' (expected: " + kColumnList + ")");
+      if (!issues.empty()) break;  // rows cannot be read against a broken header
+      continue;
+    }
+    if (fields->size() != header.size()) {
+      fail(lineNumber, "expected " + std::to_string(header.size()) + " fields (as in the header), got " +
+                           std::to_string(fields->size()));
+      continue;
+    }
+    Measurement m;
+    m.line = lineNumber;
+    bool ok = true;
+    const auto field = [&](Column c) -> const std::string* {
+      auto it = position.find(c);
+      return it == position.end() ? nullptr : &(*fields)[it->second];
+    };
+    const auto number = [&](Column c, const char* name, const char* what, bool required) -> std::optional<double> {
+      const std::string* f = field(c);
+      if (!f || f->empty()) {
+        if (required) fail(lineNumber, std::string(name) + ": missing; expected " + what), ok = false;
+        return std::nullopt;
+      }
+      auto v = parseNumber(*f);
+      if (!v) fail(lineNumber, std::string(name) + ": expected " + what + ", got " + shown(*f)), ok = false;
+      return v;
+    };
+    if (auto f = number(Column::VeroFraction, "vero_fraction", "a Vero fraction from 0 to 1", true)) {
+      if (*f < 0.0 || *f > 1.0) {
+        fail(lineNumber, "vero_fraction: expected a fraction from 0 to 1, got " + shown(*field(Column::VeroFraction)) +
+                             (*f > 1.0 && *f <= 100.0 ? " (a percentage? write it as a fraction)" : ""));
+        ok = false;
+      }
+      m.veroFraction = *f;
+    }
+    if (auto e = number(Column::ModulusMpa, "modulus_mpa", "a modulus in MPa", true)) {
+      if (!(*e > 0.0)) fail(lineNumber, "modulus_mpa: expected a modulus > 0 MPa, got " + shown(*field(Column::ModulusMpa))), ok = false;
+      m.modulusMpa = *e;
+    }
+    m.temperatureC = number(Column::TemperatureC, "temperature_c", "a temperature in degrees Celsius", false);
+    if (const std::string* s = field(Column::Specimen)) m.specimen = *s;
+    if (const std::string* s = field(Column::Dither)) m.dither = *s;
+    if (const std::string* s = field(Column::Date)) m.date = *s;
+    if (ok) data.measurements.push_back(std::move(m));
+  }
+  if (issues.empty() && !haveHeader)
+    fail(0, std::string("no header line; expected a header naming the columns (") + kColumnList + ")");
+  else if (issues.empty() && data.measurements.empty())
+    fail(0, "no measurements after the header");
+  if (!issues.empty()) throw DataError(sourceName, std::move(issues));
+  return data;
+}
+
+DataSet readData(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw DataError(file.string(), {{0, "cannot open the file for reading"}});
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  if (in.bad()) throw DataError(file.string(), {{0, "read failed"}});
+  return parseData(bytes.str(), file.string());
+}
+
+std::string sha256Hex(std::string_view bytes) {
+  unsigned char digest[EVP_MAX_MD_SIZE];
+  unsigned int length = 0;
+  if (EVP_Digest(bytes.data(), bytes.size(), digest, &length, EVP_sha256(), nullptr) != 1)
+    throw std::runtime_error("SHA-256 failed (OpenSSL EVP_Digest)");
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string hex;
+  hex.reserve(2 * length);
+  for (unsigned int i = 0; i < length; ++i) {
+    hex += kHex[digest[i] >> 4];
+    hex += kHex[digest[i] & 0xF];
+  }
+  return hex;
+}
+
+}  // namespace rodfab::calibration

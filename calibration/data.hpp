@@ -1,0 +1,56 @@
+// DMA measurements of printed coupons: the CSV format (see calibration/README.md) and its reader.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace rodfab::calibration {
+
+// One specimen, one CSV row.
+struct Measurement {
+  double veroFraction = 0.0;  // 0..1
+  double modulusMpa = 0.0;    // > 0
+  std::optional<double> temperatureC;
+  std::string specimen;
+  std::string dither;  // the ditherer that made the coupon; empty when not given
+  std::string date;
+  int line = 0;  // in the source file, for messages
+};
+
+struct DataSet {
+  std::string source;  // the file name as given (names the data in messages and calibration files)
+  std::string sha256;  // of the file's bytes, lowercase hex
+  std::vector<Measurement> measurements;
+};
+
+struct DataIssue {
+  int line = 0;  // 0: the file as a whole
+  std::string message;
+};
+
+// Every bad row of one file (reading does not stop at the first); what() lists them, one per line,
+// as `FILE: line N: MESSAGE`.
+class DataError : public std::runtime_error {
+public:
+  DataError(std::string file, std::vector<DataIssue> issues);
+  const std::string& file() const { return file_; }
+  const std::vector<DataIssue>& issues() const { return issues_; }
+
+private:
+  std::string file_;
+  std::vector<DataIssue> issues_;
+};
+
+// Throws DataError (also for an unreadable file, with line 0).
+DataSet readData(const std::filesystem::path& file);
+// `sourceName` names the text in messages and in DataSet::source.
+DataSet parseData(std::string_view text, const std::string& sourceName);
+
+// SHA-256 of `bytes` as 64 lowercase hex digits (OpenSSL).
+std::string sha256Hex(std::string_view bytes);
+
+}  // namespace rodfab::calibration

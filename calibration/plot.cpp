@@ -1,0 +1,249 @@
+#include "calibration/plot.hpp"
+
+#include "calibration/atomic_write.hpp"
+
+#include <cairo.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+namespace rodfab::calibration {
+
+namespace {
+
+constexpr int kWidth = 960, kHeight = 640;
+constexpr double kLeft = 96, kRight = 32, kTop = 56, kBottom = 76;
+
+struct Rgb {
+  double r, g, b;
+};
+constexpr Rgb kInk{0.1, 0.1, 0.1}, kGrid{0.86, 0.86, 0.86}, kCurve{0.12, 0.35, 0.75}, kFloor{0.80, 0.12, 0.12},
+    kFloorShade{0.98, 0.88, 0.88};
+
+std::string format(const char* fmt, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, fmt, v);
+  return buf;
+}
+
+// Maps Vero fraction and log10 modulus to the plot area.
+struct Axes {
+  double logMin, logMax;  // whole decades
+  double x(double fraction) const { return kLeft + fraction * (kWidth - kLeft - kRight); }
+  double y(double modulusMpa) const {
+    return kHeight - kBottom - (std::log10(modulusMpa) - logMin) / (logMax - logMin) * (kHeight - kTop - kBottom);
+  }
+};
+
+void color(cairo_t* cr, Rgb c) { cairo_set_source_rgb(cr, c.r, c.g, c.b); }
+
+enum class Align { Left, Center, Right };
+
+void text(cairo_t* cr, double x, double y, const std::string& s, Align align = Align::Left, double size = 14) {
+  cairo_set_font_size(cr, size);
+  cairo_text_extents_t e;
+  cairo_text_extents(cr, s.c_str(), &e);
+  const double dx = align == Align::Left ? 0 : align == Align::Center ? e.x_advance / 2 : e.x_advance;
+  cairo_move_to(cr, x - dx, y);
+  cairo_show_text(cr, s.c_str());
+}
+
+std::string decadeLabel(int exponent) {
+  return exponent >= 0 ? format("%.0f", std::pow(10.0, exponent)) : format("%g", std::pow(10.0, exponent));
+}
+
+void drawAxes(cairo_t* cr, const Axes& a) {
+  const double x0 = a.x(0), x1 = a.x(1);
+  const double yBottom = kHeight - kBottom, yTop = kTop;
+  cairo_set_line_width(cr, 1);
+  for (int k = 0; k <= 10; ++k) {  // fraction grid every 10 %, labels every 20 %
+    const double x = a.x(k / 10.0);
+    color(cr, kGrid);
+    cairo_move_to(cr, x, yBottom);
+    cairo_line_to(cr, x, yTop);
+    cairo_stroke(cr);
+    color(cr, kInk);
+    cairo_move_to(cr, x, yBottom);
+    cairo_line_to(cr, x, yBottom + (k % 2 ? 4 : 7));
+    cairo_stroke(cr);
+    if (k % 2 == 0) text(cr, x, yBottom + 24, format("%.0f %%", k * 10.0), Align::Center);
+  }
+  for (int d = static_cast<int>(a.logMin); d <= static_cast<int>(a.logMax); ++d) {
+    for (int m = 1; m <= 9; ++m) {
+      const double value = m * std::pow(10.0, d);
+      if (std::log10(value) > a.logMax + 1e-9) break;
+      const double y = a.y(value);
+      color(cr, m == 1 ? Rgb{0.75, 0.75, 0.75} : kGrid);
+      cairo_move_to(cr, x0, y);
+      cairo_line_to(cr, x1, y);
+      cairo_stroke(cr);
+      color(cr, kInk);
+      cairo_move_to(cr, x0 - (m == 1 ? 7 : 4), y);
+      cairo_line_to(cr, x0, y);
+      cairo_stroke(cr);
+      if (m == 1) text(cr, x0 - 11, y + 5, decadeLabel(d), Align::Right);
+    }
+  }
+  color(cr, kInk);
+  cairo_set_line_width(cr, 1.5);
+  cairo_rectangle(cr, x0, yTop, x1 - x0, yBottom - yTop);
+  cairo_stroke(cr);
+  text(cr, (x0 + x1) / 2, kHeight - 22, "Vero fraction (VeroWhitePlus in TangoBlackPlus)", Align::Center, 15);
+  cairo_save(cr);
+  cairo_translate(cr, 28, (yTop + yBottom) / 2);
+  cairo_rotate(cr, -M_PI / 2);
+  text(cr, 0, 0, "modulus E (MPa, log scale)", Align::Center, 15);
+  cairo_restore(cr);
+}
+
+void circle(cairo_t* cr, double x, double y, double radius) {
+  cairo_new_sub_path(cr);
+  cairo_arc(cr, x, y, radius, 0, 2 * M_PI);
+}
+
+std::string fitLabel(const Calibration& c) {
+  const ModelParameters& p = c.parameters();
+  switch (p.model) {
+    case Model::Pchip: return "fit: pchip in ln E through the per-fraction means";
+    case Model::Lichtenecker: return "fit: Lichtenecker, exponent a = " + format("%.4f", p.exponent);
+    case Model::LogPower: return "fit: log-power law, exponent n = " + format("%.4f", p.exponent);
+  }
+  return {};
+}
+
+cairo_status_t appendToString(void* closure, const unsigned char* data, unsigned int length) {
+  static_cast<std::string*>(closure)->append(reinterpret_cast<const char*>(data), length);
+  return CAIRO_STATUS_SUCCESS;
+}
+
+}  // namespace
+
+void writeFitPlot(const Calibration& c, const std::filesystem::path& png) {
+  const auto& measurements = c.record().measurements;
+  double lo = std::min({c.minModulusMpa(), c.floorMpa()}), hi = c.maxModulusMpa();
+  for (const Measurement& m : measurements) lo = std::min(lo, m.modulusMpa), hi = std::max(hi, m.modulusMpa);
+  const Axes a{std::floor(std::log10(lo)), std::max(std::ceil(std::log10(hi)), std::floor(std::log10(lo)) + 1)};
+
+  std::unique_ptr<cairo_surface_t, decltype(&cairo_surface_destroy)> surface(
+      cairo_image_surface_create(CAIRO_FORMAT_RGB24, kWidth, kHeight), cairo_surface_destroy);
+  std::unique_ptr<cairo_t, decltype(&cairo_destroy)> context(cairo_create(surface.get()), cairo_destroy);
+  cairo_t* cr = context.get();
+  if (cairo_status(cr) != CAIRO_STATUS_SUCCESS) throw std::runtime_error(png.string() + ": cairo: " + cairo_status_to_string(cairo_status(cr)));
+  cairo_select_font_face(cr, "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
+  cairo_set_source_rgb(cr, 1, 1, 1);
+  cairo_paint(cr);
+
+  // Requests below the floor are raised to it: shade that band like the paper's red box.
+  const double yFloor = c.floorMpa() > 0 ? a.y(c.floorMpa()) : kHeight - kBottom;
+  color(cr, kFloorShade);
+  cairo_rectangle(cr, a.x(0), yFloor, a.x(1) - a.x(0), kHeight - kBottom - yFloor);
+  cairo_fill(cr);
+  drawAxes(cr, a);
+
+  // The floor: its modulus across the plot, its fraction down to the axis.
+  color(cr, kFloor);
+  cairo_set_line_width(cr, 1.5);
+  const double dash[] = {7, 5};
+  cairo_set_dash(cr, dash, 2, 0);
+  cairo_move_to(cr, a.x(0), yFloor);
+  cairo_line_to(cr, a.x(1), yFloor);
+  cairo_move_to(cr, a.x(c.floorFraction()), yFloor);
+  cairo_line_to(cr, a.x(c.floorFraction()), kHeight - kBottom);
+  cairo_stroke(cr);
+  cairo_set_dash(cr, nullptr, 0, 0);
+
+  // The fitted curve.
+  color(cr, kCurve);
+  cairo_set_line_width(cr, 2.5);
+  constexpr int kSamples = 500;
+  for (int i = 0; i <= kSamples; ++i) {
+    const double f = static_cast<double>(i) / kSamples;
+    if (i == 0) cairo_move_to(cr, a.x(f), a.y(c.modulusMpa(f)));
+    else cairo_line_to(cr, a.x(f), a.y(c.modulusMpa(f)));
+  }
+  cairo_stroke(cr);
+
+  // The floor point under the measurements, so a coupon measured right at the floor stays visible.
+  color(cr, kFloor);
+  circle(cr, a.x(c.floorFraction()), yFloor, 4);
+  cairo_fill(cr);
+
+  // Every replicate as an open circle, and each fraction's mean (in ln E) as a bar where there are replicates.
+  std::map<double, std::pair<double, int>> groups;
+  color(cr, kInk);
+  cairo_set_line_width(cr, 1.6);
+  for (const Measurement& m : measurements) {
+    circle(cr, a.x(m.veroFraction), a.y(m.modulusMpa), 5.5);
+    auto& g = groups[m.veroFraction];
+    g.first += std::log(m.modulusMpa);
+    g.second += 1;
+  }
+  cairo_stroke(cr);
+  for (const auto& [f, g] : groups) {
+    if (g.second < 2) continue;
+    const double y = a.y(std::exp(g.first / g.second));
+    cairo_move_to(cr, a.x(f) - 10, y);
+    cairo_line_to(cr, a.x(f) + 10, y);
+  }
+  cairo_stroke(cr);
+
+  const std::string floorText = format("%g MPa", c.floorMpa()) + " at " + format("%.1f %% Vero", 100 * c.floorFraction());
+  text(cr, a.x(c.floorFraction()) + 10, yFloor + 20, floorText, Align::Left, 13);
+
+  // Legend, top left inside the plot where the curve is low.
+  const double lx = a.x(0) + 16, ly = kTop + 16;
+  color(cr, Rgb{1, 1, 1});
+  cairo_rectangle(cr, lx - 8, ly - 8, 410, 104);
+  cairo_fill_preserve(cr);
+  color(cr, kInk);
+  cairo_set_line_width(cr, 1);
+  cairo_stroke(cr);
+  const double row = 24;
+  color(cr, kCurve);
+  cairo_set_line_width(cr, 2.5);
+  cairo_move_to(cr, lx, ly + 8);
+  cairo_line_to(cr, lx + 30, ly + 8);
+  cairo_stroke(cr);
+  color(cr, kInk);
+  text(cr, lx + 40, ly + 13, fitLabel(c), Align::Left, 13);
+  cairo_set_line_width(cr, 1.6);
+  circle(cr, lx + 15, ly + 8 + row, 5);
+  cairo_stroke(cr);
+  const std::size_t replicates = measurements.size() - groups.size();
+  text(cr, lx + 40, ly + 13 + row,
+       std::to_string(measurements.size()) + " measurements at " + std::to_string(groups.size()) + " fractions" +
+           (replicates ? " (bars: means in ln E)" : ""),
+       Align::Left, 13);
+  color(cr, kFloor);
+  cairo_set_line_width(cr, 1.5);
+  cairo_set_dash(cr, dash, 2, 0);
+  cairo_move_to(cr, lx, ly + 8 + 2 * row);
+  cairo_line_to(cr, lx + 30, ly + 8 + 2 * row);
+  cairo_stroke(cr);
+  cairo_set_dash(cr, nullptr, 0, 0);
+  color(cr, kInk);
+  text(cr, lx + 40, ly + 13 + 2 * row, "floor " + floorText, Align::Left, 13);
+  color(cr, kFloorShade);
+  cairo_rectangle(cr, lx, ly + 2 + 3 * row, 30, 12);
+  cairo_fill(cr);
+  color(cr, kInk);
+  text(cr, lx + 40, ly + 13 + 3 * row, "below the floor: raised to the floor's fraction", Align::Left, 13);
+
+  std::string title = "Modulus vs Vero fraction";
+  if (c.record().temperatureC) title += format(" at %.0f \u00B0C", *c.record().temperatureC);
+  if (!c.record().dataFile.empty()) title += ", " + std::filesystem::path(c.record().dataFile).filename().string();
+  text(cr, kLeft, 34, title, Align::Left, 17);
+
+  cairo_surface_flush(surface.get());
+  std::string bytes;
+  const cairo_status_t status = cairo_surface_write_to_png_stream(surface.get(), appendToString, &bytes);
+  if (status != CAIRO_STATUS_SUCCESS) throw std::runtime_error(png.string() + ": cairo PNG encoding failed: " + cairo_status_to_string(status));
+  writeFileAtomically(png, bytes);
+}
+
+}  // namespace rodfab::calibration

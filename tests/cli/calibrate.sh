@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# rodfab calibrate from the command line: the fit table, the files it writes, exit codes and messages.
+#   calibrate.sh RODFAB SOURCE_DIR
+set -u
+rodfab=$1 src=$2
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+
+csv="$src/examples/calibration/vero-tango-60C.csv"
+"$rodfab" calibrate "$csv" --output "$tmp/cal.json" --plot "$tmp/fit.png" > "$tmp/out" 2>&1 || fail "bundled data: $(cat "$tmp/out")"
+grep -q "floor:         8 MPa -> 30.0000 % Vero" "$tmp/out" || fail "no floor line: $(cat "$tmp/out")"
+grep -q "model:         pchip" "$tmp/out" || fail "pchip is not the default model"
+grep -q '"format": "rodfab.calibration/1"' "$tmp/cal.json" || fail "calibration file lacks its format tag"
+grep -q "\"sha256\": \"$(sha256sum "$csv" | cut -d' ' -f1)\"" "$tmp/cal.json" || fail "checksum is not sha256sum's"
+[ "$(head -c 8 "$tmp/fit.png" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ] || fail "plot is not a PNG"
+ls "$tmp" | grep -q '\.tmp$' && fail "a temporary file was left behind"
+
+"$rodfab" calibrate "$csv" --model lichtenecker > "$tmp/out" || fail "lichtenecker"
+grep -q "exponent:      a = 0.23" "$tmp/out" || fail "lichtenecker exponent: $(cat "$tmp/out")"
+"$rodfab" calibrate "$csv" --model log-power > "$tmp/out" || fail "log-power"
+grep -q "exponent:      n = 0.63" "$tmp/out" || fail "log-power exponent: $(cat "$tmp/out")"
+
+# Bad rows: each reported with its line, exit 1, nothing written.
+printf 'vero_fraction,modulus_mpa\n0,0.5\nhalf,3\n1.5,8\n1,190\n' > "$tmp/bad.csv"
+"$rodfab" calibrate "$tmp/bad.csv" --output "$tmp/bad.json" > "$tmp/out" 2> "$tmp/err"
+[ $? -eq 1 ] || fail "bad rows: expected exit 1"
+grep -q "bad.csv: line 3: vero_fraction: expected a Vero fraction from 0 to 1, got 'half'" "$tmp/err" || fail "line 3 not reported: $(cat "$tmp/err")"
+grep -q "bad.csv: line 4: vero_fraction: expected a fraction from 0 to 1, got '1.5'" "$tmp/err" || fail "line 4 not reported"
+grep -q "2 errors; nothing fitted" "$tmp/err" || fail "no error count"
+[ ! -e "$tmp/bad.json" ] || fail "a calibration was written from bad data"
+
+# Non-monotone means: refused for pchip, naming the fractions.
+printf 'vero_fraction,modulus_mpa\n0,0.5\n0.4,12\n0.5,11\n1,190\n' > "$tmp/dip.csv"
+"$rodfab" calibrate "$tmp/dip.csv" 2> "$tmp/err" > /dev/null
+[ $? -eq 1 ] || fail "non-monotone: expected exit 1"
+grep -q "0.4 (12 MPa, 1 specimen, line 3) -> 0.5 (11 MPa, 1 specimen, line 4)" "$tmp/err" || fail "offending fractions not named: $(cat "$tmp/err")"
+"$rodfab" calibrate "$tmp/dip.csv" --model log-power > /dev/null || fail "log-power should fit non-monotone data"
+
+"$rodfab" calibrate "$tmp/absent.csv" 2> "$tmp/err"
+[ $? -eq 1 ] || fail "missing file: expected exit 1"
+grep -q "absent.csv: cannot open" "$tmp/err" || fail "missing file not named"
+"$rodfab" calibrate "$csv" --floor-mpa 0.1 2> "$tmp/err" > /dev/null
+[ $? -eq 1 ] || fail "floor below pure Tango: expected exit 1"
+grep -q "lies outside the printable range" "$tmp/err" || fail "floor range not explained: $(cat "$tmp/err")"
+
+"$rodfab" calibrate 2> /dev/null
+[ $? -eq 2 ] || fail "no data argument: expected usage exit 2"
+"$rodfab" calibrate "$csv" --model spline 2> "$tmp/err"
+[ $? -eq 2 ] || fail "unknown model: expected usage exit 2"
+grep -q "expected pchip, lichtenecker or log-power" "$tmp/err" || fail "unknown model not explained"
+"$rodfab" calibrate "$csv" --floor-mpa -3 2> /dev/null
+[ $? -eq 2 ] || fail "negative floor: expected usage exit 2"
+"$rodfab" calibrate --help | grep -q "usage: rodfab calibrate" || fail "--help"
+echo "calibrate CLI: all checks passed"

@@ -1,0 +1,476 @@
+// calibration/: the CSV reader, the fits, the inverse and the floor, calibration files and plots, checked
+// against analytic values, the published figures, synthetic data of known law, and decoded files.
+#include "calibration/calibration.hpp"
+
+#include <cairo.h>
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <memory>
+#include <sstream>
+#include <thread>
+
+using namespace rodfab::calibration;
+namespace fs = std::filesystem;
+
+namespace {
+
+const fs::path kBundledCsv = fs::path(RODFAB_SOURCE_DIR) / "examples" / "calibration" / "vero-tango-60C.csv";
+
+// The published 60 C figures without comments, for tests that do not need the bundled file.
+const char* const kPublished =
+    "vero_fraction,modulus_mpa\n"
+    "0,0.5\n"
+    "0.3,8\n"
+    "1,190\n";
+
+// Replicates at +-5 % (multiplicative) around a log-power law ln E = ln 0.5 + ln 380 f^0.7, so each
+// fraction's geometric mean lies exactly on the law.
+double truthLogPower(double f) { return std::exp(std::log(0.5) + std::log(380.0) * std::pow(f, 0.7)); }
+
+std::string replicatedCsv(double (*law)(double)) {
+  std::ostringstream csv;
+  csv.precision(17);
+  csv << "# synthetic replicates\nvero_fraction,modulus_mpa,temperature_c,specimen,dither\n";
+  int n = 0;
+  for (double f : {0.0, 0.1, 0.2, 0.3, 0.45, 0.6, 0.8, 1.0})
+    for (double factor : {1.05, 1.0 / 1.05}) csv << f << ',' << law(f) * factor << ",60.2,s" << ++n << ",random\n";
+  return csv.str();
+}
+
+Calibration fitText(const std::string& csv, Model model = Model::Pchip, double floorMpa = kDefaultFloorMpa) {
+  return fitCalibration(parseData(csv, "test.csv"), {model, floorMpa});
+}
+
+std::string dataError(const std::string& csv) {
+  try {
+    parseData(csv, "bad.csv");
+  } catch (const DataError& e) {
+    return e.what();
+  }
+  FAIL("no DataError for:\n" << csv);
+  return {};
+}
+
+std::string fitError(const std::string& csv, Model model = Model::Pchip, double floorMpa = kDefaultFloorMpa) {
+  try {
+    fitText(csv, model, floorMpa);
+  } catch (const FitError& e) {
+    return e.what();
+  }
+  FAIL("no FitError for:\n" << csv);
+  return {};
+}
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    path = fs::temp_directory_path() / ("rodfab-calibration-test-" + std::to_string(::getpid()));
+    fs::remove_all(path);
+    fs::create_directories(path);
+  }
+  ~TempDir() { fs::remove_all(path); }
+};
+
+}  // namespace
+
+TEST_CASE("SHA-256 matches the FIPS 180-2 test vectors", "[calibration][data]") {
+  CHECK(sha256Hex("abc") == "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+  CHECK(sha256Hex("") == "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
+}
+
+TEST_CASE("the bundled data set reads with its comments, columns and checksum", "[calibration][data]") {
+  const DataSet data = readData(kBundledCsv);
+  REQUIRE(data.measurements.size() == 3);
+  CHECK(data.measurements[0].veroFraction == 0.0);
+  CHECK(data.measurements[0].modulusMpa == 0.5);
+  CHECK(data.measurements[1].veroFraction == 0.3);
+  CHECK(data.measurements[1].modulusMpa == 8.0);
+  CHECK(data.measurements[2].modulusMpa == 190.0);
+  CHECK(data.measurements[2].temperatureC == 60.0);
+  CHECK(data.measurements[2].dither == "random");
+  CHECK(data.measurements[0].line > 1);  // after the comment block
+  std::ifstream in(kBundledCsv, std::ios::binary);
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  CHECK(data.sha256 == sha256Hex(bytes.str()));
+}
+
+TEST_CASE("CSV details: quotes, CRLF, BOM, blank lines, leading +, optional empty cells", "[calibration][data]") {
+  const DataSet d = parseData("\xEF\xBB\xBF# c\r\n\r\nModulus_MPa , vero_fraction,specimen,temperature_c\r\n"
+                              "+12.5, 0.4 ,\"coupon, left\",\r\n  # indented comment\n3,0.1,b,59.5\n",
+                              "x.csv");
+  REQUIRE(d.measurements.size() == 2);
+  CHECK(d.measurements[0].modulusMpa == 12.5);
+  CHECK(d.measurements[0].veroFraction == 0.4);
+  CHECK(d.measurements[0].specimen == "coupon, left");
+  CHECK_FALSE(d.measurements[0].temperatureC);
+  CHECK(d.measurements[0].line == 4);
+  CHECK(d.measurements[1].temperatureC == 59.5);
+  CHECK(d.measurements[1].line == 6);
+}
+
+TEST_CASE("bad rows are all reported with their line numbers", "[calibration][data]") {
+  const std::string message = dataError(
+      "vero_fraction,modulus_mpa,temperature_c\n"
+      "0,0.5,60\n"
+      "abc,3,60\n"         // line 3: non-numeric fraction
+      "30,8,60\n"          // line 4: a percentage
+      "0.5,-2,60\n"        // line 5: non-positive modulus
+      "0.6,,60\n"          // line 6: missing modulus
+      "0.7,12\n"           // line 7: missing column
+      "0.8,40,warm\n"      // line 8: non-numeric temperature
+      "1,190,60\n");
+  CHECK_THAT(message, Catch::Contains("bad.csv: line 3: vero_fraction: expected a Vero fraction from 0 to 1, got 'abc'"));
+  CHECK_THAT(message, Catch::Contains("bad.csv: line 4: vero_fraction: expected a fraction from 0 to 1, got '30' (a percentage?"));
+  CHECK_THAT(message, Catch::Contains("bad.csv: line 5: modulus_mpa: expected a modulus > 0 MPa, got '-2'"));
+  CHECK_THAT(message, Catch::Contains("bad.csv: line 6: modulus_mpa: missing"));
+  CHECK_THAT(message, Catch::Contains("bad.csv: line 7: expected 3 fields (as in the header), got 2"));
+  CHECK_THAT(message, Catch::Contains("bad.csv: line 8: temperature_c: expected a temperature in degrees Celsius, got 'warm'"));
+  CHECK(message.find("line 2:") == std::string::npos);
+  CHECK(message.find("line 9:") == std::string::npos);
+  try {
+    parseData("vero_fraction,modulus_mpa\nx,1\ny,2\n", "bad.csv");
+  } catch (const DataError& e) {
+    CHECK(e.issues().size() == 2);
+    CHECK(e.file() == "bad.csv");
+  }
+}
+
+TEST_CASE("the header is checked for units, required and duplicate columns", "[calibration][data]") {
+  CHECK_THAT(dataError("vero_fraction,modulus_gpa\n0,1\n"),
+             Catch::Contains("bad.csv: line 1: column 'modulus_gpa': the modulus must be given in MPa, in a column named 'modulus_mpa'"));
+  CHECK_THAT(dataError("vero_percent,modulus_mpa\n0,1\n"), Catch::Contains("in a column named 'vero_fraction'"));
+  CHECK_THAT(dataError("vero_fraction,modulus_mpa,temperature_f\n0,1,140\n"), Catch::Contains("degrees Celsius"));
+  CHECK_THAT(dataError("vero_fraction,modulus_mpa,operator\n0,1,x\n"), Catch::Contains("unknown column 'operator' (expected:"));
+  CHECK_THAT(dataError("vero_fraction,specimen\n0,a\n"), Catch::Contains("the header lacks the required column 'modulus_mpa'"));
+  CHECK_THAT(dataError("vero_fraction,modulus_mpa,modulus_mpa\n0,1,1\n"), Catch::Contains("column 'modulus_mpa' appears twice"));
+  CHECK_THAT(dataError("# only a comment\n"), Catch::Contains("bad.csv: no header line"));
+  CHECK_THAT(dataError("vero_fraction,modulus_mpa\n"), Catch::Contains("bad.csv: no measurements after the header"));
+  CHECK_THAT(dataError("vero_fraction,modulus_mpa,specimen\n0,1,\"open\n"), Catch::Contains("line 2: unbalanced quotes"));
+  CHECK_THROWS_WITH(readData("/nonexistent/dma.csv"), Catch::Contains("/nonexistent/dma.csv: cannot open"));
+}
+
+TEST_CASE("the published figures: 8 MPa at 30 % Vero and a floor fraction of 30 %", "[calibration][fit]") {
+  const Calibration c = fitCalibration(readData(kBundledCsv));
+  CHECK(c.model() == Model::Pchip);
+  CHECK(c.modulusMpa(0.0) == Approx(0.5).epsilon(1e-12));
+  CHECK(c.modulusMpa(0.3) == Approx(8.0).epsilon(1e-12));
+  CHECK(c.modulusMpa(1.0) == Approx(190.0).epsilon(1e-12));
+  CHECK(c.floorMpa() == 8.0);
+  CHECK(c.floorFraction() == Approx(0.3).margin(1e-9));
+  CHECK(c.maxModulusMpa() == Approx(190.0).epsilon(1e-12));
+  CHECK(c.record().temperatureC == 60.0);
+  CHECK(c.record().dither == "random");
+  const FitQuality& q = c.record().quality;
+  CHECK(q.measurements == 3);
+  CHECK(q.fractions == 3);
+  CHECK(q.rmsLn == Approx(0.0).margin(1e-12));
+  CHECK(q.r2Ln == Approx(1.0).margin(1e-12));
+  CHECK(q.maxRelativeError == Approx(0.0).margin(1e-12));
+  // Without the 30 % coupon, pchip through two points is ln E linear in f: E(0.3) = 0.5 * 380^0.3.
+  REQUIRE(q.leaveOneOutRmsLn);
+  CHECK(*q.leaveOneOutRmsLn == Approx(std::abs(std::log(8.0) - std::log(0.5 * std::pow(380.0, 0.3)))).epsilon(1e-12));
+}
+
+TEST_CASE("the parametric exponents of the published figures: Lichtenecker ~0.24, log-power ~0.63", "[calibration][fit]") {
+  // The end moduli are the end points, so the exponent makes the curve pass through 8 MPa at 30 %.
+  const Calibration lichtenecker = fitText(kPublished, Model::Lichtenecker);
+  const double a = lichtenecker.parameters().exponent;
+  CHECK(a == Approx(0.24).margin(0.005));
+  CHECK(0.7 * std::pow(0.5, a) + 0.3 * std::pow(190.0, a) == Approx(std::pow(8.0, a)).epsilon(1e-7));
+  CHECK(lichtenecker.floorFraction() == Approx(0.3).margin(1e-6));
+  CHECK_FALSE(lichtenecker.record().quality.leaveOneOutRmsLn);  // removing 30 % leaves the exponent free
+
+  const Calibration logPower = fitText(kPublished, Model::LogPower);
+  const double n = logPower.parameters().exponent;
+  CHECK(n == Approx(0.63).margin(0.005));
+  CHECK(n == Approx(std::log(std::log(16.0) / std::log(380.0)) / std::log(0.3)).epsilon(1e-7));
+  CHECK(logPower.parameters().tangoModulusMpa == 0.5);
+  CHECK(logPower.parameters().veroModulusMpa == 190.0);
+}
+
+TEST_CASE("the parametric fits recover the exponent of noise-free data of known law", "[calibration][fit]") {
+  for (const auto& [model, exponent] : {std::pair{Model::Lichtenecker, 0.5}, std::pair{Model::Lichtenecker, -0.3},
+                                        std::pair{Model::Lichtenecker, 0.0}, std::pair{Model::LogPower, 1.7}}) {
+    std::ostringstream csv;
+    csv.precision(17);
+    csv << "vero_fraction,modulus_mpa\n";
+    for (double f : {0.0, 0.15, 0.4, 0.55, 0.9, 1.0}) {
+      double e = 0;
+      if (model == Model::LogPower) e = std::exp(std::log(2.0) + std::log(1000.0) * std::pow(f, exponent));
+      else if (exponent == 0.0) e = 2.0 * std::pow(1000.0, f);
+      else e = std::pow((1 - f) * std::pow(2.0, exponent) + f * std::pow(2000.0, exponent), 1 / exponent);
+      csv << f << ',' << e << '\n';
+    }
+    const Calibration c = fitText(csv.str(), model);
+    INFO(modelName(model) << " exponent " << exponent);
+    CHECK(c.parameters().exponent == Approx(exponent).margin(1e-6));
+    CHECK(c.record().quality.rmsLn == Approx(0.0).margin(1e-6));
+    REQUIRE(c.record().quality.leaveOneOutRmsLn);  // 6 fractions: enough for leave-one-out
+    CHECK(*c.record().quality.leaveOneOutRmsLn == Approx(0.0).margin(1e-5));
+  }
+}
+
+TEST_CASE("pchip passes through the per-fraction geometric means of replicates", "[calibration][fit]") {
+  const Calibration c = fitText(replicatedCsv(truthLogPower));
+  for (double f : {0.0, 0.1, 0.2, 0.3, 0.45, 0.6, 0.8, 1.0}) CHECK(c.modulusMpa(f) == Approx(truthLogPower(f)).epsilon(1e-12));
+  const FitQuality& q = c.record().quality;
+  CHECK(q.measurements == 16);
+  CHECK(q.fractions == 8);
+  CHECK(q.rmsLn == Approx(std::log(1.05)).epsilon(1e-12));  // every replicate is 5 % off its mean
+  CHECK(q.maxRelativeError == Approx(0.05).epsilon(1e-9));
+  CHECK(c.record().temperatureC == Approx(60.2));
+  // Between nodes a smooth law is followed closely (away from the f^0.7 cusp at 0).
+  for (double f = 0.1; f <= 1.0; f += 0.01) CHECK(std::log(c.modulusMpa(f) / truthLogPower(f)) == Approx(0.0).margin(0.03));
+}
+
+TEST_CASE("every model is strictly increasing and its inverse returns f to 1e-9", "[calibration][fit]") {
+  for (Model model : {Model::Pchip, Model::Lichtenecker, Model::LogPower})
+    for (const std::string& csv : {std::string(kPublished), replicatedCsv(truthLogPower)}) {
+      const Calibration c = fitText(csv, model);
+      INFO(modelName(model));
+      double previous = -std::numeric_limits<double>::infinity();
+      int notIncreasing = 0, notInverted = 0;
+      constexpr int kSteps = 20000;
+      for (int i = 0; i <= kSteps; ++i) {
+        const double f = static_cast<double>(i) / kSteps;
+        const double lnE = c.lnModulus(f);
+        notIncreasing += !(lnE > previous);
+        previous = lnE;
+        if (std::exp(lnE) < c.floorMpa()) continue;  // clamped: checked below
+        const FractionResult r = c.fraction(std::exp(lnE));
+        notInverted += !(std::abs(r.fraction - f) <= 1e-9 && r.clamp == Clamp::None);
+      }
+      CHECK(notIncreasing == 0);
+      CHECK(notInverted == 0);
+    }
+}
+
+TEST_CASE("requests below the floor and above the maximum are clamped and counted", "[calibration][clamp]") {
+  const Calibration c = fitText(kPublished);
+  const FractionResult atFloor = c.fraction(8.0);
+  CHECK(atFloor.clamp == Clamp::None);
+  CHECK(atFloor.fraction == Approx(0.3).margin(1e-9));
+  const FractionResult below = c.fraction(2.0);
+  CHECK(below.clamp == Clamp::BelowFloor);
+  CHECK(below.fraction == c.floorFraction());
+  CHECK(c.fraction(std::nan("")).clamp == Clamp::BelowFloor);
+  CHECK(c.fraction(-1.0).clamp == Clamp::BelowFloor);
+  const FractionResult above = c.fraction(250.0);
+  CHECK(above.clamp == Clamp::AboveMax);
+  CHECK(above.fraction == 1.0);
+  CHECK(c.fraction(190.0).clamp == Clamp::None);
+  CHECK(c.fraction(190.0).fraction == Approx(1.0).margin(1e-9));
+  CHECK(c.fraction(std::numeric_limits<double>::infinity()).clamp == Clamp::AboveMax);
+
+  // 1000 requests from 0.1 to 1000 MPa, log-spaced, tallied on four threads and summed.
+  std::vector<double> requests;
+  for (int i = 0; i < 1000; ++i) requests.push_back(0.1 * std::pow(10.0, 4.0 * i / 999.0));
+  std::size_t expectedBelow = 0, expectedAbove = 0;
+  for (double e : requests) expectedBelow += e < 8.0, expectedAbove += e > 190.0;
+  std::vector<ClampCounts> perThread(4);
+  std::vector<double> fractions(requests.size());
+  std::vector<std::thread> threads;
+  for (std::size_t t = 0; t < perThread.size(); ++t)
+    threads.emplace_back([&, t] {
+      for (std::size_t i = t; i < requests.size(); i += perThread.size()) {
+        const FractionResult r = c.fraction(requests[i]);
+        fractions[i] = r.fraction;
+        perThread[t].count(r.clamp);
+      }
+    });
+  for (auto& t : threads) t.join();
+  ClampCounts total;
+  for (const ClampCounts& counts : perThread) total += counts;
+  CHECK(total.belowFloor == expectedBelow);
+  CHECK(total.aboveMax == expectedAbove);
+  CHECK(total.total() == expectedBelow + expectedAbove);
+  for (std::size_t i = 0; i < requests.size(); ++i) CHECK(fractions[i] == c.fraction(requests[i]).fraction);
+}
+
+TEST_CASE("another floor gives its own fraction", "[calibration][clamp]") {
+  const Calibration c = fitText(kPublished, Model::Pchip, 20.0);
+  CHECK(c.modulusMpa(c.floorFraction()) == Approx(20.0).epsilon(1e-9));
+  CHECK(c.floorFraction() > 0.3);
+  const Calibration none = fitText(kPublished, Model::Pchip, 0.5);  // the floor at pure Tango
+  CHECK(none.floorFraction() == 0.0);
+  CHECK_THAT(fitError(kPublished, Model::Pchip, 0.2), Catch::Contains("the floor 0.2 MPa lies outside the printable range"));
+  CHECK_THAT(fitError(kPublished, Model::Pchip, 190.0), Catch::Contains("below 190 MPa (100 % Vero)"));
+}
+
+TEST_CASE("pchip refuses means that do not increase, naming the fractions; parametric models fit them", "[calibration][fit]") {
+  const std::string csv = "vero_fraction,modulus_mpa\n0,0.5\n0.4,12\n0.4,13\n0.5,11\n0.7,11\n1,190\n";
+  const std::string message = fitError(csv);
+  CHECK_THAT(message, Catch::Contains("test.csv: the mean modulus does not strictly increase with the Vero fraction"));
+  CHECK_THAT(message, Catch::Contains("0.4 (12.49 MPa, 2 specimens, first at line 3) -> 0.5 (11 MPa, 1 specimen, line 5)"));
+  CHECK_THAT(message, Catch::Contains("0.5 (11 MPa, 1 specimen, line 5) -> 0.7 (11 MPa, 1 specimen, line 6)"));
+  CHECK_THAT(message, Catch::Contains("lichtenecker or log-power"));
+  const Calibration c = fitText(csv, Model::LogPower);
+  CHECK(c.modulusMpa(0.7) > c.modulusMpa(0.5));
+  CHECK(c.record().quality.r2Ln < 1.0);
+}
+
+TEST_CASE("data that cannot make a calibration is refused with the reason", "[calibration][fit]") {
+  CHECK_THAT(fitError("vero_fraction,modulus_mpa\n0.1,1\n1,190\n"), Catch::Contains("no coupon at vero_fraction 0 (pure Tango)"));
+  CHECK_THAT(fitError("vero_fraction,modulus_mpa\n0,1\n0.9,190\n"), Catch::Contains("no coupon at vero_fraction 1 (pure Vero)"));
+  CHECK_THAT(fitError("vero_fraction,modulus_mpa\n0,10\n1,5\n", Model::LogPower), Catch::Contains("is not stiffer than pure Tango"));
+  CHECK_THAT(fitError("vero_fraction,modulus_mpa\n0,0.5\n1,190\n", Model::Lichtenecker),
+             Catch::Contains("the lichtenecker exponent needs measurements at a third Vero fraction"));
+  CHECK_THAT(fitError("vero_fraction,modulus_mpa,temperature_c\n0,0.5,60\n0.3,8,25\n1,190,60\n"),
+             Catch::Contains("measured at different temperatures (25 C at line 3, 60 C at line 2)"));
+  CHECK_THAT(fitError("vero_fraction,modulus_mpa,dither\n0,0.5,random\n0.3,8,blue-noise\n1,190,random\n"),
+             Catch::Contains("different ditherers ('blue-noise' at line 3, 'random' at line 2)"));
+  // Half Vero nearly as stiff as pure Vero: beyond the power mean of order 4 (841 MPa here).
+  CHECK_THAT(fitError("vero_fraction,modulus_mpa\n0,1\n0.5,999\n1,1000\n", Model::Lichtenecker),
+             Catch::Contains("lies at the edge of its range"));
+  // Two fractions: pchip is ln E linear in f.
+  const Calibration line = fitText("vero_fraction,modulus_mpa\n0,1\n1,100\n", Model::Pchip, 1.0);
+  CHECK(line.modulusMpa(0.5) == Approx(10.0).epsilon(1e-12));
+  CHECK(line.fraction(10.0).fraction == Approx(0.5).margin(1e-9));
+}
+
+TEST_CASE("pchip slopes follow the Fritsch-Butland and shape-preserving end formulas", "[calibration][fit]") {
+  // x = 0, 1, 3; y = 0, 2, 3: secants 2 and 0.5.
+  const std::vector<double> s = pchipSlopes({0, 1, 3}, {0, 2, 3});
+  REQUIRE(s.size() == 3);
+  CHECK(s[1] == Approx((5.0 + 4.0) / (5.0 / 2.0 + 4.0 / 0.5)));  // w1 = 2h1+h0 = 5, w2 = h1+2h0 = 4
+  CHECK(s[0] == Approx(((2 * 1 + 2) * 2.0 - 1 * 0.5) / 3.0));
+  CHECK(s[2] == Approx(0.0));  // (2h+h')m - h m' = (5)(0.5) - 2(2) < 0: the sign flips, so 0
+  const std::vector<double> flat = pchipSlopes({0, 1, 2}, {0, 1, 1});
+  CHECK(flat[1] == 0.0);  // a flat secant next to a node keeps the curve from overshooting
+}
+
+TEST_CASE("a calibration file round-trips exactly", "[calibration][file]") {
+  TempDir dir;
+  for (Model model : {Model::Pchip, Model::Lichtenecker, Model::LogPower}) {
+    const Calibration original = fitText(replicatedCsv(truthLogPower), model);
+    const fs::path file = dir.path / (std::string(modelName(model)) + ".json");
+    writeCalibration(original, file);
+    CHECK_FALSE(fs::exists(file.string() + ".tmp"));
+    const Calibration back = readCalibration(file);
+    CHECK(back.model() == model);
+    CHECK(back.parameters().fractions == original.parameters().fractions);
+    CHECK(back.parameters().moduliMpa == original.parameters().moduliMpa);
+    CHECK(back.parameters().exponent == original.parameters().exponent);
+    CHECK(back.floorMpa() == original.floorMpa());
+    CHECK(back.floorFraction() == original.floorFraction());
+    CHECK(back.maxModulusMpa() == original.maxModulusMpa());
+    CHECK(back.record().dataSha256 == original.record().dataSha256);
+    CHECK(back.record().dataFile == "test.csv");
+    CHECK(back.record().dither == "random");
+    CHECK(back.record().temperatureC == original.record().temperatureC);
+    REQUIRE(back.record().measurements.size() == 16);
+    CHECK(back.record().measurements[5].modulusMpa == original.record().measurements[5].modulusMpa);
+    CHECK(back.record().measurements[5].specimen == "s6");
+    CHECK(back.record().quality.rmsLn == original.record().quality.rmsLn);
+    CHECK(back.record().quality.leaveOneOutRmsLn == original.record().quality.leaveOneOutRmsLn);
+    for (double f = 0; f <= 1; f += 0.01) CHECK(back.lnModulus(f) == original.lnModulus(f));
+    // The file names its format, and the JSON carries the documented keys.
+    std::ifstream in(file);
+    const nlohmann::json j = nlohmann::json::parse(in);
+    CHECK(j["format"] == "rodfab.calibration/1");
+    CHECK(j["floor"]["modulus_mpa"] == 8.0);
+  }
+}
+
+TEST_CASE("bad calibration files name the file and the field", "[calibration][file]") {
+  const nlohmann::json good = nlohmann::json::parse(calibrationToJson(fitText(kPublished)).dump());
+  const auto error = [](const nlohmann::json& j) -> std::string {
+    try {
+      calibrationFromJson(j, "cal.json");
+    } catch (const CalibrationFileError& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  CHECK(error(good) == "no error");
+  auto j = good;
+  j["format"] = "rodfab.calibration/9";
+  CHECK_THAT(error(j), Catch::StartsWith("cal.json: format: expected \"rodfab.calibration/1\""));
+  j = good;
+  j["model"] = "spline";
+  CHECK_THAT(error(j), Catch::StartsWith("cal.json: model: expected \"pchip\", \"lichtenecker\" or \"log-power\""));
+  j = good;
+  j["floor"]["vero_fraction"] = 0.31;
+  CHECK_THAT(error(j), Catch::StartsWith("cal.json: floor.vero_fraction: the model gives Vero fraction 0.300000"));
+  j = good;
+  j["parameters"]["points"][1]["modulus_mpa"] = 0.4;
+  CHECK_THAT(error(j), Catch::StartsWith("cal.json: parameters.points[1].modulus_mpa: node moduli must strictly increase"));
+  j = good;
+  j["parameters"]["points"][2]["vero_fraction"] = 0.9;
+  CHECK_THAT(error(j), Catch::StartsWith("cal.json: parameters.points[2].vero_fraction: the last node must be at Vero fraction 1"));
+  j = good;
+  j["data"].erase("sha256");
+  CHECK_THAT(error(j), Catch::StartsWith("cal.json: data.sha256: missing"));
+  j = good;
+  j["data"]["measurements"][0]["modulus_mpa"] = "soft";
+  CHECK_THAT(error(j), Catch::StartsWith("cal.json: data.measurements[0].modulus_mpa: expected a modulus in MPa"));
+  j = good;
+  j["extra"] = 1;
+  CHECK_THAT(error(j), Catch::StartsWith("cal.json: extra: unknown key"));
+  j = good;
+  j["floor"]["modulus_mpa"] = 500;
+  CHECK_THAT(error(j), Catch::Contains("the floor (500 MPa) must lie"));
+
+  TempDir dir;
+  std::ofstream(dir.path / "broken.json") << "{ \"format\": ";
+  CHECK_THROWS_WITH(readCalibration(dir.path / "broken.json"), Catch::Contains("broken.json: not valid JSON"));
+  CHECK_THROWS_WITH(readCalibration(dir.path / "absent.json"), Catch::Contains("absent.json: cannot open"));
+}
+
+TEST_CASE("the bundled default calibration is what refitting the bundled data gives", "[calibration][file]") {
+  const Calibration committed = loadDefaultCalibration();
+  const Calibration refit = fitCalibration(readData(kBundledCsv), {committed.model(), committed.floorMpa()});
+  CHECK(committed.record().dataSha256 == refit.record().dataSha256);
+  CHECK(committed.model() == Model::Pchip);
+  REQUIRE(committed.parameters().fractions.size() == refit.parameters().fractions.size());
+  for (std::size_t i = 0; i < refit.parameters().fractions.size(); ++i) {
+    CHECK(committed.parameters().fractions[i] == refit.parameters().fractions[i]);
+    CHECK(committed.parameters().moduliMpa[i] == Approx(refit.parameters().moduliMpa[i]).epsilon(1e-14));
+  }
+  CHECK(committed.floorFraction() == Approx(refit.floorFraction()).margin(1e-12));
+  CHECK(committed.maxModulusMpa() == Approx(refit.maxModulusMpa()).epsilon(1e-14));
+  CHECK(committed.record().temperatureC == 60.0);
+  CHECK(committed.record().quality.leaveOneOutRmsLn == Approx(*refit.record().quality.leaveOneOutRmsLn).epsilon(1e-12));
+  CHECK(fs::path(committed.record().dataFile).filename() == "vero-tango-60C.csv");
+}
+
+TEST_CASE("the fit plot is a PNG that decodes and shows the curve and the floor", "[calibration][plot]") {
+  TempDir dir;
+  const fs::path png = dir.path / "fit.png";
+  const Calibration c = fitText(replicatedCsv(truthLogPower));
+  writeFitPlot(c, png);
+  CHECK_FALSE(fs::exists(png.string() + ".tmp"));
+  std::unique_ptr<cairo_surface_t, decltype(&cairo_surface_destroy)> image(
+      cairo_image_surface_create_from_png(png.c_str()), cairo_surface_destroy);
+  REQUIRE(cairo_surface_status(image.get()) == CAIRO_STATUS_SUCCESS);
+  const int width = cairo_image_surface_get_width(image.get()), height = cairo_image_surface_get_height(image.get());
+  CHECK(width == 960);
+  CHECK(height == 640);
+  // Count the curve's blue and the floor's red (both saturated; the rest is grey, black or pale).
+  const unsigned char* data = cairo_image_surface_get_data(image.get());
+  const int stride = cairo_image_surface_get_stride(image.get());
+  int blue = 0, red = 0, white = 0;
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) {
+      const unsigned char* p = data + y * stride + 4 * x;  // native-endian xRGB: B, G, R on little-endian
+      const int b = p[0], g = p[1], r = p[2];
+      blue += b > 150 && r < 80 && g < 130;
+      red += r > 170 && g < 80 && b < 80;
+      white += r == 255 && g == 255 && b == 255;
+    }
+  CHECK(blue > 800);   // ~850 px of curve, 2.5 px wide
+  CHECK(red > 200);    // the dashed floor lines and the floor point
+  CHECK(white > width * height / 3);
+
+  // A failed write leaves nothing behind and names the file.
+  CHECK_THROWS_WITH(writeFitPlot(c, dir.path / "no-such-dir" / "fit.png"), Catch::Contains("no-such-dir/fit.png"));
+  CHECK_FALSE(fs::exists(dir.path / "no-such-dir"));
+  CHECK_THROWS_WITH(writeCalibration(c, dir.path / "no-such-dir" / "c.json"), Catch::Contains("no-such-dir/c.json"));
+}
