@@ -236,6 +236,7 @@ void writeFitPlot(const Calibration& c, const std::filesystem::path& png) {
 
   std::string title = "Modulus vs Vero fraction";
   if (c.record().temperatureC) title += format(" at %.0f \u00B0C", *c.record().temperatureC);
+  if (!c.record().dither.empty()) title += ", " + c.record().dither + " dither";
   if (!c.record().dataFile.empty()) title += ", " + std::filesystem::path(c.record().dataFile).filename().string();
   text(cr, kLeft, 34, title, Align::Left, 17);
 
