@@ -8,6 +8,7 @@ packages=(
   libeigen3-dev
   libopenvdb-dev libopenvdb-tools libboost-iostreams-dev   # FindOpenVDB needs Boost.Iostreams
   libtbb-dev
+  librandom123-dev                                           # counter-based random numbers (dithering)
   libpng-dev
   libzip-dev zipcmp zipmerge ziptool                         # libzip's CMake config refers to these
   libboost-program-options-dev

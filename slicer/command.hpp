@@ -24,5 +24,6 @@ int runValidate(const std::vector<std::string>& args);
 int runCalibrate(const std::vector<std::string>& args);
 int runProfiles(const std::vector<std::string>& args);
 int runInspect(const std::vector<std::string>& args);
+int runDitherReport(const std::vector<std::string>& args);
 
 }  // namespace rodfab::cli

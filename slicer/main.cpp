@@ -1,5 +1,6 @@
 #include "slicer/command.hpp"
 
+#include <algorithm>
 #include <cstring>
 #include <exception>
 #include <iostream>
@@ -13,12 +14,15 @@ constexpr Command kCommands[] = {
     {"calibrate", "fit modulus vs Vero fraction to DMA data; write a calibration file and plot", runCalibrate},
     {"profiles", "list the bundled printer profiles, or show one", runProfiles},
     {"inspect", "re-read a print job and verify every file, size, DPI and orientation", runInspect},
+    {"dither-report", "measure each ditherer's quality on uniform blocks and a thin rod", runDitherReport},
 };
+// usage() pads command names to 15 columns.
+static_assert(std::ranges::all_of(kCommands, [](const Command& c) { return std::char_traits<char>::length(c.name) < 15; }));
 
 void usage(std::ostream& out) {
   out << "rodfab: slicer and print-job driver for 4D-printed multi-material rod structures\n\n"
          "usage: rodfab COMMAND [options]   (rodfab COMMAND --help for the options of one command)\n\ncommands:\n";
-  for (const Command& c : kCommands) out << "  " << c.name << std::string(12 - std::strlen(c.name), ' ') << c.summary << '\n';
+  for (const Command& c : kCommands) out << "  " << c.name << std::string(15 - std::strlen(c.name), ' ') << c.summary << '\n';
 }
 
 }  // namespace

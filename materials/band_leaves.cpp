@@ -1,0 +1,60 @@
+#include "materials/band_leaves.hpp"
+
+#include "materials/ditherer.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+#include <tuple>
+
+namespace rodfab::materials::detail {
+
+std::vector<const FloatLeaf*> leavesInLayers(const openvdb::FloatTree& tree, int k0, int k1) {
+  std::vector<const FloatLeaf*> leaves;
+  for (auto it = tree.cbeginLeaf(); it; ++it) {
+    const int z = it->origin().z();
+    if (z < k1 && z + static_cast<int>(FloatLeaf::DIM) > k0) leaves.push_back(it.getLeaf());
+  }
+  std::sort(leaves.begin(), leaves.end(), [](const FloatLeaf* a, const FloatLeaf* b) {
+    const openvdb::Coord& p = a->origin();
+    const openvdb::Coord& q = b->origin();
+    return std::tuple(p.z(), p.y(), p.x()) < std::tuple(q.z(), q.y(), q.x());
+  });
+  return leaves;
+}
+
+LeafMask activeInLayers(const FloatLeaf& leaf, int k0, int k1) {
+  const int z0 = leaf.origin().z();
+  const int lo = std::clamp(k0 - z0, 0, 8), hi = std::clamp(k1 - z0, 0, 8);
+  LeafMask mask = leaf.getValueMask();
+  if (lo == 0 && hi == 8) return mask;
+  // Offsets are x * 64 + y * 8 + z: every byte of a 64-bit mask word is one (x, y) column along z.
+  const std::uint64_t column = hi > lo ? ((std::uint64_t{1} << hi) - (std::uint64_t{1} << lo)) : 0;
+  const std::uint64_t keep = column * 0x0101010101010101ull;
+  for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w) mask.template getWord<std::uint64_t>(w) &= keep;
+  return mask;
+}
+
+void FractionCheck::throwIfFailed(const openvdb::FloatGrid& grid, const std::vector<const FloatLeaf*>& leaves) const {
+  const std::uint64_t key = first_.load();
+  if (key == ~std::uint64_t{0}) return;
+  const FloatLeaf& leaf = *leaves[key / FloatLeaf::SIZE];
+  const auto offset = static_cast<openvdb::Index>(key % FloatLeaf::SIZE);
+  const openvdb::Coord ijk = leaf.offsetToGlobalCoord(offset);
+  const std::string name = grid.getName().empty() ? std::string(kFractionGridName) : grid.getName();
+  throw std::invalid_argument("grid '" + name + "': voxel (" + std::to_string(ijk.x()) + ", " +
+                              std::to_string(ijk.y()) + ", " + std::to_string(ijk.z()) + ") has fraction " +
+                              std::to_string(leaf.getValue(offset)) + ", expected a Vero fraction in [0, 1]");
+}
+
+openvdb::BoolGrid::Ptr assembleMaterialGrid(std::vector<std::unique_ptr<BoolLeaf>>& leaves,
+                                            const openvdb::FloatGrid& like) {
+  auto grid = openvdb::BoolGrid::create(false);
+  grid->setTransform(like.transform().copy());
+  grid->setName(kMaterialGridName);
+  for (auto& leaf : leaves)
+    if (leaf) grid->tree().addLeaf(leaf.release());
+  return grid;
+}
+
+}  // namespace rodfab::materials::detail

@@ -1,0 +1,63 @@
+// A tileable 3D blue-noise threshold mask: a permutation of ranks 0 .. N-1 over an nx x ny x nz tile,
+// made by the void-and-cluster method (Ulichney 1993) with a Gaussian energy filter that is isotropic
+// in millimetres for an anisotropic voxel. Ordered dithering compares a fraction with (rank + 0.5) / N.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <vector>
+
+namespace rodfab::materials {
+
+// Everything that determines a mask: the same parameters give the same ranks, bit for bit, on any
+// machine (the generator runs on integer energies, so no floating-point drift or reordering matters).
+struct BlueNoiseParameters {
+  std::array<int, 3> size{64, 32, 90};                // tile in voxels (x, y, z); about 2.7 mm each way
+  std::array<double, 3> voxelSizeMm{0.0423, 0.0846, 0.030};  // Connex3 voxel the filter is isotropic for
+  double sigmaMm = 0.072;                              // energy filter: 1.70, 0.85, 2.40 voxels
+  double initialDensity = 0.1;                         // share of ones in the random starting pattern
+  std::uint64_t seed = 1;
+};
+
+class BlueNoiseMask {
+public:
+  // Generates the mask. Cost is O(N * filter support); 184,320 cells take a few seconds (one thread).
+  // Throws std::invalid_argument for sizes < 2 or > 1024 per axis, sigma <= 0 or density outside (0, 0.5].
+  static BlueNoiseMask generate(const BlueNoiseParameters& parameters);
+
+  // Reads a mask file (format in materials/README.md) and checks it is a complete permutation;
+  // throws std::runtime_error naming the file and the field that is wrong.
+  static BlueNoiseMask load(const std::filesystem::path& file);
+  // The mask shipped in materials/ (generated from the default BlueNoiseParameters), read once per
+  // process and shared. Found in $RODFAB_MATERIALS_DIR, else in the source tree's materials/.
+  static std::shared_ptr<const BlueNoiseMask> bundled();
+  static std::filesystem::path bundledPath();
+
+  // Writes the mask file; throws std::runtime_error on I/O errors.
+  void save(const std::filesystem::path& file) const;
+
+  const BlueNoiseParameters& parameters() const { return parameters_; }
+  const std::array<int, 3>& size() const { return parameters_.size; }
+  std::size_t cellCount() const { return ranks_.size(); }
+  // Ranks in x-fastest order: cell (i, j, k) of the tile is at (k * ny + j) * nx + i.
+  const std::vector<std::uint32_t>& ranks() const { return ranks_; }
+  std::uint32_t rank(int i, int j, int k) const { return ranks_[index(i, j, k)]; }
+  // Thresholds (rank + 0.5) / N in the same order: a fraction f turns exactly round(f * N) cells of a
+  // tile on, so a whole tile has no bias, 0 gives none and 1 gives all.
+  const std::vector<float>& thresholds() const { return thresholds_; }
+
+  std::size_t index(int i, int j, int k) const {
+    return (static_cast<std::size_t>(k) * parameters_.size[1] + j) * parameters_.size[0] + i;
+  }
+
+private:
+  BlueNoiseMask(BlueNoiseParameters parameters, std::vector<std::uint32_t> ranks);
+
+  BlueNoiseParameters parameters_;
+  std::vector<std::uint32_t> ranks_;
+  std::vector<float> thresholds_;
+};
+
+}  // namespace rodfab::materials

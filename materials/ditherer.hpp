@@ -1,0 +1,72 @@
+// Dithering: one material per voxel from a Vero fraction per voxel.
+//
+// Grid conventions shared along the chain:
+//   input  openvdb::FloatGrid "vero_fraction": active voxels = inside the part, value = share of
+//          VeroWhitePlus wanted there, in [0, 1]; index (i, j, k) = printer voxel, k = layer (build z).
+//   output openvdb::BoolGrid "material": exactly the same active voxels, the fraction grid's transform;
+//          true = VeroWhitePlus (rigid model material), false = TangoBlackPlus (rubbery).
+// Fractions exactly 0 and 1 always give Tango and Vero. A value outside [0, 1] (or NaN) is an error.
+//
+// Every ditherer is deterministic for a seed and gives identical grids for any thread count and for any
+// split of the layers into bands: dithering layers [k0, k1) returns exactly those layers of a
+// whole-grid run, so a slicer can stream band after band.
+#pragma once
+
+#include "materials/blue_noise_mask.hpp"
+
+#include <openvdb/openvdb.h>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace rodfab::materials {
+
+inline constexpr bool kVero = true;    // VeroWhitePlus
+inline constexpr bool kTango = false;  // TangoBlackPlus
+inline constexpr const char* kFractionGridName = "vero_fraction";
+inline constexpr const char* kMaterialGridName = "material";
+
+struct DitherOptions {
+  std::uint64_t seed = 0;
+  // Threshold mask of the "blue" ditherer; null = the bundled mask (BlueNoiseMask::bundled()).
+  std::shared_ptr<const BlueNoiseMask> mask;
+};
+
+class Ditherer {
+public:
+  virtual ~Ditherer() = default;
+  virtual std::string_view name() const = 0;
+
+  // Dithers the active voxels of layers [k0, k1) of `fraction`; the result holds exactly those voxels.
+  // Throws std::invalid_argument for k0 > k1 or a fraction outside [0, 1] (naming the voxel).
+  // "error-diffusion" carries error from one layer into the next, so for it:
+  //   - bands must come in order, each starting where the previous ended (std::logic_error otherwise);
+  //     the first band must start at or below the part's first layer;
+  //   - layer k1 is read too (its active voxels only: they are where error can go), so a caller that
+  //     builds one fraction grid per band includes one layer past the band, and the next band's grid
+  //     must agree with it.
+  // Active tiles in `fraction` are dithered voxel by voxel (on a voxelized copy: costs memory).
+  openvdb::BoolGrid::Ptr ditherLayers(const openvdb::FloatGrid& fraction, int k0, int k1);
+
+  // Forgets streaming state, so the next band may start anywhere.
+  virtual void reset() {}
+
+  // The whole grid at once (resets first).
+  openvdb::BoolGrid::Ptr dither(const openvdb::FloatGrid& fraction);
+
+protected:
+  // ditherLayers for a grid whose active voxels all sit in leaves, with k0 <= k1.
+  virtual openvdb::BoolGrid::Ptr ditherLeafVoxels(const openvdb::FloatGrid& fraction, int k0, int k1) = 0;
+};
+
+// "white", "blue", "error-diffusion".
+const std::vector<std::string>& ditherMethodNames();
+
+// Throws std::invalid_argument naming the valid names for an unknown `method`, and
+// std::runtime_error when "blue" needs the bundled mask and it cannot be read.
+std::unique_ptr<Ditherer> makeDitherer(std::string_view method, const DitherOptions& options = {});
+
+}  // namespace rodfab::materials

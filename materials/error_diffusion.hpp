@@ -1,0 +1,48 @@
+// 3D serpentine error diffusion, streamed layer by layer. Internal to materials/: callers use
+// makeDitherer("error-diffusion").
+#pragma once
+
+#include "materials/ditherer.hpp"
+
+#include <cstdint>
+#include <vector>
+
+namespace rodfab::materials {
+
+// Floyd-Steinberg within a layer (rows along x, direction alternating with j + k), with a share of each
+// voxel's error sent to the voxel above it in the next layer. Layers dithered alone would repeat nearly
+// the same pattern, and a 3D low-pass would not average their error away; pushing most of the error
+// straight up makes each layer fill the previous one's gaps (measured, 64 x 32 x 90 block at 0.3,
+// RMS at 100 um: share 0 -> 0.008, 0.25 -> 0.007, 0.5 -> 0.0034, 0.8 -> 0.0016, 0.9 -> 0.0016 but more
+// bias on thin rods; spreading the upward share over 3 x 3 neighbours was worse). Weights are renormalized over the
+// neighbours that are inside the part, so error never leaks out through a boundary and thin rods keep
+// their mean. The threshold is 0.5 jittered by +-kThresholdJitter/2 from a hash of (seed, i, j, k): it
+// breaks up the regular "worms" plain error diffusion draws at simple fractions, and the seed chooses
+// among equally good patterns.
+class ErrorDiffusionDitherer final : public Ditherer {
+public:
+  static constexpr float kShareToNextLayer = 0.8f;
+  static constexpr float kThresholdJitter = 0.1f;
+
+  explicit ErrorDiffusionDitherer(std::uint64_t seed) : seed_(seed) {}
+  std::string_view name() const override { return "error-diffusion"; }
+  void reset() override {
+    started_ = false;
+    carry_.clear();
+  }
+
+protected:
+  openvdb::BoolGrid::Ptr ditherLeafVoxels(const openvdb::FloatGrid& fraction, int k0, int k1) override;
+
+private:
+  struct Carry {
+    int i, j;
+    float error;
+  };
+  std::uint64_t seed_;
+  bool started_ = false;
+  int nextLayer_ = 0;
+  std::vector<Carry> carry_;  // error waiting for layer nextLayer_, sorted by (j, i)
+};
+
+}  // namespace rodfab::materials
