@@ -91,9 +91,13 @@ public:
       return;
     }
     if (!report_.ok()) return;
-    checkOtherFiles();
-    checkBuildFile();
-    checkLayers();
+    try {
+      checkOtherFiles();
+      checkBuildFile();
+      checkLayers();
+    } catch (const std::exception& e) {  // a manifest entry of the wrong shape, an unreadable file
+      defect(std::string("cannot finish the inspection: ") + e.what());
+    }
   }
 
 private:
@@ -189,8 +193,10 @@ private:
 
   void checkOtherFiles() {
     std::set<std::string> layerFiles;
-    for (const json& l : report_.manifest.at("layers"))
-      for (const auto& [material, file] : l.at("files").items()) layerFiles.insert(file.get<std::string>());
+    for (const json& l : report_.manifest.at("layers"))  // malformed entries are reported by checkLayers
+      if (l.is_object() && l.contains("files") && l["files"].is_object())
+        for (const auto& [material, file] : l["files"].items())
+          if (file.is_string()) layerFiles.insert(file.get<std::string>());
     for (const auto& [name, entry] : fileTable_) {
       (void)entry;
       if (!files_.contains(name)) defect(name + ": listed in the manifest but missing from the job");
@@ -229,7 +235,14 @@ private:
     std::vector<LayerResult> results(static_cast<std::size_t>(layers_));
     const std::uint32_t xPpm = pixelsPerMetre(xDpi_), yPpm = pixelsPerMetre(yDpi_);
     tbb::parallel_for(tbb::blocked_range<int>(0, layers_, 1), [&](const tbb::blocked_range<int>& range) {
-      for (int l = range.begin(); l != range.end(); ++l) checkLayer(l, layerList.at(static_cast<std::size_t>(l)), xPpm, yPpm, results[static_cast<std::size_t>(l)]);
+      for (int l = range.begin(); l != range.end(); ++l) {
+        LayerResult& result = results[static_cast<std::size_t>(l)];
+        try {
+          checkLayer(l, layerList.at(static_cast<std::size_t>(l)), xPpm, yPpm, result);
+        } catch (const std::exception& e) {
+          result.defects.push_back("layer " + std::to_string(l) + ": manifest entry unreadable (" + e.what() + ")");
+        }
+      }
     });
     std::vector<DecodedMoments> moments(materials_.size());
     std::vector<std::uint64_t> totals(materials_.size(), 0);

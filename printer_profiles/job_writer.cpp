@@ -146,10 +146,10 @@ struct JobWriter::Impl {
                                 std::to_string(counter++);
     staging = target.parent_path() / partial;
     zipTemp = target.parent_path() / (partial + ".zip");
-    fs::create_directories(staging / "previews");
     nextK = geometry.firstLayerK;
     layers.resize(static_cast<std::size_t>(geometry.layers));
     previews = std::make_unique<Previews>(geometry, spec.profile, spec.options.contactSheetLayers);
+    fs::create_directories(staging / "previews");  // last: nothing after it may throw and leave it behind
   }
 
   void checkBand(const LayerBand& band) const {

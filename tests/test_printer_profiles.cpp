@@ -459,6 +459,20 @@ TEST_CASE("Inspect catches tampering, truncation, flips and a 600/300 swap", "[i
     replaceLayer(encodeBmp(both, 600, 300));
     CHECK(hasDefect("voxels hold both VeroWhitePlus and TangoBlackPlus"));
   }
+  SECTION("a manifest of the wrong shape is reported, not thrown") {
+    json manifest = json::parse(readAll(dir / "job" / "manifest.json"));
+    manifest["layers"][3] = 5;
+    manifest["files"].erase("build.txt");
+    const std::string text = manifest.dump(1);
+    writeAll(dir / "job" / "manifest.json", Bytes(text.begin(), text.end()));
+    CHECK(hasDefect("layer 3: manifest entry unreadable"));
+    CHECK(hasDefect("build.txt: not listed in the manifest"));
+    json broken = json::parse(text);
+    broken.erase("frame");
+    const std::string brokenText = broken.dump();
+    writeAll(dir / "job" / "manifest.json", Bytes(brokenText.begin(), brokenText.end()));
+    CHECK(hasDefect("manifest.json"));
+  }
   SECTION("a missing layer file") {
     fs::remove(layerFile);
     CHECK(hasDefect("VeroWhitePlus_0021.bmp"));
