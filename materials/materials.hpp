@@ -5,4 +5,5 @@
 #include "materials/blue_noise_mask.hpp"
 #include "materials/dither_quality.hpp"
 #include "materials/ditherer.hpp"
+#include "materials/fraction_map.hpp"
 #include "materials/sample_regions.hpp"

@@ -11,6 +11,7 @@
 #include <limits>
 #include <numbers>
 #include <numeric>
+#include <random>
 
 using namespace rodfab::materials;
 
@@ -418,4 +419,148 @@ TEST_CASE("materials: sample regions reject bad parameters", "[materials][qualit
   CHECK_THROWS_AS(makeUniformBlock(openvdb::Coord(1, 1, 1), 1.5f), std::invalid_argument);
   CHECK_THROWS_AS(makeRod(1.0, 1.0, 3, 0.5f), std::invalid_argument);
   CHECK_THROWS_AS(makeRod(-1.0, 1.0, 0, 0.5f), std::invalid_argument);
+}
+
+namespace {
+
+// ln E = ln E_T + ln(E_V / E_T) f^2, so f = sqrt((ln E - ln E_T) / ln(E_V / E_T)) in closed form.
+rodfab::calibration::Calibration logPowerCalibration() {
+  rodfab::calibration::ModelParameters p;
+  p.model = rodfab::calibration::Model::LogPower;
+  p.tangoModulusMpa = 0.5;
+  p.veroModulusMpa = 190.0;
+  p.exponent = 2.0;
+  return rodfab::calibration::Calibration(p, 8.0);
+}
+
+double logPowerFraction(double modulusMpa) { return std::sqrt(std::log(modulusMpa / 0.5) / std::log(190.0 / 0.5)); }
+
+// Moduli from 2 to 400 MPa, log-spaced along x, plus a NaN voxel: every clamp kind occurs.
+openvdb::FloatGrid::Ptr modulusBlock() {
+  auto grid = makeUniformBlock(openvdb::Coord(60, 9, 21), 0.0f);
+  grid->setName("modulus_mpa");
+  for (auto it = grid->beginValueOn(); it; ++it) {
+    const openvdb::Coord c = it.getCoord();
+    it.setValue(static_cast<float>(2.0 * std::pow(200.0, (c.x() + 0.1 * c.y() + 0.01 * c.z()) / 60.0)));
+  }
+  grid->tree().setValue(openvdb::Coord(5, 5, 5), std::numeric_limits<float>::quiet_NaN());
+  return grid;
+}
+
+}  // namespace
+
+TEST_CASE("materials: the ln E lookup table meets its error bound against the exact inverse", "[materials][mapping]") {
+  const auto calibration = logPowerCalibration();
+  const FractionMap map(calibration);
+  CHECK(map.floorFraction() == Approx(logPowerFraction(8.0)));
+  CHECK(map.interpolationErrorBound() < 1e-6);
+
+  std::mt19937_64 random(42);
+  std::uniform_real_distribution<double> lnE(std::log(8.0), std::log(190.0));
+  double worst = 0.0, previous = -1.0;
+  std::vector<double> moduli(100000);
+  for (double& e : moduli) e = std::exp(lnE(random));
+  std::sort(moduli.begin(), moduli.end());
+  for (double e : moduli) {
+    const auto r = map.fraction(e);
+    REQUIRE(r.clamp == rodfab::calibration::Clamp::None);
+    worst = std::max(worst, std::abs(r.fraction - logPowerFraction(e)));
+    CHECK(r.fraction >= previous);  // monotone
+    previous = r.fraction;
+  }
+  CHECK(worst <= map.interpolationErrorBound());
+
+  // A coarse table has a larger, still honest bound.
+  const FractionMap coarse(calibration, 16);
+  double coarseWorst = 0.0;
+  for (double e : moduli) coarseWorst = std::max(coarseWorst, std::abs(coarse.fraction(e).fraction - logPowerFraction(e)));
+  CHECK(coarseWorst <= coarse.interpolationErrorBound());
+  CHECK(coarseWorst > map.interpolationErrorBound());
+
+  // The bundled default calibration, against its own exact inverse.
+  const auto bundled = rodfab::calibration::loadDefaultCalibration();
+  const FractionMap bundledMap(bundled);
+  double bundledWorst = 0.0;
+  for (double e = bundled.floorMpa(); e <= bundled.maxModulusMpa(); e *= 1.0007)
+    bundledWorst = std::max(bundledWorst, std::abs(bundledMap.fraction(e).fraction - bundled.fraction(e).fraction));
+  CHECK(bundledWorst <= bundledMap.interpolationErrorBound());
+  CHECK(bundledMap.interpolationErrorBound() < 1e-5);
+
+  CHECK_THROWS_AS(FractionMap(calibration, 1), std::invalid_argument);
+}
+
+TEST_CASE("materials: the table clamps exactly like the calibration", "[materials][mapping]") {
+  using rodfab::calibration::Clamp;
+  const auto calibration = logPowerCalibration();
+  const FractionMap map(calibration);
+  for (double e : {1.0, 7.999, 8.0, 8.001, 50.0, 189.99, 190.0, 190.01, 1e6, -3.0}) {
+    INFO(e);
+    const auto table = map.fraction(e);
+    const auto exact = calibration.fraction(e);
+    CHECK(table.clamp == exact.clamp);
+    CHECK(table.fraction == Approx(exact.fraction).margin(map.interpolationErrorBound()));
+  }
+  CHECK(map.fraction(std::numeric_limits<double>::quiet_NaN()).clamp == Clamp::BelowFloor);
+  CHECK(map.fraction(8.0).fraction == calibration.floorFraction());
+  CHECK(map.fraction(190.0).fraction == 1.0);
+}
+
+TEST_CASE("materials: modulus grids map to fraction grids with counted clamps, by bands and threads", "[materials][mapping]") {
+  const auto calibration = logPowerCalibration();
+  const FractionMap map(calibration);
+  const auto modulus = modulusBlock();
+
+  MappingStats stats;
+  openvdb::FloatGrid::Ptr whole;
+  {
+    tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    whole = mapToFractions(*modulus, map, stats);
+  }
+  CHECK(whole->getName() == kFractionGridName);
+  CHECK(whole->transform() == modulus->transform());
+  CHECK(whole->tree().hasSameTopology(modulus->tree()));
+
+  // Clamps counted independently, voxel by voxel.
+  std::uint64_t below = 0, above = 0;
+  auto fractions = whole->getConstAccessor();
+  for (auto it = modulus->cbeginValueOn(); it; ++it) {
+    const double e = *it;
+    if (!(e >= 8.0)) {
+      ++below;
+      CHECK(fractions.getValue(it.getCoord()) == static_cast<float>(map.floorFraction()));
+    } else if (e > 190.0) {
+      ++above;
+      CHECK(fractions.getValue(it.getCoord()) == 1.0f);
+    } else {
+      CHECK(fractions.getValue(it.getCoord()) == Approx(logPowerFraction(e)).margin(1e-6));
+    }
+  }
+  CHECK(stats.voxels == modulus->activeVoxelCount());
+  CHECK(stats.clamps.belowFloor == below);
+  CHECK(stats.clamps.aboveMax == above);
+  CHECK(below > 1);
+  CHECK(above > 0);
+
+  // Two threads, bands of 4 layers: the same grid and the same counts.
+  tbb::global_control two(tbb::global_control::max_allowed_parallelism, 2);
+  MappingStats banded;
+  auto merged = openvdb::FloatGrid::create(0.0f);
+  for (int k0 = -2; k0 < 21; k0 += 4) {
+    const auto piece = mapToFractions(*modulus, map, k0, k0 + 4, banded);
+    for (auto it = piece->cbeginValueOn(); it; ++it) merged->tree().setValueOn(it.getCoord(), *it);
+  }
+  CHECK(banded.voxels == stats.voxels);
+  CHECK(banded.clamps.belowFloor == below);
+  CHECK(banded.clamps.aboveMax == above);
+  CHECK(merged->tree().hasSameTopology(whole->tree()));
+  std::size_t differing = 0;
+  for (auto it = whole->cbeginValueOn(); it; ++it)
+    differing += merged->tree().getValue(it.getCoord()) != *it;
+  CHECK(differing == 0);
+
+  CHECK_THROWS_AS(mapToFractions(*modulus, map, 4, 2, banded), std::invalid_argument);
+
+  // The mapped fractions dither like any other: the whole chain, modulus to material.
+  const auto material = makeDitherer("blue")->dither(*whole);
+  CHECK(material->activeVoxelCount() == modulus->activeVoxelCount());
 }
