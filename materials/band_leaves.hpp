@@ -8,6 +8,7 @@
 #include <tbb/parallel_for.h>
 
 #include <atomic>
+#include <bit>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -62,15 +63,24 @@ openvdb::BoolGrid::Ptr ditherPointwise(const openvdb::FloatGrid& fraction, int k
       leaf->setValueMask(mask);
       const float* values = in.buffer().data();
       const auto isVero = ruleForLeaf(in.origin());
-      for (auto it = mask.beginOn(); it; ++it) {
-        const openvdb::Index n = it.pos();
-        const float f = values[n];
-        if (!FractionCheck::valid(f)) {
-          check.fail(l, n);
-          continue;
+      // Word by word over the active bits; the value bits are collected and stored in one go.
+      LeafMask vero;
+      for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w) {
+        std::uint64_t active = mask.template getWord<std::uint64_t>(w), bits = 0;
+        while (active) {
+          const int b = std::countr_zero(active);
+          active &= active - 1;
+          const openvdb::Index n = w * 64 + static_cast<openvdb::Index>(b);
+          const float f = values[n];
+          if (!FractionCheck::valid(f)) {
+            check.fail(l, n);
+            continue;
+          }
+          bits |= static_cast<std::uint64_t>(isVero(n, f)) << b;
         }
-        if (isVero(n, f)) leaf->setValueOnly(n, true);
+        vero.template getWord<std::uint64_t>(w) = bits;
       }
+      leaf->buffer() = BoolLeaf::Buffer(vero);
       out[l] = std::move(leaf);
     }
   });

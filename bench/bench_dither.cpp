@@ -1,0 +1,95 @@
+// materials/: dithering throughput per ditherer (items = voxels, on all cores TBB gives), the
+// modulus-to-fraction mapping and blue-noise mask generation. Peak resident memory as a counter.
+#include "materials/materials.hpp"
+
+#include <benchmark/benchmark.h>
+
+#include <sys/resource.h>
+
+#include <cmath>
+#include <string>
+
+using namespace rodfab::materials;
+
+namespace {
+
+double peakRssMb() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return static_cast<double>(usage.ru_maxrss) / 1024.0;  // Linux reports KiB
+}
+
+// Dense workload: 256 x 128 x 192 voxels (10.8 x 10.8 x 5.8 mm), fractions varying smoothly 0.3 .. 0.9.
+const openvdb::FloatGrid& denseBlock() {
+  static const openvdb::FloatGrid::Ptr grid = [] {
+    openvdb::initialize();
+    auto g = makeUniformBlock(openvdb::Coord(256, 128, 192), 0.5f);
+    for (auto it = g->beginValueOn(); it; ++it) {
+      const openvdb::Coord c = it.getCoord();
+      it.setValue(0.6f + 0.3f * std::sin(0.02f * c.x()) * std::cos(0.03f * c.y() + 0.01f * c.z()));
+    }
+    return g;
+  }();
+  return *grid;
+}
+
+// Thin workload: 16 parallel rods of 1 mm diameter and 20 mm length along x, 2 mm apart, at 0.3.
+const openvdb::FloatGrid& rodBundle() {
+  static const openvdb::FloatGrid::Ptr grid = [] {
+    openvdb::initialize();
+    auto g = makeRod(1.0, 20.0, 0, 0.3f);
+    const auto one = g->deepCopy();
+    for (int r = 1; r < 16; ++r) {
+      const openvdb::Coord shift(0, static_cast<int>((r % 4) * 2.0 / kConnex3VoxelSizeMm[1]),
+                                 static_cast<int>((r / 4) * 2.0 / kConnex3VoxelSizeMm[2]));
+      auto acc = g->getAccessor();
+      for (auto it = one->cbeginValueOn(); it; ++it) acc.setValueOn(it.getCoord() + shift, *it);
+    }
+    return g;
+  }();
+  return *grid;
+}
+
+void dither(benchmark::State& state, const openvdb::FloatGrid& grid) {
+  const std::string method = ditherMethodNames()[static_cast<std::size_t>(state.range(0))];
+  const auto ditherer = makeDitherer(method, {1, nullptr});
+  for (auto _ : state) benchmark::DoNotOptimize(ditherer->dither(grid));
+  state.SetLabel(method);
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * grid.activeVoxelCount()));
+  state.counters["voxels"] = static_cast<double>(grid.activeVoxelCount());
+  state.counters["peak_rss_MB"] = peakRssMb();
+}
+
+void ditherDenseBlock(benchmark::State& state) { dither(state, denseBlock()); }
+void ditherRodBundle(benchmark::State& state) { dither(state, rodBundle()); }
+BENCHMARK(ditherDenseBlock)->DenseRange(0, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(ditherRodBundle)->DenseRange(0, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Moduli spanning 2 .. 400 MPa through the bundled calibration's lookup table.
+void mapModulusToFraction(benchmark::State& state) {
+  static const openvdb::FloatGrid::Ptr modulus = [] {
+    auto g = denseBlock().deepCopy();
+    for (auto it = g->beginValueOn(); it; ++it) it.setValue(static_cast<float>(2.0 * std::pow(200.0, it.getCoord().x() / 256.0)));
+    return g;
+  }();
+  const auto calibration = rodfab::calibration::loadDefaultCalibration();
+  const FractionMap map(calibration);
+  MappingStats stats;
+  for (auto _ : state) benchmark::DoNotOptimize(mapToFractions(*modulus, map, stats));
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * modulus->activeVoxelCount()));
+  state.counters["clamped_share"] = static_cast<double>(stats.clamps.total()) / static_cast<double>(stats.voxels);
+  state.counters["table_error_bound"] = map.interpolationErrorBound();
+  state.counters["peak_rss_MB"] = peakRssMb();
+}
+BENCHMARK(mapModulusToFraction)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The bundled 64 x 32 x 90 mask from scratch (items = mask cells); single-threaded by design.
+void generateBlueNoiseMask(benchmark::State& state) {
+  const BlueNoiseParameters parameters;
+  for (auto _ : state) benchmark::DoNotOptimize(BlueNoiseMask::generate(parameters));
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()) * 64 * 32 * 90);
+  state.counters["peak_rss_MB"] = peakRssMb();
+}
+BENCHMARK(generateBlueNoiseMask)->Unit(benchmark::kSecond)->Iterations(1);
+
+}  // namespace
