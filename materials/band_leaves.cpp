@@ -10,10 +10,19 @@
 namespace rodfab::materials::detail {
 
 std::vector<const FloatLeaf*> leavesInLayers(const openvdb::FloatTree& tree, int k0, int k1) {
+  // Visit the leaf parents (128^3 voxels each) and skip the ones outside the band: a slicer streaming a
+  // tall job calls this once per band, and the parents are a few hundred times fewer than the leaves.
+  using LeafParent = openvdb::FloatTree::RootNodeType::ChildNodeType::ChildNodeType;
+  std::vector<const LeafParent*> parents;
+  tree.getNodes(parents);
   std::vector<const FloatLeaf*> leaves;
-  for (auto it = tree.cbeginLeaf(); it; ++it) {
-    const int z = it->origin().z();
-    if (z < k1 && z + static_cast<int>(FloatLeaf::DIM) > k0) leaves.push_back(it.getLeaf());
+  for (const LeafParent* parent : parents) {
+    const int z = parent->origin().z();
+    if (z >= k1 || z + static_cast<int>(LeafParent::DIM) <= k0) continue;
+    for (auto it = parent->cbeginChildOn(); it; ++it) {
+      const int leafZ = it->origin().z();
+      if (leafZ < k1 && leafZ + static_cast<int>(FloatLeaf::DIM) > k0) leaves.push_back(&*it);
+    }
   }
   std::sort(leaves.begin(), leaves.end(), [](const FloatLeaf* a, const FloatLeaf* b) {
     const openvdb::Coord& p = a->origin();
