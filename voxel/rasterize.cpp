@@ -1,0 +1,363 @@
+#include "voxel/rasterize.hpp"
+
+#include "voxel/rod_pieces.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <memory>
+
+namespace rodfab::voxel {
+
+using detail::IndexForm;
+using detail::RodPiece;
+using detail::RodPieces;
+using LeafT = openvdb::FloatTree::LeafNodeType;
+
+namespace {
+
+constexpr int kLeafLog2 = 3;
+constexpr int kLeafDim = 1 << kLeafLog2;
+constexpr int kLeafBits = 21;  // per axis in a leaf key: PrinterGrid caps dims at 2^24 voxels
+
+// Within this distance (mm) beyond an end plane Rod::classify still uses the section (its own plane
+// tolerance is 1e-9 (1 + bounding radius)); such voxel centres go to the exact test.
+double capPlaneBand(double boundingRadius) { return 1e-7 * (1.0 + boundingRadius); }
+
+// One rod's claim on a voxel.
+struct Candidate {
+  bool inside = false;
+  double depth = -std::numeric_limits<double>::infinity();
+  double band = 0.0;  // |depth - exact depth| bound; 0 when the exact test computed it
+  float value = 0.0f;
+  int rod = -1, piece = -1;
+};
+
+// A piece reaching a leaf. Sorted by (leaf, rod, piece), a total order: every leaf sees its pieces in
+// the same order whatever the thread count or band.
+struct Entry {
+  std::uint64_t leaf;
+  std::uint32_t rod, piece;
+  bool operator<(const Entry& o) const {
+    if (leaf != o.leaf) return leaf < o.leaf;
+    if (rod != o.rod) return rod < o.rod;
+    return piece < o.piece;
+  }
+};
+
+std::uint64_t leafKey(int i, int j, int k) {
+  // z-major, so a band's leaves are contiguous.
+  return (std::uint64_t(k >> kLeafLog2) << (2 * kLeafBits)) | (std::uint64_t(j >> kLeafLog2) << kLeafBits) |
+         std::uint64_t(i >> kLeafLog2);
+}
+openvdb::Coord leafOrigin(std::uint64_t key) {
+  const std::uint64_t mask = (std::uint64_t(1) << kLeafBits) - 1;
+  return openvdb::Coord(int(key & mask) << kLeafLog2, int((key >> kLeafBits) & mask) << kLeafLog2,
+                        int(key >> (2 * kLeafBits)) << kLeafLog2);
+}
+
+int clampToInt(double v) { return static_cast<int>(std::clamp(v, -2.0e9, 2.0e9)); }
+
+// Restricts [lo, hi] to the i with base + slope * i >= 0, conservatively by one voxel (the callers
+// test every voxel exactly; this only trims the loop). Returns false when nothing is left.
+bool clipHalfLine(double base, double slope, int& lo, int& hi) {
+  if (slope > 0.0) {
+    lo = std::max(lo, clampToInt(std::floor(-base / slope)) - 1);
+  } else if (slope < 0.0) {
+    hi = std::min(hi, clampToInt(std::ceil(-base / slope)) + 1);
+  } else if (base < 0.0) {
+    return false;
+  }
+  return lo <= hi;
+}
+
+class LeafBuilder {
+public:
+  LeafBuilder(const geometry::RodStructure& structure, const std::vector<RodPieces>& rods, const PrinterGrid& grid)
+      : structure_(structure), rods_(rods), grid_(grid) {}
+
+  std::uint64_t exactEvaluations = 0;
+
+  void clear() { slots_.fill(Candidate{}); }
+  const Candidate& slot(int offset) const { return slots_[offset]; }
+
+  void addPiece(int rod, int pieceIndex, const openvdb::CoordBBox& box) {
+    const RodPiece& piece = rods_[rod].pieces[pieceIndex];
+    if (piece.kind == RodPiece::Kind::Swept) sweep(rod, pieceIndex, piece, box);
+    else cap(rod, pieceIndex, piece, box);
+  }
+
+private:
+  static int offset(int i, int j, int k) {
+    return ((i & (kLeafDim - 1)) << (2 * kLeafLog2)) | ((j & (kLeafDim - 1)) << kLeafLog2) | (k & (kLeafDim - 1));
+  }
+
+  // The row (j, k) restricted to the infinite cylinder of radius `reach` around the piece's axis.
+  bool clipToAxis(const RodPiece& piece, int j, int k, int& lo, int& hi) const {
+    const double vx = grid_.voxelSize.x();
+    const geometry::Vec3 w0(grid_.origin.x() - piece.axisPoint.x(), grid_.origin.y() + j * grid_.voxelSize.y() - piece.axisPoint.y(),
+                            grid_.origin.z() + k * grid_.voxelSize.z() - piece.axisPoint.z());
+    const geometry::Vec3& e = piece.axisDirection;
+    const double we = w0.dot(e);
+    // |w0 + i s|^2 - ((w0 + i s) . e)^2 <= reach^2 with s = (vx, 0, 0): alpha i^2 + 2 beta i + gamma <= 0.
+    const double alpha = vx * vx * (1.0 - e.x() * e.x());
+    const double beta = vx * (w0.x() - we * e.x());
+    const double gamma = w0.squaredNorm() - we * we - piece.reach * piece.reach;
+    if (alpha <= 1e-9 * vx * vx) return true;  // row (nearly) parallel to the axis: the other clips bound it
+    const double disc = beta * beta - alpha * gamma;
+    if (disc < 0.0) return false;
+    const double root = std::sqrt(disc);
+    lo = std::max(lo, clampToInt(std::floor((-beta - root) / alpha)) - 1);
+    hi = std::min(hi, clampToInt(std::ceil((-beta + root) / alpha)) + 1);
+    return lo <= hi;
+  }
+
+  Candidate exact(int rod, int pieceIndex, int i, int j, int k) {
+    ++exactEvaluations;
+    const openvdb::Vec3d p = grid_.worldPoint(openvdb::Coord(i, j, k));
+    const geometry::Rod& r = structure_.rods[rod];
+    const geometry::RodHit hit = r.classify(geometry::Vec3(p.x(), p.y(), p.z()));
+    return {hit.inside, hit.depth, 0.0, static_cast<float>(r.modulus().value(hit.u)), rod, pieceIndex};
+  }
+
+  // The overlap rule. Near ties between approximate depths are settled on exact depths, so the
+  // winner is the one the exact test would pick.
+  void offer(Candidate c, int i, int j, int k) {
+    Candidate& s = slots_[offset(i, j, k)];
+    if (s.inside && std::abs(s.depth - c.depth) <= s.band + c.band && (s.band > 0.0 || c.band > 0.0)) {
+      if (s.band > 0.0) s = exact(s.rod, s.piece, i, j, k);
+      if (c.band > 0.0) c = exact(c.rod, c.piece, i, j, k);
+    }
+    if (!c.inside) return;
+    if (!s.inside || c.depth > s.depth ||
+        (c.depth == s.depth && (c.rod < s.rod || (c.rod == s.rod && c.piece < s.piece))))
+      s = c;
+  }
+
+  void sweep(int rod, int pieceIndex, const RodPiece& piece, const openvdb::CoordBBox& box) {
+    const RodPieces& rp = rods_[rod];
+    const IndexForm& planeA = rp.planes[piece.plane];
+    const IndexForm& planeB = rp.planes[piece.plane + 1];
+    const double iA = rp.inverseHalfWidth, iB = rp.inverseHalfHeight;
+    const bool rectangle = structure_.rods[rod].section().shape == geometry::SectionShape::Rectangle;
+    const double band = piece.normalizedRadiusBand;
+    const bool bounded = std::isfinite(band) && band < 1.0;
+    const double inner = bounded ? 1.0 - band : -1.0, outer = bounded ? 1.0 + band : std::numeric_limits<double>::infinity();
+    const double innerSq = inner > 0.0 ? inner * inner : -1.0, outerSq = outer * outer;
+    for (int k = box.min().z(); k <= box.max().z(); ++k) {
+      for (int j = box.min().y(); j <= box.max().y(); ++j) {
+        const double aRow = planeA.row(j, k), bRow = planeB.row(j, k);
+        int lo = box.min().x(), hi = box.max().x();
+        if (!clipHalfLine(aRow, planeA.gx, lo, hi) || !clipHalfLine(-bRow, -planeB.gx, lo, hi) ||
+            !clipToAxis(piece, j, k, lo, hi))
+          continue;
+        const double x1aRow = piece.x1Begin.row(j, k), x2aRow = piece.x2Begin.row(j, k);
+        const double x1bRow = piece.x1End.row(j, k), x2bRow = piece.x2End.row(j, k);
+        for (int i = lo; i <= hi; ++i) {
+          const double a = aRow + planeA.gx * i, b = bRow + planeB.gx * i;
+          if (!(a >= 0.0 && b < 0.0)) continue;
+          const detail::SweptEstimate e =
+              detail::estimateSwept(piece, a, b, x1aRow + piece.x1Begin.gx * i, x2aRow + piece.x2Begin.gx * i,
+                                    x1bRow + piece.x1End.gx * i, x2bRow + piece.x2End.gx * i);
+          double gauge;
+          bool sureInside, sureOutside;
+          if (rectangle) {
+            gauge = std::max(std::abs(e.x1) * iA, std::abs(e.x2) * iB);
+            sureOutside = gauge > outer;
+            sureInside = gauge < inner;
+          } else {
+            const double g2 = (e.x1 * iA) * (e.x1 * iA) + (e.x2 * iB) * (e.x2 * iB);
+            sureOutside = g2 > outerSq;
+            sureInside = g2 < innerSq;
+            gauge = sureInside ? std::sqrt(g2) : 0.0;
+          }
+          if (sureOutside) continue;
+          if (sureInside)
+            offer({true, 1.0 - gauge, band, static_cast<float>(detail::estimateModulus(piece, e.lambda)), rod, pieceIndex},
+                  i, j, k);
+          else
+            offer(exact(rod, pieceIndex, i, j, k), i, j, k);
+        }
+      }
+    }
+  }
+
+  void cap(int rod, int pieceIndex, const RodPiece& piece, const openvdb::CoordBBox& box) {
+    const RodPieces& rp = rods_[rod];
+    const geometry::Rod& r = structure_.rods[rod];
+    const IndexForm& plane = rp.planes[piece.plane];
+    const bool atEnd = piece.kind == RodPiece::Kind::EndCap, round = r.caps() == geometry::CapStyle::Round;
+    // Beyond the plane: a >= 0 past the end, a < 0 before the beginning (the complements of the
+    // swept pieces' conditions, evaluated identically).
+    const double sign = atEnd ? 1.0 : -1.0;
+    const double nearPlane = capPlaneBand(r.section().boundingRadius());
+    const double invCap = rp.inverseCapRadius;
+    constexpr double kCapBand = 1e-9;  // round-off in the cap's distance, relative to its radius
+    const float endModulus = static_cast<float>(r.modulus().value(atEnd ? r.modulus().domainEnd() : r.modulus().domainBegin()));
+    for (int k = box.min().z(); k <= box.max().z(); ++k) {
+      for (int j = box.min().y(); j <= box.max().y(); ++j) {
+        const double aRow = plane.row(j, k);
+        int lo = box.min().x(), hi = box.max().x();
+        if (!clipHalfLine(sign * aRow, sign * plane.gx, lo, hi) || !clipToAxis(piece, j, k, lo, hi)) continue;
+        const double wy = piece.capOffset[1].row(j, k), wz = piece.capOffset[2].row(j, k);
+        const double wyz = wy * wy + wz * wz;
+        for (int i = lo; i <= hi; ++i) {
+          const double a = aRow + plane.gx * i;
+          if (atEnd ? !(a >= 0.0) : !(a < 0.0)) continue;
+          if (std::abs(a) <= nearPlane) {
+            offer(exact(rod, pieceIndex, i, j, k), i, j, k);
+            continue;
+          }
+          if (!round) continue;
+          const double wx = piece.capOffset[0].row(j, k) + piece.capOffset[0].gx * i;
+          const double g = std::sqrt(wx * wx + wyz) * invCap;
+          if (g > 1.0 + kCapBand) continue;
+          if (g < 1.0 - kCapBand)
+            offer({true, 1.0 - g, kCapBand, endModulus, rod, pieceIndex}, i, j, k);
+          else
+            offer(exact(rod, pieceIndex, i, j, k), i, j, k);
+        }
+      }
+    }
+  }
+
+  const geometry::RodStructure& structure_;
+  const std::vector<RodPieces>& rods_;
+  const PrinterGrid& grid_;
+  std::array<Candidate, kLeafDim * kLeafDim * kLeafDim> slots_;
+};
+
+}  // namespace
+
+Rasterizer::Rasterizer(const geometry::RodStructure& structure, const PrinterGrid& grid, RasterOptions options)
+    : structure_(&structure), grid_(grid), options_(options) {
+  rods_.resize(structure.rods.size());
+  tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
+  arena.execute([&] {
+    tbb::parallel_for(std::size_t(0), rods_.size(),
+                      [&](std::size_t r) { rods_[r] = detail::buildRodPieces(structure.rods[r], grid_); });
+  });
+}
+
+Rasterizer::~Rasterizer() = default;
+Rasterizer::Rasterizer(Rasterizer&&) noexcept = default;
+Rasterizer& Rasterizer::operator=(Rasterizer&&) noexcept = default;
+
+std::size_t Rasterizer::pieceCount() const {
+  std::size_t n = 0;
+  for (const RodPieces& r : rods_) n += r.pieces.size();
+  return n;
+}
+
+Rasterization Rasterizer::rasterizeLayers(int zBegin, int zEnd) const {
+  tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
+  return arena.execute([&] { return run(zBegin, zEnd); });
+}
+
+Rasterization Rasterizer::run(int zBegin, int zEnd) const {
+  Rasterization out;
+  out.grid = openvdb::FloatGrid::create(0.0f);
+  out.grid->setName(kModulusGridName);
+  out.grid->setTransform(grid_.transform());
+  out.grid->setGridClass(openvdb::GRID_UNKNOWN);
+  out.voxelsPerRod.assign(rods_.size(), 0);
+  zBegin = std::max(zBegin, 0);
+  zEnd = std::min(zEnd, grid_.dims.z());
+  if (zBegin >= zEnd) return out;
+
+  // Which pieces reach which leaves (within the band).
+  std::vector<std::vector<Entry>> perRod(rods_.size());
+  tbb::parallel_for(std::size_t(0), rods_.size(), [&](std::size_t r) {
+    const RodPieces& rod = rods_[r];
+    if (rod.box.empty() || rod.box.max().z() < zBegin || rod.box.min().z() >= zEnd) return;
+    for (std::size_t p = 0; p < rod.pieces.size(); ++p) {
+      openvdb::CoordBBox b = rod.pieces[p].box;
+      b.min().z() = std::max(b.min().z(), zBegin);
+      b.max().z() = std::min(b.max().z(), zEnd - 1);
+      if (b.empty()) continue;
+      for (int k = b.min().z() >> kLeafLog2; k <= b.max().z() >> kLeafLog2; ++k)
+        for (int j = b.min().y() >> kLeafLog2; j <= b.max().y() >> kLeafLog2; ++j)
+          for (int i = b.min().x() >> kLeafLog2; i <= b.max().x() >> kLeafLog2; ++i)
+            perRod[r].push_back({leafKey(i << kLeafLog2, j << kLeafLog2, k << kLeafLog2), std::uint32_t(r), std::uint32_t(p)});
+    }
+  });
+  std::vector<Entry> entries;
+  {
+    std::size_t total = 0;
+    for (const auto& v : perRod) total += v.size();
+    entries.reserve(total);
+    for (auto& v : perRod) {
+      entries.insert(entries.end(), v.begin(), v.end());
+      std::vector<Entry>().swap(v);
+    }
+  }
+  tbb::parallel_sort(entries.begin(), entries.end());
+  std::vector<std::size_t> groupStart;
+  for (std::size_t e = 0; e < entries.size(); ++e)
+    if (e == 0 || entries[e].leaf != entries[e - 1].leaf) groupStart.push_back(e);
+  groupStart.push_back(entries.size());
+  const std::size_t groups = groupStart.size() - 1;
+
+  // Each leaf built by one task from its pieces, in sorted order.
+  struct ThreadState {
+    std::unique_ptr<LeafBuilder> builder;
+    std::vector<std::uint64_t> voxelsPerRod;
+  };
+  tbb::enumerable_thread_specific<ThreadState> states;
+  std::vector<std::unique_ptr<LeafT>> leaves(groups);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, groups), [&](const tbb::blocked_range<std::size_t>& range) {
+    ThreadState& state = states.local();
+    if (!state.builder) {
+      state.builder = std::make_unique<LeafBuilder>(*structure_, rods_, grid_);
+      state.voxelsPerRod.assign(rods_.size(), 0);
+    }
+    LeafBuilder& builder = *state.builder;
+    for (std::size_t g = range.begin(); g != range.end(); ++g) {
+      const openvdb::Coord origin = leafOrigin(entries[groupStart[g]].leaf);
+      openvdb::CoordBBox leafBox(origin, origin.offsetBy(kLeafDim - 1));
+      leafBox.min().z() = std::max(leafBox.min().z(), zBegin);
+      leafBox.max().z() = std::min(leafBox.max().z(), zEnd - 1);
+      builder.clear();
+      bool touched = false;
+      for (std::size_t e = groupStart[g]; e < groupStart[g + 1]; ++e) {
+        openvdb::CoordBBox b = rods_[entries[e].rod].pieces[entries[e].piece].box;
+        b.intersect(leafBox);
+        if (b.empty()) continue;
+        builder.addPiece(int(entries[e].rod), int(entries[e].piece), b);
+        touched = true;
+      }
+      if (!touched) continue;
+      std::unique_ptr<LeafT> leaf;
+      for (int n = 0; n < kLeafDim * kLeafDim * kLeafDim; ++n) {
+        const Candidate& c = builder.slot(n);
+        if (!c.inside) continue;
+        if (!leaf) leaf = std::make_unique<LeafT>(origin, 0.0f, false);
+        leaf->setValueOn(openvdb::Index(n), c.value);
+        ++state.voxelsPerRod[c.rod];
+      }
+      leaves[g] = std::move(leaf);
+    }
+  });
+
+  for (ThreadState& s : states) {
+    out.exactEvaluations += s.builder->exactEvaluations;
+    for (std::size_t r = 0; r < rods_.size(); ++r) out.voxelsPerRod[r] += s.voxelsPerRod[r];
+  }
+  openvdb::FloatTree& tree = out.grid->tree();
+  for (std::unique_ptr<LeafT>& leaf : leaves)
+    if (leaf) tree.addLeaf(leaf.release());
+  return out;
+}
+
+Rasterization rasterize(const geometry::RodStructure& structure, const PrinterGrid& grid, RasterOptions options) {
+  return Rasterizer(structure, grid, options).rasterize();
+}
+
+}  // namespace rodfab::voxel

@@ -1,0 +1,83 @@
+// The rasterizer's per-rod representation (internal to voxel/): the rod cut into short pieces by the
+// normal planes of its centerline, each with a cheap approximation of the frame coordinates of any
+// point between its two planes and a measured bound on that approximation's error.
+#pragma once
+
+#include "geometry/rod.hpp"
+#include "voxel/printer_grid.hpp"
+
+#include <vector>
+
+namespace rodfab::voxel::detail {
+
+// An affine function of the voxel index. Always evaluated as row(j, k) + gx * i, so two pieces that
+// share a plane compute bit-identical values at every voxel and split space without gaps or overlap.
+struct IndexForm {
+  double c = 0.0, gx = 0.0, gy = 0.0, gz = 0.0;
+
+  double row(int j, int k) const { return (c + gy * j) + gz * k; }
+  double at(int i, int j, int k) const { return row(j, k) + gx * i; }
+};
+
+// f(p) = n . (p - q) for world points p, as a function of the voxel index of p.
+IndexForm indexForm(const PrinterGrid& grid, const geometry::Vec3& n, const geometry::Vec3& q);
+
+// Approximation accuracy asked of every swept piece (mm, in frame coordinates). Voxel centres whose
+// approximate position is within the piece's measured bound of the section boundary are decided by
+// the exact test instead, so the tolerance only trades piece count against exact evaluations.
+constexpr double kCoordinateTolerance = 1e-4;
+
+struct RodPiece {
+  enum class Kind : unsigned char { Swept, BeginCap, EndCap };
+  Kind kind = Kind::Swept;
+  // Swept: voxels with planes[plane].at >= 0 and planes[plane + 1].at < 0 (between the normal planes
+  // at u[plane] and u[plane + 1]). BeginCap: planes[0].at < 0. EndCap: planes.back().at >= 0.
+  int plane = 0;
+
+  // Swept: frame coordinates measured in the two bounding planes, blended by the position
+  // lambda = a / (a - b) between them, plus a lambda (1 - lambda) curvature correction.
+  IndexForm x1Begin, x2Begin, x1End, x2End;
+  double x1Bow = 0.0, x2Bow = 0.0;
+  double modulusBegin = 0.0, modulusEnd = 0.0, modulusBow = 0.0;
+  // Bound on the normalized-radius error of the approximation (inf where it could not be bounded).
+  double normalizedRadiusBand = 0.0;
+
+  // Round caps: the components of p - (centerline end point), one form per world axis.
+  IndexForm capOffset[3];
+
+  // Every voxel the piece can own lies within `reach` (mm) of the line through `axisPoint` along
+  // `axisDirection` (the chord for swept pieces, the end tangent for caps) and inside `box`.
+  geometry::Vec3 axisPoint, axisDirection;
+  double reach = 0.0;
+  openvdb::CoordBBox box;
+};
+
+struct RodPieces {
+  std::vector<IndexForm> planes;
+  std::vector<RodPiece> pieces;
+  openvdb::CoordBBox box;  // union of the pieces' boxes
+  double inverseHalfWidth = 0.0, inverseHalfHeight = 0.0, inverseCapRadius = 0.0;
+};
+
+// Cuts `rod` into pieces, refining each until its measured coordinate error is below
+// kCoordinateTolerance (or a refinement depth limit is hit; then the bound stays as measured).
+RodPieces buildRodPieces(const geometry::Rod& rod, const PrinterGrid& grid);
+
+// The swept-piece approximation at a point with plane values a >= 0 > b and frame coordinates
+// measured in the begin and end planes; shared by the rasterizer and the error measurement.
+struct SweptEstimate {
+  double lambda, x1, x2;
+};
+inline SweptEstimate estimateSwept(const RodPiece& piece, double a, double b, double x1Begin, double x2Begin,
+                                   double x1End, double x2End) {
+  const double lambda = a / (a - b);
+  const double bow = lambda * (1.0 - lambda);
+  return {lambda, x1Begin + lambda * (x1End - x1Begin) + bow * piece.x1Bow,
+          x2Begin + lambda * (x2End - x2Begin) + bow * piece.x2Bow};
+}
+inline double estimateModulus(const RodPiece& piece, double lambda) {
+  return piece.modulusBegin + lambda * (piece.modulusEnd - piece.modulusBegin) +
+         lambda * (1.0 - lambda) * piece.modulusBow;
+}
+
+}  // namespace rodfab::voxel::detail

@@ -1,0 +1,19 @@
+// Writing and reading modulus grids as standard .vdb files.
+#pragma once
+
+#include <openvdb/openvdb.h>
+
+#include <string>
+
+namespace rodfab::voxel {
+
+// Writes `grid` to `path` under a temporary name in the same folder and renames it into place, so
+// `path` is either the old file or the complete new one. Metadata (e.g. the design's name) goes into
+// the file header. Throws std::runtime_error naming the file when writing fails.
+void writeGridFile(const std::string& path, const openvdb::GridBase& grid, const openvdb::MetaMap& fileMetadata = {});
+
+// Reads the float grid called `gridName` from `path`. Throws std::runtime_error naming the file and the
+// grid when it is missing or not a float grid.
+openvdb::FloatGrid::Ptr readFloatGrid(const std::string& path, const std::string& gridName);
+
+}  // namespace rodfab::voxel
