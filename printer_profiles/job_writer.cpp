@@ -536,6 +536,7 @@ JobWriter::~JobWriter() {
 }
 
 const JobGeometry& JobWriter::geometry() const { return impl_->geometry; }
+JobMetadata& JobWriter::metadata() { return impl_->spec.metadata; }
 ImageFormat JobWriter::imageFormat() const { return impl_->imageFormat; }
 SupportPolicy JobWriter::supportPolicy() const { return impl_->support; }
 

@@ -105,6 +105,9 @@ public:
   JobWriter& operator=(const JobWriter&) = delete;
 
   const JobGeometry& geometry() const;
+  // What the manifest will record; figures known only after the last band (clamp counts) may be
+  // filled in here before finalize().
+  JobMetadata& metadata();
   ImageFormat imageFormat() const;
   SupportPolicy supportPolicy() const;
 

@@ -1,0 +1,279 @@
+#include "calibration/calibration.hpp"
+#include "geometry/geometry.hpp"
+#include "materials/materials.hpp"
+#include "printer_profiles/printer_profiles.hpp"
+#include "slicer/command.hpp"
+#include "slicer/interrupt.hpp"
+#include "slicer/job_pipeline.hpp"
+#include "slicer/options.hpp"
+#include "slicer/progress.hpp"
+#include "voxel/voxel.hpp"
+
+#include <nlohmann/json.hpp>
+#include <tbb/global_control.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <iterator>
+#include <sstream>
+
+namespace rodfab::cli {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+std::string fileSha256(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(path + ": cannot open");
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  return calibration::sha256Hex(bytes);
+}
+
+// Index box of the voxel centres inside the design's bounding box: every voxel the rasterizer can
+// activate, known before any band is rasterized (the images are planned from it).
+openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const voxel::PrinterGrid& grid) {
+  const geometry::Box3 box = design.bounds();
+  openvdb::CoordBBox out;
+  for (int a = 0; a < 3; ++a) {
+    out.min()[a] = std::max(0, static_cast<int>(std::ceil((box.min()[a] - grid.origin[a]) / grid.voxelSize[a])));
+    out.max()[a] = std::min(grid.dims[a] - 1, static_cast<int>(std::floor((box.max()[a] - grid.origin[a]) / grid.voxelSize[a])));
+  }
+  return out;
+}
+
+std::string formatCount(std::uint64_t n) {
+  const std::string digits = std::to_string(n);
+  std::string out;
+  for (std::size_t i = 0; i < digits.size(); ++i) {
+    if (i > 0 && (digits.size() - i) % 3 == 0) out += ',';
+    out += digits[i];
+  }
+  return out;
+}
+
+}  // namespace
+
+int runSlice(const std::vector<std::string>& args) {
+  po::options_description options("options");
+  options.add_options()
+      ("design", po::value<std::string>()->required(), "design file (rodfab.design/1 JSON)")
+      ("output,o", po::value<std::string>()->required(), "the job: NAME.zip, or a folder with --format dir")
+      ("profile", po::value<std::string>()->default_value("stratasys-objet500-connex3"),
+       "printer profile: a bundled name (rodfab profiles lists them) or a profile file")
+      ("calibration", po::value<std::string>(), "calibration file (rodfab calibrate); default: the bundled 60 C fit")
+      ("dither", po::value<std::string>(),
+       "white | blue | error-diffusion (default: the ditherer the calibration coupons were printed with)")
+      ("seed", po::value<std::uint64_t>()->default_value(0), "dithering seed")
+      ("threads", po::value<int>()->default_value(0), "worker threads (0 = all cores); the job is the same for any count")
+      ("format", po::value<std::string>()->default_value("zip"), "zip | dir")
+      ("image-format", po::value<std::string>(), "bmp | png (default: the profile's)")
+      ("support", po::value<std::string>(), "printer | explicit (default: the profile's)")
+      ("band-layers", po::value<int>()->default_value(64), "layers per streamed band")
+      ("force", "replace an existing job at --output")
+      ("quiet,q", "no progress on stderr")
+      ("json", "print the job summary as JSON on stdout");
+  po::positional_options_description positional;
+  positional.add("design", 1);
+  po::variables_map vm;
+  const char* synopsis =
+      "DESIGN.json --output JOB.zip [--profile NAME|FILE] [--calibration CAL.json] [--dither white|blue|error-diffusion] "
+      "[--seed N] [--threads N] [--format zip|dir] [--image-format bmp|png] [--support printer|explicit] [--force] [--quiet] [--json]";
+  if (auto code = parseOptions("slice", synopsis, options, positional, args, vm)) return *code;
+
+  auto usageError = [](const std::string& message) {
+    std::cerr << "rodfab slice: " << message << "\n(rodfab slice --help lists the options)\n";
+    return kUsage;
+  };
+  const int threads = vm["threads"].as<int>();
+  if (threads < 0) return usageError("--threads: expected 0 (all cores) or a positive count");
+  const int bandLayers = vm["band-layers"].as<int>();
+  if (bandLayers < 1) return usageError("--band-layers: expected a positive number of layers");
+  printer_profiles::JobOptions jobOptions;
+  jobOptions.output = vm["output"].as<std::string>();
+  jobOptions.force = vm.count("force") > 0;
+  const std::string format = vm["format"].as<std::string>();
+  if (format == "zip") jobOptions.archive = printer_profiles::ArchiveFormat::Zip;
+  else if (format == "dir") jobOptions.archive = printer_profiles::ArchiveFormat::Directory;
+  else return usageError("--format: expected zip or dir, got '" + format + "'");
+  try {
+    if (vm.count("image-format")) jobOptions.imageFormat = printer_profiles::parseImageFormat(vm["image-format"].as<std::string>());
+    if (vm.count("support")) jobOptions.support = printer_profiles::parseSupportPolicy(vm["support"].as<std::string>());
+  } catch (const std::invalid_argument& e) {
+    return usageError(e.what());
+  }
+
+  const auto tStart = Clock::now();
+  slicer::StageSeconds seconds;
+  double readSeconds = 0.0;
+  // One limit for every stage (TBB arenas, the writer's encoders); results do not depend on it.
+  std::unique_ptr<tbb::global_control> threadLimit;
+  if (threads > 0)
+    threadLimit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, threads);
+
+  // Inputs: every one is checked before anything is written.
+  const std::string designFile = vm["design"].as<std::string>();
+  geometry::RodStructure design;
+  try {
+    design = geometry::readDesign(designFile);
+  } catch (const geometry::DesignError& e) {
+    std::cerr << e.what() << '\n' << designFile << ": the design is not valid; no job was written\n";
+    return kFailed;
+  }
+  printer_profiles::Profile profile;
+  try {
+    profile = printer_profiles::loadProfile(vm["profile"].as<std::string>());
+  } catch (const printer_profiles::ProfileError& e) {
+    std::cerr << e.what() << "\nno job was written\n";
+    return kFailed;
+  }
+  const std::string calibrationFile =
+      vm.count("calibration") ? vm["calibration"].as<std::string>() : calibration::defaultCalibrationPath().string();
+  const calibration::Calibration cal = calibration::readCalibration(calibrationFile);
+  const std::string couponDither = slicer::canonicalDitherName(cal.record().dither);
+  const std::string ditherName = vm.count("dither") ? vm["dither"].as<std::string>() : (couponDither.empty() ? "white" : couponDither);
+  materials::DitherOptions ditherOptions;
+  ditherOptions.seed = vm["seed"].as<std::uint64_t>();
+  std::unique_ptr<materials::Ditherer> ditherer;
+  try {
+    ditherer = materials::makeDitherer(ditherName, ditherOptions);
+  } catch (const std::invalid_argument& e) {
+    return usageError(std::string("--dither: ") + e.what());
+  }
+  if (!couponDither.empty() && couponDither != ditherer->name())
+    std::cerr << "rodfab slice: warning: " << calibrationFile << " was measured on coupons dithered '" << cal.record().dither
+              << "', this job dithers '" << ditherer->name()
+              << "': a mix's stiffness depends on its dithering, so print and fit coupons with this ditherer (rodfab coupons)\n";
+
+  const voxel::PrinterGrid grid =
+      voxel::makePrinterGrid(design, openvdb::Vec3d(profile.voxelSizeMm[0], profile.voxelSizeMm[1], profile.voxelSizeMm[2]));
+  const voxel::Rasterizer rasterizer(design, grid, {threads});
+  const materials::FractionMap fractionMap(cal);
+  readSeconds = since(tStart);
+
+  printer_profiles::JobSpec spec;
+  spec.profile = profile;
+  spec.partBounds = designVoxelBounds(design, grid);
+  spec.originMm = grid.origin;
+  spec.metadata.design = designFile;
+  spec.metadata.ditherer = std::string(ditherer->name());
+  spec.metadata.seed = ditherOptions.seed;
+  spec.metadata.calibration = printer_profiles::CalibrationRecord{calibrationFile, fileSha256(calibrationFile)};
+  spec.options = jobOptions;
+  const printer_profiles::SupportPolicy support = jobOptions.support.value_or(profile.supportPolicy);
+  double supportSeconds = 0.0;
+  if (support == printer_profiles::SupportPolicy::Explicit) {
+    // Support reaches down from every overhang, so the column tops of the whole part come first: a
+    // topology-only pass over the bands (the modulus values are dropped as soon as they are counted).
+    const auto t = Clock::now();
+    const printer_profiles::JobGeometry geometry = printer_profiles::planJob(profile, spec.partBounds);
+    auto tops = std::make_shared<printer_profiles::ColumnTops>(geometry);
+    for (int k0 = spec.partBounds.min().z(); k0 <= spec.partBounds.max().z(); k0 += bandLayers)
+      tops->include(*rasterizer.rasterizeLayers(k0, std::min(spec.partBounds.max().z() + 1, k0 + bandLayers)).grid);
+    spec.supportTops = tops;
+    supportSeconds = since(t);
+  }
+
+  InterruptGuard interrupts;
+  const Progress::Mode mode = Progress::detect(vm.count("quiet") > 0);
+  Progress progress("layers", static_cast<std::size_t>(spec.partBounds.dim().z()), mode, std::cerr);
+  materials::MappingStats mapping;
+  std::vector<std::uint64_t> voxelsPerRod(design.rods.size(), 0);
+
+  const slicer::BandSource source = [&](int k0, int k1, bool withNextLayer) {
+    throwIfInterrupted();
+    const voxel::Rasterization ras = rasterizer.rasterizeLayers(k0, k1 + (withNextLayer ? 1 : 0));
+    for (std::size_t r = 0; r < voxelsPerRod.size(); ++r) voxelsPerRod[r] += ras.voxelsPerRod[r];
+    slicer::BandGrids band{materials::mapToFractions(*ras.grid, fractionMap, k0, k1, mapping), ras.grid};
+    if (withNextLayer) {
+      // Error diffusion reads the next layer's voxels; they are counted with their own band.
+      materials::MappingStats ignored;
+      band.fraction->tree().merge(materials::mapToFractions(*ras.grid, fractionMap, k1, k1 + 1, ignored)->tree());
+    }
+    return band;
+  };
+  slicer::PipelineOptions pipeline;
+  pipeline.bandLayers = bandLayers;
+  pipeline.onBand = [&](int done, int) {
+    progress.update(static_cast<std::size_t>(done));
+    throwIfInterrupted();
+  };
+  pipeline.beforeFinalize = [&](printer_profiles::JobMetadata& metadata) {
+    metadata.clamping = printer_profiles::ModulusClamping{fractionMap.floorMpa(), fractionMap.maxModulusMpa(),
+                                                          mapping.clamps.belowFloor, mapping.clamps.aboveMax};
+  };
+
+  printer_profiles::JobResult job;
+  try {
+    job = slicer::streamJob(spec, source, *ditherer, pipeline, seconds);
+  } catch (const Interrupted& e) {
+    progress.finish();
+    std::cerr << "rodfab slice: " << e.what() << '\n';
+    return 128 + e.signal;
+  }
+  progress.finish();
+  const double total = since(tStart);
+
+  std::uint64_t rodsWithoutVoxels = 0;
+  for (std::uint64_t n : voxelsPerRod) rodsWithoutVoxels += n == 0;
+  const printer_profiles::JobGeometry& g = job.geometry;
+  const double heightMm = g.layers * profile.layerThicknessMm();
+  if (vm.count("json")) {
+    nlohmann::json materialsJson = nlohmann::json::array();
+    for (const auto& m : job.materials)
+      materialsJson.push_back({{"name", m.name}, {"role", printer_profiles::toString(m.role)}, {"voxels", m.voxels},
+                               {"volume_ml", m.volumeMl}, {"mass_g", m.massG}});
+    const nlohmann::json j{
+        {"job", job.path.string()},
+        {"design", designFile},
+        {"profile", profile.name},
+        {"layers", g.layers},
+        {"image_size", {g.width, g.height}},
+        {"print_height_mm", heightMm},
+        {"voxels", mapping.voxels},
+        {"materials", materialsJson},
+        {"ditherer", std::string(ditherer->name())},
+        {"seed", ditherOptions.seed},
+        {"calibration", calibrationFile},
+        {"clamped_moduli", {{"below_floor", mapping.clamps.belowFloor}, {"above_max", mapping.clamps.aboveMax},
+                            {"floor_mpa", fractionMap.floorMpa()}, {"max_mpa", fractionMap.maxModulusMpa()}}},
+        {"rods_without_voxels", rodsWithoutVoxels},
+        {"files", job.files},
+        {"bytes", job.bytes},
+        {"seconds", {{"inputs", readSeconds}, {"support", supportSeconds}, {"voxelize_and_map", seconds.source},
+                     {"dither", seconds.dither}, {"emit", seconds.emit}, {"total", total}}}};
+    std::cout << j.dump(2) << '\n';
+  } else {
+    std::printf("job:            %s (%s, %zu files, %.1f MB)\n", job.path.c_str(), format.c_str(), job.files,
+                static_cast<double>(job.bytes) / 1e6);
+    std::printf("design:         %s (%zu rods)\n", designFile.c_str(), design.rods.size());
+    std::printf("printer:        %s (%s)\n", profile.printer.c_str(), profile.name.c_str());
+    std::printf("layers:         %d x %.3f mm = %.2f mm print height; images %d x %d px\n", g.layers,
+                profile.layerThicknessMm(), heightMm, g.width, g.height);
+    std::printf("voxels:         %s model voxels\n", formatCount(mapping.voxels).c_str());
+    for (const auto& m : job.materials)
+      std::printf("  %-14s %-8s %15s voxels  %9.3f mL  %9.3f g\n", m.name.c_str(), printer_profiles::toString(m.role),
+                  formatCount(m.voxels).c_str(), m.volumeMl, m.massG);
+    std::printf("dithering:      %s, seed %llu\n", std::string(ditherer->name()).c_str(),
+                static_cast<unsigned long long>(ditherOptions.seed));
+    std::printf("calibration:    %s (floor %.3g MPa = %.1f %% Vero, max %.4g MPa)\n", calibrationFile.c_str(),
+                fractionMap.floorMpa(), 100.0 * fractionMap.floorFraction(), fractionMap.maxModulusMpa());
+    std::printf("clamped moduli: %s below the floor, %s above the stiffest mix\n",
+                formatCount(mapping.clamps.belowFloor).c_str(), formatCount(mapping.clamps.aboveMax).c_str());
+    std::printf("time:           %.2f s inputs, %.2f s support, %.2f s voxelize + map, %.2f s dither, %.2f s emit; %.2f s total\n",
+                readSeconds, supportSeconds, seconds.source, seconds.dither, seconds.emit, total);
+  }
+  if (rodsWithoutVoxels > 0)
+    std::cerr << "rodfab slice: warning: " << rodsWithoutVoxels
+              << " rod(s) hold no voxel centre (thinner than the voxel or hidden in other rods); rodfab voxelize --json lists them\n";
+  if (mapping.clamps.total() > 0 && !vm.count("quiet"))
+    std::cerr << "rodfab slice: note: " << formatCount(mapping.clamps.total())
+              << " voxel(s) asked for a modulus the materials cannot make; they were clamped (see the summary)\n";
+  return kOk;
+}
+
+}  // namespace rodfab::cli
