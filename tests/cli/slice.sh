@@ -1,0 +1,108 @@
+#!/usr/bin/env bash
+# rodfab slice end to end: every bundled example into a job that inspect passes, identical bytes for
+# any thread count and band size, a clean interrupt, and bad input that writes nothing.
+#   slice.sh RODFAB SOURCE_DIR
+set -u
+rodfab=$1 src=$2
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+only() {  # the folder holds exactly these names (nothing half-written, no hidden temporaries)
+  local want
+  want=$(printf '%s\n' "$@" | sort)
+  [ "$(ls -A "$tmp/out" | sort)" = "$want" ] || fail "expected only '$*' in the output folder, found: $(ls -A "$tmp/out")"
+}
+mkdir "$tmp/out"
+
+# Every bundled example, then inspect.
+for design in "$src"/examples/*.json; do
+  name=$(basename "$design" .json)
+  "$rodfab" slice "$design" -o "$tmp/out/$name.zip" --quiet > "$tmp/summary" 2> "$tmp/err" ||
+    fail "slice $name: $(cat "$tmp/err")"
+  grep -q "layers:" "$tmp/summary" || fail "$name: no summary"
+  "$rodfab" inspect "$tmp/out/$name.zip" > "$tmp/inspect" 2>&1 || fail "inspect $name: $(cat "$tmp/inspect")"
+done
+only arm-cast.zip buckling-spring.zip unfolding-box.zip
+
+# The summary agrees with the job: voxels per material add up, print height = layers x 0.03 mm.
+"$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/out/box.zip" --quiet --json > "$tmp/json" || fail "--json"
+python3 - "$tmp/json" "$tmp/out/box.zip" <<'PY' || fail "summary vs manifest"
+import json, sys, zipfile
+s = json.load(open(sys.argv[1]))
+m = json.loads(zipfile.ZipFile(sys.argv[2]).read("manifest.json"))
+assert sum(x["voxels"] for x in s["materials"] if x["role"] != "support") == s["voxels"] > 0
+assert abs(s["print_height_mm"] - 0.03 * s["layers"]) < 1e-9
+assert s["ditherer"] == "white"                      # the bundled calibration's coupons were random-dithered
+assert m["statistics"]["clamped_modulus"]["below_floor_voxels"] == s["clamped_moduli"]["below_floor"]
+assert m["calibration"]["sha256"] and m["calibration"]["file"].endswith("default-60C.json")
+PY
+rm "$tmp/out/box.zip"
+
+# Determinism: the same bytes for 1 and 2 threads and different band sizes, per ditherer (same job
+# name in two folders: the name is printed in the previews).
+mkdir "$tmp/1" "$tmp/2" "$tmp/3"
+for dither in white blue error-diffusion; do
+  "$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/1/job.zip" --dither $dither --seed 7 --threads 1 --quiet > /dev/null ||
+    fail "$dither, 1 thread"
+  "$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/2/job.zip" --dither $dither --seed 7 --threads 2 --band-layers 13 --quiet > /dev/null ||
+    fail "$dither, 2 threads"
+  cmp -s "$tmp/1/job.zip" "$tmp/2/job.zip" || fail "$dither: jobs differ between 1 thread and 2 threads with other bands"
+  "$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/3/job.zip" --dither $dither --seed 8 --quiet > /dev/null || fail "$dither, seed 8"
+  cmp -s "$tmp/1/job.zip" "$tmp/3/job.zip" && fail "$dither: seeds 7 and 8 gave the same job"
+  rm -f "$tmp"/[123]/job.zip
+done
+
+# PNG in a folder, explicit support: inspect passes.
+"$rodfab" slice "$src/examples/arm-cast.json" -o "$tmp/out/cast" --format dir --image-format png --support explicit --quiet > /dev/null 2> "$tmp/err" ||
+  fail "png/dir/explicit: $(cat "$tmp/err")"
+ls "$tmp/out/cast" | grep -q "^FullCure705_0000.png$" || fail "explicit support wrote no support bitmaps: $(ls "$tmp/out/cast" | head)"
+"$rodfab" inspect "$tmp/out/cast" > /dev/null 2>&1 || fail "inspect png/dir job"
+rm -rf "$tmp/out/cast"
+
+# An existing job is kept unless --force.
+before=$(sha256sum "$tmp/out/arm-cast.zip")
+"$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/out/arm-cast.zip" --quiet > /dev/null 2> "$tmp/err"
+[ $? -eq 1 ] || fail "existing job: expected exit 1"
+grep -q "arm-cast.zip" "$tmp/err" || fail "existing job not named: $(cat "$tmp/err")"
+[ "$(sha256sum "$tmp/out/arm-cast.zip")" = "$before" ] || fail "existing job was modified"
+"$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/out/arm-cast.zip" --force --quiet > /dev/null || fail "--force"
+only arm-cast.zip buckling-spring.zip unfolding-box.zip
+
+# Interrupt: SIGINT once the first band is done; exit 130, nothing left behind.
+"$rodfab" slice "$src/examples/buckling-spring.json" -o "$tmp/out/int.zip" --threads 1 --band-layers 8 > /dev/null 2> "$tmp/progress" &
+pid=$!
+for _ in $(seq 1 200); do grep -q "layers" "$tmp/progress" && break; sleep 0.05; done
+kill -INT $pid
+wait $pid
+code=$?
+[ $code -eq 130 ] || fail "interrupt: exit $code, expected 130 ($(cat "$tmp/progress"))"
+grep -q "interrupted by SIGINT; no job was written" "$tmp/progress" || fail "interrupt not reported: $(cat "$tmp/progress")"
+only arm-cast.zip buckling-spring.zip unfolding-box.zip
+
+# Bad input: a clear message, non-zero exit, nothing written.
+expect() {  # CODE PATTERN ARGS...
+  local code=$1 pattern=$2; shift 2
+  "$rodfab" slice "$@" > /dev/null 2> "$tmp/err"
+  local got=$?
+  [ $got -eq "$code" ] || fail "slice $*: exit $got, expected $code ($(cat "$tmp/err"))"
+  grep -q -- "$pattern" "$tmp/err" || fail "slice $*: expected '$pattern' in: $(cat "$tmp/err")"
+  only arm-cast.zip buckling-spring.zip unfolding-box.zip
+}
+expect 1 "missing.json: cannot open" "$tmp/missing.json" -o "$tmp/out/x.zip"
+echo '{ "format": "rodfab.design/1", "units": "mm", "rods": [ { "name": "a", "modulus": -3 } ] }' > "$tmp/bad.json"
+expect 1 "bad.json: rods\[0\]" "$tmp/bad.json" -o "$tmp/out/x.zip"
+expect 1 "no-such-printer" "$src/examples/unfolding-box.json" -o "$tmp/out/x.zip" --profile no-such-printer
+expect 1 "no/such/dir: the output directory does not exist" "$src/examples/unfolding-box.json" -o "$tmp/out/no/such/dir/x.zip"
+expect 1 "missing-cal.json" "$src/examples/unfolding-box.json" -o "$tmp/out/x.zip" --calibration "$tmp/missing-cal.json"
+expect 2 "--dither" "$src/examples/unfolding-box.json" -o "$tmp/out/x.zip" --dither ordered
+expect 2 "--format" "$src/examples/unfolding-box.json" -o "$tmp/out/x.zip" --format tar
+expect 2 "output" "$src/examples/unfolding-box.json"
+# A 600 mm rod does not fit the 490 mm tray: refused with the overhang in mm.
+cat > "$tmp/long.json" <<'JSON'
+{ "format": "rodfab.design/1", "units": "mm",
+  "rods": [ { "name": "long", "centerline": { "degree": 1, "knots": [0,0,1,1], "points": [[0,0,0],[600,0,0]] },
+              "section": { "shape": "circle", "diameter": 1 }, "modulus": 50 } ] }
+JSON
+expect 1 "mm along x" "$tmp/long.json" -o "$tmp/out/x.zip"
+"$rodfab" slice --help | grep -q "usage: rodfab slice" || fail "--help"
+echo "slice: ok"
