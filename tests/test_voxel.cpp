@@ -118,7 +118,7 @@ ExactVoxel exactVoxel(const RodStructure& s, const Vec3& p) {
     if (!s.rods[r].bounds().contains(p)) continue;  // outside the rod's solid for sure: skip its Newton
     const geometry::RodHit hit = s.rods[r].classify(p);
     if (!hit.inside) continue;
-    if (!v.inside || hit.depth > v.depth) {
+    if (!v.inside || hit.depth > v.depth + voxel::kDepthTieTolerance) {
       v.runnerUpDepth = v.inside ? v.depth : v.runnerUpDepth;
       v = {true, int(r), hit.depth, v.runnerUpDepth, s.rods[r].modulus().value(hit.u)};
     } else {

@@ -70,6 +70,10 @@ int clampToInt(double v) { return static_cast<int>(std::clamp(v, -2.0e9, 2.0e9))
 // clips keep that margin and the callers still test every voxel they are left with.
 constexpr double kClipMargin = 1e-6;
 
+// Depths closer than this are a tie (see rasterize.hpp): far below any approximation band, far above
+// the round-off in a depth.
+constexpr double kTieTolerance = kDepthTieTolerance;
+
 // Restricts [lo, hi] to the i with base + slope * i >= 0 (conservatively). Returns false when
 // nothing is left.
 bool clipHalfLine(double base, double slope, int& lo, int& hi) {
@@ -143,7 +147,8 @@ private:
   }
 
   // The overlap rule. Near ties between approximate depths are settled on exact depths, so the
-  // winner is the one the exact test would pick.
+  // winner is the one the exact test would pick; depths within kTieTolerance are equal (lower rod
+  // wins), which spares the exact test where round caps of rods meeting at a node coincide.
   void offer(Candidate c, int i, int j, int k) {
     const int n = offset(i, j, k);
     std::uint64_t& word = filled_[n >> 6];
@@ -156,13 +161,14 @@ private:
       }
       return;
     }
-    if (s.inside && std::abs(s.depth - c.depth) <= s.band + c.band && (s.band > 0.0 || c.band > 0.0)) {
+    if (s.inside && std::abs(s.depth - c.depth) <= s.band + c.band + kTieTolerance && (s.band > 0.0 || c.band > 0.0)) {
       if (s.band > 0.0) s = exact(s.rod, s.piece, i, j, k);
       if (c.band > 0.0) c = exact(c.rod, c.piece, i, j, k);
     }
     if (!c.inside) return;
-    if (!s.inside || c.depth > s.depth ||
-        (c.depth == s.depth && (c.rod < s.rod || (c.rod == s.rod && c.piece < s.piece))))
+    const double gain = c.depth - s.depth;
+    if (!s.inside || gain > kTieTolerance ||
+        (gain >= -kTieTolerance && (c.rod < s.rod || (c.rod == s.rod && c.piece < s.piece))))
       s = c;
   }
 
@@ -244,8 +250,10 @@ private:
           const double wx = piece.capOffset[0].row(j, k) + piece.capOffset[0].gx * i;
           const double g = std::sqrt(wx * wx + wyz) * invCap;
           if (g > 1.0 + kCapBand) continue;
+          // Inside for sure; the depth's round-off (1e-9 of the radius at most) is within the tie
+          // tolerance, so it counts as exact.
           if (g < 1.0 - kCapBand)
-            offer({true, 1.0 - g, kCapBand, endModulus, rod, pieceIndex}, i, j, k);
+            offer({true, 1.0 - g, 0.0, endModulus, rod, pieceIndex}, i, j, k);
           else
             offer(exact(rod, pieceIndex, i, j, k), i, j, k);
         }

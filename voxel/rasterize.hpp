@@ -6,7 +6,8 @@
 //
 // Overlaps (joints): the voxel takes the value of the rod in which its centre lies deepest, depth
 // being 1 - the normalized radius of the section (geometry::RodHit::depth), so the rod whose
-// boundary is farthest away wins; equal depths go to the lower rod index. The rule depends on
+// boundary is farthest away wins; equal depths (closer than kDepthTieTolerance, as where the round
+// caps of rods meeting at a node coincide) go to the lower rod index. The rule depends on
 // nothing but the voxel, so the grid is identical for any thread count and any band of layers.
 //
 // How (fast and still exact): each rod is cut by normal planes of its centerline into short pieces
@@ -29,6 +30,9 @@ namespace rodfab::voxel {
 
 // Name of the grid of Young's modulus (MPa) the rasterizer produces and the .vdb files hold.
 inline constexpr const char* kModulusGridName = "modulus_mpa";
+
+// Depths of two rods at a voxel that differ by no more than this are equal for the overlap rule.
+inline constexpr double kDepthTieTolerance = 1e-9;
 
 namespace detail {
 struct RodPieces;
