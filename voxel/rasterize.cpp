@@ -118,6 +118,32 @@ private:
     return ((i & (kLeafDim - 1)) << (2 * kLeafLog2)) | ((j & (kLeafDim - 1)) << kLeafLog2) | (k & (kLeafDim - 1));
   }
 
+  // The rows j of layer k that meet the infinite cylinder of radius `reach` around the piece's axis.
+  // With w the offset of a voxel centre from the axis point, a row meets the cylinder where the
+  // discriminant of |w|^2 - (w.e)^2 = reach^2 in i is >= 0: a quadratic in j whose leading
+  // coefficient works out to -(vx vy e_z)^2, so the rows form one interval (all rows when e_z = 0).
+  bool clipRowsToAxis(const RodPiece& piece, int k, int& lo, int& hi) const {
+    const double vx = grid_.voxelSize.x(), vy = grid_.voxelSize.y();
+    const geometry::Vec3& e = piece.axisDirection;
+    const geometry::Vec3 w(grid_.origin.x() - piece.axisPoint.x(), grid_.origin.y() - piece.axisPoint.y(),
+                           grid_.origin.z() + k * grid_.voxelSize.z() - piece.axisPoint.z());
+    const double alpha = vx * vx * (1.0 - e.x() * e.x());
+    if (alpha <= 1e-9 * vx * vx) return true;  // axis along x: clipToAxis returns every i; keep every j too
+    const double we = w.dot(e);
+    const double b0 = vx * (w.x() - we * e.x()), b1 = -vx * vy * e.y() * e.x();
+    const double g0 = w.squaredNorm() - we * we - piece.reach * piece.reach;
+    const double g1 = 2.0 * vy * (w.y() - we * e.y()), g2 = vy * vy * (1.0 - e.y() * e.y());
+    const double A = b1 * b1 - alpha * g2, B = 2.0 * b0 * b1 - alpha * g1, C = b0 * b0 - alpha * g0;
+    if (!(A < -1e-12 * vx * vx * vy * vy)) return true;  // axis (nearly) in the layer: no bound in j
+    const double disc = B * B - 4.0 * A * C;
+    if (disc < 0.0) return false;
+    const double root = std::sqrt(disc);
+    // A < 0: D(j) >= 0 between the roots.
+    lo = std::max(lo, clampToInt(std::ceil((-B + root) / (2.0 * A) - kClipMargin)));
+    hi = std::min(hi, clampToInt(std::floor((-B - root) / (2.0 * A) + kClipMargin)));
+    return lo <= hi;
+  }
+
   // The row (j, k) restricted to the infinite cylinder of radius `reach` around the piece's axis.
   bool clipToAxis(const RodPiece& piece, int j, int k, int& lo, int& hi) const {
     const double vx = grid_.voxelSize.x();
@@ -182,12 +208,27 @@ private:
     const bool bounded = std::isfinite(band) && band < 1.0;
     const double inner = bounded ? 1.0 - band : -1.0, outer = bounded ? 1.0 + band : std::numeric_limits<double>::infinity();
     const double innerSq = inner > 0.0 ? inner * inner : -1.0, outerSq = outer * outer;
-    for (int k = box.min().z(); k <= box.max().z(); ++k) {
-      for (int j = box.min().y(); j <= box.max().y(); ++j) {
+    // Layers, then rows, that can hold a voxel of the slab a >= 0 > b within the box: the extremes of
+    // the planes over the box's i (and j) bound them before any row is set up.
+    const auto extreme = [](double g, int from, int to, bool largest) {
+      return largest ? std::max(g * from, g * to) : std::min(g * from, g * to);
+    };
+    const openvdb::Coord &bmin = box.min(), &bmax = box.max();
+    const double aMaxI = extreme(planeA.gx, bmin.x(), bmax.x(), true), bMinI = extreme(planeB.gx, bmin.x(), bmax.x(), false);
+    int kLo = bmin.z(), kHi = bmax.z();
+    if (!clipHalfLine(planeA.c + aMaxI + extreme(planeA.gy, bmin.y(), bmax.y(), true), planeA.gz, kLo, kHi) ||
+        !clipHalfLine(-(planeB.c + bMinI + extreme(planeB.gy, bmin.y(), bmax.y(), false)), -planeB.gz, kLo, kHi))
+      return;
+    for (int k = kLo; k <= kHi; ++k) {
+      int jLo = bmin.y(), jHi = bmax.y();
+      if (!clipHalfLine(planeA.c + planeA.gz * k + aMaxI, planeA.gy, jLo, jHi) ||
+          !clipHalfLine(-(planeB.c + planeB.gz * k + bMinI), -planeB.gy, jLo, jHi) || !clipRowsToAxis(piece, k, jLo, jHi))
+        continue;
+      for (int j = jLo; j <= jHi; ++j) {
         const double aRow = planeA.row(j, k), bRow = planeB.row(j, k);
-        int lo = box.min().x(), hi = box.max().x();
-        if (!clipToAxis(piece, j, k, lo, hi) || !clipHalfLine(aRow, planeA.gx, lo, hi) ||
-            !clipHalfLine(-bRow, -planeB.gx, lo, hi))
+        int lo = bmin.x(), hi = bmax.x();
+        if (!clipHalfLine(aRow, planeA.gx, lo, hi) || !clipHalfLine(-bRow, -planeB.gx, lo, hi) ||
+            !clipToAxis(piece, j, k, lo, hi))
           continue;
         const double x1aRow = piece.x1Begin.row(j, k), x2aRow = piece.x2Begin.row(j, k);
         const double x1bRow = piece.x1End.row(j, k), x2bRow = piece.x2End.row(j, k);
