@@ -46,6 +46,11 @@ private:
   std::vector<std::uint8_t> bits_;
 };
 
+// Bits set in `bytes`, and bits set in both `a` and `b` (same length). Word-wise, skipping zero words
+// (layer bitmaps are mostly empty), with the CPU's popcount instruction where it has one.
+std::size_t countSetBits(std::span<const std::uint8_t> bytes);
+std::size_t countCommonBits(std::span<const std::uint8_t> a, std::span<const std::uint8_t> b);
+
 // A decoded 1-bit image with the resolution its file declared.
 struct DecodedBitmap {
   Bitmap bitmap;

@@ -343,10 +343,8 @@ private:
     // No voxel may hold two materials: neither two model materials nor support inside the model.
     for (std::size_t a = 0; a < materials_.size(); ++a)
       for (std::size_t b = a + 1; b < materials_.size(); ++b) {
-        if (!have[a] || !have[b]) continue;
-        std::uint64_t both = 0;
-        const auto x = bitmaps[a].bytes(), y = bitmaps[b].bytes();
-        for (std::size_t n = 0; n < x.size(); ++n) both += static_cast<std::uint64_t>(std::popcount(static_cast<std::uint8_t>(x[n] & y[n])));
+        if (!have[a] || !have[b] || bitmaps[a].bytes().size() != bitmaps[b].bytes().size()) continue;  // sizes: reported above
+        const std::uint64_t both = countCommonBits(bitmaps[a].bytes(), bitmaps[b].bytes());
         if (both)
           out.defects.push_back(where + ": " + std::to_string(both) + " voxels hold both " + materials_[a].name + " and " +
                                 materials_[b].name);
