@@ -4,6 +4,7 @@
 #include "printer_profiles/printer_profiles.hpp"
 #include "slicer/command.hpp"
 #include "slicer/interrupt.hpp"
+#include "slicer/job_options.hpp"
 #include "slicer/job_pipeline.hpp"
 #include "slicer/options.hpp"
 #include "slicer/progress.hpp"
@@ -46,16 +47,6 @@ openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const
   return out;
 }
 
-std::string formatCount(std::uint64_t n) {
-  const std::string digits = std::to_string(n);
-  std::string out;
-  for (std::size_t i = 0; i < digits.size(); ++i) {
-    if (i > 0 && (digits.size() - i) % 3 == 0) out += ',';
-    out += digits[i];
-  }
-  return out;
-}
-
 }  // namespace
 
 int runSlice(const std::vector<std::string>& args) {
@@ -94,18 +85,8 @@ int runSlice(const std::vector<std::string>& args) {
   const int bandLayers = vm["band-layers"].as<int>();
   if (bandLayers < 1) return usageError("--band-layers: expected a positive number of layers");
   printer_profiles::JobOptions jobOptions;
-  jobOptions.output = vm["output"].as<std::string>();
-  jobOptions.force = vm.count("force") > 0;
+  if (auto error = parseJobOptions(vm, jobOptions)) return usageError(*error);
   const std::string format = vm["format"].as<std::string>();
-  if (format == "zip") jobOptions.archive = printer_profiles::ArchiveFormat::Zip;
-  else if (format == "dir") jobOptions.archive = printer_profiles::ArchiveFormat::Directory;
-  else return usageError("--format: expected zip or dir, got '" + format + "'");
-  try {
-    if (vm.count("image-format")) jobOptions.imageFormat = printer_profiles::parseImageFormat(vm["image-format"].as<std::string>());
-    if (vm.count("support")) jobOptions.support = printer_profiles::parseSupportPolicy(vm["support"].as<std::string>());
-  } catch (const std::invalid_argument& e) {
-    return usageError(e.what());
-  }
 
   const auto tStart = Clock::now();
   slicer::StageSeconds seconds;

@@ -23,6 +23,7 @@ struct Command {
 int runValidate(const std::vector<std::string>& args);
 int runVoxelize(const std::vector<std::string>& args);
 int runSlice(const std::vector<std::string>& args);
+int runCoupons(const std::vector<std::string>& args);
 int runCalibrate(const std::vector<std::string>& args);
 int runProfiles(const std::vector<std::string>& args);
 int runInspect(const std::vector<std::string>& args);

@@ -12,6 +12,7 @@ using namespace rodfab::cli;
 constexpr Command kCommands[] = {
     {"validate", "check a design file and summarize it", runValidate},
     {"slice", "turn a design into a print job: voxelize, map, dither, emit the layer bitmaps", runSlice},
+    {"coupons", "make the print job for DMA calibration bars, one per Vero fraction, with the jobs' ditherer", runCoupons},
     {"voxelize", "rasterize a design into a sparse modulus grid (.vdb) at printer resolution", runVoxelize},
     {"calibrate", "fit modulus vs Vero fraction to DMA data; write a calibration file and plot", runCalibrate},
     {"profiles", "list the bundled printer profiles, or show one", runProfiles},
