@@ -8,6 +8,7 @@
 #include "slicer/job_pipeline.hpp"
 #include "slicer/options.hpp"
 #include "slicer/progress.hpp"
+#include "slicer/slice_design.hpp"
 #include "voxel/voxel.hpp"
 
 #include <nlohmann/json.hpp>
@@ -33,18 +34,6 @@ std::string fileSha256(const std::string& path) {
   if (!in) throw std::runtime_error(path + ": cannot open");
   const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   return calibration::sha256Hex(bytes);
-}
-
-// Index box of the voxel centres inside the design's bounding box: every voxel the rasterizer can
-// activate, known before any band is rasterized (the images are planned from it).
-openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const voxel::PrinterGrid& grid) {
-  const geometry::Box3 box = design.bounds();
-  openvdb::CoordBBox out;
-  for (int a = 0; a < 3; ++a) {
-    out.min()[a] = std::max(0, static_cast<int>(std::ceil((box.min()[a] - grid.origin[a]) / grid.voxelSize[a])));
-    out.max()[a] = std::min(grid.dims[a] - 1, static_cast<int>(std::floor((box.max()[a] - grid.origin[a]) / grid.voxelSize[a])));
-  }
-  return out;
 }
 
 }  // namespace
@@ -89,7 +78,6 @@ int runSlice(const std::vector<std::string>& args) {
   const std::string format = vm["format"].as<std::string>();
 
   const auto tStart = Clock::now();
-  slicer::StageSeconds seconds;
   double readSeconds = 0.0;
   // One limit for every stage (TBB arenas, the writer's encoders); results do not depend on it.
   std::unique_ptr<tbb::global_control> threadLimit;
@@ -130,77 +118,42 @@ int runSlice(const std::vector<std::string>& args) {
               << "', this job dithers '" << ditherer->name()
               << "': a mix's stiffness depends on its dithering, so print and fit coupons with this ditherer (rodfab coupons)\n";
 
-  const voxel::PrinterGrid grid =
-      voxel::makePrinterGrid(design, openvdb::Vec3d(profile.voxelSizeMm[0], profile.voxelSizeMm[1], profile.voxelSizeMm[2]));
-  const voxel::Rasterizer rasterizer(design, grid, {threads});
-  const materials::FractionMap fractionMap(cal);
-  readSeconds = since(tStart);
-
-  printer_profiles::JobSpec spec;
-  spec.profile = profile;
-  spec.partBounds = designVoxelBounds(design, grid);
-  spec.originMm = grid.origin;
-  spec.metadata.design = designFile;
-  spec.metadata.ditherer = std::string(ditherer->name());
-  spec.metadata.seed = ditherOptions.seed;
-  spec.metadata.calibration = printer_profiles::CalibrationRecord{calibrationFile, fileSha256(calibrationFile)};
-  spec.options = jobOptions;
-  const printer_profiles::SupportPolicy support = jobOptions.support.value_or(profile.supportPolicy);
-  double supportSeconds = 0.0;
-  if (support == printer_profiles::SupportPolicy::Explicit) {
-    // Support reaches down from every overhang, so the column tops of the whole part come first: a
-    // topology-only pass over the bands (the modulus values are dropped as soon as they are counted).
-    const auto t = Clock::now();
-    const printer_profiles::JobGeometry geometry = printer_profiles::planJob(profile, spec.partBounds);
-    auto tops = std::make_shared<printer_profiles::ColumnTops>(geometry);
-    for (int k0 = spec.partBounds.min().z(); k0 <= spec.partBounds.max().z(); k0 += bandLayers)
-      tops->include(*rasterizer.rasterizeLayers(k0, std::min(spec.partBounds.max().z() + 1, k0 + bandLayers)).grid);
-    spec.supportTops = tops;
-    supportSeconds = since(t);
-  }
-
   InterruptGuard interrupts;
   const Progress::Mode mode = Progress::detect(vm.count("quiet") > 0);
-  Progress progress("layers", static_cast<std::size_t>(spec.partBounds.dim().z()), mode, std::cerr);
-  materials::MappingStats mapping;
-  std::vector<std::uint64_t> voxelsPerRod(design.rods.size(), 0);
-
-  const slicer::BandSource source = [&](int k0, int k1, bool withNextLayer) {
-    throwIfInterrupted();
-    const voxel::Rasterization ras = rasterizer.rasterizeLayers(k0, k1 + (withNextLayer ? 1 : 0));
-    for (std::size_t r = 0; r < voxelsPerRod.size(); ++r) voxelsPerRod[r] += ras.voxelsPerRod[r];
-    slicer::BandGrids band{materials::mapToFractions(*ras.grid, fractionMap, k0, k1, mapping), ras.grid};
-    if (withNextLayer) {
-      // Error diffusion reads the next layer's voxels; they are counted with their own band.
-      materials::MappingStats ignored;
-      band.fraction->tree().merge(materials::mapToFractions(*ras.grid, fractionMap, k1, k1 + 1, ignored)->tree());
-    }
-    return band;
-  };
-  slicer::PipelineOptions pipeline;
-  pipeline.bandLayers = bandLayers;
-  pipeline.onBand = [&](int done, int) {
-    progress.update(static_cast<std::size_t>(done));
+  std::unique_ptr<Progress> progress;
+  slicer::SliceSettings settings;
+  settings.designFile = designFile;
+  settings.calibrationFile = calibrationFile;
+  settings.calibrationSha256 = fileSha256(calibrationFile);
+  settings.seed = ditherOptions.seed;
+  settings.threads = threads;
+  settings.bandLayers = bandLayers;
+  settings.job = jobOptions;
+  settings.onBand = [&](int done, int total) {
+    if (!progress) progress = std::make_unique<Progress>("layers", static_cast<std::size_t>(total), mode, std::cerr);
+    progress->update(static_cast<std::size_t>(done));
     throwIfInterrupted();
   };
-  pipeline.beforeFinalize = [&](printer_profiles::JobMetadata& metadata) {
-    metadata.clamping = printer_profiles::ModulusClamping{fractionMap.floorMpa(), fractionMap.maxModulusMpa(),
-                                                          mapping.clamps.belowFloor, mapping.clamps.aboveMax};
-  };
+  readSeconds = since(tStart);
 
-  printer_profiles::JobResult job;
+  slicer::SliceReport report;
   try {
-    job = slicer::streamJob(spec, source, *ditherer, pipeline, seconds);
+    report = slicer::sliceDesign(design, profile, cal, *ditherer, settings);
   } catch (const Interrupted& e) {
-    progress.finish();
+    if (progress) progress->finish();
     std::cerr << "rodfab slice: " << e.what() << '\n';
     return 128 + e.signal;
   }
-  progress.finish();
+  if (progress) progress->finish();
   const double total = since(tStart);
+  const printer_profiles::JobResult& job = report.job;
+  const materials::MappingStats& mapping = report.mapping;
+  const slicer::StageSeconds& seconds = report.seconds;
+  const double supportSeconds = report.supportSeconds;
+  readSeconds += report.prepareSeconds;
 
   std::uint64_t rodsWithoutVoxels = 0;
-  for (std::uint64_t n : voxelsPerRod) rodsWithoutVoxels += n == 0;
+  for (std::uint64_t n : report.voxelsPerRod) rodsWithoutVoxels += n == 0;
   const printer_profiles::JobGeometry& g = job.geometry;
   const double heightMm = g.layers * profile.layerThicknessMm();
   if (vm.count("json")) {
@@ -221,7 +174,7 @@ int runSlice(const std::vector<std::string>& args) {
         {"seed", ditherOptions.seed},
         {"calibration", calibrationFile},
         {"clamped_moduli", {{"below_floor", mapping.clamps.belowFloor}, {"above_max", mapping.clamps.aboveMax},
-                            {"floor_mpa", fractionMap.floorMpa()}, {"max_mpa", fractionMap.maxModulusMpa()}}},
+                            {"floor_mpa", report.floorMpa}, {"max_mpa", report.maxModulusMpa}}},
         {"rods_without_voxels", rodsWithoutVoxels},
         {"files", job.files},
         {"bytes", job.bytes},
@@ -242,7 +195,7 @@ int runSlice(const std::vector<std::string>& args) {
     std::printf("dithering:      %s, seed %llu\n", std::string(ditherer->name()).c_str(),
                 static_cast<unsigned long long>(ditherOptions.seed));
     std::printf("calibration:    %s (floor %.3g MPa = %.1f %% Vero, max %.4g MPa)\n", calibrationFile.c_str(),
-                fractionMap.floorMpa(), 100.0 * fractionMap.floorFraction(), fractionMap.maxModulusMpa());
+                report.floorMpa, 100.0 * report.floorFraction, report.maxModulusMpa);
     std::printf("clamped moduli: %s below the floor, %s above the stiffest mix\n",
                 formatCount(mapping.clamps.belowFloor).c_str(), formatCount(mapping.clamps.aboveMax).c_str());
     std::printf("time:           %.2f s inputs, %.2f s support, %.2f s voxelize + map, %.2f s dither, %.2f s emit; %.2f s total\n",

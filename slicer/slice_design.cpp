@@ -1,0 +1,85 @@
+#include "slicer/slice_design.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+
+namespace rodfab::slicer {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+}  // namespace
+
+openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const voxel::PrinterGrid& grid) {
+  const geometry::Box3 box = design.bounds();
+  openvdb::CoordBBox out;
+  for (int a = 0; a < 3; ++a) {
+    out.min()[a] = std::max(0, static_cast<int>(std::ceil((box.min()[a] - grid.origin[a]) / grid.voxelSize[a])));
+    out.max()[a] = std::min(grid.dims[a] - 1, static_cast<int>(std::floor((box.max()[a] - grid.origin[a]) / grid.voxelSize[a])));
+  }
+  return out;
+}
+
+SliceReport sliceDesign(const geometry::RodStructure& design, const printer_profiles::Profile& profile,
+                        const calibration::Calibration& calibration, materials::Ditherer& ditherer,
+                        const SliceSettings& settings) {
+  SliceReport report;
+  auto start = Clock::now();
+  const voxel::PrinterGrid grid =
+      voxel::makePrinterGrid(design, openvdb::Vec3d(profile.voxelSizeMm[0], profile.voxelSizeMm[1], profile.voxelSizeMm[2]));
+  const voxel::Rasterizer rasterizer(design, grid, {settings.threads});
+  const materials::FractionMap fractionMap(calibration);
+  report.floorMpa = fractionMap.floorMpa();
+  report.floorFraction = fractionMap.floorFraction();
+  report.maxModulusMpa = fractionMap.maxModulusMpa();
+  report.prepareSeconds = since(start);
+
+  printer_profiles::JobSpec spec;
+  spec.profile = profile;
+  spec.partBounds = designVoxelBounds(design, grid);
+  spec.originMm = grid.origin;
+  spec.metadata.design = settings.designFile;
+  spec.metadata.ditherer = std::string(ditherer.name());
+  spec.metadata.seed = settings.seed;
+  if (!settings.calibrationFile.empty())
+    spec.metadata.calibration = printer_profiles::CalibrationRecord{settings.calibrationFile, settings.calibrationSha256};
+  spec.options = settings.job;
+  if (settings.job.support.value_or(profile.supportPolicy) == printer_profiles::SupportPolicy::Explicit) {
+    // Support reaches down from every overhang, so the column tops of the whole part come first: a
+    // topology-only pass over the bands (each band's grid is dropped as soon as it is counted).
+    start = Clock::now();
+    auto tops = std::make_shared<printer_profiles::ColumnTops>(printer_profiles::planJob(profile, spec.partBounds));
+    for (int k0 = spec.partBounds.min().z(); k0 <= spec.partBounds.max().z(); k0 += settings.bandLayers)
+      tops->include(*rasterizer.rasterizeLayers(k0, std::min(spec.partBounds.max().z() + 1, k0 + settings.bandLayers)).grid);
+    spec.supportTops = tops;
+    report.supportSeconds = since(start);
+  }
+
+  report.voxelsPerRod.assign(design.rods.size(), 0);
+  const BandSource source = [&](int k0, int k1, bool withNextLayer) {
+    const voxel::Rasterization ras = rasterizer.rasterizeLayers(k0, k1 + (withNextLayer ? 1 : 0));
+    for (std::size_t r = 0; r < report.voxelsPerRod.size(); ++r) report.voxelsPerRod[r] += ras.voxelsPerRod[r];
+    BandGrids band{materials::mapToFractions(*ras.grid, fractionMap, k0, k1, report.mapping), ras.grid};
+    if (withNextLayer) {
+      // Error diffusion reads the next layer's voxels; they are counted with their own band.
+      materials::MappingStats ignored;
+      band.fraction->tree().merge(materials::mapToFractions(*ras.grid, fractionMap, k1, k1 + 1, ignored)->tree());
+    }
+    return band;
+  };
+  PipelineOptions pipeline;
+  pipeline.bandLayers = settings.bandLayers;
+  pipeline.onBand = settings.onBand;
+  pipeline.beforeFinalize = [&](printer_profiles::JobMetadata& metadata) {
+    metadata.clamping = printer_profiles::ModulusClamping{fractionMap.floorMpa(), fractionMap.maxModulusMpa(),
+                                                          report.mapping.clamps.belowFloor, report.mapping.clamps.aboveMax};
+  };
+  report.job = streamJob(std::move(spec), source, ditherer, pipeline, report.seconds);
+  return report;
+}
+
+}  // namespace rodfab::slicer

@@ -1,0 +1,52 @@
+// `rodfab slice` without the command line: a rod design through voxel/, materials/ and the job
+// writer into a print job, band by band (see job_pipeline.hpp). Used by the command and the
+// end-to-end benchmark.
+#pragma once
+
+#include "calibration/calibration.hpp"
+#include "geometry/rod.hpp"
+#include "materials/materials.hpp"
+#include "printer_profiles/printer_profiles.hpp"
+#include "slicer/job_pipeline.hpp"
+#include "voxel/voxel.hpp"
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace rodfab::slicer {
+
+struct SliceSettings {
+  std::string designFile;  // recorded in the manifest
+  // The calibration's file and its SHA-256, recorded in the manifest (empty: not recorded).
+  std::string calibrationFile, calibrationSha256;
+  std::uint64_t seed = 0;  // the ditherer's, recorded in the manifest
+  int threads = 0;         // rasterizer workers (0 = all); callers limit TBB as a whole with global_control
+  int bandLayers = 64;
+  printer_profiles::JobOptions job;
+  // After every band: (layers done, layers in the part). May throw to abort; nothing is left behind.
+  std::function<void(int, int)> onBand;
+};
+
+struct SliceReport {
+  printer_profiles::JobResult job;
+  materials::MappingStats mapping;          // model voxels and clamped moduli
+  std::vector<std::uint64_t> voxelsPerRod;  // voxels each rod won
+  double prepareSeconds = 0.0;              // printer grid, rod pieces, fraction table
+  double supportSeconds = 0.0;              // the column-top pre-pass of explicit support
+  StageSeconds seconds;                     // bands: voxelize + map, dither, emit
+  double floorMpa = 0.0, floorFraction = 0.0, maxModulusMpa = 0.0;
+};
+
+// Index box of the voxel centres inside the design's bounding box in `grid`: every voxel the
+// rasterizer can activate, known before any band is rasterized (the images are planned from it).
+openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const voxel::PrinterGrid& grid);
+
+// Throws TrayFitError for a design the tray cannot hold, std::runtime_error for an output that
+// exists (without force) or cannot be written; whatever `onBand` throws passes through.
+SliceReport sliceDesign(const geometry::RodStructure& design, const printer_profiles::Profile& profile,
+                        const calibration::Calibration& calibration, materials::Ditherer& ditherer,
+                        const SliceSettings& settings);
+
+}  // namespace rodfab::slicer
