@@ -258,7 +258,7 @@ Calibration readCalibration(const std::filesystem::path& file) {
   json j;
   try {
     j = json::parse(in);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, or out_of_range for a number too large (1e400)
     throw CalibrationFileError(file.string(), "", std::string("not valid JSON: ") + e.what());
   }
   return calibrationFromJson(j, file.string());

@@ -104,8 +104,10 @@ Calibration::Calibration(ModelParameters parameters, double floorMpa, FitRecord 
   }
   lnTango_ = std::log(p.tangoModulusMpa);
   lnRatio_ = std::log(p.veroModulusMpa) - lnTango_;
-  minModulusMpa_ = modulusMpa(0.0);
-  maxModulusMpa_ = modulusMpa(1.0);
+  // E(0) and E(1) are the end moduli themselves: exp(log(x)) may be off by an ulp, which would put a
+  // floor equal to E(0) (as the fit's evaluator uses) below the range.
+  minModulusMpa_ = p.tangoModulusMpa;
+  maxModulusMpa_ = p.veroModulusMpa;
   if (!std::isfinite(floorMpa) || floorMpa < minModulusMpa_ || floorMpa >= maxModulusMpa_)
     throw std::invalid_argument("the floor (" + mpa(floorMpa) + ") must lie from the modulus at 0 % Vero (" +
                                 mpa(minModulusMpa_) + ") up to, not including, the modulus at 100 % Vero (" +

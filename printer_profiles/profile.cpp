@@ -153,7 +153,7 @@ Profile parseProfile(const std::string& text, const std::string& sourceName) {
   json doc;
   try {
     doc = json::parse(text);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, or out_of_range for a number too large (1e400)
     throw ProfileError(sourceName, {{"", std::string("not valid JSON: ") + e.what()}});
   }
   Validator v;
