@@ -53,7 +53,8 @@ int runSlice(const std::vector<std::string>& args) {
       ("format", po::value<std::string>()->default_value("zip"), "zip | dir")
       ("image-format", po::value<std::string>(), "bmp | png (default: the profile's)")
       ("support", po::value<std::string>(), "printer | explicit (default: the profile's)")
-      ("band-layers", po::value<int>()->default_value(64), "layers per streamed band")
+      ("band-layers", po::value<int>()->default_value(0),
+       "layers per streamed band (0 = automatic: 64, fewer for parts with large layers, to bound memory)")
       ("force", "replace an existing job at --output")
       ("quiet,q", "no progress on stderr")
       ("json", "print the job summary as JSON on stdout");
@@ -72,7 +73,7 @@ int runSlice(const std::vector<std::string>& args) {
   const int threads = vm["threads"].as<int>();
   if (threads < 0) return usageError("--threads: expected 0 (all cores) or a positive count");
   const int bandLayers = vm["band-layers"].as<int>();
-  if (bandLayers < 1) return usageError("--band-layers: expected a positive number of layers");
+  if (bandLayers < 0) return usageError("--band-layers: expected a number of layers, or 0 for automatic");
   printer_profiles::JobOptions jobOptions;
   if (auto error = parseJobOptions(vm, jobOptions)) return usageError(*error);
   const std::string format = vm["format"].as<std::string>();

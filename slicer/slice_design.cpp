@@ -24,6 +24,12 @@ openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const
   return out;
 }
 
+int automaticBandLayers(const openvdb::CoordBBox& partBounds) {
+  constexpr double kBandVoxels = 32.0 * (1 << 20);
+  const double layerVoxels = std::max(1.0, double(partBounds.dim().x()) * double(partBounds.dim().y()));
+  return static_cast<int>(std::clamp(kBandVoxels / layerVoxels, 1.0, 64.0));
+}
+
 SliceReport sliceDesign(const geometry::RodStructure& design, const printer_profiles::Profile& profile,
                         const calibration::Calibration& calibration, materials::Ditherer& ditherer,
                         const SliceSettings& settings) {
@@ -48,13 +54,14 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   if (!settings.calibrationFile.empty())
     spec.metadata.calibration = printer_profiles::CalibrationRecord{settings.calibrationFile, settings.calibrationSha256};
   spec.options = settings.job;
+  const int bandLayers = settings.bandLayers > 0 ? settings.bandLayers : automaticBandLayers(spec.partBounds);
   if (settings.job.support.value_or(profile.supportPolicy) == printer_profiles::SupportPolicy::Explicit) {
     // Support reaches down from every overhang, so the column tops of the whole part come first: a
     // topology-only pass over the bands (each band's grid is dropped as soon as it is counted).
     start = Clock::now();
     auto tops = std::make_shared<printer_profiles::ColumnTops>(printer_profiles::planJob(profile, spec.partBounds));
-    for (int k0 = spec.partBounds.min().z(); k0 <= spec.partBounds.max().z(); k0 += settings.bandLayers)
-      tops->include(*rasterizer.rasterizeLayers(k0, std::min(spec.partBounds.max().z() + 1, k0 + settings.bandLayers)).grid);
+    for (int k0 = spec.partBounds.min().z(); k0 <= spec.partBounds.max().z(); k0 += bandLayers)
+      tops->include(*rasterizer.rasterizeLayers(k0, std::min(spec.partBounds.max().z() + 1, k0 + bandLayers)).grid);
     spec.supportTops = tops;
     report.supportSeconds = since(start);
   }
@@ -72,7 +79,7 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
     return band;
   };
   PipelineOptions pipeline;
-  pipeline.bandLayers = settings.bandLayers;
+  pipeline.bandLayers = bandLayers;
   pipeline.onBand = settings.onBand;
   pipeline.beforeFinalize = [&](printer_profiles::JobMetadata& metadata) {
     metadata.clamping = printer_profiles::ModulusClamping{fractionMap.floorMpa(), fractionMap.maxModulusMpa(),

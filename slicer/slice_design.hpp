@@ -23,7 +23,7 @@ struct SliceSettings {
   std::string calibrationFile, calibrationSha256;
   std::uint64_t seed = 0;  // the ditherer's, recorded in the manifest
   int threads = 0;         // rasterizer workers (0 = all); callers limit TBB as a whole with global_control
-  int bandLayers = 64;
+  int bandLayers = 0;       // layers per band; 0: automatic (see automaticBandLayers)
   printer_profiles::JobOptions job;
   // After every band: (layers done, layers in the part). May throw to abort; nothing is left behind.
   std::function<void(int, int)> onBand;
@@ -42,6 +42,10 @@ struct SliceReport {
 // Index box of the voxel centres inside the design's bounding box in `grid`: every voxel the
 // rasterizer can activate, known before any band is rasterized (the images are planned from it).
 openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const voxel::PrinterGrid& grid);
+
+// Layers per band when the caller does not choose: 64, fewer when the part's layer box is so large
+// that 64 dense layers would not stay within ~32 million voxels (a solid block must stream too).
+int automaticBandLayers(const openvdb::CoordBBox& partBounds);
 
 // Throws TrayFitError for a design the tray cannot hold, std::runtime_error for an output that
 // exists (without force) or cannot be written; whatever `onBand` throws passes through.
