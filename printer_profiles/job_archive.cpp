@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <mutex>
 
 namespace rodfab::printer_profiles {
@@ -159,37 +160,98 @@ std::unique_ptr<JobFiles> openJobFiles(const fs::path& job) {
   return std::make_unique<ZipJobFiles>(job);
 }
 
-void writeZip(const fs::path& zipPath, const std::vector<ZipEntry>& entries) {
-  int error = 0;
-  zip_t* za = zip_open(zipPath.c_str(), ZIP_CREATE | ZIP_EXCL, &error);
-  if (!za) {
-    zip_error_t ze;
-    zip_error_init_with_code(&ze, error);
-    const std::string why = zip_error_strerror(&ze);
-    zip_error_fini(&ze);
-    throw std::runtime_error(zipPath.string() + ": cannot create the zip archive (" + why + ")");
+namespace {
+
+// A zip under construction with fixed timestamps and attributes; throws naming the archive.
+class ZipBuilder {
+public:
+  explicit ZipBuilder(const fs::path& path) : path_(path) {
+    int error = 0;
+    za_ = zip_open(path.c_str(), ZIP_CREATE | ZIP_EXCL, &error);
+    if (!za_) {
+      zip_error_t ze;
+      zip_error_init_with_code(&ze, error);
+      const std::string why = zip_error_strerror(&ze);
+      zip_error_fini(&ze);
+      throw std::runtime_error(path.string() + ": cannot create the zip archive (" + why + ")");
+    }
   }
-  const auto fail = [&](const std::string& what) {
-    const std::string why = zip_strerror(za);
-    zip_discard(za);
-    throw std::runtime_error(zipPath.string() + ": " + what + " (" + why + ")");
-  };
-  for (const ZipEntry& e : entries) {
-    zip_source_t* source = zip_source_file(za, e.source.c_str(), 0, -1);
-    if (!source) fail("cannot read " + e.source.string());
-    const zip_int64_t index = zip_file_add(za, e.name.c_str(), source, ZIP_FL_ENC_UTF_8);
+  ~ZipBuilder() {
+    if (za_) zip_discard(za_);
+    for (zip_t* source : sources_) zip_discard(source);
+  }
+  ZipBuilder(const ZipBuilder&) = delete;
+  ZipBuilder& operator=(const ZipBuilder&) = delete;
+
+  zip_t* archive() const { return za_; }
+
+  // Archives read from (kept open until close(): libzip reads them then).
+  zip_t* openSource(const fs::path& path) {
+    if (auto it = sourceIndex_.find(path.string()); it != sourceIndex_.end()) return sources_[it->second];
+    int error = 0;
+    zip_t* source = zip_open(path.c_str(), ZIP_RDONLY, &error);
+    if (!source) fail("cannot open the staged archive " + path.string());
+    sourceIndex_.emplace(path.string(), sources_.size());
+    sources_.push_back(source);
+    return source;
+  }
+
+  void add(const std::string& name, zip_source_t* source, ZipStorage storage) {
+    if (!source) fail("cannot read the data of " + name);
+    const zip_int64_t index = zip_file_add(za_, name.c_str(), source, ZIP_FL_ENC_UTF_8);
     if (index < 0) {
       zip_source_free(source);
-      fail("cannot add " + e.name);
+      fail("cannot add " + name);
     }
     const auto i = static_cast<zip_uint64_t>(index);
-    const bool deflate = e.storage == ZipStorage::Deflate;
-    if (zip_set_file_compression(za, i, deflate ? ZIP_CM_DEFLATE : ZIP_CM_STORE, deflate ? 1 : 0) != 0 ||
-        zip_file_set_mtime(za, i, static_cast<time_t>(kZipEntryTime), 0) != 0 ||
-        zip_file_set_external_attributes(za, i, 0, ZIP_OPSYS_UNIX, 0100644u << 16) != 0)
-      fail("cannot set the attributes of " + e.name);
+    const bool deflate = storage == ZipStorage::Deflate;
+    if (zip_set_file_compression(za_, i, deflate ? ZIP_CM_DEFLATE : ZIP_CM_STORE, deflate ? 1 : 0) != 0 ||
+        zip_file_set_mtime(za_, i, static_cast<time_t>(kZipEntryTime), 0) != 0 ||
+        zip_file_set_external_attributes(za_, i, 0, ZIP_OPSYS_UNIX, 0100644u << 16) != 0)
+      fail("cannot set the attributes of " + name);
   }
-  if (zip_close(za) != 0) fail("cannot write the archive");
+
+  void close() {
+    if (zip_close(za_) != 0) fail("cannot write the archive");
+    za_ = nullptr;
+  }
+
+  [[noreturn]] void fail(const std::string& what) {
+    const std::string why = za_ ? zip_strerror(za_) : "";
+    throw std::runtime_error(path_.string() + ": " + what + (why.empty() ? "" : " (" + why + ")"));
+  }
+
+private:
+  fs::path path_;
+  zip_t* za_ = nullptr;
+  std::vector<zip_t*> sources_;
+  std::map<std::string, std::size_t> sourceIndex_;
+};
+
+}  // namespace
+
+void writeZip(const fs::path& zipPath, const std::vector<ZipEntry>& entries) {
+  ZipBuilder zip(zipPath);
+  for (const ZipEntry& e : entries) {
+    if (!e.fromArchive) {
+      zip.add(e.name, zip_source_file(zip.archive(), e.source.c_str(), 0, -1), e.storage);
+      continue;
+    }
+    zip_t* staged = zip.openSource(e.source);
+    const zip_int64_t index = zip_name_locate(staged, e.name.c_str(), 0);
+    if (index < 0) zip.fail("the staged archive " + e.source.string() + " lacks " + e.name);
+    // Whole entry, no flags: libzip copies the compressed data; the same method and level as the
+    // staged entry keep it from recompressing.
+    zip.add(e.name, zip_source_zip(zip.archive(), staged, static_cast<zip_uint64_t>(index), 0, 0, -1), e.storage);
+  }
+  zip.close();
+}
+
+void writeZipFromMemory(const fs::path& zipPath, const std::vector<ZipMemoryEntry>& entries) {
+  ZipBuilder zip(zipPath);
+  for (const ZipMemoryEntry& e : entries)
+    zip.add(e.name, zip_source_buffer(zip.archive(), e.data.data(), e.data.size(), 0), e.storage);
+  zip.close();
 }
 
 }  // namespace rodfab::printer_profiles

@@ -48,6 +48,15 @@ struct ZipEntry {
   std::string name;                  // inside the archive
   std::filesystem::path source;      // file on disk, read by libzip when the archive is closed
   ZipStorage storage = ZipStorage::Deflate;
+  // `source` is a zip from writeZipFromMemory holding an entry `name` stored as `storage`: its
+  // compressed bytes are copied as they are (compression happened in parallel, band by band).
+  bool fromArchive = false;
+};
+
+struct ZipMemoryEntry {
+  std::string name;
+  std::span<const std::uint8_t> data;  // must stay alive until writeZipFromMemory returns
+  ZipStorage storage = ZipStorage::Deflate;
 };
 
 // The DOS timestamp of every entry (zip stores local time; this is noon, 1 January 2020 UTC).
@@ -56,5 +65,7 @@ inline constexpr long long kZipEntryTime = 1577880000;
 // Writes a new zip holding `entries` in the given order; the bytes depend on nothing but the
 // entries' contents, names and storage (fixed timestamps and attributes).
 void writeZip(const std::filesystem::path& zipPath, const std::vector<ZipEntry>& entries);
+// The same from memory: a staging archive whose entries writeZip can copy without recompressing.
+void writeZipFromMemory(const std::filesystem::path& zipPath, const std::vector<ZipMemoryEntry>& entries);
 
 }  // namespace rodfab::printer_profiles

@@ -67,7 +67,11 @@ struct LayerRecord {
   std::array<std::uint64_t, 3> voxels{};  // by MaterialRole
   std::array<Moments, 2> moments;         // rigid, rubbery, from the grid
   std::vector<FileRecord> files;          // in profile material order
+  fs::path chunk;                         // zip jobs: the staged archive holding the files, compressed
 };
+
+// Zip jobs stage a band's layers in archives of this many layers, compressed on as many workers.
+constexpr int kChunkLayers = 4;
 
 void writeFile(const fs::path& path, std::span<const std::uint8_t> data) {
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
@@ -211,6 +215,10 @@ struct JobWriter::Impl {
     forEachActiveTile(band.material->tree(), [&](const openvdb::CoordBBox& box, bool value) { tiles.emplace_back(box, value); });
 
     std::vector<LayerBitmaps> bitmaps(static_cast<std::size_t>(count));
+    // Zip jobs keep the encoded images in memory until their chunk is compressed: staging thousands
+    // of files costs more in the file system than the compression does.
+    const bool zip = spec.options.archive == ArchiveFormat::Zip;
+    std::vector<std::vector<Bytes>> encoded(zip ? static_cast<std::size_t>(count) : 0);
     const openvdb::FloatGrid* modulus = band.modulus.get();
     tbb::parallel_for(tbb::blocked_range<int>(0, count, 1), [&](const tbb::blocked_range<int>& range) {
       for (int n = range.begin(); n != range.end(); ++n) {
@@ -221,11 +229,29 @@ struct JobWriter::Impl {
         if (support == SupportPolicy::Explicit) addSupport(layer, b);
         record.voxels = {b.rigid.count(), b.rubbery.count(), b.hasSupport ? b.support.count() : 0};
         previews->addLayer(layer, b, modulus);
-        writeLayerFiles(layer, b, record);
+        writeLayerFiles(layer, b, record, zip ? &encoded[static_cast<std::size_t>(n)] : nullptr);
       }
     });
     previews->addTopLayers(firstLayer, bitmaps, modulus);
+    if (!zip) return;
+    // Chunks of whole layers, numbered by their first layer: the bytes of each entry depend on its
+    // image alone, so the band and chunk sizes never show in the job.
+    const int chunks = (count + kChunkLayers - 1) / kChunkLayers;
+    tbb::parallel_for(0, chunks, [&](int c) {
+      const int n0 = c * kChunkLayers, n1 = std::min(count, n0 + kChunkLayers);
+      const fs::path chunk = staging / ("layers-" + std::to_string(firstLayer + n0) + ".zip");
+      std::vector<ZipMemoryEntry> entries;
+      for (int n = n0; n < n1; ++n) {
+        const LayerRecord& record = layers[static_cast<std::size_t>(firstLayer + n)];
+        for (std::size_t f = 0; f < record.files.size(); ++f)
+          entries.push_back({record.files[f].name, encoded[static_cast<std::size_t>(n)][f], layerStorage()});
+      }
+      writeZipFromMemory(chunk, entries);
+      for (int n = n0; n < n1; ++n) layers[static_cast<std::size_t>(firstLayer + n)].chunk = chunk;
+    });
   }
+
+  ZipStorage layerStorage() const { return imageFormat == ImageFormat::Png ? ZipStorage::Store : ZipStorage::Deflate; }
 
   void rasterize(int k, const std::vector<BandLeaf>& leaves, const std::vector<std::pair<openvdb::CoordBBox, bool>>& tiles,
                  LayerBitmaps& b, LayerRecord& record) const {
@@ -276,14 +302,16 @@ struct JobWriter::Impl {
     }
   }
 
-  void writeLayerFiles(int layer, const LayerBitmaps& b, LayerRecord& record) const {
+  // Encodes the layer's images; writes them to the staging folder, or hands them to `keep`.
+  void writeLayerFiles(int layer, const LayerBitmaps& b, LayerRecord& record, std::vector<Bytes>* keep) const {
     record.files.clear();
     for (const ProfileMaterial* m : emitted) {
       const Bitmap& bitmap = m->role == MaterialRole::Rigid ? b.rigid : m->role == MaterialRole::Rubbery ? b.rubbery : b.support;
-      const Bytes data = imageFormat == ImageFormat::Bmp ? encodeBmp(bitmap, spec.profile.xDpi, spec.profile.yDpi)
+      Bytes data = imageFormat == ImageFormat::Bmp ? encodeBmp(bitmap, spec.profile.xDpi, spec.profile.yDpi)
                                                          : encodePng1(bitmap, spec.profile.xDpi, spec.profile.yDpi);
       FileRecord f{spec.profile.layerFileName(*m, layer, imageFormat), data.size(), sha256Hex(data)};
-      writeFile(staging / f.name, data);
+      if (keep) keep->push_back(std::move(data));
+      else writeFile(staging / f.name, data);
       record.files.push_back(std::move(f));
     }
   }
@@ -449,6 +477,7 @@ struct JobWriter::Impl {
       files.push_back(writeStaged(name, data));
       previewNames.push_back(name);
     }
+    const std::size_t firstLayerFile = files.size();
     for (const LayerRecord& r : layers) files.insert(files.end(), r.files.begin(), r.files.end());
     const std::string text = manifest(files, previewNames).dump(1) + "\n";
     writeStaged(kManifestName, std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
@@ -458,10 +487,12 @@ struct JobWriter::Impl {
       // Fixed order: manifest, build file, previews, then the layers bottom-up, materials in profile order.
       std::vector<ZipEntry> entries;
       entries.push_back({kManifestName, staging / kManifestName, ZipStorage::Deflate});
-      for (std::size_t n = 0; n < files.size(); ++n) {
+      for (std::size_t n = 0; n < firstLayerFile; ++n) {
         const bool png = files[n].name.ends_with(".png");
         entries.push_back({files[n].name, staging / files[n].name, png ? ZipStorage::Store : ZipStorage::Deflate});
       }
+      for (const LayerRecord& r : layers)
+        for (const FileRecord& f : r.files) entries.push_back({f.name, r.chunk, layerStorage(), true});
       writeZip(zipTemp, entries);
       written = zipTemp;
     }
