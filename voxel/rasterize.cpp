@@ -26,7 +26,14 @@ namespace {
 
 constexpr int kLeafLog2 = 3;
 constexpr int kLeafDim = 1 << kLeafLog2;
-constexpr int kLeafBits = 21;  // per axis in a leaf key: PrinterGrid caps dims at 2^24 voxels
+constexpr int kLeafVoxels = kLeafDim * kLeafDim * kLeafDim;
+// Work is binned by blocks of 4 leaves along x (32 x 8 x 8 voxels): rows along x then run up to 32
+// voxels per setup instead of 8, and a block holds 80 KiB of candidates (the L2 cache's share).
+constexpr int kBlockLeavesLog2 = 2;
+constexpr int kBlockLeaves = 1 << kBlockLeavesLog2;
+constexpr int kBlockXLog2 = kLeafLog2 + kBlockLeavesLog2;
+constexpr int kBlockVoxels = kBlockLeaves * kLeafVoxels;
+constexpr int kKeyBits = 21;  // per axis in a block key: PrinterGrid caps dims at 2^24 voxels
 
 // Within this distance (mm) beyond an end plane Rod::classify still uses the section (its own plane
 // tolerance is 1e-9 (1 + bounding radius)); such voxel centres go to the exact test.
@@ -41,27 +48,26 @@ struct Candidate {
   int rod = -1, piece = -1;
 };
 
-// A piece reaching a leaf. Sorted by (leaf, rod, piece), a total order: every leaf sees its pieces in
-// the same order whatever the thread count or band.
+// A piece reaching a block. Sorted by (block, rod, piece), a total order: every voxel sees its pieces
+// in the same order whatever the thread count or band.
 struct Entry {
-  std::uint64_t leaf;
+  std::uint64_t block;
   std::uint32_t rod, piece;
   bool operator<(const Entry& o) const {
-    if (leaf != o.leaf) return leaf < o.leaf;
+    if (block != o.block) return block < o.block;
     if (rod != o.rod) return rod < o.rod;
     return piece < o.piece;
   }
 };
 
-std::uint64_t leafKey(int i, int j, int k) {
-  // z-major, so a band's leaves are contiguous.
-  return (std::uint64_t(k >> kLeafLog2) << (2 * kLeafBits)) | (std::uint64_t(j >> kLeafLog2) << kLeafBits) |
-         std::uint64_t(i >> kLeafLog2);
+// Blocks in z-major order, so a band's blocks are contiguous.
+std::uint64_t blockKey(int bi, int bj, int bk) {
+  return (std::uint64_t(bk) << (2 * kKeyBits)) | (std::uint64_t(bj) << kKeyBits) | std::uint64_t(bi);
 }
-openvdb::Coord leafOrigin(std::uint64_t key) {
-  const std::uint64_t mask = (std::uint64_t(1) << kLeafBits) - 1;
-  return openvdb::Coord(int(key & mask) << kLeafLog2, int((key >> kLeafBits) & mask) << kLeafLog2,
-                        int(key >> (2 * kLeafBits)) << kLeafLog2);
+openvdb::Coord blockOrigin(std::uint64_t key) {
+  const std::uint64_t mask = (std::uint64_t(1) << kKeyBits) - 1;
+  return openvdb::Coord(int(key & mask) << kBlockXLog2, int((key >> kKeyBits) & mask) << kLeafLog2,
+                        int(key >> (2 * kKeyBits)) << kLeafLog2);
 }
 
 int clampToInt(double v) { return static_cast<int>(std::clamp(v, -2.0e9, 2.0e9)); }
@@ -114,8 +120,10 @@ public:
   }
 
 private:
+  // Slot of voxel (i, j, k) in its block: the leaf along x, then OpenVDB's offset in that leaf.
   static int offset(int i, int j, int k) {
-    return ((i & (kLeafDim - 1)) << (2 * kLeafLog2)) | ((j & (kLeafDim - 1)) << kLeafLog2) | (k & (kLeafDim - 1));
+    return (((i >> kLeafLog2) & (kBlockLeaves - 1)) << (3 * kLeafLog2)) | ((i & (kLeafDim - 1)) << (2 * kLeafLog2)) |
+           ((j & (kLeafDim - 1)) << kLeafLog2) | (k & (kLeafDim - 1));
   }
 
   // The rows j of layer k that meet the infinite cylinder of radius `reach` around the piece's axis.
@@ -305,8 +313,8 @@ private:
   const geometry::RodStructure& structure_;
   const std::vector<RodPieces>& rods_;
   const PrinterGrid& grid_;
-  static constexpr int kWords = kLeafDim * kLeafDim * kLeafDim / 64;
-  std::array<Candidate, kLeafDim * kLeafDim * kLeafDim> slots_;
+  static constexpr int kWords = kBlockVoxels / 64;
+  std::array<Candidate, kBlockVoxels> slots_;
   std::array<std::uint64_t, kWords> filled_{};
 };
 
@@ -360,8 +368,8 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
       if (b.empty()) continue;
       for (int k = b.min().z() >> kLeafLog2; k <= b.max().z() >> kLeafLog2; ++k)
         for (int j = b.min().y() >> kLeafLog2; j <= b.max().y() >> kLeafLog2; ++j)
-          for (int i = b.min().x() >> kLeafLog2; i <= b.max().x() >> kLeafLog2; ++i)
-            perRod[r].push_back({leafKey(i << kLeafLog2, j << kLeafLog2, k << kLeafLog2), std::uint32_t(r), std::uint32_t(p)});
+          for (int i = b.min().x() >> kBlockXLog2; i <= b.max().x() >> kBlockXLog2; ++i)
+            perRod[r].push_back({blockKey(i, j, k), std::uint32_t(r), std::uint32_t(p)});
     }
   });
   std::vector<Entry> entries;
@@ -377,17 +385,17 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
   tbb::parallel_sort(entries.begin(), entries.end());
   std::vector<std::size_t> groupStart;
   for (std::size_t e = 0; e < entries.size(); ++e)
-    if (e == 0 || entries[e].leaf != entries[e - 1].leaf) groupStart.push_back(e);
+    if (e == 0 || entries[e].block != entries[e - 1].block) groupStart.push_back(e);
   groupStart.push_back(entries.size());
   const std::size_t groups = groupStart.size() - 1;
 
-  // Each leaf built by one task from its pieces, in sorted order.
+  // Each block built by one task from its pieces, in sorted order.
   struct ThreadState {
     std::unique_ptr<LeafBuilder> builder;
     std::vector<std::uint64_t> voxelsPerRod;
   };
   tbb::enumerable_thread_specific<ThreadState> states;
-  std::vector<std::unique_ptr<LeafT>> leaves(groups);
+  std::vector<std::array<std::unique_ptr<LeafT>, kBlockLeaves>> leaves(groups);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, groups), [&](const tbb::blocked_range<std::size_t>& range) {
     ThreadState& state = states.local();
     if (!state.builder) {
@@ -396,28 +404,28 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
     }
     LeafBuilder& builder = *state.builder;
     for (std::size_t g = range.begin(); g != range.end(); ++g) {
-      const openvdb::Coord origin = leafOrigin(entries[groupStart[g]].leaf);
-      openvdb::CoordBBox leafBox(origin, origin.offsetBy(kLeafDim - 1));
-      leafBox.min().z() = std::max(leafBox.min().z(), zBegin);
-      leafBox.max().z() = std::min(leafBox.max().z(), zEnd - 1);
+      const openvdb::Coord origin = blockOrigin(entries[groupStart[g]].block);
+      openvdb::CoordBBox blockBox(origin, origin + openvdb::Coord((kLeafDim << kBlockLeavesLog2) - 1, kLeafDim - 1, kLeafDim - 1));
+      blockBox.min().z() = std::max(blockBox.min().z(), zBegin);
+      blockBox.max().z() = std::min(blockBox.max().z(), zEnd - 1);
       builder.clear();
       bool touched = false;
       for (std::size_t e = groupStart[g]; e < groupStart[g + 1]; ++e) {
         openvdb::CoordBBox b = rods_[entries[e].rod].pieces[entries[e].piece].box;
-        b.intersect(leafBox);
+        b.intersect(blockBox);
         if (b.empty()) continue;
         builder.addPiece(int(entries[e].rod), int(entries[e].piece), b);
         touched = true;
       }
       if (!touched) continue;
-      std::unique_ptr<LeafT> leaf;
+      auto& blockLeaves = leaves[g];
       builder.forEachFilled([&](int n, const Candidate& c) {
         if (!c.inside) return;  // an approximate claim the exact test overturned
-        if (!leaf) leaf = std::make_unique<LeafT>(origin, 0.0f, false);
-        leaf->setValueOn(openvdb::Index(n), c.value);
+        std::unique_ptr<LeafT>& leaf = blockLeaves[static_cast<std::size_t>(n / kLeafVoxels)];
+        if (!leaf) leaf = std::make_unique<LeafT>(origin.offsetBy((n / kLeafVoxels) * kLeafDim, 0, 0), 0.0f, false);
+        leaf->setValueOn(openvdb::Index(n % kLeafVoxels), c.value);
         ++state.voxelsPerRod[c.rod];
       });
-      leaves[g] = std::move(leaf);
     }
   });
 
@@ -426,8 +434,9 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
     for (std::size_t r = 0; r < rods_.size(); ++r) out.voxelsPerRod[r] += s.voxelsPerRod[r];
   }
   openvdb::FloatTree& tree = out.grid->tree();
-  for (std::unique_ptr<LeafT>& leaf : leaves)
-    if (leaf) tree.addLeaf(leaf.release());
+  for (auto& blockLeaves : leaves)
+    for (std::unique_ptr<LeafT>& leaf : blockLeaves)
+      if (leaf) tree.addLeaf(leaf.release());
   return out;
 }
 
