@@ -28,10 +28,11 @@ constexpr int kLeafLog2 = 3;
 constexpr int kLeafDim = 1 << kLeafLog2;
 constexpr int kLeafVoxels = kLeafDim * kLeafDim * kLeafDim;
 // Work is binned by blocks of 4 leaves along x (32 x 8 x 8 voxels): rows along x then run up to 32
-// voxels per setup instead of 8, and a block holds 80 KiB of candidates (the L2 cache's share).
+// voxels per setup instead of 8, and a block holds 48 KiB of candidates (the L2 cache's share).
 constexpr int kBlockLeavesLog2 = 2;
 constexpr int kBlockLeaves = 1 << kBlockLeavesLog2;
 constexpr int kBlockXLog2 = kLeafLog2 + kBlockLeavesLog2;
+constexpr int kBlockX = 1 << kBlockXLog2;
 constexpr int kBlockVoxels = kBlockLeaves * kLeafVoxels;
 constexpr int kKeyBits = 21;  // per axis in a block key: PrinterGrid caps dims at 2^24 voxels
 
@@ -40,13 +41,21 @@ constexpr int kKeyBits = 21;  // per axis in a block key: PrinterGrid caps dims 
 double capPlaneBand(double boundingRadius) { return 1e-7 * (1.0 + boundingRadius); }
 
 // One rod's claim on a voxel.
+// One rod's claim on a voxel: 24 bytes, so a block's slots stay in the L2 cache.
 struct Candidate {
-  bool inside = false;
   double depth = -std::numeric_limits<double>::infinity();
-  double band = 0.0;  // |depth - exact depth| bound; 0 when the exact test computed it
+  float band = 0.0f;  // |depth - exact depth| bound, rounded up; 0 when the exact test computed it
   float value = 0.0f;
-  int rod = -1, piece = -1;
+  int rod = -1;       // -1: outside (the exact test found the centre outside the rod)
+  int piece = -1;
+  bool inside() const { return rod >= 0; }
 };
+
+// A double band as a float that is not smaller.
+float bandAsFloat(double band) {
+  const float f = static_cast<float>(band);
+  return double(f) >= band ? f : std::nextafter(f, std::numeric_limits<float>::infinity());
+}
 
 // A piece reaching a block. Sorted by (block, rod, piece), a total order: every voxel sees its pieces
 // in the same order whatever the thread count or band.
@@ -100,16 +109,17 @@ public:
 
   std::uint64_t exactEvaluations = 0;
 
-  // Slots hold a candidate only where their bit in `filled_` is set: clearing a leaf costs 64 bytes,
-  // not the 20 KiB of slots, and most leaves a piece reaches stay nearly empty.
+  // Slots hold a candidate of a rod the voxel lies in exactly where their bit in `filled_` is set:
+  // clearing a block costs 256 bytes, not the 48 KiB of slots.
   void clear() { filled_.fill(0); }
-  // Calls f(offset, candidate) for every filled slot in increasing offset order.
+  // Calls f(leaf, offset in that leaf, candidate) for every filled slot, in slot order.
   template <typename F>
   void forEachFilled(F&& f) const {
     for (int w = 0; w < kWords; ++w)
       for (std::uint64_t bits = filled_[w]; bits != 0; bits &= bits - 1) {
         const int n = w * 64 + std::countr_zero(bits);
-        f(n, slots_[n]);
+        const int x = n & (kBlockX - 1), y = (n >> kBlockXLog2) & (kLeafDim - 1), z = n >> (kBlockXLog2 + kLeafLog2);
+        f(x >> kLeafLog2, ((x & (kLeafDim - 1)) << (2 * kLeafLog2)) | (y << kLeafLog2) | z, slots_[n]);
       }
   }
 
@@ -120,10 +130,10 @@ public:
   }
 
 private:
-  // Slot of voxel (i, j, k) in its block: the leaf along x, then OpenVDB's offset in that leaf.
+  // Slot of voxel (i, j, k) in its block, x fastest: a row's voxels are neighbours in memory and share
+  // a word of `filled_`.
   static int offset(int i, int j, int k) {
-    return (((i >> kLeafLog2) & (kBlockLeaves - 1)) << (3 * kLeafLog2)) | ((i & (kLeafDim - 1)) << (2 * kLeafLog2)) |
-           ((j & (kLeafDim - 1)) << kLeafLog2) | (k & (kLeafDim - 1));
+    return ((k & (kLeafDim - 1)) << (kBlockXLog2 + kLeafLog2)) | ((j & (kLeafDim - 1)) << kBlockXLog2) | (i & (kBlockX - 1));
   }
 
   // The rows j of layer k that meet the infinite cylinder of radius `reach` around the piece's axis.
@@ -177,7 +187,8 @@ private:
     const openvdb::Vec3d p = grid_.worldPoint(openvdb::Coord(i, j, k));
     const geometry::Rod& r = structure_.rods[rod];
     const geometry::RodHit hit = r.classify(geometry::Vec3(p.x(), p.y(), p.z()));
-    return {hit.inside, hit.depth, 0.0, static_cast<float>(r.modulus().value(hit.u)), rod, pieceIndex};
+    if (!hit.inside) return {};
+    return {hit.depth, 0.0f, static_cast<float>(r.modulus().value(hit.u)), rod, pieceIndex};
   }
 
   // The overlap rule. Near ties between approximate depths are settled on exact depths, so the
@@ -189,20 +200,24 @@ private:
     const std::uint64_t bit = std::uint64_t(1) << (n & 63);
     Candidate& s = slots_[n];
     if (!(word & bit)) {
-      if (c.inside) {
+      if (c.inside()) {
         s = c;
         word |= bit;
       }
       return;
     }
-    if (s.inside && std::abs(s.depth - c.depth) <= s.band + c.band + kTieTolerance && (s.band > 0.0 || c.band > 0.0)) {
-      if (s.band > 0.0) s = exact(s.rod, s.piece, i, j, k);
-      if (c.band > 0.0) c = exact(c.rod, c.piece, i, j, k);
+    if (std::abs(s.depth - c.depth) <= double(s.band) + double(c.band) + kTieTolerance && (s.band > 0.0f || c.band > 0.0f)) {
+      if (s.band > 0.0f) s = exact(s.rod, s.piece, i, j, k);
+      if (c.band > 0.0f) c = exact(c.rod, c.piece, i, j, k);
+      if (!s.inside()) {  // the exact test overturned the approximate claim
+        if (c.inside()) s = c;
+        else word &= ~bit;
+        return;
+      }
     }
-    if (!c.inside) return;
+    if (!c.inside()) return;
     const double gain = c.depth - s.depth;
-    if (!s.inside || gain > kTieTolerance ||
-        (gain >= -kTieTolerance && (c.rod < s.rod || (c.rod == s.rod && c.piece < s.piece))))
+    if (gain > kTieTolerance || (gain >= -kTieTolerance && (c.rod < s.rod || (c.rod == s.rod && c.piece < s.piece))))
       s = c;
   }
 
@@ -214,6 +229,7 @@ private:
     const bool rectangle = structure_.rods[rod].section().shape == geometry::SectionShape::Rectangle;
     const double band = piece.normalizedRadiusBand;
     const bool bounded = std::isfinite(band) && band < 1.0;
+    const float floatBand = bandAsFloat(band);
     const double inner = bounded ? 1.0 - band : -1.0, outer = bounded ? 1.0 + band : std::numeric_limits<double>::infinity();
     const double innerSq = inner > 0.0 ? inner * inner : -1.0, outerSq = outer * outer;
     // Layers, then rows, that can hold a voxel of the slab a >= 0 > b within the box: the extremes of
@@ -260,7 +276,7 @@ private:
           }
           if (sureOutside) continue;
           if (sureInside)
-            offer({true, 1.0 - gauge, band, static_cast<float>(detail::estimateModulus(piece, e.lambda)), rod, pieceIndex},
+            offer({1.0 - gauge, floatBand, static_cast<float>(detail::estimateModulus(piece, e.lambda)), rod, pieceIndex},
                   i, j, k);
           else
             offer(exact(rod, pieceIndex, i, j, k), i, j, k);
@@ -302,7 +318,7 @@ private:
           // Inside for sure; the depth's round-off (1e-9 of the radius at most) is within the tie
           // tolerance, so it counts as exact.
           if (g < 1.0 - kCapBand)
-            offer({true, 1.0 - g, 0.0, endModulus, rod, pieceIndex}, i, j, k);
+            offer({1.0 - g, 0.0f, endModulus, rod, pieceIndex}, i, j, k);
           else
             offer(exact(rod, pieceIndex, i, j, k), i, j, k);
         }
@@ -314,7 +330,7 @@ private:
   const std::vector<RodPieces>& rods_;
   const PrinterGrid& grid_;
   static constexpr int kWords = kBlockVoxels / 64;
-  std::array<Candidate, kBlockVoxels> slots_;
+  std::array<Candidate, kBlockVoxels> slots_{};
   std::array<std::uint64_t, kWords> filled_{};
 };
 
@@ -419,11 +435,10 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
       }
       if (!touched) continue;
       auto& blockLeaves = leaves[g];
-      builder.forEachFilled([&](int n, const Candidate& c) {
-        if (!c.inside) return;  // an approximate claim the exact test overturned
-        std::unique_ptr<LeafT>& leaf = blockLeaves[static_cast<std::size_t>(n / kLeafVoxels)];
-        if (!leaf) leaf = std::make_unique<LeafT>(origin.offsetBy((n / kLeafVoxels) * kLeafDim, 0, 0), 0.0f, false);
-        leaf->setValueOn(openvdb::Index(n % kLeafVoxels), c.value);
+      builder.forEachFilled([&](int leafInBlock, int offset, const Candidate& c) {
+        std::unique_ptr<LeafT>& leaf = blockLeaves[static_cast<std::size_t>(leafInBlock)];
+        if (!leaf) leaf = std::make_unique<LeafT>(origin.offsetBy(leafInBlock * kLeafDim, 0, 0), 0.0f, false);
+        leaf->setValueOn(openvdb::Index(offset), c.value);
         ++state.voxelsPerRod[c.rod];
       });
     }
