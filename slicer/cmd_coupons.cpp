@@ -259,12 +259,10 @@ int runCoupons(const std::vector<std::string>& args) {
       "[--gap 5] [--profile NAME|FILE] [--threads N] [--format zip|dir] [--image-format bmp|png] [--force] [--quiet] [--json]";
   if (auto code = parseOptions("coupons", synopsis, options, positional, args, vm)) return *code;
 
-  auto usageError = [](const std::string& message) {
-    std::cerr << "rodfab coupons: " << message << "\n(rodfab coupons --help lists the options)\n";
-    return kUsage;
-  };
-  const int threads = vm["threads"].as<int>();
-  if (threads < 0) return usageError("--threads: expected 0 (all cores) or a positive count");
+  const auto usageError = [](const std::string& message) { return cli::usageError("coupons", message); };
+  const std::optional<int> threadsOption = threadCount("coupons", vm);
+  if (!threadsOption) return kUsage;
+  const int threads = *threadsOption;
   const int bandLayers = vm["band-layers"].as<int>();
   if (bandLayers < 1) return usageError("--band-layers: expected a positive number of layers");
   printer_profiles::JobOptions jobOptions;

@@ -44,10 +44,7 @@ std::optional<openvdb::Coord> parseSize(const std::string& text) {
   return openvdb::Coord(x, y, z);
 }
 
-int usageError(const std::string& what) {
-  std::cerr << "rodfab dither-report: " << what << "\n(rodfab dither-report --help lists the options)\n";
-  return kUsage;
-}
+int usageError(const std::string& what) { return cli::usageError("dither-report", what); }
 
 }  // namespace
 

@@ -66,12 +66,10 @@ int runSlice(const std::vector<std::string>& args) {
       "[--seed N] [--threads N] [--format zip|dir] [--image-format bmp|png] [--support printer|explicit] [--force] [--quiet] [--json]";
   if (auto code = parseOptions("slice", synopsis, options, positional, args, vm)) return *code;
 
-  auto usageError = [](const std::string& message) {
-    std::cerr << "rodfab slice: " << message << "\n(rodfab slice --help lists the options)\n";
-    return kUsage;
-  };
-  const int threads = vm["threads"].as<int>();
-  if (threads < 0) return usageError("--threads: expected 0 (all cores) or a positive count");
+  const auto usageError = [](const std::string& message) { return cli::usageError("slice", message); };
+  const std::optional<int> threadsOption = threadCount("slice", vm);
+  if (!threadsOption) return kUsage;
+  const int threads = *threadsOption;
   const int bandLayers = vm["band-layers"].as<int>();
   if (bandLayers < 0) return usageError("--band-layers: expected a number of layers, or 0 for automatic");
   printer_profiles::JobOptions jobOptions;

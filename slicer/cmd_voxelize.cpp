@@ -46,16 +46,12 @@ int runVoxelize(const std::vector<std::string>& args) {
   if (auto code = parseOptions("voxelize", synopsis, options, positional, args, vm)) return *code;
 
   const auto voxelSize = parseVoxelSize(vm["voxel-size"].as<std::string>());
-  if (!voxelSize) {
-    std::cerr << "rodfab voxelize: --voxel-size: expected three positive sizes in mm as X,Y,Z (e.g. 0.0423,0.0846,0.030), got '"
-              << vm["voxel-size"].as<std::string>() << "'\n";
-    return kUsage;
-  }
-  const int threads = vm["threads"].as<int>();
-  if (threads < 0) {
-    std::cerr << "rodfab voxelize: --threads: expected 0 (all cores) or a positive count, got " << threads << '\n';
-    return kUsage;
-  }
+  if (!voxelSize)
+    return usageError("voxelize", "--voxel-size: expected three positive sizes in mm as X,Y,Z (e.g. 0.0423,0.0846,0.030), got '" +
+                                      vm["voxel-size"].as<std::string>() + "'");
+  const std::optional<int> threadsOption = threadCount("voxelize", vm);
+  if (!threadsOption) return kUsage;
+  const int threads = *threadsOption;
   const std::string file = vm["design"].as<std::string>(), output = vm["output"].as<std::string>();
   geometry::RodStructure design;
   try {

@@ -25,4 +25,16 @@ std::optional<int> parseOptions(const std::string& command, const std::string& s
   return std::nullopt;
 }
 
+int usageError(const std::string& command, const std::string& message) {
+  std::cerr << "rodfab " << command << ": " << message << "\n(rodfab " << command << " --help lists the options)\n";
+  return kUsage;
+}
+
+std::optional<int> threadCount(const std::string& command, const po::variables_map& vm) {
+  const int threads = vm["threads"].as<int>();
+  if (threads >= 0) return threads;
+  usageError(command, "--threads: expected 0 (all cores) or a positive count, got " + std::to_string(threads));
+  return std::nullopt;
+}
+
 }  // namespace rodfab::cli

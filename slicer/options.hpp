@@ -17,4 +17,10 @@ std::optional<int> parseOptions(const std::string& command, const std::string& s
                                 po::options_description& options, const po::positional_options_description& positional,
                                 const std::vector<std::string>& args, po::variables_map& vm);
 
+// Prints "rodfab COMMAND: MESSAGE" and where the options are listed; returns kUsage.
+int usageError(const std::string& command, const std::string& message);
+
+// The --threads value: 0 (all cores) or a positive count; nullopt (after a usage error) otherwise.
+std::optional<int> threadCount(const std::string& command, const po::variables_map& vm);
+
 }  // namespace rodfab::cli
