@@ -3,12 +3,15 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <iomanip>
 #include <map>
 #include <optional>
 #include <set>
 #include <sstream>
+#include <string_view>
 
 namespace rodfab::geometry {
 
@@ -27,7 +30,53 @@ std::string formatIssues(const std::string& file, const std::vector<DesignIssue>
   return out.str();
 }
 
+// Number literals too large for a double (1e999) stop nlohmann's parser with no path. Before parsing,
+// each is replaced by a string with this prefix, so the validator names its JSON path and the
+// file's other errors are still found.
+constexpr std::string_view kOverflowTag = "\x01rodfab-overflow:";
+
+std::optional<std::string> overflowLiteral(const json& j) {
+  if (!j.is_string()) return std::nullopt;
+  const std::string& s = j.get_ref<const std::string&>();
+  if (!s.starts_with(kOverflowTag)) return std::nullopt;
+  return s.substr(kOverflowTag.size());
+}
+
+// `text` with every number literal outside strings that overflows a double replaced as above.
+std::string tagOverflowingNumbers(const std::string& text) {
+  std::string out;
+  std::size_t copied = 0;
+  for (std::size_t at = 0; at < text.size();) {
+    const char c = text[at];
+    if (c == '"') {  // skip the string, escapes included
+      for (++at; at < text.size() && text[at] != '"'; ++at)
+        if (text[at] == '\\') ++at;
+      ++at;
+      continue;
+    }
+    if (c != '-' && !(c >= '0' && c <= '9')) {
+      ++at;
+      continue;
+    }
+    std::size_t end = at + 1;
+    while (end < text.size() && std::strchr("0123456789.eE+-", text[end])) ++end;
+    const std::string literal = text.substr(at, end - at);
+    char* parsedEnd = nullptr;
+    const double v = std::strtod(literal.c_str(), &parsedEnd);
+    if (parsedEnd == literal.c_str() + literal.size() && !std::isfinite(v)) {
+      out.append(text, copied, at - copied);
+      out += json(std::string(kOverflowTag) + literal).dump();
+      copied = end;
+    }
+    at = end;
+  }
+  if (copied == 0) return text;
+  out.append(text, copied, std::string::npos);
+  return out;
+}
+
 std::string describe(const json& j) {
+  if (const auto literal = overflowLiteral(j)) return *literal + " (beyond the range of a double)";
   std::string s = j.dump();
   if (s.size() > 40) s = s.substr(0, 37) + "...";
   return s;
@@ -62,6 +111,10 @@ public:
   }
 
   std::optional<double> number(const json& j, const std::string& path, const std::string& what) {
+    if (overflowLiteral(j)) {
+      fail(path, "expected a finite number, got " + describe(j));
+      return std::nullopt;
+    }
     if (!j.is_number()) {
       fail(path, "expected " + what + ", got " + describe(j));
       return std::nullopt;
@@ -441,7 +494,7 @@ DesignError::DesignError(std::string file, std::vector<DesignIssue> issues)
 RodStructure parseDesign(const std::string& text, const std::string& sourceName) {
   json doc;
   try {
-    doc = json::parse(text);
+    doc = json::parse(tagOverflowingNumbers(text));
   } catch (const json::parse_error& e) {
     const auto [line, column] = lineAndColumn(text, e.byte > 0 ? e.byte - 1 : 0);
     std::string what = e.what();

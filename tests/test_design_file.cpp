@@ -119,7 +119,15 @@ TEST_CASE("Every kind of bad design is reported with its path", "[design][errors
   SECTION("non-finite numbers") {
     std::string text = validDesign().dump();
     text.replace(text.find("[2,1,0]"), 7, "[2,1e999,0]");
-    REQUIRE_ISSUE(text, "", "expected finite numbers at line 1");
+    // Named by its path, and the file's other errors are still reported.
+    REQUIRE_ISSUE(text, "rods[0].centerline.points[2][1]", "expected a finite number, got 1e999 (beyond the range of a double)");
+    text.replace(text.find("\"units\":\"mm\""), 12, "\"units\":\"in\"");
+    REQUIRE_ISSUE(text, "units", "expected \"mm\"");
+    REQUIRE_ISSUE(text, "rods[0].centerline.points[2][1]", "1e999");
+    // Numbers inside strings are left alone.
+    json d = validDesign();
+    d["description"] = "1e999 \\\" 2e999";
+    REQUIRE(parseDesign(d.dump(), "ok.json").rods.size() == 1);
   }
   SECTION("non-numeric coordinates") {
     json d = validDesign();
