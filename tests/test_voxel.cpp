@@ -357,6 +357,13 @@ TEST_CASE("The fast path decides every voxel exactly as Rod::classify", "[voxel]
     // The fast path did the work: borderline voxels are a small minority.
     REQUIRE(ras.exactEvaluations * 20 < ras.grid->activeVoxelCount());
   }
+  SECTION("a rod that runs over itself (1.25 turns of a circle): its own pieces overlap") {
+    const RodStructure s = design({circularRod(arc(1.2, 2.5 * kPi, Vec3(0.2, 0.1, 0.3)), 0.3, CapStyle::Round,
+                                               BSplineField(1, {0, 0, 1, 1}, {10, 100}))});
+    const PrinterGrid g = voxel::makePrinterGrid(s);
+    const voxel::Rasterization ras = voxel::rasterize(s, g);
+    REQUIRE(requireMatchesExactTest(s, g, ras) > 50000);
+  }
   SECTION("the bundled buckling spring (every 5th layer)") {
     const RodStructure s = examples::bucklingSpring();
     const PrinterGrid g = voxel::makePrinterGrid(s, {0.2, 0.2, 0.2});
