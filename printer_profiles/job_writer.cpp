@@ -143,7 +143,9 @@ struct JobWriter::Impl {
     if (fs::exists(target) && !spec.options.force)
       throw std::runtime_error(target.string() + ": a job (or other file) already exists there; use --force to replace it");
     if (!fs::is_directory(target.parent_path()))
-      throw std::runtime_error(target.parent_path().string() + ": the output directory does not exist");
+      throw std::runtime_error(target.parent_path().string() + (fs::exists(target.parent_path())
+                                                                    ? ": is not a directory; the job needs a folder to go in"
+                                                                    : ": the output directory does not exist"));
     removeStalePartials(target);
     static std::atomic<int> counter{0};
     const std::string partial = "." + target.filename().string() + kPartialTag + std::to_string(::getpid()) + "-" +
@@ -153,7 +155,13 @@ struct JobWriter::Impl {
     nextK = geometry.firstLayerK;
     layers.resize(static_cast<std::size_t>(geometry.layers));
     previews = std::make_unique<Previews>(geometry, spec.profile, spec.options.contactSheetLayers);
-    fs::create_directories(staging / "previews");  // last: nothing after it may throw and leave it behind
+    std::error_code ec;
+    fs::create_directories(staging / "previews", ec);  // last: nothing after it may throw and leave it behind
+    if (ec) {
+      std::error_code ignored;
+      fs::remove_all(staging, ignored);
+      throw std::runtime_error(target.parent_path().string() + ": cannot write the job there (" + ec.message() + ")");
+    }
   }
 
   void checkBand(const LayerBand& band) const {

@@ -93,6 +93,8 @@ echo '{ "format": "rodfab.design/1", "units": "mm", "rods": [ { "name": "a", "mo
 expect 1 "bad.json: rods\[0\]" "$tmp/bad.json" -o "$tmp/out/x.zip"
 expect 1 "no-such-printer" "$src/examples/unfolding-box.json" -o "$tmp/out/x.zip" --profile no-such-printer
 expect 1 "no/such/dir: the output directory does not exist" "$src/examples/unfolding-box.json" -o "$tmp/out/no/such/dir/x.zip"
+expect 1 "arm-cast.zip: is not a directory" "$src/examples/unfolding-box.json" -o "$tmp/out/arm-cast.zip/x.zip"
+expect 1 "/proc: cannot write the job there" "$src/examples/unfolding-box.json" -o /proc/rodfab-test-job.zip
 expect 1 "missing-cal.json" "$src/examples/unfolding-box.json" -o "$tmp/out/x.zip" --calibration "$tmp/missing-cal.json"
 expect 2 "--dither" "$src/examples/unfolding-box.json" -o "$tmp/out/x.zip" --dither ordered
 expect 2 "--format" "$src/examples/unfolding-box.json" -o "$tmp/out/x.zip" --format tar
