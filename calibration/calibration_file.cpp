@@ -252,12 +252,16 @@ void writeCalibration(const Calibration& calibration, const std::filesystem::pat
   writeFileAtomically(file, calibrationToJson(calibration).dump(2) + "\n");
 }
 
-Calibration readCalibration(const std::filesystem::path& file) {
+Calibration readCalibration(const std::filesystem::path& file, std::string* sha256) {
   std::ifstream in(file, std::ios::binary);
   if (!in) throw CalibrationFileError(file.string(), "", "cannot open the file for reading");
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  const std::string text = std::move(bytes).str();
+  if (sha256) *sha256 = sha256Hex(text);
   json j;
   try {
-    j = json::parse(in);
+    j = json::parse(text);
   } catch (const json::exception& e) {  // parse_error, or out_of_range for a number too large (1e400)
     throw CalibrationFileError(file.string(), "", std::string("not valid JSON: ") + e.what());
   }

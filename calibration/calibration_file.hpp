@@ -25,7 +25,8 @@ Calibration calibrationFromJson(const nlohmann::json& json, const std::string& s
 
 // Written under a temporary name and renamed, so no reader sees half a file.
 void writeCalibration(const Calibration& calibration, const std::filesystem::path& file);
-Calibration readCalibration(const std::filesystem::path& file);
+// With `sha256`, also the checksum of the bytes that were parsed (what a job records as its calibration).
+Calibration readCalibration(const std::filesystem::path& file, std::string* sha256 = nullptr);
 
 // The bundled default, fitted from the published 60 C figures:
 // <source tree>/examples/calibration/default-60C.json.

@@ -33,7 +33,6 @@ namespace rodfab::cli {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 // A command-line value that cannot be used (exit kUsage).
 struct BadValue : std::runtime_error {
@@ -429,7 +428,7 @@ int runCoupons(const std::vector<std::string>& args) {
     return 128 + e.signal;
   }
   progress.finish();
-  const double total = since(tStart);
+  const double total = slicer::secondsSince(tStart);
 
   for (std::size_t n = 0; n < layout.bars.size(); ++n)
     if (counting.voxels()[n] != static_cast<std::uint64_t>(layout.bars[n].volume()))

@@ -5,36 +5,22 @@
 #include "slicer/command.hpp"
 #include "slicer/interrupt.hpp"
 #include "slicer/job_options.hpp"
-#include "slicer/job_pipeline.hpp"
 #include "slicer/options.hpp"
 #include "slicer/progress.hpp"
 #include "slicer/slice_design.hpp"
-#include "voxel/voxel.hpp"
 
 #include <nlohmann/json.hpp>
 #include <tbb/global_control.h>
 
 #include <chrono>
-#include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <iostream>
-#include <iterator>
-#include <sstream>
 
 namespace rodfab::cli {
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-
-std::string fileSha256(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error(path + ": cannot open");
-  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  return calibration::sha256Hex(bytes);
-}
 
 }  // namespace
 
@@ -101,7 +87,8 @@ int runSlice(const std::vector<std::string>& args) {
   }
   const std::string calibrationFile =
       vm.count("calibration") ? vm["calibration"].as<std::string>() : calibration::defaultCalibrationPath().string();
-  const calibration::Calibration cal = calibration::readCalibration(calibrationFile);
+  std::string calibrationSha256;
+  const calibration::Calibration cal = calibration::readCalibration(calibrationFile, &calibrationSha256);
   const std::string couponDither = slicer::canonicalDitherName(cal.record().dither);
   const std::string ditherName = vm.count("dither") ? vm["dither"].as<std::string>() : (couponDither.empty() ? "white" : couponDither);
   materials::DitherOptions ditherOptions;
@@ -123,7 +110,7 @@ int runSlice(const std::vector<std::string>& args) {
   slicer::SliceSettings settings;
   settings.designFile = designFile;
   settings.calibrationFile = calibrationFile;
-  settings.calibrationSha256 = fileSha256(calibrationFile);
+  settings.calibrationSha256 = calibrationSha256;
   settings.seed = ditherOptions.seed;
   settings.threads = threads;
   settings.bandLayers = bandLayers;
@@ -133,7 +120,7 @@ int runSlice(const std::vector<std::string>& args) {
     progress->update(static_cast<std::size_t>(done));
     throwIfInterrupted();
   };
-  readSeconds = since(tStart);
+  readSeconds = slicer::secondsSince(tStart);
 
   slicer::SliceReport report;
   try {
@@ -144,7 +131,7 @@ int runSlice(const std::vector<std::string>& args) {
     return 128 + e.signal;
   }
   if (progress) progress->finish();
-  const double total = since(tStart);
+  const double total = slicer::secondsSince(tStart);
   const printer_profiles::JobResult& job = report.job;
   const materials::MappingStats& mapping = report.mapping;
   const slicer::StageSeconds& seconds = report.seconds;

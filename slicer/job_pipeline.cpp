@@ -9,7 +9,6 @@ namespace rodfab::slicer {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 }  // namespace
 
@@ -24,27 +23,27 @@ printer_profiles::JobResult streamJob(printer_profiles::JobSpec spec, const Band
 
   auto start = Clock::now();
   printer_profiles::JobWriter writer(std::move(spec));
-  seconds.emit += since(start);
+  seconds.emit += secondsSince(start);
   ditherer.reset();
   for (int k0 = kFirst; k0 <= kLast; k0 += options.bandLayers) {
     const int k1 = std::min(kLast + 1, k0 + options.bandLayers);
     start = Clock::now();
     BandGrids band = source(k0, k1, readsNextLayer && k1 <= kLast);
-    seconds.source += since(start);
+    seconds.source += secondsSince(start);
 
     start = Clock::now();
     openvdb::BoolGrid::Ptr material = ditherer.ditherLayers(*band.fraction, k0, k1);
-    seconds.dither += since(start);
+    seconds.dither += secondsSince(start);
 
     start = Clock::now();
     writer.addBand({material, band.modulus, k0, k1});  // waits for the previous band's encoding only
-    seconds.emit += since(start);
+    seconds.emit += secondsSince(start);
     if (options.onBand) options.onBand(k1 - kFirst, layers);
   }
   if (options.beforeFinalize) options.beforeFinalize(writer.metadata());
   start = Clock::now();
   printer_profiles::JobResult result = writer.finalize();
-  seconds.emit += since(start);
+  seconds.emit += secondsSince(start);
   return result;
 }
 

@@ -10,18 +10,12 @@ namespace rodfab::slicer {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 }  // namespace
 
 openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const voxel::PrinterGrid& grid) {
   const geometry::Box3 box = design.bounds();
-  openvdb::CoordBBox out;
-  for (int a = 0; a < 3; ++a) {
-    out.min()[a] = std::max(0, static_cast<int>(std::ceil((box.min()[a] - grid.origin[a]) / grid.voxelSize[a])));
-    out.max()[a] = std::min(grid.dims[a] - 1, static_cast<int>(std::floor((box.max()[a] - grid.origin[a]) / grid.voxelSize[a])));
-  }
-  return out;
+  return grid.voxelsWithin({box.min().x(), box.min().y(), box.min().z()}, {box.max().x(), box.max().y(), box.max().z()});
 }
 
 int automaticBandLayers(const openvdb::CoordBBox& partBounds) {
@@ -42,7 +36,7 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   report.floorMpa = fractionMap.floorMpa();
   report.floorFraction = fractionMap.floorFraction();
   report.maxModulusMpa = fractionMap.maxModulusMpa();
-  report.prepareSeconds = since(start);
+  report.prepareSeconds = secondsSince(start);
 
   printer_profiles::JobSpec spec;
   spec.profile = profile;
@@ -63,7 +57,7 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
     for (int k0 = spec.partBounds.min().z(); k0 <= spec.partBounds.max().z(); k0 += bandLayers)
       tops->include(*rasterizer.rasterizeLayers(k0, std::min(spec.partBounds.max().z() + 1, k0 + bandLayers)).grid);
     spec.supportTops = tops;
-    report.supportSeconds = since(start);
+    report.supportSeconds = secondsSince(start);
   }
 
   report.voxelsPerRod.assign(design.rods.size(), 0);

@@ -1,5 +1,6 @@
 #include "voxel/printer_grid.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -11,6 +12,17 @@ openvdb::math::Transform::Ptr PrinterGrid::transform() const {
   m.setToScale(voxelSize);
   m.setTranslation(origin);
   return openvdb::math::Transform::createLinearTransform(m);
+}
+
+openvdb::CoordBBox PrinterGrid::voxelsWithin(const openvdb::Vec3d& lo, const openvdb::Vec3d& hi) const {
+  openvdb::Coord a, b;
+  for (int k = 0; k < 3; ++k) {
+    const double from = std::ceil((lo[k] - origin[k]) / voxelSize[k]);
+    const double to = std::floor((hi[k] - origin[k]) / voxelSize[k]);
+    a[k] = static_cast<int>(std::clamp(from, 0.0, double(dims[k])));
+    b[k] = static_cast<int>(std::clamp(to, -1.0, double(dims[k] - 1)));
+  }
+  return {a, b};
 }
 
 PrinterGrid makePrinterGrid(const geometry::RodStructure& structure, const openvdb::Vec3d& voxelSizeMm) {

@@ -26,6 +26,8 @@ struct PrinterGrid {
     return {origin.x() + ijk.x() * voxelSize.x(), origin.y() + ijk.y() * voxelSize.y(),
             origin.z() + ijk.z() * voxelSize.z()};
   }
+  // Voxels whose centres lie in the box [lo, hi] (mm), clipped to [0, dims); empty if none.
+  openvdb::CoordBBox voxelsWithin(const openvdb::Vec3d& lo, const openvdb::Vec3d& hi) const;
   double voxelVolume() const { return voxelSize.x() * voxelSize.y() * voxelSize.z(); }
   std::uint64_t voxelCount() const {
     return std::uint64_t(dims.x()) * std::uint64_t(dims.y()) * std::uint64_t(dims.z());

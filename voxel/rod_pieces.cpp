@@ -100,14 +100,7 @@ Measurement measure(const geometry::Rod& rod, const Node& a, const Node& b, RodP
 }
 
 openvdb::CoordBBox indexBox(const PrinterGrid& grid, const Vec3& lo, const Vec3& hi) {
-  openvdb::Coord a, b;
-  for (int k = 0; k < 3; ++k) {
-    const double from = std::ceil((lo[k] - grid.origin[k]) / grid.voxelSize[k]);
-    const double to = std::floor((hi[k] - grid.origin[k]) / grid.voxelSize[k]);
-    a[k] = static_cast<int>(std::clamp(from, 0.0, double(grid.dims[k])));
-    b[k] = static_cast<int>(std::clamp(to, -1.0, double(grid.dims[k] - 1)));
-  }
-  return {a, b};
+  return grid.voxelsWithin({lo.x(), lo.y(), lo.z()}, {hi.x(), hi.y(), hi.z()});
 }
 
 }  // namespace
