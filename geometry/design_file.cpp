@@ -472,6 +472,209 @@ public:
     if (issues.size() != before || !curve || !sec || !e) return std::nullopt;
     return Rod(name, *curve, *sec, normal, orient, caps, *e);
   }
+
+  // ---- the optional "mechanics" block ----
+
+  std::optional<RodEndRef> endRef(const json& j, const std::string& path, const std::map<std::string, std::string>& names) {
+    if (!j.is_object()) {
+      fail(path, "expected {\"rod\": NAME, \"end\": \"start\"|\"end\"} or {\"point\": [x, y, z]}, got " + describe(j));
+      return std::nullopt;
+    }
+    onlyKeys(j, path, {"rod", "end", "point"});
+    RodEndRef ref;
+    ref.path = path;
+    const bool byRod = j.contains("rod"), byPoint = j.contains("point");
+    if (byRod == byPoint) {
+      fail(path, "give either \"rod\" and \"end\", or \"point\"");
+      return std::nullopt;
+    }
+    if (byPoint) {
+      ref.point = vector3(j["point"], member(path, "point"), "a point in mm");
+      if (j.contains("end")) fail(member(path, "end"), "\"end\" goes with \"rod\", not with \"point\"");
+      return ref.point ? std::optional<RodEndRef>(ref) : std::nullopt;
+    }
+    auto name = string(j["rod"], member(path, "rod"), "a rod name");
+    if (!name) return std::nullopt;
+    if (!names.count(*name)) {
+      fail(member(path, "rod"), "no rod is named \"" + *name + "\"");
+      return std::nullopt;
+    }
+    ref.rod = *name;
+    const json* e = require(j, path, "end", "\"start\" or \"end\"");
+    if (!e) return std::nullopt;
+    if (*e == "start") ref.end = RodEnd::Start;
+    else if (*e == "end") ref.end = RodEnd::End;
+    else {
+      fail(member(path, "end"), "expected \"start\" or \"end\", got " + describe(*e));
+      return std::nullopt;
+    }
+    return ref;
+  }
+
+  std::optional<double> ratio(const json& j, const std::string& path, const std::string& what, double lo, double hi) {
+    auto v = number(j, path, what);
+    if (v && !(*v > lo && *v < hi)) {
+      fail(path, "expected " + what + " in (" + describe(lo) + ", " + describe(hi) + "), got " + describe(j));
+      return std::nullopt;
+    }
+    return v;
+  }
+
+  template <class Item, class ReadItem>
+  void list(const json& obj, const std::string& path, const std::string& key, const std::string& what,
+            std::vector<Item>& out, ReadItem readItem) {
+    auto it = obj.find(key);
+    if (it == obj.end()) return;
+    const std::string lp = member(path, key);
+    if (!it->is_array()) {
+      fail(lp, "expected an array of " + what + ", got " + describe(*it));
+      return;
+    }
+    for (std::size_t i = 0; i < it->size(); ++i) {
+      const json& e = (*it)[i];
+      const std::string ep = index(lp, i);
+      if (!e.is_object()) {
+        fail(ep, "expected " + what + " (an object), got " + describe(e));
+        continue;
+      }
+      if (auto item = readItem(e, ep)) out.push_back(std::move(*item));
+    }
+  }
+
+  MechanicsSpec mechanics(const json& j, const std::string& path, const std::map<std::string, std::string>& names) {
+    MechanicsSpec spec;
+    spec.present = true;
+    if (!j.is_object()) {
+      fail(path, "expected an object {poisson_ratio, supports, loads, ...}, got " + describe(j));
+      return spec;
+    }
+    onlyKeys(j, path, {"poisson_ratio", "shear_factor", "joint_tolerance", "joints", "supports", "loads",
+                       "distributed_loads", "rods", "load_steps"});
+    if (auto v = j.find("poisson_ratio"); v != j.end())
+      if (auto x = ratio(*v, member(path, "poisson_ratio"), "a Poisson ratio", -1.0, 0.5)) spec.poissonRatio = *x;
+    if (auto v = j.find("shear_factor"); v != j.end())
+      spec.shearFactor = positive(*v, member(path, "shear_factor"), "a shear correction factor");
+    if (auto v = j.find("joint_tolerance"); v != j.end())
+      if (auto x = positive(*v, member(path, "joint_tolerance"), "a distance in mm")) spec.jointTolerance = *x;
+    if (auto v = j.find("load_steps"); v != j.end()) {
+      if (!v->is_number_integer() || v->get<long long>() < 1 || v->get<long long>() > 100000)
+        fail(member(path, "load_steps"), "expected an integer from 1 to 100000, got " + describe(*v));
+      else
+        spec.loadSteps = v->get<int>();
+    }
+    if (auto v = j.find("joints"); v != j.end()) {
+      const std::string jp = member(path, "joints");
+      if (*v == "auto") {
+        spec.inferJoints = true;
+      } else if (!v->is_array()) {
+        fail(jp, "expected \"auto\" (join coincident rod ends) or an array of joints, each an array of rod ends, got " +
+                     describe(*v));
+      } else {
+        spec.inferJoints = false;
+        for (std::size_t i = 0; i < v->size(); ++i) {
+          const json& joint = (*v)[i];
+          const std::string ip = index(jp, i);
+          if (!joint.is_array() || joint.size() < 2) {
+            fail(ip, "expected an array of at least two rod ends {\"rod\", \"end\"}, got " + describe(joint));
+            continue;
+          }
+          std::vector<RodEndRef> ends;
+          for (std::size_t k = 0; k < joint.size(); ++k) {
+            auto ref = endRef(joint[k], index(ip, k), names);
+            if (ref && ref->point) fail(index(ip, k), "joints list rod ends {\"rod\", \"end\"}, not points");
+            else if (ref) ends.push_back(*ref);
+          }
+          spec.joints.push_back(std::move(ends));
+        }
+      }
+    }
+    list(j, path, "supports", "supports {at, type, displacement, rotation}", spec.supports,
+         [&](const json& e, const std::string& ep) -> std::optional<Support> {
+           onlyKeys(e, ep, {"at", "type", "displacement", "rotation"});
+           Support s;
+           std::optional<RodEndRef> at;
+           if (auto a = require(e, ep, "at", "a rod end {\"rod\", \"end\"} or {\"point\"}")) at = endRef(*a, member(ep, "at"), names);
+           if (auto t = require(e, ep, "type", "\"clamped\" or \"pinned\"")) {
+             if (*t == "clamped") s.kind = SupportKind::Clamped;
+             else if (*t == "pinned") s.kind = SupportKind::Pinned;
+             else fail(member(ep, "type"), "expected \"clamped\" (position and orientation held) or \"pinned\" (position held), got " + describe(*t));
+           }
+           if (auto d = e.find("displacement"); d != e.end()) {
+             if (auto v = vector3(*d, member(ep, "displacement"), "a displacement in mm")) s.displacement = *v;
+           }
+           if (auto r = e.find("rotation"); r != e.end()) {
+             if (s.kind == SupportKind::Pinned) fail(member(ep, "rotation"), "a pinned support leaves rotation free; use \"type\": \"clamped\" to prescribe it");
+             else if (auto v = vector3(*r, member(ep, "rotation"), "a rotation vector (axis times angle, radians)")) s.rotation = *v;
+           }
+           if (!at) return std::nullopt;
+           s.at = *at;
+           return s;
+         });
+    list(j, path, "loads", "point loads {at, force, moment}", spec.loads,
+         [&](const json& e, const std::string& ep) -> std::optional<PointLoad> {
+           onlyKeys(e, ep, {"at", "force", "moment"});
+           PointLoad l;
+           std::optional<RodEndRef> at;
+           if (auto a = require(e, ep, "at", "a rod end {\"rod\", \"end\"} or {\"point\"}")) at = endRef(*a, member(ep, "at"), names);
+           bool ok = true;
+           if (auto f = e.find("force"); f != e.end()) {
+             if (auto v = vector3(*f, member(ep, "force"), "a force in N")) l.force = *v; else ok = false;
+           }
+           if (auto m = e.find("moment"); m != e.end()) {
+             if (auto v = vector3(*m, member(ep, "moment"), "a moment in N mm")) l.moment = *v; else ok = false;
+           }
+           if (!e.contains("force") && !e.contains("moment")) fail(ep, "a load needs \"force\" (N) or \"moment\" (N mm)"), ok = false;
+           if (!at || !ok) return std::nullopt;
+           l.at = *at;
+           return l;
+         });
+    list(j, path, "distributed_loads", "distributed loads {rod, force}", spec.distributedLoads,
+         [&](const json& e, const std::string& ep) -> std::optional<DistributedLoad> {
+           onlyKeys(e, ep, {"rod", "force"});
+           DistributedLoad l;
+           l.path = ep;
+           std::optional<std::string> rod;
+           if (auto r = require(e, ep, "rod", "a rod name")) {
+             rod = string(*r, member(ep, "rod"), "a rod name");
+             if (rod && !names.count(*rod)) fail(member(ep, "rod"), "no rod is named \"" + *rod + "\""), rod.reset();
+           }
+           std::optional<Vec3> f;
+           if (auto x = require(e, ep, "force", "a force per length in N/mm")) f = vector3(*x, member(ep, "force"), "a force per length in N/mm");
+           if (!rod || !f) return std::nullopt;
+           l.rod = *rod;
+           l.force = *f;
+           return l;
+         });
+    if (auto v = j.find("rods"); v != j.end()) {
+      const std::string rp = member(path, "rods");
+      if (!v->is_object()) {
+        fail(rp, "expected an object {ROD NAME: {torsion_constant, shear_factor, poisson_ratio}}, got " + describe(*v));
+      } else {
+        for (auto it = v->begin(); it != v->end(); ++it) {
+          const std::string ep = member(rp, it.key());
+          if (!names.count(it.key())) {
+            fail(ep, "no rod is named \"" + it.key() + "\"");
+            continue;
+          }
+          if (!it->is_object()) {
+            fail(ep, "expected an object {torsion_constant, shear_factor, poisson_ratio}, got " + describe(*it));
+            continue;
+          }
+          onlyKeys(*it, ep, {"torsion_constant", "shear_factor", "poisson_ratio"});
+          RodMechanics m;
+          m.rod = it.key();
+          if (auto x = it->find("torsion_constant"); x != it->end())
+            m.torsionConstant = positive(*x, member(ep, "torsion_constant"), "a torsion constant in mm^4");
+          if (auto x = it->find("shear_factor"); x != it->end())
+            m.shearFactor = positive(*x, member(ep, "shear_factor"), "a shear correction factor");
+          if (auto x = it->find("poisson_ratio"); x != it->end())
+            m.poissonRatio = ratio(*x, member(ep, "poisson_ratio"), "a Poisson ratio", -1.0, 0.5);
+          spec.rods.push_back(std::move(m));
+        }
+      }
+    }
+    return spec;
+  }
 };
 
 std::pair<int, int> lineAndColumn(const std::string& text, std::size_t byte) {
@@ -485,6 +688,60 @@ std::pair<int, int> lineAndColumn(const std::string& text, std::size_t byte) {
 using ordered = nlohmann::ordered_json;
 
 ordered curveJson(int degree, const std::vector<double>& knots) { return ordered{{"degree", degree}, {"knots", knots}}; }
+
+ordered vec3Json(const Vec3& v) { return ordered::array({v.x(), v.y(), v.z()}); }
+
+ordered endRefJson(const RodEndRef& ref) {
+  if (ref.point) return ordered{{"point", vec3Json(*ref.point)}};
+  return ordered{{"rod", ref.rod}, {"end", ref.end == RodEnd::Start ? "start" : "end"}};
+}
+
+ordered mechanicsJson(const MechanicsSpec& spec) {
+  ordered m{{"poisson_ratio", spec.poissonRatio}};
+  if (spec.shearFactor) m["shear_factor"] = *spec.shearFactor;
+  m["joint_tolerance"] = spec.jointTolerance;
+  if (spec.inferJoints) {
+    m["joints"] = "auto";
+  } else {
+    ordered joints = ordered::array();
+    for (const auto& joint : spec.joints) {
+      ordered ends = ordered::array();
+      for (const RodEndRef& e : joint) ends.push_back(endRefJson(e));
+      joints.push_back(ends);
+    }
+    m["joints"] = joints;
+  }
+  ordered supports = ordered::array();
+  for (const Support& s : spec.supports) {
+    ordered o{{"at", endRefJson(s.at)}, {"type", s.kind == SupportKind::Clamped ? "clamped" : "pinned"}};
+    if (!s.displacement.isZero()) o["displacement"] = vec3Json(s.displacement);
+    if (!s.rotation.isZero()) o["rotation"] = vec3Json(s.rotation);
+    supports.push_back(o);
+  }
+  m["supports"] = supports;
+  ordered loads = ordered::array();
+  for (const PointLoad& l : spec.loads)
+    loads.push_back({{"at", endRefJson(l.at)}, {"force", vec3Json(l.force)}, {"moment", vec3Json(l.moment)}});
+  m["loads"] = loads;
+  if (!spec.distributedLoads.empty()) {
+    ordered d = ordered::array();
+    for (const DistributedLoad& l : spec.distributedLoads) d.push_back({{"rod", l.rod}, {"force", vec3Json(l.force)}});
+    m["distributed_loads"] = d;
+  }
+  if (!spec.rods.empty()) {
+    ordered rods = ordered::object();
+    for (const RodMechanics& r : spec.rods) {
+      ordered o = ordered::object();
+      if (r.torsionConstant) o["torsion_constant"] = *r.torsionConstant;
+      if (r.shearFactor) o["shear_factor"] = *r.shearFactor;
+      if (r.poissonRatio) o["poisson_ratio"] = *r.poissonRatio;
+      rods[r.rod] = o;
+    }
+    m["rods"] = rods;
+  }
+  m["load_steps"] = spec.loadSteps;
+  return m;
+}
 
 }  // namespace
 
@@ -520,7 +777,7 @@ RodStructure parseDesign(const std::string& text, const std::string& sourceName)
   RodStructure structure;
   structure.source = sourceName;
   if (!doc.is_object()) throw DesignError(sourceName, {{"", "expected a JSON object with \"format\" and \"rods\""}});
-  v.onlyKeys(doc, "", {"format", "units", "rods", "description", "metadata"});
+  v.onlyKeys(doc, "", {"format", "units", "rods", "description", "metadata", "mechanics"});
   if (auto f = v.require(doc, "", "format", std::string("\"") + kDesignFormat + "\"")) {
     if (!f->is_string() || *f != kDesignFormat)
       v.fail("format", "unsupported format " + describe(*f) + " (this rodfab reads \"" + kDesignFormat + "\")");
@@ -536,6 +793,7 @@ RodStructure parseDesign(const std::string& text, const std::string& sourceName)
       std::map<std::string, std::string> names;
       for (std::size_t i = 0; i < rods->size(); ++i)
         if (auto r = v.rod((*rods)[i], index("rods", i), names)) structure.rods.push_back(std::move(*r));
+      if (auto m = doc.find("mechanics"); m != doc.end()) structure.mechanics = v.mechanics(*m, "mechanics", names);
     }
   }
   if (!v.issues.empty()) throw DesignError(sourceName, std::move(v.issues));
@@ -591,6 +849,7 @@ nlohmann::ordered_json designToJson(const RodStructure& structure, const std::st
   ordered doc{{"format", kDesignFormat}, {"units", "mm"}};
   if (!description.empty()) doc["description"] = description;
   doc["rods"] = std::move(rods);
+  if (structure.mechanics.present) doc["mechanics"] = mechanicsJson(structure.mechanics);
   return doc;
 }
 
@@ -602,13 +861,15 @@ void writeDesign(const RodStructure& structure, const std::filesystem::path& fil
     const auto doc = designToJson(structure, description);
     out << "{\n";
     for (auto it = doc.begin(); it != doc.end(); ++it) {
-      if (it.key() == "rods") continue;
+      if (it.key() == "rods" || it.key() == "mechanics") continue;
       out << "  " << ordered(it.key()).dump() << ": " << it.value().dump() << ",\n";
     }
     out << "  \"rods\": [\n";
     const auto& rods = doc["rods"];
     for (std::size_t i = 0; i < rods.size(); ++i) out << "    " << rods[i].dump() << (i + 1 < rods.size() ? ",\n" : "\n");
-    out << "  ]\n}\n";
+    out << "  ]";
+    if (auto m = doc.find("mechanics"); m != doc.end()) out << ",\n  \"mechanics\": " << m->dump(2, ' ');
+    out << "\n}\n";
     out.close();
     if (!out) {
       std::filesystem::remove(tmp);

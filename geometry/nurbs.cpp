@@ -175,6 +175,47 @@ double NurbsCurve::arcLength(double u0, double u1) const {
   return length;
 }
 
+NurbsCurve NurbsCurve::withKnotInserted(double u) const {
+  if (!(u > domainBegin() && u < domainEnd())) throw std::invalid_argument("withKnotInserted: u must lie inside the domain");
+  const int p = degree_;
+  const int n = static_cast<int>(points_.size());
+  const int k = findKnotSpan(knots_, p, n, u);
+  // New control values Q_i = a_i P_i + (1 - a_i) P_{i-1} for i in (k-p, k], in homogeneous form.
+  std::vector<Vec3> points;
+  std::vector<double> weights;
+  points.reserve(n + 1);
+  weights.reserve(n + 1);
+  auto w = [&](int i) { return rational_ ? weights_[i] : 1.0; };
+  for (int i = 0; i <= n; ++i) {
+    if (i <= k - p) {
+      points.push_back(points_[i]);
+      weights.push_back(w(i));
+    } else if (i > k) {
+      points.push_back(points_[i - 1]);
+      weights.push_back(w(i - 1));
+    } else {
+      const double a = (u - knots_[i]) / (knots_[i + p] - knots_[i]);
+      const double wi = a * w(i) + (1.0 - a) * w(i - 1);
+      points.push_back((a * w(i) * points_[i] + (1.0 - a) * w(i - 1) * points_[i - 1]) / wi);
+      weights.push_back(wi);
+    }
+  }
+  std::vector<double> knots = knots_;
+  knots.insert(knots.begin() + k + 1, u);
+  if (!rational_) weights.clear();
+  return NurbsCurve(p, std::move(knots), std::move(points), std::move(weights));
+}
+
+NurbsCurve NurbsCurve::refined(int insertionsPerSpan) const {
+  if (insertionsPerSpan <= 0) return *this;
+  const std::vector<double> breaks = breakpoints();
+  NurbsCurve curve = *this;
+  for (std::size_t s = 0; s + 1 < breaks.size(); ++s)
+    for (int i = 1; i <= insertionsPerSpan; ++i)
+      curve = curve.withKnotInserted(breaks[s] + (breaks[s + 1] - breaks[s]) * i / (insertionsPerSpan + 1));
+  return curve;
+}
+
 BSplineField::BSplineField(int degree, std::vector<double> knots, std::vector<double> values)
     : degree_(degree), knots_(std::move(knots)), values_(std::move(values)) {
   checkKnotVector(knots_, degree_, values_.size(), "BSplineField");

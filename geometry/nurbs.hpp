@@ -51,6 +51,12 @@ public:
   // Start of every non-empty knot span, plus the domain end.
   std::vector<double> breakpoints() const;
 
+  // The same curve with `insertionsPerSpan` knots inserted evenly into every non-empty span
+  // (Boehm's knot insertion in homogeneous coordinates): h-refinement for the rod solver.
+  NurbsCurve refined(int insertionsPerSpan) const;
+  // The same curve with the knot u inserted once (u strictly inside the domain).
+  NurbsCurve withKnotInserted(double u) const;
+
 private:
   int degree_ = 0;
   std::vector<double> knots_;

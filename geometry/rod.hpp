@@ -3,6 +3,7 @@
 #pragma once
 
 #include "geometry/frame.hpp"
+#include "geometry/mechanics_spec.hpp"
 #include "geometry/nurbs.hpp"
 #include "geometry/section.hpp"
 
@@ -98,6 +99,7 @@ private:
 struct RodStructure {
   std::string source;  // where it was read from, for messages
   std::vector<Rod> rods;
+  MechanicsSpec mechanics;  // loads and supports for `rodfab simulate`; ignored by the slicer
 
   Box3 bounds() const;
 };

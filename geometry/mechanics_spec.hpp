@@ -1,0 +1,72 @@
+// The optional "mechanics" block of a design file: material constants, joints, supports and loads
+// for the Cosserat rod solver (mechanics/). Geometry owns it because it owns the design file; it is
+// plain data here, interpreted by the solver.
+#pragma once
+
+#include <Eigen/Core>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace rodfab::geometry {
+
+enum class RodEnd { Start, End };
+
+// A place loads and supports act on: one end of a named rod, or the rod end (or joint) at a point.
+struct RodEndRef {
+  std::string rod;  // empty when given by `point`
+  RodEnd end = RodEnd::Start;
+  std::optional<Eigen::Vector3d> point;  // mm
+  std::string path;  // JSON path, for messages about this reference
+};
+
+enum class SupportKind {
+  Clamped,  // position and orientation prescribed
+  Pinned,   // position prescribed, rotation free
+};
+
+struct Support {
+  RodEndRef at;
+  SupportKind kind = SupportKind::Clamped;
+  Eigen::Vector3d displacement = Eigen::Vector3d::Zero();  // mm, reached at the last load step
+  Eigen::Vector3d rotation = Eigen::Vector3d::Zero();      // rad, axis * angle in space; clamped only
+};
+
+// Dead force and moment at a rod end or joint, scaled by the load factor.
+struct PointLoad {
+  RodEndRef at;
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();   // N
+  Eigen::Vector3d moment = Eigen::Vector3d::Zero();  // N mm
+};
+
+// Dead force per unit of reference length along a whole rod (for example its weight).
+struct DistributedLoad {
+  std::string rod;
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();  // N / mm
+  std::string path;
+};
+
+// Per-rod overrides of the section's derived constants.
+struct RodMechanics {
+  std::string rod;
+  std::optional<double> torsionConstant;  // mm^4, replaces the section's Saint-Venant J
+  std::optional<double> shearFactor;
+  std::optional<double> poissonRatio;
+};
+
+struct MechanicsSpec {
+  bool present = false;  // the design has a "mechanics" block
+  double poissonRatio = 0.45;               // PolyJet photopolymers are nearly incompressible
+  std::optional<double> shearFactor;        // default: Cowper's factor of each section shape
+  double jointTolerance = 1e-3;             // mm: rod ends closer than this are joined rigidly
+  bool inferJoints = true;                  // "joints": "auto" (default) or an explicit list
+  std::vector<std::vector<RodEndRef>> joints;
+  std::vector<Support> supports;
+  std::vector<PointLoad> loads;
+  std::vector<DistributedLoad> distributedLoads;
+  std::vector<RodMechanics> rods;
+  int loadSteps = 10;
+};
+
+}  // namespace rodfab::geometry
