@@ -50,7 +50,7 @@ struct Discretization {
   // the design's centerline at the new collocation points (geometric error of order h^(degree+1)).
   int degree = 0;
   int refine = 0;  // knots inserted per design span
-  int spans = 0;   // with `degree`: spans per rod; 0 gives the design's span count times (refine + 1)
+  int spans = 0;   // with `degree`: spans per rod; 0 gives the design's span count times (refine + 1), at least 8
 };
 
 class StaticProblem {

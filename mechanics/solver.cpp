@@ -59,11 +59,13 @@ Solution solve(const StaticProblem& problem, const SolverOptions& options, int d
         analyzed = true;
       }
       lu.factorize(jacobian);
-      if (lu.info() != Eigen::Success)
+      const Eigen::VectorXd dx = lu.info() == Eigen::Success ? Eigen::VectorXd(lu.solve(residual)) : Eigen::VectorXd();
+      // Rounding turns an exactly singular stiffness into pivots of 1e-16 and corrections of 1e16:
+      // a correction a million times the structure is a mechanism, not a large deformation.
+      if (lu.info() != Eigen::Success || !dx.allFinite() || problem.stepNorm(dx) > 1e6)
         throw MechanicsError(problem.source() + ": the stiffness (Jacobian) is singular at load factor " + format(load) +
                              ": the structure is a mechanism; add supports (a single pinned end leaves rotation free) "
                              "or join the loose rods");
-      const Eigen::VectorXd dx = lu.solve(residual);
       solution.factorizeSeconds += seconds(t);
       ++solution.newtonIterations;
       x -= dx;

@@ -210,8 +210,10 @@ void StaticProblem::Model::buildRod(const geometry::RodStructure& structure, std
     i += m;
   }
   if (rebuild) {
-    const int spans = discretization.spans > 0 ? discretization.spans
-                                               : static_cast<int>(c0.breakpoints().size() - 1) * (discretization.refine + 1);
+    // A degree-p rod needs a few spans to bend at all; fewer than 8 is rarely what anyone wants.
+    const int spans = discretization.spans > 0
+                          ? discretization.spans
+                          : std::max(8, static_cast<int>(c0.breakpoints().size() - 1) * (discretization.refine + 1));
     std::vector<double> knots(p + 1, c0.domainBegin());
     for (int i = 1; i < spans; ++i) knots.push_back(c0.domainBegin() + (c0.domainEnd() - c0.domainBegin()) * i / spans);
     knots.insert(knots.end(), p + 1, c0.domainEnd());

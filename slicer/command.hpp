@@ -28,5 +28,6 @@ int runCalibrate(const std::vector<std::string>& args);
 int runProfiles(const std::vector<std::string>& args);
 int runInspect(const std::vector<std::string>& args);
 int runDitherReport(const std::vector<std::string>& args);
+int runSimulate(const std::vector<std::string>& args);
 
 }  // namespace rodfab::cli

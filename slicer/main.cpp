@@ -18,6 +18,7 @@ constexpr Command kCommands[] = {
     {"profiles", "list the bundled printer profiles, or show one", runProfiles},
     {"inspect", "re-read a print job and verify every file, size, DPI and orientation", runInspect},
     {"dither-report", "measure each ditherer's quality on uniform blocks and a thin rod", runDitherReport},
+    {"simulate", "solve a design's rods under its mechanics loads (Cosserat rods); write the deformed design", runSimulate},
 };
 // usage() pads command names to 15 columns.
 static_assert(std::ranges::all_of(kCommands, [](const Command& c) { return std::char_traits<char>::length(c.name) < 15; }));

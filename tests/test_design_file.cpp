@@ -240,3 +240,68 @@ TEST_CASE("A missing file is reported with its name", "[design][errors]") {
     REQUIRE(std::string(e.what()).find("/nonexistent/design.json: cannot open") != std::string::npos);
   }
 }
+
+TEST_CASE("The mechanics block reads, round-trips, and is optional", "[design][mechanics]") {
+  json d = validDesign();
+  REQUIRE_FALSE(parseDesign(d.dump(), "ok.json").mechanics.present);  // old files stay valid
+  d["mechanics"] = json::parse(R"({ "poisson_ratio": 0.3, "shear_factor": 0.9, "joint_tolerance": 0.01,
+    "joints": [[{"rod": "edge-0", "end": "start"}, {"rod": "edge-0", "end": "end"}]],
+    "supports": [{"at": {"rod": "edge-0", "end": "start"}, "type": "clamped", "rotation": [0, 0, 0.1]},
+                 {"at": {"point": [3, 1, 0]}, "type": "pinned", "displacement": [0, 0, -1]}],
+    "loads": [{"at": {"rod": "edge-0", "end": "end"}, "force": [0, 0, -2], "moment": [0.5, 0, 0]}],
+    "distributed_loads": [{"rod": "edge-0", "force": [0, 0, -0.01]}],
+    "rods": {"edge-0": {"torsion_constant": 0.2, "poisson_ratio": 0.25}},
+    "load_steps": 7 })");
+  const RodStructure s = parseDesign(d.dump(), "ok.json");
+  const MechanicsSpec& m = s.mechanics;
+  REQUIRE(m.present);
+  CHECK(m.poissonRatio == 0.3);
+  CHECK(*m.shearFactor == 0.9);
+  CHECK(m.jointTolerance == 0.01);
+  CHECK_FALSE(m.inferJoints);
+  REQUIRE(m.joints.size() == 1);
+  CHECK(m.joints[0][1].end == RodEnd::End);
+  REQUIRE(m.supports.size() == 2);
+  CHECK(m.supports[0].rotation.z() == 0.1);
+  CHECK(m.supports[1].kind == SupportKind::Pinned);
+  CHECK(*m.supports[1].at.point == Vec3(3, 1, 0));
+  CHECK(m.loads[0].force.z() == -2);
+  CHECK(m.distributedLoads[0].force.z() == -0.01);
+  CHECK(*m.rods[0].torsionConstant == 0.2);
+  CHECK(m.loadSteps == 7);
+  // The writer keeps every field.
+  const RodStructure again = parseDesign(designToJson(s).dump(), "again.json");
+  CHECK(designToJson(again) == designToJson(s));
+}
+
+TEST_CASE("Bad mechanics blocks are reported with their paths", "[design][mechanics][errors]") {
+  auto with = [](const std::string& mechanics) {
+    json d = validDesign();
+    d["mechanics"] = json::parse(mechanics);
+    return d;
+  };
+  REQUIRE_ISSUE(with(R"({"poisson_ratio": 0.5})"), "mechanics.poisson_ratio", "expected a Poisson ratio in (-1.0, 0.5)");
+  REQUIRE_ISSUE(with(R"({"load_steps": 0})"), "mechanics.load_steps", "expected an integer from 1");
+  REQUIRE_ISSUE(with(R"({"gravity": 1})"), "mechanics.gravity", "unknown key");
+  REQUIRE_ISSUE(with(R"({"supports": [{"at": {"rod": "nope", "end": "start"}, "type": "clamped"}]})"),
+                "mechanics.supports[0].at.rod", "no rod is named \"nope\"");
+  REQUIRE_ISSUE(with(R"({"supports": [{"at": {"rod": "edge-0", "end": "middle"}, "type": "clamped"}]})"),
+                "mechanics.supports[0].at.end", "expected \"start\" or \"end\"");
+  REQUIRE_ISSUE(with(R"({"supports": [{"at": {"rod": "edge-0", "end": "end"}, "type": "glued"}]})"),
+                "mechanics.supports[0].type", "expected \"clamped\"");
+  REQUIRE_ISSUE(with(R"({"supports": [{"at": {"rod": "edge-0", "end": "end"}, "type": "pinned", "rotation": [1, 0, 0]}]})"),
+                "mechanics.supports[0].rotation", "a pinned support leaves rotation free");
+  REQUIRE_ISSUE(with(R"({"loads": [{"at": {"point": [1, 2]}, "force": [0, 0, 1]}]})"), "mechanics.loads[0].at.point",
+                "expected a point in mm as [x, y, z]");
+  REQUIRE_ISSUE(with(R"({"loads": [{"at": {"rod": "edge-0", "end": "end"}}]})"), "mechanics.loads[0]",
+                "a load needs \"force\"");
+  REQUIRE_ISSUE(with(R"({"loads": [{"at": {"rod": "edge-0", "point": [0, 0, 0]}, "force": [0, 0, 1]}]})"),
+                "mechanics.loads[0].at", "give either \"rod\" and \"end\", or \"point\"");
+  REQUIRE_ISSUE(with(R"({"joints": [[{"rod": "edge-0", "end": "start"}]]})"), "mechanics.joints[0]",
+                "at least two rod ends");
+  REQUIRE_ISSUE(with(R"({"rods": {"ghost": {"torsion_constant": 1}}})"), "mechanics.rods.ghost", "no rod is named");
+  REQUIRE_ISSUE(with(R"({"rods": {"edge-0": {"torsion_constant": -1}}})"), "mechanics.rods.edge-0.torsion_constant",
+                "a torsion constant in mm^4 > 0");
+  REQUIRE_ISSUE(with(R"({"distributed_loads": [{"rod": "edge-0", "force": [0, "down", 0]}]})"),
+                "mechanics.distributed_loads[0].force[1]", "a number");
+}
