@@ -27,9 +27,10 @@ namespace {
 constexpr int kLeafLog2 = 3;
 constexpr int kLeafDim = 1 << kLeafLog2;
 constexpr int kLeafVoxels = kLeafDim * kLeafDim * kLeafDim;
-// Work is binned by blocks of 4 leaves along x (32 x 8 x 8 voxels): rows along x then run up to 32
-// voxels per setup instead of 8, and a block holds 48 KiB of candidates (the L2 cache's share).
-constexpr int kBlockLeavesLog2 = 2;
+// Work is binned by blocks of 8 leaves along x (64 x 8 x 8 voxels): rows along x then run up to 64
+// voxels per setup instead of 8 (a 1.2 mm rod spans 28 voxels in x, so fewer rows are cut by a block
+// edge than with 32), and a block holds 96 KiB of candidates (within the L2 cache's share).
+constexpr int kBlockLeavesLog2 = 3;
 constexpr int kBlockLeaves = 1 << kBlockLeavesLog2;
 constexpr int kBlockXLog2 = kLeafLog2 + kBlockLeavesLog2;
 constexpr int kBlockX = 1 << kBlockXLog2;
@@ -40,8 +41,7 @@ constexpr int kKeyBits = 21;  // per axis in a block key: PrinterGrid caps dims 
 // tolerance is 1e-9 (1 + bounding radius)); such voxel centres go to the exact test.
 double capPlaneBand(double boundingRadius) { return 1e-7 * (1.0 + boundingRadius); }
 
-// One rod's claim on a voxel.
-// One rod's claim on a voxel: 24 bytes, so a block's slots stay in the L2 cache.
+// One rod's claim on a voxel, as the exact test and the cold paths of the overlap rule see it.
 struct Candidate {
   double depth = -std::numeric_limits<double>::infinity();
   float band = 0.0f;  // |depth - exact depth| bound, rounded up; 0 when the exact test computed it
@@ -50,6 +50,9 @@ struct Candidate {
   int piece = -1;
   bool inside() const { return rod >= 0; }
 };
+
+// Two doubles in an SSE2 register (GCC vector extension): the swept estimate for two voxels at once.
+typedef double Double2 __attribute__((vector_size(16)));
 
 // A double band as a float that is not smaller.
 float bandAsFloat(double band) {
@@ -102,25 +105,142 @@ bool clipHalfLine(double base, double slope, int& lo, int& hi) {
   return lo <= hi;
 }
 
+// A slope and its reciprocal, for clipping every row of a piece with a multiplication rather than a
+// division: within the grid (|-base / slope| < 2^24) the product is off by under 1e-8 voxel, far
+// inside kClipMargin. A reciprocal that overflows is replaced by 0, which clips nothing.
+struct Slope {
+  double slope, inverse;
+  explicit Slope(double s) : slope(s), inverse(std::isfinite(1.0 / s) ? 1.0 / s : 0.0) {}
+  bool clip(double base, int& lo, int& hi) const {
+    if (slope > 0.0) lo = std::max(lo, clampToInt(std::ceil(-base * inverse - kClipMargin)));
+    else if (slope < 0.0) hi = std::min(hi, clampToInt(std::floor(-base * inverse + kClipMargin)));
+    else if (base < 0.0) return false;
+    return lo <= hi;
+  }
+  // The same bound on the real line, for RowBounds; false when no i qualifies.
+  bool bound(double base, double& lo, double& hi) const {
+    if (slope > 0.0) lo = std::max(lo, -base * inverse);
+    else if (slope < 0.0) hi = std::min(hi, -base * inverse);
+    else if (base < 0.0) return false;
+    return true;
+  }
+};
+
+// Bounds on a row's i, gathered as reals and rounded once: ceil(max(x) - margin) is the largest of
+// the ceil(x - margin) (rounding, ceil and the clamp are monotone), so one ceil, clamp and conversion
+// per side give the same range as rounding every bound.
+struct RowBounds {
+  double lo = -std::numeric_limits<double>::infinity(), hi = std::numeric_limits<double>::infinity();
+  bool round(int& first, int& last) const {
+    first = std::max(first, clampToInt(std::ceil(lo - kClipMargin)));
+    last = std::min(last, clampToInt(std::floor(hi + kClipMargin)));
+    return first <= last;
+  }
+};
+
+// The infinite cylinder of radius `reach` around a piece's axis, restricted to rows. With w the offset
+// of a voxel centre from the axis point, the centre is inside where |w|^2 - (w.e)^2 <= reach^2: along a
+// row (steps of vx in x) alpha i^2 + 2 beta i + gamma <= 0, where beta is linear and gamma quadratic in
+// j. `layer` sets up the coefficients of one layer (once), `row` solves one row's quadratic with a
+// square root and no division.
+class AxisCylinder {
+public:
+  AxisCylinder(const PrinterGrid& grid, const RodPiece& piece)
+      : grid_(grid), piece_(piece), e_(piece.axisDirection), vx_(grid.voxelSize.x()), vy_(grid.voxelSize.y()),
+        alpha_(vx_ * vx_ * (1.0 - e_.x() * e_.x())), alongX_(alpha_ <= 1e-9 * vx_ * vx_),
+        inverseAlpha_(alongX_ ? 0.0 : 1.0 / alpha_), b1_(-vx_ * vy_ * e_.y() * e_.x()),
+        g2_(vy_ * vy_ * (1.0 - e_.y() * e_.y())), A_(b1_ * b1_ - alpha_ * g2_), inLayer_(!(A_ < -1e-12 * vx_ * vx_ * vy_ * vy_)),
+        inverse2A_(inLayer_ ? 0.0 : 0.5 / A_) {}
+
+  // Layer k, rows counted from j0: narrows [lo, hi] to the rows that meet the cylinder (the
+  // discriminant of the row's quadratic, a quadratic in j whose leading coefficient works out to
+  // -(vx vy e_z)^2, is >= 0 on one interval). With the axis along x every row is kept and `row`
+  // clips nothing, as with the axis (nearly) in the layer.
+  bool layer(int k, int j0, int& lo, int& hi) {
+    j0_ = j0;
+    if (alongX_) return lo <= hi;
+    const geometry::Vec3 w(grid_.origin.x() - piece_.axisPoint.x(), grid_.origin.y() + j0 * vy_ - piece_.axisPoint.y(),
+                           grid_.origin.z() + k * grid_.voxelSize.z() - piece_.axisPoint.z());
+    const double we = w.dot(e_);
+    b0_ = vx_ * (w.x() - we * e_.x());
+    g0_ = w.squaredNorm() - we * we - piece_.reach * piece_.reach;
+    g1_ = 2.0 * vy_ * (w.y() - we * e_.y());
+    if (inLayer_) return lo <= hi;  // axis (nearly) in the layer: no bound in j
+    const double B = 2.0 * b0_ * b1_ - alpha_ * g1_, C = b0_ * b0_ - alpha_ * g0_;
+    const double disc = B * B - 4.0 * A_ * C;
+    if (disc < 0.0) return false;
+    const double root = std::sqrt(disc);
+    // A < 0: D(j) >= 0 between the roots (multiplying by 1 / 2A is as conservative as a division, see Slope).
+    lo = std::max(lo, j0 + clampToInt(std::ceil((-B + root) * inverse2A_ - kClipMargin)));
+    hi = std::min(hi, j0 + clampToInt(std::floor((-B - root) * inverse2A_ + kClipMargin)));
+    return lo <= hi;
+  }
+
+  // Row j of the current layer: narrows the bounds to the voxels inside the cylinder.
+  bool row(int j, RowBounds& b) const {
+    if (alongX_) return true;  // row (nearly) parallel to the axis: the other clips bound it
+    const double dj = j - j0_;
+    const double beta = b0_ + b1_ * dj, gamma = g0_ + (g1_ + g2_ * dj) * dj;
+    const double disc = beta * beta - alpha_ * gamma;
+    if (disc < 0.0) return false;
+    const double root = std::sqrt(disc);
+    b.lo = std::max(b.lo, (-beta - root) * inverseAlpha_);
+    b.hi = std::min(b.hi, (-beta + root) * inverseAlpha_);
+    return true;
+  }
+
+private:
+  const PrinterGrid& grid_;
+  const RodPiece& piece_;
+  const geometry::Vec3& e_;
+  double vx_, vy_, alpha_;
+  bool alongX_;
+  double inverseAlpha_;
+  double b1_, g2_, A_;  // the parts of the coefficients that do not depend on the layer
+  bool inLayer_;
+  double inverse2A_;
+  int j0_ = 0;
+  double b0_ = 0.0, g0_ = 0.0, g1_ = 0.0;
+};
+
 class LeafBuilder {
 public:
   LeafBuilder(const geometry::RodStructure& structure, const std::vector<RodPieces>& rods, const PrinterGrid& grid)
-      : structure_(structure), rods_(rods), grid_(grid) {}
+      : voxelsPerRod(structure.rods.size(), 0), structure_(structure), rods_(rods), grid_(grid),
+        deferredDepth_(structure.rods.size()) {
+    for (std::size_t r = 0; r < deferredDepth_.size(); ++r)
+      deferredDepth_[r] = structure.rods[r].section().shape != geometry::SectionShape::Rectangle;
+  }
 
   std::uint64_t exactEvaluations = 0;
+  std::vector<std::uint64_t> voxelsPerRod;  // filled slots won, per rod, over every block built
 
   // Slots hold a candidate of a rod the voxel lies in exactly where their bit in `filled_` is set:
-  // clearing a block costs 256 bytes, not the 48 KiB of slots.
+  // clearing a block costs 512 bytes, not the 96 KiB of slots.
   void clear() { filled_.fill(0); }
-  // Calls f(leaf, offset in that leaf, candidate) for every filled slot, in slot order.
-  template <typename F>
-  void forEachFilled(F&& f) const {
-    for (int w = 0; w < kWords; ++w)
-      for (std::uint64_t bits = filled_[w]; bits != 0; bits &= bits - 1) {
-        const int n = w * 64 + std::countr_zero(bits);
-        const int x = n & (kBlockX - 1), y = (n >> kBlockXLog2) & (kLeafDim - 1), z = n >> (kBlockXLog2 + kLeafLog2);
-        f(x >> kLeafLog2, ((x & (kLeafDim - 1)) << (2 * kLeafLog2)) | (y << kLeafLog2) | z, slots_[n]);
+  // Writes the block's filled slots into leaves; leaf(l) creates the block's l-th leaf along x.
+  // Slots are in the leaves' own order, so a leaf's value mask is its 8 words of `filled_`.
+  template <typename MakeLeaf>
+  void emit(MakeLeaf&& leaf) const {
+    constexpr int kLeafWords = kLeafVoxels / 64;
+    for (int l = 0; l < kBlockLeaves; ++l) {
+      const std::uint64_t* words = &filled_[static_cast<std::size_t>(l * kLeafWords)];
+      if (std::all_of(words, words + kLeafWords, [](std::uint64_t w) { return w == 0; })) continue;
+      LeafT& node = leaf(l);
+      float* values = node.buffer().data();
+      const float* slots = &value_[static_cast<std::size_t>(l * kLeafVoxels)];
+      for (int w = 0; w < kLeafWords; ++w) {
+        node.getValueMask().template getWord<std::uint64_t>(openvdb::Index(w)) = words[w];
+        if (words[w] == ~std::uint64_t(0)) {  // a full (y, z) slice, common inside the rods
+          std::copy_n(slots + w * 64, 64, values + w * 64);
+          continue;
+        }
+        for (std::uint64_t bits = words[w]; bits != 0; bits &= bits - 1) {
+          const int n = w * 64 + std::countr_zero(bits);
+          values[n] = slots[n];
+        }
       }
+    }
   }
 
   void addPiece(int rod, int pieceIndex, const openvdb::CoordBBox& box) {
@@ -130,58 +250,13 @@ public:
   }
 
 private:
-  // Slot of voxel (i, j, k) in its block, x fastest: a row's voxels are neighbours in memory and share
-  // a word of `filled_`.
+  // Slot of voxel (i, j, k) in its block: leaf by leaf along x, each in LeafNode order (z fastest), so
+  // (i & (kBlockX - 1)) << 6 is the leaf and x offset together and a voxel's bit of `filled_` is bit
+  // (j, k) of word i & (kBlockX - 1).
   static int offset(int i, int j, int k) {
-    return ((k & (kLeafDim - 1)) << (kBlockXLog2 + kLeafLog2)) | ((j & (kLeafDim - 1)) << kBlockXLog2) | (i & (kBlockX - 1));
+    return ((i & (kBlockX - 1)) << (2 * kLeafLog2)) | ((j & (kLeafDim - 1)) << kLeafLog2) | (k & (kLeafDim - 1));
   }
-
-  // The rows j of layer k that meet the infinite cylinder of radius `reach` around the piece's axis.
-  // With w the offset of a voxel centre from the axis point, a row meets the cylinder where the
-  // discriminant of |w|^2 - (w.e)^2 = reach^2 in i is >= 0: a quadratic in j whose leading
-  // coefficient works out to -(vx vy e_z)^2, so the rows form one interval (all rows when e_z = 0).
-  bool clipRowsToAxis(const RodPiece& piece, int k, int& lo, int& hi) const {
-    const double vx = grid_.voxelSize.x(), vy = grid_.voxelSize.y();
-    const geometry::Vec3& e = piece.axisDirection;
-    const geometry::Vec3 w(grid_.origin.x() - piece.axisPoint.x(), grid_.origin.y() - piece.axisPoint.y(),
-                           grid_.origin.z() + k * grid_.voxelSize.z() - piece.axisPoint.z());
-    const double alpha = vx * vx * (1.0 - e.x() * e.x());
-    if (alpha <= 1e-9 * vx * vx) return true;  // axis along x: clipToAxis returns every i; keep every j too
-    const double we = w.dot(e);
-    const double b0 = vx * (w.x() - we * e.x()), b1 = -vx * vy * e.y() * e.x();
-    const double g0 = w.squaredNorm() - we * we - piece.reach * piece.reach;
-    const double g1 = 2.0 * vy * (w.y() - we * e.y()), g2 = vy * vy * (1.0 - e.y() * e.y());
-    const double A = b1 * b1 - alpha * g2, B = 2.0 * b0 * b1 - alpha * g1, C = b0 * b0 - alpha * g0;
-    if (!(A < -1e-12 * vx * vx * vy * vy)) return true;  // axis (nearly) in the layer: no bound in j
-    const double disc = B * B - 4.0 * A * C;
-    if (disc < 0.0) return false;
-    const double root = std::sqrt(disc);
-    // A < 0: D(j) >= 0 between the roots.
-    lo = std::max(lo, clampToInt(std::ceil((-B + root) / (2.0 * A) - kClipMargin)));
-    hi = std::min(hi, clampToInt(std::floor((-B - root) / (2.0 * A) + kClipMargin)));
-    return lo <= hi;
-  }
-
-  // The row (j, k) restricted to the infinite cylinder of radius `reach` around the piece's axis.
-  bool clipToAxis(const RodPiece& piece, int j, int k, int& lo, int& hi) const {
-    const double vx = grid_.voxelSize.x();
-    const geometry::Vec3 w0(grid_.origin.x() - piece.axisPoint.x(), grid_.origin.y() + j * grid_.voxelSize.y() - piece.axisPoint.y(),
-                            grid_.origin.z() + k * grid_.voxelSize.z() - piece.axisPoint.z());
-    const geometry::Vec3& e = piece.axisDirection;
-    const double we = w0.dot(e);
-    // |w0 + i s|^2 - ((w0 + i s) . e)^2 <= reach^2 with s = (vx, 0, 0): alpha i^2 + 2 beta i + gamma <= 0.
-    const double alpha = vx * vx * (1.0 - e.x() * e.x());
-    const double beta = vx * (w0.x() - we * e.x());
-    const double gamma = w0.squaredNorm() - we * we - piece.reach * piece.reach;
-    if (alpha <= 1e-9 * vx * vx) return true;  // row (nearly) parallel to the axis: the other clips bound it
-    const double disc = beta * beta - alpha * gamma;
-    if (disc < 0.0) return false;
-    const double root = std::sqrt(disc);
-    lo = std::max(lo, clampToInt(std::ceil((-beta - root) / alpha - kClipMargin)));
-    hi = std::min(hi, clampToInt(std::floor((-beta + root) / alpha + kClipMargin)));
-    return lo <= hi;
-  }
-
+  static std::uint64_t owner(int rod, int piece) { return (std::uint64_t(std::uint32_t(rod)) << 32) | std::uint32_t(piece); }
   Candidate exact(int rod, int pieceIndex, int i, int j, int k) {
     ++exactEvaluations;
     const openvdb::Vec3d p = grid_.worldPoint(openvdb::Coord(i, j, k));
@@ -191,34 +266,87 @@ private:
     return {hit.depth, 0.0f, static_cast<float>(r.modulus().value(hit.u)), rod, pieceIndex};
   }
 
-  // The overlap rule. Near ties between approximate depths are settled on exact depths, so the
-  // winner is the one the exact test would pick; depths within kTieTolerance are equal (lower rod
-  // wins), which spares the exact test where round caps of rods meeting at a node coincide.
-  void offer(Candidate c, int i, int j, int k) {
-    const int n = offset(i, j, k);
+  // A slot's key is its depth, except for approximate claims of rods with round sections
+  // (band > 0 and deferredDepth_), where it is the gauge squared: the square root is only taken when
+  // another claim contests the voxel, and it is the same expression the depth always came from.
+  // Approximate claims always have band > 0 (normalizedRadiusBand has a 1e-12 floor) and exact ones 0.
+  double depthOf(double key, float band, int rod) const {
+    return band > 0.0f && deferredDepth_[static_cast<std::size_t>(rod)] ? 1.0 - std::sqrt(key) : key;
+  }
+  void store(int n, double key, float band, float value, std::uint64_t who) {
+    key_[n] = key;
+    band_[n] = band;
+    value_[n] = value;
+    owner_[n] = who;
+  }
+
+  // An approximate claim that is inside for sure (key as in depthOf). The common case, an unclaimed
+  // voxel, is a plain store, and returns 1 for the caller to add to the rod's tally; a claimed one
+  // goes through the overlap rule.
+  int claim(int n, double key, float band, float value, int rod, int piece, int i, int j, int k) {
     std::uint64_t& word = filled_[n >> 6];
     const std::uint64_t bit = std::uint64_t(1) << (n & 63);
-    Candidate& s = slots_[n];
+    if (!(word & bit)) {
+      store(n, key, band, value, owner(rod, piece));
+      word |= bit;
+      return 1;
+    }
+    contest(n, {depthOf(key, band, rod), band, value, rod, piece}, key, i, j, k);
+    return 0;
+  }
+  // A claim with its depth at hand (exact, or caps), possibly outside.
+  void offer(const Candidate& c, int n, int i, int j, int k) {
+    std::uint64_t& word = filled_[n >> 6];
+    const std::uint64_t bit = std::uint64_t(1) << (n & 63);
     if (!(word & bit)) {
       if (c.inside()) {
-        s = c;
+        store(n, c.depth, c.band, c.value, owner(c.rod, c.piece));
         word |= bit;
+        ++voxelsPerRod[static_cast<std::size_t>(c.rod)];
       }
       return;
     }
+    contest(n, c, c.depth, i, j, k);
+  }
+
+  // The overlap rule between filled slot n and candidate c (cKey: c's key). Near ties between
+  // approximate depths are settled on exact depths, so the winner is the one the exact test would
+  // pick; depths within kTieTolerance are equal (lower rod wins), which spares the exact test where
+  // round caps of rods meeting at a node coincide.
+  [[gnu::noinline]] void contest(int n, Candidate c, double cKey, int i, int j, int k) {
+    const int sRod = static_cast<int>(owner_[n] >> 32);
+    Candidate s{depthOf(key_[n], band_[n], sRod), band_[n], value_[n], sRod, static_cast<int>(owner_[n] & 0xffffffffu)};
+    double sKey = key_[n];
+    bool sChanged = false;
     if (std::abs(s.depth - c.depth) <= double(s.band) + double(c.band) + kTieTolerance && (s.band > 0.0f || c.band > 0.0f)) {
-      if (s.band > 0.0f) s = exact(s.rod, s.piece, i, j, k);
-      if (c.band > 0.0f) c = exact(c.rod, c.piece, i, j, k);
+      if (s.band > 0.0f) {
+        s = exact(s.rod, s.piece, i, j, k);
+        sKey = s.depth;
+        sChanged = true;
+      }
+      if (c.band > 0.0f) {
+        c = exact(c.rod, c.piece, i, j, k);
+        cKey = c.depth;
+      }
       if (!s.inside()) {  // the exact test overturned the approximate claim
-        if (c.inside()) s = c;
-        else word &= ~bit;
+        --voxelsPerRod[static_cast<std::size_t>(sRod)];
+        if (c.inside()) {
+          store(n, cKey, c.band, c.value, owner(c.rod, c.piece));
+          ++voxelsPerRod[static_cast<std::size_t>(c.rod)];
+        } else {
+          filled_[n >> 6] &= ~(std::uint64_t(1) << (n & 63));
+        }
         return;
       }
     }
-    if (!c.inside()) return;
     const double gain = c.depth - s.depth;
-    if (gain > kTieTolerance || (gain >= -kTieTolerance && (c.rod < s.rod || (c.rod == s.rod && c.piece < s.piece))))
-      s = c;
+    if (c.inside() &&
+        (gain > kTieTolerance || (gain >= -kTieTolerance && (c.rod < s.rod || (c.rod == s.rod && c.piece < s.piece))))) {
+      store(n, cKey, c.band, c.value, owner(c.rod, c.piece));
+      --voxelsPerRod[static_cast<std::size_t>(s.rod)];
+      ++voxelsPerRod[static_cast<std::size_t>(c.rod)];
+    } else if (sChanged)
+      store(n, sKey, s.band, s.value, owner(s.rod, s.piece));
   }
 
   void sweep(int rod, int pieceIndex, const RodPiece& piece, const openvdb::CoordBBox& box) {
@@ -243,44 +371,65 @@ private:
     if (!clipHalfLine(planeA.c + aMaxI + extreme(planeA.gy, bmin.y(), bmax.y(), true), planeA.gz, kLo, kHi) ||
         !clipHalfLine(-(planeB.c + bMinI + extreme(planeB.gy, bmin.y(), bmax.y(), false)), -planeB.gz, kLo, kHi))
       return;
+    AxisCylinder cylinder(grid_, piece);
+    const Slope slopeA(planeA.gx), slopeB(-planeB.gx), slopeAy(planeA.gy), slopeBy(-planeB.gy);
     for (int k = kLo; k <= kHi; ++k) {
       int jLo = bmin.y(), jHi = bmax.y();
-      if (!clipHalfLine(planeA.c + planeA.gz * k + aMaxI, planeA.gy, jLo, jHi) ||
-          !clipHalfLine(-(planeB.c + planeB.gz * k + bMinI), -planeB.gy, jLo, jHi) || !clipRowsToAxis(piece, k, jLo, jHi))
+      if (!slopeAy.clip(planeA.c + planeA.gz * k + aMaxI, jLo, jHi) || !slopeBy.clip(-(planeB.c + planeB.gz * k + bMinI), jLo, jHi) ||
+          !cylinder.layer(k, bmin.y(), jLo, jHi))
         continue;
       for (int j = jLo; j <= jHi; ++j) {
         const double aRow = planeA.row(j, k), bRow = planeB.row(j, k);
+        RowBounds bounds;
         int lo = bmin.x(), hi = bmax.x();
-        if (!clipHalfLine(aRow, planeA.gx, lo, hi) || !clipHalfLine(-bRow, -planeB.gx, lo, hi) ||
-            !clipToAxis(piece, j, k, lo, hi))
+        if (!slopeA.bound(aRow, bounds.lo, bounds.hi) || !slopeB.bound(-bRow, bounds.lo, bounds.hi) ||
+            !cylinder.row(j, bounds) || !bounds.round(lo, hi))
           continue;
         const double x1aRow = piece.x1Begin.row(j, k), x2aRow = piece.x2Begin.row(j, k);
         const double x1bRow = piece.x1End.row(j, k), x2bRow = piece.x2End.row(j, k);
-        for (int i = lo; i <= hi; ++i) {
-          const double a = aRow + planeA.gx * i, b = bRow + planeB.gx * i;
-          if (!(a >= 0.0 && b < 0.0)) continue;
-          const detail::SweptEstimate e =
-              detail::estimateSwept(piece, a, b, x1aRow + piece.x1Begin.gx * i, x2aRow + piece.x2Begin.gx * i,
-                                    x1bRow + piece.x1End.gx * i, x2bRow + piece.x2End.gx * i);
-          double gauge;
-          bool sureInside, sureOutside;
-          if (rectangle) {
-            gauge = std::max(std::abs(e.x1) * iA, std::abs(e.x2) * iB);
-            sureOutside = gauge > outer;
-            sureInside = gauge < inner;
-          } else {
-            const double g2 = (e.x1 * iA) * (e.x1 * iA) + (e.x2 * iB) * (e.x2 * iB);
-            sureOutside = g2 > outerSq;
-            sureInside = g2 < innerSq;
-            gauge = sureInside ? std::sqrt(g2) : 0.0;
+        const int rowSlot = offset(0, j, k);
+        std::uint64_t fresh = 0;
+        // Two voxels at a time (see estimateSwept); the decisions per voxel.
+        for (int i = lo; i <= hi; i += 2) {
+          const Double2 iv = double(i) + Double2{0.0, 1.0};
+          const Double2 av = aRow + planeA.gx * iv, bv = bRow + planeB.gx * iv;
+          const detail::SweptEstimateOf<Double2> e =
+              detail::estimateSwept(piece, av, bv, x1aRow + piece.x1Begin.gx * iv, x2aRow + piece.x2Begin.gx * iv,
+                                    x1bRow + piece.x1End.gx * iv, x2bRow + piece.x2End.gx * iv);
+          const Double2 g2v = (e.x1 * iA) * (e.x1 * iA) + (e.x2 * iB) * (e.x2 * iB);
+          const Double2 modulus = detail::estimateModulus(piece, e.lambda);
+          // The common case, both voxels in the slab and inside for sure, without a branch per test.
+          const auto sure = (av >= 0.0) & (bv < 0.0) & (g2v < innerSq);
+          if (!rectangle && i < hi && (sure[0] & sure[1])) {
+            const int n0 = rowSlot | ((i & (kBlockX - 1)) << (2 * kLeafLog2));
+            const int n1 = rowSlot | (((i + 1) & (kBlockX - 1)) << (2 * kLeafLog2));
+            fresh += claim(n0, g2v[0], floatBand, static_cast<float>(modulus[0]), rod, pieceIndex, i, j, k);
+            fresh += claim(n1, g2v[1], floatBand, static_cast<float>(modulus[1]), rod, pieceIndex, i + 1, j, k);
+            continue;
           }
-          if (sureOutside) continue;
-          if (sureInside)
-            offer({1.0 - gauge, floatBand, static_cast<float>(detail::estimateModulus(piece, e.lambda)), rod, pieceIndex},
-                  i, j, k);
-          else
-            offer(exact(rod, pieceIndex, i, j, k), i, j, k);
+          for (int l = 0; l < 2 && i + l <= hi; ++l) {
+            if (!(av[l] >= 0.0 && bv[l] < 0.0)) continue;
+            double key;  // see depthOf
+            bool sureInside, sureOutside;
+            if (rectangle) {
+              const double gauge = std::max(std::abs(e.x1[l]) * iA, std::abs(e.x2[l]) * iB);
+              sureOutside = gauge > outer;
+              sureInside = gauge < inner;
+              key = 1.0 - gauge;
+            } else {
+              key = g2v[l];
+              sureOutside = key > outerSq;
+              sureInside = key < innerSq;
+            }
+            if (sureOutside) continue;
+            const int n = rowSlot | (((i + l) & (kBlockX - 1)) << (2 * kLeafLog2));
+            if (sureInside)
+              fresh += claim(n, key, floatBand, static_cast<float>(modulus[l]), rod, pieceIndex, i + l, j, k);
+            else
+              offer(exact(rod, pieceIndex, i + l, j, k), n, i + l, j, k);
+          }
         }
+        voxelsPerRod[static_cast<std::size_t>(rod)] += fresh;
       }
     }
   }
@@ -297,18 +446,23 @@ private:
     const double invCap = rp.inverseCapRadius;
     constexpr double kCapBand = 1e-9;  // round-off in the cap's distance, relative to its radius
     const float endModulus = static_cast<float>(r.modulus().value(atEnd ? r.modulus().domainEnd() : r.modulus().domainBegin()));
+    AxisCylinder cylinder(grid_, piece);
+    const Slope slope(sign * plane.gx);
     for (int k = box.min().z(); k <= box.max().z(); ++k) {
-      for (int j = box.min().y(); j <= box.max().y(); ++j) {
+      int jLo = box.min().y(), jHi = box.max().y();
+      if (!cylinder.layer(k, jLo, jLo, jHi)) continue;
+      for (int j = jLo; j <= jHi; ++j) {
         const double aRow = plane.row(j, k);
+        RowBounds bounds;
         int lo = box.min().x(), hi = box.max().x();
-        if (!clipHalfLine(sign * aRow, sign * plane.gx, lo, hi) || !clipToAxis(piece, j, k, lo, hi)) continue;
+        if (!slope.bound(sign * aRow, bounds.lo, bounds.hi) || !cylinder.row(j, bounds) || !bounds.round(lo, hi)) continue;
         const double wy = piece.capOffset[1].row(j, k), wz = piece.capOffset[2].row(j, k);
         const double wyz = wy * wy + wz * wz;
         for (int i = lo; i <= hi; ++i) {
           const double a = aRow + plane.gx * i;
           if (atEnd ? !(a >= 0.0) : !(a < 0.0)) continue;
           if (std::abs(a) <= nearPlane) {
-            offer(exact(rod, pieceIndex, i, j, k), i, j, k);
+            offer(exact(rod, pieceIndex, i, j, k), offset(i, j, k), i, j, k);
             continue;
           }
           if (!round) continue;
@@ -318,9 +472,9 @@ private:
           // Inside for sure; the depth's round-off (1e-9 of the radius at most) is within the tie
           // tolerance, so it counts as exact.
           if (g < 1.0 - kCapBand)
-            offer({1.0 - g, 0.0f, endModulus, rod, pieceIndex}, i, j, k);
+            offer({1.0 - g, 0.0f, endModulus, rod, pieceIndex}, offset(i, j, k), i, j, k);
           else
-            offer(exact(rod, pieceIndex, i, j, k), i, j, k);
+            offer(exact(rod, pieceIndex, i, j, k), offset(i, j, k), i, j, k);
         }
       }
     }
@@ -329,8 +483,14 @@ private:
   const geometry::RodStructure& structure_;
   const std::vector<RodPieces>& rods_;
   const PrinterGrid& grid_;
+  std::vector<bool> deferredDepth_;  // per rod: round section (see depthOf)
   static constexpr int kWords = kBlockVoxels / 64;
-  std::array<Candidate, kBlockVoxels> slots_{};
+  static_assert(kWords == kBlockX, "a word of filled_ per x in the block: the bits of a leaf's (y, z)");
+  // The slots, field by field (24 bytes a voxel), read only where `filled_` says they were written:
+  // left uninitialized, so that setting up a builder does not touch their 96 KiB.
+  std::array<double, kBlockVoxels> key_;
+  std::array<float, kBlockVoxels> band_, value_;
+  std::array<std::uint64_t, kBlockVoxels> owner_;
   std::array<std::uint64_t, kWords> filled_{};
 };
 
@@ -408,16 +568,12 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
   // Each block built by one task from its pieces, in sorted order.
   struct ThreadState {
     std::unique_ptr<LeafBuilder> builder;
-    std::vector<std::uint64_t> voxelsPerRod;
   };
   tbb::enumerable_thread_specific<ThreadState> states;
   std::vector<std::array<std::unique_ptr<LeafT>, kBlockLeaves>> leaves(groups);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, groups), [&](const tbb::blocked_range<std::size_t>& range) {
     ThreadState& state = states.local();
-    if (!state.builder) {
-      state.builder = std::make_unique<LeafBuilder>(*structure_, rods_, grid_);
-      state.voxelsPerRod.assign(rods_.size(), 0);
-    }
+    if (!state.builder) state.builder.reset(new LeafBuilder(*structure_, rods_, grid_));  // default-initialized slots
     LeafBuilder& builder = *state.builder;
     for (std::size_t g = range.begin(); g != range.end(); ++g) {
       const openvdb::Coord origin = blockOrigin(entries[groupStart[g]].block);
@@ -435,18 +591,16 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
       }
       if (!touched) continue;
       auto& blockLeaves = leaves[g];
-      builder.forEachFilled([&](int leafInBlock, int offset, const Candidate& c) {
-        std::unique_ptr<LeafT>& leaf = blockLeaves[static_cast<std::size_t>(leafInBlock)];
-        if (!leaf) leaf = std::make_unique<LeafT>(origin.offsetBy(leafInBlock * kLeafDim, 0, 0), 0.0f, false);
-        leaf->setValueOn(openvdb::Index(offset), c.value);
-        ++state.voxelsPerRod[c.rod];
+      builder.emit([&](int l) -> LeafT& {
+        blockLeaves[static_cast<std::size_t>(l)] = std::make_unique<LeafT>(origin.offsetBy(l * kLeafDim, 0, 0), 0.0f, false);
+        return *blockLeaves[static_cast<std::size_t>(l)];
       });
     }
   });
 
   for (ThreadState& s : states) {
     out.exactEvaluations += s.builder->exactEvaluations;
-    for (std::size_t r = 0; r < rods_.size(); ++r) out.voxelsPerRod[r] += s.voxelsPerRod[r];
+    for (std::size_t r = 0; r < rods_.size(); ++r) out.voxelsPerRod[r] += s.builder->voxelsPerRod[r];
   }
   openvdb::FloatTree& tree = out.grid->tree();
   for (auto& blockLeaves : leaves)

@@ -12,7 +12,7 @@
 //
 // How (fast and still exact): each rod is cut by normal planes of its centerline into short pieces
 // with a cheap approximation of a point's frame coordinates and a measured error bound (see
-// rod_pieces.hpp). Work is binned by blocks of four OpenVDB leaves along x (32 x 8 x 8 voxels); each
+// rod_pieces.hpp). Work is binned by blocks of eight OpenVDB leaves along x (64 x 8 x 8 voxels); each
 // block is built by one task from the pieces that reach it, so no locks and no merging of trees. Voxel centres whose
 // approximate position is within the error bound of a section boundary, of an end plane, or of a
 // near tie between two rods are decided by the exact test.

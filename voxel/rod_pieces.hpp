@@ -64,18 +64,24 @@ struct RodPieces {
 RodPieces buildRodPieces(const geometry::Rod& rod, const PrinterGrid& grid);
 
 // The swept-piece approximation at a point with plane values a >= 0 > b and frame coordinates
-// measured in the begin and end planes; shared by the rasterizer and the error measurement.
-struct SweptEstimate {
-  double lambda, x1, x2;
+// measured in the begin and end planes; shared by the rasterizer and the error measurement. T is
+// double, or a vector of doubles (GCC vector extension) for several voxels at once: the same IEEE
+// operations lane by lane, so every lane gets the bits the scalar expressions give (as long as the
+// compiler fuses no multiply-add, as on baseline x86-64, which has no FMA).
+template <typename T>
+struct SweptEstimateOf {
+  T lambda, x1, x2;
 };
-inline SweptEstimate estimateSwept(const RodPiece& piece, double a, double b, double x1Begin, double x2Begin,
-                                   double x1End, double x2End) {
-  const double lambda = a / (a - b);
-  const double bow = lambda * (1.0 - lambda);
+using SweptEstimate = SweptEstimateOf<double>;
+template <typename T>
+inline SweptEstimateOf<T> estimateSwept(const RodPiece& piece, T a, T b, T x1Begin, T x2Begin, T x1End, T x2End) {
+  const T lambda = a / (a - b);
+  const T bow = lambda * (1.0 - lambda);
   return {lambda, x1Begin + lambda * (x1End - x1Begin) + bow * piece.x1Bow,
           x2Begin + lambda * (x2End - x2Begin) + bow * piece.x2Bow};
 }
-inline double estimateModulus(const RodPiece& piece, double lambda) {
+template <typename T>
+inline T estimateModulus(const RodPiece& piece, T lambda) {
   return piece.modulusBegin + lambda * (piece.modulusEnd - piece.modulusBegin) +
          lambda * (1.0 - lambda) * piece.modulusBow;
 }
