@@ -155,10 +155,16 @@ void chainEnd(const Basis& b, const Eigen::Matrix<double, Eigen::Dynamic, 14>& d
 
 }  // namespace
 
+// One block of rows: an interior collocation point of a rod, or a node (rod < 0, point = node index).
+struct WorkItem {
+  int rod, point;
+};
+
 struct StaticProblem::Model {
   std::string source;
   std::vector<RodModel> rods;
   std::vector<Node> nodes;
+  std::vector<WorkItem> items;  // every interior collocation point, then every node
   std::size_t unknowns = 0, joints = 0, supports = 0;
   double size = 1.0;  // structure's bounding-box diagonal
   Eigen::VectorXd reference;
@@ -421,22 +427,14 @@ void StaticProblem::Model::buildNodes(const geometry::RodStructure& structure) {
   if (supports == 0)
     fail("mechanics.supports", "no support: the structure could move as a rigid body; clamp or pin at least one rod end");
 
-  // Every connected part of the structure needs a support of its own.
-  std::vector<int> part(nodes.size());
-  std::iota(part.begin(), part.end(), 0);
-  std::function<int(int)> root = [&](int i) { return part[i] == i ? i : part[i] = root(part[i]); };
-  std::vector<int> nodeOfEnd(endCount);
-  for (std::size_t n = 0; n < nodes.size(); ++n)
-    for (const EndId& e : nodes[n].ends) nodeOfEnd[endIndex(e)] = static_cast<int>(n);
-  for (std::size_t r = 0; r < rods.size(); ++r) {
-    const int a = root(nodeOfEnd[2 * r]), b = root(nodeOfEnd[2 * r + 1]);
-    if (a != b) part[std::max(a, b)] = std::min(a, b);
-  }
-  std::vector<bool> held(nodes.size(), false);
-  for (std::size_t n = 0; n < nodes.size(); ++n)
-    if (nodes[n].hold != Hold::None) held[root(static_cast<int>(n))] = true;
+  // Every connected part of the structure needs a support of its own: joining each rod's two ends
+  // in the same union-find turns the joints into connected parts.
+  for (std::size_t r = 0; r < rods.size(); ++r) unite(static_cast<int>(2 * r), static_cast<int>(2 * r + 1));
+  std::vector<bool> held(endCount, false);
+  for (const Node& node : nodes)
+    if (node.hold != Hold::None) held[find(endIndex(node.ends.front()))] = true;
   for (std::size_t r = 0; r < rods.size(); ++r)
-    if (!held[root(nodeOfEnd[2 * r])])
+    if (!held[find(static_cast<int>(2 * r))])
       fail("mechanics.supports", "rod \"" + rods[r].name + "\" belongs to a part of the structure without any support "
                                  "(it is not joined to a supported rod); support it or join it");
 
@@ -625,6 +623,9 @@ StaticProblem::StaticProblem(const geometry::RodStructure& structure, const Disc
   for (std::size_t i = 0; i < structure.rods.size(); ++i) m.buildRod(structure, i, discretization);
   m.size = std::max(1e-12, structure.bounds().diagonal().norm());
   m.buildNodes(structure);
+  for (std::size_t r = 0; r < m.rods.size(); ++r)
+    for (int j = 1; j + 1 < m.rods[r].count; ++j) m.items.push_back({static_cast<int>(r), j});
+  for (std::size_t n = 0; n < m.nodes.size(); ++n) m.items.push_back({-1, static_cast<int>(n)});
 }
 
 StaticProblem::~StaticProblem() = default;
@@ -644,12 +645,7 @@ void StaticProblem::evaluate(const Eigen::VectorXd& x, double load, Eigen::Vecto
   const Model& m = *model_;
   if (static_cast<std::size_t>(x.size()) != m.unknowns) throw std::invalid_argument("StaticProblem::evaluate: wrong state size");
   residual.resize(x.size());
-  // Work items: every interior collocation point, then every node.
-  struct Item { int rod, point; };
-  std::vector<Item> items;
-  for (std::size_t r = 0; r < m.rods.size(); ++r)
-    for (int j = 1; j + 1 < m.rods[r].count; ++j) items.push_back({static_cast<int>(r), j});
-  for (std::size_t n = 0; n < m.nodes.size(); ++n) items.push_back({-1, static_cast<int>(n)});
+  const std::vector<WorkItem>& items = m.items;
   std::vector<Block> blocks(jacobian ? items.size() : 0);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, items.size(), 64), [&](const tbb::blocked_range<std::size_t>& range) {
     for (std::size_t i = range.begin(); i != range.end(); ++i) {

@@ -58,13 +58,9 @@ int runSimulate(const std::vector<std::string>& args) {
   const bool json = vm.count("json") > 0;
 
   const std::string file = vm["design"].as<std::string>(), output = vm["output"].as<std::string>();
-  geometry::RodStructure design;
-  try {
-    design = geometry::readDesign(file);
-  } catch (const geometry::DesignError& e) {
-    std::cerr << e.what() << '\n' << file << ": the design is not valid; nothing was written\n";
-    return kFailed;
-  }
+  const std::optional<geometry::RodStructure> read = readDesignOrReport(file, "nothing was written");
+  if (!read) return kFailed;
+  const geometry::RodStructure& design = *read;
   const std::filesystem::path outDir = std::filesystem::path(output).parent_path();
   if (!outDir.empty() && !std::filesystem::is_directory(outDir)) {
     std::cerr << output << ": cannot write: the folder " << outDir.string() << " does not exist\n";

@@ -71,13 +71,9 @@ int runSlice(const std::vector<std::string>& args) {
 
   // Inputs: every one is checked before anything is written.
   const std::string designFile = vm["design"].as<std::string>();
-  geometry::RodStructure design;
-  try {
-    design = geometry::readDesign(designFile);
-  } catch (const geometry::DesignError& e) {
-    std::cerr << e.what() << '\n' << designFile << ": the design is not valid; no job was written\n";
-    return kFailed;
-  }
+  const std::optional<geometry::RodStructure> read = readDesignOrReport(designFile, "no job was written");
+  if (!read) return kFailed;
+  const geometry::RodStructure& design = *read;
   printer_profiles::Profile profile;
   try {
     profile = printer_profiles::loadProfile(vm["profile"].as<std::string>());

@@ -53,13 +53,9 @@ int runVoxelize(const std::vector<std::string>& args) {
   if (!threadsOption) return kUsage;
   const int threads = *threadsOption;
   const std::string file = vm["design"].as<std::string>(), output = vm["output"].as<std::string>();
-  geometry::RodStructure design;
-  try {
-    design = geometry::readDesign(file);
-  } catch (const geometry::DesignError& e) {
-    std::cerr << e.what() << '\n' << file << ": the design is not valid; nothing was written\n";
-    return kFailed;
-  }
+  const std::optional<geometry::RodStructure> read = readDesignOrReport(file, "nothing was written");
+  if (!read) return kFailed;
+  const geometry::RodStructure& design = *read;
 
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();

@@ -2,6 +2,8 @@
 
 #include "slicer/command.hpp"
 
+#include "geometry/design_file.hpp"
+
 #include <iostream>
 
 namespace rodfab::cli {
@@ -28,6 +30,15 @@ std::optional<int> parseOptions(const std::string& command, const std::string& s
 int usageError(const std::string& command, const std::string& message) {
   std::cerr << "rodfab " << command << ": " << message << "\n(rodfab " << command << " --help lists the options)\n";
   return kUsage;
+}
+
+std::optional<geometry::RodStructure> readDesignOrReport(const std::string& file, const std::string& consequence) {
+  try {
+    return geometry::readDesign(file);
+  } catch (const geometry::DesignError& e) {
+    std::cerr << e.what() << '\n' << file << ": the design is not valid; " << consequence << '\n';
+    return std::nullopt;
+  }
 }
 
 std::optional<int> threadCount(const std::string& command, const po::variables_map& vm) {

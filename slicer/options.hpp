@@ -1,6 +1,8 @@
 // Shared Boost.Program_options plumbing for the subcommands: --help and consistent usage errors.
 #pragma once
 
+#include "geometry/rod.hpp"
+
 #include <boost/program_options.hpp>
 
 #include <optional>
@@ -19,6 +21,10 @@ std::optional<int> parseOptions(const std::string& command, const std::string& s
 
 // Prints "rodfab COMMAND: MESSAGE" and where the options are listed; returns kUsage.
 int usageError(const std::string& command, const std::string& message);
+
+// Reads a design for a command that writes something. On an invalid design prints its errors and
+// "FILE: the design is not valid; CONSEQUENCE" and returns nullopt (the command exits kFailed).
+std::optional<geometry::RodStructure> readDesignOrReport(const std::string& file, const std::string& consequence);
 
 // The --threads value: 0 (all cores) or a positive count; nullopt (after a usage error) otherwise.
 std::optional<int> threadCount(const std::string& command, const po::variables_map& vm);
