@@ -1,6 +1,7 @@
 #include "calibration/calibration_file.hpp"
 
-#include "calibration/atomic_write.hpp"
+#include "common/json_input.hpp"
+#include "common/output_file.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -249,20 +250,22 @@ Calibration calibrationFromJson(const json& j, const std::string& sourceName) {
 }
 
 void writeCalibration(const Calibration& calibration, const std::filesystem::path& file) {
-  writeFileAtomically(file, calibrationToJson(calibration).dump(2) + "\n");
+  common::writeFileAtomically(file, calibrationToJson(calibration).dump(2) + "\n");
+}
+
+bool isCalibrationFile(const std::filesystem::path& file) {
+  return common::fileStartsWith(file, "{", std::string("\"") + kCalibrationFormat + "\"", 256);
 }
 
 Calibration readCalibration(const std::filesystem::path& file, std::string* sha256) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw CalibrationFileError(file.string(), "", "cannot open the file for reading");
-  std::ostringstream bytes;
-  bytes << in.rdbuf();
-  const std::string text = std::move(bytes).str();
-  if (sha256) *sha256 = sha256Hex(text);
   json j;
   try {
-    j = json::parse(text);
-  } catch (const json::exception& e) {  // parse_error, or out_of_range for a number too large (1e400)
+    const std::string text = common::readBoundedFile(file.string());
+    if (sha256) *sha256 = sha256Hex(text);
+    j = common::parseJsonStrict(text);
+  } catch (const common::JsonInputError& e) {
+    throw CalibrationFileError(file.string(), e.path, e.message);
+  } catch (const json::exception& e) {  // out_of_range for a number too large (1e400)
     throw CalibrationFileError(file.string(), "", std::string("not valid JSON: ") + e.what());
   }
   return calibrationFromJson(j, file.string());

@@ -25,6 +25,10 @@ Calibration calibrationFromJson(const nlohmann::json& json, const std::string& s
 
 // Written under a temporary name and renamed, so no reader sees half a file.
 void writeCalibration(const Calibration& calibration, const std::filesystem::path& file);
+
+// True when `file` is a regular file that starts as writeCalibration writes (the format tag near its
+// start): what `calibrate --output` may replace.
+bool isCalibrationFile(const std::filesystem::path& file);
 // With `sha256`, also the checksum of the bytes that were parsed (what a job records as its calibration).
 Calibration readCalibration(const std::filesystem::path& file, std::string* sha256 = nullptr);
 

@@ -1,5 +1,7 @@
 #include "calibration/data.hpp"
 
+#include "common/json_input.hpp"
+
 #include <boost/algorithm/string/case_conv.hpp>
 #include <boost/algorithm/string/trim.hpp>
 #include <boost/tokenizer.hpp>
@@ -188,12 +190,13 @@ DataSet parseData(std::string_view text, const std::string& sourceName) {
 }
 
 DataSet readData(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw DataError(file.string(), {{0, "cannot open the file for reading"}});
-  std::ostringstream bytes;
-  bytes << in.rdbuf();
-  if (in.bad()) throw DataError(file.string(), {{0, "read failed"}});
-  return parseData(bytes.str(), file.string());
+  std::string text;
+  try {
+    text = common::readBoundedFile(file.string(), kMaxDataBytes);
+  } catch (const common::JsonInputError& e) {
+    throw DataError(file.string(), {{0, e.message}});
+  }
+  return parseData(text, file.string());
 }
 
 std::string sha256Hex(std::string_view bytes) {

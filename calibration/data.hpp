@@ -45,7 +45,10 @@ private:
   std::vector<DataIssue> issues_;
 };
 
-// Throws DataError (also for an unreadable file, with line 0).
+// DMA data sets are a few thousand rows; a larger file is refused before it is read whole.
+inline constexpr std::size_t kMaxDataBytes = std::size_t{64} << 20;
+
+// Throws DataError (also for an unreadable or oversized file, with line 0).
 DataSet readData(const std::filesystem::path& file);
 // `sourceName` names the text in messages and in DataSet::source.
 DataSet parseData(std::string_view text, const std::string& sourceName);

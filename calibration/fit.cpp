@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <limits>
 #include <map>
+#include <optional>
 #include <set>
 
 namespace rodfab::calibration {
@@ -74,7 +75,20 @@ struct ExponentFit {
   bool atSearchEdge;
 };
 
-ExponentFit fitExponent(Model model, const std::vector<Group>& groups) {
+// The sum of squares in ln E over every measurement, up to a constant: each group's replicates
+// scatter about their mean ln E independently of the model, so a group counts as its mean weighted by
+// its size (one evaluation per fraction, not per row).
+double groupedSquares(const Calibration& c, const std::vector<Group>& groups) {
+  double sum = 0.0;
+  for (const Group& g : groups) {
+    const double r = g.meanLn - c.lnModulus(g.fraction);
+    sum += static_cast<double>(g.rows.size()) * r * r;
+  }
+  return sum;
+}
+
+// Minimizes over [lo, hi] of the search variable; `near` skips the scan (a refit from a nearby optimum).
+ExponentFit fitExponent(Model model, const std::vector<Group>& groups, std::optional<double> near = std::nullopt) {
   ModelParameters p;
   p.model = model;
   p.tangoModulusMpa = meanModulus(groups.front());
@@ -82,37 +96,40 @@ ExponentFit fitExponent(Model model, const std::vector<Group>& groups) {
   const Search range = searchRange(model);
   const auto sumOfSquares = [&](double variable) {
     p.exponent = range.logExponent ? std::exp(variable) : variable;
-    const Calibration c = evaluator(p);
-    double sum = 0.0;
-    for (const Group& g : groups)
-      for (const Measurement* m : g.rows) {
-        const double r = std::log(m->modulusMpa) - c.lnModulus(m->veroFraction);
-        sum += r * r;
-      }
-    return sum;
+    return groupedSquares(evaluator(p), groups);
   };
   // The scan finds the basin of the global minimum even if the sum of squares has several; Brent then
   // polishes within the two neighbouring scan intervals.
   constexpr int kScan = 160;
   const double step = (range.hi - range.lo) / kScan;
-  int best = 0;
-  double bestValue = std::numeric_limits<double>::infinity();
-  for (int k = 0; k <= kScan; ++k) {
-    const double value = sumOfSquares(range.lo + k * step);
-    if (value < bestValue) bestValue = value, best = k;
+  double lo, hi;
+  if (near) {
+    const double v = range.logExponent ? std::log(*near) : *near;
+    lo = std::max(range.lo, v - step), hi = std::min(range.hi, v + step);
+  } else {
+    int best = 0;
+    double bestValue = std::numeric_limits<double>::infinity();
+    for (int k = 0; k <= kScan; ++k) {
+      const double value = sumOfSquares(range.lo + k * step);
+      if (value < bestValue) bestValue = value, best = k;
+    }
+    lo = range.lo + std::max(best - 1, 0) * step;
+    hi = range.lo + std::min(best + 1, kScan) * step;
   }
-  const double lo = range.lo + std::max(best - 1, 0) * step;
-  const double hi = range.lo + std::min(best + 1, kScan) * step;
   std::uintmax_t iterations = 200;
   const auto [variable, value] =
       boost::math::tools::brent_find_minima(sumOfSquares, lo, hi, std::numeric_limits<double>::digits / 2, iterations);
   (void)value;
+  // A refit whose optimum ran to the edge of its small bracket has moved further: search again whole.
+  if (near && ((variable - lo < 1e-6 * step && lo > range.lo) || (hi - variable < 1e-6 * step && hi < range.hi)))
+    return fitExponent(model, groups);
   const bool atEdge = variable - range.lo < 1e-6 * step || range.hi - variable < 1e-6 * step;
   return {range.logExponent ? std::exp(variable) : variable, atEdge};
 }
 
 // Parameters from groups already checked for ends at 0 and 1 and enough fractions for the model.
-ModelParameters fitParameters(Model model, const std::vector<Group>& groups, bool* atSearchEdge = nullptr) {
+ModelParameters fitParameters(Model model, const std::vector<Group>& groups, bool* atSearchEdge = nullptr,
+                              std::optional<double> nearExponent = std::nullopt) {
   ModelParameters p;
   p.model = model;
   if (model == Model::Pchip) {
@@ -122,7 +139,7 @@ ModelParameters fitParameters(Model model, const std::vector<Group>& groups, boo
     }
     return p;
   }
-  const ExponentFit e = fitExponent(model, groups);
+  const ExponentFit e = fitExponent(model, groups, nearExponent);
   p.tangoModulusMpa = meanModulus(groups.front());
   p.veroModulusMpa = meanModulus(groups.back());
   p.exponent = e.exponent;
@@ -160,7 +177,8 @@ FitQuality assess(const Calibration& c, Model model, const std::vector<Group>& g
       std::vector<Group> rest;
       for (std::size_t k = 0; k < groups.size(); ++k)
         if (k != left) rest.push_back(groups[k]);
-      const Calibration without = evaluator(fitParameters(model, rest));
+      // The full fit's exponent is a close start: one group moves the optimum little.
+      const Calibration without = evaluator(fitParameters(model, rest, nullptr, c.parameters().exponent));
       for (const Measurement* m : groups[left].rows) {
         const double r = std::log(m->modulusMpa) - without.lnModulus(m->veroFraction);
         looSquares += r * r;

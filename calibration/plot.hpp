@@ -9,6 +9,10 @@
 namespace rodfab::calibration {
 
 // Written under a temporary name and renamed; throws std::runtime_error naming the file.
+// The PNG carries a tEXt chunk "Software: rodfab calibrate".
 void writeFitPlot(const Calibration& calibration, const std::filesystem::path& png);
+
+// True when `png` is a regular file written by writeFitPlot (what `calibrate --plot` may replace).
+bool isFitPlot(const std::filesystem::path& png);
 
 }  // namespace rodfab::calibration

@@ -1,5 +1,8 @@
 #include "geometry/design_file.hpp"
 
+#include "common/json_input.hpp"
+#include "common/output_file.hpp"
+
 #include <nlohmann/json.hpp>
 
 #include <cmath>
@@ -363,9 +366,20 @@ public:
     return spline;
   }
 
+  // A Young's modulus in MPa: > 0 and at most kMaxModulusMpa (grids store moduli as floats).
+  std::optional<double> youngsModulus(const json& j, const std::string& path) {
+    auto v = positive(j, path, "a Young's modulus in MPa");
+    if (v && *v > kMaxModulusMpa) {
+      fail(path, "expected a Young's modulus of at most " + describe(json(kMaxModulusMpa)) +
+                     " MPa (stiffer than any printable material), got " + describe(j));
+      return std::nullopt;
+    }
+    return v;
+  }
+
   std::optional<BSplineField> modulus(const json& j, const std::string& path, const NurbsCurve* curve) {
     if (j.is_number()) {
-      auto v = positive(j, path, "a Young's modulus in MPa");
+      auto v = youngsModulus(j, path);
       if (!v || !curve) return std::nullopt;
       return BSplineField::constant(*v, curve->domainBegin(), curve->domainEnd());
     }
@@ -385,7 +399,7 @@ public:
         std::vector<double> out;
         bool ok = true;
         for (std::size_t i = 0; i < v->size(); ++i) {
-          auto x = positive((*v)[i], index(vp, i), "a Young's modulus in MPa");
+          auto x = youngsModulus((*v)[i], index(vp, i));
           if (x) out.push_back(*x); else ok = false;
         }
         if (ok && p && out.size() < static_cast<std::size_t>(*p) + 1) {
@@ -677,14 +691,6 @@ public:
   }
 };
 
-std::pair<int, int> lineAndColumn(const std::string& text, std::size_t byte) {
-  int line = 1, column = 1;
-  for (std::size_t i = 0; i < std::min(byte, text.size()); ++i) {
-    if (text[i] == '\n') { ++line; column = 1; } else { ++column; }
-  }
-  return {line, column};
-}
-
 using ordered = nlohmann::ordered_json;
 
 ordered curveJson(int degree, const std::vector<double>& knots) { return ordered{{"degree", degree}, {"knots", knots}}; }
@@ -751,22 +757,17 @@ DesignError::DesignError(std::string file, std::vector<DesignIssue> issues)
 RodStructure parseDesign(const std::string& text, const std::string& sourceName) {
   json doc;
   try {
-    doc = json::parse(tagOverflowingNumbers(text));
-  } catch (const json::parse_error& e) {
-    const auto [line, column] = lineAndColumn(text, e.byte > 0 ? e.byte - 1 : 0);
-    std::string what = e.what();
-    if (auto pos = what.find("parse error"); pos != std::string::npos) what = what.substr(pos);
-    throw DesignError(sourceName, {{"", "malformed JSON at line " + std::to_string(line) + ", column " +
-                                            std::to_string(column) + ": " + what}});
+    doc = common::parseJsonStrict(tagOverflowingNumbers(text));
+  } catch (const common::JsonInputError& e) {
+    throw DesignError(sourceName, {{e.path, e.message}});
   } catch (const json::out_of_range& e) {
-    // A number too large for a double (1e999): nlohmann stops before any path is known, so locate
-    // the literal it names in the text.
+    // A number too large for a double (1e999) that the tagging missed: locate the literal it names.
     std::string what = e.what();
     std::string where;
     const auto q0 = what.find('\''), q1 = what.rfind('\'');
     if (q0 != std::string::npos && q1 > q0) {
       if (auto at = text.find(what.substr(q0 + 1, q1 - q0 - 1)); at != std::string::npos) {
-        const auto [line, column] = lineAndColumn(text, at);
+        const auto [line, column] = common::lineAndColumn(text, at);
         where = " at line " + std::to_string(line) + ", column " + std::to_string(column);
       }
     }
@@ -801,12 +802,13 @@ RodStructure parseDesign(const std::string& text, const std::string& sourceName)
 }
 
 RodStructure readDesign(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw DesignError(file.string(), {{"", "cannot open the file (does it exist and is it readable?)"}});
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw DesignError(file.string(), {{"", "read error"}});
-  return parseDesign(text.str(), file.string());
+  std::string text;
+  try {
+    text = common::readBoundedFile(file.string());
+  } catch (const common::JsonInputError& e) {
+    throw DesignError(file.string(), {{"", e.message}});
+  }
+  return parseDesign(text, file.string());
 }
 
 nlohmann::ordered_json designToJson(const RodStructure& structure, const std::string& description) {
@@ -854,29 +856,24 @@ nlohmann::ordered_json designToJson(const RodStructure& structure, const std::st
 }
 
 void writeDesign(const RodStructure& structure, const std::filesystem::path& file, const std::string& description) {
-  const std::filesystem::path tmp = file.string() + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw std::runtime_error(tmp.string() + ": cannot open for writing");
-    const auto doc = designToJson(structure, description);
-    out << "{\n";
-    for (auto it = doc.begin(); it != doc.end(); ++it) {
-      if (it.key() == "rods" || it.key() == "mechanics") continue;
-      out << "  " << ordered(it.key()).dump() << ": " << it.value().dump() << ",\n";
-    }
-    out << "  \"rods\": [\n";
-    const auto& rods = doc["rods"];
-    for (std::size_t i = 0; i < rods.size(); ++i) out << "    " << rods[i].dump() << (i + 1 < rods.size() ? ",\n" : "\n");
-    out << "  ]";
-    if (auto m = doc.find("mechanics"); m != doc.end()) out << ",\n  \"mechanics\": " << m->dump(2, ' ');
-    out << "\n}\n";
-    out.close();
-    if (!out) {
-      std::filesystem::remove(tmp);
-      throw std::runtime_error(tmp.string() + ": write failed");
-    }
+  const auto doc = designToJson(structure, description);
+  std::ostringstream out;
+  out << "{\n";
+  for (auto it = doc.begin(); it != doc.end(); ++it) {
+    if (it.key() == "rods" || it.key() == "mechanics") continue;
+    out << "  " << ordered(it.key()).dump() << ": " << it.value().dump() << ",\n";
   }
-  std::filesystem::rename(tmp, file);
+  out << "  \"rods\": [\n";
+  const auto& rods = doc["rods"];
+  for (std::size_t i = 0; i < rods.size(); ++i) out << "    " << rods[i].dump() << (i + 1 < rods.size() ? ",\n" : "\n");
+  out << "  ]";
+  if (auto m = doc.find("mechanics"); m != doc.end()) out << ",\n  \"mechanics\": " << m->dump(2, ' ');
+  out << "\n}\n";
+  common::writeFileAtomically(file, out.str());
+}
+
+bool isDesignFile(const std::filesystem::path& file) {
+  return common::fileStartsWith(file, "{", std::string("\"") + kDesignFormat + "\"", 256);
 }
 
 }  // namespace rodfab::geometry

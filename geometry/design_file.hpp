@@ -13,6 +13,9 @@
 namespace rodfab::geometry {
 
 inline constexpr const char* kDesignFormat = "rodfab.design/1";
+// The largest Young's modulus a design may give (MPa): 1 TPa, above any printable material and far
+// inside the float range the voxel grids store moduli in.
+inline constexpr double kMaxModulusMpa = 1e6;
 
 // One violation: where (a JSON path such as `rods[3].centerline.knots[5]`) and what was expected.
 struct DesignIssue {
@@ -43,5 +46,9 @@ nlohmann::ordered_json designToJson(const RodStructure& structure, const std::st
 // One rod per line, so diffs of generated designs stay readable. Written to a temporary name beside
 // `file` and renamed, so a reader never sees half a file.
 void writeDesign(const RodStructure& structure, const std::filesystem::path& file, const std::string& description = {});
+
+// True when `file` is a regular file that starts as writeDesign writes (the format tag in its first
+// line): what `--output` of a command writing designs may replace.
+bool isDesignFile(const std::filesystem::path& file);
 
 }  // namespace rodfab::geometry

@@ -77,6 +77,15 @@ int runCalibrate(const std::vector<std::string>& args) {
   }
 
   const std::string file = vm["data"].as<std::string>();
+  if (vm.count("output") && vm.count("plot") && vm["output"].as<std::string>() == vm["plot"].as<std::string>())
+    return cli::usageError("calibrate", "--output and --plot name the same file");
+  // Existing outputs are replaced only when rodfab wrote them (a calibration file, a fit plot).
+  if (vm.count("output") && !outputAllowed(vm["output"].as<std::string>(), {file},
+                                           {"calibration file", true, "", calibration::isCalibrationFile}))
+    return kFailed;
+  if (vm.count("plot") &&
+      !outputAllowed(vm["plot"].as<std::string>(), {file}, {"fit plot", true, "", calibration::isFitPlot}))
+    return kFailed;
   calibration::DataSet data;
   try {
     data = calibration::readData(file);

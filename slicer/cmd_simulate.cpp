@@ -61,11 +61,8 @@ int runSimulate(const std::vector<std::string>& args) {
   const std::optional<geometry::RodStructure> read = readDesignOrReport(file, "nothing was written");
   if (!read) return kFailed;
   const geometry::RodStructure& design = *read;
-  const std::filesystem::path outDir = std::filesystem::path(output).parent_path();
-  if (!outDir.empty() && !std::filesystem::is_directory(outDir)) {
-    std::cerr << output << ": cannot write: the folder " << outDir.string() << " does not exist\n";
-    return kFailed;
-  }
+  // An existing design is replaced only when rodfab wrote it, and never the input.
+  if (!outputAllowed(output, {file}, {"deformed design", true, "", geometry::isDesignFile})) return kFailed;
 
   std::unique_ptr<mechanics::StaticProblem> problem;
   try {

@@ -56,6 +56,11 @@ int runVoxelize(const std::vector<std::string>& args) {
   const std::optional<geometry::RodStructure> read = readDesignOrReport(file, "nothing was written");
   if (!read) return kFailed;
   const geometry::RodStructure& design = *read;
+  // An existing grid is replaced only when rodfab wrote it.
+  if (!outputAllowed(output, {file}, {"grid file", true, "", [](const std::filesystem::path& p) {
+                                        return voxel::isGridFile(p.string());
+                                      }}))
+    return kFailed;
 
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();

@@ -1,29 +1,17 @@
-// SIGINT / SIGTERM as a request to stop: the job polls it between bands, cleans up its temporaries
-// and exits with 128 + signal, leaving nothing that looks like a job.
+// Transitional names for the commands written before common/interrupt.hpp: the handlers are now
+// installed once for the whole process (main), so InterruptGuard only marks where a command polls.
 #pragma once
 
-#include <stdexcept>
+#include "common/interrupt.hpp"
 
 namespace rodfab::cli {
 
-// Installs the handlers for its lifetime and restores the previous ones afterwards.
-class InterruptGuard {
-public:
-  InterruptGuard();
-  ~InterruptGuard();
-  InterruptGuard(const InterruptGuard&) = delete;
-  InterruptGuard& operator=(const InterruptGuard&) = delete;
+using common::Interrupted;
+using common::throwIfInterrupted;
 
-  // The signal received (SIGINT or SIGTERM), or 0.
-  static int pending();
+struct InterruptGuard {
+  InterruptGuard() { common::installInterruptHandlers(); }
+  static int pending() { return common::interruptRequested(); }
 };
-
-struct Interrupted : std::runtime_error {
-  explicit Interrupted(int signal);
-  int signal;
-};
-
-// Throws Interrupted when a signal is pending.
-void throwIfInterrupted();
 
 }  // namespace rodfab::cli

@@ -1,9 +1,14 @@
 #include "slicer/command.hpp"
 
+#include "common/interrupt.hpp"
+#include "common/memory_budget.hpp"
+
 #include <algorithm>
 #include <cstring>
 #include <exception>
 #include <iostream>
+#include <new>
+#include <unistd.h>
 
 namespace {
 
@@ -29,6 +34,40 @@ void usage(std::ostream& out) {
   for (const Command& c : kCommands) out << "  " << c.name << std::string(15 - std::strlen(c.name), ' ') << c.summary << '\n';
 }
 
+// Out of memory where an exception cannot travel (a noexcept path, a destructor) still ends with the
+// message and without this run's temporaries, not with an abort.
+[[noreturn]] void onTerminate() {
+  std::string message = "rodfab: internal error: terminated\n";
+  if (const std::exception_ptr current = std::current_exception()) {
+    try {
+      std::rethrow_exception(current);
+    } catch (const std::bad_alloc&) {
+      message = "rodfab: " + rodfab::common::outOfMemoryMessage() + "\n";
+    } catch (const std::exception& e) {
+      message = std::string("rodfab: internal error: ") + e.what() + "\n";
+    } catch (...) {
+    }
+  }
+  [[maybe_unused]] const auto written = ::write(STDERR_FILENO, message.data(), message.size());
+  std::_Exit(rodfab::common::abandonCommand(kFailed));
+}
+
+// Runs one command; every failure becomes an exit code and one message.
+int runCommand(const Command& c, const std::vector<std::string>& args) {
+  try {
+    return c.run(args);
+  } catch (const rodfab::common::Interrupted& e) {
+    std::cerr << "rodfab " << c.name << ": " << e.what() << '\n';
+    return 128 + e.signal;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "rodfab " << c.name << ": " << rodfab::common::outOfMemoryMessage() << '\n';
+    return kFailed;
+  } catch (const std::exception& e) {
+    std::cerr << "rodfab " << c.name << ": " << e.what() << '\n';
+    return kFailed;
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -47,12 +86,10 @@ int main(int argc, char** argv) {
   }
   for (const Command& c : kCommands) {
     if (name != c.name) continue;
-    try {
-      return c.run(std::vector<std::string>(argv + 2, argv + argc));
-    } catch (const std::exception& e) {
-      std::cerr << "rodfab " << name << ": " << e.what() << '\n';
-      return kFailed;
-    }
+    rodfab::common::installInterruptHandlers();
+    std::set_terminate(onTerminate);
+    rodfab::common::setMemoryBudget(rodfab::common::defaultMemoryBudget());
+    return rodfab::common::finishCommand(runCommand(c, std::vector<std::string>(argv + 2, argv + argc)));
   }
   std::cerr << "rodfab: unknown command '" << name << "'\n\n";
   usage(std::cerr);

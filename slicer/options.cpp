@@ -3,6 +3,7 @@
 #include "slicer/command.hpp"
 
 #include "geometry/design_file.hpp"
+#include "common/memory_budget.hpp"
 
 #include <iostream>
 
@@ -11,7 +12,9 @@ namespace rodfab::cli {
 std::optional<int> parseOptions(const std::string& command, const std::string& synopsis,
                                 po::options_description& options, const po::positional_options_description& positional,
                                 const std::vector<std::string>& args, po::variables_map& vm) {
-  options.add_options()("help,h", "show this help");
+  options.add_options()("help,h", "show this help")
+      ("max-memory", po::value<std::string>(),
+       "memory budget, e.g. 8G or 512M (default: 80 % of this machine's memory); work beyond it is refused");
   try {
     po::store(po::command_line_parser(args).options(options).positional(positional).run(), vm);
     if (vm.count("help")) {
@@ -19,6 +22,16 @@ std::optional<int> parseOptions(const std::string& command, const std::string& s
       return kOk;
     }
     po::notify(vm);
+    if (vm.count("max-memory")) {
+      const std::string text = vm["max-memory"].as<std::string>();
+      const std::optional<std::uint64_t> bytes = common::parseByteSize(text);
+      if (!bytes) return usageError(command, "--max-memory: expected a size such as 8G or 512M, got '" + text + "'");
+      try {
+        common::setMemoryBudget(*bytes);
+      } catch (const std::invalid_argument& e) {
+        return usageError(command, std::string("--max-memory: ") + e.what());
+      }
+    }
   } catch (const po::error& e) {
     std::cerr << "rodfab " << command << ": " << e.what() << "\nusage: rodfab " << command << ' ' << synopsis
               << "\n(rodfab " << command << " --help lists the options)\n";
@@ -43,9 +56,21 @@ std::optional<geometry::RodStructure> readDesignOrReport(const std::string& file
 
 std::optional<int> threadCount(const std::string& command, const po::variables_map& vm) {
   const int threads = vm["threads"].as<int>();
-  if (threads >= 0) return threads;
-  usageError(command, "--threads: expected 0 (all cores) or a positive count, got " + std::to_string(threads));
+  if (threads >= 0 && threads <= kMaxThreads) return threads;
+  usageError(command, "--threads: expected 0 (all cores) or a count from 1 to " + std::to_string(kMaxThreads) + ", got " +
+                          std::to_string(threads));
   return std::nullopt;
+}
+
+bool outputAllowed(const std::string& output, const std::vector<std::filesystem::path>& inputs,
+                   const common::OutputPolicy& policy) {
+  try {
+    common::checkOutputPath(output, inputs, policy);
+    return true;
+  } catch (const std::runtime_error& e) {
+    std::cerr << e.what() << "\nnothing was written\n";
+    return false;
+  }
 }
 
 }  // namespace rodfab::cli

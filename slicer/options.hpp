@@ -1,6 +1,7 @@
 // Shared Boost.Program_options plumbing for the subcommands: --help and consistent usage errors.
 #pragma once
 
+#include "common/output_file.hpp"
 #include "geometry/rod.hpp"
 
 #include <boost/program_options.hpp>
@@ -13,7 +14,8 @@ namespace rodfab::cli {
 
 namespace po = boost::program_options;
 
-// Parses `args` against `options` (+ positionals). Prints help and returns kOk for --help, prints a
+// Parses `args` against `options` (+ positionals), which gain --help and --max-memory (applied here:
+// common::setMemoryBudget). Prints help and returns kOk for --help, prints a
 // usage error and returns kUsage for bad options; returns nullopt when the command should go on.
 std::optional<int> parseOptions(const std::string& command, const std::string& synopsis,
                                 po::options_description& options, const po::positional_options_description& positional,
@@ -26,7 +28,15 @@ int usageError(const std::string& command, const std::string& message);
 // "FILE: the design is not valid; CONSEQUENCE" and returns nullopt (the command exits kFailed).
 std::optional<geometry::RodStructure> readDesignOrReport(const std::string& file, const std::string& consequence);
 
-// The --threads value: 0 (all cores) or a positive count; nullopt (after a usage error) otherwise.
+// More threads than this only add overhead on any machine rodfab runs on (and TBB fails far beyond).
+inline constexpr int kMaxThreads = 256;
+
+// The --threads value: 0 (all cores) or 1..kMaxThreads; nullopt (after a usage error) otherwise.
 std::optional<int> threadCount(const std::string& command, const po::variables_map& vm);
+
+// Checks that `output` may be written under `policy` (common::checkOutputPath); prints the reason and
+// "nothing was written" and returns false otherwise (the command exits kFailed).
+bool outputAllowed(const std::string& output, const std::vector<std::filesystem::path>& inputs,
+                   const common::OutputPolicy& policy);
 
 }  // namespace rodfab::cli

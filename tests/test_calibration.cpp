@@ -420,7 +420,7 @@ TEST_CASE("bad calibration files name the file and the field", "[calibration][fi
 
   TempDir dir;
   std::ofstream(dir.path / "broken.json") << "{ \"format\": ";
-  CHECK_THROWS_WITH(readCalibration(dir.path / "broken.json"), Catch::Contains("broken.json: not valid JSON"));
+  CHECK_THROWS_WITH(readCalibration(dir.path / "broken.json"), Catch::Contains("broken.json: malformed JSON at line 1"));
   std::ofstream(dir.path / "overflow.json") << "{ \"format\": 1e400 }";  // beyond a double: a file error too
   CHECK_THROWS_AS(readCalibration(dir.path / "overflow.json"), CalibrationFileError);
   CHECK_THROWS_WITH(readCalibration(dir.path / "overflow.json"), Catch::Contains("overflow.json: not valid JSON"));

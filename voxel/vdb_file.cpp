@@ -1,5 +1,7 @@
 #include "voxel/vdb_file.hpp"
 
+#include "common/output_file.hpp"
+
 #include <openvdb/io/File.h>
 
 #include <unistd.h>
@@ -13,6 +15,8 @@ namespace rodfab::voxel {
 
 namespace {
 
+constexpr const char* kWriterKey = "rodfab_writer";
+
 void initializeOpenVdb() {
   static std::once_flag once;
   std::call_once(once, [] { openvdb::initialize(); });
@@ -22,27 +26,24 @@ void initializeOpenVdb() {
 
 void writeGridFile(const std::string& path, const openvdb::GridBase& grid, const openvdb::MetaMap& fileMetadata) {
   initializeOpenVdb();
-  namespace fs = std::filesystem;
-  const fs::path target(path);
-  fs::path temporary = target;
-  temporary += ".tmp-" + std::to_string(::getpid());
+  common::AtomicOutput output(path);
   try {
-    openvdb::io::File file(temporary.string());
+    openvdb::io::File file(output.temporary().string());
     openvdb::GridCPtrVec grids{grid.copyGrid()};
-    file.write(grids, fileMetadata);
+    openvdb::MetaMap metadata(fileMetadata);
+    metadata.insertMeta(kWriterKey, openvdb::StringMetadata("rodfab"));
+    file.write(grids, metadata);
     file.close();
   } catch (const std::exception& e) {
-    std::error_code ignored;
-    fs::remove(temporary, ignored);
     throw std::runtime_error(path + ": cannot write the grid: " + e.what());
   }
-  std::error_code ec;
-  fs::rename(temporary, target, ec);
-  if (ec) {
-    std::error_code ignored;
-    fs::remove(temporary, ignored);
-    throw std::runtime_error(path + ": cannot move the finished file into place: " + ec.message());
-  }
+  output.commit();
+}
+
+bool isGridFile(const std::string& path) {
+  // OpenVDB files start with the magic number 0x56444220 (little-endian " BDV"); the file metadata,
+  // with our writer key, follows within the first few hundred bytes.
+  return common::fileStartsWith(path, std::string_view(" BDV", 4), kWriterKey, 4096);
 }
 
 openvdb::FloatGrid::Ptr readFloatGrid(const std::string& path, const std::string& gridName) {

@@ -12,6 +12,10 @@ namespace rodfab::voxel {
 // the file header. Throws std::runtime_error naming the file when writing fails.
 void writeGridFile(const std::string& path, const openvdb::GridBase& grid, const openvdb::MetaMap& fileMetadata = {});
 
+// True when `path` is a regular file that writeGridFile wrote (the writer key "rodfab_writer" in its
+// file metadata): what `voxelize --output` may replace.
+bool isGridFile(const std::string& path);
+
 // Reads the float grid called `gridName` from `path`. Throws std::runtime_error naming the file and the
 // grid when it is missing or not a float grid.
 openvdb::FloatGrid::Ptr readFloatGrid(const std::string& path, const std::string& gridName);

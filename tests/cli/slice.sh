@@ -76,7 +76,7 @@ kill -INT $pid
 wait $pid
 code=$?
 [ $code -eq 130 ] || fail "interrupt: exit $code, expected 130 ($(cat "$tmp/progress"))"
-grep -q "interrupted by SIGINT; no job was written" "$tmp/progress" || fail "interrupt not reported: $(cat "$tmp/progress")"
+grep -q "interrupted by SIGINT; nothing was written" "$tmp/progress" || fail "interrupt not reported: $(cat "$tmp/progress")"
 only arm-cast.zip buckling-spring.zip unfolding-box.zip
 
 # Bad input: a clear message, non-zero exit, nothing written.

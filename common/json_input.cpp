@@ -1,0 +1,136 @@
+#include "common/json_input.hpp"
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <memory>
+#include <set>
+#include <vector>
+
+namespace rodfab::common {
+
+using nlohmann::json;
+
+namespace {
+
+std::string lineColumnText(const std::string& text, std::size_t offset) {
+  const auto [line, column] = lineAndColumn(text, offset);
+  return "line " + std::to_string(line) + ", column " + std::to_string(column);
+}
+
+// Finds the first opening bracket (outside strings) at a depth beyond `maxDepth`, before anything
+// is built. Returns its offset, or npos.
+std::size_t tooDeepAt(const std::string& text, int maxDepth) {
+  int depth = 0;
+  for (std::size_t at = 0; at < text.size(); ++at) {
+    const char c = text[at];
+    if (c == '"') {
+      for (++at; at < text.size() && text[at] != '"'; ++at)
+        if (text[at] == '\\') ++at;
+    } else if (c == '[' || c == '{') {
+      if (++depth > maxDepth) return at;
+    } else if (c == ']' || c == '}') {
+      --depth;
+    }
+  }
+  return std::string::npos;
+}
+
+// Tracks the path while nlohmann parses, and refuses a key seen twice in one object.
+class DuplicateKeyCheck {
+public:
+  bool operator()(int /*depth*/, json::parse_event_t event, json& parsed) {
+    switch (event) {
+      case json::parse_event_t::object_start: enter(false); break;
+      case json::parse_event_t::array_start: enter(true); break;
+      case json::parse_event_t::object_end:
+      case json::parse_event_t::array_end: leave(); break;
+      case json::parse_event_t::key: onKey(parsed.get<std::string>()); break;
+      case json::parse_event_t::value: valueDone(); break;
+    }
+    return true;
+  }
+
+private:
+  struct Level {
+    bool array;
+    std::size_t index = 0;
+    std::string key;
+    std::set<std::string> keys;
+  };
+  std::vector<Level> levels_;
+
+  std::string path() const {
+    std::string p;
+    for (const Level& l : levels_) {
+      if (l.array) p += "[" + std::to_string(l.index) + "]";
+      else if (!l.key.empty()) p += (p.empty() ? "" : ".") + l.key;
+    }
+    return p;
+  }
+  void enter(bool array) { levels_.push_back(Level{array, 0, {}, {}}); }
+  void leave() {
+    levels_.pop_back();
+    valueDone();
+  }
+  void valueDone() {
+    if (!levels_.empty() && levels_.back().array) ++levels_.back().index;
+  }
+  void onKey(const std::string& key) {
+    Level& l = levels_.back();
+    l.key = key;
+    if (!l.keys.insert(key).second) throw JsonInputError(path(), "duplicate key (each key may appear once per object)");
+  }
+};
+
+}  // namespace
+
+JsonInputError::JsonInputError(std::string p, std::string m)
+    : std::runtime_error(p.empty() ? m : p + ": " + m), path(std::move(p)), message(std::move(m)) {}
+
+std::pair<std::size_t, std::size_t> lineAndColumn(const std::string& text, std::size_t offset) {
+  std::size_t line = 1, column = 1;
+  for (std::size_t i = 0; i < offset && i < text.size(); ++i) {
+    if (text[i] == '\n') ++line, column = 1;
+    else ++column;
+  }
+  return {line, column};
+}
+
+std::string readBoundedFile(const std::string& file, std::size_t maxBytes) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(file, ec)) throw JsonInputError("", "is a folder; expected a file");
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> in(std::fopen(file.c_str(), "rb"), std::fclose);
+  if (!in) throw JsonInputError("", std::string("cannot open the file (") + std::strerror(errno) + ")");
+  std::string text;
+  char chunk[1 << 16];
+  while (const std::size_t n = std::fread(chunk, 1, sizeof chunk, in.get())) {
+    if (text.size() + n > maxBytes)
+      throw JsonInputError("", "the file is larger than " + std::to_string(maxBytes >> 20) + " MiB; expected a smaller file");
+    text.append(chunk, n);
+  }
+  if (std::ferror(in.get())) throw JsonInputError("", std::string("read error (") + std::strerror(errno) + ")");
+  return text;
+}
+
+json parseJsonStrict(const std::string& text, int maxDepth) {
+  if (text.size() > kMaxJsonBytes)
+    throw JsonInputError("", "the file is " + std::to_string(text.size() >> 20) + " MiB; expected at most " +
+                                 std::to_string(kMaxJsonBytes >> 20) + " MiB of JSON");
+  if (const std::size_t at = tooDeepAt(text, maxDepth); at != std::string::npos)
+    throw JsonInputError("", "nested deeper than " + std::to_string(maxDepth) + " arrays and objects at " +
+                                 lineColumnText(text, at) + " (expected at most " + std::to_string(maxDepth) + ")");
+  try {
+    return json::parse(text, DuplicateKeyCheck());
+  } catch (const json::parse_error& e) {
+    std::string what = e.what();  // "[json.exception.parse_error.101] parse error at line 1, column 13: why"
+    if (auto pos = what.find("parse error"); pos != std::string::npos) {
+      const auto colon = what.find(": ", pos);
+      what = colon == std::string::npos ? what.substr(pos) : what.substr(colon + 2);
+    }
+    throw JsonInputError("", "malformed JSON at " + lineColumnText(text, e.byte > 0 ? e.byte - 1 : 0) + ": " + what);
+  }
+}
+
+}  // namespace rodfab::common

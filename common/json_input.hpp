@@ -1,0 +1,40 @@
+// Parsing JSON from untrusted files: bounded nesting, no duplicate keys, located errors.
+//
+// nlohmann's parser itself is iterative, but the documents it builds are walked recursively by our
+// validators and by json::dump() (used in error messages), so nesting is limited before a document
+// is built. Duplicate keys are refused because nlohmann silently keeps the last one, so a file could
+// say two things and mean one.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <cstddef>
+#include <stdexcept>
+#include <string>
+
+namespace rodfab::common {
+
+inline constexpr int kMaxJsonDepth = 64;
+// Files rodfab reads as JSON are small (designs, profiles, calibrations, manifests).
+inline constexpr std::size_t kMaxJsonBytes = std::size_t{256} << 20;
+
+// Where and what: `path` is a JSON path such as `rods[3].centerline` (empty when the problem is
+// the text itself), `message` says what was expected and, for syntax problems, the line and column.
+struct JsonInputError : std::runtime_error {
+  JsonInputError(std::string path, std::string message);
+  std::string path, message;
+};
+
+// Parses `text`. Throws JsonInputError for malformed JSON, nesting deeper than `maxDepth` arrays
+// and objects, a duplicate key, or text longer than kMaxJsonBytes. Numbers beyond a double are
+// left to nlohmann (json::out_of_range) so callers keep their own handling of them.
+nlohmann::json parseJsonStrict(const std::string& text, int maxDepth = kMaxJsonDepth);
+
+// The bytes of `file`, read in chunks and refused beyond `maxBytes` (so /dev/zero or a huge file
+// cannot exhaust memory); pipes are read like files. Throws JsonInputError("", what went wrong).
+std::string readBoundedFile(const std::string& file, std::size_t maxBytes = kMaxJsonBytes);
+
+// 1-based line and column of byte `offset` in `text`.
+std::pair<std::size_t, std::size_t> lineAndColumn(const std::string& text, std::size_t offset);
+
+}  // namespace rodfab::common

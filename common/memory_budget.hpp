@@ -1,0 +1,45 @@
+// The process's memory budget.
+//
+// Every rodfab command runs within a budget of bytes (default: 80 % of the machine's memory, or of
+// the cgroup limit when lower; `--max-memory` sets it). It is enforced twice:
+//  - work whose size depends on input estimates its memory first and refuses with OutOfMemory
+//    (`requireMemory`) before allocating;
+//  - the budget is also the process's data limit (RLIMIT_DATA), so an allocation beyond it fails
+//    with std::bad_alloc, which main reports as OutOfMemory instead of the kernel killing the
+//    process (not in sanitizer builds, whose shadow memory would count against it).
+// Thread safety: set the budget once at start-up, before other threads run.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+namespace rodfab::common {
+
+// Work that would exceed the budget. what() says how much it needs, the budget and what to change.
+struct OutOfMemory : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// Bytes: 80 % of physical memory, or of the cgroup's memory.max when that is lower.
+std::uint64_t defaultMemoryBudget();
+
+// Sets the budget (bytes, >= 64 MiB) and the data limit. Throws std::invalid_argument when too small.
+void setMemoryBudget(std::uint64_t bytes);
+std::uint64_t memoryBudget();
+
+// Throws OutOfMemory when `bytes` (an estimate for `what`) exceeds the budget; `remedy` says what to
+// change ("use a coarser voxel size", ...).
+void requireMemory(std::uint64_t bytes, const std::string& what, const std::string& remedy);
+
+// "1.5 GiB", "640 MiB".
+std::string formatBytes(std::uint64_t bytes);
+
+// Parses "8G", "512M", "1.5GiB", "2000000000" (bytes); nullopt for anything else.
+std::optional<std::uint64_t> parseByteSize(const std::string& text);
+
+// The message for a std::bad_alloc caught at the top of a command.
+std::string outOfMemoryMessage();
+
+}  // namespace rodfab::common

@@ -1,0 +1,127 @@
+#include "common/output_file.hpp"
+
+#include "common/interrupt.hpp"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstring>
+#include <stdexcept>
+#include <system_error>
+
+namespace rodfab::common {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string quoted(const fs::path& p) { return p.string(); }
+
+bool sameFile(const fs::path& a, const fs::path& b) {
+  std::error_code ec;
+  if (fs::equivalent(a, b, ec)) return true;
+  return fs::weakly_canonical(a, ec) == fs::weakly_canonical(b, ec) && !ec;
+}
+
+void renameInto(const fs::path& from, const fs::path& to) {
+  std::error_code ec;
+  fs::rename(from, to, ec);
+  if (ec) throw std::runtime_error(quoted(to) + ": cannot move the finished file into place: " + ec.message());
+}
+
+void checkExisting(const fs::path& output, const fs::file_status& status, const OutputPolicy& policy) {
+  if (fs::is_directory(status))
+    throw std::runtime_error(quoted(output) + ": is a folder; the " + policy.what + " needs a file name");
+  if (fs::is_symlink(status))
+    throw std::runtime_error(quoted(output) + ": is a symbolic link; rodfab does not write through links");
+  if (!fs::is_regular_file(status))
+    throw std::runtime_error(quoted(output) + ": exists and is not a regular file; rodfab will not replace it");
+  if (!policy.replaceExisting)
+    throw std::runtime_error(quoted(output) + ": already exists; use " + policy.howToReplace + " to replace it");
+  if (policy.isOurs && !policy.isOurs(output))
+    throw std::runtime_error(quoted(output) + ": exists and is not a " + policy.what +
+                             " written by rodfab; rodfab replaces only its own files (choose another name)");
+}
+
+}  // namespace
+
+void checkOutputPath(const fs::path& output, const std::vector<fs::path>& inputs, const OutputPolicy& policy) {
+  if (output.empty()) throw std::runtime_error("no output path given for the " + policy.what);
+  for (const fs::path& input : inputs)
+    if (!input.empty() && sameFile(output, input))
+      throw std::runtime_error(quoted(output) + ": is also an input of this command; write the " + policy.what +
+                               " to another file");
+  std::error_code ec;
+  const fs::file_status status = fs::symlink_status(output, ec);
+  if (fs::exists(status)) checkExisting(output, status, policy);
+  const fs::path parent = fs::absolute(output).parent_path();
+  if (!fs::is_directory(parent, ec))
+    throw std::runtime_error(quoted(output) + ": cannot write: " + quoted(parent) +
+                             (fs::exists(parent, ec) ? " is not a folder" : ": the folder does not exist"));
+}
+
+bool fileStartsWith(const fs::path& file, std::string_view prefix, std::string_view marker, std::size_t scanBytes) {
+  const int fd = ::open(file.c_str(), O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) return false;
+  struct stat st {};
+  std::string head;
+  if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode)) {
+    head.resize(std::max(prefix.size(), scanBytes));
+    const ssize_t n = ::read(fd, head.data(), head.size());
+    head.resize(n > 0 ? static_cast<std::size_t>(n) : 0);
+  }
+  ::close(fd);
+  if (!std::string_view(head).starts_with(prefix)) return false;
+  return marker.empty() || head.find(marker) != std::string::npos;
+}
+
+AtomicOutput::AtomicOutput(fs::path final) : final_(std::move(final)) {
+  static std::atomic<int> counter{0};
+  const fs::path name = final_.filename();
+  if (name.empty()) throw std::runtime_error(quoted(final_) + ": expected a file name");
+  std::string hidden = ".";  // appended piecewise: GCC 12 warns falsely (-Wrestrict) on "." + string
+  hidden.append(name.string()).append(".rodfab-tmp-").append(std::to_string(::getpid()));
+  hidden.append("-").append(std::to_string(counter++));
+  temporary_ = final_.parent_path() / hidden;
+  registerCleanup(temporary_);
+}
+
+AtomicOutput::~AtomicOutput() {
+  if (committed_) return;
+  std::error_code ignored;
+  fs::remove(temporary_, ignored);
+  unregisterCleanup(temporary_);
+}
+
+void AtomicOutput::commit() {
+  if (const int fd = ::open(temporary_.c_str(), O_RDONLY | O_CLOEXEC); fd >= 0) {
+    ::fsync(fd);  // the data is on disk before the name points at it
+    ::close(fd);
+  }
+  commitRegistered(temporary_, final_, renameInto);
+  committed_ = true;
+}
+
+void writeFileAtomically(const fs::path& file, std::string_view bytes) {
+  AtomicOutput out(file);
+  const int fd = ::open(out.temporary().c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  if (fd < 0) throw std::runtime_error(quoted(file) + ": cannot write there (" + std::strerror(errno) + ")");
+  std::size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const std::string why = std::strerror(errno);
+      ::close(fd);
+      throw std::runtime_error(quoted(file) + ": write failed (" + why + ")");
+    }
+    done += static_cast<std::size_t>(n);
+  }
+  if (::close(fd) != 0) throw std::runtime_error(quoted(file) + ": write failed (" + std::strerror(errno) + ")");
+  out.commit();
+}
+
+}  // namespace rodfab::common

@@ -1,0 +1,65 @@
+// Writing output files without ever losing data.
+//
+// Every file rodfab writes goes to a hidden temporary beside its final name
+// (`.NAME.rodfab-tmp-PID-N`), registered for removal on interrupt (common/interrupt.hpp), and is
+// renamed into place only when complete. What may be replaced is decided before any work starts
+// (`checkOutputPath`): never one of the command's inputs, never a folder, and an existing file only
+// when the caller says so (--force) and the file is one rodfab wrote (the `isOurs` test).
+//
+// Errors are std::runtime_error whose message starts with the path concerned. Thread safety: the
+// functions are reentrant; two writers to the same final name race as rename(2) does (last wins).
+#pragma once
+
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace rodfab::common {
+
+// What a command may do with an existing file at its output path.
+struct OutputPolicy {
+  std::string what;                    // what the output is, for messages ("calibration file")
+  bool replaceExisting = false;        // may an existing file be replaced at all (--force, or the command's rule)
+  std::string howToReplace = "--force";  // the option that allows it, for the message
+  // Recognizes a file this program wrote (bounded read; must not follow symlinks to devices).
+  // Empty: any regular file may be replaced when replaceExisting is set.
+  std::function<bool(const std::filesystem::path&)> isOurs;
+};
+
+// Throws std::runtime_error naming `output` when writing there could lose data: it is (the same file
+// as) one of `inputs`, a folder, a symlink, something other than a regular file, an existing file
+// that the policy does not let us replace, or its folder does not exist.
+void checkOutputPath(const std::filesystem::path& output, const std::vector<std::filesystem::path>& inputs,
+                     const OutputPolicy& policy);
+
+// True when the first bytes of the regular file `file` (not a symlink) start with `prefix` and, when
+// `marker` is not empty, the first `scanBytes` bytes contain `marker`. False for anything unreadable.
+bool fileStartsWith(const std::filesystem::path& file, std::string_view prefix, std::string_view marker = {},
+                    std::size_t scanBytes = 4096);
+
+// A temporary beside `final` that becomes `final` on commit(); removed by the destructor (or on
+// interrupt) if never committed. commit() throws Interrupted when a signal is pending (the
+// temporary is then removed), and leaves the committed file registered for interrupt cleanup until
+// the command finishes.
+class AtomicOutput {
+public:
+  explicit AtomicOutput(std::filesystem::path final);
+  ~AtomicOutput();
+  AtomicOutput(const AtomicOutput&) = delete;
+  AtomicOutput& operator=(const AtomicOutput&) = delete;
+
+  const std::filesystem::path& temporary() const { return temporary_; }
+  const std::filesystem::path& final() const { return final_; }
+  void commit();
+
+private:
+  std::filesystem::path final_, temporary_;
+  bool committed_ = false;
+};
+
+// Writes `bytes` to `file` through an AtomicOutput (fsync before rename).
+void writeFileAtomically(const std::filesystem::path& file, std::string_view bytes);
+
+}  // namespace rodfab::common
