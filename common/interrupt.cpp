@@ -43,7 +43,7 @@ void removeRegisteredLocked() {
   registry().clear();
 }
 
-constexpr auto kGrace = std::chrono::milliseconds(800);
+constexpr auto kGrace = std::chrono::milliseconds(600);
 constexpr auto kPoll = std::chrono::milliseconds(20);
 
 void watchdog() {

@@ -4,7 +4,7 @@
 // (130 / 143) and leaves nothing it wrote behind. Two mechanisms keep it:
 //  - cooperative: long work polls `interruptRequested()` (or calls `throwIfInterrupted()`) at least
 //    every ~50 ms of work, unwinds, and its owners remove their temporaries;
-//  - a watchdog: if the process is still running 0.8 s after the signal, it removes every path in
+//  - a watchdog: if the process is still running 0.6 s after the signal, it removes every path in
 //    the cleanup registry (below) and ends the process with _exit(128 + signal).
 // Outputs that are complete stay registered until the command has returned (`finishCommand`), so a
 // signal that lands after a job is committed still removes it: a command either finishes with

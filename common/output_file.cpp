@@ -3,11 +3,13 @@
 #include "common/interrupt.hpp"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <stdexcept>
 #include <system_error>
@@ -46,6 +48,24 @@ void checkExisting(const fs::path& output, const fs::file_status& status, const 
                              " written by rodfab; rodfab replaces only its own files (choose another name)");
 }
 
+bool processAlive(long pid) { return pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM); }
+
+// Temporaries of earlier runs for the same final name that were killed outright (SIGKILL, power):
+// hidden, tagged with a pid that no longer runs.
+void removeStaleTemporaries(const fs::path& final) {
+  std::string prefix = ".";  // appended piecewise: GCC 12 warns falsely (-Wrestrict) on "." + string
+  prefix.append(final.filename().string()).append(".rodfab-tmp-");
+  std::error_code ec;
+  const fs::path folder = final.parent_path().empty() ? fs::path(".") : final.parent_path();
+  for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (!name.starts_with(prefix)) continue;
+    const long pid = std::strtol(name.c_str() + prefix.size(), nullptr, 10);
+    std::error_code ignored;
+    if (pid != ::getpid() && !processAlive(pid) && it->is_regular_file(ignored)) fs::remove(it->path(), ignored);
+  }
+}
+
 }  // namespace
 
 void checkOutputPath(const fs::path& output, const std::vector<fs::path>& inputs, const OutputPolicy& policy) {
@@ -82,6 +102,7 @@ AtomicOutput::AtomicOutput(fs::path final) : final_(std::move(final)) {
   static std::atomic<int> counter{0};
   const fs::path name = final_.filename();
   if (name.empty()) throw std::runtime_error(quoted(final_) + ": expected a file name");
+  removeStaleTemporaries(final_);
   std::string hidden = ".";  // appended piecewise: GCC 12 warns falsely (-Wrestrict) on "." + string
   hidden.append(name.string()).append(".rodfab-tmp-").append(std::to_string(::getpid()));
   hidden.append("-").append(std::to_string(counter++));

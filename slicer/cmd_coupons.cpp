@@ -239,7 +239,7 @@ int runCoupons(const std::vector<std::string>& args) {
        "Vero fractions of the bars, comma-separated; A,B,...,Z continues the step B - A up to Z")
       ("dither", po::value<std::string>()->default_value("white"),
        "white (random, as published) | blue | error-diffusion: the ditherer the jobs will use")
-      ("seed", po::value<std::uint64_t>()->default_value(0), "dithering seed")
+      ("seed", po::value<Seed>()->default_value(Seed{0}), "dithering seed")
       ("size", po::value<std::string>()->default_value("30x5x1.5"), "bar size LENGTHxWIDTHxHEIGHT in mm (length along x)")
       ("gap", po::value<double>()->default_value(5.0), "gap between bars in mm, along x and y")
       ("profile", po::value<std::string>()->default_value("stratasys-objet500-connex3"),
@@ -262,8 +262,9 @@ int runCoupons(const std::vector<std::string>& args) {
   const std::optional<int> threadsOption = threadCount("coupons", vm);
   if (!threadsOption) return kUsage;
   const int threads = *threadsOption;
-  const int bandLayers = vm["band-layers"].as<int>();
-  if (bandLayers < 1) return usageError("--band-layers: expected a positive number of layers");
+  const std::optional<int> bandOption = intOption("coupons", vm, "band-layers", 1, kMaxBandLayers);
+  if (!bandOption) return kUsage;
+  const int bandLayers = *bandOption;
   printer_profiles::JobOptions jobOptions;
   if (auto error = parseJobOptions(vm, jobOptions)) return usageError(*error);
   const std::string format = vm["format"].as<std::string>();
@@ -278,7 +279,7 @@ int runCoupons(const std::vector<std::string>& args) {
   const double gapMm = vm["gap"].as<double>();
   if (!(gapMm > 0.0 && gapMm <= 1000.0)) return usageError("--gap: expected a gap in mm, > 0 and at most 1000, got " + formatValue(gapMm));
   materials::DitherOptions ditherOptions;
-  ditherOptions.seed = vm["seed"].as<std::uint64_t>();
+  ditherOptions.seed = vm["seed"].as<Seed>().value;
   std::unique_ptr<materials::Ditherer> ditherer;
   try {
     ditherer = materials::makeDitherer(slicer::canonicalDitherName(vm["dither"].as<std::string>()), ditherOptions);

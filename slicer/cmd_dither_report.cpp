@@ -2,8 +2,11 @@
 #include "slicer/command.hpp"
 #include "slicer/options.hpp"
 
+#include "common/memory_budget.hpp"
+
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <iostream>
@@ -37,11 +40,26 @@ std::optional<std::vector<float>> parseFractions(const std::string& text) {
   return out;
 }
 
+// Block sides beyond this are not a dither measurement any more (and would leave OpenVDB's index range).
+constexpr int kMaxBlockSide = 1 << 16;
+
 std::optional<openvdb::Coord> parseSize(const std::string& text) {
   int x = 0, y = 0, z = 0;
   char tail = 0;
-  if (std::sscanf(text.c_str(), "%dx%dx%d%c", &x, &y, &z, &tail) != 3 || x < 1 || y < 1 || z < 1) return std::nullopt;
+  if (std::sscanf(text.c_str(), "%dx%dx%d%c", &x, &y, &z, &tail) != 3) return std::nullopt;
+  for (int side : {x, y, z})
+    if (side < 1 || side > kMaxBlockSide) return std::nullopt;
   return openvdb::Coord(x, y, z);
+}
+
+// Memory for the regions (sparse float grids, ~4.2 bytes a voxel, all held at once) and for measuring
+// one of them (dense arrays over its box, ~56 bytes a voxel: materials/dither_quality.cpp).
+std::uint64_t regionBytes(const openvdb::Coord& block, std::size_t blocks, double rodDiameterMm, double rodLengthMm) {
+  const auto& v = materials::kConnex3VoxelSizeMm;
+  const double blockVoxels = double(block.x()) * block.y() * block.z();
+  const double rodBox = (rodDiameterMm / v.x() + 2) * (rodDiameterMm / v.y() + 2) * (rodLengthMm / v.z() + 2);
+  const double bytes = 4.2 * (blockVoxels * double(blocks) + rodBox) + 56.0 * std::max(blockVoxels, rodBox);
+  return bytes > 1.8e19 ? std::uint64_t(1.8e19) : static_cast<std::uint64_t>(bytes);
 }
 
 int usageError(const std::string& what) { return cli::usageError("dither-report", what); }
@@ -52,7 +70,7 @@ int runDitherReport(const std::vector<std::string>& args) {
   po::options_description options("options");
   options.add_options()
       ("ditherer", po::value<std::string>()->default_value("all"), "white, blue, error-diffusion or all")
-      ("seed", po::value<std::uint64_t>()->default_value(1), "dithering seed")
+      ("seed", po::value<Seed>()->default_value(Seed{1}), "dithering seed")
       ("block", po::value<std::string>()->default_value("128x64x180"), "uniform block size in voxels, XxYxZ")
       ("fractions", po::value<std::string>()->default_value("0.1,0.2,0.3,0.4,0.5,0.6,0.7,0.8,0.9"),
        "Vero fractions of the uniform blocks, comma-separated")
@@ -79,16 +97,22 @@ int runDitherReport(const std::vector<std::string>& args) {
   const auto fractions = parseFractions(vm["fractions"].as<std::string>());
   if (!fractions) return usageError("--fractions: expected comma-separated numbers in [0, 1]");
   const auto block = parseSize(vm["block"].as<std::string>());
-  if (!block) return usageError("--block: expected XxYxZ with positive voxel counts, e.g. 128x64x180");
+  if (!block)
+    return usageError("--block: expected XxYxZ voxel counts from 1 to " + std::to_string(kMaxBlockSide) + ", e.g. 128x64x180");
   const char axisName = vm["rod-axis"].as<char>();
   if (axisName < 'x' || axisName > 'z') return usageError("--rod-axis: expected x, y or z");
-  const double diameter = vm["rod-diameter"].as<double>(), length = vm["rod-length"].as<double>();
-  if (!(diameter > 0) || !(length > 0)) return usageError("--rod-diameter and --rod-length: expected mm > 0");
+  const std::optional<double> diameterOption = realOption("dither-report", vm, "rod-diameter", 1e-3, 1e3, "mm");
+  const std::optional<double> lengthOption = realOption("dither-report", vm, "rod-length", 1e-3, 1e4, "mm");
+  if (!diameterOption || !lengthOption) return kUsage;
+  const double diameter = *diameterOption, length = *lengthOption;
+  common::requireMemory(regionBytes(*block, fractions->size(), diameter, length),
+                        "dither-report's " + std::to_string(fractions->size()) + " blocks and rod",
+                        "use a smaller --block, fewer --fractions or a shorter --rod-length");
   const float rodFraction = vm["rod-fraction"].as<float>();
   if (!(rodFraction >= 0.0f && rodFraction <= 1.0f)) return usageError("--rod-fraction: expected a number in [0, 1]");
 
   materials::DitherOptions ditherOptions;
-  ditherOptions.seed = vm["seed"].as<std::uint64_t>();
+  ditherOptions.seed = vm["seed"].as<Seed>().value;
   if (vm.count("mask"))
     ditherOptions.mask = std::make_shared<const materials::BlueNoiseMask>(materials::BlueNoiseMask::load(vm["mask"].as<std::string>()));
 

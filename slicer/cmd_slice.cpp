@@ -34,7 +34,7 @@ int runSlice(const std::vector<std::string>& args) {
       ("calibration", po::value<std::string>(), "calibration file (rodfab calibrate); default: the bundled 60 C fit")
       ("dither", po::value<std::string>(),
        "white | blue | error-diffusion (default: the ditherer the calibration coupons were printed with)")
-      ("seed", po::value<std::uint64_t>()->default_value(0), "dithering seed")
+      ("seed", po::value<Seed>()->default_value(Seed{0}), "dithering seed")
       ("threads", po::value<int>()->default_value(0), "worker threads (0 = all cores); the job is the same for any count")
       ("format", po::value<std::string>()->default_value("zip"), "zip | dir")
       ("image-format", po::value<std::string>(), "bmp | png (default: the profile's)")
@@ -56,8 +56,9 @@ int runSlice(const std::vector<std::string>& args) {
   const std::optional<int> threadsOption = threadCount("slice", vm);
   if (!threadsOption) return kUsage;
   const int threads = *threadsOption;
-  const int bandLayers = vm["band-layers"].as<int>();
-  if (bandLayers < 0) return usageError("--band-layers: expected a number of layers, or 0 for automatic");
+  const std::optional<int> bandOption = intOption("slice", vm, "band-layers", 0, kMaxBandLayers);
+  if (!bandOption) return kUsage;
+  const int bandLayers = *bandOption;
   printer_profiles::JobOptions jobOptions;
   if (auto error = parseJobOptions(vm, jobOptions)) return usageError(*error);
   const std::string format = vm["format"].as<std::string>();
@@ -88,7 +89,7 @@ int runSlice(const std::vector<std::string>& args) {
   const std::string couponDither = slicer::canonicalDitherName(cal.record().dither);
   const std::string ditherName = vm.count("dither") ? vm["dither"].as<std::string>() : (couponDither.empty() ? "white" : couponDither);
   materials::DitherOptions ditherOptions;
-  ditherOptions.seed = vm["seed"].as<std::uint64_t>();
+  ditherOptions.seed = vm["seed"].as<Seed>().value;
   std::unique_ptr<materials::Ditherer> ditherer;
   try {
     ditherer = materials::makeDitherer(ditherName, ditherOptions);

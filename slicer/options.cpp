@@ -5,7 +5,12 @@
 #include "geometry/design_file.hpp"
 #include "common/memory_budget.hpp"
 
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
 #include <iostream>
+#include <sstream>
 
 namespace rodfab::cli {
 
@@ -59,6 +64,39 @@ std::optional<int> threadCount(const std::string& command, const po::variables_m
   if (threads >= 0 && threads <= kMaxThreads) return threads;
   usageError(command, "--threads: expected 0 (all cores) or a count from 1 to " + std::to_string(kMaxThreads) + ", got " +
                           std::to_string(threads));
+  return std::nullopt;
+}
+
+void validate(boost::any& out, const std::vector<std::string>& values, Seed*, int) {
+  po::validators::check_first_occurrence(out);
+  const std::string& text = po::validators::get_single_string(values);
+  const bool digits = !text.empty() && text.size() <= 20 &&
+                      std::all_of(text.begin(), text.end(), [](unsigned char c) { return c >= '0' && c <= '9'; });
+  errno = 0;
+  const unsigned long long v = digits ? std::strtoull(text.c_str(), nullptr, 10) : 0;
+  if (!digits || errno == ERANGE)
+    throw po::error("--seed: expected a whole number from 0 to 18446744073709551615, got '" + text + "'");
+  out = Seed{v};
+}
+
+std::ostream& operator<<(std::ostream& out, const Seed& seed) { return out << seed.value; }
+
+std::optional<int> intOption(const std::string& command, const po::variables_map& vm, const std::string& name, int lo,
+                             int hi) {
+  const int v = vm[name].as<int>();
+  if (v >= lo && v <= hi) return v;
+  usageError(command, "--" + name + ": expected a whole number from " + std::to_string(lo) + " to " + std::to_string(hi) +
+                          ", got " + std::to_string(v));
+  return std::nullopt;
+}
+
+std::optional<double> realOption(const std::string& command, const po::variables_map& vm, const std::string& name,
+                                 double lo, double hi, const std::string& unit) {
+  const double v = vm[name].as<double>();
+  if (std::isfinite(v) && v >= lo && v <= hi) return v;
+  std::ostringstream message;
+  message << "--" << name << ": expected " << unit << " from " << lo << " to " << hi << ", got " << v;
+  usageError(command, message.str());
   return std::nullopt;
 }
 

@@ -6,7 +6,9 @@
 
 #include <boost/program_options.hpp>
 
+#include <cstdint>
 #include <optional>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -27,6 +29,24 @@ int usageError(const std::string& command, const std::string& message);
 // Reads a design for a command that writes something. On an invalid design prints its errors and
 // "FILE: the design is not valid; CONSEQUENCE" and returns nullopt (the command exits kFailed).
 std::optional<geometry::RodStructure> readDesignOrReport(const std::string& file, const std::string& consequence);
+
+// A dithering seed: 0 .. 2^64 - 1, written in decimal digits only (so "-1" is refused, not wrapped).
+struct Seed {
+  std::uint64_t value = 0;
+};
+// Boost.Program_options' hook for parsing a Seed.
+void validate(boost::any& out, const std::vector<std::string>& values, Seed*, int);
+std::ostream& operator<<(std::ostream& out, const Seed& seed);  // for default values in --help
+
+// The value of an integer option `name` in [lo, hi], or nullopt after a usage error naming the option.
+std::optional<int> intOption(const std::string& command, const po::variables_map& vm, const std::string& name, int lo,
+                             int hi);
+// The value of a real option `name`, finite and in [lo, hi] (`unit` for the message), or nullopt.
+std::optional<double> realOption(const std::string& command, const po::variables_map& vm, const std::string& name,
+                                 double lo, double hi, const std::string& unit);
+
+// Layers per streamed band: more than this only costs memory (a band beyond the part is the part).
+inline constexpr int kMaxBandLayers = 4096;
 
 // More threads than this only add overhead on any machine rodfab runs on (and TBB fails far beyond).
 inline constexpr int kMaxThreads = 256;
