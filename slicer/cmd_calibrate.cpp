@@ -76,6 +76,7 @@ int runCalibrate(const std::vector<std::string>& args) {
     return kUsage;
   }
 
+  commandLineAccepted();
   const std::string file = vm["data"].as<std::string>();
   if (vm.count("output") && vm.count("plot") && vm["output"].as<std::string>() == vm["plot"].as<std::string>())
     return cli::usageError("calibrate", "--output and --plot name the same file");

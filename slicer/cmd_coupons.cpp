@@ -355,6 +355,7 @@ int runCoupons(const std::vector<std::string>& args) {
   spec.metadata.seed = ditherOptions.seed;
   spec.options = jobOptions;
 
+  commandLineAccepted();
   InterruptGuard interrupts;
   const Progress::Mode mode = Progress::detect(vm.count("quiet") > 0);
   Progress progress("layers", static_cast<std::size_t>(barVoxels.z()), mode, std::cerr);

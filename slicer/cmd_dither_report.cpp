@@ -111,6 +111,7 @@ int runDitherReport(const std::vector<std::string>& args) {
   const float rodFraction = vm["rod-fraction"].as<float>();
   if (!(rodFraction >= 0.0f && rodFraction <= 1.0f)) return usageError("--rod-fraction: expected a number in [0, 1]");
 
+  commandLineAccepted();
   materials::DitherOptions ditherOptions;
   ditherOptions.seed = vm["seed"].as<Seed>().value;
   if (vm.count("mask"))

@@ -18,6 +18,7 @@ int runInspect(const std::vector<std::string>& args) {
   positional.add("job", 1);
   po::variables_map vm;
   if (auto code = parseOptions("inspect", "JOB [--json]", options, positional, args, vm)) return *code;
+  commandLineAccepted();
 
   const pp::InspectReport report = pp::inspectJob(vm["job"].as<std::string>());
   if (vm.count("json")) {

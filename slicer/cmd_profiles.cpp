@@ -20,6 +20,7 @@ int runProfiles(const std::vector<std::string>& args) {
   positional.add("profile", 1);
   po::variables_map vm;
   if (auto code = parseOptions("profiles", "[PROFILE] [--json]", options, positional, args, vm)) return *code;
+  commandLineAccepted();
 
   std::vector<pp::Profile> profiles;
   try {

@@ -57,6 +57,7 @@ int runSimulate(const std::vector<std::string>& args) {
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(workers));
   const bool json = vm.count("json") > 0;
 
+  commandLineAccepted();
   const std::string file = vm["design"].as<std::string>(), output = vm["output"].as<std::string>();
   const std::optional<geometry::RodStructure> read = readDesignOrReport(file, "nothing was written");
   if (!read) return kFailed;

@@ -72,6 +72,7 @@ int runSlice(const std::vector<std::string>& args) {
 
   // Inputs: every one is checked before anything is written.
   const std::string designFile = vm["design"].as<std::string>();
+  commandLineAccepted();
   const std::optional<geometry::RodStructure> read = readDesignOrReport(designFile, "no job was written");
   if (!read) return kFailed;
   const geometry::RodStructure& design = *read;

@@ -29,6 +29,7 @@ int runValidate(const std::vector<std::string>& args) {
   po::variables_map vm;
   if (auto code = parseOptions("validate", "DESIGN.json [--json]", options, positional, args, vm)) return *code;
 
+  commandLineAccepted();
   const std::string file = vm["design"].as<std::string>();
   geometry::RodStructure design;
   try {

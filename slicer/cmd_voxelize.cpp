@@ -53,6 +53,7 @@ int runVoxelize(const std::vector<std::string>& args) {
   if (!threadsOption) return kUsage;
   const int threads = *threadsOption;
   const std::string file = vm["design"].as<std::string>(), output = vm["output"].as<std::string>();
+  commandLineAccepted();
   const std::optional<geometry::RodStructure> read = readDesignOrReport(file, "nothing was written");
   if (!read) return kFailed;
   const geometry::RodStructure& design = *read;

@@ -1,6 +1,8 @@
 // The rodfab subcommands: each lives in its own cmd_*.cpp and is listed in main.cpp.
 #pragma once
 
+#include <ostream>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -19,6 +21,15 @@ struct Command {
   // `args` excludes the program and subcommand names.
   int (*run)(const std::vector<std::string>& args);
 };
+
+// Every command, in the order `rodfab` lists them; nullptr for an unknown name.
+std::span<const Command> commands();
+const Command* findCommand(const std::string& name);
+void printUsage(std::ostream& out);
+
+// Runs `command`; every failure becomes an exit code and one message on stderr (Interrupted:
+// 128 + signal; out of memory and other errors: kFailed). Does not install handlers or a budget.
+int runCommand(const Command& command, const std::vector<std::string>& args);
 
 int runValidate(const std::vector<std::string>& args);
 int runVoxelize(const std::vector<std::string>& args);

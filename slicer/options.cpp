@@ -100,6 +100,16 @@ std::optional<double> realOption(const std::string& command, const po::variables
   return std::nullopt;
 }
 
+namespace {
+void (*acceptedHook)() = nullptr;
+}
+
+void commandLineAccepted() {
+  if (acceptedHook) acceptedHook();
+}
+
+void setCommandLineAcceptedHook(void (*hook)()) { acceptedHook = hook; }
+
 bool outputAllowed(const std::string& output, const std::vector<std::filesystem::path>& inputs,
                    const common::OutputPolicy& policy) {
   try {

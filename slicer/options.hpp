@@ -26,6 +26,12 @@ std::optional<int> parseOptions(const std::string& command, const std::string& s
 // Prints "rodfab COMMAND: MESSAGE" and where the options are listed; returns kUsage.
 int usageError(const std::string& command, const std::string& message);
 
+// Each command calls this once its command line is checked, before it reads or writes any file or
+// starts work. It does nothing unless a hook is set: the command-line fuzz target's hook stops there
+// (by throwing), so fuzzing covers every option parser without running the work.
+void commandLineAccepted();
+void setCommandLineAcceptedHook(void (*hook)());
+
 // Reads a design for a command that writes something. On an invalid design prints its errors and
 // "FILE: the design is not valid; CONSEQUENCE" and returns nullopt (the command exits kFailed).
 std::optional<geometry::RodStructure> readDesignOrReport(const std::string& file, const std::string& consequence);
