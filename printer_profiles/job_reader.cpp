@@ -225,6 +225,8 @@ private:
     zip_t* za = zip_fdopen(fd, ZIP_CHECKCONS, &error);  // closes fd on success only
     if (!za) {
       ::close(fd);
+      if (error == ZIP_ER_EXISTS)  // libzip refuses a central directory naming one entry twice
+        throw JobReadError(file_.string() + ": holds two entries of the same name (unpacking would keep only one)");
       throw JobReadError(file_.string() + ": not a readable zip archive (" + zipErrorText(error) +
                          "); it may be truncated or damaged");
     }
