@@ -1,16 +1,22 @@
 #include "printer_profiles/inspect.hpp"
 
+#include "printer_profiles/inspect_layout.hpp"
+#include "printer_profiles/job_reader.hpp"
+
+#include <openssl/evp.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
-#include <array>
+#include <atomic>
 #include <bit>
+#include <climits>
 #include <cmath>
 #include <cstdio>
 #include <map>
-#include <regex>
 #include <set>
+#include <sstream>
 
 namespace rodfab::printer_profiles {
 
@@ -19,12 +25,32 @@ using nlohmann::json;
 
 namespace {
 
-constexpr std::size_t kMaxDefects = 60;
+// Layers are checked in parallel, but never more at once than their capped images fit in this budget.
+constexpr std::uint64_t kLayerMemoryBudget = 512ull << 20;
+constexpr int kMaxFolderDepth = 2;  // the job and its previews/ folder; deeper folders are listed, not entered
 
-struct ManifestMaterial {
-  std::string name;
-  MaterialRole role = MaterialRole::Rigid;
-  double density = 0.0;
+// Incremental SHA-256 (OpenSSL EVP), so files are checked as they stream.
+class Sha256 {
+public:
+  Sha256() : ctx_(EVP_MD_CTX_new()) {
+    if (!ctx_ || EVP_DigestInit_ex(ctx_, EVP_sha256(), nullptr) != 1) throw std::runtime_error("SHA-256 unavailable (OpenSSL EVP)");
+  }
+  ~Sha256() { EVP_MD_CTX_free(ctx_); }
+  Sha256(const Sha256&) = delete;
+  Sha256& operator=(const Sha256&) = delete;
+  void update(std::span<const std::uint8_t> data) { EVP_DigestUpdate(ctx_, data.data(), data.size()); }
+  std::string hex() {
+    unsigned char digest[EVP_MAX_MD_SIZE];
+    unsigned int length = 0;
+    EVP_DigestFinal_ex(ctx_, digest, &length);
+    static constexpr char kHex[] = "0123456789abcdef";
+    std::string out;
+    for (unsigned int i = 0; i < length; ++i) out += {kHex[digest[i] >> 4], kHex[digest[i] & 15]};
+    return out;
+  }
+
+private:
+  EVP_MD_CTX* ctx_;
 };
 
 // Voxel index sums of one material as decoded from the images, to compare with the manifest's.
@@ -51,9 +77,10 @@ struct DecodedMoments {
 };
 
 struct LayerResult {
-  std::vector<std::string> defects;
-  std::vector<std::uint64_t> voxels;           // per manifest material
-  std::vector<DecodedMoments> moments;         // per manifest material
+  explicit LayerResult(const std::string& job) : findings(job) {}
+  Findings findings;
+  std::vector<std::uint64_t> voxels;    // per job material
+  std::vector<DecodedMoments> moments;  // per job material
 };
 
 std::string fmt3(const std::array<double, 3>& v) {
@@ -62,360 +89,473 @@ std::string fmt3(const std::array<double, 3>& v) {
   return buf;
 }
 
-// A manifest field that is missing or of the wrong type.
-class ManifestError : public std::runtime_error {
-public:
-  using std::runtime_error::runtime_error;
-};
+std::string lowercase(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
 
-class Inspector {
-public:
-  Inspector(const JobFiles& files, InspectReport& report) : files_(files), report_(report) {}
+// `KEY = VALUE;` lines of a build file (no regular expressions: they recurse on long inputs).
+std::map<std::string, std::string> buildFileValues(const std::string& text) {
+  const auto trim = [](std::string s) {
+    const auto first = s.find_first_not_of(" \t\r");
+    if (first == std::string::npos) return std::string();
+    return s.substr(first, s.find_last_not_of(" \t\r") - first + 1);
+  };
+  std::map<std::string, std::string> values;
+  std::size_t start = 0;
+  while (start < text.size()) {
+    const std::size_t end = std::min(text.find('\n', start), text.size());
+    const std::string line = text.substr(start, end - start);
+    start = end + 1;
+    const std::size_t eq = line.find('=');
+    const std::size_t semi = line.rfind(';');
+    if (eq == std::string::npos || semi == std::string::npos || semi < eq) continue;
+    values.emplace(trim(line.substr(0, eq)), trim(line.substr(eq + 1, semi - eq - 1)));
+  }
+  return values;
+}
 
-  void run() {
-    if (!files_.contains(kManifestName)) {
-      defect(std::string("no ") + kManifestName + ": not a finished rodfab job");
-      return;
-    }
-    try {
-      const Bytes text = files_.read(kManifestName);
-      report_.manifest = json::parse(text.begin(), text.end());
-    } catch (const std::exception& e) {
-      defect(std::string(kManifestName) + ": cannot be read as JSON (" + e.what() + ")");
-      return;
-    }
-    try {
-      readManifest();
-    } catch (const std::exception& e) {  // ManifestError or json::exception
-      defect(std::string(kManifestName) + ": " + e.what());
-      return;
-    }
-    if (!report_.ok()) return;
-    try {
-      checkOtherFiles();
-      checkBuildFile();
-      checkLayers();
-    } catch (const std::exception& e) {  // a manifest entry of the wrong shape, an unreadable file
-      defect(std::string("cannot finish the inspection: ") + e.what());
-    }
+// Reports the first few findings of one kind and counts the rest, so one kind cannot hide the others.
+class Tally {
+public:
+  Tally(Findings& findings, std::string what) : findings_(findings), what_(std::move(what)) {}
+  void at(const std::string& entry, const std::string& message) {
+    if (++count_ <= kShown) findings_.at(entry, message);
+  }
+  void finish() {
+    if (count_ > kShown) findings_.whole("and " + std::to_string(count_ - kShown) + " more " + what_);
   }
 
 private:
-  void defect(const std::string& message) {
-    if (report_.defects.size() < kMaxDefects) report_.defects.push_back(message);
-    else if (report_.defects.size() == kMaxDefects) report_.defects.push_back("... and more defects");
-  }
+  static constexpr std::size_t kShown = 8;
+  Findings& findings_;
+  std::string what_;
+  std::size_t count_ = 0;
+};
 
-  // Reads a manifest field, naming it when it is missing or of the wrong type.
-  template <typename T>
-  T field(const json& parent, const std::string& path, const std::string& key) {
-    const auto it = parent.find(key);
-    if (it == parent.end()) throw ManifestError("missing field " + path + key);
-    try {
-      return it->get<T>();
-    } catch (const json::exception&) {
-      throw ManifestError("field " + path + key + " has the wrong type: " + it->dump());
-    }
-  }
-
-  void readManifest() {
-    const json& m = report_.manifest;
-    if (field<std::string>(m, "", "format") != kJobFormat) defect(std::string("manifest format is not ") + kJobFormat);
-    const json& profile = m.at("profile");
-    profileName_ = field<std::string>(profile, "profile.", "name");
-    xDpi_ = field<int>(profile, "profile.", "x_dpi");
-    yDpi_ = field<int>(profile, "profile.", "y_dpi");
-    voxel_ = field<std::array<double, 3>>(profile, "profile.", "voxel_size_mm");
-    alignment_ = field<int>(profile, "profile.", "column_alignment");
-    const json& image = m.at("image");
-    imageFormat_ = field<std::string>(image, "image.", "format");
-    width_ = field<int>(image, "image.", "width");
-    height_ = field<int>(image, "image.", "height");
-    layers_ = field<int>(m, "", "layer_count");
-    report_.width = width_;
-    report_.height = height_;
-    report_.layers = layers_;
-    const json& frame = m.at("frame");
-    origin_ = field<std::array<double, 3>>(frame, "frame.", "origin_mm");
-    firstColumnI_ = field<int>(frame, "frame.", "first_column_i");
-    topRowJ_ = field<int>(frame, "frame.", "top_row_j");
-    firstLayerK_ = field<int>(frame, "frame.", "first_layer_k");
-    buildFile_ = field<std::string>(m, "", "build_file");
-    for (const json& jm : m.at("materials")) {
-      ManifestMaterial mm;
-      mm.name = field<std::string>(jm, "materials[].", "name");
-      const std::string role = field<std::string>(jm, "materials[].", "role");
-      mm.role = role == "rigid" ? MaterialRole::Rigid : role == "rubbery" ? MaterialRole::Rubbery : MaterialRole::Support;
-      mm.density = field<double>(jm, "materials[].", "density_g_per_ml");
-      materials_.push_back(mm);
-    }
-    for (const auto& [name, entry] : m.at("files").items())
-      fileTable_[name] = {field<std::uint64_t>(entry, "files." + name + ".", "bytes"), field<std::string>(entry, "files." + name + ".", "sha256")};
-
-    // The resolution must tell one story: dpi, voxel size, and the bundled profile of that name.
-    const int dpi[2] = {xDpi_, yDpi_};
-    const char* axis[2] = {"x", "y"};
-    for (int a = 0; a < 2; ++a)
-      if (dpi[a] <= 0 || std::abs(25.4 / dpi[a] - voxel_[a]) > 0.005 * voxel_[a])
-        defect("manifest: " + std::string(axis[a]) + "_dpi = " + std::to_string(dpi[a]) + " does not match the voxel size " +
-               std::to_string(voxel_[a]) + " mm along " + axis[a] + " (600/300 dpi swapped?)");
-    try {
-      const Profile bundled = loadProfile(profileName_);
-      if (bundled.xDpi != xDpi_ || bundled.yDpi != yDpi_)
-        defect("manifest: " + std::to_string(xDpi_) + " x " + std::to_string(yDpi_) + " dpi, but the " + profileName_ +
-               " profile is " + std::to_string(bundled.xDpi) + " x " + std::to_string(bundled.yDpi) +
-               " dpi (x is the image columns): the part would print at the wrong size");
+// The profiles whose limits bound what is read before the manifest names one: the caller's, or every
+// bundled one.
+std::vector<Profile> candidateProfiles(const InspectOptions& options) {
+  if (options.profile) return {*options.profile};
+  std::vector<Profile> out;
+  for (const std::string& name : bundledProfileNames()) try {
+      out.push_back(loadProfile(name));
     } catch (const ProfileError&) {
-      // Not a bundled profile: the manifest's own values were checked above.
+      // A broken bundled profile cannot vouch for any job; jobs naming it are refused later.
     }
-    if (width_ <= 0 || height_ <= 0 || layers_ <= 0) defect("manifest: image size or layer count is not positive");
-    if (alignment_ <= 0 || width_ % alignment_ != 0)
-      defect("manifest: image width " + std::to_string(width_) + " is not a multiple of " + std::to_string(alignment_));
-    if (imageFormat_ != "bmp" && imageFormat_ != "png") defect("manifest: image format '" + imageFormat_ + "' is not bmp or png");
-    const json& layerList = m.at("layers");
-    if (!layerList.is_array() || static_cast<int>(layerList.size()) != layers_)
-      defect("manifest: layers lists " + std::to_string(layerList.size()) + " layers; layer_count is " + std::to_string(layers_));
+  return out;
+}
+
+ProfileLimits widestLimits(const std::vector<Profile>& profiles) {
+  ProfileLimits w{0, 0, 0, 4096, 1u << 20, 65536};
+  for (const Profile& p : profiles) {
+    const ProfileLimits l = limitsOf(p);
+    w.maxEntries = std::max(w.maxEntries, l.maxEntries);
+    w.maxManifestBytes = std::max(w.maxManifestBytes, l.maxManifestBytes);
+    w.maxManifestValues = std::max(w.maxManifestValues, l.maxManifestValues);
+  }
+  return w;
+}
+
+class Inspector {
+public:
+  Inspector(const fs::path& job, const InspectOptions& options, InspectReport& report)
+      : job_(job), options_(options), report_(report), findings_(job.string()) {}
+
+  void run() {
+    candidates_ = candidateProfiles(options_);
+    limits_ = widestLimits(candidates_);
+    try {
+      reader_ = openJobReader(job_, limits_.maxEntries, kMaxFolderDepth);
+    } catch (const JobReadError& e) {
+      findings_.located(e.what());
+      return finish();
+    }
+    indexEntries();
+    if (readManifest() && resolveProfile() && readJobLayout()) {
+      checkEntries();
+      checkBuildFile();
+      checkPreviews();
+      checkLayers();
+    }
+    finish();
   }
 
-  // Checksums of every file; files the manifest does not list are defects too.
-  bool checkFile(const std::string& name, const Bytes& data) {
-    const auto it = fileTable_.find(name);
-    if (it == fileTable_.end()) {
-      defect(name + ": not listed in the manifest");
+private:
+  void finish() { report_.defects = findings_.take(); }
+
+  // Names every entry that no job may hold; keeps the safe, unique, regular files for reading.
+  void indexEntries() {
+    std::map<std::string, std::string> seen;  // lowercase name -> name as first found
+    std::set<std::string> ambiguous;
+    for (const JobEntry& e : reader_->entries()) {
+      if (const auto why = unsafeEntryName(e.name)) {
+        findings_.at(e.name, "unsafe entry name: it " + *why + "; a job's names are plain relative paths");
+        reported_.insert(e.name);
+        continue;
+      }
+      const auto [it, fresh] = seen.emplace(lowercase(e.name), e.name);
+      if (!fresh) {
+        findings_.at(e.name, it->second == e.name ? "appears more than once in the job"
+                                                  : "differs from " + printableName(it->second) +
+                                                        " only in letter case: Windows and macOS would keep one of them");
+        ambiguous.insert(it->second);
+        reported_.insert(e.name);
+        continue;
+      }
+      if (e.kind == EntryKind::Other) {
+        findings_.at(e.name, "is " + e.otherWhat + "; a job holds only regular files and folders (it was not opened)");
+        reported_.insert(e.name);
+      } else if (e.kind == EntryKind::Directory) {
+        folders_.insert(e.name);
+      } else {
+        files_[e.name] = &e;
+      }
+    }
+    for (const std::string& name : ambiguous) {
+      files_.erase(name);
+      reported_.insert(name);
+    }
+    if (reader_->truncated())
+      findings_.whole("holds more than " + std::to_string(limits_.maxEntries) + " entries, more than any job can; the rest were not listed");
+  }
+
+  bool readManifest() {
+    const auto it = files_.find(kManifestName);
+    if (it == files_.end()) {
+      if (!reported_.count(kManifestName)) findings_.whole(std::string("no ") + kManifestName + ": not a finished rodfab job");
       return false;
     }
-    if (data.size() != it->second.first || sha256Hex(data) != it->second.second) {
-      defect(name + ": checksum mismatch (the file was changed or damaged)");
+    try {
+      const Bytes text = reader_->read(*it->second, limits_.maxManifestBytes);
+      report_.manifest = parseUntrustedJson(text, limits_.maxManifestValues);
+      return true;
+    } catch (const JobReadError& e) {
+      findings_.located(e.what());
+    } catch (const std::runtime_error& e) {
+      findings_.at(kManifestName, std::string("cannot be read: ") + e.what());
+    }
+    report_.manifest = nullptr;
+    return false;
+  }
+
+  // The profile comes from the caller or, by name only, from the bundled ones: never from a path.
+  bool resolveProfile() {
+    if (options_.profile) {
+      profile_ = *options_.profile;
+      return true;
+    }
+    const json& m = report_.manifest;
+    const json* name = m.is_object() && m.contains("profile") && m["profile"].is_object() && m["profile"].contains("name")
+                           ? &m["profile"]["name"]
+                           : nullptr;
+    if (!name || !name->is_string()) {
+      findings_.at(kManifestName, "profile.name: missing; expected the name of a bundled printer profile");
       return false;
     }
+    for (const Profile& p : candidates_)
+      if (p.name == name->get<std::string>()) {
+        profile_ = p;
+        return true;
+      }
+    std::string bundled;
+    for (const Profile& p : candidates_) bundled += (bundled.empty() ? "" : ", ") + p.name;
+    findings_.at(kManifestName, "profile.name: \"" + printableName(name->get<std::string>()) +
+                                    "\" is not a bundled profile (bundled: " + (bundled.empty() ? "none" : bundled) +
+                                    "); inspect --profile FILE checks a job made with another profile file");
+    return false;
+  }
+
+  bool readJobLayout() {
+    InspectSummary& s = report_.summary;
+    s.profile = profile_.name;
+    s.printer = profile_.printer;
+    s.xDpi = profile_.xDpi;
+    s.yDpi = profile_.yDpi;
+    s.layerThicknessMm = profile_.layerThicknessMm();
+    std::optional<JobLayout> layout = readLayout(report_.manifest, profile_, findings_, s);
+    if (!layout) return false;
+    layout_ = std::move(*layout);
+    report_.width = layout_.width;
+    report_.height = layout_.height;
+    report_.layers = layout_.layers;
     return true;
   }
 
-  void checkOtherFiles() {
-    std::set<std::string> layerFiles;
-    for (const json& l : report_.manifest.at("layers"))  // malformed entries are reported by checkLayers
-      if (l.is_object() && l.contains("files") && l["files"].is_object())
-        for (const auto& [material, file] : l["files"].items())
-          if (file.is_string()) layerFiles.insert(file.get<std::string>());
-    for (const auto& [name, entry] : fileTable_) {
-      (void)entry;
-      if (!files_.contains(name)) defect(name + ": listed in the manifest but missing from the job");
+  void checkEntries() {
+    std::set<std::string> parents;  // folders that hold expected entries
+    for (const auto& [name, expected] : layout_.expected)
+      for (std::size_t slash = name.find('/'); slash != std::string::npos; slash = name.find('/', slash + 1))
+        parents.insert(name.substr(0, slash + 1));
+    Tally unexpected(findings_, "unexpected entries");
+    for (const std::string& folder : folders_)
+      if (!parents.count(folder)) unexpected.at(folder, "unexpected folder: a job for " + profile_.name + " has none of that name");
+    for (const auto& [name, entry] : files_)
+      if (!layout_.expected.count(name))
+        unexpected.at(name, "unexpected entry: not part of a " + std::to_string(layout_.layers) + "-layer " +
+                                toString(layout_.imageFormat) + " job for " + profile_.name);
+    unexpected.finish();
+    reportMissing();
+    Tally table(findings_, "problems in the manifest's file table");
+    for (const auto& [name, expected] : layout_.expected)
+      if (expected.role != EntryRole::Manifest && !layout_.listed.count(name))
+        table.at(kManifestName, "files: lacks " + printableName(name) + ", which the job must hold");
+    for (const auto& [name, listed] : layout_.listed)
+      if (!layout_.expected.count(name)) table.at(kManifestName, "files: lists " + printableName(name) + ", which is not part of the job");
+    table.finish();
+  }
+
+  // Missing entries; a material whose every image is missing is one finding, not one per layer.
+  void reportMissing() {
+    std::vector<int> missingImages(layout_.materials.size(), 0);
+    for (const auto& [name, expected] : layout_.expected)
+      if (expected.role == EntryRole::Layer && !files_.count(name)) ++missingImages[static_cast<std::size_t>(expected.material)];
+    for (std::size_t n = 0; n < layout_.materials.size(); ++n)
+      if (missingImages[n] == layout_.layers)
+        findings_.whole("every " + layout_.materials[n]->name + " image is missing (" + std::to_string(layout_.layers) +
+                        " layers): the job cannot print its " + toString(layout_.materials[n]->role) + " material");
+    Tally missing(findings_, "missing entries");
+    for (const auto& [name, expected] : layout_.expected) {
+      if (files_.count(name) || reported_.count(name)) continue;
+      if (expected.role == EntryRole::Layer && missingImages[static_cast<std::size_t>(expected.material)] == layout_.layers) continue;
+      missing.at(name, "missing: a " + std::to_string(layout_.layers) + "-layer job for " + profile_.name + " holds it");
     }
-    for (const std::string& name : files_.names()) {
-      if (name == kManifestName || layerFiles.count(name)) continue;
-      if (!fileTable_.count(name)) {
-        defect(name + ": not listed in the manifest");
-        continue;
-      }
-      try {
-        checkFile(name, files_.read(name));
-        ++report_.filesChecked;
-      } catch (const std::exception& e) {
-        defect(e.what());
-      }
+    missing.finish();
+  }
+
+  // Streams an expected entry: its declared and actual size against its cap, its size and checksum
+  // against the manifest. Keeps at most `keep` leading bytes. nullopt after a finding.
+  std::optional<Bytes> fetch(const std::string& name, std::uint64_t keep, Findings& out) const {
+    const auto file = files_.find(name);
+    const auto listed = layout_.listed.find(name);
+    if (file == files_.end() || listed == layout_.listed.end()) return std::nullopt;  // reported by checkEntries
+    const std::uint64_t cap = layout_.expected.at(name).maxBytes;
+    if (file->second->declaredBytes > cap) {
+      out.at(name, "declares " + std::to_string(file->second->declaredBytes) + " bytes; at most " + std::to_string(cap) +
+                       " fit a " + std::to_string(layout_.width) + " x " + std::to_string(layout_.height) + " job's entry (not read)");
+      return std::nullopt;
     }
+    Bytes kept;
+    Sha256 sha;
+    std::uint64_t bytes = 0;
+    try {
+      reader_->stream(*file->second, cap, [&](std::span<const std::uint8_t> chunk) {
+        sha.update(chunk);
+        bytes += chunk.size();
+        const std::size_t room = static_cast<std::size_t>(std::min<std::uint64_t>(keep - kept.size(), chunk.size()));
+        kept.insert(kept.end(), chunk.begin(), chunk.begin() + static_cast<std::ptrdiff_t>(room));
+      });
+    } catch (const JobReadError& e) {
+      out.located(e.what());
+      return std::nullopt;
+    }
+    if (bytes != listed->second.bytes || sha.hex() != listed->second.sha256) {
+      out.at(name, "checksum mismatch (the file was changed or damaged): " + std::to_string(bytes) +
+                       " bytes, the manifest says " + std::to_string(listed->second.bytes));
+      return std::nullopt;
+    }
+    ++filesChecked_;
+    return kept;
   }
 
   void checkBuildFile() {
-    if (!files_.contains(buildFile_)) return;  // reported as missing above
-    const Bytes data = files_.read(buildFile_);
-    const std::string text(data.begin(), data.end());
-    std::smatch match;
-    if (!std::regex_search(text, match, std::regex(R"(Number of slices\s*=\s*(\d+)\s*;)")) || std::stoi(match[1]) != layers_)
-      defect(buildFile_ + ": 'Number of slices' does not say " + std::to_string(layers_));
-    if (!std::regex_search(text, match, std::regex(R"(Layer thickness\s*=\s*([0-9.]+)\s*;)")) ||
-        std::abs(std::stod(match[1]) - voxel_[2]) > 1e-9)
-      defect(buildFile_ + ": 'Layer thickness' does not say " + std::to_string(voxel_[2]));
-    for (const ManifestMaterial& mm : materials_)
-      if (text.find(mm.name + " = ") == std::string::npos) defect(buildFile_ + ": no entry for " + mm.name);
+    const std::string& name = profile_.buildFileName;
+    const auto data = fetch(name, UINT64_MAX, findings_);
+    if (!data) return;
+    const auto values = buildFileValues(std::string(data->begin(), data->end()));
+    const auto expect = [&](const std::string& key, const std::string& want) {
+      const auto it = values.find(key);
+      if (it == values.end() || it->second != want)
+        findings_.at(name, "expected '" + key + " = " + want + ";'" +
+                               (it == values.end() ? std::string(", found no such line") : ", found '" + printableName(it->second) + "'"));
+    };
+    expect("Format version", std::to_string(profile_.buildFormatVersion));
+    expect("Number of slices", std::to_string(layout_.layers));
+    std::ostringstream thickness;
+    thickness << profile_.layerThicknessMm();  // as the writer prints it
+    expect("Layer thickness", thickness.str());
+    expect("Support", profile_.material(MaterialRole::Support).name);
+    for (const ProfileMaterial* m : layout_.materials) expect(m->name, profile_.layerFilePattern(*m, layout_.imageFormat));
+  }
+
+  // Previews are only looked at by people: their checksum and that they are 8-bit RGB PNGs suffice.
+  void checkPreviews() {
+    for (const auto& [name, expected] : layout_.expected) {
+      if (expected.role != EntryRole::Preview && expected.role != EntryRole::ContactSheet) continue;
+      const auto head = fetch(name, 26, findings_);
+      if (!head) continue;
+      static constexpr std::uint8_t kSignature[16] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n', 0, 0, 0, 13, 'I', 'H', 'D', 'R'};
+      if (head->size() < 26 || !std::equal(kSignature, kSignature + 16, head->begin()) || (*head)[24] != 8 || (*head)[25] != 2)
+        findings_.at(name, "is not an 8-bit RGB PNG image");
+    }
   }
 
   void checkLayers() {
-    const json& layerList = report_.manifest.at("layers");
-    std::vector<LayerResult> results(static_cast<std::size_t>(layers_));
-    const std::uint32_t xPpm = pixelsPerMetre(xDpi_), yPpm = pixelsPerMetre(yDpi_);
-    tbb::parallel_for(tbb::blocked_range<int>(0, layers_, 1), [&](const tbb::blocked_range<int>& range) {
-      for (int l = range.begin(); l != range.end(); ++l) {
-        LayerResult& result = results[static_cast<std::size_t>(l)];
-        try {
-          checkLayer(l, layerList.at(static_cast<std::size_t>(l)), xPpm, yPpm, result);
-        } catch (const std::exception& e) {
-          result.defects.push_back("layer " + std::to_string(l) + ": manifest entry unreadable (" + e.what() + ")");
-        }
-      }
+    const std::size_t materials = layout_.materials.size();
+    const std::uint64_t imageBytes = (static_cast<std::uint64_t>(layout_.width) + 7) / 8 * static_cast<std::uint64_t>(layout_.height);
+    const std::uint64_t fileCap = layout_.expected.at(profile_.layerFileName(*layout_.materials[0], 0, layout_.imageFormat)).maxBytes;
+    const std::uint64_t perLayer = materials * (fileCap + imageBytes);
+    const int workers = static_cast<int>(std::clamp<std::uint64_t>(kLayerMemoryBudget / std::max<std::uint64_t>(perLayer, 1), 1,
+                                                                   static_cast<std::uint64_t>(tbb::this_task_arena::max_concurrency())));
+    std::vector<LayerResult> results(static_cast<std::size_t>(layout_.layers), LayerResult(job_.string()));
+    tbb::task_arena arena(workers);
+    arena.execute([&] {
+      tbb::parallel_for(tbb::blocked_range<int>(0, layout_.layers, 1), [&](const tbb::blocked_range<int>& range) {
+        for (int l = range.begin(); l != range.end(); ++l) checkLayer(l, results[static_cast<std::size_t>(l)]);
+      });
     });
-    std::vector<DecodedMoments> moments(materials_.size());
-    std::vector<std::uint64_t> totals(materials_.size(), 0);
+    std::vector<DecodedMoments> moments(materials);
+    std::vector<std::uint64_t> totals(materials, 0);
     for (const LayerResult& r : results) {
-      for (const std::string& d : r.defects) defect(d);
-      for (std::size_t n = 0; n < materials_.size() && n < r.voxels.size(); ++n) {
+      findings_.merge(r.findings);
+      for (std::size_t n = 0; n < materials; ++n) {
         totals[n] += r.voxels[n];
         moments[n].merge(r.moments[n]);
       }
     }
-    report_.filesChecked += static_cast<std::size_t>(layers_) * materials_.size();
-    for (std::size_t n = 0; n < materials_.size(); ++n) {
-      const double ml = static_cast<double>(totals[n]) * voxel_[0] * voxel_[1] * voxel_[2] / 1000.0;
-      report_.materials.push_back({materials_[n].name, materials_[n].role, totals[n], ml, ml * materials_[n].density});
+    const auto& v = profile_.voxelSizeMm;
+    for (std::size_t n = 0; n < materials; ++n) {
+      const ProfileMaterial& m = *layout_.materials[n];
+      const double ml = static_cast<double>(totals[n]) * v[0] * v[1] * v[2] / 1000.0;
+      report_.materials.push_back({m.name, m.role, totals[n], ml, ml * m.densityGPerMl});
     }
     checkOrientation(moments);
+    report_.filesChecked = filesChecked_;
   }
 
-  void checkLayer(int l, const json& entry, std::uint32_t xPpm, std::uint32_t yPpm, LayerResult& out) const {
-    out.voxels.assign(materials_.size(), 0);
-    out.moments.assign(materials_.size(), {});
-    const std::string where = "layer " + std::to_string(l);
-    std::vector<Bitmap> bitmaps(materials_.size());
-    std::vector<bool> have(materials_.size(), false);
-    for (std::size_t n = 0; n < materials_.size(); ++n) {
-      const ManifestMaterial& mm = materials_[n];
-      const auto fileIt = entry.at("files").find(mm.name);
-      if (fileIt == entry.at("files").end()) {
-        out.defects.push_back(where + ": no " + mm.name + " file in the manifest");
-        continue;
-      }
-      const std::string name = fileIt->get<std::string>();
-      Bytes data;
-      try {
-        data = files_.read(name);
-      } catch (const std::exception& e) {
-        out.defects.push_back(e.what());
-        continue;
-      }
-      const auto listed = fileTable_.find(name);
-      if (listed == fileTable_.end()) {
-        out.defects.push_back(name + ": not listed in the manifest's files");
-        continue;
-      }
-      if (data.size() != listed->second.first || sha256Hex(data) != listed->second.second) {
-        out.defects.push_back(name + ": checksum mismatch (the file was changed or damaged)");
-        continue;
-      }
-      DecodedBitmap decoded;
-      try {
-        decoded = name.ends_with(".png") ? decodePng1(data) : decodeBmp(data);
-      } catch (const ImageError& e) {
-        out.defects.push_back(name + ": " + e.what());
-        continue;
-      }
-      if (decoded.bitmap.width() != width_ || decoded.bitmap.height() != height_) {
-        out.defects.push_back(name + ": " + std::to_string(decoded.bitmap.width()) + " x " + std::to_string(decoded.bitmap.height()) +
-                              " pixels; the job's images are " + std::to_string(width_) + " x " + std::to_string(height_));
-        continue;
-      }
-      if (decoded.xPixelsPerMetre != xPpm || decoded.yPixelsPerMetre != yPpm) {
-        std::string why = decoded.xPixelsPerMetre == yPpm && decoded.yPixelsPerMetre == xPpm
-                              ? " (x and y swapped: the part would print at twice or half its size)"
-                              : "";
-        out.defects.push_back(name + ": resolution " + std::to_string(decoded.xPixelsPerMetre) + " x " +
-                              std::to_string(decoded.yPixelsPerMetre) + " pixels/m; expected " + std::to_string(xPpm) + " x " +
-                              std::to_string(yPpm) + " (" + std::to_string(xDpi_) + " x " + std::to_string(yDpi_) + " dpi)" + why);
-      }
-      bitmaps[n] = std::move(decoded.bitmap);
-      have[n] = true;
+  // One layer image decoded and checked against the job's size and resolution; nullopt after a finding.
+  std::optional<Bitmap> layerImage(int l, std::size_t n, Findings& out) const {
+    const std::string name = profile_.layerFileName(*layout_.materials[n], l, layout_.imageFormat);
+    const auto data = fetch(name, UINT64_MAX, out);
+    if (!data) return std::nullopt;
+    DecodedBitmap decoded;
+    try {
+      decoded = layout_.imageFormat == ImageFormat::Png ? decodePng1(*data) : decodeBmp(*data);
+    } catch (const ImageError& e) {
+      out.at(name, e.what());
+      return std::nullopt;
     }
-    const auto counts = entry.at("voxels");
-    for (std::size_t n = 0; n < materials_.size(); ++n) {
-      if (!have[n]) continue;
-      const Bitmap& b = bitmaps[n];
-      for (int r = 0; r < height_; ++r) {
-        const std::uint8_t* row = b.row(r);
-        for (std::size_t byte = 0; byte < b.stride(); ++byte) {
-          const std::uint8_t bits = row[byte];
-          if (!bits) continue;
-          const int i0 = firstColumnI_ + static_cast<int>(byte) * 8;
-          int n8 = 0;
-          double sumI = 0;
-          for (int x = 0; x < 8; ++x)
-            if ((bits >> (7 - x)) & 1) {
-              ++n8;
-              sumI += i0 + x;
-            }
-          out.moments[n].add(topRowJ_ - r, firstLayerK_ + l, n8, sumI, i0 + std::countl_zero(bits), i0 + 7 - std::countr_zero(bits));
-        }
-      }
+    if (decoded.bitmap.width() != layout_.width || decoded.bitmap.height() != layout_.height) {
+      out.at(name, std::to_string(decoded.bitmap.width()) + " x " + std::to_string(decoded.bitmap.height()) +
+                       " pixels; the job's images are " + std::to_string(layout_.width) + " x " + std::to_string(layout_.height));
+      return std::nullopt;
+    }
+    const std::uint32_t xPpm = pixelsPerMetre(profile_.xDpi), yPpm = pixelsPerMetre(profile_.yDpi);
+    if (decoded.xPixelsPerMetre != xPpm || decoded.yPixelsPerMetre != yPpm) {
+      const std::string why = decoded.xPixelsPerMetre == yPpm && decoded.yPixelsPerMetre == xPpm
+                                  ? " (x and y swapped: the part would print at twice or half its size)"
+                                  : "";
+      out.at(name, "resolution " + std::to_string(decoded.xPixelsPerMetre) + " x " + std::to_string(decoded.yPixelsPerMetre) +
+                       " pixels/m; expected " + std::to_string(xPpm) + " x " + std::to_string(yPpm) + " (" +
+                       std::to_string(profile_.xDpi) + " x " + std::to_string(profile_.yDpi) + " dpi)" + why);
+    }
+    return std::move(decoded.bitmap);
+  }
+
+  void checkLayer(int l, LayerResult& out) const {
+    const std::size_t materials = layout_.materials.size();
+    out.voxels.assign(materials, 0);
+    out.moments.assign(materials, {});
+    std::vector<std::optional<Bitmap>> bitmaps(materials);
+    for (std::size_t n = 0; n < materials; ++n) {
+      bitmaps[n] = layerImage(l, n, out.findings);
+      if (!bitmaps[n]) continue;
+      countVoxels(*bitmaps[n], l, out.moments[n]);
       out.voxels[n] = out.moments[n].count;
-      const std::uint64_t listed = counts.value(materials_[n].name, std::uint64_t{0});
-      if (listed != out.voxels[n])
-        out.defects.push_back(where + ": " + materials_[n].name + " has " + std::to_string(out.voxels[n]) +
-                              " voxels; the manifest says " + std::to_string(listed));
+      const auto& listed = layout_.layerVoxels[static_cast<std::size_t>(l)][n];
+      if (listed && *listed != out.voxels[n])
+        out.findings.at(profile_.layerFileName(*layout_.materials[n], l, layout_.imageFormat),
+                        "has " + std::to_string(out.voxels[n]) + " voxels; the manifest says " + std::to_string(*listed) +
+                            " (layers[" + std::to_string(l) + "].voxels." + layout_.materials[n]->name + ")");
     }
     // No voxel may hold two materials: neither two model materials nor support inside the model.
-    for (std::size_t a = 0; a < materials_.size(); ++a)
-      for (std::size_t b = a + 1; b < materials_.size(); ++b) {
-        if (!have[a] || !have[b] || bitmaps[a].bytes().size() != bitmaps[b].bytes().size()) continue;  // sizes: reported above
-        const std::uint64_t both = countCommonBits(bitmaps[a].bytes(), bitmaps[b].bytes());
-        if (both)
-          out.defects.push_back(where + ": " + std::to_string(both) + " voxels hold both " + materials_[a].name + " and " +
-                                materials_[b].name);
+    for (std::size_t a = 0; a < materials; ++a)
+      for (std::size_t b = a + 1; b < materials; ++b) {
+        if (!bitmaps[a] || !bitmaps[b]) continue;
+        if (const std::uint64_t both = countCommonBits(bitmaps[a]->bytes(), bitmaps[b]->bytes()))
+          out.findings.at(profile_.layerFileName(*layout_.materials[a], l, layout_.imageFormat),
+                          std::to_string(both) + " voxels hold both " + layout_.materials[a]->name + " and " + layout_.materials[b]->name);
       }
   }
 
-  void checkOrientation(const std::vector<DecodedMoments>& moments) {
-    const json& check = report_.manifest.value("orientation_check", json::object());
-    const auto toMm = [&](const std::array<double, 3>& ijk) {
-      return std::array<double, 3>{origin_[0] + ijk[0] * voxel_[0], origin_[1] + ijk[1] * voxel_[1], origin_[2] + ijk[2] * voxel_[2]};
-    };
-    for (std::size_t n = 0; n < materials_.size(); ++n) {
-      const auto it = check.find(materials_[n].name);
-      if (it == check.end()) continue;  // support has no orientation record
-      const DecodedMoments& mo = moments[n];
-      if (it->value("voxels", std::uint64_t{0}) != mo.count) continue;  // already reported layer by layer
-      if (!mo.count) continue;
-      const double c = static_cast<double>(mo.count);
-      const std::array<double, 3> got[3] = {
-          toMm({static_cast<double>(mo.min[0]), static_cast<double>(mo.min[1]), static_cast<double>(mo.min[2])}),
-          toMm({static_cast<double>(mo.max[0]), static_cast<double>(mo.max[1]), static_cast<double>(mo.max[2])}),
-          toMm({mo.sum[0] / c, mo.sum[1] / c, mo.sum[2] / c})};
-      const char* keys[3] = {"min_mm", "max_mm", "centroid_mm"};
-      for (int q = 0; q < 3; ++q) {
-        const auto want = it->at(keys[q]).get<std::array<double, 3>>();
-        for (int a = 0; a < 3; ++a)
-          if (std::abs(want[a] - got[q][a]) > 1e-6 * std::max(1.0, std::abs(want[a]))) {
-            defect(materials_[n].name + ": the images put the " + std::string(keys[q]).substr(0, std::string(keys[q]).size() - 3) +
-                   " of the part at " + fmt3(got[q]) + " mm, the manifest at " + fmt3(want) +
-                   " mm: the images are mirrored, flipped or shifted against the design");
-            a = 3;
-            q = 3;
-          }
+  void countVoxels(const Bitmap& b, int l, DecodedMoments& moments) const {
+    for (int r = 0; r < b.height(); ++r) {
+      const std::uint8_t* row = b.row(r);
+      for (std::size_t byte = 0; byte < b.stride(); ++byte) {
+        const std::uint8_t bits = row[byte];
+        if (!bits) continue;
+        const int i0 = layout_.firstColumnI + static_cast<int>(byte) * 8;
+        double sumI = 0;
+        for (int x = 0; x < 8; ++x)
+          if ((bits >> (7 - x)) & 1) sumI += i0 + x;
+        moments.add(layout_.topRowJ - r, layout_.firstLayerK + l, std::popcount(bits), sumI, i0 + std::countl_zero(bits),
+                    i0 + 7 - std::countr_zero(bits));
       }
     }
   }
 
-  const JobFiles& files_;
+  // The images mapped back through the frame must land where the manifest says the part is (computed
+  // from the grid by the writer): otherwise they are mirrored, flipped or shifted.
+  void checkOrientation(const std::vector<DecodedMoments>& moments) {
+    const auto& v = profile_.voxelSizeMm;
+    const auto& o = layout_.originMm;
+    const auto toMm = [&](const std::array<double, 3>& ijk) {
+      return std::array<double, 3>{o[0] + ijk[0] * v[0], o[1] + ijk[1] * v[1], o[2] + ijk[2] * v[2]};
+    };
+    for (std::size_t n = 0; n < layout_.materials.size(); ++n) {
+      const auto& record = layout_.orientation[n];
+      const DecodedMoments& mo = moments[n];
+      if (!record || record->voxels != mo.count || !mo.count) continue;  // counts are reported layer by layer
+      const double c = static_cast<double>(mo.count);
+      const std::array<double, 3> got[3] = {toMm({1.0 * mo.min[0], 1.0 * mo.min[1], 1.0 * mo.min[2]}),
+                                            toMm({1.0 * mo.max[0], 1.0 * mo.max[1], 1.0 * mo.max[2]}),
+                                            toMm({mo.sum[0] / c, mo.sum[1] / c, mo.sum[2] / c})};
+      const std::array<double, 3> want[3] = {record->minMm, record->maxMm, record->centroidMm};
+      const char* what[3] = {"min", "max", "centroid"};
+      for (int q = 0; q < 3; ++q) {
+        bool same = true;
+        for (int a = 0; a < 3; ++a) same = same && std::abs(want[q][a] - got[q][a]) <= 1e-6 * std::max(1.0, std::abs(want[q][a]));
+        if (same) continue;
+        findings_.whole(layout_.materials[n]->name + ": the images put the " + what[q] + " of the part at " + fmt3(got[q]) +
+                        " mm, the manifest at " + fmt3(want[q]) + " mm: the images are mirrored, flipped or shifted against the design");
+        break;
+      }
+    }
+  }
+
+  fs::path job_;
+  const InspectOptions& options_;
   InspectReport& report_;
-  std::string profileName_, imageFormat_, buildFile_;
-  int xDpi_ = 0, yDpi_ = 0, alignment_ = 0, width_ = 0, height_ = 0, layers_ = 0;
-  int firstColumnI_ = 0, topRowJ_ = 0, firstLayerK_ = 0;
-  std::array<double, 3> voxel_{}, origin_{};
-  std::vector<ManifestMaterial> materials_;
-  std::map<std::string, std::pair<std::uint64_t, std::string>> fileTable_;
+  Findings findings_;
+  std::vector<Profile> candidates_;
+  ProfileLimits limits_;
+  std::unique_ptr<JobReader> reader_;
+  std::map<std::string, const JobEntry*> files_;  // safe, unambiguous regular files by name
+  std::set<std::string> folders_;                 // safe folder entries ("previews/")
+  std::set<std::string> reported_;                // names already found wanting
+  Profile profile_;
+  JobLayout layout_;
+  mutable std::atomic<std::size_t> filesChecked_{0};
 };
 
 }  // namespace
 
-InspectReport inspectJobFiles(const JobFiles& files) {
+InspectReport inspectJobFiles(const JobFiles& files, const InspectOptions& options) {
   InspectReport report;
   report.job = files.path();
-  Inspector(files, report).run();
+  Inspector(files.path(), options, report).run();
   return report;
 }
 
-InspectReport inspectJob(const fs::path& job) {
+InspectReport inspectJob(const fs::path& job, const InspectOptions& options) {
   InspectReport report;
   report.job = job;
   if (job.filename().string().find(".rodfab-partial-") != std::string::npos) {
     report.defects.push_back(job.string() + ": an unfinished job (temporary name of an interrupted or running write)");
     return report;
   }
-  std::unique_ptr<JobFiles> files;
-  try {
-    files = openJobFiles(job);
-  } catch (const std::exception& e) {
-    report.defects.push_back(e.what());
-    return report;
-  }
-  return inspectJobFiles(*files);
+  Inspector(job, options, report).run();
+  return report;
 }
 
 }  // namespace rodfab::printer_profiles

@@ -1,33 +1,70 @@
-// Re-reading a job: every checksum, image size, bit depth, DPI and axis orientation, model materials
-// never overlapping, support never overlapping the model, the build file against the manifest.
+// Re-reading a job, which may be damaged or hostile: the job's complete layout against its printer
+// profile (every expected file present with a size its images can have, nothing else, names safe on
+// every platform), every checksum, image size, bit depth, DPI and axis orientation, model materials never
+// overlapping, support never overlapping the model, the build file against the profile and manifest.
+//
+// Nothing in the job is trusted. The profile is chosen by the caller or, by name only, among the bundled
+// profiles (a manifest never names a file to read); every entry is streamed with a cap on its bytes
+// derived from the profile's tray and the job's image size; folder jobs are walked without following
+// links and only regular files are opened; the manifest is refused when larger, more deeply nested
+// (64 levels) or holding more values than a job for that profile can need. Memory stays bounded: at most
+// a few layers' images (each capped) are held at once.
 #pragma once
 
 #include "printer_profiles/job_archive.hpp"
 #include "printer_profiles/job_writer.hpp"
+#include "printer_profiles/profile.hpp"
 
 #include <nlohmann/json.hpp>
 
+#include <array>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
 namespace rodfab::printer_profiles {
 
+struct InspectOptions {
+  // The profile the job must match. Default: the bundled profile whose name the manifest gives (a name
+  // that is not bundled is a defect: pass the profile file's contents here instead).
+  std::optional<Profile> profile;
+};
+
+// What the job says about itself, filled only from values that passed their checks.
+struct InspectSummary {
+  std::string profile, printer;   // of the profile the job was checked against
+  int xDpi = 0, yDpi = 0;
+  double layerThicknessMm = 0.0;
+  std::string imageFormat;        // "bmp" | "png"
+  std::string supportPolicy;      // "printer" | "explicit"
+  std::optional<std::array<double, 3>> partSizeMm;
+  std::string ditherer;
+  std::optional<std::uint64_t> seed;
+};
+
 struct InspectReport {
   std::filesystem::path job;
-  std::vector<std::string> defects;  // empty: the job is sound
-  nlohmann::json manifest;           // null when it could not be read
+  // Empty: the job is sound. Each defect is located: "JOB: ENTRY: what was expected" for one entry (for
+  // the manifest, the JSON path follows the entry), "JOB: what was expected" for the whole job. Names
+  // from the job are shown with non-printable bytes as \xNN. At most 60, then a count of the rest.
+  std::vector<std::string> defects;
+  nlohmann::json manifest;  // null when it could not be read
+  InspectSummary summary;
   std::size_t filesChecked = 0;
   int width = 0, height = 0, layers = 0;
-  std::vector<MaterialTotals> materials;  // counted from the decoded images
+  std::vector<MaterialTotals> materials;  // counted from the decoded images, in the job's material order
 
   bool ok() const { return defects.empty(); }
 };
 
-// Never throws for a damaged job: every problem becomes a defect. A path with the emitter's
-// temporary name is refused as unfinished.
-InspectReport inspectJob(const std::filesystem::path& job);
-// The same checks on an already opened job (the emitter verifies its temporary before renaming it).
-InspectReport inspectJobFiles(const JobFiles& files);
+// Never throws for a damaged or hostile job: every problem becomes a defect. A path with the emitter's
+// temporary name is refused as unfinished. `job` itself may be a symbolic link; a path that is neither a
+// folder nor a regular file (FIFO, device) is refused without reading it. Thread-safe for distinct calls;
+// uses TBB workers internally.
+InspectReport inspectJob(const std::filesystem::path& job, const InspectOptions& options = {});
+// The same checks on the job at files.path() (the emitter verifies its temporary before renaming it),
+// which is re-read through the same hostile-input reader (files' own read() is not used).
+InspectReport inspectJobFiles(const JobFiles& files, const InspectOptions& options = {});
 
 }  // namespace rodfab::printer_profiles

@@ -465,8 +465,8 @@ TEST_CASE("Inspect catches tampering, truncation, flips and a 600/300 swap", "[i
     manifest["files"].erase("build.txt");
     const std::string text = manifest.dump(1);
     writeAll(dir / "job" / "manifest.json", Bytes(text.begin(), text.end()));
-    CHECK(hasDefect("layer 3: manifest entry unreadable"));
-    CHECK(hasDefect("build.txt: not listed in the manifest"));
+    CHECK(hasDefect("manifest.json: layers[3]: expected an object, got 5"));
+    CHECK(hasDefect("manifest.json: files: lacks build.txt"));
     json broken = json::parse(text);
     broken.erase("frame");
     const std::string brokenText = broken.dump();

@@ -35,6 +35,54 @@ grep -q '"ok": false' "$tmp/out" || fail "inspect --json verdict"
 "$rodfab" inspect "$tmp/none.zip" 2> "$tmp/err" > /dev/null
 [ $? -eq 1 ] || fail "inspect of a missing job: expected exit 1"
 
+# inspect never trusts the job: a real job, then hostile variants of it made by tests/cli/hostile_jobs.py.
+"$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/box.zip" --quiet > /dev/null 2>&1 || fail "slice box.zip"
+"$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/box" --format dir --quiet > /dev/null 2>&1 || fail "slice box/"
+"$rodfab" inspect "$tmp/box.zip" > "$tmp/out" 2>&1 || fail "inspect of a sound job: $(cat "$tmp/out")"
+grep -q "verdict:       OK" "$tmp/out" || fail "no OK verdict"
+"$rodfab" inspect --profile stratasys-objet500-connex3 "$tmp/box" > /dev/null 2>&1 || fail "inspect --profile NAME"
+"$rodfab" inspect --profile "$src/printer_profiles/stratasys-objet500-connex3.json" "$tmp/box.zip" > /dev/null 2>&1 ||
+  fail "inspect --profile FILE"
+"$rodfab" inspect --profile objet-9000 "$tmp/box.zip" > /dev/null 2> "$tmp/err"
+[ $? -eq 1 ] || fail "inspect --profile of an unknown name: expected exit 1"
+grep -q "objet-9000: no bundled profile of that name" "$tmp/err" || fail "unknown --profile not named: $(cat "$tmp/err")"
+python3 "$src/tests/cli/hostile_jobs.py" "$tmp/box.zip" "$tmp/box" "$tmp/h" 300 || fail "hostile_jobs.py"
+# Standard input is a FIFO that never ends: reading it (a manifest naming /dev/stdin) would hang.
+mkfifo "$tmp/never-ends"
+exec 3<> "$tmp/never-ends"
+hostile() {  # JOB PATTERN: exit 1 within 60 s, a defect matching PATTERN
+  timeout 60 "$rodfab" inspect "$tmp/h/$1" <&3 > "$tmp/out" 2> "$tmp/err"
+  local code=$?
+  [ $code -eq 1 ] || fail "inspect $1: expected exit 1, got $code (124: it hung): $(cat "$tmp/err")"
+  grep -q "verdict:       DEFECTIVE" "$tmp/out" || fail "inspect $1: no DEFECTIVE verdict"
+  grep -q -- "$2" "$tmp/err" || fail "inspect $1: no defect matching '$2': $(cat "$tmp/err")"
+}
+hostile profile-stdin.zip 'profile-stdin.zip: manifest.json: profile.name: "/dev/stdin" is not a bundled profile'
+hostile profile-zero.zip 'profile.name: "/dev/zero" is not a bundled profile'
+hostile bomb.zip 'bomb.zip: bomb.bin: unexpected entry'
+hostile huge.zip 'huge.zip: VeroWhitePlus_0000.bmp: declares 4026531840 bytes'
+hostile dotdot.zip "dotdot.zip: ../../x: unsafe entry name: it has a '..' component"
+hostile absolute.zip 'absolute.zip: /tmp/x: unsafe entry name: it is an absolute path'
+hostile no-build.zip 'no-build.zip: build.txt: missing'
+hostile no-rubbery.zip 'no-rubbery.zip: every TangoBlackPlus image is missing'
+hostile deep.zip 'deep.zip: manifest.json: cannot be read: nested more than 64 levels deep'
+hostile fifo 'fifo: VeroWhitePlus_0001.bmp: is a FIFO'
+hostile zero-link 'zero-link: VeroWhitePlus_0001.bmp: is a symbolic link'
+exec 3>&-
+# The bomb is never inflated: inspect's peak memory stays far below its 300 MiB.
+python3 - "$rodfab" "$tmp/h/bomb.zip" <<'PY' || fail "inspect of the deflate bomb"
+import resource, subprocess, sys
+run = subprocess.run([sys.argv[1], "inspect", sys.argv[2]], capture_output=True, timeout=60)
+peak_mib = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+if run.returncode != 1 or peak_mib > 150:
+    sys.exit(f"exit {run.returncode}, peak {peak_mib:.0f} MiB (expected exit 1 under 150 MiB)")
+PY
+# The JSON report of a hostile job is valid JSON, even with unprintable names in it.
+"$rodfab" inspect --json "$tmp/h/dotdot.zip" > "$tmp/out"
+[ $? -eq 1 ] || fail "inspect --json of a hostile job: expected exit 1"
+python3 -c 'import json,sys; r = json.load(open(sys.argv[1])); assert r["ok"] is False and r["defects"], r' "$tmp/out" ||
+  fail "inspect --json output: $(head -c 300 "$tmp/out")"
+
 "$rodfab" inspect 2> /dev/null
 [ $? -eq 2 ] || fail "inspect without a job: expected usage exit 2"
 "$rodfab" profiles --bogus 2> /dev/null

@@ -1,0 +1,475 @@
+#include "printer_profiles/inspect_layout.hpp"
+
+#include "printer_profiles/inspect.hpp"
+#include "printer_profiles/job_reader.hpp"
+#include "printer_profiles/job_writer.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace rodfab::printer_profiles {
+
+using nlohmann::json;
+
+// ------------------------------------------------------------------------------------------ findings
+
+void Findings::push(std::string text) {
+  if (list_.size() < kMaxDefects) list_.push_back(std::move(text));
+  else ++dropped_;
+}
+
+void Findings::at(const std::string& entry, const std::string& message) {
+  push(job_ + ": " + printableName(entry) + ": " + message);
+}
+
+void Findings::whole(const std::string& message) { push(job_ + ": " + message); }
+
+void Findings::located(const std::string& message) { push(message); }
+
+void Findings::merge(const Findings& other) {
+  for (const std::string& s : other.list_) push(s);
+  dropped_ += other.dropped_;
+}
+
+std::vector<std::string> Findings::take() {
+  std::vector<std::string> out = std::move(list_);
+  if (dropped_) out.push_back(job_ + ": ... and " + std::to_string(dropped_) + " more defects");
+  list_.clear();
+  dropped_ = 0;
+  return out;
+}
+
+// ------------------------------------------------------------------------------------------ limits
+
+ProfileLimits limitsOf(const Profile& p) {
+  // planJob refuses images wider or taller than the tray, and parts taller than it.
+  const auto fit = [](double trayMm, double voxelMm) {
+    return voxelMm > 0 ? static_cast<int>(std::min(std::floor(trayMm / voxelMm + 1e-6), 1e8)) : 0;
+  };
+  ProfileLimits l;
+  const int align = std::max(1, p.columnAlignment);
+  l.maxWidth = fit(p.trayMm[0], p.voxelSizeMm[0]) / align * align;
+  l.maxHeight = fit(p.trayMm[1], p.voxelSizeMm[1]);
+  l.maxLayers = fit(p.trayMm[2], p.voxelSizeMm[2]);
+  const auto layers = static_cast<std::size_t>(l.maxLayers);
+  l.maxEntries = layers * 3 + 16 + 256;  // three stacks, manifest, build file, previews; some extras to report
+  l.maxManifestBytes = (4u << 20) + static_cast<std::uint64_t>(layers) * 2048;
+  l.maxManifestValues = 65536 + layers * 64;
+  return l;
+}
+
+std::uint64_t pngMaxBytes(std::uint64_t rawBytes) { return rawBytes + rawBytes / 64 + (64u << 10); }
+
+// ------------------------------------------------------------------------------------------ JSON
+
+namespace {
+
+class JsonLimitError : public std::runtime_error {
+public:
+  using std::runtime_error::runtime_error;
+};
+
+}  // namespace
+
+json parseUntrustedJson(std::span<const std::uint8_t> text, std::size_t maxValues) {
+  std::size_t values = 0;
+  // The callback sees every value before it is added; `depth` counts the enclosing containers.
+  const json::parser_callback_t guard = [&](int depth, json::parse_event_t event, json&) {
+    if ((event == json::parse_event_t::object_start || event == json::parse_event_t::array_start) && depth >= kMaxJsonDepth)
+      throw JsonLimitError("nested more than " + std::to_string(kMaxJsonDepth) + " levels deep");
+    if (event == json::parse_event_t::value || event == json::parse_event_t::object_start ||
+        event == json::parse_event_t::array_start)
+      if (++values > maxValues) throw JsonLimitError("holds more than " + std::to_string(maxValues) + " values");
+    return true;
+  };
+  try {
+    return json::parse(text.begin(), text.end(), guard);
+  } catch (const JsonLimitError&) {
+    throw;
+  } catch (const json::exception& e) {
+    throw std::runtime_error("not JSON (" + printableName(e.what()) + ")");
+  }
+}
+
+// ------------------------------------------------------------------------------------------ manifest
+
+namespace {
+
+const char* kProjectionsMaterial = "previews/projections-material.png";
+const char* kProjectionsModulus = "previews/projections-modulus.png";
+const char* kContactSheet = "previews/contact-sheet.png";
+
+// A short description of an untrusted value, for messages: never serializes containers.
+std::string describe(const json& j) {
+  if (j.is_string()) {
+    const std::string& s = j.get_ref<const std::string&>();
+    return "\"" + printableName(s.size() > 60 ? s.substr(0, 57) + "..." : s) + "\"";
+  }
+  if (j.is_number_integer() || j.is_number_unsigned() || j.is_boolean()) return j.dump();  // scalars only
+  if (j.is_number_float()) {
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "%.9g", j.get<double>());
+    return buf;
+  }
+  return std::string("a") + (j.is_object() || j.is_array() ? "n " : " ") + j.type_name();
+}
+
+std::string member(const std::string& path, const std::string& key) { return path.empty() ? key : path + "." + key; }
+std::string element(const std::string& path, std::size_t i) { return path + "[" + std::to_string(i) + "]"; }
+
+// Typed access to manifest fields; each failure is a finding at "manifest.json: PATH".
+class Fields {
+public:
+  explicit Fields(Findings& findings) : findings_(findings) {}
+
+  void fail(const std::string& path, const std::string& message) { findings_.at(kManifestName, path + ": " + message); }
+
+  const json* get(const json& parent, const std::string& path, const std::string& key, const char* what) {
+    const auto it = parent.is_object() ? parent.find(key) : parent.end();
+    if (it == parent.end()) {
+      fail(member(path, key), std::string("missing; expected ") + what);
+      return nullptr;
+    }
+    return &*it;
+  }
+  const json* object(const json& parent, const std::string& path, const std::string& key) {
+    const json* j = get(parent, path, key, "an object");
+    if (j && !j->is_object()) {
+      wrong(member(path, key), "an object", *j);
+      return nullptr;
+    }
+    return j;
+  }
+  const json* array(const json& parent, const std::string& path, const std::string& key) {
+    const json* j = get(parent, path, key, "an array");
+    if (j && !j->is_array()) {
+      wrong(member(path, key), "an array", *j);
+      return nullptr;
+    }
+    return j;
+  }
+  std::optional<std::string> string(const json& parent, const std::string& path, const std::string& key) {
+    const json* j = get(parent, path, key, "a string");
+    if (!j) return std::nullopt;
+    if (!j->is_string()) {
+      wrong(member(path, key), "a string", *j);
+      return std::nullopt;
+    }
+    return j->get<std::string>();
+  }
+  std::optional<std::int64_t> integer(const json& j, const std::string& path, std::int64_t lo, std::int64_t hi) {
+    const bool inRange = (j.is_number_integer() && j.get<std::int64_t>() >= lo && j.get<std::int64_t>() <= hi) ||
+                         (j.is_number_unsigned() && j.get<std::uint64_t>() <= static_cast<std::uint64_t>(hi) && lo <= 0);
+    if (!inRange) {
+      fail(path, "expected an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " + describe(j));
+      return std::nullopt;
+    }
+    return j.get<std::int64_t>();
+  }
+  std::optional<std::int64_t> integer(const json& parent, const std::string& path, const std::string& key, std::int64_t lo,
+                                      std::int64_t hi) {
+    const json* j = get(parent, path, key, "an integer");
+    return j ? integer(*j, member(path, key), lo, hi) : std::nullopt;
+  }
+  std::optional<std::uint64_t> count(const json& j, const std::string& path) {
+    if (!j.is_number_unsigned() && !(j.is_number_integer() && j.get<std::int64_t>() >= 0)) {
+      fail(path, "expected a whole number >= 0, got " + describe(j));
+      return std::nullopt;
+    }
+    return j.get<std::uint64_t>();
+  }
+  std::optional<double> number(const json& parent, const std::string& path, const std::string& key) {
+    const json* j = get(parent, path, key, "a number");
+    if (!j) return std::nullopt;
+    if (!j->is_number() || !std::isfinite(j->get<double>())) {
+      wrong(member(path, key), "a finite number", *j);
+      return std::nullopt;
+    }
+    return j->get<double>();
+  }
+  std::optional<std::array<double, 3>> vec3(const json& parent, const std::string& path, const std::string& key) {
+    const json* j = get(parent, path, key, "three numbers");
+    if (!j) return std::nullopt;
+    if (!j->is_array() || j->size() != 3 || !std::all_of(j->begin(), j->end(), [](const json& v) {
+          return v.is_number() && std::isfinite(v.get<double>());
+        })) {
+      wrong(member(path, key), "an array of three finite numbers", *j);
+      return std::nullopt;
+    }
+    return std::array<double, 3>{(*j)[0].get<double>(), (*j)[1].get<double>(), (*j)[2].get<double>()};
+  }
+  // `key` must hold exactly `want` (a string).
+  void same(const json& parent, const std::string& path, const std::string& key, const std::string& want, const std::string& why) {
+    if (const auto got = string(parent, path, key); got && *got != want)
+      fail(member(path, key), "expected \"" + printableName(want) + "\" (" + why + "), got " + describe(json(*got)));
+  }
+
+private:
+  void wrong(const std::string& path, const char* what, const json& got) {
+    fail(path, std::string("expected ") + what + ", got " + describe(got));
+  }
+  Findings& findings_;
+};
+
+bool nearlyEqual(double a, double b) { return std::abs(a - b) <= 1e-9 * std::max({1.0, std::abs(a), std::abs(b)}); }
+
+// The manifest's "profile" block must restate the profile: a mismatch means the images were made for
+// other numbers (a 600/300 dpi swap prints the part at twice or half its size).
+void checkProfileBlock(const json& m, const Profile& p, Fields& f) {
+  const json* block = f.object(m, "", "profile");
+  if (!block) return;
+  f.same(*block, "profile", "name", p.name, "the profile the job is checked against");
+  const char* axis[2] = {"x", "y"};
+  const int dpi[2] = {p.xDpi, p.yDpi};
+  for (int a = 0; a < 2; ++a) {
+    const std::string key = std::string(axis[a]) + "_dpi";
+    if (const auto got = f.integer(*block, "profile", key, 1, 1000000); got && *got != dpi[a])
+      f.fail("profile." + key, std::to_string(*got) + ", but the " + p.name + " profile is " + std::to_string(dpi[a]) +
+                                   " dpi along " + axis[a] + " (x is the image columns): the part would print at the wrong size" +
+                                   (*got == dpi[1 - a] ? " (600/300 dpi swapped?)" : ""));
+  }
+  if (const auto v = f.vec3(*block, "profile", "voxel_size_mm"); v)
+    for (int a = 0; a < 3; ++a)
+      if (!nearlyEqual((*v)[a], p.voxelSizeMm[a]))
+        f.fail(element("profile.voxel_size_mm", a), "expected " + describe(json(p.voxelSizeMm[a])) + " mm, the profile's");
+  if (const auto got = f.integer(*block, "profile", "column_alignment", 1, 1 << 20); got && *got != p.columnAlignment)
+    f.fail("profile.column_alignment", "expected " + std::to_string(p.columnAlignment) + ", the profile's");
+}
+
+// Image format and size, layer count, support policy: the numbers the layout is built from.
+bool readShape(const json& m, const Profile& p, const ProfileLimits& limits, JobLayout& out, Fields& f, InspectSummary& s) {
+  bool ok = true;
+  const json* image = f.object(m, "", "image");
+  if (!image) return false;
+  const auto format = f.string(*image, "image", "format");
+  if (format && (*format == "bmp" || *format == "png")) {
+    out.imageFormat = parseImageFormat(*format);
+    s.imageFormat = *format;
+  } else {
+    if (format) f.fail("image.format", "expected \"bmp\" or \"png\", got " + describe(json(*format)));
+    ok = false;
+  }
+  const auto width = f.integer(*image, "image", "width", p.columnAlignment, limits.maxWidth);
+  if (width && *width % p.columnAlignment != 0)
+    f.fail("image.width", std::to_string(*width) + " is not a multiple of the profile's column alignment " +
+                              std::to_string(p.columnAlignment));
+  const auto height = f.integer(*image, "image", "height", 1, limits.maxHeight);
+  const auto layers = f.integer(m, "", "layer_count", 1, limits.maxLayers);
+  if (const auto depth = f.integer(*image, "image", "bit_depth", 1, 1); !depth) ok = false;
+  if (!width || *width % p.columnAlignment != 0 || !height || !layers) return false;
+  out.width = static_cast<int>(*width);
+  out.height = static_cast<int>(*height);
+  out.layers = static_cast<int>(*layers);
+
+  const json* support = f.object(m, "", "support");
+  const auto policy = support ? f.string(*support, "support", "policy") : std::nullopt;
+  if (policy && (*policy == "printer" || *policy == "explicit")) {
+    out.support = parseSupportPolicy(*policy);
+    s.supportPolicy = *policy;
+  } else {
+    if (policy) f.fail("support.policy", "expected \"printer\" or \"explicit\", got " + describe(json(*policy)));
+    ok = false;
+  }
+  if (support) f.same(*support, "support", "material", p.material(MaterialRole::Support).name, "the profile's support material");
+  return ok;
+}
+
+void readFrame(const json& m, JobLayout& out, Fields& f, InspectSummary& s) {
+  const json* frame = f.object(m, "", "frame");
+  if (!frame) return;
+  constexpr std::int64_t kIndexRange = 1 << 28;  // far beyond any tray; keeps pixel arithmetic in int
+  if (const auto o = f.vec3(*frame, "frame", "origin_mm")) out.originMm = *o;
+  out.firstColumnI = static_cast<int>(f.integer(*frame, "frame", "first_column_i", -kIndexRange, kIndexRange).value_or(0));
+  out.topRowJ = static_cast<int>(f.integer(*frame, "frame", "top_row_j", -kIndexRange, kIndexRange).value_or(0));
+  out.firstLayerK = static_cast<int>(f.integer(*frame, "frame", "first_layer_k", -kIndexRange, kIndexRange).value_or(0));
+  if (frame->contains("part_size_mm")) s.partSizeMm = f.vec3(*frame, "frame", "part_size_mm");
+}
+
+// The materials with bitmap stacks: rigid and rubbery, and support when the job draws it; as the writer
+// orders them (by role). The manifest must list exactly those.
+void readMaterials(const json& m, const Profile& p, JobLayout& out, Fields& f) {
+  for (const MaterialRole role : {MaterialRole::Rigid, MaterialRole::Rubbery, MaterialRole::Support})
+    if (role != MaterialRole::Support || out.support == SupportPolicy::Explicit) out.materials.push_back(&p.material(role));
+  const json* list = f.array(m, "", "materials");
+  if (!list) return;
+  if (list->size() != out.materials.size()) {
+    f.fail("materials", "lists " + std::to_string(list->size()) + " materials; a job with " + toString(out.support) +
+                            " support for " + p.name + " has " + std::to_string(out.materials.size()));
+    return;
+  }
+  for (std::size_t n = 0; n < out.materials.size(); ++n) {
+    const json& jm = (*list)[n];
+    const std::string path = element("materials", n);
+    const ProfileMaterial& want = *out.materials[n];
+    if (!jm.is_object()) {
+      f.fail(path, "expected an object, got " + describe(jm));
+      continue;
+    }
+    f.same(jm, path, "name", want.name, std::string("the profile's ") + toString(want.role) + " material");
+    f.same(jm, path, "role", toString(want.role), "materials are listed rigid, rubbery, support");
+    f.same(jm, path, "file_pattern", p.layerFilePattern(want, out.imageFormat), "the profile's naming");
+    if (const auto d = f.number(jm, path, "density_g_per_ml"); d && !nearlyEqual(*d, want.densityGPerMl))
+      f.fail(member(path, "density_g_per_ml"), "expected " + describe(json(want.densityGPerMl)) + ", the profile's");
+  }
+}
+
+// One layer's entry of the manifest.
+void readLayer(const json& entry, std::size_t l, const Profile& p, JobLayout& out, Fields& f) {
+  const std::uint64_t pixels = static_cast<std::uint64_t>(out.width) * static_cast<std::uint64_t>(out.height);
+  const std::string path = element("layers", l);
+  if (!entry.is_object()) {
+    f.fail(path, "expected an object, got " + describe(entry));
+    return;
+  }
+  if (const auto n = f.integer(entry, path, "layer", 0, out.layers); n && *n != static_cast<std::int64_t>(l))
+    f.fail(member(path, "layer"), "expected " + std::to_string(l));
+  const json* files = f.object(entry, path, "files");
+  const json* voxels = f.object(entry, path, "voxels");
+  if (files && files->size() != out.materials.size())
+    f.fail(member(path, "files"), "names " + std::to_string(files->size()) + " files; expected one per material (" +
+                                      std::to_string(out.materials.size()) + ")");
+  for (std::size_t n = 0; n < out.materials.size(); ++n) {
+    const ProfileMaterial& mat = *out.materials[n];
+    if (files) f.same(*files, member(path, "files"), mat.name, p.layerFileName(mat, static_cast<int>(l), out.imageFormat), "the profile's naming");
+    if (const json* v = voxels ? f.get(*voxels, member(path, "voxels"), mat.name, "a voxel count") : nullptr)
+      if (const auto c = f.count(*v, member(member(path, "voxels"), mat.name)); c && *c <= pixels) out.layerVoxels[l][n] = c;
+  }
+}
+
+// Every layer's entry names the expected files and lists a voxel count per material. Problems are
+// reported for the first few layers only, then counted: one mistake repeated in every layer is one story.
+void readLayers(const json& m, const Profile& p, JobLayout& out, Fields& f, Findings& findings) {
+  constexpr std::size_t kLayersReported = 4;
+  std::size_t layersWithProblems = 0;
+  out.layerVoxels.assign(static_cast<std::size_t>(out.layers), std::vector<std::optional<std::uint64_t>>(out.materials.size()));
+  const json* list = f.array(m, "", "layers");
+  if (!list) return;
+  if (list->size() != static_cast<std::size_t>(out.layers))
+    f.fail("layers", "lists " + std::to_string(list->size()) + " layers; layer_count is " + std::to_string(out.layers));
+  for (std::size_t l = 0; l < std::min(list->size(), out.layerVoxels.size()); ++l) {
+    Findings local = findings.sibling();
+    Fields lf(local);
+    readLayer((*list)[l], l, p, out, lf);
+    if (local.empty()) continue;
+    if (++layersWithProblems <= kLayersReported) findings.merge(local);
+  }
+  if (layersWithProblems > kLayersReported)
+    f.fail("layers", "and " + std::to_string(layersWithProblems - kLayersReported) + " more layers with such problems");
+}
+
+bool isSha256(const std::string& s) {
+  return s.size() == 64 && std::all_of(s.begin(), s.end(), [](char c) { return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'); });
+}
+
+void readFileTable(const json& m, JobLayout& out, Fields& f) {
+  const json* table = f.object(m, "", "files");
+  if (!table) return;
+  for (const auto& [name, row] : table->items()) {
+    const std::string path = "files." + printableName(name);
+    const auto bytes = row.is_object() && row.contains("bytes") ? f.count(row["bytes"], path + ".bytes") : std::nullopt;
+    const auto sha = f.string(row, path, "sha256");
+    if (sha && !isSha256(*sha)) f.fail(path + ".sha256", "expected 64 lowercase hex digits, got " + describe(json(*sha)));
+    if (!row.is_object() || !row.contains("bytes")) f.fail(path + ".bytes", "missing; expected the file's size");
+    if (bytes && sha && isSha256(*sha)) out.listed[name] = {*bytes, *sha};
+  }
+}
+
+// Previews: the material projections, the modulus ones when the job had moduli, the contact sheet.
+// Their pixel sizes are bounded by how previews.cpp lays them out (about 1400 x 1000 views, tiles in a
+// 300-pixel box, four per row, one per contact layer).
+void readPreviews(const json& m, JobLayout& out, Fields& f) {
+  std::size_t contactLayers = static_cast<std::size_t>(out.layers);
+  if (const json* list = f.array(m, "", "contact_sheet_layers")) {
+    std::int64_t last = -1;
+    for (std::size_t n = 0; n < list->size() && n <= contactLayers; ++n)
+      if (const auto l = f.integer((*list)[n], element("contact_sheet_layers", n), last + 1, out.layers - 1)) last = *l;
+      else break;
+    if (list->empty() || list->size() > contactLayers)
+      f.fail("contact_sheet_layers", "expected 1 to " + std::to_string(contactLayers) + " layers, got " + std::to_string(list->size()));
+    else
+      contactLayers = list->size();
+  }
+  const std::uint64_t projection = pngMaxBytes((3 * 1600 + 1) * 1300ull);
+  const std::uint64_t sheetRows = 88 + (contactLayers + 3) / 4 * 340;
+  const std::uint64_t sheet = pngMaxBytes((3 * 1344 + 1) * sheetRows);
+  const std::vector<std::string> plain = {kProjectionsMaterial, kContactSheet};
+  const std::vector<std::string> withModulus = {kProjectionsMaterial, kProjectionsModulus, kContactSheet};
+  const json* list = f.array(m, "", "previews");
+  std::vector<std::string> names;
+  if (list)
+    for (const json& n : *list) names.push_back(n.is_string() ? n.get<std::string>() : std::string("\x01"));
+  if (list && names != plain && names != withModulus)
+    f.fail("previews", std::string("expected [\"") + kProjectionsMaterial + "\", (\"" + kProjectionsModulus + "\",) \"" +
+                           kContactSheet + "\"]");
+  for (const std::string& name : names == withModulus ? withModulus : plain)
+    out.expected[name] = {name == kContactSheet ? EntryRole::ContactSheet : EntryRole::Preview, name == kContactSheet ? sheet : projection};
+}
+
+void readOrientation(const json& m, JobLayout& out, Fields& f) {
+  out.orientation.assign(out.materials.size(), std::nullopt);
+  const json* check = f.object(m, "", "orientation_check");
+  if (!check) return;
+  for (std::size_t n = 0; n < out.materials.size(); ++n) {
+    if (out.materials[n]->role == MaterialRole::Support) continue;  // support has no orientation record
+    const std::string path = "orientation_check." + out.materials[n]->name;
+    const json* record = f.object(*check, "orientation_check", out.materials[n]->name);
+    const json* voxels = record ? f.get(*record, path, "voxels", "a voxel count") : nullptr;
+    const auto count = voxels ? f.count(*voxels, path + ".voxels") : std::nullopt;
+    if (!count) continue;
+    OrientationRecord r{*count, {}, {}, {}};
+    if (*count > 0) {
+      const auto lo = f.vec3(*record, path, "min_mm"), hi = f.vec3(*record, path, "max_mm"), c = f.vec3(*record, path, "centroid_mm");
+      if (!lo || !hi || !c) continue;
+      r = {*count, *lo, *hi, *c};
+    }
+    out.orientation[n] = r;
+  }
+}
+
+void readDithering(const json& m, Fields& f, InspectSummary& s) {
+  const json* d = f.object(m, "", "dithering");
+  if (!d) return;
+  s.ditherer = printableName(f.string(*d, "dithering", "ditherer").value_or(""));
+  if (const json* seed = f.get(*d, "dithering", "seed", "a whole number")) s.seed = f.count(*seed, "dithering.seed");
+}
+
+// Layer images: a BMP is its headers and palette (62 bytes from our writer; other tools' larger headers
+// fit the slack) and rows padded to 4 bytes; a PNG at most its filtered rows, barely compressed.
+std::uint64_t layerMaxBytes(const JobLayout& l) {
+  const auto height = static_cast<std::uint64_t>(l.height);
+  if (l.imageFormat == ImageFormat::Bmp) return 1024 + (static_cast<std::uint64_t>(l.width) + 31) / 32 * 4 * height;
+  return pngMaxBytes(((static_cast<std::uint64_t>(l.width) + 7) / 8 + 1) * height);
+}
+
+}  // namespace
+
+std::optional<JobLayout> readLayout(const json& m, const Profile& p, Findings& findings, InspectSummary& s) {
+  Fields f(findings);
+  if (!m.is_object()) {
+    f.fail("(top level)", "expected an object, got " + describe(m));
+    return std::nullopt;
+  }
+  f.same(m, "", "format", kJobFormat, "the job format this rodfab reads");
+  checkProfileBlock(m, p, f);
+  f.same(m, "", "build_file", p.buildFileName, "the profile's build file");
+  JobLayout out;
+  if (!readShape(m, p, limitsOf(p), out, f, s)) return std::nullopt;
+  readFrame(m, out, f, s);
+  readMaterials(m, p, out, f);
+  readLayers(m, p, out, f, findings);
+  readFileTable(m, out, f);
+  readPreviews(m, out, f);
+  readOrientation(m, out, f);
+  readDithering(m, f, s);
+
+  out.expected[kManifestName] = {EntryRole::Manifest, limitsOf(p).maxManifestBytes};
+  out.expected[p.buildFileName] = {EntryRole::BuildFile, 64u << 10};
+  const std::uint64_t imageBytes = layerMaxBytes(out);
+  for (int l = 0; l < out.layers; ++l)
+    for (std::size_t n = 0; n < out.materials.size(); ++n)
+      out.expected[p.layerFileName(*out.materials[n], l, out.imageFormat)] = {EntryRole::Layer, imageBytes, l, static_cast<int>(n)};
+  return out;
+}
+
+}  // namespace rodfab::printer_profiles

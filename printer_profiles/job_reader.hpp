@@ -1,0 +1,85 @@
+// Internal to printer_profiles/ (used by `inspect`): reading a job that may be hostile. Nothing the job
+// says is trusted: entries are listed as found (regular files, folders, and everything else flagged, never
+// opened), files are streamed in chunks with a hard cap on the bytes they may produce, and no path named
+// inside the job is ever followed (folder jobs are walked with openat and O_NOFOLLOW, files opened with
+// O_NONBLOCK so a FIFO cannot block, and checked to be the regular file that was listed).
+#pragma once
+
+#include "printer_profiles/job_archive.hpp"
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace rodfab::printer_profiles {
+
+enum class EntryKind {
+  File,       // a regular file (zip: a file entry stored or deflated, not encrypted)
+  Directory,  // a folder (zip: a name ending in '/')
+  Other,      // anything else: symbolic link, FIFO, device, socket, encrypted or oddly compressed entry
+};
+
+struct JobEntry {
+  std::string name;                // '/' separated, relative to the job; folders end in '/'
+  EntryKind kind = EntryKind::File;
+  std::uint64_t declaredBytes = 0; // what the archive or file system says (never trusted for allocation)
+  std::string otherWhat;           // EntryKind::Other: what it is, e.g. "a symbolic link"
+  std::uint64_t index = 0;         // reader's own handle (zip index, or position in the folder walk)
+};
+
+// A file that produced more bytes than its cap allows (a deflate bomb, or a file far too large).
+class EntryTooLarge : public JobReadError {
+public:
+  EntryTooLarge(const std::string& message, std::uint64_t cap) : JobReadError(message), cap_(cap) {}
+  std::uint64_t cap() const { return cap_; }
+
+private:
+  std::uint64_t cap_;
+};
+
+class JobReader {
+public:
+  virtual ~JobReader() = default;
+  virtual const std::filesystem::path& path() const = 0;
+  virtual ArchiveFormat format() const = 0;
+  // Every entry found, in archive order (zip) or sorted by name (folder); at most the `maxEntries` given
+  // to openJobReader (see truncated()).
+  virtual const std::vector<JobEntry>& entries() const = 0;
+  // True when the job holds more entries than were listed.
+  virtual bool truncated() const = 0;
+  // Streams a File entry to `sink` in chunks of at most 64 KiB, in order. Throws EntryTooLarge as soon as
+  // more than `maxBytes` bytes come out, JobReadError (naming the entry) when it cannot be read, is
+  // damaged (zip CRC) or was swapped for something else since it was listed. Safe to call from several
+  // threads at once.
+  virtual void stream(const JobEntry& entry, std::uint64_t maxBytes,
+                      const std::function<void(std::span<const std::uint8_t>)>& sink) const = 0;
+
+  // stream() into memory (at most maxBytes are ever held).
+  Bytes read(const JobEntry& entry, std::uint64_t maxBytes) const;
+};
+
+// A folder is read as a folder job, a regular file as a zip archive; anything else (FIFO, device, a
+// missing path) is refused with JobReadError before it is read. The path itself is the caller's (it may
+// be a symbolic link); nothing inside the job is followed. Folder jobs are walked at most `maxDepth`
+// folders deep.
+std::unique_ptr<JobReader> openJobReader(const std::filesystem::path& job, std::size_t maxEntries, int maxDepth);
+
+// Why an entry name is unsafe to unpack on some platform (Linux, macOS, Windows), or nullopt when it is
+// safe: empty, absolute, '..' or '.' components, empty components, backslashes, drive letters and other
+// ':', characters Windows refuses (<>"|?*), control characters, anything but printable ASCII, a component
+// ending in a dot or a space, or a Windows device name (CON, NUL, COM1, ...). A trailing '/' (a folder
+// entry) is allowed.
+std::optional<std::string> unsafeEntryName(std::string_view name);
+
+// `name` with every byte that is not printable ASCII written as \xNN, cut to 200 characters: safe to put
+// in a message shown on a terminal.
+std::string printableName(std::string_view name);
+
+}  // namespace rodfab::printer_profiles
