@@ -3,6 +3,8 @@
 #include "voxel/rasterize.hpp"
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -82,10 +84,10 @@ Measurement measure(const geometry::Rod& rod, const Node& a, const Node& b, RodP
   piece.modulusBegin = a.modulus;
   piece.modulusEnd = b.modulus;
   const double radius = rod.section().boundingRadius();
-  // The slab of a piece holds the sections of its own centerline only while the normal planes do not
-  // cross within the section (curvature times radius below 1, with a margin for the sampling): past
-  // that the sections fold over and the piece goes to the exact test.
-  if (!(1.25 * curvature * (radius + (b.r - a.r).norm() + m.chordDeviation) < 1.0)) return m;
+  // The slab of a piece holds the sections of its own centerline only while they do not reach the
+  // centres of curvature, where the normal planes cross (curvature times radius below 1, with a 10 %
+  // margin for the sampled curvature): past that the sections fold over and the piece goes exact.
+  if (!(1.1 * curvature * radius < 1.0)) return m;
   const WorldEstimate centre = estimateAt(piece, a, b, mid.r);
   const double bow = centre.estimate.lambda * (1.0 - centre.estimate.lambda);
   if (!centre.inSlab || !(bow > 0.0)) return m;
@@ -124,9 +126,9 @@ double minimumPieceLength(const PrinterGrid& grid) {
 }
 
 std::size_t pieceBudget(const geometry::Rod& rod, const PrinterGrid& grid) {
-  const double perLength = 2.0 * rod.length() / minimumPieceLength(grid);
+  const double perLength = 4.0 * rod.length() / minimumPieceLength(grid);
   const double segments = double(rod.sampleParameters().size());
-  return static_cast<std::size_t>(std::min(2.0 * segments + perLength, 1e15)) + 2 * rod.smoothPieces().size() + 16;
+  return static_cast<std::size_t>(std::min(8.0 * segments + perLength, 1e15)) + 2 * rod.smoothPieces().size() + 64;
 }
 
 RodPieces buildRodPieces(const geometry::Rod& rod, const PrinterGrid& grid, const std::function<bool()>& interrupted) {
@@ -183,10 +185,13 @@ RodPieces buildRodPieces(const geometry::Rod& rod, const PrinterGrid& grid, cons
     const double modulusTolerance = 1e-6 * std::max({std::abs(a.modulus), std::abs(b.modulus), 1e-3});
     const bool modulusAccurate = m.modulusError <= modulusTolerance;
     const bool accurate = m.valid && m.coordinateError <= kCoordinateTolerance && modulusAccurate;
-    // Splitting stops at the depth limit, at pieces shorter than the voxels can tell apart, and when
-    // the rod's budget is spent; what is left inaccurate keeps its measured bound or goes exact.
+    // Splitting stops at the depth limit and when the rod's budget is spent, and for the geometry at
+    // pieces shorter than the voxels can tell apart (where the sections fold over, or round-off far
+    // from the origin dominates, it would not converge); E converges away from its rare jumps, which
+    // the depth limit confines. What is left inaccurate keeps its measured bound or goes exact.
+    const bool geometryAccurate = m.valid && m.coordinateError <= kCoordinateTolerance;
     const double length = (b.r - a.r).norm() + m.chordDeviation;
-    if (!accurate && depth < kMaxRefinement && length >= minLength && planned < budget && b.u > a.u) {
+    if (!accurate && depth < kMaxRefinement && (geometryAccurate || length >= minLength) && planned < budget && b.u > a.u) {
       ++planned;
       const Node mid = node(rod, 0.5 * (a.u + b.u));
       self(self, a, mid, depth + 1);
@@ -232,6 +237,12 @@ RodPieces buildRodPieces(const geometry::Rod& rod, const PrinterGrid& grid, cons
            static_cast<float>(k + 1 == smooth.size() ? modulus.value(modulus.domainEnd()) : modulus.value(sp.end)));
   }
   for (const Node& n : nodes) out.planes.push_back(indexForm(grid, n.t, n.r));
+  if (std::getenv("RODFAB_DEBUG_PIECES")) {
+    std::size_t counts[4] = {0, 0, 0, 0};
+    for (const RodPiece& p : out.pieces) ++counts[int(p.kind)];
+    std::fprintf(stderr, "rod %s: swept %zu exact %zu caps %zu samples %zu smooth %zu budget %zu\n", rod.name().c_str(), counts[0], counts[3],
+                 caps.size(), u.size(), smooth.size(), budget);
+  }
   out.pieces.insert(out.pieces.end(), caps.begin(), caps.end());
   for (const RodPiece& p : out.pieces)
     if (!p.box.empty()) out.box.expand(p.box);

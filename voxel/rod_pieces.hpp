@@ -68,8 +68,9 @@ struct RodPieces {
 // an approximation that still misses its tolerance keeps its measured bound (more voxels go to the
 // exact test), so tight bends, cusps and round-off far from the origin cannot refine without end.
 double minimumPieceLength(const PrinterGrid& grid);
-// Most pieces one rod is cut into: the polyline segments, plus one per minimumPieceLength of its
-// length, twice over, plus its caps. The refinement stops splitting when it is reached.
+// Most pieces one rod is cut into: 8 per polyline segment plus 4 per minimumPieceLength of its length,
+// plus its caps (E varying steeply along a tightly bent rod needs some 500 pieces per mm). The
+// refinement stops splitting when it is reached.
 std::size_t pieceBudget(const geometry::Rod& rod, const PrinterGrid& grid);
 
 // Cuts `rod` into pieces, refining each until its measured coordinate error is below
