@@ -237,6 +237,10 @@ public:
         bool ok = true;
         for (std::size_t i = 0; i < pts->size(); ++i) {
           auto c = vector3((*pts)[i], index(pp, i), "a control point");
+          if (c && !(c->cwiseAbs().maxCoeff() <= kMaxCoordinateMm)) {
+            fail(index(pp, i), "expected coordinates within +-1e9 mm (designs are in millimetres), got " + describe((*pts)[i]));
+            c.reset();
+          }
           if (c) v.push_back(*c); else ok = false;
         }
         if (ok && p && v.size() < static_cast<std::size_t>(*p) + 1) {
@@ -274,7 +278,11 @@ public:
     const double length = curve.arcLength();
     Box3 box;
     for (const Vec3& q : *points) box.extend(q);
-    if (!(length > 1e-9 * std::max(1.0, box.diagonal().norm())) || !std::isfinite(length)) {
+    if (!std::isfinite(length)) {
+      fail(path, "the centerline's length is not a finite number (weights too extreme for double precision?)");
+      return std::nullopt;
+    }
+    if (!(length > 1e-9 * std::max(1.0, box.diagonal().norm()))) {
       fail(path, "degenerate centerline: its length is zero (all control points coincide?)");
       return std::nullopt;
     }
@@ -338,7 +346,7 @@ public:
             auto x = number(e[k], index(index(qp, i), k), "a number");
             if (x) c[k] = *x; else cok = false;
           }
-          if (cok && !(c.norm() > 0.0)) {
+          if (cok && !(c.cwiseAbs().maxCoeff() > 0.0)) {  // not c.norm(): 1e-170 would underflow to zero
             fail(index(qp, i), "a zero quaternion has no rotation");
             cok = false;
           }
@@ -455,14 +463,14 @@ public:
     if (nIt != j.end()) {
       const std::string np = member(path, "normal");
       normal = vector3(*nIt, np, "a reference normal");
-      if (normal && !(normal->norm() > 0.0)) {
+      if (normal && !(normal->cwiseAbs().maxCoeff() > 0.0)) {
         fail(np, "the reference normal must not be zero");
         normal.reset();
       } else if (normal && curve) {
         Vec3 d[3];
         curve->derivatives(curve->domainBegin(), 2, d);
         const Vec3 t = unitTangent(d[1], d[2]);
-        if (normal->normalized().cross(t).norm() < 1e-6) {
+        if ((*normal * powerOfTwoScale(*normal)).normalized().cross(t).norm() < 1e-6) {  // scaled: 1e300 does not overflow
           fail(np, "the reference normal " + describe(*nIt) + " is parallel to the centerline's tangent at its start; "
                    "expected a direction across the rod");
           normal.reset();
@@ -484,7 +492,12 @@ public:
       e = modulus(*m, member(path, "modulus"), curve ? &*curve : nullptr);
 
     if (issues.size() != before || !curve || !sec || !e) return std::nullopt;
-    return Rod(name, *curve, *sec, normal, orient, caps, *e);
+    try {
+      return Rod(name, *curve, *sec, normal, orient, caps, *e);
+    } catch (const std::invalid_argument& error) {  // e.g. a centerline too intricate to sample
+      fail(path, error.what());
+      return std::nullopt;
+    }
   }
 
   // ---- the optional "mechanics" block ----

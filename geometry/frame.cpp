@@ -13,12 +13,41 @@ Vec3 unitTangent(const Vec3& d1, const Vec3& d2) {
   return n2 > 0.0 ? Vec3(d2 / n2) : Vec3::UnitZ();
 }
 
+Vec3 unitTangentFromBelow(const Vec3& d1, const Vec3& d2) {
+  // Where r' vanishes the curve arrives along -r'' (r'(u - h) ~ -h r''(u)).
+  const double n = d1.norm();
+  if (n > 1e-14) return d1 / n;
+  const double n2 = d2.norm();
+  return n2 > 0.0 ? Vec3(-d2 / n2) : Vec3::UnitZ();
+}
+
+double stableNorm(const Eigen::Ref<const Eigen::VectorXd>& v) {
+  // Scaled by the largest component first, so 1e200 and 1e-200 neither overflow nor underflow.
+  const double scale = v.cwiseAbs().maxCoeff();
+  if (!(scale > 0.0) || !std::isfinite(scale)) return scale;
+  return scale * (v / scale).norm();
+}
+
+double powerOfTwoScale(const Eigen::Ref<const Eigen::VectorXd>& v) {
+  const double largest = v.cwiseAbs().maxCoeff();
+  if (!(largest > 0.0) || !std::isfinite(largest)) return 1.0;
+  return std::ldexp(1.0, -std::ilogb(largest));
+}
+
 QuaternionSpline::QuaternionSpline(int degree, std::vector<double> knots, std::vector<Eigen::Vector4d> quaternions)
     : degree_(degree), knots_(std::move(knots)), quaternions_(std::move(quaternions)) {
   if (degree_ < 1 || degree_ > kMaxDegree) throw std::invalid_argument("QuaternionSpline: bad degree");
   if (quaternions_.size() < static_cast<std::size_t>(degree_) + 1 ||
       knots_.size() != quaternions_.size() + degree_ + 1)
     throw std::invalid_argument("QuaternionSpline: knot count must be quaternion count + degree + 1");
+  double largest = 0.0;
+  for (const Eigen::Vector4d& q : quaternions_) {
+    if (!q.allFinite() || !(q.cwiseAbs().maxCoeff() > 0.0))
+      throw std::invalid_argument("QuaternionSpline: quaternions must be non-zero and finite");
+    largest = std::max(largest, q.cwiseAbs().maxCoeff());
+  }
+  const double scale = std::ldexp(1.0, -std::ilogb(largest));
+  for (const Eigen::Vector4d& q : quaternions_) scaledQuaternions_.push_back(q * scale);
 }
 
 Eigen::Quaterniond QuaternionSpline::rotation(double u) const {
@@ -26,10 +55,12 @@ Eigen::Quaterniond QuaternionSpline::rotation(double u) const {
   const int span = findKnotSpan(knots_, degree_, static_cast<int>(quaternions_.size()), u);
   BasisDerivatives ders;
   basisFunctionDerivatives(knots_, degree_, span, u, 0, ders);
+  // The control quaternions are stored scaled by one power of two (exact), so components like 1e160
+  // neither overflow the norm (which turned them into the identity) nor change the blend's direction.
   Eigen::Vector4d q = Eigen::Vector4d::Zero();
-  for (int j = 0; j <= degree_; ++j) q += ders[0][j] * quaternions_[span - degree_ + j];
+  for (int j = 0; j <= degree_; ++j) q += ders[0][j] * scaledQuaternions_[span - degree_ + j];
   const double n = q.norm();
-  if (!(n > 0.0)) return Eigen::Quaterniond::Identity();
+  if (!(n > 0.0) || !std::isfinite(n)) return Eigen::Quaterniond::Identity();
   q /= n;
   return Eigen::Quaterniond(q[0], q[1], q[2], q[3]);
 }
@@ -74,8 +105,12 @@ RodFrame RodFrame::rotationMinimizing(const NurbsCurve& curve, const Vec3& refer
     frame.sampleTangent_.push_back(unitTangent(d[1], d[2]));
   }
   const Vec3& t0 = frame.sampleTangent_.front();
-  Vec3 d1 = referenceNormal - referenceNormal.dot(t0) * t0;
-  if (!(d1.norm() > 1e-9 * referenceNormal.norm()))
+  if (!referenceNormal.allFinite() || !(referenceNormal.cwiseAbs().maxCoeff() > 0.0))
+    throw std::invalid_argument("RodFrame: reference normal must be non-zero and finite");
+  // Scaled by a power of two (exact) to a largest component in [1, 2): no overflow for 1e300.
+  const Vec3 n = referenceNormal * powerOfTwoScale(referenceNormal);
+  Vec3 d1 = n - n.dot(t0) * t0;
+  if (!(d1.norm() > 1e-9 * n.norm()))
     throw std::invalid_argument("RodFrame: reference normal is parallel to the centerline tangent");
   d1.normalize();
   frame.sampleD1_.push_back(d1);
@@ -96,7 +131,10 @@ Frame RodFrame::at(double u, const Vec3& point, const Vec3& t) const {
   Vec3 d1;
   if (kind_ == Kind::RotationMinimizing) {
     const auto it = std::upper_bound(sampleU_.begin(), sampleU_.end(), u);
-    const std::size_t i = it == sampleU_.begin() ? 0 : static_cast<std::size_t>(it - sampleU_.begin()) - 1;
+    std::size_t i = it == sampleU_.begin() ? 0 : static_cast<std::size_t>(it - sampleU_.begin()) - 1;
+    // At a kink the sample holds the tangent from above; a frame asked with the tangent from below
+    // (the end of the piece before the kink) continues from the sample before, like its neighbours.
+    if (i > 0 && sampleU_[i] == u && (t - sampleTangent_[i]).squaredNorm() > 1e-18) --i;
     d1 = doubleReflect(samplePoint_[i], sampleTangent_[i], sampleD1_[i], point, t);
   } else {
     const Eigen::Matrix3d r = orientation_.rotation(u).toRotationMatrix();

@@ -19,6 +19,7 @@ struct Frame {
 class QuaternionSpline {
 public:
   QuaternionSpline() = default;
+  // Throws std::invalid_argument for bad counts or a zero or non-finite quaternion.
   QuaternionSpline(int degree, std::vector<double> knots, std::vector<Eigen::Vector4d> quaternions);
 
   int degree() const { return degree_; }
@@ -27,12 +28,15 @@ public:
   double domainBegin() const { return knots_[degree_]; }
   double domainEnd() const { return knots_[quaternions_.size()]; }
 
+  // The unit rotation at u: the blend of the control quaternions, normalized. Works for components
+  // of any finite magnitude (1e-150 .. 1e300); a blend that cancels to zero gives the identity.
   Eigen::Quaterniond rotation(double u) const;
 
 private:
   int degree_ = 0;
   std::vector<double> knots_;
   std::vector<Eigen::Vector4d> quaternions_;
+  std::vector<Eigen::Vector4d> scaledQuaternions_;  // times one power of two: largest component in [1, 2)
 };
 
 // The frame field of one rod. Both kinds are evaluated at a centerline point already known to the
@@ -43,8 +47,9 @@ public:
 
   RodFrame() = default;
   // Rotation-minimizing frame (double reflection, Wang et al. 2008) seeded with d1 = the reference
-  // normal projected onto the first cross-section plane. Throws std::invalid_argument if the normal
-  // is parallel to the initial tangent.
+  // normal projected onto the first cross-section plane. The normal's magnitude does not matter (any
+  // finite non-zero vector). Throws std::invalid_argument if it is zero or not finite, or parallel to
+  // the initial tangent (within 1e-9 rad).
   static RodFrame rotationMinimizing(const NurbsCurve& curve, const Vec3& referenceNormal);
   // d1, d2 from the rotation q(u); they are projected onto the plane normal to the tangent so the
   // cross-section stays perpendicular to the centerline even where the solver's frame shears.
@@ -70,5 +75,15 @@ private:
 // Unit tangent r'/|r'|, falling back to the second derivative where r' vanishes (a cusp-free
 // curve with a zero-length first derivative at a clamped end).
 Vec3 unitTangent(const Vec3& firstDerivative, const Vec3& secondDerivative);
+// The same for derivatives taken from below (NurbsCurve::derivativesFromBelow): where r' vanishes
+// the curve arrives along -r''.
+Vec3 unitTangentFromBelow(const Vec3& firstDerivative, const Vec3& secondDerivative);
+
+// Euclidean norm without overflow or underflow for any finite components (0 for a zero vector,
+// inf or NaN when a component is).
+double stableNorm(const Eigen::Ref<const Eigen::VectorXd>& v);
+// 2^-e with 2^e <= the largest |component| < 2^(e+1) (1 for a zero or non-finite vector): multiplying
+// by it is exact and brings the largest component into [1, 2).
+double powerOfTwoScale(const Eigen::Ref<const Eigen::VectorXd>& v);
 
 }  // namespace rodfab::geometry

@@ -121,7 +121,20 @@ Vec3 NurbsCurve::point(double u) const {
 
 void NurbsCurve::derivatives(double u, int order, Vec3* out) const {
   u = std::clamp(u, domainBegin(), domainEnd());
-  const int span = findKnotSpan(knots_, degree_, static_cast<int>(points_.size()), u);
+  derivativesInSpan(findKnotSpan(knots_, degree_, static_cast<int>(points_.size()), u), u, order, out);
+}
+
+void NurbsCurve::derivativesFromBelow(double u, int order, Vec3* out) const {
+  u = std::clamp(u, domainBegin(), domainEnd());
+  if (u <= domainBegin()) return derivatives(u, order, out);
+  // Largest i in [degree, n) with knots[i] < u: the span whose closure ends at (or contains) u.
+  const auto first = knots_.begin() + degree_;
+  const auto last = knots_.begin() + static_cast<std::ptrdiff_t>(points_.size());
+  const int span = static_cast<int>(std::lower_bound(first, last, u) - knots_.begin()) - 1;
+  derivativesInSpan(span, u, order, out);
+}
+
+void NurbsCurve::derivativesInSpan(int span, double u, int order, Vec3* out) const {
   BasisDerivatives ders;
   basisFunctionDerivatives(knots_, degree_, span, u, order, ders);
   // Homogeneous form: A(u) = sum N_i w_i P_i, w(u) = sum N_i w_i, C = A / w.

@@ -41,8 +41,12 @@ public:
   double domainEnd() const { return knots_[points_.size()]; }
 
   Vec3 point(double u) const;
-  // out[0] = C(u), out[1] = C'(u), out[2] = C''(u) for k <= order (order <= 2).
+  // out[0] = C(u), out[1] = C'(u), out[2] = C''(u) for k <= order (order <= 2). At a knot the
+  // derivatives are those of the span that starts there (the limit from above), except at the domain end.
   void derivatives(double u, int order, Vec3* out) const;
+  // The same from the span that ends at u (the limit from below); at the domain begin, from above.
+  // Differs from derivatives() only at knots where the curve is not C^order, e.g. at a kink.
+  void derivativesFromBelow(double u, int order, Vec3* out) const;
 
   // Arc length over the whole domain or [u0, u1], by Gauss-Legendre quadrature on each knot span.
   double arcLength() const { return arcLength(domainBegin(), domainEnd()); }
@@ -58,6 +62,8 @@ public:
   NurbsCurve withKnotInserted(double u) const;
 
 private:
+  void derivativesInSpan(int span, double u, int order, Vec3* out) const;
+
   int degree_ = 0;
   std::vector<double> knots_;
   std::vector<Vec3> points_;

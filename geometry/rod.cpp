@@ -55,6 +55,21 @@ Rod::Rod(std::string name, NurbsCurve centerline, Section section, std::optional
   computeBounds();
 }
 
+void Rod::evaluate(double u, bool fromBelow, Vec3* d) const {
+  if (fromBelow) centerline_.derivativesFromBelow(u, 2, d);
+  else centerline_.derivatives(u, 2, d);
+}
+
+void Rod::findSmoothPieces(const std::vector<double>& bp, std::vector<bool>& isC0) const {
+  isC0.assign(bp.size(), false);
+  for (std::size_t s = 1; s + 1 < bp.size(); ++s) {
+    Vec3 below[3], above[3];
+    centerline_.derivativesFromBelow(bp[s], 2, below);
+    centerline_.derivatives(bp[s], 2, above);
+    isC0[s] = (unitTangentFromBelow(below[1], below[2]) - unitTangent(above[1], above[2])).norm() > kKinkTolerance;
+  }
+}
+
 void Rod::sampleCenterline() {
   // Adaptive polyline: a piece is split while its chord strays from the curve by more than a small
   // fraction of the section or its end tangents turn by more than ~10 degrees. The turning bound
@@ -67,10 +82,10 @@ void Rod::sampleCenterline() {
     double u;
     Vec3 p, t;
   };
-  auto node = [&](double u) {
+  auto node = [&](double u, bool fromBelow) {
     Vec3 d[3];
-    centerline_.derivatives(u, 2, d);
-    return Node{u, d[0], unitTangent(d[1], d[2])};
+    evaluate(u, fromBelow, d);
+    return Node{u, d[0], fromBelow ? unitTangentFromBelow(d[1], d[2]) : unitTangent(d[1], d[2])};
   };
   auto deviation = [&](const Node& a, const Node& b) {
     double dev = 0.0;
@@ -80,28 +95,41 @@ void Rod::sampleCenterline() {
 
   std::vector<Node> out;
   std::vector<double> devs;
+  std::vector<bool> unresolved;
   auto refine = [&](auto&& self, const Node& a, const Node& b, int depth) -> void {
     const double dev = deviation(a, b);
-    if (depth < kMaxDepth && (dev > tolerance || a.t.dot(b.t) < cosTurn)) {
-      const Node m = node(0.5 * (a.u + b.u));
+    const bool coarse = dev > tolerance || a.t.dot(b.t) < cosTurn;
+    if (depth < kMaxDepth && coarse) {
+      const Node m = node(0.5 * (a.u + b.u), false);
       self(self, a, m, depth + 1);
       self(self, m, b, depth + 1);
       return;
     }
+    if (out.size() >= kMaxSamplesPerRod)
+      throw std::invalid_argument("rod '" + name_ + "': its centerline needs more than " + std::to_string(kMaxSamplesPerRod) +
+                                  " polyline samples to be followed within " + std::to_string(tolerance) +
+                                  " mm; split it into shorter rods or use fewer knot spans");
     out.push_back(b);
     // Measured at three points; doubled (plus a floor) so it bounds the true deviation of the piece.
     devs.push_back(2.0 * dev + 1e-9);
+    unresolved.push_back(coarse);
   };
 
   const std::vector<double> bp = centerline_.breakpoints();
-  out.push_back(node(bp.front()));
+  std::vector<bool> isC0;
+  findSmoothPieces(bp, isC0);
+  out.push_back(node(bp.front(), false));
+  std::vector<std::size_t> c0Samples;
   constexpr int kInitialPiecesPerSpan = 4;
   for (std::size_t s = 0; s + 1 < bp.size(); ++s) {
     for (int k = 0; k < kInitialPiecesPerSpan; ++k) {
-      const Node a = out.back();
-      const Node b = node(bp[s] + (bp[s + 1] - bp[s]) * (k + 1) / kInitialPiecesPerSpan);
+      // At a C0 point the span before ends with the tangent from below and the next starts from above.
+      const Node a = k == 0 && isC0[s] ? node(bp[s], false) : out.back();
+      const bool kinkEnd = k + 1 == kInitialPiecesPerSpan && isC0[s + 1];
+      const Node b = kinkEnd ? node(bp[s + 1], true) : node(bp[s] + (bp[s + 1] - bp[s]) * (k + 1) / kInitialPiecesPerSpan, false);
       refine(refine, a, b, 0);
     }
+    if (isC0[s + 1]) c0Samples.push_back(out.size() - 1);
   }
   sampleU_.clear();
   samplePoint_.clear();
@@ -110,6 +138,47 @@ void Rod::sampleCenterline() {
     samplePoint_.push_back(n.p);
   }
   sampleDeviation_ = std::move(devs);
+
+  pieces_.clear();
+  c0Samples.push_back(out.size() - 1);
+  std::size_t first = 0;
+  for (const std::size_t last : c0Samples) {
+    SmoothPiece piece;
+    piece.begin = sampleU_[first];
+    piece.end = sampleU_[last];
+    piece.firstSample = first;
+    piece.lastSample = last;
+    piece.endFromBelow = last + 1 < out.size();
+    Vec3 d[3];
+    evaluate(piece.begin, false, d);
+    piece.beginTangent = unitTangent(d[1], d[2]);
+    evaluate(piece.end, piece.endFromBelow, d);
+    piece.endTangent = piece.endFromBelow ? unitTangentFromBelow(d[1], d[2]) : unitTangent(d[1], d[2]);
+    pieces_.push_back(piece);
+    first = last;
+  }
+  estimateCurvature(unresolved);
+}
+
+void Rod::estimateCurvature(const std::vector<bool>& unresolved) {
+  sampleCurvature_.assign(sampleDeviation_.size(), 0.0);
+  for (const SmoothPiece& piece : pieces_) {
+    for (std::size_t i = piece.firstSample; i < piece.lastSample; ++i) {
+      if (unresolved[i]) {
+        sampleCurvature_[i] = kUnresolved;
+        continue;
+      }
+      double largest = 0.0;
+      for (const double f : {0.0, 0.25, 0.5, 0.75, 1.0}) {
+        Vec3 d[3];
+        evaluate(sampleU_[i] + f * (sampleU_[i + 1] - sampleU_[i]), f == 1.0 && i + 1 == piece.lastSample && piece.endFromBelow, d);
+        const double speed = d[1].norm();
+        // Where the speed vanishes (a clamped end with repeated control points) the others tell.
+        if (speed > 1e-14) largest = std::max(largest, d[1].cross(d[2]).norm() / (speed * speed * speed));
+      }
+      sampleCurvature_[i] = std::isfinite(largest) ? 2.0 * largest : kUnresolved;
+    }
+  }
 }
 
 ClosestPoint Rod::closestPointInInterval(const Vec3& p, double a, double b) const {
@@ -168,30 +237,132 @@ ClosestPoint Rod::closestPoint(const Vec3& p) const {
   return best;
 }
 
-RodHit Rod::classify(const Vec3& p) const { return classify(p, closestPoint(p)); }
-
-RodHit Rod::classify(const Vec3& p, const ClosestPoint& c) const {
-  const Vec3 w = p - c.point;
-  const double axial = w.dot(c.tangent);
-  // Beyond an end plane (the closest point then sits on that end): the cap decides.
-  const double planeTolerance = 1e-9 * (1.0 + section_.boundingRadius());
-  const bool beyondBegin = c.u <= centerline_.domainBegin() && axial < -planeTolerance;
-  const bool beyondEnd = c.u >= centerline_.domainEnd() && axial > planeTolerance;
-  RodHit hit;
-  hit.u = c.u;
-  if (beyondBegin || beyondEnd) {
-    if (caps_ == CapStyle::Flat) {
-      hit.depth = -std::abs(axial) / section_.capRadius();
-      return hit;
+double Rod::solveCrossing(const Vec3& p, double a, double b, double sign) const {
+  // Safeguarded Newton (Numerical Recipes' rtsafe) on sign * g(u), g = (r - p) . r', negative at a and
+  // positive at b; sign = -1 finds the zeros where g falls (farthest points, only on tight bends).
+  auto f = [&](double u, Vec3* d) {
+    centerline_.derivatives(u, 2, d);
+    return sign * (d[0] - p).dot(d[1]);
+  };
+  Vec3 d[3];
+  double lo = a, hi = b;
+  double u = 0.5 * (a + b);
+  double dxOld = b - a, dx = dxOld;
+  const double tol = 1e-15 * std::max(1.0, std::abs(b) + std::abs(a));
+  for (int it = 0; it < 60; ++it) {
+    const double g = f(u, d);
+    const double dg = sign * (d[1].squaredNorm() + (d[0] - p).dot(d[2]));
+    if (g < 0.0) lo = u; else hi = u;
+    const bool newtonOutside = ((u - hi) * dg - g) * ((u - lo) * dg - g) > 0.0;
+    const bool newtonSlow = std::abs(2.0 * g) > std::abs(dxOld * dg);
+    dxOld = dx;
+    if (newtonOutside || newtonSlow || dg <= 0.0) {
+      dx = 0.5 * (hi - lo);
+      u = lo + dx;
+    } else {
+      dx = g / dg;
+      u -= dx;
     }
-    hit.depth = 1.0 - c.distance / section_.capRadius();
-    hit.inside = hit.depth >= 0.0;
-    return hit;
+    if (std::abs(dx) < tol || g == 0.0) break;
   }
-  const Frame f = frame_.at(c.u, c.point, c.tangent);
-  hit.depth = 1.0 - section_.normalizedRadius(w.dot(f.d1), w.dot(f.d2));
-  hit.inside = hit.depth >= 0.0;
-  return hit;
+  return std::clamp(u, a, b);
+}
+
+namespace {
+
+// Keeps the deepest candidate; the first of equal ones (candidates come in increasing u).
+void consider(RodHit& best, double depth, double u) {
+  if (depth > best.depth) {
+    best.depth = depth;
+    best.u = u;
+  }
+}
+
+}  // namespace
+
+void Rod::sectionHit(const Vec3& p, double u, bool fromBelow, RodHit& best) const {
+  Vec3 d[3];
+  evaluate(u, fromBelow, d);
+  const Vec3 t = fromBelow ? unitTangentFromBelow(d[1], d[2]) : unitTangent(d[1], d[2]);
+  const Vec3 w = p - d[0];
+  const Frame f = frame_.at(u, d[0], t);
+  consider(best, 1.0 - section_.normalizedRadius(w.dot(f.d1), w.dot(f.d2)), u);
+}
+
+void Rod::classifyPiece(const Vec3& p, const SmoothPiece& piece, RodHit& best) const {
+  const double radius = section_.boundingRadius();
+  // Within this distance beyond an end plane a point still counts as on the plane (section test).
+  const double planeTolerance = 1e-9 * (1.0 + radius);
+  const double reach = radius + planeTolerance;
+  const bool round = caps_ == CapStyle::Round;
+  const double capReach = std::max(reach, section_.capRadius());
+  auto g = [&](double u, bool fromBelow) {
+    Vec3 d[3];
+    evaluate(u, fromBelow, d);
+    return (d[0] - p).dot(d[1]);
+  };
+  // The end planes: beyond one, the cap; on it (within the tolerance), the section there.
+  auto end = [&](double u, const Vec3& outward, bool fromBelow) {
+    Vec3 d[3];
+    evaluate(u, fromBelow, d);
+    const double beyond = (p - d[0]).dot(outward);
+    if (beyond < 0.0) return;  // in front of the plane: the crossings decide
+    if (beyond > planeTolerance) {
+      if (round) consider(best, 1.0 - (d[0] - p).norm() / section_.capRadius(), u);
+      return;
+    }
+    sectionHit(p, u, fromBelow, best);
+  };
+  if ((samplePoint_[piece.firstSample] - p).norm() <= capReach + sampleDeviation_[piece.firstSample])
+    end(piece.begin, -piece.beginTangent, false);
+
+  // Sections through p: the zeros of g(u) = (r(u) - p) . r'(u) in the piece, segment by segment.
+  auto crossing = [&](double a, double b, double ga, double gb, bool belowB) {
+    if (ga < 0.0 && gb > 0.0) {
+      const double u = solveCrossing(p, a, b, 1.0);
+      sectionHit(p, u, belowB && u == b, best);
+    } else if (ga > 0.0 && gb < 0.0) {
+      const double u = solveCrossing(p, a, b, -1.0);
+      sectionHit(p, u, belowB && u == b, best);
+    } else if (ga == 0.0 && a != piece.begin) {
+      sectionHit(p, a, false, best);
+    }
+  };
+  for (std::size_t i = piece.firstSample; i < piece.lastSample; ++i) {
+    const double gap = distanceToSegment(p, samplePoint_[i], samplePoint_[i + 1]);
+    if (gap - sampleDeviation_[i] > reach) continue;  // no section of the segment reaches p
+    const double a = sampleU_[i], b = sampleU_[i + 1];
+    const bool belowB = piece.endFromBelow && i + 1 == piece.lastSample;
+    const double ga = g(a, false), gb = g(b, belowB);
+    // g has one zero at most on the segment unless the curvature times the distance nears 1 (p close
+    // to a centre of curvature): then look for every sign change on a finer sampling.
+    const double chord = (samplePoint_[i + 1] - samplePoint_[i]).norm();
+    if (!(sampleCurvature_[i] * (gap + sampleDeviation_[i] + chord) < 0.5)) {
+      constexpr int kSubdivisions = 8;
+      double x = a, gx = ga;
+      for (int k = 1; k <= kSubdivisions; ++k) {
+        const double y = k == kSubdivisions ? b : a + (b - a) * k / kSubdivisions;
+        const double gy = k == kSubdivisions ? gb : g(y, false);
+        crossing(x, y, gx, gy, belowB && k == kSubdivisions);
+        x = y;
+        gx = gy;
+      }
+    } else {
+      crossing(a, b, ga, gb, belowB);
+    }
+  }
+  if ((samplePoint_[piece.lastSample] - p).norm() <= capReach + sampleDeviation_[piece.lastSample - 1])
+    end(piece.end, piece.endTangent, piece.endFromBelow);
+}
+
+RodHit Rod::classify(const Vec3& p) const {
+  RodHit best;
+  best.depth = -std::numeric_limits<double>::infinity();
+  best.u = centerline_.domainBegin();
+  for (const SmoothPiece& piece : pieces_) classifyPiece(p, piece, best);
+  if (!(best.depth > -1.0)) best.depth = -1.0;
+  best.inside = best.depth >= 0.0;
+  return best;
 }
 
 void Rod::computeBounds() {
@@ -199,35 +370,46 @@ void Rod::computeBounds() {
   const Vec3 axes[3] = {Vec3::UnitX(), Vec3::UnitY(), Vec3::UnitZ()};
   double maxDeviation = 0.0;
   constexpr int kSubsamples = 8;
-  for (std::size_t i = 0; i + 1 < sampleU_.size(); ++i) {
-    maxDeviation = std::max(maxDeviation, sampleDeviation_[i]);
-    for (int k = 0; k <= kSubsamples; ++k) {
-      const double u = sampleU_[i] + (sampleU_[i + 1] - sampleU_[i]) * k / kSubsamples;
-      Vec3 d[3];
-      centerline_.derivatives(u, 2, d);
-      const Frame f = frame_.at(u, d[0], unitTangent(d[1], d[2]));
-      Vec3 ext;
-      for (int a = 0; a < 3; ++a) ext[a] = sectionExtent(section_, f, axes[a]);
-      bounds_.extend(Vec3(d[0] - ext));
-      bounds_.extend(Vec3(d[0] + ext));
+  for (const SmoothPiece& piece : pieces_) {
+    for (std::size_t i = piece.firstSample; i < piece.lastSample; ++i) {
+      maxDeviation = std::max(maxDeviation, sampleDeviation_[i]);
+      for (int k = 0; k <= kSubsamples; ++k) {
+        const double u = sampleU_[i] + (sampleU_[i + 1] - sampleU_[i]) * k / kSubsamples;
+        const bool fromBelow = piece.endFromBelow && k == kSubsamples && i + 1 == piece.lastSample;
+        Vec3 d[3];
+        evaluate(fromBelow ? piece.end : u, fromBelow, d);
+        const Vec3 t = fromBelow ? unitTangentFromBelow(d[1], d[2]) : unitTangent(d[1], d[2]);
+        const Frame f = frame_.at(fromBelow ? piece.end : u, d[0], t);
+        Vec3 ext;
+        for (int a = 0; a < 3; ++a) ext[a] = sectionExtent(section_, f, axes[a]);
+        bounds_.extend(Vec3(d[0] - ext));
+        bounds_.extend(Vec3(d[0] + ext));
+      }
+      if (!sampleResolved(i)) {
+        // The samples may miss what the curve does between them: the segment's points, widened by
+        // its deviation and any section, hold it (as far as the deviation holds).
+        const double r = sampleDeviation_[i] + section_.boundingRadius();
+        bounds_.extend(Vec3(samplePoint_[i].cwiseMin(samplePoint_[i + 1]).array() - r));
+        bounds_.extend(Vec3(samplePoint_[i].cwiseMax(samplePoint_[i + 1]).array() + r));
+      }
     }
-  }
-  if (caps_ == CapStyle::Round) {
-    const double rc = section_.capRadius();
-    for (const double u : {centerline_.domainBegin(), centerline_.domainEnd()}) {
-      Vec3 d[3];
-      centerline_.derivatives(u, 2, d);
-      // The cap is the half-ball on the outer side of the end plane.
-      const Vec3 outward = (u == centerline_.domainBegin() ? -1.0 : 1.0) * unitTangent(d[1], d[2]);
-      for (int a = 0; a < 3; ++a) {
-        const double c = outward[a];
-        const double rim = rc * std::sqrt(std::max(0.0, 1.0 - c * c));
-        const double hi = c >= 0.0 ? rc : rim, lo = c <= 0.0 ? rc : rim;
-        Vec3 top = d[0], bottom = d[0];
-        top[a] += hi;
-        bottom[a] -= lo;
-        bounds_.extend(top);
-        bounds_.extend(bottom);
+    if (caps_ == CapStyle::Round) {
+      const double rc = section_.capRadius();
+      for (const bool atEnd : {false, true}) {
+        Vec3 d[3];
+        evaluate(atEnd ? piece.end : piece.begin, atEnd && piece.endFromBelow, d);
+        // The cap is the half-ball on the outer side of the end plane.
+        const Vec3 outward = atEnd ? piece.endTangent : Vec3(-piece.beginTangent);
+        for (int a = 0; a < 3; ++a) {
+          const double c = outward[a];
+          const double rim = rc * std::sqrt(std::max(0.0, 1.0 - c * c));
+          const double hi = c >= 0.0 ? rc : rim, lo = c <= 0.0 ? rc : rim;
+          Vec3 top = d[0], bottom = d[0];
+          top[a] += hi;
+          bottom[a] -= lo;
+          bounds_.extend(top);
+          bounds_.extend(bottom);
+        }
       }
     }
   }

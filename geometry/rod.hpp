@@ -1,7 +1,22 @@
 // A rod (centerline, section, frame, caps, E(s)) and the queries the voxelizer runs per voxel:
-// closest point on the centerline and the inside test with its normalized depth.
+// the inside test with its normalized depth, closest points, and the rod's bounding box.
+//
+// The rod's solid (what `classify` and the voxelizer decide, and `bounds` contains):
+//   The centerline is cut at its C0 points into smooth pieces. A C0 point is an interior knot where the
+//   unit tangents from below and from above differ by more than kKinkTolerance: the vertices of a
+//   degree-1 polyline, a knot of multiplicity = degree with control points not in line, a cusp at a
+//   knot. The solid is the union over the pieces of
+//     - the swept section: every p = r(u) + x1 d1(u) + x2 d2(u) with u in the piece and (x1, x2) in the
+//       section (in the normal plane at u, frame coordinates as in geometry/frame.hpp), and
+//     - the caps at both ends of every piece, in the rod's CapStyle at its C0 points too: Round adds the
+//       half-ball of radius Section::capRadius() beyond the piece's end plane (so a round-capped rod gets
+//       a ball joint at each kink and no notch), Flat adds nothing (a kink's outer side is notched).
+//   Where the section's bounding radius is below the radius of curvature and the rod does not come back
+//   within its own reach (every printable rod we know), a point lies in the section at one u only, its
+//   closest centerline point: this is the closest-point rule, decided with one Newton solve.
+//   depth = the largest over the sections and caps holding p of 1 - Section::normalizedRadius (swept) or
+//   1 - distance / capRadius (caps); E is taken at the u of the deepest (on exact ties, the lowest u).
 #pragma once
-
 #include "geometry/frame.hpp"
 #include "geometry/mechanics_spec.hpp"
 #include "geometry/nurbs.hpp"
@@ -9,6 +24,7 @@
 
 #include <Eigen/Geometry>
 
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -16,6 +32,16 @@
 namespace rodfab::geometry {
 
 using Box3 = Eigen::AlignedBox3d;
+
+// Largest |coordinate| of a control point the design reader accepts (mm): double precision then still
+// resolves positions to 1e-7 mm.
+inline constexpr double kMaxCoordinateMm = 1e9;
+// Tangents from below and above an interior knot farther apart than this (|t- - t+|, about the angle in
+// radians) make the knot a C0 point.
+inline constexpr double kKinkTolerance = 1e-7;
+// Most polyline samples (sampleParameters) one rod may need; the constructor throws beyond. Each costs
+// about 64 bytes plus the rasterizer's pieces over it.
+inline constexpr std::size_t kMaxSamplesPerRod = std::size_t(1) << 20;
 
 enum class CapStyle {
   Round,  // a half-ball of radius Section::capRadius() on each end, so rods meeting at a joint leave no notch
@@ -32,10 +58,19 @@ struct ClosestPoint {
 // Where a query point lies relative to one rod.
 struct RodHit {
   bool inside = false;
-  // 1 on the centerline, 0 on the boundary, negative outside: 1 - Section::normalizedRadius in the
-  // swept part, 1 - distance / capRadius in a round cap. Ranks overlapping rods at joints.
+  // 1 on the centerline, 0 on the boundary, negative outside: the largest 1 - Section::normalizedRadius
+  // over the sections through the point, or 1 - distance / capRadius in a round cap. Ranks overlapping
+  // rods at joints. -1 when no section or cap comes near the point.
   double depth = -1.0;
   double u = 0.0;  // centerline parameter the value E(u) is taken at
+};
+
+// A part of the centerline between C0 points (see the top of this file).
+struct SmoothPiece {
+  double begin = 0.0, end = 0.0;                // its parameter interval
+  std::size_t firstSample = 0, lastSample = 0;  // sampleParameters()[firstSample] == begin, [lastSample] == end
+  Vec3 beginTangent, endTangent;                // unit tangents at its ends, taken inside the piece
+  bool endFromBelow = false;                    // `end` is a C0 point: evaluate there from below
 };
 
 class Rod {
@@ -43,7 +78,8 @@ public:
   Rod() = default;
   // Exactly one of `referenceNormal` / `orientation` may be given; neither is fine for circles (a
   // rotation-minimizing frame with an arbitrary seed is used then). Throws std::invalid_argument on
-  // inconsistent input; the design reader validates first and reports user-facing errors.
+  // inconsistent input (the design reader validates first and reports user-facing errors), and when the
+  // centerline needs more than kMaxSamplesPerRod samples (the message names the rod).
   Rod(std::string name, NurbsCurve centerline, Section section, std::optional<Vec3> referenceNormal,
       std::optional<QuaternionSpline> orientation, CapStyle caps, BSplineField modulus);
 
@@ -58,28 +94,48 @@ public:
   double length() const { return length_; }
 
   // Parameters of a polyline that follows the centerline within `sampleDeviation()` (mm): the seeds
-  // of closest-point searches and a cheap way for callers to visit the rod piece by piece.
+  // of closest-point searches and a cheap way for callers to visit the rod piece by piece. Every knot
+  // and so every C0 point is a sample; the segments turn by at most ~10 degrees where the curve could
+  // be resolved (sampleResolved).
   const std::vector<double>& sampleParameters() const { return sampleU_; }
   const std::vector<Vec3>& samplePoints() const { return samplePoint_; }
   // Upper bound on the distance between the polyline segment [i, i+1] and the curve over it.
   double sampleDeviation(std::size_t segment) const { return sampleDeviation_[segment]; }
+  // Estimated upper bound on the curvature (1/mm) over segment i: twice the largest sampled; infinite
+  // where the curve's speed vanishes or the segment is unresolved.
+  double sampleCurvature(std::size_t segment) const { return sampleCurvature_[segment]; }
+  // False where the adaptive sampling hit its depth limit (a cusp, extreme weights): the segment's
+  // deviation and curvature bounds are then unreliable and its callers take the safe path.
+  bool sampleResolved(std::size_t segment) const { return sampleCurvature_[segment] < kUnresolved; }
+  // The smooth pieces, in parameter order (one for a C1 centerline).
+  const std::vector<SmoothPiece>& smoothPieces() const { return pieces_; }
 
-  // Global closest point (all polyline segments that could hold it are refined; robust for points
-  // equidistant from two spans and at the ends).
+  // Global closest point on the centerline (all polyline segments that could hold it are refined;
+  // robust for points equidistant from two spans and at the ends).
   ClosestPoint closestPoint(const Vec3& p) const;
   // Closest point restricted to [a, b], by safeguarded Newton on (r(u) - p) . r'(u) = 0.
   ClosestPoint closestPointInInterval(const Vec3& p, double a, double b) const;
 
-  // Inside test through the closest point: section in frame coordinates, plus the end caps.
+  // The inside test of the solid defined at the top of this file. Thread-safe (const, no caches).
   RodHit classify(const Vec3& p) const;
-  RodHit classify(const Vec3& p, const ClosestPoint& closest) const;
 
-  // Axis-aligned box containing the whole solid (sections and caps).
+  // Axis-aligned box containing the whole solid (sections and caps of every smooth piece).
   Box3 bounds() const { return bounds_; }
 
 private:
+  static constexpr double kUnresolved = std::numeric_limits<double>::max();
+
+  void findSmoothPieces(const std::vector<double>& breakpoints, std::vector<bool>& isC0) const;
   void sampleCenterline();
+  void estimateCurvature(const std::vector<bool>& unresolved);
   void computeBounds();
+  // r, r', r'' at u; from below when `fromBelow` (the end of a piece at a C0 point).
+  void evaluate(double u, bool fromBelow, Vec3* d) const;
+  // Section test at parameter u of `piece`: depth and u, or nothing if p is farther than the section reaches.
+  void sectionHit(const Vec3& p, double u, bool fromBelow, RodHit& best) const;
+  // Zeros of g(u) = (r(u) - p) . r'(u) on [a, b] with g(a) = ga, g(b) = gb of opposite signs.
+  double solveCrossing(const Vec3& p, double a, double b, double sign) const;
+  void classifyPiece(const Vec3& p, const SmoothPiece& piece, RodHit& best) const;
 
   std::string name_;
   NurbsCurve centerline_;
@@ -93,6 +149,8 @@ private:
   std::vector<double> sampleU_;
   std::vector<Vec3> samplePoint_;
   std::vector<double> sampleDeviation_;
+  std::vector<double> sampleCurvature_;
+  std::vector<SmoothPiece> pieces_;
   Box3 bounds_;
 };
 

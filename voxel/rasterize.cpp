@@ -217,7 +217,10 @@ public:
 
   // Slots hold a candidate of a rod the voxel lies in exactly where their bit in `filled_` is set:
   // clearing a block costs 512 bytes, not the 96 KiB of slots.
-  void clear() { filled_.fill(0); }
+  void clear() {
+    filled_.fill(0);
+    memoRod_ = -1;
+  }
   // Writes the block's filled slots into leaves; leaf(l) creates the block's l-th leaf along x.
   // Slots are in the leaves' own order, so a leaf's value mask is its 8 words of `filled_`.
   template <typename MakeLeaf>
@@ -246,6 +249,7 @@ public:
   void addPiece(int rod, int pieceIndex, const openvdb::CoordBBox& box) {
     const RodPiece& piece = rods_[rod].pieces[pieceIndex];
     if (piece.kind == RodPiece::Kind::Swept) sweep(rod, pieceIndex, piece, box);
+    else if (piece.kind == RodPiece::Kind::Exact) exactRegion(rod, pieceIndex, piece, box);
     else cap(rod, pieceIndex, piece, box);
   }
 
@@ -434,6 +438,34 @@ private:
     }
   }
 
+  // Every voxel of the piece's box within its reach of the chord, decided by the exact test; once per
+  // voxel and rod in a block (exact pieces of a tight bend overlap, and the test already decides the
+  // whole rod).
+  void exactRegion(int rod, int pieceIndex, const RodPiece& piece, const openvdb::CoordBBox& box) {
+    if (memoRod_ != rod) {
+      memo_.fill(0);
+      memoRod_ = rod;
+    }
+    AxisCylinder cylinder(grid_, piece);
+    for (int k = box.min().z(); k <= box.max().z(); ++k) {
+      int jLo = box.min().y(), jHi = box.max().y();
+      if (!cylinder.layer(k, jLo, jLo, jHi)) continue;
+      for (int j = jLo; j <= jHi; ++j) {
+        RowBounds bounds;
+        int lo = box.min().x(), hi = box.max().x();
+        if (!cylinder.row(j, bounds) || !bounds.round(lo, hi)) continue;
+        for (int i = lo; i <= hi; ++i) {
+          const int n = offset(i, j, k);
+          std::uint64_t& word = memo_[static_cast<std::size_t>(n >> 6)];
+          const std::uint64_t bit = std::uint64_t(1) << (n & 63);
+          if (word & bit) continue;
+          word |= bit;
+          offer(exact(rod, pieceIndex, i, j, k), n, i, j, k);
+        }
+      }
+    }
+  }
+
   void cap(int rod, int pieceIndex, const RodPiece& piece, const openvdb::CoordBBox& box) {
     const RodPieces& rp = rods_[rod];
     const geometry::Rod& r = structure_.rods[rod];
@@ -445,7 +477,7 @@ private:
     const double nearPlane = capPlaneBand(r.section().boundingRadius());
     const double invCap = rp.inverseCapRadius;
     constexpr double kCapBand = 1e-9;  // round-off in the cap's distance, relative to its radius
-    const float endModulus = static_cast<float>(r.modulus().value(atEnd ? r.modulus().domainEnd() : r.modulus().domainBegin()));
+    const float endModulus = piece.capModulus;
     AxisCylinder cylinder(grid_, piece);
     const Slope slope(sign * plane.gx);
     for (int k = box.min().z(); k <= box.max().z(); ++k) {
@@ -492,18 +524,37 @@ private:
   std::array<float, kBlockVoxels> band_, value_;
   std::array<std::uint64_t, kBlockVoxels> owner_;
   std::array<std::uint64_t, kWords> filled_{};
+  std::array<std::uint64_t, kWords> memo_{};  // voxels of the block exactly tested for rod memoRod_
+  int memoRod_ = -1;
 };
 
 }  // namespace
 
 Rasterizer::Rasterizer(const geometry::RodStructure& structure, const PrinterGrid& grid, RasterOptions options)
-    : structure_(&structure), grid_(grid), options_(options) {
+    : structure_(&structure), grid_(grid), options_(std::move(options)) {
   rods_.resize(structure.rods.size());
+  // Voxels are only ever emitted inside the design's bounding box (geometry::Rod::bounds holds every
+  // rod's solid), the part bounds the job writer checks.
+  const geometry::Box3 bounds = structure.bounds();
+  partBounds_ = bounds.isEmpty() ? openvdb::CoordBBox()
+                                 : grid_.voxelsWithin({bounds.min().x(), bounds.min().y(), bounds.min().z()},
+                                                      {bounds.max().x(), bounds.max().y(), bounds.max().z()});
   tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
   arena.execute([&] {
-    tbb::parallel_for(std::size_t(0), rods_.size(),
-                      [&](std::size_t r) { rods_[r] = detail::buildRodPieces(structure.rods[r], grid_); });
+    tbb::parallel_for(std::size_t(0), rods_.size(), [&](std::size_t r) {
+      detail::RodPieces pieces = detail::buildRodPieces(structure.rods[r], grid_, options_.wasInterrupted);
+      pieces.box = openvdb::CoordBBox();
+      for (RodPiece& p : pieces.pieces) {
+        p.box.intersect(partBounds_);
+        if (!p.box.empty()) pieces.box.expand(p.box);
+      }
+      rods_[r] = std::move(pieces);
+    });
   });
+}
+
+void Rasterizer::checkInterrupt() const {
+  if (options_.wasInterrupted && options_.wasInterrupted()) throw Interrupted("rasterizer: interrupted");
 }
 
 Rasterizer::~Rasterizer() = default;
@@ -538,6 +589,7 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
     const RodPieces& rod = rods_[r];
     if (rod.box.empty() || rod.box.max().z() < zBegin || rod.box.min().z() >= zEnd) return;
     for (std::size_t p = 0; p < rod.pieces.size(); ++p) {
+      if (p % 1024 == 0) checkInterrupt();
       openvdb::CoordBBox b = rod.pieces[p].box;
       b.min().z() = std::max(b.min().z(), zBegin);
       b.max().z() = std::min(b.max().z(), zEnd - 1);
@@ -558,7 +610,9 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
       std::vector<Entry>().swap(v);
     }
   }
+  checkInterrupt();
   tbb::parallel_sort(entries.begin(), entries.end());
+  checkInterrupt();
   std::vector<std::size_t> groupStart;
   for (std::size_t e = 0; e < entries.size(); ++e)
     if (e == 0 || entries[e].block != entries[e - 1].block) groupStart.push_back(e);
@@ -576,6 +630,7 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
     if (!state.builder) state.builder.reset(new LeafBuilder(*structure_, rods_, grid_));  // default-initialized slots
     LeafBuilder& builder = *state.builder;
     for (std::size_t g = range.begin(); g != range.end(); ++g) {
+      checkInterrupt();
       const openvdb::Coord origin = blockOrigin(entries[groupStart[g]].block);
       openvdb::CoordBBox blockBox(origin, origin + openvdb::Coord((kLeafDim << kBlockLeavesLog2) - 1, kLeafDim - 1, kLeafDim - 1));
       blockBox.min().z() = std::max(blockBox.min().z(), zBegin);
@@ -583,6 +638,7 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
       builder.clear();
       bool touched = false;
       for (std::size_t e = groupStart[g]; e < groupStart[g + 1]; ++e) {
+        if ((e - groupStart[g]) % 64 == 63) checkInterrupt();
         openvdb::CoordBBox b = rods_[entries[e].rod].pieces[entries[e].piece].box;
         b.intersect(blockBox);
         if (b.empty()) continue;

@@ -24,6 +24,8 @@
 #include <openvdb/openvdb.h>
 
 #include <cstdint>
+#include <functional>
+#include <stdexcept>
 #include <vector>
 
 namespace rodfab::voxel {
@@ -39,7 +41,22 @@ struct RodPieces;
 }
 
 struct RasterOptions {
+  RasterOptions() = default;
+  RasterOptions(int threadCount, std::function<bool()> interrupted = {})
+      : threads(threadCount), wasInterrupted(std::move(interrupted)) {}
+
   int threads = 0;  // TBB worker count; 0 = all cores
+  // Cancellation, in the style of OpenVDB's interrupters: when set, the rasterizer calls it from its
+  // worker threads (so it must be thread-safe, e.g. a read of an atomic flag set by a signal handler)
+  // between small units of work, at least every ~20 ms of work per thread on this machine (2 cores),
+  // while cutting the rods into pieces (constructor) and while rasterizing. Once it returns true the
+  // operation stops within that time and throws voxel::Interrupted; nothing partial is returned.
+  std::function<bool()> wasInterrupted;
+};
+
+// Thrown when RasterOptions::wasInterrupted returned true.
+struct Interrupted : std::runtime_error {
+  using std::runtime_error::runtime_error;
 };
 
 struct Rasterization {
@@ -66,11 +83,13 @@ public:
 
 private:
   Rasterization run(int zBegin, int zEnd) const;
+  void checkInterrupt() const;
 
   const geometry::RodStructure* structure_;
   PrinterGrid grid_;
   RasterOptions options_;
   std::vector<detail::RodPieces> rods_;
+  openvdb::CoordBBox partBounds_;
 };
 
 // The whole design in one call.

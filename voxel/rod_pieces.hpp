@@ -6,6 +6,7 @@
 #include "geometry/rod.hpp"
 #include "voxel/printer_grid.hpp"
 
+#include <functional>
 #include <vector>
 
 namespace rodfab::voxel::detail {
@@ -28,10 +29,13 @@ IndexForm indexForm(const PrinterGrid& grid, const geometry::Vec3& n, const geom
 constexpr double kCoordinateTolerance = 1e-4;
 
 struct RodPiece {
-  enum class Kind : unsigned char { Swept, BeginCap, EndCap };
+  enum class Kind : unsigned char { Swept, BeginCap, EndCap, Exact };
   Kind kind = Kind::Swept;
   // Swept: voxels with planes[plane].at >= 0 and planes[plane + 1].at < 0 (between the normal planes
-  // at u[plane] and u[plane + 1]). BeginCap: planes[0].at < 0. EndCap: planes.back().at >= 0.
+  // at u[plane] and u[plane + 1]). BeginCap: planes[plane].at < 0. EndCap: planes[plane].at >= 0 (the
+  // first and last plane of a smooth piece). Exact: no plane; every voxel within `reach` of the chord
+  // goes to the exact test (pieces whose approximation could not be bounded: tight bends, where the
+  // normal planes cross inside the rod, cusps, jumps of E).
   int plane = 0;
 
   // Swept: frame coordinates measured in the two bounding planes, blended by the position
@@ -42,26 +46,38 @@ struct RodPiece {
   // Bound on the normalized-radius error of the approximation (inf where it could not be bounded).
   double normalizedRadiusBand = 0.0;
 
-  // Round caps: the components of p - (centerline end point), one form per world axis.
+  // Round caps: the components of p - (centerline end point), one form per world axis, and E there.
   IndexForm capOffset[3];
+  float capModulus = 0.0f;
 
   // Every voxel the piece can own lies within `reach` (mm) of the line through `axisPoint` along
-  // `axisDirection` (the chord for swept pieces, the end tangent for caps) and inside `box`.
+  // `axisDirection` (the chord for swept and exact pieces, the end tangent for caps) and inside `box`.
   geometry::Vec3 axisPoint, axisDirection;
   double reach = 0.0;
   openvdb::CoordBBox box;
 };
 
 struct RodPieces {
-  std::vector<IndexForm> planes;
+  std::vector<IndexForm> planes;  // one chain per smooth piece of the rod, in order
   std::vector<RodPiece> pieces;
   openvdb::CoordBBox box;  // union of the pieces' boxes
   double inverseHalfWidth = 0.0, inverseHalfHeight = 0.0, inverseCapRadius = 0.0;
 };
 
+// Shortest piece the refinement makes (mm) on a grid: a quarter of the smallest voxel edge. Below it
+// an approximation that still misses its tolerance keeps its measured bound (more voxels go to the
+// exact test), so tight bends, cusps and round-off far from the origin cannot refine without end.
+double minimumPieceLength(const PrinterGrid& grid);
+// Most pieces one rod is cut into: 8 per polyline segment plus 4 per minimumPieceLength of its length,
+// plus its caps (E varying steeply along a tightly bent rod needs some 500 pieces per mm). The
+// refinement stops splitting when it is reached.
+std::size_t pieceBudget(const geometry::Rod& rod, const PrinterGrid& grid);
+
 // Cuts `rod` into pieces, refining each until its measured coordinate error is below
-// kCoordinateTolerance (or a refinement depth limit is hit; then the bound stays as measured).
-RodPieces buildRodPieces(const geometry::Rod& rod, const PrinterGrid& grid);
+// kCoordinateTolerance, or it is shorter than minimumPieceLength, or the rod's pieceBudget is spent.
+// Calls `interrupted` (if set) every few milliseconds of work and throws voxel::Interrupted when it
+// returns true.
+RodPieces buildRodPieces(const geometry::Rod& rod, const PrinterGrid& grid, const std::function<bool()>& interrupted = {});
 
 // The swept-piece approximation at a point with plane values a >= 0 > b and frame coordinates
 // measured in the begin and end planes; shared by the rasterizer and the error measurement. T is
