@@ -1,6 +1,8 @@
 #include "geometry/geometry.hpp"
 #include "slicer/command.hpp"
 #include "slicer/options.hpp"
+
+#include "common/interrupt.hpp"
 #include "voxel/voxel.hpp"
 
 #include <nlohmann/json.hpp>
@@ -66,7 +68,7 @@ int runVoxelize(const std::vector<std::string>& args) {
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();
   const voxel::PrinterGrid grid = voxel::makePrinterGrid(design, *voxelSize);
-  const voxel::Rasterization ras = voxel::rasterize(design, grid, {threads});
+  const voxel::Rasterization ras = voxel::rasterize(design, grid, {threads, common::interruptRequested});
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
   const voxel::GridStatistics s = voxel::computeStatistics(*ras.grid, grid, ras.voxelsPerRod);
 

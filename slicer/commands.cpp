@@ -2,6 +2,7 @@
 
 #include "common/interrupt.hpp"
 #include "common/memory_budget.hpp"
+#include "voxel/rasterize.hpp"
 
 #include <algorithm>
 #include <cstring>
@@ -48,6 +49,10 @@ int runCommand(const Command& c, const std::vector<std::string>& args) {
   } catch (const common::Interrupted& e) {
     std::cerr << "rodfab " << c.name << ": " << e.what() << '\n';
     return 128 + e.signal;
+  } catch (const voxel::Interrupted&) {
+    const int signal = common::interruptRequested();
+    std::cerr << "rodfab " << c.name << ": " << common::Interrupted(signal).what() << '\n';
+    return 128 + signal;
   } catch (const std::bad_alloc&) {
     std::cerr << "rodfab " << c.name << ": " << common::outOfMemoryMessage() << '\n';
     return kFailed;

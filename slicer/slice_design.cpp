@@ -1,5 +1,7 @@
 #include "slicer/slice_design.hpp"
 
+#include "common/interrupt.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -31,7 +33,7 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   auto start = Clock::now();
   const voxel::PrinterGrid grid =
       voxel::makePrinterGrid(design, openvdb::Vec3d(profile.voxelSizeMm[0], profile.voxelSizeMm[1], profile.voxelSizeMm[2]));
-  const voxel::Rasterizer rasterizer(design, grid, {settings.threads});
+  const voxel::Rasterizer rasterizer(design, grid, {settings.threads, common::interruptRequested});
   const materials::FractionMap fractionMap(calibration);
   report.floorMpa = fractionMap.floorMpa();
   report.floorFraction = fractionMap.floorFraction();
