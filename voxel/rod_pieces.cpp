@@ -145,7 +145,8 @@ RodPieces buildRodPieces(const geometry::Rod& rod, const PrinterGrid& grid, cons
   constexpr int kMaxRefinement = 24;
   const double minLength = minimumPieceLength(grid);
   const std::size_t budget = pieceBudget(rod, grid);
-  std::size_t planned = rod.sampleParameters().size(), steps = 0;
+  // Pieces so far if no more splits came: the segments and the caps.
+  std::size_t planned = rod.sampleParameters().size() - 1 + 2 * rod.smoothPieces().size(), steps = 0;
 
   std::vector<Node> nodes;  // one per plane
   auto finish = [&](const Node& a, const Node& b, double slack, RodPiece& piece) {
