@@ -3,8 +3,6 @@
 #include "voxel/rasterize.hpp"
 
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -238,12 +236,6 @@ RodPieces buildRodPieces(const geometry::Rod& rod, const PrinterGrid& grid, cons
            static_cast<float>(k + 1 == smooth.size() ? modulus.value(modulus.domainEnd()) : modulus.value(sp.end)));
   }
   for (const Node& n : nodes) out.planes.push_back(indexForm(grid, n.t, n.r));
-  if (std::getenv("RODFAB_DEBUG_PIECES")) {
-    std::size_t counts[4] = {0, 0, 0, 0};
-    for (const RodPiece& p : out.pieces) ++counts[int(p.kind)];
-    std::fprintf(stderr, "rod %s: swept %zu exact %zu caps %zu samples %zu smooth %zu budget %zu\n", rod.name().c_str(), counts[0], counts[3],
-                 caps.size(), u.size(), smooth.size(), budget);
-  }
   out.pieces.insert(out.pieces.end(), caps.begin(), caps.end());
   for (const RodPiece& p : out.pieces)
     if (!p.box.empty()) out.box.expand(p.box);
