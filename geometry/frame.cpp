@@ -90,9 +90,12 @@ RodFrame RodFrame::rotationMinimizing(const NurbsCurve& curve, const Vec3& refer
   RodFrame frame;
   frame.kind_ = Kind::RotationMinimizing;
   // 64 samples per knot span keep the discrete RMF within ~1e-8 rad of the exact one for the
-  // curvatures of printable rods; the step error of double reflection is fourth order.
-  constexpr int kSamplesPerSpan = 64;
+  // curvatures of printable rods; the step error of double reflection is fourth order. Curves of
+  // more than 1024 spans (short ones) get fewer, down to 4, so memory stays a small multiple of the
+  // design file's size.
   const std::vector<double> bp = curve.breakpoints();
+  const std::size_t spans = bp.size() - 1;
+  const int kSamplesPerSpan = static_cast<int>(std::clamp<std::size_t>(kMaxFrameSamples / spans, 4, 64));
   for (std::size_t s = 0; s + 1 < bp.size(); ++s)
     for (int k = 0; k < kSamplesPerSpan; ++k)
       frame.sampleU_.push_back(bp[s] + (bp[s + 1] - bp[s]) * k / kSamplesPerSpan);

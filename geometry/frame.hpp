@@ -10,6 +10,9 @@
 
 namespace rodfab::geometry {
 
+// Rotation-minimizing frames keep 64 samples per knot span up to this many in all (then fewer per span, at least 4).
+inline constexpr std::size_t kMaxFrameSamples = 1 << 16;
+
 // Orthonormal, right-handed: d3 is the unit tangent, d1 and d2 span the cross-section plane.
 struct Frame {
   Vec3 d1, d2, d3;

@@ -167,8 +167,20 @@ double NurbsCurve::arcLength(double u0, double u1) const {
   u0 = std::max(u0, domainBegin());
   u1 = std::min(u1, domainEnd());
   if (!(u1 > u0)) return 0.0;
+  // 8-point Gauss-Legendre on [a, b].
+  auto gauss = [&](double a, double b) {
+    const double mid = 0.5 * (a + b), half = 0.5 * (b - a);
+    double sum = 0.0;
+    for (std::size_t g = 0; g < kGaussNodes.size(); ++g) {
+      Vec3 d[2];
+      derivatives(mid + half * kGaussNodes[g], 1, d);
+      sum += half * kGaussWeights[g] * d[1].norm();
+    }
+    return sum;
+  };
   // Each knot span is split into 8 pieces, each integrated with 8 Gauss points: exact enough
-  // (better than 1e-10 relative) for the smooth, moderately curved spans of rod designs.
+  // (better than 1e-10 relative) for the smooth, moderately curved spans of rod designs. Where 16
+  // pieces disagree (extreme weights race through part of a span) the span is integrated adaptively.
   constexpr int kPiecesPerSpan = 8;
   double length = 0.0;
   const std::vector<double> bp = breakpoints();
@@ -176,13 +188,31 @@ double NurbsCurve::arcLength(double u0, double u1) const {
     const double a = std::max(bp[s], u0), b = std::min(bp[s + 1], u1);
     if (!(b > a)) continue;
     const double h = (b - a) / kPiecesPerSpan;
+    double span = 0.0, fine = 0.0;
     for (int piece = 0; piece < kPiecesPerSpan; ++piece) {
       const double mid = a + (piece + 0.5) * h;
       for (std::size_t g = 0; g < kGaussNodes.size(); ++g) {
         Vec3 d[2];
         derivatives(mid + 0.5 * h * kGaussNodes[g], 1, d);
-        length += 0.5 * h * kGaussWeights[g] * d[1].norm();
+        span += 0.5 * h * kGaussWeights[g] * d[1].norm();
       }
+      fine += gauss(a + piece * h, mid) + gauss(mid, a + (piece + 1) * h);
+    }
+    if (!(std::abs(fine - span) > 1e-9 * fine)) {
+      length += span;
+      continue;
+    }
+    // Bisection while the halves disagree with the whole, at most 2048 intervals per span (round-off
+    // far from the origin would otherwise never settle).
+    int budget = 2048;
+    auto adaptive = [&](auto&& self, double x, double y, double whole) -> double {
+      const double m = 0.5 * (x + y), left = gauss(x, m), right = gauss(m, y);
+      if (--budget <= 0 || !(m > x && y > m) || std::abs(left + right - whole) <= 1e-11 * (left + right)) return left + right;
+      return self(self, x, m, left) + self(self, m, y, right);
+    };
+    for (int piece = 0; piece < kPiecesPerSpan; ++piece) {
+      const double x = a + piece * h, y = piece + 1 == kPiecesPerSpan ? b : a + (piece + 1) * h;
+      length += adaptive(adaptive, x, y, gauss(x, y));
     }
   }
   return length;

@@ -285,6 +285,8 @@ void Rod::sectionHit(const Vec3& p, double u, bool fromBelow, RodHit& best) cons
   evaluate(u, fromBelow, d);
   const Vec3 t = fromBelow ? unitTangentFromBelow(d[1], d[2]) : unitTangent(d[1], d[2]);
   const Vec3 w = p - d[0];
+  // A zero of (r - p) . r' where r' vanishes (a cusp) is no section through p: p must lie in the plane.
+  if (!(std::abs(w.dot(t)) <= 1e-7 * (1.0 + section_.boundingRadius()))) return;
   const Frame f = frame_.at(u, d[0], t);
   consider(best, 1.0 - section_.normalizedRadius(w.dot(f.d1), w.dot(f.d2)), u);
 }

@@ -234,3 +234,158 @@ TEST_CASE("Bounds of a torus-like ring contain every sampled surface point", "[r
   REQUIRE(b.max().z() == Approx(1.0).margin(1e-3));
   REQUIRE(ring.length() == Approx(10 * std::numbers::pi).epsilon(1e-9));
 }
+
+// ---- Kinks and scale-safe numerics ----
+
+namespace {
+
+NurbsCurve bentPolyline() { return NurbsCurve(1, {0, 0, 0.5, 1, 1}, {{0, 0, 0}, {3, 0, 0}, {3, 3, 0}}); }
+
+Rod rodOf(NurbsCurve c, double diameter, CapStyle caps) {
+  return Rod("bent", std::move(c), Section::circle(diameter), std::nullopt, std::nullopt, caps, BSplineField::constant(5, 0, 1));
+}
+
+// The error message of a design that must fail to parse.
+std::string designError(const std::string& text) {
+  try {
+    parseDesign(text, "d.json");
+  } catch (const DesignError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+std::string oneRod(const std::string& centerline, const std::string& extra = "") {
+  return R"({"format": "rodfab.design/1", "units": "mm", "rods": [{"name": "r", "centerline": )" + centerline +
+         R"(, "section": {"shape": "rectangle", "width": 1, "height": 0.5}, "modulus": 10)" + extra + "}]}";
+}
+const char* kLine = R"({"degree": 1, "knots": [0, 0, 1, 1], "points": [[0, 0, 0], [2, 0, 0]]})";
+
+}  // namespace
+
+TEST_CASE("Derivatives from below a kink are those of the span ending there", "[nurbs][kink]") {
+  const NurbsCurve c = bentPolyline();
+  Vec3 below[3], above[3];
+  c.derivativesFromBelow(0.5, 1, below);
+  c.derivatives(0.5, 1, above);
+  REQUIRE((below[0] - Vec3(3, 0, 0)).norm() < 1e-15);
+  REQUIRE((above[0] - Vec3(3, 0, 0)).norm() < 1e-15);
+  REQUIRE((below[1] - Vec3(6, 0, 0)).norm() < 1e-12);  // (3, 0, 0) over half the parameter range
+  REQUIRE((above[1] - Vec3(0, 6, 0)).norm() < 1e-12);
+  // Away from knots, and at the domain's ends, both agree.
+  for (const double u : {0.0, 0.2, 0.7, 1.0}) {
+    c.derivativesFromBelow(u, 1, below);
+    c.derivatives(u, 1, above);
+    REQUIRE((below[1] - above[1]).norm() < 1e-12);
+  }
+  // A fold back: r' vanishes and the curve arrives along -r''.
+  REQUIRE((unitTangentFromBelow(Vec3::Zero(), Vec3(0, 0, 2)) - Vec3(0, 0, -1)).norm() < 1e-15);
+}
+
+TEST_CASE("C0 points split a rod into smooth pieces; the joint follows the caps", "[rod][kink]") {
+  const Rod round = rodOf(bentPolyline(), 1.0, CapStyle::Round), flat = rodOf(bentPolyline(), 1.0, CapStyle::Flat);
+  REQUIRE(round.smoothPieces().size() == 2);
+  const SmoothPiece& first = round.smoothPieces()[0];
+  REQUIRE(first.begin == 0.0);
+  REQUIRE(first.end == 0.5);
+  REQUIRE(first.endFromBelow);
+  REQUIRE((first.endTangent - Vec3(1, 0, 0)).norm() < 1e-12);
+  REQUIRE((round.smoothPieces()[1].beginTangent - Vec3(0, 1, 0)).norm() < 1e-12);
+  REQUIRE(round.sampleParameters()[first.lastSample] == 0.5);
+  REQUIRE(rodOf(wigglyCubic(), 0.5, CapStyle::Round).smoothPieces().size() == 1);
+
+  // The outer corner: (3.3, -0.3) is 0.42 from the vertex, beyond both end planes. Projected onto the
+  // plane of either piece it lies within the radius, which the old rule took for inside.
+  REQUIRE(round.classify(Vec3(3.3, -0.3, 0)).inside);
+  REQUIRE(round.classify(Vec3(3.3, -0.3, 0)).depth == Approx(1 - std::hypot(0.3, 0.3) / 0.5));
+  REQUIRE_FALSE(round.classify(Vec3(3.4, -0.4, 0)).inside);
+  REQUIRE_FALSE(flat.classify(Vec3(3.3, -0.3, 0)).inside);
+  REQUIRE_FALSE(flat.classify(Vec3(3.05, -0.45, 0.2)).inside);  // 0.5 from the vertex, beyond the first piece's end
+  REQUIRE(flat.classify(Vec3(2.9, -0.45, 0.2)).inside);        // in the first piece's section
+  REQUIRE(flat.classify(Vec3(3.45, 0.1, 0.2)).inside);         // in the second's
+  // The inner corner belongs to both pieces: the deeper one gives the depth.
+  const RodHit inner = flat.classify(Vec3(2.8, 0.3, 0));
+  REQUIRE(inner.depth == Approx(1 - 0.2 / 0.5));
+  REQUIRE(inner.u == Approx(0.5 + 0.3 / 6.0));  // the second piece: 0.2 from its axis, the first 0.3
+
+  // Bounds hold the ball joint but not the bare corner of flat pieces.
+  REQUIRE(round.bounds().min().y() == Approx(-0.5).margin(1e-6));
+  REQUIRE(round.bounds().max().x() == Approx(3.5).margin(1e-6));
+  REQUIRE(flat.bounds().min().y() == Approx(-0.5).margin(1e-6));  // the first piece's section at its end
+  REQUIRE(flat.bounds().max().z() == Approx(0.5).margin(1e-6));
+}
+
+TEST_CASE("Bounds contain every point the inside test accepts, on kinked and folded rods", "[rod][kink]") {
+  const std::vector<Rod> rods = {
+      rodOf(NurbsCurve(1, {0, 0, 0.25, 0.5, 0.75, 1, 1}, {{0, 0, 0}, {2, 0, 0}, {2.3, 1, 0.2}, {0.5, 1.5, -0.5}, {0.5, 0.2, 1}}), 0.6,
+            CapStyle::Round),
+      Rod("rect", NurbsCurve(2, {0, 0, 0, 0.5, 0.5, 1, 1, 1}, {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {2, 1, 0.5}, {1, 2, 1}}),
+          Section::rectangle(0.9, 0.3), Vec3(0, 0, 1), std::nullopt, CapStyle::Flat, BSplineField::constant(5, 0, 1)),
+      rodOf(NurbsCurve(3, {0, 0, 0, 0, 1, 1, 1, 1}, {{0, 0, 0}, {1, 0, 0}, {2, 1, 0}, {3, 1, 0}}, {1, 1e4, 1e4, 1}), 2.5,
+            CapStyle::Round),
+  };
+  std::mt19937 rng(11);
+  for (const Rod& rod : rods) {
+    const Box3 b = rod.bounds();
+    const Box3 search(b.min() - Vec3::Constant(0.3), b.max() + Vec3::Constant(0.3));
+    std::uniform_real_distribution<double> x(search.min().x(), search.max().x()), y(search.min().y(), search.max().y()),
+        z(search.min().z(), search.max().z());
+    int inside = 0;
+    for (int n = 0; n < 60000; ++n) {
+      const Vec3 p(x(rng), y(rng), z(rng));
+      if (!rod.classify(p).inside) continue;
+      ++inside;
+      REQUIRE(b.contains(p));
+    }
+    REQUIRE(inside > 3000);
+  }
+}
+
+TEST_CASE("Quaternions and normals of any finite magnitude give the same frames", "[frame][numerics]") {
+  const double s45 = std::sqrt(0.5);
+  const std::vector<Eigen::Vector4d> unit = {{1, 0, 0, 0}, {s45, 0, s45, 0}};
+  for (const double scale : {1e160, 1e300, 1e-150, 3.0}) {
+    const QuaternionSpline a(1, {0, 0, 1, 1}, unit), b(1, {0, 0, 1, 1}, {unit[0] * scale, unit[1] * scale});
+    for (const double u : {0.0, 0.3, 1.0}) REQUIRE(a.rotation(u).angularDistance(b.rotation(u)) < 1e-12);
+    REQUIRE(b.rotation(1.0).angularDistance(Eigen::Quaterniond::Identity()) == Approx(0.5 * std::numbers::pi));
+  }
+  REQUIRE_THROWS_AS(QuaternionSpline(1, {0, 0, 1, 1}, {{0, 0, 0, 0}, {1, 0, 0, 0}}), std::invalid_argument);
+
+  const NurbsCurve c = wigglyCubic();
+  const RodFrame reference = RodFrame::rotationMinimizing(c, Vec3(0, 0, 1));
+  for (const double scale : {1e300, 1e-300}) {
+    const RodFrame scaled = RodFrame::rotationMinimizing(c, Vec3(0, 0, scale));
+    for (const double u : {0.0, 0.5, 1.0}) REQUIRE((scaled.at(c, u).d1 - reference.at(c, u).d1).norm() < 1e-14);
+  }
+  REQUIRE(stableNorm(Vec3(3e200, 4e200, 0)) == Approx(5e200));
+  REQUIRE(stableNorm(Vec3(3e-200, 4e-200, 0)) == Approx(5e-200));
+}
+
+TEST_CASE("The design reader names huge coordinates, huge normals and tiny quaternions correctly", "[design][numerics]") {
+  const std::string huge = designError(oneRod(R"({"degree": 1, "knots": [0, 0, 1, 1], "points": [[0, 0, 0], [1e300, 0, 0]]})",
+                                              R"(, "normal": [0, 0, 1])"));
+  REQUIRE_THAT(huge, Catch::Contains("rods[0].centerline.points[1]") && Catch::Contains("within +-1e9 mm"));
+  REQUIRE_THAT(huge, !Catch::Contains("length is zero"));
+  REQUIRE_NOTHROW(parseDesign(oneRod(R"({"degree": 1, "knots": [0, 0, 1, 1], "points": [[0, 0, 0], [9e8, 0, 0]]})",
+                                     R"(, "normal": [0, 0, 1])"),
+                              "d.json"));
+  // A normal of 1e300 is a direction like any other, not "parallel to the tangent"; zero is zero.
+  const RodStructure s = parseDesign(oneRod(kLine, R"(, "normal": [0, 0, 1e300])"), "d.json");
+  REQUIRE((s.rods[0].frame().at(s.rods[0].centerline(), 0.5).d1 - Vec3(0, 0, 1)).norm() < 1e-12);
+  REQUIRE_NOTHROW(parseDesign(oneRod(kLine, R"(, "normal": [0, 1e-300, 1e-300])"), "d.json"));
+  REQUIRE_THAT(designError(oneRod(kLine, R"(, "normal": [1e300, 0, 0])")), Catch::Contains("parallel to the centerline"));
+  REQUIRE_THAT(designError(oneRod(kLine, R"(, "normal": [0, 0, 0])")), Catch::Contains("must not be zero"));
+  // Quaternions of 1e160 rotate like unit ones (they used to turn into the identity); 1e-170 is not zero.
+  const std::string q = R"(, "orientation": {"degree": 1, "knots": [0, 0, 1, 1], "quaternions": [[SCALE, 0, 0, 0], [0, SCALE, 0, 0]]})";
+  for (const std::string scale : {"1e160", "1e-170", "1"}) {
+    std::string extra = q;
+    for (std::size_t at; (at = extra.find("SCALE")) != std::string::npos;) extra.replace(at, 5, scale);
+    const RodStructure d = parseDesign(oneRod(kLine, extra), "d.json");
+    // 180 degrees about x at the end: d1 (x before) stays x, d2 flips.
+    const Frame f = d.rods[0].frame().at(d.rods[0].centerline(), 1.0);
+    INFO(scale);
+    REQUIRE((f.d2 - Vec3(0, -1, 0)).norm() < 1e-9);
+  }
+  REQUIRE_THAT(designError(oneRod(kLine, R"(, "orientation": {"degree": 1, "knots": [0, 0, 1, 1], "quaternions": [[0, 0, 0, 0], [1, 0, 0, 0]]})")),
+               Catch::Contains("zero quaternion"));
+}

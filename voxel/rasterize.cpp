@@ -205,8 +205,9 @@ private:
 
 class LeafBuilder {
 public:
-  LeafBuilder(const geometry::RodStructure& structure, const std::vector<RodPieces>& rods, const PrinterGrid& grid)
-      : voxelsPerRod(structure.rods.size(), 0), structure_(structure), rods_(rods), grid_(grid),
+  LeafBuilder(const geometry::RodStructure& structure, const std::vector<RodPieces>& rods, const PrinterGrid& grid,
+              const std::function<bool()>& interrupted)
+      : voxelsPerRod(structure.rods.size(), 0), structure_(structure), rods_(rods), grid_(grid), interrupted_(interrupted),
         deferredDepth_(structure.rods.size()) {
     for (std::size_t r = 0; r < deferredDepth_.size(); ++r)
       deferredDepth_[r] = structure.rods[r].section().shape != geometry::SectionShape::Rectangle;
@@ -262,7 +263,10 @@ private:
   }
   static std::uint64_t owner(int rod, int piece) { return (std::uint64_t(std::uint32_t(rod)) << 32) | std::uint32_t(piece); }
   Candidate exact(int rod, int pieceIndex, int i, int j, int k) {
-    ++exactEvaluations;
+    // The exact test is the one costly step per voxel (a Newton solve per nearby polyline segment):
+    // the interrupter is polled between every 64 of them.
+    if (interrupted_ && ++exactEvaluations % 64 == 0 && interrupted_()) throw Interrupted("rasterizer: interrupted");
+    if (!interrupted_) ++exactEvaluations;
     const openvdb::Vec3d p = grid_.worldPoint(openvdb::Coord(i, j, k));
     const geometry::Rod& r = structure_.rods[rod];
     const geometry::RodHit hit = r.classify(geometry::Vec3(p.x(), p.y(), p.z()));
@@ -515,6 +519,7 @@ private:
   const geometry::RodStructure& structure_;
   const std::vector<RodPieces>& rods_;
   const PrinterGrid& grid_;
+  const std::function<bool()>& interrupted_;
   std::vector<bool> deferredDepth_;  // per rod: round section (see depthOf)
   static constexpr int kWords = kBlockVoxels / 64;
   static_assert(kWords == kBlockX, "a word of filled_ per x in the block: the bits of a leaf's (y, z)");
@@ -627,7 +632,7 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
   std::vector<std::array<std::unique_ptr<LeafT>, kBlockLeaves>> leaves(groups);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, groups), [&](const tbb::blocked_range<std::size_t>& range) {
     ThreadState& state = states.local();
-    if (!state.builder) state.builder.reset(new LeafBuilder(*structure_, rods_, grid_));  // default-initialized slots
+    if (!state.builder) state.builder.reset(new LeafBuilder(*structure_, rods_, grid_, options_.wasInterrupted));  // default-initialized slots
     LeafBuilder& builder = *state.builder;
     for (std::size_t g = range.begin(); g != range.end(); ++g) {
       checkInterrupt();
@@ -638,7 +643,7 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
       builder.clear();
       bool touched = false;
       for (std::size_t e = groupStart[g]; e < groupStart[g + 1]; ++e) {
-        if ((e - groupStart[g]) % 64 == 63) checkInterrupt();
+        if ((e - groupStart[g]) % 8 == 7) checkInterrupt();
         openvdb::CoordBBox b = rods_[entries[e].rod].pieces[entries[e].piece].box;
         b.intersect(blockBox);
         if (b.empty()) continue;

@@ -1,21 +1,32 @@
 // Rasterization of a rod structure into a sparse grid of Young's modulus at printer resolution.
 //
 // Membership: a voxel is active when its centre lies inside some rod: the exact test of
-// geometry::Rod::classify (closest point on the centerline, section in frame coordinates there,
-// plus the end caps). Its value is that rod's E(u) at the closest point, in MPa.
+// geometry::Rod::classify, whose solid geometry/rod.hpp defines (the union of the rod's smooth pieces,
+// cut at kinks and other C0 points; each the section swept along its centerline in frame coordinates,
+// plus the rod's caps at every piece end; for rods thinner than their bends this is the closest-point
+// rule). Its value is that rod's E(u) at the deepest section through the centre, in MPa.
 //
 // Overlaps (joints): the voxel takes the value of the rod in which its centre lies deepest, depth
 // being 1 - the normalized radius of the section (geometry::RodHit::depth), so the rod whose
 // boundary is farthest away wins; equal depths (closer than kDepthTieTolerance, as where the round
 // caps of rods meeting at a node coincide) go to the lower rod index. The rule depends on
 // nothing but the voxel, so the grid is identical for any thread count and any band of layers.
+// Voxels are emitted only inside the design's bounding box (RodStructure::bounds, which holds every
+// rod's solid): the part bounds of a job.
 //
-// How (fast and still exact): each rod is cut by normal planes of its centerline into short pieces
-// with a cheap approximation of a point's frame coordinates and a measured error bound (see
-// rod_pieces.hpp). Work is binned by blocks of eight OpenVDB leaves along x (64 x 8 x 8 voxels); each
-// block is built by one task from the pieces that reach it, so no locks and no merging of trees. Voxel centres whose
-// approximate position is within the error bound of a section boundary, of an end plane, or of a
-// near tie between two rods are decided by the exact test.
+// How (fast and still exact): each smooth piece of a rod is cut by normal planes of its centerline into
+// short pieces with a cheap approximation of a point's frame coordinates and a measured error bound
+// (see rod_pieces.hpp). Work is binned by blocks of eight OpenVDB leaves along x (64 x 8 x 8 voxels);
+// each block is built by one task from the pieces that reach it, so no locks and no merging of trees.
+// Voxel centres whose approximate position is within the error bound of a section boundary, of an end
+// plane, or of a near tie between two rods are decided by the exact test; so is every voxel near a
+// piece whose approximation cannot be bounded (sections folding over in bends tighter than the
+// section's radius, cusps, jumps of E), once per voxel.
+//
+// Cost: memory is bounded before anything is allocated (voxel/diagnostics.hpp estimates it): each
+// rod's pieces stop refining at a quarter of the smallest voxel edge and at a per-rod budget
+// (rod_pieces.hpp), and the grid holds the active voxels only. Work can be cancelled
+// (RasterOptions::wasInterrupted).
 #pragma once
 
 #include "geometry/rod.hpp"

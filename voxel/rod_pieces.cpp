@@ -3,8 +3,6 @@
 #include "voxel/rasterize.hpp"
 
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -145,7 +143,8 @@ RodPieces buildRodPieces(const geometry::Rod& rod, const PrinterGrid& grid, cons
   constexpr int kMaxRefinement = 24;
   const double minLength = minimumPieceLength(grid);
   const std::size_t budget = pieceBudget(rod, grid);
-  std::size_t planned = rod.sampleParameters().size(), steps = 0;
+  // Pieces so far if no more splits came: the segments and the caps.
+  std::size_t planned = rod.sampleParameters().size() - 1 + 2 * rod.smoothPieces().size(), steps = 0;
 
   std::vector<Node> nodes;  // one per plane
   auto finish = [&](const Node& a, const Node& b, double slack, RodPiece& piece) {
@@ -237,12 +236,6 @@ RodPieces buildRodPieces(const geometry::Rod& rod, const PrinterGrid& grid, cons
            static_cast<float>(k + 1 == smooth.size() ? modulus.value(modulus.domainEnd()) : modulus.value(sp.end)));
   }
   for (const Node& n : nodes) out.planes.push_back(indexForm(grid, n.t, n.r));
-  if (std::getenv("RODFAB_DEBUG_PIECES")) {
-    std::size_t counts[4] = {0, 0, 0, 0};
-    for (const RodPiece& p : out.pieces) ++counts[int(p.kind)];
-    std::fprintf(stderr, "rod %s: swept %zu exact %zu caps %zu samples %zu smooth %zu budget %zu\n", rod.name().c_str(), counts[0], counts[3],
-                 caps.size(), u.size(), smooth.size(), budget);
-  }
   out.pieces.insert(out.pieces.end(), caps.begin(), caps.end());
   for (const RodPiece& p : out.pieces)
     if (!p.box.empty()) out.box.expand(p.box);

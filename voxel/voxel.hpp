@@ -1,6 +1,7 @@
 // voxel/: rod structures rasterized into sparse OpenVDB grids at printer resolution.
 #pragma once
 
+#include "voxel/diagnostics.hpp"
 #include "voxel/grid_statistics.hpp"
 #include "voxel/printer_grid.hpp"
 #include "voxel/rasterize.hpp"

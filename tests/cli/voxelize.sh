@@ -58,4 +58,41 @@ grep -q "bad.json: rods\[0\]" "$tmp/err" || fail "bad design errors not named: $
 grep -q "x.vdb: cannot write" "$tmp/err" || fail "unwritable output not named: $(cat "$tmp/err")"
 [ ! -e "$tmp/x.vdb" ] || fail "a failed run left a grid behind"
 "$rodfab" voxelize --help | grep -q "usage: rodfab voxelize" || fail "--help"
+
+# Hostile designs from the reliability report: kinks, folds, extreme weights, sections thicker than
+# their bend or 500:1 flat, a rod far from the origin. Each must voxelize and slice within 4 GB of
+# address space and a minute, and the job must pass its own inspection (no voxel outside the part).
+design() {  # NAME DEGREE KNOTS POINTS [WEIGHTS] SECTION [EXTRA]
+  local weights=""
+  [ -n "$5" ] && weights=", \"weights\": $5"
+  cat > "$tmp/$1.json" <<JSON
+{ "format": "rodfab.design/1", "units": "mm", "rods": [ { "name": "$1",
+  "centerline": { "degree": $2, "knots": $3, "points": $4$weights },
+  "section": $6, "modulus": { "degree": 1, "knots": [0, 0, 0.5, 1, 1], "values": [8, 120, 40] }${7:-} } ] }
+JSON
+}
+s_bend='[[0,0,0],[1,0,0],[2,1,0],[3,1,0]]' cubic='[0,0,0,0,1,1,1,1]'
+design readme-d4 3 "$cubic" "$s_bend" "" '{"shape": "circle", "diameter": 4}'
+design weights 3 "$cubic" "$s_bend" '[1, 1e3, 1e3, 1]' '{"shape": "circle", "diameter": 1.5}'
+design cusp 3 "$cubic" '[[0,0,0],[2,2,0],[0,2,0],[2,0,0]]' "" '{"shape": "circle", "diameter": 1.5}'
+design flat-ellipse 3 "$cubic" "$s_bend" "" '{"shape": "ellipse", "width": 5, "height": 0.01}' ', "normal": [0, 0, 1]'
+design far 3 "$cubic" '[[1e8,1e8,0],[100000001,1e8,0],[100000002,100000001,0],[100000003,100000001,0]]' "" '{"shape": "circle", "diameter": 1.5}'
+design kink-xy 1 '[0,0,0.5,1,1]' '[[0,0,0],[3,0,0],[5,2,0]]' "" '{"shape": "circle", "diameter": 1}'
+design kink-xz 1 '[0,0,0.5,1,1]' '[[0,0,0],[3,0,0],[5,0,2]]' "" '{"shape": "rectangle", "width": 1, "height": 0.6}' ', "normal": [0, 1, 0], "caps": "flat"'
+design double-knot 2 '[0,0,0,0.5,0.5,1,1,1]' '[[0,0,0],[1,0,0],[2,0,0],[2,1,0],[2,2,0]]' "" '{"shape": "circle", "diameter": 1}'
+for name in readme-d4 weights cusp flat-ellipse far kink-xy kink-xz double-knot; do
+  prlimit --as=4000000000 timeout 60 "$rodfab" voxelize "$tmp/$name.json" -o "$tmp/$name.vdb" > "$tmp/out" 2>&1 ||
+    fail "voxelize $name (exit $?): $(tail -3 "$tmp/out")"
+  grep -q "active voxels:" "$tmp/out" || fail "voxelize $name: $(cat "$tmp/out")"
+  prlimit --as=4000000000 timeout 60 "$rodfab" slice "$tmp/$name.json" -o "$tmp/$name.zip" --quiet > "$tmp/out" 2>&1 ||
+    fail "slice $name (exit $?): $(tail -3 "$tmp/out")"
+  "$rodfab" inspect "$tmp/$name.zip" > "$tmp/out" 2>&1 || fail "inspect $name: $(tail -5 "$tmp/out")"
+  rm -f "$tmp/$name.vdb" "$tmp/$name.zip"
+done
+# Out of range: a clear message, not "length is zero".
+design huge 1 '[0,0,1,1]' '[[0,0,0],[1e300,0,0]]' "" '{"shape": "circle", "diameter": 1}'
+"$rodfab" voxelize "$tmp/huge.json" -o "$tmp/x.vdb" 2> "$tmp/err"
+[ $? -eq 1 ] || fail "huge coordinates: expected exit 1"
+grep -q "huge.json: rods\[0\].centerline.points\[1\]: expected coordinates within +-1e9 mm" "$tmp/err" ||
+  fail "huge coordinates: $(cat "$tmp/err")"
 echo "voxelize: ok"

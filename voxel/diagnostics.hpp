@@ -1,0 +1,59 @@
+// What a design will cost the rasterizer, and which rods the printer cannot resolve: checks for the
+// slicer to run before allocating (estimateRaster) and to print as warnings (findThinRods).
+#pragma once
+
+#include "geometry/rod.hpp"
+#include "voxel/printer_grid.hpp"
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace rodfab::voxel {
+
+// Memory the rasterizer needs for `structure` on `grid`, from the design alone: no pieces are built
+// and nothing is allocated (time linear in the rods' polyline samples). Byte counts are bytes,
+// voxel counts voxels. Thread-safe.
+struct RasterEstimate {
+  // Upper bound on the pieces the Rasterizer cuts the rods into (each rod's refinement stops at its
+  // budget, rod_pieces.hpp) and on the bytes it holds for them from construction to destruction.
+  std::uint64_t maxPieces = 0;
+  double pieceBytes = 0.0;
+  // Expected active voxels: the rods' volumes (sections times lengths plus caps) over the voxel
+  // volume. Within a few percent for rods bent less tightly than their radius; overlaps at joints are
+  // counted in full, and sections folding over in bends tighter than the radius add up to ~30 %.
+  double activeVoxels = 0.0;
+  // Expected OpenVDB leaves (8^3 voxels) holding them (each rod as a tube of its bounding radius
+  // widened by half a leaf: an upper estimate, typically 1.5-2x), and the bytes of the grid holding the
+  // whole design with its internal nodes (Rasterizer::rasterize, `rodfab voxelize`).
+  double leaves = 0.0;
+  double gridBytes = 0.0;
+  // With bandLayers > 0: bytes of the grid of the fullest band of that many layers
+  // (Rasterizer::rasterizeLayers); an upper estimate (each rod's leaves spread evenly over its layers).
+  double bandBytes = 0.0;
+  // Peak while slicing with `bandsInFlight` band grids alive (the slicer keeps two), or while
+  // voxelizing the whole design (bandsInFlight = 0).
+  double peakBytes(int bandsInFlight) const {
+    return pieceBytes + (bandsInFlight > 0 ? bandsInFlight * bandBytes : gridBytes);
+  }
+};
+RasterEstimate estimateRaster(const geometry::RodStructure& structure, const PrinterGrid& grid, int bandLayers = 0);
+
+// A rod the printer may not reproduce: its section is thinner than a voxel in some direction, or it
+// holds fewer voxels than its volume implies.
+struct ThinRod {
+  std::size_t rod = 0;          // index into structure.rods
+  double thinnestMm = 0.0;      // the section's smaller dimension (mm)
+  double expectedVoxels = 0.0;  // the rod's volume over the voxel volume
+  std::uint64_t voxels = 0;     // active voxels it won (0 when no counts were given)
+  std::string reason;           // one line naming the rod, for a warning
+};
+// Rods whose section's smaller dimension is below the largest voxel edge (depending on its direction
+// such a rod falls between voxel centres: a 0.02 mm rod prints as a few isolated voxels), and, when
+// `voxelsPerRod` (Rasterization::voxelsPerRod, indexed like the rods) is given, rods holding less than
+// half the voxels their volume implies (thin, or mostly inside other rods). In rod order; each rod
+// once. Throws std::invalid_argument when voxelsPerRod is neither empty nor one count per rod.
+std::vector<ThinRod> findThinRods(const geometry::RodStructure& structure, const PrinterGrid& grid,
+                                  const std::vector<std::uint64_t>& voxelsPerRod = {});
+
+}  // namespace rodfab::voxel
