@@ -4,6 +4,7 @@
 
 #include "printer_profiles/bitmap.hpp"
 
+#include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <span>
@@ -12,6 +13,12 @@
 #include <vector>
 
 namespace rodfab::printer_profiles {
+
+inline constexpr const char* kJobFormat = "rodfab.job/1";
+inline constexpr const char* kManifestName = "manifest.json";
+// The largest manifest.json read when telling whether an existing path is a rodfab job: a job of the
+// profile maxima (65,536 layers, three bitmaps each) writes under 64 MB.
+inline constexpr std::size_t kMaxManifestBytes = std::size_t{128} << 20;
 
 enum class ArchiveFormat { Zip, Directory };
 const char* toString(ArchiveFormat format);
@@ -41,6 +48,22 @@ public:
 
 // A directory is read as a directory job, anything else as a zip archive.
 std::unique_ptr<JobFiles> openJobFiles(const std::filesystem::path& job);
+
+// What lies at a job's output path, found without following a symbolic link, without waiting on a
+// pipe or device, and reading at most kMaxManifestBytes plus a zip's directory.
+struct OutputOccupant {
+  enum class Kind {
+    Nothing,    // no entry of that name
+    RodfabJob,  // a zip whose first entry is a manifest.json of format kJobFormat, or a folder holding
+                // such a manifest and nothing but regular files its "files" table lists (previews/ too)
+    Other,      // anything else: a user's file or folder, a link, a foreign zip, a job with added files
+  };
+  Kind kind = Kind::Nothing;
+  std::string description;              // what it is, for messages: "a folder holding notes.txt, which ..."
+  std::uint64_t device = 0, inode = 0;  // of the entry itself (not a link's target)
+};
+// Never throws for what it finds (an unreadable entry is Other, described with the error).
+OutputOccupant examineOutput(const std::filesystem::path& path);
 
 // When a file's contents go into the zip deflated (fast level) or as they are.
 enum class ZipStorage { Deflate, Store };

@@ -10,6 +10,7 @@
 #include <bit>
 #include <cstdio>
 #include <sstream>
+#include <string>
 
 namespace rodfab::printer_profiles {
 
@@ -66,6 +67,14 @@ JobGeometry planJob(const Profile& profile, const openvdb::CoordBBox& partBounds
                              mm(profile.trayMm[a]) + " mm; use a profile with less padding",
                          over);
     }
+  // A profile read from a file keeps these through its tray (see profile.hpp); one built in code is
+  // held to the same maxima here, before any image or preview is allocated.
+  const double faces[3] = {double(g.width) * g.height, double(g.width) * g.layers, double(g.height) * g.layers};
+  if (g.width > kMaxTrayVoxels || g.height > kMaxTrayVoxels || g.layers > kMaxTrayVoxels ||
+      *std::max_element(faces, faces + 3) > static_cast<double>(kMaxTrayFacePixels))
+    throw std::invalid_argument("the job's images (" + std::to_string(g.width) + " x " + std::to_string(g.height) + " px, " +
+                                std::to_string(g.layers) + " layers) exceed the maxima of " + std::to_string(kMaxTrayVoxels) +
+                                " per axis and " + std::to_string(kMaxTrayFacePixels) + " pixels per image or preview face");
   return g;
 }
 

@@ -8,6 +8,9 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_group.h>
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -15,10 +18,15 @@
 #include <atomic>
 #include <bit>
 #include <cerrno>
+#include <charconv>
 #include <csignal>
-#include <cstdio>
+#include <cstdio>  // renameat2, RENAME_EXCHANGE, RENAME_NOREPLACE (glibc 2.28)
+#include <cstring>
 #include <fstream>
+#include <limits>
 #include <sstream>
+#include <string_view>
+#include <system_error>
 
 namespace rodfab::printer_profiles {
 
@@ -88,16 +96,145 @@ std::string describeVoxelSize(const openvdb::Vec3d& v) {
 
 bool processAlive(long pid) { return pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM); }
 
-// Leftovers of killed writers for the same target: hidden, tagged with a pid that no longer runs.
-void removeStalePartials(const fs::path& target) {
-  const std::string prefix = "." + target.filename().string() + kPartialTag;
+constexpr const char* kLockName = ".lock";
+
+// ".NAME.rodfab-partial-PID-N" for the target NAME and this process.
+fs::path stagingPath(const fs::path& target, long n) {
+  std::string name(".");  // appended piece by piece (GCC 12 warns wrongly about "." + std::string)
+  name += target.filename().string();
+  name += kPartialTag;
+  name += std::to_string(::getpid());
+  name += '-';
+  name += std::to_string(n);
+  return target.parent_path() / name;
+}
+
+// ".NAME.rodfab-partial-PID-N" (this version's staging folders), and the names older versions left:
+// ".NAME.rodfab-partial-PID-N.zip" and ".NAME.rodfab-partial-PID-old". Returns the PID, or 0 when
+// `name` is not exactly one of these.
+long stagingPid(const std::string& name) {
+  const std::size_t tag = name.rfind(kPartialTag);
+  if (name.size() < 2 || name[0] != '.' || tag == std::string::npos || tag < 2) return 0;
+  std::string_view rest = std::string_view(name).substr(tag + std::strlen(kPartialTag));
+  long pid = 0;
+  const auto [end, ec] = std::from_chars(rest.data(), rest.data() + rest.size(), pid);
+  if (ec != std::errc() || end == rest.data() || pid <= 0 || pid > std::numeric_limits<pid_t>::max()) return 0;
+  rest.remove_prefix(static_cast<std::size_t>(end - rest.data()));
+  if (rest == "-old") return pid;
+  if (!rest.starts_with('-')) return 0;
+  rest.remove_prefix(1);
+  if (rest.ends_with(".zip")) rest.remove_suffix(4);
+  const bool digits = !rest.empty() && rest.find_first_not_of("0123456789") == std::string_view::npos;
+  return digits ? pid : 0;
+}
+
+// Whether the staging folder's writer is gone: its lock file is free (flock dies with its holder, so
+// a reused pid cannot fool it). Folders without a lock file (older versions, or a writer between
+// mkdir and locking) are judged by their pid.
+bool writerGone(const fs::path& folder, long pid) {
+  const int fd = ::open((folder / kLockName).c_str(), O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) return errno == ENOENT && !processAlive(pid);
+  const bool free = ::flock(fd, LOCK_EX | LOCK_NB) == 0;
+  const bool unsupported = !free && errno != EWOULDBLOCK;
+  ::close(fd);  // a later writer cannot take this name: names carry live pids
+  return free || (unsupported && !processAlive(pid));
+}
+
+// Leftovers of writers that died (killed, crashed) in `folder`, whatever job they were writing: only
+// entries named exactly like staging folders (or older versions' temporaries), only when their writer
+// is gone; a link is never followed.
+void removeDeadStaging(const fs::path& folder) {
   std::error_code ec;
-  for (const auto& entry : fs::directory_iterator(target.parent_path().empty() ? "." : target.parent_path(), ec)) {
-    const std::string name = entry.path().filename().string();
-    if (!name.starts_with(prefix)) continue;
-    const long pid = std::strtol(name.c_str() + prefix.size(), nullptr, 10);
-    if (!processAlive(pid)) fs::remove_all(entry.path(), ec);
+  for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    const long pid = stagingPid(name);
+    if (!pid) continue;
+    std::error_code statusError;
+    const fs::file_status status = it->symlink_status(statusError);
+    if (statusError) continue;
+    std::error_code ignored;
+    if (fs::is_directory(status) && writerGone(it->path(), pid)) fs::remove_all(it->path(), ignored);
+    else if (fs::is_regular_file(status) && !processAlive(pid)) fs::remove(it->path(), ignored);
   }
+}
+
+// The writer's hidden folder beside the target (see JobWriter). Created with its lock file taken;
+// removed with everything in it when the object goes, on every path.
+class Staging {
+public:
+  explicit Staging(const fs::path& target) {
+    static std::atomic<int> counter{0};
+    const fs::path parent = target.parent_path();
+    for (int attempt = 0;; ++attempt) {
+      root_ = stagingPath(target, counter++);
+      if (::mkdir(root_.c_str(), 0777) == 0) break;
+      if (errno != EEXIST || attempt == 100) fail(parent, std::strerror(errno), false);
+    }
+    std::error_code ec;
+    fs::create_directories(files() / "previews", ec);
+    if (ec) fail(parent, ec.message(), true);
+    lock();
+  }
+  ~Staging() { remove(); }
+  Staging(const Staging&) = delete;
+  Staging& operator=(const Staging&) = delete;
+
+  const fs::path& root() const { return root_; }
+  fs::path files() const { return root_ / "job"; }    // the job's files (a directory job as it will be)
+  fs::path zip() const { return root_ / "job.zip"; }  // the zip job
+  void remove() {
+    std::error_code ec;
+    if (!root_.empty()) fs::remove_all(root_, ec);
+    root_.clear();
+    if (lockFd_ >= 0) ::close(lockFd_);
+    lockFd_ = -1;
+  }
+
+private:
+  [[noreturn]] void fail(const fs::path& parent, const std::string& why, bool created) {
+    std::error_code ignored;
+    if (created) fs::remove_all(root_, ignored);
+    root_.clear();
+    throw std::runtime_error(parent.string() + ": cannot write the job there (" + why + ")");
+  }
+  // Locked under a name nobody checks, then renamed: whoever finds ".lock" finds it locked while we live.
+  void lock() {
+    const fs::path initial = root_ / ".lock-init";
+    lockFd_ = ::open(initial.c_str(), O_RDWR | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
+    if (lockFd_ < 0) fail(root_.parent_path(), std::strerror(errno), true);
+    if (::flock(lockFd_, LOCK_EX | LOCK_NB) == 0) {
+      if (::rename(initial.c_str(), (root_ / kLockName).c_str()) != 0) fail(root_.parent_path(), std::strerror(errno), true);
+      return;
+    }
+    // A file system without flock: the folder goes by its pid alone, like older versions' folders.
+    ::close(lockFd_);
+    lockFd_ = -1;
+    ::unlink(initial.c_str());
+  }
+
+  fs::path root_;
+  int lockFd_ = -1;
+};
+
+// Linux renameat2: swap two names in one step, or rename without replacing. False when the file
+// system does not offer it (the caller falls back); other errors throw, naming both paths (EEXIST for
+// RENAME_NOREPLACE: the target appeared, said as such).
+bool renameWith(const fs::path& from, const fs::path& to, unsigned flags) {
+  if (::renameat2(AT_FDCWD, from.c_str(), AT_FDCWD, to.c_str(), flags) == 0) return true;
+  if (errno == EINVAL || errno == ENOSYS || errno == ENOTSUP) return false;
+  if (errno == EEXIST && (flags & RENAME_NOREPLACE))
+    throw std::runtime_error(to.string() + ": appeared while the job was being written; it was left as it is");
+  throw std::system_error(errno, std::generic_category(), "cannot rename " + from.string() + " to " + to.string());
+}
+
+void renameOrThrow(const fs::path& from, const fs::path& to) {
+  if (::rename(from.c_str(), to.c_str()) != 0)
+    throw std::system_error(errno, std::generic_category(), "cannot rename " + from.string() + " to " + to.string());
+}
+
+std::string refusal(const fs::path& target, const OutputOccupant& occupant) {
+  return target.string() + ": is " + occupant.description +
+         "; rodfab replaces only its own jobs (even with --force), so it was left as it is: choose another output";
 }
 
 }  // namespace
@@ -115,7 +252,9 @@ struct JobWriter::Impl {
   ImageFormat imageFormat;
   SupportPolicy support;
   std::vector<const ProfileMaterial*> emitted;  // materials with bitmap stacks, in profile order
-  fs::path target, staging, zipTemp;
+  fs::path target;
+  std::unique_ptr<Staging> staging;
+  fs::path filesDir;  // staging->files()
   int nextK = 0;
   std::vector<LayerRecord> layers;
   std::unique_ptr<Previews> previews;
@@ -136,32 +275,32 @@ struct JobWriter::Impl {
       if (m.role != MaterialRole::Support || support == SupportPolicy::Explicit) emitted.push_back(&m);
     std::sort(emitted.begin(), emitted.end(), [](const ProfileMaterial* a, const ProfileMaterial* b) { return a->role < b->role; });
 
-    target = spec.options.output;
-    if (target.empty()) throw std::invalid_argument("no output path given for the job");
-    if (target.filename().empty()) target = target.parent_path();
-    target = fs::absolute(target);
-    if (fs::exists(target) && !spec.options.force)
-      throw std::runtime_error(target.string() + ": a job (or other file) already exists there; use --force to replace it");
-    if (!fs::is_directory(target.parent_path()))
-      throw std::runtime_error(target.parent_path().string() + (fs::exists(target.parent_path())
-                                                                    ? ": is not a directory; the job needs a folder to go in"
-                                                                    : ": the output directory does not exist"));
-    removeStalePartials(target);
-    static std::atomic<int> counter{0};
-    const std::string partial = "." + target.filename().string() + kPartialTag + std::to_string(::getpid()) + "-" +
-                                std::to_string(counter++);
-    staging = target.parent_path() / partial;
-    zipTemp = target.parent_path() / (partial + ".zip");
+    target = checkTarget();
     nextK = geometry.firstLayerK;
     layers.resize(static_cast<std::size_t>(geometry.layers));
     previews = std::make_unique<Previews>(geometry, spec.profile, spec.options.contactSheetLayers);
-    std::error_code ec;
-    fs::create_directories(staging / "previews", ec);  // last: nothing after it may throw and leave it behind
-    if (ec) {
-      std::error_code ignored;
-      fs::remove_all(staging, ignored);
-      throw std::runtime_error(target.parent_path().string() + ": cannot write the job there (" + ec.message() + ")");
-    }
+    removeDeadStaging(target.parent_path());
+    staging = std::make_unique<Staging>(target);  // last: nothing after it may throw
+    filesDir = staging->files();
+  }
+
+  // The absolute target, free or (with force) a rodfab job, in an existing folder.
+  fs::path checkTarget() const {
+    fs::path t = spec.options.output;
+    if (t.empty()) throw std::invalid_argument("no output path given for the job");
+    if (t.filename().empty()) t = t.parent_path();
+    t = fs::absolute(t);
+    if (t.filename() == "." || t.filename() == ".." || t.filename().empty())
+      throw std::runtime_error(t.string() + ": names a folder through '.' or '..'; give the job a name of its own");
+    if (!fs::is_directory(t.parent_path()))
+      throw std::runtime_error(t.parent_path().string() + (fs::exists(t.parent_path())
+                                                               ? ": is not a directory; the job needs a folder to go in"
+                                                               : ": the output directory does not exist"));
+    const OutputOccupant occupant = examineOutput(t);
+    if (occupant.kind == OutputOccupant::Kind::Other) throw std::runtime_error(refusal(t, occupant));
+    if (occupant.kind == OutputOccupant::Kind::RodfabJob && !spec.options.force)
+      throw std::runtime_error(t.string() + ": " + occupant.description + " already exists there; use --force to replace it");
+    return t;
   }
 
   void checkBand(const LayerBand& band) const {
@@ -247,7 +386,7 @@ struct JobWriter::Impl {
     const int chunks = (count + kChunkLayers - 1) / kChunkLayers;
     tbb::parallel_for(0, chunks, [&](int c) {
       const int n0 = c * kChunkLayers, n1 = std::min(count, n0 + kChunkLayers);
-      const fs::path chunk = staging / ("layers-" + std::to_string(firstLayer + n0) + ".zip");
+      const fs::path chunk = staging->root() / ("layers-" + std::to_string(firstLayer + n0) + ".zip");
       std::vector<ZipMemoryEntry> entries;
       for (int n = n0; n < n1; ++n) {
         const LayerRecord& record = layers[static_cast<std::size_t>(firstLayer + n)];
@@ -319,7 +458,7 @@ struct JobWriter::Impl {
                                                          : encodePng1(bitmap, spec.profile.xDpi, spec.profile.yDpi);
       FileRecord f{spec.profile.layerFileName(*m, layer, imageFormat), data.size(), sha256Hex(data)};
       if (keep) keep->push_back(std::move(data));
-      else writeFile(staging / f.name, data);
+      else writeFile(filesDir / f.name, data);
       record.files.push_back(std::move(f));
     }
   }
@@ -331,7 +470,7 @@ struct JobWriter::Impl {
   }
 
   FileRecord writeStaged(const std::string& name, std::span<const std::uint8_t> data) const {
-    writeFile(staging / name, data);
+    writeFile(filesDir / name, data);
     return {name, data.size(), sha256Hex(data)};
   }
 
@@ -469,15 +608,16 @@ struct JobWriter::Impl {
     return j;
   }
 
-  JobResult finalize() {
-    wait();
-    if (nextK != geometry.partBounds.max().z() + 1)
-      throw std::runtime_error("finalize: layers k = " + std::to_string(nextK) + " .. " +
-                               std::to_string(geometry.partBounds.max().z()) + " were never added");
+  void checkInterrupt() const {
+    if (spec.options.checkInterrupt) spec.options.checkInterrupt();
+  }
+
+  // The build file, previews and manifest beside the layer files; returns every file's record (the
+  // layers' last) and the preview names.
+  std::vector<FileRecord> writeJobFiles(std::vector<std::string>& previewNames) {
     std::vector<FileRecord> files;
     const std::string build = buildFileText();
     files.push_back(writeStaged(spec.profile.buildFileName, std::span(reinterpret_cast<const std::uint8_t*>(build.data()), build.size())));
-    std::vector<std::string> previewNames;
     const std::string title = target.filename().string() + "  -  " + spec.profile.printer + ", " +
                               std::to_string(geometry.width) + " x " + std::to_string(geometry.height) + " px x " +
                               std::to_string(geometry.layers) + " layers";
@@ -485,46 +625,143 @@ struct JobWriter::Impl {
       files.push_back(writeStaged(name, data));
       previewNames.push_back(name);
     }
-    const std::size_t firstLayerFile = files.size();
     for (const LayerRecord& r : layers) files.insert(files.end(), r.files.begin(), r.files.end());
-    const std::string text = manifest(files, previewNames).dump(1) + "\n";
+    // Names that are not UTF-8 (a design file's path) are written with U+FFFD rather than failing the job.
+    const std::string text = manifest(files, previewNames).dump(1, ' ', false, json::error_handler_t::replace) + "\n";
     writeStaged(kManifestName, std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
+    return files;
+  }
 
-    fs::path written = staging;
+  // Fixed order: manifest, build file, previews, then the layers bottom-up, materials in profile order.
+  void writeArchive(const std::vector<FileRecord>& files, std::size_t firstLayerFile) const {
+    std::vector<ZipEntry> entries;
+    entries.push_back({kManifestName, filesDir / kManifestName, ZipStorage::Deflate});
+    for (std::size_t n = 0; n < firstLayerFile; ++n) {
+      const bool png = files[n].name.ends_with(".png");
+      entries.push_back({files[n].name, filesDir / files[n].name, png ? ZipStorage::Store : ZipStorage::Deflate});
+    }
+    for (const LayerRecord& r : layers)
+      for (const FileRecord& f : r.files) entries.push_back({f.name, r.chunk, layerStorage(), true});
+    writeZip(staging->zip(), entries);
+  }
+
+  void verify(const fs::path& built) const {
+    const InspectReport report = inspectJobFiles(*openJobFiles(built));
+    if (report.ok()) return;
+    std::string list;
+    for (const std::string& d : report.defects) list += "\n  " + d;
+    throw std::runtime_error(target.string() + ": the written job failed verification:" + list);
+  }
+
+  JobResult finalize() {
+    wait();
+    if (nextK != geometry.partBounds.max().z() + 1)
+      throw std::runtime_error("finalize: layers k = " + std::to_string(nextK) + " .. " +
+                               std::to_string(geometry.partBounds.max().z()) + " were never added");
+    checkInterrupt();
+    std::vector<std::string> previewNames;
+    const std::vector<FileRecord> files = writeJobFiles(previewNames);
+    fs::path built = filesDir;
     if (spec.options.archive == ArchiveFormat::Zip) {
-      // Fixed order: manifest, build file, previews, then the layers bottom-up, materials in profile order.
-      std::vector<ZipEntry> entries;
-      entries.push_back({kManifestName, staging / kManifestName, ZipStorage::Deflate});
-      for (std::size_t n = 0; n < firstLayerFile; ++n) {
-        const bool png = files[n].name.ends_with(".png");
-        entries.push_back({files[n].name, staging / files[n].name, png ? ZipStorage::Store : ZipStorage::Deflate});
-      }
-      for (const LayerRecord& r : layers)
-        for (const FileRecord& f : r.files) entries.push_back({f.name, r.chunk, layerStorage(), true});
-      writeZip(zipTemp, entries);
-      written = zipTemp;
+      std::size_t layerFiles = 0;
+      for (const LayerRecord& r : layers) layerFiles += r.files.size();
+      writeArchive(files, files.size() - layerFiles);
+      built = staging->zip();
+      checkInterrupt();
     }
-    if (spec.options.verify) {
-      const InspectReport report = inspectJobFiles(*openJobFiles(written));
-      if (!report.ok()) {
-        std::string list;
-        for (const std::string& d : report.defects) list += "\n  " + d;
-        throw std::runtime_error(target.string() + ": the written job failed verification:" + list);
-      }
-    }
-    moveIntoPlace(written);
-    std::error_code ec;
-    if (written != staging) fs::remove_all(staging, ec);
-    finished = true;
+    if (spec.options.verify) verify(built);
 
+    checkInterrupt();  // the last moment at which nothing was written
+    const Commit commit = commitJob(built);
+    try {
+      checkInterrupt();
+    } catch (...) {
+      undo(commit);
+      throw;
+    }
+    finished = true;
+    staging->remove();  // temporaries, and the job this one replaced
+    return result(files.size() + 1, commit);
+  }
+
+  struct Commit {
+    bool replaced = false;
+    fs::path oldJob;    // where the job it replaced lies now (in the staging folder)
+    bool exchanged = false;
+    std::uint64_t device = 0, inode = 0;  // of the new job
+  };
+
+  // Puts the staged job `built` at the target: a rename that never replaces, or, for a rodfab job
+  // there and force, an exchange of the two names in one step. What is at the target is examined
+  // again now: it may have changed while the job was written.
+  Commit commitJob(const fs::path& built) {
+    Commit c;
+    struct stat st {};
+    if (::lstat(built.c_str(), &st) != 0) throw std::system_error(errno, std::generic_category(), built.string());
+    c.device = static_cast<std::uint64_t>(st.st_dev);
+    c.inode = static_cast<std::uint64_t>(st.st_ino);
+    const OutputOccupant occupant = examineOutput(target);
+    if (occupant.kind == OutputOccupant::Kind::Other) throw std::runtime_error(refusal(target, occupant));
+    if (occupant.kind == OutputOccupant::Kind::Nothing) {
+      if (!renameWith(built, target, RENAME_NOREPLACE)) {
+        if (fs::exists(fs::symlink_status(target)))
+          throw std::runtime_error(target.string() + ": appeared while the job was being written; it was left as it is");
+        renameOrThrow(built, target);
+      }
+      return c;
+    }
+    if (!spec.options.force)
+      throw std::runtime_error(target.string() + ": a job appeared there while this one was being written; use --force to replace it");
+    c.replaced = true;
+    c.exchanged = renameWith(built, target, RENAME_EXCHANGE);
+    if (c.exchanged) {
+      c.oldJob = built;
+      // The exchange took whatever was at the target a moment ago: it must be the job examined above.
+      const OutputOccupant taken = examineOutput(c.oldJob);
+      if (taken.device != occupant.device || taken.inode != occupant.inode) {
+        renameWith(c.oldJob, target, RENAME_EXCHANGE);
+        throw std::runtime_error(target.string() + ": changed while the job was being written; nothing was replaced");
+      }
+      return c;
+    }
+    // No exchange on this file system: the old job is moved aside into the staging folder first.
+    c.oldJob = staging->root() / "replaced";
+    renameOrThrow(target, c.oldJob);
+    try {
+      renameOrThrow(built, target);
+    } catch (...) {
+      renameOrThrow(c.oldJob, target);
+      throw;
+    }
+    return c;
+  }
+
+  // Takes a committed job back: the target holds again what it held before (nothing, or the old job).
+  void undo(const Commit& c) {
+    if (c.exchanged && renameWith(c.oldJob, target, RENAME_EXCHANGE)) return;  // new job back into staging
+    renameOrThrow(target, staging->root() / "withdrawn");
+    if (c.replaced) renameOrThrow(c.oldJob, target);
+  }
+
+  JobResult result(std::size_t fileCount, const Commit& commit) const {
     JobResult result;
     result.path = target;
+    result.device = commit.device;
+    result.inode = commit.inode;
     result.geometry = geometry;
-    result.files = files.size() + 1;
-    result.bytes = spec.options.archive == ArchiveFormat::Zip ? fs::file_size(target) : 0;
-    if (spec.options.archive == ArchiveFormat::Directory)
-      for (const auto& e : fs::recursive_directory_iterator(target))
-        if (e.is_regular_file()) result.bytes += e.file_size();
+    result.files = fileCount;
+    // The job is in place: sizes are only reported, so a file system error here fails nothing.
+    std::error_code ec;
+    if (spec.options.archive == ArchiveFormat::Zip) {
+      result.bytes = fs::file_size(target, ec);
+      if (ec) result.bytes = 0;
+    } else {
+      for (fs::recursive_directory_iterator it(target, ec), end; !ec && it != end; it.increment(ec)) {
+        std::error_code sizeError;
+        const std::uintmax_t bytes = it->is_regular_file(sizeError) ? it->file_size(sizeError) : 0;
+        if (!sizeError) result.bytes += bytes;
+      }
+    }
     std::array<std::uint64_t, 3> totals{};
     for (const LayerRecord& r : layers)
       for (int role = 0; role < 3; ++role) totals[role] += r.voxels[role];
@@ -534,31 +771,6 @@ struct JobWriter::Impl {
       result.materials.push_back({m->name, m->role, n, ml, ml * m->densityGPerMl});
     }
     return result;
-  }
-
-  void moveIntoPlace(const fs::path& written) {
-    std::error_code ec;
-    if (fs::exists(target)) {
-      if (!spec.options.force)
-        throw std::runtime_error(target.string() + ": appeared while the job was being written; use --force to replace it");
-      if (!fs::is_directory(target) && !fs::is_directory(written)) {
-        fs::rename(written, target);  // atomic replacement of one file by another
-        return;
-      }
-      // A directory cannot be replaced in one step: move the old one aside first.
-      const fs::path old = target.parent_path() / ("." + target.filename().string() + kPartialTag + std::to_string(::getpid()) + "-old");
-      fs::rename(target, old);
-      fs::rename(written, target);
-      fs::remove_all(old, ec);
-      return;
-    }
-    fs::rename(written, target);
-  }
-
-  void discard() {
-    std::error_code ec;
-    fs::remove_all(staging, ec);
-    fs::remove(zipTemp, ec);
   }
 };
 
@@ -571,7 +783,7 @@ JobWriter::~JobWriter() {
   } catch (...) {
     // The band's error was or will be reported by addBand/finalize; here only the files matter.
   }
-  if (!impl_->finished) impl_->discard();
+  impl_.reset();  // the staging folder goes with it, after the last band task has finished
 }
 
 const JobGeometry& JobWriter::geometry() const { return impl_->geometry; }
@@ -591,6 +803,21 @@ void JobWriter::addBand(LayerBand band) {
 JobResult JobWriter::finalize() {
   if (impl_->finished) throw std::logic_error("finalize called twice");
   return impl_->finalize();
+}
+
+bool withdrawJob(const JobResult& result) {
+  struct stat st {};
+  if (result.path.empty() || ::lstat(result.path.c_str(), &st) != 0 || static_cast<std::uint64_t>(st.st_dev) != result.device ||
+      static_cast<std::uint64_t>(st.st_ino) != result.inode)
+    return false;
+  // Aside under a staging name of this process first: if we die while removing it, a later writer
+  // removes the rest; the target never holds half a job.
+  static std::atomic<int> counter{0};
+  const fs::path aside = stagingPath(result.path, 1000000 + counter++);
+  if (::rename(result.path.c_str(), aside.c_str()) != 0) return false;
+  std::error_code ec;
+  fs::remove_all(aside, ec);
+  return true;
 }
 
 }  // namespace rodfab::printer_profiles

@@ -11,14 +11,12 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
 
 namespace rodfab::printer_profiles {
-
-inline constexpr const char* kJobFormat = "rodfab.job/1";
-inline constexpr const char* kManifestName = "manifest.json";
 
 struct CalibrationRecord {
   std::string file;    // the calibration file the modulus-to-fraction mapping came from
@@ -45,9 +43,16 @@ struct JobOptions {
   ArchiveFormat archive = ArchiveFormat::Zip;
   std::optional<ImageFormat> imageFormat;        // default: the profile's
   std::optional<SupportPolicy> support;          // default: the profile's
-  bool force = false;                            // replace an existing job at `output`
+  // Replace a rodfab job at `output` (see OutputOccupant: recognised by its manifest). Anything else
+  // there (a user's file or folder, a link, a job with files added) is never replaced.
+  bool force = false;
   int contactSheetLayers = 16;                   // layers shown in previews/contact-sheet.png
   bool verify = true;                            // re-open and inspect before the rename
+  // Asked whether to stop (throw to stop; e.g. on SIGINT) as finalize() begins, after the zip is built,
+  // immediately before the job is renamed into place and immediately after. Thrown after the rename,
+  // the rename is undone (the new job removed, a job it replaced put back) before the exception
+  // leaves finalize(). Called on the thread that calls finalize().
+  std::function<void()> checkInterrupt;
 };
 
 struct JobSpec {
@@ -79,6 +84,7 @@ struct MaterialTotals {
 
 struct JobResult {
   std::filesystem::path path;
+  std::uint64_t device = 0, inode = 0;    // of the job at `path` as committed (see withdrawJob)
   JobGeometry geometry;
   std::vector<MaterialTotals> materials;  // in profile order
   std::size_t files = 0;                  // including the manifest
@@ -92,13 +98,18 @@ openvdb::math::Transform::Ptr gridTransform(const Profile& profile, const openvd
 // part in increasing k, finalize(). Each band is encoded (bitmaps, PNG/BMP, checksums, previews) on
 // TBB workers while the caller builds the next one; addBand waits only for the band before. The
 // bytes written depend on the grids alone, not on the thread count or the band sizes.
-// Until finalize() returns, everything lives under hidden temporary names beside the target
-// (".NAME.rodfab-partial-PID-N"); the destructor removes them if finalize() was not reached, and a
-// killed process leaves only such hidden names, which `inspect` refuses and the next job removes.
+// Until finalize() commits the job, everything lives in one hidden staging folder beside the target,
+// ".NAME.rodfab-partial-PID-N", holding a lock file the writer keeps flock'ed while it lives; the
+// destructor removes the folder on every path (errors, exceptions, interrupts). A killed process
+// leaves only such a folder, which `inspect` refuses and which any later writer in the same output
+// folder removes, whatever its target, once its lock is free. A job replaced under `force` is
+// exchanged with the new one in one rename (renameat2 RENAME_EXCHANGE where the file system has it),
+// so the target always holds one of the two, and is removed with the staging folder.
 class JobWriter {
 public:
-  // Checks the profile and part against the tray (TrayFitError) and that the target is free
-  // (std::runtime_error naming it, unless options.force).
+  // Checks the profile and part against the tray (TrayFitError), and the target: free, or a rodfab
+  // job with options.force (std::runtime_error naming the target and saying what is there
+  // otherwise). Removes dead writers' staging folders in the output folder.
   explicit JobWriter(JobSpec spec);
   ~JobWriter();
   JobWriter(const JobWriter&) = delete;
@@ -115,12 +126,19 @@ public:
   // 600/300 dpi swap is named as such), or voxels outside the band or the part bounds.
   void addBand(LayerBand band);
   // Writes the build file, previews and manifest, builds the zip, re-opens and inspects the job,
-  // then renames it into place. std::runtime_error if a layer is missing or verification fails.
+  // then renames it into place. std::runtime_error if a layer is missing, verification fails or the
+  // target was taken meanwhile; whatever options.checkInterrupt throws passes through.
   JobResult finalize();
 
 private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+// Removes a job finalize() committed, when the caller must take it back (a signal that arrived after
+// finalize returned): renamed aside to a staging name first, so a crash meanwhile never leaves half a
+// job. Does nothing and returns false when `result.path` no longer holds that job (device and inode
+// differ): only our own job is removed.
+bool withdrawJob(const JobResult& result);
 
 }  // namespace rodfab::printer_profiles

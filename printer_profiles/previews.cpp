@@ -25,10 +25,15 @@ float modulusAt(const openvdb::FloatGrid* grid, openvdb::FloatGrid::ConstAccesso
   return acc->probeValue(ijk, v) ? v : kNoModulus;
 }
 
+// Moduli the colour scale spans: finite and positive. Anything else a grid may hold (0, negative,
+// infinite, NaN) is drawn grey as unknown, and never enters the scale's logarithms.
+bool onScale(float e) { return std::isfinite(e) && e > 0.0f; }
+
 // A perceptually ordered ramp, dark violet (soft) to yellow (stiff), by linear interpolation of five stops.
 void modulusColour(double t, std::uint8_t out[3]) {
   static constexpr double kStops[5][3] = {{48, 18, 90}, {40, 84, 160}, {30, 150, 150}, {110, 200, 80}, {250, 225, 40}};
-  t = std::clamp(t, 0.0, 1.0) * 4.0;
+  if (!(t >= 0.0)) t = 0.0;  // NaN too: the index below must stay in the table
+  t = std::min(t, 1.0) * 4.0;
   const int a = std::min(3, static_cast<int>(t));
   const double f = t - a;
   for (int c = 0; c < 3; ++c) out[c] = static_cast<std::uint8_t>(std::lround(kStops[a][c] * (1 - f) + kStops[a + 1][c] * f));
@@ -221,7 +226,7 @@ std::vector<std::pair<std::string, Bytes>> Previews::render(const std::string& t
   float eMin = std::numeric_limits<float>::max(), eMax = 0.0f;
   for (const View* v : {&top_, &front_, &side_})
     for (float e : v->modulus)
-      if (e > 0.0f) {
+      if (onScale(e)) {
         eMin = std::min(eMin, e);
         eMax = std::max(eMax, e);
       }
@@ -245,7 +250,7 @@ std::vector<std::pair<std::string, Bytes>> Previews::render(const std::string& t
           std::uint8_t rgb[3];
           if (byModulus) {
             const float e = view.modulus[at];
-            if (e > 0.0f) modulusColour(logSpan > 0 ? (std::log(e) - logMin) / logSpan : 1.0, rgb);
+            if (onScale(e)) modulusColour(logSpan > 0 ? (std::log(e) - logMin) / logSpan : 1.0, rgb);
             else rgb[0] = rgb[1] = rgb[2] = 128;
           } else {
             const auto& c = (m == 1 ? rigid : rubbery).previewRgb;

@@ -2,10 +2,17 @@
 
 #include <nlohmann/json.hpp>
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstdlib>
-#include <fstream>
+#include <cstring>
+#include <map>
 #include <optional>
 #include <set>
 #include <sstream>
@@ -69,13 +76,96 @@ std::string formatIssues(const std::string& file, const std::vector<ProfileIssue
 }
 
 std::string describe(const json& j) {
-  std::string s = j.dump();
+  std::string s = j.dump(-1, ' ', false, json::error_handler_t::replace);
   if (s.size() > 40) s = s.substr(0, 37) + "...";
   return s;
 }
 
 std::string member(const std::string& path, const std::string& key) { return path.empty() ? key : path + "." + key; }
 std::string index(const std::string& path, std::size_t i) { return path + "[" + std::to_string(i) + "]"; }
+
+std::string lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+std::string number(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+// A refusal raised while nlohmann builds the document (too deep, a key twice).
+struct StructureIssue {
+  ProfileIssue issue;
+};
+
+// nlohmann keeps the last of two equal keys without a word and nests as deep as the input goes: this
+// callback sees every parse event, tracks the JSON path, and stops both while the document is built.
+class StructureCheck {
+public:
+  bool operator()(int, json::parse_event_t event, json& parsed) {
+    switch (event) {
+      case json::parse_event_t::object_start:
+      case json::parse_event_t::array_start:
+        if (stack_.size() >= static_cast<std::size_t>(kMaxProfileDepth))
+          throw StructureIssue{{path(), "nested deeper than " + std::to_string(kMaxProfileDepth) +
+                                            " levels of objects and arrays; a printer profile needs a few"}};
+        stack_.push_back({event == json::parse_event_t::array_start, 0, {}, {}});
+        break;
+      case json::parse_event_t::key: {
+        Frame& frame = stack_.back();
+        frame.key = parsed.get<std::string>();
+        if (!frame.keys.insert(frame.key).second)
+          throw StructureIssue{{path(), "this key appears twice in its object; expected each key once"}};
+        break;
+      }
+      case json::parse_event_t::object_end:
+      case json::parse_event_t::array_end:
+        stack_.pop_back();
+        elementDone();
+        break;
+      case json::parse_event_t::value:
+        elementDone();
+        break;
+    }
+    return true;
+  }
+
+private:
+  struct Frame {
+    bool array = false;
+    std::size_t next = 0;  // arrays: index of the element being read
+    std::string key;       // objects: key of the member being read
+    std::set<std::string> keys;
+  };
+
+  void elementDone() {
+    if (!stack_.empty() && stack_.back().array) ++stack_.back().next;
+  }
+  // Path of the element being read, e.g. `materials[1].name`.
+  std::string path() const {
+    std::string p;
+    for (const Frame& f : stack_) {
+      if (f.array) p = index(p, f.next);
+      else if (!f.key.empty()) p = member(p, f.key);
+      else break;  // an object before its first key
+    }
+    return p;
+  }
+
+  std::vector<Frame> stack_;
+};
+
+json parseStrictly(const std::string& text, const std::string& sourceName) {
+  try {
+    return json::parse(text, StructureCheck());
+  } catch (const StructureIssue& e) {
+    throw ProfileError(sourceName, {e.issue});
+  } catch (const json::exception& e) {  // parse_error, or out_of_range for a number too large (1e400)
+    throw ProfileError(sourceName, {{"", std::string("not valid JSON: ") + e.what()}});
+  }
+}
 
 // Collects every violation; each accessor returns what it could read so later checks can go on.
 class Validator {
@@ -102,26 +192,35 @@ public:
     return &*it;
   }
 
-  std::optional<std::string> string(const json& parent, const std::string& path, const std::string& key) {
+  std::optional<std::string> string(const json& parent, const std::string& path, const std::string& key,
+                                    std::size_t maxLength = kMaxTextLength) {
     const json* j = require(parent, path, key, "a string");
     if (!j) return std::nullopt;
-    if (!j->is_string() || j->get<std::string>().empty()) {
-      fail(member(path, key), "expected a non-empty string, got " + describe(*j));
+    if (!j->is_string() || j->get<std::string>().empty() || j->get<std::string>().size() > maxLength) {
+      fail(member(path, key), "expected a non-empty string of at most " + std::to_string(maxLength) + " bytes, got " + describe(*j));
       return std::nullopt;
     }
     return j->get<std::string>();
   }
 
-  std::optional<double> positive(const json& j, const std::string& path, const std::string& what) {
-    if (!j.is_number() || !std::isfinite(j.get<double>()) || !(j.get<double>() > 0.0)) {
-      fail(path, "expected " + what + " (a number > 0), got " + describe(j));
+  // A finite number in (lo, hi] (or [lo, hi] when `closedBelow`).
+  std::optional<double> real(const json& j, const std::string& path, const std::string& what, double lo, double hi,
+                             bool closedBelow = false) {
+    const bool ok = j.is_number() && std::isfinite(j.get<double>()) &&
+                    (closedBelow ? j.get<double>() >= lo : j.get<double>() > lo) && j.get<double>() <= hi;
+    if (!ok) {
+      fail(path, "expected " + what + " (a number " + (closedBelow ? ">= " : "> ") + number(lo) + " and <= " + number(hi) +
+                     "), got " + describe(j));
       return std::nullopt;
     }
     return j.get<double>();
   }
 
   std::optional<int> integer(const json& j, const std::string& path, const std::string& what, int lo, int hi) {
-    if (!j.is_number_integer() || j.get<long long>() < lo || j.get<long long>() > hi) {
+    const bool ok = (j.is_number_unsigned() && j.get<std::uint64_t>() <= static_cast<std::uint64_t>(hi) &&
+                     static_cast<long long>(j.get<std::uint64_t>()) >= lo) ||
+                    (j.is_number_integer() && !j.is_number_unsigned() && j.get<long long>() >= lo && j.get<long long>() <= hi);
+    if (!ok) {
       fail(path, "expected " + what + " (an integer in " + std::to_string(lo) + ".." + std::to_string(hi) + "), got " +
                      describe(j));
       return std::nullopt;
@@ -142,152 +241,141 @@ public:
     for (std::size_t i = 0; i < N; ++i) ok = read((*j)[i], index(p, i), i) && ok;
     return ok;
   }
+
+  // A file name inside the job: portable (see portableNameProblem).
+  std::optional<std::string> fileName(const json& parent, const std::string& path, const std::string& key) {
+    const std::optional<std::string> name = string(parent, path, key, kMaxFileNameLength);
+    if (!name) return std::nullopt;
+    if (const std::string problem = portableNameProblem(*name); !problem.empty()) {
+      fail(member(path, key), "\"" + *name + "\" is not a portable file name: " + problem);
+      return std::nullopt;
+    }
+    return name;
+  }
 };
 
-}  // namespace
+constexpr double kMinVoxelMm = 1e-4, kMaxVoxelMm = 100.0, kMaxTrayMm = 10000.0, kMaxDensity = 100.0;
 
-ProfileError::ProfileError(std::string file, std::vector<ProfileIssue> issues)
-    : std::runtime_error(formatIssues(file, issues)), file_(std::move(file)), issues_(std::move(issues)) {}
-
-Profile parseProfile(const std::string& text, const std::string& sourceName) {
-  json doc;
-  try {
-    doc = json::parse(text);
-  } catch (const json::exception& e) {  // parse_error, or out_of_range for a number too large (1e400)
-    throw ProfileError(sourceName, {{"", std::string("not valid JSON: ") + e.what()}});
-  }
-  Validator v;
-  if (!doc.is_object()) throw ProfileError(sourceName, {{"", "expected a JSON object at the top level"}});
-
-  Profile p;
-  p.source = sourceName;
-  if (auto format = v.string(doc, "", "format"); format && *format != kProfileFormat)
-    v.fail("format", "expected \"" + std::string(kProfileFormat) + "\", got \"" + *format + "\"");
-  p.name = v.string(doc, "", "name").value_or("");
-  p.printer = v.string(doc, "", "printer").value_or("");
-  if (auto it = doc.find("description"); it != doc.end() && it->is_string()) p.description = it->get<std::string>();
-
-  if (const json* res = v.object(doc, "", "resolution")) {
-    p.xDpi = v.require(*res, "resolution", "x_dpi", "dots per inch along x (image columns)")
-                 ? v.integer((*res)["x_dpi"], "resolution.x_dpi", "dots per inch along x", 1, 100000).value_or(0)
-                 : 0;
-    p.yDpi = v.require(*res, "resolution", "y_dpi", "dots per inch along y (image rows)")
-                 ? v.integer((*res)["y_dpi"], "resolution.y_dpi", "dots per inch along y", 1, 100000).value_or(0)
-                 : 0;
-    std::optional<double> layer;
-    if (const json* t = v.require(*res, "resolution", "layer_thickness_mm", "the layer thickness in mm"))
-      layer = v.positive(*t, "resolution.layer_thickness_mm", "a layer thickness in mm");
-    const bool sizesOk = v.array<3>(*res, "resolution", "voxel_size_mm", "voxel sizes in mm (x, y, z)",
-                                    [&](const json& j, const std::string& path, std::size_t i) {
-                                      auto s = v.positive(j, path, "a voxel size in mm");
-                                      if (s) p.voxelSizeMm[i] = *s;
-                                      return s.has_value();
-                                    });
-    // The dpi and the voxel size must tell the same story, so a 600/300 swap in either one is caught here.
-    const int dpi[2] = {p.xDpi, p.yDpi};
-    const char* axis[2] = {"x", "y"};
-    for (int a = 0; a < 2 && sizesOk; ++a) {
-      if (dpi[a] <= 0) continue;
-      const double fromDpi = 25.4 / dpi[a];
-      if (std::abs(p.voxelSizeMm[a] - fromDpi) > 0.005 * fromDpi) {
-        std::ostringstream msg;
-        msg << "voxel size along " << axis[a] << " is " << p.voxelSizeMm[a] << " mm but " << axis[a] << "_dpi = " << dpi[a]
-            << " means " << fromDpi << " mm";
-        if (std::abs(p.voxelSizeMm[a] - 25.4 / dpi[1 - a]) < 0.005 * p.voxelSizeMm[a])
-          msg << " (x and y look swapped: x is the image columns, y the image rows)";
-        v.fail(index("resolution.voxel_size_mm", a), msg.str());
-      }
+void readResolution(Validator& v, const json& doc, Profile& p) {
+  const json* res = v.object(doc, "", "resolution");
+  if (!res) return;
+  p.xDpi = v.require(*res, "resolution", "x_dpi", "dots per inch along x (image columns)")
+               ? v.integer((*res)["x_dpi"], "resolution.x_dpi", "dots per inch along x", 1, 100000).value_or(0)
+               : 0;
+  p.yDpi = v.require(*res, "resolution", "y_dpi", "dots per inch along y (image rows)")
+               ? v.integer((*res)["y_dpi"], "resolution.y_dpi", "dots per inch along y", 1, 100000).value_or(0)
+               : 0;
+  std::optional<double> layer;
+  if (const json* t = v.require(*res, "resolution", "layer_thickness_mm", "the layer thickness in mm"))
+    layer = v.real(*t, "resolution.layer_thickness_mm", "a layer thickness in mm", kMinVoxelMm, kMaxVoxelMm, true);
+  const bool sizesOk = v.array<3>(*res, "resolution", "voxel_size_mm", "voxel sizes in mm (x, y, z)",
+                                  [&](const json& j, const std::string& path, std::size_t i) {
+                                    auto s = v.real(j, path, "a voxel size in mm", kMinVoxelMm, kMaxVoxelMm, true);
+                                    if (s) p.voxelSizeMm[i] = *s;
+                                    return s.has_value();
+                                  });
+  // The dpi and the voxel size must tell the same story, so a 600/300 swap in either one is caught here.
+  const int dpi[2] = {p.xDpi, p.yDpi};
+  const char* axis[2] = {"x", "y"};
+  for (int a = 0; a < 2 && sizesOk; ++a) {
+    if (dpi[a] <= 0) continue;
+    const double fromDpi = 25.4 / dpi[a];
+    if (std::abs(p.voxelSizeMm[a] - fromDpi) > 0.005 * fromDpi) {
+      std::ostringstream msg;
+      msg << "voxel size along " << axis[a] << " is " << p.voxelSizeMm[a] << " mm but " << axis[a] << "_dpi = " << dpi[a]
+          << " means " << fromDpi << " mm";
+      if (std::abs(p.voxelSizeMm[a] - 25.4 / dpi[1 - a]) < 0.005 * p.voxelSizeMm[a])
+        msg << " (x and y look swapped: x is the image columns, y the image rows)";
+      v.fail(index("resolution.voxel_size_mm", a), msg.str());
     }
-    if (sizesOk && layer && std::abs(*layer - p.voxelSizeMm[2]) > 1e-9)
-      v.fail("resolution.voxel_size_mm[2]", "expected the layer thickness " + std::to_string(*layer) + " mm");
   }
+  if (sizesOk && layer && std::abs(*layer - p.voxelSizeMm[2]) > 1e-9)
+    v.fail("resolution.voxel_size_mm[2]", "expected the layer thickness " + std::to_string(*layer) + " mm");
+}
 
+void readMaterial(Validator& v, const json& m, const std::string& path, Profile& p, int count[3]) {
+  ProfileMaterial pm;
+  pm.name = v.fileName(m, path, "name").value_or("");
+  if (auto role = v.string(m, path, "role")) {
+    if (*role == "rigid") pm.role = MaterialRole::Rigid;
+    else if (*role == "rubbery") pm.role = MaterialRole::Rubbery;
+    else if (*role == "support") pm.role = MaterialRole::Support;
+    else v.fail(member(path, "role"), "expected one of: rigid, rubbery, support; got \"" + *role + "\"");
+    count[static_cast<int>(pm.role)]++;
+  }
+  if (const json* d = v.require(m, path, "density_g_per_ml", "the cured density in g/mL"))
+    pm.densityGPerMl = v.real(*d, member(path, "density_g_per_ml"), "a density in g/mL", 0.0, kMaxDensity).value_or(0.0);
+  v.array<3>(m, path, "preview_rgb", "colour components 0..255", [&](const json& j, const std::string& cp, std::size_t c) {
+    auto value = v.integer(j, cp, "a colour component", 0, 255);
+    if (value) pm.previewRgb[c] = static_cast<unsigned char>(*value);
+    return value.has_value();
+  });
+  p.materials.push_back(pm);
+}
+
+void readMaterials(Validator& v, const json& doc, Profile& p) {
+  const json* mats = v.require(doc, "", "materials", "an array of materials");
+  if (!mats) return;
+  if (!mats->is_array()) {
+    v.fail("materials", "expected an array of materials, got " + describe(*mats));
+    return;
+  }
+  int count[3] = {0, 0, 0};
+  for (std::size_t i = 0; i < mats->size() && i < 16; ++i) {
+    const json& m = (*mats)[i];
+    if (!m.is_object()) v.fail(index("materials", i), "expected an object, got " + describe(m));
+    else readMaterial(v, m, index("materials", i), p, count);
+  }
+  if (mats->size() > 16) v.fail("materials", "expected at most 16 materials, got " + std::to_string(mats->size()));
+  const char* roles[3] = {"rigid", "rubbery", "support"};
+  for (int r = 0; r < 3; ++r)
+    if (count[r] != 1)
+      v.fail("materials", "expected exactly one material with role \"" + std::string(roles[r]) + "\", found " +
+                              std::to_string(count[r]));
+  if (p.modelMaterialSlots > 0 && count[0] + count[1] > p.modelMaterialSlots)
+    v.fail("materials", "more model materials than the printer's " + std::to_string(p.modelMaterialSlots) + " slots");
+}
+
+void readImage(Validator& v, const json& doc, Profile& p) {
+  const json* image = v.object(doc, "", "image");
+  if (!image) return;
+  if (auto format = v.string(*image, "image", "format")) {
+    try {
+      p.imageFormat = parseImageFormat(*format);
+    } catch (const std::invalid_argument&) {
+      v.fail("image.format", "expected \"bmp\" or \"png\", got \"" + *format + "\"");
+    }
+  }
+  if (const json* depth = v.require(*image, "image", "bit_depth", "1 (one bit per pixel)"); depth && *depth != 1)
+    v.fail("image.bit_depth", "expected 1 (voxel printing takes 1-bit bitmaps), got " + describe(*depth));
+  if (const json* a = v.require(*image, "image", "column_alignment", "the column-count multiple"))
+    p.columnAlignment = v.integer(*a, "image.column_alignment", "a column multiple", 8, 4096).value_or(32);
+  if (p.columnAlignment % 8 != 0) v.fail("image.column_alignment", "expected a multiple of 8 (whole bytes per row)");
+  v.array<2>(*image, "image", "padding_voxels", "blank margins (columns, rows)", [&](const json& j, const std::string& path, std::size_t i) {
+    auto value = v.integer(j, path, "a margin in voxels", 0, kMaxTrayVoxels);
+    if (value) p.paddingVoxels[i] = *value;
+    return value.has_value();
+  });
+  if (const json* d = v.require(*image, "image", "layer_digits", "the zero-padded width of layer numbers"))
+    p.layerDigits = v.integer(*d, "image.layer_digits", "a digit count", 1, 9).value_or(4);
+  if (auto origin = v.string(*image, "image", "origin"); origin && *origin != "top-left")
+    v.fail("image.origin", "expected \"top-left\" (the only origin the emitter writes), got \"" + *origin + "\"");
+  p.rowOrder = v.string(*image, "image", "row_order").value_or("");
+}
+
+void readRest(Validator& v, const json& doc, Profile& p) {
   v.array<3>(doc, "", "tray_mm", "build tray sizes in mm (x, y, z)", [&](const json& j, const std::string& path, std::size_t i) {
-    auto s = v.positive(j, path, "a tray size in mm");
+    auto s = v.real(j, path, "a tray size in mm", 0.0, kMaxTrayMm);
     if (s) p.trayMm[i] = *s;
     return s.has_value();
   });
   if (const json* slots = v.require(doc, "", "model_material_slots", "the number of model materials the printer loads"))
     p.modelMaterialSlots = v.integer(*slots, "model_material_slots", "a slot count", 1, 16).value_or(0);
-
-  if (const json* mats = v.require(doc, "", "materials", "an array of materials")) {
-    if (!mats->is_array()) {
-      v.fail("materials", "expected an array of materials, got " + describe(*mats));
-    } else {
-      std::set<std::string> names;
-      int count[3] = {0, 0, 0};
-      for (std::size_t i = 0; i < mats->size(); ++i) {
-        const json& m = (*mats)[i];
-        const std::string path = index("materials", i);
-        if (!m.is_object()) {
-          v.fail(path, "expected an object, got " + describe(m));
-          continue;
-        }
-        ProfileMaterial pm;
-        pm.name = v.string(m, path, "name").value_or("");
-        if (!pm.name.empty()) {
-          if (!names.insert(pm.name).second) v.fail(member(path, "name"), "duplicate material name \"" + pm.name + "\"");
-          if (pm.name.find_first_of("/\\:*?\"<>| ") != std::string::npos)
-            v.fail(member(path, "name"), "expected a name usable in file names (no spaces or /\\:*?\"<>|)");
-        }
-        if (auto role = v.string(m, path, "role")) {
-          if (*role == "rigid") pm.role = MaterialRole::Rigid;
-          else if (*role == "rubbery") pm.role = MaterialRole::Rubbery;
-          else if (*role == "support") pm.role = MaterialRole::Support;
-          else v.fail(member(path, "role"), "expected one of: rigid, rubbery, support; got \"" + *role + "\"");
-          count[static_cast<int>(pm.role)]++;
-        }
-        if (const json* d = v.require(m, path, "density_g_per_ml", "the cured density in g/mL"))
-          pm.densityGPerMl = v.positive(*d, member(path, "density_g_per_ml"), "a density in g/mL").value_or(0.0);
-        v.array<3>(m, path, "preview_rgb", "colour components 0..255", [&](const json& j, const std::string& cp, std::size_t c) {
-          auto value = v.integer(j, cp, "a colour component", 0, 255);
-          if (value) pm.previewRgb[c] = static_cast<unsigned char>(*value);
-          return value.has_value();
-        });
-        p.materials.push_back(pm);
-      }
-      const char* roles[3] = {"rigid", "rubbery", "support"};
-      for (int r = 0; r < 3; ++r)
-        if (count[r] != 1)
-          v.fail("materials", "expected exactly one material with role \"" + std::string(roles[r]) + "\", found " +
-                                  std::to_string(count[r]));
-      if (p.modelMaterialSlots > 0 && count[0] + count[1] > p.modelMaterialSlots)
-        v.fail("materials", "more model materials than the printer's " + std::to_string(p.modelMaterialSlots) + " slots");
-    }
-  }
-
-  if (const json* image = v.object(doc, "", "image")) {
-    if (auto format = v.string(*image, "image", "format")) {
-      try {
-        p.imageFormat = parseImageFormat(*format);
-      } catch (const std::invalid_argument&) {
-        v.fail("image.format", "expected \"bmp\" or \"png\", got \"" + *format + "\"");
-      }
-    }
-    if (const json* depth = v.require(*image, "image", "bit_depth", "1 (one bit per pixel)"); depth && *depth != 1)
-      v.fail("image.bit_depth", "expected 1 (voxel printing takes 1-bit bitmaps), got " + describe(*depth));
-    if (const json* a = v.require(*image, "image", "column_alignment", "the column-count multiple"))
-      p.columnAlignment = v.integer(*a, "image.column_alignment", "a column multiple", 8, 4096).value_or(32);
-    if (p.columnAlignment % 8 != 0) v.fail("image.column_alignment", "expected a multiple of 8 (whole bytes per row)");
-    v.array<2>(*image, "image", "padding_voxels", "blank margins (columns, rows)", [&](const json& j, const std::string& path, std::size_t i) {
-      auto value = v.integer(j, path, "a margin in voxels", 0, 100000);
-      if (value) p.paddingVoxels[i] = *value;
-      return value.has_value();
-    });
-    if (const json* d = v.require(*image, "image", "layer_digits", "the zero-padded width of layer numbers"))
-      p.layerDigits = v.integer(*d, "image.layer_digits", "a digit count", 1, 9).value_or(4);
-    if (auto origin = v.string(*image, "image", "origin"); origin && *origin != "top-left")
-      v.fail("image.origin", "expected \"top-left\" (the only origin the emitter writes), got \"" + *origin + "\"");
-    p.rowOrder = v.string(*image, "image", "row_order").value_or("");
-  }
-
   if (const json* build = v.object(doc, "", "build_file")) {
-    p.buildFileName = v.string(*build, "build_file", "name").value_or("");
-    if (p.buildFileName.find('/') != std::string::npos) v.fail("build_file.name", "expected a plain file name");
+    p.buildFileName = v.fileName(*build, "build_file", "name").value_or("");
     if (const json* fv = v.require(*build, "build_file", "format_version", "the build file format version"))
       p.buildFormatVersion = v.integer(*fv, "build_file.format_version", "a version", 1, 1000).value_or(1);
   }
-
   if (const json* support = v.object(doc, "", "support")) {
     if (auto policy = v.string(*support, "support", "policy")) {
       try {
@@ -297,17 +385,139 @@ Profile parseProfile(const std::string& text, const std::string& sourceName) {
       }
     }
   }
+}
 
+// The tray in voxels bounds every image and preview a job of this profile can have.
+void checkTrayVoxels(Validator& v, const Profile& p) {
+  if (p.trayMm[0] <= 0.0 || p.voxelSizeMm[0] <= 0.0 || p.trayMm[1] <= 0.0 || p.voxelSizeMm[1] <= 0.0 ||
+      p.trayMm[2] <= 0.0 || p.voxelSizeMm[2] <= 0.0)
+    return;  // already reported
+  const char* what[3] = {"image columns (x)", "image rows (y)", "layers (z)"};
+  std::array<double, 3> voxels{};
+  bool ok = true;
+  for (int a = 0; a < 3; ++a) {
+    voxels[a] = std::floor(p.trayMm[a] / p.voxelSizeMm[a]);
+    if (voxels[a] > kMaxTrayVoxels) {
+      v.fail(index("tray_mm", a), "the tray holds " + number(voxels[a]) + " " + what[a] + " of " + number(p.voxelSizeMm[a]) +
+                                      " mm; expected at most " + std::to_string(kMaxTrayVoxels));
+      ok = false;
+    }
+  }
+  const char* faces[3] = {"a layer image (columns x rows)", "the front preview (columns x layers)", "the side preview (rows x layers)"};
+  const double pixels[3] = {voxels[0] * voxels[1], voxels[0] * voxels[2], voxels[1] * voxels[2]};
+  for (int f = 0; f < 3 && ok; ++f)
+    if (pixels[f] > static_cast<double>(kMaxTrayFacePixels))
+      v.fail("tray_mm", std::string("a full tray makes ") + faces[f] + " of " + number(pixels[f]) + " pixels; expected at most " +
+                            std::to_string(kMaxTrayFacePixels));
+  for (int a = 0; a < 2 && ok; ++a)
+    if (2.0 * p.paddingVoxels[a] + 1.0 > voxels[a])
+      v.fail(index("image.padding_voxels", a), "expected at most " + number(std::max(0.0, std::floor((voxels[a] - 1) / 2))) +
+                                                   " voxels: a one-voxel part with this margin on both sides must fit the tray's " +
+                                                   number(voxels[a]) + " " + what[a]);
+}
+
+// Every file a job holds must have a name of its own on case-insensitive file systems too.
+void checkNamesUnique(Validator& v, const Profile& p) {
+  // manifest.json and previews/ are the job writer's own names.
+  std::map<std::string, std::string> taken = {{"manifest.json", "the job manifest"}, {"previews", "the previews folder"}};
+  if (!p.buildFileName.empty())
+    if (auto [at, fresh] = taken.emplace(lower(p.buildFileName), "build_file.name"); !fresh)
+      v.fail("build_file.name", "\"" + p.buildFileName + "\" is the name of " + at->second +
+                                    " on a case-insensitive file system (Windows, macOS)");
+  for (std::size_t i = 0; i < p.materials.size(); ++i) {
+    const std::string& name = p.materials[i].name;
+    if (name.empty()) continue;
+    const std::string path = member(index("materials", i), "name");
+    if (auto [at, fresh] = taken.emplace(lower(name), path); !fresh)
+      v.fail(path, "\"" + name + "\" is the same name as " + at->second +
+                       " on a case-insensitive file system (Windows, macOS); expected names that differ in more than case");
+    // A build file such as "vero_0001.bmp" would be overwritten by a layer image.
+    const std::string stem = lower(name) + "_", build = lower(p.buildFileName);
+    if (build.starts_with(stem)) {
+      const std::string rest = build.substr(stem.size());
+      const std::size_t dot = rest.find('.');
+      if (dot != std::string::npos && dot > 0 && rest.find_first_not_of("0123456789") == dot &&
+          (rest.substr(dot) == ".bmp" || rest.substr(dot) == ".png"))
+        v.fail("build_file.name", "\"" + p.buildFileName + "\" is the name of a layer image of " + name);
+    }
+  }
+}
+
+}  // namespace
+
+std::string portableNameProblem(const std::string& name) {
+  if (name.empty()) return "it is empty";
+  if (name.size() > kMaxFileNameLength) return "longer than " + std::to_string(kMaxFileNameLength) + " characters";
+  for (const char c : name)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_' && c != '-')
+      return std::string("it holds ") +
+             (c == '/' || c == '\\' ? "a path separator" : c == ':' ? "':' (a drive letter or stream on Windows)" : "a character") +
+             " outside letters, digits, '.', '_' and '-'";
+  if (name.front() == '.' || name.front() == '-') return "it starts with '" + std::string(1, name.front()) + "'";
+  if (name.back() == '.') return "it ends with '.' (Windows drops it)";
+  const std::string device = lower(name.substr(0, name.find('.')));
+  static const std::set<std::string> kDevices = {"con", "prn", "aux", "nul"};
+  if (kDevices.contains(device) ||
+      (device.size() == 4 && (device.starts_with("com") || device.starts_with("lpt")) && device[3] >= '1' && device[3] <= '9'))
+    return "\"" + name.substr(0, name.find('.')) + "\" is a device name on Windows";
+  return "";
+}
+
+ProfileError::ProfileError(std::string file, std::vector<ProfileIssue> issues)
+    : std::runtime_error(formatIssues(file, issues)), file_(std::move(file)), issues_(std::move(issues)) {}
+
+Profile parseProfile(const std::string& text, const std::string& sourceName) {
+  if (text.size() > kMaxProfileBytes)
+    throw ProfileError(sourceName, {{"", "is " + std::to_string(text.size()) + " bytes; a printer profile is at most " +
+                                             std::to_string(kMaxProfileBytes)}});
+  const json doc = parseStrictly(text, sourceName);
+  if (!doc.is_object()) throw ProfileError(sourceName, {{"", "expected a JSON object at the top level"}});
+  Validator v;
+  Profile p;
+  p.source = sourceName;
+  if (auto format = v.string(doc, "", "format"); format && *format != kProfileFormat)
+    v.fail("format", "expected \"" + std::string(kProfileFormat) + "\", got \"" + *format + "\"");
+  p.name = v.string(doc, "", "name").value_or("");
+  p.printer = v.string(doc, "", "printer").value_or("");
+  if (auto it = doc.find("description"); it != doc.end()) p.description = v.string(doc, "", "description").value_or("");
+  readResolution(v, doc, p);
+  readRest(v, doc, p);
+  readMaterials(v, doc, p);
+  readImage(v, doc, p);
+  checkTrayVoxels(v, p);
+  checkNamesUnique(v, p);
   if (!v.issues.empty()) throw ProfileError(sourceName, v.issues);
   return p;
 }
 
 Profile readProfile(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw ProfileError(file.string(), {{"", "cannot open the profile file"}});
-  std::ostringstream text;
-  text << in.rdbuf();
-  Profile p = parseProfile(text.str(), file.string());
+  // Non-blocking, so that a named pipe is refused instead of waited on; then only a regular file is read.
+  const int fd = ::open(file.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
+  if (fd < 0) throw ProfileError(file.string(), {{"", std::string("cannot open the profile file (") + std::strerror(errno) + ")"}});
+  struct stat st {};
+  std::string text;
+  std::string problem;
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    problem = "is not a regular file; expected a printer profile (JSON)";
+  } else {
+    // At most one byte more than allowed: enough to know the file is too large, whatever its size says.
+    text.resize(kMaxProfileBytes + 1);
+    std::size_t got = 0;
+    while (got < text.size()) {
+      const ssize_t n = ::read(fd, text.data() + got, text.size() - got);
+      if (n < 0 && errno == EINTR) continue;
+      if (n < 0) problem = std::string("cannot read the profile file (") + std::strerror(errno) + ")";
+      if (n <= 0) break;
+      got += static_cast<std::size_t>(n);
+    }
+    text.resize(got);
+  }
+  ::close(fd);
+  if (!problem.empty()) throw ProfileError(file.string(), {{"", problem}});
+  if (text.size() > kMaxProfileBytes)
+    throw ProfileError(file.string(), {{"", "is larger than " + std::to_string(kMaxProfileBytes) +
+                                                " bytes; a printer profile is a small JSON file"}});
+  Profile p = parseProfile(text, file.string());
   p.source = file;
   return p;
 }

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <filesystem>
 #include <stdexcept>
 #include <string>
@@ -11,6 +12,22 @@
 namespace rodfab::printer_profiles {
 
 inline constexpr const char* kProfileFormat = "rodfab.printer-profile/1";
+
+// Limits every profile keeps (checked when it is read, each violation named by its JSON path), so that
+// a job's file names are portable and its images and previews fit in memory on any profile:
+inline constexpr std::size_t kMaxProfileBytes = 1 << 20;  // the profile file
+inline constexpr int kMaxProfileDepth = 64;               // JSON nesting (objects and arrays)
+inline constexpr std::size_t kMaxFileNameLength = 64;     // material and build-file names
+inline constexpr std::size_t kMaxTextLength = 4096;       // name, printer, description, row_order
+// The tray in voxels: at most kMaxTrayVoxels image columns, image rows and layers, and at most
+// kMaxTrayFacePixels on each face (a layer image: columns x rows; the front and side previews:
+// columns x layers, rows x layers). The Connex3 tray is 11,583 x 4,609 x 6,666 voxels.
+inline constexpr int kMaxTrayVoxels = 65536;
+inline constexpr std::int64_t kMaxTrayFacePixels = std::int64_t{1} << 27;  // 134,217,728
+// Other ranges (inclusive): dpi 1..100000; voxel sizes and layer thickness 0.0001..100 mm; tray
+// 0 < size <= 10000 mm; density 0 < d <= 100 g/mL; model material slots 1..16; colour components
+// 0..255; column alignment 8..4096 (a multiple of 8); padding 0..kMaxTrayVoxels per side with a
+// one-voxel part's padded image inside the tray; layer digits 1..9; build file format version 1..1000.
 
 enum class MaterialRole {
   Rigid,    // model material written where the material grid holds `true`
@@ -31,7 +48,9 @@ const char* toString(SupportPolicy policy);
 SupportPolicy parseSupportPolicy(const std::string& text);  // "printer" | "explicit"
 
 struct ProfileMaterial {
-  std::string name;      // as the printer software spells it; also the stem of its bitmap files
+  // As the printer software spells it; also the stem of its bitmap files, so a portable file name
+  // (see portableNameProblem) unique among the profile's names without regard to case.
+  std::string name;
   MaterialRole role = MaterialRole::Rigid;
   double densityGPerMl = 0.0;  // cured density, for mass estimates
   std::array<unsigned char, 3> previewRgb{};
@@ -55,7 +74,7 @@ struct Profile {
   int layerDigits = 4;                         // layer numbers are zero-padded to this many digits
   std::string rowOrder;                        // why rows run the way they do (documentation for technicians)
 
-  std::string buildFileName;   // the printer's plain-text build file
+  std::string buildFileName;   // the printer's plain-text build file (a portable file name)
   int buildFormatVersion = 1;
 
   SupportPolicy supportPolicy = SupportPolicy::Printer;  // default; a job may choose the other one
@@ -91,10 +110,19 @@ std::filesystem::path bundledProfileDir();
 // Names of the bundled profiles, sorted.
 std::vector<std::string> bundledProfileNames();
 
+// Why `name` cannot be a file name inside a job on every system a job may be unpacked on, or "" when it
+// can: letters, digits, '.', '_' and '-' only (no path separators, drive letters, spaces or controls),
+// not starting with '.' or '-', not ending with '.', no Windows device name (CON, PRN, AUX, NUL,
+// COM1-9, LPT1-9, with or without an extension), 1..kMaxFileNameLength characters.
+std::string portableNameProblem(const std::string& name);
+
 // `nameOrPath` is a bundled profile name (no '/' and no ".json") or the path of a profile file.
 // Throws ProfileError (an unknown name lists the bundled ones).
 Profile loadProfile(const std::string& nameOrPath);
+// Reads at most kMaxProfileBytes from a regular file (a pipe or device is refused, not waited on).
 Profile readProfile(const std::filesystem::path& file);
+// Refuses JSON nested deeper than kMaxProfileDepth and objects with a key twice before the document
+// is built any further, then checks every field against the limits above.
 Profile parseProfile(const std::string& text, const std::string& sourceName);
 
 }  // namespace rodfab::printer_profiles

@@ -267,6 +267,9 @@ int runCoupons(const std::vector<std::string>& args) {
   const int bandLayers = *bandOption;
   printer_profiles::JobOptions jobOptions;
   if (auto error = parseJobOptions(vm, jobOptions)) return usageError(*error);
+  // The writer asks again right before and right after renaming the job into place (README: an
+  // interrupted command writes no job).
+  jobOptions.checkInterrupt = [] { throwIfInterrupted(); };
   const std::string format = vm["format"].as<std::string>();
   std::vector<double> fractions;
   std::array<double, 3> sizeMm{};
@@ -431,6 +434,14 @@ int runCoupons(const std::vector<std::string>& args) {
   }
   progress.finish();
   const double total = slicer::secondsSince(tStart);
+  // A signal that came after the job was renamed into place still means no job (README): take it back.
+  const auto finish = [&job] {
+    const int signal = InterruptGuard::pending();
+    if (!signal) return static_cast<int>(kOk);
+    printer_profiles::withdrawJob(job);
+    std::cerr << "rodfab coupons: " << Interrupted(signal).what() << '\n';
+    return 128 + signal;
+  };
 
   for (std::size_t n = 0; n < layout.bars.size(); ++n)
     if (counting.voxels()[n] != static_cast<std::uint64_t>(layout.bars[n].volume()))
@@ -461,7 +472,7 @@ int runCoupons(const std::vector<std::string>& args) {
                            {"bytes", job.bytes},
                            {"seconds", {{"bars", seconds.source}, {"dither", seconds.dither}, {"emit", seconds.emit}, {"total", total}}}};
     std::cout << j.dump(2) << '\n';
-    return kOk;
+    return finish();
   }
   std::printf("job:         %s (%s, %zu files, %.1f MB)\n", job.path.c_str(), format.c_str(), job.files,
               static_cast<double>(job.bytes) / 1e6);
@@ -485,7 +496,7 @@ int runCoupons(const std::vector<std::string>& args) {
               seconds.emit, total);
   std::printf("next:        measure the bars, put each one's fraction and '%s' (dither column) in the DMA data, rodfab calibrate\n",
               ditherName.c_str());
-  return kOk;
+  return finish();
 }
 
 }  // namespace rodfab::cli

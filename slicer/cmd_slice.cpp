@@ -61,6 +61,9 @@ int runSlice(const std::vector<std::string>& args) {
   const int bandLayers = *bandOption;
   printer_profiles::JobOptions jobOptions;
   if (auto error = parseJobOptions(vm, jobOptions)) return usageError(*error);
+  // The writer asks again right before and right after renaming the job into place (README: an
+  // interrupted command writes no job).
+  jobOptions.checkInterrupt = [] { throwIfInterrupted(); };
   const std::string format = vm["format"].as<std::string>();
 
   const auto tStart = Clock::now();
@@ -191,6 +194,12 @@ int runSlice(const std::vector<std::string>& args) {
   if (mapping.clamps.total() > 0 && !vm.count("quiet"))
     std::cerr << "rodfab slice: note: " << formatCount(mapping.clamps.total())
               << " voxel(s) asked for a modulus the materials cannot make; they were clamped (see the summary)\n";
+  // A signal that came after the job was renamed into place still means no job (README): take it back.
+  if (const int signal = InterruptGuard::pending()) {
+    printer_profiles::withdrawJob(job);
+    std::cerr << "rodfab slice: " << Interrupted(signal).what() << '\n';
+    return 128 + signal;
+  }
   return kOk;
 }
 

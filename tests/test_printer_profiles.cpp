@@ -6,11 +6,16 @@
 #include <nlohmann/json.hpp>
 #include <tbb/global_control.h>
 
+#include <sys/file.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <csignal>
 #include <fstream>
+#include <functional>
+#include <limits>
 #include <map>
 #include <random>
 #include <set>
@@ -570,4 +575,394 @@ TEST_CASE("Active tiles are written like the voxels they stand for", "[job]") {
       for (int i = 0; i < 8; ++i) expected.emplace(i, j, k, 1);
   expected.emplace(9, 2, 3, 0);
   CHECK((decodeJob(dir / "tiles.zip") == expected));
+}
+
+// ------------------------------------------------------------------------------ hostile profiles
+
+namespace {
+
+json bundledProfileJson() { return json::parse(readAll(bundledProfileDir() / "stratasys-objet500-connex3.json")); }
+
+// The issues a profile text is refused with (FAIL when it is accepted).
+std::vector<ProfileIssue> refusalOf(const std::string& text) {
+  try {
+    parseProfile(text, "hostile.json");
+  } catch (const ProfileError& e) {
+    CHECK(std::string(e.what()).starts_with("hostile.json: "));
+    return e.issues();
+  }
+  FAIL("expected a ProfileError for " << text.substr(0, 200));
+  return {};
+}
+
+// The one issue found at `path`, its message containing `words`.
+void refusedAt(const json& doc, const std::string& path, const std::string& words) {
+  const std::vector<ProfileIssue> issues = refusalOf(doc.dump());
+  std::string all;
+  for (const ProfileIssue& i : issues) all += "\n  " + i.path + ": " + i.message;
+  INFO("issues:" << all);
+  const auto at = std::find_if(issues.begin(), issues.end(), [&](const ProfileIssue& i) { return i.path == path; });
+  REQUIRE(at != issues.end());
+  CHECK_THAT(at->message, Catch::Contains(words));
+}
+
+}  // namespace
+
+TEST_CASE("Profile names must be portable file names, unique without regard to case", "[profile][hostile]") {
+  for (const char* bad : {"..\\evil.txt", "C:evil.txt", "a/b.txt", "CON", "con.txt", "LPT1.bmp", ".hidden", "-rf",
+                          "build.", "build txt", "b\xc3\xa9t.txt", "tab\there", ""}) {
+    json doc = bundledProfileJson();
+    doc["build_file"]["name"] = bad;
+    INFO("build file name: " << bad);
+    refusedAt(doc, "build_file.name", bad[0] ? "portable" : "non-empty");
+  }
+  json longName = bundledProfileJson();
+  longName["materials"][0]["name"] = std::string(65, 'V');
+  refusedAt(longName, "materials[0].name", "at most 64");
+
+  json vero = bundledProfileJson();
+  vero["materials"][0]["name"] = "Vero";
+  vero["materials"][1]["name"] = "VERO";
+  refusedAt(vero, "materials[1].name", "case-insensitive");
+  json manifestClash = bundledProfileJson();
+  manifestClash["build_file"]["name"] = "Manifest.JSON";
+  refusedAt(manifestClash, "build_file.name", "job manifest");
+  json layerClash = bundledProfileJson();
+  layerClash["build_file"]["name"] = "tangoblackplus_0003.png";
+  refusedAt(layerClash, "build_file.name", "layer image of TangoBlackPlus");
+
+  CHECK(portableNameProblem("VeroWhitePlus").empty());
+  CHECK(portableNameProblem("build.txt").empty());
+  CHECK(portableNameProblem("COM10.txt").empty());  // only COM1..COM9 are devices
+  CHECK_FALSE(portableNameProblem("nul").empty());
+}
+
+TEST_CASE("Every number of a profile is range-checked with its JSON path", "[profile][hostile]") {
+  const auto with = [](const std::function<void(json&)>& edit) {
+    json doc = bundledProfileJson();
+    edit(doc);
+    return doc;
+  };
+  refusedAt(with([](json& d) { d["image"]["padding_voxels"] = {100000, 100000}; }), "image.padding_voxels[0]", "0..65536");
+  refusedAt(with([](json& d) { d["image"]["padding_voxels"] = {6000, 16}; }), "image.padding_voxels[0]", "must fit the tray");
+  refusedAt(with([](json& d) { d["image"]["padding_voxels"][1] = 18446744073709551615ull; }), "image.padding_voxels[1]", "0..65536");
+  refusedAt(with([](json& d) { d["tray_mm"] = {1e5, 390, 200}; }), "tray_mm[0]", "<= 10000");
+  refusedAt(with([](json& d) { d["tray_mm"] = {2000, 2000, 200}; }), "tray_mm", "134217728");
+  refusedAt(with([](json& d) { d["tray_mm"][2] = 9999; }), "tray_mm[2]", "at most 65536");
+  refusedAt(with([](json& d) { d["materials"][0]["density_g_per_ml"] = 1e300; }), "materials[0].density_g_per_ml", "<= 100");
+  refusedAt(with([](json& d) { d["materials"][2]["preview_rgb"][1] = 256; }), "materials[2].preview_rgb[1]", "0..255");
+  refusedAt(with([](json& d) { d["resolution"]["x_dpi"] = 0; }), "resolution.x_dpi", "1..100000");
+  refusedAt(with([](json& d) { d["resolution"]["voxel_size_mm"][2] = 1e-9; }), "resolution.voxel_size_mm[2]", ">= 0.0001");
+  refusedAt(with([](json& d) { d["image"]["layer_digits"] = 10; }), "image.layer_digits", "1..9");
+  refusedAt(with([](json& d) { d["image"]["column_alignment"] = 1 << 20; }), "image.column_alignment", "8..4096");
+  refusedAt(with([](json& d) { d["model_material_slots"] = 17; }), "model_material_slots", "1..16");
+  refusedAt(with([](json& d) { d["build_file"]["format_version"] = 0; }), "build_file.format_version", "1..1000");
+  refusedAt(with([](json& d) { d["description"] = std::string(5000, 'x'); }), "description", "at most 4096");
+  // The bundled profile is inside every limit.
+  CHECK_NOTHROW(parseProfile(bundledProfileJson().dump(), "ok.json"));
+}
+
+TEST_CASE("Profiles nested too deep or with a key twice are refused while they are parsed", "[profile][hostile]") {
+  const std::string text = bundledProfileJson().dump();
+  const auto withMember = [&](const std::string& member) { return "{" + member + "," + text.substr(1); };
+  // 64 levels in all (the top object and 63 arrays) are allowed; one more is not.
+  CHECK_NOTHROW(parseProfile(withMember("\"x\": " + std::string(63, '[') + std::string(63, ']')), "deep.json"));
+  const std::vector<ProfileIssue> deep = refusalOf(withMember("\"x\": " + std::string(64, '[') + std::string(64, ']')));
+  REQUIRE(deep.size() == 1);
+  CHECK(deep[0].path.starts_with("x[0][0]"));
+  CHECK_THAT(deep[0].message, Catch::Contains("deeper than 64"));
+  // Far deeper than any stack would take, within the size limit: refused just the same.
+  const std::vector<ProfileIssue> deeper = refusalOf(std::string(500000, '[') + std::string(500000, ']'));
+  REQUIRE(deeper.size() == 1);
+  CHECK_THAT(deeper[0].message, Catch::Contains("deeper than 64"));
+
+  const std::vector<ProfileIssue> twice = refusalOf(withMember("\"format\": \"rodfab.printer-profile/1\""));
+  REQUIRE(twice.size() == 1);
+  CHECK(twice[0].path == "format");
+  CHECK_THAT(twice[0].message, Catch::Contains("appears twice"));
+  std::string nested = text;
+  nested.replace(nested.find("\"x_dpi\":600"), 11, "\"x_dpi\":600,\"x_dpi\":300");
+  const std::vector<ProfileIssue> inner = refusalOf(nested);
+  REQUIRE(inner.size() == 1);
+  CHECK(inner[0].path == "resolution.x_dpi");
+  std::string inArray = text;
+  inArray.replace(inArray.find("\"name\":\"FullCure705\""), 20, "\"name\":\"FullCure705\",\"name\":\"X\"");
+  const std::vector<ProfileIssue> element = refusalOf(inArray);
+  REQUIRE(element.size() == 1);
+  CHECK(element[0].path == "materials[2].name");
+}
+
+TEST_CASE("A profile file is read only when it is a small regular file", "[profile][hostile]") {
+  const fs::path dir = scratch("profile-files");
+  writeAll(dir / "large.json", Bytes(kMaxProfileBytes + 1, ' '));
+  CHECK_THROWS_WITH(readProfile(dir / "large.json"), Catch::Contains("larger than 1048576 bytes"));
+  REQUIRE(::mkfifo((dir / "pipe.json").c_str(), 0600) == 0);
+  CHECK_THROWS_WITH(readProfile(dir / "pipe.json"), Catch::Contains("pipe.json: is not a regular file"));  // not waited on
+  CHECK_THROWS_WITH(readProfile("/dev/zero"), Catch::Contains("/dev/zero: is not a regular file"));
+  CHECK_THROWS_WITH(readProfile(dir / "none.json"), Catch::Contains("none.json: cannot open"));
+  CHECK_THROWS_WITH(readProfile(dir), Catch::Contains("is not a regular file"));
+}
+
+// ---------------------------------------------------------------- replacing, interrupts, staging
+
+namespace {
+
+// Everything below `root` without following links: relative path -> kind and contents (bytes or link
+// target), so a folder can be compared byte for byte before and after.
+std::map<std::string, std::string> snapshot(const fs::path& root) {
+  std::map<std::string, std::string> out;
+  for (auto it = fs::recursive_directory_iterator(root); it != fs::recursive_directory_iterator(); ++it) {
+    const std::string name = fs::relative(it->path(), root).generic_string();
+    const fs::file_status status = it->symlink_status();
+    if (fs::is_symlink(status)) out[name] = "link:" + fs::read_symlink(it->path()).string();
+    else if (fs::is_directory(status)) out[name] = "dir";
+    else if (!fs::is_regular_file(status)) out[name] = "special";
+    else {
+      const Bytes data = readAll(it->path());
+      out[name] = "file:" + std::string(data.begin(), data.end());
+    }
+  }
+  return out;
+}
+
+// A zip whose entries are (name, text) in this order.
+void writeTestZip(const fs::path& file, const std::vector<std::pair<std::string, std::string>>& entries) {
+  std::vector<ZipMemoryEntry> zip;
+  for (const auto& [name, text] : entries)
+    zip.push_back({name, std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size())});
+  writeZipFromMemory(file, zip);
+}
+
+}  // namespace
+
+TEST_CASE("--force replaces only rodfab jobs: anything else is refused and left byte for byte", "[job][force]") {
+  const fs::path dir = scratch("force-refusals");
+  const auto grid = overhangPart(21);
+  writeJob(*grid, specFor(*grid, dir / "real.zip"), 24);
+  JobSpec realDir = specFor(*grid, dir / "real-dir");
+  realDir.options.archive = ArchiveFormat::Directory;
+  writeJob(*grid, realDir, 24);
+  // A user's folder, an empty one, a file, foreign zips, a link to a job, a job folder with a file added.
+  fs::create_directories(dir / "mydata" / "sub");
+  writeAll(dir / "mydata" / "notes.txt", Bytes{'h', 'i'});
+  writeAll(dir / "mydata" / "sub" / "manifest.json", Bytes{'{', '}'});
+  fs::create_directories(dir / "empty");
+  writeAll(dir / "thesis.zip", Bytes{'n', 'o', 't', ' ', 'a', ' ', 'z', 'i', 'p'});
+  writeTestZip(dir / "photos.zip", {{"IMG_0001.jpg", "jpeg"}, {"manifest.json", std::string("{\"format\": \"") + kJobFormat + "\"}"}});
+  writeTestZip(dir / "other-tool.zip", {{"manifest.json", "{\"format\": \"other.job/1\", \"files\": {}}"}});
+  writeTestZip(dir / "deep.zip", {{"manifest.json", std::string(100000, '[') + std::string(100000, ']')}});
+  fs::create_symlink(dir / "real.zip", dir / "link.zip");
+  fs::create_symlink(dir / "mydata", dir / "link-dir");
+  fs::copy(dir / "real-dir", dir / "job-plus", fs::copy_options::recursive);
+  writeAll(dir / "job-plus" / "my-notes.txt", Bytes{'!'});
+  fs::copy(dir / "real-dir", dir / "job-plus-preview", fs::copy_options::recursive);
+  writeAll(dir / "job-plus-preview" / "previews" / "mine.png", Bytes{'!'});
+  REQUIRE(::mkfifo((dir / "pipe").c_str(), 0600) == 0);
+  const auto before = snapshot(dir);
+
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"mydata", "a folder without a rodfab job manifest"},
+      {"mydata/", "a folder without a rodfab job manifest"},
+      {"empty", "a folder without a rodfab job manifest"},
+      {"thesis.zip", "a file that is not a zip archive"},
+      {"photos.zip", "whose first entry is not a rodfab job manifest"},
+      {"other-tool.zip", "is not a rodfab job manifest"},
+      {"deep.zip", "is not a rodfab job manifest"},
+      {"link.zip", "a symbolic link"},
+      {"link-dir", "a symbolic link"},
+      {"job-plus", "'my-notes.txt', which is not part of that job"},
+      {"job-plus-preview", "'previews/mine.png', which is not part of that job"},
+      {"pipe", "a named pipe"},
+  };
+  for (const auto& [name, what] : cases)
+    for (const bool force : {true, false}) {
+      INFO(name << (force ? " with force" : " without force"));
+      JobSpec spec = specFor(*grid, dir.string() + "/" + name);
+      spec.options.force = force;
+      CHECK_THROWS_WITH(writeJob(*grid, spec, 24), Catch::Contains(what) && Catch::Contains("rodfab replaces only its own jobs"));
+    }
+  CHECK((snapshot(dir) == before));  // every refused path intact, and no temporaries anywhere
+}
+
+TEST_CASE("--force replaces a rodfab job, zip or folder, by one of either kind", "[job][force]") {
+  const fs::path dir = scratch("force-replace");
+  const auto first = overhangPart(22), second = overhangPart(23);
+  for (const ArchiveFormat oldFormat : {ArchiveFormat::Zip, ArchiveFormat::Directory})
+    for (const ArchiveFormat newFormat : {ArchiveFormat::Zip, ArchiveFormat::Directory}) {
+      INFO(toString(oldFormat) << " replaced by " << toString(newFormat));
+      fs::remove_all(dir / "job");
+      JobSpec old = specFor(*first, dir / "job");
+      old.options.archive = oldFormat;
+      writeJob(*first, old, 24);
+      JobSpec spec = specFor(*second, dir / "job");
+      spec.options.archive = newFormat;
+      CHECK_THROWS_WITH(writeJob(*second, spec, 24), Catch::Contains("already exists there; use --force"));
+      spec.options.force = true;
+      writeJob(*second, spec, 24);
+      CHECK(fs::is_directory(dir / "job") == (newFormat == ArchiveFormat::Directory));
+      CHECK((decodeJob(dir / "job") == gridVoxels(*second)));
+      CHECK(inspectJob(dir / "job").ok());
+      CHECK(std::distance(fs::directory_iterator(dir), fs::directory_iterator()) == 1);  // no old job, no temporaries
+    }
+}
+
+TEST_CASE("An interrupt at any check of finalize leaves the target as it was", "[job][atomic][interrupt]") {
+  const fs::path dir = scratch("interrupt-checks");
+  const auto first = overhangPart(24), second = overhangPart(25);
+  struct Stop {};
+  for (const ArchiveFormat format : {ArchiveFormat::Zip, ArchiveFormat::Directory})
+    for (const bool replacing : {false, true}) {
+      fs::remove_all(dir);
+      fs::create_directories(dir);
+      if (replacing) writeJob(*first, specFor(*first, dir / "job.zip"), 24);
+      const auto before = snapshot(dir);
+      // Checks: as finalize begins, after the zip is built (zip jobs), before the rename, after it.
+      const int checks = format == ArchiveFormat::Zip ? 4 : 3;
+      for (int stopAt = 1; stopAt <= checks; ++stopAt) {
+        INFO(toString(format) << (replacing ? ", replacing a job" : ", new target") << ", interrupted at check " << stopAt);
+        int calls = 0;
+        JobSpec spec = specFor(*second, dir / "job.zip");
+        spec.options.archive = format;
+        spec.options.force = replacing;
+        spec.options.checkInterrupt = [&] {
+          if (++calls == stopAt) throw Stop{};
+        };
+        CHECK_THROWS_AS(writeJob(*second, spec, 24), Stop);
+        CHECK(calls == stopAt);
+        CHECK((snapshot(dir) == before));  // the old job back, or nothing; no temporaries
+      }
+      int calls = 0;
+      JobSpec spec = specFor(*second, dir / "job.zip");
+      spec.options.archive = format;
+      spec.options.force = replacing;
+      spec.options.checkInterrupt = [&] { ++calls; };
+      const JobResult result = writeJob(*second, spec, 24);
+      CHECK(calls == checks);
+      CHECK((decodeJob(dir / "job.zip") == gridVoxels(*second)));
+      // Taken back after finalize returned (a late signal): only our own job is removed.
+      CHECK(withdrawJob(result));
+      CHECK(fs::is_empty(dir));
+      CHECK_FALSE(withdrawJob(result));
+    }
+}
+
+TEST_CASE("withdrawJob removes nothing that is not the job it wrote", "[job][interrupt]") {
+  const fs::path dir = scratch("withdraw");
+  const auto grid = overhangPart(26);
+  const JobResult result = writeJob(*grid, specFor(*grid, dir / "job.zip"), 24);
+  fs::rename(dir / "job.zip", dir / "moved.zip");
+  writeAll(dir / "job.zip", Bytes{'u', 's', 'e', 'r'});  // someone else's file now has the name
+  CHECK_FALSE(withdrawJob(result));
+  CHECK((readAll(dir / "job.zip") == Bytes{'u', 's', 'e', 'r'}));
+  CHECK(fs::exists(dir / "moved.zip"));
+}
+
+TEST_CASE("Staging folders of dead writers go, whatever their target; live ones and strangers stay", "[job][atomic]") {
+  const fs::path dir = scratch("stale-staging");
+  const auto grid = overhangPart(27);
+  // A writer killed mid-job (SIGKILL: no cleanup at all).
+  const pid_t killed = ::fork();
+  REQUIRE(killed >= 0);
+  if (killed == 0) {
+    JobWriter writer(specFor(*grid, dir / "killed.zip"));
+    writer.addBand({band(*grid, 3, 10), nullptr, 3, 10});
+    writer.addBand({band(*grid, 10, 20), nullptr, 10, 20});
+    ::raise(SIGKILL);
+  }
+  int status = 0;
+  ::waitpid(killed, &status, 0);
+  REQUIRE(WIFSIGNALED(status));
+  std::vector<fs::path> dead;
+  for (const auto& e : fs::directory_iterator(dir)) dead.push_back(e.path());
+  REQUIRE(dead.size() == 1);
+  CHECK(dead[0].filename().string().starts_with(".killed.zip.rodfab-partial-" + std::to_string(killed) + "-"));
+  CHECK_FALSE(inspectJob(dead[0]).ok());
+
+  // A live writer in another process, holding its staging folder while this one writes.
+  int toChild[2], toParent[2];
+  REQUIRE(::pipe(toChild) == 0);
+  REQUIRE(::pipe(toParent) == 0);
+  const pid_t live = ::fork();
+  REQUIRE(live >= 0);
+  if (live == 0) {
+    JobWriter writer(specFor(*grid, dir / "live.zip"));
+    char c = 'r';
+    if (::write(toParent[1], &c, 1) != 1 || ::read(toChild[0], &c, 1) != 1) ::_exit(2);
+    for (int k = 3; k < 27; k += 8) writer.addBand({band(*grid, k, std::min(k + 8, 27)), nullptr, k, std::min(k + 8, 27)});
+    writer.finalize();
+    ::_exit(0);
+  }
+  char c = 0;
+  REQUIRE(::read(toParent[0], &c, 1) == 1);
+  // Strangers: names that only look like ours, a lock-less folder of a live pid (ours), a held lock.
+  fs::create_directories(dir / ".notes.rodfab-partial-abc");
+  fs::create_directories(dir / ".x.zip.rodfab-partial-" / "keep");
+  fs::create_directories(dir / ("..rodfab-partial-" + std::to_string(killed) + "-0"));
+  fs::create_directories(dir / (".mine.zip.rodfab-partial-" + std::to_string(::getpid()) + "-7"));
+  writeAll(dir / ".user.rodfab-partial-1-2.txt", Bytes{'u'});
+  const std::set<std::string> strangers = {".notes.rodfab-partial-abc", ".x.zip.rodfab-partial-",
+                                           "..rodfab-partial-" + std::to_string(killed) + "-0",
+                                           ".mine.zip.rodfab-partial-" + std::to_string(::getpid()) + "-7",
+                                           ".user.rodfab-partial-1-2.txt"};
+  // An older version's lock-less folder of a dead pid goes.
+  fs::create_directories(dir / (".old.zip.rodfab-partial-" + std::to_string(killed) + "-3") / "previews");
+
+  writeJob(*grid, specFor(*grid, dir / "other.zip"), 24);  // another target name in the same folder
+  std::set<std::string> left;
+  for (const auto& e : fs::directory_iterator(dir)) left.insert(e.path().filename().string());
+  for (const std::string& s : strangers) CHECK(left.contains(s));
+  CHECK(left.contains("other.zip"));
+  CHECK_FALSE(left.contains(dead[0].filename().string()));
+  CHECK(std::count_if(left.begin(), left.end(), [&](const std::string& n) { return n.starts_with(".live.zip.rodfab-partial-"); }) == 1);
+  CHECK(left.size() == strangers.size() + 2);  // + other.zip + the live writer's staging folder
+
+  REQUIRE(::write(toChild[1], &c, 1) == 1);  // the live writer finishes its job undisturbed
+  ::waitpid(live, &status, 0);
+  CHECK((WIFEXITED(status) && WEXITSTATUS(status) == 0));
+  CHECK((decodeJob(dir / "live.zip") == gridVoxels(*grid)));
+  for (int fd : {toChild[0], toChild[1], toParent[0], toParent[1]}) ::close(fd);
+}
+
+TEST_CASE("Moduli beyond the float range, infinite or NaN neither crash the previews nor stay behind", "[job][previews]") {
+  const fs::path dir = scratch("hostile-moduli");
+  const auto grid = overhangPart(28);
+  auto modulus = openvdb::FloatGrid::create(std::numeric_limits<float>::quiet_NaN());
+  modulus->setTransform(gridTransform(connex3(), kOrigin));
+  const float hostile[] = {std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity(),
+                           std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::max(),
+                           std::numeric_limits<float>::denorm_min(), 0.0f, -5.0f};
+  auto acc = modulus->getAccessor();
+  std::size_t n = 0;
+  for (auto it = grid->cbeginValueOn(); it; ++it, ++n)  // finite moduli on one side, hostile ones on the other
+    acc.setValue(it.getCoord(), it.getCoord().x() < 12 ? 10.0f + it.getCoord().z() : hostile[n % std::size(hostile)]);
+  for (const bool onlyHostile : {false, true}) {
+    INFO((onlyHostile ? "no finite modulus at all" : "finite and hostile moduli mixed"));
+    if (onlyHostile)
+      for (auto it = modulus->beginValueOn(); it; ++it)
+        if (std::isfinite(*it) && *it > 0.0f) it.setValue(std::numeric_limits<float>::infinity());
+    const fs::path job = dir / (onlyHostile ? "hostile.zip" : "mixed.zip");
+    {
+      JobWriter writer(specFor(*grid, job));
+      for (int k = 3; k < 27; k += 8) writer.addBand({band(*grid, k, std::min(k + 8, 27)), modulus, k, std::min(k + 8, 27)});
+      writer.finalize();
+    }
+    CHECK(inspectJob(job).ok());
+    CHECK((decodeJob(job) == gridVoxels(*grid)));
+    const auto files = openJobFiles(job);
+    CHECK(files->contains("previews/projections-modulus.png") == !onlyHostile);
+    if (onlyHostile) continue;
+    // Off-scale moduli are drawn grey (r = g = b), finite ones on the colour ramp (r, g, b differ).
+    const RgbImage preview = decodePngRgb(files->read("previews/projections-modulus.png"));
+    bool grey = false, coloured = false;
+    for (int y = 0; y < preview.height; ++y)
+      for (int x = 0; x < preview.width; ++x) {
+        const std::uint8_t* p = preview.at(x, y);
+        const bool background = p[0] == 196 && p[1] == 204 && p[2] == 216;
+        if (p[0] == p[1] && p[1] == p[2] && p[0] > 60 && p[0] < 140) grey = true;
+        if (!background && (p[0] != p[1] || p[1] != p[2]) && p[2] < 100 && p[0] > 150) coloured = true;  // the ramp's yellow end
+      }
+    CHECK(grey);
+    CHECK(coloured);
+  }
+  CHECK(std::distance(fs::directory_iterator(dir), fs::directory_iterator()) == 2);
 }

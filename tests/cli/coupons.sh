@@ -151,6 +151,31 @@ cmp -s "$tmp/before" "$tmp/after" || fail "the existing job was changed"
 grep -q '"vero_fraction": 0.5' "$tmp/job/manifest.json" || fail "--force did not replace the job"
 [ -z "$(ls -A "$tmp" | grep rodfab-partial)" ] || fail "temporaries left: $(ls -A "$tmp")"
 
+# --force replaces only rodfab jobs: a user's folder, or a coupon job with a file added, stays byte for byte.
+mkdir -p "$tmp/u/mydata"
+echo "measurements" > "$tmp/u/mydata/dma.csv"
+cp -r "$tmp/job" "$tmp/u/job-plus"; echo "mine" > "$tmp/u/job-plus/notes.txt"
+listing() { (cd "$tmp/u" && find . -printf '%p %y\n' | sort && find . -type f -exec sha256sum {} + | sort); }
+before=$(listing)
+expect 1 "mydata: is a folder without a rodfab job manifest.*rodfab replaces only its own jobs" --size 6x2x0.3 --quiet --force -o "$tmp/u/mydata"
+expect 1 "mydata: is a folder without a rodfab job manifest" --size 6x2x0.3 --quiet --force -o "$tmp/u/mydata/"
+expect 1 "'notes.txt', which is not part of that job" --size 6x2x0.3 --quiet --force --format dir -o "$tmp/u/job-plus"
+[ "$(listing)" = "$before" ] || fail "a refused --force changed the folder: $(diff <(echo "$before") <(listing))"
+"$rodfab" coupons --fractions 0.5 --size 6x2x0.3 --quiet --force -o "$tmp/job" > /dev/null 2>&1 || fail "a zip job over a dir job"
+[ -f "$tmp/job" ] && "$rodfab" inspect "$tmp/job" > /dev/null 2>&1 || fail "the replacing zip job"
+
+# SIGTERM mid-job: exit 143, nothing written.
+mkdir "$tmp/t"
+"$rodfab" coupons --fractions 0,0.5,1 --size 40x20x0.3 --threads 1 --band-layers 1 -o "$tmp/t/c.zip" > /dev/null 2> "$tmp/progress" &
+pid=$!
+for _ in $(seq 1 500); do grep -q "layers" "$tmp/progress" && break; sleep 0.01; done
+kill -TERM $pid
+wait $pid
+code=$?
+[ $code -eq 143 ] || fail "SIGTERM: exit $code, expected 143 ($(cat "$tmp/progress"))"
+grep -q "interrupted by SIGTERM; no job was written" "$tmp/progress" || fail "SIGTERM not reported: $(cat "$tmp/progress")"
+[ -z "$(ls -A "$tmp/t")" ] || fail "SIGTERM left: $(ls -A "$tmp/t")"
+
 "$rodfab" coupons --help | grep -q "usage: rodfab coupons" || fail "--help"
 "$rodfab" --help | grep -q "coupons" || fail "coupons missing from rodfab --help"
 echo "coupons: ok"

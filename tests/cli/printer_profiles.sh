@@ -23,6 +23,33 @@ sed 's/"x_dpi": 600/"x_dpi": 300/' "$src/printer_profiles/stratasys-objet500-con
 [ $? -eq 1 ] || fail "bad profile: expected exit 1"
 grep -q "swapped.json: resolution.voxel_size_mm\[0\]: .*x_dpi = 300" "$tmp/err" || fail "dpi mismatch not named: $(cat "$tmp/err")"
 
+# Hostile profiles: each refused with exit 1, naming the file, the JSON path and what was expected.
+hostile() {  # NAME PYTHON-EDIT PATTERN
+  python3 - "$src/printer_profiles/stratasys-objet500-connex3.json" "$tmp/$1.json" "$2" <<'PY'
+import json, sys
+d = json.load(open(sys.argv[1]))
+exec(sys.argv[3])
+open(sys.argv[2], "w").write(d if isinstance(d, str) else json.dumps(d))
+PY
+  timeout 20 "$rodfab" profiles "$tmp/$1.json" > /dev/null 2> "$tmp/err"
+  local got=$?
+  [ $got -eq 1 ] || fail "profile $1: exit $got, expected 1 ($(cat "$tmp/err"))"
+  grep -q -- "$1.json: $3" "$tmp/err" || fail "profile $1: expected '$1.json: $3' in: $(cat "$tmp/err")"
+}
+hostile backslash 'd["build_file"]["name"] = "..\\evil.txt"' 'build_file.name: .*not a portable file name: it holds a path separator'
+hostile drive 'd["build_file"]["name"] = "C:evil.txt"' "build_file.name: .*a drive letter"
+hostile device 'd["build_file"]["name"] = "aux.txt"' "build_file.name: .*device name on Windows"
+hostile case 'd["materials"][0]["name"] = "Vero"; d["materials"][1]["name"] = "VERO"' "materials\[1\].name: .*case-insensitive"
+hostile padding 'd["image"]["padding_voxels"] = [100000, 16]' "image.padding_voxels\[0\]: expected a margin in voxels (an integer in 0..65536)"
+hostile tray 'd["tray_mm"] = [2000, 390, 200]' "tray_mm: a full tray makes a layer image"
+hostile columns 'd["tray_mm"] = [3000, 390, 200]' "tray_mm\\[0\\]: the tray holds 70921 image columns"
+hostile density 'd["materials"][2]["density_g_per_ml"] = 1e300' "materials\[2\].density_g_per_ml: expected a density"
+hostile duplicate 'd = json.dumps(d).replace("\"x_dpi\": 600", "\"x_dpi\": 600, \"x_dpi\": 300")' "resolution.x_dpi: this key appears twice"
+hostile deep 'd = "[" * 200000 + "]" * 200000' ".*nested deeper than 64 levels"
+mkfifo "$tmp/pipe.json"
+timeout 20 "$rodfab" profiles "$tmp/pipe.json" > /dev/null 2> "$tmp/err"
+[ $? -eq 1 ] && grep -q "pipe.json: is not a regular file" "$tmp/err" || fail "a named pipe as profile: $(cat "$tmp/err")"
+
 mkdir "$tmp/empty-job"
 "$rodfab" inspect "$tmp/empty-job" > "$tmp/out" 2> "$tmp/err"
 [ $? -eq 1 ] || fail "inspect of an empty folder: expected exit 1"

@@ -68,6 +68,40 @@ grep -q "arm-cast.zip" "$tmp/err" || fail "existing job not named: $(cat "$tmp/e
 "$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/out/arm-cast.zip" --force --quiet > /dev/null || fail "--force"
 only arm-cast.zip buckling-spring.zip unfolding-box.zip
 
+# --force replaces only rodfab jobs: a user's folder (named with or without a slash), a file, a
+# foreign zip, a link to a job and a job folder with a file added are refused, named, and left byte for byte.
+mkdir -p "$tmp/f/mydata/sub" "$tmp/f/project"
+echo "my notes" > "$tmp/f/mydata/notes.txt"; echo "{}" > "$tmp/f/mydata/sub/manifest.json"
+echo "chapter 1" > "$tmp/f/project/thesis.tex"; echo "not a zip" > "$tmp/f/thesis.zip"
+python3 -c "import zipfile, sys; z = zipfile.ZipFile(sys.argv[1], 'w'); z.writestr('manifest.json', '{\"format\": \"other/1\"}'); z.close()" "$tmp/f/other.zip"
+cp "$tmp/out/arm-cast.zip" "$tmp/f/job.zip"; ln -s job.zip "$tmp/f/link.zip"
+"$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/f/jobdir" --format dir --quiet > /dev/null || fail "dir job"
+echo "mine" > "$tmp/f/jobdir/mine.txt"
+tree() { (cd "$tmp/f" && find . -printf '%p %y %l\n' | sort && find . -type f -exec sha256sum {} + | sort); }
+before=$(tree)
+refused() {  # TARGET PATTERN
+  "$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/f/$1" --force --quiet > /dev/null 2> "$tmp/err"
+  local got=$?
+  [ $got -eq 1 ] || fail "--force over $1: exit $got, expected 1 ($(cat "$tmp/err"))"
+  grep -q -- "$2" "$tmp/err" || fail "--force over $1: expected '$2' in: $(cat "$tmp/err")"
+  grep -q "rodfab replaces only its own jobs" "$tmp/err" || fail "--force over $1: no reason given: $(cat "$tmp/err")"
+  [ "$(tree)" = "$before" ] || fail "--force over $1 changed the folder: $(diff <(echo "$before") <(tree))"
+}
+refused mydata "mydata: is a folder without a rodfab job manifest"
+refused mydata/ "mydata: is a folder without a rodfab job manifest"
+refused project/ "project: is a folder"
+refused thesis.zip "thesis.zip: is a file that is not a zip archive"
+refused other.zip "other.zip: is a zip archive whose manifest.json is not a rodfab job manifest"
+refused link.zip "link.zip: is a symbolic link"
+refused jobdir "'mine.txt', which is not part of that job"
+# A rodfab job of either kind is replaced by one of either kind, leaving nothing else.
+rm "$tmp/f/jobdir/mine.txt"
+"$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/f/jobdir" --force --quiet > /dev/null || fail "zip over a dir job"
+[ -f "$tmp/f/jobdir" ] && "$rodfab" inspect "$tmp/f/jobdir" > /dev/null || fail "the replacing zip job"
+"$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/f/job.zip" --format dir --force --quiet > /dev/null || fail "dir over a zip job"
+[ -d "$tmp/f/job.zip" ] && "$rodfab" inspect "$tmp/f/job.zip" > /dev/null || fail "the replacing dir job"
+[ -z "$(ls -A "$tmp/f" | grep rodfab-partial)" ] || fail "temporaries left: $(ls -A "$tmp/f")"
+
 # Interrupt: SIGINT once the first band is done; exit 130, nothing left behind.
 "$rodfab" slice "$src/examples/buckling-spring.json" -o "$tmp/out/int.zip" --threads 1 --band-layers 8 > /dev/null 2> "$tmp/progress" &
 pid=$!
@@ -77,6 +111,63 @@ wait $pid
 code=$?
 [ $code -eq 130 ] || fail "interrupt: exit $code, expected 130 ($(cat "$tmp/progress"))"
 grep -q "interrupted by SIGINT; nothing was written" "$tmp/progress" || fail "interrupt not reported: $(cat "$tmp/progress")"
+only arm-cast.zip buckling-spring.zip unfolding-box.zip
+
+# SIGINT or SIGTERM after the last band (the job is being zipped and verified): still 130/143 and no job.
+for sig in INT TERM; do
+  "$rodfab" slice "$src/examples/buckling-spring.json" -o "$tmp/out/late.zip" --threads 1 --band-layers 8 > /dev/null 2> "$tmp/progress" &
+  pid=$!
+  for _ in $(seq 1 3000); do grep -q "(100%)" "$tmp/progress" && break; sleep 0.01; done
+  kill -$sig $pid
+  wait $pid
+  code=$?
+  want=$([ $sig = INT ] && echo 130 || echo 143)
+  [ $code -eq $want ] || fail "SIG$sig after the last band: exit $code, expected $want ($(cat "$tmp/progress"))"
+  grep -q "no job was written" "$tmp/progress" || fail "late SIG$sig not reported: $(cat "$tmp/progress")"
+  only arm-cast.zip buckling-spring.zip unfolding-box.zip
+done
+
+# SIGKILL leaves a staging folder; the next job in that folder removes it, whatever its name, but keeps
+# a live writer's folder (its lock held: here by flock(1)) and names that only look like ours.
+"$rodfab" slice "$src/examples/buckling-spring.json" -o "$tmp/out/killed.zip" --threads 1 --band-layers 8 > /dev/null 2> "$tmp/progress" &
+pid=$!
+for _ in $(seq 1 2000); do grep -q "layers" "$tmp/progress" && break; sleep 0.05; done
+kill -KILL $pid
+wait $pid 2> /dev/null
+ls -A "$tmp/out" | grep -q "^\.killed\.zip\.rodfab-partial-$pid-" || fail "SIGKILL left no staging folder to clean: $(ls -A "$tmp/out")"
+mkdir "$tmp/out/.held.zip.rodfab-partial-999999-0" "$tmp/out/.lookalike.rodfab-partial-x"
+touch "$tmp/out/.held.zip.rodfab-partial-999999-0/.lock"
+flock "$tmp/out/.held.zip.rodfab-partial-999999-0/.lock" sleep 60 &
+holder=$!
+sleep 0.3
+"$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/out/next.zip" --quiet > /dev/null || fail "the job after SIGKILL"
+kill $holder
+only arm-cast.zip buckling-spring.zip unfolding-box.zip next.zip .held.zip.rodfab-partial-999999-0 .lookalike.rodfab-partial-x
+rm -r "$tmp/out/next.zip" "$tmp/out/.held.zip.rodfab-partial-999999-0" "$tmp/out/.lookalike.rodfab-partial-x"
+
+# A design whose file name is not UTF-8 (recorded in the manifest): a job, not a JSON encoding error.
+odd=$(printf 'box\377.json')
+cp "$src/examples/unfolding-box.json" "$tmp/$odd"
+"$rodfab" slice "$tmp/$odd" -o "$tmp/out/odd.zip" --quiet > /dev/null 2> "$tmp/err" || fail "a non-UTF-8 design name: $(cat "$tmp/err")"
+"$rodfab" inspect "$tmp/out/odd.zip" > /dev/null || fail "the job of a non-UTF-8 design name"
+rm "$tmp/out/odd.zip"
+
+# Moduli beyond the float range: refused by the design reader or sliced, never a crash or a leftover.
+cat > "$tmp/huge.json" <<'JSON'
+{ "format": "rodfab.design/1", "units": "mm",
+  "rods": [ { "name": "a", "centerline": { "degree": 1, "knots": [0,0,1,1], "points": [[0,0,0],[3,0,0]] },
+              "section": { "shape": "circle", "diameter": 1 }, "modulus": 4e38 },
+            { "name": "b", "centerline": { "degree": 1, "knots": [0,0,1,1], "points": [[0,2,0],[3,2,0]] },
+              "section": { "shape": "circle", "diameter": 1 }, "modulus": 50 } ] }
+JSON
+"$rodfab" slice "$tmp/huge.json" -o "$tmp/out/huge.zip" --quiet > /dev/null 2> "$tmp/err"
+code=$?
+if [ $code -eq 0 ]; then
+  "$rodfab" inspect "$tmp/out/huge.zip" > /dev/null || fail "the huge-modulus job does not inspect clean"
+  rm "$tmp/out/huge.zip"
+else
+  [ $code -eq 1 ] && grep -q "huge.json" "$tmp/err" || fail "huge moduli: exit $code ($(cat "$tmp/err"))"
+fi
 only arm-cast.zip buckling-spring.zip unfolding-box.zip
 
 # Bad input: a clear message, non-zero exit, nothing written.
@@ -106,5 +197,8 @@ cat > "$tmp/long.json" <<'JSON'
               "section": { "shape": "circle", "diameter": 1 }, "modulus": 50 } ] }
 JSON
 expect 1 "mm along x" "$tmp/long.json" -o "$tmp/out/x.zip"
+# A profile whose build file would escape the job folder on Windows.
+sed 's/"name": "build.txt"/"name": "..\\\\evil.txt"/' "$src/printer_profiles/stratasys-objet500-connex3.json" > "$tmp/evil-profile.json"
+expect 1 "evil-profile.json: build_file.name: .* is not a portable file name" "$src/examples/unfolding-box.json" -o "$tmp/out/x.zip" --profile "$tmp/evil-profile.json"
 "$rodfab" slice --help | grep -q "usage: rodfab slice" || fail "--help"
 echo "slice: ok"

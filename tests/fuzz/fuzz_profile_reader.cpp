@@ -3,6 +3,7 @@
 // invariants and be safe to query (materials by role, layer file names).
 #include "printer_profiles/profile.hpp"
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -21,6 +22,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (profile.columnAlignment <= 0 || profile.columnAlignment % 8 != 0) std::abort();
   if (profile.layerDigits < 1 || profile.layerDigits > 9) std::abort();
   if (!(profile.voxelVolumeMm3() > 0.0) || !(profile.layerThicknessMm() > 0.0)) std::abort();
+  // Within the stated maxima: portable names, and a tray whose images fit them.
+  if (!pp::portableNameProblem(profile.buildFileName).empty()) std::abort();
+  for (const pp::ProfileMaterial& m : profile.materials)
+    if (!pp::portableNameProblem(m.name).empty()) std::abort();
+  for (int a = 0; a < 3; ++a)
+    if (!(profile.trayMm[a] / profile.voxelSizeMm[a] < pp::kMaxTrayVoxels + 1.0)) std::abort();
+  for (int a = 0; a < 2; ++a)
+    if (2.0 * profile.paddingVoxels[a] + 1.0 > std::floor(profile.trayMm[a] / profile.voxelSizeMm[a])) std::abort();
   for (const auto role : {pp::MaterialRole::Rigid, pp::MaterialRole::Rubbery, pp::MaterialRole::Support}) {
     const pp::ProfileMaterial& material = profile.material(role);  // exactly one per role once accepted
     if (material.name.empty() || material.role != role) std::abort();
