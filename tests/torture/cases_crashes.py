@@ -10,9 +10,9 @@ import struct
 from pathlib import Path
 
 from engine import Case, Step
-from fixtures import (BAR, DEEP, bar, bundled_calibration, calibration_file, cantilever, csv_rows, deep_array,
-                      deep_object, design, design_dict, dma_rows, fifo, profile_file, raw_number, tampered_dir,
-                      tampered_zip, with_deep, with_mechanics)
+from fixtures import (BAR, DEEP, Entry, bar, calibration_file, cantilever, csv_rows, deep_array, deep_object, design,
+                      design_dict, dither_report, dma_rows, fifo, profile_file, raw_number, tampered_dir, tampered_zip,
+                      with_deep, with_mechanics)
 
 
 def bad_file(name: str, argv: list[str], files: dict, where: list[str], patterns: list[str] = (), expect=frozenset({1}),
@@ -100,8 +100,9 @@ def cases(ctx) -> list[Case]:
         cs.append(bad_file(f"deep-design-array-{cmd}", argv, {"d.json": deep_a}, ["d.json"], note=f"[[[...]]] {DEEP} deep"))
         cs.append(bad_file(f"deep-design-object-{cmd}", argv, {"d.json": deep_o}, ["d.json"], note=f'{{"a":{{"a":...}}}} {DEEP} deep'))
     cs += [
-        bad_file("deep-design-points", ["slice", "d.json", "-o", "j.zip"], {"d.json": with_deep(d, ["rods", 0, "centerline", "points"])},
-                 ["d.json"], ["points"], note="rods[0].centerline.points nested"),
+        bad_file("deep-design-points", ["slice", "d.json", "-o", "j.zip"],
+                 {"d.json": with_deep(d, ["rods", 0, "centerline", "points"])}, ["d.json"], ["points"],
+                 note="rods[0].centerline.points nested"),
         bad_file("deep-design-description", ["validate", "d.json"], {"d.json": with_deep({**d, "description": ""}, ["description"])},
                  ["d.json"], ["description"], note="description nested instead of a string"),
         bad_file("deep-design-metadata-slice", ["slice", "d.json", "-o", "j.zip", "--quiet"],
@@ -109,17 +110,17 @@ def cases(ctx) -> list[Case]:
                  outputs=["j.zip"], jobs=["j.zip"], note="metadata (anything) nested: refuse, or carry it into a job inspect reads"),
         bad_file("deep-design-mechanics", ["simulate", "d.json", "-o", "o.json"], {"d.json": with_deep(mech, ["mechanics", "loads"])},
                  ["d.json"], ["loads"], note="mechanics.loads nested"),
-        bad_file("deep-profile-file-profiles", ["profiles", "p.json"], {"p.json": deep_a}, ["p.json"], note="a profile file nested"),
-        bad_file("deep-profile-file-slice", ["slice", "d.json", "--profile", "./p.json", "-o", "j.zip"], {"d.json": BAR, "p.json": deep_o},
-                 ["p.json"], note="--profile FILE nested"),
+        bad_file("deep-profile-file-profiles", ["profiles", "./p.json"], {"p.json": deep_a}, ["p.json"], note="a profile file nested"),
+        bad_file("deep-profile-file-slice", ["slice", "d.json", "--profile", "./p.json", "-o", "j.zip"],
+                 {"d.json": BAR, "p.json": deep_o}, ["p.json"], note="--profile FILE nested"),
         bad_file("deep-profile-field", ["slice", "d.json", "--profile", "./p.json", "-o", "j.zip", "--quiet"],
                  {"d.json": BAR, "p.json": profile_file(text=lambda p: with_deep(p, ["materials", 0, "preview_rgb"]))},
                  ["p.json"], ["preview_rgb"], note="materials[0].preview_rgb nested"),
-        bad_file("deep-profile-note", ["profiles", "p.json"],
+        bad_file("deep-profile-note", ["profiles", "./p.json"],
                  {"p.json": profile_file(text=lambda p: with_deep(p, ["resolution", "note"], deep_o))}, ["p.json"], expect={0, 1},
                  note="a free-text note nested"),
-        bad_file("deep-calibration-file", ["slice", "d.json", "--calibration", "c.json", "-o", "j.zip"], {"d.json": BAR, "c.json": deep_a},
-                 ["c.json"], note="--calibration FILE nested"),
+        bad_file("deep-calibration-file", ["slice", "d.json", "--calibration", "c.json", "-o", "j.zip"],
+                 {"d.json": BAR, "c.json": deep_a}, ["c.json"], note="--calibration FILE nested"),
         bad_file("deep-calibration-points", ["slice", "d.json", "--calibration", "c.json", "-o", "j.zip"],
                  {"d.json": BAR, "c.json": calibration_file(text=lambda c: with_deep(c, ["parameters", "points"]))},
                  ["c.json"], ["points"], note="parameters.points nested"),
@@ -129,7 +130,8 @@ def cases(ctx) -> list[Case]:
         bad_file("deep-csv-line", ["calibrate", "data.csv"], {"data.csv": deep_a + "\n" + csv_rows(dma_rows(3))},
                  ["data.csv"], note="a CSV whose header is 120,000 brackets"),
         bad_file("deep-csv-notes", ["calibrate", "data.csv"],
-                 {"data.csv": "vero_fraction,modulus_mpa,notes\n0,0.5,\"" + deep_a + "\"\n0.3,8,x\n1,190,\"" + deep_o.replace('"', '""') + "\"\n"},
+                 {"data.csv": "vero_fraction,modulus_mpa,notes\n0,0.5,\"" + deep_a + "\"\n0.3,8,x\n1,190,\""
+                              + deep_o.replace('"', '""') + "\"\n"},
                  ["data.csv"], expect={0, 1}, note="quoted notes fields 120,000 characters of nesting"),
         bad_file("deep-csv-quotes", ["calibrate", "data.csv"],
                  {"data.csv": "vero_fraction,modulus_mpa\n" + '"' * 120001 + "\n0,0.5\n1,190\n"}, ["data.csv"],
@@ -138,7 +140,7 @@ def cases(ctx) -> list[Case]:
                  {"deep-job": tampered_dir(lambda p, m: (p / "manifest.json").write_text(deep_a), rewrite_manifest=False)},
                  ["manifest.json", "deep-job"], note="a folder job's manifest.json nested"),
         bad_file("deep-manifest-zip", ["inspect", "deep-job.zip"],
-                 {"deep-job.zip": tampered_zip(lambda e, m: [_entry("manifest.json", deep_o.encode())] + e)},
+                 {"deep-job.zip": tampered_zip(lambda e, m: [Entry("manifest.json", deep_o.encode())] + e)},
                  ["manifest.json", "deep-job.zip"], note="a zip job's manifest.json nested"),
         bad_file("deep-manifest-layers", ["inspect", "deep-job"],
                  {"deep-job": tampered_dir(lambda p, m: m.__setitem__("layers", [json.loads("[" * 500 + "]" * 500)]))},
@@ -160,12 +162,12 @@ def cases(ctx) -> list[Case]:
         ]
     for block, exp in [("2000x2000x2000", {1, 2}), ("100000x100000x1", {1, 2}), ("1x1x4294967297", {2}), ("0x64x180", {2}),
                        ("-5x64x180", {2}), ("128x64", {2})]:
-        cs.append(bad_option(f"dither-report-block-{block}", ["dither-report", "--block", block], "--block", expect=exp,
+        cs.append(bad_option(f"dither-report-block-{block}", dither_report(**{"--block": block}), "--block", expect=exp,
                              note="a budget refusal (1) or a range check (2), naming --block"))
     for opt, value in [("--rod-diameter", "1e300"), ("--rod-diameter", "nan"), ("--rod-diameter", "-1"), ("--rod-diameter", "0"),
                        ("--rod-length", "1e300"), ("--rod-length", "inf"), ("--rod-fraction", "nan"), ("--rod-fraction", "1.5"),
                        ("--fractions", "0.1,1e309"), ("--fractions", "nan"), ("--fractions", ""), ("--rod-axis", "w")]:
-        cs.append(bad_option(f"dither-report{opt}-{value or 'empty'}", ["dither-report", "--ditherer", "white", opt, value], opt,
+        cs.append(bad_option(f"dither-report{opt}-{value or 'empty'}", dither_report(**{opt: value}), opt,
                              expect={1, 2} if value == "1e300" else {2}))
     for value in ["2147483647", "2147483648", "-1", "99999999999999999999"]:
         ok = value == "2147483647"
@@ -213,11 +215,13 @@ def cases(ctx) -> list[Case]:
         cs.append(bad_file(f"calibration-{tag}", ["slice", "d.json", "--calibration", "c.json", "-o", "j.zip"], cal(edit),
                            ["c.json"], [path_word], note=f"calibration file: {tag}"))
     cs.append(bad_file("calibration-modulus-inf", ["slice", "d.json", "--calibration", "c.json", "-o", "j.zip"],
-                       {"d.json": BAR, "c.json": calibration_file(text=lambda c: raw_number(c, ["parameters", "points", 1, "modulus_mpa"], "1e309"))},
+                       {"d.json": BAR, "c.json": calibration_file(
+                           text=lambda c: raw_number(c, ["parameters", "points", 1, "modulus_mpa"], "1e309"))},
                        ["c.json"], ["modulus"], note="a point's modulus 1e309"))
     cs.append(bad_file("calibration-many-points", ["slice", "d.json", "--calibration", "c.json", "-o", "j.zip", "--quiet"],
                        {"d.json": BAR, "c.json": calibration_file(lambda c: c["parameters"].__setitem__(
-                           "points", [{"vero_fraction": i / 199999, "modulus_mpa": 0.5 * 380 ** (i / 199999)} for i in range(200000)]))},
+                           "points", [{"vero_fraction": i / 199999, "modulus_mpa": 0.5 * 380 ** (i / 199999)}
+                                      for i in range(200000)]))},
                        ["c.json"], expect={0, 1}, outputs=["j.zip"], jobs=["j.zip"], note="200,000 points"))
     for tag, text in [
         ("modulus-inf", csv_rows([(0, 0.5), (0.3, "1e309"), (1, 190)])),
@@ -243,14 +247,9 @@ def cases(ctx) -> list[Case]:
         ("huge-declared", {"mask.rfbn": mask_bytes(size=(1024, 1024, 1024), payload=b"\0" * 64)}, "mask.rfbn", {1}),
         ("valid-tiny", {"mask.rfbn": mask_bytes()}, "mask.rfbn", {0, 1}),
     ]:
-        cs.append(bad_file(f"mask-{tag}", ["dither-report", "--ditherer", "blue", "--fractions", "0.5", "--block", "16x16x16",
-                                           "--mask", arg], files, [arg, "--mask"], expect=exp, note=f"--mask {tag}"))
+        cs.append(bad_file(f"mask-{tag}", dither_report(**{"--ditherer": "blue", "--mask": arg}), files, [arg, "--mask"],
+                           expect=exp, note=f"--mask {tag}"))
     return cs
-
-
-def _entry(name: str, data: bytes):
-    from fixtures import Entry
-    return Entry(name, data)
 
 
 def _deep_metadata_job():

@@ -13,6 +13,8 @@ from engine import Case, Step
 from fixtures import BAR, USER_FILES, bar, cantilever, design, folder, job, symlink_to
 
 REFUSED = {1, 2}  # a clear refusal: bad input (1) or a bad command line (2), never 0
+# how a message may name the current folder
+CWD_NAMES = ["{cwd}", "'.'", "\".\"", "./", "current folder", "current directory", "working directory"]
 
 
 def copy_of(relpath: str):
@@ -58,7 +60,7 @@ def cases(ctx) -> list[Case]:
         refuse("slice-force-user-folder-dotdot", ["slice", "d.json", "-o", "sub/../project", "--format", "dir", "--force"],
                {**d, "project": user, "sub/.keep": ""}, ["project"], "the folder reached through sub/.."),
         refuse("slice-force-cwd", ["slice", "d.json", "-o", ".", "--format", "dir", "--force"],
-               {**d, "notes.txt": "mine\n"}, ["{cwd}", "'.'", "\".\""], "the current folder holds the design itself"),
+               {**d, "notes.txt": "mine\n"}, CWD_NAMES, "the current folder holds the design itself"),
         refuse("slice-force-empty-folder", ["slice", "d.json", "-o", "empty", "--format", "dir", "--force"],
                {**d, "empty/.keep": ""}, ["empty"], "a folder without a rodfab manifest"),
         refuse("slice-force-foreign-manifest", ["slice", "d.json", "-o", "webapp", "--format", "dir", "--force"],
@@ -93,7 +95,7 @@ def cases(ctx) -> list[Case]:
                {"photos.zip": user_zip}, ["photos.zip"], "coupons onto a user's zip"),
         refuse("coupons-force-cwd", ["coupons", "-o", ".", "--format", "dir", "--force", "--fractions", "0,1",
                                      "--size", "3x2x0.3"],
-               {"notes.txt": "mine\n"}, ["{cwd}", "'.'", "\".\""], "coupons onto the current folder"),
+               {"notes.txt": "mine\n"}, CWD_NAMES, "coupons onto the current folder"),
         # Commands that must not write over their own input.
         refuse("calibrate-output-is-input", ["calibrate", "data.csv", "-o", "data.csv"],
                {"data.csv": copy_of("examples/calibration/vero-tango-60C.csv")}, ["data.csv"], "-o DATA"),

@@ -6,12 +6,14 @@ the real measure)."""
 
 from __future__ import annotations
 
-import copy
 import json
 
 from engine import Case, Step
-from fixtures import (BAR, Entry, bar, calibration_file, cantilever, csv_rows, design, design_dict, dma_rows, duplicate_key,
-                      profile_file, rod, tampered_dir, tampered_zip, with_mechanics)
+from fixtures import (BAR, Entry, bar, calibration_file, cantilever, csv_rows, design, design_dict, dither_report,
+                      dma_rows, duplicate_key, profile_file, rod, tampered_dir, tampered_zip, with_mechanics)
+
+
+DUPLICATE = r"duplicate|twice|more than once|repeated|again"
 
 
 def slice_case(name: str, doc: str, expect: set[int], note: str, where=("d.json",), patterns=(), warnings=(),
@@ -64,7 +66,7 @@ def cases(ctx) -> list[Case]:
         ("design-top-rods", ["validate", "d.json"], {"d.json": duplicate_key(d, [], "rods", [])}, "rods"),
         ("design-top-format", ["validate", "d.json"], {"d.json": duplicate_key(d, [], "format", "rodfab.design/1")}, "format"),
         ("design-diameter", ["slice", "d.json", "-o", "j.zip"],
-         {"d.json": duplicate_key(d, ["rods", 0, "section"], "diameter", 20.0)}, "diameter"),
+         {"d.json": duplicate_key(d, ["rods", 0, "section"], "diameter", 2.0)}, "diameter"),
         ("design-modulus", ["voxelize", "d.json", "-o", "g.vdb"], {"d.json": duplicate_key(d, ["rods", 0], "modulus", 1)}, "modulus"),
         ("design-mechanics", ["simulate", "m.json", "-o", "o.json"],
          {"m.json": duplicate_key(cantilever(), ["mechanics"], "load_steps", 7)}, "load_steps"),
@@ -83,11 +85,12 @@ def cases(ctx) -> list[Case]:
     ]
     for tag, argv, files, key in dup_cases:
         where = {"design": ["d.json", "m.json"], "profile": ["p.json"], "calibration": ["c.json"],
-                 "manifest": ["bad-job", "manifest.json"]}[tag.split("-")[0]]
-        cs.append(Case(f"duplicate-key-{tag}", [Step(argv, expect={1}, where=where, patterns=[key])], files=files,
+                 "manifest": ["bad-job", "manifest"]}[tag.split("-")[0]]
+        cs.append(Case(f"duplicate-key-{tag}", [Step(argv, expect={1}, where=where, patterns=[key, DUPLICATE])], files=files,
                        note=f"key {key!r} twice"))
     # The CSV header naming a column twice.
-    cs.append(Case("duplicate-column-csv", [Step(["calibrate", "data.csv"], expect={1}, where=["data.csv"], patterns=["modulus_mpa"])],
+    cs.append(Case("duplicate-column-csv", [Step(["calibrate", "data.csv"], expect={1}, where=["data.csv"],
+                                                 patterns=["modulus_mpa", DUPLICATE])],
                    files={"data.csv": "vero_fraction,modulus_mpa,modulus_mpa\n0,0.5,9\n0.3,8,9\n1,190,9\n"},
                    note="modulus_mpa twice in the header"))
 
@@ -99,7 +102,7 @@ def cases(ctx) -> list[Case]:
                  files={"d.json": BAR}, note=f"--seed {value!r}"),
             Case(f"seed-{tag}-coupons", [Step(["coupons", "-o", "c.zip", "--seed", value], expect={2}, where=["--seed"])],
                  note=f"--seed {value!r}"),
-            Case(f"seed-{tag}-dither-report", [Step(["dither-report", "--seed", value], expect={2}, where=["--seed"])],
+            Case(f"seed-{tag}-dither-report", [Step(dither_report(**{"--seed": value}), expect={2}, where=["--seed"])],
                  note=f"--seed {value!r}"),
         ]
     cs.append(Case("seed-max-slice", [Step(["slice", "d.json", "-o", "j.zip", "--seed", "18446744073709551615", "--quiet"],

@@ -103,6 +103,13 @@ def bent(angle_deg: float, plane: str = "xy", length: float = 3.0) -> list:
     return [[0.0, 0.0, 0.0], p1, [p1[i] + turned[i] * length for i in range(3)]]
 
 
+def dither_report(**options: str) -> list[str]:
+    """`rodfab dither-report` on a small workload (a fraction of a second), with some options replaced."""
+    opts = {"--ditherer": "white", "--block": "16x16x16", "--fractions": "0.5", "--rod-length": "2"}
+    opts.update(options)
+    return ["dither-report"] + [a for kv in opts.items() for a in kv]
+
+
 # --- deep and odd JSON -----------------------------------------------------------------------------------
 
 def deep_array(n: int = DEEP) -> str:
