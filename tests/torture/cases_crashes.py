@@ -186,7 +186,7 @@ def cases(ctx) -> list[Case]:
                          "--voxel-size", b, expect={0, 1, 2}, outputs=["g.vdb"], note="one voxel bigger than the universe"))
     for opt, value, exp in [("--size", "1e300x5x1.5", {1, 2}), ("--size", "30x5x1e-300", {1, 2}), ("--size", "30x5xnan", {2}),
                             ("--gap", "1e300", {1, 2}), ("--gap", "-1", {2}), ("--gap", "nan", {2}),
-                            ("--fractions", "0,1e-9,1", {1, 2}), ("--fractions", "0,0.5,nan", {2}), ("--fractions", "1e309", {2}),
+                            ("--fractions", "0,1e-9,...,1", {1, 2}), ("--fractions", "0,0.5,nan", {2}), ("--fractions", "1e309", {2}),
                             ("--fractions", "0," * 30000 + "1", {1, 2})]:
         c = bad_option(f"coupons{opt}-{value[:24].rstrip(',')}", ["coupons", "-o", "c.zip", opt, value], opt, expect=exp)
         if opt == "--size":  # "a bar of ... mm does not fit the tray" names the size the option gave

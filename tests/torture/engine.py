@@ -127,7 +127,6 @@ class Case:
     files: dict[str, Content] = dataclasses.field(default_factory=dict)
     note: str = ""          # what the case is about, printed with a failure
     group: str = ""         # the class (set by the runner from the module)
-    repeat_timing: bool = False  # measure an uninterrupted run first (see Context.measured)
 
 
 class Context:
@@ -231,6 +230,7 @@ class Outcome:
     sent_after: Optional[float] = None   # seconds from start to our signal
     exit_after_signal: Optional[float] = None
     cpu_after_signal: float = 0.0    # CPU seconds (all threads) the process used after our signal
+    done_at_signal: bool = False     # the step's outputs were all in place when the signal was sent
     late: bool = False               # did not exit within SIGNAL_GRACE after our signal
     peak_rss: int = 0                # bytes
     seconds: float = 0.0
@@ -319,6 +319,9 @@ class Running:
         if self.signum is not None and self.sent_at is None:
             fire = (now >= self.trigger) if isinstance(self.trigger, (int, float)) else _safe(self.trigger, self.cwd)
             if fire:
+                # Were its outputs already in place (renamed into place: complete)? Only then may it
+                # still exit 0: the work was done when the signal came.
+                out.done_at_signal = bool(self.step.outputs) and all((self.cwd / o).exists() for o in self.step.outputs)
                 self.cpu_at_signal = _cpu_seconds(self.proc.pid)
                 self.parallelism = max(1, min(_threads(self.proc.pid), os.cpu_count() or 1))
                 os.kill(self.proc.pid, self.signum)
@@ -436,6 +439,9 @@ def check_step(ctx: Context, step: Step, o: Outcome, cwd: Path) -> list[str]:
         if o.signal is not None:
             problems.append(f"died by {sig.Signals(o.signal).name} after {sig.Signals(o.sent).name} "
                             f"(expected exit {wanted})")
+        elif o.code == 0 and not o.done_at_signal:
+            problems.append(f"exit 0 after {sig.Signals(o.sent).name} (sent at {o.sent_after:.2f} s, before its outputs "
+                            f"were in place): the signal was ignored, expected exit {wanted} and nothing written")
         elif o.code not in (wanted, 0):
             problems.append(f"exit {o.code} after {sig.Signals(o.sent).name}, expected {wanted}: {_excerpt(o.stderr)}")
     else:
