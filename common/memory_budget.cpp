@@ -40,11 +40,24 @@ std::uint64_t cgroupLimit() {
   }
 }
 
+// A limit the process was started under (ulimit -v / -d, prlimit): the budget stays inside it.
+std::uint64_t inheritedLimit() {
+  std::uint64_t lowest = 0;
+  for (int resource : {RLIMIT_AS, RLIMIT_DATA}) {
+    rlimit limit{};
+    if (::getrlimit(resource, &limit) != 0 || limit.rlim_cur == RLIM_INFINITY) continue;
+    const auto bytes = static_cast<std::uint64_t>(limit.rlim_cur);
+    if (lowest == 0 || bytes < lowest) lowest = bytes;
+  }
+  return lowest;
+}
+
 }  // namespace
 
 std::uint64_t defaultMemoryBudget() {
   std::uint64_t total = physicalMemory();
-  if (const std::uint64_t limit = cgroupLimit(); limit > 0 && (total == 0 || limit < total)) total = limit;
+  for (const std::uint64_t limit : {cgroupLimit(), inheritedLimit()})
+    if (limit > 0 && (total == 0 || limit < total)) total = limit;
   if (total == 0) total = std::uint64_t{4} << 30;
   return std::max(kMinimumBudget, total / 5 * 4);
 }

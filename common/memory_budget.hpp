@@ -1,7 +1,7 @@
 // The process's memory budget.
 //
 // Every rodfab command runs within a budget of bytes (default: 80 % of the machine's memory, or of
-// the cgroup limit when lower; `--max-memory` sets it). It is enforced twice:
+// the cgroup limit or the address-space/data limit it was started under when lower; `--max-memory` sets it). It is enforced twice:
 //  - work whose size depends on input estimates its memory first and refuses with OutOfMemory
 //    (`requireMemory`) before allocating;
 //  - the budget is also the process's data limit (RLIMIT_DATA), so an allocation beyond it fails
@@ -22,7 +22,8 @@ struct OutOfMemory : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// Bytes: 80 % of physical memory, or of the cgroup's memory.max when that is lower.
+// Bytes: 80 % of physical memory, or of the cgroup's memory.max or an inherited RLIMIT_AS/RLIMIT_DATA
+// when one of those is lower.
 std::uint64_t defaultMemoryBudget();
 
 // Sets the budget (bytes, >= 64 MiB) and the data limit. Throws std::invalid_argument when too small.

@@ -1,5 +1,7 @@
 #include "materials/blue_noise_mask.hpp"
 
+#include "common/json_input.hpp"
+
 #include "materials/counter_hash.hpp"
 
 #include <algorithm>
@@ -322,9 +324,15 @@ void BlueNoiseMask::save(const std::filesystem::path& file) const {
 }
 
 BlueNoiseMask BlueNoiseMask::load(const std::filesystem::path& file) {
-  std::ifstream stream(file, std::ios::binary);
-  if (!stream) throw std::runtime_error(file.string() + ": cannot open the blue-noise mask");
-  std::string bytes((std::istreambuf_iterator<char>(stream)), std::istreambuf_iterator<char>());
+  // Masks hold at most 2^24 cells (3 bytes of rank each): a larger file is not a mask.
+  constexpr std::uint64_t kMaxCells = std::uint64_t{1} << 24;
+  constexpr std::size_t kMaxMaskBytes = 3 * kMaxCells + 64;
+  std::string bytes;
+  try {
+    bytes = common::readBoundedFile(file.string(), kMaxMaskBytes);
+  } catch (const common::JsonInputError& e) {
+    throw std::runtime_error(file.string() + ": cannot read the blue-noise mask: " + e.message);
+  }
   Reader in(file, bytes);
   if (in.bytes().size() < sizeof kMagic || std::memcmp(in.bytes().data(), kMagic, sizeof kMagic) != 0)
     in.fail("magic", "expected a rodfab blue-noise mask starting with \"RFBNMASK\"");
@@ -339,8 +347,14 @@ BlueNoiseMask BlueNoiseMask::load(const std::filesystem::path& file) {
     p.size[a] = static_cast<int>(n);
     cells *= n;
   }
-  for (int a = 0; a < 3; ++a) p.voxelSizeMm[a] = static_cast<double>(in.take(4, "voxel_size_nm")) / 1e6;
+  if (cells > kMaxCells)
+    in.fail("size", std::to_string(cells) + " cells, expected at most " + std::to_string(kMaxCells));
+  for (int a = 0; a < 3; ++a) {
+    p.voxelSizeMm[a] = static_cast<double>(in.take(4, "voxel_size_nm")) / 1e6;
+    if (!(p.voxelSizeMm[a] > 0)) in.fail("voxel_size_nm", "expected a voxel size > 0 nm");
+  }
   p.sigmaMm = static_cast<double>(in.take(4, "sigma_nm")) / 1e6;
+  if (!(p.sigmaMm > 0)) in.fail("sigma_nm", "expected a filter width > 0 nm");
   p.initialDensity = static_cast<double>(in.take(4, "initial_density_ppm")) / 1e6;
   p.seed = in.take(8, "seed");
   const auto bits = in.take(4, "bits_per_rank");

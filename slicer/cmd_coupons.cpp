@@ -427,6 +427,7 @@ int runCoupons(const std::vector<std::string>& args) {
   printer_profiles::JobResult job;
   try {
     job = slicer::streamJob(spec, source, counting, pipeline, seconds);
+    common::registerCleanup(job.path);  // until the command returns, a signal still removes the job
   } catch (const Interrupted& e) {
     progress.finish();
     std::cerr << "rodfab coupons: " << e.what() << '\n';

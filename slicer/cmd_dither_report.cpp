@@ -7,6 +7,8 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstdlib>
 #include <chrono>
 #include <cstdio>
 #include <iostream>
@@ -44,12 +46,20 @@ std::optional<std::vector<float>> parseFractions(const std::string& text) {
 constexpr int kMaxBlockSide = 1 << 16;
 
 std::optional<openvdb::Coord> parseSize(const std::string& text) {
-  int x = 0, y = 0, z = 0;
-  char tail = 0;
-  if (std::sscanf(text.c_str(), "%dx%dx%d%c", &x, &y, &z, &tail) != 3) return std::nullopt;
-  for (int side : {x, y, z})
-    if (side < 1 || side > kMaxBlockSide) return std::nullopt;
-  return openvdb::Coord(x, y, z);
+  int sides[3] = {0, 0, 0};
+  const char* at = text.c_str();
+  for (int a = 0; a < 3; ++a) {
+    if (a > 0 && *at++ != 'x') return std::nullopt;
+    if (*at < '0' || *at > '9') return std::nullopt;
+    char* end = nullptr;
+    errno = 0;
+    const long side = std::strtol(at, &end, 10);
+    if (errno == ERANGE || side < 1 || side > kMaxBlockSide) return std::nullopt;
+    sides[a] = static_cast<int>(side);
+    at = end;
+  }
+  if (*at != '\0') return std::nullopt;
+  return openvdb::Coord(sides[0], sides[1], sides[2]);
 }
 
 // Memory for the regions (sparse float grids, ~4.2 bytes a voxel, all held at once) and for measuring
@@ -114,8 +124,14 @@ int runDitherReport(const std::vector<std::string>& args) {
   commandLineAccepted();
   materials::DitherOptions ditherOptions;
   ditherOptions.seed = vm["seed"].as<Seed>().value;
-  if (vm.count("mask"))
-    ditherOptions.mask = std::make_shared<const materials::BlueNoiseMask>(materials::BlueNoiseMask::load(vm["mask"].as<std::string>()));
+  if (vm.count("mask")) {
+    try {
+      ditherOptions.mask = std::make_shared<const materials::BlueNoiseMask>(materials::BlueNoiseMask::load(vm["mask"].as<std::string>()));
+    } catch (const std::exception& e) {
+      std::cerr << e.what() << '\n';
+      return kFailed;
+    }
+  }
 
   std::vector<Region> regions;
   for (float f : *fractions) {

@@ -48,9 +48,11 @@ int runSimulate(const std::vector<std::string>& args) {
   solver.loadSteps = vm["load-steps"].as<int>();
   solver.tolerance = vm["tolerance"].as<double>();
   solver.maxIterations = vm["max-iterations"].as<int>();
-  if (solver.loadSteps < 0) return usageError("simulate", "--load-steps: expected 0 (the design's) or more");
+  if (solver.loadSteps < 0 || solver.loadSteps > 10000)
+    return usageError("simulate", "--load-steps: expected 0 (the design's) to 10000");
   if (!(solver.tolerance > 0) || solver.tolerance > 1e-2) return usageError("simulate", "--tolerance: expected a number in (0, 0.01]");
-  if (solver.maxIterations < 1) return usageError("simulate", "--max-iterations: expected 1 or more");
+  if (solver.maxIterations < 1 || solver.maxIterations > 1000)
+    return usageError("simulate", "--max-iterations: expected 1 to 1000");
   const std::optional<int> threads = threadCount("simulate", vm);
   if (!threads) return kUsage;
   const int workers = *threads > 0 ? *threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));

@@ -134,6 +134,7 @@ int runSlice(const std::vector<std::string>& args) {
   if (progress) progress->finish();
   const double total = slicer::secondsSince(tStart);
   const printer_profiles::JobResult& job = report.job;
+  common::registerCleanup(job.path);  // until the command returns, a signal still removes the job
   const materials::MappingStats& mapping = report.mapping;
   const slicer::StageSeconds& seconds = report.seconds;
   const double supportSeconds = report.supportSeconds;
@@ -188,6 +189,7 @@ int runSlice(const std::vector<std::string>& args) {
     std::printf("time:           %.2f s inputs, %.2f s support, %.2f s voxelize + map, %.2f s dither, %.2f s emit; %.2f s total\n",
                 readSeconds, supportSeconds, seconds.source, seconds.dither, seconds.emit, total);
   }
+  for (const std::string& warning : report.warnings) std::cerr << "rodfab slice: warning: " << warning << '\n';
   if (rodsWithoutVoxels > 0)
     std::cerr << "rodfab slice: warning: " << rodsWithoutVoxels
               << " rod(s) hold no voxel centre (thinner than the voxel or hidden in other rods); rodfab voxelize --json lists them\n";

@@ -3,6 +3,8 @@
 #include "slicer/options.hpp"
 
 #include "common/interrupt.hpp"
+#include "common/memory_budget.hpp"
+#include "voxel/diagnostics.hpp"
 #include "voxel/voxel.hpp"
 
 #include <nlohmann/json.hpp>
@@ -24,7 +26,8 @@ std::optional<openvdb::Vec3d> parseVoxelSize(const std::string& text) {
   std::istringstream in(text);
   for (int a = 0; a < 3; ++a) {
     if (a > 0 && in.get() != ',') return std::nullopt;
-    if (!(in >> size[a]) || !(size[a] > 0.0) || !std::isfinite(size[a])) return std::nullopt;
+    // From 1 um (finer than any printer) to 10 mm (coarser than any rod worth printing).
+    if (!(in >> size[a]) || !(size[a] >= 1e-3 && size[a] <= 10.0)) return std::nullopt;
   }
   if (in.peek() != std::char_traits<char>::eof()) return std::nullopt;
   return size;
@@ -49,7 +52,7 @@ int runVoxelize(const std::vector<std::string>& args) {
 
   const auto voxelSize = parseVoxelSize(vm["voxel-size"].as<std::string>());
   if (!voxelSize)
-    return usageError("voxelize", "--voxel-size: expected three positive sizes in mm as X,Y,Z (e.g. 0.0423,0.0846,0.030), got '" +
+    return usageError("voxelize", "--voxel-size: expected three sizes from 0.001 to 10 mm as X,Y,Z (e.g. 0.0423,0.0846,0.030), got '" +
                                       vm["voxel-size"].as<std::string>() + "'");
   const std::optional<int> threadsOption = threadCount("voxelize", vm);
   if (!threadsOption) return kUsage;
@@ -68,6 +71,9 @@ int runVoxelize(const std::vector<std::string>& args) {
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();
   const voxel::PrinterGrid grid = voxel::makePrinterGrid(design, *voxelSize);
+  const double bytes = voxel::estimateRaster(design, grid).peakBytes(0);
+  common::requireMemory(bytes >= 1.8e19 ? std::uint64_t(1.8e19) : static_cast<std::uint64_t>(bytes),
+                        "rasterizing the whole design at once", "use a coarser --voxel-size (rodfab slice streams bands)");
   const voxel::Rasterization ras = voxel::rasterize(design, grid, {threads, common::interruptRequested});
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
   const voxel::GridStatistics s = voxel::computeStatistics(*ras.grid, grid, ras.voxelsPerRod);
@@ -81,6 +87,8 @@ int runVoxelize(const std::vector<std::string>& args) {
   std::vector<std::size_t> empty;
   for (std::size_t r = 0; r < s.voxelsPerRod.size(); ++r)
     if (s.voxelsPerRod[r] == 0) empty.push_back(r);
+  for (const voxel::ThinRod& thin : voxel::findThinRods(design, grid, s.voxelsPerRod))
+    if (s.voxelsPerRod[thin.rod] > 0) std::cerr << "rodfab voxelize: warning: " << thin.reason << '\n';
   for (std::size_t r : empty)
     std::cerr << "rodfab voxelize: warning: rod " << r << " ('" << design.rods[r].name()
               << "') holds no voxel centre; it is thinner than the voxel or hidden inside other rods\n";

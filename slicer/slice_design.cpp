@@ -1,6 +1,8 @@
 #include "slicer/slice_design.hpp"
 
 #include "common/interrupt.hpp"
+#include "common/memory_budget.hpp"
+#include "voxel/diagnostics.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -12,6 +14,17 @@ namespace rodfab::slicer {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+// Refuses (common::OutOfMemory) a slice whose rasterizer and bands would exceed the memory budget:
+// the rods' pieces, and four band grids alive at once (the band being rasterized, the band the
+// writer encodes, and their fraction grids).
+void requireSliceMemory(const geometry::RodStructure& design, const voxel::PrinterGrid& grid, int bandLayers) {
+  const voxel::RasterEstimate estimate = voxel::estimateRaster(design, grid, bandLayers);
+  const double bytes = estimate.pieceBytes + 4.0 * estimate.bandBytes;
+  common::requireMemory(bytes >= 1.8e19 ? std::uint64_t(1.8e19) : static_cast<std::uint64_t>(bytes),
+                        "slicing this design in bands of " + std::to_string(bandLayers) + " layers",
+                        "use fewer --band-layers, a coarser profile, or a design with fewer or shorter rods");
+}
 
 }  // namespace
 
@@ -33,6 +46,10 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   auto start = Clock::now();
   const voxel::PrinterGrid grid =
       voxel::makePrinterGrid(design, openvdb::Vec3d(profile.voxelSizeMm[0], profile.voxelSizeMm[1], profile.voxelSizeMm[2]));
+  const openvdb::CoordBBox partBounds = designVoxelBounds(design, grid);
+  const int bandLayers = settings.bandLayers > 0 ? settings.bandLayers : automaticBandLayers(partBounds);
+  requireSliceMemory(design, grid, bandLayers);
+  for (const voxel::ThinRod& thin : voxel::findThinRods(design, grid)) report.warnings.push_back(thin.reason);
   const voxel::Rasterizer rasterizer(design, grid, {settings.threads, common::interruptRequested});
   const materials::FractionMap fractionMap(calibration);
   report.floorMpa = fractionMap.floorMpa();
@@ -42,7 +59,7 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
 
   printer_profiles::JobSpec spec;
   spec.profile = profile;
-  spec.partBounds = designVoxelBounds(design, grid);
+  spec.partBounds = partBounds;
   spec.originMm = grid.origin;
   spec.metadata.design = settings.designFile;
   spec.metadata.ditherer = std::string(ditherer.name());
@@ -50,7 +67,6 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   if (!settings.calibrationFile.empty())
     spec.metadata.calibration = printer_profiles::CalibrationRecord{settings.calibrationFile, settings.calibrationSha256};
   spec.options = settings.job;
-  const int bandLayers = settings.bandLayers > 0 ? settings.bandLayers : automaticBandLayers(spec.partBounds);
   if (settings.job.support.value_or(profile.supportPolicy) == printer_profiles::SupportPolicy::Explicit) {
     // Support reaches down from every overhang, so the column tops of the whole part come first: a
     // topology-only pass over the bands (each band's grid is dropped as soon as it is counted).

@@ -37,6 +37,7 @@ struct SliceReport {
   double supportSeconds = 0.0;              // the column-top pre-pass of explicit support
   StageSeconds seconds;                     // bands: voxelize + map, dither, emit
   double floorMpa = 0.0, floorFraction = 0.0, maxModulusMpa = 0.0;
+  std::vector<std::string> warnings;       // for the technician: rods thinner than the printer resolves
 };
 
 // Index box of the voxel centres inside the design's bounding box in `grid`: every voxel the
