@@ -246,6 +246,27 @@ openvdb::math::Transform::Ptr gridTransform(const Profile& profile, const openvd
   return xform;
 }
 
+fs::path checkJobOutput(const JobOptions& options) {
+  fs::path t = options.output;
+  if (t.empty()) throw std::invalid_argument("no output path given for the job");
+  if (t.filename().empty()) t = t.parent_path();
+  t = fs::absolute(t);
+  if (t.filename() == "." || t.filename() == ".." || t.filename().empty())
+    throw std::runtime_error(t.string() + ": names a folder through '.' or '..'; give the job a name of its own");
+  if (stagingPid(t.filename().string()) != 0)  // a later writer would take it for a dead writer's leftovers
+    throw std::runtime_error(t.string() + ": is named like rodfab's hidden staging folders (.NAME" + kPartialTag +
+                             "PID-N), which later jobs remove; give the job another name");
+  if (!fs::is_directory(t.parent_path()))
+    throw std::runtime_error(t.parent_path().string() + (fs::exists(t.parent_path())
+                                                             ? ": is not a directory; the job needs a folder to go in"
+                                                             : ": the output directory does not exist"));
+  const OutputOccupant occupant = examineOutput(t);
+  if (occupant.kind == OutputOccupant::Kind::Other) throw std::runtime_error(refusal(t, occupant));
+  if (occupant.kind == OutputOccupant::Kind::RodfabJob && !options.force)
+    throw std::runtime_error(t.string() + ": " + occupant.description + " already exists there; use --force to replace it");
+  return t;
+}
+
 struct JobWriter::Impl {
   JobSpec spec;
   JobGeometry geometry;
@@ -275,32 +296,13 @@ struct JobWriter::Impl {
       if (m.role != MaterialRole::Support || support == SupportPolicy::Explicit) emitted.push_back(&m);
     std::sort(emitted.begin(), emitted.end(), [](const ProfileMaterial* a, const ProfileMaterial* b) { return a->role < b->role; });
 
-    target = checkTarget();
+    target = checkJobOutput(spec.options);
     nextK = geometry.firstLayerK;
     layers.resize(static_cast<std::size_t>(geometry.layers));
     previews = std::make_unique<Previews>(geometry, spec.profile, spec.options.contactSheetLayers);
     removeDeadStaging(target.parent_path());
     staging = std::make_unique<Staging>(target);  // last: nothing after it may throw
     filesDir = staging->files();
-  }
-
-  // The absolute target, free or (with force) a rodfab job, in an existing folder.
-  fs::path checkTarget() const {
-    fs::path t = spec.options.output;
-    if (t.empty()) throw std::invalid_argument("no output path given for the job");
-    if (t.filename().empty()) t = t.parent_path();
-    t = fs::absolute(t);
-    if (t.filename() == "." || t.filename() == ".." || t.filename().empty())
-      throw std::runtime_error(t.string() + ": names a folder through '.' or '..'; give the job a name of its own");
-    if (!fs::is_directory(t.parent_path()))
-      throw std::runtime_error(t.parent_path().string() + (fs::exists(t.parent_path())
-                                                               ? ": is not a directory; the job needs a folder to go in"
-                                                               : ": the output directory does not exist"));
-    const OutputOccupant occupant = examineOutput(t);
-    if (occupant.kind == OutputOccupant::Kind::Other) throw std::runtime_error(refusal(t, occupant));
-    if (occupant.kind == OutputOccupant::Kind::RodfabJob && !spec.options.force)
-      throw std::runtime_error(t.string() + ": " + occupant.description + " already exists there; use --force to replace it");
-    return t;
   }
 
   void checkBand(const LayerBand& band) const {

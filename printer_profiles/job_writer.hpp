@@ -94,6 +94,12 @@ struct JobResult {
 // The transform of a printer-space grid for `profile`: voxel (0,0,0) centred at `originMm`.
 openvdb::math::Transform::Ptr gridTransform(const Profile& profile, const openvdb::Vec3d& originMm);
 
+// The absolute path a job with these options will have. Throws std::runtime_error naming it when its
+// folder does not exist, when something is there that is not a rodfab job (saying what it is), or a
+// rodfab job without options.force; std::invalid_argument for an empty path. The writer checks this
+// again when it starts and when it commits; commands call it early to refuse before any work.
+std::filesystem::path checkJobOutput(const JobOptions& options);
+
 // Writes one job. Usage: construct, addBand() for consecutive bands covering every layer of the
 // part in increasing k, finalize(). Each band is encoded (bitmaps, PNG/BMP, checksums, previews) on
 // TBB workers while the caller builds the next one; addBand waits only for the band before. The

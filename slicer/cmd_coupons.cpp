@@ -359,6 +359,8 @@ int runCoupons(const std::vector<std::string>& args) {
   spec.options = jobOptions;
 
   commandLineAccepted();
+  // The output is refused now (a user's folder, a job without --force) rather than after the work.
+  printer_profiles::checkJobOutput(jobOptions);
   InterruptGuard interrupts;
   const Progress::Mode mode = Progress::detect(vm.count("quiet") > 0);
   Progress progress("layers", static_cast<std::size_t>(barVoxels.z()), mode, std::cerr);

@@ -105,6 +105,8 @@ int runSlice(const std::vector<std::string>& args) {
               << "', this job dithers '" << ditherer->name()
               << "': a mix's stiffness depends on its dithering, so print and fit coupons with this ditherer (rodfab coupons)\n";
 
+  // The output is refused now (a user's folder, a job without --force) rather than after the work.
+  printer_profiles::checkJobOutput(jobOptions);
   InterruptGuard interrupts;
   const Progress::Mode mode = Progress::detect(vm.count("quiet") > 0);
   std::unique_ptr<Progress> progress;

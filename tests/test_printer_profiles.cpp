@@ -735,7 +735,7 @@ void writeTestZip(const fs::path& file, const std::vector<std::pair<std::string,
 
 }  // namespace
 
-TEST_CASE("--force replaces only rodfab jobs: anything else is refused and left byte for byte", "[job][force]") {
+TEST_CASE("Force replaces only rodfab jobs: anything else is refused and left byte for byte", "[job][force]") {
   const fs::path dir = scratch("force-refusals");
   const auto grid = overhangPart(21);
   writeJob(*grid, specFor(*grid, dir / "real.zip"), 24);
@@ -782,9 +782,13 @@ TEST_CASE("--force replaces only rodfab jobs: anything else is refused and left 
       CHECK_THROWS_WITH(writeJob(*grid, spec, 24), Catch::Contains(what) && Catch::Contains("rodfab replaces only its own jobs"));
     }
   CHECK((snapshot(dir) == before));  // every refused path intact, and no temporaries anywhere
+  // Names reserved for staging folders (a later job would remove such a job as a dead writer's).
+  CHECK_THROWS_WITH(JobWriter(specFor(*grid, dir / ".job.zip.rodfab-partial-1-0")), Catch::Contains("named like rodfab's hidden staging"));
+  CHECK_THROWS_WITH(JobWriter(specFor(*grid, dir / ".")), Catch::Contains("give the job a name of its own"));
+  CHECK((snapshot(dir) == before));
 }
 
-TEST_CASE("--force replaces a rodfab job, zip or folder, by one of either kind", "[job][force]") {
+TEST_CASE("Force replaces a rodfab job, zip or folder, by one of either kind", "[job][force]") {
   const fs::path dir = scratch("force-replace");
   const auto first = overhangPart(22), second = overhangPart(23);
   for (const ArchiveFormat oldFormat : {ArchiveFormat::Zip, ArchiveFormat::Directory})

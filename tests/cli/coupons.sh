@@ -168,7 +168,7 @@ expect 1 "'notes.txt', which is not part of that job" --size 6x2x0.3 --quiet --f
 mkdir "$tmp/t"
 "$rodfab" coupons --fractions 0,0.5,1 --size 40x20x0.3 --threads 1 --band-layers 1 -o "$tmp/t/c.zip" > /dev/null 2> "$tmp/progress" &
 pid=$!
-for _ in $(seq 1 500); do grep -q "layers" "$tmp/progress" && break; sleep 0.01; done
+for _ in $(seq 1 500); do grep -q "layers" "$tmp/progress" 2> /dev/null && break; sleep 0.01; done
 kill -TERM $pid
 wait $pid
 code=$?

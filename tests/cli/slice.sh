@@ -115,9 +115,10 @@ only arm-cast.zip buckling-spring.zip unfolding-box.zip
 
 # SIGINT or SIGTERM after the last band (the job is being zipped and verified): still 130/143 and no job.
 for sig in INT TERM; do
+  rm -f "$tmp/progress"  # a fresh file: the wait below must not see the last run's progress
   "$rodfab" slice "$src/examples/buckling-spring.json" -o "$tmp/out/late.zip" --threads 1 --band-layers 8 > /dev/null 2> "$tmp/progress" &
   pid=$!
-  for _ in $(seq 1 3000); do grep -q "(100%)" "$tmp/progress" && break; sleep 0.01; done
+  for _ in $(seq 1 3000); do grep -q "(100%)" "$tmp/progress" 2> /dev/null && break; sleep 0.01; done
   kill -$sig $pid
   wait $pid
   code=$?
@@ -129,9 +130,10 @@ done
 
 # SIGKILL leaves a staging folder; the next job in that folder removes it, whatever its name, but keeps
 # a live writer's folder (its lock held: here by flock(1)) and names that only look like ours.
+rm -f "$tmp/progress"
 "$rodfab" slice "$src/examples/buckling-spring.json" -o "$tmp/out/killed.zip" --threads 1 --band-layers 8 > /dev/null 2> "$tmp/progress" &
 pid=$!
-for _ in $(seq 1 2000); do grep -q "layers" "$tmp/progress" && break; sleep 0.05; done
+for _ in $(seq 1 2000); do grep -q "layers" "$tmp/progress" 2> /dev/null && break; sleep 0.05; done
 kill -KILL $pid
 wait $pid 2> /dev/null
 ls -A "$tmp/out" | grep -q "^\.killed\.zip\.rodfab-partial-$pid-" || fail "SIGKILL left no staging folder to clean: $(ls -A "$tmp/out")"
