@@ -19,22 +19,50 @@ std::string lineColumnText(const std::string& text, std::size_t offset) {
   return "line " + std::to_string(line) + ", column " + std::to_string(column);
 }
 
-// Finds the first opening bracket (outside strings) at a depth beyond `maxDepth`, before anything
-// is built. Returns its offset, or npos.
-std::size_t tooDeepAt(const std::string& text, int maxDepth) {
-  int depth = 0;
+// Where nesting first goes deeper than allowed, found by a scan of the text before anything is built.
+struct TooDeep {
+  std::size_t offset = std::string::npos;
+  std::string path;  // JSON path of the container that is one level too deep
+};
+
+// A light scan that follows brackets, commas and keys outside strings (the text may be malformed;
+// the parser reports that afterwards), keeping the path of each open container.
+TooDeep findTooDeep(const std::string& text, int maxDepth) {
+  struct Level {
+    bool array;
+    std::size_t index = 0;
+    std::string key;
+  };
+  std::vector<Level> levels;
+  std::string lastString;
+  const auto path = [&levels] {
+    std::string p;
+    for (const Level& l : levels) {
+      if (l.array) p += "[" + std::to_string(l.index) + "]";
+      else if (!l.key.empty()) p.append(p.empty() ? "" : ".").append(l.key);
+    }
+    return p;
+  };
   for (std::size_t at = 0; at < text.size(); ++at) {
     const char c = text[at];
     if (c == '"') {
-      for (++at; at < text.size() && text[at] != '"'; ++at)
+      lastString.clear();
+      for (++at; at < text.size() && text[at] != '"'; ++at) {
         if (text[at] == '\\') ++at;
+        else if (lastString.size() < 64) lastString += text[at];
+      }
+    } else if (c == ':' && !levels.empty() && !levels.back().array) {
+      levels.back().key = lastString;
+    } else if (c == ',' && !levels.empty() && levels.back().array) {
+      ++levels.back().index;
     } else if (c == '[' || c == '{') {
-      if (++depth > maxDepth) return at;
-    } else if (c == ']' || c == '}') {
-      --depth;
+      if (static_cast<int>(levels.size()) >= maxDepth) return {at, path()};
+      levels.push_back({c == '[', 0, {}});
+    } else if ((c == ']' || c == '}') && !levels.empty()) {
+      levels.pop_back();
     }
   }
-  return std::string::npos;
+  return {};
 }
 
 // Tracks the path while nlohmann parses, and refuses a key seen twice in one object.
@@ -65,7 +93,7 @@ private:
     std::string p;
     for (const Level& l : levels_) {
       if (l.array) p += "[" + std::to_string(l.index) + "]";
-      else if (!l.key.empty()) p += (p.empty() ? "" : ".") + l.key;
+      else if (!l.key.empty()) p.append(p.empty() ? "" : ".").append(l.key);
     }
     return p;
   }
@@ -118,9 +146,10 @@ json parseJsonStrict(const std::string& text, int maxDepth) {
   if (text.size() > kMaxJsonBytes)
     throw JsonInputError("", "the file is " + std::to_string(text.size() >> 20) + " MiB; expected at most " +
                                  std::to_string(kMaxJsonBytes >> 20) + " MiB of JSON");
-  if (const std::size_t at = tooDeepAt(text, maxDepth); at != std::string::npos)
-    throw JsonInputError("", "nested deeper than " + std::to_string(maxDepth) + " arrays and objects at " +
-                                 lineColumnText(text, at) + " (expected at most " + std::to_string(maxDepth) + ")");
+  if (const TooDeep deep = findTooDeep(text, maxDepth); deep.offset != std::string::npos)
+    throw JsonInputError(deep.path, "nested deeper than " + std::to_string(maxDepth) + " arrays and objects at " +
+                                        lineColumnText(text, deep.offset) + " (expected at most " +
+                                        std::to_string(maxDepth) + ")");
   try {
     return json::parse(text, DuplicateKeyCheck());
   } catch (const json::parse_error& e) {
