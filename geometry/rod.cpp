@@ -158,6 +158,34 @@ void Rod::sampleCenterline() {
     first = last;
   }
   estimateCurvature(unresolved);
+  cacheJets();
+}
+
+// The inside test subdivides segment i when curvature x (gap + deviation + chord) >= 0.5 with a gap
+// of at most the section's reach plus the deviation (see classifyPiece).
+static constexpr int kFoldSubdivisions = 8;
+
+void Rod::cacheJets() {
+  const double reach = section_.boundingRadius() * (1.0 + 1e-9) + 1e-9;
+  sampleJet_.clear();
+  foldOffset_.assign(sampleDeviation_.size(), kNoFold);
+  foldJets_.clear();
+  for (const double u : sampleU_) {
+    Vec3 d[2];
+    centerline_.derivatives(u, 1, d);
+    sampleJet_.push_back({d[0], d[1]});
+  }
+  for (std::size_t i = 0; i < sampleDeviation_.size(); ++i) {
+    const double chord = (samplePoint_[i + 1] - samplePoint_[i]).norm();
+    if (sampleCurvature_[i] * (reach + 2.0 * sampleDeviation_[i] + chord) < 0.5) continue;
+    foldOffset_[i] = foldJets_.size();
+    const double a = sampleU_[i], b = sampleU_[i + 1];
+    for (int k = 1; k < kFoldSubdivisions; ++k) {
+      Vec3 d[2];
+      centerline_.derivatives(a + (b - a) * k / kFoldSubdivisions, 1, d);
+      foldJets_.push_back({d[0], d[1]});
+    }
+  }
 }
 
 void Rod::estimateCurvature(const std::vector<bool>& unresolved) {
@@ -299,10 +327,12 @@ void Rod::classifyPiece(const Vec3& p, const SmoothPiece& piece, RodHit& best) c
   const bool round = caps_ == CapStyle::Round;
   const double capReach = std::max(reach, section_.capRadius());
   auto g = [&](double u, bool fromBelow) {
-    Vec3 d[3];
-    evaluate(u, fromBelow, d);
+    Vec3 d[2];
+    if (fromBelow) centerline_.derivativesFromBelow(u, 1, d);
+    else centerline_.derivatives(u, 1, d);
     return (d[0] - p).dot(d[1]);
   };
+  auto gAt = [&](const Jet& j) { return (j.r - p).dot(j.d); };
   // The end planes: beyond one, the cap; on it (within the tolerance), the section there.
   auto end = [&](double u, const Vec3& outward, bool fromBelow) {
     Vec3 d[3];
@@ -335,17 +365,17 @@ void Rod::classifyPiece(const Vec3& p, const SmoothPiece& piece, RodHit& best) c
     if (gap - sampleDeviation_[i] > reach) continue;  // no section of the segment reaches p
     const double a = sampleU_[i], b = sampleU_[i + 1];
     const bool belowB = piece.endFromBelow && i + 1 == piece.lastSample;
-    const double ga = g(a, false), gb = g(b, belowB);
+    const double ga = gAt(sampleJet_[i]), gb = belowB ? g(b, true) : gAt(sampleJet_[i + 1]);
     // g has one zero at most on the segment unless the curvature times the distance nears 1 (p close
     // to a centre of curvature): then look for every sign change on a finer sampling.
     const double chord = (samplePoint_[i + 1] - samplePoint_[i]).norm();
     if (!(sampleCurvature_[i] * (gap + sampleDeviation_[i] + chord) < 0.5)) {
-      constexpr int kSubdivisions = 8;
+      const std::size_t fold = foldOffset_[i];
       double x = a, gx = ga;
-      for (int k = 1; k <= kSubdivisions; ++k) {
-        const double y = k == kSubdivisions ? b : a + (b - a) * k / kSubdivisions;
-        const double gy = k == kSubdivisions ? gb : g(y, false);
-        crossing(x, y, gx, gy, belowB && k == kSubdivisions);
+      for (int k = 1; k <= kFoldSubdivisions; ++k) {
+        const double y = k == kFoldSubdivisions ? b : a + (b - a) * k / kFoldSubdivisions;
+        const double gy = k == kFoldSubdivisions ? gb : fold != kNoFold ? gAt(foldJets_[fold + k - 1]) : g(y, false);
+        crossing(x, y, gx, gy, belowB && k == kFoldSubdivisions);
         x = y;
         gx = gy;
       }

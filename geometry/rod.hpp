@@ -128,6 +128,7 @@ private:
   void findSmoothPieces(const std::vector<double>& breakpoints, std::vector<bool>& isC0) const;
   void sampleCenterline();
   void estimateCurvature(const std::vector<bool>& unresolved);
+  void cacheJets();
   void computeBounds();
   // r, r', r'' at u; from below when `fromBelow` (the end of a piece at a C0 point).
   void evaluate(double u, bool fromBelow, Vec3* d) const;
@@ -150,6 +151,16 @@ private:
   std::vector<Vec3> samplePoint_;
   std::vector<double> sampleDeviation_;
   std::vector<double> sampleCurvature_;
+  // r(u) and r'(u) (from above) at every sample, and at the 7 inner sub-points of the segments where
+  // the inside test may subdivide (foldOffset_ per segment into foldJets_, or kNoFold): the test's
+  // sign checks then cost a dot product.
+  struct Jet {
+    Vec3 r, d;
+  };
+  static constexpr std::size_t kNoFold = std::numeric_limits<std::size_t>::max();
+  std::vector<Jet> sampleJet_;
+  std::vector<std::size_t> foldOffset_;
+  std::vector<Jet> foldJets_;
   std::vector<SmoothPiece> pieces_;
   Box3 bounds_;
 };

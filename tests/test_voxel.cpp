@@ -747,7 +747,7 @@ TEST_CASE("Hostile sizes stay bounded: pieces within the estimate, work within s
   for (const Case& c : cases) {
     INFO(c.name);
     const RodStructure s = design({c.rod});
-    const PrinterGrid g = voxel::makePrinterGrid(s, {0.0423, 0.0846, 0.03});
+    const PrinterGrid g = voxel::makePrinterGrid(s, {0.06, 0.08, 0.05});
     const voxel::RasterEstimate estimate = voxel::estimateRaster(s, g);
     const voxel::Rasterizer rasterizer(s, g);
     REQUIRE(rasterizer.pieceCount() <= estimate.maxPieces);
