@@ -38,7 +38,7 @@ TooDeep findTooDeep(const std::string& text, int maxDepth) {
   const auto path = [&levels] {
     std::string p;
     for (const Level& l : levels) {
-      if (l.array) p += "[" + std::to_string(l.index) + "]";
+      if (l.array) p.append("[").append(std::to_string(l.index)).append("]");
       else if (!l.key.empty()) p.append(p.empty() ? "" : ".").append(l.key);
     }
     return p;
@@ -92,7 +92,7 @@ private:
   std::string path() const {
     std::string p;
     for (const Level& l : levels_) {
-      if (l.array) p += "[" + std::to_string(l.index) + "]";
+      if (l.array) p.append("[").append(std::to_string(l.index)).append("]");
       else if (!l.key.empty()) p.append(p.empty() ? "" : ".").append(l.key);
     }
     return p;
