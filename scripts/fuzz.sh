@@ -32,7 +32,15 @@ for t in "${targets[@]}"; do
       -print_final_stats=1 -artifact_prefix=build-fuzz/crashes/"$t"- -detect_leaks=1
   # Keep only the inputs that add coverage.
   rm -rf "$corpus.new" && mkdir -p "$corpus.new"
-  "$fuzzer" -merge=1 "$corpus.new" "$work" "${seeds[@]}" >/dev/null 2>&1
+  if [ "$t" = inspect ]; then
+    # Its inputs are whole jobs of a few KB: keep the inputs that add the most coverage edges per byte,
+    # within 300 KB (scripts/corpus_budget.py prints the share of edges kept).
+    rm -rf build-fuzz/merged && mkdir -p build-fuzz/merged
+    "$fuzzer" -merge=1 -use_counters=0 -merge_control_file="build-fuzz/$t.merge" build-fuzz/merged "$work" "${seeds[@]}" >/dev/null 2>&1
+    python3 scripts/corpus_budget.py "build-fuzz/$t.merge" 300000 "$corpus.new" "tests/fuzz/seeds/$t"
+  else
+    "$fuzzer" -merge=1 "$corpus.new" "$work" "${seeds[@]}" >/dev/null 2>&1
+  fi
   rm -rf "$corpus" && mv "$corpus.new" "$corpus"
   echo "$t: corpus of $(ls "$corpus" | wc -l) inputs in $corpus"
 done

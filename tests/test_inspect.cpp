@@ -46,16 +46,25 @@ fs::path scratch(const std::string& name) {
   return dir;
 }
 
-// A 10 x 6 x 4-voxel block of random Vero and Tango, written by the JobWriter.
-void writeSmallJob(const fs::path& output, ArchiveFormat archive, ImageFormat image = ImageFormat::Bmp,
-                   SupportPolicy support = SupportPolicy::Printer, const Profile& profile = connex3(), bool verify = true) {
+struct SmallJob {
+  ArchiveFormat archive = ArchiveFormat::Zip;
+  ImageFormat image = ImageFormat::Bmp;
+  SupportPolicy support = SupportPolicy::Printer;
+  const Profile* profile = nullptr;  // default: the bundled Connex3
+  bool verify = true;                // the writer's own inspection
+  int layers = 4;
+};
+
+// A 10 x 6 x `layers`-voxel block of random Vero and Tango, written by the JobWriter.
+void writeSmallJob(const fs::path& output, const SmallJob& job = {}) {
   openvdb::initialize();
+  const Profile& profile = job.profile ? *job.profile : connex3();
   const openvdb::Vec3d origin(1.0, 2.0, 0.0);
   auto grid = openvdb::BoolGrid::create(false);
   grid->setTransform(gridTransform(profile, origin));
   auto acc = grid->getAccessor();
   std::mt19937 rng(5);
-  for (int k = 0; k < 4; ++k)
+  for (int k = 0; k < job.layers; ++k)
     for (int j = 0; j < 6; ++j)
       for (int i = 0; i < 10; ++i) acc.setValueOn({i, j, k}, rng() % 2 == 0);
   JobSpec spec;
@@ -64,17 +73,17 @@ void writeSmallJob(const fs::path& output, ArchiveFormat archive, ImageFormat im
   spec.originMm = origin;
   spec.metadata.ditherer = "white";
   spec.options.output = output;
-  spec.options.archive = archive;
-  spec.options.imageFormat = image;
-  spec.options.support = support;
-  spec.options.verify = verify;
-  if (support == SupportPolicy::Explicit) {
+  spec.options.archive = job.archive;
+  spec.options.imageFormat = job.image;
+  spec.options.support = job.support;
+  spec.options.verify = job.verify;
+  if (job.support == SupportPolicy::Explicit) {
     auto tops = std::make_shared<ColumnTops>(planJob(profile, spec.partBounds));
     tops->include(*grid);
     spec.supportTops = tops;
   }
   JobWriter writer(std::move(spec));
-  writer.addBand({grid, nullptr, 0, 4});
+  writer.addBand({grid, nullptr, 0, job.layers});
   writer.finalize();
 }
 
@@ -104,15 +113,18 @@ std::vector<std::pair<std::string, Bytes>> unzip(const fs::path& file) {
   return out;
 }
 
-// A new zip with these entries (libzip, deflated).
-void rezip(const fs::path& file, const std::vector<std::pair<std::string, Bytes>>& entries) {
+// A new zip with these entries (libzip, deflated or stored).
+void rezip(const fs::path& file, const std::vector<std::pair<std::string, Bytes>>& entries, bool store = false) {
   fs::remove(file);
   int error = 0;
   zip_t* za = zip_open(file.c_str(), ZIP_CREATE | ZIP_EXCL, &error);
   REQUIRE(za);
   for (const auto& [name, data] : entries) {
     zip_source_t* source = zip_source_buffer(za, data.data(), data.size(), 0);
-    REQUIRE(zip_file_add(za, name.c_str(), source, ZIP_FL_ENC_UTF_8) >= 0);
+    const zip_int64_t index = zip_file_add(za, name.c_str(), source, ZIP_FL_ENC_UTF_8);
+    REQUIRE(index >= 0);
+    if (store) REQUIRE(zip_set_file_compression(za, static_cast<zip_uint64_t>(index), ZIP_CM_STORE, 0) == 0);
+    REQUIRE(zip_file_set_mtime(za, static_cast<zip_uint64_t>(index), static_cast<time_t>(kZipEntryTime), 0) == 0);
   }
   REQUIRE(zip_close(za) == 0);
 }
@@ -197,11 +209,11 @@ std::uint32_t crcOfZeros(std::uint64_t size) {
   return static_cast<std::uint32_t>(crc);
 }
 
-// A job's entries as honest raw entries (each deflated), so one of them can be made to lie.
-std::vector<RawEntry> rawEntries(const std::vector<std::pair<std::string, Bytes>>& files) {
+// A job's entries as honest raw entries (deflated or stored), so one of them can be made to lie.
+std::vector<RawEntry> rawEntries(const std::vector<std::pair<std::string, Bytes>>& files, bool store = false) {
   std::vector<RawEntry> out;
   for (const auto& [name, data] : files) {
-    RawEntry e{name, deflateRaw(0, &data)};
+    RawEntry e{name, store ? data : deflateRaw(0, &data), std::uint16_t(store ? 0 : 8)};
     e.crc = static_cast<std::uint32_t>(crc32(0, data.data(), static_cast<uInt>(data.size())));
     e.compressedSize = static_cast<std::uint32_t>(e.stored.size());
     e.size = static_cast<std::uint32_t>(data.size());
@@ -219,7 +231,7 @@ json manifestOf(const std::vector<std::pair<std::string, Bytes>>& files) {
 
 void setManifest(std::vector<std::pair<std::string, Bytes>>& files, const json& manifest) {
   for (auto& [name, data] : files)
-    if (name == "manifest.json") data = bytesOf(manifest.dump(1));
+    if (name == "manifest.json") data = bytesOf(manifest.dump());
 }
 
 // Adds `name` to the job and lists it in the manifest with its true size and checksum.
@@ -256,8 +268,8 @@ struct HangGuard {
 
 TEST_CASE("Valid small jobs of every form pass inspect", "[inspect]") {
   const fs::path dir = scratch("valid");
-  writeSmallJob(dir / "bmp.zip", ArchiveFormat::Zip);
-  writeSmallJob(dir / "png", ArchiveFormat::Directory, ImageFormat::Png, SupportPolicy::Explicit);
+  writeSmallJob(dir / "bmp.zip");
+  writeSmallJob(dir / "png", {ArchiveFormat::Directory, ImageFormat::Png, SupportPolicy::Explicit});
   for (const fs::path& job : {dir / "bmp.zip", dir / "png"}) {
     const InspectReport report = inspectJob(job);
     INFO(job << ": " << (report.defects.empty() ? "" : report.defects[0]));
@@ -274,7 +286,7 @@ TEST_CASE("Valid small jobs of every form pass inspect", "[inspect]") {
 TEST_CASE("The profile comes from the bundled ones by name or from the caller, never from a path in the manifest",
           "[inspect][hostile]") {
   const fs::path dir = scratch("profile-name");
-  writeSmallJob(dir / "job.zip", ArchiveFormat::Zip);
+  writeSmallJob(dir / "job.zip");
   auto files = unzip(dir / "job.zip");
   const HangGuard guard(60);
   for (const std::string name : {"/dev/stdin", "/dev/zero", "../../../../dev/zero", "stratasys-objet500-connex3.json", ""}) {
@@ -291,7 +303,7 @@ TEST_CASE("The profile comes from the bundled ones by name or from the caller, n
   Profile custom = connex3();
   custom.name = "my-connex3";
   // (The writer's own verification cannot know the profile until it passes it in InspectOptions.)
-  writeSmallJob(dir / "custom.zip", ArchiveFormat::Zip, ImageFormat::Bmp, SupportPolicy::Printer, custom, false);
+  writeSmallJob(dir / "custom.zip", {.profile = &custom, .verify = false});
   CHECK(hasDefect(inspectJob(dir / "custom.zip"), "\"my-connex3\" is not a bundled profile"));
   InspectOptions options;
   options.profile = custom;
@@ -304,7 +316,7 @@ TEST_CASE("The profile comes from the bundled ones by name or from the caller, n
 TEST_CASE("Entries declaring or expanding to more than their image can hold are refused unread, in bounded memory",
           "[inspect][hostile]") {
   const fs::path dir = scratch("bombs");
-  writeSmallJob(dir / "job.zip", ArchiveFormat::Zip);
+  writeSmallJob(dir / "job.zip");
   const auto files = unzip(dir / "job.zip");
   const std::string layer = "VeroWhitePlus_0002.bmp";
   const double before = peakRssMiB();
@@ -376,7 +388,7 @@ TEST_CASE("Entries declaring or expanding to more than their image can hold are 
 
 TEST_CASE("Entry names unsafe on some platform are refused even when the manifest lists them", "[inspect][hostile]") {
   const fs::path dir = scratch("names");
-  writeSmallJob(dir / "job.zip", ArchiveFormat::Zip);
+  writeSmallJob(dir / "job.zip");
   const std::vector<std::pair<std::string, std::string>> cases = {
       {"../../x", "'..' component"},
       {"previews/../../x", "'..' component"},
@@ -425,7 +437,7 @@ TEST_CASE("Entry names unsafe on some platform are refused even when the manifes
 
 TEST_CASE("The job's complete layout is checked against the profile", "[inspect][hostile]") {
   const fs::path dir = scratch("layout");
-  writeSmallJob(dir / "job.zip", ArchiveFormat::Zip);
+  writeSmallJob(dir / "job.zip");
   const auto original = unzip(dir / "job.zip");
 
   SECTION("a job without its build file, also dropped from the manifest") {
@@ -523,7 +535,7 @@ TEST_CASE("Folder jobs: links, FIFOs and devices are never opened, and inspect n
   const fs::path dir = scratch("folder");
   const HangGuard guard(60);
   const auto fresh = [&](const std::string& name) {
-    writeSmallJob(dir / name, ArchiveFormat::Directory, ImageFormat::Png, SupportPolicy::Printer);
+    writeSmallJob(dir / name, {ArchiveFormat::Directory, ImageFormat::Png});
     return dir / name;
   };
   SECTION("a FIFO in place of a layer") {
@@ -558,4 +570,58 @@ TEST_CASE("Folder jobs: links, FIFOs and devices are never opened, and inspect n
     CHECK(hasDefect(inspectJob(dir / "job.zip"), "job.zip: is a FIFO (named pipe), not a job"));
     CHECK(hasDefect(inspectJob("/dev/zero"), "/dev/zero: is a character device, not a job"));
   }
+}
+
+// Not a test: writes the seeds of the inspect fuzz target (tests/fuzz/seeds/inspect/), small real jobs
+// made by the writer and hostile variants of them, entries stored so that mutations reach their bytes
+// (named without .zip, which .gitignore keeps out of the repository).
+// Run: RODFAB_SEED_DIR=tests/fuzz/seeds/inspect build/tests/test_inspect "[.make-seeds]"
+TEST_CASE("Write the seeds of the inspect fuzz target", "[.make-seeds]") {
+  const char* out = std::getenv("RODFAB_SEED_DIR");
+  REQUIRE(out);
+  const fs::path dir = scratch("seeds"), seeds = out;
+  fs::create_directories(seeds);
+  // Small inputs keep the kept corpus small: the previews (37 of a small job's 42 KB) become 2 x 2 PNGs,
+  // re-listed, and the manifest loses the fields inspect does not read; the jobs stay sound.
+  const auto shrink = [](std::vector<std::pair<std::string, Bytes>> files) {
+    for (auto& [name, data] : files)
+      if (name.starts_with("previews/")) data = encodePngRgb(RgbImage(2, 2, 90, 90, 90));
+    json m = manifestOf(files);
+    for (const auto& [name, data] : files)
+      if (name.starts_with("previews/")) m["files"][name] = {{"bytes", data.size()}, {"sha256", sha256Hex(data)}};
+    for (const char* key : {"statistics", "metadata", "calibration"}) m.erase(key);
+    for (const char* key : {"origin_note", "pixel_to_design_mm", "part_voxels"}) m["frame"].erase(key);
+    for (const char* key : {"row_order", "origin", "x_pixels_per_metre", "y_pixels_per_metre"}) m["image"].erase(key);
+    for (const char* key : {"printer", "tray_mm", "layer_thickness_mm"}) m["profile"].erase(key);
+    m["support"].erase("note");
+    for (auto& [name, data] : files)
+      if (name == "manifest.json") data = bytesOf(m.dump());
+    return files;
+  };
+  writeSmallJob(dir / "bmp.zip", {.layers = 2});
+  writeSmallJob(dir / "bmp-1.zip", {.layers = 1});
+  writeSmallJob(dir / "png-explicit.zip", {ArchiveFormat::Zip, ImageFormat::Png, SupportPolicy::Explicit, nullptr, true, 1});
+  rezip(seeds / "job-bmp", shrink(unzip(dir / "bmp.zip")), true);
+  rezip(seeds / "job-png-explicit", shrink(unzip(dir / "png-explicit.zip")), true);
+  CHECK(inspectJob(seeds / "job-bmp").ok());
+  CHECK(inspectJob(seeds / "job-png-explicit").ok());
+  const auto files = shrink(unzip(dir / "bmp-1.zip"));
+  auto raw = rawEntries(files, true);
+  raw[1].mode = 0120777;  // build.txt a symbolic link
+  raw[2].mode = 0010644;  // a preview a FIFO
+  writeRawZip(seeds / "links-and-fifos", raw);
+  raw = rawEntries(files, true);
+  raw[4].stored = deflateRaw(1u << 20);  // VeroWhitePlus_0000.bmp inflates to 1 MiB, its header unchanged
+  raw[4].method = 8;
+  raw[4].compressedSize = static_cast<std::uint32_t>(raw[4].stored.size());
+  writeRawZip(seeds / "disguised-bomb", raw);
+  auto named = files;
+  addListed(named, "../x", bytesOf("x"));
+  addListed(named, "Build.txt", bytesOf("x"));
+  writeRawZip(seeds / "unsafe-names", rawEntries(named, true));
+  auto deep = files;
+  for (auto& [name, data] : deep)
+    if (name == "manifest.json") data = bytesOf(std::string(100, '[') + std::string(100, ']'));
+  writeRawZip(seeds / "deep-manifest", rawEntries(deep, true));
+  for (const auto& e : fs::directory_iterator(seeds)) CHECK(fs::file_size(e.path()) < 8192);
 }
