@@ -648,7 +648,7 @@ struct JobWriter::Impl {
   }
 
   void verify(const fs::path& built) const {
-    const InspectReport report = inspectJobFiles(*openJobFiles(built));
+    const InspectReport report = inspectJobFiles(*openJobFiles(built), {spec.profile});
     if (report.ok()) return;
     std::string list;
     for (const std::string& d : report.defects) list += "\n  " + d;
