@@ -20,6 +20,10 @@
 
 namespace rodfab::mechanics {
 
+namespace detail {
+struct DiscreteStructure;
+}
+
 // A design that cannot be simulated (no supports, an unresolvable load point, a centerline the
 // collocation cannot use...). what() reads `FILE: JSON.PATH: what is wrong and what was expected`.
 class MechanicsError : public std::runtime_error {
@@ -65,7 +69,6 @@ public:
   std::size_t rodCount() const;
   std::size_t jointCount() const;    // nodes where two or more rod ends meet
   std::size_t supportCount() const;
-  std::size_t controlPointCount(std::size_t rod) const;
   const std::string& source() const;
 
   // The undeformed configuration (a solution at load 0).
@@ -88,8 +91,7 @@ public:
   geometry::RodStructure deformedStructure(const Eigen::VectorXd& x) const;
 
 private:
-  struct Model;
-  std::unique_ptr<Model> model_;
+  std::unique_ptr<detail::DiscreteStructure> structure_;
 };
 
 struct SolverOptions {

@@ -1,0 +1,245 @@
+// Residual rows and their exact derivatives: interior collocation points (equilibrium and unit
+// norm) and nodes (support, balance and joint conditions).
+#include "mechanics/discrete_structure.hpp"
+
+#include <unsupported/Eigen/AutoDiff>
+
+#include <cmath>
+#include <numeric>
+
+namespace rodfab::mechanics::detail {
+
+using Eigen::Vector3d;
+using Eigen::Vector4d;
+
+namespace {
+
+template <int N> using Dual = Eigen::AutoDiffScalar<Eigen::Matrix<double, N, 1>>;
+using EndJacobian = Eigen::Matrix<double, Eigen::Dynamic, 14>;  // rows by an end's (r, r', q, q')
+
+// Columns of the control points a basis touches, 7 per point.
+void appendColumns(const DiscreteRod& rod, const Basis& b, std::vector<std::size_t>& cols) {
+  for (int k = 0; k < b.count; ++k)
+    for (int c = 0; c < 7; ++c) cols.push_back(rod.offset + 7 * static_cast<std::size_t>(b.first + k) + c);
+}
+
+// Chain rule from derivatives with respect to an end's (r, r', q, q') (14 columns) to its control points.
+void chainEnd(const Basis& b, const EndJacobian& d, Eigen::Ref<Eigen::MatrixXd> out) {
+  for (int k = 0; k < b.count; ++k) {
+    out.middleCols<3>(7 * k) += d.middleCols<3>(0) * b.value[k] + d.middleCols<3>(3) * b.d1[k];
+    out.middleCols<4>(7 * k + 3) += d.middleCols<4>(6) * b.value[k] + d.middleCols<4>(10) * b.d1[k];
+  }
+}
+
+Eigen::Matrix3d crossMatrix(const Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return m;
+}
+
+// One node's rows: 7 per rod end, in the slots of the ends' first or last collocation points.
+// The first end's slot holds the support or balance conditions and its unit norm; every further
+// end's slot ties it to the first (position, relative rotation, unit norm).
+class NodeEquations {
+public:
+  NodeEquations(const DiscreteStructure& s, const Node& node, const Eigen::VectorXd& x, bool derivatives)
+      : s_(s), node_(node), derivatives_(derivatives), ends_(node.ends.size()) {
+    const DiscreteRod& firstRod = s.rodOf(node.ends[0]);
+    forceRow_ = 1.0 / firstRod.forceScale, momentRow_ = 1.0 / firstRod.momentScale, positionRow_ = 1.0 / firstRod.length;
+    for (std::size_t i = 0; i < ends_.size(); ++i) gatherEnd(i, x);
+    f_.resize(static_cast<Eigen::Index>(7 * ends_.size()));
+    if (derivatives) dEnd_.assign(ends_.size(), EndJacobian::Zero(f_.size(), 14));
+  }
+
+  void evaluate(double load) {
+    if (node_.support) positionRows(load);
+    else forceBalanceRows(load);
+    if (node_.support == geometry::SupportKind::Clamped) rotationRows(load);
+    else momentBalanceRows(load);
+    f_[6] = ends_[0].s.q.squaredNorm() - 1.0;
+    if (derivatives_) dEnd_[0].block<1, 4>(6, 6) = 2.0 * ends_[0].s.q.transpose();
+    for (std::size_t i = 1; i < ends_.size(); ++i) jointRows(i);
+  }
+
+  void scatter(Eigen::VectorXd& residual, Block* block) const;
+
+private:
+  // Per end: local state, force and moment, and their derivatives with respect to (r, r', q, q').
+  struct EndData {
+    LocalState s;
+    Vector3d n, m;
+    Eigen::Matrix<double, 3, 14> dn, dm;
+    std::size_t col = 0;  // first column of this end in the block
+  };
+
+  void gatherEnd(std::size_t i, const Eigen::VectorXd& x);
+  void positionRows(double load);
+  void forceBalanceRows(double load);
+  void rotationRows(double load);
+  void momentBalanceRows(double load);
+  void jointRows(std::size_t i);
+  double sign(std::size_t i) const { return node_.ends[i].end == 0 ? 1.0 : -1.0; }  // + n(0) at a start, - n(L) at an end
+
+  const DiscreteStructure& s_;
+  const Node& node_;
+  bool derivatives_;
+  std::vector<EndData> ends_;
+  std::size_t cols_ = 0;
+  double forceRow_ = 1, momentRow_ = 1, positionRow_ = 1;
+  Eigen::VectorXd f_;
+  std::vector<EndJacobian> dEnd_;
+};
+
+void NodeEquations::gatherEnd(std::size_t i, const Eigen::VectorXd& x) {
+  const ResolvedEnd& e = node_.ends[i];
+  EndData& d = ends_[i];
+  d.s = localState(s_.rodOf(e), s_.endBasis(e), x);
+  d.col = cols_;
+  cols_ += 7 * static_cast<std::size_t>(s_.endBasis(e).count);
+  const PointConstants& c = s_.endConstants(e);
+  if (!derivatives_) {
+    const StrainMeasures<double> sm = strainMeasures<double>(d.s.dr, Vector3d::Zero(), d.s.q, d.s.dq, Vector4d::Zero());
+    stressResultants(sm, c, d.n, d.m);
+    return;
+  }
+  using D = Dual<11>;
+  V3<D> dr;
+  V4<D> q, dq;
+  for (int j = 0; j < 3; ++j) dr[j] = D(d.s.dr[j], 11, j);
+  for (int j = 0; j < 4; ++j) q[j] = D(d.s.q[j], 11, 3 + j), dq[j] = D(d.s.dq[j], 11, 7 + j);
+  const StrainMeasures<D> sm = strainMeasures<D>(dr, V3<D>::Zero(), q, dq, V4<D>::Zero());
+  V3<D> n, m;
+  stressResultants(sm, c, n, m);
+  d.dn.setZero(), d.dm.setZero();
+  for (int j = 0; j < 3; ++j) {
+    d.n[j] = n[j].value(), d.m[j] = m[j].value();
+    d.dn.block<1, 11>(j, 3) = n[j].derivatives().transpose();
+    d.dm.block<1, 11>(j, 3) = m[j].derivatives().transpose();
+  }
+}
+
+void NodeEquations::positionRows(double load) {
+  f_.segment<3>(0) = (ends_[0].s.r - node_.position0 - load * node_.displacement) * positionRow_;
+  if (derivatives_) dEnd_[0].block<3, 3>(0, 0) = Eigen::Matrix3d::Identity() * positionRow_;
+}
+
+void NodeEquations::forceBalanceRows(double load) {
+  Vector3d sum = load * node_.force;
+  for (std::size_t i = 0; i < ends_.size(); ++i) {
+    sum += sign(i) * ends_[i].n;
+    if (derivatives_) dEnd_[i].block<3, 14>(0, 0) += sign(i) * ends_[i].dn * forceRow_;
+  }
+  f_.segment<3>(0) = sum * forceRow_;
+}
+
+void NodeEquations::rotationRows(double load) {
+  // vec(conj(q_target) q) = 0 with q_target the reference end rotation turned by load * rotation.
+  const double angle = load * node_.rotation.norm();
+  Vector4d turn(1, 0, 0, 0);
+  if (angle > 0) turn << std::cos(angle / 2), std::sin(angle / 2) * node_.rotation.normalized();
+  const Vector4d target = quaternionProduct<double>(turn, node_.quaternion0);
+  f_.segment<3>(3) = conjugateProductVector<double>(target, ends_[0].s.q);
+  if (!derivatives_) return;
+  for (int c = 0; c < 4; ++c) dEnd_[0].block<3, 1>(3, 6 + c) = conjugateProductVector<double>(target, Vector4d::Unit(c));
+}
+
+void NodeEquations::momentBalanceRows(double load) {
+  Vector3d sum = load * node_.moment;
+  for (std::size_t i = 0; i < ends_.size(); ++i) {
+    const EndData& d = ends_[i];
+    const Vector3d arm = d.s.r - ends_[0].s.r;
+    sum += sign(i) * (d.m + arm.cross(d.n));
+    if (!derivatives_) continue;
+    const Eigen::Matrix3d nCross = crossMatrix(d.n);
+    dEnd_[i].block<3, 14>(3, 0) += sign(i) * momentRow_ * (d.dm + crossMatrix(arm) * d.dn);
+    // arm x n = -n x arm: d(arm) = dr_i - dr_0.
+    dEnd_[i].block<3, 3>(3, 0) -= sign(i) * momentRow_ * nCross;
+    dEnd_[0].block<3, 3>(3, 0) += sign(i) * momentRow_ * nCross;
+  }
+  f_.segment<3>(3) = sum * momentRow_;
+}
+
+void NodeEquations::jointRows(std::size_t i) {
+  const EndData& e0 = ends_[0];
+  const EndData& d = ends_[i];
+  const Eigen::Index r0 = static_cast<Eigen::Index>(7 * i);
+  f_.segment<3>(r0) = (d.s.r - e0.s.r - node_.offsets0[i - 1]) * positionRow_;
+  f_[r0 + 6] = d.s.q.squaredNorm() - 1.0;
+  // vec(conj(c) conj(q_0) q_i) = vec(conj(q_0 c) q_i) = 0 keeps the relative rotation c.
+  using D = Dual<8>;
+  V4<D> q0, qi;
+  for (int j = 0; j < 4; ++j) q0[j] = D(e0.s.q[j], 8, j), qi[j] = D(d.s.q[j], 8, 4 + j);
+  const V3<D> g = conjugateProductVector<D>(quaternionProduct<D>(q0, node_.relative0[i - 1].cast<D>()), qi);
+  for (int j = 0; j < 3; ++j) f_[r0 + 3 + j] = g[j].value();
+  if (!derivatives_) return;
+  dEnd_[i].block<3, 3>(r0, 0) += Eigen::Matrix3d::Identity() * positionRow_;
+  dEnd_[0].block<3, 3>(r0, 0) -= Eigen::Matrix3d::Identity() * positionRow_;
+  for (int j = 0; j < 3; ++j) {
+    dEnd_[0].block<1, 4>(r0 + 3 + j, 6) += g[j].derivatives().head<4>().transpose();
+    dEnd_[i].block<1, 4>(r0 + 3 + j, 6) += g[j].derivatives().tail<4>().transpose();
+  }
+  dEnd_[i].block<1, 4>(r0 + 6, 6) = 2.0 * d.s.q.transpose();
+}
+
+void NodeEquations::scatter(Eigen::VectorXd& residual, Block* block) const {
+  const std::size_t k = ends_.size();
+  for (std::size_t i = 0; i < k; ++i) residual.segment<7>(s_.endRow(node_.ends[i])) = f_.segment<7>(7 * i);
+  if (!block) return;
+  block->rows.clear();
+  for (std::size_t i = 0; i < k; ++i)
+    for (int r = 0; r < 7; ++r) block->rows.push_back(s_.endRow(node_.ends[i]) + r);
+  block->cols.clear();
+  block->values.setZero(f_.size(), static_cast<Eigen::Index>(cols_));
+  for (std::size_t i = 0; i < k; ++i) {
+    const Basis& b = s_.endBasis(node_.ends[i]);
+    appendColumns(s_.rodOf(node_.ends[i]), b, block->cols);
+    chainEnd(b, dEnd_[i], block->values.middleCols(static_cast<Eigen::Index>(ends_[i].col), 7 * b.count));
+  }
+}
+
+}  // namespace
+
+void DiscreteStructure::interiorBlock(const DiscreteRod& rod, int j, const Eigen::VectorXd& x, double load,
+                                      Eigen::VectorXd& residual, Block* block) const {
+  const Basis& b = rod.basis[j];
+  const LocalState s = localState(rod, b, x);
+  const PointConstants& c = rod.constants[j];
+  Eigen::Matrix<double, 7, 1> scale;
+  const double forceRow = rod.length / (c.J0 * rod.forceScale), momentRow = rod.length / (c.J0 * rod.momentScale);
+  scale << forceRow, forceRow, forceRow, momentRow, momentRow, momentRow, 1.0;
+  const std::size_t row = rod.row(j);
+  if (!block) {
+    residual.segment<7>(row) = equilibriumResidual<double>(s.dr, s.ddr, s.q, s.dq, s.ddq, c, load).cwiseProduct(scale);
+    return;
+  }
+  using D = Dual<18>;
+  V3<D> dr, ddr;
+  V4<D> q, dq, ddq;
+  for (int i = 0; i < 3; ++i) dr[i] = D(s.dr[i], 18, i), ddr[i] = D(s.ddr[i], 18, 3 + i);
+  for (int i = 0; i < 4; ++i) q[i] = D(s.q[i], 18, 6 + i), dq[i] = D(s.dq[i], 18, 10 + i), ddq[i] = D(s.ddq[i], 18, 14 + i);
+  const Eigen::Matrix<D, 7, 1> f = equilibriumResidual<D>(dr, ddr, q, dq, ddq, c, load);
+  Eigen::Matrix<double, 7, 18> d;
+  for (int i = 0; i < 7; ++i) {
+    residual[row + i] = f[i].value() * scale[i];
+    d.row(i) = f[i].derivatives().transpose() * scale[i];
+  }
+  block->rows.resize(7);
+  std::iota(block->rows.begin(), block->rows.end(), row);
+  block->cols.clear();
+  appendColumns(rod, b, block->cols);
+  block->values.setZero(7, 7 * b.count);
+  for (int k = 0; k < b.count; ++k) {
+    block->values.middleCols<3>(7 * k) = d.middleCols<3>(0) * b.d1[k] + d.middleCols<3>(3) * b.d2[k];
+    block->values.middleCols<4>(7 * k + 3) =
+        d.middleCols<4>(6) * b.value[k] + d.middleCols<4>(10) * b.d1[k] + d.middleCols<4>(14) * b.d2[k];
+  }
+}
+
+void DiscreteStructure::nodeBlock(const Node& node, const Eigen::VectorXd& x, double load, Eigen::VectorXd& residual,
+                                  Block* block) const {
+  NodeEquations equations(*this, node, x, block != nullptr);
+  equations.evaluate(load);
+  equations.scatter(residual, block);
+}
+
+}  // namespace rodfab::mechanics::detail
