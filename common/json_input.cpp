@@ -1,5 +1,8 @@
 #include "common/json_input.hpp"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -129,16 +132,23 @@ std::pair<std::size_t, std::size_t> lineAndColumn(const std::string& text, std::
 std::string readBoundedFile(const std::string& file, std::size_t maxBytes) {
   std::error_code ec;
   if (std::filesystem::is_directory(file, ec)) throw JsonInputError("", "is a folder; expected a file");
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> in(std::fopen(file.c_str(), "rb"), std::fclose);
-  if (!in) throw JsonInputError("", std::string("cannot open the file (") + std::strerror(errno) + ")");
+  // Opened without blocking (a FIFO with no writer would wait forever), then read blocking: a pipe
+  // with a writer is read like a file, one without reads as empty.
+  const int fd = ::open(file.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) throw JsonInputError("", std::string("cannot open the file (") + std::strerror(errno) + ")");
+  std::unique_ptr<int, void (*)(int*)> closer(new int(fd), [](int* f) { ::close(*f), delete f; });
+  ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
   std::string text;
   char chunk[1 << 16];
-  while (const std::size_t n = std::fread(chunk, 1, sizeof chunk, in.get())) {
-    if (text.size() + n > maxBytes)
+  for (;;) {
+    const ssize_t n = ::read(fd, chunk, sizeof chunk);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) throw JsonInputError("", std::string("read error (") + std::strerror(errno) + ")");
+    if (n == 0) break;
+    if (text.size() + static_cast<std::size_t>(n) > maxBytes)
       throw JsonInputError("", "the file is larger than " + std::to_string(maxBytes >> 20) + " MiB; expected a smaller file");
-    text.append(chunk, n);
+    text.append(chunk, static_cast<std::size_t>(n));
   }
-  if (std::ferror(in.get())) throw JsonInputError("", std::string("read error (") + std::strerror(errno) + ")");
   return text;
 }
 

@@ -1,5 +1,7 @@
 #include "printer_profiles/job_writer.hpp"
 
+#include "common/interrupt.hpp"
+
 #include "printer_profiles/inspect.hpp"
 #include "printer_profiles/leaf_bits.hpp"
 #include "printer_profiles/previews.hpp"
@@ -170,6 +172,7 @@ public:
       if (::mkdir(root_.c_str(), 0777) == 0) break;
       if (errno != EEXIST || attempt == 100) fail(parent, std::strerror(errno), false);
     }
+    common::registerCleanup(root_);  // removed on interrupt or a fatal error too (common/interrupt.hpp)
     std::error_code ec;
     fs::create_directories(files() / "previews", ec);
     if (ec) fail(parent, ec.message(), true);
@@ -184,7 +187,10 @@ public:
   fs::path zip() const { return root_ / "job.zip"; }  // the zip job
   void remove() {
     std::error_code ec;
-    if (!root_.empty()) fs::remove_all(root_, ec);
+    if (!root_.empty()) {
+      fs::remove_all(root_, ec);
+      common::unregisterCleanup(root_);
+    }
     root_.clear();
     if (lockFd_ >= 0) ::close(lockFd_);
     lockFd_ = -1;

@@ -3,7 +3,6 @@
 #include "slicer/options.hpp"
 
 #include "common/interrupt.hpp"
-#include "common/memory_budget.hpp"
 #include "voxel/diagnostics.hpp"
 #include "voxel/voxel.hpp"
 
@@ -71,9 +70,6 @@ int runVoxelize(const std::vector<std::string>& args) {
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();
   const voxel::PrinterGrid grid = voxel::makePrinterGrid(design, *voxelSize);
-  const double bytes = voxel::estimateRaster(design, grid).peakBytes(0);
-  common::requireMemory(bytes >= 1.8e19 ? std::uint64_t(1.8e19) : static_cast<std::uint64_t>(bytes),
-                        "rasterizing the whole design at once", "use a coarser --voxel-size (rodfab slice streams bands)");
   const voxel::Rasterization ras = voxel::rasterize(design, grid, {threads, common::interruptRequested});
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
   const voxel::GridStatistics s = voxel::computeStatistics(*ras.grid, grid, ras.voxelsPerRod);

@@ -1,7 +1,6 @@
 #include "slicer/slice_design.hpp"
 
 #include "common/interrupt.hpp"
-#include "common/memory_budget.hpp"
 #include "voxel/diagnostics.hpp"
 
 #include <algorithm>
@@ -14,17 +13,6 @@ namespace rodfab::slicer {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-// Refuses (common::OutOfMemory) a slice whose rasterizer and bands would exceed the memory budget:
-// the rods' pieces, and four band grids alive at once (the band being rasterized, the band the
-// writer encodes, and their fraction grids).
-void requireSliceMemory(const geometry::RodStructure& design, const voxel::PrinterGrid& grid, int bandLayers) {
-  const voxel::RasterEstimate estimate = voxel::estimateRaster(design, grid, bandLayers);
-  const double bytes = estimate.pieceBytes + 4.0 * estimate.bandBytes;
-  common::requireMemory(bytes >= 1.8e19 ? std::uint64_t(1.8e19) : static_cast<std::uint64_t>(bytes),
-                        "slicing this design in bands of " + std::to_string(bandLayers) + " layers",
-                        "use fewer --band-layers, a coarser profile, or a design with fewer or shorter rods");
-}
 
 }  // namespace
 
@@ -48,7 +36,6 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
       voxel::makePrinterGrid(design, openvdb::Vec3d(profile.voxelSizeMm[0], profile.voxelSizeMm[1], profile.voxelSizeMm[2]));
   const openvdb::CoordBBox partBounds = designVoxelBounds(design, grid);
   const int bandLayers = settings.bandLayers > 0 ? settings.bandLayers : automaticBandLayers(partBounds);
-  requireSliceMemory(design, grid, bandLayers);
   for (const voxel::ThinRod& thin : voxel::findThinRods(design, grid)) report.warnings.push_back(thin.reason);
   const voxel::Rasterizer rasterizer(design, grid, {settings.threads, common::interruptRequested});
   const materials::FractionMap fractionMap(calibration);

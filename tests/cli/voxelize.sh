@@ -42,7 +42,7 @@ PY
 for size in 0.1,0.1 0.1,0,0.1 a,b,c 0.1,0.1,0.1,0.1 -1,0.1,0.1; do
   "$rodfab" voxelize "$src/examples/unfolding-box.json" --voxel-size "$size" -o "$tmp/x.vdb" 2> "$tmp/err"
   [ $? -eq 2 ] || fail "--voxel-size $size: expected exit 2"
-  grep -q -- "--voxel-size: expected three positive sizes" "$tmp/err" || fail "--voxel-size $size: $(cat "$tmp/err")"
+  grep -q -- "--voxel-size: expected three sizes from" "$tmp/err" || fail "--voxel-size $size: $(cat "$tmp/err")"
 done
 "$rodfab" voxelize "$src/examples/unfolding-box.json" 2> /dev/null
 [ $? -eq 2 ] || fail "no --output: expected exit 2"
