@@ -50,19 +50,29 @@ void checkExisting(const fs::path& output, const fs::file_status& status, const 
 
 bool processAlive(long pid) { return pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM); }
 
-// Temporaries of earlier runs for the same final name that were killed outright (SIGKILL, power):
-// hidden, tagged with a pid that no longer runs.
+// The pid in a temporary's name (".NAME.rodfab-tmp-PID-N"), or 0 when the name is not one of ours.
+long temporaryOwner(const std::string& name) {
+  static const std::string tag = ".rodfab-tmp-";
+  const auto at = name.rfind(tag);
+  if (name.empty() || name[0] != '.' || at == std::string::npos) return 0;
+  const std::string tail = name.substr(at + tag.size());
+  const auto dash = tail.find('-');
+  const auto digits = [](const std::string& t) {
+    return !t.empty() && t.find_first_not_of("0123456789") == std::string::npos && t.size() < 12;
+  };
+  if (dash == std::string::npos || !digits(tail.substr(0, dash)) || !digits(tail.substr(dash + 1))) return 0;
+  return std::strtol(tail.c_str(), nullptr, 10);
+}
+
+// Temporaries that earlier runs killed outright (SIGKILL, power) left in `final`'s folder, whatever
+// their final name: hidden, ours by name, tagged with a pid that no longer runs.
 void removeStaleTemporaries(const fs::path& final) {
-  std::string prefix = ".";  // appended piecewise: GCC 12 warns falsely (-Wrestrict) on "." + string
-  prefix.append(final.filename().string()).append(".rodfab-tmp-");
   std::error_code ec;
   const fs::path folder = final.parent_path().empty() ? fs::path(".") : final.parent_path();
   for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
-    const std::string name = it->path().filename().string();
-    if (!name.starts_with(prefix)) continue;
-    const long pid = std::strtol(name.c_str() + prefix.size(), nullptr, 10);
+    const long pid = temporaryOwner(it->path().filename().string());
     std::error_code ignored;
-    if (pid != ::getpid() && !processAlive(pid) && it->is_regular_file(ignored)) fs::remove(it->path(), ignored);
+    if (pid > 0 && pid != ::getpid() && !processAlive(pid) && it->is_regular_file(ignored)) fs::remove(it->path(), ignored);
   }
 }
 

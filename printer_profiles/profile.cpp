@@ -478,6 +478,9 @@ Profile parseProfile(const std::string& text, const std::string& sourceName) {
   if (auto format = v.string(doc, "", "format"); format && *format != kProfileFormat)
     v.fail("format", "expected \"" + std::string(kProfileFormat) + "\", got \"" + *format + "\"");
   p.name = v.string(doc, "", "name").value_or("");
+  // Jobs name their profile and inspect looks it up by that name: it must be a plain, portable name.
+  if (const std::string problem = portableNameProblem(p.name); !p.name.empty() && !problem.empty())
+    v.fail("name", "\"" + p.name + "\" is not a portable profile name: " + problem);
   p.printer = v.string(doc, "", "printer").value_or("");
   if (auto it = doc.find("description"); it != doc.end()) p.description = v.string(doc, "", "description").value_or("");
   readResolution(v, doc, p);

@@ -173,7 +173,7 @@ kill -TERM $pid
 wait $pid
 code=$?
 [ $code -eq 143 ] || fail "SIGTERM: exit $code, expected 143 ($(cat "$tmp/progress"))"
-grep -q "interrupted by SIGTERM; no job was written" "$tmp/progress" || fail "SIGTERM not reported: $(cat "$tmp/progress")"
+grep -q "interrupted by SIGTERM; nothing was written" "$tmp/progress" || fail "SIGTERM not reported: $(cat "$tmp/progress")"
 [ -z "$(ls -A "$tmp/t")" ] || fail "SIGTERM left: $(ls -A "$tmp/t")"
 
 "$rodfab" coupons --help | grep -q "usage: rodfab coupons" || fail "--help"

@@ -124,7 +124,7 @@ for sig in INT TERM; do
   code=$?
   want=$([ $sig = INT ] && echo 130 || echo 143)
   [ $code -eq $want ] || fail "SIG$sig after the last band: exit $code, expected $want ($(cat "$tmp/progress"))"
-  grep -q "no job was written" "$tmp/progress" || fail "late SIG$sig not reported: $(cat "$tmp/progress")"
+  grep -q "nothing was written" "$tmp/progress" || fail "late SIG$sig not reported: $(cat "$tmp/progress")"
   only arm-cast.zip buckling-spring.zip unfolding-box.zip
 done
 
