@@ -37,8 +37,13 @@ std::vector<fs::path>& registry() {
 
 void removeRegisteredLocked() {
   for (const fs::path& p : registry()) {
-    std::error_code ignored;
-    fs::remove_all(p, ignored);
+    // Other threads may still be adding files to a folder being removed: try again a few times.
+    std::error_code ec;
+    for (int attempt = 0; attempt < 5; ++attempt) {
+      fs::remove_all(p, ec);
+      if (!ec && !fs::exists(fs::symlink_status(p, ec))) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
   }
   registry().clear();
 }

@@ -14,7 +14,8 @@ passed to --max-memory where a case asks for it, default 512M), TORTURE_SIGNAL_G
 signalled process may take to exit, default 1), TORTURE_TIME_SCALE (multiplies every timeout),
 TORTURE_SEED (the random signal delays of the interrupt class, default 1).
 
-Exit 0 when every selected case passes, 1 otherwise; every failing case is listed with its reasons."""
+Exit 0 when every selected case passes or is a known open failure (known_failures.txt; --strict counts
+those too), 1 otherwise; every failing case is listed with its reasons."""
 
 from __future__ import annotations
 
@@ -40,6 +41,18 @@ def load(cls: str, ctx: engine.Context) -> list[engine.Case]:
     if dup:
         raise SystemExit(f"duplicate case names in cases_{cls}.py: {sorted(dup)}")
     return cases
+
+
+def known_failures() -> dict[str, str]:
+    """Cases still open in the reliability issue (known_failures.txt: `class/name  reason`). They run
+    and are reported like every case; they fail their class only with --strict."""
+    known = {}
+    for line in (Path(__file__).parent / "known_failures.txt").read_text().splitlines():
+        line = line.split("#", 1)[0].strip()
+        if line:
+            name, _, reason = line.partition(" ")
+            known[name] = reason.strip()
+    return known
 
 
 def main(argv: list[str]) -> int:
@@ -85,9 +98,17 @@ def main(argv: list[str]) -> int:
             if problems:
                 failed.append((case, problems, log))
         print(f"\n{len(selected) - len(failed)} of {len(selected)} cases passed in {time.monotonic() - start:.0f} s")
-        if failed:
-            print("failing: " + ", ".join(f"{c.group}/{c.name}" for c, _, _ in failed))
-        return 1 if failed else 0
+        known = known_failures()
+        open_cases = [c for c, _, _ in failed if f"{c.group}/{c.name}" in known]
+        new = [c for c, _, _ in failed if f"{c.group}/{c.name}" not in known]
+        for c in open_cases:
+            print(f"known failure (open): {c.group}/{c.name}: {known[f'{c.group}/{c.name}']}")
+        fixed = [n for n in known if n.split("/")[0] in classes and n not in {f"{c.group}/{c.name}" for c, _, _ in failed}]
+        for n in fixed:
+            print(f"passes now, remove from known_failures.txt: {n}")
+        if new:
+            print("failing: " + ", ".join(f"{c.group}/{c.name}" for c in new))
+        return 1 if new or (open_cases and "--strict" in flags) else 0
     finally:
         ctx.close()
 
