@@ -99,6 +99,7 @@ public:
     next.criticalPoints = std::move(out_.solution.criticalPoints);
     if (next.stability == Stability::Stable) next.stability = out_.solution.stability;
     next.newtonIterations += out_.solution.newtonIterations;
+    next.chordIterations += out_.solution.chordIterations;
     out_.solution = std::move(next);
     *out_.problem = std::move(finer);
     ++out_.refinements;

@@ -106,7 +106,7 @@ struct DiscreteStructure {
   std::vector<Node> nodes;
   std::vector<WorkItem> items;  // every interior collocation point, then every node
   std::vector<ItemLayout> layouts;  // per item
-  std::vector<Eigen::Index> slots;  // positions in the Jacobian's value array, per item (ItemLayout)
+  std::vector<int> slots;  // positions in the Jacobian's value array, per item (ItemLayout)
   Eigen::SparseMatrix<double> pattern;  // the Jacobian's sparsity, values zero
   std::size_t unknowns = 0, joints = 0, supports = 0;
   double size = 1.0;  // structure's bounding-box diagonal

@@ -259,9 +259,11 @@ std::vector<double> modulusKinks(const geometry::BSplineField& e) {
   return kinks;
 }
 
-// Knots of a rebuilt rod: `spans` spans, uniform between the modulus kinks and with a knot at each
-// kink (each piece gets spans in proportion to its length, at least one), so the solution's kinks
-// lie on knots and (for even degrees) between collocation points.
+// Knots of a rebuilt rod: `spans` spans, uniform between the modulus kinks, each piece getting
+// spans in proportion to its length (at least one). At a kink of E the solution's curvature has a
+// kink too (kappa = m / (E I)): the knot is repeated p - 1 times there, so the basis is only C1 and
+// can follow it (with a plain knot convergence falls to order 2.5), and no collocation point (a
+// mean of p consecutive knots) lands on it.
 std::vector<double> rebuiltKnots(double begin, double end, int p, int spans, const std::vector<double>& kinks) {
   std::vector<double> breaks = {begin};
   for (double k : kinks) breaks.push_back(k);
@@ -275,8 +277,8 @@ std::vector<double> rebuiltKnots(double begin, double end, int p, int spans, con
     const int upTo = i + 1 == pieces ? spans
                                      : std::clamp(static_cast<int>(std::lround(spans * (breaks[i + 1] - begin) / (end - begin))),
                                                   given + 1, spans - (pieces - i - 1));
-    for (int k = 1; k <= upTo - given; ++k)
-      if (i + 1 < pieces || k < upTo - given) knots.push_back(breaks[i] + (breaks[i + 1] - breaks[i]) * k / (upTo - given));
+    for (int k = 1; k < upTo - given; ++k) knots.push_back(breaks[i] + (breaks[i + 1] - breaks[i]) * k / (upTo - given));
+    if (i + 1 < pieces) knots.insert(knots.end(), std::max(1, p - 1), breaks[i + 1]);
     given = upTo;
   }
   knots.insert(knots.end(), p + 1, end);
@@ -426,6 +428,10 @@ void DiscreteStructure::buildRod(const geometry::RodStructure& structure, std::s
   rod.rebuilt = choice.rebuild;
   rod.count = static_cast<int>(rod.curve.points().size());
   if (rod.count < 3) fail(rod.path + ".centerline.points", "needs at least 3 control points");
+  // About 5 kB per unknown (Jacobian, its factors, the assembly's maps): refuse before allocating.
+  if (unknowns + 7 * static_cast<std::size_t>(rod.count) > kMaxUnknowns)
+    fail(rod.path, "the discretization passes " + std::to_string(kMaxUnknowns) + " unknowns here (about " +
+                       std::to_string(kMaxUnknowns / 200000) + " GB); use fewer --spans or a coarser --accuracy");
   rod.length = src.length();
 
   const Eigen::MatrixXd interpolated = interpolateReference(*this, rod, src);

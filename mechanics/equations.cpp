@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 
 namespace rodfab::mechanics::detail {
@@ -309,6 +310,8 @@ void DiscreteStructure::buildLayouts() {
     for (std::size_t c = 0, k = 0; c < layout.cols.size(); ++c)
       for (std::size_t r = 0; r < layout.rows.size(); ++r, ++k)
         if (layout.nonzero[k]) entries.emplace_back(static_cast<int>(layout.rows[r]), static_cast<int>(layout.cols[c]), 0.0);
+  if (entries.size() >= static_cast<std::size_t>(std::numeric_limits<int>::max()))
+    fail("", "the Jacobian would have " + std::to_string(entries.size()) + " entries, more than this solver handles (2^31)");
   pattern.resize(static_cast<Eigen::Index>(unknowns), static_cast<Eigen::Index>(unknowns));
   pattern.setFromTriplets(entries.begin(), entries.end());
   pattern.makeCompressed();
@@ -319,7 +322,9 @@ void DiscreteStructure::buildLayouts() {
       const int* begin = pattern.innerIndexPtr() + pattern.outerIndexPtr()[layout.cols[c]];
       const int* end = pattern.innerIndexPtr() + pattern.outerIndexPtr()[layout.cols[c] + 1];
       for (std::size_t r = 0; r < layout.rows.size(); ++r, ++k)
-        slots.push_back(layout.nonzero[k] ? std::lower_bound(begin, end, static_cast<int>(layout.rows[r])) - pattern.innerIndexPtr() : -1);
+        slots.push_back(layout.nonzero[k] ? static_cast<int>(std::lower_bound(begin, end, static_cast<int>(layout.rows[r])) -
+                                                             pattern.innerIndexPtr())
+                                          : -1);
     }
   }
 }

@@ -1,6 +1,6 @@
 // JacobianLU on SuiteSparse's KLU. KLU orders A + A^T (AMD) and, factorizing, prefers diagonal
 // pivots; the collocation Jacobian's diagonal is often zero (the unit-norm row against a quaternion
-// component that vanishes in the drawn frame), and pivoting off it then ruins the ordering (2.5
+// component that vanishes in the drawn frame), and pivoting off it then ruins the ordering (2.6
 // times the fill on a grid shell). So rows are first paired with columns inside each diagonal block
 // (one control point: 7 unknowns, 7 equations) by complete pivoting of that block, and KLU factors
 // the row-permuted matrix P J. Later factorizations reuse KLU's pivot sequence while it stays
@@ -12,6 +12,7 @@
 #include <klu.h>
 
 #include <cmath>
+#include <limits>
 #include <mutex>
 
 namespace rodfab::mechanics {
@@ -60,10 +61,10 @@ struct JacobianLU::Factors {
   klu_common common{};
   klu_symbolic* symbolic = nullptr;
   klu_numeric* numeric = nullptr;
-  Eigen::SparseMatrix<double> pattern;   // the analysed pattern of J (values unused)
+  std::vector<int> columnStarts, rowIndices;  // the analysed pattern of J
   Eigen::SparseMatrix<double> permuted;  // P J, its values refreshed by every factorize
   std::vector<int> rowFor;               // P: row k of P J is row rowFor[k] of J
-  std::vector<Eigen::Index> valueAt;     // entry i of J's values is entry valueAt[i] of P J's
+  std::vector<int> valueAt;              // entry i of J's values is entry valueAt[i] of P J's
   int rowSign = 1;                       // sign of P
   double freshRcond = 0.0;  // pivot ratio of the last factorization with fresh pivots
   int sign = 0;
@@ -93,7 +94,8 @@ struct JacobianLU::Factors {
 // Pattern, row matching and ordering of a new Jacobian pattern, from its first matrix's values.
 void JacobianLU::Factors::analyse(const Eigen::SparseMatrix<double>& m, int block) {
   release();
-  pattern = m;
+  columnStarts.assign(m.outerIndexPtr(), m.outerIndexPtr() + m.cols() + 1);
+  rowIndices.assign(m.innerIndexPtr(), m.innerIndexPtr() + m.nonZeros());
   rowFor = blockMatching(m, block);
   Eigen::VectorXi newRow(m.rows());
   for (int k = 0; k < static_cast<int>(rowFor.size()); ++k) newRow[rowFor[k]] = k;
@@ -104,7 +106,8 @@ void JacobianLU::Factors::analyse(const Eigen::SparseMatrix<double>& m, int bloc
   permuted = Eigen::PermutationMatrix<Eigen::Dynamic>(newRow) * index;
   permuted.makeCompressed();
   valueAt.assign(static_cast<std::size_t>(m.nonZeros()), 0);
-  for (Eigen::Index k = 0; k < permuted.nonZeros(); ++k) valueAt[static_cast<std::size_t>(permuted.valuePtr()[k])] = k;
+  for (Eigen::Index k = 0; k < permuted.nonZeros(); ++k)
+    valueAt[static_cast<std::size_t>(permuted.valuePtr()[k])] = static_cast<int>(k);
   symbolic = klu_analyze(static_cast<int>(m.rows()), permuted.outerIndexPtr(), permuted.innerIndexPtr(), &common);
   if (!symbolic) throw std::runtime_error("KLU could not analyse the Jacobian (status " + std::to_string(common.status) + ")");
 }
@@ -115,17 +118,19 @@ JacobianLU::JacobianLU(JacobianLU&&) noexcept = default;
 JacobianLU& JacobianLU::operator=(JacobianLU&&) noexcept = default;
 
 bool JacobianLU::samePattern(const Eigen::SparseMatrix<double>& m) const {
-  const Eigen::SparseMatrix<double>& p = factors_->pattern;
-  return factors_->symbolic && m.isCompressed() && m.rows() == p.rows() && m.cols() == p.cols() &&
-         m.nonZeros() == p.nonZeros() &&
-         std::equal(m.outerIndexPtr(), m.outerIndexPtr() + m.cols() + 1, p.outerIndexPtr()) &&
-         std::equal(m.innerIndexPtr(), m.innerIndexPtr() + m.nonZeros(), p.innerIndexPtr());
+  const Factors& f = *factors_;
+  return f.symbolic && m.isCompressed() && m.rows() == m.cols() &&
+         static_cast<std::size_t>(m.cols()) + 1 == f.columnStarts.size() &&
+         static_cast<std::size_t>(m.nonZeros()) == f.rowIndices.size() &&
+         std::equal(f.columnStarts.begin(), f.columnStarts.end(), m.outerIndexPtr()) &&
+         std::equal(f.rowIndices.begin(), f.rowIndices.end(), m.innerIndexPtr());
 }
 
 bool JacobianLU::factorize(const Eigen::SparseMatrix<double>& jacobian, Pivoting pivoting) {
   Factors& f = *factors_;
-  if (jacobian.rows() != jacobian.cols() || jacobian.rows() == 0 || !jacobian.isCompressed())
-    throw std::invalid_argument("JacobianLU::factorize: expected a square, non-empty, compressed matrix");
+  if (jacobian.rows() != jacobian.cols() || jacobian.rows() == 0 || !jacobian.isCompressed() ||
+      jacobian.nonZeros() >= std::numeric_limits<int>::max())
+    throw std::invalid_argument("JacobianLU::factorize: expected a square, non-empty, compressed matrix (< 2^31 entries)");
   if (!std::isfinite(jacobian.cwiseAbs().sum())) return false;
   if (!samePattern(jacobian)) {
     f.analyse(jacobian, pivotBlock_);
@@ -162,7 +167,7 @@ bool JacobianLU::factorize(const Eigen::SparseMatrix<double>& jacobian, Pivoting
 Eigen::VectorXd JacobianLU::solve(const Eigen::VectorXd& b, bool transposed) const {
   Factors& f = *factors_;
   if (!f.numeric || f.sign == 0) throw std::logic_error("JacobianLU: solve before a successful factorize");
-  if (b.size() != f.pattern.rows()) throw std::invalid_argument("JacobianLU: right-hand side of the wrong size");
+  if (b.size() + 1 != static_cast<Eigen::Index>(f.columnStarts.size())) throw std::invalid_argument("JacobianLU: right-hand side of the wrong size");
   const int n = static_cast<int>(b.size());
   Eigen::VectorXd x(n);
   if (transposed) x = b;

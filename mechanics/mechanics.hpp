@@ -42,8 +42,9 @@ private:
   double lastConvergedLoad_;
 };
 
-// Spans per rod are limited to this many.
+// Spans per rod are limited to this many, and a problem to this many unknowns.
 constexpr int kMaxSpansPerRod = 4096;
+constexpr std::size_t kMaxUnknowns = 2'000'000;
 
 // How each rod's centerline becomes the solver's basis.
 struct Discretization {
@@ -175,6 +176,9 @@ struct SolverOptions {
   // correction is what tells convergence there.
   double tolerance = 1e-10;
   int maxStepCuts = 16;     // halvings of the planned load step before giving up
+  // Once a Newton correction is below 1e-3 of the structure, further corrections reuse the last
+  // factorization (chord steps) while each cuts the residual tenfold; off: every step full Newton.
+  bool chordSteps = true;
   // After passing a bifurcation (det J changed sign, the critical mode orthogonal to the load),
   // perturb the state along the critical mode and continue on the branch that is stable again.
   bool followStableBranch = false;
@@ -205,6 +209,7 @@ struct LoadStepReport {
   double loadFactor = 0.0;      // reached by this step
   double increment = 0.0;       // load factor added by this step
   std::vector<double> residuals;  // scaled residual before each Newton iteration and at the end
+  int chordIterations = 0;      // of them, corrections with the previous factorization
   int cuts = 0;                 // halvings of the planned step in force when this step converged
   int determinantSign = 1;      // sign of det J here relative to the reference state's
 };
@@ -216,7 +221,8 @@ struct Solution {
   Stability stability = Stability::Stable;
   // LU of the Jacobian at `state` and load 1: for adjoint sensitivities (solveTransposed).
   std::shared_ptr<const JacobianLU> tangent;
-  int newtonIterations = 0;
+  int newtonIterations = 0;  // with a new Jacobian
+  int chordIterations = 0;   // reusing the last factorization once the corrections are small
   int factorizations = 0, refactorizations = 0;  // with fresh pivots, with reused pivots
   int pivotRenewals = 0;  // solves with reused pivots not accurate enough, done again with fresh ones
   double factorizeSeconds = 0.0, assembleSeconds = 0.0, totalSeconds = 0.0;

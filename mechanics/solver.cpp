@@ -44,6 +44,7 @@ public:
 private:
   void factorizeReference();
   Outcome newton(Eigen::VectorXd& x, double load, LoadStepReport& report);
+  bool converged(const Eigen::VectorXd& x) const;
   bool factorize(JacobianLU::Pivoting pivoting = JacobianLU::Pivoting::Reuse);
   Eigen::VectorXd correction();
   void checkCriticalPoint(Eigen::VectorXd& x, double fromLoad, double toLoad);
@@ -116,35 +117,65 @@ void PathFollower::factorizeReference() {
   relativeSign_ = 1;
 }
 
-// Newton from `x` at load factor `load`; on success x holds the solution.
+// Newton from `x` at load factor `load`; on success x holds the solution. Once a correction is
+// small (the quadratic phase), further corrections reuse the last factorization (chord steps) as
+// long as each cuts the residual tenfold; otherwise, and from any failure, it is full Newton again.
 Outcome PathFollower::newton(Eigen::VectorXd& x, double load, LoadStepReport& report) {
+  bool chord = false;          // the next correction reuses the last factorization
+  Eigen::VectorXd beforeChord;  // the state before the last chord step, empty if the last was full
   for (int iteration = 0;; ++iteration) {
     const auto t = std::chrono::steady_clock::now();
-    problem_.evaluate(x, load, residual_, &jacobian_);
+    problem_.evaluate(x, load, residual_);
     solution_.assembleSeconds += seconds(t);
     const double norm = residual_.lpNorm<Eigen::Infinity>();
-    report.residuals.push_back(norm);
-    if (!std::isfinite(norm)) return Outcome::Diverged;
-    // Rounding x alone moves row i of F by about eps (|J| |x|)_i: for slender rods (E A L^2 / E I
-    // of 1e6 and more) that floor lies far above any fixed tolerance, and Newton cannot go below it.
-    const Eigen::VectorXd floor = (jacobian_.cwiseAbs() * x.cwiseAbs()) * (16 * std::numeric_limits<double>::epsilon());
-    if ((residual_.cwiseAbs() - floor).maxCoeff() <= options_.tolerance) return Outcome::Converged;
+    if (beforeChord.size() > 0 && !(norm < 0.1 * report.residuals.back())) {  // the chord step contracted too little
+      chord = false;
+      if (!(norm < report.residuals.back())) {  // nor helped at all: undo it
+        x = beforeChord;
+        problem_.evaluate(x, load, residual_);
+      }
+    }
+    beforeChord.resize(0);
+    report.residuals.push_back(residual_.lpNorm<Eigen::Infinity>());
+    if (!std::isfinite(report.residuals.back())) return Outcome::Diverged;
+    if (converged(x)) return Outcome::Converged;
     if (iteration >= options_.maxIterations) return Outcome::Diverged;
     // Growth far beyond the step's starting residual means Newton left the basin of attraction.
-    if (iteration >= 3 && norm > 1e3 * std::max(report.residuals.front(), options_.tolerance)) return Outcome::Diverged;
-    if (!factorize()) return Outcome::Diverged;  // singular on the way: cut the step
-    const Eigen::VectorXd dx = correction();
-    ++solution_.newtonIterations;
+    if (iteration >= 3 && report.residuals.back() > 1e3 * std::max(report.residuals.front(), options_.tolerance))
+      return Outcome::Diverged;
+    Eigen::VectorXd dx;
+    if (chord) {
+      beforeChord = x;
+      dx = lu_->solve(residual_);
+      ++solution_.chordIterations, ++report.chordIterations;
+    } else {
+      if (!factorizeAt(x, load)) return Outcome::Diverged;  // singular on the way: cut the step
+      dx = correction();
+      ++solution_.newtonIterations;
+    }
     // A correction a million times the structure comes from a (nearly) singular Jacobian.
     if (!dx.allFinite() || problem_.stepNorm(dx) > 1e6) return Outcome::Diverged;
     x -= dx;
+    const double step = problem_.stepNorm(dx);
     // Newton converges quadratically: after a correction this small, x is accurate to rounding.
-    if (problem_.stepNorm(dx) < options_.tolerance) {
+    if (step < options_.tolerance) {
       problem_.evaluate(x, load, residual_);
       report.residuals.push_back(residual_.lpNorm<Eigen::Infinity>());
       return std::isfinite(report.residuals.back()) ? Outcome::Converged : Outcome::Diverged;
     }
+    // Not from the first iteration: its Jacobian is the previous state's, and the last
+    // factorization should stay close to the solution (its determinant's sign is used).
+    chord = chord || (options_.chordSteps && iteration >= 1 && step < 1e-3);
   }
+}
+
+// Converged when every row of the residual is within the tolerance of its rounding floor: rounding
+// x alone moves row i of F by about eps (|J| |x|)_i, which for slender rods (E A L^2 / E I of 1e6
+// and more) lies far above any fixed tolerance. J is the last one assembled, close enough for this.
+bool PathFollower::converged(const Eigen::VectorXd& x) const {
+  if (jacobian_.rows() != x.size()) return residual_.lpNorm<Eigen::Infinity>() <= options_.tolerance;
+  const Eigen::VectorXd floor = (jacobian_.cwiseAbs() * x.cwiseAbs()) * (16 * std::numeric_limits<double>::epsilon());
+  return (residual_.cwiseAbs() - floor).maxCoeff() <= options_.tolerance;
 }
 
 // The Newton correction J^-1 F. With reused pivots the solve is checked: its backward error

@@ -83,7 +83,7 @@ void StaticProblem::evaluate(const Eigen::VectorXd& x, double load, Eigen::Vecto
       // Each row belongs to one item, so items write disjoint entries; an entry an item's block
       // holds twice (a closed rod) is summed.
       const ItemLayout& layout = m.layouts[i];
-      const Eigen::Index* slot = m.slots.data() + layout.firstSlot;
+      const int* slot = m.slots.data() + layout.firstSlot;
       const std::size_t count = layout.rows.size() * layout.cols.size();
       for (std::size_t k = 0; k < count; ++k)
         if (slot[k] >= 0) values[slot[k]] = 0.0;

@@ -95,7 +95,9 @@ std::variant<SimulateSettings, int> parseSimulate(const std::vector<std::string>
 void printStep(const mechanics::LoadStepReport& r) {
   std::printf("step %3d  load %.4f  Newton:", r.index, r.loadFactor);
   for (double v : r.residuals) std::printf(" %.1e", v);
-  std::printf("  (%zu iterations)", r.residuals.size() - 1);
+  std::printf("  (%zu iterations", r.residuals.size() - 1);
+  if (r.chordIterations > 0) std::printf(", %d with the previous factorization", r.chordIterations);
+  std::printf(")");
   if (r.cuts > 0) std::printf("  [step cut %d time%s: +%.4g]", r.cuts, r.cuts > 1 ? "s" : "", r.increment);
   std::printf("\n");
   std::fflush(stdout);
@@ -171,7 +173,7 @@ nlohmann::json summaryJson(const SimulateSettings& s, const mechanics::Simulatio
   return {{"design", s.design}, {"output", s.output}, {"rods", p.rodCount()}, {"joints", p.jointCount()},
           {"supports", p.supportCount()}, {"unknowns", p.unknownCount()},
           {"discretization", {{"degree", p.discretization().degree}, {"spans_per_rod", p.discretization().perRod}}},
-          {"load_steps", history}, {"newton_iterations", sol.newtonIterations},
+          {"load_steps", history}, {"newton_iterations", sol.newtonIterations}, {"chord_iterations", sol.chordIterations},
           {"stability", stabilityName(sol.stability)}, {"critical_points", critical},
           {"error_estimate", estimateJson(sim, s.accuracy)},
           {"largest_displacement_mm", largest.first}, {"largest_displacement_rod", largest.second},
@@ -182,8 +184,9 @@ nlohmann::json summaryJson(const SimulateSettings& s, const mechanics::Simulatio
 // undetermined final state) go to stderr.
 void printSummary(const SimulateSettings& s, const mechanics::Simulation& sim, const std::pair<double, std::string>& largest) {
   const mechanics::Solution& sol = sim.solution;
-  std::printf("converged: %zu load steps, %d Newton iterations, %.3f s (assembly %.3f s, LU %.3f s)\n", sol.steps.size(),
-              sol.newtonIterations, sim.seconds, sol.assembleSeconds, sol.factorizeSeconds);
+  std::printf("converged: %zu load steps, %d Newton iterations (+%d reusing a factorization), %.3f s (assembly %.3f s, "
+              "LU %.3f s)\n", sol.steps.size(), sol.newtonIterations, sol.chordIterations, sim.seconds, sol.assembleSeconds,
+              sol.factorizeSeconds);
   if (sim.refinements > 0) std::printf("basis:     refined %d time%s: %s\n", sim.refinements, sim.refinements > 1 ? "s" : "",
                                        basisSummary(*sim.problem, s.discretization).c_str());
   const mechanics::ErrorEstimate& e = sim.estimate;
@@ -228,7 +231,8 @@ int runSimulate(const std::vector<std::string>& args) {
   try {
     auto onStep = [&](const mechanics::LoadStepReport& r, const Eigen::VectorXd&) {
       history.push_back({{"step", r.index}, {"load_factor", r.loadFactor}, {"increment", r.increment},
-                         {"residuals", r.residuals}, {"cuts", r.cuts}, {"det_sign", r.determinantSign}});
+                         {"residuals", r.residuals}, {"chord_iterations", r.chordIterations}, {"cuts", r.cuts},
+                         {"det_sign", r.determinantSign}});
       if (!s.json) printStep(r);
     };
     auto onLevel = [&](mechanics::Level level, const mechanics::StaticProblem& p) {

@@ -772,20 +772,27 @@ TEST_CASE("the design's own basis (degree 0) is refined or refused, never used a
   CHECK(StaticProblem(quartic, designBasis(0)).discretization().perRod[0] == 1);
 }
 
-TEST_CASE("a kink of E(s) on a collocation point is avoided automatically, refused when --spans put it there", "[mechanics]") {
-  RodStructure s = cantilever(straight(Vec3::Zero(), Vec3(30, 0, 0), 1, 2), Section::circle(1.0), 100.0, Vec3(0, -0.01, 0),
+TEST_CASE("a kink of E(s) is followed by rebuilt rods, and on the design's basis kept off collocation points", "[mechanics]") {
+  // A quartic rod, E falling from 100 to 20 MPa at its middle and back: kinked at u = 0.5.
+  RodStructure s = cantilever(straight(Vec3::Zero(), Vec3(20, 0, 0), 4, 5), Section::circle(1.0), 100.0, Vec3(0, -0.05, 0),
                               Vec3::Zero());
   s.rods[0] = Rod("beam", s.rods[0].centerline(), s.rods[0].section(), std::nullopt, std::nullopt, CapStyle::Round,
-                  BSplineField(1, {0, 0, 0.5, 1, 1}, {100, 40, 100}));
-  // Degree 5 with an even span count puts a knot, and so a collocation point, at u = 0.5.
-  CHECK_THROWS_WITH(StaticProblem(s, rebuilt(5, 10)), Catch::Contains("--spans") && Catch::Contains("kink at u = 0.5"));
+                  BSplineField(1, {0, 0, 0.5, 1, 1}, {100, 20, 100}));
+  // Rebuilt rods get a C1 knot at the kink (never a collocation point) and converge fast: the tip
+  // on 16 and 32 spans agrees far better than with a plain knot there (order 2.5: 5e-3 here).
+  const Vec3 t16 = tip(StaticProblem(s, rebuilt(6, 16)), solved(StaticProblem(s, rebuilt(6, 16)), 4));
+  const StaticProblem p32(s, rebuilt(6, 32));
+  const Vec3 t32 = tip(p32, solved(p32, 4));
+  INFO("tip " << t16.transpose() << " (16 spans), " << t32.transpose() << " (32 spans)");
+  CHECK((t16 - t32).norm() < 3e-4 * (t32 - Vec3(20, 0, 0)).norm());
+  CHECK_NOTHROW(StaticProblem(s, rebuilt(5, 10)));  // odd degrees too
+  // On the design's quartic basis, two knots inserted put a collocation point (the mean of the
+  // knots 0, 1/3, 2/3, 1) on the kink: refused, naming the option; chosen automatically, the
+  // refinement avoids it.
+  CHECK_THROWS_WITH(StaticProblem(s, designBasis(2)), Catch::Contains("--refine") && Catch::Contains("kink at u = 0.5"));
   mechanics::Discretization automatic;
-  automatic.degree = 5;
-  const StaticProblem chosen(s, automatic);  // it checks every collocation point itself
-  const Vec3 moved = tip(chosen, solved(chosen, 2)) - Vec3(30, 0, 0);
-  CHECK(moved.y() < 0);
-  // Even degrees keep their collocation points between the knots placed at the kink.
-  CHECK_NOTHROW(StaticProblem(s, rebuilt(6, 10)));
+  automatic.degree = 0;
+  CHECK_NOTHROW(StaticProblem(s, automatic));
 }
 
 TEST_CASE("a state moves between discretizations of one design", "[mechanics]") {
