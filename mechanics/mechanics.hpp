@@ -49,8 +49,9 @@ constexpr std::size_t kMaxUnknowns = 2'000'000;
 // How each rod's centerline becomes the solver's basis.
 struct Discretization {
   // 0 keeps each centerline's degree and NURBS basis, refined exactly by knot insertion. Another
-  // degree rebuilds each rod as a B-spline of that degree with uniform knots, interpolating the
-  // design's centerline at the new collocation points (geometric error of order h^(degree+1)).
+  // degree rebuilds each rod as a B-spline of that degree, interpolating the design's centerline at
+  // the new collocation points (geometric error of order h^(degree+1)), its knots uniform between
+  // the kinks of the rod's modulus field, where they are repeated degree - 1 times.
   // Even degrees converge at order p, odd ones at p - 1; primal collocation locks in slender and
   // curved rods less the higher the order, hence 6 (mechanics/README.md).
   int degree = 6;
@@ -58,7 +59,7 @@ struct Discretization {
   // design spans and modulus field (automatic, aiming at `tolerance`).
   int spans = 0;
   // Design basis (degree 0): knots inserted per design span; -1 chooses the least that reaches the
-  // automatic span count, and refuses a rod whose degree would need more than kMaxSpansPerRod.
+  // automatic span count, and refuses (MechanicsError) a rod whose degree would need more than 256.
   int refine = -1;
   // Relative accuracy of positions the automatic span counts aim at.
   double tolerance = 1e-4;
@@ -71,6 +72,7 @@ struct Discretization {
 // position (3) and quaternion (4); there are as many equations as unknowns: 7 per collocation
 // point (force and moment balance, unit quaternion), with the rows of each rod's two end points
 // replaced by the joint, support and end-load conditions of the node the end belongs to.
+// Const members may be called from several threads at once.
 class StaticProblem {
 public:
   // Throws MechanicsError, or std::invalid_argument for an out-of-range Discretization.
@@ -95,12 +97,15 @@ public:
   const Eigen::VectorXd& referenceState() const;
 
   // Scaled residual (dimensionless: forces by E I / L^2 and moments by E I / L of their rod,
-  // positions by the rod length) and, when `jacobian` is given, its exact derivative.
-  // Parallel over collocation points (TBB); the result does not depend on the thread count.
+  // positions by the rod length) and, when `jacobian` is given, its exact derivative (given the
+  // problem's sparsity pattern unless it has it already). Parallel over collocation points (TBB);
+  // the result does not depend on the thread count. std::invalid_argument for x of the wrong size.
   void evaluate(const Eigen::VectorXd& x, double load, Eigen::VectorXd& residual,
                 Eigen::SparseMatrix<double>* jacobian = nullptr) const;
 
-  // Centerline point and rotation of rod `rod` at parameter u in state x.
+  // Centerline point (mm) and rotation of rod `rod` at parameter u (the design's, clamped to its
+  // domain) in state x. std::out_of_range for a rod index from rodCount() on, std::invalid_argument
+  // for x of the wrong size.
   Eigen::Vector3d position(const Eigen::VectorXd& x, std::size_t rod, double u) const;
   Eigen::Matrix3d rotation(const Eigen::VectorXd& x, std::size_t rod, double u) const;
   // A state of this discretization interpolating state x of `from`, another discretization of the
@@ -108,12 +113,14 @@ public:
   // std::invalid_argument if `from` discretizes a different structure.
   Eigen::VectorXd transferredState(const StaticProblem& from, const Eigen::VectorXd& x) const;
   // Largest change of x in units of the structure: positions / its size, quaternions as they are.
+  // std::invalid_argument for dx of the wrong size.
   double stepNorm(const Eigen::VectorXd& dx) const;
 
   // The structure in state x as a design: the (refined) centerlines with the solved control points
   // and an `orientation` quaternion spline per rod; sections, caps and moduli as in the input; the
   // input's mechanics block with rod ends given by point turned into rod name and end (the points
-  // have moved), so the result can be simulated again.
+  // have moved), so the result can be simulated again. std::invalid_argument for x of the wrong
+  // size; std::invalid_argument from geometry::Rod if a state degenerates a rod (no frame).
   geometry::RodStructure deformedStructure(const Eigen::VectorXd& x) const;
 
 private:

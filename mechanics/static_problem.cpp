@@ -93,14 +93,23 @@ void StaticProblem::evaluate(const Eigen::VectorXd& x, double load, Eigen::Vecto
   });
 }
 
+namespace {
+
+// The local state of rod `rod` at u (clamped to the domain) in x, after checking both.
+LocalState stateAt(const DiscreteStructure& m, const Eigen::VectorXd& x, std::size_t rod, double u) {
+  const DiscreteRod& r = m.rods.at(rod);
+  if (static_cast<std::size_t>(x.size()) != m.unknowns) throw std::invalid_argument("StaticProblem: a state of the wrong size");
+  return localState(r, rationalBasis(r.curve, std::clamp(u, r.curve.domainBegin(), r.curve.domainEnd())), x);
+}
+
+}  // namespace
+
 Eigen::Vector3d StaticProblem::position(const Eigen::VectorXd& x, std::size_t rod, double u) const {
-  const DiscreteRod& r = structure_->rods.at(rod);
-  return localState(r, rationalBasis(r.curve, u), x).r;
+  return stateAt(*structure_, x, rod, u).r;
 }
 
 Eigen::Matrix3d StaticProblem::rotation(const Eigen::VectorXd& x, std::size_t rod, double u) const {
-  const DiscreteRod& r = structure_->rods.at(rod);
-  const Vector4d q = localState(r, rationalBasis(r.curve, u), x).q;
+  const Vector4d q = stateAt(*structure_, x, rod, u).q;
   return rotationNumerator<double>(q) / q.squaredNorm();
 }
 
@@ -126,6 +135,7 @@ Eigen::VectorXd StaticProblem::transferredState(const StaticProblem& from, const
 }
 
 double StaticProblem::stepNorm(const Eigen::VectorXd& dx) const {
+  if (static_cast<std::size_t>(dx.size()) != structure_->unknowns) throw std::invalid_argument("StaticProblem::stepNorm: wrong size");
   double norm = 0;
   for (Eigen::Index i = 0; i < dx.size(); i += 7) {
     norm = std::max(norm, dx.segment<3>(i).cwiseAbs().maxCoeff() / structure_->size);
@@ -136,6 +146,7 @@ double StaticProblem::stepNorm(const Eigen::VectorXd& dx) const {
 
 geometry::RodStructure StaticProblem::deformedStructure(const Eigen::VectorXd& x) const {
   const DiscreteStructure& m = *structure_;
+  if (static_cast<std::size_t>(x.size()) != m.unknowns) throw std::invalid_argument("StaticProblem::deformedStructure: wrong state size");
   geometry::RodStructure out;
   out.source = m.source;
   for (const DiscreteRod& rod : m.rods) {
