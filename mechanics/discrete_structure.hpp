@@ -7,6 +7,7 @@
 #include "mechanics/mechanics.hpp"
 
 #include <Eigen/Core>
+#include <Eigen/SparseCore>
 
 #include <array>
 #include <optional>
@@ -23,6 +24,10 @@ struct Basis {
 };
 
 Basis rationalBasis(const geometry::NurbsCurve& curve, double u);
+
+// The automatic span count of a rebuilt rod (discretization.cpp); above kMaxSpansPerRod when the
+// degree converges too slowly for `tolerance`.
+int automaticSpans(const geometry::Rod& rod, int degree, double tolerance);
 
 // One end of one rod, by index: a geometry::RodEndRef once resolved against the structure.
 struct ResolvedEnd {
@@ -52,6 +57,8 @@ struct DiscreteRod {
   std::string name, path;
   geometry::NurbsCurve curve;  // refined; its control points are the reference positions
   int degree = 0, count = 0;
+  bool rebuilt = false;        // on a uniform B-spline of its own, not the design's basis
+  int spans = 0;               // rebuilt: spans; design basis: solver spans per design span
   std::size_t offset = 0;      // first unknown
   std::vector<double> tau;     // Greville abscissae
   std::vector<Basis> basis;    // at tau
@@ -71,15 +78,26 @@ struct LocalState {
 
 LocalState localState(const DiscreteRod& rod, const Basis& b, const Eigen::VectorXd& x);
 
-// Dense rows with their columns, added into the global Jacobian.
-struct Block {
-  std::vector<std::size_t> rows, cols;
-  Eigen::MatrixXd values;
-};
+// Control values (rows) whose spline takes the rows of `samples` at the rod's collocation points;
+// none if the collocation matrix is singular.
+std::optional<Eigen::MatrixXd> interpolateAtCollocationPoints(const DiscreteRod& rod, const Eigen::MatrixXd& samples);
+
+// Control points (indices into a basis' functions) on which a rod end's position and tangent
+// depend: those with a non-zero value or first derivative there (2 of degree + 1 at a clamped end).
+std::vector<int> endFunctions(const Basis& b);
 
 // One block of rows: an interior collocation point of a rod, or a node (rod < 0, point = node index).
 struct WorkItem {
   int rod, point;
+};
+
+// Where one work item's dense block of derivatives sits in the Jacobian: its rows, its columns,
+// which of its entries can be non-zero (column-major), and the first of its rows.size() *
+// cols.size() value positions (column-major, -1 for entries that are always zero) in `slots`.
+struct ItemLayout {
+  std::vector<std::size_t> rows, cols;
+  std::vector<char> nonzero;
+  std::size_t firstSlot = 0;
 };
 
 struct DiscreteStructure {
@@ -87,9 +105,16 @@ struct DiscreteStructure {
   std::vector<DiscreteRod> rods;
   std::vector<Node> nodes;
   std::vector<WorkItem> items;  // every interior collocation point, then every node
+  std::vector<ItemLayout> layouts;  // per item
+  std::vector<int> slots;  // positions in the Jacobian's value array, per item (ItemLayout)
+  Eigen::SparseMatrix<double> pattern;  // the Jacobian's sparsity, values zero
   std::size_t unknowns = 0, joints = 0, supports = 0;
   double size = 1.0;  // structure's bounding-box diagonal
   Eigen::VectorXd reference;
+  // The design's mechanics block with every reference by point turned into one by rod name and
+  // end, so it still resolves once the ends have moved (deformedStructure).
+  geometry::MechanicsSpec spec;
+  Discretization discretization;  // as resolved (perRod filled)
 
   const DiscreteRod& rodOf(const ResolvedEnd& e) const { return rods[e.rod]; }
   const Basis& endBasis(const ResolvedEnd& e) const { const DiscreteRod& r = rods[e.rod]; return r.basis[r.point(e.end)]; }
@@ -106,10 +131,15 @@ struct DiscreteStructure {
   // nodes.cpp: joints, supports and loads; throws MechanicsError for unresolvable or unsupported parts.
   void buildNodes(const geometry::RodStructure& structure);
   ResolvedEnd resolve(const geometry::RodEndRef& ref, const geometry::RodStructure& structure) const;
-  // equations.cpp: the residual rows (and with `block`, their derivatives) of one work item.
+  void keepSpec(const geometry::RodStructure& structure);
+  // equations.cpp: the rows and columns of every work item and the Jacobian's pattern.
+  void buildLayouts();
+  // The residual rows of one work item and, with `block`, their derivatives (rows by columns of
+  // the item's layout).
   void interiorBlock(const DiscreteRod& rod, int j, const Eigen::VectorXd& x, double load, Eigen::VectorXd& residual,
-                     Block* block) const;
-  void nodeBlock(const Node& node, const Eigen::VectorXd& x, double load, Eigen::VectorXd& residual, Block* block) const;
+                     Eigen::MatrixXd* block) const;
+  void nodeBlock(const Node& node, const Eigen::VectorXd& x, double load, Eigen::VectorXd& residual,
+                 Eigen::MatrixXd* block) const;
 };
 
 std::string format(double v);

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 namespace rodfab::mechanics::detail {
@@ -61,6 +62,17 @@ Basis rationalBasis(const geometry::NurbsCurve& curve, double u) {
   return b;
 }
 
+std::optional<Eigen::MatrixXd> interpolateAtCollocationPoints(const DiscreteRod& rod, const Eigen::MatrixXd& samples) {
+  std::vector<Eigen::Triplet<double>> entries;
+  for (int j = 0; j < rod.count; ++j)
+    for (int k = 0; k < rod.basis[j].count; ++k) entries.emplace_back(j, rod.basis[j].first + k, rod.basis[j].value[k]);
+  Eigen::SparseMatrix<double> collocation(rod.count, rod.count);
+  collocation.setFromTriplets(entries.begin(), entries.end());
+  Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(collocation);
+  if (lu.info() != Eigen::Success) return std::nullopt;
+  return Eigen::MatrixXd(lu.solve(samples));
+}
+
 LocalState localState(const DiscreteRod& rod, const Basis& b, const Eigen::VectorXd& x) {
   LocalState s;
   s.r.setZero(), s.dr.setZero(), s.ddr.setZero(), s.q.setZero(), s.dq.setZero(), s.ddq.setZero();
@@ -83,9 +95,20 @@ Vector4d unitQuaternion(const geometry::Frame& f) {
   return Vector4d(q.w(), q.x(), q.y(), q.z()).normalized();
 }
 
-// The design's centerline must have a clamped knot vector and no kinks inside; the solver's degree
-// p must allow second derivatives.
-void checkCenterline(const DiscreteStructure& s, const geometry::NurbsCurve& c0, int p, const std::string& path) {
+// Unit tangent of a curve at u approached from the left (side < 0) or the right.
+Vec3 sideTangent(const geometry::NurbsCurve& c, double u, int side) {
+  const double h = 1e-9 * (c.domainEnd() - c.domainBegin());
+  const double at = std::clamp(u + (side < 0 ? -h : h), c.domainBegin(), c.domainEnd());
+  Vec3 d[2];
+  c.derivatives(at, 1, d);
+  return d[1].normalized();
+}
+
+// The design's centerline must have a clamped knot vector, and the solver's degree p must allow
+// second derivatives. A knot repeated `degree` times or more makes the curve only C0 there: on the
+// design's own basis that is refused; a rebuilt rod (`rebuild`) interpolates the curve anyway and
+// only a real corner (the tangent turning there) is refused.
+void checkCenterline(const DiscreteStructure& s, const geometry::NurbsCurve& c0, int p, bool rebuild, const std::string& path) {
   if (p > geometry::kMaxDegree) s.fail("", "degree " + std::to_string(p) + " is above the supported " + std::to_string(geometry::kMaxDegree));
   if (p < 2)
     s.fail(path + ".centerline.degree", "the rod solver collocates second derivatives and needs degree >= 2 (even "
@@ -100,26 +123,176 @@ void checkCenterline(const DiscreteStructure& s, const geometry::NurbsCurve& c0,
   for (std::size_t i = q + 1; i < n0;) {
     std::size_t m = 1;
     while (i + m < n0 && k0[i + m] == k0[i]) ++m;
-    if (m >= static_cast<std::size_t>(q))
+    const bool corner = sideTangent(c0, k0[i], -1).dot(sideTangent(c0, k0[i], 1)) < std::cos(1e-6);
+    if (m >= static_cast<std::size_t>(q) && (!rebuild || corner))
       s.fail(path + ".centerline.knots[" + std::to_string(i) + "]",
-             "knot " + format(k0[i]) + " repeated " + std::to_string(m) + " times makes a kink the collocation cannot "
-             "resolve; split the rod there (rods joined at a kink are coupled rigidly)");
+             "knot " + format(k0[i]) + " repeated " + std::to_string(m) + " times makes " +
+                 (corner ? "a corner" : "the curve only C0 on its own basis, which") + " the collocation cannot resolve; " +
+                 (corner ? "split the rod there (rods joined at a corner are coupled rigidly)"
+                         : "rebuild it with --degree (the default) or split the rod there"));
     i += m;
   }
 }
 
-// The solver's curve: the design's refined by knot insertion, or (rebuild) a uniform degree-p
-// B-spline with placeholder control points that interpolateReference replaces.
-geometry::NurbsCurve solverCurve(const geometry::NurbsCurve& c0, const Discretization& discretization, bool rebuild, int p) {
-  if (!rebuild) return c0.refined(discretization.refine);
-  // A degree-p rod needs a few spans to bend at all; fewer than 8 is rarely what anyone wants.
-  const int spans = discretization.spans > 0
-                        ? discretization.spans
-                        : std::max(8, static_cast<int>(c0.breakpoints().size() - 1) * (discretization.refine + 1));
-  std::vector<double> knots(p + 1, c0.domainBegin());
-  for (int i = 1; i < spans; ++i) knots.push_back(c0.domainBegin() + (c0.domainEnd() - c0.domainBegin()) * i / spans);
-  knots.insert(knots.end(), p + 1, c0.domainEnd());
-  return geometry::NurbsCurve(p, std::move(knots), std::vector<Vec3>(spans + p, Vec3::Zero()));
+// Convergence order of collocation at degree p: p for even degrees, p - 1 for odd ones.
+int collocationOrder(int p) { return p % 2 == 0 ? p : p - 1; }
+
+// Total turning of the drawn centerline's tangent (rad), from a dense sampling.
+double drawnTurning(const geometry::NurbsCurve& c) {
+  const int samples = 32 * static_cast<int>(c.breakpoints().size());
+  double turning = 0.0;
+  Vec3 previous = sideTangent(c, c.domainBegin(), 1);
+  for (int i = 1; i <= samples; ++i) {
+    const Vec3 t = sideTangent(c, c.domainBegin() + (c.domainEnd() - c.domainBegin()) * i / samples, -1);
+    turning += std::atan2(previous.cross(t).norm(), previous.dot(t));
+    previous = t;
+  }
+  return turning;
+}
+
+// Smallest section dimension (mm): the thickness that governs a rod's slenderness.
+double thickness(const geometry::Section& section) { return std::min(section.width, section.height); }
+
+}  // namespace
+
+// Shortest length over which the modulus changes by its own size: min E / |dE/ds| (mm), infinite
+// for a constant E. Where E falls steeply the curvature M / (E I) nears a pole just beyond the rod
+// and polynomials need spans far shorter than this length to follow it.
+double modulusLength(const geometry::Rod& rod) {
+  const geometry::BSplineField& e = rod.modulus();
+  if (e.isConstant()) return std::numeric_limits<double>::infinity();
+  const geometry::NurbsCurve& c = rod.centerline();
+  const int samples = 32 * static_cast<int>(e.values().size() + c.breakpoints().size());
+  double shortest = std::numeric_limits<double>::infinity();
+  for (int i = 0; i <= samples; ++i) {
+    const double u = c.domainBegin() + (c.domainEnd() - c.domainBegin()) * i / samples;
+    Vec3 d[2];
+    c.derivatives(u, 1, d);
+    const double slope = std::abs(e.derivative(u)) / std::max(d[1].norm(), 1e-300);  // |dE/ds|
+    if (slope > 0) shortest = std::min(shortest, std::abs(e.value(u)) / slope);
+  }
+  return shortest;
+}
+
+// Collocation of primal Cosserat rods locks: the error of a rod of slenderness L/d whose tangent
+// turns by theta grows like (L/d)^2 (theta / N)^q for N spans of order q, and a modulus that falls
+// steeply needs spans short against E / |dE/ds| (mechanics/README.md: measured on straight,
+// curved and graded cantilevers from L/d = 10 to 1000). Spans for the relative accuracy
+// `tolerance`, with s = (1e-4 / tolerance)^(1/q):
+//   N = max(c_q (L/d)^(2/q) max(theta, 1.2) s, e_q (L / (E / |dE/ds|)) s),
+// theta at least 1.2 rad because the load bends straight rods too; c_q and e_q were fitted to reach
+// 1e-4 on every measured case. At least 4 spans, one per design span and two per span of E(s).
+int automaticSpans(const geometry::Rod& rod, int degree, double tolerance) {
+  const int q = collocationOrder(degree);
+  const double c = q <= 2 ? 57.0 : q <= 4 ? 8.1 : 3.0;
+  const double e = q <= 2 ? 60.0 : q <= 4 ? 11.0 : 3.0;
+  const double scale = std::pow(1e-4 / tolerance, 1.0 / q);
+  const double slenderness = std::max(1.0, rod.length() / thickness(rod.section()));
+  const double theta = std::max(drawnTurning(rod.centerline()), 1.2);
+  const double locking = c * std::pow(slenderness, 2.0 / q) * theta * scale;
+  const double grading = e * rod.length() / modulusLength(rod) * scale;
+  const int designSpans = static_cast<int>(rod.centerline().breakpoints().size()) - 1;
+  const int modulusSpans = rod.modulus().isConstant()
+                               ? 0
+                               : static_cast<int>(rod.modulus().values().size()) - rod.modulus().degree();
+  const double spans = std::max({4.0, std::ceil(locking), std::ceil(grading), double(designSpans), 2.0 * modulusSpans});
+  return spans > kMaxSpansPerRod ? kMaxSpansPerRod + 1 : static_cast<int>(spans);
+}
+
+namespace {
+
+// Automatic refinement of a design's own basis beyond this many spans per rod is refused.
+constexpr int kMaxAutomaticDesignSpans = 256;
+
+// The solver's basis for one rod: how many spans, on which curve.
+struct RodBasisChoice {
+  bool rebuild = false;
+  int degree = 0;
+  int spans = 0;   // rebuilt: spans; design basis: solver spans per design span
+};
+
+RodBasisChoice chooseBasis(const DiscreteStructure& s, const geometry::Rod& rod, std::size_t index,
+                           const Discretization& d, const std::string& path) {
+  const geometry::NurbsCurve& c0 = rod.centerline();
+  RodBasisChoice choice;
+  choice.rebuild = d.degree > 0;
+  choice.degree = choice.rebuild ? d.degree : c0.degree();
+  checkCenterline(s, c0, choice.degree, choice.rebuild, path);
+  const int designSpans = static_cast<int>(c0.breakpoints().size()) - 1;
+  if (index < d.perRod.size()) choice.spans = d.perRod[index];
+  else if (choice.rebuild && d.spans > 0) choice.spans = d.spans;
+  else if (choice.rebuild) {
+    choice.spans = automaticSpans(rod, choice.degree, d.tolerance);
+    if (choice.spans > kMaxSpansPerRod)
+      s.fail(path, "at degree " + std::to_string(choice.degree) + " this rod would need more than " +
+                       std::to_string(kMaxSpansPerRod) + " spans for the accuracy asked; use a higher --degree (6)");
+  }
+  else if (d.refine >= 0) choice.spans = d.refine + 1;
+  else {
+    // On its own basis a rod keeps its degree; a low one may need more spans than is sensible.
+    const int total = automaticSpans(rod, choice.degree, d.tolerance);
+    if (total > kMaxAutomaticDesignSpans)
+      s.fail(path + ".centerline.degree",
+             "on its own degree-" + std::to_string(choice.degree) + " basis (--degree 0) this rod would need more than " +
+                 std::to_string(kMaxAutomaticDesignSpans) + " spans for the default accuracy (collocation converges at order " +
+                 std::to_string(collocationOrder(choice.degree)) + " at this degree); rebuild it with --degree 6, or "
+                 "give --refine to accept a coarser answer");
+    choice.spans = (total + designSpans - 1) / designSpans;
+  }
+  if (choice.spans < 1 || (choice.rebuild ? choice.spans : choice.spans * designSpans) > kMaxSpansPerRod)
+    s.fail(path, "a solver basis of " + std::to_string(choice.spans * (choice.rebuild ? 1 : designSpans)) +
+                     " spans is out of range (1.." + std::to_string(kMaxSpansPerRod) + " per rod)");
+  return choice;
+}
+
+// Parameters where E(s) has a kink (a knot of multiplicity >= its degree) inside the domain.
+std::vector<double> modulusKinks(const geometry::BSplineField& e) {
+  std::vector<double> kinks;
+  if (e.isConstant()) return kinks;
+  const auto& ek = e.knots();
+  for (std::size_t i = e.degree() + 1; i < e.values().size();) {
+    std::size_t m = 1;
+    while (i + m < e.values().size() && ek[i + m] == ek[i]) ++m;
+    if (m >= static_cast<std::size_t>(e.degree()) && ek[i] > e.domainBegin() && ek[i] < e.domainEnd()) kinks.push_back(ek[i]);
+    i += m;
+  }
+  return kinks;
+}
+
+// Knots of a rebuilt rod: `spans` spans, uniform between the modulus kinks, each piece getting
+// spans in proportion to its length (at least one). At a kink of E the solution's curvature has a
+// kink too (kappa = m / (E I)): the knot is repeated p - 1 times there, so the basis is only C1 and
+// can follow it (with a plain knot convergence falls to order 2.5), and no collocation point (a
+// mean of p consecutive knots) lands on it.
+std::vector<double> rebuiltKnots(double begin, double end, int p, int spans, const std::vector<double>& kinks) {
+  std::vector<double> breaks = {begin};
+  for (double k : kinks) breaks.push_back(k);
+  breaks.push_back(end);
+  const int pieces = static_cast<int>(breaks.size()) - 1;
+  spans = std::max(spans, pieces);
+  std::vector<double> knots(p + 1, begin);
+  int given = 0;
+  for (int i = 0; i < pieces; ++i) {
+    // Spans up to the end of piece i in proportion to length, each piece at least one.
+    const int upTo = i + 1 == pieces ? spans
+                                     : std::clamp(static_cast<int>(std::lround(spans * (breaks[i + 1] - begin) / (end - begin))),
+                                                  given + 1, spans - (pieces - i - 1));
+    for (int k = 1; k < upTo - given; ++k) knots.push_back(breaks[i] + (breaks[i + 1] - breaks[i]) * k / (upTo - given));
+    if (i + 1 < pieces) knots.insert(knots.end(), std::max(1, p - 1), breaks[i + 1]);
+    given = upTo;
+  }
+  knots.insert(knots.end(), p + 1, end);
+  return knots;
+}
+
+// The solver's curve: the design's refined by knot insertion, or (rebuild) a degree-p B-spline
+// with placeholder control points that interpolateReference replaces.
+geometry::NurbsCurve solverCurve(const geometry::Rod& rod, const RodBasisChoice& choice) {
+  const geometry::NurbsCurve& c0 = rod.centerline();
+  if (!choice.rebuild) return c0.refined(choice.spans - 1);
+  std::vector<double> knots = rebuiltKnots(c0.domainBegin(), c0.domainEnd(), choice.degree, choice.spans, modulusKinks(rod.modulus()));
+  const std::size_t count = knots.size() - choice.degree - 1;
+  return geometry::NurbsCurve(choice.degree, std::move(knots), std::vector<Vec3>(count, Vec3::Zero()));
 }
 
 // Greville abscissae, with the ends exactly at the domain's ends.
@@ -137,23 +310,14 @@ std::vector<double> grevilleAbscissae(const geometry::NurbsCurve& curve) {
   return tau;
 }
 
-// E must be differentiable where it is collocated (n' contains E').
-void checkModulusKinks(const DiscreteStructure& s, const geometry::BSplineField& e, const std::vector<double>& tau,
-                       const std::string& path) {
-  if (e.isConstant()) return;
-  const auto& ek = e.knots();
+// A kink of E(s) that is also a collocation point, where the solver needs E'(s) (n' contains it);
+// none if there is no such kink.
+std::optional<double> kinkAtCollocationPoint(const geometry::BSplineField& e, const std::vector<double>& tau) {
   const double scale = std::max(1.0, std::abs(e.domainEnd() - e.domainBegin()));
-  for (std::size_t i = e.degree() + 1; i < e.values().size();) {
-    std::size_t m = 1;
-    while (i + m < e.values().size() && ek[i + m] == ek[i]) ++m;
-    if (m >= static_cast<std::size_t>(e.degree()))
-      for (double t : tau)
-        if (std::abs(t - ek[i]) <= 1e-12 * scale)
-          s.fail(path + ".modulus.knots[" + std::to_string(i) + "]",
-                 "E(s) has a kink at u = " + format(ek[i]) + ", which is a collocation point, where the solver needs E'(s); "
-                 "raise the field's degree or move the knot");
-    i += m;
-  }
+  for (double kink : modulusKinks(e))
+    for (double t : tau)
+      if (std::abs(t - kink) <= 1e-12 * scale) return kink;
+  return std::nullopt;
 }
 
 // Section stiffness per unit E and the distributed load of one rod, with the design's overrides.
@@ -193,70 +357,33 @@ Eigen::MatrixXd interpolateReference(const DiscreteStructure& s, DiscreteRod& ro
   const geometry::NurbsCurve& c0 = src.centerline();
   rod.basis.resize(rod.count);
   for (int j = 0; j < rod.count; ++j) rod.basis[j] = rationalBasis(rod.curve, rod.tau[j]);
-  std::vector<Eigen::Triplet<double>> entries;
   Eigen::MatrixXd samples(rod.count, 7);
   Vector4d previous = Vector4d::Zero();
   for (int j = 0; j < rod.count; ++j) {
-    for (int k = 0; k < rod.basis[j].count; ++k) entries.emplace_back(j, rod.basis[j].first + k, rod.basis[j].value[k]);
     Vector4d q = unitQuaternion(src.frame().at(c0, rod.tau[j]));
     if (j > 0 && q.dot(previous) < 0) q = -q;
     samples.block<1, 3>(j, 0) = c0.point(rod.tau[j]).transpose();
     samples.block<1, 4>(j, 3) = q.transpose();
     previous = q;
   }
-  Eigen::SparseMatrix<double> collocation(rod.count, rod.count);
-  collocation.setFromTriplets(entries.begin(), entries.end());
-  Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(collocation);
-  if (lu.info() != Eigen::Success) s.fail(rod.path + ".centerline", "the collocation matrix is singular");
-  return lu.solve(samples);
+  const std::optional<Eigen::MatrixXd> values = interpolateAtCollocationPoints(rod, samples);
+  if (!values) s.fail(rod.path + ".centerline", "the collocation matrix is singular");
+  return *values;
 }
 
-}  // namespace
-
-void DiscreteStructure::buildRod(const geometry::RodStructure& structure, std::size_t index,
-                                 const Discretization& discretization) {
-  const geometry::Rod& src = structure.rods[index];
-  DiscreteRod rod;
-  rod.name = src.name();
-  rod.path = "rods[" + std::to_string(index) + "]";
-  rod.source = &src;
-  const geometry::NurbsCurve& c0 = src.centerline();
-  const bool rebuild = discretization.degree > 0 && (discretization.degree != c0.degree() || discretization.spans > 0);
-  const int p = rebuild ? discretization.degree : c0.degree();
-  checkCenterline(*this, c0, p, rod.path);
-  rod.curve = solverCurve(c0, discretization, rebuild, p);
-  rod.degree = p;
-  rod.count = static_cast<int>(rod.curve.points().size());
-  if (rod.count < 3) fail(rod.path + ".centerline.points", "needs at least 3 control points");
-  rod.length = src.length();
-  rod.tau = grevilleAbscissae(rod.curve);
-  const geometry::BSplineField& e = src.modulus();
-  checkModulusKinks(*this, e, rod.tau, rod.path);
-  const RodStiffness stiffness = rodStiffness(structure.mechanics, src);
-
-  const Eigen::MatrixXd interpolated = interpolateReference(*this, rod, src);
-  if (rebuild) {
-    std::vector<Vec3> points(rod.count);
-    for (int i = 0; i < rod.count; ++i) points[i] = interpolated.block<1, 3>(i, 0).transpose();
-    rod.curve = geometry::NurbsCurve(p, rod.curve.knots(), std::move(points));
-  }
-  rod.offset = unknowns;
-  unknowns += 7 * static_cast<std::size_t>(rod.count);
-  reference.conservativeResize(static_cast<Eigen::Index>(unknowns));
-  for (int i = 0; i < rod.count; ++i) {
-    reference.segment<3>(rod.offset + 7 * i) = rod.curve.points()[i];
-    reference.segment<4>(rod.offset + 7 * i + 3) = interpolated.block<1, 4>(i, 3).transpose();
-  }
-
+// Per collocation point: the reference strains, E and dE/du, the section and the distributed
+// load; then the rod's residual scales.
+void setPointConstants(const DiscreteStructure& s, DiscreteRod& rod, const geometry::BSplineField& e,
+                       const RodStiffness& stiffness) {
   double eMax = 0;
   rod.constants.resize(rod.count);
   for (int j = 0; j < rod.count; ++j) {
-    const LocalState s = localState(rod, rod.basis[j], reference);
-    const StrainMeasures<double> sm = strainMeasures<double>(s.dr, s.ddr, s.q, s.dq, s.ddq);
+    const LocalState state = localState(rod, rod.basis[j], s.reference);
+    const StrainMeasures<double> sm = strainMeasures<double>(state.dr, state.ddr, state.q, state.dq, state.ddq);
     PointConstants& c = rod.constants[j];
-    c.J0 = s.dr.norm();
-    if (!(c.J0 > 0)) fail(rod.path + ".centerline", "the centerline's derivative vanishes at u = " + format(rod.tau[j]));
-    c.dJ0 = s.dr.dot(s.ddr) / c.J0;
+    c.J0 = state.dr.norm();
+    if (!(c.J0 > 0)) s.fail(rod.path + ".centerline", "the centerline's derivative vanishes at u = " + format(rod.tau[j]));
+    c.dJ0 = state.dr.dot(state.ddr) / c.J0;
     c.gamma0 = sm.gamma, c.dGamma0 = sm.dGamma, c.curvature0 = sm.curvature, c.dCurvature0 = sm.dCurvature;
     c.E = e.value(rod.tau[j]);
     c.dE = e.isConstant() ? 0.0 : e.derivative(rod.tau[j]);
@@ -270,6 +397,58 @@ void DiscreteStructure::buildRod(const geometry::RodStructure& structure, std::s
   const double bending = eMax * stiffness.inertia;
   rod.forceScale = bending / (rod.length * rod.length);
   rod.momentScale = bending / rod.length;
+}
+
+}  // namespace
+
+void DiscreteStructure::buildRod(const geometry::RodStructure& structure, std::size_t index,
+                                 const Discretization& discretization) {
+  const geometry::Rod& src = structure.rods[index];
+  DiscreteRod rod;
+  rod.name = src.name();
+  rod.path = "rods[" + std::to_string(index) + "]";
+  rod.source = &src;
+  RodBasisChoice choice = chooseBasis(*this, src, index, discretization, rod.path);
+  // Spans the user chose are kept (a kink on a collocation point is then refused); automatic ones
+  // grow by one until no kink of E(s) is a collocation point.
+  const bool chosen = index >= discretization.perRod.size() && (choice.rebuild ? discretization.spans > 0 : discretization.refine >= 0);
+  for (int attempt = 0;; ++attempt) {
+    rod.curve = solverCurve(src, choice);
+    rod.tau = grevilleAbscissae(rod.curve);
+    const std::optional<double> kink = kinkAtCollocationPoint(src.modulus(), rod.tau);
+    if (!kink) break;
+    if (chosen || attempt == 16)
+      fail(rod.path + ".modulus", "E(s) has a kink at u = " + format(*kink) + ", which is a collocation point of this "
+           "discretization, where the solver needs E'(s); choose other " + (choice.rebuild ? "--spans" : "--refine") +
+           " (or leave them automatic), or raise the field's degree");
+    ++choice.spans;
+  }
+  rod.degree = choice.degree;
+  rod.spans = choice.spans;
+  rod.rebuilt = choice.rebuild;
+  rod.count = static_cast<int>(rod.curve.points().size());
+  if (rod.count < 3) fail(rod.path + ".centerline.points", "needs at least 3 control points");
+  // About 5 kB per unknown (Jacobian, its factors, the assembly's maps): refuse before allocating.
+  if (unknowns + 7 * static_cast<std::size_t>(rod.count) > kMaxUnknowns)
+    fail(rod.path, "the discretization passes " + std::to_string(kMaxUnknowns) + " unknowns here (about " +
+                       std::to_string(kMaxUnknowns / 200000) + " GB); use fewer --spans or a coarser --accuracy");
+  rod.length = src.length();
+
+  const Eigen::MatrixXd interpolated = interpolateReference(*this, rod, src);
+  if (choice.rebuild) {
+    std::vector<Vec3> points(rod.count);
+    for (int i = 0; i < rod.count; ++i) points[i] = interpolated.block<1, 3>(i, 0).transpose();
+    rod.curve = geometry::NurbsCurve(rod.degree, rod.curve.knots(), std::move(points));
+  }
+  rod.offset = unknowns;
+  unknowns += 7 * static_cast<std::size_t>(rod.count);
+  reference.conservativeResize(static_cast<Eigen::Index>(unknowns));
+  for (int i = 0; i < rod.count; ++i) {
+    reference.segment<3>(rod.offset + 7 * i) = rod.curve.points()[i];
+    reference.segment<4>(rod.offset + 7 * i + 3) = interpolated.block<1, 4>(i, 3).transpose();
+  }
+
+  setPointConstants(*this, rod, src.modulus(), rodStiffness(structure.mechanics, src));
   rods.push_back(std::move(rod));
 }
 

@@ -4,7 +4,9 @@
 
 #include <unsupported/Eigen/AutoDiff>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 
 namespace rodfab::mechanics::detail {
@@ -17,17 +19,26 @@ namespace {
 template <int N> using Dual = Eigen::AutoDiffScalar<Eigen::Matrix<double, N, 1>>;
 using EndJacobian = Eigen::Matrix<double, Eigen::Dynamic, 14>;  // rows by an end's (r, r', q, q')
 
-// Columns of the control points a basis touches, 7 per point.
-void appendColumns(const DiscreteRod& rod, const Basis& b, std::vector<std::size_t>& cols) {
-  for (int k = 0; k < b.count; ++k)
+// Columns of the control points `functions` of a basis, 7 per point.
+void appendColumns(const DiscreteRod& rod, const Basis& b, const std::vector<int>& functions, std::vector<std::size_t>& cols) {
+  for (int k : functions)
     for (int c = 0; c < 7; ++c) cols.push_back(rod.offset + 7 * static_cast<std::size_t>(b.first + k) + c);
 }
 
-// Chain rule from derivatives with respect to an end's (r, r', q, q') (14 columns) to its control points.
+std::vector<int> allFunctions(const Basis& b) {
+  std::vector<int> k(b.count);
+  std::iota(k.begin(), k.end(), 0);
+  return k;
+}
+
+// Chain rule from derivatives with respect to an end's (r, r', q, q') (14 columns) to its control
+// points (the end's functions, 7 columns each).
 void chainEnd(const Basis& b, const EndJacobian& d, Eigen::Ref<Eigen::MatrixXd> out) {
-  for (int k = 0; k < b.count; ++k) {
-    out.middleCols<3>(7 * k) += d.middleCols<3>(0) * b.value[k] + d.middleCols<3>(3) * b.d1[k];
-    out.middleCols<4>(7 * k + 3) += d.middleCols<4>(6) * b.value[k] + d.middleCols<4>(10) * b.d1[k];
+  int column = 0;
+  for (int k : endFunctions(b)) {
+    out.middleCols<3>(column) += d.middleCols<3>(0) * b.value[k] + d.middleCols<3>(3) * b.d1[k];
+    out.middleCols<4>(column + 3) += d.middleCols<4>(6) * b.value[k] + d.middleCols<4>(10) * b.d1[k];
+    column += 7;
   }
 }
 
@@ -61,7 +72,7 @@ public:
     for (std::size_t i = 1; i < ends_.size(); ++i) jointRows(i);
   }
 
-  void scatter(Eigen::VectorXd& residual, Block* block) const;
+  void scatter(Eigen::VectorXd& residual, Eigen::MatrixXd* block) const;
 
 private:
   // Per end: local state, force and moment, and their derivatives with respect to (r, r', q, q').
@@ -95,7 +106,7 @@ void NodeEquations::gatherEnd(std::size_t i, const Eigen::VectorXd& x) {
   EndData& d = ends_[i];
   d.s = localState(s_.rodOf(e), s_.endBasis(e), x);
   d.col = cols_;
-  cols_ += 7 * static_cast<std::size_t>(s_.endBasis(e).count);
+  cols_ += 7 * endFunctions(s_.endBasis(e)).size();
   const PointConstants& c = s_.endConstants(e);
   if (!derivatives_) {
     const StrainMeasures<double> sm = strainMeasures<double>(d.s.dr, Vector3d::Zero(), d.s.q, d.s.dq, Vector4d::Zero());
@@ -181,26 +192,20 @@ void NodeEquations::jointRows(std::size_t i) {
   dEnd_[i].block<1, 4>(r0 + 6, 6) = 2.0 * d.s.q.transpose();
 }
 
-void NodeEquations::scatter(Eigen::VectorXd& residual, Block* block) const {
-  const std::size_t k = ends_.size();
-  for (std::size_t i = 0; i < k; ++i) residual.segment<7>(s_.endRow(node_.ends[i])) = f_.segment<7>(7 * i);
+void NodeEquations::scatter(Eigen::VectorXd& residual, Eigen::MatrixXd* block) const {
+  for (std::size_t i = 0; i < ends_.size(); ++i) residual.segment<7>(s_.endRow(node_.ends[i])) = f_.segment<7>(7 * i);
   if (!block) return;
-  block->rows.clear();
-  for (std::size_t i = 0; i < k; ++i)
-    for (int r = 0; r < 7; ++r) block->rows.push_back(s_.endRow(node_.ends[i]) + r);
-  block->cols.clear();
-  block->values.setZero(f_.size(), static_cast<Eigen::Index>(cols_));
-  for (std::size_t i = 0; i < k; ++i) {
+  block->setZero(f_.size(), static_cast<Eigen::Index>(cols_));
+  for (std::size_t i = 0; i < ends_.size(); ++i) {
     const Basis& b = s_.endBasis(node_.ends[i]);
-    appendColumns(s_.rodOf(node_.ends[i]), b, block->cols);
-    chainEnd(b, dEnd_[i], block->values.middleCols(static_cast<Eigen::Index>(ends_[i].col), 7 * b.count));
+    chainEnd(b, dEnd_[i], block->middleCols(static_cast<Eigen::Index>(ends_[i].col), 7 * endFunctions(b).size()));
   }
 }
 
 }  // namespace
 
 void DiscreteStructure::interiorBlock(const DiscreteRod& rod, int j, const Eigen::VectorXd& x, double load,
-                                      Eigen::VectorXd& residual, Block* block) const {
+                                      Eigen::VectorXd& residual, Eigen::MatrixXd* block) const {
   const Basis& b = rod.basis[j];
   const LocalState s = localState(rod, b, x);
   const PointConstants& c = rod.constants[j];
@@ -223,23 +228,105 @@ void DiscreteStructure::interiorBlock(const DiscreteRod& rod, int j, const Eigen
     residual[row + i] = f[i].value() * scale[i];
     d.row(i) = f[i].derivatives().transpose() * scale[i];
   }
-  block->rows.resize(7);
-  std::iota(block->rows.begin(), block->rows.end(), row);
-  block->cols.clear();
-  appendColumns(rod, b, block->cols);
-  block->values.setZero(7, 7 * b.count);
+  block->resize(7, 7 * b.count);
   for (int k = 0; k < b.count; ++k) {
-    block->values.middleCols<3>(7 * k) = d.middleCols<3>(0) * b.d1[k] + d.middleCols<3>(3) * b.d2[k];
-    block->values.middleCols<4>(7 * k + 3) =
+    block->middleCols<3>(7 * k) = d.middleCols<3>(0) * b.d1[k] + d.middleCols<3>(3) * b.d2[k];
+    block->middleCols<4>(7 * k + 3) =
         d.middleCols<4>(6) * b.value[k] + d.middleCols<4>(10) * b.d1[k] + d.middleCols<4>(14) * b.d2[k];
   }
 }
 
 void DiscreteStructure::nodeBlock(const Node& node, const Eigen::VectorXd& x, double load, Eigen::VectorXd& residual,
-                                  Block* block) const {
+                                  Eigen::MatrixXd* block) const {
   NodeEquations equations(*this, node, x, block != nullptr);
   equations.evaluate(load);
   equations.scatter(residual, block);
+}
+
+std::vector<int> endFunctions(const Basis& b) {
+  std::vector<int> k;
+  for (int i = 0; i < b.count; ++i)
+    if (b.value[i] != 0.0 || b.d1[i] != 0.0) k.push_back(i);
+  return k;
+}
+
+namespace {
+
+// Which entries of a node's block can be non-zero (column-major, rows by columns of `layout`). The
+// support, joint and unit-norm rows depend on the end positions and rotations only (the control
+// point with a non-zero value there); force and moment balance on every end's position, tangent,
+// rotation and its derivative.
+std::vector<char> nodeMask(const DiscreteStructure& s, const Node& node, const ItemLayout& layout) {
+  struct Column { std::size_t end; bool atEnd, rotation; };
+  std::vector<Column> columns;
+  for (std::size_t i = 0; i < node.ends.size(); ++i) {
+    const Basis& b = s.endBasis(node.ends[i]);
+    for (int k : endFunctions(b))
+      for (int c = 0; c < 7; ++c) columns.push_back({i, b.value[k] != 0.0, c >= 3});
+  }
+  const std::size_t rows = layout.rows.size();
+  std::vector<char> mask(rows * columns.size());
+  for (std::size_t r = 0; r < rows; ++r) {
+    const std::size_t end = r / 7, local = r % 7;
+    const bool rotationRow = local >= 3;  // rows 3..6: moments, rotations, unit norm
+    const bool balance = end == 0 && ((local < 3 && !node.support) ||
+                                      (local >= 3 && local < 6 && node.support != geometry::SupportKind::Clamped));
+    for (std::size_t c = 0; c < columns.size(); ++c) {
+      const Column& col = columns[c];
+      const bool tied = local == 6 ? col.end == end : (col.end == 0 || col.end == end);
+      mask[c * rows + r] = balance || (tied && col.atEnd && col.rotation == rotationRow);
+    }
+  }
+  return mask;
+}
+
+}  // namespace
+
+void DiscreteStructure::buildLayouts() {
+  layouts.assign(items.size(), {});
+  for (std::size_t i = 0; i < items.size(); ++i) {
+    ItemLayout& layout = layouts[i];
+    if (items[i].rod >= 0) {
+      const DiscreteRod& rod = rods[items[i].rod];
+      const Basis& b = rod.basis[items[i].point];
+      for (int r = 0; r < 7; ++r) layout.rows.push_back(rod.row(items[i].point) + r);
+      appendColumns(rod, b, allFunctions(b), layout.cols);
+      // The unit-norm row (6) does not depend on positions.
+      layout.nonzero.assign(7 * layout.cols.size(), 1);
+      for (std::size_t c = 0; c < layout.cols.size(); ++c) layout.nonzero[7 * c + 6] = c % 7 >= 3;
+      continue;
+    }
+    const Node& node = nodes[items[i].point];
+    for (const ResolvedEnd& e : node.ends) {
+      for (int r = 0; r < 7; ++r) layout.rows.push_back(endRow(e) + r);
+      appendColumns(rodOf(e), endBasis(e), endFunctions(endBasis(e)), layout.cols);
+    }
+    layout.nonzero = nodeMask(*this, node, layout);
+  }
+  // The pattern from every item's block (duplicates, as when a closed rod's two ends share a
+  // control point, merge), then each block entry's position in it (-1: structurally zero).
+  std::vector<Eigen::Triplet<double>> entries;
+  for (const ItemLayout& layout : layouts)
+    for (std::size_t c = 0, k = 0; c < layout.cols.size(); ++c)
+      for (std::size_t r = 0; r < layout.rows.size(); ++r, ++k)
+        if (layout.nonzero[k]) entries.emplace_back(static_cast<int>(layout.rows[r]), static_cast<int>(layout.cols[c]), 0.0);
+  if (entries.size() >= static_cast<std::size_t>(std::numeric_limits<int>::max()))
+    fail("", "the Jacobian would have " + std::to_string(entries.size()) + " entries, more than this solver handles (2^31)");
+  pattern.resize(static_cast<Eigen::Index>(unknowns), static_cast<Eigen::Index>(unknowns));
+  pattern.setFromTriplets(entries.begin(), entries.end());
+  pattern.makeCompressed();
+  slots.clear();
+  for (ItemLayout& layout : layouts) {
+    layout.firstSlot = slots.size();
+    for (std::size_t c = 0, k = 0; c < layout.cols.size(); ++c) {
+      const int* begin = pattern.innerIndexPtr() + pattern.outerIndexPtr()[layout.cols[c]];
+      const int* end = pattern.innerIndexPtr() + pattern.outerIndexPtr()[layout.cols[c] + 1];
+      for (std::size_t r = 0; r < layout.rows.size(); ++r, ++k)
+        slots.push_back(layout.nonzero[k] ? static_cast<int>(std::lower_bound(begin, end, static_cast<int>(layout.rows[r])) -
+                                                             pattern.innerIndexPtr())
+                                          : -1);
+    }
+  }
 }
 
 }  // namespace rodfab::mechanics::detail

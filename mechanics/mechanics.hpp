@@ -31,7 +31,7 @@ public:
   using std::runtime_error::runtime_error;
 };
 
-// Newton did not converge even after cutting the load step `maxStepCuts` times.
+// Newton did not converge even with the load step cut to 1 / 2^maxStepCuts of the planned one.
 class ConvergenceError : public std::runtime_error {
 public:
   ConvergenceError(const std::string& message, double lastConvergedLoad)
@@ -42,24 +42,40 @@ private:
   double lastConvergedLoad_;
 };
 
+// Spans per rod are limited to this many, and a problem to this many unknowns.
+constexpr int kMaxSpansPerRod = 4096;
+constexpr std::size_t kMaxUnknowns = 2'000'000;
+
+// How each rod's centerline becomes the solver's basis.
+struct Discretization {
+  // 0 keeps each centerline's degree and NURBS basis, refined exactly by knot insertion. Another
+  // degree rebuilds each rod as a B-spline of that degree, interpolating the design's centerline at
+  // the new collocation points (geometric error of order h^(degree+1)), its knots uniform between
+  // the kinks of the rod's modulus field, where they are repeated degree - 1 times.
+  // Even degrees converge at order p, odd ones at p - 1; primal collocation locks in slender and
+  // curved rods less the higher the order, hence 6 (mechanics/README.md).
+  int degree = 6;
+  // Rebuilt rods: spans per rod; 0 chooses each rod's own from its slenderness, drawn turning,
+  // design spans and modulus field (automatic, aiming at `tolerance`).
+  int spans = 0;
+  // Design basis (degree 0): knots inserted per design span; -1 chooses the least that reaches the
+  // automatic span count, and refuses (MechanicsError) a rod whose degree would need more than 256.
+  int refine = -1;
+  // Relative accuracy of positions the automatic span counts aim at.
+  double tolerance = 1e-4;
+  // Per rod, in design order, overriding the above: rebuilt rods' spans, or on the design basis the
+  // solver spans per design span (refine + 1). Rods beyond its size use the rules above.
+  std::vector<int> perRod;
+};
+
 // The discrete nonlinear system F(x, load) = 0. x holds, rod after rod, each control point's
 // position (3) and quaternion (4); there are as many equations as unknowns: 7 per collocation
 // point (force and moment balance, unit quaternion), with the rows of each rod's two end points
 // replaced by the joint, support and end-load conditions of the node the end belongs to.
-// How each rod's centerline becomes the solver's basis.
-struct Discretization {
-  // 0 keeps each centerline's degree and NURBS basis, refined exactly by inserting `refine` knots
-  // into every span. Another degree (4 is a good choice: even degrees converge at order p, odd
-  // ones at p - 1) rebuilds each rod as a B-spline of that degree with uniform knots, interpolating
-  // the design's centerline at the new collocation points (geometric error of order h^(degree+1)).
-  int degree = 0;
-  int refine = 0;  // knots inserted per design span
-  int spans = 0;   // with `degree`: spans per rod; 0 gives the design's span count times (refine + 1), at least 8
-};
-
+// Const members may be called from several threads at once.
 class StaticProblem {
 public:
-  // Throws MechanicsError.
+  // Throws MechanicsError, or std::invalid_argument for an out-of-range Discretization.
   explicit StaticProblem(const geometry::RodStructure& structure, const Discretization& discretization = {});
   ~StaticProblem();
   StaticProblem(StaticProblem&&) noexcept;
@@ -70,28 +86,93 @@ public:
   std::size_t jointCount() const;    // nodes where two or more rod ends meet
   std::size_t supportCount() const;
   const std::string& source() const;
+  // The discretization as resolved: perRod holds every rod's spans (rebuilt) or spans per design
+  // span (design basis), so it reproduces this problem, and halving or doubling them coarsens or
+  // refines it.
+  const Discretization& discretization() const;
+  // Lowest collocation convergence order among the rods (degree p: p if even, p - 1 if odd).
+  int convergenceOrder() const;
 
   // The undeformed configuration (a solution at load 0).
   const Eigen::VectorXd& referenceState() const;
 
   // Scaled residual (dimensionless: forces by E I / L^2 and moments by E I / L of their rod,
-  // positions by the rod length) and, when `jacobian` is given, its exact derivative.
-  // Parallel over collocation points (TBB); the result does not depend on the thread count.
+  // positions by the rod length) and, when `jacobian` is given, its exact derivative (given the
+  // problem's sparsity pattern unless it has it already). Parallel over collocation points (TBB);
+  // the result does not depend on the thread count. std::invalid_argument for x of the wrong size.
   void evaluate(const Eigen::VectorXd& x, double load, Eigen::VectorXd& residual,
                 Eigen::SparseMatrix<double>* jacobian = nullptr) const;
 
-  // Centerline point and rotation of rod `rod` at parameter u in state x.
+  // Centerline point (mm) and rotation of rod `rod` at parameter u (the design's, clamped to its
+  // domain) in state x. std::out_of_range for a rod index from rodCount() on, std::invalid_argument
+  // for x of the wrong size.
   Eigen::Vector3d position(const Eigen::VectorXd& x, std::size_t rod, double u) const;
   Eigen::Matrix3d rotation(const Eigen::VectorXd& x, std::size_t rod, double u) const;
+  // A state of this discretization interpolating state x of `from`, another discretization of the
+  // same design, at this one's collocation points (positions and quaternions); a good Newton start.
+  // std::invalid_argument if `from` discretizes a different structure.
+  Eigen::VectorXd transferredState(const StaticProblem& from, const Eigen::VectorXd& x) const;
   // Largest change of x in units of the structure: positions / its size, quaternions as they are.
+  // std::invalid_argument for dx of the wrong size.
   double stepNorm(const Eigen::VectorXd& dx) const;
 
   // The structure in state x as a design: the (refined) centerlines with the solved control points
-  // and an `orientation` quaternion spline per rod; sections, caps and moduli as in the input.
+  // and an `orientation` quaternion spline per rod; sections, caps and moduli as in the input; the
+  // input's mechanics block with rod ends given by point turned into rod name and end (the points
+  // have moved), so the result can be simulated again. std::invalid_argument for x of the wrong
+  // size; std::invalid_argument from geometry::Rod if a state degenerates a rod (no frame).
   geometry::RodStructure deformedStructure(const Eigen::VectorXd& x) const;
 
 private:
   std::unique_ptr<detail::DiscreteStructure> structure_;
+};
+
+// LU factorization of a Jacobian, on SuiteSparse's KLU. The first factorize() of a sparsity pattern
+// orders it (AMD); later calls with the same pattern reuse that ordering and, while the pivots stay
+// sound (the pivot ratio within 1e4 of a fresh factorization's), the pivot sequence, which halves
+// the cost. Every factorization is of the matrix given: solves are exact up to rounding, not
+// approximate.
+// factorize() must not run concurrently with anything else on the same object; solve() and
+// solveTransposed() may be called from several threads (they are serialized).
+class JacobianLU {
+public:
+  // pivotBlock > 1: rows are paired with columns inside each diagonal block of that size (7 for
+  // StaticProblem: a control point's unknowns and equations) by complete pivoting of the block on
+  // the first matrix of a pattern, so that the diagonal KLU prefers as pivots is strong.
+  explicit JacobianLU(int pivotBlock = 1);
+  ~JacobianLU();
+  JacobianLU(JacobianLU&&) noexcept;
+  JacobianLU& operator=(JacobianLU&&) noexcept;
+
+  enum class Pivoting { Reuse, Fresh };
+  // Factorizes `jacobian` (square, compressed, non-empty; else std::invalid_argument), with the
+  // previous pivot sequence when asked and still sound, else with fresh partial pivoting. Returns
+  // false when it is numerically singular (a zero pivot) or holds a non-finite entry; throws
+  // std::runtime_error when KLU itself fails (out of memory).
+  bool factorize(const Eigen::SparseMatrix<double>& jacobian, Pivoting pivoting = Pivoting::Reuse);
+  // The last factorization kept the previous pivots: if a solve is not accurate enough, factorize
+  // again with Pivoting::Fresh.
+  bool pivotsReused() const;
+  // x with J x = b, and x with J^T x = b (for adjoint sensitivities), J the last matrix factorized.
+  // std::logic_error before a successful factorize, std::invalid_argument for a wrong size.
+  Eigen::VectorXd solve(const Eigen::VectorXd& b) const;
+  Eigen::VectorXd solveTransposed(const Eigen::VectorXd& b) const;
+  // Sign of det J: +1 or -1 (0 before a successful factorize).
+  int determinantSign() const;
+  // min |U_ii| / max |U_ii|: a crude reciprocal condition estimate of J.
+  double pivotRatio() const;
+  // How often the pattern was analysed, and the factorizations with fresh and with reused pivots.
+  int analyses() const { return analyses_; }
+  int factorizations() const { return factorizations_; }
+  int refactorizations() const { return refactorizations_; }
+
+private:
+  struct Factors;
+  bool samePattern(const Eigen::SparseMatrix<double>& m) const;
+  Eigen::VectorXd solve(const Eigen::VectorXd& b, bool transposed) const;
+  std::unique_ptr<Factors> factors_;
+  int pivotBlock_ = 1;
+  int analyses_ = 0, factorizations_ = 0, refactorizations_ = 0;
 };
 
 struct SolverOptions {
@@ -101,28 +182,121 @@ struct SolverOptions {
   // is below this. Rounding keeps the residual of very slender rods near 1e-16 (L / r)^2, so the
   // correction is what tells convergence there.
   double tolerance = 1e-10;
-  int maxStepCuts = 16;     // halvings of one load step before giving up
+  int maxStepCuts = 16;     // halvings of the planned load step before giving up
+  // Once a Newton correction is below 1e-3 of the structure, further corrections reuse the last
+  // factorization (chord steps) while each cuts the residual tenfold; off: every step full Newton.
+  bool chordSteps = true;
+  // After passing a bifurcation (det J changed sign, the critical mode orthogonal to the load),
+  // perturb the state along the critical mode and continue on the branch that is stable again.
+  bool followStableBranch = false;
+  // A critical point found between two load steps is bracketed by bisection (Newton solves) to
+  // this width in load factor; 1 or more: not bisected.
+  double criticalLoadTolerance = 1e-3;
+};
+
+// A point where det J changed sign between two converged load steps: an eigenvalue of the
+// tangent crossed zero (bifurcation or limit point).
+struct CriticalPoint {
+  double fromLoad = 0.0, toLoad = 0.0;  // load factors bracketing it (SolverOptions::criticalLoadTolerance)
+  enum class Kind { Bifurcation, LimitPoint } kind = Kind::Bifurcation;
+  // |psi . dF/dload| / (|psi| |dF/dload|), psi the critical left eigenvector (of J^T): near 0 at a
+  // bifurcation (the load does not drive the critical mode), of order 1 at a limit point.
+  double loadAlignment = 0.0;
+  bool branchSwitched = false;  // followStableBranch moved the solution onto a stable branch here
+};
+
+enum class Stability {
+  Stable,        // det J kept the reference state's sign all along: no critical point passed
+  Unstable,      // det J has the opposite sign: an odd number of critical points passed
+  Undetermined,  // det J is back to the reference sign after an even number of sign changes
 };
 
 struct LoadStepReport {
   int index = 0;                // 1-based count of converged steps
   double loadFactor = 0.0;      // reached by this step
+  double increment = 0.0;       // load factor added by this step
   std::vector<double> residuals;  // scaled residual before each Newton iteration and at the end
-  int cuts = 0;                 // halvings of the step needed to reach this load factor
+  int chordIterations = 0;      // of them, corrections with the previous factorization
+  int cuts = 0;                 // halvings of the planned step in force when this step converged
+  int determinantSign = 1;      // sign of det J here relative to the reference state's
 };
 
 struct Solution {
   Eigen::VectorXd state;
   std::vector<LoadStepReport> steps;
-  int newtonIterations = 0;
+  std::vector<CriticalPoint> criticalPoints;
+  Stability stability = Stability::Stable;
+  // LU of the Jacobian at `state` and load 1: for adjoint sensitivities (solveTransposed).
+  std::shared_ptr<const JacobianLU> tangent;
+  int newtonIterations = 0;  // with a new Jacobian
+  int chordIterations = 0;   // reusing the last factorization once the corrections are small
+  int factorizations = 0, refactorizations = 0;  // with fresh pivots, with reused pivots
+  int pivotRenewals = 0;  // solves with reused pivots not accurate enough, done again with fresh ones
   double factorizeSeconds = 0.0, assembleSeconds = 0.0, totalSeconds = 0.0;
 };
 
 // Solves from the reference state up to load factor 1. `onStep` is called after every converged
-// load step with its report and state. Throws ConvergenceError or MechanicsError (a singular
-// Jacobian: a mechanism).
+// load step with its report and state. Throws ConvergenceError, or MechanicsError when the
+// reference state's Jacobian is singular (a mechanism).
 using StepCallback = std::function<void(const LoadStepReport&, const Eigen::VectorXd& state)>;
 Solution solve(const StaticProblem& problem, const SolverOptions& options, int designLoadSteps,
                const StepCallback& onStep = {});
+
+// Newton at load factor 1 from `start` (a solution of another discretization, transferred), with
+// the load path of solve() as the fallback when that does not converge. The result has one step
+// (or the path's), no critical points (none are looked for), and stability from the sign of det J
+// at the end. Throws as solve() does, std::invalid_argument for a start of the wrong size.
+Solution solveFrom(const StaticProblem& problem, const Eigen::VectorXd& start, const SolverOptions& options,
+                   int designLoadSteps);
+
+// ---- Converged answers: an error estimate and refinement --------------------------------------
+
+struct AccuracyOptions {
+  // Largest estimated position error of a centerline point over the largest displacement. The
+  // automatic span counts aim at it, and refinement goes on until the estimate meets it.
+  double tolerance = 1e-4;
+  int maxRefinements = 2;  // doublings of every rod's spans at most
+  bool estimate = true;    // false: a single solve on the discretization as given, no estimate
+};
+
+struct ErrorEstimate {
+  bool available = false;
+  double positionError = 0.0;        // mm: estimated largest error of a centerline point's displacement
+  double largestDisplacement = 0.0;  // mm: largest displacement of a centerline point
+  double relative = 0.0;             // positionError / max(largestDisplacement, 1e-6 structure size)
+  // Observed ratio of the differences between successive levels (0 before a refinement, when a
+  // ratio of 2^(order - 2) per halving of the spans is assumed).
+  double ratio = 0.0;
+  std::size_t comparedUnknowns = 0;  // size of the discretization compared with
+  std::string note;                  // why no estimate is available
+};
+
+struct Simulation {
+  std::unique_ptr<StaticProblem> problem;  // the discretization `solution` belongs to
+  Solution solution;
+  ErrorEstimate estimate;
+  int refinements = 0;
+  double seconds = 0.0;  // wall time of all solves, the estimate's included
+};
+
+// Called by simulate() before each solve with the problem about to be solved.
+enum class Level {
+  Path,        // the first solve, along the load path
+  Estimate,    // half the spans, for the error estimate
+  Refinement,  // every rod's spans doubled
+};
+using LevelCallback = std::function<void(Level, const StaticProblem&)>;
+
+// Solves `design` on `discretization` (its tolerance set to accuracy.tolerance) along the load
+// path, then estimates the discretization error: the largest difference of centerline
+// displacements from a solve with half the spans per rod, divided by (ratio - 1) (Richardson). While the estimate
+// is above the tolerance, every rod's spans are doubled and the problem solved again from the
+// previous solution (up to maxRefinements), the ratio now observed. The path history (steps,
+// critical points) is the first level's. A coarser or finer solve that fails leaves the estimate
+// unavailable or the refinement where it was (ErrorEstimate::note says so). Throws as StaticProblem
+// and solve() do for the first level, and std::invalid_argument for out-of-range accuracy options.
+Simulation simulate(const geometry::RodStructure& design, Discretization discretization, const SolverOptions& solver,
+                    int designLoadSteps, const AccuracyOptions& accuracy = {}, const StepCallback& onStep = {},
+                    const LevelCallback& onLevel = {});
 
 }  // namespace rodfab::mechanics

@@ -84,6 +84,21 @@ ResolvedEnd DiscreteStructure::resolve(const geometry::RodEndRef& ref, const geo
   return best;
 }
 
+void DiscreteStructure::keepSpec(const geometry::RodStructure& structure) {
+  spec = structure.mechanics;
+  auto byName = [&](geometry::RodEndRef& ref) {
+    if (!ref.point) return;
+    const ResolvedEnd e = resolve(ref, structure);
+    ref.rod = rods[e.rod].name;
+    ref.end = e.end == 0 ? geometry::RodEnd::Start : geometry::RodEnd::End;
+    ref.point.reset();
+  };
+  for (auto& joint : spec.joints)
+    for (auto& ref : joint) byName(ref);
+  for (auto& support : spec.supports) byName(support.at);
+  for (auto& load : spec.loads) byName(load.at);
+}
+
 void DiscreteStructure::buildNodes(const geometry::RodStructure& structure) {
   const geometry::MechanicsSpec& spec = structure.mechanics;
   const int endCount = static_cast<int>(2 * rods.size());

@@ -1,10 +1,11 @@
+// Newton's method with load stepping and step cutting, tracking the sign of det J along the path
+// (critical points, stability) and optionally switching onto a stable branch after a bifurcation.
 #include "mechanics/mechanics.hpp"
-
-#include <Eigen/SparseLU>
 
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 namespace rodfab::mechanics {
@@ -24,88 +25,315 @@ std::string format(double v) {
 
 enum class Outcome { Converged, Diverged };
 
-}  // namespace
+// A fixed start vector for inverse iteration, with no symmetry that could make it orthogonal to
+// the mode sought.
+Eigen::VectorXd startVector(Eigen::Index n) {
+  Eigen::VectorXd v(n);
+  for (Eigen::Index i = 0; i < n; ++i) v[i] = 1.0 + 0.5 * std::sin(1.0 + 0.618 * static_cast<double>(i));
+  return v.normalized();
+}
 
-Solution solve(const StaticProblem& problem, const SolverOptions& options, int designLoadSteps,
-               const StepCallback& onStep) {
-  const auto start = std::chrono::steady_clock::now();
-  const int steps = options.loadSteps > 0 ? options.loadSteps : std::max(1, designLoadSteps);
-  Solution solution;
-  solution.state = problem.referenceState();
-  Eigen::SparseMatrix<double> jacobian;
-  Eigen::VectorXd residual;
-  Eigen::SparseLU<Eigen::SparseMatrix<double>, Eigen::COLAMDOrdering<int>> lu;
-  bool analyzed = false;
+// Follows the load path of one problem; one object per solve.
+class PathFollower {
+public:
+  PathFollower(const StaticProblem& problem, const SolverOptions& options)
+      : problem_(problem), options_(options), lu_(std::make_shared<JacobianLU>(7)) {}
+  Solution run(int steps, const StepCallback& onStep);
+  std::optional<Solution> runFrom(const Eigen::VectorXd& start);
 
-  // Newton from `x` at load factor `load`; on success x holds the solution.
-  auto newton = [&](Eigen::VectorXd& x, double load, LoadStepReport& report) {
-    for (int iteration = 0;; ++iteration) {
-      auto t = std::chrono::steady_clock::now();
-      problem.evaluate(x, load, residual, &jacobian);
-      solution.assembleSeconds += seconds(t);
-      const double norm = residual.lpNorm<Eigen::Infinity>();
-      report.residuals.push_back(norm);
-      if (!std::isfinite(norm)) return Outcome::Diverged;
-      // Rounding x alone moves row i of F by about eps (|J| |x|)_i: for slender rods (E A L^2 / E I
-      // of 1e6 and more) that floor lies far above any fixed tolerance, and Newton cannot go below it.
-      const Eigen::VectorXd floor = (jacobian.cwiseAbs() * x.cwiseAbs()) * (16 * std::numeric_limits<double>::epsilon());
-      if ((residual.cwiseAbs() - floor).maxCoeff() <= options.tolerance) return Outcome::Converged;
-      if (iteration >= options.maxIterations) return Outcome::Diverged;
-      // Growth far beyond the step's starting residual means Newton left the basin of attraction.
-      if (iteration >= 3 && norm > 1e3 * std::max(report.residuals.front(), options.tolerance)) return Outcome::Diverged;
-      t = std::chrono::steady_clock::now();
-      if (!analyzed) {
-        lu.analyzePattern(jacobian);
-        analyzed = true;
-      }
-      lu.factorize(jacobian);
-      const Eigen::VectorXd dx = lu.info() == Eigen::Success ? Eigen::VectorXd(lu.solve(residual)) : Eigen::VectorXd();
-      // Rounding turns an exactly singular stiffness into pivots of 1e-16 and corrections of 1e16:
-      // a correction a million times the structure is a mechanism, not a large deformation.
-      if (lu.info() != Eigen::Success || !dx.allFinite() || problem.stepNorm(dx) > 1e6)
-        throw MechanicsError(problem.source() + ": the stiffness (Jacobian) is singular at load factor " + format(load) +
-                             ": the structure is a mechanism; add supports (a single pinned end leaves rotation free) "
-                             "or join the loose rods");
-      solution.factorizeSeconds += seconds(t);
-      ++solution.newtonIterations;
-      x -= dx;
-      // Newton converges quadratically: after a correction this small, x is accurate to rounding.
-      if (problem.stepNorm(dx) < options.tolerance) {
-        problem.evaluate(x, load, residual);
-        report.residuals.push_back(residual.lpNorm<Eigen::Infinity>());
-        return std::isfinite(report.residuals.back()) ? Outcome::Converged : Outcome::Diverged;
+private:
+  void factorizeReference();
+  Outcome newton(Eigen::VectorXd& x, double load, LoadStepReport& report);
+  bool converged(const Eigen::VectorXd& x) const;
+  bool factorize(JacobianLU::Pivoting pivoting = JacobianLU::Pivoting::Reuse);
+  Eigen::VectorXd correction();
+  void checkCriticalPoint(Eigen::VectorXd& x, double fromLoad, double toLoad);
+  Eigen::VectorXd criticalMode(bool transposed) const;
+  double loadAlignment(const Eigen::VectorXd& x, double load, const Eigen::VectorXd& psi) const;
+  bool switchBranch(Eigen::VectorXd& x, double load);
+  bool factorizeAt(const Eigen::VectorXd& x, double load);
+  void finish();
+
+  const StaticProblem& problem_;
+  const SolverOptions& options_;
+  std::shared_ptr<JacobianLU> lu_;
+  Eigen::SparseMatrix<double> jacobian_;
+  Eigen::VectorXd residual_;
+  int referenceSign_ = 0;
+  int relativeSign_ = 1;      // sign of det J at the last factorization relative to the reference
+  int previousSign_ = 1;      // at the last converged step
+  int signChanges_ = 0;       // since the start or the last branch switch
+  Solution solution_;
+};
+
+bool PathFollower::factorize(JacobianLU::Pivoting pivoting) {
+  const auto t = std::chrono::steady_clock::now();
+  const bool ok = lu_->factorize(jacobian_, pivoting);
+  solution_.factorizeSeconds += seconds(t);
+  if (ok) relativeSign_ = lu_->determinantSign() * referenceSign_;
+  return ok;
+}
+
+bool PathFollower::factorizeAt(const Eigen::VectorXd& x, double load) {
+  const auto t = std::chrono::steady_clock::now();
+  problem_.evaluate(x, load, residual_, &jacobian_);
+  solution_.assembleSeconds += seconds(t);
+  return factorize();
+}
+
+// The final state's factorization (for adjoints) and sign of det J, exact there rather than at the
+// last Newton iterate.
+void PathFollower::finish() {
+  if (!factorizeAt(solution_.state, 1.0))
+    throw ConvergenceError(problem_.source() + ": the Jacobian is singular at the converged state of load factor 1: the "
+                           "structure is exactly at a critical (buckling) point; change the load slightly", 1.0);
+  if (!solution_.steps.empty()) solution_.steps.back().determinantSign = relativeSign_;
+  if (relativeSign_ < 0) solution_.stability = Stability::Unstable;
+  else solution_.stability = signChanges_ == 0 ? Stability::Stable : Stability::Undetermined;
+  solution_.tangent = lu_;
+  solution_.factorizations = lu_->factorizations();
+  solution_.refactorizations = lu_->refactorizations();
+}
+
+// The reference state's Jacobian: its determinant's sign is the stable one (the drawn design is
+// stress-free), and a singular one means the supports leave a rigid-body motion free. Rounding may
+// turn an exactly singular matrix into tiny pivots instead of a zero one, so solving J v = J 1 must
+// also give back v = 1.
+void PathFollower::factorizeReference() {
+  const Eigen::VectorXd& x0 = problem_.referenceState();
+  problem_.evaluate(x0, 0.0, residual_, &jacobian_);
+  referenceSign_ = 1;
+  bool regular = factorize();
+  if (regular) {
+    const Eigen::VectorXd ones = Eigen::VectorXd::Ones(x0.size());
+    const Eigen::VectorXd back = lu_->solve(jacobian_ * ones);
+    regular = back.allFinite() && (back - ones).lpNorm<Eigen::Infinity>() < 1e-4;
+  }
+  if (!regular)
+    throw MechanicsError(problem_.source() + ": the stiffness (Jacobian) of the undeformed structure is singular: the "
+                         "structure is a mechanism; add supports (a single pinned end leaves rotation free) or join "
+                         "the loose rods");
+  referenceSign_ = lu_->determinantSign();
+  relativeSign_ = 1;
+}
+
+// Newton from `x` at load factor `load`; on success x holds the solution. Once a correction is
+// small (the quadratic phase), further corrections reuse the last factorization (chord steps) as
+// long as each cuts the residual tenfold; otherwise, and from any failure, it is full Newton again.
+Outcome PathFollower::newton(Eigen::VectorXd& x, double load, LoadStepReport& report) {
+  bool chord = false;          // the next correction reuses the last factorization
+  Eigen::VectorXd beforeChord;  // the state before the last chord step, empty if the last was full
+  for (int iteration = 0;; ++iteration) {
+    const auto t = std::chrono::steady_clock::now();
+    problem_.evaluate(x, load, residual_);
+    solution_.assembleSeconds += seconds(t);
+    const double norm = residual_.lpNorm<Eigen::Infinity>();
+    if (beforeChord.size() > 0 && !(norm < 0.1 * report.residuals.back())) {  // the chord step contracted too little
+      chord = false;
+      if (!(norm < report.residuals.back())) {  // nor helped at all: undo it
+        x = beforeChord;
+        problem_.evaluate(x, load, residual_);
       }
     }
-  };
+    beforeChord.resize(0);
+    report.residuals.push_back(residual_.lpNorm<Eigen::Infinity>());
+    if (!std::isfinite(report.residuals.back())) return Outcome::Diverged;
+    if (converged(x)) return Outcome::Converged;
+    if (iteration >= options_.maxIterations) return Outcome::Diverged;
+    // Growth far beyond the step's starting residual means Newton left the basin of attraction.
+    if (iteration >= 3 && report.residuals.back() > 1e3 * std::max(report.residuals.front(), options_.tolerance))
+      return Outcome::Diverged;
+    Eigen::VectorXd dx;
+    if (chord) {
+      beforeChord = x;
+      dx = lu_->solve(residual_);
+      ++solution_.chordIterations, ++report.chordIterations;
+    } else {
+      if (!factorizeAt(x, load)) return Outcome::Diverged;  // singular on the way: cut the step
+      dx = correction();
+      ++solution_.newtonIterations;
+    }
+    // A correction a million times the structure comes from a (nearly) singular Jacobian.
+    if (!dx.allFinite() || problem_.stepNorm(dx) > 1e6) return Outcome::Diverged;
+    x -= dx;
+    const double step = problem_.stepNorm(dx);
+    // Newton converges quadratically: after a correction this small, x is accurate to rounding.
+    if (step < options_.tolerance) {
+      problem_.evaluate(x, load, residual_);
+      report.residuals.push_back(residual_.lpNorm<Eigen::Infinity>());
+      return std::isfinite(report.residuals.back()) ? Outcome::Converged : Outcome::Diverged;
+    }
+    // Not from the first iteration: its Jacobian is the previous state's, and the last
+    // factorization should stay close to the solution (its determinant's sign is used).
+    chord = chord || (options_.chordSteps && iteration >= 1 && step < 1e-3);
+  }
+}
 
-  double load = 0.0, step = 1.0 / steps;
-  int cuts = 0;
+// Converged when every row of the residual is within the tolerance of its rounding floor: rounding
+// x alone moves row i of F by about eps (|J| |x|)_i, which for slender rods (E A L^2 / E I of 1e6
+// and more) lies far above any fixed tolerance. J is the last one assembled, close enough for this.
+bool PathFollower::converged(const Eigen::VectorXd& x) const {
+  if (jacobian_.rows() != x.size()) return residual_.lpNorm<Eigen::Infinity>() <= options_.tolerance;
+  const Eigen::VectorXd floor = (jacobian_.cwiseAbs() * x.cwiseAbs()) * (16 * std::numeric_limits<double>::epsilon());
+  return (residual_.cwiseAbs() - floor).maxCoeff() <= options_.tolerance;
+}
+
+// The Newton correction J^-1 F. With reused pivots the solve is checked: its backward error
+// |J dx - F| / (|J| |dx| + |F|) (largest entries) must be near rounding, else the pivots are renewed.
+Eigen::VectorXd PathFollower::correction() {
+  const auto t = std::chrono::steady_clock::now();
+  Eigen::VectorXd dx = lu_->solve(residual_);
+  if (lu_->pivotsReused() && dx.allFinite()) {
+    const double error = (jacobian_ * dx - residual_).lpNorm<Eigen::Infinity>();
+    const double scale = (jacobian_.cwiseAbs() * dx.cwiseAbs() + residual_.cwiseAbs()).lpNorm<Eigen::Infinity>();
+    if (!(error <= 1e-11 * scale)) {
+      ++solution_.pivotRenewals;
+      dx = factorize(JacobianLU::Pivoting::Fresh) ? lu_->solve(residual_) : Eigen::VectorXd();
+    }
+  }
+  solution_.factorizeSeconds += seconds(t);
+  return dx;
+}
+
+// The eigenvector of J (or of J^T) with the eigenvalue nearest 0, by inverse iteration with the
+// last factorization; just past a critical point that eigenvalue is far smaller than the next.
+Eigen::VectorXd PathFollower::criticalMode(bool transposed) const {
+  Eigen::VectorXd v = startVector(jacobian_.rows());
+  for (int i = 0; i < 12; ++i) {
+    v = transposed ? lu_->solveTransposed(v) : lu_->solve(v);
+    if (!v.allFinite() || v.norm() == 0) break;
+    v.normalize();
+  }
+  return v;
+}
+
+double PathFollower::loadAlignment(const Eigen::VectorXd& x, double load, const Eigen::VectorXd& psi) const {
+  const double h = 1e-4;
+  Eigen::VectorXd up, down;
+  problem_.evaluate(x, load + h, up);
+  problem_.evaluate(x, load - h, down);
+  const Eigen::VectorXd dF = (up - down) / (2 * h);
+  const double scale = psi.norm() * dF.norm();
+  return scale > 0 && std::isfinite(scale) ? std::abs(psi.dot(dF)) / scale : 0.0;
+}
+
+// Called after each converged step, x being the new state at `toLoad` and solution_.state the
+// previous one: a change of sign of det J between them means a critical point, which is bracketed
+// by bisection, classified, and (followStableBranch) left for a stable branch.
+void PathFollower::checkCriticalPoint(Eigen::VectorXd& x, double fromLoad, double toLoad) {
+  const int before = previousSign_, after = relativeSign_;
+  if (before == after) return;
+  ++signChanges_;
+  CriticalPoint point;
+  Eigen::VectorXd nearest = x;  // converged state closest past the critical point
+  point.fromLoad = fromLoad, point.toLoad = toLoad;
+  Eigen::VectorXd low = solution_.state;
+  for (int i = 0; i < 60 && point.toLoad - point.fromLoad > options_.criticalLoadTolerance; ++i) {
+    const double middle = 0.5 * (point.fromLoad + point.toLoad);
+    Eigen::VectorXd trial = low;
+    LoadStepReport scratch;
+    if (newton(trial, middle, scratch) != Outcome::Converged || !factorizeAt(trial, middle)) break;
+    if (relativeSign_ == before) point.fromLoad = middle, low = std::move(trial);
+    else point.toLoad = middle, nearest = std::move(trial);
+  }
+  if (factorizeAt(nearest, point.toLoad))
+    point.loadAlignment = loadAlignment(nearest, point.toLoad, criticalMode(true));
+  point.kind = point.loadAlignment < 1e-2 ? CriticalPoint::Kind::Bifurcation : CriticalPoint::Kind::LimitPoint;
+  factorizeAt(x, toLoad);
+  if (options_.followStableBranch && point.kind == CriticalPoint::Kind::Bifurcation && after < 0 &&
+      switchBranch(x, toLoad)) {
+    point.branchSwitched = true;
+    signChanges_ = 0;
+  }
+  solution_.criticalPoints.push_back(point);
+}
+
+// From the unstable state x at `load`, pushes along the critical mode (both ways, growing) until
+// Newton lands on an equilibrium with the reference sign of det J: the stable branch.
+bool PathFollower::switchBranch(Eigen::VectorXd& x, double load) {
+  Eigen::VectorXd mode = criticalMode(false);
+  mode /= std::max(problem_.stepNorm(mode), 1e-300);  // largest entry: 1 structure size or 1 in q
+  for (double amplitude : {0.01, 0.03, 0.1, 0.3})
+    for (double direction : {1.0, -1.0}) {
+      Eigen::VectorXd trial = x + direction * amplitude * mode;
+      LoadStepReport scratch;
+      if (newton(trial, load, scratch) == Outcome::Converged && factorizeAt(trial, load) && relativeSign_ > 0) {
+        x = std::move(trial);
+        return true;
+      }
+    }
+  return false;
+}
+
+Solution PathFollower::run(int steps, const StepCallback& onStep) {
+  const auto start = std::chrono::steady_clock::now();
+  solution_.state = problem_.referenceState();
+  factorizeReference();
+  const double planned = 1.0 / steps;
+  double load = 0.0, step = planned;
+  int halvings = 0;  // of the planned step, in force
   while (load < 1.0) {
-    const double target = std::min(1.0, load + step);
-    Eigen::VectorXd x = solution.state;
+    // Snap to 1 when rounding leaves a sliver (0.1 ten times is 0.9999999999999999).
+    double target = load + step;
+    if (target > 1.0 - 1e-9 * step) target = 1.0;
+    Eigen::VectorXd x = solution_.state;
     LoadStepReport report;
     if (newton(x, target, report) == Outcome::Converged) {
-      solution.state = std::move(x);
-      load = target;
-      report.index = static_cast<int>(solution.steps.size()) + 1;
-      report.loadFactor = load;
-      report.cuts = cuts;
-      if (onStep) onStep(report, solution.state);
+      checkCriticalPoint(x, load, target);
+      previousSign_ = relativeSign_;
+      solution_.state = std::move(x);
+      report.index = static_cast<int>(solution_.steps.size()) + 1;
+      report.increment = target - load;
+      report.loadFactor = load = target;
+      report.cuts = halvings;
+      report.determinantSign = relativeSign_;
+      if (onStep) onStep(report, solution_.state);
       // After a cut, grow the step back towards the planned one when Newton converged easily.
-      if (cuts > 0 && report.residuals.size() <= 5) step = std::min(1.0 / steps, 2.0 * step);
-      solution.steps.push_back(std::move(report));
+      if (halvings > 0 && report.residuals.size() <= 5) step = planned / std::ldexp(1.0, --halvings);
+      solution_.steps.push_back(std::move(report));
       continue;
     }
-    if (++cuts > options.maxStepCuts)
-      throw ConvergenceError(problem.source() + ": Newton did not converge beyond load factor " + format(load) +
-                                 " even with the step cut to " + format(step) +
-                                 "; try more load steps (--load-steps), a finer discretization (--refine) or "
+    if (++halvings > options_.maxStepCuts)
+      throw ConvergenceError(problem_.source() + ": Newton did not converge beyond load factor " + format(load) +
+                                 " even with the step cut to " + format(step / 2) +
+                                 "; try more load steps (--load-steps), a finer discretization (--spans) or "
                                  "check the loads (a buckling or snap-through point?)",
                              load);
-    step *= 0.5;
+    step = planned / std::ldexp(1.0, halvings);
   }
-  solution.totalSeconds = seconds(start);
-  return solution;
+  finish();
+  solution_.totalSeconds = seconds(start);
+  return std::move(solution_);
+}
+
+// Newton at load 1 straight from `start`; none if it does not converge.
+std::optional<Solution> PathFollower::runFrom(const Eigen::VectorXd& start) {
+  const auto begin = std::chrono::steady_clock::now();
+  factorizeReference();
+  Eigen::VectorXd x = start;
+  LoadStepReport report;
+  if (newton(x, 1.0, report) != Outcome::Converged) return std::nullopt;
+  solution_.state = std::move(x);
+  report.index = 1;
+  report.loadFactor = report.increment = 1.0;
+  solution_.steps.push_back(std::move(report));
+  finish();
+  solution_.totalSeconds = seconds(begin);
+  return std::move(solution_);
+}
+
+}  // namespace
+
+Solution solveFrom(const StaticProblem& problem, const Eigen::VectorXd& start, const SolverOptions& options,
+                   int designLoadSteps) {
+  if (start.size() != problem.referenceState().size()) throw std::invalid_argument("solveFrom: a state of the wrong size");
+  if (std::optional<Solution> direct = PathFollower(problem, options).runFrom(start)) return std::move(*direct);
+  return solve(problem, options, designLoadSteps);
+}
+
+Solution solve(const StaticProblem& problem, const SolverOptions& options, int designLoadSteps, const StepCallback& onStep) {
+  const int steps = options.loadSteps > 0 ? options.loadSteps : std::max(1, designLoadSteps);
+  return PathFollower(problem, options).run(steps, onStep);
 }
 
 }  // namespace rodfab::mechanics

@@ -1,6 +1,7 @@
 // StaticProblem: builds the discrete structure and evaluates its residual and Jacobian.
 #include "mechanics/discrete_structure.hpp"
 
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -11,20 +12,39 @@ using namespace detail;
 using geometry::Vec3;
 using Eigen::Vector4d;
 
+namespace {
+
+bool samePattern(const Eigen::SparseMatrix<double>& a, const Eigen::SparseMatrix<double>& b) {
+  return a.isCompressed() && a.rows() == b.rows() && a.cols() == b.cols() && a.nonZeros() == b.nonZeros() &&
+         std::equal(a.outerIndexPtr(), a.outerIndexPtr() + a.cols() + 1, b.outerIndexPtr()) &&
+         std::equal(a.innerIndexPtr(), a.innerIndexPtr() + a.nonZeros(), b.innerIndexPtr());
+}
+
+}  // namespace
+
 StaticProblem::StaticProblem(const geometry::RodStructure& structure, const Discretization& discretization)
     : structure_(std::make_unique<DiscreteStructure>()) {
   DiscreteStructure& m = *structure_;
   m.source = structure.source;
-  if (discretization.refine < 0 || discretization.spans < 0 || discretization.degree < 0)
-    throw std::invalid_argument("StaticProblem: degree, refine and spans must be >= 0");
+  if (discretization.refine < -1 || discretization.refine >= kMaxSpansPerRod || discretization.spans < 0 ||
+      discretization.spans > kMaxSpansPerRod || discretization.degree < 0 || discretization.degree > geometry::kMaxDegree ||
+      !(discretization.tolerance > 0) || discretization.tolerance > 1)
+    throw std::invalid_argument("StaticProblem: degree 0.." + std::to_string(geometry::kMaxDegree) + ", refine -1.." +
+                                std::to_string(kMaxSpansPerRod - 1) + ", spans 0.." + std::to_string(kMaxSpansPerRod) +
+                                " and tolerance in (0, 1] expected");
   if (!structure.mechanics.present)
     m.fail("mechanics", "the design has no \"mechanics\" block: give at least its supports (and loads) to simulate it");
   for (std::size_t i = 0; i < structure.rods.size(); ++i) m.buildRod(structure, i, discretization);
   m.size = std::max(1e-12, structure.bounds().diagonal().norm());
   m.buildNodes(structure);
+  m.keepSpec(structure);
+  m.discretization = discretization;
+  m.discretization.perRod.clear();
+  for (const DiscreteRod& rod : m.rods) m.discretization.perRod.push_back(rod.spans);
   for (std::size_t r = 0; r < m.rods.size(); ++r)
     for (int j = 1; j + 1 < m.rods[r].count; ++j) m.items.push_back({static_cast<int>(r), j});
   for (std::size_t n = 0; n < m.nodes.size(); ++n) m.items.push_back({-1, static_cast<int>(n)});
+  m.buildLayouts();
 }
 
 StaticProblem::~StaticProblem() = default;
@@ -36,6 +56,13 @@ std::size_t StaticProblem::rodCount() const { return structure_->rods.size(); }
 std::size_t StaticProblem::jointCount() const { return structure_->joints; }
 std::size_t StaticProblem::supportCount() const { return structure_->supports; }
 const std::string& StaticProblem::source() const { return structure_->source; }
+const Discretization& StaticProblem::discretization() const { return structure_->discretization; }
+
+int StaticProblem::convergenceOrder() const {
+  int order = geometry::kMaxDegree;
+  for (const DiscreteRod& rod : structure_->rods) order = std::min(order, rod.degree % 2 == 0 ? rod.degree : rod.degree - 1);
+  return order;
+}
 const Eigen::VectorXd& StaticProblem::referenceState() const { return structure_->reference; }
 
 void StaticProblem::evaluate(const Eigen::VectorXd& x, double load, Eigen::VectorXd& residual,
@@ -43,40 +70,72 @@ void StaticProblem::evaluate(const Eigen::VectorXd& x, double load, Eigen::Vecto
   const DiscreteStructure& m = *structure_;
   if (static_cast<std::size_t>(x.size()) != m.unknowns) throw std::invalid_argument("StaticProblem::evaluate: wrong state size");
   residual.resize(x.size());
-  const std::vector<WorkItem>& items = m.items;
-  std::vector<Block> blocks(jacobian ? items.size() : 0);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, items.size(), 64), [&](const tbb::blocked_range<std::size_t>& range) {
+  if (jacobian && !samePattern(*jacobian, m.pattern)) *jacobian = m.pattern;
+  double* values = jacobian ? jacobian->valuePtr() : nullptr;
+  tbb::enumerable_thread_specific<Eigen::MatrixXd> scratch;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m.items.size(), 64), [&](const tbb::blocked_range<std::size_t>& range) {
+    Eigen::MatrixXd* block = values ? &scratch.local() : nullptr;
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
-      Block* block = jacobian ? &blocks[i] : nullptr;
-      if (items[i].rod >= 0) m.interiorBlock(m.rods[items[i].rod], items[i].point, x, load, residual, block);
-      else m.nodeBlock(m.nodes[items[i].point], x, load, residual, block);
+      const WorkItem& item = m.items[i];
+      if (item.rod >= 0) m.interiorBlock(m.rods[item.rod], item.point, x, load, residual, block);
+      else m.nodeBlock(m.nodes[item.point], x, load, residual, block);
+      if (!block) continue;
+      // Each row belongs to one item, so items write disjoint entries; an entry an item's block
+      // holds twice (a closed rod) is summed.
+      const ItemLayout& layout = m.layouts[i];
+      const int* slot = m.slots.data() + layout.firstSlot;
+      const std::size_t count = layout.rows.size() * layout.cols.size();
+      for (std::size_t k = 0; k < count; ++k)
+        if (slot[k] >= 0) values[slot[k]] = 0.0;
+      for (std::size_t k = 0; k < count; ++k)
+        if (slot[k] >= 0) values[slot[k]] += block->data()[k];
     }
   });
-  if (!jacobian) return;
-  std::size_t entries = 0;
-  for (const Block& b : blocks) entries += static_cast<std::size_t>(b.values.size());
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(entries);
-  for (const Block& b : blocks)
-    for (std::size_t c = 0; c < b.cols.size(); ++c)
-      for (std::size_t r = 0; r < b.rows.size(); ++r)
-        triplets.emplace_back(static_cast<int>(b.rows[r]), static_cast<int>(b.cols[c]), b.values(r, c));
-  jacobian->resize(x.size(), x.size());
-  jacobian->setFromTriplets(triplets.begin(), triplets.end());
 }
 
+namespace {
+
+// The local state of rod `rod` at u (clamped to the domain) in x, after checking both.
+LocalState stateAt(const DiscreteStructure& m, const Eigen::VectorXd& x, std::size_t rod, double u) {
+  const DiscreteRod& r = m.rods.at(rod);
+  if (static_cast<std::size_t>(x.size()) != m.unknowns) throw std::invalid_argument("StaticProblem: a state of the wrong size");
+  return localState(r, rationalBasis(r.curve, std::clamp(u, r.curve.domainBegin(), r.curve.domainEnd())), x);
+}
+
+}  // namespace
+
 Eigen::Vector3d StaticProblem::position(const Eigen::VectorXd& x, std::size_t rod, double u) const {
-  const DiscreteRod& r = structure_->rods.at(rod);
-  return localState(r, rationalBasis(r.curve, u), x).r;
+  return stateAt(*structure_, x, rod, u).r;
 }
 
 Eigen::Matrix3d StaticProblem::rotation(const Eigen::VectorXd& x, std::size_t rod, double u) const {
-  const DiscreteRod& r = structure_->rods.at(rod);
-  const Vector4d q = localState(r, rationalBasis(r.curve, u), x).q;
+  const Vector4d q = stateAt(*structure_, x, rod, u).q;
   return rotationNumerator<double>(q) / q.squaredNorm();
 }
 
+Eigen::VectorXd StaticProblem::transferredState(const StaticProblem& from, const Eigen::VectorXd& x) const {
+  const DiscreteStructure& m = *structure_;
+  const DiscreteStructure& f = *from.structure_;
+  if (f.rods.size() != m.rods.size() || static_cast<std::size_t>(x.size()) != f.unknowns)
+    throw std::invalid_argument("StaticProblem::transferredState: a state of another structure");
+  Eigen::VectorXd out(static_cast<Eigen::Index>(m.unknowns));
+  for (std::size_t r = 0; r < m.rods.size(); ++r) {
+    const DiscreteRod& rod = m.rods[r];
+    const DiscreteRod& source = f.rods[r];
+    Eigen::MatrixXd samples(rod.count, 7);
+    for (int j = 0; j < rod.count; ++j) {
+      const LocalState s = localState(source, rationalBasis(source.curve, rod.tau[j]), x);
+      samples.block<1, 3>(j, 0) = s.r.transpose();
+      samples.block<1, 4>(j, 3) = s.q.transpose();
+    }
+    const Eigen::MatrixXd values = *interpolateAtCollocationPoints(rod, samples);  // regular: the reference used it
+    for (int i = 0; i < rod.count; ++i) out.segment<7>(rod.offset + 7 * i) = values.row(i).transpose();
+  }
+  return out;
+}
+
 double StaticProblem::stepNorm(const Eigen::VectorXd& dx) const {
+  if (static_cast<std::size_t>(dx.size()) != structure_->unknowns) throw std::invalid_argument("StaticProblem::stepNorm: wrong size");
   double norm = 0;
   for (Eigen::Index i = 0; i < dx.size(); i += 7) {
     norm = std::max(norm, dx.segment<3>(i).cwiseAbs().maxCoeff() / structure_->size);
@@ -87,6 +146,7 @@ double StaticProblem::stepNorm(const Eigen::VectorXd& dx) const {
 
 geometry::RodStructure StaticProblem::deformedStructure(const Eigen::VectorXd& x) const {
   const DiscreteStructure& m = *structure_;
+  if (static_cast<std::size_t>(x.size()) != m.unknowns) throw std::invalid_argument("StaticProblem::deformedStructure: wrong state size");
   geometry::RodStructure out;
   out.source = m.source;
   for (const DiscreteRod& rod : m.rods) {
@@ -105,6 +165,7 @@ geometry::RodStructure StaticProblem::deformedStructure(const Eigen::VectorXd& x
     out.rods.emplace_back(src.name(), std::move(centerline), src.section(), std::nullopt, std::move(orientation),
                           src.caps(), src.modulus());
   }
+  out.mechanics = m.spec;
   return out;
 }
 

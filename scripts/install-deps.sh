@@ -17,6 +17,7 @@ packages=(
   nlohmann-json3-dev
   libcairo2-dev                                              # calibration plots, previews
   libssl-dev                                                 # SHA-256 checksums (libcrypto)
+  libsuitesparse-dev                                         # KLU: the mechanics solver's sparse LU
 )
 
 missing=()

@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # rodfab simulate from the command line: a cantilever rolled by an end moment lands where the
-# elastica says, the output is a valid design, and bad input is named and writes nothing.
+# elastica says, with an error estimate and a stability verdict; the output is a valid design that
+# keeps its mechanics block; a strip past its buckling load is reported unstable; bad input is
+# named and writes nothing.
 #   simulate.sh RODFAB SOURCE_DIR
 set -u
 rodfab=$1 src=$2
@@ -25,7 +27,13 @@ json.dump(design, open(sys.argv[1], "w"), indent=1)
 PY
 "$rodfab" simulate "$tmp/roll.json" --spans 32 -o "$tmp/rolled.json" > "$tmp/out" 2>&1 || fail "simulate: $(cat "$tmp/out")"
 grep -q "^step   3  load 1.0000  Newton:" "$tmp/out" || fail "no convergence history: $(cat "$tmp/out")"
+grep -q "^step   4" "$tmp/out" && fail "more steps than asked for: $(cat "$tmp/out")"
 grep -q "largest displacement" "$tmp/out" || fail "no summary: $(cat "$tmp/out")"
+grep -q "^basis:     degree 6, 32 spans per rod (--spans); 266 unknowns" "$tmp/out" || fail "no basis line: $(cat "$tmp/out")"
+grep -q "^accuracy:  estimated position error .* of the largest displacement (--accuracy 0.0001)" "$tmp/out" ||
+  fail "no error estimate: $(cat "$tmp/out")"
+grep -q "^stability: stable$" "$tmp/out" || fail "no stability verdict: $(cat "$tmp/out")"
+grep -q "warning" "$tmp/out" && fail "unexpected warning: $(cat "$tmp/out")"
 "$rodfab" validate "$tmp/rolled.json" > /dev/null 2>&1 || fail "the deformed design does not validate"
 python3 - "$tmp/rolled.json" <<'PY' || fail "deformed design content"
 import json, math, sys
@@ -34,11 +42,23 @@ rod = d["rods"][0]
 tip = rod["centerline"]["points"][-1]  # clamped knots: the last control point is the tip
 expect = 40 / math.pi
 assert abs(tip[0] - expect) < 1e-3 and abs(tip[1] - expect) < 1e-3 and abs(tip[2]) < 1e-9, tip
-assert rod["centerline"]["degree"] == 4 and len(rod["centerline"]["points"]) == 36
-assert len(rod["orientation"]["quaternions"]) == 36
-assert "mechanics" not in d
+assert rod["centerline"]["degree"] == 6 and len(rod["centerline"]["points"]) == 38
+assert len(rod["orientation"]["quaternions"]) == 38
+# The mechanics block stays, the load given by point now by rod end (the point has moved).
+assert d["mechanics"]["loads"][0]["at"] == {"rod": "beam", "end": "end"}, d["mechanics"]
+assert d["mechanics"]["supports"][0]["at"] == {"rod": "beam", "end": "start"}
 PY
 ls -A "$tmp" | grep -q tmp && fail "temporaries left behind: $(ls -A "$tmp")"
+
+# The deformed design can be simulated again (here without loads: it stays where it is).
+python3 - "$tmp/rolled.json" "$tmp/rolled-unloaded.json" <<'PY' || fail "edit the deformed design"
+import json, sys
+d = json.load(open(sys.argv[1]))
+d["mechanics"]["loads"] = []
+json.dump(d, open(sys.argv[2], "w"))
+PY
+"$rodfab" simulate "$tmp/rolled-unloaded.json" -o "$tmp/again.json" > "$tmp/out" 2>&1 || fail "simulate the deformed design: $(cat "$tmp/out")"
+grep -q "largest displacement: 0 mm" "$tmp/out" || fail "the unloaded deformed design moved: $(cat "$tmp/out")"
 
 # The deformed design can be voxelized like any other.
 "$rodfab" voxelize "$tmp/rolled.json" --voxel-size 0.1,0.1,0.1 -o "$tmp/rolled.vdb" > /dev/null 2>&1 ||
@@ -49,11 +69,76 @@ ls -A "$tmp" | grep -q tmp && fail "temporaries left behind: $(ls -A "$tmp")"
 python3 - "$tmp/json" <<'PY' || fail "--json content"
 import json, sys
 j = json.load(open(sys.argv[1]))
-assert j["rods"] == 1 and j["supports"] == 1 and j["unknowns"] == 7 * 20, j
+assert j["rods"] == 1 and j["supports"] == 1 and j["unknowns"] == 7 * 22, j
+assert j["discretization"] == {"degree": 6, "spans_per_rod": [16]}, j["discretization"]
 assert len(j["load_steps"]) == 3 and j["load_steps"][-1]["load_factor"] == 1.0
-assert all(s["residuals"][-1] < 1e-6 for s in j["load_steps"])
+assert all(s["residuals"][-1] < 1e-6 and s["cuts"] == 0 and s["det_sign"] == 1 for s in j["load_steps"])
 assert abs(j["largest_displacement_mm"] - ((20 - 40 / 3.141592653589793) ** 2 + (40 / 3.141592653589793) ** 2) ** 0.5) < 1e-2
+e = j["error_estimate"]
+assert e["available"] and e["within_tolerance"] and e["position_error_mm"] < 1e-3 and e["tolerance"] == 1e-4, e
+assert j["stability"] == "stable" and j["critical_points"] == []
 PY
+
+# Ten load steps print ten steps; a step that Newton cannot take is cut, visibly.
+edit() {  # OUT PYTHON-STATEMENTS (on d)
+  python3 - "$tmp/roll.json" "$1" "$2" <<'PY'
+import json, sys
+d = json.load(open(sys.argv[1]))
+exec(sys.argv[3])
+json.dump(d, open(sys.argv[2], "w"))
+PY
+}
+"$rodfab" simulate "$tmp/roll.json" --load-steps 10 -o "$tmp/ten.json" > "$tmp/out" 2>&1 || fail "10 steps: $(cat "$tmp/out")"
+[ "$(grep -c "^step " "$tmp/out")" -eq 10 ] || fail "10 load steps did not print 10 steps: $(cat "$tmp/out")"
+edit "$tmp/curl.json" 'd["mechanics"]["loads"][0]["moment"][2] *= 3.5; d["mechanics"]["load_steps"] = 1'
+"$rodfab" simulate "$tmp/curl.json" --max-iterations 6 -o "$tmp/curl-out.json" > "$tmp/out" 2>&1 || fail "curl: $(cat "$tmp/out")"
+grep -q "\[step cut [0-9]* time.*: +" "$tmp/out" || fail "step cuts not shown: $(cat "$tmp/out")"
+
+# A strip past its lateral-torsional buckling load: unstable, said so; --follow-stable-branch buckles it.
+python3 - "$tmp/strip.json" <<'PY'
+import json, math, sys
+E, nu, L, h, t = 1000.0, 0.3, 100.0, 10.0, 1.0
+G = E / (2 * (1 + nu))
+beta = 1 / 3 - 64 * t / (math.pi ** 5 * h) * sum(math.tanh(n * math.pi * h / (2 * t)) / n ** 5 for n in range(1, 100, 2))
+EI, GJ = E * h * t ** 3 / 12, G * beta * h * t ** 3
+P = 1.1 * 4.0126 * math.sqrt(EI * GJ) / L ** 2
+design = {
+  "format": "rodfab.design/1", "units": "mm",
+  "rods": [{"name": "strip", "centerline": {"degree": 1, "knots": [0, 0, 1, 1], "points": [[0, 0, 0], [L, 0, 0]]},
+            "normal": [0, 0, 1], "section": {"shape": "rectangle", "width": h, "height": t}, "modulus": E}],
+  "mechanics": {"poisson_ratio": nu, "supports": [{"at": {"rod": "strip", "end": "start"}, "type": "clamped"}],
+                "loads": [{"at": {"rod": "strip", "end": "end"}, "force": [0, 0, -P]}], "load_steps": 10}}
+json.dump(design, open(sys.argv[1], "w"), indent=1)
+PY
+"$rodfab" simulate "$tmp/strip.json" -o "$tmp/strip-out.json" > "$tmp/out" 2> "$tmp/err" || fail "strip: $(cat "$tmp/out" "$tmp/err")"
+grep -q "^stability: unstable; bifurcation between load factors 0.9" "$tmp/out" || fail "strip stability: $(cat "$tmp/out")"
+grep -q "warning: the final state is an unstable equilibrium.*--follow-stable-branch" "$tmp/err" ||
+  fail "no instability warning: $(cat "$tmp/err")"
+"$rodfab" simulate "$tmp/strip.json" --follow-stable-branch -o "$tmp/strip-buckled.json" > "$tmp/out" 2> "$tmp/err" ||
+  fail "strip, following: $(cat "$tmp/out" "$tmp/err")"
+grep -q "^stability: stable; bifurcation between load factors .* (continued on the stable branch)" "$tmp/out" ||
+  fail "strip branch switch: $(cat "$tmp/out")"
+python3 - "$tmp/strip-buckled.json" <<'PY' || fail "the strip did not buckle sideways"
+import json, sys
+tip = json.load(open(sys.argv[1]))["rods"][0]["centerline"]["points"][-1]
+assert abs(tip[1]) > 5, tip
+PY
+
+# The same result for any thread count, byte for byte: a zigzag of 12 jointed rods (over a hundred
+# collocation points, so TBB splits the assembly).
+python3 - "$tmp/zigzag.json" <<'PY'
+import json, sys
+pts = [[10 * i, 4 * (i % 2), 0] for i in range(13)]
+rods = [{"name": f"r{i}", "centerline": {"degree": 1, "knots": [0, 0, 1, 1], "points": [pts[i], pts[i + 1]]},
+         "section": {"shape": "circle", "diameter": 1.0}, "modulus": 80.0} for i in range(12)]
+design = {"format": "rodfab.design/1", "units": "mm", "rods": rods,
+          "mechanics": {"supports": [{"at": {"rod": "r0", "end": "start"}, "type": "clamped"}],
+                        "loads": [{"at": {"rod": "r11", "end": "end"}, "force": [0, -0.02, 0.01]}], "load_steps": 4}}
+json.dump(design, open(sys.argv[1], "w"))
+PY
+"$rodfab" simulate "$tmp/zigzag.json" --threads 1 -o "$tmp/zigzag1.json" > /dev/null 2>&1 || fail "zigzag, 1 thread"
+"$rodfab" simulate "$tmp/zigzag.json" --threads 2 -o "$tmp/zigzag2.json" > /dev/null 2>&1 || fail "zigzag, 2 threads"
+cmp -s "$tmp/zigzag1.json" "$tmp/zigzag2.json" || fail "1 and 2 threads give different deformed designs"
 
 # Errors: exit 1, the file and field named, nothing written.
 expect_error() {  # NAME PATTERN DESIGN [OPTIONS...]
@@ -63,14 +148,6 @@ expect_error() {  # NAME PATTERN DESIGN [OPTIONS...]
   [ $? -eq 1 ] || fail "$name: expected exit 1"
   grep -q -- "$pattern" "$tmp/err" || fail "$name: expected '$pattern' in: $(cat "$tmp/err")"
   [ ! -e "$tmp/never.json" ] || fail "$name: wrote an output"
-}
-edit() {  # OUT PYTHON-STATEMENTS (on d)
-  python3 - "$tmp/roll.json" "$1" "$2" <<'PY'
-import json, sys
-d = json.load(open(sys.argv[1]))
-exec(sys.argv[3])
-json.dump(d, open(sys.argv[2], "w"))
-PY
 }
 edit "$tmp/nomech.json" 'del d["mechanics"]'
 expect_error "no mechanics block" "nomech.json: mechanics: the design has no \"mechanics\" block" "$tmp/nomech.json"
@@ -85,11 +162,27 @@ expect_error "Poisson ratio" "badnu.json: mechanics.poisson_ratio: expected a Po
 edit "$tmp/pinned.json" 'd["mechanics"]["supports"][0]["type"] = "pinned"'
 expect_error "a mechanism" "the structure is a mechanism" "$tmp/pinned.json"
 expect_error "keeping degree 1" "rods\[0\].centerline.degree: the rod solver collocates second derivatives" "$tmp/roll.json" --degree 0
+# The design's own basis of a one-span quadratic arc is refused, not solved coarsely.
+edit "$tmp/arc.json" 'import math; w = math.cos(math.pi / 4); d["rods"][0]["centerline"] = {"degree": 2, "knots": [0, 0, 0, 1, 1, 1], "points": [[0, 0, 0], [20, 0, 0], [20, 20, 0]], "weights": [1, w, 1]}; d["mechanics"]["loads"][0]["at"] = {"rod": "beam", "end": "end"}'
+expect_error "one-span arc on its own basis" "rods\[0\].centerline.degree: on its own degree-2 basis (--degree 0) this rod would need more than" "$tmp/arc.json" --degree 0
+"$rodfab" simulate "$tmp/arc.json" -o "$tmp/arc-out.json" > /dev/null 2>&1 || fail "the arc rebuilt at the default degree"
+# A kink of the modulus: rebuilt rods follow it with any --spans; on the design's own (quartic)
+# basis --refine 2 puts a collocation point on it, refused naming --refine; automatic refinement avoids it.
+edit "$tmp/kink.json" 'd["rods"][0]["modulus"] = {"degree": 1, "knots": [0, 0, 0.5, 1, 1], "values": [100, 40, 100]}; d["rods"][0]["centerline"] = {"degree": 4, "knots": [0, 0, 0, 0, 0, 1, 1, 1, 1, 1], "points": [[0, 0, 0], [5, 0, 0], [10, 0, 0], [15, 0, 0], [20, 0, 0]]}'
+for spans in 9 10; do
+  "$rodfab" simulate "$tmp/kink.json" --degree 5 --spans $spans -o "$tmp/kink-out.json" > /dev/null 2>&1 || fail "kinked modulus, --spans $spans"
+done
+expect_error "kinked modulus" "rods\[0\].modulus: E(s) has a kink at u = 0.5, which is a collocation point .* choose other --refine" "$tmp/kink.json" --degree 0 --refine 2
+"$rodfab" simulate "$tmp/kink.json" --degree 0 -o "$tmp/kink-out.json" > /dev/null 2>&1 || fail "kinked modulus, automatic refinement"
 "$rodfab" simulate "$tmp/roll.json" -o "$tmp/no/such/dir/x.json" 2> "$tmp/err"
 [ $? -eq 1 ] || fail "missing output folder: expected exit 1"
 grep -q "x.json: cannot write" "$tmp/err" || fail "missing output folder not named: $(cat "$tmp/err")"
 "$rodfab" simulate "$tmp/roll.json" -o "$tmp/x.json" --degree 1 2> /dev/null
 [ $? -eq 2 ] || fail "--degree 1: expected exit 2"
+for bad in "--accuracy 0" "--accuracy 0.5" "--refine 2" "--degree 0 --spans 4" "--max-refinements -1" "--load-steps -3"; do
+  "$rodfab" simulate "$tmp/roll.json" -o "$tmp/x.json" $bad 2> /dev/null
+  [ $? -eq 2 ] || fail "$bad: expected exit 2"
+done
 "$rodfab" simulate "$tmp/roll.json" 2> /dev/null
 [ $? -eq 2 ] || fail "no --output: expected exit 2"
 "$rodfab" simulate --help | grep -q "usage: rodfab simulate" || fail "--help"
