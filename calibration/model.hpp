@@ -48,6 +48,10 @@ struct FitQuality {
   // RMS in ln E of predicting each interior fraction's measurements from a fit without that fraction;
   // absent when too few fractions remain (pchip needs 3 fractions, the parametric models 4).
   std::optional<double> leaveOneOutRmsLn;
+  // How many interior fractions were left out for it: all of them, unless the parametric refits would
+  // exceed a fixed amount of work (about 4 million model evaluations), then an evenly spaced sample.
+  // Known only right after a fit (not stored in calibration files).
+  std::size_t leaveOneOutFractions = 0;
 };
 
 // Where a calibration came from.

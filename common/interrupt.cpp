@@ -60,8 +60,10 @@ void watchdog() {
     std::lock_guard lock(registryMutex);
     if (commandFinished.load()) return;
     removeRegisteredLocked();
-    const char message[] = "rodfab: interrupted; stopped and removed what this run had written\n";
-    [[maybe_unused]] const auto written = ::write(STDERR_FILENO, message, sizeof message - 1);
+    // The same words as Interrupted's message: the user learns the same thing either way.
+    const std::string message = std::string("rodfab: interrupted by ") + (signal == SIGTERM ? "SIGTERM" : "SIGINT") +
+                                " (the work did not stop within the grace time, so it was cut short); nothing was written\n";
+    [[maybe_unused]] const auto written = ::write(STDERR_FILENO, message.data(), message.size());
     ::_exit(128 + signal);
   }
 }

@@ -4,7 +4,9 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <memory>
@@ -22,15 +24,17 @@ std::string lineColumnText(const std::string& text, std::size_t offset) {
   return "line " + std::to_string(line) + ", column " + std::to_string(column);
 }
 
-// Where nesting first goes deeper than allowed, found by a scan of the text before anything is built.
-struct TooDeep {
+// A light scan that follows brackets, commas and keys outside strings (the text may be malformed;
+// the parser reports that afterwards), keeping the JSON path of each open container. `visit(at, path)`
+// is called at every '[' or '{' (before it is entered, with the depth so far) and at the first
+// character of every number; it returns true to stop the scan there.
+struct Found {
   std::size_t offset = std::string::npos;
-  std::string path;  // JSON path of the container that is one level too deep
+  std::string path;
 };
 
-// A light scan that follows brackets, commas and keys outside strings (the text may be malformed;
-// the parser reports that afterwards), keeping the path of each open container.
-TooDeep findTooDeep(const std::string& text, int maxDepth) {
+template <typename Visit>
+Found scanJsonPaths(const std::string& text, Visit visit) {
   struct Level {
     bool array;
     std::size_t index = 0;
@@ -59,19 +63,45 @@ TooDeep findTooDeep(const std::string& text, int maxDepth) {
     } else if (c == ',' && !levels.empty() && levels.back().array) {
       ++levels.back().index;
     } else if (c == '[' || c == '{') {
-      if (static_cast<int>(levels.size()) >= maxDepth) return {at, path()};
+      if (visit(at, levels.size())) return {at, path()};
       levels.push_back({c == '[', 0, {}});
     } else if ((c == ']' || c == '}') && !levels.empty()) {
       levels.pop_back();
+    } else if (c == '-' || (c >= '0' && c <= '9')) {
+      if (visit(at, levels.size())) return {at, path()};
+      while (at + 1 < text.size() && std::strchr("+-.0123456789eE", text[at + 1])) ++at;
     }
   }
   return {};
 }
 
+// Where nesting first goes deeper than allowed (the container one level too deep), before anything is built.
+Found findTooDeep(const std::string& text, int maxDepth) {
+  return scanJsonPaths(text, [&](std::size_t at, std::size_t depth) {
+    return (text[at] == '[' || text[at] == '{') && static_cast<int>(depth) >= maxDepth;
+  });
+}
+
+// The first number literal beyond the range of a double (nlohmann refuses it without saying where).
+Found findOverflowingNumber(const std::string& text) {
+  return scanJsonPaths(text, [&](std::size_t at, std::size_t) {
+    if (text[at] == '[' || text[at] == '{') return false;
+    const double v = std::strtod(text.c_str() + at, nullptr);
+    return !std::isfinite(v);
+  });
+}
+
 // Tracks the path while nlohmann parses, and refuses a key seen twice in one object.
+// Also counts the values, refusing more than `maxValues`.
 class DuplicateKeyCheck {
 public:
+  explicit DuplicateKeyCheck(std::size_t maxValues) : maxValues_(maxValues) {}
+
   bool operator()(int /*depth*/, json::parse_event_t event, json& parsed) {
+    if (event == json::parse_event_t::value || event == json::parse_event_t::object_start ||
+        event == json::parse_event_t::array_start)
+      if (++values_ > maxValues_)
+        throw JsonInputError(path(), "the document holds more than " + std::to_string(maxValues_) + " values; expected fewer");
     switch (event) {
       case json::parse_event_t::object_start: enter(false); break;
       case json::parse_event_t::array_start: enter(true); break;
@@ -91,6 +121,8 @@ private:
     std::set<std::string> keys;
   };
   std::vector<Level> levels_;
+  std::size_t maxValues_;
+  std::size_t values_ = 0;
 
   std::string path() const {
     std::string p;
@@ -152,16 +184,16 @@ std::string readBoundedFile(const std::string& file, std::size_t maxBytes) {
   return text;
 }
 
-json parseJsonStrict(const std::string& text, int maxDepth) {
+json parseJsonStrict(const std::string& text, int maxDepth, std::size_t maxValues) {
   if (text.size() > kMaxJsonBytes)
     throw JsonInputError("", "the file is " + std::to_string(text.size() >> 20) + " MiB; expected at most " +
                                  std::to_string(kMaxJsonBytes >> 20) + " MiB of JSON");
-  if (const TooDeep deep = findTooDeep(text, maxDepth); deep.offset != std::string::npos)
+  if (const Found deep = findTooDeep(text, maxDepth); deep.offset != std::string::npos)
     throw JsonInputError(deep.path, "nested deeper than " + std::to_string(maxDepth) + " arrays and objects at " +
                                         lineColumnText(text, deep.offset) + " (expected at most " +
                                         std::to_string(maxDepth) + ")");
   try {
-    return json::parse(text, DuplicateKeyCheck());
+    return json::parse(text, DuplicateKeyCheck(maxValues));
   } catch (const json::parse_error& e) {
     std::string what = e.what();  // "[json.exception.parse_error.101] parse error at line 1, column 13: why"
     if (auto pos = what.find("parse error"); pos != std::string::npos) {
@@ -169,6 +201,11 @@ json parseJsonStrict(const std::string& text, int maxDepth) {
       what = colon == std::string::npos ? what.substr(pos) : what.substr(colon + 2);
     }
     throw JsonInputError("", "malformed JSON at " + lineColumnText(text, e.byte > 0 ? e.byte - 1 : 0) + ": " + what);
+  } catch (const json::out_of_range&) {  // a number literal beyond a double
+    const Found big = findOverflowingNumber(text);
+    throw JsonInputError(big.path, "a number beyond the range of a double at " +
+                                       lineColumnText(text, big.offset == std::string::npos ? 0 : big.offset) +
+                                       "; expected a finite number");
   }
 }
 

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cstddef>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -26,9 +27,11 @@ struct JsonInputError : std::runtime_error {
 };
 
 // Parses `text`. Throws JsonInputError for malformed JSON, nesting deeper than `maxDepth` arrays
-// and objects, a duplicate key, or text longer than kMaxJsonBytes. Numbers beyond a double are
-// left to nlohmann (json::out_of_range) so callers keep their own handling of them.
-nlohmann::json parseJsonStrict(const std::string& text, int maxDepth = kMaxJsonDepth);
+// and objects, a duplicate key, more than `maxValues` values (scalars, arrays and objects: a bound on
+// the memory of the document built, which may be ~100 bytes per value), or text longer than
+// kMaxJsonBytes, or a number literal beyond the range of a double (1e400), reported at its path.
+nlohmann::json parseJsonStrict(const std::string& text, int maxDepth = kMaxJsonDepth,
+                               std::size_t maxValues = std::numeric_limits<std::size_t>::max());
 
 // The bytes of `file`, read in chunks and refused beyond `maxBytes` (so /dev/zero or a huge file
 // cannot exhaust memory); pipes are read like files. Throws JsonInputError("", what went wrong).

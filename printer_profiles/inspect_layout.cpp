@@ -4,6 +4,8 @@
 #include "printer_profiles/job_reader.hpp"
 #include "printer_profiles/job_writer.hpp"
 
+#include "common/json_input.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -63,31 +65,14 @@ std::uint64_t pngMaxBytes(std::uint64_t rawBytes) { return rawBytes + rawBytes /
 
 // ------------------------------------------------------------------------------------------ JSON
 
-namespace {
-
-class JsonLimitError : public std::runtime_error {
-public:
-  using std::runtime_error::runtime_error;
-};
-
-}  // namespace
-
 json parseUntrustedJson(std::span<const std::uint8_t> text, std::size_t maxValues) {
-  std::size_t values = 0;
-  // The callback sees every value before it is added; `depth` counts the enclosing containers.
-  const json::parser_callback_t guard = [&](int depth, json::parse_event_t event, json&) {
-    if ((event == json::parse_event_t::object_start || event == json::parse_event_t::array_start) && depth >= kMaxJsonDepth)
-      throw JsonLimitError("nested more than " + std::to_string(kMaxJsonDepth) + " levels deep");
-    if (event == json::parse_event_t::value || event == json::parse_event_t::object_start ||
-        event == json::parse_event_t::array_start)
-      if (++values > maxValues) throw JsonLimitError("holds more than " + std::to_string(maxValues) + " values");
-    return true;
-  };
   try {
-    return json::parse(text.begin(), text.end(), guard);
-  } catch (const JsonLimitError&) {
-    throw;
-  } catch (const json::exception& e) {
+    return common::parseJsonStrict(std::string(text.begin(), text.end()), common::kMaxJsonDepth, maxValues);
+  } catch (const common::JsonInputError& e) {
+    // The message first: a path 64 levels deep would hide it.
+    const std::string where = e.path.size() > 60 ? e.path.substr(0, 57) + "..." : e.path;
+    throw std::runtime_error(printableName(e.message + (where.empty() ? "" : " (at " + where + ")")));
+  } catch (const json::exception& e) {  // a number beyond a double
     throw std::runtime_error("not JSON (" + printableName(e.what()) + ")");
   }
 }

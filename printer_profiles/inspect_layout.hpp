@@ -51,10 +51,9 @@ struct ProfileLimits {
 };
 ProfileLimits limitsOf(const Profile& profile);
 
-inline constexpr int kMaxJsonDepth = 64;
-
-// Parses untrusted JSON: throws std::runtime_error (message safe to print) when it is not JSON, nests
-// deeper than kMaxJsonDepth or holds more than maxValues values; refused before the excess is built.
+// Parses untrusted JSON (common::parseJsonStrict): throws std::runtime_error (message safe to print)
+// when it is not JSON, nests deeper than common::kMaxJsonDepth, repeats a key in an object or holds
+// more than maxValues values; refused before the excess is built.
 nlohmann::json parseUntrustedJson(std::span<const std::uint8_t> text, std::size_t maxValues);
 
 enum class EntryRole { Manifest, BuildFile, Preview, ContactSheet, Layer };

@@ -279,6 +279,10 @@ private:
   void streamEntry(zip_t* za, const JobEntry& entry, std::uint64_t maxBytes,
                    const std::function<void(std::span<const std::uint8_t>)>& sink) const {
     const std::string where = file_.string() + ": " + printableName(entry.name);
+    if (entry.declaredBytes > maxBytes)
+      throw EntryTooLarge(where + ": its zip header declares " + std::to_string(entry.declaredBytes) +
+                              " bytes, more than the " + std::to_string(maxBytes) + " it can take",
+                          maxBytes);
     zip_file_t* zf = zip_fopen_index(za, entry.index, 0);
     if (!zf) throw JobReadError(where + ": cannot be opened (" + zip_strerror(za) + ")");
     std::vector<std::uint8_t> buffer(kChunk);
@@ -295,6 +299,11 @@ private:
                               maxBytes);
         sink(std::span<const std::uint8_t>(buffer.data(), static_cast<std::size_t>(got)));
       }
+      // A stored entry is read by its compressed size: a different declared size is a damaged header
+      // (0 is what an archive without sizes reports).
+      if (entry.declaredBytes != 0 && total != entry.declaredBytes)
+        throw JobReadError(where + ": is damaged (its zip header declares " + std::to_string(entry.declaredBytes) +
+                           " bytes, it holds " + std::to_string(total) + ")");
     } catch (...) {
       zip_fclose(zf);
       throw;

@@ -43,7 +43,11 @@ void printFit(const calibration::Calibration& c) {
   std::printf("maximum:       %g MPa at 100 %% Vero (requests above it get 100 %%)\n", c.maxModulusMpa());
   std::printf("fit quality:   RMS error %.4f in ln E, R^2 %.4f in ln E, max relative error %.2f %%\n", q.rmsLn, q.r2Ln,
               100 * q.maxRelativeError);
-  if (q.leaveOneOutRmsLn)
+  const std::size_t interior = q.fractions >= 2 ? q.fractions - 2 : 0;
+  if (q.leaveOneOutRmsLn && q.leaveOneOutFractions < interior)
+    std::printf("leave-one-out: RMS error %.4f in ln E (%zu of the %zu interior fractions, evenly spaced, each predicted "
+                "without its coupons)\n", *q.leaveOneOutRmsLn, q.leaveOneOutFractions, interior);
+  else if (q.leaveOneOutRmsLn)
     std::printf("leave-one-out: RMS error %.4f in ln E (each interior fraction predicted without its coupons)\n", *q.leaveOneOutRmsLn);
   else
     std::printf("leave-one-out: not enough fractions\n");

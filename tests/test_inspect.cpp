@@ -501,7 +501,7 @@ TEST_CASE("The job's complete layout is checked against the profile", "[inspect]
     for (auto& [name, data] : files)
       if (name == "manifest.json") data = bytesOf(std::string(60000, '[') + std::string(60000, ']'));
     rezip(dir / "t.zip", files);
-    CHECK(hasDefect(inspectJob(dir / "t.zip"), "t.zip: manifest.json: cannot be read: nested more than 64 levels deep"));
+    CHECK(hasDefect(inspectJob(dir / "t.zip"), "t.zip: manifest.json: cannot be read: nested deeper than 64 arrays and objects at line 1, column 65"));
     for (auto& [name, data] : files)
       if (name == "manifest.json") {
         std::string many = "[0";
@@ -509,7 +509,7 @@ TEST_CASE("The job's complete layout is checked against the profile", "[inspect]
         data = bytesOf(many + "]");
       }
     rezip(dir / "t.zip", files);
-    CHECK(hasDefect(inspectJob(dir / "t.zip"), "manifest.json: cannot be read: holds more than"));
+    CHECK(hasDefect(inspectJob(dir / "t.zip"), "manifest.json: cannot be read: the document holds more than"));
   }
   SECTION("manifest values of the wrong type are described, not serialized") {
     auto files = original;

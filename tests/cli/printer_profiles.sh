@@ -92,7 +92,7 @@ hostile dotdot.zip "dotdot.zip: ../../x: unsafe entry name: it has a '..' compon
 hostile absolute.zip 'absolute.zip: /tmp/x: unsafe entry name: it is an absolute path'
 hostile no-build.zip 'no-build.zip: build.txt: missing'
 hostile no-rubbery.zip 'no-rubbery.zip: every TangoBlackPlus image is missing'
-hostile deep.zip 'deep.zip: manifest.json: cannot be read: nested more than 64 levels deep'
+hostile deep.zip 'deep.zip: manifest.json: cannot be read: nested deeper than 64 arrays and objects'
 hostile fifo 'fifo: VeroWhitePlus_0001.bmp: is a FIFO'
 hostile zero-link 'zero-link: VeroWhitePlus_0001.bmp: is a symbolic link'
 exec 3>&-
