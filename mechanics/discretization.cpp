@@ -123,8 +123,10 @@ Vec3 sideTangent(const geometry::NurbsCurve& c, double u, int side) {
 // The design's centerline must have a clamped knot vector, and the solver's degree p must allow
 // second derivatives. A knot repeated `degree` times or more makes the curve only C0 there: on the
 // design's own basis that is refused; a rebuilt rod (`rebuild`) interpolates the curve anyway and
-// only a real corner (the tangent turning there) is refused.
-void checkCenterline(const DiscreteStructure& s, const geometry::NurbsCurve& c0, int p, bool rebuild, const std::string& path) {
+// only a real corner (the tangent turning there) is refused. At an interior site (`sites`) the
+// solver's basis is C0 anyway: a corner there is fine (a deformed design's T-joint has one).
+void checkCenterline(const DiscreteStructure& s, const geometry::NurbsCurve& c0, int p, bool rebuild, const std::string& path,
+                     const std::vector<double>& sites) {
   if (p > geometry::kMaxDegree) s.fail("", "degree " + std::to_string(p) + " is above the supported " + std::to_string(geometry::kMaxDegree));
   if (p < 2)
     s.fail(path + ".centerline.degree", "the rod solver collocates second derivatives and needs degree >= 2 (even "
@@ -140,7 +142,8 @@ void checkCenterline(const DiscreteStructure& s, const geometry::NurbsCurve& c0,
     std::size_t m = 1;
     while (i + m < n0 && k0[i + m] == k0[i]) ++m;
     const bool corner = sideTangent(c0, k0[i], -1).dot(sideTangent(c0, k0[i], 1)) < std::cos(1e-6);
-    if (m >= static_cast<std::size_t>(q) && (!rebuild || corner))
+    const bool site = std::binary_search(sites.begin(), sites.end(), k0[i]);
+    if (m >= static_cast<std::size_t>(q) && (!rebuild || corner) && !site)
       s.fail(path + ".centerline.knots[" + std::to_string(i) + "]",
              "knot " + format(k0[i]) + " repeated " + std::to_string(m) + " times makes " +
                  (corner ? "a corner" : "the curve only C0 on its own basis, which") + " the collocation cannot resolve; " +
@@ -233,7 +236,7 @@ RodBasisChoice chooseBasis(const DiscreteStructure& s, const geometry::Rod& rod,
   RodBasisChoice choice;
   choice.rebuild = d.degree > 0;
   choice.degree = choice.rebuild ? d.degree : c0.degree();
-  checkCenterline(s, c0, choice.degree, choice.rebuild, path);
+  checkCenterline(s, c0, choice.degree, choice.rebuild, path, s.interiorSites[index]);
   const int designSpans = static_cast<int>(c0.breakpoints().size()) - 1;
   if (index < d.perRod.size()) choice.spans = d.perRod[index];
   else if (choice.rebuild && d.spans > 0) choice.spans = d.spans;

@@ -112,6 +112,22 @@ Place DiscreteStructure::locate(const geometry::RodEndRef& ref, const geometry::
 
 namespace {
 
+// u moved onto a C0 knot of the curve (multiplicity >= degree) whose point lies within `tolerance`
+// of u's, if there is one: there the centerline may turn (a deformed design's T-joint does), which
+// only a site's C0 knot of the solver basis follows.
+double onC0Knot(const geometry::NurbsCurve& c, double u, double tolerance) {
+  const auto& k = c.knots();
+  const std::size_t n = c.points().size();
+  const int p = c.degree();
+  for (std::size_t i = p + 1; i < n;) {
+    std::size_t m = 1;
+    while (i + m < n && k[i + m] == k[i]) ++m;
+    if (m >= static_cast<std::size_t>(p) && (c.point(k[i]) - c.point(u)).norm() <= tolerance) return k[i];
+    i += m;
+  }
+  return u;
+}
+
 // Rod ends that lie on another rod's interior (within the tolerance, away from that rod's ends):
 // T-joints. Only rods whose control box holds the end are searched.
 std::vector<std::pair<int, Place>> findTJoints(const geometry::RodStructure& structure) {
@@ -155,8 +171,9 @@ void DiscreteStructure::findInteriorSites(const geometry::RodStructure& structur
   siteBase.assign(structure.rods.size(), 0);
   int next = static_cast<int>(2 * structure.rods.size());
   for (std::size_t r = 0; r < structure.rods.size(); ++r) {
-    std::sort(wanted[r].begin(), wanted[r].end());
     const geometry::NurbsCurve& c = structure.rods[r].centerline();
+    for (double& u : wanted[r]) u = onC0Knot(c, u, spec.jointTolerance);
+    std::sort(wanted[r].begin(), wanted[r].end());
     for (double u : wanted[r]) {
       const Vec3 p = c.point(u);
       if (!interiorPoints[r].empty() && (p - interiorPoints[r].back()).norm() <= spec.jointTolerance) continue;
