@@ -59,6 +59,14 @@ struct SiteSide {
   double sign;
 };
 
+// The one or two sides of a site, without allocating (node equations are evaluated often).
+struct SiteSides {
+  std::array<SiteSide, 2> sides;
+  int count = 0;
+  const SiteSide* begin() const { return sides.data(); }
+  const SiteSide* end() const { return sides.data() + count; }
+};
+
 // Rod sites that share a position: a free end, a support, a load point, or a joint (two or more sites).
 struct Node {
   std::vector<Site> ends;  // the first site's slot carries the balance / support rows
@@ -72,6 +80,8 @@ struct Node {
   Eigen::Vector4d quaternion0;
   std::vector<Eigen::Vector3d> offsets0;
   std::vector<Eigen::Vector4d> relative0;
+  // Per site: the control points whose columns its rows use (DiscreteStructure::siteColumns).
+  std::vector<std::vector<int>> columns;
 };
 
 // One rod on its solver basis.
@@ -155,7 +165,7 @@ struct DiscreteStructure {
   std::vector<int> siteBase;  // per rod: number of its first interior site
 
   const DiscreteRod& rodOf(const Site& e) const { return rods[e.rod]; }
-  std::vector<SiteSide> sides(const Site& e) const;
+  SiteSides sides(const Site& e) const;
   // The site's control points whose columns its node rows use (sorted).
   std::vector<int> siteColumns(const Site& e) const;
   const Basis& siteBasis(const Site& e) const { const DiscreteRod& r = rods[e.rod]; return r.basis[r.point(e)]; }

@@ -60,11 +60,11 @@ public:
       : s_(s), node_(node), derivatives_(derivatives) {
     const DiscreteRod& firstRod = s.rodOf(node.ends[0]);
     forceRow_ = 1.0 / firstRod.forceScale, momentRow_ = 1.0 / firstRod.momentScale, positionRow_ = 1.0 / firstRod.length;
+    sides_.reserve(2 * node.ends.size());
     for (std::size_t i = 0; i < node.ends.size(); ++i) {
       firstSide_.push_back(static_cast<int>(sides_.size()));
-      points_.push_back(s.siteColumns(node.ends[i]));
       siteColumn_.push_back(cols_);
-      cols_ += 7 * points_.back().size();
+      cols_ += 7 * node.columns[i].size();
       for (const SiteSide& side : s.sides(node.ends[i])) gatherSide(i, side, x);
     }
     f_.resize(static_cast<Eigen::Index>(7 * node.ends.size()));
@@ -109,7 +109,6 @@ private:
   bool derivatives_;
   std::vector<SideData> sides_;
   std::vector<int> firstSide_;
-  std::vector<std::vector<int>> points_;  // per site: the control points of its columns
   std::vector<std::size_t> siteColumn_;   // per site: its first column in the block
   std::size_t cols_ = 0;
   double forceRow_ = 1, momentRow_ = 1, positionRow_ = 1;
@@ -214,8 +213,9 @@ void NodeEquations::scatter(Eigen::VectorXd& residual, Eigen::MatrixXd* block) c
   block->setZero(f_.size(), static_cast<Eigen::Index>(cols_));
   for (std::size_t k = 0; k < sides_.size(); ++k) {
     const std::size_t i = sides_[k].site;
-    chainSide(*sides_[k].side.basis, dSide_[k], points_[i],
-              block->middleCols(static_cast<Eigen::Index>(siteColumn_[i]), static_cast<Eigen::Index>(7 * points_[i].size())));
+    const std::vector<int>& points = node_.columns[i];
+    chainSide(*sides_[k].side.basis, dSide_[k], points,
+              block->middleCols(static_cast<Eigen::Index>(siteColumn_[i]), static_cast<Eigen::Index>(7 * points.size())));
   }
 }
 
@@ -278,7 +278,7 @@ std::vector<char> nodeMask(const DiscreteStructure& s, const Node& node, const I
   std::vector<Column> columns;
   for (std::size_t i = 0; i < node.ends.size(); ++i) {
     const int own = s.rodOf(node.ends[i]).point(node.ends[i]);
-    for (int point : s.siteColumns(node.ends[i]))
+    for (int point : node.columns[i])
       for (int c = 0; c < 7; ++c) columns.push_back({i, point == own, c >= 3});
   }
   const std::size_t rows = layout.rows.size();
@@ -316,7 +316,7 @@ void DiscreteStructure::buildLayouts() {
     const Node& node = nodes[items[i].point];
     for (const Site& e : node.ends) {
       for (int r = 0; r < 7; ++r) layout.rows.push_back(siteRow(e) + r);
-      for (int point : siteColumns(e))
+      for (int point : node.columns[&e - node.ends.data()])
         for (int c = 0; c < 7; ++c) layout.cols.push_back(rodOf(e).offset + 7 * static_cast<std::size_t>(point) + c);
     }
     layout.nonzero = nodeMask(*this, node, layout);

@@ -58,11 +58,19 @@ Place placeOnRod(const geometry::RodStructure& structure, int rod, double u) {
 
 }  // namespace
 
-std::vector<SiteSide> DiscreteStructure::sides(const Site& e) const {
+SiteSides DiscreteStructure::sides(const Site& e) const {
   const DiscreteRod& r = rods[e.rod];
   const int j = r.point(e);
-  if (e.end != Site::kInterior) return {{&r.basis[j], &r.constants[j], e.end == 0 ? 1.0 : -1.0}};
-  return {{&r.siteBelow[e.index], &r.siteBelowConstants[e.index], -1.0}, {&r.basis[j], &r.constants[j], 1.0}};
+  SiteSides out;
+  if (e.end != Site::kInterior) {
+    out.sides[0] = {&r.basis[j], &r.constants[j], e.end == 0 ? 1.0 : -1.0};
+    out.count = 1;
+  } else {
+    out.sides[0] = {&r.siteBelow[e.index], &r.siteBelowConstants[e.index], -1.0};
+    out.sides[1] = {&r.basis[j], &r.constants[j], 1.0};
+    out.count = 2;
+  }
+  return out;
 }
 
 std::vector<int> DiscreteStructure::siteColumns(const Site& e) const {
@@ -180,6 +188,10 @@ void DiscreteStructure::findInteriorSites(const geometry::RodStructure& structur
       interiorSites[r].push_back(u);
       interiorPoints[r].push_back(p);
     }
+    // Every site starts a piece of at least one span: bounded like the spans.
+    if (interiorSites[r].size() >= static_cast<std::size_t>(kMaxSpansPerRod))
+      fail("rods[" + std::to_string(r) + "]", "more than " + std::to_string(kMaxSpansPerRod - 1) +
+                                                  " interior places (T-joints, loads, supports) on one rod");
     siteBase[r] = next;
     next += static_cast<int>(interiorSites[r].size());
   }
@@ -313,6 +325,7 @@ void DiscreteStructure::buildNodes(const geometry::RodStructure& structure) {
       node.offsets0.push_back(s.r - s0.r);
       node.relative0.push_back(quaternionProduct<double>(conj0, s.q.normalized()));
     }
+    for (const Site& site : node.ends) node.columns.push_back(siteColumns(site));
   }
 }
 
