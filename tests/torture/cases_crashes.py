@@ -106,6 +106,7 @@ def cases(ctx) -> list[Case]:
         cs.append(bad_file(f"mechanics-parameter-{tag}", ["simulate", "d.json", "-o", "o.json"], {"d.json": json.dumps(far)},
                            ["d.json", "mechanics.loads[0].at.parameter"], ["outside rod"], note=f"a load at parameter {u}"))
     many = copy.deepcopy(inner)
+    many["mechanics"]["joint_tolerance"] = 1e-6  # 5000 places 0.8 um apart stay apart
     many["mechanics"]["loads"] = [{"at": {"rod": "bar", "parameter": (i + 1) / 5001}, "force": [0, 0, -1e-6]} for i in range(5000)]
     cs.append(bad_file("mechanics-parameter-5000-places", ["simulate", "d.json", "-o", "o.json"], {"d.json": json.dumps(many)},
                        ["d.json", "rods[0]"], ["interior places"], note="5000 loads inside one rod"))
