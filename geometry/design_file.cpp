@@ -502,22 +502,26 @@ public:
 
   // ---- the optional "mechanics" block ----
 
+  // {"rod", "end"}, {"rod", "parameter"} or {"point"}. The parameter's range is checked by the
+  // solver, which knows each rod's domain.
   std::optional<RodEndRef> endRef(const json& j, const std::string& path, const std::map<std::string, std::string>& names) {
     if (!j.is_object()) {
-      fail(path, "expected {\"rod\": NAME, \"end\": \"start\"|\"end\"} or {\"point\": [x, y, z]}, got " + describe(j));
+      fail(path, "expected {\"rod\": NAME, \"end\": \"start\"|\"end\"}, {\"rod\": NAME, \"parameter\": u} or "
+                 "{\"point\": [x, y, z]}, got " + describe(j));
       return std::nullopt;
     }
-    onlyKeys(j, path, {"rod", "end", "point"});
+    onlyKeys(j, path, {"rod", "end", "parameter", "point"});
     RodEndRef ref;
     ref.path = path;
     const bool byRod = j.contains("rod"), byPoint = j.contains("point");
     if (byRod == byPoint) {
-      fail(path, "give either \"rod\" and \"end\", or \"point\"");
+      fail(path, "give either \"rod\" with \"end\" or \"parameter\", or \"point\"");
       return std::nullopt;
     }
     if (byPoint) {
       ref.point = vector3(j["point"], member(path, "point"), "a point in mm");
-      if (j.contains("end")) fail(member(path, "end"), "\"end\" goes with \"rod\", not with \"point\"");
+      for (const char* key : {"end", "parameter"})
+        if (j.contains(key)) fail(member(path, key), std::string("\"") + key + "\" goes with \"rod\", not with \"point\"");
       return ref.point ? std::optional<RodEndRef>(ref) : std::nullopt;
     }
     auto name = string(j["rod"], member(path, "rod"), "a rod name");
@@ -527,7 +531,15 @@ public:
       return std::nullopt;
     }
     ref.rod = *name;
-    const json* e = require(j, path, "end", "\"start\" or \"end\"");
+    if (j.contains("parameter")) {
+      if (j.contains("end")) {
+        fail(path, "give either \"end\" or \"parameter\", not both");
+        return std::nullopt;
+      }
+      ref.parameter = number(j["parameter"], member(path, "parameter"), "a centerline parameter u");
+      return ref.parameter ? std::optional<RodEndRef>(ref) : std::nullopt;
+    }
+    const json* e = require(j, path, "end", "\"start\" or \"end\" (or \"parameter\": u)");
     if (!e) return std::nullopt;
     if (*e == "start") ref.end = RodEnd::Start;
     else if (*e == "end") ref.end = RodEnd::End;
@@ -608,7 +620,8 @@ public:
           std::vector<RodEndRef> ends;
           for (std::size_t k = 0; k < joint.size(); ++k) {
             auto ref = endRef(joint[k], index(ip, k), names);
-            if (ref && ref->point) fail(index(ip, k), "joints list rod ends {\"rod\", \"end\"}, not points");
+            if (ref && ref->point)
+              fail(index(ip, k), "joints list rod ends {\"rod\", \"end\"} or rod points {\"rod\", \"parameter\"}, not points");
             else if (ref) ends.push_back(*ref);
           }
           spec.joints.push_back(std::move(ends));
@@ -620,7 +633,7 @@ public:
            onlyKeys(e, ep, {"at", "type", "displacement", "rotation"});
            Support s;
            std::optional<RodEndRef> at;
-           if (auto a = require(e, ep, "at", "a rod end {\"rod\", \"end\"} or {\"point\"}")) at = endRef(*a, member(ep, "at"), names);
+           if (auto a = require(e, ep, "at", "a place {\"rod\", \"end\"}, {\"rod\", \"parameter\"} or {\"point\"}")) at = endRef(*a, member(ep, "at"), names);
            if (auto t = require(e, ep, "type", "\"clamped\" or \"pinned\"")) {
              if (*t == "clamped") s.kind = SupportKind::Clamped;
              else if (*t == "pinned") s.kind = SupportKind::Pinned;
@@ -642,7 +655,7 @@ public:
            onlyKeys(e, ep, {"at", "force", "moment"});
            PointLoad l;
            std::optional<RodEndRef> at;
-           if (auto a = require(e, ep, "at", "a rod end {\"rod\", \"end\"} or {\"point\"}")) at = endRef(*a, member(ep, "at"), names);
+           if (auto a = require(e, ep, "at", "a place {\"rod\", \"end\"}, {\"rod\", \"parameter\"} or {\"point\"}")) at = endRef(*a, member(ep, "at"), names);
            bool ok = true;
            if (auto f = e.find("force"); f != e.end()) {
              if (auto v = vector3(*f, member(ep, "force"), "a force in N")) l.force = *v; else ok = false;
@@ -712,6 +725,7 @@ ordered vec3Json(const Vec3& v) { return ordered::array({v.x(), v.y(), v.z()}); 
 
 ordered endRefJson(const RodEndRef& ref) {
   if (ref.point) return ordered{{"point", vec3Json(*ref.point)}};
+  if (ref.parameter) return ordered{{"rod", ref.rod}, {"parameter", *ref.parameter}};
   return ordered{{"rod", ref.rod}, {"end", ref.end == RodEnd::Start ? "start" : "end"}};
 }
 

@@ -13,11 +13,15 @@ namespace rodfab::geometry {
 
 enum class RodEnd { Start, End };
 
-// A place loads and supports act on: one end of a named rod, or the rod end (or joint) at a point.
+// A place on the structure that joints, loads and supports act on: one end of a named rod
+// ({"rod", "end"}), a point of a named rod by its centerline parameter ({"rod", "parameter"}), or
+// what lies at a point ({"point"}): the rod end (or joint) within the joint tolerance, else the
+// nearest point of a rod's interior within it. Joints act on interior points too (T-joints).
 struct RodEndRef {
   std::string rod;  // empty when given by `point`
-  RodEnd end = RodEnd::Start;
-  std::optional<Eigen::Vector3d> point;  // mm
+  RodEnd end = RodEnd::Start;             // with `rod` and no `parameter`
+  std::optional<double> parameter;        // with `rod`: u in the rod's centerline domain
+  std::optional<Eigen::Vector3d> point;   // mm
   std::string path;  // JSON path, for messages about this reference
 };
 
@@ -33,7 +37,7 @@ struct Support {
   Eigen::Vector3d rotation = Eigen::Vector3d::Zero();      // rad, axis * angle in space; clamped only
 };
 
-// Dead force and moment at a rod end or joint, scaled by the load factor.
+// Dead force and moment at a rod end, joint or interior point, scaled by the load factor.
 struct PointLoad {
   RodEndRef at;
   Eigen::Vector3d force = Eigen::Vector3d::Zero();   // N
@@ -59,7 +63,9 @@ struct MechanicsSpec {
   bool present = false;  // the design has a "mechanics" block
   double poissonRatio = 0.45;               // PolyJet photopolymers are nearly incompressible
   std::optional<double> shearFactor;        // default: Cowper's factor of each section shape
-  double jointTolerance = 1e-3;             // mm: rod ends closer than this are joined rigidly
+  // mm: rod ends closer than this are joined rigidly, and so is a rod end this close to another
+  // rod's interior (a T-joint)
+  double jointTolerance = 1e-3;
   bool inferJoints = true;                  // "joints": "auto" (default) or an explicit list
   std::vector<std::vector<RodEndRef>> joints;
   std::vector<Support> supports;

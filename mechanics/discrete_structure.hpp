@@ -9,7 +9,9 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 
+#include <algorithm>
 #include <array>
+#include <utility>
 #include <optional>
 #include <string>
 #include <vector>
@@ -24,32 +26,62 @@ struct Basis {
 };
 
 Basis rationalBasis(const geometry::NurbsCurve& curve, double u);
+// The same from the span that ends at u (the limit from below): differs at a C0 knot.
+Basis rationalBasisBelow(const geometry::NurbsCurve& curve, double u);
 
 // The automatic span count of a rebuilt rod (discretization.cpp); above kMaxSpansPerRod when the
 // degree converges too slowly for `tolerance`.
 int automaticSpans(const geometry::Rod& rod, int degree, double tolerance);
 
-// One end of one rod, by index: a geometry::RodEndRef once resolved against the structure.
-struct ResolvedEnd {
+// A place on one rod where a node acts: one of its ends, or one of its interior sites, where the
+// solver basis has a C0 knot (multiplicity = degree) whose control point interpolates r and q: the
+// rod's two sides meet there, and n and m may jump by the node's point force and moment.
+struct Site {
+  static constexpr int kInterior = 2;
   int rod = 0;
-  int end = 0;  // 0 start, 1 end
-  bool operator<(const ResolvedEnd& o) const { return rod != o.rod ? rod < o.rod : end < o.end; }
-  bool operator==(const ResolvedEnd& o) const { return rod == o.rod && end == o.end; }
+  int end = 0;    // 0 start, 1 end, kInterior: the rod's interior site `index`
+  int index = 0;  // with kInterior
 };
 
-// Rod ends that share a position: a free end, a support, or a joint (two or more ends).
+// A reference resolved on the design, before discretization: a rod end, or a rod's interior point.
+struct Place {
+  int rod = 0;
+  int end = 0;     // 0 start, 1 end, Site::kInterior
+  double u = 0.0;  // with Site::kInterior
+};
+
+// One side of a site: the basis and constants there (from below or above at an interior site),
+// and the sign its internal force takes in the node's balance: + n at a start (or the side above
+// an interior site), - n at an end (or the side below).
+struct SiteSide {
+  const Basis* basis;
+  const PointConstants* constants;
+  double sign;
+};
+
+// The one or two sides of a site, without allocating (node equations are evaluated often).
+struct SiteSides {
+  std::array<SiteSide, 2> sides;
+  int count = 0;
+  const SiteSide* begin() const { return sides.data(); }
+  const SiteSide* end() const { return sides.data() + count; }
+};
+
+// Rod sites that share a position: a free end, a support, a load point, or a joint (two or more sites).
 struct Node {
-  std::vector<ResolvedEnd> ends;  // the first end's slot carries the balance / support rows
+  std::vector<Site> ends;  // the first site's slot carries the balance / support rows
   std::optional<geometry::SupportKind> support;  // none: free (force and moment balance)
   std::string supportPath;
   Eigen::Vector3d displacement = Eigen::Vector3d::Zero(), rotation = Eigen::Vector3d::Zero();
   Eigen::Vector3d force = Eigen::Vector3d::Zero(), moment = Eigen::Vector3d::Zero();
-  // Reference data: the first end's position and unit quaternion; per further end its offset from
-  // the first end and the relative rotation conj(q_first) q_end to keep.
+  // Reference data: the first site's position and unit quaternion; per further site its offset
+  // from the first and the relative rotation conj(q_first) q_site to keep.
   Eigen::Vector3d position0;
   Eigen::Vector4d quaternion0;
   std::vector<Eigen::Vector3d> offsets0;
   std::vector<Eigen::Vector4d> relative0;
+  // Per site: the control points whose columns its rows use (DiscreteStructure::siteColumns).
+  std::vector<std::vector<int>> columns;
 };
 
 // One rod on its solver basis.
@@ -63,11 +95,19 @@ struct DiscreteRod {
   std::vector<double> tau;     // Greville abscissae
   std::vector<Basis> basis;    // at tau
   std::vector<PointConstants> constants;  // at tau
+  // Interior sites (T-joints, loads and supports inside the rod): their parameters (increasing),
+  // the control point at each (its tau), and the basis and constants there from below (from
+  // above they are basis and constants at that point).
+  std::vector<double> sites;
+  std::vector<int> sitePoints;
+  std::vector<Basis> siteBelow;
+  std::vector<PointConstants> siteBelowConstants;
   double length = 0.0, forceScale = 1.0, momentScale = 1.0;
   const geometry::Rod* source = nullptr;
 
   std::size_t row(int j) const { return offset + 7 * static_cast<std::size_t>(j); }
-  int point(int end) const { return end == 0 ? 0 : count - 1; }
+  int point(const Site& site) const { return site.end == Site::kInterior ? sitePoints[site.index] : site.end == 0 ? 0 : count - 1; }
+  bool isSitePoint(int j) const { return std::binary_search(sitePoints.begin(), sitePoints.end(), j); }
 };
 
 // Interpolated values of the local state at one parameter from x.
@@ -83,7 +123,8 @@ LocalState localState(const DiscreteRod& rod, const Basis& b, const Eigen::Vecto
 std::optional<Eigen::MatrixXd> interpolateAtCollocationPoints(const DiscreteRod& rod, const Eigen::MatrixXd& samples);
 
 // Control points (indices into a basis' functions) on which a rod end's position and tangent
-// depend: those with a non-zero value or first derivative there (2 of degree + 1 at a clamped end).
+// depend: those with a non-zero value or first derivative there (2 of degree + 1 at a clamped end
+// or on one side of a C0 knot).
 std::vector<int> endFunctions(const Basis& b);
 
 // One block of rows: an interior collocation point of a rod, or a node (rod < 0, point = node index).
@@ -116,21 +157,31 @@ struct DiscreteStructure {
   geometry::MechanicsSpec spec;
   Discretization discretization;  // as resolved (perRod filled)
 
-  const DiscreteRod& rodOf(const ResolvedEnd& e) const { return rods[e.rod]; }
-  const Basis& endBasis(const ResolvedEnd& e) const { const DiscreteRod& r = rods[e.rod]; return r.basis[r.point(e.end)]; }
-  const PointConstants& endConstants(const ResolvedEnd& e) const {
-    const DiscreteRod& r = rods[e.rod];
-    return r.constants[r.point(e.end)];
-  }
-  std::size_t endRow(const ResolvedEnd& e) const { return rodOf(e).row(rodOf(e).point(e.end)); }
+  // Pre-pass (nodes.cpp), before the rods are discretized: per design rod the parameters of its
+  // interior sites and their design points, and the rod ends found on other rods' interiors.
+  std::vector<std::vector<double>> interiorSites;
+  std::vector<std::vector<geometry::Vec3>> interiorPoints;
+  std::vector<std::pair<int, Place>> tJoints;  // (end site number 2 rod + end, interior place)
+  std::vector<int> siteBase;  // per rod: number of its first interior site
+
+  const DiscreteRod& rodOf(const Site& e) const { return rods[e.rod]; }
+  SiteSides sides(const Site& e) const;
+  // The site's control points whose columns its node rows use (sorted).
+  std::vector<int> siteColumns(const Site& e) const;
+  const Basis& siteBasis(const Site& e) const { const DiscreteRod& r = rods[e.rod]; return r.basis[r.point(e)]; }
+  std::size_t siteRow(const Site& e) const { return rodOf(e).row(rodOf(e).point(e)); }
 
   [[noreturn]] void fail(const std::string& path, const std::string& message) const;
 
   // discretization.cpp: appends rod `index` of `structure` with its unknowns and reference state.
   void buildRod(const geometry::RodStructure& structure, std::size_t index, const Discretization& discretization);
-  // nodes.cpp: joints, supports and loads; throws MechanicsError for unresolvable or unsupported parts.
+  // nodes.cpp: the interior sites (before buildRod), then joints, supports and loads; throws
+  // MechanicsError for unresolvable or unsupported parts.
+  void findInteriorSites(const geometry::RodStructure& structure);
   void buildNodes(const geometry::RodStructure& structure);
-  ResolvedEnd resolve(const geometry::RodEndRef& ref, const geometry::RodStructure& structure) const;
+  Place locate(const geometry::RodEndRef& ref, const geometry::RodStructure& structure) const;
+  int siteNumber(const Place& place) const;  // 2 rod + end, or after all ends the interior sites in order
+  Site siteOf(int number) const;
   void keepSpec(const geometry::RodStructure& structure);
   // equations.cpp: the rows and columns of every work item and the Jacobian's pattern.
   void buildLayouts();

@@ -34,10 +34,11 @@ void DiscreteStructure::fail(const std::string& path, const std::string& message
   throw MechanicsError(source + ": " + (path.empty() ? "" : path + ": ") + message);
 }
 
-Basis rationalBasis(const geometry::NurbsCurve& curve, double u) {
+namespace {
+
+// The (rational) basis on knot span `span` at u, which may be the span's end.
+Basis basisInSpan(const geometry::NurbsCurve& curve, int span, double u) {
   const int p = curve.degree();
-  const int n = static_cast<int>(curve.points().size());
-  const int span = geometry::findKnotSpan(curve.knots(), p, n, u);
   geometry::BasisDerivatives ders;
   geometry::basisFunctionDerivatives(curve.knots(), p, span, u, 2, ders);
   Basis b;
@@ -60,6 +61,21 @@ Basis rationalBasis(const geometry::NurbsCurve& curve, double u) {
     b.d2[i] = (ders[2][i] * w - 2.0 * b.d1[i] * dW - b.value[i] * ddW) / W;
   }
   return b;
+}
+
+}  // namespace
+
+Basis rationalBasis(const geometry::NurbsCurve& curve, double u) {
+  return basisInSpan(curve, geometry::findKnotSpan(curve.knots(), curve.degree(), static_cast<int>(curve.points().size()), u), u);
+}
+
+Basis rationalBasisBelow(const geometry::NurbsCurve& curve, double u) {
+  if (u <= curve.domainBegin()) return rationalBasis(curve, u);
+  // Largest i in [degree, n) with knots[i] < u: the span whose closure ends at (or contains) u.
+  const auto& k = curve.knots();
+  const auto first = k.begin() + curve.degree();
+  const auto last = k.begin() + static_cast<std::ptrdiff_t>(curve.points().size());
+  return basisInSpan(curve, static_cast<int>(std::lower_bound(first, last, u) - k.begin()) - 1, u);
 }
 
 std::optional<Eigen::MatrixXd> interpolateAtCollocationPoints(const DiscreteRod& rod, const Eigen::MatrixXd& samples) {
@@ -107,8 +123,10 @@ Vec3 sideTangent(const geometry::NurbsCurve& c, double u, int side) {
 // The design's centerline must have a clamped knot vector, and the solver's degree p must allow
 // second derivatives. A knot repeated `degree` times or more makes the curve only C0 there: on the
 // design's own basis that is refused; a rebuilt rod (`rebuild`) interpolates the curve anyway and
-// only a real corner (the tangent turning there) is refused.
-void checkCenterline(const DiscreteStructure& s, const geometry::NurbsCurve& c0, int p, bool rebuild, const std::string& path) {
+// only a real corner (the tangent turning there) is refused. At an interior site (`sites`) the
+// solver's basis is C0 anyway: a corner there is fine (a deformed design's T-joint has one).
+void checkCenterline(const DiscreteStructure& s, const geometry::NurbsCurve& c0, int p, bool rebuild, const std::string& path,
+                     const std::vector<double>& sites) {
   if (p > geometry::kMaxDegree) s.fail("", "degree " + std::to_string(p) + " is above the supported " + std::to_string(geometry::kMaxDegree));
   if (p < 2)
     s.fail(path + ".centerline.degree", "the rod solver collocates second derivatives and needs degree >= 2 (even "
@@ -124,7 +142,8 @@ void checkCenterline(const DiscreteStructure& s, const geometry::NurbsCurve& c0,
     std::size_t m = 1;
     while (i + m < n0 && k0[i + m] == k0[i]) ++m;
     const bool corner = sideTangent(c0, k0[i], -1).dot(sideTangent(c0, k0[i], 1)) < std::cos(1e-6);
-    if (m >= static_cast<std::size_t>(q) && (!rebuild || corner))
+    const bool site = std::binary_search(sites.begin(), sites.end(), k0[i]);
+    if (m >= static_cast<std::size_t>(q) && (!rebuild || corner) && !site)
       s.fail(path + ".centerline.knots[" + std::to_string(i) + "]",
              "knot " + format(k0[i]) + " repeated " + std::to_string(m) + " times makes " +
                  (corner ? "a corner" : "the curve only C0 on its own basis, which") + " the collocation cannot resolve; " +
@@ -217,7 +236,7 @@ RodBasisChoice chooseBasis(const DiscreteStructure& s, const geometry::Rod& rod,
   RodBasisChoice choice;
   choice.rebuild = d.degree > 0;
   choice.degree = choice.rebuild ? d.degree : c0.degree();
-  checkCenterline(s, c0, choice.degree, choice.rebuild, path);
+  checkCenterline(s, c0, choice.degree, choice.rebuild, path, s.interiorSites[index]);
   const int designSpans = static_cast<int>(c0.breakpoints().size()) - 1;
   if (index < d.perRod.size()) choice.spans = d.perRod[index];
   else if (choice.rebuild && d.spans > 0) choice.spans = d.spans;
@@ -259,14 +278,26 @@ std::vector<double> modulusKinks(const geometry::BSplineField& e) {
   return kinks;
 }
 
-// Knots of a rebuilt rod: `spans` spans, uniform between the modulus kinks, each piece getting
-// spans in proportion to its length (at least one). At a kink of E the solution's curvature has a
-// kink too (kappa = m / (E I)): the knot is repeated p - 1 times there, so the basis is only C1 and
-// can follow it (with a plain knot convergence falls to order 2.5), and no collocation point (a
-// mean of p consecutive knots) lands on it.
-std::vector<double> rebuiltKnots(double begin, double end, int p, int spans, const std::vector<double>& kinks) {
+// Knots of a rebuilt rod: `spans` spans, uniform between the breaks (modulus kinks and interior
+// sites), each piece getting spans in proportion to its length (at least one). At a kink of E the
+// solution's curvature has a kink too (kappa = m / (E I)): the knot is repeated p - 1 times there,
+// so the basis is only C1 and can follow it (with a plain knot convergence falls to order 2.5), and
+// no collocation point (a mean of p consecutive knots) lands on it. At an interior site the knot is
+// repeated p times: the basis is C0, so r' and q' (n and m) may jump there by the point force and
+// moment of the node, and the control point there is the site's, carrying the node's rows.
+std::vector<double> rebuiltKnots(double begin, double end, int p, int spans, const std::vector<double>& kinks,
+                                 const std::vector<double>& sites) {
+  std::vector<std::pair<double, int>> inner;  // parameter, multiplicity
+  for (double k : kinks) inner.emplace_back(k, std::max(1, p - 1));
+  for (double u : sites) inner.emplace_back(u, p);
+  std::sort(inner.begin(), inner.end());
   std::vector<double> breaks = {begin};
-  for (double k : kinks) breaks.push_back(k);
+  std::vector<int> multiplicity = {0};
+  const double same = 1e-12 * (end - begin);
+  for (const auto& [u, m] : inner) {
+    if (u - breaks.back() <= same) multiplicity.back() = std::max(multiplicity.back(), m);
+    else breaks.push_back(u), multiplicity.push_back(m);
+  }
   breaks.push_back(end);
   const int pieces = static_cast<int>(breaks.size()) - 1;
   spans = std::max(spans, pieces);
@@ -278,19 +309,30 @@ std::vector<double> rebuiltKnots(double begin, double end, int p, int spans, con
                                      : std::clamp(static_cast<int>(std::lround(spans * (breaks[i + 1] - begin) / (end - begin))),
                                                   given + 1, spans - (pieces - i - 1));
     for (int k = 1; k < upTo - given; ++k) knots.push_back(breaks[i] + (breaks[i + 1] - breaks[i]) * k / (upTo - given));
-    if (i + 1 < pieces) knots.insert(knots.end(), std::max(1, p - 1), breaks[i + 1]);
+    if (i + 1 < pieces) knots.insert(knots.end(), multiplicity[i + 1], breaks[i + 1]);
     given = upTo;
   }
   knots.insert(knots.end(), p + 1, end);
   return knots;
 }
 
+// The design's curve refined by knot insertion, each interior site's knot raised to multiplicity p.
+geometry::NurbsCurve refinedWithSites(const geometry::NurbsCurve& c0, int insertionsPerSpan, const std::vector<double>& sites) {
+  geometry::NurbsCurve curve = c0.refined(insertionsPerSpan);
+  for (double u : sites) {
+    const auto& k = curve.knots();
+    for (auto m = std::count(k.begin(), k.end(), u); m < curve.degree(); ++m) curve = curve.withKnotInserted(u);
+  }
+  return curve;
+}
+
 // The solver's curve: the design's refined by knot insertion, or (rebuild) a degree-p B-spline
 // with placeholder control points that interpolateReference replaces.
-geometry::NurbsCurve solverCurve(const geometry::Rod& rod, const RodBasisChoice& choice) {
+geometry::NurbsCurve solverCurve(const geometry::Rod& rod, const RodBasisChoice& choice, const std::vector<double>& sites) {
   const geometry::NurbsCurve& c0 = rod.centerline();
-  if (!choice.rebuild) return c0.refined(choice.spans - 1);
-  std::vector<double> knots = rebuiltKnots(c0.domainBegin(), c0.domainEnd(), choice.degree, choice.spans, modulusKinks(rod.modulus()));
+  if (!choice.rebuild) return refinedWithSites(c0, choice.spans - 1, sites);
+  std::vector<double> knots =
+      rebuiltKnots(c0.domainBegin(), c0.domainEnd(), choice.degree, choice.spans, modulusKinks(rod.modulus()), sites);
   const std::size_t count = knots.size() - choice.degree - 1;
   return geometry::NurbsCurve(choice.degree, std::move(knots), std::vector<Vec3>(count, Vec3::Zero()));
 }
@@ -310,13 +352,31 @@ std::vector<double> grevilleAbscissae(const geometry::NurbsCurve& curve) {
   return tau;
 }
 
-// A kink of E(s) that is also a collocation point, where the solver needs E'(s) (n' contains it);
-// none if there is no such kink.
-std::optional<double> kinkAtCollocationPoint(const geometry::BSplineField& e, const std::vector<double>& tau) {
+// The control point of each interior site: the one whose Greville abscissa is the p-fold knot
+// there (knots[k + 1 .. k + p]); its tau is set to that knot exactly, and so is the site's
+// parameter (a kink merged with it may have moved it by rounding).
+std::vector<int> sitePoints(const geometry::NurbsCurve& curve, std::vector<double>& sites, std::vector<double>& tau) {
+  const auto& knots = curve.knots();
+  const double same = 1e-12 * (curve.domainEnd() - curve.domainBegin());
+  std::vector<int> points;
+  for (double& u : sites) {
+    const int k = static_cast<int>(std::lower_bound(knots.begin(), knots.end(), u - same) - knots.begin()) - 1;
+    points.push_back(k);
+    u = tau[k] = knots[k + 1];
+  }
+  return points;
+}
+
+// A kink of E(s) that is also a collocation point (not a site's: the node rows there do not use
+// E'), where the solver needs E'(s) (n' contains it); none if there is no such kink.
+std::optional<double> kinkAtCollocationPoint(const geometry::BSplineField& e, const std::vector<double>& tau,
+                                             const std::vector<int>& sitePoints) {
   const double scale = std::max(1.0, std::abs(e.domainEnd() - e.domainBegin()));
   for (double kink : modulusKinks(e))
-    for (double t : tau)
-      if (std::abs(t - kink) <= 1e-12 * scale) return kink;
+    for (std::size_t j = 0; j < tau.size(); ++j)
+      if (std::abs(tau[j] - kink) <= 1e-12 * scale &&
+          !std::count(sitePoints.begin(), sitePoints.end(), static_cast<int>(j)))
+        return kink;
   return std::nullopt;
 }
 
@@ -357,6 +417,8 @@ Eigen::MatrixXd interpolateReference(const DiscreteStructure& s, DiscreteRod& ro
   const geometry::NurbsCurve& c0 = src.centerline();
   rod.basis.resize(rod.count);
   for (int j = 0; j < rod.count; ++j) rod.basis[j] = rationalBasis(rod.curve, rod.tau[j]);
+  rod.siteBelow.clear();
+  for (double u : rod.sites) rod.siteBelow.push_back(rationalBasisBelow(rod.curve, u));
   Eigen::MatrixXd samples(rod.count, 7);
   Vector4d previous = Vector4d::Zero();
   for (int j = 0; j < rod.count; ++j) {
@@ -371,27 +433,38 @@ Eigen::MatrixXd interpolateReference(const DiscreteStructure& s, DiscreteRod& ro
   return *values;
 }
 
-// Per collocation point: the reference strains, E and dE/du, the section and the distributed
-// load; then the rod's residual scales.
+// The reference strains, E and dE/du, the section and the distributed load at parameter u with
+// basis b (a collocation point, or an interior site from below).
+PointConstants pointConstants(const DiscreteStructure& s, const DiscreteRod& rod, const Basis& b, double u,
+                              const geometry::BSplineField& e, const RodStiffness& stiffness) {
+  const LocalState state = localState(rod, b, s.reference);
+  const StrainMeasures<double> sm = strainMeasures<double>(state.dr, state.ddr, state.q, state.dq, state.ddq);
+  PointConstants c;
+  c.J0 = state.dr.norm();
+  if (!(c.J0 > 0)) s.fail(rod.path + ".centerline", "the centerline's derivative vanishes at u = " + format(u));
+  c.dJ0 = state.dr.dot(state.ddr) / c.J0;
+  c.gamma0 = sm.gamma, c.dGamma0 = sm.dGamma, c.curvature0 = sm.curvature, c.dCurvature0 = sm.dCurvature;
+  c.E = e.value(u);
+  c.dE = e.isConstant() ? 0.0 : e.derivative(u);
+  c.shearExtension = stiffness.shearExtension;
+  c.bendingTorsion = stiffness.bendingTorsion;
+  c.distributedForce = stiffness.distributed;
+  return c;
+}
+
+// Per collocation point and interior site (from below) the pointwise constants; then the rod's
+// residual scales.
 void setPointConstants(const DiscreteStructure& s, DiscreteRod& rod, const geometry::BSplineField& e,
                        const RodStiffness& stiffness) {
   double eMax = 0;
   rod.constants.resize(rod.count);
   for (int j = 0; j < rod.count; ++j) {
-    const LocalState state = localState(rod, rod.basis[j], s.reference);
-    const StrainMeasures<double> sm = strainMeasures<double>(state.dr, state.ddr, state.q, state.dq, state.ddq);
-    PointConstants& c = rod.constants[j];
-    c.J0 = state.dr.norm();
-    if (!(c.J0 > 0)) s.fail(rod.path + ".centerline", "the centerline's derivative vanishes at u = " + format(rod.tau[j]));
-    c.dJ0 = state.dr.dot(state.ddr) / c.J0;
-    c.gamma0 = sm.gamma, c.dGamma0 = sm.dGamma, c.curvature0 = sm.curvature, c.dCurvature0 = sm.dCurvature;
-    c.E = e.value(rod.tau[j]);
-    c.dE = e.isConstant() ? 0.0 : e.derivative(rod.tau[j]);
-    c.shearExtension = stiffness.shearExtension;
-    c.bendingTorsion = stiffness.bendingTorsion;
-    c.distributedForce = stiffness.distributed;
-    eMax = std::max(eMax, c.E);
+    rod.constants[j] = pointConstants(s, rod, rod.basis[j], rod.tau[j], e, stiffness);
+    eMax = std::max(eMax, rod.constants[j].E);
   }
+  rod.siteBelowConstants.clear();
+  for (std::size_t i = 0; i < rod.sites.size(); ++i)
+    rod.siteBelowConstants.push_back(pointConstants(s, rod, rod.siteBelow[i], rod.sites[i], e, stiffness));
   // Residual rows in units of the rod's bending: E I / L^2 for forces, E I / L for moments. A scale
   // by E A would hide the loads that bend slender rods (E A L^2 / E I = (L / r)^2 is 1e6 and more).
   const double bending = eMax * stiffness.inertia;
@@ -412,10 +485,12 @@ void DiscreteStructure::buildRod(const geometry::RodStructure& structure, std::s
   // Spans the user chose are kept (a kink on a collocation point is then refused); automatic ones
   // grow by one until no kink of E(s) is a collocation point.
   const bool chosen = index >= discretization.perRod.size() && (choice.rebuild ? discretization.spans > 0 : discretization.refine >= 0);
+  rod.sites = interiorSites[index];
   for (int attempt = 0;; ++attempt) {
-    rod.curve = solverCurve(src, choice);
+    rod.curve = solverCurve(src, choice, rod.sites);
     rod.tau = grevilleAbscissae(rod.curve);
-    const std::optional<double> kink = kinkAtCollocationPoint(src.modulus(), rod.tau);
+    rod.sitePoints = sitePoints(rod.curve, rod.sites, rod.tau);
+    const std::optional<double> kink = kinkAtCollocationPoint(src.modulus(), rod.tau, rod.sitePoints);
     if (!kink) break;
     if (chosen || attempt == 16)
       fail(rod.path + ".modulus", "E(s) has a kink at u = " + format(*kink) + ", which is a collocation point of this "

@@ -31,14 +31,15 @@ std::vector<int> allFunctions(const Basis& b) {
   return k;
 }
 
-// Chain rule from derivatives with respect to an end's (r, r', q, q') (14 columns) to its control
-// points (the end's functions, 7 columns each).
-void chainEnd(const Basis& b, const EndJacobian& d, Eigen::Ref<Eigen::MatrixXd> out) {
-  int column = 0;
+// Chain rule from derivatives with respect to one site side's (r, r', q, q') (14 columns) to its
+// control points: function k of the side's basis is control point b.first + k, found in the site's
+// column points (7 columns each).
+void chainSide(const Basis& b, const EndJacobian& d, const std::vector<int>& points, Eigen::Ref<Eigen::MatrixXd> out) {
   for (int k : endFunctions(b)) {
+    const Eigen::Index column =
+        7 * (std::lower_bound(points.begin(), points.end(), b.first + k) - points.begin());
     out.middleCols<3>(column) += d.middleCols<3>(0) * b.value[k] + d.middleCols<3>(3) * b.d1[k];
     out.middleCols<4>(column + 3) += d.middleCols<4>(6) * b.value[k] + d.middleCols<4>(10) * b.d1[k];
-    column += 7;
   }
 }
 
@@ -48,18 +49,26 @@ Eigen::Matrix3d crossMatrix(const Vector3d& v) {
   return m;
 }
 
-// One node's rows: 7 per rod end, in the slots of the ends' first or last collocation points.
-// The first end's slot holds the support or balance conditions and its unit norm; every further
-// end's slot ties it to the first (position, relative rotation, unit norm).
+// One node's rows: 7 per site, in the slots of the sites' control points. The first site's slot
+// holds the support or balance conditions and its unit norm; every further site's slot ties it to
+// the first (position, relative rotation, unit norm). A rod end has one side, an interior site two
+// (below and above its C0 knot), each adding its internal force and moment to the balance: the
+// jump of n and m across an interior site balances the node's load and the joined rods.
 class NodeEquations {
 public:
   NodeEquations(const DiscreteStructure& s, const Node& node, const Eigen::VectorXd& x, bool derivatives)
-      : s_(s), node_(node), derivatives_(derivatives), ends_(node.ends.size()) {
+      : s_(s), node_(node), derivatives_(derivatives) {
     const DiscreteRod& firstRod = s.rodOf(node.ends[0]);
     forceRow_ = 1.0 / firstRod.forceScale, momentRow_ = 1.0 / firstRod.momentScale, positionRow_ = 1.0 / firstRod.length;
-    for (std::size_t i = 0; i < ends_.size(); ++i) gatherEnd(i, x);
-    f_.resize(static_cast<Eigen::Index>(7 * ends_.size()));
-    if (derivatives) dEnd_.assign(ends_.size(), EndJacobian::Zero(f_.size(), 14));
+    sides_.reserve(2 * node.ends.size());
+    for (std::size_t i = 0; i < node.ends.size(); ++i) {
+      firstSide_.push_back(static_cast<int>(sides_.size()));
+      siteColumn_.push_back(cols_);
+      cols_ += 7 * node.columns[i].size();
+      for (const SiteSide& side : s.sides(node.ends[i])) gatherSide(i, side, x);
+    }
+    f_.resize(static_cast<Eigen::Index>(7 * node.ends.size()));
+    if (derivatives) dSide_.assign(sides_.size(), EndJacobian::Zero(f_.size(), 14));
   }
 
   void evaluate(double load) {
@@ -67,47 +76,52 @@ public:
     else forceBalanceRows(load);
     if (node_.support == geometry::SupportKind::Clamped) rotationRows(load);
     else momentBalanceRows(load);
-    f_[6] = ends_[0].s.q.squaredNorm() - 1.0;
-    if (derivatives_) dEnd_[0].block<1, 4>(6, 6) = 2.0 * ends_[0].s.q.transpose();
-    for (std::size_t i = 1; i < ends_.size(); ++i) jointRows(i);
+    f_[6] = site(0).s.q.squaredNorm() - 1.0;
+    if (derivatives_) dSite(0).block<1, 4>(6, 6) = 2.0 * site(0).s.q.transpose();
+    for (std::size_t i = 1; i < node_.ends.size(); ++i) jointRows(i);
   }
 
   void scatter(Eigen::VectorXd& residual, Eigen::MatrixXd* block) const;
 
 private:
-  // Per end: local state, force and moment, and their derivatives with respect to (r, r', q, q').
-  struct EndData {
+  // Per side: local state, force and moment, and their derivatives with respect to (r, r', q, q').
+  struct SideData {
+    std::size_t site;
+    SiteSide side;
     LocalState s;
     Vector3d n, m;
     Eigen::Matrix<double, 3, 14> dn, dm;
-    std::size_t col = 0;  // first column of this end in the block
   };
 
-  void gatherEnd(std::size_t i, const Eigen::VectorXd& x);
+  void gatherSide(std::size_t site, const SiteSide& side, const Eigen::VectorXd& x);
+  // A site's first side: its position and rotation (the same on both sides of a C0 knot), and the
+  // derivatives of the rows that depend on them only.
+  const SideData& site(std::size_t i) const { return sides_[firstSide_[i]]; }
+  EndJacobian& dSite(std::size_t i) { return dSide_[firstSide_[i]]; }
   void positionRows(double load);
   void forceBalanceRows(double load);
   void rotationRows(double load);
   void momentBalanceRows(double load);
   void jointRows(std::size_t i);
-  double sign(std::size_t i) const { return node_.ends[i].end == 0 ? 1.0 : -1.0; }  // + n(0) at a start, - n(L) at an end
 
   const DiscreteStructure& s_;
   const Node& node_;
   bool derivatives_;
-  std::vector<EndData> ends_;
+  std::vector<SideData> sides_;
+  std::vector<int> firstSide_;
+  std::vector<std::size_t> siteColumn_;   // per site: its first column in the block
   std::size_t cols_ = 0;
   double forceRow_ = 1, momentRow_ = 1, positionRow_ = 1;
   Eigen::VectorXd f_;
-  std::vector<EndJacobian> dEnd_;
+  std::vector<EndJacobian> dSide_;
 };
 
-void NodeEquations::gatherEnd(std::size_t i, const Eigen::VectorXd& x) {
-  const ResolvedEnd& e = node_.ends[i];
-  EndData& d = ends_[i];
-  d.s = localState(s_.rodOf(e), s_.endBasis(e), x);
-  d.col = cols_;
-  cols_ += 7 * endFunctions(s_.endBasis(e)).size();
-  const PointConstants& c = s_.endConstants(e);
+void NodeEquations::gatherSide(std::size_t site, const SiteSide& side, const Eigen::VectorXd& x) {
+  SideData& d = sides_.emplace_back();
+  d.site = site;
+  d.side = side;
+  d.s = localState(s_.rodOf(node_.ends[site]), *side.basis, x);
+  const PointConstants& c = *side.constants;
   if (!derivatives_) {
     const StrainMeasures<double> sm = strainMeasures<double>(d.s.dr, Vector3d::Zero(), d.s.q, d.s.dq, Vector4d::Zero());
     stressResultants(sm, c, d.n, d.m);
@@ -130,15 +144,15 @@ void NodeEquations::gatherEnd(std::size_t i, const Eigen::VectorXd& x) {
 }
 
 void NodeEquations::positionRows(double load) {
-  f_.segment<3>(0) = (ends_[0].s.r - node_.position0 - load * node_.displacement) * positionRow_;
-  if (derivatives_) dEnd_[0].block<3, 3>(0, 0) = Eigen::Matrix3d::Identity() * positionRow_;
+  f_.segment<3>(0) = (site(0).s.r - node_.position0 - load * node_.displacement) * positionRow_;
+  if (derivatives_) dSite(0).block<3, 3>(0, 0) = Eigen::Matrix3d::Identity() * positionRow_;
 }
 
 void NodeEquations::forceBalanceRows(double load) {
   Vector3d sum = load * node_.force;
-  for (std::size_t i = 0; i < ends_.size(); ++i) {
-    sum += sign(i) * ends_[i].n;
-    if (derivatives_) dEnd_[i].block<3, 14>(0, 0) += sign(i) * ends_[i].dn * forceRow_;
+  for (std::size_t k = 0; k < sides_.size(); ++k) {
+    sum += sides_[k].side.sign * sides_[k].n;
+    if (derivatives_) dSide_[k].block<3, 14>(0, 0) += sides_[k].side.sign * sides_[k].dn * forceRow_;
   }
   f_.segment<3>(0) = sum * forceRow_;
 }
@@ -149,30 +163,31 @@ void NodeEquations::rotationRows(double load) {
   Vector4d turn(1, 0, 0, 0);
   if (angle > 0) turn << std::cos(angle / 2), std::sin(angle / 2) * node_.rotation.normalized();
   const Vector4d target = quaternionProduct<double>(turn, node_.quaternion0);
-  f_.segment<3>(3) = conjugateProductVector<double>(target, ends_[0].s.q);
+  f_.segment<3>(3) = conjugateProductVector<double>(target, site(0).s.q);
   if (!derivatives_) return;
-  for (int c = 0; c < 4; ++c) dEnd_[0].block<3, 1>(3, 6 + c) = conjugateProductVector<double>(target, Vector4d::Unit(c));
+  for (int c = 0; c < 4; ++c) dSite(0).block<3, 1>(3, 6 + c) = conjugateProductVector<double>(target, Vector4d::Unit(c));
 }
 
 void NodeEquations::momentBalanceRows(double load) {
   Vector3d sum = load * node_.moment;
-  for (std::size_t i = 0; i < ends_.size(); ++i) {
-    const EndData& d = ends_[i];
-    const Vector3d arm = d.s.r - ends_[0].s.r;
-    sum += sign(i) * (d.m + arm.cross(d.n));
+  for (std::size_t k = 0; k < sides_.size(); ++k) {
+    const SideData& d = sides_[k];
+    const double sign = d.side.sign;
+    const Vector3d arm = d.s.r - site(0).s.r;
+    sum += sign * (d.m + arm.cross(d.n));
     if (!derivatives_) continue;
     const Eigen::Matrix3d nCross = crossMatrix(d.n);
-    dEnd_[i].block<3, 14>(3, 0) += sign(i) * momentRow_ * (d.dm + crossMatrix(arm) * d.dn);
-    // arm x n = -n x arm: d(arm) = dr_i - dr_0.
-    dEnd_[i].block<3, 3>(3, 0) -= sign(i) * momentRow_ * nCross;
-    dEnd_[0].block<3, 3>(3, 0) += sign(i) * momentRow_ * nCross;
+    dSide_[k].block<3, 14>(3, 0) += sign * momentRow_ * (d.dm + crossMatrix(arm) * d.dn);
+    // arm x n = -n x arm: d(arm) = dr_k - dr_0.
+    dSide_[k].block<3, 3>(3, 0) -= sign * momentRow_ * nCross;
+    dSite(0).block<3, 3>(3, 0) += sign * momentRow_ * nCross;
   }
   f_.segment<3>(3) = sum * momentRow_;
 }
 
 void NodeEquations::jointRows(std::size_t i) {
-  const EndData& e0 = ends_[0];
-  const EndData& d = ends_[i];
+  const SideData& e0 = site(0);
+  const SideData& d = site(i);
   const Eigen::Index r0 = static_cast<Eigen::Index>(7 * i);
   f_.segment<3>(r0) = (d.s.r - e0.s.r - node_.offsets0[i - 1]) * positionRow_;
   f_[r0 + 6] = d.s.q.squaredNorm() - 1.0;
@@ -183,22 +198,24 @@ void NodeEquations::jointRows(std::size_t i) {
   const V3<D> g = conjugateProductVector<D>(quaternionProduct<D>(q0, node_.relative0[i - 1].cast<D>()), qi);
   for (int j = 0; j < 3; ++j) f_[r0 + 3 + j] = g[j].value();
   if (!derivatives_) return;
-  dEnd_[i].block<3, 3>(r0, 0) += Eigen::Matrix3d::Identity() * positionRow_;
-  dEnd_[0].block<3, 3>(r0, 0) -= Eigen::Matrix3d::Identity() * positionRow_;
+  dSite(i).block<3, 3>(r0, 0) += Eigen::Matrix3d::Identity() * positionRow_;
+  dSite(0).block<3, 3>(r0, 0) -= Eigen::Matrix3d::Identity() * positionRow_;
   for (int j = 0; j < 3; ++j) {
-    dEnd_[0].block<1, 4>(r0 + 3 + j, 6) += g[j].derivatives().head<4>().transpose();
-    dEnd_[i].block<1, 4>(r0 + 3 + j, 6) += g[j].derivatives().tail<4>().transpose();
+    dSite(0).block<1, 4>(r0 + 3 + j, 6) += g[j].derivatives().head<4>().transpose();
+    dSite(i).block<1, 4>(r0 + 3 + j, 6) += g[j].derivatives().tail<4>().transpose();
   }
-  dEnd_[i].block<1, 4>(r0 + 6, 6) = 2.0 * d.s.q.transpose();
+  dSite(i).block<1, 4>(r0 + 6, 6) = 2.0 * d.s.q.transpose();
 }
 
 void NodeEquations::scatter(Eigen::VectorXd& residual, Eigen::MatrixXd* block) const {
-  for (std::size_t i = 0; i < ends_.size(); ++i) residual.segment<7>(s_.endRow(node_.ends[i])) = f_.segment<7>(7 * i);
+  for (std::size_t i = 0; i < node_.ends.size(); ++i) residual.segment<7>(s_.siteRow(node_.ends[i])) = f_.segment<7>(7 * i);
   if (!block) return;
   block->setZero(f_.size(), static_cast<Eigen::Index>(cols_));
-  for (std::size_t i = 0; i < ends_.size(); ++i) {
-    const Basis& b = s_.endBasis(node_.ends[i]);
-    chainEnd(b, dEnd_[i], block->middleCols(static_cast<Eigen::Index>(ends_[i].col), 7 * endFunctions(b).size()));
+  for (std::size_t k = 0; k < sides_.size(); ++k) {
+    const std::size_t i = sides_[k].site;
+    const std::vector<int>& points = node_.columns[i];
+    chainSide(*sides_[k].side.basis, dSide_[k], points,
+              block->middleCols(static_cast<Eigen::Index>(siteColumn_[i]), static_cast<Eigen::Index>(7 * points.size())));
   }
 }
 
@@ -253,28 +270,28 @@ std::vector<int> endFunctions(const Basis& b) {
 namespace {
 
 // Which entries of a node's block can be non-zero (column-major, rows by columns of `layout`). The
-// support, joint and unit-norm rows depend on the end positions and rotations only (the control
-// point with a non-zero value there); force and moment balance on every end's position, tangent,
-// rotation and its derivative.
+// support, joint and unit-norm rows depend on the sites' positions and rotations only (the site's
+// own control point, the one with a non-zero value there); force and moment balance on every
+// site's position, tangent, rotation and its derivative.
 std::vector<char> nodeMask(const DiscreteStructure& s, const Node& node, const ItemLayout& layout) {
-  struct Column { std::size_t end; bool atEnd, rotation; };
+  struct Column { std::size_t site; bool atSite, rotation; };
   std::vector<Column> columns;
   for (std::size_t i = 0; i < node.ends.size(); ++i) {
-    const Basis& b = s.endBasis(node.ends[i]);
-    for (int k : endFunctions(b))
-      for (int c = 0; c < 7; ++c) columns.push_back({i, b.value[k] != 0.0, c >= 3});
+    const int own = s.rodOf(node.ends[i]).point(node.ends[i]);
+    for (int point : node.columns[i])
+      for (int c = 0; c < 7; ++c) columns.push_back({i, point == own, c >= 3});
   }
   const std::size_t rows = layout.rows.size();
   std::vector<char> mask(rows * columns.size());
   for (std::size_t r = 0; r < rows; ++r) {
-    const std::size_t end = r / 7, local = r % 7;
+    const std::size_t site = r / 7, local = r % 7;
     const bool rotationRow = local >= 3;  // rows 3..6: moments, rotations, unit norm
-    const bool balance = end == 0 && ((local < 3 && !node.support) ||
-                                      (local >= 3 && local < 6 && node.support != geometry::SupportKind::Clamped));
+    const bool balance = site == 0 && ((local < 3 && !node.support) ||
+                                       (local >= 3 && local < 6 && node.support != geometry::SupportKind::Clamped));
     for (std::size_t c = 0; c < columns.size(); ++c) {
       const Column& col = columns[c];
-      const bool tied = local == 6 ? col.end == end : (col.end == 0 || col.end == end);
-      mask[c * rows + r] = balance || (tied && col.atEnd && col.rotation == rotationRow);
+      const bool tied = local == 6 ? col.site == site : (col.site == 0 || col.site == site);
+      mask[c * rows + r] = balance || (tied && col.atSite && col.rotation == rotationRow);
     }
   }
   return mask;
@@ -297,9 +314,10 @@ void DiscreteStructure::buildLayouts() {
       continue;
     }
     const Node& node = nodes[items[i].point];
-    for (const ResolvedEnd& e : node.ends) {
-      for (int r = 0; r < 7; ++r) layout.rows.push_back(endRow(e) + r);
-      appendColumns(rodOf(e), endBasis(e), endFunctions(endBasis(e)), layout.cols);
+    for (const Site& e : node.ends) {
+      for (int r = 0; r < 7; ++r) layout.rows.push_back(siteRow(e) + r);
+      for (int point : node.columns[&e - node.ends.data()])
+        for (int c = 0; c < 7; ++c) layout.cols.push_back(rodOf(e).offset + 7 * static_cast<std::size_t>(point) + c);
     }
     layout.nonzero = nodeMask(*this, node, layout);
   }

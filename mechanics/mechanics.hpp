@@ -71,7 +71,10 @@ struct Discretization {
 // The discrete nonlinear system F(x, load) = 0. x holds, rod after rod, each control point's
 // position (3) and quaternion (4); there are as many equations as unknowns: 7 per collocation
 // point (force and moment balance, unit quaternion), with the rows of each rod's two end points
-// replaced by the joint, support and end-load conditions of the node the end belongs to.
+// replaced by the joint, support and end-load conditions of the node the end belongs to. Where a
+// joint (a T-joint), load or support acts inside a rod, its solver basis has a C0 knot (multiplicity
+// = degree) whose control point carries that node's rows: there n and m jump by the point force and
+// moment (mechanics/README.md, "T-joints and interior places").
 // Const members may be called from several threads at once.
 class StaticProblem {
 public:
@@ -118,8 +121,8 @@ public:
 
   // The structure in state x as a design: the (refined) centerlines with the solved control points
   // and an `orientation` quaternion spline per rod; sections, caps and moduli as in the input; the
-  // input's mechanics block with rod ends given by point turned into rod name and end (the points
-  // have moved), so the result can be simulated again. std::invalid_argument for x of the wrong
+  // input's mechanics block with places given by point turned into rod name and end, or rod name
+  // and parameter (the points have moved), so the result can be simulated again. std::invalid_argument for x of the wrong
   // size; std::invalid_argument from geometry::Rod if a state degenerates a rod (no frame).
   geometry::RodStructure deformedStructure(const Eigen::VectorXd& x) const;
 

@@ -34,6 +34,7 @@ StaticProblem::StaticProblem(const geometry::RodStructure& structure, const Disc
                                 " and tolerance in (0, 1] expected");
   if (!structure.mechanics.present)
     m.fail("mechanics", "the design has no \"mechanics\" block: give at least its supports (and loads) to simulate it");
+  m.findInteriorSites(structure);
   for (std::size_t i = 0; i < structure.rods.size(); ++i) m.buildRod(structure, i, discretization);
   m.size = std::max(1e-12, structure.bounds().diagonal().norm());
   m.buildNodes(structure);
@@ -42,7 +43,8 @@ StaticProblem::StaticProblem(const geometry::RodStructure& structure, const Disc
   m.discretization.perRod.clear();
   for (const DiscreteRod& rod : m.rods) m.discretization.perRod.push_back(rod.spans);
   for (std::size_t r = 0; r < m.rods.size(); ++r)
-    for (int j = 1; j + 1 < m.rods[r].count; ++j) m.items.push_back({static_cast<int>(r), j});
+    for (int j = 1; j + 1 < m.rods[r].count; ++j)
+      if (!m.rods[r].isSitePoint(j)) m.items.push_back({static_cast<int>(r), j});
   for (std::size_t n = 0; n < m.nodes.size(); ++n) m.items.push_back({-1, static_cast<int>(n)});
   m.buildLayouts();
 }

@@ -248,7 +248,8 @@ TEST_CASE("The mechanics block reads, round-trips, and is optional", "[design][m
     "joints": [[{"rod": "edge-0", "end": "start"}, {"rod": "edge-0", "end": "end"}]],
     "supports": [{"at": {"rod": "edge-0", "end": "start"}, "type": "clamped", "rotation": [0, 0, 0.1]},
                  {"at": {"point": [3, 1, 0]}, "type": "pinned", "displacement": [0, 0, -1]}],
-    "loads": [{"at": {"rod": "edge-0", "end": "end"}, "force": [0, 0, -2], "moment": [0.5, 0, 0]}],
+    "loads": [{"at": {"rod": "edge-0", "end": "end"}, "force": [0, 0, -2], "moment": [0.5, 0, 0]},
+              {"at": {"rod": "edge-0", "parameter": 0.25}, "force": [0, 1, 0]}],
     "distributed_loads": [{"rod": "edge-0", "force": [0, 0, -0.01]}],
     "rods": {"edge-0": {"torsion_constant": 0.2, "poisson_ratio": 0.25}},
     "load_steps": 7 })");
@@ -266,6 +267,9 @@ TEST_CASE("The mechanics block reads, round-trips, and is optional", "[design][m
   CHECK(m.supports[1].kind == SupportKind::Pinned);
   CHECK(*m.supports[1].at.point == Vec3(3, 1, 0));
   CHECK(m.loads[0].force.z() == -2);
+  REQUIRE(m.loads.size() == 2);
+  CHECK(*m.loads[1].at.parameter == 0.25);
+  CHECK_FALSE(m.loads[0].at.parameter);
   CHECK(m.distributedLoads[0].force.z() == -0.01);
   CHECK(*m.rods[0].torsionConstant == 0.2);
   CHECK(m.loadSteps == 7);
@@ -296,7 +300,15 @@ TEST_CASE("Bad mechanics blocks are reported with their paths", "[design][mechan
   REQUIRE_ISSUE(with(R"({"loads": [{"at": {"rod": "edge-0", "end": "end"}}]})"), "mechanics.loads[0]",
                 "a load needs \"force\"");
   REQUIRE_ISSUE(with(R"({"loads": [{"at": {"rod": "edge-0", "point": [0, 0, 0]}, "force": [0, 0, 1]}]})"),
-                "mechanics.loads[0].at", "give either \"rod\" and \"end\", or \"point\"");
+                "mechanics.loads[0].at", "give either \"rod\" with \"end\" or \"parameter\", or \"point\"");
+  REQUIRE_ISSUE(with(R"({"loads": [{"at": {"rod": "edge-0", "end": "end", "parameter": 0.5}, "force": [0, 0, 1]}]})"),
+                "mechanics.loads[0].at", "give either \"end\" or \"parameter\", not both");
+  REQUIRE_ISSUE(with(R"({"loads": [{"at": {"rod": "edge-0", "parameter": "middle"}, "force": [0, 0, 1]}]})"),
+                "mechanics.loads[0].at.parameter", "expected a centerline parameter u");
+  REQUIRE_ISSUE(with(R"({"supports": [{"at": {"point": [0, 0, 0], "parameter": 0.5}, "type": "clamped"}]})"),
+                "mechanics.supports[0].at.parameter", "\"parameter\" goes with \"rod\", not with \"point\"");
+  REQUIRE_ISSUE(with(R"({"joints": [[{"rod": "edge-0", "end": "start"}, {"point": [1, 0, 0]}]]})"), "mechanics.joints[0][1]",
+                "not points");
   REQUIRE_ISSUE(with(R"({"joints": [[{"rod": "edge-0", "end": "start"}]]})"), "mechanics.joints[0]",
                 "at least two rod ends");
   REQUIRE_ISSUE(with(R"({"rods": {"ghost": {"torsion_constant": 1}}})"), "mechanics.rods.ghost", "no rod is named");

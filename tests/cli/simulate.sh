@@ -155,8 +155,11 @@ edit "$tmp/nosupport.json" 'd["mechanics"]["supports"] = []'
 expect_error "no support" "nosupport.json: mechanics.supports: no support" "$tmp/nosupport.json"
 edit "$tmp/badrod.json" 'd["mechanics"]["loads"][0]["at"] = {"rod": "nope", "end": "end"}'
 expect_error "unknown rod" "badrod.json: mechanics.loads\[0\].at.rod: no rod is named \"nope\"" "$tmp/badrod.json"
-edit "$tmp/badpoint.json" 'd["mechanics"]["loads"][0]["at"] = {"point": [10, 0, 0]}'
-expect_error "load off the rod ends" "badpoint.json: mechanics.loads\[0\].at.point: no rod end lies within" "$tmp/badpoint.json"
+edit "$tmp/badpoint.json" 'd["mechanics"]["loads"][0]["at"] = {"point": [10, 0.5, 0]}'
+expect_error "load off the rods" "badpoint.json: mechanics.loads\[0\].at.point: no rod lies within joint_tolerance" "$tmp/badpoint.json"
+edit "$tmp/badparameter.json" 'd["mechanics"]["loads"][0]["at"] = {"rod": "beam", "parameter": 1.5}'
+expect_error "parameter off the rod" "badparameter.json: mechanics.loads\[0\].at.parameter: u = 1.5 lies outside rod \"beam\"'s centerline domain \[0, 1\]" \
+  "$tmp/badparameter.json"
 edit "$tmp/badnu.json" 'd["mechanics"]["poisson_ratio"] = 0.7'
 expect_error "Poisson ratio" "badnu.json: mechanics.poisson_ratio: expected a Poisson ratio in" "$tmp/badnu.json"
 edit "$tmp/pinned.json" 'd["mechanics"]["supports"][0]["type"] = "pinned"'
@@ -186,4 +189,17 @@ done
 "$rodfab" simulate "$tmp/roll.json" 2> /dev/null
 [ $? -eq 2 ] || fail "no --output: expected exit 2"
 "$rodfab" simulate --help | grep -q "usage: rodfab simulate" || fail "--help"
+
+# The bundled unfolding box's training case, as examples/README.md runs it: its hinges end on the
+# squares' edges (T-joints); folded, the loads given by point are named by rod and parameter.
+"$rodfab" simulate "$src/examples/unfolding-box.json" -o "$tmp/box.json" > "$tmp/out" 2>&1 || fail "unfolding box: $(cat "$tmp/out")"
+grep -q "^structure: 44 joints, 4 supports$" "$tmp/out" || fail "unfolding box joints: $(grep -v '^step' "$tmp/out")"
+grep -q "^converged: " "$tmp/out" || fail "unfolding box not converged: $(grep -v '^step' "$tmp/out")"
+grep -q "warning" "$tmp/out" && fail "unfolding box: unexpected warning: $(grep -v '^step' "$tmp/out")"
+python3 - "$tmp/box.json" <<'PY' || fail "folded box content"
+import json, sys
+d = json.load(open(sys.argv[1]))
+at = d["mechanics"]["loads"][0]["at"]
+assert at["rod"] == "square10-edge0" and abs(at["parameter"] - 0.5) < 1e-9, at
+PY
 echo "simulate: OK"

@@ -5,6 +5,7 @@ succeed with valid output where the input is odd but legal; never a signal, a ha
 
 from __future__ import annotations
 
+import copy
 import json
 import struct
 from pathlib import Path
@@ -92,6 +93,27 @@ def cases(ctx) -> list[Case]:
     cs.append(bad_file("mechanics-load-steps-huge", ["simulate", "d.json", "-o", "o.json"],
                        {"d.json": raw_number(mech, ["mechanics", "load_steps"], "4294967297")}, ["d.json"], ["load_steps"],
                        note="load_steps 2^32 + 1"))
+    # Places inside a rod ({"rod", "parameter"}, or a point found on a rod): out of range, far away,
+    # more than one rod holds.
+    inner = copy.deepcopy(mech)
+    inner["mechanics"]["loads"][0]["at"] = {"rod": "bar", "parameter": 0.0}
+    cs.append(bad_file("mechanics-parameter-inf", ["simulate", "d.json", "-o", "o.json"],
+                       {"d.json": raw_number(inner, ["mechanics", "loads", 0, "at", "parameter"], "1e309")}, ["d.json"],
+                       ["parameter"], note="a load at parameter 1e309"))
+    for tag, u in [("huge", 1e300), ("negative", -1e-300), ("past-end", 1.0000001)]:
+        far = copy.deepcopy(inner)
+        far["mechanics"]["loads"][0]["at"]["parameter"] = u
+        cs.append(bad_file(f"mechanics-parameter-{tag}", ["simulate", "d.json", "-o", "o.json"], {"d.json": json.dumps(far)},
+                           ["d.json", "mechanics.loads[0].at.parameter"], ["outside rod"], note=f"a load at parameter {u}"))
+    many = copy.deepcopy(inner)
+    many["mechanics"]["joint_tolerance"] = 1e-6  # 5000 places 0.8 um apart stay apart
+    many["mechanics"]["loads"] = [{"at": {"rod": "bar", "parameter": (i + 1) / 5001}, "force": [0, 0, -1e-6]} for i in range(5000)]
+    cs.append(bad_file("mechanics-parameter-5000-places", ["simulate", "d.json", "-o", "o.json"], {"d.json": json.dumps(many)},
+                       ["d.json", "rods[0]"], ["interior places"], note="5000 loads inside one rod"))
+    point = copy.deepcopy(mech)
+    point["mechanics"]["loads"][0]["at"] = {"point": [1e300, -1e300, 1e300]}
+    cs.append(bad_file("mechanics-point-1e300", ["simulate", "d.json", "-o", "o.json"], {"d.json": json.dumps(point)},
+                       ["d.json", "mechanics.loads[0].at.point"], ["no rod lies within"], note="a load at a point 1e300 away"))
 
     # JSON nested 60,000 levels deep, in every reader.
     deep_a, deep_o = deep_array(), deep_object()
