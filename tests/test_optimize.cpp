@@ -182,6 +182,8 @@ TEST_CASE("a manufactured problem: from a uniform modulus to g / g0 <= 1e-6 with
   int reports = 0;
   const optimize::Result result = optimize::optimize(problem, [&](const optimize::Iteration&) { ++reports; });
   const double relative = result.final.objective / result.initial.objective;
+  INFO(problem.rodCount() << " rods, " << problem.unknownCount() << " unknowns per case, " << problem.variableCount()
+                          << " design variables, " << result.seconds << " s");
   INFO("g0 " << result.initial.objective << ", g " << result.final.objective << " (g/g0 " << relative << ") after "
              << result.iterations << " iterations, " << result.evaluations << " evaluations: " << result.stopReason
              << "\nE " << result.modulus.transpose() << "\ntruth " << truth.transpose());
