@@ -715,6 +715,12 @@ public:
       fail(path, "expected a non-empty array of load cases {name, supports, loads, target, weight}, got " + describe(j));
       return;
     }
+    // Every case is a solve per optimizer iteration: more than this is no training, and would run for days.
+    constexpr std::size_t kMaxLoadCases = 256;
+    if (j.size() > kMaxLoadCases) {
+      fail(path, "expected at most " + std::to_string(kMaxLoadCases) + " load cases, got " + std::to_string(j.size()));
+      return;
+    }
     std::map<std::string, std::string> caseNames;
     for (std::size_t i = 0; i < j.size(); ++i) {
       const std::string cp = index(path, i);

@@ -64,6 +64,13 @@ private:
     ++result_.evaluations;
     newton_ += ev.newtonIterations;
     if (result_.evaluations == 1) {
+      if (!std::isfinite(ev.objective) || !ev.gradient.allFinite()) {
+        std::string cases;
+        for (const CaseObjective& c : ev.cases)
+          if (!std::isfinite(c.total())) cases += (cases.empty() ? "" : ", ") + ("\"" + c.name + "\"");
+        throw OptimizeError("the objective at the start is not finite (g = " + std::to_string(ev.objective) + ", load case" +
+                            " " + (cases.empty() ? "gradient" : cases) + "): a weight or a target far out of scale");
+      }
       g0_ = ev.objective > 0 ? ev.objective : 1.0;
       result_.initial = ev;
     }

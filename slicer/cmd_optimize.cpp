@@ -56,6 +56,7 @@ std::variant<OptimizeCommand, int> parseOptimize(const std::vector<std::string>&
   OptimizeCommand c;
   c.design = vm["design"].as<std::string>(), c.output = vm["output"].as<std::string>();
   c.calibration = vm.count("calibration") ? vm["calibration"].as<std::string>() : calibration::defaultCalibrationPath().string();
+  if (c.calibration.empty()) return usageError("optimize", "--calibration: expected a calibration file (rodfab calibrate)");
   c.modulusControls = vm["modulus-controls"].as<int>();
   c.maxIterations = vm["max-iterations"].as<int>();
   if (c.modulusControls != 0 && (c.modulusControls < 2 || c.modulusControls > 64))
@@ -156,7 +157,7 @@ int runOptimize(const std::vector<std::string>& args) {
   try {
     cal = calibration::readCalibration(c.calibration);
   } catch (const std::exception& e) {
-    std::cerr << "rodfab optimize: " << e.what() << "\nnothing was written\n";
+    std::cerr << "rodfab optimize: calibration " << c.calibration << ": " << e.what() << "\nnothing was written\n";
     return kFailed;
   }
   const optimize::Settings settings = settingsFor(c, design, *cal);
