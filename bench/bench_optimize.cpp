@@ -4,13 +4,18 @@
 // down by 5 %) with a random modulus field between 8 and 190 MPa, and the optimizer starts from a
 // uniform 60 MPa. Degree-4 rods of 6 spans (bench_mechanics' fixed discretization). One
 // optimization per benchmark run (Iterations(1)); items are optimizer iterations.
+//  - optimizeSpring*: rodfab's optimizer (L-BFGS-B, LBFGS++).
+//  - mma/ccsaqSpring32: NLopt's MMA and CCSAQ on the same problem, the same scaling (E in [0, 1],
+//    g / g0) and as many solves as L-BFGS-B used, for the comparison in optimize/README.md.
 #include "examples/example_designs.hpp"
 #include "optimize/optimize.hpp"
 
 #include <benchmark/benchmark.h>
+#include <nlopt.hpp>
 
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <random>
 #include <set>
 
@@ -107,10 +112,54 @@ void optimizeSpring(benchmark::State& state, int around, int levels) {
   state.counters["peak_rss_MiB"] = peakRssMb();
 }
 
+// NLopt's gradient-based bounded methods on the same scaled problem, for `evaluations` solves.
+void nloptSpring(benchmark::State& state, nlopt::algorithm algorithm, int around, int levels, int evaluations) {
+  const geometry::RodStructure design = manufactured(around, levels);
+  double g0 = 0, best = 0;
+  int count = 0;
+  for (auto _ : state) {
+    optimize::DesignProblem problem(design, settings());
+    const double lower = problem.settings().lowerMpa, span = problem.settings().upperMpa - lower;
+    const Eigen::VectorXd start = problem.startingModulus();
+    std::vector<double> t(start.size());
+    for (std::size_t i = 0; i < t.size(); ++i) t[i] = (start[static_cast<Eigen::Index>(i)] - lower) / span;
+    count = 0, g0 = 0, best = 0;
+    auto objective = [&](const std::vector<double>& x, std::vector<double>& grad) {
+      Eigen::VectorXd e(static_cast<Eigen::Index>(x.size()));
+      for (std::size_t i = 0; i < x.size(); ++i) e[static_cast<Eigen::Index>(i)] = lower + span * std::clamp(x[i], 0.0, 1.0);
+      const optimize::Evaluation ev = problem.evaluate(e, !grad.empty());
+      if (count++ == 0) g0 = ev.objective, best = ev.objective;
+      best = std::min(best, ev.objective);
+      for (std::size_t i = 0; i < grad.size(); ++i) grad[i] = ev.gradient[static_cast<Eigen::Index>(i)] * span / g0;
+      return ev.objective / g0;
+    };
+    nlopt::opt opt(algorithm, static_cast<unsigned>(t.size()));
+    opt.set_lower_bounds(0.0);
+    opt.set_upper_bounds(1.0);
+    opt.set_maxeval(evaluations);
+    using Objective = decltype(objective);
+    opt.set_min_objective(
+        [](const std::vector<double>& x, std::vector<double>& grad, void* data) { return (*static_cast<Objective*>(data))(x, grad); },
+        &objective);
+    double f = 0;
+    try {
+      opt.optimize(t, f);
+    } catch (const nlopt::roundoff_limited&) {  // stopped by rounding: the best point stands
+    }
+    benchmark::DoNotOptimize(t.data());
+  }
+  state.counters["evaluations"] = count;
+  state.counters["g_over_g0"] = best / g0;
+}
+
 void optimizeSpring32(benchmark::State& state) { optimizeSpring(state, 4, 3); }
 void optimizeSpring312(benchmark::State& state) { optimizeSpring(state, 12, 12); }
+void mmaSpring32(benchmark::State& state) { nloptSpring(state, nlopt::LD_MMA, 4, 3, 341); }
+void ccsaqSpring32(benchmark::State& state) { nloptSpring(state, nlopt::LD_CCSAQ, 4, 3, 341); }
 
 }  // namespace
 
 BENCHMARK(optimizeSpring32)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
 BENCHMARK(optimizeSpring312)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+BENCHMARK(mmaSpring32)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+BENCHMARK(ccsaqSpring32)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();

@@ -18,6 +18,7 @@
 
 #include <Eigen/Core>
 
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <stdexcept>
@@ -123,5 +124,13 @@ struct Result {
 // example common::Interrupted) passes through. Throws as DesignProblem::evaluate.
 Result optimize(DesignProblem& problem, const std::function<void(const Iteration&)>& onIteration = {},
                 Eigen::VectorXd start = {});
+
+// The convergence plot: g / g0 against iteration on a log axis (960 x 640 PNG, cairo), `title`
+// above it. Written under a temporary name and renamed (common::writeFileAtomically); throws
+// std::runtime_error naming the file, std::invalid_argument for an empty history. The PNG carries a
+// tEXt chunk "Software: rodfab optimize".
+void writeHistoryPlot(const std::vector<Iteration>& history, const std::filesystem::path& png, const std::string& title = {});
+// True when `png` is a regular file written by writeHistoryPlot (what `optimize --plot` may replace).
+bool isHistoryPlot(const std::filesystem::path& png);
 
 }  // namespace rodfab::optimize

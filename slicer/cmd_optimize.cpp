@@ -22,7 +22,7 @@ namespace rodfab::cli {
 namespace {
 
 struct OptimizeCommand {
-  std::string design, output, calibration;
+  std::string design, output, calibration, plot;
   int modulusControls = 0;  // 0: the design's optimize block, else 4
   int maxIterations = -1;   // -1: the design's optimize block, else 200
   int workers = 1;
@@ -41,6 +41,7 @@ void addOptimizeOptions(po::options_description& options) {
       ("max-iterations", po::value<int>()->default_value(-1),
        "L-BFGS-B iterations, 0..100000 (-1: the design's optimize.max_iterations, else 200)")
       ("threads", po::value<int>()->default_value(0), "worker threads for assembly (0 = all cores)")
+      ("plot", po::value<std::string>(), "also write the convergence plot (g/g0 against iteration, log scale) to this PNG")
       ("json", "print a summary as JSON on stdout instead of the progress lines");
 }
 
@@ -51,11 +52,13 @@ std::variant<OptimizeCommand, int> parseOptimize(const std::vector<std::string>&
   positional.add("design", 1);
   po::variables_map vm;
   const char* synopsis = "DESIGN.json --output OPTIMIZED.json [--calibration CAL.json] [--modulus-controls N] "
-                         "[--max-iterations N] [--threads N] [--json]";
+                         "[--max-iterations N] [--threads N] [--plot HISTORY.png] [--json]";
   if (auto code = parseOptions("optimize", synopsis, options, positional, args, vm)) return *code;
   OptimizeCommand c;
   c.design = vm["design"].as<std::string>(), c.output = vm["output"].as<std::string>();
   c.calibration = vm.count("calibration") ? vm["calibration"].as<std::string>() : calibration::defaultCalibrationPath().string();
+  c.plot = vm.count("plot") ? vm["plot"].as<std::string>() : "";
+  if (vm.count("plot") && c.plot.empty()) return usageError("optimize", "--plot: expected a PNG file name");
   if (c.calibration.empty()) return usageError("optimize", "--calibration: expected a calibration file (rodfab calibrate)");
   c.modulusControls = vm["modulus-controls"].as<int>();
   c.maxIterations = vm["max-iterations"].as<int>();
@@ -131,6 +134,7 @@ void printSummary(const OptimizeCommand& c, const optimize::Result& r) {
                 r.final.cases[i].weight, r.initial.cases[i].total(), r.final.cases[i].total());
   std::printf("modulus:   %.4g .. %.4g MPa\ntime:      %.2f s\nwrote:     %s\n", r.modulus.minCoeff(), r.modulus.maxCoeff(),
               r.seconds, c.output.c_str());
+  if (!c.plot.empty()) std::printf("plot:      %s\n", c.plot.c_str());
 }
 
 // The paths the output must not overwrite: the design and its target designs.
@@ -153,6 +157,9 @@ int runOptimize(const std::vector<std::string>& args) {
   if (!read) return kFailed;
   const geometry::RodStructure& design = *read;
   if (!outputAllowed(c.output, inputsOf(c, design), {"optimized design", true, "", geometry::isDesignFile})) return kFailed;
+  std::vector<std::filesystem::path> plotInputs = inputsOf(c, design);
+  plotInputs.push_back(c.output);
+  if (!c.plot.empty() && !outputAllowed(c.plot, plotInputs, {"convergence plot", true, "", optimize::isHistoryPlot})) return kFailed;
   std::optional<calibration::Calibration> cal;
   try {
     cal = calibration::readCalibration(c.calibration);
@@ -195,6 +202,13 @@ int runOptimize(const std::vector<std::string>& args) {
     geometry::writeDesign(optimizedDesign(c, design, *problem, result.modulus), c.output, "optimized by rodfab optimize from " + c.design);
   } catch (const std::exception& e) {
     std::cerr << c.output << ": cannot write: " << e.what() << '\n';
+    return kFailed;
+  }
+  try {
+    if (!c.plot.empty()) optimize::writeHistoryPlot(result.history, c.plot, std::filesystem::path(c.design).filename().string());
+  } catch (const std::exception& e) {
+    std::filesystem::remove(c.output);  // both or neither
+    std::cerr << c.plot << ": cannot write: " << e.what() << "\nnothing was written\n";
     return kFailed;
   }
   if (c.json) std::cout << summaryJson(c, *problem, result).dump(2) << '\n';

@@ -35,7 +35,26 @@ json.dump(start, open(tmp + "/start.json", "w"))
 PY
 "$rodfab" simulate "$tmp/graded.json" -o "$tmp/target.json" > "$tmp/out" 2>&1 || fail "simulate the target: $(cat "$tmp/out")"
 
-"$rodfab" optimize "$tmp/start.json" -o "$tmp/optimized.json" > "$tmp/out" 2>&1 || fail "optimize: $(cat "$tmp/out")"
+"$rodfab" optimize "$tmp/start.json" -o "$tmp/optimized.json" --plot "$tmp/history.png" > "$tmp/out" 2>&1 ||
+  fail "optimize: $(cat "$tmp/out")"
+# The plot: a 960 x 640 RGB PNG tagged as ours, its image data complete (decoded here with zlib).
+python3 - "$tmp/history.png" <<'PY' || fail "convergence plot"
+import struct, sys, zlib
+data = open(sys.argv[1], "rb").read()
+assert data[:8] == b"\x89PNG\r\n\x1a\n"
+chunks, at = {}, 8
+while at < len(data):
+    n, = struct.unpack(">I", data[at:at + 4])
+    kind = data[at + 4:at + 8]
+    chunks.setdefault(kind, b"")
+    chunks[kind] += data[at + 8:at + 8 + n]
+    at += 12 + n
+w, h, depth, color = struct.unpack(">IIBB", chunks[b"IHDR"][:10])
+assert (w, h, depth, color) == (960, 640, 8, 2), (w, h, depth, color)
+assert chunks[b"tEXt"] == b"Software\0rodfab optimize"
+raw = zlib.decompress(chunks[b"IDAT"])
+assert len(raw) == h * (1 + 3 * w)
+PY
 grep -q "^design:    .*: 2 rods, 1 load cases, .* unknowns per case, 8 design variables, E in \[8, 190\] MPa" "$tmp/out" ||
   fail "no header: $(cat "$tmp/out")"
 grep -q "^iter    0  g/g0 1.0000e+00  |Pg| " "$tmp/out" || fail "no progress lines: $(cat "$tmp/out")"
@@ -91,6 +110,8 @@ expect_failure 2 "--modulus-controls: expected 2..64" "$tmp/start.json" -o "$tmp
 expect_failure 2 "--max-iterations" "$tmp/start.json" -o "$tmp/optimized.json" --max-iterations -5
 expect_failure 1 "mechanics.load_cases: missing" "$tmp/graded.json" -o "$tmp/optimized.json"
 expect_failure 1 "is also an input of this command" "$tmp/start.json" -o "$tmp/target.json"
+expect_failure 1 "is also an input of this command" "$tmp/start.json" -o "$tmp/optimized.json" --plot "$tmp/optimized.json"
+expect_failure 1 "convergence plot" "$tmp/start.json" -o "$tmp/optimized.json" --plot "$tmp/graded.json"
 python3 - "$tmp" <<'PY'
 import json, sys
 tmp = sys.argv[1]
