@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -588,7 +589,7 @@ public:
       return spec;
     }
     onlyKeys(j, path, {"poisson_ratio", "shear_factor", "joint_tolerance", "joints", "supports", "loads",
-                       "distributed_loads", "rods", "load_steps"});
+                       "distributed_loads", "rods", "load_steps", "load_cases"});
     if (auto v = j.find("poisson_ratio"); v != j.end())
       if (auto x = ratio(*v, member(path, "poisson_ratio"), "a Poisson ratio", -1.0, 0.5)) spec.poissonRatio = *x;
     if (auto v = j.find("shear_factor"); v != j.end())
@@ -713,6 +714,162 @@ public:
         }
       }
     }
+    if (auto v = j.find("load_cases"); v != j.end()) loadCases(*v, member(path, "load_cases"), names, spec);
+    return spec;
+  }
+
+  // ---- design optimization: training cases, targets and the "optimize" block ----
+
+  // "load_cases": [{name, supports, loads, distributed_loads, load_steps, target, weight}]. The
+  // supports and loads read as those at the top of the mechanics block (the same code, on a copy
+  // holding only them); load_steps defaults to the block's.
+  void loadCases(const json& j, const std::string& path, const std::map<std::string, std::string>& names, MechanicsSpec& spec) {
+    if (!j.is_array() || j.empty()) {
+      fail(path, "expected a non-empty array of load cases {name, supports, loads, target, weight}, got " + describe(j));
+      return;
+    }
+    // Every case is a solve per optimizer iteration: more than this is no training, and would run for days.
+    constexpr std::size_t kMaxLoadCases = 256;
+    if (j.size() > kMaxLoadCases) {
+      fail(path, "expected at most " + std::to_string(kMaxLoadCases) + " load cases, got " + std::to_string(j.size()));
+      return;
+    }
+    std::map<std::string, std::string> caseNames;
+    for (std::size_t i = 0; i < j.size(); ++i) {
+      const std::string cp = index(path, i);
+      const json& c = j[i];
+      if (!c.is_object()) {
+        fail(cp, "expected a load case {name, supports, loads, distributed_loads, load_steps, target, weight}, got " + describe(c));
+        continue;
+      }
+      onlyKeys(c, cp, {"name", "supports", "loads", "distributed_loads", "load_steps", "target", "weight"});
+      LoadCase lc;
+      lc.path = cp;
+      if (auto n = require(c, cp, "name", "a case name (a non-empty string)"))
+        if (auto name = string(*n, member(cp, "name"), "a case name")) {
+          lc.name = *name;
+          if (name->empty()) fail(member(cp, "name"), "expected a non-empty case name");
+          else if (auto [it, fresh] = caseNames.emplace(*name, cp); !fresh)
+            fail(member(cp, "name"), "duplicate load case name \"" + *name + "\" (also " + it->second + ")");
+        }
+      json loads = json::object();
+      for (const char* key : {"supports", "loads", "distributed_loads", "load_steps"})
+        if (auto v = c.find(key); v != c.end()) loads[key] = *v;
+      MechanicsSpec caseSpec = mechanics(loads, cp, names);
+      lc.supports = std::move(caseSpec.supports);
+      lc.loads = std::move(caseSpec.loads);
+      lc.distributedLoads = std::move(caseSpec.distributedLoads);
+      lc.loadSteps = c.contains("load_steps") ? caseSpec.loadSteps : spec.loadSteps;
+      if (auto w = c.find("weight"); w != c.end())
+        if (auto x = number(*w, member(cp, "weight"), "a weight (a number >= 0)")) {
+          if (*x < 0) fail(member(cp, "weight"), "expected a weight >= 0, got " + describe(*w));
+          else lc.weight = *x;
+        }
+      if (auto t = c.find("target"); t != c.end()) target(*t, member(cp, "target"), names, lc);
+      spec.loadCases.push_back(std::move(lc));
+    }
+  }
+
+  // "target": {"design": PATH} (read by readDesign, relative to the design file) or
+  // {"rods": {NAME: {centerline, orientation | normal}}}.
+  void target(const json& j, const std::string& path, const std::map<std::string, std::string>& names, LoadCase& lc) {
+    if (!j.is_object() || j.size() != 1 || !(j.contains("design") || j.contains("rods"))) {
+      fail(path, "expected {\"design\": PATH} or {\"rods\": {ROD NAME: {centerline, orientation}}}, got " + describe(j));
+      return;
+    }
+    if (auto d = j.find("design"); d != j.end()) {
+      if (auto file = string(*d, member(path, "design"), "a design file's path, relative to this design")) {
+        if (file->empty()) fail(member(path, "design"), "expected a non-empty path");
+        else lc.targetDesign = *file;
+      }
+      return;
+    }
+    const json& rods = j["rods"];
+    const std::string rp = member(path, "rods");
+    if (!rods.is_object() || rods.empty()) {
+      fail(rp, "expected a non-empty object {ROD NAME: {centerline, orientation}}, got " + describe(rods));
+      return;
+    }
+    for (auto it = rods.begin(); it != rods.end(); ++it) {
+      const std::string ep = member(rp, it.key());
+      if (!names.count(it.key())) {
+        fail(ep, "no rod is named \"" + it.key() + "\"");
+        continue;
+      }
+      if (auto t = targetRod(*it, ep)) {
+        t->rod = it.key();
+        lc.target.push_back(std::move(*t));
+      }
+    }
+  }
+
+  // One target rod: a centerline and optionally its frames ("orientation" or "normal").
+  std::optional<TargetRod> targetRod(const json& j, const std::string& path) {
+    if (!j.is_object()) {
+      fail(path, "expected a target {centerline, orientation}, got " + describe(j));
+      return std::nullopt;
+    }
+    onlyKeys(j, path, {"centerline", "orientation", "normal"});
+    const std::size_t before = issues.size();
+    TargetRod t;
+    t.path = path;
+    std::optional<NurbsCurve> curve;
+    if (auto c = require(j, path, "centerline", "a NURBS curve {degree, knots, points, weights}")) curve = centerline(*c, member(path, "centerline"));
+    if (j.contains("orientation") && j.contains("normal")) fail(path, "give either \"normal\" or \"orientation\", not both");
+    if (auto o = j.find("orientation"); o != j.end()) t.orientation = orientation(*o, member(path, "orientation"), curve ? &*curve : nullptr);
+    if (auto n = j.find("normal"); n != j.end()) {
+      t.referenceNormal = vector3(*n, member(path, "normal"), "a reference normal");
+      if (t.referenceNormal && !(t.referenceNormal->cwiseAbs().maxCoeff() > 0.0)) fail(member(path, "normal"), "the reference normal must not be zero");
+    }
+    if (!curve || issues.size() != before) return std::nullopt;
+    t.centerline = std::move(*curve);
+    return t;
+  }
+
+  // The top-level "optimize" block.
+  OptimizeSpec optimize(const json& j, const std::string& path) {
+    OptimizeSpec spec;
+    spec.present = true;
+    if (!j.is_object()) {
+      fail(path, "expected an object {position_weight, curvature_weight, modulus_controls, ...}, got " + describe(j));
+      return spec;
+    }
+    onlyKeys(j, path, {"position_weight", "curvature_weight", "modulus_controls", "modulus_degree", "bounds_mpa",
+                       "max_iterations", "tolerance"});
+    const auto weight = [&](const char* key, double& out) {
+      if (auto v = j.find(key); v != j.end())
+        if (auto x = number(*v, member(path, key), "a weight (a number >= 0)")) {
+          if (*x < 0) fail(member(path, key), "expected a weight >= 0, got " + describe(*v));
+          else out = *x;
+        }
+    };
+    weight("position_weight", spec.positionWeight);
+    weight("curvature_weight", spec.curvatureWeight);
+    const auto integer = [&](const char* key, long long lo, long long hi, int& out) {
+      if (auto v = j.find(key); v != j.end()) {
+        if (!v->is_number_integer() || v->get<long long>() < lo || v->get<long long>() > hi)
+          fail(member(path, key), "expected an integer from " + std::to_string(lo) + " to " + std::to_string(hi) + ", got " + describe(*v));
+        else out = v->get<int>();
+      }
+    };
+    integer("modulus_controls", 2, 64, spec.modulusControls);
+    integer("modulus_degree", 1, kMaxDegree, spec.modulusDegree);
+    integer("max_iterations", 0, 100000, spec.maxIterations);
+    if (auto v = j.find("tolerance"); v != j.end())
+      if (auto x = number(*v, member(path, "tolerance"), "a tolerance (a number >= 0)")) {
+        if (*x < 0) fail(member(path, "tolerance"), "expected a tolerance >= 0, got " + describe(*v));
+        else spec.tolerance = *x;
+      }
+    if (auto v = j.find("bounds_mpa"); v != j.end()) {
+      const std::string bp = member(path, "bounds_mpa");
+      if (!v->is_array() || v->size() != 2) {
+        fail(bp, "expected [lowest, highest] Young's modulus in MPa, got " + describe(*v));
+      } else {
+        auto lo = youngsModulus((*v)[0], index(bp, 0)), hi = youngsModulus((*v)[1], index(bp, 1));
+        if (lo && hi && !(*lo < *hi)) fail(bp, "expected the lowest modulus below the highest, got " + describe(*v));
+        else if (lo && hi) spec.boundsMpa = std::make_pair(*lo, *hi);
+      }
+    }
     return spec;
   }
 };
@@ -727,6 +884,54 @@ ordered endRefJson(const RodEndRef& ref) {
   if (ref.point) return ordered{{"point", vec3Json(*ref.point)}};
   if (ref.parameter) return ordered{{"rod", ref.rod}, {"parameter", *ref.parameter}};
   return ordered{{"rod", ref.rod}, {"end", ref.end == RodEnd::Start ? "start" : "end"}};
+}
+
+ordered nurbsJson(const NurbsCurve& c) {
+  ordered centerline = curveJson(c.degree(), c.knots());
+  ordered points = ordered::array();
+  for (const Vec3& p : c.points()) points.push_back({p.x(), p.y(), p.z()});
+  centerline["points"] = points;
+  if (c.isRational()) centerline["weights"] = c.weights();
+  return centerline;
+}
+
+ordered quaternionSplineJson(const QuaternionSpline& q) {
+  ordered o = curveJson(q.degree(), q.knots());
+  ordered quats = ordered::array();
+  for (const auto& v : q.quaternions()) quats.push_back({v[0], v[1], v[2], v[3]});
+  o["quaternions"] = quats;
+  return o;
+}
+
+ordered mechanicsJson(const MechanicsSpec& spec);
+
+// The load cases as read: supports and loads written as at the top of the block, the target as
+// given (its design file's path, or the rods inline).
+ordered loadCasesJson(const MechanicsSpec& spec) {
+  ordered cases = ordered::array();
+  for (const LoadCase& lc : spec.loadCases) {
+    MechanicsSpec loads;
+    loads.supports = lc.supports, loads.loads = lc.loads, loads.distributedLoads = lc.distributedLoads;
+    const ordered m = mechanicsJson(loads);
+    ordered c{{"name", lc.name}, {"supports", m["supports"]}, {"loads", m["loads"]}};
+    if (m.contains("distributed_loads")) c["distributed_loads"] = m["distributed_loads"];
+    c["load_steps"] = lc.loadSteps;
+    if (!lc.targetDesign.empty()) {
+      c["target"] = {{"design", lc.targetDesign}};
+    } else if (!lc.target.empty()) {
+      ordered rods = ordered::object();
+      for (const TargetRod& t : lc.target) {
+        ordered r{{"centerline", nurbsJson(t.centerline)}};
+        if (t.orientation) r["orientation"] = quaternionSplineJson(*t.orientation);
+        if (t.referenceNormal) r["normal"] = vec3Json(*t.referenceNormal);
+        rods[t.rod] = r;
+      }
+      c["target"] = {{"rods", rods}};
+    }
+    c["weight"] = lc.weight;
+    cases.push_back(c);
+  }
+  return cases;
 }
 
 ordered mechanicsJson(const MechanicsSpec& spec) {
@@ -773,7 +978,17 @@ ordered mechanicsJson(const MechanicsSpec& spec) {
     m["rods"] = rods;
   }
   m["load_steps"] = spec.loadSteps;
+  if (!spec.loadCases.empty()) m["load_cases"] = loadCasesJson(spec);
   return m;
+}
+
+ordered optimizeJson(const OptimizeSpec& spec) {
+  ordered o{{"position_weight", spec.positionWeight}, {"curvature_weight", spec.curvatureWeight},
+            {"modulus_controls", spec.modulusControls}, {"modulus_degree", spec.modulusDegree}};
+  if (spec.boundsMpa) o["bounds_mpa"] = ordered::array({spec.boundsMpa->first, spec.boundsMpa->second});
+  o["max_iterations"] = spec.maxIterations;
+  o["tolerance"] = spec.tolerance;
+  return o;
 }
 
 }  // namespace
@@ -805,7 +1020,7 @@ RodStructure parseDesign(const std::string& text, const std::string& sourceName)
   RodStructure structure;
   structure.source = sourceName;
   if (!doc.is_object()) throw DesignError(sourceName, {{"", "expected a JSON object with \"format\" and \"rods\""}});
-  v.onlyKeys(doc, "", {"format", "units", "rods", "description", "metadata", "mechanics"});
+  v.onlyKeys(doc, "", {"format", "units", "rods", "description", "metadata", "mechanics", "optimize"});
   if (auto f = v.require(doc, "", "format", std::string("\"") + kDesignFormat + "\"")) {
     if (!f->is_string() || *f != kDesignFormat)
       v.fail("format", "unsupported format " + describe(*f) + " (this rodfab reads \"" + kDesignFormat + "\")");
@@ -824,9 +1039,48 @@ RodStructure parseDesign(const std::string& text, const std::string& sourceName)
       if (auto m = doc.find("mechanics"); m != doc.end()) structure.mechanics = v.mechanics(*m, "mechanics", names);
     }
   }
+  if (auto o = doc.find("optimize"); o != doc.end()) structure.optimize = v.optimize(*o, "optimize");
   if (!v.issues.empty()) throw DesignError(sourceName, std::move(v.issues));
   return structure;
 }
+
+namespace {
+
+// The rods of a load case's {"design": PATH} target: the rods of that design (its own targets are
+// not followed) that carry names of this one.
+void resolveTargetDesigns(RodStructure& structure, const std::filesystem::path& file) {
+  std::vector<DesignIssue> issues;
+  for (LoadCase& lc : structure.mechanics.loadCases) {
+    if (lc.targetDesign.empty()) continue;
+    const std::string where = lc.path + ".target.design";
+    const std::filesystem::path targetFile = file.parent_path() / lc.targetDesign;
+    RodStructure target;
+    try {
+      target = parseDesign(common::readBoundedFile(targetFile.string()), targetFile.string());
+    } catch (const common::JsonInputError& e) {
+      issues.push_back({where, "cannot read the target design " + targetFile.string() + ": " + e.message});
+      continue;
+    } catch (const DesignError& e) {
+      issues.push_back({where, "the target design is not valid: " + std::string(e.what())});
+      continue;
+    }
+    lc.target.clear();
+    for (std::size_t i = 0; i < target.rods.size(); ++i) {
+      const Rod& r = target.rods[i];
+      const bool known = std::any_of(structure.rods.begin(), structure.rods.end(), [&](const Rod& d) { return d.name() == r.name(); });
+      if (!known) {
+        issues.push_back({where, targetFile.string() + ": rods[" + std::to_string(i) + "]: the target's rod \"" + r.name() +
+                                     "\" is not in this design (targets match rods by name)"});
+        continue;
+      }
+      lc.target.push_back({r.name(), r.centerline(), r.orientation(), r.referenceNormal(),
+                           targetFile.string() + ": rods[" + std::to_string(i) + "]"});
+    }
+  }
+  if (!issues.empty()) throw DesignError(structure.source, std::move(issues));
+}
+
+}  // namespace
 
 RodStructure readDesign(const std::filesystem::path& file) {
   std::string text;
@@ -835,20 +1089,15 @@ RodStructure readDesign(const std::filesystem::path& file) {
   } catch (const common::JsonInputError& e) {
     throw DesignError(file.string(), {{"", e.message}});
   }
-  return parseDesign(text, file.string());
+  RodStructure structure = parseDesign(text, file.string());
+  resolveTargetDesigns(structure, file);
+  return structure;
 }
 
 nlohmann::ordered_json designToJson(const RodStructure& structure, const std::string& description) {
   ordered rods = ordered::array();
   for (const Rod& rod : structure.rods) {
-    const NurbsCurve& c = rod.centerline();
-    ordered centerline = curveJson(c.degree(), c.knots());
-    ordered points = ordered::array();
-    for (const Vec3& p : c.points()) points.push_back({p.x(), p.y(), p.z()});
-    centerline["points"] = points;
-    if (c.isRational()) centerline["weights"] = c.weights();
-
-    ordered r{{"name", rod.name()}, {"centerline", centerline}};
+    ordered r{{"name", rod.name()}, {"centerline", nurbsJson(rod.centerline())}};
     const Section& s = rod.section();
     if (s.shape == SectionShape::Circle) r["section"] = {{"shape", "circle"}, {"diameter", s.width}};
     else r["section"] = {{"shape", std::string(toString(s.shape))}, {"width", s.width}, {"height", s.height}};
@@ -856,14 +1105,7 @@ nlohmann::ordered_json designToJson(const RodStructure& structure, const std::st
       const Vec3& n = *rod.referenceNormal();
       r["normal"] = {n.x(), n.y(), n.z()};
     }
-    if (rod.orientation()) {
-      const QuaternionSpline& q = *rod.orientation();
-      ordered o = curveJson(q.degree(), q.knots());
-      ordered quats = ordered::array();
-      for (const auto& v : q.quaternions()) quats.push_back({v[0], v[1], v[2], v[3]});
-      o["quaternions"] = quats;
-      r["orientation"] = o;
-    }
+    if (rod.orientation()) r["orientation"] = quaternionSplineJson(*rod.orientation());
     if (rod.caps() == CapStyle::Flat) r["caps"] = "flat";
     const BSplineField& e = rod.modulus();
     if (e.isConstant()) {
@@ -879,6 +1121,7 @@ nlohmann::ordered_json designToJson(const RodStructure& structure, const std::st
   if (!description.empty()) doc["description"] = description;
   doc["rods"] = std::move(rods);
   if (structure.mechanics.present) doc["mechanics"] = mechanicsJson(structure.mechanics);
+  if (structure.optimize.present) doc["optimize"] = optimizeJson(structure.optimize);
   return doc;
 }
 

@@ -3,6 +3,8 @@
 // plain data here, interpreted by the solver.
 #pragma once
 
+#include "geometry/frame.hpp"
+
 #include <Eigen/Core>
 
 #include <optional>
@@ -59,6 +61,8 @@ struct RodMechanics {
   std::optional<double> poissonRatio;
 };
 
+struct LoadCase;
+
 struct MechanicsSpec {
   bool present = false;  // the design has a "mechanics" block
   double poissonRatio = 0.45;               // PolyJet photopolymers are nearly incompressible
@@ -73,6 +77,49 @@ struct MechanicsSpec {
   std::vector<DistributedLoad> distributedLoads;
   std::vector<RodMechanics> rods;
   int loadSteps = 10;
+  // "load_cases": training cases for design optimization; empty when the design gives its supports
+  // and loads at the top of the block (then they are the one case).
+  std::vector<LoadCase> loadCases;
+};
+
+// ---- Design optimization (`rodfab optimize`) -------------------------------------------------
+
+// The shape one rod should take in a load case: its centerline, and the frames that give the
+// target curvature (the orientation spline, else the rotation-minimizing frame seeded with the
+// reference normal, else with the design rod's own frame at its start). The target's parameter
+// is mapped linearly onto the design rod's.
+struct TargetRod {
+  std::string rod;  // the design rod's name
+  NurbsCurve centerline;
+  std::optional<QuaternionSpline> orientation;
+  std::optional<Vec3> referenceNormal;
+  std::string path;  // JSON path (or file and path) for messages
+};
+
+// One training case: the supports and loads (as at the top of the mechanics block) and the shape
+// they should produce. A rod without a target does not count in the objective.
+struct LoadCase {
+  std::string name;
+  std::vector<Support> supports;
+  std::vector<PointLoad> loads;
+  std::vector<DistributedLoad> distributedLoads;
+  int loadSteps = 10;
+  std::vector<TargetRod> target;
+  std::string targetDesign;  // "target": {"design": PATH} as written, empty for inline rods
+  double weight = 1.0;
+  std::string path;  // "mechanics.load_cases[i]"
+};
+
+// The optional top-level "optimize" block: settings of `rodfab optimize`.
+struct OptimizeSpec {
+  bool present = false;
+  double positionWeight = 1.0;   // C_r
+  double curvatureWeight = 1.0;  // C_k
+  int modulusControls = 4;       // control values of E(u) per rod
+  int modulusDegree = 3;         // (clamped to modulusControls - 1)
+  std::optional<std::pair<double, double>> boundsMpa;  // default: the calibration's range
+  int maxIterations = 200;
+  double tolerance = 1e-7;       // on the projected gradient of g / g0
 };
 
 }  // namespace rodfab::geometry

@@ -14,6 +14,7 @@
 #include <cstddef>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -126,8 +127,43 @@ public:
   // size; std::invalid_argument from geometry::Rod if a state degenerates a rod (no frame).
   geometry::RodStructure deformedStructure(const Eigen::VectorXd& x) const;
 
+  // ---- Design sensitivities (mechanics/modulus_sensitivity.cpp) -----------------------------
+  // The design variables are the control values of every rod's modulus field E(u) (the design's
+  // geometry::BSplineField), rod after rod in design order: modulusVariableCount() of them, rod
+  // r's first at modulusVariableOffset(r).
+  std::size_t modulusVariableCount() const;
+  std::size_t modulusVariableOffset(std::size_t rod) const;
+  // Replaces rod `rod`'s modulus field (MPa) by one with the same degree and knots (so the
+  // discretization, chosen for the old field, stays the same) and new control values; the
+  // residual scales follow its largest value. Not thread-safe (the only non-const member).
+  // std::out_of_range for a bad rod index, std::invalid_argument for another degree or knot
+  // vector or a value that is not finite and positive at a collocation point.
+  void setModulus(std::size_t rod, const geometry::BSplineField& modulus);
+  // dF/dE: the derivative of the scaled residual at (x, load) with respect to the modulus
+  // control values (unknownCount() rows, modulusVariableCount() columns), the residual scales held
+  // fixed. The residual is linear in E at every point, so this is exact; at a solution (F = 0) it
+  // is also the derivative with the scales following E. std::invalid_argument for x of the wrong size.
+  Eigen::SparseMatrix<double> modulusJacobian(const Eigen::VectorXd& x, double load) const;
+  // The collocation parameters of rod `rod` (the design's parameter), ends included.
+  const std::vector<double>& collocationPoints(std::size_t rod) const;
+  // The state at one parameter as a linear function of x, for shape objectives: r(u), r'(u),
+  // q(u), q'(u) (u-derivatives, q not normalized) and, per control point k of the basis there,
+  // the index of its first unknown (position at +0..2, quaternion at +3..6) and its basis
+  // function's value and u-derivative: r(u) = sum value[k] x[first[k] + 0..2], and so on.
+  struct StateJet {
+    Eigen::Vector3d r, dr;
+    Eigen::Vector4d q, dq;
+    std::vector<std::size_t> first;
+    std::vector<double> value, d1;
+  };
+  // std::out_of_range for a bad rod index, std::invalid_argument for x of the wrong size.
+  StateJet stateJet(const Eigen::VectorXd& x, std::size_t rod, double u) const;
+
 private:
+  const geometry::BSplineField& modulus(std::size_t rod) const;
   std::unique_ptr<detail::DiscreteStructure> structure_;
+  // Per rod the field setModulus gave (empty: none yet, the design's); modulus_sensitivity.cpp.
+  std::vector<std::optional<geometry::BSplineField>> moduli_;
 };
 
 // LU factorization of a Jacobian, on SuiteSparse's KLU. The first factorize() of a sparsity pattern

@@ -18,6 +18,8 @@ packages=(
   libcairo2-dev                                              # calibration plots, previews
   libssl-dev                                                 # SHA-256 checksums (libcrypto)
   libsuitesparse-dev                                         # KLU: the mechanics solver's sparse LU
+  liblbfgspp-dev                                             # L-BFGS-B for rodfab optimize (header-only)
+  libnlopt-cxx-dev                                           # MMA / CCSAQ, compared in bench_optimize
 )
 
 missing=()

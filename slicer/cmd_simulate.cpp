@@ -255,7 +255,9 @@ int runSimulate(const std::vector<std::string>& args) {
   }
   const auto largest = largestDisplacement(design, *sim.problem, sim.solution.state);
   try {
-    geometry::writeDesign(sim.problem->deformedStructure(sim.solution.state), s.output, "deformed by rodfab simulate from " + s.design);
+    geometry::RodStructure deformed = sim.problem->deformedStructure(sim.solution.state);
+    deformed.optimize = design.optimize;  // the design's "optimize" block too, so it can be optimized again
+    geometry::writeDesign(deformed, s.output, "deformed by rodfab simulate from " + s.design);
   } catch (const std::exception& e) {
     std::cerr << s.output << ": cannot write: " << e.what() << '\n';
     return kFailed;

@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
+#include <functional>
 #include <fstream>
 
 using namespace rodfab::geometry;
@@ -316,4 +317,120 @@ TEST_CASE("Bad mechanics blocks are reported with their paths", "[design][mechan
                 "a torsion constant in mm^4 > 0");
   REQUIRE_ISSUE(with(R"({"distributed_loads": [{"rod": "edge-0", "force": [0, "down", 0]}]})"),
                 "mechanics.distributed_loads[0].force[1]", "a number");
+}
+
+namespace {
+
+json withLoadCases() {
+  json d = validDesign();
+  d["mechanics"] = json::parse(R"({ "load_steps": 7,
+    "supports": [ { "at": { "rod": "edge-0", "end": "start" }, "type": "clamped" } ],
+    "load_cases": [
+      { "name": "lift", "supports": [ { "at": { "rod": "edge-0", "end": "start" }, "type": "clamped" } ],
+        "loads": [ { "at": { "rod": "edge-0", "end": "end" }, "force": [0, 0, 0.5] } ],
+        "target": { "rods": { "edge-0": { "centerline": { "degree": 1, "knots": [0,0,1,1], "points": [[0,0,0],[3,0,1]] },
+                                          "normal": [0, 1, 0] } } },
+        "weight": 2 },
+      { "name": "press", "supports": [ { "at": { "point": [0, 0, 0] }, "type": "pinned" } ],
+        "distributed_loads": [ { "rod": "edge-0", "force": [0, 0, -0.01] } ], "load_steps": 3,
+        "target": { "design": "target.json" } } ] })");
+  d["optimize"] = json::parse(R"({ "position_weight": 2, "curvature_weight": 0.5, "modulus_controls": 6,
+    "modulus_degree": 2, "bounds_mpa": [10, 150], "max_iterations": 50, "tolerance": 1e-6 })");
+  return d;
+}
+
+}  // namespace
+
+TEST_CASE("Load cases, targets and the optimize block read and round-trip", "[design][optimize]") {
+  const RodStructure s = parseDesign(withLoadCases().dump(), "ok.json");
+  const auto& cases = s.mechanics.loadCases;
+  REQUIRE(cases.size() == 2);
+  CHECK(cases[0].name == "lift");
+  CHECK(cases[0].weight == 2.0);
+  CHECK(cases[0].loadSteps == 7);  // the block's
+  CHECK(cases[0].loads.size() == 1);
+  REQUIRE(cases[0].target.size() == 1);
+  CHECK(cases[0].target[0].rod == "edge-0");
+  CHECK(cases[0].target[0].centerline.point(1.0).isApprox(Vec3(3, 0, 1)));
+  CHECK(cases[0].target[0].referenceNormal.has_value());
+  CHECK(cases[1].loadSteps == 3);
+  CHECK(cases[1].weight == 1.0);
+  CHECK(cases[1].supports[0].kind == SupportKind::Pinned);
+  CHECK(cases[1].distributedLoads.size() == 1);
+  CHECK(cases[1].targetDesign == "target.json");
+  CHECK(cases[1].target.empty());  // parseDesign does not read files; readDesign does
+  REQUIRE(s.optimize.present);
+  CHECK(s.optimize.modulusControls == 6);
+  CHECK(s.optimize.boundsMpa->second == 150.0);
+  CHECK(s.optimize.tolerance == 1e-6);
+
+  // Round trip through the writer: the same blocks again.
+  const auto dir = std::filesystem::temp_directory_path() / "rodfab_test_load_cases";
+  std::filesystem::create_directories(dir);
+  writeDesign(s, dir / "target.json");  // this design serves as its own "press" target
+  writeDesign(s, dir / "design.json");
+  const RodStructure back = readDesign(dir / "design.json");
+  REQUIRE(back.mechanics.loadCases.size() == 2);
+  CHECK(back.mechanics.loadCases[0].target[0].centerline.points() == cases[0].target[0].centerline.points());
+  CHECK(back.mechanics.loadCases[1].targetDesign == "target.json");
+  REQUIRE(back.mechanics.loadCases[1].target.size() == 1);  // resolved, relative to the design file
+  CHECK(back.mechanics.loadCases[1].target[0].centerline.points() == s.rods[0].centerline().points());
+  CHECK(back.optimize.positionWeight == 2.0);
+  CHECK(back.optimize.modulusDegree == 2);
+  CHECK(designToJson(back) == designToJson(s));
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("Bad load cases, targets and optimize blocks are reported with their paths", "[design][optimize][errors]") {
+  const auto edit = [](const std::function<void(json&)>& change) {
+    json d = withLoadCases();
+    change(d);
+    return d;
+  };
+  REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][1]["name"] = "lift"; }), "mechanics.load_cases[1].name",
+                "duplicate load case name");
+  REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][0]["gravity"] = 1; }), "mechanics.load_cases[0].gravity",
+                "unknown key");
+  REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][0].erase("name"); }), "mechanics.load_cases[0].name", "missing");
+  REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][0]["supports"][0]["at"]["rod"] = "nope"; }),
+                "mechanics.load_cases[0].supports[0].at.rod", "no rod is named");
+  REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][1]["load_steps"] = 0; }), "mechanics.load_cases[1].load_steps",
+                "expected an integer from 1");
+  REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][0]["weight"] = -1; }), "mechanics.load_cases[0].weight",
+                "expected a weight >= 0");
+  REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"] = json::array(); }), "mechanics.load_cases", "non-empty array");
+  REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][0]["target"] = {{"shape", 1}}; }),
+                "mechanics.load_cases[0].target", "expected {\"design\": PATH}");
+  REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][0]["target"]["rods"]["edge-9"] = json::object(); }),
+                "mechanics.load_cases[0].target.rods.edge-9", "no rod is named");
+  REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][0]["target"]["rods"]["edge-0"]["centerline"]["degree"] = 9; }),
+                "mechanics.load_cases[0].target.rods.edge-0.centerline.degree", "expected an integer degree");
+  REQUIRE_ISSUE(edit([](json& d) { d["optimize"]["bounds_mpa"] = {190, 8}; }), "optimize.bounds_mpa", "lowest modulus below");
+  REQUIRE_ISSUE(edit([](json& d) { d["optimize"]["modulus_controls"] = 1; }), "optimize.modulus_controls", "from 2 to 64");
+  REQUIRE_ISSUE(edit([](json& d) { d["optimize"]["speed"] = 1; }), "optimize.speed", "unknown key");
+  REQUIRE_ISSUE(edit([](json& d) { d["optimize"]["curvature_weight"] = "high"; }), "optimize.curvature_weight", "a weight");
+
+  // A {"design": PATH} target that is missing or names rods this design does not have.
+  const auto dir = std::filesystem::temp_directory_path() / "rodfab_test_bad_targets";
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "design.json") << withLoadCases().dump();
+  try {
+    readDesign(dir / "design.json");
+    FAIL("expected a DesignError");
+  } catch (const DesignError& e) {
+    REQUIRE(e.issues().size() == 1);
+    CHECK(e.issues()[0].path == "mechanics.load_cases[1].target.design");
+    CHECK(e.issues()[0].message.find("target.json") != std::string::npos);
+  }
+  json other = validDesign();
+  other["rods"][0]["name"] = "stranger";
+  std::ofstream(dir / "target.json") << other.dump();
+  try {
+    readDesign(dir / "design.json");
+    FAIL("expected a DesignError");
+  } catch (const DesignError& e) {
+    REQUIRE(e.issues().size() == 1);
+    CHECK(e.issues()[0].message.find("\"stranger\" is not in this design") != std::string::npos);
+  }
+  std::filesystem::remove_all(dir);
 }

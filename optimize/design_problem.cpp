@@ -1,0 +1,204 @@
+// DesignProblem: the training cases on a fixed discretization, their solves by continuation in E,
+// and the objective's adjoint gradient.
+#include "optimize/objective.hpp"
+#include "optimize/optimize.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace rodfab::optimize {
+
+using detail::RodTarget;
+
+namespace {
+
+// Clamped uniform knots of `count` values of degree p on [begin, end].
+std::vector<double> uniformKnots(int p, int count, double begin, double end) {
+  std::vector<double> k(p + 1, begin);
+  const int spans = count - p;
+  for (int i = 1; i < spans; ++i) k.push_back(begin + (end - begin) * i / spans);
+  k.insert(k.end(), p + 1, end);
+  return k;
+}
+
+void checkSettings(const Settings& s) {
+  if (s.modulusControls < 2 || s.modulusControls > 64) throw std::invalid_argument("modulus controls: 2..64 expected");
+  if (s.modulusDegree < 1 || s.modulusDegree > geometry::kMaxDegree)
+    throw std::invalid_argument("modulus degree: 1.." + std::to_string(geometry::kMaxDegree) + " expected");
+  if (!(s.lowerMpa > 0) || !(s.upperMpa > s.lowerMpa) || !std::isfinite(s.upperMpa))
+    throw std::invalid_argument("modulus bounds: 0 < lower < upper (finite) expected");
+  if (!(s.positionWeight >= 0) || !(s.curvatureWeight >= 0) || !std::isfinite(s.positionWeight + s.curvatureWeight) ||
+      s.positionWeight + s.curvatureWeight == 0)
+    throw std::invalid_argument("objective weights: finite, non-negative, not both zero expected");
+  if (s.maxIterations < 0 || !(s.tolerance >= 0) || !(s.objectiveTolerance >= 0))
+    throw std::invalid_argument("iterations and tolerances: non-negative expected");
+}
+
+}  // namespace
+
+void applySpec(const geometry::OptimizeSpec& spec, Settings& settings) {
+  if (!spec.present) return;
+  settings.positionWeight = spec.positionWeight;
+  settings.curvatureWeight = spec.curvatureWeight;
+  settings.modulusControls = spec.modulusControls;
+  settings.modulusDegree = spec.modulusDegree;
+  if (spec.boundsMpa) settings.lowerMpa = spec.boundsMpa->first, settings.upperMpa = spec.boundsMpa->second;
+  settings.maxIterations = spec.maxIterations;
+  settings.tolerance = spec.tolerance;
+}
+
+struct DesignProblem::Impl {
+  struct Case {
+    std::string name, path;
+    double weight = 1.0;
+    int loadSteps = 10;
+    std::unique_ptr<geometry::RodStructure> structure;  // the rods the problem points to
+    std::unique_ptr<mechanics::StaticProblem> problem;
+    std::vector<RodTarget> targets;
+    Eigen::VectorXd state;
+    bool solved = false;
+  };
+  Settings settings;
+  geometry::RodStructure design;
+  int degree = 3;
+  std::vector<std::vector<double>> knots;  // per rod, of the optimizer's E(u)
+  std::vector<Case> cases;
+
+  geometry::BSplineField field(std::size_t rod, const Eigen::VectorXd& modulus) const {
+    const auto n = static_cast<Eigen::Index>(settings.modulusControls);
+    const Eigen::VectorXd v = modulus.segment(static_cast<Eigen::Index>(rod) * n, n);
+    return geometry::BSplineField(degree, knots[rod], std::vector<double>(v.data(), v.data() + n));
+  }
+  std::vector<geometry::Rod> rodsWith(const Eigen::VectorXd& modulus) const {
+    std::vector<geometry::Rod> rods;
+    for (std::size_t r = 0; r < design.rods.size(); ++r) {
+      const geometry::Rod& src = design.rods[r];
+      rods.emplace_back(src.name(), src.centerline(), src.section(), src.referenceNormal(), src.orientation(), src.caps(),
+                        field(r, modulus));
+    }
+    return rods;
+  }
+  void addCase(const geometry::LoadCase& lc, const std::vector<geometry::Rod>& rods);
+  mechanics::Solution solve(Case& c) const;
+};
+
+void DesignProblem::Impl::addCase(const geometry::LoadCase& lc, const std::vector<geometry::Rod>& rods) {
+  Case c;
+  c.name = lc.name, c.path = lc.path, c.weight = lc.weight, c.loadSteps = lc.loadSteps;
+  c.structure = std::make_unique<geometry::RodStructure>();
+  c.structure->source = design.source;
+  c.structure->rods = rods;
+  c.structure->mechanics = design.mechanics;
+  c.structure->mechanics.supports = lc.supports;
+  c.structure->mechanics.loads = lc.loads;
+  c.structure->mechanics.distributedLoads = lc.distributedLoads;
+  c.structure->mechanics.loadSteps = lc.loadSteps;
+  c.structure->mechanics.loadCases.clear();
+  const mechanics::Discretization d = cases.empty() ? settings.discretization : cases.front().problem->discretization();
+  try {
+    c.problem = std::make_unique<mechanics::StaticProblem>(*c.structure, d);
+  } catch (const mechanics::MechanicsError& e) {
+    throw OptimizeError("load case \"" + c.name + "\" (" + c.path + "): " + e.what());
+  }
+  c.targets = detail::sampleTargets(design, lc.target, *c.problem, c.path);
+  cases.push_back(std::move(c));
+}
+
+// Continuation in E: Newton from the case's previous solution, the load path when that fails.
+mechanics::Solution DesignProblem::Impl::solve(Case& c) const {
+  try {
+    mechanics::Solution s = c.solved ? mechanics::solveFrom(*c.problem, c.state, settings.solver, c.loadSteps)
+                                     : mechanics::solve(*c.problem, settings.solver, c.loadSteps);
+    c.state = s.state;
+    c.solved = true;
+    return s;
+  } catch (const mechanics::ConvergenceError& e) {
+    throw OptimizeError("load case \"" + c.name + "\" (" + c.path + ") does not converge: " + e.what());
+  } catch (const mechanics::MechanicsError& e) {
+    throw OptimizeError("load case \"" + c.name + "\" (" + c.path + "): " + e.what());
+  }
+}
+
+DesignProblem::DesignProblem(const geometry::RodStructure& design, const Settings& settings)
+    : impl_(std::make_unique<Impl>()) {
+  checkSettings(settings);
+  Impl& m = *impl_;
+  m.settings = settings;
+  m.design = design;
+  m.degree = std::min(settings.modulusDegree, settings.modulusControls - 1);
+  if (design.rods.empty()) throw OptimizeError(design.source + ": rods: the design has no rods to optimize");
+  std::size_t withTarget = 0;
+  for (const geometry::LoadCase& lc : design.mechanics.loadCases) withTarget += lc.target.empty() ? 0 : 1;
+  if (withTarget == 0)
+    throw OptimizeError(design.source + ": mechanics.load_cases: no load case with a \"target\" shape to optimize for");
+  for (const geometry::Rod& rod : design.rods)
+    m.knots.push_back(uniformKnots(m.degree, settings.modulusControls, rod.centerline().domainBegin(), rod.centerline().domainEnd()));
+  const std::vector<geometry::Rod> rods = m.rodsWith(startingModulus());
+  for (const geometry::LoadCase& lc : design.mechanics.loadCases) m.addCase(lc, rods);
+}
+
+DesignProblem::~DesignProblem() = default;
+DesignProblem::DesignProblem(DesignProblem&&) noexcept = default;
+DesignProblem& DesignProblem::operator=(DesignProblem&&) noexcept = default;
+
+const Settings& DesignProblem::settings() const { return impl_->settings; }
+std::size_t DesignProblem::variableCount() const { return impl_->design.rods.size() * impl_->settings.modulusControls; }
+std::size_t DesignProblem::caseCount() const { return impl_->cases.size(); }
+std::size_t DesignProblem::rodCount() const { return impl_->design.rods.size(); }
+std::size_t DesignProblem::unknownCount() const { return impl_->cases.front().problem->unknownCount(); }
+const mechanics::StaticProblem& DesignProblem::caseProblem(std::size_t c) const { return *impl_->cases.at(c).problem; }
+const Eigen::VectorXd& DesignProblem::state(std::size_t c) const { return impl_->cases.at(c).state; }
+
+Eigen::VectorXd DesignProblem::startingModulus() const {
+  const Impl& m = *impl_;
+  const int n = m.settings.modulusControls, p = m.degree;
+  Eigen::VectorXd e(static_cast<Eigen::Index>(variableCount()));
+  for (std::size_t r = 0; r < m.design.rods.size(); ++r)
+    for (int k = 0; k < n; ++k) {
+      double greville = 0;
+      for (int i = 1; i <= p; ++i) greville += m.knots[r][k + i];
+      const double value = m.design.rods[r].modulus().value(greville / p);
+      e[static_cast<Eigen::Index>(r * n + k)] = std::clamp(value, m.settings.lowerMpa, m.settings.upperMpa);
+    }
+  return e;
+}
+
+Evaluation DesignProblem::evaluate(const Eigen::VectorXd& modulus, bool gradient) {
+  Impl& m = *impl_;
+  if (static_cast<std::size_t>(modulus.size()) != variableCount() || !modulus.allFinite() || !(modulus.minCoeff() > 0))
+    throw std::invalid_argument("DesignProblem::evaluate: " + std::to_string(variableCount()) + " positive finite values expected");
+  Evaluation out;
+  if (gradient) out.gradient = Eigen::VectorXd::Zero(modulus.size());
+  std::vector<geometry::BSplineField> fields;
+  for (std::size_t r = 0; r < m.design.rods.size(); ++r) fields.push_back(m.field(r, modulus));
+  for (Impl::Case& c : m.cases) {
+    for (std::size_t r = 0; r < fields.size(); ++r) c.problem->setModulus(r, fields[r]);
+    const mechanics::Solution s = m.solve(c);
+    out.newtonIterations += s.newtonIterations + s.chordIterations;
+    CaseObjective co{c.name, c.weight, 0.0, 0.0};
+    if (c.targets.empty()) {
+      out.cases.push_back(co);
+      continue;
+    }
+    const detail::ShapeTerms t =
+        detail::shapeObjective(*c.problem, c.targets, c.state, m.settings.positionWeight, m.settings.curvatureWeight, gradient);
+    co.position = c.weight * t.position, co.curvature = c.weight * t.curvature;
+    out.objective += co.total();
+    out.cases.push_back(co);
+    if (!gradient || c.weight == 0) continue;
+    // Adjoint: J^T lambda = dg/dx at the solution, then dg/dE = -lambda^T dF/dE.
+    const Eigen::VectorXd lambda = s.tangent->solveTransposed(t.gradient);
+    out.gradient -= c.weight * (c.problem->modulusJacobian(c.state, 1.0).transpose() * lambda);
+  }
+  return out;
+}
+
+geometry::RodStructure DesignProblem::designWith(const Eigen::VectorXd& modulus) const {
+  if (static_cast<std::size_t>(modulus.size()) != variableCount())
+    throw std::invalid_argument("DesignProblem::designWith: " + std::to_string(variableCount()) + " values expected");
+  geometry::RodStructure out = impl_->design;
+  out.rods = impl_->rodsWith(modulus);
+  return out;
+}
+
+}  // namespace rodfab::optimize

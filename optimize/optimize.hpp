@@ -1,0 +1,136 @@
+// Inverse design: the modulus field E(u) of every rod that makes a structure take target shapes
+// under its training loads (the published "4D printing design optimization problem"):
+//
+//   min over E0 <= E_k <= E1 of g(E) = sum over cases c of w_c sum over rods r with a target of
+//     C_r / (2 L_r^2) sum_i |r(tau_i) - r_t(tau_i)|^2 + C_k L_r^2 / 2 sum_i |kappa(tau_i) - kappa_t(tau_i)|^2
+//
+// subject to equilibrium F(x_c; E) = 0 in every case, tau_i the rod's collocation points, L_r its
+// length, kappa the material curvature per deformed arc length (axial(R^T dR/ds)). E(u) per rod is
+// a clamped uniform B-spline on the centerline's parameter domain; its control values are the
+// design variables. Sensitivities are adjoint: one transposed solve per case with the Newton
+// factorization at the solution. The optimizer is L-BFGS-B (LBFGS++) on E scaled to [0, 1].
+//
+// Units: mm, MPa, N. Not thread-safe: one DesignProblem per thread (each solve is parallel inside).
+#pragma once
+
+#include "geometry/rod.hpp"
+#include "mechanics/mechanics.hpp"
+
+#include <Eigen/Core>
+
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace rodfab::optimize {
+
+// A problem that cannot be set up (no load case with a target, a target rod that is not in the
+// design) or a load case whose equilibrium cannot be found; what() names the case or JSON path.
+class OptimizeError : public std::runtime_error {
+public:
+  using std::runtime_error::runtime_error;
+};
+
+struct Settings {
+  double positionWeight = 1.0;   // C_r (dimensionless: positions are divided by the rod length)
+  double curvatureWeight = 1.0;  // C_k (dimensionless: curvatures are multiplied by the rod length)
+  int modulusControls = 4;       // control values per rod, 1..64
+  int modulusDegree = 3;         // 1..7, lowered to modulusControls - 1 when above it (0 for one control)
+  double lowerMpa = 8.0, upperMpa = 190.0;  // bounds; the CLI takes them from the calibration
+  int maxIterations = 200;       // L-BFGS-B iterations
+  double tolerance = 1e-7;       // converged when the projected gradient of g / g0 (in E scaled to [0, 1]) is below
+  double objectiveTolerance = 0.0;  // also stop when g / g0 falls below this (0: never)
+  // The discretization is resolved once, for the starting design, and kept for every solve.
+  mechanics::Discretization discretization;
+  mechanics::SolverOptions solver;
+  // Called with every iteration's report (Iteration below); may throw to stop (the exception passes through).
+};
+
+// Applies a design's "optimize" block (positionWeight ... tolerance; bounds when given) to settings.
+void applySpec(const geometry::OptimizeSpec& spec, Settings& settings);
+
+struct CaseObjective {
+  std::string name;
+  double weight = 1.0;
+  double position = 0.0, curvature = 0.0;  // the two terms, weight applied
+  double total() const { return position + curvature; }
+};
+
+struct Evaluation {
+  double objective = 0.0;
+  std::vector<CaseObjective> cases;
+  Eigen::VectorXd gradient;  // dg/dE_k (1 / MPa); empty when not asked for
+  int newtonIterations = 0;  // over all cases, for this evaluation
+};
+
+// The training cases of a design, each a discretized structure with its targets.
+class DesignProblem {
+public:
+  // `design` must carry mechanics.loadCases with at least one target. Throws OptimizeError (named
+  // case or path), mechanics::MechanicsError, std::invalid_argument for settings out of range.
+  DesignProblem(const geometry::RodStructure& design, const Settings& settings);
+  ~DesignProblem();
+  DesignProblem(DesignProblem&&) noexcept;
+  DesignProblem& operator=(DesignProblem&&) noexcept;
+
+  const Settings& settings() const;
+  std::size_t variableCount() const;  // modulusControls x rods
+  std::size_t caseCount() const;
+  std::size_t rodCount() const;
+  std::size_t unknownCount() const;  // of one case's discretization
+  const mechanics::StaticProblem& caseProblem(std::size_t c) const;
+
+  // The design's own E(u) in the optimizer's basis: its values at the basis' Greville abscissae,
+  // clamped to the bounds (exact for a constant E).
+  Eigen::VectorXd startingModulus() const;
+  // g and (when `gradient`) dg/dE at the control values `modulus` (MPa, variableCount(), within
+  // (0, inf)). Each case's Newton solve starts from its previous solution (continuation in E),
+  // falling back to the load path; a case that still fails throws OptimizeError naming it.
+  Evaluation evaluate(const Eigen::VectorXd& modulus, bool gradient = true);
+  // The equilibrium states of the last evaluate(), per case.
+  const Eigen::VectorXd& state(std::size_t c) const;
+  // The design with each rod's modulus replaced by the B-spline with control values `modulus`.
+  geometry::RodStructure designWith(const Eigen::VectorXd& modulus) const;
+
+private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+struct Iteration {
+  int index = 0;                 // 0: the start
+  double objective = 0.0;        // g
+  double relative = 1.0;         // g / g0
+  double projectedGradient = 0.0;  // infinity norm, of g / g0 in E scaled to [0, 1]
+  int newtonIterations = 0;      // since the previous report
+  double seconds = 0.0;          // wall time since the start
+};
+
+struct Result {
+  Eigen::VectorXd modulus;  // the best control values found (MPa)
+  Evaluation initial, final;
+  std::vector<Iteration> history;
+  int iterations = 0;
+  int evaluations = 0;
+  std::string stopReason;   // "converged", "objective below tolerance", "iteration limit", "line search: ..."
+  double seconds = 0.0;
+};
+
+// Minimizes g from `start` (startingModulus() when empty) within the settings' bounds by L-BFGS-B.
+// `onIteration` is called at the start and after every iteration; an exception it throws (for
+// example common::Interrupted) passes through. Throws as DesignProblem::evaluate.
+Result optimize(DesignProblem& problem, const std::function<void(const Iteration&)>& onIteration = {},
+                Eigen::VectorXd start = {});
+
+// The convergence plot: g / g0 against iteration on a log axis (960 x 640 PNG, cairo), `title`
+// above it. Written under a temporary name and renamed (common::writeFileAtomically); throws
+// std::runtime_error naming the file, std::invalid_argument for an empty history. The PNG carries a
+// tEXt chunk "Software: rodfab optimize".
+void writeHistoryPlot(const std::vector<Iteration>& history, const std::filesystem::path& png, const std::string& title = {});
+// True when `png` is a regular file written by writeHistoryPlot (what `optimize --plot` may replace).
+bool isHistoryPlot(const std::filesystem::path& png);
+
+}  // namespace rodfab::optimize

@@ -1,0 +1,169 @@
+#!/usr/bin/env bash
+# rodfab optimize from the command line: a frame whose target is its own shape under a graded
+# modulus (simulated by rodfab simulate) is optimized from a uniform modulus until it matches; the
+# output keeps the mechanics and optimize blocks, stays within the calibration's range and slices
+# without a single clamped voxel; bad input, a case that cannot converge and interrupts write nothing.
+#   optimize.sh RODFAB SOURCE_DIR
+set -u
+rodfab=$1 src=$2
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+
+# A post clamped at its foot and an arm joined to its top; the arm's end is pushed and twisted.
+# graded.json has E(u) as cubic B-splines between 20 and 150 MPa; start.json is the same frame at
+# a uniform 60 MPa with the training case whose target is graded.json's deformed shape.
+python3 - "$tmp" <<'PY'
+import json, sys
+tmp = sys.argv[1]
+def rod(name, a, b, E):
+    pts = [[a[k] + (b[k] - a[k]) * i / 3 for k in range(3)] for i in range(4)]
+    return {"name": name, "centerline": {"degree": 3, "knots": [0, 0, 0, 0, 1, 1, 1, 1], "points": pts},
+            "section": {"shape": "circle", "diameter": 3.0}, "modulus": E}
+case = {"supports": [{"at": {"rod": "post", "end": "start"}, "type": "clamped"}],
+        "loads": [{"at": {"rod": "arm", "end": "end"}, "force": [0.0, 0.15, -0.1], "moment": [2.0, 0, 0]}]}
+graded = {"format": "rodfab.design/1", "units": "mm",
+          "rods": [rod("post", [0, 0, 0], [0, 0, 50], {"degree": 3, "knots": [0, 0, 0, 0, 1, 1, 1, 1], "values": [150, 40, 90, 20]}),
+                   rod("arm", [0, 0, 50], [40, 0, 50], {"degree": 3, "knots": [0, 0, 0, 0, 1, 1, 1, 1], "values": [30, 120, 60, 140]})],
+          "mechanics": dict(case, load_steps=4)}
+json.dump(graded, open(tmp + "/graded.json", "w"))
+start = {"format": "rodfab.design/1", "units": "mm",
+         "rods": [rod("post", [0, 0, 0], [0, 0, 50], 60.0), rod("arm", [0, 0, 50], [40, 0, 50], 60.0)],
+         "mechanics": dict(case, load_steps=4, load_cases=[dict(case, name="push", target={"design": "target.json"})]),
+         "optimize": {"curvature_weight": 0.5, "max_iterations": 300, "tolerance": 1e-9}}
+json.dump(start, open(tmp + "/start.json", "w"))
+PY
+"$rodfab" simulate "$tmp/graded.json" -o "$tmp/target.json" > "$tmp/out" 2>&1 || fail "simulate the target: $(cat "$tmp/out")"
+
+"$rodfab" optimize "$tmp/start.json" -o "$tmp/optimized.json" --plot "$tmp/history.png" > "$tmp/out" 2>&1 ||
+  fail "optimize: $(cat "$tmp/out")"
+# The plot: a 960 x 640 RGB PNG tagged as ours, its image data complete (decoded here with zlib).
+python3 - "$tmp/history.png" <<'PY' || fail "convergence plot"
+import struct, sys, zlib
+data = open(sys.argv[1], "rb").read()
+assert data[:8] == b"\x89PNG\r\n\x1a\n"
+chunks, at = {}, 8
+while at < len(data):
+    n, = struct.unpack(">I", data[at:at + 4])
+    kind = data[at + 4:at + 8]
+    chunks.setdefault(kind, b"")
+    chunks[kind] += data[at + 8:at + 8 + n]
+    at += 12 + n
+w, h, depth, color = struct.unpack(">IIBB", chunks[b"IHDR"][:10])
+assert (w, h, depth, color) == (960, 640, 8, 2), (w, h, depth, color)
+assert chunks[b"tEXt"] == b"Software\0rodfab optimize"
+raw = zlib.decompress(chunks[b"IDAT"])
+assert len(raw) == h * (1 + 3 * w)
+PY
+grep -q "^design:    .*: 2 rods, 1 load cases, .* unknowns per case, 8 design variables, E in \[8, 190\] MPa" "$tmp/out" ||
+  fail "no header: $(cat "$tmp/out")"
+grep -q "^iter    0  g/g0 1.0000e+00  |Pg| " "$tmp/out" || fail "no progress lines: $(cat "$tmp/out")"
+grep -q "^iter    5  g/g0 " "$tmp/out" || fail "fewer than 5 iterations: $(cat "$tmp/out")"
+grep -q "^wrote:     $tmp/optimized.json" "$tmp/out" || fail "no summary: $(cat "$tmp/out")"
+"$rodfab" validate "$tmp/optimized.json" > /dev/null 2>&1 || fail "the optimized design does not validate"
+python3 - "$tmp/optimized.json" <<'PY' || fail "optimized design content"
+import json, sys
+d = json.load(open(sys.argv[1]))
+for rod in d["rods"]:
+    m = rod["modulus"]
+    assert m["degree"] == 3 and len(m["values"]) == 4, m
+    assert all(8 <= v <= 190 for v in m["values"]), m
+    assert rod["centerline"]["degree"] == 3 and len(rod["centerline"]["points"]) == 4  # the design's own geometry
+assert d["mechanics"]["load_cases"][0]["name"] == "push"
+assert d["mechanics"]["load_cases"][0]["target"] == {"design": "target.json"}
+assert d["optimize"]["curvature_weight"] == 0.5
+PY
+
+# --json: the summary, and a target matched to the discretization error (the target was simulated
+# on another basis, so not to rounding).
+"$rodfab" optimize "$tmp/start.json" -o "$tmp/optimized.json" --json --modulus-controls 4 > "$tmp/summary.json" 2> "$tmp/err" ||
+  fail "optimize --json: $(cat "$tmp/err")"
+python3 - "$tmp/summary.json" <<'PY' || fail "--json summary: $(cat "$tmp/summary.json")"
+import json, sys
+s = json.load(open(sys.argv[1]))
+for key in ["objective_initial", "objective_final", "iterations", "design_variables", "seconds", "cases", "rods", "unknowns"]:
+    assert key in s, key
+assert s["design_variables"] == 8 and s["rods"] == 2
+assert s["objective_final"] / s["objective_initial"] < 1e-4, s["relative"]
+assert s["cases"][0]["name"] == "push" and abs(s["cases"][0]["objective_final"] - s["objective_final"]) < 1e-12
+assert s["bounds_mpa"] == [8, 190]
+assert len(s["history"]) == s["iterations"] + 1
+PY
+
+# The optimized design slices as it is: every modulus inside the calibration's range.
+"$rodfab" slice "$tmp/optimized.json" -o "$tmp/job.zip" > "$tmp/out" 2>&1 || fail "slice: $(cat "$tmp/out")"
+grep -q "^clamped moduli: 0 below the floor, 0 above the stiffest mix" "$tmp/out" || fail "clamped voxels: $(cat "$tmp/out")"
+
+# Errors name what is wrong and write nothing.
+rm -f "$tmp/optimized.json"
+expect_failure() {  # CODE FRAGMENT ARGS...
+  local code=$1 fragment=$2
+  shift 2
+  "$rodfab" optimize "$@" > "$tmp/out" 2>&1
+  local got=$?
+  [ "$got" -eq "$code" ] || fail "exit $got (expected $code) for $*: $(cat "$tmp/out")"
+  grep -qF -- "$fragment" "$tmp/out" || fail "no '$fragment' for $*: $(cat "$tmp/out")"
+  [ -e "$tmp/optimized.json" ] && fail "wrote an output for $*"
+  return 0
+}
+expect_failure 2 "--modulus-controls: expected 2..64" "$tmp/start.json" -o "$tmp/optimized.json" --modulus-controls 1
+expect_failure 2 "--max-iterations" "$tmp/start.json" -o "$tmp/optimized.json" --max-iterations -5
+expect_failure 1 "mechanics.load_cases: missing" "$tmp/graded.json" -o "$tmp/optimized.json"
+expect_failure 1 "is also an input of this command" "$tmp/start.json" -o "$tmp/target.json"
+expect_failure 1 "is also an input of this command" "$tmp/start.json" -o "$tmp/optimized.json" --plot "$tmp/optimized.json"
+expect_failure 1 "convergence plot" "$tmp/start.json" -o "$tmp/optimized.json" --plot "$tmp/graded.json"
+python3 - "$tmp" <<'PY'
+import json, sys
+tmp = sys.argv[1]
+d = json.load(open(tmp + "/start.json"))
+d["mechanics"]["load_cases"][0]["target"] = {"design": "missing.json"}
+json.dump(d, open(tmp + "/missing-target.json", "w"))
+c = d["mechanics"]["load_cases"][0]
+c["target"] = {"design": "target.json"}
+c["loads"][0]["force"], c["loads"][0]["moment"] = [0, 0, -4000.0], [0, 0, 5000.0]  # far past what the frame can carry
+c["load_steps"], c["name"] = 1, "crush"
+json.dump(d, open(tmp + "/crush.json", "w"))
+c["loads"][0]["force"], c["loads"][0]["moment"] = [0, 0, -0.1], [0, 0, 0]
+c["supports"][0]["type"], c["name"] = "pinned", "loose"  # free to turn about the pin: a mechanism
+json.dump(d, open(tmp + "/loose.json", "w"))
+d = json.load(open(tmp + "/start.json"))
+d["optimize"]["bounds_mpa"] = [190, 8]
+json.dump(d, open(tmp + "/bad-bounds.json", "w"))
+PY
+expect_failure 1 "mechanics.load_cases[0].target.design: cannot read the target design" "$tmp/missing-target.json" -o "$tmp/optimized.json"
+expect_failure 1 "optimize.bounds_mpa: expected the lowest modulus below the highest" "$tmp/bad-bounds.json" -o "$tmp/optimized.json"
+expect_failure 1 'load case "crush" (mechanics.load_cases[0]) does not converge' "$tmp/crush.json" -o "$tmp/optimized.json"
+expect_failure 1 'load case "loose" (mechanics.load_cases[0]): ' "$tmp/loose.json" -o "$tmp/optimized.json"
+grep -q "mechanism" "$tmp/out" || fail "the mechanism is not explained: $(cat "$tmp/out")"
+rm -f "$tmp/optimized.json"
+
+# SIGINT and SIGTERM: exit 130 / 143, nothing written. A chain of 20 rods with 16 controls each
+# (320 design variables) and no tolerance runs for long enough to be interrupted mid-way.
+python3 - "$tmp" <<'PY'
+import json, sys
+tmp = sys.argv[1]
+rods = [{"name": "link-%d" % i, "centerline": {"degree": 1, "knots": [0, 0, 1, 1], "points": [[10 * i, 0, 0], [10 * i + 10, 0, 0]]},
+         "section": {"shape": "circle", "diameter": 2.0}, "modulus": 100.0} for i in range(20)]
+case = {"supports": [{"at": {"rod": "link-0", "end": "start"}, "type": "clamped"}],
+        "loads": [{"at": {"rod": "link-19", "end": "end"}, "force": [0, 0.0005, 0.0005]}], "load_steps": 2}
+json.dump({"format": "rodfab.design/1", "units": "mm", "rods": rods, "mechanics": case}, open(tmp + "/chain.json", "w"))
+for r in rods: r["modulus"] = 60.0
+json.dump({"format": "rodfab.design/1", "units": "mm", "rods": rods,
+           "mechanics": dict(case, load_cases=[dict(case, name="hang", target={"design": "chain-target.json"})]),
+           "optimize": {"modulus_controls": 16, "tolerance": 0, "max_iterations": 100000}}, open(tmp + "/chain-start.json", "w"))
+PY
+"$rodfab" simulate "$tmp/chain.json" -o "$tmp/chain-target.json" --no-estimate > "$tmp/out" 2>&1 || fail "simulate the chain: $(cat "$tmp/out")"
+for sig in INT TERM; do
+  "$rodfab" optimize "$tmp/chain-start.json" -o "$tmp/optimized.json" > "$tmp/out" 2>&1 &
+  pid=$!
+  for _ in $(seq 600); do grep -q "^iter    1 " "$tmp/out" && break; sleep 0.05; done
+  grep -q "^iter    1 " "$tmp/out" || fail "SIG$sig: the chain did not start iterating: $(cat "$tmp/out")"
+  kill -s $sig $pid
+  wait $pid
+  code=$?
+  want=$([ $sig = INT ] && echo 130 || echo 143)
+  [ "$code" -eq "$want" ] || fail "SIG$sig: exit $code, expected $want: $(cat "$tmp/out")"
+  [ -e "$tmp/optimized.json" ] && fail "SIG$sig left an output"
+done
+ls -A "$tmp" | grep -q '^\.' && fail "temporaries left behind: $(ls -A "$tmp")"
+echo "optimize: all checks passed"

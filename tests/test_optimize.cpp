@@ -1,0 +1,217 @@
+// optimize/: the modulus derivative of the residual, the adjoint gradient against finite
+// differences, and the optimizer on manufactured problems whose exact answer is known.
+#include "optimize/optimize.hpp"
+
+#include "geometry/geometry.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <random>
+
+using namespace rodfab;
+using geometry::RodEnd;
+using geometry::RodStructure;
+using geometry::Vec3;
+
+namespace {
+
+geometry::NurbsCurve straight(const Vec3& a, const Vec3& b) {
+  std::vector<Vec3> pts;
+  for (int i = 0; i < 4; ++i) pts.push_back(a + (b - a) * (i / 3.0));
+  return geometry::NurbsCurve(3, {0, 0, 0, 0, 1, 1, 1, 1}, pts);
+}
+
+// A quarter arc of radius R in the plane z = h, centred on the z axis, degree 2 rational.
+geometry::NurbsCurve arc(double R, double h) {
+  const double w = std::sqrt(0.5);
+  return geometry::NurbsCurve(2, {0, 0, 0, 1, 1, 1}, {Vec3(R, 0, h), Vec3(R, R, h), Vec3(0, R, h)}, {1.0, w, 1.0});
+}
+
+geometry::Rod rod(const std::string& name, geometry::NurbsCurve c, double d, double E) {
+  const double a = c.domainBegin(), b = c.domainEnd();
+  return geometry::Rod(name, std::move(c), geometry::Section::circle(d), std::nullopt, std::nullopt,
+                       geometry::CapStyle::Round, geometry::BSplineField::constant(E, a, b));
+}
+
+geometry::RodEndRef end(const std::string& name, RodEnd which) {
+  geometry::RodEndRef r;
+  r.rod = name, r.end = which, r.path = "test";
+  return r;
+}
+
+geometry::PointLoad load(const std::string& name, const Vec3& force, const Vec3& moment) {
+  geometry::PointLoad l;
+  l.at = end(name, RodEnd::End), l.force = force, l.moment = moment;
+  return l;
+}
+
+// A clamped post, an arc joined rigidly to its top and a straight arm hanging from the arc's end:
+// three rods, two joints, bending and torsion everywhere. Two load cases at the arm's free end.
+RodStructure frame() {
+  RodStructure s;
+  s.source = "frame";
+  s.rods.push_back(rod("post", straight(Vec3(40, 0, 0), Vec3(40, 0, 60)), 4.0, 60.0));
+  s.rods.push_back(rod("arc", arc(40, 60), 3.5, 60.0));
+  s.rods.push_back(rod("arm", straight(Vec3(0, 40, 60), Vec3(0, 40, 20)), 3.0, 60.0));
+  s.mechanics.present = true;
+  geometry::Support clamp;
+  clamp.at = end("post", RodEnd::Start);
+  geometry::LoadCase push, twist;
+  push.name = "push", push.path = "mechanics.load_cases[0]", push.loadSteps = 4;
+  push.supports = {clamp};
+  push.loads = {load("arm", Vec3(0.3, 0.0, -0.1), Vec3::Zero())};
+  twist.name = "twist", twist.path = "mechanics.load_cases[1]", twist.loadSteps = 4, twist.weight = 0.5;
+  twist.supports = {clamp};
+  twist.loads = {load("arm", Vec3(0.0, -0.2, 0.0), Vec3(4.0, 0.0, 3.0))};
+  s.mechanics.loadCases = {push, twist};
+  s.mechanics.supports = {clamp};
+  return s;
+}
+
+// Every case's target: the shapes `problem` reached at its last evaluation.
+void setTargetsFromStates(RodStructure& design, const optimize::DesignProblem& problem) {
+  for (std::size_t c = 0; c < problem.caseCount(); ++c) {
+    const RodStructure deformed = problem.caseProblem(c).deformedStructure(problem.state(c));
+    auto& target = design.mechanics.loadCases[c].target;
+    target.clear();
+    for (const geometry::Rod& r : deformed.rods)
+      target.push_back({r.name(), r.centerline(), r.orientation(), std::nullopt, "test"});
+  }
+}
+
+Eigen::VectorXd randomModulus(std::size_t n, double lo, double hi, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(lo, hi);
+  Eigen::VectorXd e(static_cast<Eigen::Index>(n));
+  for (auto& v : e) v = u(rng);
+  return e;
+}
+
+// The frame with targets: the shapes of a random modulus field between the bounds.
+RodStructure manufactured(const optimize::Settings& settings, unsigned seed, Eigen::VectorXd* truth = nullptr) {
+  RodStructure design = frame();
+  for (auto& lc : design.mechanics.loadCases) lc.target.push_back({"post", straight(Vec3(40, 0, 0), Vec3(40, 0, 60)), std::nullopt, std::nullopt, "t"});
+  optimize::DesignProblem generator(design, settings);
+  const Eigen::VectorXd e = randomModulus(generator.variableCount(), settings.lowerMpa, settings.upperMpa, seed);
+  generator.evaluate(e, false);
+  setTargetsFromStates(design, generator);
+  if (truth) *truth = e;
+  return design;
+}
+
+optimize::Settings testSettings() {
+  optimize::Settings s;
+  s.solver.tolerance = 1e-12;
+  s.solver.chordSteps = false;  // every correction full Newton: solutions to rounding for the difference quotients
+  return s;
+}
+
+}  // namespace
+
+TEST_CASE("dF/dE matches central differences of the residual at an equilibrium", "[optimize]") {
+  const optimize::Settings settings = testSettings();
+  optimize::DesignProblem problem(manufactured(settings, 7), settings);
+  const Eigen::VectorXd e = randomModulus(problem.variableCount(), 20, 150, 3);
+  problem.evaluate(e, false);
+  // A copy of the problem to perturb: the same discretization, rebuilt.
+  optimize::DesignProblem copy(manufactured(settings, 7), settings);
+  copy.evaluate(e, false);
+  const mechanics::StaticProblem& sp = problem.caseProblem(1);
+  const Eigen::VectorXd& x = problem.state(1);
+  const Eigen::SparseMatrix<double> dFdE = sp.modulusJacobian(x, 1.0);
+  REQUIRE(dFdE.cols() == static_cast<Eigen::Index>(problem.variableCount()));
+  REQUIRE(sp.modulusVariableCount() == problem.variableCount());
+  auto& perturbed = const_cast<mechanics::StaticProblem&>(copy.caseProblem(1));
+  const int n = settings.modulusControls;
+  double worst = 0, largest = 0;
+  const RodStructure withE = copy.designWith(e);
+  for (Eigen::Index k = 0; k < dFdE.cols(); ++k) {
+    const std::size_t rodIndex = static_cast<std::size_t>(k) / n;
+    const geometry::Rod& r = withE.rods[rodIndex];
+    Eigen::VectorXd fPlus, fMinus;
+    for (int sign : {1, -1}) {
+      std::vector<double> values = r.modulus().values();
+      values[k % n] += sign * 1e-3;
+      perturbed.setModulus(rodIndex, geometry::BSplineField(r.modulus().degree(), r.modulus().knots(), values));
+      perturbed.evaluate(x, 1.0, sign > 0 ? fPlus : fMinus);
+    }
+    perturbed.setModulus(rodIndex, r.modulus());
+    const Eigen::VectorXd fd = (fPlus - fMinus) / 2e-3;
+    const Eigen::VectorXd exact = dFdE.col(k);
+    worst = std::max(worst, (fd - exact).lpNorm<Eigen::Infinity>());
+    largest = std::max(largest, exact.lpNorm<Eigen::Infinity>());
+  }
+  INFO("largest entry " << largest << ", largest difference " << worst);
+  CHECK(largest > 0);
+  CHECK(worst <= 1e-7 * largest);
+}
+
+TEST_CASE("the adjoint gradient matches central finite differences (joints, two cases, both terms)", "[optimize]") {
+  optimize::Settings settings = testSettings();
+  settings.curvatureWeight = 3.0;
+  optimize::DesignProblem problem(manufactured(settings, 11), settings);
+  REQUIRE(problem.caseCount() == 2);
+  const Eigen::VectorXd e = randomModulus(problem.variableCount(), 20, 150, 5);
+  const optimize::Evaluation ev = problem.evaluate(e, true);
+  REQUIRE(ev.cases.size() == 2);
+  CHECK(ev.cases[0].position > 0);
+  CHECK(ev.cases[1].curvature > 0);
+  // Fourth-order central differences: truncation and solver noise both well below 1e-6.
+  const auto g = [&](Eigen::VectorXd v) { return problem.evaluate(v, false).objective; };
+  Eigen::VectorXd fd(e.size());
+  for (Eigen::Index k = 0; k < e.size(); ++k) {
+    const double h = 1e-3 * e[k];
+    const auto at = [&](double t) { Eigen::VectorXd v = e; v[k] += t; return g(v); };
+    fd[k] = (8 * (at(h) - at(-h)) - (at(2 * h) - at(-2 * h))) / (12 * h);
+  }
+  const double error = (fd - ev.gradient).norm() / ev.gradient.norm();
+  INFO("gradient " << ev.gradient.transpose() << "\nfinite differences " << fd.transpose() << "\nrelative error " << error);
+  CHECK(error <= 1e-6);
+}
+
+TEST_CASE("a manufactured problem: from a uniform modulus to g / g0 <= 1e-6 within the bounds", "[optimize]") {
+  optimize::Settings settings = testSettings();
+  settings.objectiveTolerance = 1e-7;
+  settings.maxIterations = 400;
+  Eigen::VectorXd truth;
+  optimize::DesignProblem problem(manufactured(settings, 21, &truth), settings);
+  const Eigen::VectorXd start = problem.startingModulus();
+  CHECK(start.minCoeff() == Approx(60.0));
+  CHECK(start.maxCoeff() == Approx(60.0));
+  int reports = 0;
+  const optimize::Result result = optimize::optimize(problem, [&](const optimize::Iteration&) { ++reports; });
+  const double relative = result.final.objective / result.initial.objective;
+  INFO(problem.rodCount() << " rods, " << problem.unknownCount() << " unknowns per case, " << problem.variableCount()
+                          << " design variables, " << result.seconds << " s");
+  INFO("g0 " << result.initial.objective << ", g " << result.final.objective << " (g/g0 " << relative << ") after "
+             << result.iterations << " iterations, " << result.evaluations << " evaluations: " << result.stopReason
+             << "\nE " << result.modulus.transpose() << "\ntruth " << truth.transpose());
+  CHECK(relative <= 1e-6);
+  CHECK(reports == result.iterations + 1);
+  CHECK(result.modulus.minCoeff() >= settings.lowerMpa);
+  CHECK(result.modulus.maxCoeff() <= settings.upperMpa);
+}
+
+TEST_CASE("a target only reachable beyond the bounds ends on them, a stationary point of the bounded problem", "[optimize]") {
+  optimize::Settings settings = testSettings();
+  settings.maxIterations = 100;
+  settings.lowerMpa = 8.0, settings.upperMpa = 190.0;
+  // The shapes of a structure stiffer than the upper bound allows everywhere.
+  optimize::Settings wide = settings;
+  wide.upperMpa = 1000.0;
+  RodStructure design = frame();
+  for (auto& lc : design.mechanics.loadCases) lc.target.push_back({"post", straight(Vec3(40, 0, 0), Vec3(40, 0, 60)), std::nullopt, std::nullopt, "t"});
+  optimize::DesignProblem generator(design, wide);
+  generator.evaluate(Eigen::VectorXd::Constant(static_cast<Eigen::Index>(generator.variableCount()), 400.0), false);
+  setTargetsFromStates(design, generator);
+  optimize::DesignProblem problem(design, settings);
+  const optimize::Result result = optimize::optimize(problem);
+  INFO("E " << result.modulus.transpose() << "\n" << result.stopReason);
+  CHECK(result.modulus.minCoeff() >= settings.lowerMpa);
+  CHECK(result.modulus.maxCoeff() <= settings.upperMpa);
+  // The rods the load bends are as stiff as allowed.
+  CHECK(result.modulus.maxCoeff() == settings.upperMpa);
+  CHECK(result.final.objective < result.initial.objective);
+  CHECK(result.history.back().projectedGradient < 1e-3);
+}
