@@ -18,6 +18,9 @@ packages=(
   libcairo2-dev                                              # calibration plots, previews
   libssl-dev                                                 # SHA-256 checksums (libcrypto)
   libsuitesparse-dev                                         # KLU: the mechanics solver's sparse LU
+  libcgal-dev                                                # meshing: mesh I/O, simplification, AABB trees
+  libopenmesh-dev                                            # bench_meshing: OpenMesh's decimater, compared
+  libocct-data-exchange-dev libocct-modeling-algorithms-dev libocct-modeling-data-dev libocct-foundation-dev  # rods-from-cad
 )
 
 missing=()

@@ -40,5 +40,6 @@ int runProfiles(const std::vector<std::string>& args);
 int runInspect(const std::vector<std::string>& args);
 int runDitherReport(const std::vector<std::string>& args);
 int runSimulate(const std::vector<std::string>& args);
+int runRodsFromMesh(const std::vector<std::string>& args);
 
 }  // namespace rodfab::cli

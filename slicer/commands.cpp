@@ -23,6 +23,7 @@ constexpr Command kCommands[] = {
     {"inspect", "re-read a print job and verify every file, size, DPI and orientation", runInspect},
     {"dither-report", "measure each ditherer's quality on uniform blocks and a thin rod", runDitherReport},
     {"simulate", "solve a design's rods under its mechanics loads (Cosserat rods); write the deformed design", runSimulate},
+    {"rods-from-mesh", "turn a triangle mesh into rods: the dual of the simplified mesh, laid on its surface", runRodsFromMesh},
 };
 // printUsage() pads command names to 15 columns.
 static_assert(std::ranges::all_of(kCommands, [](const Command& c) { return std::char_traits<char>::length(c.name) < 15; }));
