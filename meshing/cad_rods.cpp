@@ -52,8 +52,9 @@ TopoDS_Shape readShape(const std::filesystem::path& file) {
   STEPControl_Reader stepReader;
   IGESControl_Reader igesReader;
   XSControl_Reader& reader = step ? static_cast<XSControl_Reader&>(stepReader) : static_cast<XSControl_Reader&>(igesReader);
-  if (reader.ReadFile(file.c_str()) != IFSelect_RetDone)
-    throw MeshError(file, std::string("not a readable ") + (step ? "STEP" : "IGES") + " file");
+  const std::string format = step ? "STEP" : "IGES";
+  if (reader.ReadFile(file.c_str()) != IFSelect_RetDone) throw MeshError(file, "not a readable " + format + " file");
+  if (reader.NbRootsForTransfer() == 0) throw MeshError(file, "not a readable " + format + " file: it holds no model");
   reader.TransferRoots();
   return reader.OneShape();
 }

@@ -100,4 +100,32 @@ struct MeshCounts {
 };
 MeshCounts checkMeshBytes(const std::string& bytes, const std::string& format, const std::string& sourceName);
 
+struct CadRodOptions {
+  geometry::Section section = geometry::Section::circle(1.0);
+  geometry::CapStyle caps = geometry::CapStyle::Round;
+  double modulusMpa = 120.0;
+  // Curve ends closer than this (mm, > 0) become one joint: they are moved to their common mean so the
+  // rods end at exactly the same point.
+  double jointTolerance = 1e-3;
+};
+
+struct CadRodReport {
+  std::size_t edges = 0;          // distinct edges in the model (an edge shared by faces counts once)
+  std::size_t rods = 0;
+  std::size_t joints = 0;         // points where two or more rod ends meet
+  std::size_t skippedDegenerate = 0;  // edges without a curve (seams of degenerate faces, zero length)
+  double largestEndMove = 0.0;    // mm: how far merging moved a curve end
+};
+
+struct CadRods {
+  geometry::RodStructure structure;  // rods named "edge-<i>" in the model's edge order
+  CadRodReport report;
+};
+
+// Reads a STEP (.step, .stp) or IGES (.iges, .igs) file with OpenCASCADE and turns every edge curve of
+// the model into a rod with its exact NURBS (lines, circles, conics and offset curves converted to
+// B-splines; degree <= geometry::kMaxDegree), trimmed to the edge's parameter range. Throws MeshError
+// when the file cannot be read, holds no edge curve, or a curve needs a degree above kMaxDegree.
+CadRods rodsFromCad(const std::filesystem::path& cadFile, const CadRodOptions& options);
+
 }  // namespace rodfab::meshing

@@ -2,9 +2,9 @@
 // laid on the original surface), written as a design file.
 #include "geometry/geometry.hpp"
 #include "meshing/meshing.hpp"
-#include "printer_profiles/profile.hpp"
 #include "slicer/command.hpp"
 #include "slicer/options.hpp"
+#include "slicer/shape_options.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -28,33 +28,13 @@ void addMeshOptions(po::options_description& options) {
       ("faces", po::value<int>()->default_value(200), "triangles of the simplified mesh: about this many rod nodes, 1.5 times as many rods")
       ("diameter", po::value<double>()->required(), "rod diameter (mm); for ellipses and rectangles the thickness normal to the surface")
       ("output,o", po::value<std::string>()->required(), "design file to write (rodfab.design/1)")
-      ("section", po::value<std::string>()->default_value("circle"), "circle | ellipse | rectangle")
-      ("breadth", po::value<double>(), "ellipse or rectangle: the size within the surface (mm; default: --diameter)")
-      ("modulus", po::value<double>()->default_value(120.0), "Young's modulus of every rod (MPa)")
       ("subdivisions", po::value<int>()->default_value(4), "points per rod projected onto the surface and interpolated")
       ("surface-tolerance", po::value<double>()->default_value(0.05), "largest distance of a centerline from the surface (mm)")
-      ("caps", po::value<std::string>()->default_value("round"), "rod ends: round | flat")
-      ("profile", po::value<std::string>()->default_value("stratasys-objet500-connex3"), "printer profile whose tray the result is checked against")
       ("force", "replace an existing design file at --output")
       ("json", "print the summary as JSON on stdout");
-}
-
-std::optional<geometry::Section> parseSection(const po::variables_map& vm, double diameter) {
-  const std::string shape = vm["section"].as<std::string>();
-  if (shape == "circle") {
-    if (vm.count("breadth")) return usageError("rods-from-mesh", "--breadth goes with --section ellipse or rectangle"), std::nullopt;
-    return geometry::Section::circle(diameter);
-  }
-  double breadth = diameter;
-  if (vm.count("breadth")) {
-    const std::optional<double> b = realOption("rods-from-mesh", vm, "breadth", 1e-3, 1000, "mm");
-    if (!b) return std::nullopt;
-    breadth = *b;
-  }
-  if (shape == "ellipse") return geometry::Section::ellipse(diameter, breadth);
-  if (shape == "rectangle") return geometry::Section::rectangle(diameter, breadth);
-  usageError("rods-from-mesh", "--section: expected circle, ellipse or rectangle, got '" + shape + "'");
-  return std::nullopt;
+  // The frame's d1 is the surface normal: --diameter is the thickness normal to the surface, --breadth
+  // the size within it.
+  addRodShapeOptions(options);
 }
 
 std::variant<MeshSettings, int> parseMesh(const std::vector<std::string>& args) {
@@ -68,33 +48,18 @@ std::variant<MeshSettings, int> parseMesh(const std::vector<std::string>& args) 
   if (auto code = parseOptions("rods-from-mesh", synopsis, options, positional, args, vm)) return *code;
   MeshSettings s;
   s.mesh = vm["mesh"].as<std::string>(), s.output = vm["output"].as<std::string>();
-  s.profile = vm["profile"].as<std::string>();
   s.force = vm.count("force") > 0, s.json = vm.count("json") > 0;
   meshing::MeshRodOptions& o = s.options;
   const auto faces = intOption("rods-from-mesh", vm, "faces", meshing::kMinFaces, meshing::kMaxFaces);
   const auto subdivisions = intOption("rods-from-mesh", vm, "subdivisions", meshing::kMinSubdivisions, meshing::kMaxSubdivisions);
-  const auto diameter = realOption("rods-from-mesh", vm, "diameter", 1e-3, 1000, "mm");
-  const auto modulus = realOption("rods-from-mesh", vm, "modulus", 1e-3, geometry::kMaxModulusMpa, "MPa");
   const auto tolerance = realOption("rods-from-mesh", vm, "surface-tolerance", 1e-6, 1000, "mm");
-  if (!faces || !subdivisions || !diameter || !modulus || !tolerance) return kUsage;
-  const std::optional<geometry::Section> section = parseSection(vm, *diameter);
-  if (!section) return kUsage;
-  const std::string caps = vm["caps"].as<std::string>();
-  if (caps != "round" && caps != "flat") return usageError("rods-from-mesh", "--caps: expected round or flat, got '" + caps + "'");
-  o.faces = *faces, o.subdivisions = *subdivisions, o.modulusMpa = *modulus, o.surfaceTolerance = *tolerance;
-  o.section = *section;
-  o.caps = caps == "round" ? geometry::CapStyle::Round : geometry::CapStyle::Flat;
+  if (!faces || !subdivisions || !tolerance) return kUsage;
+  const std::optional<RodShape> shape = parseRodShape("rods-from-mesh", vm);
+  if (!shape) return kUsage;
+  o.faces = *faces, o.subdivisions = *subdivisions, o.surfaceTolerance = *tolerance;
+  o.section = shape->section, o.caps = shape->caps, o.modulusMpa = shape->modulusMpa;
+  s.profile = vm["profile"].as<std::string>();
   return s;
-}
-
-// A warning on stderr for every axis where the rods' bounding box is larger than the tray.
-void warnOverhang(const geometry::RodStructure& rods, const printer_profiles::Profile& profile) {
-  const geometry::Vec3 size = rods.bounds().sizes();
-  const char* axis = "xyz";
-  for (int a = 0; a < 3; ++a)
-    if (size[a] > profile.trayMm[a])
-      std::fprintf(stderr, "warning: the rods are %.1f mm long in %c, %.1f mm more than the tray of %s (%.1f mm): scale the mesh\n",
-                   size[a], axis[a], size[a] - profile.trayMm[a], profile.name.c_str(), profile.trayMm[a]);
 }
 
 nlohmann::json summaryJson(const MeshSettings& s, const meshing::MeshRodReport& r, const geometry::RodStructure& rods) {
@@ -135,14 +100,10 @@ int runRodsFromMesh(const std::vector<std::string>& args) {
   if (const int* code = std::get_if<int>(&parsed)) return *code;
   const MeshSettings& s = std::get<MeshSettings>(parsed);
   commandLineAccepted();
+  std::string profileName;
+  std::array<double, 3> trayMm{};
+  if (!loadTrayProfile("rods-from-mesh", s.profile, trayMm, profileName)) return kFailed;
   if (!outputAllowed(s.output, {s.mesh}, {"design file", s.force, "--force", geometry::isDesignFile})) return kFailed;
-  printer_profiles::Profile profile;
-  try {
-    profile = printer_profiles::loadProfile(s.profile);
-  } catch (const std::exception& e) {
-    std::cerr << e.what() << "\nrodfab rods-from-mesh: nothing was written\n";
-    return kFailed;
-  }
   meshing::MeshRods result;
   try {
     result = meshing::rodsFromMesh(s.mesh, s.options);
@@ -154,7 +115,7 @@ int runRodsFromMesh(const std::vector<std::string>& args) {
                                   std::to_string(result.report.simplifiedFaces) + " faces)";
   geometry::writeDesign(result.structure, s.output, description);
   printWarnings(s, result.report);
-  warnOverhang(result.structure, profile);
+  warnTrayOverhang(result.structure, trayMm, profileName);
   if (s.json) std::cout << summaryJson(s, result.report, result.structure).dump(2) << '\n';
   else printSummary(s, result.report);
   return kOk;
