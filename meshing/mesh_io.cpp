@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <numeric>
 #include <sstream>
@@ -59,8 +60,25 @@ void checkOffHeader(const std::string& bytes, const std::string& source) {
   }
 }
 
+// CGAL's STL reader merges corners through an ordered map, which a NaN corrupts (it compares equal to
+// everything): check a binary STL's floats before it is read.
+void checkBinaryStlNumbers(const std::string& bytes, const std::string& source) {
+  if (bytes.size() < 84) return;
+  std::uint32_t count = 0;
+  std::memcpy(&count, bytes.data() + 80, 4);
+  if (84 + 50 * std::uint64_t(count) != bytes.size()) return;  // not binary STL (or truncated): CGAL decides
+  for (std::uint32_t t = 0; t < count; ++t)
+    for (int k = 3; k < 12; ++k) {  // the 9 corner coordinates after the normal
+      float v = 0;
+      std::memcpy(&v, bytes.data() + 84 + 50 * std::size_t(t) + 4 * k, 4);
+      if (!std::isfinite(v))
+        throw MeshError(source, "triangle " + std::to_string(t) + " has a coordinate that is not a finite number");
+    }
+}
+
 bool readSoup(const std::string& bytes, const std::string& format, std::vector<Point>& points,
-              std::vector<Polygon>& polygons) {
+              std::vector<Polygon>& polygons, const std::string& source) {
+  if (format == "stl") checkBinaryStlNumbers(bytes, source);
   std::istringstream in(bytes, std::ios::in | std::ios::binary);
   const auto quiet = CGAL::parameters::verbose(false);
   if (format == "stl") return CGAL::IO::read_STL(in, points, polygons, quiet);
@@ -190,8 +208,13 @@ TriangleMesh parseMesh(const std::string& bytes, const std::string& format, cons
   if (format == "off") checkOffHeader(bytes, source);
   std::vector<Point> points;
   std::vector<Polygon> polygons;
-  if (!readSoup(bytes, format, points, polygons))
-    throw MeshError(source, "not a readable " + format + " mesh (the " + format + " reader stopped; is the file complete?)");
+  try {
+    if (!readSoup(bytes, format, points, polygons, source))
+      throw MeshError(source, "not a readable " + format + " mesh (the " + format + " reader stopped; is the file complete?)");
+  } catch (const std::bad_alloc&) {
+    // The readers size arrays from counts in the file (a face's corner count, an element count).
+    throw MeshError(source, "the file declares more elements than the memory budget holds (a count in it is wrong?)");
+  }
   if (polygons.empty()) throw MeshError(source, "the file holds no faces");
   common::throwIfInterrupted();
   std::vector<Triangle> triangles = triangulate(points, polygons, source);
