@@ -51,6 +51,14 @@ python3 -c "import json,sys; j=json.load(open(sys.argv[1])); assert j['rods']==9
 "$rodfab" rods-from-mesh "$tmp/big.obj" --faces 50 --diameter 2 -o "$tmp/big.json" > "$tmp/out" 2>&1 || fail "big mesh: $(cat "$tmp/out")"
 grep -q "^warning: the rods are 11[0-9][0-9].[0-9] mm long in x, [0-9.]* mm more than the tray of stratasys" "$tmp/out" || fail "no overhang warning: $(cat "$tmp/out")"
 
+# The bundled bunny (a real scan, closed): 200 faces -> 300 rods, 200 nodes, one part; the training
+# script adds a mechanics block that validates.
+"$rodfab" rods-from-mesh "$src/examples/bunny.obj" --faces 200 --diameter 1.5 -o "$tmp/bunny.json" > "$tmp/out" 2>&1 ||
+  fail "bunny: $(cat "$tmp/out")"
+grep -q "^rods:       300 rods, 200 nodes, 1 connected part" "$tmp/out" || fail "bunny summary: $(cat "$tmp/out")"
+python3 "$src/examples/bunny_ears_forward.py" "$tmp/bunny.json" "$tmp/bunny-train.json" > /dev/null || fail "bunny_ears_forward.py"
+"$rodfab" validate "$tmp/bunny-train.json" > /dev/null 2>&1 || fail "the bunny training design does not validate"
+
 # Bad input: named, exit 1, nothing written.
 printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n' > "$tmp/fin.obj"
 "$rodfab" rods-from-mesh "$tmp/fin.obj" --faces 4 --diameter 1 -o "$tmp/fin.json" > "$tmp/out" 2>&1; rc=$?
