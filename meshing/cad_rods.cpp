@@ -1,5 +1,6 @@
 // CAD curve networks to rods with OpenCASCADE: every edge's curve, converted to its exact B-spline.
 #include "common/interrupt.hpp"
+#include "common/memory_budget.hpp"
 #include "meshing/meshing.hpp"
 
 #include <BRep_Tool.hxx>
@@ -46,6 +47,12 @@ TopoDS_Shape readShape(const std::filesystem::path& file) {
   if (ext != ".step" && ext != ".stp" && ext != ".iges" && ext != ".igs")
     throw MeshError(file, "unknown CAD format '" + file.extension().string() + "': expected .step, .stp, .iges or .igs");
   if (!std::filesystem::is_regular_file(file, ec)) throw MeshError(file, "no such file (or not a regular file)");
+  const std::uintmax_t size = std::filesystem::file_size(file, ec);
+  if (ec) throw MeshError(file, "cannot read: " + ec.message());
+  if (size > kMaxMeshFileBytes) throw MeshError(file, "larger than 2 GiB");
+  // OpenCASCADE's readers hold the whole entity graph and then the shapes. 40 bytes per byte of text is
+  // an estimate, not a measurement (see meshing/README.md, what remains).
+  common::requireMemory(std::uint64_t(size) * 40, "reading the CAD model " + file.string(), "split the model");
   std::lock_guard<std::mutex> lock(readerMutex());
   Message::DefaultMessenger()->RemovePrinters(STANDARD_TYPE(Message_Printer));
   const bool step = ext == ".step" || ext == ".stp";

@@ -60,6 +60,40 @@ void checkOffHeader(const std::string& bytes, const std::string& source) {
   }
 }
 
+// CGAL's PLY reader adds a "property" to the last element without checking there is one, and reads a
+// vertex's x, y, z as float or double without checking their declared type (both undefined behaviour,
+// found by fuzzing); it reads as many elements as declared. So the header is checked first: order,
+// coordinate types, and counts (each element takes at least one byte).
+void checkPlyHeader(const std::string& bytes, const std::string& source) {
+  std::istringstream in(bytes);
+  std::string line, elementName;
+  bool element = false;
+  for (int number = 1; std::getline(in, line); ++number) {
+    std::istringstream words(line);
+    std::string keyword;
+    words >> keyword;
+    if (keyword == "end_header") return;
+    if (keyword == "element") {
+      std::string name;
+      double count = -1;
+      words >> name >> count;
+      elementName = name;
+      if (!(count >= 0) || count > static_cast<double>(bytes.size()))
+        throw MeshError(source, "PLY header line " + std::to_string(number) + ": an element count the file's " +
+                                    std::to_string(bytes.size()) + " bytes cannot hold");
+      element = true;
+    } else if (keyword == "property") {
+      if (!element) throw MeshError(source, "PLY header line " + std::to_string(number) + ": a property before any element");
+      std::string type, name;
+      words >> type >> name;
+      const bool coordinate = elementName == "vertex" && (name == "x" || name == "y" || name == "z");
+      if (coordinate && type != "float" && type != "float32" && type != "double" && type != "float64")
+        throw MeshError(source, "PLY header line " + std::to_string(number) + ": vertex coordinate " + name +
+                                    " of type '" + type + "' (expected float or double)");
+    }
+  }
+}
+
 // CGAL's STL reader merges corners through an ordered map, which a NaN corrupts (it compares equal to
 // everything): check a binary STL's floats before it is read.
 void checkBinaryStlNumbers(const std::string& bytes, const std::string& source) {
@@ -206,6 +240,7 @@ TriangleMesh parseMesh(const std::string& bytes, const std::string& format, cons
   common::requireMemory(bytes.size() * kParseBytesPerFileByte, "reading the mesh " + source, "simplify the mesh first");
   if (bytes.find_first_not_of(" \t\r\n") == std::string::npos) throw MeshError(source, "the file is empty: it holds no faces");
   if (format == "off") checkOffHeader(bytes, source);
+  if (format == "ply") checkPlyHeader(bytes, source);
   std::vector<Point> points;
   std::vector<Polygon> polygons;
   try {

@@ -71,7 +71,7 @@ struct MeshRodReport {
 };
 
 struct MeshRods {
-  geometry::RodStructure structure;  // rods named "rod-<i>", ends "node-<face>" in the report's order
+  geometry::RodStructure structure;  // rods named "rod-<i>" in the order of their mesh edges (sorted by vertex)
   MeshRodReport report;
 };
 

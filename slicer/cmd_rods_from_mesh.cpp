@@ -7,9 +7,12 @@
 #include "slicer/shape_options.hpp"
 
 #include <nlohmann/json.hpp>
+#include <tbb/global_control.h>
 
 #include <cstdio>
+#include <algorithm>
 #include <iostream>
+#include <thread>
 #include <variant>
 
 namespace rodfab::cli {
@@ -20,6 +23,7 @@ struct MeshSettings {
   std::string mesh, output, profile;
   meshing::MeshRodOptions options;
   bool force = false, json = false;
+  int workers = 1;
 };
 
 void addMeshOptions(po::options_description& options) {
@@ -30,6 +34,7 @@ void addMeshOptions(po::options_description& options) {
       ("output,o", po::value<std::string>()->required(), "design file to write (rodfab.design/1)")
       ("subdivisions", po::value<int>()->default_value(4), "points per rod projected onto the surface and interpolated")
       ("surface-tolerance", po::value<double>()->default_value(0.05), "largest distance of a centerline from the surface (mm)")
+      ("threads", po::value<int>()->default_value(0), "worker threads for the rods (0 = all cores); the result does not depend on it")
       ("force", "replace an existing design file at --output")
       ("json", "print the summary as JSON on stdout");
   // The frame's d1 is the surface normal: --diameter is the thickness normal to the surface, --breadth
@@ -44,7 +49,7 @@ std::variant<MeshSettings, int> parseMesh(const std::vector<std::string>& args) 
   positional.add("mesh", 1);
   po::variables_map vm;
   const char* synopsis = "MESH --faces N --diameter D --output DESIGN.json [--section circle|ellipse|rectangle] "
-                         "[--breadth B] [--modulus E] [--subdivisions K] [--surface-tolerance T] [--force] [--json]";
+                         "[--breadth B] [--modulus E] [--subdivisions K] [--surface-tolerance T] [--threads N] [--force] [--json]";
   if (auto code = parseOptions("rods-from-mesh", synopsis, options, positional, args, vm)) return *code;
   MeshSettings s;
   s.mesh = vm["mesh"].as<std::string>(), s.output = vm["output"].as<std::string>();
@@ -53,7 +58,9 @@ std::variant<MeshSettings, int> parseMesh(const std::vector<std::string>& args) 
   const auto faces = intOption("rods-from-mesh", vm, "faces", meshing::kMinFaces, meshing::kMaxFaces);
   const auto subdivisions = intOption("rods-from-mesh", vm, "subdivisions", meshing::kMinSubdivisions, meshing::kMaxSubdivisions);
   const auto tolerance = realOption("rods-from-mesh", vm, "surface-tolerance", 1e-6, 1000, "mm");
-  if (!faces || !subdivisions || !tolerance) return kUsage;
+  const std::optional<int> threads = threadCount("rods-from-mesh", vm);
+  if (!faces || !subdivisions || !tolerance || !threads) return kUsage;
+  s.workers = *threads > 0 ? *threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   const std::optional<RodShape> shape = parseRodShape("rods-from-mesh", vm);
   if (!shape) return kUsage;
   o.faces = *faces, o.subdivisions = *subdivisions, o.surfaceTolerance = *tolerance;
@@ -100,6 +107,7 @@ int runRodsFromMesh(const std::vector<std::string>& args) {
   if (const int* code = std::get_if<int>(&parsed)) return *code;
   const MeshSettings& s = std::get<MeshSettings>(parsed);
   commandLineAccepted();
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(s.workers));
   std::string profileName;
   std::array<double, 3> trayMm{};
   if (!loadTrayProfile("rods-from-mesh", s.profile, trayMm, profileName)) return kFailed;

@@ -38,6 +38,11 @@ a, b = (json.load(open(f)) for f in sys.argv[1:3])
 assert a["rods"] == b["rods"]
 PY
 
+# The same bytes on 1 and 2 threads.
+"$rodfab" rods-from-mesh "$tmp/e.stl" --faces 100 --diameter 1.2 -o "$tmp/e1.json" --threads 1 > /dev/null 2>&1 || fail "--threads 1"
+"$rodfab" rods-from-mesh "$tmp/e.stl" --faces 100 --diameter 1.2 -o "$tmp/e2.json" --threads 2 > /dev/null 2>&1 || fail "--threads 2"
+cmp -s "$tmp/e1.json" "$tmp/e2.json" || fail "1 and 2 threads give different designs"
+
 # --json summary; an existing design is replaced only with --force.
 "$rodfab" rods-from-mesh "$tmp/e.stl" --faces 100 --diameter 1.2 -o "$tmp/e.json" > "$tmp/out" 2>&1 && fail "replaced without --force"
 grep -q -- "--force" "$tmp/out" || fail "no hint at --force: $(cat "$tmp/out")"
@@ -73,7 +78,7 @@ grep -q "nothing was written" "$tmp/out" || fail "no 'nothing was written': $(ca
 [ $rc -eq 1 ] && grep -q "5120 triangles, fewer than the 6000 asked for" "$tmp/out" || fail "too many faces: exit $rc: $(cat "$tmp/out")"
 "$rodfab" rods-from-mesh "$tmp/e.stl" -o "$tmp/e.stl" --faces 10 --diameter 1 --force > "$tmp/out" 2>&1 && fail "overwrote its input"
 for bad in "--faces 3" "--faces 100001" "--faces x" "--diameter 0" "--diameter nan" "--subdivisions 1" "--section hexagon" \
-           "--breadth 2" "--caps square" "--modulus -1" "--surface-tolerance 0"; do
+           "--breadth 2" "--caps square" "--modulus -1" "--surface-tolerance 0" "--threads -1"; do
   # shellcheck disable=SC2086
   "$rodfab" rods-from-mesh "$tmp/e.stl" --diameter 1 -o "$tmp/x.json" $bad > "$tmp/out" 2>&1; rc=$?
   [ $rc -eq 2 ] || fail "$bad: exit $rc: $(cat "$tmp/out")"
