@@ -20,6 +20,9 @@ packages=(
   libsuitesparse-dev                                         # KLU: the mechanics solver's sparse LU
   liblbfgspp-dev                                             # L-BFGS-B for rodfab optimize (header-only)
   libnlopt-cxx-dev                                           # MMA / CCSAQ, compared in bench_optimize
+  libcgal-dev                                                # meshing: mesh I/O, simplification, AABB trees
+  libopenmesh-dev                                            # bench_meshing: OpenMesh's decimater, compared
+  libocct-data-exchange-dev libocct-modeling-algorithms-dev libocct-modeling-data-dev libocct-foundation-dev  # rods-from-cad
 )
 
 missing=()

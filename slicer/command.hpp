@@ -41,5 +41,7 @@ int runInspect(const std::vector<std::string>& args);
 int runDitherReport(const std::vector<std::string>& args);
 int runSimulate(const std::vector<std::string>& args);
 int runOptimize(const std::vector<std::string>& args);
+int runRodsFromMesh(const std::vector<std::string>& args);
+int runRodsFromCad(const std::vector<std::string>& args);
 
 }  // namespace rodfab::cli

@@ -24,6 +24,8 @@ constexpr Command kCommands[] = {
     {"dither-report", "measure each ditherer's quality on uniform blocks and a thin rod", runDitherReport},
     {"simulate", "solve a design's rods under its mechanics loads (Cosserat rods); write the deformed design", runSimulate},
     {"optimize", "find each rod's E(s) that trains the design into its load cases' target shapes", runOptimize},
+    {"rods-from-mesh", "turn a triangle mesh into rods: the dual of the simplified mesh, laid on its surface", runRodsFromMesh},
+    {"rods-from-cad", "turn the edge curves of a STEP or IGES model into rods with their exact NURBS", runRodsFromCad},
 };
 // printUsage() pads command names to 15 columns.
 static_assert(std::ranges::all_of(kCommands, [](const Command& c) { return std::char_traits<char>::length(c.name) < 15; }));

@@ -1,0 +1,174 @@
+// CAD curve networks to rods with OpenCASCADE: every edge's curve, converted to its exact B-spline.
+#include "common/interrupt.hpp"
+#include "common/memory_budget.hpp"
+#include "meshing/meshing.hpp"
+
+#include <BRep_Tool.hxx>
+#include <GeomConvert.hxx>
+#include <Geom_BSplineCurve.hxx>
+#include <Geom_TrimmedCurve.hxx>
+#include <IFSelect_ReturnStatus.hxx>
+#include <IGESControl_Reader.hxx>
+#include <Message.hxx>
+#include <Message_Messenger.hxx>
+#include <STEPControl_Reader.hxx>
+#include <Standard_Failure.hxx>
+#include <TopExp.hxx>
+#include <TopTools_IndexedMapOfShape.hxx>
+#include <TopoDS.hxx>
+#include <TopoDS_Edge.hxx>
+
+#include <algorithm>
+#include <mutex>
+#include <numeric>
+
+namespace rodfab::meshing {
+
+namespace {
+
+using geometry::Vec3;
+
+std::string lowerExtension(const std::filesystem::path& file) {
+  std::string ext = file.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext;
+}
+
+// OpenCASCADE's readers report to a process-wide messenger (stdout by default): keep it quiet, and
+// read one file at a time (the readers share static tables).
+std::mutex& readerMutex() {
+  static std::mutex m;
+  return m;
+}
+
+TopoDS_Shape readShape(const std::filesystem::path& file) {
+  const std::string ext = lowerExtension(file);
+  std::error_code ec;
+  if (ext != ".step" && ext != ".stp" && ext != ".iges" && ext != ".igs")
+    throw MeshError(file, "unknown CAD format '" + file.extension().string() + "': expected .step, .stp, .iges or .igs");
+  if (!std::filesystem::is_regular_file(file, ec)) throw MeshError(file, "no such file (or not a regular file)");
+  const std::uintmax_t size = std::filesystem::file_size(file, ec);
+  if (ec) throw MeshError(file, "cannot read: " + ec.message());
+  if (size > kMaxMeshFileBytes) throw MeshError(file, "larger than 2 GiB");
+  // OpenCASCADE's readers hold the whole entity graph and then the shapes. 40 bytes per byte of text is
+  // an estimate, not a measurement (see meshing/README.md, what remains).
+  common::requireMemory(std::uint64_t(size) * 40, "reading the CAD model " + file.string(), "split the model");
+  std::lock_guard<std::mutex> lock(readerMutex());
+  Message::DefaultMessenger()->RemovePrinters(STANDARD_TYPE(Message_Printer));
+  const bool step = ext == ".step" || ext == ".stp";
+  STEPControl_Reader stepReader;
+  IGESControl_Reader igesReader;
+  XSControl_Reader& reader = step ? static_cast<XSControl_Reader&>(stepReader) : static_cast<XSControl_Reader&>(igesReader);
+  const std::string format = step ? "STEP" : "IGES";
+  if (reader.ReadFile(file.c_str()) != IFSelect_RetDone) throw MeshError(file, "not a readable " + format + " file");
+  if (reader.NbRootsForTransfer() == 0) throw MeshError(file, "not a readable " + format + " file: it holds no model");
+  reader.TransferRoots();
+  return reader.OneShape();
+}
+
+geometry::NurbsCurve toNurbs(const Geom_BSplineCurve& bs, const std::filesystem::path& file, int edge) {
+  if (bs.Degree() > geometry::kMaxDegree)
+    throw MeshError(file, "edge " + std::to_string(edge) + ": a curve of degree " + std::to_string(bs.Degree()) +
+                              ", above the " + std::to_string(geometry::kMaxDegree) + " rodfab supports");
+  std::vector<double> knots;
+  TColStd_Array1OfReal flat(1, bs.NbPoles() + bs.Degree() + 1);
+  bs.KnotSequence(flat);
+  for (int i = flat.Lower(); i <= flat.Upper(); ++i) knots.push_back(flat(i));
+  std::vector<Vec3> points;
+  std::vector<double> weights;
+  for (int i = 1; i <= bs.NbPoles(); ++i) {
+    const gp_Pnt p = bs.Pole(i);
+    points.emplace_back(p.X(), p.Y(), p.Z());
+    weights.push_back(bs.Weight(i));
+  }
+  if (!bs.IsRational()) weights.clear();
+  return geometry::NurbsCurve(bs.Degree(), std::move(knots), std::move(points), std::move(weights));
+}
+
+// The edge's curve over its range as a clamped, non-periodic B-spline; nullopt for an edge without a
+// 3D curve (a degenerate seam).
+std::optional<geometry::NurbsCurve> edgeCurve(const TopoDS_Edge& edge, const std::filesystem::path& file, int index) {
+  if (BRep_Tool::Degenerated(edge)) return std::nullopt;
+  double first = 0, last = 0;
+  const Handle(Geom_Curve) curve = BRep_Tool::Curve(edge, first, last);
+  if (curve.IsNull() || !(last > first)) return std::nullopt;
+  try {
+    Handle(Geom_BSplineCurve) bs = GeomConvert::CurveToBSplineCurve(new Geom_TrimmedCurve(curve, first, last));
+    if (bs->IsPeriodic()) bs->SetNotPeriodic();
+    return toNurbs(*bs, file, index);
+  } catch (const Standard_Failure& e) {
+    throw MeshError(file, "edge " + std::to_string(index) + ": cannot convert its curve to a B-spline: " + e.GetMessageString());
+  }
+}
+
+// Groups curve ends closer than `tolerance` (single linkage) and moves each group onto its mean.
+double mergeEnds(std::vector<geometry::NurbsCurve>& curves, double tolerance, std::size_t& joints) {
+  std::vector<Vec3> ends;
+  for (const auto& c : curves) ends.push_back(c.points().front()), ends.push_back(c.points().back());
+  std::vector<std::size_t> order(ends.size()), parent(ends.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::iota(parent.begin(), parent.end(), 0);
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return ends[a].x() < ends[b].x(); });
+  auto find = [&](std::size_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  for (std::size_t i = 0; i < order.size(); ++i)
+    for (std::size_t j = i + 1; j < order.size() && ends[order[j]].x() - ends[order[i]].x() <= tolerance; ++j)
+      if ((ends[order[i]] - ends[order[j]]).norm() <= tolerance) parent[find(order[i])] = find(order[j]);
+  std::vector<Vec3> sum(ends.size(), Vec3::Zero());
+  std::vector<int> count(ends.size(), 0);
+  for (std::size_t e = 0; e < ends.size(); ++e) sum[find(e)] += ends[e], ++count[find(e)];
+  joints = 0;
+  for (std::size_t e = 0; e < ends.size(); ++e) joints += find(e) == e && count[e] > 1;
+  double moved = 0;
+  for (std::size_t r = 0; r < curves.size(); ++r) {
+    std::vector<Vec3> points = curves[r].points();
+    const Vec3 a = sum[find(2 * r)] / count[find(2 * r)], b = sum[find(2 * r + 1)] / count[find(2 * r + 1)];
+    moved = std::max({moved, (points.front() - a).norm(), (points.back() - b).norm()});
+    points.front() = a, points.back() = b;
+    curves[r] = geometry::NurbsCurve(curves[r].degree(), curves[r].knots(), std::move(points), curves[r].weights());
+  }
+  return moved;
+}
+
+// A reference normal perpendicular to the curve's start tangent (for non-circular sections).
+Vec3 normalFor(const geometry::NurbsCurve& c) {
+  Vec3 d[3];
+  c.derivatives(c.domainBegin(), 2, d);
+  const Vec3 t = d[1].norm() > 0 ? d[1].normalized() : d[2].normalized();
+  int k = 0;
+  t.cwiseAbs().minCoeff(&k);
+  return t.cross(Vec3::Unit(k)).normalized();
+}
+
+}  // namespace
+
+CadRods rodsFromCad(const std::filesystem::path& file, const CadRodOptions& options) {
+  if (!(options.jointTolerance > 0) || !(options.modulusMpa > 0)) throw std::invalid_argument("rodsFromCad: options out of range");
+  const TopoDS_Shape shape = readShape(file);
+  TopTools_IndexedMapOfShape edges;
+  if (!shape.IsNull()) TopExp::MapShapes(shape, TopAbs_EDGE, edges);
+  CadRods out;
+  out.report.edges = static_cast<std::size_t>(edges.Extent());
+  std::vector<geometry::NurbsCurve> curves;
+  for (int i = 1; i <= edges.Extent(); ++i) {
+    common::throwIfInterrupted();
+    if (auto c = edgeCurve(TopoDS::Edge(edges(i)), file, i - 1)) curves.push_back(std::move(*c));
+    else ++out.report.skippedDegenerate;
+  }
+  if (curves.empty()) throw MeshError(file, "the model holds no edge curve");
+  out.report.largestEndMove = mergeEnds(curves, options.jointTolerance, out.report.joints);
+  for (std::size_t r = 0; r < curves.size(); ++r) {
+    const geometry::NurbsCurve& c = curves[r];
+    std::optional<Vec3> normal;
+    if (!options.section.isRotationallySymmetric()) normal = normalFor(c);
+    out.structure.rods.emplace_back("edge-" + std::to_string(r), c, options.section, normal, std::nullopt, options.caps,
+                                    geometry::BSplineField::constant(options.modulusMpa, c.domainBegin(), c.domainEnd()));
+  }
+  out.structure.source = file.string();
+  out.report.rods = out.structure.rods.size();
+  return out;
+}
+
+}  // namespace rodfab::meshing

@@ -1,0 +1,68 @@
+// meshing/ internals: the triangle mesh passed between the reader, the simplifier, the surface
+// projector and the rod builder. CGAL stays inside the .cpp files that need it.
+#pragma once
+
+#include "geometry/nurbs.hpp"
+#include "meshing/meshing.hpp"
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace rodfab::meshing {
+
+using geometry::Vec3;
+using Triangle = std::array<std::uint32_t, 3>;
+
+// An oriented, manifold, welded triangle mesh (what readMesh guarantees): vertices sorted
+// lexicographically, each triangle rotated to start at its smallest index, triangles sorted, so the
+// same surface gives the same mesh from any file format or vertex order.
+struct TriangleMesh {
+  std::vector<Vec3> points;
+  std::vector<Triangle> triangles;
+};
+
+struct ReadStats {
+  std::size_t weldedVertices = 0;
+};
+
+// Rotates each triangle to start at its smallest vertex (orientation kept) and sorts the triangles.
+void canonicalizeTriangles(std::vector<Triangle>& triangles);
+
+// Reads and checks a mesh file (see rodsFromMesh for the errors).
+TriangleMesh readMesh(const std::filesystem::path& file, ReadStats& stats);
+// The same on bytes in memory; `format` is the lower-case extension, `source` names it in errors.
+TriangleMesh parseMesh(const std::string& bytes, const std::string& format, const std::string& source, ReadStats& stats);
+
+// Edge-collapse simplification to about `targetFaces` triangles (CGAL Garland-Heckbert plane quadrics
+// with its default placement). The result is manifold and oriented like the input, canonical as above.
+TriangleMesh simplifyMesh(const TriangleMesh& mesh, std::size_t targetFaces);
+
+// Closest points on a triangle mesh (CGAL AABB tree). Queries are const and thread-safe.
+class SurfaceProjector {
+public:
+  explicit SurfaceProjector(const TriangleMesh& mesh);
+  ~SurfaceProjector();
+  SurfaceProjector(const SurfaceProjector&) = delete;
+  SurfaceProjector& operator=(const SurfaceProjector&) = delete;
+
+  struct Hit {
+    Vec3 point;
+    Vec3 normal;  // unit normal of the triangle the closest point lies on
+  };
+  Hit closest(const Vec3& p) const;
+  double distance(const Vec3& p) const;
+
+private:
+  struct Tree;
+  std::unique_ptr<Tree> tree_;
+};
+
+// Cubic B-spline interpolating `points` (at least 4, no two consecutive equal) at chord-length
+// parameters normalized to [0, 1], knots by averaging (Piegl & Tiller, The NURBS Book, A9.1). The first
+// and last control points are exactly the first and last data points.
+geometry::NurbsCurve interpolateCubic(const std::vector<Vec3>& points);
+
+}  // namespace rodfab::meshing

@@ -1,0 +1,297 @@
+// Mesh files through CGAL's readers, then the checks rodfab relies on: finite coordinates, triangles
+// (polygons fanned), welded vertices, no degenerate face, manifold edges and vertices, one orientation.
+#include "common/interrupt.hpp"
+#include "common/memory_budget.hpp"
+#include "geometry/rod.hpp"
+#include "meshing/mesh.hpp"
+
+#include <CGAL/IO/OBJ.h>
+#include <CGAL/IO/OFF.h>
+#include <CGAL/IO/PLY.h>
+#include <CGAL/IO/STL.h>
+#include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
+#include <CGAL/Simple_cartesian.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <numeric>
+#include <sstream>
+
+namespace rodfab::meshing {
+
+namespace {
+
+using Kernel = CGAL::Simple_cartesian<double>;
+using Point = Kernel::Point_3;
+using Polygon = std::vector<std::size_t>;
+
+// Bytes of memory the readers and the soup may need per byte of file (the densest text, "f 1 2 3",
+// becomes a 64-byte polygon), and per triangle once read (soup, canonical mesh, CGAL's simplification
+// mesh and the AABB tree of the original surface).
+constexpr std::uint64_t kParseBytesPerFileByte = 14;
+constexpr std::uint64_t kBytesPerTriangle = 1000;
+
+std::string where(const Vec3& p) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "(%.6g, %.6g, %.6g)", p.x(), p.y(), p.z());
+  return buf;
+}
+
+// OFF's reader sizes its arrays from the header: refuse counts the bytes cannot hold (a vertex takes
+// at least 6 bytes of text, a face 8).
+void checkOffHeader(const std::string& bytes, const std::string& source) {
+  std::istringstream in(bytes);
+  std::string word;
+  while (in >> word && word[0] == '#') std::getline(in, word);
+  if (word.find("OFF") == std::string::npos) return;  // CGAL reports what it cannot parse
+  if (word == "OFF" || word == "COFF" || word == "NOFF" || word == "CNOFF") {
+    std::string next;
+    while (in >> next && next[0] == '#') std::getline(in, next);
+    if (next == "BINARY") return;  // counts are binary ints: CGAL's size check below applies
+    double nv = 0, nf = 0;
+    std::istringstream counts(next);
+    if (!(counts >> nv) || !(in >> nf)) return;
+    if (nv < 0 || nf < 0 || nv * 6 + nf * 8 > static_cast<double>(bytes.size()) + 64)
+      throw MeshError(source, "the OFF header declares " + next + " vertices and more faces than the file's " +
+                                  std::to_string(bytes.size()) + " bytes can hold");
+  }
+}
+
+// CGAL's PLY reader adds a "property" to the last element without checking there is one, and reads a
+// vertex's x, y, z as float or double without checking their declared type (both undefined behaviour,
+// found by fuzzing); it reads as many elements as declared. So the header is checked first: order,
+// coordinate types, and counts (each element takes at least one byte).
+void checkPlyHeader(const std::string& bytes, const std::string& source) {
+  std::istringstream in(bytes);
+  std::string line, elementName;
+  bool element = false;
+  for (int number = 1; std::getline(in, line); ++number) {
+    std::istringstream words(line);
+    std::string keyword;
+    words >> keyword;
+    if (keyword == "end_header") return;
+    if (keyword == "element") {
+      std::string name;
+      double count = -1;
+      words >> name >> count;
+      elementName = name;
+      if (!(count >= 0) || count > static_cast<double>(bytes.size()))
+        throw MeshError(source, "PLY header line " + std::to_string(number) + ": an element count the file's " +
+                                    std::to_string(bytes.size()) + " bytes cannot hold");
+      element = true;
+    } else if (keyword == "property") {
+      if (!element) throw MeshError(source, "PLY header line " + std::to_string(number) + ": a property before any element");
+      std::string type, name;
+      words >> type >> name;
+      const bool coordinate = elementName == "vertex" && (name == "x" || name == "y" || name == "z");
+      if (coordinate && type != "float" && type != "float32" && type != "double" && type != "float64")
+        throw MeshError(source, "PLY header line " + std::to_string(number) + ": vertex coordinate " + name +
+                                    " of type '" + type + "' (expected float or double)");
+    }
+  }
+}
+
+// CGAL's STL reader merges corners through an ordered map, which a NaN corrupts (it compares equal to
+// everything): check a binary STL's floats before it is read.
+void checkBinaryStlNumbers(const std::string& bytes, const std::string& source) {
+  if (bytes.size() < 84) return;
+  std::uint32_t count = 0;
+  std::memcpy(&count, bytes.data() + 80, 4);
+  if (84 + 50 * std::uint64_t(count) != bytes.size()) return;  // not binary STL (or truncated): CGAL decides
+  for (std::uint32_t t = 0; t < count; ++t)
+    for (int k = 3; k < 12; ++k) {  // the 9 corner coordinates after the normal
+      float v = 0;
+      std::memcpy(&v, bytes.data() + 84 + 50 * std::size_t(t) + 4 * k, 4);
+      if (!std::isfinite(v))
+        throw MeshError(source, "triangle " + std::to_string(t) + " has a coordinate that is not a finite number");
+    }
+}
+
+bool readSoup(const std::string& bytes, const std::string& format, std::vector<Point>& points,
+              std::vector<Polygon>& polygons, const std::string& source) {
+  if (format == "stl") checkBinaryStlNumbers(bytes, source);
+  std::istringstream in(bytes, std::ios::in | std::ios::binary);
+  const auto quiet = CGAL::parameters::verbose(false);
+  if (format == "stl") return CGAL::IO::read_STL(in, points, polygons, quiet);
+  if (format == "obj") return CGAL::IO::read_OBJ(in, points, polygons, quiet);
+  if (format == "off") return CGAL::IO::read_OFF(in, points, polygons, quiet);
+  if (format == "ply") return CGAL::IO::read_PLY(in, points, polygons, quiet);
+  return false;
+}
+
+// Triangles of the soup (polygons fanned from their first corner), after checking indices and coordinates.
+std::vector<Triangle> triangulate(const std::vector<Point>& points, const std::vector<Polygon>& polygons,
+                                  const std::string& source) {
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Point& p = points[i];
+    for (int a = 0; a < 3; ++a)
+      if (!std::isfinite(p[a]) || std::abs(p[a]) > geometry::kMaxCoordinateMm)
+        throw MeshError(source, "vertex " + std::to_string(i) + " has a coordinate that is not a finite number within ±1e9 mm");
+  }
+  if (points.size() >= std::numeric_limits<std::uint32_t>::max())
+    throw MeshError(source, "more than 4 billion vertices");
+  std::vector<Triangle> triangles;
+  for (std::size_t f = 0; f < polygons.size(); ++f) {
+    const Polygon& poly = polygons[f];
+    if (poly.size() < 3) throw MeshError(source, "face " + std::to_string(f) + " has fewer than 3 corners");
+    for (std::size_t v : poly)
+      if (v >= points.size())
+        throw MeshError(source, "face " + std::to_string(f) + " refers to vertex " + std::to_string(v) + " of " +
+                                    std::to_string(points.size()));
+    for (std::size_t k = 1; k + 1 < poly.size(); ++k)
+      triangles.push_back({static_cast<std::uint32_t>(poly[0]), static_cast<std::uint32_t>(poly[k]),
+                           static_cast<std::uint32_t>(poly[k + 1])});
+  }
+  return triangles;
+}
+
+// Identical points become one vertex; vertices end up sorted lexicographically.
+TriangleMesh weld(const std::vector<Point>& points, std::vector<Triangle> triangles, ReadStats& stats) {
+  std::vector<std::uint32_t> order(points.size());
+  std::iota(order.begin(), order.end(), 0u);
+  auto less = [&](std::uint32_t a, std::uint32_t b) {
+    const Point &p = points[a], &q = points[b];
+    if (p.x() != q.x()) return p.x() < q.x();
+    if (p.y() != q.y()) return p.y() < q.y();
+    if (p.z() != q.z()) return p.z() < q.z();
+    return a < b;
+  };
+  std::sort(order.begin(), order.end(), less);
+  TriangleMesh mesh;
+  std::vector<std::uint32_t> newIndex(points.size());
+  for (std::uint32_t i : order) {
+    const Vec3 p(points[i].x(), points[i].y(), points[i].z());
+    if (mesh.points.empty() || mesh.points.back() != p) mesh.points.push_back(p);
+    newIndex[i] = static_cast<std::uint32_t>(mesh.points.size() - 1);
+  }
+  stats.weldedVertices = points.size() - mesh.points.size();
+  for (Triangle& t : triangles)
+    for (auto& v : t) v = newIndex[v];
+  mesh.triangles = std::move(triangles);
+  return mesh;
+}
+
+void checkDegenerate(const TriangleMesh& mesh, const std::string& source) {
+  for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
+    const Triangle& t = mesh.triangles[f];
+    const Vec3 &a = mesh.points[t[0]], &b = mesh.points[t[1]], &c = mesh.points[t[2]];
+    if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
+      throw MeshError(source, "degenerate mesh: triangle " + std::to_string(f) + " has two corners at the same point " +
+                                  where(t[0] == t[1] || t[0] == t[2] ? a : b));
+    const double longest = std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()});
+    if ((b - a).cross(c - a).norm() <= 1e-12 * longest)
+      throw MeshError(source, "degenerate mesh: triangle " + std::to_string(f) + " has zero area (corners in a line) near " +
+                                  where((a + b + c) / 3));
+  }
+}
+
+// An edge of more than two triangles, or two triangles using one edge in the same direction (which a
+// single orientation cannot fix only with a vertex split, reported by orient()).
+void checkManifoldEdges(const TriangleMesh& mesh, const std::string& source) {
+  std::vector<std::array<std::uint32_t, 3>> edges;  // (low, high, triangle)
+  edges.reserve(mesh.triangles.size() * 3);
+  for (std::uint32_t f = 0; f < mesh.triangles.size(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t a = mesh.triangles[f][k], b = mesh.triangles[f][(k + 1) % 3];
+      edges.push_back({std::min(a, b), std::max(a, b), f});
+    }
+  std::sort(edges.begin(), edges.end());
+  for (std::size_t i = 0; i + 2 < edges.size(); ++i)
+    if (edges[i][0] == edges[i + 2][0] && edges[i][1] == edges[i + 2][1])
+      throw MeshError(source, "non-manifold mesh: the edge from " + where(mesh.points[edges[i][0]]) + " to " +
+                                  where(mesh.points[edges[i][1]]) + " belongs to more than two triangles (" +
+                                  std::to_string(edges[i][2]) + ", " + std::to_string(edges[i + 1][2]) + ", " +
+                                  std::to_string(edges[i + 2][2]) + ")");
+}
+
+// One orientation per connected part (CGAL), refusing a vertex where separate sheets meet.
+void orient(TriangleMesh& mesh, const std::string& source) {
+  std::vector<Point> points;
+  points.reserve(mesh.points.size());
+  for (const Vec3& p : mesh.points) points.emplace_back(p.x(), p.y(), p.z());
+  std::vector<std::array<std::size_t, 3>> polygons;
+  polygons.reserve(mesh.triangles.size());
+  for (const Triangle& t : mesh.triangles) polygons.push_back({t[0], t[1], t[2]});
+  const std::size_t before = points.size();
+  if (!CGAL::Polygon_mesh_processing::orient_polygon_soup(points, polygons) || points.size() != before) {
+    const Vec3 p = points.size() > before ? Vec3(points[before].x(), points[before].y(), points[before].z()) : Vec3::Zero();
+    throw MeshError(source, "non-manifold or non-orientable mesh: separate sheets of triangles meet at the vertex " + where(p) +
+                                " (or the surface cannot be oriented consistently there)");
+  }
+  for (std::size_t f = 0; f < polygons.size(); ++f)
+    for (int k = 0; k < 3; ++k) mesh.triangles[f][k] = static_cast<std::uint32_t>(polygons[f][k]);
+}
+
+}  // namespace
+
+// Each triangle starts at its smallest vertex (cyclic order, so orientation, kept); triangles sorted.
+void canonicalizeTriangles(std::vector<Triangle>& triangles) {
+  for (Triangle& t : triangles) {
+    const int m = static_cast<int>(std::min_element(t.begin(), t.end()) - t.begin());
+    std::rotate(t.begin(), t.begin() + m, t.end());
+  }
+  std::sort(triangles.begin(), triangles.end());
+}
+
+TriangleMesh parseMesh(const std::string& bytes, const std::string& format, const std::string& source, ReadStats& stats) {
+  common::requireMemory(bytes.size() * kParseBytesPerFileByte, "reading the mesh " + source, "simplify the mesh first");
+  if (bytes.find_first_not_of(" \t\r\n") == std::string::npos) throw MeshError(source, "the file is empty: it holds no faces");
+  if (format == "off") checkOffHeader(bytes, source);
+  if (format == "ply") checkPlyHeader(bytes, source);
+  std::vector<Point> points;
+  std::vector<Polygon> polygons;
+  try {
+    if (!readSoup(bytes, format, points, polygons, source))
+      throw MeshError(source, "not a readable " + format + " mesh (the " + format + " reader stopped; is the file complete?)");
+  } catch (const std::bad_alloc&) {
+    // The readers size arrays from counts in the file (a face's corner count, an element count).
+    throw MeshError(source, "the file declares more elements than the memory budget holds (a count in it is wrong?)");
+  }
+  if (polygons.empty()) throw MeshError(source, "the file holds no faces");
+  common::throwIfInterrupted();
+  std::vector<Triangle> triangles = triangulate(points, polygons, source);
+  polygons = {};
+  // CGAL's STL reader already merges repeated corners: count those as welded too.
+  const std::size_t stlMerged = format == "stl" ? 3 * triangles.size() - std::min(3 * triangles.size(), points.size()) : 0;
+  common::requireMemory(triangles.size() * kBytesPerTriangle, "building rods from the mesh " + source,
+                        "simplify the mesh first");
+  TriangleMesh mesh = weld(points, std::move(triangles), stats);
+  stats.weldedVertices += stlMerged;
+  points = {};
+  checkDegenerate(mesh, source);
+  checkManifoldEdges(mesh, source);
+  common::throwIfInterrupted();
+  orient(mesh, source);
+  canonicalizeTriangles(mesh.triangles);
+  return mesh;
+}
+
+TriangleMesh readMesh(const std::filesystem::path& file, ReadStats& stats) {
+  std::string format = file.extension().string();
+  std::transform(format.begin(), format.end(), format.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (!format.empty()) format.erase(0, 1);
+  if (format != "stl" && format != "obj" && format != "ply" && format != "off")
+    throw MeshError(file, "unknown mesh format '" + file.extension().string() + "': expected .stl, .obj, .ply or .off");
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(file, ec)) throw MeshError(file, "no such file (or not a regular file)");
+  const std::uintmax_t size = std::filesystem::file_size(file, ec);
+  if (ec) throw MeshError(file, "cannot read: " + ec.message());
+  if (size > kMaxMeshFileBytes) throw MeshError(file, "larger than 2 GiB: simplify the mesh first");
+  common::requireMemory(size * (kParseBytesPerFileByte + 1), "reading the mesh " + file.string(), "simplify the mesh first");
+  std::ifstream in(file, std::ios::binary);
+  std::string bytes(size, '\0');
+  if (!in || !in.read(bytes.data(), static_cast<std::streamsize>(size)))
+    throw MeshError(file, "cannot read the file");
+  return parseMesh(bytes, format, file.string(), stats);
+}
+
+MeshCounts checkMeshBytes(const std::string& bytes, const std::string& format, const std::string& sourceName) {
+  ReadStats stats;
+  const TriangleMesh mesh = parseMesh(bytes, format, sourceName, stats);
+  return {mesh.points.size(), mesh.triangles.size()};
+}
+
+}  // namespace rodfab::meshing

@@ -1,0 +1,254 @@
+// The dual of the simplified mesh, laid on the original surface: nodes, rods, the surface check.
+#include "common/interrupt.hpp"
+#include "meshing/mesh.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numeric>
+
+namespace rodfab::meshing {
+
+MeshError::MeshError(const std::filesystem::path& file, const std::string& message)
+    : std::runtime_error(file.string() + ": " + message), file_(file) {}
+
+namespace {
+
+// Centerline points checked against the surface per knot span.
+constexpr int kChecksPerSpan = 16;
+// Sample counts tried per rod: subdivisions, doubled up to this factor or kMaxSamples.
+constexpr int kMaxRefinementFactor = 16;
+constexpr int kMaxSamples = 256;
+// Bisections that close one gap left by the projection (2^6 points at most).
+constexpr int kGapDepth = 6;
+
+struct Node {
+  Vec3 point, normal;
+};
+
+// An interior edge (a, b) of the simplified mesh and its two faces f < g.
+struct DualEdge {
+  std::uint32_t a, b, f, g;
+};
+
+struct Dual {
+  std::vector<DualEdge> edges;
+  std::size_t boundaryEdges = 0;
+};
+
+Dual buildDual(const TriangleMesh& mesh) {
+  std::vector<std::array<std::uint32_t, 3>> halfEdges;  // (low, high, face)
+  for (std::uint32_t f = 0; f < mesh.triangles.size(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t a = mesh.triangles[f][k], b = mesh.triangles[f][(k + 1) % 3];
+      halfEdges.push_back({std::min(a, b), std::max(a, b), f});
+    }
+  std::sort(halfEdges.begin(), halfEdges.end());
+  Dual dual;
+  for (std::size_t i = 0; i < halfEdges.size();) {
+    const auto& e = halfEdges[i];
+    if (i + 1 < halfEdges.size() && halfEdges[i + 1][0] == e[0] && halfEdges[i + 1][1] == e[1]) {
+      dual.edges.push_back({e[0], e[1], e[2], halfEdges[i + 1][2]});
+      i += 2;
+    } else {
+      ++dual.boundaryEdges;
+      ++i;
+    }
+  }
+  return dual;
+}
+
+Vec3 centroid(const TriangleMesh& mesh, std::uint32_t f) {
+  const Triangle& t = mesh.triangles[f];
+  return (mesh.points[t[0]] + mesh.points[t[1]] + mesh.points[t[2]]) / 3.0;
+}
+
+Vec3 faceNormal(const TriangleMesh& mesh, std::uint32_t f) {
+  const Triangle& t = mesh.triangles[f];
+  return (mesh.points[t[1]] - mesh.points[t[0]]).cross(mesh.points[t[2]] - mesh.points[t[0]]).normalized();
+}
+
+// Appends the points strictly between a and b that close a gap: closest-point projection jumps across
+// a crease (points inside a convex edge go to one face or the other), leaving two data points far apart
+// with the crease between them; projected midpoints, bisected while the gap exceeds `spacing`, walk
+// onto the crease so the interpolant follows it.
+void fillGap(const SurfaceProjector& surface, const Vec3& a, const Vec3& b, double spacing, int depth, std::vector<Vec3>& out) {
+  if (depth == 0 || (b - a).norm() <= spacing) return;
+  const Vec3 m = surface.closest(0.5 * (a + b)).point;
+  if ((m - a).norm() <= 1e-9 * spacing || (m - b).norm() <= 1e-9 * spacing) return;
+  fillGap(surface, a, m, spacing, depth - 1, out);
+  out.push_back(m);
+  fillGap(surface, m, b, spacing, depth - 1, out);
+}
+
+// The data points of one rod: node f, `count` points along centroid(f) -> edge midpoint ->
+// centroid(g) (on the simplified surface) moved to the original surface, gaps filled, node g.
+std::vector<Vec3> rodSamples(const TriangleMesh& simplified, const SurfaceProjector& surface, const DualEdge& e,
+                             const std::vector<Node>& nodes, int count) {
+  const Vec3 c0 = centroid(simplified, e.f), c1 = centroid(simplified, e.g);
+  const Vec3 mid = 0.5 * (simplified.points[e.a] + simplified.points[e.b]);
+  const double l0 = (mid - c0).norm(), l1 = (c1 - mid).norm(), length = l0 + l1;
+  std::vector<Vec3> projected{nodes[e.f].point};
+  for (int i = 1; i <= count; ++i) {
+    const double s = length * i / (count + 1);
+    projected.push_back(surface.closest(s <= l0 ? c0 + (mid - c0) * (s / l0) : mid + (c1 - mid) * ((s - l0) / l1)).point);
+  }
+  projected.push_back(nodes[e.g].point);
+  const double spacing = 1.5 * length / (count + 1);
+  std::vector<Vec3> points{projected.front()};
+  for (std::size_t i = 1; i < projected.size(); ++i) {
+    fillGap(surface, points.back(), projected[i], spacing, kGapDepth, points);
+    // Where the original surface folds, two samples can land on one point: keep the first.
+    if ((projected[i] - points.back()).norm() > 1e-9 * length) points.push_back(projected[i]);
+    else if (i + 1 == projected.size()) points.back() = projected[i];  // the node itself ends the rod
+  }
+  return points;
+}
+
+double largestSurfaceDistance(const geometry::NurbsCurve& curve, const SurfaceProjector& surface) {
+  const std::vector<double> breaks = curve.breakpoints();
+  double largest = 0;
+  for (std::size_t s = 0; s + 1 < breaks.size(); ++s)
+    for (int i = 0; i <= kChecksPerSpan; ++i) {
+      const double u = breaks[s] + (breaks[s + 1] - breaks[s]) * i / kChecksPerSpan;
+      largest = std::max(largest, surface.distance(curve.point(u)));
+    }
+  return largest;
+}
+
+struct FittedRod {
+  geometry::NurbsCurve curve;
+  double distance = 0;
+  bool refined = false;
+};
+
+// Interpolates the rod with `subdivisions` samples, doubling them while the centerline leaves the
+// surface by more than the tolerance (up to kMaxRefinementFactor times).
+FittedRod fitRod(const TriangleMesh& simplified, const SurfaceProjector& surface, const DualEdge& e,
+                 const std::vector<Node>& nodes, const MeshRodOptions& options, const std::filesystem::path& file) {
+  FittedRod best;
+  for (int factor = 1; factor <= kMaxRefinementFactor && options.subdivisions * factor <= std::max(kMaxSamples, options.subdivisions); factor *= 2) {
+    const std::vector<Vec3> points = rodSamples(simplified, surface, e, nodes, options.subdivisions * factor);
+    if (points.size() < 4)
+      throw MeshError(file, "the surface folds onto itself between the faces " + std::to_string(e.f) + " and " +
+                                std::to_string(e.g) + " of the simplified mesh: ask for more --faces");
+    geometry::NurbsCurve curve = interpolateCubic(points);
+    const double distance = largestSurfaceDistance(curve, surface);
+    if (factor == 1 || distance < best.distance) best = {std::move(curve), distance, factor > 1};
+    if (best.distance <= options.surfaceTolerance) break;
+  }
+  return best;
+}
+
+// The surface normal at the rod's first node, or the simplified face's normal where the surface's
+// normal lies too close to the centerline's tangent to seed a frame.
+Vec3 referenceNormal(const geometry::NurbsCurve& curve, const Node& node, const Vec3& faceNormal) {
+  Vec3 d[2];
+  curve.derivatives(curve.domainBegin(), 1, d);
+  const Vec3 t = d[1].normalized();
+  return std::abs(node.normal.dot(t)) < 0.9 ? node.normal : faceNormal;
+}
+
+std::size_t countComponents(std::size_t faces, const std::vector<DualEdge>& edges) {
+  std::vector<std::uint32_t> parent(faces);
+  std::iota(parent.begin(), parent.end(), 0u);
+  auto find = [&](std::uint32_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  std::vector<bool> used(faces, false);
+  for (const DualEdge& e : edges) {
+    parent[find(e.f)] = find(e.g);
+    used[e.f] = used[e.g] = true;
+  }
+  std::size_t count = 0;
+  for (std::uint32_t f = 0; f < faces; ++f) count += used[f] && find(f) == f;
+  return count;
+}
+
+std::vector<Node> projectNodes(const TriangleMesh& simplified, const SurfaceProjector& surface) {
+  std::vector<Node> nodes(simplified.triangles.size());
+  tbb::parallel_for(std::size_t(0), nodes.size(), [&](std::size_t f) {
+    const SurfaceProjector::Hit hit = surface.closest(centroid(simplified, static_cast<std::uint32_t>(f)));
+    nodes[f] = {hit.point, hit.normal};
+  });
+  return nodes;
+}
+
+geometry::RodStructure buildRods(const std::filesystem::path& file, const TriangleMesh& original,
+                                 const TriangleMesh& simplified, const MeshRodOptions& options, MeshRodReport& report) {
+  const SurfaceProjector surface(original);
+  common::throwIfInterrupted();
+  const Dual dual = buildDual(simplified);
+  report.boundaryEdges = dual.boundaryEdges;
+  if (dual.edges.empty()) throw MeshError(file, "no two faces of the simplified mesh share an edge, so there is no rod");
+  const std::vector<Node> nodes = projectNodes(simplified, surface);
+  std::vector<FittedRod> fitted(dual.edges.size());
+  tbb::parallel_for(std::size_t(0), fitted.size(), [&](std::size_t i) {
+    if (common::interruptRequested()) return;
+    fitted[i] = fitRod(simplified, surface, dual.edges[i], nodes, options, file);
+  });
+  common::throwIfInterrupted();
+  geometry::RodStructure structure;
+  structure.rods.reserve(fitted.size());
+  std::vector<bool> isNode(nodes.size(), false);
+  for (std::size_t i = 0; i < fitted.size(); ++i) {
+    const DualEdge& e = dual.edges[i];
+    FittedRod& rod = fitted[i];
+    report.largestSurfaceDistance = std::max(report.largestSurfaceDistance, rod.distance);
+    report.refinedRods += rod.refined;
+    report.rodsAboveTolerance += rod.distance > options.surfaceTolerance;
+    isNode[e.f] = isNode[e.g] = true;
+    const Vec3 normal = referenceNormal(rod.curve, nodes[e.f], faceNormal(simplified, e.f));
+    structure.rods.emplace_back("rod-" + std::to_string(i), std::move(rod.curve), options.section, normal, std::nullopt,
+                                options.caps, geometry::BSplineField::constant(options.modulusMpa, 0.0, 1.0));
+  }
+  report.rods = structure.rods.size();
+  report.nodes = static_cast<std::size_t>(std::count(isNode.begin(), isNode.end(), true));
+  report.components = countComponents(nodes.size(), dual.edges);
+  return structure;
+}
+
+void checkOptions(const MeshRodOptions& o) {
+  if (o.faces < kMinFaces || o.faces > kMaxFaces) throw std::invalid_argument("rodsFromMesh: faces out of range");
+  if (o.subdivisions < kMinSubdivisions || o.subdivisions > kMaxSubdivisions)
+    throw std::invalid_argument("rodsFromMesh: subdivisions out of range");
+  if (!(o.surfaceTolerance > 0) || !std::isfinite(o.surfaceTolerance))
+    throw std::invalid_argument("rodsFromMesh: surface tolerance must be > 0");
+  if (!(o.modulusMpa > 0) || !std::isfinite(o.modulusMpa)) throw std::invalid_argument("rodsFromMesh: modulus must be > 0");
+}
+
+double secondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+MeshRods rodsFromMesh(const std::filesystem::path& file, const MeshRodOptions& options) {
+  checkOptions(options);
+  MeshRods out;
+  MeshRodReport& report = out.report;
+  auto clock = std::chrono::steady_clock::now();
+  ReadStats stats;
+  const TriangleMesh original = readMesh(file, stats);
+  report.inputVertices = original.points.size(), report.inputFaces = original.triangles.size();
+  report.weldedVertices = stats.weldedVertices;
+  if (original.triangles.size() < static_cast<std::size_t>(options.faces))
+    throw MeshError(file, "the mesh has " + std::to_string(original.triangles.size()) + " triangles, fewer than the " +
+                              std::to_string(options.faces) + " asked for (--faces)");
+  report.readSeconds = secondsSince(clock);
+  clock = std::chrono::steady_clock::now();
+  const TriangleMesh simplified =
+      original.triangles.size() == static_cast<std::size_t>(options.faces) ? original : simplifyMesh(original, options.faces);
+  report.simplifiedVertices = simplified.points.size(), report.simplifiedFaces = simplified.triangles.size();
+  report.simplifySeconds = secondsSince(clock);
+  clock = std::chrono::steady_clock::now();
+  out.structure = buildRods(file, original, simplified, options, report);
+  out.structure.source = file.string();
+  report.rodSeconds = secondsSince(clock);
+  return out;
+}
+
+}  // namespace rodfab::meshing

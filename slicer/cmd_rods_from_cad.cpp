@@ -1,0 +1,65 @@
+// rodfab rods-from-cad: every edge curve of a STEP or IGES model becomes a rod with its exact NURBS.
+#include "geometry/geometry.hpp"
+#include "meshing/meshing.hpp"
+#include "slicer/command.hpp"
+#include "slicer/options.hpp"
+#include "slicer/shape_options.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <iostream>
+
+namespace rodfab::cli {
+
+int runRodsFromCad(const std::vector<std::string>& args) {
+  po::options_description options("options");
+  options.add_options()
+      ("model", po::value<std::string>()->required(), "CAD model: .step/.stp or .iges/.igs (lengths in mm)")
+      ("diameter", po::value<double>()->required(), "rod diameter (mm); for ellipses and rectangles the size along the frame's d1")
+      ("output,o", po::value<std::string>()->required(), "design file to write (rodfab.design/1)")
+      ("joint-tolerance", po::value<double>()->default_value(1e-3), "curve ends closer than this (mm) become one joint")
+      ("force", "replace an existing design file at --output")
+      ("json", "print the summary as JSON on stdout");
+  addRodShapeOptions(options);
+  po::positional_options_description positional;
+  positional.add("model", 1);
+  po::variables_map vm;
+  const char* synopsis = "FILE.step|FILE.iges --diameter D --output DESIGN.json [--joint-tolerance T] [--section ...] "
+                         "[--modulus E] [--force] [--json]";
+  if (auto code = parseOptions("rods-from-cad", synopsis, options, positional, args, vm)) return *code;
+  const std::string model = vm["model"].as<std::string>(), output = vm["output"].as<std::string>();
+  const auto tolerance = realOption("rods-from-cad", vm, "joint-tolerance", 1e-9, 100, "mm");
+  const std::optional<RodShape> shape = parseRodShape("rods-from-cad", vm);
+  if (!tolerance || !shape) return kUsage;
+  commandLineAccepted();
+  std::string profileName;
+  std::array<double, 3> trayMm{};
+  if (!loadTrayProfile("rods-from-cad", vm["profile"].as<std::string>(), trayMm, profileName)) return kFailed;
+  if (!outputAllowed(output, {model}, {"design file", vm.count("force") > 0, "--force", geometry::isDesignFile})) return kFailed;
+  meshing::CadRodOptions o;
+  o.section = shape->section, o.caps = shape->caps, o.modulusMpa = shape->modulusMpa, o.jointTolerance = *tolerance;
+  meshing::CadRods result;
+  try {
+    result = meshing::rodsFromCad(model, o);
+  } catch (const meshing::MeshError& e) {
+    std::cerr << e.what() << "\n" << model << ": nothing was written\n";
+    return kFailed;
+  }
+  geometry::writeDesign(result.structure, output, "rods from " + model + " by rodfab rods-from-cad");
+  warnTrayOverhang(result.structure, trayMm, profileName);
+  const meshing::CadRodReport& r = result.report;
+  if (vm.count("json")) {
+    std::cout << nlohmann::json{{"model", model}, {"output", output}, {"edges", r.edges}, {"rods", r.rods}, {"joints", r.joints},
+                                {"skipped_degenerate", r.skippedDegenerate}, {"largest_end_move_mm", r.largestEndMove}}.dump(2)
+              << '\n';
+    return kOk;
+  }
+  std::printf("model:      %s: %zu edges (%zu without a curve skipped)\n", model.c_str(), r.edges, r.skippedDegenerate);
+  std::printf("rods:       %zu rods, %zu joints (ends merged within %g mm, moved by at most %.3g mm)\n", r.rods, r.joints,
+              *tolerance, r.largestEndMove);
+  std::printf("wrote:      %s\n", output.c_str());
+  return kOk;
+}
+
+}  // namespace rodfab::cli

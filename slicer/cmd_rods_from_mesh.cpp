@@ -1,0 +1,132 @@
+// rodfab rods-from-mesh: a triangle mesh becomes a rod structure (the dual of its simplified version,
+// laid on the original surface), written as a design file.
+#include "geometry/geometry.hpp"
+#include "meshing/meshing.hpp"
+#include "slicer/command.hpp"
+#include "slicer/options.hpp"
+#include "slicer/shape_options.hpp"
+
+#include <nlohmann/json.hpp>
+#include <tbb/global_control.h>
+
+#include <cstdio>
+#include <algorithm>
+#include <iostream>
+#include <thread>
+#include <variant>
+
+namespace rodfab::cli {
+
+namespace {
+
+struct MeshSettings {
+  std::string mesh, output, profile;
+  meshing::MeshRodOptions options;
+  bool force = false, json = false;
+  int workers = 1;
+};
+
+void addMeshOptions(po::options_description& options) {
+  options.add_options()
+      ("mesh", po::value<std::string>()->required(), "triangle mesh: .stl (binary or ASCII), .obj, .ply or .off, in mm")
+      ("faces", po::value<int>()->default_value(200), "triangles of the simplified mesh: about this many rod nodes, 1.5 times as many rods")
+      ("diameter", po::value<double>()->required(), "rod diameter (mm); for ellipses and rectangles the thickness normal to the surface")
+      ("output,o", po::value<std::string>()->required(), "design file to write (rodfab.design/1)")
+      ("subdivisions", po::value<int>()->default_value(4), "points per rod projected onto the surface and interpolated")
+      ("surface-tolerance", po::value<double>()->default_value(0.05), "largest distance of a centerline from the surface (mm)")
+      ("threads", po::value<int>()->default_value(0), "worker threads for the rods (0 = all cores); the result does not depend on it")
+      ("force", "replace an existing design file at --output")
+      ("json", "print the summary as JSON on stdout");
+  // The frame's d1 is the surface normal: --diameter is the thickness normal to the surface, --breadth
+  // the size within it.
+  addRodShapeOptions(options);
+}
+
+std::variant<MeshSettings, int> parseMesh(const std::vector<std::string>& args) {
+  po::options_description options("options");
+  addMeshOptions(options);
+  po::positional_options_description positional;
+  positional.add("mesh", 1);
+  po::variables_map vm;
+  const char* synopsis = "MESH --faces N --diameter D --output DESIGN.json [--section circle|ellipse|rectangle] "
+                         "[--breadth B] [--modulus E] [--subdivisions K] [--surface-tolerance T] [--threads N] [--force] [--json]";
+  if (auto code = parseOptions("rods-from-mesh", synopsis, options, positional, args, vm)) return *code;
+  MeshSettings s;
+  s.mesh = vm["mesh"].as<std::string>(), s.output = vm["output"].as<std::string>();
+  s.force = vm.count("force") > 0, s.json = vm.count("json") > 0;
+  meshing::MeshRodOptions& o = s.options;
+  const auto faces = intOption("rods-from-mesh", vm, "faces", meshing::kMinFaces, meshing::kMaxFaces);
+  const auto subdivisions = intOption("rods-from-mesh", vm, "subdivisions", meshing::kMinSubdivisions, meshing::kMaxSubdivisions);
+  const auto tolerance = realOption("rods-from-mesh", vm, "surface-tolerance", 1e-6, 1000, "mm");
+  const std::optional<int> threads = threadCount("rods-from-mesh", vm);
+  if (!faces || !subdivisions || !tolerance || !threads) return kUsage;
+  s.workers = *threads > 0 ? *threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  const std::optional<RodShape> shape = parseRodShape("rods-from-mesh", vm);
+  if (!shape) return kUsage;
+  o.faces = *faces, o.subdivisions = *subdivisions, o.surfaceTolerance = *tolerance;
+  o.section = shape->section, o.caps = shape->caps, o.modulusMpa = shape->modulusMpa;
+  s.profile = vm["profile"].as<std::string>();
+  return s;
+}
+
+nlohmann::json summaryJson(const MeshSettings& s, const meshing::MeshRodReport& r, const geometry::RodStructure& rods) {
+  const geometry::Box3 box = rods.bounds();
+  return {{"mesh", s.mesh}, {"output", s.output},
+          {"input", {{"vertices", r.inputVertices}, {"faces", r.inputFaces}, {"welded_vertices", r.weldedVertices}}},
+          {"simplified", {{"vertices", r.simplifiedVertices}, {"faces", r.simplifiedFaces}, {"boundary_edges", r.boundaryEdges}}},
+          {"nodes", r.nodes}, {"rods", r.rods}, {"components", r.components},
+          {"surface", {{"tolerance_mm", s.options.surfaceTolerance}, {"largest_distance_mm", r.largestSurfaceDistance},
+                       {"refined_rods", r.refinedRods}, {"rods_above_tolerance", r.rodsAboveTolerance}}},
+          {"bounds_mm", {{"min", {box.min().x(), box.min().y(), box.min().z()}}, {"max", {box.max().x(), box.max().y(), box.max().z()}}}},
+          {"seconds", {{"read", r.readSeconds}, {"simplify", r.simplifySeconds}, {"rods", r.rodSeconds}}}};
+}
+
+void printSummary(const MeshSettings& s, const meshing::MeshRodReport& r) {
+  std::printf("mesh:       %s: %zu vertices, %zu triangles (%zu duplicate vertices welded), %.2f s\n", s.mesh.c_str(),
+              r.inputVertices, r.inputFaces, r.weldedVertices, r.readSeconds);
+  std::printf("simplified: %zu triangles, %zu boundary edges, %.2f s\n", r.simplifiedFaces, r.boundaryEdges, r.simplifySeconds);
+  std::printf("rods:       %zu rods, %zu nodes, %zu connected part%s, %.2f s\n", r.rods, r.nodes, r.components,
+              r.components == 1 ? "" : "s", r.rodSeconds);
+  std::printf("surface:    centerlines within %.3g mm of the mesh (tolerance %.3g mm; %zu rods refined)\n",
+              r.largestSurfaceDistance, s.options.surfaceTolerance, r.refinedRods);
+  std::printf("wrote:      %s\n", s.output.c_str());
+}
+
+void printWarnings(const MeshSettings& s, const meshing::MeshRodReport& r) {
+  if (r.rodsAboveTolerance > 0)
+    std::fprintf(stderr, "warning: %zu rods leave the surface by up to %.3g mm, more than --surface-tolerance %g: "
+                 "give more --faces or --subdivisions\n", r.rodsAboveTolerance, r.largestSurfaceDistance, s.options.surfaceTolerance);
+  if (r.components > 1)
+    std::fprintf(stderr, "warning: the rods form %zu separate parts (the mesh has separate pieces)\n", r.components);
+}
+
+}  // namespace
+
+int runRodsFromMesh(const std::vector<std::string>& args) {
+  auto parsed = parseMesh(args);
+  if (const int* code = std::get_if<int>(&parsed)) return *code;
+  const MeshSettings& s = std::get<MeshSettings>(parsed);
+  commandLineAccepted();
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(s.workers));
+  std::string profileName;
+  std::array<double, 3> trayMm{};
+  if (!loadTrayProfile("rods-from-mesh", s.profile, trayMm, profileName)) return kFailed;
+  if (!outputAllowed(s.output, {s.mesh}, {"design file", s.force, "--force", geometry::isDesignFile})) return kFailed;
+  meshing::MeshRods result;
+  try {
+    result = meshing::rodsFromMesh(s.mesh, s.options);
+  } catch (const meshing::MeshError& e) {
+    std::cerr << e.what() << "\n" << s.mesh << ": nothing was written\n";
+    return kFailed;
+  }
+  const std::string description = "rods from " + s.mesh + " by rodfab rods-from-mesh (" +
+                                  std::to_string(result.report.simplifiedFaces) + " faces)";
+  geometry::writeDesign(result.structure, s.output, description);
+  printWarnings(s, result.report);
+  warnTrayOverhang(result.structure, trayMm, profileName);
+  if (s.json) std::cout << summaryJson(s, result.report, result.structure).dump(2) << '\n';
+  else printSummary(s, result.report);
+  return kOk;
+}
+
+}  // namespace rodfab::cli

@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# rodfab rods-from-cad from the command line: a box's STEP model (written by OpenCASCADE) becomes 12
+# straight rods meeting 3 by 3 at the corners (decoded here by Python); a circle in IGES becomes one
+# rational rod on the circle; bad input is named, exits 1 and writes nothing.
+#   rods_from_cad.sh RODFAB SOURCE_DIR MAKE_TEST_CAD
+set -u
+rodfab=$1 src=$2 make_cad=$3
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+
+"$make_cad" box "$tmp/box.step" > /dev/null 2>&1 || fail "make_test_cad box"
+"$rodfab" rods-from-cad "$tmp/box.step" --diameter 1 -o "$tmp/box.json" > "$tmp/out" 2>&1 || fail "rods-from-cad: $(cat "$tmp/out")"
+grep -q "^rods:       12 rods, 8 joints" "$tmp/out" || fail "summary: $(cat "$tmp/out")"
+"$rodfab" validate "$tmp/box.json" > /dev/null 2>&1 || fail "the design does not validate"
+python3 - "$tmp/box.json" <<'PY' || fail "box design content"
+import json, sys, collections
+d = json.load(open(sys.argv[1]))
+ends = collections.Counter()
+for r in d["rods"]:
+    pts = r["centerline"]["points"]
+    a, b = pts[0], pts[-1]
+    ends[tuple(a)] += 1; ends[tuple(b)] += 1
+    assert all(abs(c) < 1e-9 or abs(c - m) < 1e-9 for p in (a, b) for c, m in zip(p, (10, 20, 30))), (a, b)
+    assert sum(abs(x - y) > 1e-9 for x, y in zip(a, b)) == 1, (a, b)   # along one axis
+assert len(ends) == 8 and set(ends.values()) == {3}, ends
+PY
+
+"$make_cad" circle "$tmp/circle.iges" > /dev/null 2>&1 || fail "make_test_cad circle"
+"$rodfab" rods-from-cad "$tmp/circle.iges" --diameter 0.8 --section ellipse --breadth 1.2 -o "$tmp/circle.json" --json > "$tmp/j" 2>&1 ||
+  fail "circle: $(cat "$tmp/j")"
+python3 - "$tmp/circle.json" <<'PY' || fail "circle design content"
+import json, sys, math
+d = json.load(open(sys.argv[1]))
+assert len(d["rods"]) == 1
+c = d["rods"][0]["centerline"]
+assert "weights" in c and c["points"][0] == c["points"][-1], c
+# every rational control point's projection stays near the circle (centre (3,-2,7), radius 5): the
+# first point is on it exactly.
+p = c["points"][0]
+assert abs(math.dist(p, (3, -2, 7)) - 5) < 1e-9, p
+assert d["rods"][0]["section"]["shape"] == "ellipse" and "normal" in d["rods"][0]
+PY
+
+# Bad input: exit 1, the file named, nothing written.
+echo "not a step file" > "$tmp/junk.step"
+"$rodfab" rods-from-cad "$tmp/junk.step" --diameter 1 -o "$tmp/x.json" > "$tmp/out" 2>&1; rc=$?
+[ $rc -eq 1 ] && grep -q "junk.step: not a readable STEP file" "$tmp/out" || fail "junk: exit $rc: $(cat "$tmp/out")"
+"$rodfab" rods-from-cad "$tmp/nothing.igs" --diameter 1 -o "$tmp/x.json" > "$tmp/out" 2>&1; rc=$?
+[ $rc -eq 1 ] && grep -q "nothing.igs: no such file" "$tmp/out" || fail "missing: exit $rc: $(cat "$tmp/out")"
+"$rodfab" rods-from-cad "$tmp/box.step" --diameter 1 -o "$tmp/box.json" > "$tmp/out" 2>&1 && fail "replaced without --force"
+for bad in "--diameter 0" "--joint-tolerance 0" "--section star" "--modulus 0"; do
+  # shellcheck disable=SC2086
+  "$rodfab" rods-from-cad "$tmp/box.step" -o "$tmp/x.json" --diameter 1 $bad > "$tmp/out" 2>&1; rc=$?
+  [ $rc -eq 2 ] || fail "$bad: exit $rc: $(cat "$tmp/out")"
+done
+[ -e "$tmp/x.json" ] && fail "wrote after an error"
+echo "rods_from_cad: ok"

@@ -1,0 +1,232 @@
+// meshing/: rods from triangle meshes, checked against the analytic surface and Euler's formula, and
+// meshes written here by plain writers (tests/meshing/mesh_fixtures.hpp), not by CGAL.
+#include "geometry/design_file.hpp"
+#include "meshing/meshing.hpp"
+#include "tests/meshing/mesh_fixtures.hpp"
+
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <numeric>
+#include <unistd.h>
+
+namespace fs = std::filesystem;
+using namespace rodfab;
+using geometry::Vec3;
+
+namespace {
+
+fs::path scratch(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("rodfab-test-meshing-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  return dir / name;
+}
+
+void writeText(const fs::path& file, const std::string& text) { std::ofstream(file, std::ios::binary) << text; }
+
+// Distance from p to the ellipsoid x^2/a^2 + y^2/b^2 + z^2/c^2 = 1, to first order: |F| / |grad F|
+// (exact to O(d^2 / radius of curvature), far below the tolerances checked here).
+double ellipsoidDistance(const Vec3& p, const Vec3& axes) {
+  const Vec3 q = p.cwiseQuotient(axes);
+  const double f = q.squaredNorm() - 1;
+  const Vec3 grad = 2 * q.cwiseQuotient(axes);
+  return std::abs(f) / grad.norm();
+}
+
+// Rod ends grouped by their exact coordinates: how many rods end at each node.
+std::map<std::array<double, 3>, int> nodeDegrees(const geometry::RodStructure& s) {
+  std::map<std::array<double, 3>, int> degree;
+  for (const auto& rod : s.rods)
+    for (const Vec3& p : {rod.centerline().points().front(), rod.centerline().points().back()}) ++degree[{p.x(), p.y(), p.z()}];
+  return degree;
+}
+
+std::size_t connectedParts(const geometry::RodStructure& s) {
+  std::map<std::array<double, 3>, std::size_t> id;
+  for (const auto& [p, d] : nodeDegrees(s)) id.emplace(p, id.size());
+  std::vector<std::size_t> parent(id.size());
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](std::size_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  for (const auto& rod : s.rods) {
+    const Vec3 a = rod.centerline().points().front(), b = rod.centerline().points().back();
+    parent[find(id[{a.x(), a.y(), a.z()}])] = find(id[{b.x(), b.y(), b.z()}]);
+  }
+  std::size_t parts = 0;
+  for (std::size_t i = 0; i < parent.size(); ++i) parts += find(i) == i;
+  return parts;
+}
+
+}  // namespace
+
+TEST_CASE("rods from an ellipsoid mesh lie on the analytic ellipsoid", "[meshing]") {
+  const Vec3 axes(30, 20, 15);
+  const testing::SimpleMesh mesh = testing::ellipsoid(40, axes.x(), axes.y(), axes.z());  // 32,000 triangles
+  // The mesh's own distance from the ellipsoid: its largest triangle sag, measured at the centroids.
+  double sag = 0;
+  for (const auto& t : mesh.triangles)
+    sag = std::max(sag, ellipsoidDistance((mesh.points[t[0]] + mesh.points[t[1]] + mesh.points[t[2]]) / 3, axes));
+  REQUIRE(sag < 0.05);
+  const fs::path file = scratch("ellipsoid.stl");
+  testing::writeBinaryStl(mesh, file);
+  meshing::MeshRodOptions options;
+  options.faces = 120;
+  options.surfaceTolerance = 0.02;
+  const meshing::MeshRods result = meshing::rodsFromMesh(file, options);
+  REQUIRE(result.report.rodsAboveTolerance == 0);
+  REQUIRE(result.report.largestSurfaceDistance <= 0.02);
+  // Every centerline point (64 per rod, between and at the interpolated samples) within the surface
+  // tolerance plus the mesh's sag plus float rounding of the STL.
+  double largest = 0;
+  for (const auto& rod : result.structure.rods) {
+    const auto& c = rod.centerline();
+    for (int i = 0; i <= 64; ++i) largest = std::max(largest, ellipsoidDistance(c.point(c.domainBegin() + (c.domainEnd() - c.domainBegin()) * i / 64), axes));
+  }
+  INFO("largest distance from the ellipsoid " << largest << " mm, mesh sag " << sag << " mm");
+  CHECK(largest <= 0.02 + sag + 1e-4);
+}
+
+TEST_CASE("the dual of a closed mesh: F nodes of degree 3, 3F/2 rods, one connected structure", "[meshing]") {
+  const fs::path file = scratch("euler.obj");
+  testing::writeObj(testing::ellipsoid(12, 25, 20, 18), file);  // 2,880 triangles
+  for (int faces : {40, 200, 500}) {
+    meshing::MeshRodOptions options;
+    options.faces = faces;
+    const meshing::MeshRods result = meshing::rodsFromMesh(file, options);
+    const std::size_t f = result.report.simplifiedFaces;
+    INFO("asked " << faces << " faces, got " << f);
+    CHECK(f <= static_cast<std::size_t>(faces));
+    CHECK(f >= static_cast<std::size_t>(faces) - 4);
+    // Euler: V - E + F = 2 and 3F = 2E for a closed triangulated sphere.
+    CHECK(result.report.simplifiedVertices - 3 * f / 2 + f == 2);
+    CHECK(result.structure.rods.size() == 3 * f / 2);
+    const auto degrees = nodeDegrees(result.structure);
+    CHECK(degrees.size() == f);
+    for (const auto& [p, d] : degrees) CHECK(d == 3);
+    CHECK(connectedParts(result.structure) == 1);
+    CHECK(result.report.components == 1);
+    CHECK(result.report.boundaryEdges == 0);
+  }
+}
+
+TEST_CASE("an open mesh: boundary edges give no rod", "[meshing]") {
+  // The upper half of an ellipsoid (triangles with every corner at z >= 0).
+  testing::SimpleMesh full = testing::ellipsoid(10, 20, 20, 10), half;
+  half.points = full.points;
+  for (const auto& t : full.triangles)
+    if (full.points[t[0]].z() >= -1e-9 && full.points[t[1]].z() >= -1e-9 && full.points[t[2]].z() >= -1e-9)
+      half.triangles.push_back(t);
+  const fs::path file = scratch("half.obj");
+  testing::writeObj(half, file);
+  meshing::MeshRodOptions options;
+  options.faces = 100;
+  const meshing::MeshRods result = meshing::rodsFromMesh(file, options);
+  const std::size_t f = result.report.simplifiedFaces, b = result.report.boundaryEdges;
+  CHECK(b > 0);
+  // Every face has 3 edges: 3F = 2 * interior + boundary.
+  CHECK(result.structure.rods.size() * 2 + b == 3 * f);
+  for (const auto& [p, d] : nodeDegrees(result.structure)) CHECK(d <= 3);
+  CHECK(connectedParts(result.structure) == 1);
+}
+
+TEST_CASE("STL (binary, ASCII) and OBJ of the same mesh give the same design", "[meshing]") {
+  testing::SimpleMesh mesh = testing::ellipsoid(8, 22, 17, 12);
+  testing::roundToFloat(mesh);
+  // The OBJ lists its vertices in another order than the STL meets them.
+  testing::SimpleMesh shuffled = mesh;
+  std::vector<std::uint32_t> perm(mesh.points.size());
+  std::iota(perm.rbegin(), perm.rend(), 0u);
+  for (std::size_t i = 0; i < perm.size(); ++i) shuffled.points[perm[i]] = mesh.points[i];
+  for (auto& t : shuffled.triangles)
+    for (auto& v : t) v = perm[v];
+  testing::writeBinaryStl(mesh, scratch("same.stl"));
+  testing::writeAsciiStl(mesh, scratch("same-ascii.stl"));
+  testing::writeObj(shuffled, scratch("same.obj"));
+  meshing::MeshRodOptions options;
+  options.faces = 150;
+  options.section = geometry::Section::ellipse(1.0, 2.0);
+  const auto design = [&](const std::string& name) {
+    return geometry::designToJson(meshing::rodsFromMesh(scratch(name), options).structure).dump();
+  };
+  const std::string stl = design("same.stl");
+  CHECK(design("same-ascii.stl") == stl);
+  CHECK(design("same.obj") == stl);
+}
+
+TEST_CASE("rods meeting at a node end at exactly one point, with the surface normal as frame", "[meshing]") {
+  const fs::path file = scratch("frame.stl");
+  testing::writeBinaryStl(testing::ellipsoid(10, 20, 20, 20), file);
+  meshing::MeshRodOptions options;
+  options.faces = 60;
+  options.section = geometry::Section::rectangle(0.8, 2.0);
+  const meshing::MeshRods result = meshing::rodsFromMesh(file, options);
+  for (const auto& rod : result.structure.rods) {
+    REQUIRE(rod.referenceNormal());
+    const Vec3 start = rod.centerline().points().front();
+    // On a sphere centred at the origin the outward normal is the position's direction.
+    CHECK(std::abs(rod.referenceNormal()->normalized().dot(start.normalized())) > 0.99);
+  }
+  // Degrees counted by exact coordinates: 3 per node only if every end is bit-identical.
+  for (const auto& [p, d] : nodeDegrees(result.structure)) CHECK(d == 3);
+  // The design file round-trips.
+  geometry::writeDesign(result.structure, scratch("frame.json"));
+  CHECK(geometry::readDesign(scratch("frame.json")).rods.size() == result.structure.rods.size());
+}
+
+TEST_CASE("bad meshes get an error naming the file and the problem", "[meshing]") {
+  meshing::MeshRodOptions options;
+  options.faces = 4;
+  const auto error = [&](const fs::path& file) -> std::string {
+    try {
+      meshing::rodsFromMesh(file, options);
+    } catch (const meshing::MeshError& e) {
+      CHECK(std::string(e.what()).rfind(file.string() + ": ", 0) == 0);
+      return e.what();
+    }
+    return "no error";
+  };
+  CHECK_THAT(error(scratch("missing.stl")), Catch::Contains("no such file"));
+  writeText(scratch("empty.obj"), "");
+  CHECK_THAT(error(scratch("empty.obj")), Catch::Contains("no faces"));
+  writeText(scratch("garbage.off"), "OFF\n3 1 0\n0 0 0\n1 0 0\n");
+  CHECK_THAT(error(scratch("garbage.off")), Catch::Contains("not a readable off mesh"));
+  writeText(scratch("huge.off"), "OFF\n1000000000 1000000000 0\n");
+  CHECK_THAT(error(scratch("huge.off")), Catch::Contains("OFF header declares"));
+  writeText(scratch("mesh.dxf"), "x");
+  CHECK_THAT(error(scratch("mesh.dxf")), Catch::Contains("unknown mesh format"));
+  // Three triangles on one edge.
+  writeText(scratch("fin.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n");
+  CHECK_THAT(error(scratch("fin.obj")), Catch::Contains("non-manifold mesh") && Catch::Contains("(0, 0, 0) to (1, 0, 0)"));
+  // Two tetrahedra sharing one vertex only.
+  writeText(scratch("bowtie.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv -1 0 0\nv 0 -1 0\nv 0 0 -1\n"
+                                   "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\nf 1 5 6\nf 1 6 7\nf 1 7 5\nf 5 7 6\n");
+  CHECK_THAT(error(scratch("bowtie.obj")), Catch::Contains("non-manifold") && Catch::Contains("(0, 0, 0)"));
+  writeText(scratch("sliver.obj"), "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\n");
+  CHECK_THAT(error(scratch("sliver.obj")), Catch::Contains("degenerate mesh: triangle") && Catch::Contains("zero area"));
+  writeText(scratch("repeat.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 2\n");
+  CHECK_THAT(error(scratch("repeat.obj")), Catch::Contains("two corners at the same point (1, 0, 0)"));
+  // A binary STL (which can hold any float) with a NaN coordinate.
+  testing::SimpleMesh nan = testing::ellipsoid(1, 10, 10, 10);
+  nan.points[3].y() = std::nan("");
+  testing::writeBinaryStl(nan, scratch("nan.stl"));
+  CHECK_THAT(error(scratch("nan.stl")), Catch::Contains("not a finite number"));
+  testing::writeObj(testing::ellipsoid(1, 10, 10, 10), scratch("small.obj"));
+  options.faces = 100;
+  CHECK_THAT(error(scratch("small.obj")), Catch::Contains("20 triangles, fewer than the 100 asked for"));
+}
+
+TEST_CASE("the mesh reader on bytes in memory", "[meshing]") {
+  std::ostringstream obj;
+  const testing::SimpleMesh mesh = testing::ellipsoid(2, 3, 3, 3);
+  for (const auto& p : mesh.points) obj << "v " << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
+  for (const auto& t : mesh.triangles) obj << "f " << t[0] + 1 << ' ' << t[1] + 1 << ' ' << t[2] + 1 << '\n';
+  const meshing::MeshCounts counts = meshing::checkMeshBytes(obj.str(), "obj", "memory");
+  CHECK(counts.faces == 80);
+  CHECK(counts.vertices == 42);
+  CHECK_THROWS_AS(meshing::checkMeshBytes("solid x\nendsolid", "stl", "memory"), meshing::MeshError);
+}
