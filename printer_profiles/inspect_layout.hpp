@@ -57,7 +57,7 @@ inline constexpr int kMaxJsonDepth = 64;
 // deeper than kMaxJsonDepth or holds more than maxValues values; refused before the excess is built.
 nlohmann::json parseUntrustedJson(std::span<const std::uint8_t> text, std::size_t maxValues);
 
-enum class EntryRole { Manifest, BuildFile, Preview, ContactSheet, Layer };
+enum class EntryRole { Manifest, BuildFile, Preview, ContactSheet, Layer, Report };
 
 struct ExpectedEntry {
   EntryRole role = EntryRole::Layer;

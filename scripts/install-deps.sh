@@ -18,6 +18,8 @@ packages=(
   libcairo2-dev                                              # calibration plots, previews
   libssl-dev                                                 # SHA-256 checksums (libcrypto)
   libsuitesparse-dev                                         # KLU: the mechanics solver's sparse LU
+  chromium                                                   # renders the job report in tests (cli_report)
+  dpkg-dev fakeroot                                          # cpack -G DEB: dpkg-shlibdeps finds the package's dependencies
 )
 
 missing=()
