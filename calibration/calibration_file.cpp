@@ -1,5 +1,6 @@
 #include "calibration/calibration_file.hpp"
 
+#include "common/data_dir.hpp"
 #include "common/json_input.hpp"
 #include "common/output_file.hpp"
 
@@ -272,7 +273,7 @@ Calibration readCalibration(const std::filesystem::path& file, std::string* sha2
 }
 
 std::filesystem::path defaultCalibrationPath() {
-  return std::filesystem::path(RODFAB_SOURCE_DIR) / "examples" / "calibration" / "default-60C.json";
+  return common::dataFile("calibration/default-60C.json");
 }
 
 Calibration loadDefaultCalibration() { return readCalibration(defaultCalibrationPath()); }

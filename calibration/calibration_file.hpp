@@ -32,8 +32,9 @@ bool isCalibrationFile(const std::filesystem::path& file);
 // With `sha256`, also the checksum of the bytes that were parsed (what a job records as its calibration).
 Calibration readCalibration(const std::filesystem::path& file, std::string* sha256 = nullptr);
 
-// The bundled default, fitted from the published 60 C figures:
-// <source tree>/examples/calibration/default-60C.json.
+// The bundled default, fitted from the published 60 C figures: calibration/default-60C.json in
+// rodfab's data folder (common/data_dir.hpp; installed from examples/calibration/). Throws
+// common::DataDirError when it is missing.
 std::filesystem::path defaultCalibrationPath();
 Calibration loadDefaultCalibration();
 

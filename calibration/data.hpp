@@ -1,6 +1,8 @@
 // DMA measurements of printed coupons: the CSV format (see calibration/README.md) and its reader.
 #pragma once
 
+#include "common/sha256.hpp"
+
 #include <filesystem>
 #include <optional>
 #include <stdexcept>
@@ -53,7 +55,7 @@ DataSet readData(const std::filesystem::path& file);
 // `sourceName` names the text in messages and in DataSet::source.
 DataSet parseData(std::string_view text, const std::string& sourceName);
 
-// SHA-256 of `bytes` as 64 lowercase hex digits (OpenSSL).
-std::string sha256Hex(std::string_view bytes);
+// SHA-256 of `bytes` as 64 lowercase hex digits (common/sha256.hpp).
+using common::sha256Hex;
 
 }  // namespace rodfab::calibration

@@ -149,7 +149,7 @@ cairo_status_t appendToString(void* closure, const unsigned char* data, unsigned
 
 }  // namespace
 
-void writeFitPlot(const Calibration& c, const std::filesystem::path& png) {
+std::string renderFitPlot(const Calibration& c) {
   const auto& measurements = c.record().measurements;
   double lo = std::min({c.minModulusMpa(), c.floorMpa()}), hi = c.maxModulusMpa();
   for (const Measurement& m : measurements) lo = std::min(lo, m.modulusMpa), hi = std::max(hi, m.modulusMpa);
@@ -159,7 +159,7 @@ void writeFitPlot(const Calibration& c, const std::filesystem::path& png) {
       cairo_image_surface_create(CAIRO_FORMAT_RGB24, kWidth, kHeight), cairo_surface_destroy);
   std::unique_ptr<cairo_t, decltype(&cairo_destroy)> context(cairo_create(surface.get()), cairo_destroy);
   cairo_t* cr = context.get();
-  if (cairo_status(cr) != CAIRO_STATUS_SUCCESS) throw std::runtime_error(png.string() + ": cairo: " + cairo_status_to_string(cairo_status(cr)));
+  if (cairo_status(cr) != CAIRO_STATUS_SUCCESS) throw std::runtime_error(std::string("cairo: ") + cairo_status_to_string(cairo_status(cr)));
   cairo_select_font_face(cr, "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
   cairo_set_source_rgb(cr, 1, 1, 1);
   cairo_paint(cr);
@@ -269,8 +269,18 @@ void writeFitPlot(const Calibration& c, const std::filesystem::path& png) {
   cairo_surface_flush(surface.get());
   std::string bytes;
   const cairo_status_t status = cairo_surface_write_to_png_stream(surface.get(), appendToString, &bytes);
-  if (status != CAIRO_STATUS_SUCCESS) throw std::runtime_error(png.string() + ": cairo PNG encoding failed: " + cairo_status_to_string(status));
-  common::writeFileAtomically(png, withSoftwareTag(bytes));
+  if (status != CAIRO_STATUS_SUCCESS) throw std::runtime_error(std::string("cairo PNG encoding failed: ") + cairo_status_to_string(status));
+  return withSoftwareTag(bytes);
+}
+
+void writeFitPlot(const Calibration& c, const std::filesystem::path& png) {
+  std::string bytes;
+  try {
+    bytes = renderFitPlot(c);
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(png.string() + ": " + e.what());
+  }
+  common::writeFileAtomically(png, bytes);
 }
 
 bool isFitPlot(const std::filesystem::path& png) {

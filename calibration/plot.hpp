@@ -5,8 +5,13 @@
 #include "calibration/model.hpp"
 
 #include <filesystem>
+#include <string>
 
 namespace rodfab::calibration {
+
+// The plot as PNG bytes (what writeFitPlot writes; job reports embed it). Throws std::runtime_error
+// when cairo fails.
+std::string renderFitPlot(const Calibration& calibration);
 
 // Written under a temporary name and renamed; throws std::runtime_error naming the file.
 // The PNG carries a tEXt chunk "Software: rodfab calibrate".

@@ -1,7 +1,9 @@
 // common/: what every stage shares (see each header).
 #pragma once
 
+#include "common/data_dir.hpp"
 #include "common/interrupt.hpp"
 #include "common/json_input.hpp"
 #include "common/memory_budget.hpp"
 #include "common/output_file.hpp"
+#include "common/sha256.hpp"

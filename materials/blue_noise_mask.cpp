@@ -1,5 +1,6 @@
 #include "materials/blue_noise_mask.hpp"
 
+#include "common/data_dir.hpp"
 #include "common/json_input.hpp"
 
 #include "materials/counter_hash.hpp"
@@ -383,11 +384,9 @@ BlueNoiseMask BlueNoiseMask::load(const std::filesystem::path& file) {
 }
 
 std::filesystem::path BlueNoiseMask::bundledPath() {
-  std::filesystem::path dir = RODFAB_SOURCE_DIR "/materials";
-  if (const char* env = std::getenv("RODFAB_MATERIALS_DIR"); env && *env) dir = env;
   const BlueNoiseParameters p;
-  return dir / ("blue-noise-" + std::to_string(p.size[0]) + "x" + std::to_string(p.size[1]) + "x" +
-                std::to_string(p.size[2]) + ".rfbn");
+  return common::dataFile(std::filesystem::path("masks") / ("blue-noise-" + std::to_string(p.size[0]) + "x" + std::to_string(p.size[1]) + "x" +
+                std::to_string(p.size[2]) + ".rfbn"));
 }
 
 std::shared_ptr<const BlueNoiseMask> BlueNoiseMask::bundled() {

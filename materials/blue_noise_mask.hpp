@@ -31,7 +31,8 @@ public:
   // throws std::runtime_error naming the file and the field that is wrong.
   static BlueNoiseMask load(const std::filesystem::path& file);
   // The mask shipped in materials/ (generated from the default BlueNoiseParameters), read once per
-  // process and shared. Found in $RODFAB_MATERIALS_DIR, else in the source tree's materials/.
+  // process and shared. Found in masks/ of rodfab's data folder (common/data_dir.hpp; installed from
+  // materials/); bundledPath() throws common::DataDirError when it is missing.
   static std::shared_ptr<const BlueNoiseMask> bundled();
   static std::filesystem::path bundledPath();
 

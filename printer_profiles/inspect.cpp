@@ -1,9 +1,9 @@
 #include "printer_profiles/inspect.hpp"
 
+#include "common/sha256.hpp"
 #include "printer_profiles/inspect_layout.hpp"
 #include "printer_profiles/job_reader.hpp"
 
-#include <openssl/evp.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
@@ -17,6 +17,7 @@
 #include <map>
 #include <set>
 #include <sstream>
+#include <string_view>
 
 namespace rodfab::printer_profiles {
 
@@ -29,29 +30,7 @@ namespace {
 constexpr std::uint64_t kLayerMemoryBudget = 512ull << 20;
 constexpr int kMaxFolderDepth = 2;  // the job and its previews/ folder; deeper folders are listed, not entered
 
-// Incremental SHA-256 (OpenSSL EVP), so files are checked as they stream.
-class Sha256 {
-public:
-  Sha256() : ctx_(EVP_MD_CTX_new()) {
-    if (!ctx_ || EVP_DigestInit_ex(ctx_, EVP_sha256(), nullptr) != 1) throw std::runtime_error("SHA-256 unavailable (OpenSSL EVP)");
-  }
-  ~Sha256() { EVP_MD_CTX_free(ctx_); }
-  Sha256(const Sha256&) = delete;
-  Sha256& operator=(const Sha256&) = delete;
-  void update(std::span<const std::uint8_t> data) { EVP_DigestUpdate(ctx_, data.data(), data.size()); }
-  std::string hex() {
-    unsigned char digest[EVP_MAX_MD_SIZE];
-    unsigned int length = 0;
-    EVP_DigestFinal_ex(ctx_, digest, &length);
-    static constexpr char kHex[] = "0123456789abcdef";
-    std::string out;
-    for (unsigned int i = 0; i < length; ++i) out += {kHex[digest[i] >> 4], kHex[digest[i] & 15]};
-    return out;
-  }
-
-private:
-  EVP_MD_CTX* ctx_;
-};
+using common::Sha256;  // files are checked as they stream
 
 // Voxel index sums of one material as decoded from the images, to compare with the manifest's.
 struct DecodedMoments {
@@ -176,6 +155,7 @@ public:
       checkEntries();
       checkBuildFile();
       checkPreviews();
+      checkReport();
       checkLayers();
     }
     finish();
@@ -388,6 +368,16 @@ private:
       if (head->size() < 26 || !std::equal(kSignature, kSignature + 16, head->begin()) || (*head)[24] != 8 || (*head)[25] != 2)
         findings_.at(name, "is not an 8-bit RGB PNG image");
     }
+  }
+
+  // The job report (report.html) is read by people too: its checksum, and that it is an HTML page.
+  void checkReport() {
+    const auto it = layout_.expected.find(kReportName);
+    if (it == layout_.expected.end()) return;
+    const auto head = fetch(kReportName, 15, findings_);
+    static constexpr std::string_view kDoctype = "<!DOCTYPE html>";
+    if (head && std::string_view(reinterpret_cast<const char*>(head->data()), head->size()) != kDoctype)
+      findings_.at(kReportName, "is not an HTML page (expected it to start with <!DOCTYPE html>)");
   }
 
   void checkLayers() {

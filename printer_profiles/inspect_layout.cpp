@@ -419,6 +419,21 @@ void readDithering(const json& m, Fields& f, InspectSummary& s) {
   if (const json* seed = f.get(*d, "dithering", "seed", "a whole number")) s.seed = f.count(*seed, "dithering.seed");
 }
 
+// The job report (report.html, jobs since it was added; older jobs have no "report"): its previews
+// embedded in base64 (4 bytes per 3) and a few small pictures and tables.
+void readReport(const json& m, JobLayout& out, Fields& f) {
+  const auto it = m.find("report");
+  if (it == m.end() || it->is_null()) return;
+  if (*it != kReportName) {
+    f.fail("report", std::string("expected \"") + kReportName + "\" or null, got " + describe(*it));
+    return;
+  }
+  std::uint64_t previews = 0;
+  for (const auto& [name, entry] : out.expected)
+    if (entry.role == EntryRole::Preview || entry.role == EntryRole::ContactSheet) previews += entry.maxBytes;
+  out.expected[kReportName] = {EntryRole::Report, previews / 3 * 4 + (16u << 20)};
+}
+
 // Layer images: a BMP is its headers and palette (62 bytes from our writer; other tools' larger headers
 // fit the slack) and rows padded to 4 bytes; a PNG at most its filtered rows, barely compressed.
 std::uint64_t layerMaxBytes(const JobLayout& l) {
@@ -447,6 +462,7 @@ std::optional<JobLayout> readLayout(const json& m, const Profile& p, Findings& f
   readPreviews(m, out, f);
   readOrientation(m, out, f);
   readDithering(m, f, s);
+  readReport(m, out, f);
 
   out.expected[kManifestName] = {EntryRole::Manifest, limitsOf(p).maxManifestBytes};
   out.expected[p.buildFileName] = {EntryRole::BuildFile, 64u << 10};

@@ -56,7 +56,7 @@ ProfileLimits limitsOf(const Profile& profile);
 // more than maxValues values; refused before the excess is built.
 nlohmann::json parseUntrustedJson(std::span<const std::uint8_t> text, std::size_t maxValues);
 
-enum class EntryRole { Manifest, BuildFile, Preview, ContactSheet, Layer };
+enum class EntryRole { Manifest, BuildFile, Preview, ContactSheet, Layer, Report };
 
 struct ExpectedEntry {
   EntryRole role = EntryRole::Layer;

@@ -1,7 +1,6 @@
 #include "printer_profiles/job_archive.hpp"
 
 #include <nlohmann/json.hpp>
-#include <openssl/evp.h>
 #include <zip.h>
 
 #include <fcntl.h>
@@ -29,21 +28,6 @@ ArchiveFormat parseArchiveFormat(const std::string& text) {
   if (text == "zip") return ArchiveFormat::Zip;
   if (text == "dir") return ArchiveFormat::Directory;
   throw std::invalid_argument("job format '" + text + "' is not one of: zip, dir");
-}
-
-std::string sha256Hex(std::span<const std::uint8_t> data) {
-  unsigned char digest[EVP_MAX_MD_SIZE];
-  unsigned int length = 0;
-  if (EVP_Digest(data.data(), data.size(), digest, &length, EVP_sha256(), nullptr) != 1)
-    throw std::runtime_error("SHA-256 computation failed (OpenSSL EVP_Digest)");
-  static constexpr char kHex[] = "0123456789abcdef";
-  std::string hex;
-  hex.reserve(2 * length);
-  for (unsigned int i = 0; i < length; ++i) {
-    hex += kHex[digest[i] >> 4];
-    hex += kHex[digest[i] & 15];
-  }
-  return hex;
 }
 
 namespace {

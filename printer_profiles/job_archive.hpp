@@ -2,6 +2,7 @@
 // in a fixed entry order with fixed timestamps, and SHA-256 checksums (OpenSSL EVP).
 #pragma once
 
+#include "common/sha256.hpp"
 #include "printer_profiles/bitmap.hpp"
 
 #include <cstdint>
@@ -16,6 +17,8 @@ namespace rodfab::printer_profiles {
 
 inline constexpr const char* kJobFormat = "rodfab.job/1";
 inline constexpr const char* kManifestName = "manifest.json";
+// The job report (slicer/job_report.hpp), named by the manifest's "report" when the job has one.
+inline constexpr const char* kReportName = "report.html";
 // The largest manifest.json read when telling whether an existing path is a rodfab job: a job of the
 // profile maxima (65,536 layers, three bitmaps each) writes under 64 MB.
 inline constexpr std::size_t kMaxManifestBytes = std::size_t{128} << 20;
@@ -24,8 +27,8 @@ enum class ArchiveFormat { Zip, Directory };
 const char* toString(ArchiveFormat format);
 ArchiveFormat parseArchiveFormat(const std::string& text);  // "zip" | "dir"
 
-// Lowercase hex SHA-256 of `data`.
-std::string sha256Hex(std::span<const std::uint8_t> data);
+// Lowercase hex SHA-256 of `data` (common/sha256.hpp).
+using common::sha256Hex;
 
 // Raised when a job cannot be opened or one of its files cannot be read; names the job and file.
 class JobReadError : public std::runtime_error {

@@ -606,6 +606,7 @@ struct JobWriter::Impl {
     }
     j["orientation_check"] = orientation;
     j["previews"] = previewNames;
+    if (spec.options.report) j["report"] = kReportName;
     j["contact_sheet_layers"] = previews->contactLayers();
     json meta = spec.metadata.extra.is_object() ? spec.metadata.extra : json::object();
     meta["design"] = spec.metadata.design;
@@ -629,10 +630,12 @@ struct JobWriter::Impl {
     const std::string title = target.filename().string() + "  -  " + spec.profile.printer + ", " +
                               std::to_string(geometry.width) + " x " + std::to_string(geometry.height) + " px x " +
                               std::to_string(geometry.layers) + " layers";
-    for (const auto& [name, data] : previews->render(title)) {
+    const std::vector<std::pair<std::string, Bytes>> rendered = previews->render(title);
+    for (const auto& [name, data] : rendered) {
       files.push_back(writeStaged(name, data));
       previewNames.push_back(name);
     }
+    if (spec.options.report) files.push_back(writeStaged(kReportName, spec.options.report(manifest({}, previewNames), rendered)));
     for (const LayerRecord& r : layers) files.insert(files.end(), r.files.begin(), r.files.end());
     // Names that are not UTF-8 (a design file's path) are written with U+FFFD rather than failing the job.
     const std::string text = manifest(files, previewNames).dump(1, ' ', false, json::error_handler_t::replace) + "\n";
@@ -640,7 +643,7 @@ struct JobWriter::Impl {
     return files;
   }
 
-  // Fixed order: manifest, build file, previews, then the layers bottom-up, materials in profile order.
+  // Fixed order: manifest, build file, previews, report, then the layers bottom-up, materials in profile order.
   void writeArchive(const std::vector<FileRecord>& files, std::size_t firstLayerFile) const {
     std::vector<ZipEntry> entries;
     entries.push_back({kManifestName, filesDir / kManifestName, ZipStorage::Deflate});

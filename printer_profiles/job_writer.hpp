@@ -15,11 +15,13 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace rodfab::printer_profiles {
 
 struct CalibrationRecord {
-  std::string file;    // the calibration file the modulus-to-fraction mapping came from
+  std::string file;    // the name of the calibration file the mapping came from (a name, not a path)
   std::string sha256;  // its checksum, so a job can be traced to the exact data
 };
 
@@ -38,6 +40,14 @@ struct JobMetadata {
   nlohmann::json extra = nlohmann::json::object();  // caller's own records (e.g. coupon labels)
 };
 
+// The job's report (report.html, see slicer/job_report.hpp), made by the caller from the manifest as it
+// will be written (without its "files" table) and the rendered previews (name in the job, PNG bytes).
+// Called once by finalize(), before the manifest; the bytes returned are written as kReportName and
+// listed in the manifest's file table (and under "report") like any other file. May throw: the job is
+// then not written.
+using JobReportHook =
+    std::function<Bytes(const nlohmann::json& manifest, const std::vector<std::pair<std::string, Bytes>>& previews)>;
+
 struct JobOptions {
   std::filesystem::path output;                  // the job: "NAME.zip" or a directory
   ArchiveFormat archive = ArchiveFormat::Zip;
@@ -53,6 +63,7 @@ struct JobOptions {
   // the rename is undone (the new job removed, a job it replaced put back) before the exception
   // leaves finalize(). Called on the thread that calls finalize().
   std::function<void()> checkInterrupt;
+  JobReportHook report;                          // empty: the job has no report.html
 };
 
 struct JobSpec {

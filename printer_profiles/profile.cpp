@@ -1,5 +1,7 @@
 #include "printer_profiles/profile.hpp"
 
+#include "common/data_dir.hpp"
+
 #include <nlohmann/json.hpp>
 
 #include <fcntl.h>
@@ -526,8 +528,7 @@ Profile readProfile(const std::filesystem::path& file) {
 }
 
 std::filesystem::path bundledProfileDir() {
-  if (const char* dir = std::getenv("RODFAB_PROFILE_DIR"); dir && *dir) return dir;
-  return std::filesystem::path(RODFAB_SOURCE_DIR) / "printer_profiles";
+  return common::dataDir() / "profiles";
 }
 
 std::vector<std::string> bundledProfileNames() {

@@ -105,7 +105,8 @@ private:
   std::vector<ProfileIssue> issues_;
 };
 
-// The folder holding the bundled profiles (this source folder unless RODFAB_PROFILE_DIR is set).
+// The folder holding the bundled profiles: profiles/ in rodfab's data folder (common/data_dir.hpp);
+// throws common::DataDirError when that is not found.
 std::filesystem::path bundledProfileDir();
 // Names of the bundled profiles, sorted.
 std::vector<std::string> bundledProfileNames();

@@ -23,6 +23,8 @@ packages=(
   libcgal-dev                                                # meshing: mesh I/O, simplification, AABB trees
   libopenmesh-dev                                            # bench_meshing: OpenMesh's decimater, compared
   libocct-data-exchange-dev libocct-modeling-algorithms-dev libocct-modeling-data-dev libocct-foundation-dev  # rods-from-cad
+  chromium                                                   # renders the job report in tests (cli_report)
+  dpkg-dev fakeroot                                          # cpack -G DEB: dpkg-shlibdeps finds the package's dependencies
 )
 
 missing=()

@@ -7,6 +7,7 @@
 #include "slicer/interrupt.hpp"
 #include "slicer/job_options.hpp"
 #include "slicer/job_pipeline.hpp"
+#include "slicer/job_report.hpp"
 #include "slicer/options.hpp"
 #include "slicer/progress.hpp"
 
@@ -249,7 +250,7 @@ int runCoupons(const std::vector<std::string>& args) {
       ("image-format", po::value<std::string>(), "bmp | png (default: the profile's)")
       ("band-layers", po::value<int>()->default_value(64), "layers per streamed band")
       ("force", "replace an existing job at --output")
-      ("quiet,q", "no progress on stderr")
+      ("quiet,q", "no progress bar or progress lines on stderr (the summary, warnings and errors are still printed)")
       ("json", "print the job summary as JSON on stdout");
   po::positional_options_description positional;
   po::variables_map vm;
@@ -357,6 +358,13 @@ int runCoupons(const std::vector<std::string>& args) {
   spec.metadata.ditherer = ditherName;
   spec.metadata.seed = ditherOptions.seed;
   spec.options = jobOptions;
+  // report.html (slicer/job_report.hpp): coupons record no calibration or clamping; the rest applies.
+  spec.options.report = [verified = jobOptions.verify](const nlohmann::json& manifest, const auto& previews) {
+    slicer::ReportInputs inputs;
+    inputs.verified = verified;
+    const std::string page = slicer::renderJobReport(manifest, previews, inputs);
+    return printer_profiles::Bytes(page.begin(), page.end());
+  };
 
   commandLineAccepted();
   // The output is refused now (a user's folder, a job without --force) rather than after the work.

@@ -1,4 +1,6 @@
 #include "calibration/calibration.hpp"
+#include "common/json_input.hpp"
+#include "common/sha256.hpp"
 #include "geometry/geometry.hpp"
 #include "materials/materials.hpp"
 #include "printer_profiles/printer_profiles.hpp"
@@ -14,6 +16,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 
 namespace rodfab::cli {
@@ -42,7 +45,7 @@ int runSlice(const std::vector<std::string>& args) {
       ("band-layers", po::value<int>()->default_value(0),
        "layers per streamed band (0 = automatic: 64, fewer for parts with large layers, to bound memory)")
       ("force", "replace an existing job at --output")
-      ("quiet,q", "no progress on stderr")
+      ("quiet,q", "no progress bar or progress lines and no clamped-moduli note on stderr (the summary, warnings and errors are still printed)")
       ("json", "print the job summary as JSON on stdout");
   po::positional_options_description positional;
   positional.add("design", 1);
@@ -111,8 +114,10 @@ int runSlice(const std::vector<std::string>& args) {
   const Progress::Mode mode = Progress::detect(vm.count("quiet") > 0);
   std::unique_ptr<Progress> progress;
   slicer::SliceSettings settings;
-  settings.designFile = designFile;
-  settings.calibrationFile = calibrationFile;
+  // Jobs name their inputs by file name and SHA-256: no path of this machine travels with them.
+  settings.designFile = std::filesystem::path(designFile).filename().string();
+  settings.designSha256 = common::sha256Hex(common::readBoundedFile(designFile));
+  settings.calibrationFile = std::filesystem::path(calibrationFile).filename().string();
   settings.calibrationSha256 = calibrationSha256;
   settings.seed = ditherOptions.seed;
   settings.threads = threads;
@@ -162,7 +167,7 @@ int runSlice(const std::vector<std::string>& args) {
         {"materials", materialsJson},
         {"ditherer", std::string(ditherer->name())},
         {"seed", ditherOptions.seed},
-        {"calibration", calibrationFile},
+        {"calibration", {{"file", settings.calibrationFile}, {"sha256", calibrationSha256}}},
         {"clamped_moduli", {{"below_floor", mapping.clamps.belowFloor}, {"above_max", mapping.clamps.aboveMax},
                             {"floor_mpa", report.floorMpa}, {"max_mpa", report.maxModulusMpa}}},
         {"rods_without_voxels", rodsWithoutVoxels},
@@ -184,8 +189,9 @@ int runSlice(const std::vector<std::string>& args) {
                   formatCount(m.voxels).c_str(), m.volumeMl, m.massG);
     std::printf("dithering:      %s, seed %llu\n", std::string(ditherer->name()).c_str(),
                 static_cast<unsigned long long>(ditherOptions.seed));
-    std::printf("calibration:    %s (floor %.3g MPa = %.1f %% Vero, max %.4g MPa)\n", calibrationFile.c_str(),
-                report.floorMpa, 100.0 * report.floorFraction, report.maxModulusMpa);
+    std::printf("calibration:    %s, sha256 %.12s... (floor %.3g MPa = %.1f %% Vero, max %.4g MPa)\n",
+                settings.calibrationFile.c_str(), calibrationSha256.c_str(), report.floorMpa, 100.0 * report.floorFraction,
+                report.maxModulusMpa);
     std::printf("clamped moduli: %s below the floor, %s above the stiffest mix\n",
                 formatCount(mapping.clamps.belowFloor).c_str(), formatCount(mapping.clamps.aboveMax).c_str());
     std::printf("time:           %.2f s inputs, %.2f s support, %.2f s voxelize + map, %.2f s dither, %.2f s emit; %.2f s total\n",

@@ -17,7 +17,9 @@ Progress::Progress(std::string unit, std::size_t total, Mode mode, std::ostream&
 
 std::string Progress::status(std::size_t done, Clock::time_point now) const {
   const double seconds = std::chrono::duration<double>(now - start_).count();
-  const double rate = seconds > 0.0 ? done / seconds : 0.0;
+  // A rate measured over a few milliseconds is noise ("500000000 layers/s" after the first band):
+  // shown only once the job has run kMinRateSeconds.
+  const double rate = seconds >= kMinRateSeconds && done > 0 ? done / seconds : 0.0;
   const int percent = total_ ? static_cast<int>(100.0 * done / total_) : 100;
   char buf[160];
   int n = std::snprintf(buf, sizeof buf, "%zu/%zu %s (%d%%)", done, total_, unit_.c_str(), percent);

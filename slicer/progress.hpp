@@ -22,7 +22,9 @@ public:
   // Final line (also in Lines mode), with the overall rate.
   void finish(Clock::time_point now = Clock::now());
 
-  // "1234/3000 layers (41%), 412 layers/s, 4 s left" — exposed for tests.
+  // "1234/3000 layers (41%), 412 layers/s, 4 s left" — exposed for tests. The rate and the time left
+  // appear only after kMinRateSeconds (before that: "1234/3000 layers (41%)").
+  static constexpr double kMinRateSeconds = 1.0;
   std::string status(std::size_t done, Clock::time_point now) const;
 
 private:

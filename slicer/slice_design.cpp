@@ -1,6 +1,7 @@
 #include "slicer/slice_design.hpp"
 
 #include "common/interrupt.hpp"
+#include "slicer/job_report.hpp"
 #include "voxel/diagnostics.hpp"
 
 #include <algorithm>
@@ -13,6 +14,24 @@ namespace rodfab::slicer {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+// report.html (job_report.hpp), made when the writer finalizes the job: the bands are done by then.
+printer_profiles::JobReportHook reportHook(const SliceReport& report, const calibration::Calibration& calibration,
+                                           const ClampMap& clamps, bool verified) {
+  return [&report, &calibration, &clamps, verified](const nlohmann::json& manifest, const auto& previews) {
+    ReportInputs inputs;
+    inputs.verified = verified;
+    inputs.calibration = &calibration;
+    inputs.clamps = &clamps;
+    inputs.warnings = report.warnings;
+    const auto empty = std::count(report.voxelsPerRod.begin(), report.voxelsPerRod.end(), std::uint64_t{0});
+    if (empty > 0)
+      inputs.warnings.push_back(std::to_string(empty) + " rod(s) hold no voxel centre (thinner than the voxel or hidden in "
+                                "other rods): they are not printed; rodfab voxelize --json lists them");
+    const std::string page = renderJobReport(manifest, previews, inputs);
+    return printer_profiles::Bytes(page.begin(), page.end());
+  };
+}
 
 }  // namespace
 
@@ -49,6 +68,7 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   spec.partBounds = partBounds;
   spec.originMm = grid.origin;
   spec.metadata.design = settings.designFile;
+  if (!settings.designSha256.empty()) spec.metadata.extra["design_sha256"] = settings.designSha256;
   spec.metadata.ditherer = std::string(ditherer.name());
   spec.metadata.seed = settings.seed;
   if (!settings.calibrationFile.empty())
@@ -66,8 +86,11 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   }
 
   report.voxelsPerRod.assign(design.rods.size(), 0);
+  ClampMap clampMap(spec.partBounds, profile.voxelSizeMm, fractionMap.floorMpa(), fractionMap.maxModulusMpa());
+  spec.options.report = reportHook(report, calibration, clampMap, spec.options.verify);
   const BandSource source = [&](int k0, int k1, bool withNextLayer) {
     const voxel::Rasterization ras = rasterizer.rasterizeLayers(k0, k1 + (withNextLayer ? 1 : 0));
+    const std::uint64_t clampedBefore = report.mapping.clamps.total();
     for (std::size_t r = 0; r < report.voxelsPerRod.size(); ++r) report.voxelsPerRod[r] += ras.voxelsPerRod[r];
     BandGrids band{materials::mapToFractions(*ras.grid, fractionMap, k0, k1, report.mapping), ras.grid};
     if (withNextLayer) {
@@ -75,6 +98,9 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
       materials::MappingStats ignored;
       band.fraction->tree().merge(materials::mapToFractions(*ras.grid, fractionMap, k1, k1 + 1, ignored)->tree());
     }
+    // Where the clamped voxels are, for the report's picture: voxel by voxel only in bands that have any.
+    if (report.mapping.clamps.total() > clampedBefore) clampMap.add(*ras.grid, k0, k1);
+    else clampMap.addOutline(*ras.grid, k0, k1);
     return band;
   };
   PipelineOptions pipeline;

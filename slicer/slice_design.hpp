@@ -18,8 +18,9 @@
 namespace rodfab::slicer {
 
 struct SliceSettings {
-  std::string designFile;  // recorded in the manifest
-  // The calibration's file and its SHA-256, recorded in the manifest (empty: not recorded).
+  // The design's file name and SHA-256, recorded in the manifest (a name, not a path: jobs travel).
+  std::string designFile, designSha256;
+  // The calibration's file name and its SHA-256, recorded in the manifest (empty: not recorded).
   std::string calibrationFile, calibrationSha256;
   std::uint64_t seed = 0;  // the ditherer's, recorded in the manifest
   int threads = 0;         // rasterizer workers (0 = all); callers limit TBB as a whole with global_control

@@ -1,45 +1,91 @@
-// common/: untrusted JSON is refused with the JSON path of what is wrong.
-#include "common/json_input.hpp"
+// common/: SHA-256 against the FIPS 180-2 test vectors, the data folder's search order and errors.
+#include "common/data_dir.hpp"
+#include "common/sha256.hpp"
 
 #include <catch2/catch.hpp>
 
-#include <string>
+#include <unistd.h>
 
-using rodfab::common::JsonInputError;
-using rodfab::common::parseJsonStrict;
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace fs = std::filesystem;
+using namespace rodfab::common;
+
+TEST_CASE("SHA-256 gives the FIPS 180-2 digests, in one piece or streamed") {
+  CHECK(sha256Hex(std::string_view("abc")) == "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+  CHECK(sha256Hex(std::string_view("")) == "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
+  const std::string twoBlocks = "abcdbcdecdefdefgefghfghighijhijkijkljklmklmnlmnomnopnopq";
+  CHECK(sha256Hex(std::string_view(twoBlocks)) == "248d6a61d20638b8e5c026930c3e6039a33ce45964ff2167f6ecedd419db06c1");
+  Sha256 streamed;
+  const std::vector<std::uint8_t> bytes(twoBlocks.begin(), twoBlocks.end());
+  streamed.update(std::span(bytes).first(7));
+  streamed.update(std::span(bytes).subspan(7));
+  CHECK(streamed.hex() == sha256Hex(std::span<const std::uint8_t>(bytes)));
+  CHECK(isSha256Hex(sha256Hex(std::string_view("x"))));
+  CHECK_FALSE(isSha256Hex("BA7816BF8F01CFEA414140DE5DAE2223B00361A396177A9CB410FF61F20015AD"));
+  CHECK_FALSE(isSha256Hex("abc"));
+}
+
+TEST_CASE("the data folder is looked for beside the executable, one to three levels up") {
+  const auto c = dataDirCandidates("/opt/x/bin/rodfab");
+  REQUIRE(c.size() == 3);
+  CHECK(c[0] == fs::path("/opt/x/share/rodfab"));
+  CHECK(c[1] == fs::path("/opt/share/rodfab"));
+  CHECK(c[2] == fs::path("/share/rodfab"));
+  CHECK(dataDirCandidates("/rodfab").empty());  // no folder above /
+}
 
 namespace {
 
-// The path and message of the error parseJsonStrict throws for `text`.
-JsonInputError errorOf(const std::string& text, int maxDepth = rodfab::common::kMaxJsonDepth,
-                       std::size_t maxValues = std::numeric_limits<std::size_t>::max()) {
-  try {
-    parseJsonStrict(text, maxDepth, maxValues);
-  } catch (const JsonInputError& e) {
-    return e;
+struct EnvGuard {
+  std::string old;
+  bool had;
+  EnvGuard() : had(std::getenv(kDataDirVariable) != nullptr) {
+    if (had) old = std::getenv(kDataDirVariable);
   }
-  FAIL("no error for " << text);
-  return JsonInputError("", "");
-}
+  ~EnvGuard() {
+    if (had) ::setenv(kDataDirVariable, old.c_str(), 1);
+    else ::unsetenv(kDataDirVariable);
+  }
+};
 
 }  // namespace
 
-TEST_CASE("A number beyond a double is refused at its JSON path, not by nlohmann without a place", "[common]") {
-  const JsonInputError e = errorOf(R"({"a": {"list": [1, 2.5e3, -1e309]}, "b": 1e999})");
-  CHECK(e.path == "a.list[2]");
-  CHECK(e.message.find("line 1, column 27") != std::string::npos);
-  CHECK(errorOf("[1e400]").path == "[0]");
-  // Underflow is a number (zero), and large finite numbers pass.
-  CHECK(parseJsonStrict("[1e-400, 1.7e308, -1.7e308]").size() == 3);
-  // A number inside a string is not a number.
-  CHECK(parseJsonStrict(R"({"s": "1e999"})")["s"] == "1e999");
+TEST_CASE("RODFAB_DATA_DIR overrides the search, and a wrong one is an error naming it") {
+  EnvGuard guard;
+  const fs::path tmp = fs::temp_directory_path() / ("rodfab-data-dir-test-" + std::to_string(::getpid()));
+  fs::remove_all(tmp);
+  fs::create_directories(tmp / "profiles");
+  std::ofstream(tmp / "profiles" / "p.json") << "{}";
+  ::setenv(kDataDirVariable, tmp.c_str(), 1);
+  CHECK(dataDir() == tmp);
+  CHECK(dataFile("profiles/p.json") == tmp / "profiles" / "p.json");
+  try {
+    dataFile("masks/none.rfbn");
+    FAIL("a missing data file was found");
+  } catch (const DataDirError& e) {
+    CHECK(std::string(e.what()).find("masks/none.rfbn") != std::string::npos);
+  }
+  ::setenv(kDataDirVariable, (tmp / "nowhere").c_str(), 1);
+  try {
+    dataDir();
+    FAIL("a wrong RODFAB_DATA_DIR was accepted");
+  } catch (const DataDirError& e) {
+    CHECK(std::string(e.what()).find("RODFAB_DATA_DIR is '" + (tmp / "nowhere").string() + "'") != std::string::npos);
+  }
+  fs::remove_all(tmp);
 }
 
-TEST_CASE("Duplicate keys, depth and the number of values are refused at a path", "[common]") {
-  CHECK(errorOf(R"({"rods": [{"name": "a", "name": "b"}]})").path == "rods[0].name");
-  CHECK(errorOf("[[[[1]]]]", 3).path == "[0][0][0]");  // the fourth array, inside three
-  const JsonInputError many = errorOf(R"({"x": [1, 2, 3, 4]})", 64, 4);
-  CHECK(many.message.find("more than 4 values") != std::string::npos);
-  CHECK(many.path == "x[2]");  // the object, the array and two numbers are the first four
-  CHECK(parseJsonStrict(R"({"x": [1, 2, 3]})", 64, 5)["x"].size() == 3);
+TEST_CASE("without RODFAB_DATA_DIR, a test in the build tree finds the build tree's data folder") {
+  EnvGuard guard;
+  ::unsetenv(kDataDirVariable);
+  const fs::path dir = dataDir();
+  CHECK(fs::is_regular_file(dir / "calibration" / "default-60C.json"));
+  CHECK(fs::is_directory(dir / "masks"));
+  CHECK(dir.filename() == "rodfab");
 }

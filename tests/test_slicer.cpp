@@ -1,0 +1,68 @@
+// slicer/: the progress line's rate, and the job report's map of clamped moduli against a brute-force
+// count over the same voxels.
+#include "slicer/job_report.hpp"
+#include "slicer/progress.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <sstream>
+
+using namespace rodfab;
+
+TEST_CASE("progress shows no rate before a second has passed, then the true one") {
+  std::ostringstream out;
+  const auto t0 = cli::Progress::Clock::now();
+  const cli::Progress progress("layers", 200, cli::Progress::Mode::Lines, out);
+  const std::string early = progress.status(50, t0 + std::chrono::milliseconds(1));
+  CHECK(early == "50/200 layers (25%)");
+  const std::string later = progress.status(100, t0 + std::chrono::seconds(2));
+  CHECK(later.find("100/200 layers (50%), 50 layers/s, 2 s left") == 0);
+}
+
+TEST_CASE("the clamp map counts what the fraction map clamps, voxels and tiles, within the band and part") {
+  openvdb::initialize();
+  const double floor = 8.0, max = 190.0;
+  const openvdb::CoordBBox part(openvdb::Coord(-5, -3, 0), openvdb::Coord(40, 20, 30));
+  auto grid = openvdb::FloatGrid::create(0.0f);
+  auto acc = grid->getAccessor();
+  // Voxels below, at, inside and above the range, NaN, and one outside the part.
+  const float values[] = {1.0f, 8.0f, 50.0f, 190.0f, 190.5f, 400.0f, std::numeric_limits<float>::quiet_NaN(), 7.9f};
+  int n = 0;
+  for (int k = 0; k < 31; ++k)
+    for (int i = -5; i < 10; ++i) acc.setValue(openvdb::Coord(i, (i + k) % 7, k), values[n++ % 8]);
+  acc.setValue(openvdb::Coord(100, 0, 3), 1.0f);  // outside the part box: ignored
+  grid->tree().addTile(1, openvdb::Coord(16, 8, 8), 500.0f, true);  // an 8^3 tile above the maximum, k 8..15
+
+  const int k0 = 4, k1 = 12;
+  slicer::ClampMap map(part, {0.0423, 0.0846, 0.03}, floor, max);
+  map.add(*grid, k0, k1);
+  std::uint64_t below = 0, above = 0;
+  for (auto it = grid->cbeginValueOn(); it; ++it) {
+    openvdb::CoordBBox box;
+    it.getBoundingBox(box);
+    for (auto c = box.beginXYZ(); c; ++c) {
+      const openvdb::Coord x = *c;
+      if (x.z() < k0 || x.z() >= k1 || !part.isInside(x)) continue;
+      below += !(*it >= floor);
+      above += *it > max;
+    }
+  }
+  CHECK(below > 0);
+  CHECK(above > 8 * 8 * 4);  // the tile's part inside the band
+  CHECK(map.belowFloor() == below);
+  CHECK(map.aboveMax() == above);
+  map.addOutline(*grid, 0, 31);  // the outline counts nothing
+  CHECK(map.belowFloor() == below);
+  CHECK(map.aboveMax() == above);
+  const printer_profiles::Bytes png = map.renderPng();
+  REQUIRE(png.size() > 8);
+  CHECK(png[1] == 'P');
+  CHECK(png[2] == 'N');
+}
+
+TEST_CASE("a large part is binned to at most kMaxBins a side") {
+  const openvdb::CoordBBox part(openvdb::Coord(0, 0, 0), openvdb::Coord(11582, 4608, 6665));
+  slicer::ClampMap map(part, {0.0423, 0.0846, 0.03}, 8.0, 190.0);
+  CHECK((11583 + map.binVoxels() - 1) / map.binVoxels() <= slicer::ClampMap::kMaxBins);
+  CHECK(map.binVoxels() == (11583 + slicer::ClampMap::kMaxBins - 1) / slicer::ClampMap::kMaxBins);
+}
