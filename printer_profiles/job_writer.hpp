@@ -21,6 +21,8 @@ namespace rodfab::printer_profiles {
 struct CalibrationRecord {
   std::string file;    // the calibration file the modulus-to-fraction mapping came from
   std::string sha256;  // its checksum, so a job can be traced to the exact data
+  std::string rigidMaterial, rubberyMaterial;  // the materials it was measured on ("" when it does not say)
+  std::string warning;  // why it may not fit this profile's materials ("" when it does)
 };
 
 // Voxels whose requested modulus lay outside what the materials can make (counted by materials/).
