@@ -13,6 +13,9 @@ using namespace rodfab::materials;
 
 namespace {
 
+// The Connex3 profile's voxel (600 x 300 dpi, 30 um layers).
+const openvdb::Vec3d kBenchVoxel(0.0423, 0.0846, 0.030);
+
 double peakRssMb() {
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
@@ -23,7 +26,7 @@ double peakRssMb() {
 const openvdb::FloatGrid& denseBlock() {
   static const openvdb::FloatGrid::Ptr grid = [] {
     openvdb::initialize();
-    auto g = makeUniformBlock(openvdb::Coord(256, 128, 192), 0.5f);
+    auto g = makeUniformBlock(openvdb::Coord(256, 128, 192), 0.5f, kBenchVoxel);
     for (auto it = g->beginValueOn(); it; ++it) {
       const openvdb::Coord c = it.getCoord();
       it.setValue(0.6f + 0.3f * std::sin(0.02f * c.x()) * std::cos(0.03f * c.y() + 0.01f * c.z()));
@@ -37,11 +40,11 @@ const openvdb::FloatGrid& denseBlock() {
 const openvdb::FloatGrid& rodBundle() {
   static const openvdb::FloatGrid::Ptr grid = [] {
     openvdb::initialize();
-    auto g = makeRod(1.0, 20.0, 0, 0.3f);
+    auto g = makeRod(1.0, 20.0, 0, 0.3f, kBenchVoxel);
     const auto one = g->deepCopy();
     for (int r = 1; r < 16; ++r) {
-      const openvdb::Coord shift(0, static_cast<int>((r % 4) * 2.0 / kConnex3VoxelSizeMm[1]),
-                                 static_cast<int>((r / 4) * 2.0 / kConnex3VoxelSizeMm[2]));
+      const openvdb::Coord shift(0, static_cast<int>((r % 4) * 2.0 / kBenchVoxel[1]),
+                                 static_cast<int>((r / 4) * 2.0 / kBenchVoxel[2]));
       auto acc = g->getAccessor();
       for (auto it = one->cbeginValueOn(); it; ++it) acc.setValueOn(it.getCoord() + shift, *it);
     }

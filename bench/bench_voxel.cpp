@@ -33,7 +33,7 @@ struct Workload {
 Workload makeWorkload(rodfab::geometry::RodStructure structure) {
   openvdb::initialize();
   Workload w{std::move(structure), {}};
-  w.grid = voxel::makePrinterGrid(w.structure);  // Connex3 voxel
+  w.grid = voxel::makePrinterGrid(w.structure, openvdb::Vec3d(0.0423, 0.0846, 0.030));  // the Connex3 profile's voxel
   return w;
 }
 

@@ -140,6 +140,8 @@ ordered_json calibrationToJson(const Calibration& c) {
       {"max_modulus_mpa", c.maxModulusMpa()},
       {"temperature_c", r.temperatureC ? ordered_json(*r.temperatureC) : ordered_json()},
       {"dither", r.dither.empty() ? ordered_json() : ordered_json(r.dither)},
+      {"materials", r.rigidMaterial.empty() ? ordered_json()
+                                            : ordered_json{{"rigid", r.rigidMaterial}, {"rubbery", r.rubberyMaterial}}},
       {"data", {{"file", r.dataFile}, {"sha256", r.dataSha256}, {"measurements", measurements}}},
       {"quality",
        {{"measurements", q.measurements},
@@ -153,7 +155,7 @@ ordered_json calibrationToJson(const Calibration& c) {
 Calibration calibrationFromJson(const json& j, const std::string& sourceName) {
   const Reader in(sourceName);
   in.object(j, "", "a calibration");
-  in.onlyKeys(j, "", {"format", "model", "parameters", "floor", "max_modulus_mpa", "temperature_c", "dither", "data", "quality"});
+  in.onlyKeys(j, "", {"format", "model", "parameters", "floor", "max_modulus_mpa", "temperature_c", "dither", "materials", "data", "quality"});
   const std::string format = in.string(in.get(j, "", "format", std::string("\"") + kCalibrationFormat + "\""), "format", "the format tag");
   if (format != kCalibrationFormat) in.fail("format", std::string("expected \"") + kCalibrationFormat + "\", got " + describe(j["format"]));
   const std::string modelText = in.string(in.get(j, "", "model", "the model name"), "model", "the model name");
@@ -203,6 +205,14 @@ Calibration calibrationFromJson(const json& j, const std::string& sourceName) {
   FitRecord r;
   r.temperatureC = in.optionalNumber(j, "", "temperature_c", "a temperature in degrees Celsius or null");
   r.dither = in.optionalString(j, "", "dither", "the ditherer's name or null");
+  if (j.contains("materials") && !j["materials"].is_null()) {
+    // Optional (files written before it existed have none): the materials the coupons were printed in.
+    const json& mat = in.object(j["materials"], "materials", "{rigid, rubbery} material names or null");
+    in.onlyKeys(mat, "materials", {"rigid", "rubbery"});
+    r.rigidMaterial = in.string(in.get(mat, "materials", "rigid", "the rigid material's name"), "materials.rigid", "a material name");
+    r.rubberyMaterial = in.string(in.get(mat, "materials", "rubbery", "the rubbery material's name"), "materials.rubbery", "a material name");
+    if (r.rigidMaterial.empty() || r.rubberyMaterial.empty()) in.fail("materials", "expected two non-empty material names");
+  }
   const json& data = in.object(in.get(j, "", "data", "{file, sha256, measurements}"), "data", "the fitted data");
   in.onlyKeys(data, "data", {"file", "sha256", "measurements"});
   r.dataFile = in.string(in.get(data, "data", "file", "the data file name"), "data.file", "the data file name");

@@ -61,6 +61,9 @@ struct FitRecord {
   std::vector<Measurement> measurements;
   std::optional<double> temperatureC;  // mean DMA temperature of the coupons, when the data gives it
   std::string dither;                  // ditherer of the coupons; empty when the data does not say
+  // The rigid and rubbery materials the coupons were printed in (a printer profile's names, e.g.
+  // VeroWhitePlus and TangoBlackPlus); both empty when the file does not record them.
+  std::string rigidMaterial, rubberyMaterial;
   FitQuality quality;
 };
 

@@ -7,6 +7,7 @@
 #include <csetjmp>
 #include <cstdio>
 #include <cstring>
+#include <functional>
 
 namespace rodfab::printer_profiles {
 
@@ -210,6 +211,9 @@ struct PngWriteSpec {
   int compressionLevel;
   const std::uint8_t* rows;
   std::size_t stride;
+  // Instead of `rows`: fills row r (of `stride` bytes) into the buffer, one row at a time.
+  std::function<void(int, std::uint8_t*)> rowAt = {};
+  int filter = -1;  // a PNG_FILTER_* mask; -1: none for 1-bit rows, libpng's choice otherwise
 };
 
 bool writePng(PngIo& io, const PngWriteSpec& spec) {
@@ -225,9 +229,14 @@ bool writePng(PngIo& io, const PngWriteSpec& spec) {
                PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
   if (spec.xPpm) png_set_pHYs(png, info, spec.xPpm, spec.yPpm, PNG_RESOLUTION_METER);
   png_set_compression_level(png, spec.compressionLevel);
-  if (spec.bitDepth == 1) png_set_filter(png, 0, PNG_FILTER_NONE);  // filters do not help 1-bit rows
+  if (spec.filter >= 0) png_set_filter(png, 0, spec.filter);
+  else if (spec.bitDepth == 1) png_set_filter(png, 0, PNG_FILTER_NONE);  // filters do not help 1-bit rows
   png_write_info(png, info);
-  for (png_uint_32 r = 0; r < spec.height; ++r) png_write_row(png, spec.rows + r * spec.stride);
+  std::vector<std::uint8_t> row(spec.rowAt ? spec.stride : 0);
+  for (png_uint_32 r = 0; r < spec.height; ++r) {
+    if (spec.rowAt) spec.rowAt(static_cast<int>(r), row.data());
+    png_write_row(png, spec.rowAt ? row.data() : spec.rows + r * spec.stride);
+  }
   png_write_end(png, nullptr);
   png_destroy_write_struct(&png, &info);
   return true;
@@ -272,6 +281,10 @@ public:
   void rows(std::uint8_t* data, std::size_t stride, png_uint_32 height) {
     if (!readRows(data, stride, height)) fail();
   }
+  // Each row into `buffer` (one row), then `use(r, buffer)`; `use` must not throw.
+  void eachRow(std::uint8_t* buffer, png_uint_32 height, const std::function<void(int, const std::uint8_t*)>& use) {
+    if (!readEachRow(buffer, height, use)) fail();
+  }
 
 private:
   [[noreturn]] void fail() { throw ImageError(std::string("PNG is damaged: ") + io_.error); }
@@ -283,6 +296,15 @@ private:
     png_get_IHDR(png_, info_, &h.width, &h.height, &h.bitDepth, &h.colourType, &h.interlace, nullptr, nullptr);
     int unit = 0;
     if (png_get_pHYs(png_, info_, &h.xPpm, &h.yPpm, &unit) && unit != PNG_RESOLUTION_METER) h.xPpm = h.yPpm = 0;
+    return true;
+  }
+  bool readEachRow(std::uint8_t* buffer, png_uint_32 height, const std::function<void(int, const std::uint8_t*)>& use) {
+    if (setjmp(png_jmpbuf(png_))) return false;
+    for (png_uint_32 r = 0; r < height; ++r) {
+      png_read_row(png_, buffer, nullptr);
+      use(static_cast<int>(r), buffer);
+    }
+    png_read_end(png_, nullptr);
     return true;
   }
   bool readRows(std::uint8_t* data, std::size_t stride, png_uint_32 height) {
@@ -334,6 +356,30 @@ RgbImage decodePngRgb(std::span<const std::uint8_t> file) {
   RgbImage image(static_cast<int>(h.width), static_cast<int>(h.height), 0, 0, 0);
   reader.rows(image.pixels.data(), static_cast<std::size_t>(image.width) * 3, h.height);
   return image;
+}
+
+Bytes encodePngRgba(int width, int height, int xDpi, int yDpi, const std::function<void(int, std::uint8_t*)>& row) {
+  // Fastest deflate and the Sub filter: layers are long runs of one colour, which Sub turns into zeros.
+  return writePngOrThrow({static_cast<png_uint_32>(width), static_cast<png_uint_32>(height), 8, PNG_COLOR_TYPE_RGBA,
+                          pixelsPerMetre(xDpi), pixelsPerMetre(yDpi), 1, nullptr, static_cast<std::size_t>(width) * 4, row,
+                          PNG_FILTER_SUB});
+}
+
+RgbaHeader decodePngRgba(std::span<const std::uint8_t> file, std::uint64_t maxPixels,
+                         const std::function<void(const RgbaHeader&)>& begin, const std::function<void(int, const std::uint8_t*)>& row) {
+  PngReader reader(file);
+  const PngHeader h = reader.header();
+  if (h.colourType != PNG_COLOR_TYPE_RGBA || h.bitDepth != 8)
+    throw ImageError("PNG colour type " + std::to_string(h.colourType) + " with " + std::to_string(h.bitDepth) +
+                     "-bit samples; expected 6 (RGBA) with 8-bit samples");
+  if (h.interlace != PNG_INTERLACE_NONE) throw ImageError("PNG is interlaced; expected no interlacing");
+  if (static_cast<std::uint64_t>(h.width) * h.height > maxPixels)
+    throw ImageError("PNG declares " + std::to_string(h.width) + " x " + std::to_string(h.height) + " pixels, more than expected");
+  const RgbaHeader header{static_cast<int>(h.width), static_cast<int>(h.height), h.xPpm, h.yPpm};
+  begin(header);
+  std::vector<std::uint8_t> buffer(static_cast<std::size_t>(h.width) * 4);
+  reader.eachRow(buffer.data(), h.height, row);
+  return header;
 }
 
 }  // namespace rodfab::printer_profiles

@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -89,5 +90,19 @@ struct RgbImage {
 };
 Bytes encodePngRgb(const RgbImage& image);
 RgbImage decodePngRgb(std::span<const std::uint8_t> file);  // 8-bit RGB PNGs only
+
+// 8-bit RGBA PNG (colour type 6) with pHYs, for GrabCAD Voxel Print layers: `row(r, out)` fills row r
+// (4 * width bytes) when the encoder needs it, so no whole image is held. Fastest deflate.
+Bytes encodePngRgba(int width, int height, int xDpi, int yDpi, const std::function<void(int, std::uint8_t*)>& row);
+
+struct RgbaHeader {
+  int width = 0, height = 0;
+  std::uint32_t xPixelsPerMetre = 0, yPixelsPerMetre = 0;  // 0 when the file has no pHYs in metres
+};
+// Reads an 8-bit RGBA PNG without interlacing (ImageError otherwise, or when it declares more than
+// `maxPixels`, or is damaged): `begin(header)` once, then `row(r, pixels)` for every row top-down (4 bytes
+// a pixel). Neither callback may throw. Memory: one row.
+RgbaHeader decodePngRgba(std::span<const std::uint8_t> file, std::uint64_t maxPixels, const std::function<void(const RgbaHeader&)>& begin,
+                         const std::function<void(int, const std::uint8_t*)>& row);
 
 }  // namespace rodfab::printer_profiles

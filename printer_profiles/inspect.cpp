@@ -1,4 +1,6 @@
 #include "printer_profiles/inspect.hpp"
+#include "printer_profiles/gcvf_writer.hpp"
+#include "printer_profiles/inspect_gcvf.hpp"
 
 #include "common/sha256.hpp"
 #include "printer_profiles/inspect_layout.hpp"
@@ -153,16 +155,18 @@ public:
     indexEntries();
     if (readManifest() && resolveProfile() && readJobLayout()) {
       checkEntries();
-      checkBuildFile();
+      if (!gcvf()) checkBuildFile();
       checkPreviews();
       checkReport();
       checkLayers();
+      if (gcvf()) checkGcvfConfig();  // its VoxelCounts are checked against the decoded images
     }
     finish();
   }
 
 private:
   void finish() { report_.defects = findings_.take(); }
+  bool gcvf() const { return profile_.jobFormat == JobFormat::Gcvf; }
 
   // Names every entry that no job may hold; keeps the safe, unique, regular files for reading.
   void indexEntries() {
@@ -221,6 +225,22 @@ private:
 
   // The profile comes from the caller or, by name only, from the bundled ones: never from a path.
   bool resolveProfile() {
+    if (!findProfile()) return false;
+    // A job made in another print mode than the profile's default (the J750's high-mix) says so.
+    const json& m = report_.manifest;
+    const json* mode = m["profile"].is_object() && m["profile"].contains("print_mode") ? &m["profile"]["print_mode"] : nullptr;
+    if (!mode || (mode->is_string() && mode->get<std::string>() == profile_.printMode)) return true;
+    try {
+      if (!mode->is_string()) throw ProfileError(profile_.name, {{"", "expected the name of a print mode"}});
+      profile_ = withPrintMode(profile_, mode->get<std::string>());
+      return true;
+    } catch (const ProfileError& e) {
+      findings_.at(kManifestName, "profile.print_mode: " + printableName(e.issues().front().message));
+      return false;
+    }
+  }
+
+  bool findProfile() {
     if (options_.profile) {
       profile_ = *options_.profile;
       return true;
@@ -443,6 +463,7 @@ private:
   }
 
   void checkLayer(int l, LayerResult& out) const {
+    if (gcvf()) return checkGcvfLayer(l, out);
     const std::size_t materials = layout_.materials.size();
     out.voxels.assign(materials, 0);
     out.moments.assign(materials, {});
@@ -466,6 +487,46 @@ private:
           out.findings.at(profile_.layerFileName(*layout_.materials[a], l, layout_.imageFormat),
                           std::to_string(both) + " voxels hold both " + layout_.materials[a]->name + " and " + layout_.materials[b]->name);
       }
+  }
+
+  // A GrabCAD Voxel Print layer: one RGBA image, each colour a material (nothing else), counts as listed.
+  void checkGcvfLayer(int l, LayerResult& out) const {
+    const std::size_t materials = layout_.materials.size();
+    out.voxels.assign(materials, 0);
+    out.moments.assign(materials, {});
+    const std::string name = profile_.layerFileName(*layout_.materials[0], l, layout_.imageFormat);
+    const auto data = fetch(name, UINT64_MAX, out.findings);
+    if (!data) return;
+    GcvfLayerImage image;
+    try {
+      image = decodeGcvfLayer(*data, profile_, layout_.materials, layout_.width, layout_.height);
+    } catch (const ImageError& e) {
+      return out.findings.at(name, e.what());
+    }
+    if (image.xPixelsPerMetre != pixelsPerMetre(profile_.xDpi) || image.yPixelsPerMetre != pixelsPerMetre(profile_.yDpi))
+      out.findings.at(name, "resolution " + std::to_string(image.xPixelsPerMetre) + " x " + std::to_string(image.yPixelsPerMetre) +
+                                " pixels/m; expected " + std::to_string(profile_.xDpi) + " x " + std::to_string(profile_.yDpi) + " dpi");
+    if (image.foreignPixels)
+      out.findings.at(name, std::to_string(image.foreignPixels) + " pixels have a colour that is not in the material list (first: " +
+                                gcvfRgbaText(image.firstForeign) + " at column " + std::to_string(image.firstForeignColumn) +
+                                ", row " + std::to_string(image.firstForeignRow) + ")");
+    for (std::size_t n = 0; n < materials; ++n) {
+      countVoxels(image.bitmaps[n], l, out.moments[n]);
+      out.voxels[n] = out.moments[n].count;
+      const auto& listed = layout_.layerVoxels[static_cast<std::size_t>(l)][n];
+      if (listed && *listed != out.voxels[n])
+        out.findings.at(name, "has " + std::to_string(out.voxels[n]) + " " + layout_.materials[n]->name + " voxels; the manifest says " +
+                                  std::to_string(*listed) + " (layers[" + std::to_string(l) + "].voxels." + layout_.materials[n]->name + ")");
+    }
+  }
+
+  void checkGcvfConfig() {
+    const std::string& name = profile_.buildFileName;
+    const auto data = fetch(name, UINT64_MAX, findings_);
+    if (!data) return;
+    for (const std::string& problem : printer_profiles::checkGcvfConfig(*data, profile_, layout_.width, layout_.height, layout_.layers,
+                                                                        report_.materials))
+      findings_.at(name, problem);
   }
 
   void countVoxels(const Bitmap& b, int l, DecodedMoments& moments) const {

@@ -241,7 +241,7 @@ bool readShape(const json& m, const Profile& p, const ProfileLimits& limits, Job
                               std::to_string(p.columnAlignment));
   const auto height = f.integer(*image, "image", "height", 1, limits.maxHeight);
   const auto layers = f.integer(m, "", "layer_count", 1, limits.maxLayers);
-  if (const auto depth = f.integer(*image, "image", "bit_depth", 1, 1); !depth) ok = false;
+  if (const auto depth = f.integer(*image, "image", "bit_depth", p.imageBitDepth(), p.imageBitDepth()); !depth) ok = false;
   if (!width || *width % p.columnAlignment != 0 || !height || !layers) return false;
   out.width = static_cast<int>(*width);
   out.height = static_cast<int>(*height);
@@ -439,6 +439,7 @@ void readReport(const json& m, JobLayout& out, Fields& f) {
 std::uint64_t layerMaxBytes(const JobLayout& l) {
   const auto height = static_cast<std::uint64_t>(l.height);
   if (l.imageFormat == ImageFormat::Bmp) return 1024 + (static_cast<std::uint64_t>(l.width) + 31) / 32 * 4 * height;
+  if (l.rgba) return pngMaxBytes((static_cast<std::uint64_t>(l.width) * 4 + 1) * height);  // gcvf: 8-bit RGBA
   return pngMaxBytes(((static_cast<std::uint64_t>(l.width) + 7) / 8 + 1) * height);
 }
 
@@ -454,6 +455,7 @@ std::optional<JobLayout> readLayout(const json& m, const Profile& p, Findings& f
   checkProfileBlock(m, p, f);
   f.same(m, "", "build_file", p.buildFileName, "the profile's build file");
   JobLayout out;
+  out.rgba = p.jobFormat == JobFormat::Gcvf;
   if (!readShape(m, p, limitsOf(p), out, f, s)) return std::nullopt;
   readFrame(m, out, f, s);
   readMaterials(m, p, out, f);

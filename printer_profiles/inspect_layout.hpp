@@ -78,6 +78,7 @@ struct JobLayout {
   ImageFormat imageFormat = ImageFormat::Bmp;
   SupportPolicy support = SupportPolicy::Printer;
   int width = 0, height = 0, layers = 0;
+  bool rgba = false;  // GrabCAD Voxel Print: one 8-bit RGBA image per layer holds every material
   std::vector<const ProfileMaterial*> materials;  // with bitmap stacks, in the job's order (by role)
   int firstColumnI = 0, topRowJ = 0, firstLayerK = 0;
   std::array<double, 3> originMm{};

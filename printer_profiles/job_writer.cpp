@@ -2,6 +2,7 @@
 
 #include "common/interrupt.hpp"
 
+#include "printer_profiles/gcvf_writer.hpp"
 #include "printer_profiles/inspect.hpp"
 #include "printer_profiles/leaf_bits.hpp"
 #include "printer_profiles/previews.hpp"
@@ -243,6 +244,14 @@ std::string refusal(const fs::path& target, const OutputOccupant& occupant) {
          "; rodfab replaces only its own jobs (even with --force), so it was left as it is: choose another output";
 }
 
+json calibrationBlock(const std::optional<CalibrationRecord>& c) {
+  if (!c) return nullptr;
+  return {{"file", c->file},
+          {"sha256", c->sha256},
+          {"materials", c->rigidMaterial.empty() ? json(nullptr) : json{{"rigid", c->rigidMaterial}, {"rubbery", c->rubberyMaterial}}},
+          {"warning", c->warning.empty() ? json(nullptr) : json(c->warning)}};
+}
+
 }  // namespace
 
 openvdb::math::Transform::Ptr gridTransform(const Profile& profile, const openvdb::Vec3d& originMm) {
@@ -293,6 +302,9 @@ struct JobWriter::Impl {
     geometry = planJob(spec.profile, spec.partBounds);
     imageFormat = spec.options.imageFormat.value_or(spec.profile.imageFormat);
     support = spec.options.support.value_or(spec.profile.supportPolicy);
+    if (gcvf() && (imageFormat != ImageFormat::Png || support != SupportPolicy::Printer))
+      throw std::invalid_argument(spec.profile.name + " jobs are GrabCAD Voxel Print files: PNG layers, support added by GrabCAD "
+                                  "(no --image-format bmp, no --support explicit)");
     if (support == SupportPolicy::Explicit) {
       if (!spec.supportTops) throw std::invalid_argument("the explicit support policy needs the part's ColumnTops");
       if (spec.supportTops->width() != geometry.width || spec.supportTops->height() != geometry.height)
@@ -310,6 +322,8 @@ struct JobWriter::Impl {
     staging = std::make_unique<Staging>(target);  // last: nothing after it may throw
     filesDir = staging->files();
   }
+
+  bool gcvf() const { return spec.profile.jobFormat == JobFormat::Gcvf; }
 
   void checkBand(const LayerBand& band) const {
     if (!band.material) throw std::invalid_argument("addBand: no material grid");
@@ -460,6 +474,14 @@ struct JobWriter::Impl {
   // Encodes the layer's images; writes them to the staging folder, or hands them to `keep`.
   void writeLayerFiles(int layer, const LayerBitmaps& b, LayerRecord& record, std::vector<Bytes>* keep) const {
     record.files.clear();
+    if (gcvf()) {  // one RGBA image holds every material of the layer
+      Bytes data = encodeGcvfLayer(b.rigid, b.rubbery, spec.profile);
+      FileRecord f{spec.profile.layerFileName(*emitted[0], layer, imageFormat), data.size(), sha256Hex(data)};
+      if (keep) keep->push_back(std::move(data));
+      else writeFile(filesDir / f.name, data);
+      record.files.push_back(std::move(f));
+      return;
+    }
     for (const ProfileMaterial* m : emitted) {
       const Bitmap& bitmap = m->role == MaterialRole::Rigid ? b.rigid : m->role == MaterialRole::Rubbery ? b.rubbery : b.support;
       Bytes data = imageFormat == ImageFormat::Bmp ? encodeBmp(bitmap, spec.profile.xDpi, spec.profile.yDpi)
@@ -499,6 +521,16 @@ struct JobWriter::Impl {
     return out.str();
   }
 
+  std::vector<GcvfMaterialCount> gcvfCounts() const {
+    std::vector<GcvfMaterialCount> counts;
+    for (const ProfileMaterial* m : emitted) {
+      std::uint64_t n = 0;
+      for (const LayerRecord& r : layers) n += r.voxels[static_cast<std::size_t>(m->role)];
+      counts.push_back({m, n});
+    }
+    return counts;
+  }
+
   json manifest(const std::vector<FileRecord>& files, const std::vector<std::string>& previewNames) const {
     const Profile& p = spec.profile;
     const auto& v = p.voxelSizeMm;
@@ -515,8 +547,9 @@ struct JobWriter::Impl {
                     {"layer_thickness_mm", p.layerThicknessMm()},
                     {"tray_mm", p.trayMm},
                     {"column_alignment", p.columnAlignment}};
+    if (!p.printMode.empty()) j["profile"]["print_mode"] = p.printMode;
     j["image"] = {{"format", toString(imageFormat)},
-                  {"bit_depth", 1},
+                  {"bit_depth", p.imageBitDepth()},
                   {"width", geometry.width},
                   {"height", geometry.height},
                   {"x_pixels_per_metre", pixelsPerMetre(p.xDpi)},
@@ -557,7 +590,7 @@ struct JobWriter::Impl {
       const LayerRecord& r = layers[static_cast<std::size_t>(l)];
       json filesOf = json::object(), voxelsOf = json::object();
       for (std::size_t n = 0; n < emitted.size(); ++n) {
-        filesOf[emitted[n]->name] = r.files[n].name;
+        filesOf[emitted[n]->name] = p.layerFileName(*emitted[n], l, imageFormat);  // gcvf: one file for all
         voxelsOf[emitted[n]->name] = r.voxels[static_cast<std::size_t>(emitted[n]->role)];
       }
       layerFiles.push_back({{"layer", l}, {"files", filesOf}, {"voxels", voxelsOf}});
@@ -567,9 +600,7 @@ struct JobWriter::Impl {
     }
     j["layers"] = layerFiles;
     j["dithering"] = {{"ditherer", spec.metadata.ditherer}, {"seed", spec.metadata.seed}};
-    j["calibration"] = spec.metadata.calibration
-                           ? json{{"file", spec.metadata.calibration->file}, {"sha256", spec.metadata.calibration->sha256}}
-                           : json(nullptr);
+    j["calibration"] = calibrationBlock(spec.metadata.calibration);
     json stats = json::object();
     std::uint64_t model = 0;
     for (const ProfileMaterial* m : emitted) {
@@ -625,7 +656,8 @@ struct JobWriter::Impl {
   // layers' last) and the preview names.
   std::vector<FileRecord> writeJobFiles(std::vector<std::string>& previewNames) {
     std::vector<FileRecord> files;
-    const std::string build = buildFileText();
+    const std::string build = gcvf() ? gcvfConfigXml(spec.profile, geometry.width, geometry.height, geometry.layers, gcvfCounts())
+                                     : buildFileText();
     files.push_back(writeStaged(spec.profile.buildFileName, std::span(reinterpret_cast<const std::uint8_t*>(build.data()), build.size())));
     const std::string title = target.filename().string() + "  -  " + spec.profile.printer + ", " +
                               std::to_string(geometry.width) + " x " + std::to_string(geometry.height) + " px x " +

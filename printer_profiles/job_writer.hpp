@@ -23,6 +23,8 @@ namespace rodfab::printer_profiles {
 struct CalibrationRecord {
   std::string file;    // the name of the calibration file the mapping came from (a name, not a path)
   std::string sha256;  // its checksum, so a job can be traced to the exact data
+  std::string rigidMaterial, rubberyMaterial;  // the materials it was measured on ("" when it does not say)
+  std::string warning;  // why it may not fit this profile's materials ("" when it does)
 };
 
 // Voxels whose requested modulus lay outside what the materials can make (counted by materials/).

@@ -40,6 +40,8 @@ ImageFormat parseImageFormat(const std::string& text) {
   throw std::invalid_argument("image format '" + text + "' is not one of: bmp, png");
 }
 
+const char* toString(JobFormat format) { return format == JobFormat::Gcvf ? "gcvf" : "bitmap-stacks"; }
+
 const char* toString(SupportPolicy policy) { return policy == SupportPolicy::Printer ? "printer" : "explicit"; }
 
 SupportPolicy parseSupportPolicy(const std::string& text) {
@@ -55,12 +57,14 @@ const ProfileMaterial& Profile::material(MaterialRole role) const {
 }
 
 std::string Profile::layerFileName(const ProfileMaterial& m, int layer, ImageFormat format) const {
+  if (jobFormat == JobFormat::Gcvf) return gcvf.imageFilePrefix + std::to_string(layer) + ".png";
   std::string number = std::to_string(layer);
   if (static_cast<int>(number.size()) < layerDigits) number.insert(0, layerDigits - number.size(), '0');
   return m.name + "_" + number + "." + toString(format);
 }
 
 std::string Profile::layerFilePattern(const ProfileMaterial& m, ImageFormat format) const {
+  if (jobFormat == JobFormat::Gcvf) return gcvf.imageFilePrefix + "N.png";
   return m.name + "_" + std::string(layerDigits, 'x') + "." + toString(format);
 }
 
@@ -295,6 +299,88 @@ void readResolution(Validator& v, const json& doc, Profile& p) {
     v.fail("resolution.voxel_size_mm[2]", "expected the layer thickness " + std::to_string(*layer) + " mm");
 }
 
+// An RGBA colour: four components 0..255.
+void readRgba(Validator& v, const json& parent, const std::string& path, const std::string& key, std::array<unsigned char, 4>& out) {
+  v.array<4>(parent, path, key, "colour components 0..255 (red, green, blue, alpha)", [&](const json& j, const std::string& cp, std::size_t c) {
+    auto value = v.integer(j, cp, "a colour component", 0, 255);
+    if (value) out[c] = static_cast<unsigned char>(*value);
+    return value.has_value();
+  });
+}
+
+// "output": {"format": "bitmap-stacks" | "gcvf"}, optional (bitmap stacks); "gcvf" needs the "gcvf" block.
+void readOutput(Validator& v, const json& doc, Profile& p) {
+  if (!doc.contains("output")) return;
+  const json* out = v.object(doc, "", "output");
+  if (!out) return;
+  const std::optional<std::string> format = v.string(*out, "output", "format");
+  if (format == "gcvf") p.jobFormat = JobFormat::Gcvf;
+  else if (format && *format != "bitmap-stacks") v.fail("output.format", "expected \"bitmap-stacks\" or \"gcvf\", got \"" + *format + "\"");
+  if (p.jobFormat != JobFormat::Gcvf) return;
+  const json* g = v.object(doc, "", "gcvf");
+  if (!g) return;
+  if (const json* n = v.require(*g, "gcvf", "version", "the ConfigFile.xml version"))
+    p.gcvf.version = v.integer(*n, "gcvf.version", "a version", 1, 1000).value_or(2);
+  if (const json* n = v.require(*g, "gcvf", "bit_depth", "the ConfigFile.xml BitDepth"))
+    p.gcvf.bitDepth = v.integer(*n, "gcvf.bit_depth", "a bit depth", 1, 64).value_or(4);
+  if (const json* n = v.require(*g, "gcvf", "max_number_of_colors", "how many colours the printer takes"))
+    p.gcvf.maxNumberOfColors = v.integer(*n, "gcvf.max_number_of_colors", "a colour count", 2, 64).value_or(6);
+  p.gcvf.creationMode = v.string(*g, "gcvf", "creation_mode", 64).value_or("");
+  if (auto prefix = v.fileName(*g, "gcvf", "image_file_prefix")) p.gcvf.imageFilePrefix = *prefix;
+  readRgba(v, *g, "gcvf", "background_rgba", p.gcvf.backgroundRgba);
+}
+
+// "resolution.print_modes": [{"name", "layer_thickness_mm"}, ...], optional; the first is the default and
+// must be the profile's layer thickness.
+void readPrintModes(Validator& v, const json& doc, Profile& p) {
+  const json* res = doc.contains("resolution") && doc["resolution"].is_object() ? &doc["resolution"] : nullptr;
+  if (!res || !res->contains("print_modes")) return;
+  const json& modes = (*res)["print_modes"];
+  if (!modes.is_array() || modes.empty() || modes.size() > 16) {
+    v.fail("resolution.print_modes", "expected an array of 1 to 16 print modes, got " + describe(modes));
+    return;
+  }
+  std::set<std::string> names;
+  for (std::size_t i = 0; i < modes.size(); ++i) {
+    const std::string path = index("resolution.print_modes", i);
+    if (!modes[i].is_object()) {
+      v.fail(path, "expected an object, got " + describe(modes[i]));
+      continue;
+    }
+    PrintMode mode;
+    mode.name = v.fileName(modes[i], path, "name").value_or("");
+    if (!mode.name.empty() && !names.insert(mode.name).second) v.fail(member(path, "name"), "\"" + mode.name + "\" is named twice");
+    if (const json* t = v.require(modes[i], path, "layer_thickness_mm", "the layer thickness in mm"))
+      mode.layerThicknessMm = v.real(*t, member(path, "layer_thickness_mm"), "a layer thickness in mm", kMinVoxelMm, kMaxVoxelMm, true).value_or(0);
+    p.printModes.push_back(mode);
+  }
+  if (!p.printModes.empty() && p.voxelSizeMm[2] > 0 && std::abs(p.printModes[0].layerThicknessMm - p.voxelSizeMm[2]) > 1e-9)
+    v.fail("resolution.print_modes[0].layer_thickness_mm", "expected the profile's layer thickness " + number(p.voxelSizeMm[2]) +
+                                                                " mm: the first mode is the default");
+  p.printMode = p.printModes.empty() ? "" : p.printModes[0].name;
+}
+
+// A gcvf profile: the format's fixed names, RGBA images, colours that tell the materials apart.
+void checkGcvf(Validator& v, const Profile& p) {
+  if (p.imageFormat != ImageFormat::Png) v.fail("image.format", "expected \"png\": GrabCAD Voxel Print takes PNG layers");
+  if (p.layerDigits != 1) v.fail("image.layer_digits", "expected 1: GrabCAD Voxel Print layers are numbered without padding");
+  if (p.buildFileName != "ConfigFile.xml") v.fail("build_file.name", "expected \"ConfigFile.xml\", the name GrabCAD Voxel Print reads");
+  if (p.supportPolicy != SupportPolicy::Printer)
+    v.fail("support.policy", "expected \"printer\": GrabCAD Voxel Print adds the support itself");
+  std::set<std::array<unsigned char, 4>> colours = {p.gcvf.backgroundRgba};
+  int used = 1;
+  for (std::size_t i = 0; i < p.materials.size(); ++i) {
+    const ProfileMaterial& m = p.materials[i];
+    if (m.role == MaterialRole::Support) continue;
+    ++used;
+    if (!colours.insert(m.rgba).second)
+      v.fail(member(index("materials", i), "rgba"), "expected a colour of its own (not the background's or another material's): "
+                                                    "each colour in a GrabCAD Voxel Print image is one material");
+  }
+  if (used > p.gcvf.maxNumberOfColors)
+    v.fail("gcvf.max_number_of_colors", "the profile uses " + std::to_string(used) + " colours (background included)");
+}
+
 void readMaterial(Validator& v, const json& m, const std::string& path, Profile& p, int count[3]) {
   ProfileMaterial pm;
   pm.name = v.fileName(m, path, "name").value_or("");
@@ -312,6 +398,8 @@ void readMaterial(Validator& v, const json& m, const std::string& path, Profile&
     if (value) pm.previewRgb[c] = static_cast<unsigned char>(*value);
     return value.has_value();
   });
+  if (m.contains("rgba") || (p.jobFormat == JobFormat::Gcvf && pm.role != MaterialRole::Support))
+    readRgba(v, m, path, "rgba", pm.rgba);
   p.materials.push_back(pm);
 }
 
@@ -348,8 +436,10 @@ void readImage(Validator& v, const json& doc, Profile& p) {
       v.fail("image.format", "expected \"bmp\" or \"png\", got \"" + *format + "\"");
     }
   }
-  if (const json* depth = v.require(*image, "image", "bit_depth", "1 (one bit per pixel)"); depth && *depth != 1)
-    v.fail("image.bit_depth", "expected 1 (voxel printing takes 1-bit bitmaps), got " + describe(*depth));
+  if (const json* depth = v.require(*image, "image", "bit_depth", "bits per pixel"); depth && *depth != p.imageBitDepth())
+    v.fail("image.bit_depth", p.jobFormat == JobFormat::Gcvf
+                                  ? "expected 32 (GrabCAD Voxel Print takes 8-bit RGBA images), got " + describe(*depth)
+                                  : "expected 1 (voxel printing takes 1-bit bitmaps), got " + describe(*depth));
   if (const json* a = v.require(*image, "image", "column_alignment", "the column-count multiple"))
     p.columnAlignment = v.integer(*a, "image.column_alignment", "a column multiple", 8, 4096).value_or(32);
   if (p.columnAlignment % 8 != 0) v.fail("image.column_alignment", "expected a multiple of 8 (whole bytes per row)");
@@ -405,6 +495,12 @@ void checkTrayVoxels(Validator& v, const Profile& p) {
       ok = false;
     }
   }
+  // Other print modes: their layers too must be countable (a part is checked against the preview
+  // limits when its job is planned).
+  for (std::size_t m = 0; m < p.printModes.size(); ++m)
+    if (p.printModes[m].layerThicknessMm > 0 && std::floor(p.trayMm[2] / p.printModes[m].layerThicknessMm) > kMaxTrayVoxels)
+      v.fail(member(index("resolution.print_modes", m), "layer_thickness_mm"),
+             "the tray holds more than " + std::to_string(kMaxTrayVoxels) + " layers of it");
   const char* faces[3] = {"a layer image (columns x rows)", "the front preview (columns x layers)", "the side preview (rows x layers)"};
   const double pixels[3] = {voxels[0] * voxels[1], voxels[0] * voxels[2], voxels[1] * voxels[2]};
   for (int f = 0; f < 3 && ok; ++f)
@@ -485,12 +581,15 @@ Profile parseProfile(const std::string& text, const std::string& sourceName) {
     v.fail("name", "\"" + p.name + "\" is not a portable profile name: " + problem);
   p.printer = v.string(doc, "", "printer").value_or("");
   if (auto it = doc.find("description"); it != doc.end()) p.description = v.string(doc, "", "description").value_or("");
+  readOutput(v, doc, p);
   readResolution(v, doc, p);
+  readPrintModes(v, doc, p);
   readRest(v, doc, p);
   readMaterials(v, doc, p);
   readImage(v, doc, p);
   checkTrayVoxels(v, p);
   checkNamesUnique(v, p);
+  if (p.jobFormat == JobFormat::Gcvf) checkGcvf(v, p);
   if (!v.issues.empty()) throw ProfileError(sourceName, v.issues);
   return p;
 }
@@ -555,6 +654,23 @@ Profile loadProfile(const std::string& nameOrPath) {
   if (p.name != nameOrPath)
     throw ProfileError(file.string(), {{"name", "expected \"" + nameOrPath + "\" (the file name), got \"" + p.name + "\""}});
   return p;
+}
+
+Profile withPrintMode(const Profile& profile, const std::string& mode) {
+  std::string known;
+  for (const PrintMode& m : profile.printModes) {
+    if (m.name == mode) {
+      Profile p = profile;
+      p.voxelSizeMm[2] = m.layerThicknessMm;
+      p.printMode = m.name;
+      return p;
+    }
+    known += (known.empty() ? "" : ", ") + m.name;
+  }
+  throw ProfileError(profile.source.string(),
+                     {{"resolution.print_modes", "no print mode \"" + mode + "\" (" +
+                                                     (known.empty() ? "the " + profile.name + " profile has no print modes"
+                                                                    : "modes: " + known) + ")"}});
 }
 
 }  // namespace rodfab::printer_profiles

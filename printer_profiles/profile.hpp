@@ -40,6 +40,28 @@ enum class ImageFormat { Bmp, Png };
 const char* toString(ImageFormat format);
 ImageFormat parseImageFormat(const std::string& text);  // "bmp" | "png"; std::invalid_argument otherwise
 
+// What a job for the printer is: per-material 1-bit bitmap stacks with a plain-text build file (the
+// Objet Connex3 family), or a GrabCAD Voxel Print file (.gcvf: one RGBA PNG per layer, each colour a
+// material, described by ConfigFile.xml; the J750/J850 family; see printer_profiles/README.md).
+enum class JobFormat { BitmapStacks, Gcvf };
+const char* toString(JobFormat format);  // "bitmap-stacks" | "gcvf"
+
+// A printing mode with its own layer thickness (the J750/J850's high-speed and high-mix modes).
+struct PrintMode {
+  std::string name;             // a portable name, unique in the profile
+  double layerThicknessMm = 0;  // the voxel's z size in this mode
+};
+
+// The fixed fields of a GrabCAD Voxel Print ConfigFile.xml (format "gcvf" only).
+struct GcvfSettings {
+  int version = 2;             // <Version>
+  int bitDepth = 4;            // <BitDepth> as GrabCAD's examples write it
+  int maxNumberOfColors = 6;   // <MaxNumberOfColors>: distinct colours the printer accepts, background included
+  std::string creationMode;    // <CreationMode>, e.g. MODEL_ONLY
+  std::string imageFilePrefix; // <ImageFilePrefix>: layer images are PREFIX0.png, PREFIX1.png, ... (no padding)
+  std::array<unsigned char, 4> backgroundRgba{};  // <BackGroundMaterialRGBA>: pixels without material
+};
+
 enum class SupportPolicy {
   Printer,   // emit no support bitmaps: the printer software adds support around the model
   Explicit,  // emit a support bitmap under every overhang, down to the tray, never overlapping the model
@@ -54,6 +76,9 @@ struct ProfileMaterial {
   MaterialRole role = MaterialRole::Rigid;
   double densityGPerMl = 0.0;  // cured density, for mass estimates
   std::array<unsigned char, 3> previewRgb{};
+  // The colour that stands for this material in GrabCAD Voxel Print layer images (gcvf profiles: required
+  // for the model materials, distinct from each other and from the background).
+  std::array<unsigned char, 4> rgba{};
 };
 
 struct Profile {
@@ -79,10 +104,20 @@ struct Profile {
 
   SupportPolicy supportPolicy = SupportPolicy::Printer;  // default; a job may choose the other one
 
+  JobFormat jobFormat = JobFormat::BitmapStacks;  // "output.format"
+  GcvfSettings gcvf;                              // format "gcvf" only
+  // The printer's modes ("resolution.print_modes"), the first one the default; empty when the printer
+  // has one layer thickness. `printMode` names the mode voxelSizeMm[2] is for ("" without modes).
+  std::vector<PrintMode> printModes;
+  std::string printMode;
+
+  int imageBitDepth() const { return jobFormat == JobFormat::Gcvf ? 32 : 1; }  // RGBA 8 bits each, or 1 bit
+
   const ProfileMaterial& material(MaterialRole role) const;
   double layerThicknessMm() const { return voxelSizeMm[2]; }
   double voxelVolumeMm3() const { return voxelSizeMm[0] * voxelSizeMm[1] * voxelSizeMm[2]; }
-  // `<material>_<layer>.<ext>`; layer zero-padded to layerDigits (more digits when it needs them).
+  // `<material>_<layer>.<ext>`; layer zero-padded to layerDigits (more digits when it needs them). For
+  // format gcvf every material is in the layer's one image, `<gcvf.imageFilePrefix><layer>.png`.
   std::string layerFileName(const ProfileMaterial& material, int layer, ImageFormat format) const;
   // The same with the layer number replaced by x's, as the build file names a whole stack.
   std::string layerFilePattern(const ProfileMaterial& material, ImageFormat format) const;
@@ -116,6 +151,10 @@ std::vector<std::string> bundledProfileNames();
 // not starting with '.' or '-', not ending with '.', no Windows device name (CON, PRN, AUX, NUL,
 // COM1-9, LPT1-9, with or without an extension), 1..kMaxFileNameLength characters.
 std::string portableNameProblem(const std::string& name);
+
+// `profile` in print mode `mode` (its voxel z size that mode's layer thickness). Throws ProfileError
+// naming the modes the profile has when it has no mode of that name.
+Profile withPrintMode(const Profile& profile, const std::string& mode);
 
 // `nameOrPath` is a bundled profile name (no '/' and no ".json") or the path of a profile file.
 // Throws ProfileError (an unknown name lists the bundled ones).

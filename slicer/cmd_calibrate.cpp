@@ -12,7 +12,7 @@ namespace rodfab::cli {
 namespace {
 
 constexpr const char* kSynopsis =
-    "DATA.csv [--model pchip|lichtenecker|log-power] [--floor-mpa 8] [--output CAL.json] [--plot FIT.png]";
+    "DATA.csv [--model pchip|lichtenecker|log-power] [--floor-mpa 8] [--output CAL.json] [--plot FIT.png] [--materials RIGID,RUBBERY]";
 
 void printFit(const calibration::Calibration& c) {
   const calibration::FitRecord& r = c.record();
@@ -22,6 +22,8 @@ void printFit(const calibration::Calibration& c) {
   if (r.temperatureC) std::printf("temperature:   %g C\n", *r.temperatureC);
   else std::printf("temperature:   not given in the data\n");
   std::printf("dither:        %s\n", r.dither.empty() ? "not given in the data" : r.dither.c_str());
+  std::printf("materials:     %s\n", r.rigidMaterial.empty() ? "not recorded (--materials RIGID,RUBBERY)"
+                                                              : (r.rigidMaterial + " (rigid), " + r.rubberyMaterial + " (rubbery)").c_str());
   std::printf("model:         %s\n", std::string(calibration::modelName(c.model())).c_str());
   if (c.model() == calibration::Model::Lichtenecker) std::printf("exponent:      a = %.6f\n", c.parameters().exponent);
   if (c.model() == calibration::Model::LogPower) std::printf("exponent:      n = %.6f\n", c.parameters().exponent);
@@ -63,7 +65,10 @@ int runCalibrate(const std::vector<std::string>& args) {
       ("floor-mpa", po::value<double>()->default_value(calibration::kDefaultFloorMpa),
        "minimum modulus that keeps shape fixity at room temperature (MPa)")
       ("output,o", po::value<std::string>(), "write the calibration file (JSON) here")
-      ("plot", po::value<std::string>(), "write a PNG plot of the fit here");
+      ("plot", po::value<std::string>(), "write a PNG plot of the fit here")
+      ("materials", po::value<std::string>(),
+       "RIGID,RUBBERY: the materials the coupons were printed in, as the printer profile names them "
+       "(e.g. VeroUltraWhite,Agilus30Black); recorded so that slice refuses the calibration for other materials");
   po::positional_options_description positional;
   positional.add("data", 1);
   po::variables_map vm;
@@ -75,6 +80,14 @@ int runCalibrate(const std::vector<std::string>& args) {
   std::string usageError;
   if (!model) usageError = "--model: expected pchip, lichtenecker or log-power, got '" + modelText + "'";
   else if (!std::isfinite(floorMpa) || !(floorMpa > 0)) usageError = "--floor-mpa: expected a modulus > 0 MPa";
+  std::string rigid, rubbery;
+  if (vm.count("materials")) {
+    const std::string text = vm["materials"].as<std::string>();
+    const std::size_t comma = text.find(',');
+    if (comma != std::string::npos) rigid = text.substr(0, comma), rubbery = text.substr(comma + 1);
+    if (rigid.empty() || rubbery.empty() || rubbery.find(',') != std::string::npos)
+      usageError = "--materials: expected RIGID,RUBBERY (two material names), got '" + text + "'";
+  }
   if (!usageError.empty()) {
     std::cerr << "rodfab calibrate: " << usageError << "\nusage: rodfab calibrate " << kSynopsis << '\n';
     return kUsage;
@@ -99,7 +112,13 @@ int runCalibrate(const std::vector<std::string>& args) {
               << file << ": " << e.issues().size() << (e.issues().size() == 1 ? " error" : " errors") << "; nothing fitted\n";
     return kFailed;
   }
-  const calibration::Calibration fit = calibration::fitCalibration(data, {*model, floorMpa});
+  calibration::Calibration fit = calibration::fitCalibration(data, {*model, floorMpa});
+  if (!rigid.empty()) {
+    calibration::FitRecord record = fit.record();
+    record.rigidMaterial = rigid;
+    record.rubberyMaterial = rubbery;
+    fit = calibration::Calibration(fit.parameters(), fit.floorMpa(), std::move(record));
+  }
   printFit(fit);
   if (vm.count("output")) {
     calibration::writeCalibration(fit, vm["output"].as<std::string>());

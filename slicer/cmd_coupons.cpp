@@ -9,6 +9,7 @@
 #include "slicer/job_pipeline.hpp"
 #include "slicer/job_report.hpp"
 #include "slicer/options.hpp"
+#include "slicer/profile_option.hpp"
 #include "slicer/progress.hpp"
 
 #include <nlohmann/json.hpp>
@@ -243,8 +244,6 @@ int runCoupons(const std::vector<std::string>& args) {
       ("seed", po::value<Seed>()->default_value(Seed{0}), "dithering seed")
       ("size", po::value<std::string>()->default_value("30x5x1.5"), "bar size LENGTHxWIDTHxHEIGHT in mm (length along x)")
       ("gap", po::value<double>()->default_value(5.0), "gap between bars in mm, along x and y")
-      ("profile", po::value<std::string>()->default_value("stratasys-objet500-connex3"),
-       "printer profile: a bundled name (rodfab profiles lists them) or a profile file")
       ("threads", po::value<int>()->default_value(0), "worker threads (0 = all cores); the job is the same for any count")
       ("format", po::value<std::string>()->default_value("zip"), "zip | dir")
       ("image-format", po::value<std::string>(), "bmp | png (default: the profile's)")
@@ -252,11 +251,12 @@ int runCoupons(const std::vector<std::string>& args) {
       ("force", "replace an existing job at --output")
       ("quiet,q", "no progress bar or progress lines on stderr (the summary, warnings and errors are still printed)")
       ("json", "print the job summary as JSON on stdout");
+  addProfileOptions(options);
   po::positional_options_description positional;
   po::variables_map vm;
   const char* synopsis =
       "--output JOB.zip [--fractions 0,0.1,...,1] [--dither white|blue|error-diffusion] [--seed N] [--size 30x5x1.5] "
-      "[--gap 5] [--profile NAME|FILE] [--threads N] [--format zip|dir] [--image-format bmp|png] [--force] [--quiet] [--json]";
+      "[--gap 5] [--profile NAME|FILE] [--print-mode MODE] [--threads N] [--format zip|dir] [--image-format bmp|png] [--force] [--quiet] [--json]";
   if (auto code = parseOptions("coupons", synopsis, options, positional, args, vm)) return *code;
 
   const auto usageError = [](const std::string& message) { return cli::usageError("coupons", message); };
@@ -296,13 +296,9 @@ int runCoupons(const std::vector<std::string>& args) {
   std::unique_ptr<tbb::global_control> threadLimit;
   if (threads > 0)
     threadLimit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, threads);
-  printer_profiles::Profile profile;
-  try {
-    profile = printer_profiles::loadProfile(vm["profile"].as<std::string>());
-  } catch (const printer_profiles::ProfileError& e) {
-    std::cerr << e.what() << "\nno job was written\n";
-    return kFailed;
-  }
+  const std::optional<printer_profiles::Profile> profileOption = profileFromOptions(vm, "no job was written");
+  if (!profileOption) return kFailed;
+  const printer_profiles::Profile& profile = *profileOption;
   const std::array<double, 3>& voxel = profile.voxelSizeMm;
 
   // Bar and gap sizes in whole voxels, the nearest to what was asked.

@@ -1,6 +1,7 @@
 #include "materials/materials.hpp"
 #include "slicer/command.hpp"
 #include "slicer/options.hpp"
+#include "slicer/profile_option.hpp"
 
 #include "common/memory_budget.hpp"
 
@@ -64,8 +65,8 @@ std::optional<openvdb::Coord> parseSize(const std::string& text) {
 
 // Memory for the regions (sparse float grids, ~4.2 bytes a voxel, all held at once) and for measuring
 // one of them (dense arrays over its box, ~56 bytes a voxel: materials/dither_quality.cpp).
-std::uint64_t regionBytes(const openvdb::Coord& block, std::size_t blocks, double rodDiameterMm, double rodLengthMm) {
-  const auto& v = materials::kConnex3VoxelSizeMm;
+std::uint64_t regionBytes(const openvdb::Coord& block, std::size_t blocks, double rodDiameterMm, double rodLengthMm,
+                          const openvdb::Vec3d& v) {
   const double blockVoxels = double(block.x()) * block.y() * block.z();
   const double rodBox = (rodDiameterMm / v.x() + 2) * (rodDiameterMm / v.y() + 2) * (rodLengthMm / v.z() + 2);
   const double bytes = 4.2 * (blockVoxels * double(blocks) + rodBox) + 56.0 * std::max(blockVoxels, rodBox);
@@ -90,6 +91,7 @@ int runDitherReport(const std::vector<std::string>& args) {
       ("rod-fraction", po::value<float>()->default_value(0.3f), "Vero fraction of the rod")
       ("mask", po::value<std::string>(), "blue-noise mask file (default: the bundled one)")
       ("json", "print the report as JSON on stdout");
+  addProfileOptions(options);
   po::positional_options_description positional;
   po::variables_map vm;
   if (auto code = parseOptions("dither-report", "[options]", options, positional, args, vm)) return *code;
@@ -115,13 +117,17 @@ int runDitherReport(const std::vector<std::string>& args) {
   const std::optional<double> lengthOption = realOption("dither-report", vm, "rod-length", 1e-3, 1e4, "mm");
   if (!diameterOption || !lengthOption) return kUsage;
   const double diameter = *diameterOption, length = *lengthOption;
-  common::requireMemory(regionBytes(*block, fractions->size(), diameter, length),
+  const float rodFractionValue = vm["rod-fraction"].as<float>();
+  if (!(rodFractionValue >= 0.0f && rodFractionValue <= 1.0f)) return usageError("--rod-fraction: expected a number in [0, 1]");
+  commandLineAccepted();
+  // The regions are made at the printer's voxel: the profile's, the only source of it.
+  const std::optional<printer_profiles::Profile> profile = profileFromOptions(vm, "no report was made");
+  if (!profile) return kFailed;
+  const openvdb::Vec3d voxel(profile->voxelSizeMm[0], profile->voxelSizeMm[1], profile->voxelSizeMm[2]);
+  common::requireMemory(regionBytes(*block, fractions->size(), diameter, length, voxel),
                         "dither-report's " + std::to_string(fractions->size()) + " blocks and rod",
                         "use a smaller --block, fewer --fractions or a shorter --rod-length");
-  const float rodFraction = vm["rod-fraction"].as<float>();
-  if (!(rodFraction >= 0.0f && rodFraction <= 1.0f)) return usageError("--rod-fraction: expected a number in [0, 1]");
-
-  commandLineAccepted();
+  const float rodFraction = rodFractionValue;
   materials::DitherOptions ditherOptions;
   ditherOptions.seed = vm["seed"].as<Seed>().value;
   if (vm.count("mask")) {
@@ -137,11 +143,11 @@ int runDitherReport(const std::vector<std::string>& args) {
   for (float f : *fractions) {
     char name[64];
     std::snprintf(name, sizeof name, "block %.2f", f);
-    regions.push_back({name, materials::makeUniformBlock(*block, f)});
+    regions.push_back({name, materials::makeUniformBlock(*block, f, voxel)});
   }
   char rodName[64];
   std::snprintf(rodName, sizeof rodName, "rod %c %.2f", axisName, rodFraction);
-  regions.push_back({rodName, materials::makeRod(diameter, length, axisName - 'x', rodFraction)});
+  regions.push_back({rodName, materials::makeRod(diameter, length, axisName - 'x', rodFraction, voxel)});
 
   nlohmann::json report = nlohmann::json::array();
   const bool json = vm.count("json") > 0;

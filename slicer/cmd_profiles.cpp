@@ -37,8 +37,12 @@ int runProfiles(const std::vector<std::string>& args) {
     nlohmann::json list = nlohmann::json::array();
     for (const pp::Profile& p : profiles) {
       nlohmann::json materials = nlohmann::json::array();
-      for (const auto& m : p.materials)
+      for (const auto& m : p.materials) {
         materials.push_back({{"name", m.name}, {"role", pp::toString(m.role)}, {"density_g_per_ml", m.densityGPerMl}});
+        if (p.jobFormat == pp::JobFormat::Gcvf && m.role != pp::MaterialRole::Support) materials.back()["rgba"] = m.rgba;
+      }
+      nlohmann::json modes = nlohmann::json::array();
+      for (const pp::PrintMode& mode : p.printModes) modes.push_back({{"name", mode.name}, {"layer_thickness_mm", mode.layerThicknessMm}});
       list.push_back({{"name", p.name},
                       {"printer", p.printer},
                       {"file", p.source.string()},
@@ -47,7 +51,10 @@ int runProfiles(const std::vector<std::string>& args) {
                       {"tray_mm", p.trayMm},
                       {"model_material_slots", p.modelMaterialSlots},
                       {"materials", materials},
+                      {"output_format", pp::toString(p.jobFormat)},
+                      {"print_modes", modes},
                       {"image_format", pp::toString(p.imageFormat)},
+                      {"bit_depth", p.imageBitDepth()},
                       {"column_alignment", p.columnAlignment},
                       {"support_policy", pp::toString(p.supportPolicy)}});
     }
@@ -69,10 +76,20 @@ int runProfiles(const std::vector<std::string>& args) {
   std::printf("voxel:         %.4f x %.4f x %.4f mm\n", p.voxelSizeMm[0], p.voxelSizeMm[1], p.voxelSizeMm[2]);
   std::printf("tray:          %.0f x %.0f x %.0f mm\n", p.trayMm[0], p.trayMm[1], p.trayMm[2]);
   std::printf("model slots:   %d\n", p.modelMaterialSlots);
-  for (const auto& m : p.materials)
-    std::printf("material:      %-16s %-8s %.3f g/mL\n", m.name.c_str(), pp::toString(m.role), m.densityGPerMl);
-  std::printf("images:        1-bit %s, width a multiple of %d, padding %d columns / %d rows, origin top-left\n",
-              pp::toString(p.imageFormat), p.columnAlignment, p.paddingVoxels[0], p.paddingVoxels[1]);
+  for (const pp::PrintMode& mode : p.printModes)
+    std::printf("print mode:    %-16s %.3f mm layers%s\n", mode.name.c_str(), mode.layerThicknessMm,
+                mode.name == p.printModes.front().name ? " (default)" : "");
+  for (const auto& m : p.materials) {
+    std::printf("material:      %-16s %-8s %.3f g/mL", m.name.c_str(), pp::toString(m.role), m.densityGPerMl);
+    if (p.jobFormat == pp::JobFormat::Gcvf && m.role != pp::MaterialRole::Support)
+      std::printf("  RGBA %d %d %d %d", m.rgba[0], m.rgba[1], m.rgba[2], m.rgba[3]);
+    std::printf("\n");
+  }
+  std::printf("job format:    %s\n", p.jobFormat == pp::JobFormat::Gcvf
+                                        ? "GrabCAD Voxel Print (.gcvf: one RGBA PNG per layer, each colour a material, ConfigFile.xml)"
+                                        : "bitmap stacks (one 1-bit image per material per layer) and a build file");
+  std::printf("images:        %d-bit %s, width a multiple of %d, padding %d columns / %d rows, origin top-left\n",
+              p.imageBitDepth(), pp::toString(p.imageFormat), p.columnAlignment, p.paddingVoxels[0], p.paddingVoxels[1]);
   std::printf("row order:     %s\n", p.rowOrder.c_str());
   std::printf("build file:    %s (format version %d)\n", p.buildFileName.c_str(), p.buildFormatVersion);
   std::printf("support:       %s\n", pp::toString(p.supportPolicy));

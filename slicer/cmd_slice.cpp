@@ -8,6 +8,8 @@
 #include "slicer/interrupt.hpp"
 #include "slicer/job_options.hpp"
 #include "slicer/options.hpp"
+#include "slicer/profile_option.hpp"
+#include "slicer/calibration_materials.hpp"
 #include "slicer/progress.hpp"
 #include "slicer/slice_design.hpp"
 
@@ -32,8 +34,6 @@ int runSlice(const std::vector<std::string>& args) {
   options.add_options()
       ("design", po::value<std::string>()->required(), "design file (rodfab.design/1 JSON)")
       ("output,o", po::value<std::string>()->required(), "the job: NAME.zip, or a folder with --format dir")
-      ("profile", po::value<std::string>()->default_value("stratasys-objet500-connex3"),
-       "printer profile: a bundled name (rodfab profiles lists them) or a profile file")
       ("calibration", po::value<std::string>(), "calibration file (rodfab calibrate); default: the bundled 60 C fit")
       ("dither", po::value<std::string>(),
        "white | blue | error-diffusion (default: the ditherer the calibration coupons were printed with)")
@@ -44,15 +44,18 @@ int runSlice(const std::vector<std::string>& args) {
       ("support", po::value<std::string>(), "printer | explicit (default: the profile's)")
       ("band-layers", po::value<int>()->default_value(0),
        "layers per streamed band (0 = automatic: 64, fewer for parts with large layers, to bound memory)")
+      ("allow-calibration-materials-mismatch",
+       "use a calibration measured on other materials than the profile's (the job's moduli are then estimates)")
       ("force", "replace an existing job at --output")
       ("quiet,q", "no progress bar or progress lines and no clamped-moduli note on stderr (the summary, warnings and errors are still printed)")
       ("json", "print the job summary as JSON on stdout");
+  addProfileOptions(options);
   po::positional_options_description positional;
   positional.add("design", 1);
   po::variables_map vm;
   const char* synopsis =
-      "DESIGN.json --output JOB.zip [--profile NAME|FILE] [--calibration CAL.json] [--dither white|blue|error-diffusion] "
-      "[--seed N] [--threads N] [--format zip|dir] [--image-format bmp|png] [--support printer|explicit] [--force] [--quiet] [--json]";
+      "DESIGN.json --output JOB.zip [--profile NAME|FILE] [--print-mode MODE] [--calibration CAL.json] [--dither white|blue|error-diffusion] "
+      "[--seed N] [--threads N] [--format zip|dir] [--image-format bmp|png] [--support printer|explicit] [--allow-calibration-materials-mismatch] [--force] [--quiet] [--json]";
   if (auto code = parseOptions("slice", synopsis, options, positional, args, vm)) return *code;
 
   const auto usageError = [](const std::string& message) { return cli::usageError("slice", message); };
@@ -82,17 +85,19 @@ int runSlice(const std::vector<std::string>& args) {
   const std::optional<geometry::RodStructure> read = readDesignOrReport(designFile, "no job was written");
   if (!read) return kFailed;
   const geometry::RodStructure& design = *read;
-  printer_profiles::Profile profile;
-  try {
-    profile = printer_profiles::loadProfile(vm["profile"].as<std::string>());
-  } catch (const printer_profiles::ProfileError& e) {
-    std::cerr << e.what() << "\nno job was written\n";
-    return kFailed;
-  }
+  const std::optional<printer_profiles::Profile> profileOption = profileFromOptions(vm, "no job was written");
+  if (!profileOption) return kFailed;
+  const printer_profiles::Profile& profile = *profileOption;
   const std::string calibrationFile =
       vm.count("calibration") ? vm["calibration"].as<std::string>() : calibration::defaultCalibrationPath().string();
   std::string calibrationSha256;
   const calibration::Calibration cal = calibration::readCalibration(calibrationFile, &calibrationSha256);
+  const slicer::CalibrationMaterialsCheck materialsCheck = slicer::checkCalibrationMaterials(
+      cal, calibrationFile, profile, !vm.count("calibration"), vm.count("allow-calibration-materials-mismatch") > 0);
+  if (materialsCheck.refused) {
+    std::cerr << "rodfab slice: " << materialsCheck.message << "\nno job was written\n";
+    return kFailed;
+  }
   const std::string couponDither = slicer::canonicalDitherName(cal.record().dither);
   const std::string ditherName = vm.count("dither") ? vm["dither"].as<std::string>() : (couponDither.empty() ? "white" : couponDither);
   materials::DitherOptions ditherOptions;
@@ -119,6 +124,7 @@ int runSlice(const std::vector<std::string>& args) {
   settings.designSha256 = common::sha256Hex(common::readBoundedFile(designFile));
   settings.calibrationFile = std::filesystem::path(calibrationFile).filename().string();
   settings.calibrationSha256 = calibrationSha256;
+  settings.calibrationWarning = materialsCheck.message;
   settings.seed = ditherOptions.seed;
   settings.threads = threads;
   settings.bandLayers = bandLayers;
@@ -168,6 +174,7 @@ int runSlice(const std::vector<std::string>& args) {
         {"ditherer", std::string(ditherer->name())},
         {"seed", ditherOptions.seed},
         {"calibration", {{"file", settings.calibrationFile}, {"sha256", calibrationSha256}}},
+        {"calibration_warning", materialsCheck.message.empty() ? nlohmann::json(nullptr) : nlohmann::json(materialsCheck.message)},
         {"clamped_moduli", {{"below_floor", mapping.clamps.belowFloor}, {"above_max", mapping.clamps.aboveMax},
                             {"floor_mpa", report.floorMpa}, {"max_mpa", report.maxModulusMpa}}},
         {"rods_without_voxels", rodsWithoutVoxels},
@@ -192,11 +199,13 @@ int runSlice(const std::vector<std::string>& args) {
     std::printf("calibration:    %s, sha256 %.12s... (floor %.3g MPa = %.1f %% Vero, max %.4g MPa)\n",
                 settings.calibrationFile.c_str(), calibrationSha256.c_str(), report.floorMpa, 100.0 * report.floorFraction,
                 report.maxModulusMpa);
+    if (!materialsCheck.message.empty()) std::printf("                WARNING: %s\n", materialsCheck.message.c_str());
     std::printf("clamped moduli: %s below the floor, %s above the stiffest mix\n",
                 formatCount(mapping.clamps.belowFloor).c_str(), formatCount(mapping.clamps.aboveMax).c_str());
     std::printf("time:           %.2f s inputs, %.2f s support, %.2f s voxelize + map, %.2f s dither, %.2f s emit; %.2f s total\n",
                 readSeconds, supportSeconds, seconds.source, seconds.dither, seconds.emit, total);
   }
+  if (!materialsCheck.message.empty()) std::cerr << "rodfab slice: warning: " << materialsCheck.message << '\n';
   for (const std::string& warning : report.warnings) std::cerr << "rodfab slice: warning: " << warning << '\n';
   if (rodsWithoutVoxels > 0)
     std::cerr << "rodfab slice: warning: " << rodsWithoutVoxels

@@ -1,6 +1,7 @@
 #include "geometry/geometry.hpp"
 #include "slicer/command.hpp"
 #include "slicer/options.hpp"
+#include "slicer/profile_option.hpp"
 
 #include "common/interrupt.hpp"
 #include "voxel/diagnostics.hpp"
@@ -39,25 +40,39 @@ int runVoxelize(const std::vector<std::string>& args) {
   options.add_options()
       ("design", po::value<std::string>()->required(), "design file (rodfab.design/1 JSON)")
       ("output,o", po::value<std::string>()->required(), "grid file to write (.vdb, grid \"modulus_mpa\")")
-      ("voxel-size", po::value<std::string>()->default_value("0.0423,0.0846,0.030"),
-       "voxel size X,Y,Z in mm (z = build direction; default: Stratasys Objet500 Connex3)")
+      ("voxel-size", po::value<std::string>(),
+       "voxel size X,Y,Z in mm (z = build direction) instead of a printer profile's voxel")
       ("threads", po::value<int>()->default_value(0), "worker threads (0 = all cores)")
       ("json", "print the statistics as JSON on stdout");
+  addProfileOptions(options);
   po::positional_options_description positional;
   positional.add("design", 1);
   po::variables_map vm;
-  const char* synopsis = "DESIGN.json --output GRID.vdb [--voxel-size X,Y,Z] [--threads N] [--json]";
+  const char* synopsis =
+      "DESIGN.json --output GRID.vdb [--profile NAME|FILE] [--print-mode MODE] [--voxel-size X,Y,Z] [--threads N] [--json]";
   if (auto code = parseOptions("voxelize", synopsis, options, positional, args, vm)) return *code;
 
-  const auto voxelSize = parseVoxelSize(vm["voxel-size"].as<std::string>());
-  if (!voxelSize)
-    return usageError("voxelize", "--voxel-size: expected three sizes from 0.001 to 10 mm as X,Y,Z (e.g. 0.0423,0.0846,0.030), got '" +
-                                      vm["voxel-size"].as<std::string>() + "'");
+  std::optional<openvdb::Vec3d> voxelSize;
+  if (vm.count("voxel-size")) {
+    if (!vm["profile"].defaulted() || vm.count("print-mode"))
+      return usageError("voxelize", "--voxel-size replaces the profile's voxel: give it or --profile/--print-mode, not both");
+    voxelSize = parseVoxelSize(vm["voxel-size"].as<std::string>());
+    if (!voxelSize)
+      return usageError("voxelize", "--voxel-size: expected three sizes from 0.001 to 10 mm as X,Y,Z (e.g. 0.0423,0.0846,0.030), got '" +
+                                        vm["voxel-size"].as<std::string>() + "'");
+  }
   const std::optional<int> threadsOption = threadCount("voxelize", vm);
   if (!threadsOption) return kUsage;
   const int threads = *threadsOption;
   const std::string file = vm["design"].as<std::string>(), output = vm["output"].as<std::string>();
   commandLineAccepted();
+  std::string profileName = "(--voxel-size)";
+  if (!voxelSize) {
+    const std::optional<printer_profiles::Profile> profile = profileFromOptions(vm, "nothing was written");
+    if (!profile) return kFailed;
+    voxelSize = openvdb::Vec3d(profile->voxelSizeMm[0], profile->voxelSizeMm[1], profile->voxelSizeMm[2]);
+    profileName = profile->name + (profile->printMode.empty() ? "" : " (" + profile->printMode + ")");
+  }
   const std::optional<geometry::RodStructure> read = readDesignOrReport(file, "nothing was written");
   if (!read) return kFailed;
   const geometry::RodStructure& design = *read;
@@ -98,6 +113,7 @@ int runVoxelize(const std::vector<std::string>& args) {
     nlohmann::json j{
         {"design", file},
         {"output", output},
+        {"profile", profileName},
         {"voxel_size_mm", {grid.voxelSize.x(), grid.voxelSize.y(), grid.voxelSize.z()}},
         {"envelope_voxels", {grid.dims.x(), grid.dims.y(), grid.dims.z()}},
         {"origin_mm", {grid.origin.x(), grid.origin.y(), grid.origin.z()}},
@@ -117,6 +133,7 @@ int runVoxelize(const std::vector<std::string>& args) {
   }
   const auto& b = s.boundsVoxels;
   std::printf("design:          %s (%zu rods)\n", file.c_str(), design.rods.size());
+  std::printf("profile:         %s\n", profileName.c_str());
   std::printf("voxel:           %.4f x %.4f x %.4f mm\n", grid.voxelSize.x(), grid.voxelSize.y(), grid.voxelSize.z());
   std::printf("envelope:        %d x %d x %d voxels (%.3g voxels)\n", grid.dims.x(), grid.dims.y(), grid.dims.z(), envelope);
   std::printf("active voxels:   %llu (%.3f %% of the envelope)\n", static_cast<unsigned long long>(s.activeVoxels),

@@ -72,7 +72,9 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   spec.metadata.ditherer = std::string(ditherer.name());
   spec.metadata.seed = settings.seed;
   if (!settings.calibrationFile.empty())
-    spec.metadata.calibration = printer_profiles::CalibrationRecord{settings.calibrationFile, settings.calibrationSha256};
+    spec.metadata.calibration = printer_profiles::CalibrationRecord{settings.calibrationFile, settings.calibrationSha256,
+                                                                    calibration.record().rigidMaterial,
+                                                                    calibration.record().rubberyMaterial, settings.calibrationWarning};
   spec.options = settings.job;
   if (settings.job.support.value_or(profile.supportPolicy) == printer_profiles::SupportPolicy::Explicit) {
     // Support reaches down from every overhang, so the column tops of the whole part come first: a

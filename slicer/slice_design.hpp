@@ -22,6 +22,9 @@ struct SliceSettings {
   std::string designFile, designSha256;
   // The calibration's file name and its SHA-256, recorded in the manifest (empty: not recorded).
   std::string calibrationFile, calibrationSha256;
+  // Why the calibration's materials are not the profile's, recorded in the manifest ("" when they are;
+  // see checkCalibrationMaterials).
+  std::string calibrationWarning;
   std::uint64_t seed = 0;  // the ditherer's, recorded in the manifest
   int threads = 0;         // rasterizer workers (0 = all); callers limit TBB as a whole with global_control
   int bandLayers = 0;       // layers per band; 0: automatic (see automaticBandLayers)

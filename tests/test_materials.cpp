@@ -22,6 +22,9 @@ struct VdbInit {
 } vdbInit;
 
 // Same active voxels and the same value at each.
+// The Connex3 profile's voxel (600 x 300 dpi, 30 um layers), which the numbers in these tests assume.
+const openvdb::Vec3d kTestVoxel(0.0423, 0.0846, 0.030);
+
 bool sameMaterial(const openvdb::BoolGrid& a, const openvdb::BoolGrid& b) {
   if (a.activeVoxelCount() != b.activeVoxelCount()) return false;
   auto other = b.getConstAccessor();
@@ -41,7 +44,7 @@ std::size_t countVero(const openvdb::BoolGrid& g) {
 // A part with varying fractions, exact 0 and 1 regions, thin features and negative coordinates: a
 // block whose fraction varies smoothly, a rod through it and a one-voxel-thick fin.
 openvdb::FloatGrid::Ptr mixedPart() {
-  auto grid = makeRod(0.8, 3.0, 2, 0.3f);
+  auto grid = makeRod(0.8, 3.0, 2, 0.3f, kTestVoxel);
   auto acc = grid->getAccessor();
   for (int k = -5; k < 40; ++k)
     for (int j = -12; j < 20; ++j)
@@ -211,8 +214,8 @@ TEST_CASE("materials: ditherers: exact fractions 0 and 1, topology, grid names",
     INFO(method);
     const auto ditherer = makeDitherer(method, {7, nullptr});
     CHECK(ditherer->name() == method);
-    const auto zero = makeUniformBlock(openvdb::Coord(20, 10, 12), 0.0f);
-    const auto one = makeUniformBlock(openvdb::Coord(20, 10, 12), 1.0f);
+    const auto zero = makeUniformBlock(openvdb::Coord(20, 10, 12), 0.0f, kTestVoxel);
+    const auto one = makeUniformBlock(openvdb::Coord(20, 10, 12), 1.0f, kTestVoxel);
     const auto tango = ditherer->dither(*zero);
     const auto vero = ditherer->dither(*one);
     CHECK(tango->activeVoxelCount() == 2400);
@@ -278,7 +281,7 @@ TEST_CASE("materials: ditherers: identical for 1 and 2 threads and for any band 
 }
 
 TEST_CASE("materials: ditherers: a seed fixes the pattern, another seed changes it", "[materials][dither]") {
-  const auto block = makeUniformBlock(openvdb::Coord(40, 20, 30), 0.3f);
+  const auto block = makeUniformBlock(openvdb::Coord(40, 20, 30), 0.3f, kTestVoxel);
   for (const std::string& method : ditherMethodNames()) {
     INFO(method);
     const auto a = makeDitherer(method, {11, nullptr})->dither(*block);
@@ -305,7 +308,7 @@ TEST_CASE("materials: ditherers: active tiles are dithered like the same voxels 
 
 TEST_CASE("materials: ditherers: bad input is named", "[materials][dither]") {
   CHECK_THROWS_WITH(makeDitherer("floyd"), Catch::Contains("unknown ditherer 'floyd'") && Catch::Contains("error-diffusion"));
-  auto grid = makeUniformBlock(openvdb::Coord(10, 10, 10), 0.5f);
+  auto grid = makeUniformBlock(openvdb::Coord(10, 10, 10), 0.5f, kTestVoxel);
   grid->tree().setValue(openvdb::Coord(3, 4, 5), 1.5f);
   for (const std::string& method : ditherMethodNames()) {
     INFO(method);
@@ -318,7 +321,7 @@ TEST_CASE("materials: ditherers: bad input is named", "[materials][dither]") {
   CHECK_THROWS_WITH(makeDitherer("white")->dither(*grid), Catch::Contains("(3, 4, 5)"));
 
   // Error diffusion streams: bands must follow each other, and consecutive grids must agree.
-  const auto block = makeUniformBlock(openvdb::Coord(10, 10, 10), 0.3f);
+  const auto block = makeUniformBlock(openvdb::Coord(10, 10, 10), 0.3f, kTestVoxel);
   const auto ed = makeDitherer("error-diffusion");
   ed->ditherLayers(*block, 0, 4);
   CHECK_THROWS_WITH(ed->ditherLayers(*block, 5, 8), Catch::Contains("expected a band starting at layer 4"));
@@ -332,7 +335,7 @@ TEST_CASE("materials: ditherers: bad input is named", "[materials][dither]") {
 TEST_CASE("materials: dither quality: metrics against hand-built truth", "[materials][quality]") {
   // A constant error: every voxel asks for 0.25 and gets Tango; the normalized low-pass keeps it at
   // exactly -0.25 everywhere, boundaries included.
-  const auto rod = makeRod(0.6, 2.0, 1, 0.25f);
+  const auto rod = makeRod(0.6, 2.0, 1, 0.25f, kTestVoxel);
   auto tango = openvdb::BoolGrid::create(false);
   tango->setTransform(rod->transform().copy());
   tango->tree().topologyUnion(rod->tree());
@@ -344,7 +347,7 @@ TEST_CASE("materials: dither quality: metrics against hand-built truth", "[mater
 
   // Two Vero slabs (x < 3 and x >= 6) in a 10^3 block: the larger holds 4/7 of the Vero voxels.
   // Runs along x per line: Vero 3, Tango 3, Vero 4 -> mean 10/3; along y and z one run per line.
-  const auto block = makeUniformBlock(openvdb::Coord(10, 10, 10), 0.5f);
+  const auto block = makeUniformBlock(openvdb::Coord(10, 10, 10), 0.5f, kTestVoxel);
   auto slabs = openvdb::BoolGrid::create(false);
   slabs->setTransform(block->transform().copy());
   for (auto it = block->cbeginValueOn(); it; ++it) {
@@ -366,14 +369,14 @@ TEST_CASE("materials: dither quality: metrics against hand-built truth", "[mater
 TEST_CASE("materials: dither quality on a 128 x 64 x 180 block at 0.3: white vs blue vs error diffusion", "[materials][quality]") {
   const openvdb::Coord size(128, 64, 180);
   const double f = 0.3;
-  const auto block = makeUniformBlock(size, static_cast<float>(f));
+  const auto block = makeUniformBlock(size, static_cast<float>(f), kTestVoxel);
   const DitherQuality white = measureDitherQuality(*block, *makeDitherer("white", {1, nullptr})->dither(*block));
   const DitherQuality blue = measureDitherQuality(*block, *makeDitherer("blue", {1, nullptr})->dither(*block));
   const DitherQuality ed = measureDitherQuality(*block, *makeDitherer("error-diffusion", {1, nullptr})->dither(*block));
 
   // White noise is independent coin flips: its low-pass error and run lengths have closed forms.
-  CHECK(white.lowPassRms100um == Approx(whiteNoiseLowPassRms(size, f, kConnex3VoxelSizeMm, 0.1)).epsilon(0.05));
-  CHECK(white.lowPassRms250um == Approx(whiteNoiseLowPassRms(size, f, kConnex3VoxelSizeMm, 0.25)).epsilon(0.08));
+  CHECK(white.lowPassRms100um == Approx(whiteNoiseLowPassRms(size, f, kTestVoxel, 0.1)).epsilon(0.05));
+  CHECK(white.lowPassRms250um == Approx(whiteNoiseLowPassRms(size, f, kTestVoxel, 0.25)).epsilon(0.08));
   CHECK(white.lowPassRms100um == Approx(0.022).epsilon(0.1));  // the published figure
   for (int a = 0; a < 3; ++a) {
     // A line of L voxels has 1 + (L - 1) 2 f (1 - f) runs on average.
@@ -394,9 +397,9 @@ TEST_CASE("materials: dither quality on a 128 x 64 x 180 block at 0.3: white vs 
 
 TEST_CASE("materials: a 1 mm rod at 0.3 keeps its mean with every ditherer, along every axis", "[materials][quality]") {
   for (int axis = 0; axis < 3; ++axis) {
-    const auto rod = makeRod(1.0, 20.0, axis, 0.3f);
+    const auto rod = makeRod(1.0, 20.0, axis, 0.3f, kTestVoxel);
     // The rod's volume in voxels, within the staircase error of its boundary.
-    const double voxelVolume = kConnex3VoxelSizeMm[0] * kConnex3VoxelSizeMm[1] * kConnex3VoxelSizeMm[2];
+    const double voxelVolume = kTestVoxel[0] * kTestVoxel[1] * kTestVoxel[2];
     CHECK(static_cast<double>(rod->activeVoxelCount()) ==
           Approx(std::numbers::pi * 0.25 * 20.0 / voxelVolume).epsilon(0.03));
     for (const std::string& method : ditherMethodNames()) {
@@ -406,7 +409,7 @@ TEST_CASE("materials: a 1 mm rod at 0.3 keeps its mean with every ditherer, alon
       CHECK(std::abs(share - 0.3) < 0.005);
     }
   }
-  const auto rod = makeRod(1.0, 10.0, 0, 0.3f);
+  const auto rod = makeRod(1.0, 10.0, 0, 0.3f, kTestVoxel);
   const double white = lowPassErrorRms(*rod, *makeDitherer("white", {1, nullptr})->dither(*rod), 0.1);
   for (const char* method : {"blue", "error-diffusion"}) {
     INFO(method);
@@ -415,10 +418,10 @@ TEST_CASE("materials: a 1 mm rod at 0.3 keeps its mean with every ditherer, alon
 }
 
 TEST_CASE("materials: sample regions reject bad parameters", "[materials][quality]") {
-  CHECK_THROWS_AS(makeUniformBlock(openvdb::Coord(0, 1, 1), 0.5f), std::invalid_argument);
-  CHECK_THROWS_AS(makeUniformBlock(openvdb::Coord(1, 1, 1), 1.5f), std::invalid_argument);
-  CHECK_THROWS_AS(makeRod(1.0, 1.0, 3, 0.5f), std::invalid_argument);
-  CHECK_THROWS_AS(makeRod(-1.0, 1.0, 0, 0.5f), std::invalid_argument);
+  CHECK_THROWS_AS(makeUniformBlock(openvdb::Coord(0, 1, 1), 0.5f, kTestVoxel), std::invalid_argument);
+  CHECK_THROWS_AS(makeUniformBlock(openvdb::Coord(1, 1, 1), 1.5f, kTestVoxel), std::invalid_argument);
+  CHECK_THROWS_AS(makeRod(1.0, 1.0, 3, 0.5f, kTestVoxel), std::invalid_argument);
+  CHECK_THROWS_AS(makeRod(-1.0, 1.0, 0, 0.5f, kTestVoxel), std::invalid_argument);
 }
 
 namespace {
@@ -437,7 +440,7 @@ double logPowerFraction(double modulusMpa) { return std::sqrt(std::log(modulusMp
 
 // Moduli from 2 to 400 MPa, log-spaced along x, plus a NaN voxel: every clamp kind occurs.
 openvdb::FloatGrid::Ptr modulusBlock() {
-  auto grid = makeUniformBlock(openvdb::Coord(60, 9, 21), 0.0f);
+  auto grid = makeUniformBlock(openvdb::Coord(60, 9, 21), 0.0f, kTestVoxel);
   grid->setName("modulus_mpa");
   for (auto it = grid->beginValueOn(); it; ++it) {
     const openvdb::Coord c = it.getCoord();

@@ -168,7 +168,9 @@ TEST_CASE("The bundled Connex3 profile loads with the printer's numbers", "[prof
   CHECK(p.supportPolicy == SupportPolicy::Printer);
   CHECK(p.layerFileName(p.material(MaterialRole::Rigid), 7, ImageFormat::Bmp) == "VeroWhitePlus_0007.bmp");
   CHECK(p.layerFileName(p.material(MaterialRole::Rigid), 12345, ImageFormat::Png) == "VeroWhitePlus_12345.png");
-  CHECK(bundledProfileNames() == std::vector<std::string>{"stratasys-objet500-connex3"});
+  CHECK(bundledProfileNames() == std::vector<std::string>{"stratasys-j750-j850", "stratasys-objet500-connex3"});
+  CHECK(p.jobFormat == JobFormat::BitmapStacks);
+  CHECK(p.printModes.empty());
 }
 
 TEST_CASE("Bad profiles are refused naming the file, the field and what was expected", "[profile]") {

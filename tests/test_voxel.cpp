@@ -29,6 +29,9 @@ using voxel::PrinterGrid;
 
 namespace {
 
+// The Connex3 profile's voxel (600 x 300 dpi, 30 um layers), which the numbers in these tests assume.
+const openvdb::Vec3d kTestVoxel(0.0423, 0.0846, 0.030);
+
 constexpr double kPi = std::numbers::pi;
 
 NurbsCurve line(const Vec3& a, const Vec3& b) { return NurbsCurve(1, {0, 0, 1, 1}, {a, b}); }
@@ -167,9 +170,9 @@ std::size_t requireMatchesExactTest(const RodStructure& s, const PrinterGrid& g,
 
 TEST_CASE("The printer grid puts cell (0,0,0) one voxel below the bounding box", "[voxel][grid]") {
   const RodStructure s = design({circularRod(line({1, 2, 3}, {4, 2, 3}), 0.5, CapStyle::Flat)});
-  const PrinterGrid g = voxel::makePrinterGrid(s);
+  const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
   const geometry::Box3 box = s.bounds();
-  REQUIRE(g.voxelSize == voxel::kConnex3VoxelSizeMm);
+  REQUIRE(g.voxelSize == kTestVoxel);
   for (int a = 0; a < 3; ++a) {
     // Centres at integer indices: cell (0,0,0) spans [origin - v/2, origin + v/2).
     REQUIRE(g.origin[a] - 0.5 * g.voxelSize[a] == Approx(box.min()[a] - g.voxelSize[a]));
@@ -191,7 +194,7 @@ TEST_CASE("Bad voxel sizes and empty designs are refused with a clear message", 
   REQUIRE_THROWS_WITH(voxel::makePrinterGrid(s, {0.04, 0.0, 0.03}), Catch::Contains("voxel size") && Catch::Contains("positive"));
   REQUIRE_THROWS_WITH(voxel::makePrinterGrid(s, {0.04, -1, 0.03}), Catch::Contains("positive"));
   REQUIRE_THROWS_WITH(voxel::makePrinterGrid(s, {std::nan(""), 0.1, 0.03}), Catch::Contains("positive"));
-  REQUIRE_THROWS_WITH(voxel::makePrinterGrid(design({})), Catch::Contains("test: the design has no rods"));
+  REQUIRE_THROWS_WITH(voxel::makePrinterGrid(design({}), kTestVoxel), Catch::Contains("test: the design has no rods"));
   REQUIRE_THROWS_WITH(voxel::makePrinterGrid(s, {1e-9, 0.1, 0.1}), Catch::Contains("voxels along an axis"));
 }
 
@@ -199,7 +202,7 @@ namespace {
 
 // The grid of `s` with its lattice shifted by `shift` voxels: another placement of the same design.
 PrinterGrid shiftedGrid(const RodStructure& s, const openvdb::Vec3d& shift) {
-  PrinterGrid g = voxel::makePrinterGrid(s);
+  PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
   for (int a = 0; a < 3; ++a) g.origin[a] -= shift[a] * g.voxelSize[a];
   g.dims += openvdb::Coord(1);
   return g;
@@ -251,7 +254,7 @@ TEST_CASE("A straight circular rod has the volume of a cylinder, plus two half-b
 TEST_CASE("A NURBS circle swept by a circle has the volume of a torus", "[voxel][accuracy]") {
   const double R = 2.0, r = 0.4;
   const RodStructure s = design({circularRod(arc(R, 2 * kPi, Vec3(0.5, 0.5, 1.0)), r, CapStyle::Flat)});
-  const PrinterGrid g = voxel::makePrinterGrid(s);
+  const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
   const voxel::Rasterization ras = voxel::rasterize(s, g);
   REQUIRE(occupiedVolume(ras, g) == Approx(2 * kPi * kPi * R * r * r).epsilon(0.01));
   REQUIRE(componentCount(*ras.grid) == 1);
@@ -262,7 +265,7 @@ TEST_CASE("A helical rod has the volume pi r^2 times its arc length", "[voxel][a
   const NurbsCurve c = helix(2.0, 1.6, 2.0);
   const double length = c.arcLength();
   const RodStructure s = design({circularRod(c, r, CapStyle::Flat)});
-  const PrinterGrid g = voxel::makePrinterGrid(s);
+  const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
   const voxel::Rasterization ras = voxel::rasterize(s, g);
   REQUIRE(occupiedVolume(ras, g) == Approx(kPi * r * r * length).epsilon(0.015));
   REQUIRE(componentCount(*ras.grid) == 1);
@@ -273,7 +276,7 @@ TEST_CASE("Tight bends (bend radius 1.5 section radii) leave no holes and keep t
   for (const double angle : {0.5 * kPi, kPi, 1.5 * kPi}) {
     CAPTURE(angle);
     const RodStructure s = design({circularRod(arc(1.5 * r, angle), r, CapStyle::Flat)});
-    const PrinterGrid g = voxel::makePrinterGrid(s);
+    const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
     const voxel::Rasterization ras = voxel::rasterize(s, g);
     REQUIRE(componentCount(*ras.grid) == 1);
     // Pappus: a circle swept along an arc of radius R through `angle` encloses pi r^2 R angle.
@@ -292,7 +295,7 @@ TEST_CASE("Elliptic and rectangular sections span their width and height along t
                     BSplineField::constant(20, 0, 1));
       const geometry::Frame f = rod.frame().at(rod.centerline(), 0.5);
       const RodStructure s = design({rod});
-      const PrinterGrid g = voxel::makePrinterGrid(s);
+      const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
       const voxel::Rasterization ras = voxel::rasterize(s, g);
       double lo1 = 1e9, hi1 = -1e9, lo2 = 1e9, hi2 = -1e9;
       for (auto it = ras.grid->cbeginValueOn(); it; ++it) {
@@ -321,7 +324,7 @@ TEST_CASE("Voxels carry E at their closest centerline point", "[voxel][values]")
   const Vec3 a(0, 0, 0), b(3, 1, 0.5);
   const BSplineField e(1, {0, 0, 1, 1}, {10.0, 130.0});
   const RodStructure s = design({circularRod(line(a, b), 0.4, CapStyle::Flat, e)});
-  const PrinterGrid g = voxel::makePrinterGrid(s);
+  const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
   const voxel::Rasterization ras = voxel::rasterize(s, g);
   REQUIRE(ras.grid->activeVoxelCount() > 10000);
   const Vec3 axis = b - a;
@@ -333,7 +336,7 @@ TEST_CASE("Voxels carry E at their closest centerline point", "[voxel][values]")
   // Curved rod with a varying E: every voxel against a direct evaluation of the exact test.
   const BSplineField e3(2, {0, 0, 0, 0.5, 1, 1, 1}, {8.0, 150.0, 40.0, 90.0});
   const RodStructure curved = design({circularRod(helix(1.5, 1.2, 1.0), 0.3, CapStyle::Round, e3)});
-  const PrinterGrid gc = voxel::makePrinterGrid(curved);
+  const PrinterGrid gc = voxel::makePrinterGrid(curved, kTestVoxel);
   const voxel::Rasterization rc = voxel::rasterize(curved, gc);
   std::size_t n = 0;
   for (auto it = rc.grid->cbeginValueOn(); it; ++it, ++n) {
@@ -355,7 +358,7 @@ TEST_CASE("The fast path decides every voxel exactly as Rod::classify", "[voxel]
             BSplineField(1, {0, 0, 1, 1}, {100, 10})),
         circularRod(arc(0.45, 0.8 * kPi, Vec3(1.0, 1.5, 0.2)), 0.3, CapStyle::Round),
     });
-    const PrinterGrid g = voxel::makePrinterGrid(s);
+    const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
     const voxel::Rasterization ras = voxel::rasterize(s, g);
     REQUIRE(requireMatchesExactTest(s, g, ras) > 100000);
     // The fast path did the work: borderline voxels are a small minority.
@@ -364,7 +367,7 @@ TEST_CASE("The fast path decides every voxel exactly as Rod::classify", "[voxel]
   SECTION("a rod that runs over itself (1.25 turns of a circle): its own pieces overlap") {
     const RodStructure s = design({circularRod(arc(1.2, 2.5 * kPi, Vec3(0.2, 0.1, 0.3)), 0.3, CapStyle::Round,
                                                BSplineField(1, {0, 0, 1, 1}, {10, 100}))});
-    const PrinterGrid g = voxel::makePrinterGrid(s);
+    const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
     const voxel::Rasterization ras = voxel::rasterize(s, g);
     REQUIRE(requireMatchesExactTest(s, g, ras) > 50000);
   }
@@ -380,7 +383,7 @@ TEST_CASE("Overlapping rods: the deepest wins, ties go to the lower rod index", 
   SECTION("a cross joint follows the exact rule") {
     const RodStructure s = design({circularRod(line({-1, 0, 0}, {1, 0, 0}), 0.35, CapStyle::Round, BSplineField::constant(10, 0, 1)),
                                    circularRod(line({0.1, -1, 0.05}, {0.1, 1, 0.05}), 0.3, CapStyle::Round, BSplineField::constant(90, 0, 1))});
-    const PrinterGrid g = voxel::makePrinterGrid(s);
+    const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
     const voxel::Rasterization ras = voxel::rasterize(s, g);
     requireMatchesExactTest(s, g, ras);
     REQUIRE(ras.voxelsPerRod[0] + ras.voxelsPerRod[1] == ras.grid->activeVoxelCount());
@@ -395,7 +398,7 @@ TEST_CASE("Overlapping rods: the deepest wins, ties go to the lower rod index", 
     const Rod a = circularRod(helix(1.0, 0.8, 0.5), 0.3, CapStyle::Round, BSplineField::constant(33, 0, 1));
     const Rod b = circularRod(helix(1.0, 0.8, 0.5), 0.3, CapStyle::Round, BSplineField::constant(77, 0, 1));
     const RodStructure s = design({a, b});
-    const voxel::Rasterization ras = voxel::rasterize(s, voxel::makePrinterGrid(s));
+    const voxel::Rasterization ras = voxel::rasterize(s, voxel::makePrinterGrid(s, kTestVoxel));
     REQUIRE(ras.voxelsPerRod[1] == 0);
     REQUIRE(ras.voxelsPerRod[0] == ras.grid->activeVoxelCount());
     for (auto it = ras.grid->cbeginValueOn(); it; ++it) REQUIRE(*it == 33.0f);
@@ -451,7 +454,7 @@ TEST_CASE("Memory follows the active voxels, not the envelope", "[voxel][sparse]
   // Two short rods 85 mm apart: a 2000 x 1000 x 3000 voxel envelope (6 gigavoxels) holding ~4,700 voxels.
   const RodStructure s = design({circularRod(line({0, 0, 0}, {0.5, 0, 0}), 0.3, CapStyle::Round),
                                  circularRod(line({84, 84, 89}, {84, 84, 89.5}), 0.3, CapStyle::Round)});
-  const PrinterGrid g = voxel::makePrinterGrid(s);
+  const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
   REQUIRE(g.voxelCount() > 5'000'000'000ull);
   const voxel::Rasterization ras = voxel::rasterize(s, g);
   const auto active = ras.grid->activeVoxelCount();
@@ -465,7 +468,7 @@ TEST_CASE("Grid statistics agree with a direct count", "[voxel][statistics]") {
   const BSplineField e(1, {0, 0, 1, 1}, {12.0, 60.0});
   const RodStructure s = design({circularRod(line({0, 0, 0}, {2, 0, 0}), 0.4, CapStyle::Flat, e),
                                  circularRod(line({0, 1, 0}, {0, 1, 2}), 0.3, CapStyle::Round)});
-  const PrinterGrid g = voxel::makePrinterGrid(s);
+  const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
   const voxel::Rasterization ras = voxel::rasterize(s, g);
   const voxel::GridStatistics st = voxel::computeStatistics(*ras.grid, g, ras.voxelsPerRod);
   std::uint64_t n = 0;
@@ -498,7 +501,7 @@ TEST_CASE("Grid statistics agree with a direct count", "[voxel][statistics]") {
 
 TEST_CASE(".vdb files round-trip and are written atomically", "[voxel][io]") {
   const RodStructure s = design({circularRod(arc(1.0, kPi), 0.3, CapStyle::Round)});
-  const PrinterGrid g = voxel::makePrinterGrid(s);
+  const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
   const voxel::Rasterization ras = voxel::rasterize(s, g);
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / "rodfab-test-voxel";
   std::filesystem::create_directories(dir);
@@ -759,8 +762,8 @@ TEST_CASE("Hostile sizes stay bounded: pieces within the estimate, work within s
   SECTION("far from the origin the rod is the same as at the origin, voxel for voxel up to the lattice's shift") {
     const RodStructure near = design({makeRod(readmeCurve(), Section::circle(1.5), CapStyle::Round)});
     const RodStructure far = design({cases[3].rod});
-    const auto n = voxel::rasterize(near, voxel::makePrinterGrid(near)).grid->activeVoxelCount();
-    const auto f = voxel::rasterize(far, voxel::makePrinterGrid(far)).grid->activeVoxelCount();
+    const auto n = voxel::rasterize(near, voxel::makePrinterGrid(near, kTestVoxel)).grid->activeVoxelCount();
+    const auto f = voxel::rasterize(far, voxel::makePrinterGrid(far, kTestVoxel)).grid->activeVoxelCount();
     REQUIRE(double(f) == Approx(double(n)).epsilon(0.002));
   }
   SECTION("a jump of E: values on each side as the field says") {
@@ -772,7 +775,7 @@ TEST_CASE("Hostile sizes stay bounded: pieces within the estimate, work within s
 
 TEST_CASE("Interruption: the hook is polled often and stops construction and rasterization", "[voxel][interrupt]") {
   const RodStructure s = design({makeRod(readmeCurve(), Section::circle(4.0), CapStyle::Round)});
-  const PrinterGrid g = voxel::makePrinterGrid(s);
+  const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
   using Clock = std::chrono::steady_clock;
   std::atomic<long> calls{0};
   std::mutex mutex;
@@ -810,7 +813,7 @@ TEST_CASE("Interruption: the hook is polled often and stops construction and ras
 TEST_CASE("Estimates before allocating: voxels, leaves and pieces of straight and curved rods", "[voxel][estimate]") {
   const RodStructure s = design({circularRod(line({0, 0, 0}, {6, 1, 2}), 0.5, CapStyle::Round),
                                  circularRod(helix(2.0, 1.5, 2.0), 0.4, CapStyle::Flat)});
-  const PrinterGrid g = voxel::makePrinterGrid(s);
+  const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
   const voxel::RasterEstimate e = voxel::estimateRaster(s, g, 64);
   const voxel::Rasterizer rasterizer(s, g);
   const voxel::Rasterization ras = rasterizer.rasterize();
@@ -831,7 +834,7 @@ TEST_CASE("Rods below the printer's resolution are listed for a warning", "[voxe
   const RodStructure s = design({circularRod(line({0, 0, 0}, {3, 0, 0}), 0.5, CapStyle::Round),
                                  circularRod(line({0, 2, 0}, {3, 2, 0}), 0.01, CapStyle::Round),
                                  circularRod(line({0.5, 0, 0}, {2.5, 0, 0}), 0.2, CapStyle::Round)});  // inside rod 0
-  const PrinterGrid g = voxel::makePrinterGrid(s);
+  const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
   const std::vector<voxel::ThinRod> before = voxel::findThinRods(s, g);
   REQUIRE(before.size() == 1);
   REQUIRE(before[0].rod == 1);

@@ -7,16 +7,14 @@
 
 namespace rodfab::voxel {
 
-// Stratasys Objet500 Connex3 voxel in mm (x, y, z; z is the build direction).
-inline const openvdb::Vec3d kConnex3VoxelSizeMm(0.0423, 0.0846, 0.030);
-
-// Largest grid extent along one axis (2^24 voxels: 700 m at Connex3 resolution).
+// Largest grid extent along one axis (2^24 voxels: 700 m at 600 x 300 dpi).
 constexpr int kMaxVoxelsPerAxis = 1 << 24;
 
 // Voxel (i, j, k) is centred at origin + (i, j, k) * voxelSize (mm); OpenVDB's convention of voxel
 // centres at integer index coordinates, so the transform is a plain scale plus translation.
 struct PrinterGrid {
-  openvdb::Vec3d voxelSize = kConnex3VoxelSizeMm;
+  // Voxel size in mm (x, y, z; z the build direction): the printer profile's, the only source of it.
+  openvdb::Vec3d voxelSize{0.0, 0.0, 0.0};
   openvdb::Vec3d origin{0.0, 0.0, 0.0};
   // Voxels per axis covering the padded bounding box: indices [0, dims) hold the whole design.
   openvdb::Coord dims{0, 0, 0};
@@ -34,11 +32,10 @@ struct PrinterGrid {
   }
 };
 
-// The grid for `structure`: the cell of voxel (0,0,0) lies one voxel below the minimum corner of its
+// The grid for `structure` at `voxelSizeMm` (the printer profile's voxel: x, y, z in mm): the cell of voxel (0,0,0) lies one voxel below the minimum corner of its
 // bounding box (its centre half a voxel below), and the cells of [0, dims) reach at least one voxel
 // past the maximum, so every design voxel has an empty neighbour on each side. Throws std::invalid_argument when a voxel
 // size is not a positive finite number or the design is empty.
-PrinterGrid makePrinterGrid(const geometry::RodStructure& structure,
-                            const openvdb::Vec3d& voxelSizeMm = kConnex3VoxelSizeMm);
+PrinterGrid makePrinterGrid(const geometry::RodStructure& structure, const openvdb::Vec3d& voxelSizeMm);
 
 }  // namespace rodfab::voxel

@@ -1,0 +1,23 @@
+// --profile and --print-mode, for every command that needs the printer's voxel (the profile is the only
+// source of the voxel size: nothing in rodfab assumes one printer).
+#pragma once
+
+#include "printer_profiles/profile.hpp"
+#include "slicer/options.hpp"
+
+#include <optional>
+#include <string>
+
+namespace rodfab::cli {
+
+// The profile a command uses when --profile is not given.
+inline constexpr const char* kDefaultProfileName = "stratasys-objet500-connex3";
+
+// Declares --profile NAME|FILE (default kDefaultProfileName) and --print-mode MODE.
+void addProfileOptions(po::options_description& options);
+
+// The profile --profile names, in the --print-mode given (default: the profile's first mode). Prints
+// the profile's errors, then "CONSEQUENCE", on stderr and returns nullopt when it cannot be used.
+std::optional<printer_profiles::Profile> profileFromOptions(const po::variables_map& vm, const std::string& consequence);
+
+}  // namespace rodfab::cli
