@@ -54,34 +54,43 @@ public:
     return d;
   }
 
-  // Rows of a node with respect to the constants at end `end` of it.
-  PointDerivative node(const Node& node, const ResolvedEnd& end) {
+  // Rows of a node with respect to the constants at its site `site`. An interior site's two sides
+  // carry the same E and dE/du (the field's value and derivative there, as setPointConstants sets them).
+  PointDerivative node(const Node& node, const Site& site) {
     PointDerivative d;
-    for (const ResolvedEnd& e : node.ends)
-      for (int r = 0; r < 7; ++r) d.rows.push_back(s_.endRow(e) + r);
-    differentiate(end.rod, s_.rods[end.rod].point(end.end), d,
-                  [&] { scratch_.nodeBlock(node, x_, load_, residual_, nullptr); });
+    for (const Site& e : node.ends)
+      for (int r = 0; r < 7; ++r) d.rows.push_back(s_.siteRow(e) + r);
+    PointConstants* below =
+        site.end == Site::kInterior ? &scratch_.rods[site.rod].siteBelowConstants[site.index] : nullptr;
+    differentiate(site.rod, s_.rods[site.rod].point(site), d,
+                  [&] { scratch_.nodeBlock(node, x_, load_, residual_, nullptr); }, below);
     return d;
   }
 
 private:
   template <class Evaluate>
-  void differentiate(int rod, int j, PointDerivative& d, const Evaluate& evaluate) {
+  void differentiate(int rod, int j, PointDerivative& d, const Evaluate& evaluate, PointConstants* below = nullptr) {
     PointConstants& c = scratch_.rods[rod].constants[j];
     const PointConstants kept = c;
+    const PointConstants keptBelow = below ? *below : kept;
+    const auto set = [&](double e, double de) {
+      c.E = e, c.dE = de;
+      if (below) below->E = e, below->dE = de;
+    };
     const auto rowsNow = [&] {
       evaluate();
       Eigen::VectorXd v(static_cast<Eigen::Index>(d.rows.size()));
       for (std::size_t i = 0; i < d.rows.size(); ++i) v[static_cast<Eigen::Index>(i)] = residual_[static_cast<Eigen::Index>(d.rows[i])];
       return v;
     };
-    c.E = 0, c.dE = 0;
+    set(0, 0);
     const Eigen::VectorXd base = rowsNow();
-    c.E = 1;
+    set(1, 0);
     d.byE = rowsNow() - base;
-    c.E = 0, c.dE = 1;
+    set(0, 1);
     d.byDE = rowsNow() - base;
     c = kept;
+    if (below) *below = keptBelow;
   }
 
   const DiscreteStructure& s_;
@@ -123,6 +132,11 @@ void StaticProblem::setModulus(std::size_t rod, const geometry::BSplineField& fi
                                   format(constants[j].E) + " at u = " + format(r.tau[j]));
     newMax = std::max(newMax, constants[j].E);
   }
+  // An interior site's lower side (T-joints, interior loads and supports) has the same E and dE/du.
+  for (std::size_t i = 0; i < r.sites.size(); ++i) {
+    r.siteBelowConstants[i].E = field.value(r.sites[i]);
+    r.siteBelowConstants[i].dE = old.isConstant() ? 0.0 : field.derivative(r.sites[i]);
+  }
   r.constants = std::move(constants);
   r.forceScale *= newMax / oldMax;
   r.momentScale *= newMax / oldMax;
@@ -152,7 +166,7 @@ Eigen::SparseMatrix<double> StaticProblem::modulusJacobian(const Eigen::VectorXd
       continue;
     }
     const Node& node = s.nodes[item.point];
-    for (const ResolvedEnd& e : node.ends) add(e.rod, s.rods[e.rod].point(e.end), differentiator.node(node, e));
+    for (const Site& e : node.ends) add(e.rod, s.rods[e.rod].point(e), differentiator.node(node, e));
   }
   Eigen::SparseMatrix<double> m(static_cast<Eigen::Index>(s.unknowns), static_cast<Eigen::Index>(offsets.back()));
   m.setFromTriplets(entries.begin(), entries.end());
