@@ -169,7 +169,7 @@ struct RodStructure {
   std::string source;  // where it was read from, for messages
   std::vector<Rod> rods;
   MechanicsSpec mechanics;  // loads and supports for `rodfab simulate`; ignored by the slicer
-  OptimizeSpec optimize;    // the "optimize" block for `rodfab optimize`; ignored by the slicer
+  OptimizeSpec optimize{};  // the "optimize" block for `rodfab optimize`; ignored by the slicer
 
   Box3 bounds() const;
 };

@@ -130,7 +130,7 @@ public:
   // ---- Design sensitivities (mechanics/modulus_sensitivity.cpp) -----------------------------
   // The design variables are the control values of every rod's modulus field E(u) (the design's
   // geometry::BSplineField), rod after rod in design order: modulusVariableCount() of them, rod
-  // r's first at modulusVariableOffset(r).
+  // r's first at modulusVariableOffset(r) (std::out_of_range for r > rodCount()).
   std::size_t modulusVariableCount() const;
   std::size_t modulusVariableOffset(std::size_t rod) const;
   // Replaces rod `rod`'s modulus field (MPa) by one with the same degree and knots (so the

@@ -46,7 +46,6 @@ struct Settings {
   // The discretization is resolved once, for the starting design, and kept for every solve.
   mechanics::Discretization discretization;
   mechanics::SolverOptions solver;
-  // Called with every iteration's report (Iteration below); may throw to stop (the exception passes through).
 };
 
 // Applies a design's "optimize" block (positionWeight ... tolerance; bounds when given) to settings.

@@ -90,6 +90,12 @@ assert s["bounds_mpa"] == [8, 190]
 assert len(s["history"]) == s["iterations"] + 1
 PY
 
+# The same output, byte for byte, on 1 and 2 threads.
+"$rodfab" optimize "$tmp/start.json" -o "$tmp/one.json" --threads 1 > /dev/null 2>&1 || fail "optimize --threads 1"
+"$rodfab" optimize "$tmp/start.json" -o "$tmp/two.json" --threads 2 > /dev/null 2>&1 || fail "optimize --threads 2"
+cmp -s "$tmp/one.json" "$tmp/two.json" || fail "the output depends on the thread count"
+rm -f "$tmp/one.json" "$tmp/two.json"
+
 # The optimized design slices as it is: every modulus inside the calibration's range.
 "$rodfab" slice "$tmp/optimized.json" -o "$tmp/job.zip" > "$tmp/out" 2>&1 || fail "slice: $(cat "$tmp/out")"
 grep -q "^clamped moduli: 0 below the floor, 0 above the stiffest mix" "$tmp/out" || fail "clamped voxels: $(cat "$tmp/out")"
