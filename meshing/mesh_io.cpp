@@ -74,8 +74,13 @@ void checkOffText(const std::string& bytes, const std::string& source) {
     throw MeshError(source, "OFF line " + std::to_string(number) + ": '" + word + "' is not an OFF keyword");
   if (!(head >> rest) && !(nextContentLine(in, line, number) && (head = std::istringstream(line), head >> rest))) return;
   if (rest == "BINARY") return;  // binary counts: CGAL reads them as integers
-  double nv = 0, nf = 0;
-  if (!(std::istringstream(rest) >> nv) || !(head >> nf)) return;
+  // The counts as every OFF writer puts them: vertices, faces, edges on one line (CGAL reads them as
+  // tokens across lines, which would put this check out of step with it).
+  double nv = -1, nf = -1, ne = -1;
+  std::string extra;
+  if (!(std::istringstream(rest) >> nv) || !(head >> nf >> ne) || (head >> extra) || nv != std::floor(nv) ||
+      nf != std::floor(nf))
+    throw MeshError(source, "OFF line " + std::to_string(number) + ": expected the vertex, face and edge counts on one line");
   if (nv < 0 || nf < 0 || nv * 6 + nf * 8 > static_cast<double>(bytes.size()) + 64)
     throw MeshError(source, "the OFF header declares " + rest + " vertices and more faces than the file's " +
                                 std::to_string(bytes.size()) + " bytes can hold");
