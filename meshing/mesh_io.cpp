@@ -18,6 +18,7 @@
 #include <cstring>
 #include <fstream>
 #include <numeric>
+#include <regex>
 #include <sstream>
 
 namespace rodfab::meshing {
@@ -40,23 +41,72 @@ std::string where(const Vec3& p) {
   return buf;
 }
 
-// OFF's reader sizes its arrays from the header: refuse counts the bytes cannot hold (a vertex takes
-// at least 6 bytes of text, a face 8).
-void checkOffHeader(const std::string& bytes, const std::string& source) {
+// The next line of `in` that holds something other than a comment, with the comment cut off.
+bool nextContentLine(std::istream& in, std::string& line, int& number) {
+  while (std::getline(in, line)) {
+    ++number;
+    line = line.substr(0, line.find('#'));
+    if (line.find_first_not_of(" \t\r") != std::string::npos) return true;
+  }
+  return false;
+}
+
+// Text OFF is checked before CGAL reads it: its reader sizes arrays from the header's counts, and
+// casts each face's corner count from a double to size_t unchecked (undefined behaviour for 1e114 or
+// -1, found by fuzzing), and reads a face's colour from the entries after its corners without checking
+// they are there (a heap overflow when a line holds fewer numbers than its corner count says, found by
+// fuzzing). So: counts the file's bytes can hold (a vertex takes at least 6 bytes of text, a face 8);
+// every vertex line holds at least 3 numbers; every face line starts with a corner count of 3 to
+// 1,000,000 and holds that many indices of existing vertices (CGAL casts them unchecked too) plus 0, 1,
+// 3 or 4 colour entries. Vertex lines are taken one per line, as every OFF writer puts them.
+void checkOffText(const std::string& bytes, const std::string& source) {
   std::istringstream in(bytes);
-  std::string word;
-  while (in >> word && word[0] == '#') std::getline(in, word);
-  if (word.find("OFF") == std::string::npos) return;  // CGAL reports what it cannot parse
-  if (word == "OFF" || word == "COFF" || word == "NOFF" || word == "CNOFF") {
-    std::string next;
-    while (in >> next && next[0] == '#') std::getline(in, next);
-    if (next == "BINARY") return;  // counts are binary ints: CGAL's size check below applies
-    double nv = 0, nf = 0;
-    std::istringstream counts(next);
-    if (!(counts >> nv) || !(in >> nf)) return;
-    if (nv < 0 || nf < 0 || nv * 6 + nf * 8 > static_cast<double>(bytes.size()) + 64)
-      throw MeshError(source, "the OFF header declares " + next + " vertices and more faces than the file's " +
-                                  std::to_string(bytes.size()) + " bytes can hold");
+  std::string line;
+  int number = 0;
+  if (!nextContentLine(in, line, number)) return;
+  std::istringstream head(line);
+  std::string word, rest;
+  head >> word;
+  // CGAL takes any first word holding "OFF", even with bytes glued to it; only the standard keywords
+  // ([ST][C][N][4][n]OFF) are let through, so this check reads the counts where CGAL does.
+  if (word.find("OFF") == std::string::npos) return;
+  if (!std::regex_match(word, std::regex("(ST)?C?N?4?n?OFF")))
+    throw MeshError(source, "OFF line " + std::to_string(number) + ": '" + word + "' is not an OFF keyword");
+  if (!(head >> rest) && !(nextContentLine(in, line, number) && (head = std::istringstream(line), head >> rest))) return;
+  if (rest == "BINARY") return;  // binary counts: CGAL reads them as integers
+  // The counts as every OFF writer puts them: vertices, faces, edges on one line (CGAL reads them as
+  // tokens across lines, which would put this check out of step with it).
+  double nv = -1, nf = -1, ne = -1;
+  std::string extra;
+  if (!(std::istringstream(rest) >> nv) || !(head >> nf >> ne) || (head >> extra) || nv != std::floor(nv) ||
+      nf != std::floor(nf))
+    throw MeshError(source, "OFF line " + std::to_string(number) + ": expected the vertex, face and edge counts on one line");
+  if (nv < 0 || nf < 0 || nv * 6 + nf * 8 > static_cast<double>(bytes.size()) + 64)
+    throw MeshError(source, "the OFF header declares " + rest + " vertices and more faces than the file's " +
+                                std::to_string(bytes.size()) + " bytes can hold");
+  auto numbers = [](const std::string& text) {
+    std::istringstream words(text);
+    std::vector<double> out;
+    for (double d; words >> d;) out.push_back(d);
+    return out;
+  };
+  const auto where = [&] { return "OFF line " + std::to_string(number) + ": "; };
+  for (double v = 0; v < nv; ++v) {
+    if (!nextContentLine(in, line, number)) return;
+    if (numbers(line).size() < 3) throw MeshError(source, where() + "a vertex needs 3 coordinates");
+  }
+  for (double f = 0; f < nf && nextContentLine(in, line, number); ++f) {
+    const std::vector<double> entries = numbers(line);
+    const double corners = entries.empty() ? 0 : entries[0];
+    if (!(corners >= 3 && corners <= 1e6) || corners != std::floor(corners))
+      throw MeshError(source, where() + "a face's corner count must be a whole number from 3 to 1000000");
+    for (std::size_t k = 1; k <= static_cast<std::size_t>(corners) && k < entries.size(); ++k)
+      if (!(entries[k] >= 0 && entries[k] < nv) || entries[k] != std::floor(entries[k]))
+        throw MeshError(source, where() + "a face refers to a vertex that is not one of the " + rest);
+    const double colours = static_cast<double>(entries.size()) - 1 - corners;
+    if (colours != 0 && colours != 1 && colours != 3 && colours != 4)
+      throw MeshError(source, where() + "a face of " + std::to_string(static_cast<long>(corners)) + " corners needs as many " +
+                                  "indices (and 0, 1, 3 or 4 colour entries)");
   }
 }
 
@@ -239,7 +289,7 @@ void canonicalizeTriangles(std::vector<Triangle>& triangles) {
 TriangleMesh parseMesh(const std::string& bytes, const std::string& format, const std::string& source, ReadStats& stats) {
   common::requireMemory(bytes.size() * kParseBytesPerFileByte, "reading the mesh " + source, "simplify the mesh first");
   if (bytes.find_first_not_of(" \t\r\n") == std::string::npos) throw MeshError(source, "the file is empty: it holds no faces");
-  if (format == "off") checkOffHeader(bytes, source);
+  if (format == "off") checkOffText(bytes, source);
   if (format == "ply") checkPlyHeader(bytes, source);
   std::vector<Point> points;
   std::vector<Polygon> polygons;

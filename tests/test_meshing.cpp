@@ -197,6 +197,13 @@ TEST_CASE("bad meshes get an error naming the file and the problem", "[meshing]"
   CHECK_THAT(error(scratch("garbage.off")), Catch::Contains("not a readable off mesh"));
   writeText(scratch("huge.off"), "OFF\n1000000000 1000000000 0\n");
   CHECK_THAT(error(scratch("huge.off")), Catch::Contains("OFF header declares"));
+  // Lines CGAL's OFF reader would misread (unchecked casts, a colour read past the line): refused first.
+  writeText(scratch("index.off"), "OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 3e31\n");
+  CHECK_THAT(error(scratch("index.off")), Catch::Contains("OFF line 7: a face refers to a vertex"));
+  writeText(scratch("short.off"), "OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n4 0 1\n");
+  CHECK_THAT(error(scratch("short.off")), Catch::Contains("a face of 4 corners needs as many"));
+  writeText(scratch("prop.ply"), "ply\nformat ascii 1.0\nproperty float x\nelement vertex 1\nend_header\n0\n");
+  CHECK_THAT(error(scratch("prop.ply")), Catch::Contains("PLY header line 3: a property before any element"));
   writeText(scratch("mesh.dxf"), "x");
   CHECK_THAT(error(scratch("mesh.dxf")), Catch::Contains("unknown mesh format"));
   // Three triangles on one edge.
