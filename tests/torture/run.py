@@ -28,7 +28,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import engine  # noqa: E402
 
-CLASSES = ["force", "memory", "crashes", "kinks", "interrupts", "inspect", "profiles", "numerics"]
+CLASSES = ["force", "memory", "crashes", "kinks", "interrupts", "inspect", "profiles", "numerics", "gcvf"]
 
 
 def load(cls: str, ctx: engine.Context) -> list[engine.Case]:
