@@ -359,10 +359,12 @@ RgbImage decodePngRgb(std::span<const std::uint8_t> file) {
 }
 
 Bytes encodePngRgba(int width, int height, int xDpi, int yDpi, const std::function<void(int, std::uint8_t*)>& row) {
-  // Fastest deflate and the Sub filter: layers are long runs of one colour, which Sub turns into zeros.
+  // Fastest deflate, no filter: layers are long runs of one colour, which deflate finds as 4-byte repeats.
+  // Measured on arm-cast (1,167 layers of 1768 x 753): 16.5 s CPU and 50.2 MB for the job, against 25.1 s
+  // and 47.9 MB with the Sub filter, and 38.9 s and 27.0 MB with Sub and zlib's Z_RLE strategy.
   return writePngOrThrow({static_cast<png_uint_32>(width), static_cast<png_uint_32>(height), 8, PNG_COLOR_TYPE_RGBA,
                           pixelsPerMetre(xDpi), pixelsPerMetre(yDpi), 1, nullptr, static_cast<std::size_t>(width) * 4, row,
-                          PNG_FILTER_SUB});
+                          PNG_FILTER_NONE});
 }
 
 RgbaHeader decodePngRgba(std::span<const std::uint8_t> file, std::uint64_t maxPixels,

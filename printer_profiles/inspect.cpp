@@ -273,6 +273,7 @@ private:
     s.xDpi = profile_.xDpi;
     s.yDpi = profile_.yDpi;
     s.layerThicknessMm = profile_.layerThicknessMm();
+    s.bitDepth = profile_.imageBitDepth();
     std::optional<JobLayout> layout = readLayout(report_.manifest, profile_, findings_, s);
     if (!layout) return false;
     layout_ = std::move(*layout);
@@ -503,6 +504,7 @@ private:
     } catch (const ImageError& e) {
       return out.findings.at(name, e.what());
     }
+    ++gcvfLayersDecoded_;
     if (image.xPixelsPerMetre != pixelsPerMetre(profile_.xDpi) || image.yPixelsPerMetre != pixelsPerMetre(profile_.yDpi))
       out.findings.at(name, "resolution " + std::to_string(image.xPixelsPerMetre) + " x " + std::to_string(image.yPixelsPerMetre) +
                                 " pixels/m; expected " + std::to_string(profile_.xDpi) + " x " + std::to_string(profile_.yDpi) + " dpi");
@@ -524,8 +526,10 @@ private:
     const std::string& name = profile_.buildFileName;
     const auto data = fetch(name, UINT64_MAX, findings_);
     if (!data) return;
+    // VoxelCount is checked against the images only when every one was read (else the layers are the defect).
+    const bool counted = gcvfLayersDecoded_ == layout_.layers;
     for (const std::string& problem : printer_profiles::checkGcvfConfig(*data, profile_, layout_.width, layout_.height, layout_.layers,
-                                                                        report_.materials))
+                                                                        report_.materials, counted))
       findings_.at(name, problem);
   }
 
@@ -587,6 +591,7 @@ private:
   Profile profile_;
   JobLayout layout_;
   mutable std::atomic<std::size_t> filesChecked_{0};
+  mutable std::atomic<int> gcvfLayersDecoded_{0};  // gcvf layer images read without a defect of their own
 };
 
 }  // namespace

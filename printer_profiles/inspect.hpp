@@ -37,6 +37,7 @@ struct InspectSummary {
   int xDpi = 0, yDpi = 0;
   double layerThicknessMm = 0.0;
   std::string imageFormat;        // "bmp" | "png"
+  int bitDepth = 0;               // bits per pixel of the layer images (1, or 32 for RGBA)
   std::string supportPolicy;      // "printer" | "explicit"
   std::optional<std::array<double, 3>> partSizeMm;
   std::string ditherer;

@@ -102,7 +102,8 @@ public:
   }
 };
 
-void checkMaterialList(ConfigChecker& c, const xmlNode* list, const Profile& p, const std::vector<MaterialTotals>& counted) {
+void checkMaterialList(ConfigChecker& c, const xmlNode* list, const Profile& p, const std::vector<MaterialTotals>& counted,
+                       bool countsKnown) {
   const std::string path = "GCVF/MaterialList";
   c.expect(list, path, "BackGroundMaterialRGBA", gcvfRgbaText(p.gcvf.backgroundRgba));
   std::vector<const xmlNode*> entries;
@@ -120,14 +121,20 @@ void checkMaterialList(ConfigChecker& c, const xmlNode* list, const Profile& p, 
     const ProfileMaterial& want = p.material(counted[n].role);
     c.expect(entries[n], at, "Name", want.name);
     c.expect(entries[n], at, "RGBA", gcvfRgbaText(want.rgba));
-    c.expect(entries[n], at, "VoxelCount", std::to_string(counted[n].voxels));
+    if (countsKnown) {
+      c.expect(entries[n], at, "VoxelCount", std::to_string(counted[n].voxels));
+    } else if (const xmlNode* e = c.only(entries[n], at, "VoxelCount")) {
+      const std::optional<std::string> t = textOf(e);
+      if (!t || t->empty() || t->size() > 19 || t->find_first_not_of("0123456789") != std::string::npos)
+        c.problems.push_back(at + "/VoxelCount: expected a whole number, found " + (t ? shown(*t) : std::string("elements")));
+    }
   }
 }
 
 }  // namespace
 
 std::vector<std::string> checkGcvfConfig(std::span<const std::uint8_t> xml, const Profile& p, int width, int height, int layers,
-                                         const std::vector<MaterialTotals>& counted) {
+                                         const std::vector<MaterialTotals>& counted, bool countsKnown) {
   ConfigChecker c;
   // No network, no DTD loading, entities left unexpanded: a hostile file can only be malformed.
   const int options = XML_PARSE_NONET | XML_PARSE_NOERROR | XML_PARSE_NOWARNING;
@@ -164,7 +171,7 @@ std::vector<std::string> checkGcvfConfig(std::span<const std::uint8_t> xml, cons
   c.expect(root, "GCVF", "DataSemantics", "Materials");
   c.expect(root, "GCVF", "CreationMode", p.gcvf.creationMode);
   c.expect(root, "GCVF", "ImageFilePrefix", p.gcvf.imageFilePrefix);
-  if (const xmlNode* list = c.only(root, "GCVF", "MaterialList")) checkMaterialList(c, list, p, counted);
+  if (const xmlNode* list = c.only(root, "GCVF", "MaterialList")) checkMaterialList(c, list, p, counted, countsKnown);
   return c.problems;
 }
 

@@ -29,10 +29,11 @@ GcvfLayerImage decodeGcvfLayer(std::span<const std::uint8_t> png, const Profile&
                                const std::vector<const ProfileMaterial*>& materials, int width, int height);
 
 // Every problem of ConfigFile.xml (`xml`, at most a few KB from a job) against the profile, the job's
-// image size and layer count, and `counted` (the voxels decoded from the images, per material): not
-// well-formed, a missing, repeated or wrong element, a material not the profile's, a VoxelCount that
-// is not what the images hold. Each problem is one message; empty when the file is sound.
+// image size and layer count, and `counted` (the job's materials in order, with the voxels decoded from
+// the images): not well-formed, a missing, repeated or wrong element, a material not the profile's, a
+// VoxelCount that is not what the images hold (checked only when `countsKnown`: every image was read;
+// otherwise it must be a whole number). Each problem is one message; empty when the file is sound.
 std::vector<std::string> checkGcvfConfig(std::span<const std::uint8_t> xml, const Profile& profile, int width, int height,
-                                         int layers, const std::vector<MaterialTotals>& counted);
+                                         int layers, const std::vector<MaterialTotals>& counted, bool countsKnown = true);
 
 }  // namespace rodfab::printer_profiles

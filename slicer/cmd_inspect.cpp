@@ -37,7 +37,8 @@ void printReport(const pp::InspectReport& report) {
     std::printf("resolution:    %d x %d dpi (x columns, y rows), %.3f mm layers\n", s.xDpi, s.yDpi, s.layerThicknessMm);
   }
   if (report.width > 0)
-    std::printf("images:        %d x %d pixels, %d layers, 1-bit %s\n", report.width, report.height, report.layers, s.imageFormat.c_str());
+    std::printf("images:        %d x %d pixels, %d layers, %d-bit %s\n", report.width, report.height, report.layers, s.bitDepth,
+                s.imageFormat.c_str());
   if (s.partSizeMm) std::printf("part:          %.2f x %.2f x %.2f mm\n", (*s.partSizeMm)[0], (*s.partSizeMm)[1], (*s.partSizeMm)[2]);
   if (!s.supportPolicy.empty()) std::printf("support:       %s\n", s.supportPolicy.c_str());
   if (!s.ditherer.empty() && s.seed)

@@ -290,6 +290,12 @@ TEST_CASE("ConfigFile.xml: what inspect finds in hostile or inconsistent files",
   CHECK_THAT(problems(edited("<Name>Agilus30Black<", "<Name>TangoBlackPlus<")).at(0), Catch::Contains("Material[2]/Name"));
   CHECK_THAT(problems(edited("</MaterialList>", "<Material><Name>X</Name></Material></MaterialList>")).at(0),
              Catch::Contains("lists 3 materials"));
+  // Counts unknown (a layer could not be read): VoxelCount need only be a whole number.
+  const auto uncounted = [&](const std::string& xml) {
+    return checkGcvfConfig(std::span(reinterpret_cast<const std::uint8_t*>(xml.data()), xml.size()), p, 64, 32, 7, counted, false);
+  };
+  CHECK(uncounted(edited("<VoxelCount>3<", "<VoxelCount>4<")).empty());
+  CHECK_THAT(uncounted(edited("<VoxelCount>3<", "<VoxelCount>-4<")).at(0), Catch::Contains("VoxelCount: expected a whole number"));
   CHECK_THAT(problems("").at(0), Catch::Contains("not well-formed"));
   CHECK_THAT(problems("<a>").at(0), Catch::Contains("not well-formed"));
 

@@ -4,7 +4,7 @@ and a timeout in a fresh folder (tests/torture/engine.py says what is checked).
 
 usage: run.py RODFAB SOURCE_DIR [CLASS ...] [--case GLOB] [--list] [--keep] [--quiet]
 
-  CLASS       force, memory, crashes, kinks, interrupts, inspect, profiles, numerics, optimize, shapes (default: all)
+  CLASS       force, memory, crashes, kinks, interrupts, inspect, profiles, numerics, optimize, shapes, gcvf (default: all)
   --case GLOB run only the cases whose name matches (fnmatch), e.g. --case 'inspect-zip-*'
   --list      list the cases and exit
   --keep      keep each case's folder (printed) for a look afterwards
@@ -28,7 +28,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import engine  # noqa: E402
 
-CLASSES = ["force", "memory", "crashes", "kinks", "interrupts", "inspect", "profiles", "numerics", "optimize", "shapes"]
+CLASSES = ["force", "memory", "crashes", "kinks", "interrupts", "inspect", "profiles", "numerics", "optimize", "shapes", "gcvf"]
 
 
 def load(cls: str, ctx: engine.Context) -> list[engine.Case]:
