@@ -48,12 +48,14 @@ geometry::PointLoad load(const std::string& name, const Vec3& force, const Vec3&
 
 // A clamped post, an arc joined rigidly to its top and a straight arm hanging from the arc's end:
 // three rods, two joints, bending and torsion everywhere. Two load cases at the arm's free end.
-RodStructure frame() {
+// With `tJoint`, a loaded strut starts at the post's mid-height: a T-joint, the post's interior site.
+RodStructure frame(bool tJoint = false) {
   RodStructure s;
   s.source = "frame";
   s.rods.push_back(rod("post", straight(Vec3(40, 0, 0), Vec3(40, 0, 60)), 4.0, 60.0));
   s.rods.push_back(rod("arc", arc(40, 60), 3.5, 60.0));
   s.rods.push_back(rod("arm", straight(Vec3(0, 40, 60), Vec3(0, 40, 20)), 3.0, 60.0));
+  if (tJoint) s.rods.push_back(rod("strut", straight(Vec3(40, 0, 30), Vec3(60, 0, 30)), 2.5, 60.0));
   s.mechanics.present = true;
   geometry::Support clamp;
   clamp.at = end("post", RodEnd::Start);
@@ -64,6 +66,8 @@ RodStructure frame() {
   twist.name = "twist", twist.path = "mechanics.load_cases[1]", twist.loadSteps = 4, twist.weight = 0.5;
   twist.supports = {clamp};
   twist.loads = {load("arm", Vec3(0.0, -0.2, 0.0), Vec3(4.0, 0.0, 3.0))};
+  if (tJoint)
+    for (geometry::LoadCase* c : {&push, &twist}) c->loads.push_back(load("strut", Vec3(0.0, 0.05, -0.05), Vec3::Zero()));
   s.mechanics.loadCases = {push, twist};
   s.mechanics.supports = {clamp};
   return s;
@@ -89,8 +93,9 @@ Eigen::VectorXd randomModulus(std::size_t n, double lo, double hi, unsigned seed
 }
 
 // The frame with targets: the shapes of a random modulus field between the bounds.
-RodStructure manufactured(const optimize::Settings& settings, unsigned seed, Eigen::VectorXd* truth = nullptr) {
-  RodStructure design = frame();
+RodStructure manufactured(const optimize::Settings& settings, unsigned seed, Eigen::VectorXd* truth = nullptr,
+                          bool tJoint = false) {
+  RodStructure design = frame(tJoint);
   for (auto& lc : design.mechanics.loadCases) lc.target.push_back({"post", straight(Vec3(40, 0, 0), Vec3(40, 0, 60)), std::nullopt, std::nullopt, "t"});
   optimize::DesignProblem generator(design, settings);
   const Eigen::VectorXd e = randomModulus(generator.variableCount(), settings.lowerMpa, settings.upperMpa, seed);
@@ -111,11 +116,13 @@ optimize::Settings testSettings() {
 
 TEST_CASE("dF/dE matches central differences of the residual at an equilibrium", "[optimize]") {
   const optimize::Settings settings = testSettings();
-  optimize::DesignProblem problem(manufactured(settings, 7), settings);
+  const bool tJoint = GENERATE(false, true);
+  INFO((tJoint ? "with" : "without") << " a T-joint");
+  optimize::DesignProblem problem(manufactured(settings, 7, nullptr, tJoint), settings);
   const Eigen::VectorXd e = randomModulus(problem.variableCount(), 20, 150, 3);
   problem.evaluate(e, false);
   // A copy of the problem to perturb: the same discretization, rebuilt.
-  optimize::DesignProblem copy(manufactured(settings, 7), settings);
+  optimize::DesignProblem copy(manufactured(settings, 7, nullptr, tJoint), settings);
   copy.evaluate(e, false);
   const mechanics::StaticProblem& sp = problem.caseProblem(1);
   const Eigen::VectorXd& x = problem.state(1);
@@ -147,10 +154,12 @@ TEST_CASE("dF/dE matches central differences of the residual at an equilibrium",
   CHECK(worst <= 1e-7 * largest);
 }
 
-TEST_CASE("the adjoint gradient matches central finite differences (joints, two cases, both terms)", "[optimize]") {
+TEST_CASE("the adjoint gradient matches central finite differences (joints, a T-joint, two cases, both terms)", "[optimize]") {
   optimize::Settings settings = testSettings();
   settings.curvatureWeight = 3.0;
-  optimize::DesignProblem problem(manufactured(settings, 11), settings);
+  const bool tJoint = GENERATE(false, true);
+  INFO((tJoint ? "with" : "without") << " a T-joint");
+  optimize::DesignProblem problem(manufactured(settings, 11, nullptr, tJoint), settings);
   REQUIRE(problem.caseCount() == 2);
   const Eigen::VectorXd e = randomModulus(problem.variableCount(), 20, 150, 5);
   const optimize::Evaluation ev = problem.evaluate(e, true);
