@@ -1,8 +1,8 @@
 #include "calibration/plot.hpp"
 
 #include "common/output_file.hpp"
+#include "common/png_tag.hpp"
 
-#include <zlib.h>
 
 #include <cstdint>
 #include <string_view>
@@ -21,26 +21,7 @@ namespace rodfab::calibration {
 
 namespace {
 
-constexpr std::string_view kPngSignature("\x89PNG\r\n\x1a\n", 8);
-// A tEXt chunk's type and data: "Software", NUL, "rodfab calibrate". It marks the plots rodfab may replace.
-constexpr std::string_view kSoftwareChunk("tEXtSoftware\0rodfab calibrate", 29);
-
-void appendBigEndian(std::string& out, std::uint32_t v) {
-  for (int shift = 24; shift >= 0; shift -= 8) out += static_cast<char>((v >> shift) & 0xFF);
-}
-
-// `png` (as cairo writes it: the signature, then IHDR) with the Software tEXt chunk after IHDR.
-std::string withSoftwareTag(const std::string& png) {
-  constexpr std::size_t kAfterHeader = 8 + 4 + 4 + 13 + 4;  // signature, IHDR length, type, data, CRC
-  if (png.size() < kAfterHeader || png.compare(12, 4, "IHDR") != 0) return png;
-  std::string chunk;
-  appendBigEndian(chunk, static_cast<std::uint32_t>(kSoftwareChunk.size() - 4));
-  chunk.append(kSoftwareChunk);
-  const auto* data = reinterpret_cast<const Bytef*>(kSoftwareChunk.data());
-  appendBigEndian(chunk, static_cast<std::uint32_t>(::crc32(0L, data, static_cast<uInt>(kSoftwareChunk.size()))));
-  return png.substr(0, kAfterHeader) + chunk + png.substr(kAfterHeader);
-}
-
+constexpr std::string_view kSoftware = "rodfab calibrate";  // the tag that marks the plots rodfab may replace
 
 constexpr int kWidth = 960, kHeight = 640;
 constexpr double kLeft = 96, kRight = 32, kTop = 56, kBottom = 76;
@@ -270,7 +251,7 @@ std::string renderFitPlot(const Calibration& c) {
   std::string bytes;
   const cairo_status_t status = cairo_surface_write_to_png_stream(surface.get(), appendToString, &bytes);
   if (status != CAIRO_STATUS_SUCCESS) throw std::runtime_error(std::string("cairo PNG encoding failed: ") + cairo_status_to_string(status));
-  return withSoftwareTag(bytes);
+  return common::withSoftwareTag(bytes, kSoftware);
 }
 
 void writeFitPlot(const Calibration& c, const std::filesystem::path& png) {
@@ -284,7 +265,7 @@ void writeFitPlot(const Calibration& c, const std::filesystem::path& png) {
 }
 
 bool isFitPlot(const std::filesystem::path& png) {
-  return common::fileStartsWith(png, kPngSignature, kSoftwareChunk, 128);
+  return common::hasSoftwareTag(png, kSoftware);
 }
 
 }  // namespace rodfab::calibration

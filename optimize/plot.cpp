@@ -3,9 +3,9 @@
 #include "optimize/optimize.hpp"
 
 #include "common/output_file.hpp"
+#include "common/png_tag.hpp"
 
 #include <cairo.h>
-#include <zlib.h>
 
 #include <algorithm>
 #include <cmath>
@@ -17,27 +17,9 @@ namespace rodfab::optimize {
 
 namespace {
 
-constexpr std::string_view kPngSignature("\x89PNG\r\n\x1a\n", 8);
-// A tEXt chunk's type and data: "Software", NUL, "rodfab optimize". It marks the plots rodfab may replace.
-constexpr std::string_view kSoftwareChunk("tEXtSoftware\0rodfab optimize", 28);
+constexpr std::string_view kSoftware = "rodfab optimize";  // the tag that marks the plots rodfab may replace
 constexpr int kWidth = 960, kHeight = 640;
 constexpr double kLeft = 96, kRight = 32, kTop = 56, kBottom = 76;
-
-void appendBigEndian(std::string& out, std::uint32_t v) {
-  for (int shift = 24; shift >= 0; shift -= 8) out += static_cast<char>((v >> shift) & 0xFF);
-}
-
-// `png` as cairo writes it (the signature, then IHDR) with the Software tEXt chunk after IHDR.
-std::string withSoftwareTag(const std::string& png) {
-  constexpr std::size_t kAfterHeader = 8 + 4 + 4 + 13 + 4;
-  if (png.size() < kAfterHeader || png.compare(12, 4, "IHDR") != 0) return png;
-  std::string chunk;
-  appendBigEndian(chunk, static_cast<std::uint32_t>(kSoftwareChunk.size() - 4));
-  chunk.append(kSoftwareChunk);
-  const auto* data = reinterpret_cast<const Bytef*>(kSoftwareChunk.data());
-  appendBigEndian(chunk, static_cast<std::uint32_t>(::crc32(0L, data, static_cast<uInt>(kSoftwareChunk.size()))));
-  return png.substr(0, kAfterHeader) + chunk + png.substr(kAfterHeader);
-}
 
 cairo_status_t appendToString(void* closure, const unsigned char* data, unsigned int length) {
   static_cast<std::string*>(closure)->append(reinterpret_cast<const char*>(data), length);
@@ -111,9 +93,9 @@ void writeHistoryPlot(const std::vector<Iteration>& history, const std::filesyst
   std::string bytes;
   const cairo_status_t status = cairo_surface_write_to_png_stream(surface.get(), appendToString, &bytes);
   if (status != CAIRO_STATUS_SUCCESS) throw std::runtime_error(png.string() + ": cairo PNG encoding failed: " + cairo_status_to_string(status));
-  common::writeFileAtomically(png, withSoftwareTag(bytes));
+  common::writeFileAtomically(png, common::withSoftwareTag(bytes, kSoftware));
 }
 
-bool isHistoryPlot(const std::filesystem::path& png) { return common::fileStartsWith(png, kPngSignature, kSoftwareChunk, 128); }
+bool isHistoryPlot(const std::filesystem::path& png) { return common::hasSoftwareTag(png, kSoftware); }
 
 }  // namespace rodfab::optimize
