@@ -93,7 +93,9 @@ int runSlice(const std::vector<std::string>& args) {
   std::string calibrationSha256;
   const calibration::Calibration cal = calibration::readCalibration(calibrationFile, &calibrationSha256);
   const slicer::CalibrationMaterialsCheck materialsCheck = slicer::checkCalibrationMaterials(
-      cal, calibrationFile, profile, !vm.count("calibration"), vm.count("allow-calibration-materials-mismatch") > 0);
+      // By file name: the message also goes into the manifest, which holds no path of this machine.
+      cal, std::filesystem::path(calibrationFile).filename().string(), profile, !vm.count("calibration"),
+      vm.count("allow-calibration-materials-mismatch") > 0);
   if (materialsCheck.refused) {
     std::cerr << "rodfab slice: " << materialsCheck.message << "\nno job was written\n";
     return kFailed;

@@ -38,6 +38,7 @@ z = zipfile.ZipFile(sys.argv[1])
 m = json.loads(z.read("manifest.json"))
 d = json.load(open(sys.argv[2]))
 assert m["calibration"]["warning"].startswith("stand-in calibration")
+assert not any(w.startswith("/") and len(w) > 1 for w in m["calibration"]["warning"].split()), "the manifest names the calibration by file name only"
 assert m["calibration"]["materials"] == {"rigid": "VeroWhitePlus", "rubbery": "TangoBlackPlus"}
 assert m["profile"]["print_mode"] == "high-speed" and m["image"]["bit_depth"] == 32
 assert d["voxels"]["VeroUltraWhite"] > 0 and d["voxels"]["Agilus30Black"] > 0, d
