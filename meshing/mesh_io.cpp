@@ -13,7 +13,9 @@
 #include <CGAL/Simple_cartesian.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -34,6 +36,7 @@ using Polygon = std::vector<std::size_t>;
 // mesh and the AABB tree of the original surface).
 constexpr std::uint64_t kParseBytesPerFileByte = 14;
 constexpr std::uint64_t kBytesPerTriangle = 1000;
+constexpr const char* kNotFinite = "is not a finite number within the range of a double (about ±1.8e308)";
 
 std::string where(const Vec3& p) {
   char buf[96];
@@ -84,13 +87,20 @@ void checkOffText(const std::string& bytes, const std::string& source) {
   if (nv < 0 || nf < 0 || nv * 6 + nf * 8 > static_cast<double>(bytes.size()) + 64)
     throw MeshError(source, "the OFF header declares " + rest + " vertices and more faces than the file's " +
                                 std::to_string(bytes.size()) + " bytes can hold");
-  auto numbers = [](const std::string& text) {
+  const auto where = [&] { return "OFF line " + std::to_string(number) + ": "; };
+  // The line's leading numbers, as CGAL's stream reads them; one it cannot hold is named.
+  auto numbers = [&](const std::string& text) {
     std::istringstream words(text);
     std::vector<double> out;
-    for (double d; words >> d;) out.push_back(d);
+    for (std::string token; words >> token;) {
+      char* end = nullptr;
+      const double d = std::strtod(token.c_str(), &end);
+      if (end == token.c_str()) break;
+      if (!std::isfinite(d)) throw MeshError(source, where() + "'" + token.substr(0, 40) + "' " + kNotFinite);
+      out.push_back(d);
+    }
     return out;
   };
-  const auto where = [&] { return "OFF line " + std::to_string(number) + ": "; };
   for (double v = 0; v < nv; ++v) {
     if (!nextContentLine(in, line, number)) return;
     if (numbers(line).size() < 3) throw MeshError(source, where() + "a vertex needs 3 coordinates");
@@ -158,6 +168,39 @@ void checkBinaryStlNumbers(const std::string& bytes, const std::string& source) 
       if (!std::isfinite(v))
         throw MeshError(source, "triangle " + std::to_string(t) + " has a coordinate that is not a finite number");
     }
+}
+
+// A token that starts like a number: a digit, a point, or a sign, inf or nan spelling.
+bool looksNumeric(const std::string& token) {
+  const std::size_t at = token[0] == '+' || token[0] == '-' ? 1 : 0;
+  if (at >= token.size()) return false;
+  const char c = static_cast<char>(std::tolower(static_cast<unsigned char>(token[at])));
+  return std::isdigit(static_cast<unsigned char>(c)) || c == '.' || c == 'i' || c == 'n';
+}
+
+// The readers stop, without saying where, at a number the stream cannot hold (1e999, inf, nan): the
+// message names the line and the token so the user can find it. Text formats only (a binary STL's
+// floats are checked by checkBinaryStlNumbers); nothing found leaves the generic message.
+std::string unreadableMeshMessage(const std::string& bytes, const std::string& format) {
+  const std::string generic = "not a readable " + format + " mesh (the " + format + " reader stopped; is the file complete?)";
+  std::uint32_t count = 0;
+  if (bytes.size() >= 84) std::memcpy(&count, bytes.data() + 80, 4);
+  if (bytes.size() >= 84 && 84 + 50 * std::uint64_t(count) == bytes.size()) return generic;
+  std::istringstream in(bytes);
+  std::string line, token;
+  for (int number = 1; std::getline(in, line); ++number) {
+    std::istringstream words(line.substr(0, line.find('#')));
+    while (words >> token) {
+      if (!looksNumeric(token)) continue;
+      errno = 0;
+      char* end = nullptr;
+      const double value = std::strtod(token.c_str(), &end);
+      if (end == token.c_str()) continue;  // a word such as "normal"
+      if (!std::isfinite(value) || (errno == ERANGE && std::abs(value) > 1))
+        return "line " + std::to_string(number) + ": '" + token.substr(0, 40) + "' " + kNotFinite;
+    }
+  }
+  return generic;
 }
 
 bool readSoup(const std::string& bytes, const std::string& format, std::vector<Point>& points,
@@ -294,8 +337,7 @@ TriangleMesh parseMesh(const std::string& bytes, const std::string& format, cons
   std::vector<Point> points;
   std::vector<Polygon> polygons;
   try {
-    if (!readSoup(bytes, format, points, polygons, source))
-      throw MeshError(source, "not a readable " + format + " mesh (the " + format + " reader stopped; is the file complete?)");
+    if (!readSoup(bytes, format, points, polygons, source)) throw MeshError(source, unreadableMeshMessage(bytes, format));
   } catch (const std::bad_alloc&) {
     // The readers size arrays from counts in the file (a face's corner count, an element count).
     throw MeshError(source, "the file declares more elements than the memory budget holds (a count in it is wrong?)");

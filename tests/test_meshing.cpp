@@ -222,6 +222,14 @@ TEST_CASE("bad meshes get an error naming the file and the problem", "[meshing]"
   nan.points[3].y() = std::nan("");
   testing::writeBinaryStl(nan, scratch("nan.stl"));
   CHECK_THAT(error(scratch("nan.stl")), Catch::Contains("not a finite number"));
+  // Numbers the readers' streams cannot hold stop them; the message names the line and the token.
+  writeText(scratch("overflow.stl"), "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1e999 0 0\n"
+                                     "vertex 0 1 0\nendloop\nendfacet\nendsolid x\n");
+  CHECK_THAT(error(scratch("overflow.stl")), Catch::Contains("line 5: '1e999' is not a finite number"));
+  writeText(scratch("inf.obj"), "v 0 0 0\nv 1 0 0\nv 0 -inf 0\nf 1 2 3\n");
+  CHECK_THAT(error(scratch("inf.obj")), Catch::Contains("line 3: '-inf'"));
+  writeText(scratch("overflow.off"), "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1e400 0\n3 0 1 2\n");
+  CHECK_THAT(error(scratch("overflow.off")), Catch::Contains("line 5: '1e400'"));
   testing::writeObj(testing::ellipsoid(1, 10, 10, 10), scratch("small.obj"));
   options.faces = 100;
   CHECK_THAT(error(scratch("small.obj")), Catch::Contains("20 triangles, fewer than the 100 asked for"));

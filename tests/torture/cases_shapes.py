@@ -76,6 +76,10 @@ def cases(ctx) -> list[Case]:
     cs.append(mesh_case("stl-huge-coordinates", "m.stl", binary_stl(tetra_triangles([(0, 0, 0), (3e38, 0, 0), (0, 3e38, 0), (0, 0, 3e38)])),
                         ["1e9"], note="coordinates near float's limit"))
     cs.append(mesh_case("stl-all-one-point", "m.stl", binary_stl([((1, 1, 1),) * 3] * 4), ["degenerate"], note="zero-size triangles"))
+    ascii_overflow = "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1e999 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid x\n"
+    cs.append(mesh_case("stl-ascii-1e999", "m.stl", ascii_overflow, ["line 5", "1e999"], note="a coordinate beyond double"))
+    cs.append(mesh_case("obj-nan-spelled", "m.obj", "v 0 0 0\nv 1 0 0\nv 0 NaN 0\nv 0 0 1\nf 1 2 3\n", ["line 3", "NaN"],
+                        note="a vertex coordinate spelled NaN"))
     cs.append(mesh_case("stl-ascii-garbage", "m.stl", "solid x\nfacet normal banana\n", note="broken ASCII STL"))
     # OBJ/OFF/PLY lies and breakage.
     cs.append(mesh_case("obj-index-out-of-range", "m.obj", obj(TETRA_V, [(1, 2, 99)]), note="face refers to vertex 99 of 4"))
