@@ -23,7 +23,7 @@ MIN_DELAY = 0.3  # the program's start-up (loading its libraries) takes ~0.1 s o
 
 def new_entry(hidden: bool | None = None, suffix: str = "", inside: str | None = None):
     """A trigger: an entry appeared in the case folder that was not there when the step started (hidden
-    or not, with the given suffix), or (inside) a file of that name appeared in such a new folder. The
+    or not, with the given suffix), or (inside) a file matching that glob appeared in such a new folder. The
     first poll, a few milliseconds after the start, takes the "before" listing."""
     before: set[str] | None = None
 
@@ -37,7 +37,7 @@ def new_entry(hidden: bool | None = None, suffix: str = "", inside: str | None =
             if hidden is not None and name.startswith(".") != hidden:
                 continue
             if inside is not None:
-                if (folder / name / inside).exists():
+                if (folder / name).is_dir() and any((folder / name).glob(inside)):
                     return True
                 continue
             if name.endswith(suffix):
@@ -84,10 +84,11 @@ def cases(ctx) -> list[Case]:
         return new_entry(hidden=True)
 
     def zip_finishing():
-        return new_entry(hidden=True, suffix=".zip")
+        # libzip assembles the job as job.zip.XXXXXX inside the staging folder, then job.zip is verified.
+        return new_entry(hidden=True, inside="job.zip*")
 
     def dir_finishing():
-        return new_entry(hidden=True, inside="manifest.json")
+        return new_entry(hidden=True, inside="job/manifest.json")
 
     def any_new():
         return new_entry()
