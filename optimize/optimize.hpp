@@ -65,6 +65,13 @@ struct Evaluation {
   int newtonIterations = 0;  // over all cases, for this evaluation
 };
 
+// The discretization error of a case's equilibrium (mechanics::simulate's Richardson estimate on
+// the optimizer's discretization, no refinement).
+struct CaseAccuracy {
+  std::string name;
+  mechanics::ErrorEstimate estimate;  // available == false with a note when it could not be made
+};
+
 // The training cases of a design, each a discretized structure with its targets.
 class DesignProblem {
 public:
@@ -82,8 +89,9 @@ public:
   std::size_t unknownCount() const;  // of one case's discretization
   const mechanics::StaticProblem& caseProblem(std::size_t c) const;
 
-  // The design's own E(u) in the optimizer's basis: its values at the basis' Greville abscissae,
-  // clamped to the bounds (exact for a constant E).
+  // The design's own E(u) in the optimizer's basis, clamped to the bounds: its control values when
+  // it is a B-spline of that basis (an optimized design, so optimizing again resumes where it
+  // stopped), else its values at the basis' Greville abscissae (exact for a constant E).
   Eigen::VectorXd startingModulus() const;
   // g and (when `gradient`) dg/dE at the control values `modulus` (MPa, variableCount(), within
   // (0, inf)). Each case's Newton solve starts from its previous solution (continuation in E),
@@ -91,6 +99,12 @@ public:
   Evaluation evaluate(const Eigen::VectorXd& modulus, bool gradient = true);
   // The equilibrium states of the last evaluate(), per case.
   const Eigen::VectorXd& state(std::size_t c) const;
+  // How accurate the equilibria at `modulus` are: per case, a fresh solve along the load path on the
+  // optimizer's discretization and one with half the spans (mechanics::simulate with no
+  // refinement), about twice a solve's cost. `poll` (may be empty) is called before each case and
+  // after each load step; what it throws (common::Interrupted) passes through. A case whose path does
+  // not converge gets an estimate marked unavailable; throws mechanics::MechanicsError otherwise.
+  std::vector<CaseAccuracy> accuracyAt(const Eigen::VectorXd& modulus, const std::function<void()>& poll = {}) const;
   // The design with each rod's modulus replaced by the B-spline with control values `modulus`.
   geometry::RodStructure designWith(const Eigen::VectorXd& modulus) const;
 
@@ -129,7 +143,39 @@ Result optimize(DesignProblem& problem, const std::function<void(const Iteration
 // std::runtime_error naming the file, std::invalid_argument for an empty history. The PNG carries a
 // tEXt chunk "Software: rodfab optimize".
 void writeHistoryPlot(const std::vector<Iteration>& history, const std::filesystem::path& png, const std::string& title = {});
-// True when `png` is a regular file written by writeHistoryPlot (what `optimize --plot` may replace).
+// True when `png` is a regular file written by writeHistoryPlot or writeShapeRender (both carry the
+// same tag: what `optimize --plot` and `--render` may replace).
 bool isHistoryPlot(const std::filesystem::path& png);
+
+// ---- The shape render (`optimize --render`) ----------------------------------------------------
+
+// A rod as drawn: points along its centerline (mm) and E there (MPa, one per point; empty for a
+// target, drawn in one colour).
+struct DrawnRod {
+  std::vector<Eigen::Vector3d> points;
+  std::vector<double> modulusMpa;
+};
+// One load case's three columns: the target, the deformed shape with the starting modulus and the
+// one with the optimized modulus.
+struct ShapeColumns {
+  std::string name;
+  std::vector<DrawnRod> target, start, optimized;
+};
+// The target rods of a load case, `samplesPerRod` + 1 points each (uniform in their parameter).
+std::vector<DrawnRod> drawnTarget(const std::vector<geometry::TargetRod>& target, int samplesPerRod = 16);
+// Every rod of case `c` in the state of `problem`'s last evaluate() (the caller evaluates at
+// `modulus` first), with E from the control values `modulus` (MPa, variableCount()).
+// std::out_of_range for a bad case, std::invalid_argument for a wrong size.
+std::vector<DrawnRod> drawnDeformed(const DesignProblem& problem, std::size_t c, const Eigen::VectorXd& modulus,
+                                    int samplesPerRod = 16);
+// The render: per case (at most the first 4) a row per orthographic view (front: x right, z up;
+// side: y right, z up; top: x right, y up) of three 300-pixel panels (target in blue; start and
+// optimized coloured by E on viridis between `lowerMpa` and `upperMpa`, over the target in pale
+// grey), one scale per case, a colour bar in MPa: a 1050 pixel wide RGB PNG, 64 + 1002 per case
+// high, tagged like writeHistoryPlot. Polls common::throwIfInterrupted (common::Interrupted) per
+// panel; written under a temporary name and renamed (common::writeFileAtomically). Throws
+// std::runtime_error naming the file, std::invalid_argument for no case or lowerMpa >= upperMpa.
+void writeShapeRender(const std::vector<ShapeColumns>& cases, double lowerMpa, double upperMpa, const std::filesystem::path& png,
+                      const std::string& title = {});
 
 }  // namespace rodfab::optimize
