@@ -8,7 +8,7 @@
 // length, kappa the material curvature per deformed arc length (axial(R^T dR/ds)). E(u) per rod is
 // a clamped uniform B-spline on the centerline's parameter domain; its control values are the
 // design variables. Sensitivities are adjoint: one transposed solve per case with the Newton
-// factorization at the solution. The optimizer is L-BFGS-B (LBFGS++) on E scaled to [0, 1].
+// factorization at the solution. The optimizer is L-BFGS-B (LBFGS++) on log E (or E) scaled to [0, 1].
 //
 // Units: mm, MPa, N. Not thread-safe: one DesignProblem per thread (each solve is parallel inside).
 #pragma once
@@ -34,6 +34,10 @@ public:
   using std::runtime_error::runtime_error;
 };
 
+// The optimizer's variables: t in [0, 1] per control value, E = E0 + t (E1 - E0), or
+// E = E0 (E1 / E0)^t (logarithmic: equal steps are equal ratios of E).
+enum class Scaling { Linear, Logarithmic };
+
 struct Settings {
   double positionWeight = 1.0;   // C_r (dimensionless: positions are divided by the rod length)
   double curvatureWeight = 1.0;  // C_k (dimensionless: curvatures are multiplied by the rod length)
@@ -41,8 +45,11 @@ struct Settings {
   int modulusDegree = 3;         // 1..7, lowered to modulusControls - 1 when above it (0 for one control)
   double lowerMpa = 8.0, upperMpa = 190.0;  // bounds; the CLI takes them from the calibration
   int maxIterations = 200;       // L-BFGS-B iterations
-  double tolerance = 1e-7;       // converged when the projected gradient of g / g0 (in E scaled to [0, 1]) is below
+  double tolerance = 1e-7;       // converged when the projected gradient of g / g0 (in t in [0, 1], see Scaling) is below
   double objectiveTolerance = 0.0;  // also stop when g / g0 falls below this (0: never)
+  // Logarithmic by default: where only ratios of E set the shape (displacement-driven cases) g is
+  // flat along E -> a E, and equal steps in log E condition that far better (optimize/README.md).
+  Scaling scaling = Scaling::Logarithmic;
   // The discretization is resolved once, for the starting design, and kept for every solve.
   mechanics::Discretization discretization;
   mechanics::SolverOptions solver;
@@ -117,7 +124,7 @@ struct Iteration {
   int index = 0;                 // 0: the start
   double objective = 0.0;        // g
   double relative = 1.0;         // g / g0
-  double projectedGradient = 0.0;  // infinity norm, of g / g0 in E scaled to [0, 1]
+  double projectedGradient = 0.0;  // infinity norm, of g / g0 in the optimizer's variables t in [0, 1]
   int newtonIterations = 0;      // since the previous report
   double seconds = 0.0;          // wall time since the start
 };

@@ -27,6 +27,7 @@ struct OptimizeCommand {
   int maxIterations = -1;   // -1: the design's optimize block, else 200
   int workers = 1;
   bool json = false;
+  optimize::Scaling scaling = optimize::Scaling::Logarithmic;
 };
 
 void addOptimizeOptions(po::options_description& options) {
@@ -40,6 +41,8 @@ void addOptimizeOptions(po::options_description& options) {
        "B-spline control values of E per rod, 2..64 (0: the design's optimize.modulus_controls, else 4)")
       ("max-iterations", po::value<int>()->default_value(-1),
        "L-BFGS-B iterations, 0..100000 (-1: the design's optimize.max_iterations, else 200)")
+      ("scaling", po::value<std::string>()->default_value("log"),
+       "the optimizer's variables: log (equal steps are equal ratios of E; default) or linear in E")
       ("threads", po::value<int>()->default_value(0), "worker threads for assembly (0 = all cores)")
       ("plot", po::value<std::string>(), "also write the convergence plot (g/g0 against iteration, log scale) to this PNG")
       ("render", po::value<std::string>(),
@@ -55,7 +58,7 @@ std::variant<OptimizeCommand, int> parseOptimize(const std::vector<std::string>&
   positional.add("design", 1);
   po::variables_map vm;
   const char* synopsis = "DESIGN.json --output OPTIMIZED.json [--calibration CAL.json] [--modulus-controls N] "
-                         "[--max-iterations N] [--threads N] [--plot HISTORY.png] [--render SHAPES.png] [--json]";
+                         "[--max-iterations N] [--scaling log|linear] [--threads N] [--plot HISTORY.png] [--render SHAPES.png] [--json]";
   if (auto code = parseOptions("optimize", synopsis, options, positional, args, vm)) return *code;
   OptimizeCommand c;
   c.design = vm["design"].as<std::string>(), c.output = vm["output"].as<std::string>();
@@ -71,6 +74,9 @@ std::variant<OptimizeCommand, int> parseOptimize(const std::vector<std::string>&
   if (c.modulusControls != 0 && (c.modulusControls < 2 || c.modulusControls > 64))
     return usageError("optimize", "--modulus-controls: expected 2..64 (or 0 for the design's)");
   if (c.maxIterations < -1 || c.maxIterations > 100000) return usageError("optimize", "--max-iterations: expected 0..100000");
+  const std::string scaling = vm["scaling"].as<std::string>();
+  if (scaling != "log" && scaling != "linear") return usageError("optimize", "--scaling: expected log or linear, got \"" + scaling + "\"");
+  c.scaling = scaling == "log" ? optimize::Scaling::Logarithmic : optimize::Scaling::Linear;
   const std::optional<int> threads = threadCount("optimize", vm);
   if (!threads) return kUsage;
   c.workers = *threads > 0 ? *threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
@@ -87,6 +93,7 @@ optimize::Settings settingsFor(const OptimizeCommand& c, const geometry::RodStru
   optimize::applySpec(design.optimize, s);
   if (c.modulusControls > 0) s.modulusControls = c.modulusControls;
   if (c.maxIterations >= 0) s.maxIterations = c.maxIterations;
+  s.scaling = c.scaling;
   return s;
 }
 
@@ -141,6 +148,7 @@ nlohmann::json summaryJson(const OptimizeCommand& c, const optimize::DesignProbl
   const optimize::Settings& s = p.settings();
   return {{"design", c.design}, {"output", c.output}, {"rods", p.rodCount()}, {"unknowns", p.unknownCount()},
           {"load_cases", p.caseCount()}, {"design_variables", p.variableCount()}, {"modulus_controls", s.modulusControls},
+          {"scaling", s.scaling == optimize::Scaling::Logarithmic ? "log" : "linear"},
           {"bounds_mpa", {s.lowerMpa, s.upperMpa}}, {"objective_initial", r.initial.objective},
           {"objective_final", r.final.objective},
           {"relative", r.initial.objective > 0 ? r.final.objective / r.initial.objective : 0.0},

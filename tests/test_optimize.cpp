@@ -181,6 +181,8 @@ TEST_CASE("the adjoint gradient matches central finite differences (joints, a T-
 
 TEST_CASE("a manufactured problem: from a uniform modulus to g / g0 <= 1e-6 within the bounds", "[optimize]") {
   optimize::Settings settings = testSettings();
+  settings.scaling = GENERATE(optimize::Scaling::Linear, optimize::Scaling::Logarithmic);
+  INFO((settings.scaling == optimize::Scaling::Linear ? "linear" : "logarithmic") << " scaling");
   settings.objectiveTolerance = 1e-7;
   settings.maxIterations = 400;
   Eigen::VectorXd truth;

@@ -136,7 +136,9 @@ for key in ["objective_initial", "objective_final", "iterations", "design_variab
 assert s["design_variables"] == 8 and s["rods"] == 2
 assert s["objective_final"] / s["objective_initial"] < 1e-4, s["relative"]
 assert s["cases"][0]["name"] == "push" and abs(s["cases"][0]["objective_final"] - s["objective_final"]) < 1e-12
-assert s["bounds_mpa"] == [8, 190]
+assert s["bounds_mpa"] == [8, 190] and s["scaling"] == "log"
+estimate = s["cases"][0]["error_estimate"]  # the equilibrium's accuracy at the optimum
+assert estimate["available"] and 0 < estimate["relative"] < 1e-2 and s["error_estimate_relative"] == estimate["relative"], estimate
 assert len(s["history"]) == s["iterations"] + 1
 PY
 
@@ -164,6 +166,7 @@ expect_failure() {  # CODE FRAGMENT ARGS...
 }
 expect_failure 2 "--modulus-controls: expected 2..64" "$tmp/start.json" -o "$tmp/optimized.json" --modulus-controls 1
 expect_failure 2 "--max-iterations" "$tmp/start.json" -o "$tmp/optimized.json" --max-iterations -5
+expect_failure 2 '--scaling: expected log or linear, got "cubic"' "$tmp/start.json" -o "$tmp/optimized.json" --scaling cubic
 expect_failure 1 "mechanics.load_cases: missing" "$tmp/graded.json" -o "$tmp/optimized.json"
 expect_failure 1 "is also an input of this command" "$tmp/start.json" -o "$tmp/target.json"
 expect_failure 1 "is also an input of this command" "$tmp/start.json" -o "$tmp/optimized.json" --plot "$tmp/optimized.json"
