@@ -152,6 +152,21 @@ rm -f "$tmp/one.json" "$tmp/two.json"
 "$rodfab" slice "$tmp/optimized.json" -o "$tmp/job.zip" > "$tmp/out" 2>&1 || fail "slice: $(cat "$tmp/out")"
 grep -q "^clamped moduli: 0 below the floor, 0 above the stiffest mix" "$tmp/out" || fail "clamped voxels: $(cat "$tmp/out")"
 
+# The bundled unfolding box with its published target (folded closed), a short run: g decreases,
+# the accuracy is reported, and the output slices without a clamped voxel (the README's walkthrough).
+"$rodfab" optimize "$src/examples/unfolding-box.json" -o "$tmp/box.json" --max-iterations 3 --json > "$tmp/box-summary.json" 2> "$tmp/err" ||
+  fail "optimize the box: $(cat "$tmp/err")"
+python3 - "$tmp/box-summary.json" <<'PY' || fail "box summary: $(cat "$tmp/box-summary.json")"
+import json, sys
+s = json.load(open(sys.argv[1]))
+assert s["rods"] == 34 and s["design_variables"] == 136 and s["iterations"] == 3, s
+assert s["cases"][0]["name"] == "fold" and s["objective_final"] < 0.9 * s["objective_initial"], s["relative"]
+assert s["cases"][0]["error_estimate"]["available"] and s["error_estimate_relative"] < 1e-3
+PY
+"$rodfab" slice "$tmp/box.json" -o "$tmp/box-job.zip" > "$tmp/out" 2>&1 || fail "slice the box: $(cat "$tmp/out")"
+grep -q "^clamped moduli: 0 below the floor, 0 above the stiffest mix" "$tmp/out" || fail "box clamped voxels: $(cat "$tmp/out")"
+rm -f "$tmp/box.json" "$tmp/box-job.zip"
+
 # Errors name what is wrong and write nothing.
 rm -f "$tmp/optimized.json"
 expect_failure() {  # CODE FRAGMENT ARGS...
