@@ -34,12 +34,16 @@ public:
       : problem_(problem), onIteration_(onIteration), result_(result), start_(Clock::now()),
         logarithmic_(problem.settings().scaling == Scaling::Logarithmic),
         lower_(logarithmic_ ? std::log(problem.settings().lowerMpa) : problem.settings().lowerMpa),
-        span_((logarithmic_ ? std::log(problem.settings().upperMpa) : problem.settings().upperMpa) - lower_) {}
+        span_((logarithmic_ ? std::log(problem.settings().upperMpa) : problem.settings().upperMpa) - lower_),
+        lowerMpa_(problem.settings().lowerMpa), upperMpa_(problem.settings().upperMpa) {}
 
   // t in [0, 1] -> E: linear, or linear in log E (equal steps are equal ratios of E).
   Eigen::VectorXd modulus(const Eigen::VectorXd& t) const {
     const Eigen::ArrayXd x = lower_ + span_ * t.array().min(1.0).max(0.0);
-    return logarithmic_ ? Eigen::VectorXd(x.exp().matrix()) : Eigen::VectorXd(x.matrix());
+    // Clamped: exp(log E0) is not always E0 to the last bit (exp(log 8) = 8 - 2e-15), and a value
+    // below the calibration's floor would be clamped when slicing.
+    const Eigen::ArrayXd e = logarithmic_ ? Eigen::ArrayXd(x.exp()) : x;
+    return e.max(lowerMpa_).min(upperMpa_).matrix();
   }
   Eigen::VectorXd scaled(const Eigen::VectorXd& e) const {
     const Eigen::ArrayXd x = logarithmic_ ? Eigen::ArrayXd(e.array().log()) : Eigen::ArrayXd(e.array());
@@ -113,7 +117,7 @@ private:
   Result& result_;
   Clock::time_point start_;
   bool logarithmic_;
-  double lower_, span_, g0_ = 1.0;
+  double lower_, span_, lowerMpa_, upperMpa_, g0_ = 1.0;
   int newton_ = 0;
   bool lastWasBest_ = true;
 };

@@ -223,6 +223,25 @@ TEST_CASE("a target only reachable beyond the bounds ends on them, a stationary 
   CHECK(result.modulus.maxCoeff() <= settings.upperMpa);
   // The rods the load bends are as stiff as allowed.
   CHECK(result.modulus.maxCoeff() == settings.upperMpa);
+}
+
+TEST_CASE("an optimum on the lower bound is the bound to the last bit (exp(log 8) is not 8)", "[optimize]") {
+  optimize::Settings settings = testSettings();
+  settings.scaling = GENERATE(optimize::Scaling::Linear, optimize::Scaling::Logarithmic);
+  settings.maxIterations = 100;
+  // The shapes of a structure softer than the lower bound allows everywhere.
+  optimize::Settings wide = settings;
+  wide.lowerMpa = 1.0;
+  RodStructure design = frame();
+  for (auto& lc : design.mechanics.loadCases) lc.target.push_back({"post", straight(Vec3(40, 0, 0), Vec3(40, 0, 60)), std::nullopt, std::nullopt, "t"});
+  optimize::DesignProblem generator(design, wide);
+  generator.evaluate(Eigen::VectorXd::Constant(static_cast<Eigen::Index>(generator.variableCount()), 7.0), false);
+  setTargetsFromStates(design, generator);
+  optimize::DesignProblem problem(design, settings);
+  const optimize::Result result = optimize::optimize(problem);
+  INFO("E " << result.modulus.transpose() << "\n" << result.stopReason);
+  CHECK(result.modulus.minCoeff() == settings.lowerMpa);
+  CHECK(result.modulus.maxCoeff() <= settings.upperMpa);
   CHECK(result.final.objective < result.initial.objective);
   CHECK(result.history.back().projectedGradient < 1e-3);
 }
