@@ -87,12 +87,14 @@ geometry::RodStructure manufactured(int around, int levels) {
   return design;
 }
 
-void optimizeSpring(benchmark::State& state, int around, int levels) {
+void optimizeSpring(benchmark::State& state, int around, int levels, optimize::Scaling scaling = optimize::Scaling::Linear) {
   const geometry::RodStructure design = manufactured(around, levels);
   optimize::Result last;
   std::size_t rods = 0, unknowns = 0, variables = 0;
   for (auto _ : state) {
-    optimize::DesignProblem problem(design, settings());
+    optimize::Settings s = settings();
+    s.scaling = scaling;
+    optimize::DesignProblem problem(design, s);
     rods = problem.rodCount(), unknowns = problem.unknownCount(), variables = problem.variableCount();
     last = optimize::optimize(problem);
     benchmark::DoNotOptimize(last.modulus.data());
@@ -154,6 +156,8 @@ void nloptSpring(benchmark::State& state, nlopt::algorithm algorithm, int around
 
 void optimizeSpring32(benchmark::State& state) { optimizeSpring(state, 4, 3); }
 void optimizeSpring312(benchmark::State& state) { optimizeSpring(state, 12, 12); }
+void optimizeSpring32Log(benchmark::State& state) { optimizeSpring(state, 4, 3, optimize::Scaling::Logarithmic); }
+void optimizeSpring312Log(benchmark::State& state) { optimizeSpring(state, 12, 12, optimize::Scaling::Logarithmic); }
 void mmaSpring32(benchmark::State& state) { nloptSpring(state, nlopt::LD_MMA, 4, 3, 341); }
 void ccsaqSpring32(benchmark::State& state) { nloptSpring(state, nlopt::LD_CCSAQ, 4, 3, 341); }
 
@@ -161,5 +165,7 @@ void ccsaqSpring32(benchmark::State& state) { nloptSpring(state, nlopt::LD_CCSAQ
 
 BENCHMARK(optimizeSpring32)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
 BENCHMARK(optimizeSpring312)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+BENCHMARK(optimizeSpring32Log)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+BENCHMARK(optimizeSpring312Log)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
 BENCHMARK(mmaSpring32)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
 BENCHMARK(ccsaqSpring32)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();

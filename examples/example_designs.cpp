@@ -348,3 +348,121 @@ geometry::MechanicsSpec armCastTraining(double fraction) {
 }
 
 }  // namespace rodfab::examples
+
+// ---- Training targets ------------------------------------------------------------------------
+
+namespace rodfab::examples {
+
+namespace {
+
+// The target of `rod` under the deformation `map` of space: its centerline through the mapped
+// points at a quarter of its parameter apart (cubic, parameter kept), the frame seeded with the
+// design's d1 at the start carried by the map's differential (a central difference).
+geometry::TargetRod mappedTarget(const Rod& rod, const std::function<Vec3(const Vec3&)>& map) {
+  const NurbsCurve& c = rod.centerline();
+  const double a = c.domainBegin(), b = c.domainEnd();
+  geometry::TargetRod t;
+  t.rod = rod.name();
+  t.centerline = cubicThrough([&](double s) { return map(c.point(a + s * (b - a))); });
+  const Vec3 start = c.point(a), d1 = rod.frame().at(c, a).d1;
+  constexpr double h = 1e-4;
+  t.referenceNormal = ((map(start + h * d1) - map(start - h * d1)) / (2 * h)).normalized();
+  return t;
+}
+
+geometry::LoadCase trainingCase(std::string name, const geometry::MechanicsSpec& training) {
+  geometry::LoadCase lc;
+  lc.name = std::move(name);
+  lc.supports = training.supports;
+  lc.loads = training.loads;
+  lc.distributedLoads = training.distributedLoads;
+  lc.loadSteps = training.loadSteps;
+  lc.path = "mechanics.load_cases[0]";
+  return lc;
+}
+
+// One fold of the box net about the edge line through `edge` along `axis`: points beyond the gap
+// (outwards `out`, in the plane) turn up by 90 degrees rigidly; points in the gap lie on a quarter
+// circle of radius 2 gap / pi, so a hinge keeps its length. C1 across the gap's far side.
+struct Fold {
+  Vec3 edge, axis, out;
+  double gap;
+  Vec3 operator()(const Vec3& p) const {
+    const Vec3 r = p - edge, up(0, 0, 1);
+    const double along = r.dot(axis), d = r.dot(out), h = r.z(), radius = 2 * gap / kPi;
+    if (d >= gap) return edge + along * axis + (radius - h) * out + (radius + d - gap) * up;
+    const double phi = std::max(d, 0.0) / gap * 0.5 * kPi;
+    return edge + along * axis + radius * (std::sin(phi) * out + (1 - std::cos(phi)) * up) +
+           h * (-std::sin(phi) * out + std::cos(phi) * up);
+  }
+};
+
+// The target rods in name order, the order a design file's "rods" object is read back in.
+geometry::LoadCase sortedByName(geometry::LoadCase lc) {
+  std::sort(lc.target.begin(), lc.target.end(), [](const geometry::TargetRod& a, const geometry::TargetRod& b) { return a.rod < b.rod; });
+  return lc;
+}
+
+}  // namespace
+
+geometry::LoadCase unfoldingBoxFold(double force) {
+  constexpr double kSide = 20.0, kGap = 2.5, kPitch = kSide + kGap;  // as in unfoldingBox()
+  constexpr double lo = kPitch, hi = kPitch + kSide, eps = 1e-6;        // the middle square's sides
+  const Fold front{Vec3(lo, lo, 0), Vec3(1, 0, 0), Vec3(0, -1, 0), kGap};  // square 10
+  const Fold back{Vec3(lo, hi, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), kGap};    // square 12
+  const Fold lid{Vec3(lo, hi + kPitch, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), kGap};  // square 13 on 12
+  const Fold left{Vec3(lo, lo, 0), Vec3(0, 1, 0), Vec3(-1, 0, 0), kGap};   // square 01
+  const Fold right{Vec3(hi, lo, 0), Vec3(0, 1, 0), Vec3(1, 0, 0), kGap};   // square 21
+  geometry::LoadCase lc = trainingCase("fold", unfoldingBoxTraining(force));
+  for (const Rod& rod : unfoldingBox().rods) {
+    // Each rod moves with the square (or gap) its middle lies in.
+    const Vec3 m = rod.centerline().point(0.5 * (rod.centerline().domainBegin() + rod.centerline().domainEnd()));
+    std::function<Vec3(const Vec3&)> map = [](const Vec3& p) { return p; };
+    if (m.y() < lo - eps) map = front;
+    else if (m.x() < lo - eps) map = left;
+    else if (m.x() > hi + eps) map = right;
+    else if (m.y() > hi + kPitch - eps) map = [&](const Vec3& p) { return back(lid(p)); };
+    else if (m.y() > hi + eps) map = back;
+    lc.target.push_back(mappedTarget(rod, map));
+  }
+  return sortedByName(std::move(lc));
+}
+
+geometry::LoadCase bucklingSpringCompression(const SpringParameters& p, double compression) {
+  const RodStructure spring = bucklingSpring(p);
+  auto mapWith = [&](double bulge) {
+    return [&p, compression, bulge](const Vec3& q) {
+      const double r = std::hypot(q.x(), q.y()), grow = (r + bulge * std::sin(kPi * q.z() / p.height)) / r;
+      return Vec3(q.x() * grow, q.y() * grow, (1 - compression) * q.z());
+    };
+  };
+  auto totalLength = [&](double bulge) {
+    double sum = 0;
+    for (const Rod& rod : spring.rods) sum += mappedTarget(rod, mapWith(bulge)).centerline.arcLength();
+    return sum;
+  };
+  // The bulge that keeps the total length: bisection (the length grows with the bulge).
+  double designLength = 0;
+  for (const Rod& rod : spring.rods) designLength += rod.centerline().arcLength();
+  double low = 0.0, high = p.radius;
+  for (int i = 0; i < 60; ++i) (totalLength(0.5 * (low + high)) < designLength ? low : high) = 0.5 * (low + high);
+  geometry::LoadCase lc = trainingCase("compression", bucklingSpringTraining(p, compression));
+  for (const Rod& rod : spring.rods) lc.target.push_back(mappedTarget(rod, mapWith(0.5 * (low + high))));
+  return sortedByName(std::move(lc));
+}
+
+geometry::LoadCase armCastFlattened() {
+  static constexpr double kRadius = 30.0;  // as in armCast()
+  geometry::LoadCase lc = trainingCase("flatten", armCastTraining());
+  for (const Rod& rod : armCast().rods) {
+    // The cylinder (x, R cos theta, R sin theta) unrolled: arc length R theta from the rim at theta = 0.
+    geometry::TargetRod t = mappedTarget(rod, [](const Vec3& q) {
+      return Vec3(q.x(), kRadius * (0.5 * kPi - std::atan2(q.z(), q.y())), kRadius);
+    });
+    t.referenceNormal = Vec3(0, 0, 1);  // the strips' d1 (the surface normal) turned to the plane's
+    lc.target.push_back(std::move(t));
+  }
+  return sortedByName(std::move(lc));
+}
+
+}  // namespace rodfab::examples

@@ -51,4 +51,24 @@ geometry::MechanicsSpec bucklingSpringTraining(const SpringParameters& parameter
 // cylinder onto the plane tangent to its crown puts them (`fraction` of the way there).
 geometry::MechanicsSpec armCastTraining(double fraction = 1.0);
 
+// ---- Training targets: the shape each training case should produce (the published target), as a
+// load case {supports and loads of the training case above, target rods} for `rodfab optimize`.
+// Derived from geometry alone (rigid folds, an inextensible compression, an unrolling), never from
+// a simulation. Every rod of the design has a target; the target rods are in name order.
+
+// The net folded into a closed box: the four squares next to the middle one turn up by 90 degrees
+// and the lid (beyond the back wall) by another 90, each gap's hinge rods bending into a quarter
+// circle of their own length (radius 2 gap / pi), the squares rigid.
+geometry::LoadCase unfoldingBoxFold(double force = 0.03);
+
+// The spring compressed uniformly (z -> (1 - compression) z, the training's prescribed displacement)
+// and buckled outwards at mid-height: radius R + b sin(pi z / H), b such that the struts keep their
+// total length (inextensible), the two rings unchanged but for the top one's descent.
+geometry::LoadCase bucklingSpringCompression(const SpringParameters& parameters = {}, double compression = 0.15);
+
+// The cast unrolled onto the plane tangent to its crown (z = R): the point at arc length s from the
+// rim at angle 0 and axial position x goes to (x, R pi / 2 - s, R), the strips' normal to +z. An
+// isometry: every strip keeps its length and becomes straight.
+geometry::LoadCase armCastFlattened();
+
 }  // namespace rodfab::examples

@@ -153,13 +153,20 @@ Eigen::VectorXd DesignProblem::startingModulus() const {
   const Impl& m = *impl_;
   const int n = m.settings.modulusControls, p = m.degree;
   Eigen::VectorXd e(static_cast<Eigen::Index>(variableCount()));
-  for (std::size_t r = 0; r < m.design.rods.size(); ++r)
+  for (std::size_t r = 0; r < m.design.rods.size(); ++r) {
+    const geometry::BSplineField& own = m.design.rods[r].modulus();
+    if (!own.isConstant() && own.degree() == p && own.knots() == m.knots[r]) {  // already in the basis (an optimized design)
+      for (int k = 0; k < n; ++k)
+        e[static_cast<Eigen::Index>(r * n + k)] = std::clamp(own.values()[k], m.settings.lowerMpa, m.settings.upperMpa);
+      continue;
+    }
     for (int k = 0; k < n; ++k) {
       double greville = 0;
       for (int i = 1; i <= p; ++i) greville += m.knots[r][k + i];
       const double value = m.design.rods[r].modulus().value(greville / p);
       e[static_cast<Eigen::Index>(r * n + k)] = std::clamp(value, m.settings.lowerMpa, m.settings.upperMpa);
     }
+  }
   return e;
 }
 
@@ -189,6 +196,31 @@ Evaluation DesignProblem::evaluate(const Eigen::VectorXd& modulus, bool gradient
     // Adjoint: J^T lambda = dg/dx at the solution, then dg/dE = -lambda^T dF/dE.
     const Eigen::VectorXd lambda = s.tangent->solveTransposed(t.gradient);
     out.gradient -= c.weight * (c.problem->modulusJacobian(c.state, 1.0).transpose() * lambda);
+  }
+  return out;
+}
+
+std::vector<CaseAccuracy> DesignProblem::accuracyAt(const Eigen::VectorXd& modulus, const std::function<void()>& poll) const {
+  const Impl& m = *impl_;
+  if (static_cast<std::size_t>(modulus.size()) != variableCount())
+    throw std::invalid_argument("DesignProblem::accuracyAt: " + std::to_string(variableCount()) + " values expected");
+  const std::vector<geometry::Rod> rods = m.rodsWith(modulus);
+  mechanics::AccuracyOptions accuracy;
+  accuracy.maxRefinements = 0;  // the optimizer's discretization as it is: estimate, do not refine
+  std::vector<CaseAccuracy> out;
+  for (const Impl::Case& c : m.cases) {
+    if (poll) poll();
+    geometry::RodStructure s = *c.structure;
+    s.rods = rods;
+    try {
+      const mechanics::Simulation sim = mechanics::simulate(s, c.problem->discretization(), m.settings.solver, c.loadSteps, accuracy,
+                                                            [&](const mechanics::LoadStepReport&, const Eigen::VectorXd&) { if (poll) poll(); });
+      out.push_back({c.name, sim.estimate});
+    } catch (const mechanics::ConvergenceError& e) {
+      mechanics::ErrorEstimate none;
+      none.note = std::string("the load path does not converge: ") + e.what();
+      out.push_back({c.name, none});
+    }
   }
   return out;
 }

@@ -8,7 +8,7 @@
 // length, kappa the material curvature per deformed arc length (axial(R^T dR/ds)). E(u) per rod is
 // a clamped uniform B-spline on the centerline's parameter domain; its control values are the
 // design variables. Sensitivities are adjoint: one transposed solve per case with the Newton
-// factorization at the solution. The optimizer is L-BFGS-B (LBFGS++) on E scaled to [0, 1].
+// factorization at the solution. The optimizer is L-BFGS-B (LBFGS++) on log E (or E) scaled to [0, 1].
 //
 // Units: mm, MPa, N. Not thread-safe: one DesignProblem per thread (each solve is parallel inside).
 #pragma once
@@ -34,6 +34,10 @@ public:
   using std::runtime_error::runtime_error;
 };
 
+// The optimizer's variables: t in [0, 1] per control value, E = E0 + t (E1 - E0), or
+// E = E0 (E1 / E0)^t (logarithmic: equal steps are equal ratios of E).
+enum class Scaling { Linear, Logarithmic };
+
 struct Settings {
   double positionWeight = 1.0;   // C_r (dimensionless: positions are divided by the rod length)
   double curvatureWeight = 1.0;  // C_k (dimensionless: curvatures are multiplied by the rod length)
@@ -41,8 +45,11 @@ struct Settings {
   int modulusDegree = 3;         // 1..7, lowered to modulusControls - 1 when above it (0 for one control)
   double lowerMpa = 8.0, upperMpa = 190.0;  // bounds; the CLI takes them from the calibration
   int maxIterations = 200;       // L-BFGS-B iterations
-  double tolerance = 1e-7;       // converged when the projected gradient of g / g0 (in E scaled to [0, 1]) is below
+  double tolerance = 1e-7;       // converged when the projected gradient of g / g0 (in t in [0, 1], see Scaling) is below
   double objectiveTolerance = 0.0;  // also stop when g / g0 falls below this (0: never)
+  // Logarithmic by default: where only ratios of E set the shape (displacement-driven cases) g is
+  // flat along E -> a E, and equal steps in log E condition that far better (optimize/README.md).
+  Scaling scaling = Scaling::Logarithmic;
   // The discretization is resolved once, for the starting design, and kept for every solve.
   mechanics::Discretization discretization;
   mechanics::SolverOptions solver;
@@ -65,6 +72,13 @@ struct Evaluation {
   int newtonIterations = 0;  // over all cases, for this evaluation
 };
 
+// The discretization error of a case's equilibrium (mechanics::simulate's Richardson estimate on
+// the optimizer's discretization, no refinement).
+struct CaseAccuracy {
+  std::string name;
+  mechanics::ErrorEstimate estimate;  // available == false with a note when it could not be made
+};
+
 // The training cases of a design, each a discretized structure with its targets.
 class DesignProblem {
 public:
@@ -82,8 +96,9 @@ public:
   std::size_t unknownCount() const;  // of one case's discretization
   const mechanics::StaticProblem& caseProblem(std::size_t c) const;
 
-  // The design's own E(u) in the optimizer's basis: its values at the basis' Greville abscissae,
-  // clamped to the bounds (exact for a constant E).
+  // The design's own E(u) in the optimizer's basis, clamped to the bounds: its control values when
+  // it is a B-spline of that basis (an optimized design, so optimizing again resumes where it
+  // stopped), else its values at the basis' Greville abscissae (exact for a constant E).
   Eigen::VectorXd startingModulus() const;
   // g and (when `gradient`) dg/dE at the control values `modulus` (MPa, variableCount(), within
   // (0, inf)). Each case's Newton solve starts from its previous solution (continuation in E),
@@ -91,6 +106,12 @@ public:
   Evaluation evaluate(const Eigen::VectorXd& modulus, bool gradient = true);
   // The equilibrium states of the last evaluate(), per case.
   const Eigen::VectorXd& state(std::size_t c) const;
+  // How accurate the equilibria at `modulus` are: per case, a fresh solve along the load path on the
+  // optimizer's discretization and one with half the spans (mechanics::simulate with no
+  // refinement), about twice a solve's cost. `poll` (may be empty) is called before each case and
+  // after each load step; what it throws (common::Interrupted) passes through. A case whose path does
+  // not converge gets an estimate marked unavailable; throws mechanics::MechanicsError otherwise.
+  std::vector<CaseAccuracy> accuracyAt(const Eigen::VectorXd& modulus, const std::function<void()>& poll = {}) const;
   // The design with each rod's modulus replaced by the B-spline with control values `modulus`.
   geometry::RodStructure designWith(const Eigen::VectorXd& modulus) const;
 
@@ -103,7 +124,7 @@ struct Iteration {
   int index = 0;                 // 0: the start
   double objective = 0.0;        // g
   double relative = 1.0;         // g / g0
-  double projectedGradient = 0.0;  // infinity norm, of g / g0 in E scaled to [0, 1]
+  double projectedGradient = 0.0;  // infinity norm, of g / g0 in the optimizer's variables t in [0, 1]
   int newtonIterations = 0;      // since the previous report
   double seconds = 0.0;          // wall time since the start
 };
@@ -129,7 +150,39 @@ Result optimize(DesignProblem& problem, const std::function<void(const Iteration
 // std::runtime_error naming the file, std::invalid_argument for an empty history. The PNG carries a
 // tEXt chunk "Software: rodfab optimize".
 void writeHistoryPlot(const std::vector<Iteration>& history, const std::filesystem::path& png, const std::string& title = {});
-// True when `png` is a regular file written by writeHistoryPlot (what `optimize --plot` may replace).
+// True when `png` is a regular file written by writeHistoryPlot or writeShapeRender (both carry the
+// same tag: what `optimize --plot` and `--render` may replace).
 bool isHistoryPlot(const std::filesystem::path& png);
+
+// ---- The shape render (`optimize --render`) ----------------------------------------------------
+
+// A rod as drawn: points along its centerline (mm) and E there (MPa, one per point; empty for a
+// target, drawn in one colour).
+struct DrawnRod {
+  std::vector<Eigen::Vector3d> points;
+  std::vector<double> modulusMpa;
+};
+// One load case's three columns: the target, the deformed shape with the starting modulus and the
+// one with the optimized modulus.
+struct ShapeColumns {
+  std::string name;
+  std::vector<DrawnRod> target, start, optimized;
+};
+// The target rods of a load case, `samplesPerRod` + 1 points each (uniform in their parameter).
+std::vector<DrawnRod> drawnTarget(const std::vector<geometry::TargetRod>& target, int samplesPerRod = 16);
+// Every rod of case `c` in the state of `problem`'s last evaluate() (the caller evaluates at
+// `modulus` first), with E from the control values `modulus` (MPa, variableCount()).
+// std::out_of_range for a bad case, std::invalid_argument for a wrong size.
+std::vector<DrawnRod> drawnDeformed(const DesignProblem& problem, std::size_t c, const Eigen::VectorXd& modulus,
+                                    int samplesPerRod = 16);
+// The render: per case (at most the first 4) a row per orthographic view (front: x right, z up;
+// side: y right, z up; top: x right, y up) of three 300-pixel panels (target in blue; start and
+// optimized coloured by E on viridis between `lowerMpa` and `upperMpa`, over the target in pale
+// grey), one scale per case, a colour bar in MPa: a 1050 pixel wide RGB PNG, 64 + 1002 per case
+// high, tagged like writeHistoryPlot. Polls common::throwIfInterrupted (common::Interrupted) per
+// panel; written under a temporary name and renamed (common::writeFileAtomically). Throws
+// std::runtime_error naming the file, std::invalid_argument for no case or lowerMpa >= upperMpa.
+void writeShapeRender(const std::vector<ShapeColumns>& cases, double lowerMpa, double upperMpa, const std::filesystem::path& png,
+                      const std::string& title = {});
 
 }  // namespace rodfab::optimize

@@ -1,4 +1,4 @@
-// The bounded quasi-Newton loop: L-BFGS-B (LBFGS++) on E scaled to [0, 1] and g scaled by g0.
+// The bounded quasi-Newton loop: L-BFGS-B (LBFGS++) on log E (or E) scaled to [0, 1] and g scaled by g0.
 #include "optimize/optimize.hpp"
 
 #include <LBFGSB.h>
@@ -26,16 +26,29 @@ struct Abort {
   std::exception_ptr error;
 };
 
-// f(t) = g(lower + t (upper - lower)) / g0, with the bookkeeping of the best point and the
+// f(t) = g(E(t)) / g0 (E(t) as Scaling says), with the bookkeeping of the best point and the
 // per-iteration report (iterationDone, called by the line search below).
 class ScaledObjective {
 public:
   ScaledObjective(DesignProblem& problem, const std::function<void(const Iteration&)>& onIteration, Result& result)
       : problem_(problem), onIteration_(onIteration), result_(result), start_(Clock::now()),
-        lower_(problem.settings().lowerMpa), span_(problem.settings().upperMpa - problem.settings().lowerMpa) {}
+        logarithmic_(problem.settings().scaling == Scaling::Logarithmic),
+        lower_(logarithmic_ ? std::log(problem.settings().lowerMpa) : problem.settings().lowerMpa),
+        span_((logarithmic_ ? std::log(problem.settings().upperMpa) : problem.settings().upperMpa) - lower_),
+        lowerMpa_(problem.settings().lowerMpa), upperMpa_(problem.settings().upperMpa) {}
 
-  Eigen::VectorXd modulus(const Eigen::VectorXd& t) const { return (lower_ + span_ * t.array().min(1.0).max(0.0)).matrix(); }
-  Eigen::VectorXd scaled(const Eigen::VectorXd& e) const { return ((e.array() - lower_) / span_).matrix(); }
+  // t in [0, 1] -> E: linear, or linear in log E (equal steps are equal ratios of E).
+  Eigen::VectorXd modulus(const Eigen::VectorXd& t) const {
+    const Eigen::ArrayXd x = lower_ + span_ * t.array().min(1.0).max(0.0);
+    // Clamped: exp(log E0) is not always E0 to the last bit (exp(log 8) = 8 - 2e-15), and a value
+    // below the calibration's floor would be clamped when slicing.
+    const Eigen::ArrayXd e = logarithmic_ ? Eigen::ArrayXd(x.exp()) : x;
+    return e.max(lowerMpa_).min(upperMpa_).matrix();
+  }
+  Eigen::VectorXd scaled(const Eigen::VectorXd& e) const {
+    const Eigen::ArrayXd x = logarithmic_ ? Eigen::ArrayXd(e.array().log()) : Eigen::ArrayXd(e.array());
+    return ((x - lower_) / span_).matrix();
+  }
 
   double operator()(const Eigen::VectorXd& t, Eigen::VectorXd& grad) {
     try {
@@ -74,7 +87,8 @@ private:
       g0_ = ev.objective > 0 ? ev.objective : 1.0;
       result_.initial = ev;
     }
-    grad = ev.gradient * (span_ / g0_);
+    // dE/dt: span, or E span on the logarithmic scale.
+    grad = logarithmic_ ? Eigen::VectorXd(ev.gradient.cwiseProduct(e) * (span_ / g0_)) : Eigen::VectorXd(ev.gradient * (span_ / g0_));
     const double f = ev.objective / g0_;
     if (result_.evaluations == 1 || ev.objective < result_.final.objective) {
       result_.final = std::move(ev);
@@ -102,7 +116,8 @@ private:
   const std::function<void(const Iteration&)>& onIteration_;
   Result& result_;
   Clock::time_point start_;
-  double lower_, span_, g0_ = 1.0;
+  bool logarithmic_;
+  double lower_, span_, lowerMpa_, upperMpa_, g0_ = 1.0;
   int newton_ = 0;
   bool lastWasBest_ = true;
 };

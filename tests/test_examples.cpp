@@ -6,6 +6,7 @@
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
+#include <map>
 #include <numbers>
 #include <numeric>
 
@@ -47,6 +48,7 @@ void requireMatchesCommittedFile(const geometry::RodStructure& generated, const 
 TEST_CASE("Unfolding box: 34 rods, flat, one connected net", "[examples]") {
   auto box = examples::unfoldingBox();
   box.mechanics = examples::unfoldingBoxTraining();
+  box.mechanics.loadCases = {examples::unfoldingBoxFold()};
   requireMatchesCommittedFile(box, "unfolding-box.json");
   REQUIRE(box.rods.size() == 34);
   const auto summary = geometry::summarize(box);
@@ -63,6 +65,7 @@ TEST_CASE("Buckling spring: 312 rods on the cylinder, softest at mid-height", "[
   const examples::SpringParameters p;
   auto spring = examples::bucklingSpring(p);
   spring.mechanics = examples::bucklingSpringTraining(p);
+  spring.mechanics.loadCases = {examples::bucklingSpringCompression(p)};
   requireMatchesCommittedFile(spring, "buckling-spring.json");
   REQUIRE(spring.rods.size() == 312);
   REQUIRE(connectedComponents(spring, 1e-9) == 1);
@@ -96,6 +99,7 @@ TEST_CASE("Scaled buckling spring fills the 6-gigavoxel envelope", "[examples]")
 TEST_CASE("Arm cast: rectangular strips on a half cylinder, surface-normal frames", "[examples]") {
   auto cast = examples::armCast();
   cast.mechanics = examples::armCastTraining();
+  cast.mechanics.loadCases = {examples::armCastFlattened()};
   requireMatchesCommittedFile(cast, "arm-cast.json");
   REQUIRE(cast.rods.size() > 150);
   REQUIRE(connectedComponents(cast, 1e-9) == 1);
@@ -192,4 +196,85 @@ TEST_CASE("Arm cast training: the half cylinder is flattened", "[examples][mecha
   INFO("z from " << zMin << " to " << zMax << ", |y| up to " << yMax);
   CHECK(zMax - zMin < 6.0);
   CHECK(yMax == Approx(30.0 * std::numbers::pi / 2).margin(0.05));
+}
+
+// ---- Training targets: geometric facts of the published target shapes, checked on the targets.
+
+namespace {
+
+double lengthOf(const geometry::RodStructure& s, const std::string& name) {
+  for (const geometry::Rod& r : s.rods)
+    if (r.name() == name) return r.centerline().arcLength();
+  FAIL("no rod " << name);
+  return 0;
+}
+
+}  // namespace
+
+TEST_CASE("Unfolding box target: a closed box, squares rigid, hinges bent to quarter circles of their length", "[examples]") {
+  const geometry::RodStructure box = examples::unfoldingBox();
+  const geometry::LoadCase fold = examples::unfoldingBoxFold();
+  REQUIRE(fold.target.size() == box.rods.size());
+  REQUIRE(fold.supports.size() == 4);
+  REQUIRE(fold.loads.size() == 4);
+  const double radius = 2 * 2.5 / std::numbers::pi;  // a 2.5 mm hinge bent through 90 degrees
+  Eigen::AlignedBox3d bounds;
+  for (const geometry::TargetRod& t : fold.target) {
+    INFO(t.rod);
+    CHECK(t.centerline.arcLength() == Approx(lengthOf(box, t.rod)).epsilon(2e-3));  // an isometry
+    for (double u : {0.0, 0.3, 0.7, 1.0}) bounds.extend(t.centerline.point(u));
+    if (t.rod.rfind("square13", 0) == 0)  // the lid, on top: turned through 180 degrees
+      for (double u : {0.0, 0.5, 1.0}) CHECK(t.centerline.point(u).z() == Approx(20 + 2 * radius).margin(1e-9));
+    if (t.rod.rfind("square11", 0) == 0)  // the middle square stays
+      for (const geometry::Rod& r : box.rods)
+        if (r.name() == t.rod) CHECK((t.centerline.point(0.5) - r.centerline().point(0.5)).norm() < 1e-12);
+  }
+  // A cube of side 20 + 2 r around the middle square [22.5, 42.5]^2 (hinges slightly outside).
+  CHECK(bounds.min().x() == Approx(22.5 - radius).margin(0.05));
+  CHECK(bounds.max().x() == Approx(42.5 + radius).margin(0.05));
+  CHECK(bounds.min().y() == Approx(22.5 - radius).margin(0.05));
+  CHECK(bounds.max().y() == Approx(42.5 + radius).margin(0.05));
+  CHECK(bounds.max().z() == Approx(20 + 2 * radius).margin(0.05));
+}
+
+TEST_CASE("Buckling spring target: compressed by 15 %, bulging at mid-height, struts as long in total", "[examples]") {
+  const examples::SpringParameters p;
+  const geometry::RodStructure spring = examples::bucklingSpring(p);
+  const geometry::LoadCase c = examples::bucklingSpringCompression(p, 0.15);
+  REQUIRE(c.target.size() == spring.rods.size());
+  double before = 0, after = 0, middle = 0, ends = 0;
+  std::map<std::string, const geometry::TargetRod*> byName;
+  for (const geometry::TargetRod& t : c.target) byName[t.rod] = &t;
+  for (std::size_t r = 0; r < spring.rods.size(); ++r) {
+    REQUIRE(byName.count(spring.rods[r].name()) == 1);
+    const geometry::TargetRod& t = *byName[spring.rods[r].name()];
+    before += spring.rods[r].centerline().arcLength(), after += t.centerline.arcLength();
+    const Vec3 from = spring.rods[r].centerline().point(0.5), to = t.centerline.point(0.5);
+    CHECK(to.z() == Approx(0.85 * from.z()).margin(1e-3));
+    const double bulge = std::hypot(to.x(), to.y()) - std::hypot(from.x(), from.y());
+    if (std::abs(from.z() - 0.5 * p.height) < 0.1 * p.height) middle = std::max(middle, bulge);
+    if (t.rod.rfind("ring-", 0) == 0) ends = std::max(ends, std::abs(bulge));
+  }
+  CHECK(after == Approx(before).epsilon(1e-9));
+  INFO("bulge at mid-height " << middle << " mm, of the rings " << ends << " mm");
+  CHECK(middle > 1.0);
+  CHECK(ends < 0.01);
+}
+
+TEST_CASE("Arm cast target: unrolled onto the plane of the crown, every strip straight and as long", "[examples]") {
+  const geometry::RodStructure cast = examples::armCast();
+  const geometry::LoadCase c = examples::armCastFlattened();
+  REQUIRE(c.target.size() == cast.rods.size());
+  double yMax = 0;
+  for (const geometry::TargetRod& t : c.target) {
+    INFO(t.rod);
+    CHECK(t.centerline.arcLength() == Approx(lengthOf(cast, t.rod)).epsilon(2e-3));
+    const Vec3 a = t.centerline.point(0.0), b = t.centerline.point(1.0), m = t.centerline.point(0.5);
+    CHECK((m - 0.5 * (a + b)).norm() < 1e-6);  // straight
+    for (const Vec3& q : {a, m, b}) {
+      CHECK(q.z() == Approx(30.0).margin(1e-9));
+      yMax = std::max(yMax, std::abs(q.y()));
+    }
+  }
+  CHECK(yMax == Approx(30.0 * std::numbers::pi / 2).margin(1e-9));
 }

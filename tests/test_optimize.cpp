@@ -181,6 +181,8 @@ TEST_CASE("the adjoint gradient matches central finite differences (joints, a T-
 
 TEST_CASE("a manufactured problem: from a uniform modulus to g / g0 <= 1e-6 within the bounds", "[optimize]") {
   optimize::Settings settings = testSettings();
+  settings.scaling = GENERATE(optimize::Scaling::Linear, optimize::Scaling::Logarithmic);
+  INFO((settings.scaling == optimize::Scaling::Linear ? "linear" : "logarithmic") << " scaling");
   settings.objectiveTolerance = 1e-7;
   settings.maxIterations = 400;
   Eigen::VectorXd truth;
@@ -221,6 +223,79 @@ TEST_CASE("a target only reachable beyond the bounds ends on them, a stationary 
   CHECK(result.modulus.maxCoeff() <= settings.upperMpa);
   // The rods the load bends are as stiff as allowed.
   CHECK(result.modulus.maxCoeff() == settings.upperMpa);
+}
+
+TEST_CASE("an optimum on the lower bound is the bound to the last bit (exp(log 8) is not 8)", "[optimize]") {
+  optimize::Settings settings = testSettings();
+  settings.scaling = GENERATE(optimize::Scaling::Linear, optimize::Scaling::Logarithmic);
+  settings.maxIterations = 100;
+  // The shapes of a structure softer than the lower bound allows everywhere.
+  optimize::Settings wide = settings;
+  wide.lowerMpa = 1.0;
+  RodStructure design = frame();
+  for (auto& lc : design.mechanics.loadCases) lc.target.push_back({"post", straight(Vec3(40, 0, 0), Vec3(40, 0, 60)), std::nullopt, std::nullopt, "t"});
+  optimize::DesignProblem generator(design, wide);
+  generator.evaluate(Eigen::VectorXd::Constant(static_cast<Eigen::Index>(generator.variableCount()), 7.0), false);
+  setTargetsFromStates(design, generator);
+  optimize::DesignProblem problem(design, settings);
+  const optimize::Result result = optimize::optimize(problem);
+  INFO("E " << result.modulus.transpose() << "\n" << result.stopReason);
+  CHECK(result.modulus.minCoeff() == settings.lowerMpa);
+  CHECK(result.modulus.maxCoeff() <= settings.upperMpa);
   CHECK(result.final.objective < result.initial.objective);
   CHECK(result.history.back().projectedGradient < 1e-3);
+}
+
+TEST_CASE("an optimized design resumes from its own control values; drawn shapes are the solved states", "[optimize]") {
+  const optimize::Settings settings = testSettings();
+  optimize::DesignProblem problem(manufactured(settings, 7), settings);
+  const Eigen::VectorXd e = randomModulus(problem.variableCount(), 20, 150, 9);
+  optimize::DesignProblem again(problem.designWith(e), settings);
+  CHECK((again.startingModulus() - e).lpNorm<Eigen::Infinity>() == 0.0);
+  problem.evaluate(e, false);
+  const std::vector<optimize::DrawnRod> drawn = optimize::drawnDeformed(problem, 1, e, 8);
+  REQUIRE(drawn.size() == problem.rodCount());
+  // The arm's free end as the deformed design (mechanics' own output) has it; E as the design has it.
+  const RodStructure deformed = problem.caseProblem(1).deformedStructure(problem.state(1));
+  const geometry::NurbsCurve& arm = deformed.rods[2].centerline();
+  CHECK((drawn[2].points.back() - arm.point(arm.domainEnd())).norm() < 1e-9);
+  CHECK((drawn[0].points.front() - Vec3(40, 0, 0)).norm() < 1e-9);  // the clamped foot
+  const RodStructure withE = problem.designWith(e);
+  CHECK(drawn[1].modulusMpa[4] == Approx(withE.rods[1].modulus().value(0.5)));
+  const std::vector<optimize::DrawnRod> target = optimize::drawnTarget(manufactured(settings, 7).mechanics.loadCases[0].target, 8);
+  REQUIRE(target.size() == 3);
+  CHECK(target[0].points.size() == 9);
+  CHECK(target[0].modulusMpa.empty());
+}
+
+TEST_CASE("the accuracy at the optimum: the error estimate is the size of the difference from a finer solve", "[optimize]") {
+  const optimize::Settings settings = testSettings();
+  const RodStructure design = manufactured(settings, 7);
+  optimize::DesignProblem problem(design, settings);
+  const Eigen::VectorXd e = randomModulus(problem.variableCount(), 20, 150, 13);
+  problem.evaluate(e, false);
+  const std::vector<optimize::CaseAccuracy> accuracy = problem.accuracyAt(e);
+  REQUIRE(accuracy.size() == 2);
+  for (std::size_t c = 0; c < 2; ++c) {
+    const mechanics::ErrorEstimate& est = accuracy[c].estimate;
+    INFO("case " << accuracy[c].name << ": " << est.note);
+    REQUIRE(est.available);
+    // The truth: the same case with four times the spans.
+    RodStructure s = problem.designWith(e);
+    const geometry::LoadCase& lc = design.mechanics.loadCases[c];
+    s.mechanics.supports = lc.supports, s.mechanics.loads = lc.loads, s.mechanics.loadCases.clear();
+    mechanics::Discretization fine = problem.caseProblem(c).discretization();
+    for (int& spans : fine.perRod) spans *= 4;
+    mechanics::AccuracyOptions once;
+    once.estimate = false;
+    const mechanics::Simulation ref = mechanics::simulate(s, fine, settings.solver, lc.loadSteps, once);
+    double truth = 0;
+    for (std::size_t r = 0; r < problem.rodCount(); ++r)
+      for (double u : {0.0, 0.25, 0.5, 0.75, 1.0})
+        truth = std::max(truth, (ref.problem->position(ref.solution.state, r, u) -
+                                 problem.caseProblem(c).position(problem.state(c), r, u)).norm());
+    INFO("estimated " << est.positionError << " mm, difference from the finer solve " << truth << " mm");
+    CHECK(est.positionError > 0.2 * truth);
+    CHECK(est.positionError < 5.0 * truth);
+  }
 }

@@ -35,8 +35,58 @@ json.dump(start, open(tmp + "/start.json", "w"))
 PY
 "$rodfab" simulate "$tmp/graded.json" -o "$tmp/target.json" > "$tmp/out" 2>&1 || fail "simulate the target: $(cat "$tmp/out")"
 
-"$rodfab" optimize "$tmp/start.json" -o "$tmp/optimized.json" --plot "$tmp/history.png" > "$tmp/out" 2>&1 ||
+"$rodfab" optimize "$tmp/start.json" -o "$tmp/optimized.json" --plot "$tmp/history.png" --render "$tmp/shapes.png" > "$tmp/out" 2>&1 ||
   fail "optimize: $(cat "$tmp/out")"
+# The render, decoded by tests/cli/png_pixels.py (zlib and the PNG filters, not cairo's code): one
+# load case, three columns (target, start, optimized) of three 300-pixel views; the columns differ;
+# the target is drawn in one blue, the uniform start in the one colour of 60 MPa on viridis between
+# the bounds, and the optimized rods in colours of viridis within the range of its moduli.
+python3 - "$tmp/shapes.png" "$tmp/optimized.json" "$src/tests/cli" <<'PY' || fail "shape render"
+import json, sys
+sys.path.insert(0, sys.argv[3])
+from png_pixels import pixels
+from collections import Counter
+w, h, px, text = pixels(sys.argv[1])
+assert (w, h) == (1050, 44 + 20 + 30 + 3 * 324), (w, h)
+assert text == {"Software": "rodfab optimize"}, text
+STOPS = [(0.267, 0.005, 0.329), (0.278, 0.175, 0.483), (0.231, 0.322, 0.546), (0.173, 0.449, 0.558), (0.128, 0.567, 0.551),
+         (0.153, 0.683, 0.503), (0.361, 0.785, 0.388), (0.680, 0.860, 0.201), (0.993, 0.906, 0.144)]  # matplotlib's viridis
+def viridis(t):
+    x = min(max(t, 0.0), 1.0) * 8
+    i = min(int(x), 7)
+    return tuple(255 * (STOPS[i][k] + (x - i) * (STOPS[i + 1][k] - STOPS[i][k])) for k in range(3))
+def near(a, b, tol=4.0):
+    return max(abs(a[k] - b[k]) for k in range(3)) <= tol
+def column(col):  # every pixel of the column's three panels
+    x0, out = 20 + col * 300 + 2, []
+    for v in range(3):
+        y0 = 44 + 30 + 24 + v * 324
+        out += [px[y][x] for y in range(y0, y0 + 296) for x in range(x0, x0 + 296)]
+    return out
+BACKGROUND, GHOST, BLUE = (249, 249, 249), (209, 214, 230), (51, 89, 204)
+cols = [column(c) for c in range(3)]
+for a, b in [(0, 1), (0, 2), (1, 2)]:
+    differ = sum(1 for p, q in zip(cols[a], cols[b]) if p != q)
+    assert differ > 500, (a, b, differ)
+def pale(p):  # the background, the pale target and their antialiased blends (the segment between them)
+    d = [GHOST[k] - BACKGROUND[k] for k in range(3)]
+    t = min(max(sum((p[k] - BACKGROUND[k]) * d[k] for k in range(3)) / sum(x * x for x in d), 0.0), 1.0)
+    return near(p, [BACKGROUND[k] + t * d[k] for k in range(3)], 6)
+def rod_colours(pixels_):  # the colours of the rods' cores: frequent, not pale
+    counts = Counter(p for p in pixels_ if not pale(p))
+    return [c for c, n in counts.most_common() if n >= 40]
+target = rod_colours(cols[0])
+assert target and all(near(c, BLUE, 3) for c in target), target
+start = rod_colours(cols[1])
+assert start and all(near(c, viridis((60 - 8) / 182)) for c in start), (start, viridis((60 - 8) / 182))
+values = [v for r in json.load(open(sys.argv[2]))["rods"] for v in r["modulus"]["values"]]
+lo, hi = (min(values) - 8) / 182, (max(values) - 8) / 182
+optimized = rod_colours(cols[2])
+ts = [lo + (hi - lo) * k / 400 for k in range(401)]
+assert len(optimized) >= 3, optimized
+for c in optimized:
+    assert any(near(c, viridis(t)) for t in ts), (c, lo, hi)
+PY
 # The plot: a 960 x 640 RGB PNG tagged as ours, its image data complete (decoded here with zlib).
 python3 - "$tmp/history.png" <<'PY' || fail "convergence plot"
 import struct, sys, zlib
@@ -86,7 +136,9 @@ for key in ["objective_initial", "objective_final", "iterations", "design_variab
 assert s["design_variables"] == 8 and s["rods"] == 2
 assert s["objective_final"] / s["objective_initial"] < 1e-4, s["relative"]
 assert s["cases"][0]["name"] == "push" and abs(s["cases"][0]["objective_final"] - s["objective_final"]) < 1e-12
-assert s["bounds_mpa"] == [8, 190]
+assert s["bounds_mpa"] == [8, 190] and s["scaling"] == "log"
+estimate = s["cases"][0]["error_estimate"]  # the equilibrium's accuracy at the optimum
+assert estimate["available"] and 0 < estimate["relative"] < 1e-2 and s["error_estimate_relative"] == estimate["relative"], estimate
 assert len(s["history"]) == s["iterations"] + 1
 PY
 
@@ -99,6 +151,21 @@ rm -f "$tmp/one.json" "$tmp/two.json"
 # The optimized design slices as it is: every modulus inside the calibration's range.
 "$rodfab" slice "$tmp/optimized.json" -o "$tmp/job.zip" > "$tmp/out" 2>&1 || fail "slice: $(cat "$tmp/out")"
 grep -q "^clamped moduli: 0 below the floor, 0 above the stiffest mix" "$tmp/out" || fail "clamped voxels: $(cat "$tmp/out")"
+
+# The bundled unfolding box with its published target (folded closed), a short run: g decreases,
+# the accuracy is reported, and the output slices without a clamped voxel (the README's walkthrough).
+"$rodfab" optimize "$src/examples/unfolding-box.json" -o "$tmp/box.json" --max-iterations 3 --json > "$tmp/box-summary.json" 2> "$tmp/err" ||
+  fail "optimize the box: $(cat "$tmp/err")"
+python3 - "$tmp/box-summary.json" <<'PY' || fail "box summary: $(cat "$tmp/box-summary.json")"
+import json, sys
+s = json.load(open(sys.argv[1]))
+assert s["rods"] == 34 and s["design_variables"] == 136 and s["iterations"] == 3, s
+assert s["cases"][0]["name"] == "fold" and s["objective_final"] < 0.9 * s["objective_initial"], s["relative"]
+assert s["cases"][0]["error_estimate"]["available"] and s["error_estimate_relative"] < 1e-3
+PY
+"$rodfab" slice "$tmp/box.json" -o "$tmp/box-job.zip" > "$tmp/out" 2>&1 || fail "slice the box: $(cat "$tmp/out")"
+grep -q "^clamped moduli: 0 below the floor, 0 above the stiffest mix" "$tmp/out" || fail "box clamped voxels: $(cat "$tmp/out")"
+rm -f "$tmp/box.json" "$tmp/box-job.zip"
 
 # Errors name what is wrong and write nothing.
 rm -f "$tmp/optimized.json"
@@ -114,10 +181,15 @@ expect_failure() {  # CODE FRAGMENT ARGS...
 }
 expect_failure 2 "--modulus-controls: expected 2..64" "$tmp/start.json" -o "$tmp/optimized.json" --modulus-controls 1
 expect_failure 2 "--max-iterations" "$tmp/start.json" -o "$tmp/optimized.json" --max-iterations -5
+expect_failure 2 '--scaling: expected log or linear, got "cubic"' "$tmp/start.json" -o "$tmp/optimized.json" --scaling cubic
 expect_failure 1 "mechanics.load_cases: missing" "$tmp/graded.json" -o "$tmp/optimized.json"
 expect_failure 1 "is also an input of this command" "$tmp/start.json" -o "$tmp/target.json"
 expect_failure 1 "is also an input of this command" "$tmp/start.json" -o "$tmp/optimized.json" --plot "$tmp/optimized.json"
 expect_failure 1 "convergence plot" "$tmp/start.json" -o "$tmp/optimized.json" --plot "$tmp/graded.json"
+expect_failure 2 "--render and --plot: expected two different files" "$tmp/start.json" -o "$tmp/optimized.json" --plot "$tmp/a.png" --render "$tmp/a.png"
+expect_failure 2 "--render: expected a PNG file name" "$tmp/start.json" -o "$tmp/optimized.json" --render ""
+expect_failure 1 "is also an input of this command" "$tmp/start.json" -o "$tmp/optimized.json" --render "$tmp/target.json"
+expect_failure 1 "shape render" "$tmp/start.json" -o "$tmp/optimized.json" --render "$tmp/graded.json"
 python3 - "$tmp" <<'PY'
 import json, sys
 tmp = sys.argv[1]
@@ -160,7 +232,7 @@ json.dump({"format": "rodfab.design/1", "units": "mm", "rods": rods,
 PY
 "$rodfab" simulate "$tmp/chain.json" -o "$tmp/chain-target.json" --no-estimate > "$tmp/out" 2>&1 || fail "simulate the chain: $(cat "$tmp/out")"
 for sig in INT TERM; do
-  "$rodfab" optimize "$tmp/chain-start.json" -o "$tmp/optimized.json" > "$tmp/out" 2>&1 &
+  "$rodfab" optimize "$tmp/chain-start.json" -o "$tmp/optimized.json" --render "$tmp/chain.png" > "$tmp/out" 2>&1 &
   pid=$!
   for _ in $(seq 600); do grep -q "^iter    1 " "$tmp/out" && break; sleep 0.05; done
   grep -q "^iter    1 " "$tmp/out" || fail "SIG$sig: the chain did not start iterating: $(cat "$tmp/out")"
@@ -169,7 +241,7 @@ for sig in INT TERM; do
   code=$?
   want=$([ $sig = INT ] && echo 130 || echo 143)
   [ "$code" -eq "$want" ] || fail "SIG$sig: exit $code, expected $want: $(cat "$tmp/out")"
-  [ -e "$tmp/optimized.json" ] && fail "SIG$sig left an output"
+  { [ -e "$tmp/optimized.json" ] || [ -e "$tmp/chain.png" ]; } && fail "SIG$sig left an output"
 done
 ls -A "$tmp" | grep -q '^\.' && fail "temporaries left behind: $(ls -A "$tmp")"
 echo "optimize: all checks passed"

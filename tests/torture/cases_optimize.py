@@ -72,11 +72,21 @@ def cases(ctx) -> list[Case]:
                        ("--threads", "-1"), ("--calibration", "")]:
         cs.append(run(f"option{opt}-{value or 'empty'}", ["optimize", "d.json", "-o", "o.json", opt, value], {"d.json": ok},
                       {2}, where=[opt]))
+    for opt, value in [("--scaling", "exp"), ("--scaling", ""), ("--render", "")]:
+        cs.append(run(f"option{opt}-{value or 'empty'}", ["optimize", "d.json", "-o", "o.json", opt, value], {"d.json": ok},
+                      {2}, where=[opt]))
+    cs.append(run("render-is-design", OPT + ["--render", "d.json"], {"d.json": ok}, {1}, where=["d.json"], outputs=()))
+    cs.append(run("render-is-folder", OPT + ["--render", "."], {"d.json": ok}, {1}, where=["."], outputs=()))
+    cs.append(run("render-same-as-plot", OPT + ["--render", "p.png", "--plot", "p.png"], {"d.json": ok}, {2},
+                  where=["--render"], outputs=()))
+    cs.append(run("render-target-1e300", OPT + ["--render", "r.png"], {"d.json": far}, {0, 1}, where=["d.json", "target"],
+                  outputs=("o.json", "r.png"), note="a target 1e300 mm away, drawn"))
     cs.append(run("output-is-target", ["optimize", "d.json", "-o", "t.json"],
                   {"d.json": frame({"design": "t.json"}), "t.json": frame()}, {1}, where=["t.json"], outputs=()))
     for sig in (signal.SIGINT, signal.SIGTERM):
         chain = frame(optimize={"modulus_controls": 64, "max_iterations": 100000, "tolerance": 0})
         cs.append(Case(f"{signal.Signals(sig).name.lower()}-mid-run",
-                       [Step(["optimize", "d.json", "-o", "o.json"], outputs=["o.json"], signal=(sig, 0.6), timeout=120)],
+                       [Step(["optimize", "d.json", "-o", "o.json", "--render", "r.png", "--plot", "p.png"],
+                             outputs=["o.json", "r.png", "p.png"], signal=(sig, 0.6), timeout=120)],
                        files={"d.json": json.dumps(chain)}, note="interrupted while iterating"))
     return cs
