@@ -103,6 +103,55 @@ std::vector<std::uint8_t> DeflateStream::take() {
   return std::move(out_);
 }
 
+std::optional<std::uint32_t> inflateRaw(std::span<const std::uint8_t> input, std::span<std::uint8_t> output) {
+  if (input.size() > 0xffffffffu || output.size() > 0xffffffffu) return std::nullopt;  // beyond igzip's counters
+  thread_local std::unique_ptr<inflate_state> state = std::make_unique<inflate_state>();
+  isal_inflate_init(state.get());
+  state->crc_flag = ISAL_GZIP_NO_HDR;  // raw deflate, with the gzip (= zip) CRC of the output
+  state->next_in = const_cast<std::uint8_t*>(input.data());  // igzip does not write through next_in
+  state->avail_in = static_cast<std::uint32_t>(input.size());
+  state->next_out = output.data();
+  state->avail_out = static_cast<std::uint32_t>(output.size());
+  const int status = isal_inflate_stateless(state.get());
+  const bool whole = (status == ISAL_DECOMP_OK || status == ISAL_END_INPUT) && state->block_state == ISAL_BLOCK_FINISH;
+  if (!whole || state->avail_out != 0) return std::nullopt;
+  return state->crc;
+}
+
+struct InflateStream::State {
+  inflate_state igzip;
+};
+
+InflateStream::InflateStream() : state_(std::make_unique<State>()), buffer_(std::size_t{1} << 16) {
+  isal_inflate_init(&state_->igzip);
+  state_->igzip.crc_flag = ISAL_GZIP_NO_HDR;  // raw deflate, with the gzip (= zip) CRC of the output
+}
+
+InflateStream::~InflateStream() = default;
+
+void InflateStream::feed(std::span<const std::uint8_t> input) {
+  if (input.size() > 0xffffffffu) throw std::invalid_argument("InflateStream::add: piece over 4 GiB");
+  state_->igzip.next_in = const_cast<std::uint8_t*>(input.data());  // igzip does not write through next_in
+  state_->igzip.avail_in = static_cast<std::uint32_t>(input.size());
+}
+
+std::size_t InflateStream::inputLeft() const { return ended_ ? 0 : state_->igzip.avail_in; }
+
+InflateStream::Status InflateStream::step() {
+  pendingBytes_ = 0;
+  if (ended_) return Status::End;
+  inflate_state& z = state_->igzip;
+  z.next_out = buffer_.data();
+  z.avail_out = static_cast<std::uint32_t>(buffer_.size());
+  const int result = isal_inflate(&z);
+  pendingBytes_ = buffer_.size() - z.avail_out;
+  if (result < 0) return Status::Damaged;
+  ended_ = z.block_state == ISAL_BLOCK_FINISH;
+  return ended_ ? Status::End : Status::More;
+}
+
+std::uint32_t InflateStream::crc() const { return state_->igzip.crc; }
+
 std::uint32_t zipCrc32(std::span<const std::uint8_t> data, std::uint32_t crc) {
   return crc32_gzip_refl(crc, data.data(), data.size());
 }

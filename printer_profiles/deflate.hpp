@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -46,6 +47,53 @@ private:
   std::unique_ptr<isal_zstream> stream_;
   std::vector<std::uint8_t> levelBuffer_, out_;
   std::size_t produced_ = 0;
+  bool ended_ = false;
+};
+
+// Inflates raw deflate `input` into `output`, whose size is the size the data must have (a zip entry's
+// recorded size). Returns the CRC-32 (zipCrc32) of the output, or nullopt when the data is damaged or
+// inflates to another size. Thread-safe.
+std::optional<std::uint32_t> inflateRaw(std::span<const std::uint8_t> input, std::span<std::uint8_t> output);
+
+// Raw deflate decoded piece by piece (a zip entry read in chunks), with the CRC-32 of the output:
+// memory is igzip's state and one output buffer of 64 KiB, whatever the data inflates to.
+class InflateStream {
+public:
+  enum class Status {
+    More,     // all input consumed; the stream has not ended
+    End,      // the final block has ended (input after it is ignored)
+    Damaged,  // invalid deflate data
+  };
+  InflateStream();
+  ~InflateStream();
+  InflateStream(const InflateStream&) = delete;
+  InflateStream& operator=(const InflateStream&) = delete;
+
+  // Decodes `input`, passing each piece of output (at most 64 KiB) to `sink` as it comes; whatever
+  // `sink` throws passes through (the stream is then unusable).
+  template <class Sink>
+  Status add(std::span<const std::uint8_t> input, Sink&& sink) {
+    feed(input);
+    for (;;) {
+      const Status status = step();
+      if (!pending().empty()) sink(pending());
+      // A full buffer may leave output inside igzip even when the input is used up: call again.
+      if (status != Status::More || (inputLeft() == 0 && pending().size() < buffer_.size())) return status;
+    }
+  }
+  // The CRC-32 (zipCrc32) of all output, once add() has returned End.
+  std::uint32_t crc() const;
+
+private:
+  void feed(std::span<const std::uint8_t> input);
+  Status step();  // one call into igzip, filling the output buffer
+  std::span<const std::uint8_t> pending() const { return {buffer_.data(), pendingBytes_}; }
+  std::size_t inputLeft() const;
+
+  struct State;
+  std::unique_ptr<State> state_;
+  std::vector<std::uint8_t> buffer_;
+  std::size_t pendingBytes_ = 0;
   bool ended_ = false;
 };
 
