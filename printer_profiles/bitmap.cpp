@@ -426,7 +426,7 @@ RgbImage decodePngRgb(std::span<const std::uint8_t> file) {
 Bytes encodePngRgba(int width, int height, int xDpi, int yDpi, const std::function<void(int, std::uint8_t*)>& row) {
   // No filter: layers are long runs of one colour, which deflate finds as 4-byte repeats. Measured
   // with zlib on arm-cast (1,167 layers of 1768 x 753): 16.5 s CPU and 50.2 MB for the job, against
-  // 25.1 s and 47.9 MB with the Sub filter; igzip now compresses (see printer_profiles/README.md).
+  // 25.1 s and 47.9 MB with the Sub filter. igzip compresses now (printer_profiles/README.md).
   const PngWriteSpec spec{static_cast<png_uint_32>(width), static_cast<png_uint_32>(height), 8, PNG_COLOR_TYPE_RGBA,
                           pixelsPerMetre(xDpi), pixelsPerMetre(yDpi), 0, nullptr, static_cast<std::size_t>(width) * 4};
   return writePngWithIdatOrThrow(spec, compressUnfilteredRows(spec.height, spec.stride, row));
