@@ -1,15 +1,23 @@
 // printer_profiles/deflate.hpp against zlib, an independent implementation: what igzip compresses,
 // zlib inflates (raw and zlib-wrapped, Adler-32 checked by zlib); what zlib compresses, InflateStream
-// reads in any piece sizes; CRC-32 as zlib computes it; damaged and truncated data refused.
+// reads in any piece sizes; CRC-32 as zlib computes it; damaged and truncated data refused; staged
+// deflate data copied into a zip by libzip without recompressing, read back by libzip (zlib).
 #include "printer_profiles/deflate.hpp"
+#include "printer_profiles/job_archive.hpp"
 
 #include <catch2/catch.hpp>
+#include <zip.h>
 #include <zlib.h>
 
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
 #include <random>
 #include <vector>
 
 using namespace rodfab::printer_profiles;
+namespace fs = std::filesystem;
 using Data = std::vector<std::uint8_t>;
 
 namespace {
@@ -131,4 +139,49 @@ TEST_CASE("CRC-32 and inflate agree with zlib; damaged or short data is refused"
   const Data invalid{0xff, 0xff, 0xff, 0xff, 0xff, 0xff};  // block type 3 is reserved
   inflateInPieces(invalid, 64, status, crc);
   CHECK(status == InflateStream::Status::Damaged);
+}
+
+TEST_CASE("writeZip copies staged deflate data as it is; libzip reads it back", "[deflate][zip]") {
+  const fs::path dir = fs::temp_directory_path() / ("rodfab-test-staged-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const Data a = layerLike(268'000, 5), b = layerLike(100'000, 6), stored{'P', 'N', 'G', '!'};
+  const Data da = deflateBytes(a, 1, DeflateWrapper::Raw), db = deflateBytes(b, 1, DeflateWrapper::Raw);
+  Data blob = da;
+  blob.insert(blob.end(), db.begin(), db.end());
+  blob.insert(blob.end(), stored.begin(), stored.end());
+  const fs::path staged = dir / "band.bin";
+  std::ofstream(staged, std::ios::binary).write(reinterpret_cast<const char*>(blob.data()), static_cast<std::streamsize>(blob.size()));
+  const auto entry = [&](const char* name, std::uint64_t offset, const Data& packed, const Data& plain, ZipStorage storage) {
+    return ZipEntry{name, {}, storage, StagedZipData{staged, offset, packed.size(), plain.size(), zipCrc32(plain)}};
+  };
+  const std::vector<ZipEntry> entries{entry("a.bmp", 0, da, a, ZipStorage::Deflate),
+                                      entry("b.bmp", da.size(), db, b, ZipStorage::Deflate),
+                                      entry("c.png", da.size() + db.size(), stored, stored, ZipStorage::Store)};
+  writeZip(dir / "job.zip", entries);
+
+  int error = 0;
+  zip_t* za = zip_open((dir / "job.zip").c_str(), ZIP_RDONLY | ZIP_CHECKCONS, &error);
+  REQUIRE(za);
+  const std::vector<std::pair<const Data*, const Data*>> expected{{&a, &da}, {&b, &db}, {&stored, &stored}};
+  for (zip_uint64_t n = 0; n < 3; ++n) {
+    zip_stat_t st;
+    REQUIRE(zip_stat_index(za, n, 0, &st) == 0);
+    CHECK(st.comp_method == (n < 2 ? ZIP_CM_DEFLATE : ZIP_CM_STORE));
+    CHECK(st.comp_size == expected[n].second->size());  // igzip's bytes, not recompressed by libzip
+    zip_file_t* zf = zip_fopen_index(za, n, 0);
+    REQUIRE(zf);
+    Data back(st.size + 1);
+    const zip_int64_t got = zip_fread(zf, back.data(), back.size());  // to the end: libzip checks the CRC
+    zip_fclose(zf);
+    REQUIRE(got == static_cast<zip_int64_t>(st.size));
+    back.resize(st.size);
+    CHECK(back == *expected[n].first);
+  }
+  zip_discard(za);
+
+  // A staged file shorter than recorded: the archive is not written.
+  fs::resize_file(staged, blob.size() - 10);
+  CHECK_THROWS_AS(writeZip(dir / "short.zip", entries), std::runtime_error);
+  fs::remove_all(dir);
 }
