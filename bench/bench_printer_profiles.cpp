@@ -1,4 +1,5 @@
 // printer_profiles/: layer encoding and whole-job throughput (bitmaps, PNG/BMP, zip, verification).
+#include "printer_profiles/deflate.hpp"
 #include "printer_profiles/printer_profiles.hpp"
 
 #include <benchmark/benchmark.h>
@@ -41,6 +42,16 @@ void BM_EncodePng1(benchmark::State& state) {
   state.SetBytesProcessed(state.iterations() * static_cast<int64_t>(b.bytes().size()));
 }
 BENCHMARK(BM_EncodePng1)->Unit(benchmark::kMicrosecond);
+
+// Raw deflate of one layer BMP at each igzip level (printer_profiles/deflate.hpp; the README's table).
+void BM_DeflateLayer(benchmark::State& state) {
+  const pp::Bytes bmp = pp::encodeBmp(latticeLayer(2048, 1024), 600, 300);
+  std::size_t compressed = 0;
+  for (auto _ : state) compressed = pp::deflateBytes(bmp, static_cast<int>(state.range(0)), pp::DeflateWrapper::Raw).size();
+  state.SetBytesProcessed(state.iterations() * static_cast<int64_t>(bmp.size()));
+  state.counters["ratio"] = static_cast<double>(bmp.size()) / static_cast<double>(compressed);
+}
+BENCHMARK(BM_DeflateLayer)->DenseRange(0, 3)->Unit(benchmark::kMicrosecond);
 
 void BM_Sha256(benchmark::State& state) {
   const pp::Bitmap b = latticeLayer(2048, 1024);

@@ -1,7 +1,10 @@
 #include "printer_profiles/bitmap.hpp"
 
+#include "printer_profiles/deflate.hpp"
+
 #include <png.h>
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <csetjmp>
@@ -242,6 +245,65 @@ bool writePng(PngIo& io, const PngWriteSpec& spec) {
   return true;
 }
 
+// Layer images: libpng writes the signature, IHDR and pHYs and frames every chunk (length, CRC), but
+// its row interface compresses with zlib, and it has no way to take image data compressed elsewhere.
+// So the filtered rows are compressed by igzip (zlib-wrapped, deflate.hpp) and handed to libpng's
+// png_write_chunk as IDAT chunks, then IEND: a standard PNG any decoder reads, made by libpng.
+constexpr std::size_t kIdatChunkBytes = std::size_t{1} << 18;
+
+bool writePngWithIdat(PngIo& io, const PngWriteSpec& spec, std::span<const std::uint8_t> zlibData) {
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &io, pngError, pngWarning);
+  if (!png) return false;
+  png_infop info = png_create_info_struct(png);
+  if (!info || setjmp(png_jmpbuf(png))) {
+    png_destroy_write_struct(&png, &info);
+    return false;
+  }
+  png_set_write_fn(png, &io, pngWrite, pngFlush);
+  png_set_IHDR(png, info, spec.width, spec.height, spec.bitDepth, spec.colourType, PNG_INTERLACE_NONE,
+               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  if (spec.xPpm) png_set_pHYs(png, info, spec.xPpm, spec.yPpm, PNG_RESOLUTION_METER);
+  png_write_info(png, info);
+  for (std::size_t at = 0; at < zlibData.size(); at += kIdatChunkBytes)
+    png_write_chunk(png, reinterpret_cast<png_const_bytep>("IDAT"), zlibData.data() + at,
+                    std::min(kIdatChunkBytes, zlibData.size() - at));
+  png_write_chunk(png, reinterpret_cast<png_const_bytep>("IEND"), nullptr, 0);
+  png_destroy_write_struct(&png, &info);
+  return true;
+}
+
+Bytes writePngWithIdatOrThrow(const PngWriteSpec& spec, std::span<const std::uint8_t> zlibData) {
+  Bytes out;
+  out.reserve(zlibData.size() + 128);
+  PngIo io;
+  io.out = &out;
+  if (!writePngWithIdat(io, spec, zlibData)) {
+    if (io.outOfMemory) throw std::bad_alloc();
+    throw ImageError(std::string("PNG encoding failed: ") + io.error);
+  }
+  return out;
+}
+
+// The image data of a PNG whose rows all use filter type 0 (None): each row prefixed by a zero byte,
+// compressed at the layer level. Rows come from `rowAt` in batches of about a megabyte, so a large
+// RGBA layer is never held whole; the batches depend only on the image size (deterministic bytes).
+Bytes compressUnfilteredRows(png_uint_32 height, std::size_t stride, const std::function<void(int, std::uint8_t*)>& rowAt) {
+  const std::size_t line = stride + 1;
+  const std::size_t batchRows = std::max<std::size_t>(1, (std::size_t{1} << 20) / line);
+  std::vector<std::uint8_t> batch(std::min<std::size_t>(batchRows, height) * line, 0);
+  if (batchRows >= height) {  // the whole image in one piece: igzip's one-shot path
+    for (png_uint_32 r = 0; r < height; ++r) rowAt(static_cast<int>(r), batch.data() + r * line + 1);
+    return deflateBytes(batch, kLayerDeflateLevel, DeflateWrapper::Zlib);
+  }
+  DeflateStream stream(kLayerDeflateLevel, DeflateWrapper::Zlib);
+  for (png_uint_32 r0 = 0; r0 < height; r0 += static_cast<png_uint_32>(batchRows)) {
+    const png_uint_32 r1 = static_cast<png_uint_32>(std::min<std::size_t>(height, r0 + batchRows));
+    for (png_uint_32 r = r0; r < r1; ++r) rowAt(static_cast<int>(r), batch.data() + (r - r0) * line + 1);
+    stream.add(std::span(batch.data(), (r1 - r0) * line), r1 == height);
+  }
+  return stream.take();
+}
+
 Bytes writePngOrThrow(const PngWriteSpec& spec) {
   Bytes out;
   PngIo io;
@@ -322,9 +384,12 @@ private:
 }  // namespace
 
 Bytes encodePng1(const Bitmap& bitmap, int xDpi, int yDpi) {
-  return writePngOrThrow({static_cast<png_uint_32>(bitmap.width()), static_cast<png_uint_32>(bitmap.height()), 1,
-                          PNG_COLOR_TYPE_GRAY, pixelsPerMetre(xDpi), pixelsPerMetre(yDpi), 1, bitmap.row(0),
-                          bitmap.stride()});
+  const PngWriteSpec spec{static_cast<png_uint_32>(bitmap.width()), static_cast<png_uint_32>(bitmap.height()), 1,
+                          PNG_COLOR_TYPE_GRAY, pixelsPerMetre(xDpi), pixelsPerMetre(yDpi), 0, nullptr, bitmap.stride()};
+  const Bytes data = compressUnfilteredRows(spec.height, spec.stride, [&](int r, std::uint8_t* out) {
+    std::memcpy(out, bitmap.row(r), bitmap.stride());
+  });
+  return writePngWithIdatOrThrow(spec, data);
 }
 
 DecodedBitmap decodePng1(std::span<const std::uint8_t> file) {
@@ -359,12 +424,12 @@ RgbImage decodePngRgb(std::span<const std::uint8_t> file) {
 }
 
 Bytes encodePngRgba(int width, int height, int xDpi, int yDpi, const std::function<void(int, std::uint8_t*)>& row) {
-  // Fastest deflate, no filter: layers are long runs of one colour, which deflate finds as 4-byte repeats.
-  // Measured on arm-cast (1,167 layers of 1768 x 753): 16.5 s CPU and 50.2 MB for the job, against 25.1 s
-  // and 47.9 MB with the Sub filter, and 38.9 s and 27.0 MB with Sub and zlib's Z_RLE strategy.
-  return writePngOrThrow({static_cast<png_uint_32>(width), static_cast<png_uint_32>(height), 8, PNG_COLOR_TYPE_RGBA,
-                          pixelsPerMetre(xDpi), pixelsPerMetre(yDpi), 1, nullptr, static_cast<std::size_t>(width) * 4, row,
-                          PNG_FILTER_NONE});
+  // No filter: layers are long runs of one colour, which deflate finds as 4-byte repeats. Measured
+  // with zlib on arm-cast (1,167 layers of 1768 x 753): 16.5 s CPU and 50.2 MB for the job, against
+  // 25.1 s and 47.9 MB with the Sub filter. igzip compresses now (printer_profiles/README.md).
+  const PngWriteSpec spec{static_cast<png_uint_32>(width), static_cast<png_uint_32>(height), 8, PNG_COLOR_TYPE_RGBA,
+                          pixelsPerMetre(xDpi), pixelsPerMetre(yDpi), 0, nullptr, static_cast<std::size_t>(width) * 4};
+  return writePngWithIdatOrThrow(spec, compressUnfilteredRows(spec.height, spec.stride, row));
 }
 
 RgbaHeader decodePngRgba(std::span<const std::uint8_t> file, std::uint64_t maxPixels,

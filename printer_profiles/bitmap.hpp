@@ -74,7 +74,8 @@ Bytes encodeBmp(const Bitmap& bitmap, int xDpi, int yDpi);
 // Accepts 1-bit BMPs with either row order; the pixel value is the palette index (1 = deposit).
 DecodedBitmap decodeBmp(std::span<const std::uint8_t> file);
 
-// PNG: grayscale, bit depth 1 (1 = white = deposit), pHYs in pixels per metre, fastest deflate.
+// PNG: grayscale, bit depth 1 (1 = white = deposit), pHYs in pixels per metre, no row filter; the image
+// data compressed by igzip at kLayerDeflateLevel (deflate.hpp), the chunks written by libpng.
 Bytes encodePng1(const Bitmap& bitmap, int xDpi, int yDpi);
 // 1-bit grayscale PNGs only (anything else is reported as the wrong bit depth or colour type).
 DecodedBitmap decodePng1(std::span<const std::uint8_t> file);
@@ -92,7 +93,8 @@ Bytes encodePngRgb(const RgbImage& image);
 RgbImage decodePngRgb(std::span<const std::uint8_t> file);  // 8-bit RGB PNGs only
 
 // 8-bit RGBA PNG (colour type 6) with pHYs, for GrabCAD Voxel Print layers: `row(r, out)` fills row r
-// (4 * width bytes) when the encoder needs it, so no whole image is held. Fastest deflate.
+// (4 * width bytes) when the encoder needs it, in batches of about 1 MB, so no whole image is held.
+// Compressed like encodePng1.
 Bytes encodePngRgba(int width, int height, int xDpi, int yDpi, const std::function<void(int, std::uint8_t*)>& row);
 
 struct RgbaHeader {

@@ -11,11 +11,13 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <bit>
 #include <climits>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <map>
 #include <set>
 #include <sstream>
@@ -35,6 +37,20 @@ constexpr int kMaxFolderDepth = 2;  // the job and its previews/ folder; deeper 
 using common::Sha256;  // files are checked as they stream
 
 // Voxel index sums of one material as decoded from the images, to compare with the manifest's.
+// Per byte value: pixels set, and the sum of their positions (0 = most significant bit).
+constexpr std::array<std::uint8_t, 256> kBitCounts = [] {
+  std::array<std::uint8_t, 256> t{};
+  for (int v = 0; v < 256; ++v) t[static_cast<std::size_t>(v)] = static_cast<std::uint8_t>(std::popcount(static_cast<unsigned>(v)));
+  return t;
+}();
+constexpr std::array<std::uint8_t, 256> kBitPositionSums = [] {
+  std::array<std::uint8_t, 256> t{};
+  for (int v = 0; v < 256; ++v)
+    for (int x = 0; x < 8; ++x)
+      if ((v >> (7 - x)) & 1) t[static_cast<std::size_t>(v)] = static_cast<std::uint8_t>(t[static_cast<std::size_t>(v)] + x);
+  return t;
+}();
+
 struct DecodedMoments {
   std::uint64_t count = 0;
   std::array<double, 3> sum{};
@@ -533,19 +549,31 @@ private:
       findings_.at(name, problem);
   }
 
+  // Word by word, skipping empty words (layers are mostly empty), one moments entry per row: the sums
+  // are of integers, exact in any order.
   void countVoxels(const Bitmap& b, int l, DecodedMoments& moments) const {
+    const std::size_t stride = b.stride();
     for (int r = 0; r < b.height(); ++r) {
       const std::uint8_t* row = b.row(r);
-      for (std::size_t byte = 0; byte < b.stride(); ++byte) {
-        const std::uint8_t bits = row[byte];
-        if (!bits) continue;
-        const int i0 = layout_.firstColumnI + static_cast<int>(byte) * 8;
-        double sumI = 0;
-        for (int x = 0; x < 8; ++x)
-          if ((bits >> (7 - x)) & 1) sumI += i0 + x;
-        moments.add(layout_.topRowJ - r, layout_.firstLayerK + l, std::popcount(bits), sumI, i0 + std::countl_zero(bits),
-                    i0 + 7 - std::countr_zero(bits));
+      std::int64_t count = 0, sumI = 0;
+      int iMin = INT32_MAX, iMax = INT32_MIN;
+      for (std::size_t at = 0; at < stride; at += 8) {
+        std::uint64_t word = 0;
+        const std::size_t end = std::min(stride, at + 8);
+        std::memcpy(&word, row + at, end - at);
+        if (!word) continue;
+        for (std::size_t byte = at; byte < end; ++byte) {
+          const std::uint8_t bits = row[byte];
+          if (!bits) continue;
+          const int i0 = layout_.firstColumnI + static_cast<int>(byte) * 8;
+          const int n = kBitCounts[bits];
+          count += n;
+          sumI += static_cast<std::int64_t>(n) * i0 + kBitPositionSums[bits];
+          iMin = std::min(iMin, i0 + std::countl_zero(bits));
+          iMax = std::max(iMax, i0 + 7 - std::countr_zero(bits));
+        }
       }
+      if (count) moments.add(layout_.topRowJ - r, layout_.firstLayerK + l, static_cast<int>(count), static_cast<double>(sumI), iMin, iMax);
     }
   }
 

@@ -11,7 +11,6 @@
 #include <cerrno>
 #include <cstring>
 #include <fstream>
-#include <map>
 #include <mutex>
 #include <optional>
 #include <set>
@@ -172,23 +171,11 @@ public:
   }
   ~ZipBuilder() {
     if (za_) zip_discard(za_);
-    for (zip_t* source : sources_) zip_discard(source);
   }
   ZipBuilder(const ZipBuilder&) = delete;
   ZipBuilder& operator=(const ZipBuilder&) = delete;
 
   zip_t* archive() const { return za_; }
-
-  // Archives read from (kept open until close(): libzip reads them then).
-  zip_t* openSource(const fs::path& path) {
-    if (auto it = sourceIndex_.find(path.string()); it != sourceIndex_.end()) return sources_[it->second];
-    int error = 0;
-    zip_t* source = zip_open(path.c_str(), ZIP_RDONLY, &error);
-    if (!source) fail("cannot open the staged archive " + path.string());
-    sourceIndex_.emplace(path.string(), sources_.size());
-    sources_.push_back(source);
-    return source;
-  }
 
   void add(const std::string& name, zip_source_t* source, ZipStorage storage) {
     if (!source) fail("cannot read the data of " + name);
@@ -218,25 +205,114 @@ public:
 private:
   fs::path path_;
   zip_t* za_ = nullptr;
-  std::vector<zip_t*> sources_;
-  std::map<std::string, std::size_t> sourceIndex_;
 };
+
+}  // namespace
+
+namespace {
+
+// A libzip source for StagedZipData: its stat says the data is already compressed (method, sizes and
+// CRC), so zip_close copies the bytes instead of compressing them, as it does for zip_source_zip.
+class StagedSource {
+public:
+  StagedSource(StagedZipData data, ZipStorage storage) : data_(std::move(data)), storage_(storage) { zip_error_init(&error_); }
+  ~StagedSource() {
+    if (fd_ >= 0) ::close(fd_);
+    zip_error_fini(&error_);
+  }
+  StagedSource(const StagedSource&) = delete;
+  StagedSource& operator=(const StagedSource&) = delete;
+
+  static zip_int64_t callback(void* self, void* data, zip_uint64_t length, zip_source_cmd_t command) {
+    auto* source = static_cast<StagedSource*>(self);
+    if (command == ZIP_SOURCE_FREE) {
+      delete source;
+      return 0;
+    }
+    return source->handle(data, length, command);
+  }
+
+private:
+  zip_int64_t handle(void* data, zip_uint64_t length, zip_source_cmd_t command) {
+    switch (command) {
+      case ZIP_SOURCE_OPEN:
+        fd_ = ::open(data_.file.c_str(), O_RDONLY | O_CLOEXEC);
+        position_ = 0;
+        return fd_ >= 0 ? 0 : failed(ZIP_ER_OPEN);
+      case ZIP_SOURCE_READ: return read(static_cast<char*>(data), length);
+      case ZIP_SOURCE_CLOSE:
+        ::close(std::exchange(fd_, -1));
+        return 0;
+      case ZIP_SOURCE_STAT: return stat(static_cast<zip_stat_t*>(data));
+      case ZIP_SOURCE_GET_FILE_ATTRIBUTES: return attributes(static_cast<zip_file_attributes_t*>(data));
+      case ZIP_SOURCE_ERROR: return zip_error_to_data(&error_, data, length);
+      case ZIP_SOURCE_SUPPORTS:
+        return zip_source_make_command_bitmap(ZIP_SOURCE_OPEN, ZIP_SOURCE_READ, ZIP_SOURCE_CLOSE, ZIP_SOURCE_STAT,
+                                              ZIP_SOURCE_ERROR, ZIP_SOURCE_FREE, ZIP_SOURCE_GET_FILE_ATTRIBUTES, -1);
+      default: return failed(ZIP_ER_OPNOTSUPP);
+    }
+  }
+
+  zip_int64_t failed(int code) {
+    zip_error_set(&error_, code, code == ZIP_ER_OPEN || code == ZIP_ER_READ ? errno : 0);
+    return -1;
+  }
+
+  zip_int64_t read(char* out, zip_uint64_t length) {
+    const zip_uint64_t want = std::min<zip_uint64_t>(length, data_.length - position_);
+    zip_uint64_t got = 0;
+    while (got < want) {
+      const ssize_t n = ::pread(fd_, out + got, want - got, static_cast<off_t>(data_.offset + position_ + got));
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) return failed(n < 0 ? ZIP_ER_READ : ZIP_ER_EOF);  // the staged file is shorter than recorded
+      got += static_cast<zip_uint64_t>(n);
+    }
+    position_ += got;
+    return static_cast<zip_int64_t>(got);
+  }
+
+  zip_int64_t stat(zip_stat_t* st) const {
+    zip_stat_init(st);
+    st->size = data_.size;
+    st->comp_size = data_.length;
+    st->comp_method = storage_ == ZipStorage::Deflate ? ZIP_CM_DEFLATE : ZIP_CM_STORE;
+    st->crc = data_.crc32;
+    st->encryption_method = ZIP_EM_NONE;
+    st->valid = ZIP_STAT_SIZE | ZIP_STAT_COMP_SIZE | ZIP_STAT_COMP_METHOD | ZIP_STAT_CRC | ZIP_STAT_ENCRYPTION_METHOD;
+    return 0;
+  }
+
+  // Deflated entries say "fast" in general purpose bits 1-2, as libzip's own level-1 deflate does.
+  zip_int64_t attributes(zip_file_attributes_t* a) const {
+    if (storage_ != ZipStorage::Deflate) return 0;
+    a->valid |= ZIP_FILE_ATTRIBUTES_GENERAL_PURPOSE_BIT_FLAGS;
+    a->general_purpose_bit_flags = 2 << 1;
+    a->general_purpose_bit_mask = 0x0006;
+    return 0;
+  }
+
+  StagedZipData data_;
+  ZipStorage storage_;
+  zip_error_t error_;
+  int fd_ = -1;
+  zip_uint64_t position_ = 0;
+};
+
+zip_source_t* stagedSource(zip_t* za, const StagedZipData& data, ZipStorage storage) {
+  auto* source = new StagedSource(data, storage);
+  zip_source_t* zs = zip_source_function(za, StagedSource::callback, source);
+  if (!zs) delete source;
+  return zs;
+}
 
 }  // namespace
 
 void writeZip(const fs::path& zipPath, const std::vector<ZipEntry>& entries) {
   ZipBuilder zip(zipPath);
   for (const ZipEntry& e : entries) {
-    if (!e.fromArchive) {
-      zip.add(e.name, zip_source_file(zip.archive(), e.source.c_str(), 0, -1), e.storage);
-      continue;
-    }
-    zip_t* staged = zip.openSource(e.source);
-    const zip_int64_t index = zip_name_locate(staged, e.name.c_str(), 0);
-    if (index < 0) zip.fail("the staged archive " + e.source.string() + " lacks " + e.name);
-    // Whole entry, no flags: libzip copies the compressed data; the same method and level as the
-    // staged entry keep it from recompressing.
-    zip.add(e.name, zip_source_zip(zip.archive(), staged, static_cast<zip_uint64_t>(index), 0, 0, -1), e.storage);
+    zip_source_t* source = e.staged ? stagedSource(zip.archive(), *e.staged, e.storage)
+                                    : zip_source_file(zip.archive(), e.source.c_str(), 0, -1);
+    zip.add(e.name, source, e.storage);
   }
   zip.close();
 }

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -70,13 +71,23 @@ OutputOccupant examineOutput(const std::filesystem::path& path);
 
 // When a file's contents go into the zip deflated (fast level) or as they are.
 enum class ZipStorage { Deflate, Store };
+
+// An entry's data already in its zip form, at [offset, offset + length) of a staged file: raw deflate
+// (RFC 1951) for ZipStorage::Deflate, the contents themselves for Store. libzip copies it as it is.
+struct StagedZipData {
+  std::filesystem::path file;
+  std::uint64_t offset = 0, length = 0;
+  std::uint64_t size = 0;    // of the contents, uncompressed
+  std::uint32_t crc32 = 0;   // of the contents (zipCrc32, deflate.hpp)
+};
+
 struct ZipEntry {
   std::string name;                  // inside the archive
   std::filesystem::path source;      // file on disk, read by libzip when the archive is closed
   ZipStorage storage = ZipStorage::Deflate;
-  // `source` is a zip from writeZipFromMemory holding an entry `name` stored as `storage`: its
-  // compressed bytes are copied as they are (compression happened in parallel, band by band).
-  bool fromArchive = false;
+  // Instead of `source`: data compressed beforehand (in parallel, band by band), copied into the
+  // archive without recompressing; `storage` says what it is.
+  std::optional<StagedZipData> staged;
 };
 
 struct ZipMemoryEntry {
@@ -89,9 +100,10 @@ struct ZipMemoryEntry {
 inline constexpr long long kZipEntryTime = 1577880000;
 
 // Writes a new zip holding `entries` in the given order; the bytes depend on nothing but the
-// entries' contents, names and storage (fixed timestamps and attributes).
+// entries' contents, names and storage, and for staged entries their compressed bytes (fixed
+// timestamps and attributes).
 void writeZip(const std::filesystem::path& zipPath, const std::vector<ZipEntry>& entries);
-// The same from memory: a staging archive whose entries writeZip can copy without recompressing.
+// The same from memory (deflated by libzip with zlib).
 void writeZipFromMemory(const std::filesystem::path& zipPath, const std::vector<ZipMemoryEntry>& entries);
 
 }  // namespace rodfab::printer_profiles

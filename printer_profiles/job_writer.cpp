@@ -2,6 +2,7 @@
 
 #include "common/interrupt.hpp"
 
+#include "printer_profiles/deflate.hpp"
 #include "printer_profiles/gcvf_writer.hpp"
 #include "printer_profiles/inspect.hpp"
 #include "printer_profiles/leaf_bits.hpp"
@@ -78,11 +79,8 @@ struct LayerRecord {
   std::array<std::uint64_t, 3> voxels{};  // by MaterialRole
   std::array<Moments, 2> moments;         // rigid, rubbery, from the grid
   std::vector<FileRecord> files;          // in profile material order
-  fs::path chunk;                         // zip jobs: the staged archive holding the files, compressed
+  std::vector<StagedZipData> zipped;      // zip jobs: each file's zip form, staged with its band
 };
-
-// Zip jobs stage a band's layers in archives of this many layers, compressed on as many workers.
-constexpr int kChunkLayers = 4;
 
 void writeFile(const fs::path& path, std::span<const std::uint8_t> data) {
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
@@ -384,10 +382,10 @@ struct JobWriter::Impl {
     forEachActiveTile(band.material->tree(), [&](const openvdb::CoordBBox& box, bool value) { tiles.emplace_back(box, value); });
 
     std::vector<LayerBitmaps> bitmaps(static_cast<std::size_t>(count));
-    // Zip jobs keep the encoded images in memory until their chunk is compressed: staging thousands
-    // of files costs more in the file system than the compression does.
+    // Zip jobs keep each image's zip form (deflated BMP, or the PNG as it is) in memory until the band
+    // is staged in one file: staging thousands of files costs more in the file system than compressing.
     const bool zip = spec.options.archive == ArchiveFormat::Zip;
-    std::vector<std::vector<Bytes>> encoded(zip ? static_cast<std::size_t>(count) : 0);
+    std::vector<std::vector<Bytes>> zipForms(zip ? static_cast<std::size_t>(count) : 0);
     const openvdb::FloatGrid* modulus = band.modulus.get();
     tbb::parallel_for(tbb::blocked_range<int>(0, count, 1), [&](const tbb::blocked_range<int>& range) {
       for (int n = range.begin(); n != range.end(); ++n) {
@@ -398,26 +396,32 @@ struct JobWriter::Impl {
         if (support == SupportPolicy::Explicit) addSupport(layer, b);
         record.voxels = {b.rigid.count(), b.rubbery.count(), b.hasSupport ? b.support.count() : 0};
         previews->addLayer(layer, b, modulus);
-        writeLayerFiles(layer, b, record, zip ? &encoded[static_cast<std::size_t>(n)] : nullptr);
+        writeLayerFiles(layer, b, record, zip ? &zipForms[static_cast<std::size_t>(n)] : nullptr);
       }
     });
     previews->addTopLayers(firstLayer, bitmaps, modulus);
-    if (!zip) return;
-    // Chunks of whole layers, numbered by their first layer: the bytes of each entry depend on its
-    // image alone, so the band and chunk sizes never show in the job.
-    const int chunks = (count + kChunkLayers - 1) / kChunkLayers;
-    tbb::parallel_for(0, chunks, [&](int c) {
-      const int n0 = c * kChunkLayers, n1 = std::min(count, n0 + kChunkLayers);
-      const fs::path chunk = staging->root() / ("layers-" + std::to_string(firstLayer + n0) + ".zip");
-      std::vector<ZipMemoryEntry> entries;
-      for (int n = n0; n < n1; ++n) {
-        const LayerRecord& record = layers[static_cast<std::size_t>(firstLayer + n)];
-        for (std::size_t f = 0; f < record.files.size(); ++f)
-          entries.push_back({record.files[f].name, encoded[static_cast<std::size_t>(n)][f], layerStorage()});
+    if (zip) stageBand(firstLayer, zipForms);
+  }
+
+  // One staged file per band, the layers' zip forms one after another; named by the band's first
+  // layer. Each entry's bytes depend on its image alone, so the band size never shows in the job.
+  void stageBand(int firstLayer, const std::vector<std::vector<Bytes>>& zipForms) {
+    const fs::path file = staging->root() / ("layers-" + std::to_string(firstLayer) + ".bin");
+    std::ofstream out(file, std::ios::binary | std::ios::trunc);
+    std::uint64_t offset = 0;
+    for (std::size_t n = 0; n < zipForms.size(); ++n) {
+      LayerRecord& record = layers[static_cast<std::size_t>(firstLayer) + n];
+      for (std::size_t f = 0; f < zipForms[n].size(); ++f) {
+        const Bytes& data = zipForms[n][f];
+        out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size()));
+        StagedZipData& z = record.zipped[f];
+        z.file = file;
+        z.offset = offset;
+        offset += data.size();
       }
-      writeZipFromMemory(chunk, entries);
-      for (int n = n0; n < n1; ++n) layers[static_cast<std::size_t>(firstLayer + n)].chunk = chunk;
-    });
+    }
+    out.close();
+    if (!out) throw std::runtime_error(file.string() + ": cannot write (disk full or no permission?)");
   }
 
   ZipStorage layerStorage() const { return imageFormat == ImageFormat::Png ? ZipStorage::Store : ZipStorage::Deflate; }
@@ -471,25 +475,34 @@ struct JobWriter::Impl {
     }
   }
 
-  // Encodes the layer's images; writes them to the staging folder, or hands them to `keep`.
-  void writeLayerFiles(int layer, const LayerBitmaps& b, LayerRecord& record, std::vector<Bytes>* keep) const {
+  // Encodes the layer's images; writes them to the staging folder, or hands their zip forms to
+  // `zipForms` (deflated BMP, PNG as it is) and records their sizes and CRCs in record.zipped.
+  void writeLayerFiles(int layer, const LayerBitmaps& b, LayerRecord& record, std::vector<Bytes>* zipForms) const {
     record.files.clear();
-    if (gcvf()) {  // one RGBA image holds every material of the layer
-      Bytes data = encodeGcvfLayer(b.rigid, b.rubbery, spec.profile);
-      FileRecord f{spec.profile.layerFileName(*emitted[0], layer, imageFormat), data.size(), sha256Hex(data)};
-      if (keep) keep->push_back(std::move(data));
-      else writeFile(filesDir / f.name, data);
+    record.zipped.clear();
+    const auto keep = [&](const ProfileMaterial& m, Bytes data) {
+      FileRecord f{spec.profile.layerFileName(m, layer, imageFormat), data.size(), sha256Hex(data)};
+      if (!zipForms) {
+        writeFile(filesDir / f.name, data);
+      } else {
+        StagedZipData z;
+        z.size = data.size();
+        z.crc32 = zipCrc32(data);
+        if (layerStorage() == ZipStorage::Deflate) data = deflateBytes(data, kLayerDeflateLevel, DeflateWrapper::Raw);
+        z.length = data.size();
+        record.zipped.push_back(z);
+        zipForms->push_back(std::move(data));
+      }
       record.files.push_back(std::move(f));
+    };
+    if (gcvf()) {  // one RGBA image holds every material of the layer
+      keep(*emitted[0], encodeGcvfLayer(b.rigid, b.rubbery, spec.profile));
       return;
     }
     for (const ProfileMaterial* m : emitted) {
       const Bitmap& bitmap = m->role == MaterialRole::Rigid ? b.rigid : m->role == MaterialRole::Rubbery ? b.rubbery : b.support;
-      Bytes data = imageFormat == ImageFormat::Bmp ? encodeBmp(bitmap, spec.profile.xDpi, spec.profile.yDpi)
-                                                         : encodePng1(bitmap, spec.profile.xDpi, spec.profile.yDpi);
-      FileRecord f{spec.profile.layerFileName(*m, layer, imageFormat), data.size(), sha256Hex(data)};
-      if (keep) keep->push_back(std::move(data));
-      else writeFile(filesDir / f.name, data);
-      record.files.push_back(std::move(f));
+      keep(*m, imageFormat == ImageFormat::Bmp ? encodeBmp(bitmap, spec.profile.xDpi, spec.profile.yDpi)
+                                               : encodePng1(bitmap, spec.profile.xDpi, spec.profile.yDpi));
     }
   }
 
@@ -678,13 +691,13 @@ struct JobWriter::Impl {
   // Fixed order: manifest, build file, previews, report, then the layers bottom-up, materials in profile order.
   void writeArchive(const std::vector<FileRecord>& files, std::size_t firstLayerFile) const {
     std::vector<ZipEntry> entries;
-    entries.push_back({kManifestName, filesDir / kManifestName, ZipStorage::Deflate});
+    entries.push_back({kManifestName, filesDir / kManifestName, ZipStorage::Deflate, std::nullopt});
     for (std::size_t n = 0; n < firstLayerFile; ++n) {
       const bool png = files[n].name.ends_with(".png");
-      entries.push_back({files[n].name, filesDir / files[n].name, png ? ZipStorage::Store : ZipStorage::Deflate});
+      entries.push_back({files[n].name, filesDir / files[n].name, png ? ZipStorage::Store : ZipStorage::Deflate, std::nullopt});
     }
     for (const LayerRecord& r : layers)
-      for (const FileRecord& f : r.files) entries.push_back({f.name, r.chunk, layerStorage(), true});
+      for (std::size_t f = 0; f < r.files.size(); ++f) entries.push_back({r.files[f].name, {}, layerStorage(), r.zipped[f]});
     writeZip(staging->zip(), entries);
   }
 

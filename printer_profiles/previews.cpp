@@ -5,6 +5,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <cstring>
 #include <bit>
 #include <cmath>
 #include <cstdio>
@@ -122,6 +123,18 @@ Previews::Previews(const JobGeometry& geometry, const Profile& profile, int cont
   tiles_.resize(contactLayers_.size());
 }
 
+namespace {
+
+// Whether bytes [at, at + 8) of both rows are empty: layers are mostly empty, so scans skip a word at a time.
+bool emptyWord(const std::uint8_t* a, const std::uint8_t* b, std::size_t at) {
+  std::uint64_t x, y;
+  std::memcpy(&x, a + at, 8);
+  std::memcpy(&y, b + at, 8);
+  return !(x | y);
+}
+
+}  // namespace
+
 void Previews::addLayer(int layer, const LayerBitmaps& b, const openvdb::FloatGrid* modulus) {
   std::optional<openvdb::FloatGrid::ConstAccessor> acc;
   if (modulus) acc.emplace(modulus->getConstAccessor());
@@ -131,7 +144,12 @@ void Previews::addLayer(int layer, const LayerBitmaps& b, const openvdb::FloatGr
   for (int r = h - 1; r >= 0; --r) {
     const std::uint8_t* rigid = b.rigid.row(r);
     const std::uint8_t* rubbery = b.rubbery.row(r);
-    for (std::size_t byte = 0; byte < b.rigid.stride(); ++byte) {
+    const std::size_t stride = b.rigid.stride();
+    for (std::size_t byte = 0; byte < stride; ++byte) {
+      if (byte % 8 == 0 && byte + 8 <= stride && emptyWord(rigid, rubbery, byte)) {
+        byte += 7;
+        continue;
+      }
       const std::uint8_t any = rigid[byte] | rubbery[byte];
       if (!any) continue;
       for (int bit = 0; bit < 8; ++bit) {
@@ -150,6 +168,10 @@ void Previews::addLayer(int layer, const LayerBitmaps& b, const openvdb::FloatGr
     const std::uint8_t* rigid = b.rigid.row(r);
     const std::uint8_t* rubbery = b.rubbery.row(r);
     for (std::size_t byte = b.rigid.stride(); byte-- > 0;) {
+      if (byte % 8 == 7 && emptyWord(rigid, rubbery, byte - 7)) {
+        byte -= 7;
+        continue;
+      }
       const std::uint8_t any = rigid[byte] | rubbery[byte];
       if (!any) continue;
       const int bit = 7 - std::countr_zero(any);
@@ -185,18 +207,25 @@ void Previews::addTopLayers(int first, const std::vector<LayerBitmaps>& layers, 
     std::optional<openvdb::FloatGrid::ConstAccessor> acc;
     if (modulus) acc.emplace(modulus->getConstAccessor());
     for (int r = rows.begin(); r != rows.end(); ++r) {
-      // Layers in increasing order: the last one seen in a column is its top.
-      for (std::size_t n = 0; n < layers.size(); ++n) {
+      // Layers from the band's top down: the first one seen in a column is its top within the band,
+      // and replaces what earlier bands left (their layers are below `first`).
+      for (std::size_t n = layers.size(); n-- > 0;) {
         const std::uint8_t* rigid = layers[n].rigid.row(r);
         const std::uint8_t* rubbery = layers[n].rubbery.row(r);
         const int layer = first + static_cast<int>(n);
-        for (std::size_t byte = 0; byte < layers[n].rigid.stride(); ++byte) {
+        const std::size_t stride = layers[n].rigid.stride();
+        for (std::size_t byte = 0; byte < stride; ++byte) {
+          if (byte % 8 == 0 && byte + 8 <= stride && emptyWord(rigid, rubbery, byte)) {
+            byte += 7;
+            continue;
+          }
           const std::uint8_t any = rigid[byte] | rubbery[byte];
           if (!any) continue;
           for (int bit = 0; bit < 8; ++bit) {
             if (!((any >> (7 - bit)) & 1)) continue;
             const int c = static_cast<int>(byte) * 8 + bit;
             const std::size_t at = static_cast<std::size_t>(r) * w + c;
+            if (top_.material[at] && top_.depth[at] >= first) continue;  // a higher layer of this band
             top_.material[at] = ((rigid[byte] >> (7 - bit)) & 1) ? 1 : 2;
             top_.depth[at] = layer;
             if (modulus) top_.modulus[at] = modulusAt(modulus, &*acc, {geometry_.i(c), geometry_.j(r), geometry_.k(layer)});

@@ -10,6 +10,7 @@ packages=(
   libtbb-dev
   librandom123-dev                                           # counter-based random numbers (dithering)
   libpng-dev
+  libisal-dev                                                # igzip: deflate of the layer images (printer_profiles/deflate.cpp)
   libxml2-dev                                                # reading GrabCAD Voxel Print ConfigFile.xml (inspect)
   libzip-dev zipcmp zipmerge ziptool                         # libzip's CMake config refers to these
   libboost-program-options-dev

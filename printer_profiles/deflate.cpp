@@ -1,0 +1,159 @@
+#include "printer_profiles/deflate.hpp"
+
+#include <isa-l/crc.h>
+#include <isa-l/igzip_lib.h>
+
+#include <algorithm>
+#include <new>
+#include <stdexcept>
+#include <string>
+
+namespace rodfab::printer_profiles {
+
+namespace {
+
+std::size_t levelBufferSize(int level) {
+  switch (level) {
+    case 0: return ISAL_DEF_LVL0_DEFAULT;
+    case 1: return ISAL_DEF_LVL1_DEFAULT;
+    case 2: return ISAL_DEF_LVL2_DEFAULT;
+    default: return ISAL_DEF_LVL3_DEFAULT;
+  }
+}
+
+// Room for stored blocks (5 bytes per 64 KiB), a dynamic header, a wrapper and slack: igzip falls back
+// to stored blocks when compressing would not fit, so this always suffices; the retry is a safeguard.
+std::size_t outputBound(std::size_t in) { return in + in / 8192 + ISAL_DEF_MAX_HDR_SIZE + 64; }
+
+void checkLevel(int level) {
+  if (level < 0 || level > ISAL_DEF_MAX_LEVEL)
+    throw std::invalid_argument("deflate level " + std::to_string(level) + " is not one of igzip's 0 to " +
+                                std::to_string(ISAL_DEF_MAX_LEVEL));
+}
+
+// One stateless compression into `out` (sized by the caller); false when `out` was too small.
+bool compressOnce(std::span<const std::uint8_t> input, int level, DeflateWrapper wrapper, std::vector<std::uint8_t>& out) {
+  thread_local std::vector<std::uint8_t> levelBuffer;
+  levelBuffer.resize(std::max(levelBuffer.size(), levelBufferSize(level)));
+  isal_zstream stream;
+  isal_deflate_stateless_init(&stream);
+  stream.level = static_cast<std::uint32_t>(level);
+  stream.level_buf = levelBuffer.data();
+  stream.level_buf_size = static_cast<std::uint32_t>(levelBufferSize(level));
+  stream.gzip_flag = wrapper == DeflateWrapper::Zlib ? IGZIP_ZLIB : IGZIP_DEFLATE;
+  stream.end_of_stream = 1;
+  stream.flush = NO_FLUSH;
+  // igzip's stream counts in 32 bits: a larger input would need the streaming interface.
+  if (input.size() > 0xffffffffu || out.size() > 0xffffffffu) throw std::invalid_argument("deflateBytes: input over 4 GiB");
+  stream.next_in = const_cast<std::uint8_t*>(input.data());  // igzip does not write through next_in
+  stream.avail_in = static_cast<std::uint32_t>(input.size());
+  stream.next_out = out.data();
+  stream.avail_out = static_cast<std::uint32_t>(out.size());
+  const int status = isal_deflate_stateless(&stream);
+  if (status == STATELESS_OVERFLOW) return false;
+  if (status != COMP_OK) throw std::runtime_error("igzip deflate failed (status " + std::to_string(status) + ")");
+  out.resize(out.size() - stream.avail_out);
+  return true;
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> deflateBytes(std::span<const std::uint8_t> input, int level, DeflateWrapper wrapper) {
+  checkLevel(level);
+  std::vector<std::uint8_t> out(outputBound(input.size()));
+  while (!compressOnce(input, level, wrapper, out)) out.assign(out.size() * 2, 0);
+  out.shrink_to_fit();
+  return out;
+}
+
+DeflateStream::DeflateStream(int level, DeflateWrapper wrapper)
+    : stream_(std::make_unique<isal_zstream>()), levelBuffer_(levelBufferSize((checkLevel(level), level))) {
+  isal_deflate_init(stream_.get());
+  stream_->level = static_cast<std::uint32_t>(level);
+  stream_->level_buf = levelBuffer_.data();
+  stream_->level_buf_size = static_cast<std::uint32_t>(levelBuffer_.size());
+  stream_->gzip_flag = wrapper == DeflateWrapper::Zlib ? IGZIP_ZLIB : IGZIP_DEFLATE;
+  stream_->flush = NO_FLUSH;
+}
+
+DeflateStream::~DeflateStream() = default;
+
+void DeflateStream::add(std::span<const std::uint8_t> piece, bool last) {
+  if (ended_) throw std::logic_error("DeflateStream::add after the last piece");
+  if (piece.size() > 0xffffffffu) throw std::invalid_argument("DeflateStream::add: piece over 4 GiB");
+  stream_->next_in = const_cast<std::uint8_t*>(piece.data());  // igzip does not write through next_in
+  stream_->avail_in = static_cast<std::uint32_t>(piece.size());
+  stream_->end_of_stream = last ? 1 : 0;
+  do {
+    if (out_.size() - produced_ < (std::size_t{1} << 16)) out_.resize(std::max<std::size_t>(out_.size() * 2, std::size_t{1} << 18));
+    stream_->next_out = out_.data() + produced_;
+    stream_->avail_out = static_cast<std::uint32_t>(std::min<std::size_t>(out_.size() - produced_, 0xffffffffu));
+    const std::uint32_t room = stream_->avail_out;
+    const int status = isal_deflate(stream_.get());
+    if (status != COMP_OK) throw std::runtime_error("igzip deflate failed (status " + std::to_string(status) + ")");
+    produced_ += room - stream_->avail_out;
+  } while (stream_->avail_in > 0 || (last && stream_->internal_state.state != ZSTATE_END));
+  ended_ = last;
+}
+
+std::vector<std::uint8_t> DeflateStream::take() {
+  if (!ended_) throw std::logic_error("DeflateStream::take before the last piece");
+  out_.resize(produced_);
+  out_.shrink_to_fit();
+  return std::move(out_);
+}
+
+std::optional<std::uint32_t> inflateRaw(std::span<const std::uint8_t> input, std::span<std::uint8_t> output) {
+  if (input.size() > 0xffffffffu || output.size() > 0xffffffffu) return std::nullopt;  // beyond igzip's counters
+  thread_local std::unique_ptr<inflate_state> state = std::make_unique<inflate_state>();
+  isal_inflate_init(state.get());
+  state->crc_flag = ISAL_GZIP_NO_HDR;  // raw deflate, with the gzip (= zip) CRC of the output
+  state->next_in = const_cast<std::uint8_t*>(input.data());  // igzip does not write through next_in
+  state->avail_in = static_cast<std::uint32_t>(input.size());
+  state->next_out = output.data();
+  state->avail_out = static_cast<std::uint32_t>(output.size());
+  const int status = isal_inflate_stateless(state.get());
+  const bool whole = (status == ISAL_DECOMP_OK || status == ISAL_END_INPUT) && state->block_state == ISAL_BLOCK_FINISH;
+  if (!whole || state->avail_out != 0) return std::nullopt;
+  return state->crc;
+}
+
+struct InflateStream::State {
+  inflate_state igzip;
+};
+
+InflateStream::InflateStream() : state_(std::make_unique<State>()), buffer_(std::size_t{1} << 16) {
+  isal_inflate_init(&state_->igzip);
+  state_->igzip.crc_flag = ISAL_GZIP_NO_HDR;  // raw deflate, with the gzip (= zip) CRC of the output
+}
+
+InflateStream::~InflateStream() = default;
+
+void InflateStream::feed(std::span<const std::uint8_t> input) {
+  if (input.size() > 0xffffffffu) throw std::invalid_argument("InflateStream::add: piece over 4 GiB");
+  state_->igzip.next_in = const_cast<std::uint8_t*>(input.data());  // igzip does not write through next_in
+  state_->igzip.avail_in = static_cast<std::uint32_t>(input.size());
+}
+
+std::size_t InflateStream::inputLeft() const { return ended_ ? 0 : state_->igzip.avail_in; }
+
+InflateStream::Status InflateStream::step() {
+  pendingBytes_ = 0;
+  if (ended_) return Status::End;
+  inflate_state& z = state_->igzip;
+  z.next_out = buffer_.data();
+  z.avail_out = static_cast<std::uint32_t>(buffer_.size());
+  const int result = isal_inflate(&z);
+  pendingBytes_ = buffer_.size() - z.avail_out;
+  if (result < 0) return Status::Damaged;
+  ended_ = z.block_state == ISAL_BLOCK_FINISH;
+  return ended_ ? Status::End : Status::More;
+}
+
+std::uint32_t InflateStream::crc() const { return state_->igzip.crc; }
+
+std::uint32_t zipCrc32(std::span<const std::uint8_t> data, std::uint32_t crc) {
+  return crc32_gzip_refl(crc, data.data(), data.size());
+}
+
+}  // namespace rodfab::printer_profiles

@@ -1,0 +1,191 @@
+"""Layer images compressed by igzip, read by decoders that share nothing with rodfab's writer: python's
+zipfile and zlib (zip CRCs, raw deflate, PNG's zlib stream and Adler-32), the BMP and PNG formats
+decoded here from their specifications. For BMP and 1-bit PNG Connex3 jobs and a J750 .gcvf: every
+layer decodes to the voxel counts the manifest lists, the files' SHA-256 match the manifest, and the
+bytes are the same for 1 and 2 threads and other band sizes.
+
+    emit_decoders.py RODFAB SOURCE_DIR
+"""
+
+import array
+import collections
+import hashlib
+import json
+import os
+import struct
+import subprocess
+import sys
+import tempfile
+import zipfile
+import zlib
+
+rodfab, src = sys.argv[1], sys.argv[2]
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from gcvf_decode import decode_png as decode_rgba_png  # noqa: E402  (the gcvf test's own reader)
+
+DESIGN = os.path.join(src, "examples", "unfolding-box.json")
+ROD = {"format": "rodfab.design/1", "units": "mm", "rods": [{"name": "edge-0",
+       "centerline": {"degree": 3, "knots": [0, 0, 0, 0, 1, 1, 1, 1], "points": [[0, 0, 0], [1, 0, 0], [2, 1, 0], [3, 1, 0]]},
+       "section": {"shape": "circle", "diameter": 1.5}, "normal": [0, 0, 1],
+       "modulus": {"degree": 1, "knots": [0, 0, 0.5, 1, 1], "values": [8, 120, 40]}}]}
+
+
+def fail(message):
+    print("FAIL:", message)
+    sys.exit(1)
+
+
+def slice_job(design, out, *args):
+    r = subprocess.run([rodfab, "slice", design, "-o", out, "--quiet", *args], capture_output=True, text=True)
+    if r.returncode != 0:
+        fail(f"slice {' '.join(args)}: {r.stderr}")
+
+
+def bmp_set_bits(data):
+    assert data[:2] == b"BM", "not a BMP"
+    offset, = struct.unpack_from("<I", data, 10)
+    width, height, planes, bpp, compression = struct.unpack_from("<iiHHI", data, 18)
+    assert (planes, bpp, compression) == (1, 1, 0), (planes, bpp, compression)
+    stride = (width + 31) // 32 * 4
+    count = 0
+    for r in range(abs(height)):
+        row = data[offset + r * stride: offset + (r + 1) * stride]
+        count += sum(bin(b).count("1") for b in row[: (width + 7) // 8])  # the writer keeps padding bits clear
+    return count
+
+
+def png_chunks(data):
+    assert data[:8] == b"\x89PNG\r\n\x1a\n", "not a PNG"
+    pos, chunks = 8, []
+    while pos < len(data):
+        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        body = data[pos + 8:pos + 8 + length]
+        crc, = struct.unpack(">I", data[pos + 8 + length:pos + 12 + length])
+        assert zlib.crc32(kind + body) == crc, f"bad CRC in {kind}"
+        chunks.append((kind, body))
+        pos += 12 + length
+    assert chunks[0][0] == b"IHDR" and chunks[-1] == (b"IEND", b""), [c[0] for c in chunks]
+    return chunks
+
+
+def png1_set_bits(data):
+    chunks = png_chunks(data)
+    width, height, depth, colour, _, _, interlace = struct.unpack(">IIBBBBB", chunks[0][1])
+    assert (depth, colour, interlace) == (1, 0, 0), (depth, colour, interlace)
+    raw = zlib.decompress(b"".join(body for kind, body in chunks if kind == b"IDAT"))  # checks Adler-32
+    stride = (width + 7) // 8
+    assert len(raw) == height * (stride + 1)
+    count = 0
+    for r in range(height):
+        assert raw[r * (stride + 1)] == 0, "row filter other than None"  # 1-bit rows: the writer uses none
+        count += sum(bin(b).count("1") for b in raw[r * (stride + 1) + 1:(r + 1) * (stride + 1)])
+    return count
+
+
+def check_zip(path, method):
+    with zipfile.ZipFile(path) as z:
+        if z.testzip() is not None:
+            fail(f"{path}: zlib finds a bad CRC in {z.testzip()}")
+        manifest = json.loads(z.read("manifest.json"))
+        files = {i.filename: i for i in z.infolist()}
+        layers = 0
+        for layer in manifest["layers"]:
+            for material, name in layer["files"].items():
+                info = files[name]
+                if info.compress_type != method:
+                    fail(f"{name}: zip method {info.compress_type}, expected {method}")
+                data = z.read(name)
+                if hashlib.sha256(data).hexdigest() != manifest["files"][name]["sha256"]:
+                    fail(f"{name}: SHA-256 differs from the manifest")
+                if name.endswith(".bmp"):
+                    got = bmp_set_bits(data)
+                elif manifest["image"]["bit_depth"] == 1:
+                    got = png1_set_bits(data)
+                else:
+                    continue  # RGBA: counted below
+                if got != layer["voxels"][material]:
+                    fail(f"{name}: {got} pixels set, the manifest lists {layer['voxels'][material]}")
+            layers += 1
+        return manifest, layers
+
+
+def rgba_model_pixels(data):
+    """Pixels that are not the most common colour (the background) of an unfiltered 8-bit RGBA PNG: the
+    writer's layers use filter None, so the inflated rows are the pixels (large layers, fast in python)."""
+    chunks = png_chunks(data)
+    width, height, depth, colour, _, _, interlace = struct.unpack(">IIBBBBB", chunks[0][1])
+    assert (depth, colour, interlace) == (8, 6, 0)
+    raw = zlib.decompress(b"".join(body for kind, body in chunks if kind == b"IDAT"))
+    line = 4 * width + 1
+    assert len(raw) == height * line
+    counts = collections.Counter()
+    for r in range(height):
+        assert raw[r * line] == 0, "row filter other than None"
+        counts.update(array.array("I", raw[r * line + 1:(r + 1) * line]))
+    return width * height - max(counts.values())
+
+
+def check_large_gcvf(path, every):
+    """A layer larger than the writer's 1 MB batch: compressed by igzip in pieces (DeflateStream)."""
+    with zipfile.ZipFile(path) as z:
+        if z.testzip() is not None:
+            fail(f"{path}: zlib finds a bad CRC")
+        manifest = json.loads(z.read("manifest.json"))
+        assert manifest["image"]["width"] * 4 * manifest["image"]["height"] > 1 << 20
+        for layer in manifest["layers"][::every]:
+            name = next(iter(layer["files"].values()))
+            got, model = rgba_model_pixels(z.read(name)), sum(layer["voxels"].values())
+            if got != model:
+                fail(f"{name}: {got} model pixels, the manifest lists {model}")
+
+
+def check_gcvf(path):
+    with zipfile.ZipFile(path) as z:
+        if z.testzip() is not None:
+            fail(f"{path}: zlib finds a bad CRC")
+        manifest = json.loads(z.read("manifest.json"))
+        for layer in manifest["layers"]:
+            name = next(iter(layer["files"].values()))
+            data = z.read(name)
+            png_chunks(data)
+            width, height, rows, _ = decode_rgba_png(data)
+            pixels = {}
+            for row in rows:
+                for x in range(0, len(row), 4):
+                    pixels[row[x:x + 4]] = pixels.get(row[x:x + 4], 0) + 1
+            model = sum(layer["voxels"].values())
+            if width * height - max(pixels.values()) != model:  # the background is the most common colour
+                fail(f"{name}: {width * height - max(pixels.values())} model pixels, the manifest lists {model}")
+        return manifest
+
+
+with tempfile.TemporaryDirectory() as tmp:
+    # The job's name is in its manifest and report: the compared jobs have the same name in two folders.
+    for folder in ("1", "2"):
+        os.mkdir(os.path.join(tmp, folder))
+    rod = os.path.join(tmp, "rod.json")
+    json.dump(ROD, open(rod, "w"))
+    for form, design, extra, method in [("bmp", DESIGN, [], zipfile.ZIP_DEFLATED),
+                                        ("png", DESIGN, ["--image-format", "png"], zipfile.ZIP_STORED)]:
+        one, two = os.path.join(tmp, "1", f"{form}.zip"), os.path.join(tmp, "2", f"{form}.zip")
+        slice_job(design, one, "--threads", "1", *extra)
+        slice_job(design, two, "--threads", "2", "--band-layers", "7", *extra)
+        if open(one, "rb").read() != open(two, "rb").read():
+            fail(f"{form}: the jobs differ between 1 thread and 2 threads with 7-layer bands")
+        manifest, layers = check_zip(one, method)
+        print(f"{form}: {layers} layers decoded by zipfile/zlib, counts and SHA-256 as listed")
+    one, two = os.path.join(tmp, "1", "rod.gcvf"), os.path.join(tmp, "2", "rod.gcvf")
+    slice_job(rod, one, "--profile", "stratasys-j750-j850", "--threads", "1")
+    slice_job(rod, two, "--profile", "stratasys-j750-j850", "--threads", "2", "--band-layers", "5")
+    if open(one, "rb").read() != open(two, "rb").read():
+        fail("gcvf: the jobs differ between 1 thread and 2 threads with 5-layer bands")
+    check_gcvf(one)
+    print("gcvf: every RGBA layer decoded by zlib, model pixels as listed")
+    one, two = os.path.join(tmp, "1", "box.gcvf"), os.path.join(tmp, "2", "box.gcvf")
+    slice_job(DESIGN, one, "--profile", "stratasys-j750-j850", "--threads", "1")
+    slice_job(DESIGN, two, "--profile", "stratasys-j750-j850", "--threads", "2", "--band-layers", "9")
+    if open(one, "rb").read() != open(two, "rb").read():
+        fail("large gcvf: the jobs differ between 1 thread and 2 threads with 9-layer bands")
+    check_large_gcvf(one, 5)
+    print("large gcvf: layers compressed in pieces decoded by zlib, model pixels as listed")
+print("ok")
