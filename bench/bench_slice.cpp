@@ -1,9 +1,13 @@
 // End to end (`rodfab slice` without the command line): design -> voxel bands -> Vero fractions ->
-// white-noise dithering -> BMP stacks in a zip, verified. Workloads at the Connex3 voxel:
-//   spring6g: the buckling spring scaled to 84.6 x 84.6 x 90 mm (2000 x 1000 x 3000 voxels, 6 gigavoxels;
-//             ~0.7 % of them in rods)
-//   dense:    a solid block of 84.6 x 84.6 x 9 mm (2000 x 1000 x 300 voxels, every one printed): the
-//             worst case for memory
+// dithering -> BMP stacks in a zip, verified. The benchmark classes of examples::benchmarkDesign at the
+// Connex3 voxel (rodfab_generate_examples --benchmark CLASS FILE writes each as a design file):
+//   spring:         the buckling spring scaled to 84.6 x 84.6 x 90 mm (2000 x 1000 x 3000 voxels, 6
+//                   gigavoxels; 43 M of them in 312 curved rods)
+//   lattice:        1,520 straight rods joined at 8 x 8 x 9 nodes in the same envelope (269 M printed)
+//   curved-lattice: the same rods bowed sideways (271 M printed)
+//   dense:          a solid block of 84.6 x 84.6 x 9 mm (2000 x 1000 x 300 voxels, every one printed): the
+//                   worst case for memory
+// Named slice/CLASS_DITHERER/threads: white, blue and error-diffusion for each class.
 // Arg = TBB thread count. Counters: envelope and active voxels per second, per-stage seconds, peak
 // resident memory (process-wide: run one workload per invocation, as scripts/bench.sh does) and
 // the job's size. One iteration each: a run takes seconds and writes a job.
@@ -32,21 +36,9 @@ double peakRssMb() {
   return static_cast<double>(usage.ru_maxrss) / 1024.0;  // Linux reports KiB
 }
 
-geometry::RodStructure spring6g() { return examples::bucklingSpringScaledTo({84.6, 84.6, 90.0}); }
-
-// One straight rod with a 84.6 x 9 mm rectangular section, 84.6 mm long, flat ends: a solid block.
-geometry::RodStructure denseBlock() {
-  const geometry::NurbsCurve axis(1, {0, 0, 1, 1}, {geometry::Vec3(0, 42.3, 4.5), geometry::Vec3(84.6, 42.3, 4.5)});
-  geometry::RodStructure s;
-  s.source = "dense block";
-  s.rods.emplace_back("block", axis, geometry::Section::rectangle(84.6, 9.0), geometry::Vec3(0, 1, 0), std::nullopt,
-                      geometry::CapStyle::Flat, geometry::BSplineField(1, {0, 0, 1, 1}, {8.0, 190.0}));
-  return s;
-}
-
-void slice(benchmark::State& state, geometry::RodStructure (*makeDesign)()) {
+void slice(benchmark::State& state, const char* designClass, const char* method) {
   openvdb::initialize();
-  const geometry::RodStructure design = makeDesign();
+  const geometry::RodStructure design = examples::benchmarkDesign(designClass);
   const printer_profiles::Profile profile = printer_profiles::loadProfile("stratasys-objet500-connex3");
   const calibration::Calibration cal = calibration::loadDefaultCalibration();
   const int threads = static_cast<int>(state.range(0));
@@ -55,15 +47,22 @@ void slice(benchmark::State& state, geometry::RodStructure (*makeDesign)()) {
   std::filesystem::create_directories(dir);
 
   slicer::SliceReport report;
+  rusage before{};
+  getrusage(RUSAGE_SELF, &before);
   for (auto _ : state) {
-    const auto ditherer = materials::makeDitherer("white", {});
+    const auto ditherer = materials::makeDitherer(method, {});
     slicer::SliceSettings settings;
     settings.threads = threads;
     settings.job.output = dir / "job.zip";
     settings.job.force = true;
     report = slicer::sliceDesign(design, profile, cal, *ditherer, settings);
   }
+  rusage after{};
+  getrusage(RUSAGE_SELF, &after);
   std::filesystem::remove_all(dir);
+  const auto toSeconds = [](const timeval& t) { return static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_usec); };
+  // Process CPU time (user + sys, every thread): the figure that holds on a loaded machine.
+  state.counters["cpu_s"] = toSeconds(after.ru_utime) - toSeconds(before.ru_utime) + toSeconds(after.ru_stime) - toSeconds(before.ru_stime);
 
   const voxel::PrinterGrid grid = voxel::makePrinterGrid(
       design, openvdb::Vec3d(profile.voxelSizeMm[0], profile.voxelSizeMm[1], profile.voxelSizeMm[2]));
@@ -83,5 +82,13 @@ void slice(benchmark::State& state, geometry::RodStructure (*makeDesign)()) {
 
 }  // namespace
 
-BENCHMARK_CAPTURE(slice, spring6g, spring6g)->Arg(1)->Arg(2)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
-BENCHMARK_CAPTURE(slice, dense, denseBlock)->Arg(2)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+#define RODFAB_SLICE(id, designClass)                                                                              \
+  BENCHMARK_CAPTURE(slice, id##_white, designClass, "white")->Arg(2)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime(); \
+  BENCHMARK_CAPTURE(slice, id##_blue, designClass, "blue")->Arg(2)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();   \
+  BENCHMARK_CAPTURE(slice, id##_error_diffusion, designClass, "error-diffusion")->Arg(2)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime()
+RODFAB_SLICE(spring, "spring");
+RODFAB_SLICE(lattice, "lattice");
+RODFAB_SLICE(curved_lattice, "curved-lattice");
+RODFAB_SLICE(dense, "dense");
+// One thread, for the scaling (the spring only).
+BENCHMARK_CAPTURE(slice, spring_white, "spring", "white")->Arg(1)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();

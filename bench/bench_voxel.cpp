@@ -4,18 +4,25 @@
 // construction) on its own. Arg = TBB worker count. Peak resident memory is process-wide: run one
 // workload per invocation (--benchmark_filter) to get its own peak; see bench/README.md.
 #include "examples/example_designs.hpp"
+#include "materials/fraction_map.hpp"
 #include "voxel/voxel.hpp"
 
 #include <benchmark/benchmark.h>
+#include <tbb/global_control.h>
 
 #include <sys/resource.h>
 
 #include <algorithm>
 #include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
 #include <string>
 
 namespace voxel = rodfab::voxel;
 namespace examples = rodfab::examples;
+namespace materials = rodfab::materials;
+namespace calibration = rodfab::calibration;
 
 namespace {
 
@@ -47,6 +54,24 @@ const Workload& largeSpring() {
 const Workload& smallSpring() {
   static const Workload w = makeWorkload(examples::bucklingSpring());
   return w;
+}
+
+// The benchmark classes (examples::benchmarkDesign), each built once per process.
+const Workload& benchmarkClass(const std::string& name) {
+  static std::mutex mutex;
+  static std::map<std::string, std::unique_ptr<Workload>> made;
+  const std::lock_guard<std::mutex> lock(mutex);
+  auto& w = made[name];
+  if (!w) w = std::make_unique<Workload>(makeWorkload(examples::benchmarkDesign(name)));
+  return *w;
+}
+
+// Process CPU time (user + sys, all threads) in seconds: the figure that holds on a loaded machine.
+double processCpuSeconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
+         1e-6 * static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
 }
 
 std::string envelopeLabel(const voxel::PrinterGrid& g) {
@@ -135,6 +160,52 @@ void rasterizeBands(benchmark::State& state, const Workload& w) {
   state.counters["bands"] = static_cast<double>((w.grid.dims.z() + kBandLayers - 1) / kBandLayers);
   state.counters["band_max_active"] = static_cast<double>(bandMax);
 }
+
+// Bands as the slicer makes them for a 2000 x 1000 footprint (slicer::automaticBandLayers: ~32 M
+// envelope voxels a band), and either the rasterization alone or followed by the modulus-to-fraction
+// mapping (materials::mapToFractions, bundled calibration), as `rodfab slice`'s "voxelize + map" does.
+constexpr int kSliceBandLayers = 16;
+void rasterizeClass(benchmark::State& state, const std::string& name, bool map) {
+  const Workload& w = benchmarkClass(name);
+  const voxel::Rasterizer rasterizer(w.structure, w.grid, {static_cast<int>(state.range(0))});
+  const materials::FractionMap fractionMap(calibration::loadDefaultCalibration());
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(state.range(0)));
+  std::uint64_t active = 0, exact = 0;
+  bool first = true;
+  const double cpu0 = processCpuSeconds();
+  for (auto _ : state) {
+    active = exact = 0;
+    for (int z = 0; z < w.grid.dims.z(); z += kSliceBandLayers) {
+      const voxel::Rasterization r = rasterizer.rasterizeLayers(z, z + kSliceBandLayers);
+      const std::uint64_t n = activeVoxels(r);
+      active += n;
+      exact += r.exactEvaluations;
+      if (first) verify(state, r, n);
+      if (map) {
+        materials::MappingStats stats;
+        const openvdb::FloatGrid::Ptr fractions = materials::mapToFractions(*r.grid, fractionMap, z, z + kSliceBandLayers, stats);
+        benchmark::DoNotOptimize(fractions.get());
+        if (first && stats.voxels != n) state.SkipWithError("mapping lost voxels");
+      }
+    }
+    first = false;
+  }
+  const double cpu = processCpuSeconds() - cpu0;
+  report(state, w, active, exact);
+  state.counters["cpu_s_per_iter"] = cpu / static_cast<double>(state.iterations());
+  state.counters["active_Mvox_per_cpu_s"] = 1e-6 * static_cast<double>(active) * static_cast<double>(state.iterations()) / cpu;
+}
+void classBuildPieces(benchmark::State& state, const std::string& name) { buildPieces(state, benchmarkClass(name)); }
+void classRasterize(benchmark::State& state, const std::string& name) { rasterizeClass(state, name, false); }
+void classRasterizeMap(benchmark::State& state, const std::string& name) { rasterizeClass(state, name, true); }
+#define RODFAB_CLASS_BENCHMARKS(id, name)                                                                                           \
+  BENCHMARK_CAPTURE(classBuildPieces, id, name)->ArgName("threads")->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1); \
+  BENCHMARK_CAPTURE(classRasterize, id, name)->ArgName("threads")->Arg(1)->Arg(2)->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1); \
+  BENCHMARK_CAPTURE(classRasterizeMap, id, name)->ArgName("threads")->Arg(1)->Arg(2)->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1)
+RODFAB_CLASS_BENCHMARKS(spring, "spring");
+RODFAB_CLASS_BENCHMARKS(lattice, "lattice");
+RODFAB_CLASS_BENCHMARKS(curved_lattice, "curved-lattice");
+RODFAB_CLASS_BENCHMARKS(dense, "dense");
 
 // Workload 1: the 6-gigavoxel design (the targets: >= 100 M active voxels/s, < 1 GiB peak).
 void largeBuildPieces(benchmark::State& state) { buildPieces(state, largeSpring()); }

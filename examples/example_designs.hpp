@@ -5,6 +5,9 @@
 #include "geometry/mechanics_spec.hpp"
 #include "geometry/rod.hpp"
 
+#include <string>
+#include <vector>
+
 namespace rodfab::examples {
 
 // A flat, cross-shaped net of 6 square frames (34 rods): 24 stiff frame edges whose modulus drops
@@ -29,6 +32,37 @@ geometry::RodStructure bucklingSpring(const SpringParameters& parameters = {});
 // The buckling spring scaled to fill `envelopeMm` (e.g. 84.6 x 84.6 x 90 mm: 2000 x 1000 x 3000
 // Connex3 voxels): geometry scaled by the largest factor that fits, rod diameter as given.
 geometry::RodStructure bucklingSpringScaledTo(const geometry::Vec3& envelopeMm, double rodDiameterMm = 1.2);
+
+// ---- Benchmark designs (not bundled: remade exactly by rodfab_generate_examples --benchmark CLASS).
+
+// A cubic lattice of round rods between the nodes of a nodes.x x nodes.y x nodes.z grid: one rod per
+// edge between neighbouring nodes ((nx-1) ny nz + nx (ny-1) nz + nx ny (nz-1) rods, named along the
+// x, y and z edges in turn), round caps, every rod ending at the nodes it joins (joints of up to 6
+// rods). `bow` = 0: straight rods. `bow` > 0: each rod bowed sideways, its middle displaced by `bow`
+// times the node spacing in the direction of the next axis (x -> y -> z -> x), the sign alternating
+// with the parity of the rod's first node (a cubic through four samples of a half sine wave). E along
+// each rod: 8 MPa at mid-height of the envelope rising quadratically to 120 MPa at the top and bottom
+// (three-point piecewise linear in the rod parameter, so rods at a node agree there).
+// Scaled (each axis on its own; the rods' diameter as given) so the solid fills `envelopeMm`
+// exactly: RodStructure::bounds() is [0, envelope] up to its sampling pad (< 1 um).
+struct LatticeParameters {
+  Eigen::Vector3i nodes{8, 8, 9};
+  double rodDiameter = 1.5;  // mm
+  double bow = 0.0;          // fraction of the node spacing
+};
+geometry::RodStructure cubicLatticeScaledTo(const geometry::Vec3& envelopeMm, const LatticeParameters& parameters = {});
+
+// A solid block filling [0, size]: one straight rod along x, size.x() long, with a size.y() x size.z()
+// rectangular section and flat caps, E rising linearly from 8 to 190 MPa along x. At the Connex3 voxel
+// 84.6 x 84.6 x 9 mm is 2000 x 1000 x 300 voxels, every one printed.
+geometry::RodStructure denseBlock(const geometry::Vec3& sizeMm = {84.6, 84.6, 9.0});
+
+// The benchmark classes by name: "spring" (bucklingSpringScaledTo, 312 curved rods, 1.2 mm),
+// "lattice" (1,520 straight 1.5 mm rods, 8 x 8 x 9 nodes), "curved-lattice" (the same bowed by 0.15
+// of the spacing), all three filling 84.6 x 84.6 x 90 mm (2000 x 1000 x 3000 Connex3 voxels); and
+// "dense" (denseBlock()). Throws std::invalid_argument for another name.
+std::vector<std::string> benchmarkClasses();
+geometry::RodStructure benchmarkDesign(const std::string& name);
 
 // A half-cylindrical hexagonal lattice (an arm cast) of rectangular strips, the strips' width
 // across the surface; stiff along the cast's rim, softer over its crown where it is flattened.

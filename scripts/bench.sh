@@ -13,14 +13,18 @@ run() {  # NAME PROGRAM FILTER
   echo "== $1"
   "./build/bench/$2" --benchmark_filter="$3" --benchmark_out="$out/$1.json" --benchmark_out_format=json
 }
+# Every benchmark class (spring, lattice, curved-lattice, dense; examples::benchmarkDesign) with each
+# ditherer, whole slice with its stages (voxelize + map, dither, emit); one run per process.
 case $what in all|slice)
-  run slice-spring6g-1thread bench_slice '^slice/spring6g/1/'
-  run slice-spring6g-2threads bench_slice '^slice/spring6g/2/'
-  run slice-dense bench_slice '^slice/dense/' ;;
+  for t in $(./build/bench/bench_slice --benchmark_list_tests | sed 's|/iterations.*||'); do
+    run "slice-$(echo "$t" | sed 's|^slice/||; s|/|-|g')threads" bench_slice "^$t/"
+  done ;;
 esac
+# Rasterization per class: building the pieces, rasterize alone and rasterize + map (16-layer bands,
+# as the slicer makes them), 1 and 2 threads; and the older spring workloads.
 case $what in all|voxel)
-  for f in $(./build/bench/bench_voxel --benchmark_list_tests | sed 's|/.*||' | sort -u); do
-    run "voxel-$f" bench_voxel "^$f/"
+  for f in $(./build/bench/bench_voxel --benchmark_list_tests | sed -E 's#^(class[A-Za-z]*/[a-z_]*)/.*#\1#; t; s#/.*##' | sort -u); do
+    run "voxel-$(echo "$f" | tr / -)" bench_voxel "^$f/"
   done ;;
 esac
 case $what in all|dither) run dither bench_dither '.' ;; esac

@@ -6,9 +6,14 @@
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
+#include <unistd.h>
+
+#include <filesystem>
 #include <map>
 #include <numbers>
 #include <numeric>
+#include <string>
+#include <tuple>
 
 using namespace rodfab;
 using geometry::Vec3;
@@ -277,4 +282,90 @@ TEST_CASE("Arm cast target: unrolled onto the plane of the crown, every strip st
     }
   }
   CHECK(yMax == Approx(30.0 * std::numbers::pi / 2).margin(1e-9));
+}
+
+namespace {
+
+// Where each rod's ends are, in node units of the lattice (the ends are nodes by construction).
+std::map<std::tuple<long, long, long>, int> rodsPerNode(const geometry::RodStructure& s, const Vec3& origin, const Vec3& spacing) {
+  std::map<std::tuple<long, long, long>, int> count;
+  for (const geometry::Rod& r : s.rods) {
+    const auto& c = r.centerline();
+    for (const Vec3& end : {c.point(c.domainBegin()), c.point(c.domainEnd())}) {
+      const Vec3 unit = ((end - origin).array() / spacing.array()).matrix();
+      const Vec3 rounded = unit.array().round().matrix();
+      REQUIRE((unit - rounded).norm() < 1e-9);
+      ++count[{std::lround(rounded.x()), std::lround(rounded.y()), std::lround(rounded.z())}];
+    }
+  }
+  return count;
+}
+
+}  // namespace
+
+TEST_CASE("Benchmark lattices: 1,520 rods joined at 8 x 8 x 9 nodes, filling the envelope", "[examples][benchmark]") {
+  const Vec3 envelope(84.6, 84.6, 90.0);
+  for (const std::string name : {"lattice", "curved-lattice"}) {
+    INFO(name);
+    const geometry::RodStructure s = examples::benchmarkDesign(name);
+    REQUIRE(s.rods.size() == 7 * 8 * 9 + 8 * 7 * 9 + 8 * 8 * 8);
+    // The solid fills the envelope: [0, envelope] up to the bounds' sampling pad.
+    const geometry::Box3 box = s.bounds();
+    CHECK((box.min().array().abs() < 1e-3).all());
+    CHECK(((box.max() - envelope).array().abs() < 1e-3).all());
+    // The first rod runs along x from the first node; its end is the next node: that fixes the lattice's
+    // origin and spacing, and every rod end must then be a node, 2 to 6 rods at each of the 576.
+    const auto& first = s.rods.front().centerline();
+    const Vec3 origin = first.point(first.domainBegin());
+    const double sx = (first.point(first.domainEnd()) - origin).x();
+    const Vec3 spacing = ((envelope - 2.0 * origin).array() / Eigen::Array3d(7, 7, 8)).matrix();
+    REQUIRE(sx == Approx(spacing.x()));
+    const auto nodes = rodsPerNode(s, origin, spacing);
+    REQUIRE(nodes.size() == 8 * 8 * 9);
+    int corners = 0, sixes = 0;
+    for (const auto& [node, n] : nodes) {
+      CHECK(n >= 3);
+      CHECK(n <= 6);
+      corners += n == 3;
+      sixes += n == 6;
+    }
+    CHECK(corners == 8);
+    CHECK(sixes == 6 * 6 * 7);
+    CHECK(connectedComponents(s, 1e-6) == 1);
+    for (const geometry::Rod& r : s.rods) {
+      REQUIRE(r.section().shape == geometry::SectionShape::Circle);
+      REQUIRE(r.section().width == 1.5);
+      // Straight rods are as long as the spacing along their axis; curved ones longer (bowed by 0.15 of it).
+      const double chord = (r.centerline().point(r.centerline().domainEnd()) - r.centerline().point(r.centerline().domainBegin())).norm();
+      if (name == "lattice") REQUIRE(r.length() == Approx(chord));
+      else REQUIRE(r.length() > 1.04 * chord);
+    }
+    // E from the 8 MPa floor at mid-height to ~120 MPa at the top and bottom.
+    const geometry::DesignSummary summary = geometry::summarize(s);
+    CHECK(summary.modulusMin == Approx(8.0).margin(0.5));
+    CHECK(summary.modulusMax > 110.0);
+    CHECK(summary.modulusMax <= 120.0);
+  }
+}
+
+TEST_CASE("Benchmark designs are valid design files, remade exactly", "[examples][benchmark]") {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("rodfab-test-benchmark-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  for (const std::string& name : examples::benchmarkClasses()) {
+    INFO(name);
+    const geometry::RodStructure s = examples::benchmarkDesign(name);
+    // Written and read back (the reader validates every rod): the same design, and the same again when remade.
+    geometry::writeDesign(s, dir / (name + ".json"));
+    const geometry::RodStructure read = geometry::readDesign(dir / (name + ".json"));
+    CHECK(geometry::designToJson(read) == geometry::designToJson(s));
+    CHECK(geometry::designToJson(examples::benchmarkDesign(name)) == geometry::designToJson(s));
+  }
+  std::filesystem::remove_all(dir);
+  // The dense block: one rectangular rod filling 84.6 x 84.6 x 9 mm exactly.
+  const geometry::RodStructure block = examples::benchmarkDesign("dense");
+  REQUIRE(block.rods.size() == 1);
+  CHECK((block.bounds().min().array().abs() < 1e-6).all());
+  CHECK(((block.bounds().max() - Vec3(84.6, 84.6, 9.0)).array().abs() < 1e-6).all());
+  CHECK(examples::benchmarkDesign("spring").rods.size() == 312);
+  CHECK_THROWS_AS(examples::benchmarkDesign("sponge"), std::invalid_argument);
 }

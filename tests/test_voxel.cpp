@@ -371,6 +371,19 @@ TEST_CASE("The fast path decides every voxel exactly as Rod::classify", "[voxel]
     const voxel::Rasterization ras = voxel::rasterize(s, g);
     REQUIRE(requireMatchesExactTest(s, g, ras) > 50000);
   }
+  SECTION("the benchmark lattices, straight and curved, at a smaller scale: 6-rod joints with round caps") {
+    for (const double bow : {0.0, 0.15}) {
+      examples::LatticeParameters p;
+      p.nodes = Eigen::Vector3i(3, 3, 3);
+      p.rodDiameter = 0.8;
+      p.bow = bow;
+      const RodStructure s = examples::cubicLatticeScaledTo({4.0, 4.0, 4.5}, p);
+      const PrinterGrid g = voxel::makePrinterGrid(s, {0.05, 0.06, 0.04});
+      const voxel::Rasterization ras = voxel::rasterize(s, g);
+      REQUIRE(requireMatchesExactTest(s, g, ras, 3) > 100000);
+      REQUIRE(ras.voxelsPerRod.size() == 54);
+    }
+  }
   SECTION("the bundled buckling spring (every 5th layer)") {
     const RodStructure s = examples::bucklingSpring();
     const PrinterGrid g = voxel::makePrinterGrid(s, {0.2, 0.2, 0.2});

@@ -54,6 +54,16 @@ struct Candidate {
 // Two doubles in an SSE2 register (GCC vector extension): the swept estimate for two voxels at once.
 typedef double Double2 __attribute__((vector_size(16)));
 
+// A swept piece's coefficients for the voxel loop, copied out of the piece (see sweep): the same
+// values, so estimateSwept and estimateModulus give the same bits.
+struct SweptLanes {
+  SweptLanes(const detail::RodPiece& p, double planeAgx, double planeBgx)
+      : gxA(planeAgx), gxB(planeBgx), gx1Begin(p.x1Begin.gx), gx2Begin(p.x2Begin.gx), gx1End(p.x1End.gx), gx2End(p.x2End.gx),
+        x1Bow(p.x1Bow), x2Bow(p.x2Bow), modulusBegin(p.modulusBegin), modulusEnd(p.modulusEnd), modulusBow(p.modulusBow) {}
+  double gxA, gxB, gx1Begin, gx2Begin, gx1End, gx2End;
+  double x1Bow, x2Bow, modulusBegin, modulusEnd, modulusBow;  // as in RodPiece
+};
+
 // A double band as a float that is not smaller.
 float bandAsFloat(double band) {
   const float f = static_cast<float>(band);
@@ -381,6 +391,7 @@ private:
       return;
     AxisCylinder cylinder(grid_, piece);
     const Slope slopeA(planeA.gx), slopeB(-planeB.gx), slopeAy(planeA.gy), slopeBy(-planeB.gy);
+    const SweptLanes lanes(piece, planeA.gx, planeB.gx);
     for (int k = kLo; k <= kHi; ++k) {
       int jLo = bmin.y(), jHi = bmax.y();
       if (!slopeAy.clip(planeA.c + planeA.gz * k + aMaxI, jLo, jHi) || !slopeBy.clip(-(planeB.c + planeB.gz * k + bMinI), jLo, jHi) ||
@@ -397,15 +408,16 @@ private:
         const double x1bRow = piece.x1End.row(j, k), x2bRow = piece.x2End.row(j, k);
         const int rowSlot = offset(0, j, k);
         std::uint64_t fresh = 0;
-        // Two voxels at a time (see estimateSwept); the decisions per voxel.
-        for (int i = lo; i <= hi; i += 2) {
-          const Double2 iv = double(i) + Double2{0.0, 1.0};
-          const Double2 av = aRow + planeA.gx * iv, bv = bRow + planeB.gx * iv;
+        // Two voxels at a time (see estimateSwept); the decisions per voxel. The coefficients are
+        // locals (`lanes`), which the slot stores cannot alias, so they stay in registers.
+        Double2 iv = double(lo) + Double2{0.0, 1.0};
+        for (int i = lo; i <= hi; i += 2, iv += 2.0) {
+          const Double2 av = aRow + lanes.gxA * iv, bv = bRow + lanes.gxB * iv;
           const detail::SweptEstimateOf<Double2> e =
-              detail::estimateSwept(piece, av, bv, x1aRow + piece.x1Begin.gx * iv, x2aRow + piece.x2Begin.gx * iv,
-                                    x1bRow + piece.x1End.gx * iv, x2bRow + piece.x2End.gx * iv);
+              detail::estimateSwept(lanes, av, bv, x1aRow + lanes.gx1Begin * iv, x2aRow + lanes.gx2Begin * iv,
+                                    x1bRow + lanes.gx1End * iv, x2bRow + lanes.gx2End * iv);
           const Double2 g2v = (e.x1 * iA) * (e.x1 * iA) + (e.x2 * iB) * (e.x2 * iB);
-          const Double2 modulus = detail::estimateModulus(piece, e.lambda);
+          const Double2 modulus = detail::estimateModulus(lanes, e.lambda);
           // The common case, both voxels in the slab and inside for sure, without a branch per test.
           const auto sure = (av >= 0.0) & (bv < 0.0) & (g2v < innerSq);
           if (!rectangle && i < hi && (sure[0] & sure[1])) {

@@ -89,15 +89,17 @@ struct SweptEstimateOf {
   T lambda, x1, x2;
 };
 using SweptEstimate = SweptEstimateOf<double>;
-template <typename T>
-inline SweptEstimateOf<T> estimateSwept(const RodPiece& piece, T a, T b, T x1Begin, T x2Begin, T x1End, T x2End) {
+// `Piece` is RodPiece or anything with its x1Bow, x2Bow (and, for the modulus, modulusBegin, modulusEnd,
+// modulusBow).
+template <typename T, typename Piece = RodPiece>
+inline SweptEstimateOf<T> estimateSwept(const Piece& piece, T a, T b, T x1Begin, T x2Begin, T x1End, T x2End) {
   const T lambda = a / (a - b);
   const T bow = lambda * (1.0 - lambda);
   return {lambda, x1Begin + lambda * (x1End - x1Begin) + bow * piece.x1Bow,
           x2Begin + lambda * (x2End - x2Begin) + bow * piece.x2Bow};
 }
-template <typename T>
-inline T estimateModulus(const RodPiece& piece, T lambda) {
+template <typename T, typename Piece = RodPiece>
+inline T estimateModulus(const Piece& piece, T lambda) {
   return piece.modulusBegin + lambda * (piece.modulusEnd - piece.modulusBegin) +
          lambda * (1.0 - lambda) * piece.modulusBow;
 }
