@@ -1,6 +1,7 @@
 // rodfab coupons: the print job for DMA calibration bars, one uniform bar per Vero fraction, dithered
 // with the ditherer the real jobs will use (a mix's stiffness depends on it), each bar labelled in the
 // manifest (metadata.coupons) so the measurements can be traced back to fraction and ditherer.
+#include "common/stopwatch.hpp"
 #include "materials/materials.hpp"
 #include "printer_profiles/printer_profiles.hpp"
 #include "slicer/command.hpp"
@@ -286,7 +287,7 @@ int runCoupons(const std::vector<std::string>& args) {
   ditherOptions.seed = vm["seed"].as<Seed>().value;
   std::unique_ptr<materials::Ditherer> ditherer;
   try {
-    ditherer = materials::makeDitherer(slicer::canonicalDitherName(vm["dither"].as<std::string>()), ditherOptions);
+    ditherer = materials::makeDitherer(materials::canonicalDitherName(vm["dither"].as<std::string>()), ditherOptions);
   } catch (const std::invalid_argument& e) {
     return usageError(std::string("--dither: ") + e.what());
   }
@@ -440,7 +441,7 @@ int runCoupons(const std::vector<std::string>& args) {
     return 128 + e.signal;
   }
   progress.finish();
-  const double total = slicer::secondsSince(tStart);
+  const double total = common::secondsSince(tStart);
   // A signal that came after the job was renamed into place still means no job (README): take it back.
   const auto finish = [&job] {
     const int signal = InterruptGuard::pending();

@@ -2,6 +2,7 @@
 #include "common/json_input.hpp"
 #include "common/sha256.hpp"
 #include "geometry/geometry.hpp"
+#include "common/stopwatch.hpp"
 #include "materials/materials.hpp"
 #include "printer_profiles/printer_profiles.hpp"
 #include "slicer/command.hpp"
@@ -100,7 +101,7 @@ int runSlice(const std::vector<std::string>& args) {
     std::cerr << "rodfab slice: " << materialsCheck.message << "\nno job was written\n";
     return kFailed;
   }
-  const std::string couponDither = slicer::canonicalDitherName(cal.record().dither);
+  const std::string couponDither = materials::canonicalDitherName(cal.record().dither);
   const std::string ditherName = vm.count("dither") ? vm["dither"].as<std::string>() : (couponDither.empty() ? "white" : couponDither);
   materials::DitherOptions ditherOptions;
   ditherOptions.seed = vm["seed"].as<Seed>().value;
@@ -136,7 +137,7 @@ int runSlice(const std::vector<std::string>& args) {
     progress->update(static_cast<std::size_t>(done));
     throwIfInterrupted();
   };
-  readSeconds = slicer::secondsSince(tStart);
+  readSeconds = common::secondsSince(tStart);
 
   slicer::SliceReport report;
   try {
@@ -147,7 +148,7 @@ int runSlice(const std::vector<std::string>& args) {
     return 128 + e.signal;
   }
   if (progress) progress->finish();
-  const double total = slicer::secondsSince(tStart);
+  const double total = common::secondsSince(tStart);
   const printer_profiles::JobResult& job = report.job;
   common::registerCleanup(job.path);  // until the command returns, a signal still removes the job
   const materials::MappingStats& mapping = report.mapping;
