@@ -39,7 +39,6 @@ int runSlice(const std::vector<std::string>& args) {
       ("dither", po::value<std::string>(),
        "white | blue | error-diffusion (default: the ditherer the calibration coupons were printed with)")
       ("seed", po::value<Seed>()->default_value(Seed{0}), "dithering seed")
-      ("threads", po::value<int>()->default_value(0), "worker threads (0 = all cores); the job is the same for any count")
       ("format", po::value<std::string>()->default_value("zip"), "zip | dir")
       ("image-format", po::value<std::string>(), "bmp | png (default: the profile's)")
       ("support", po::value<std::string>(), "printer | explicit (default: the profile's)")
@@ -50,6 +49,7 @@ int runSlice(const std::vector<std::string>& args) {
       ("force", "replace an existing job at --output")
       ("quiet,q", "no progress bar or progress lines and no clamped-moduli note on stderr (the summary, warnings and errors are still printed)")
       ("json", "print the job summary as JSON on stdout");
+  addThreadsOption(options, "the job is the same for any count");
   addProfileOptions(options);
   po::positional_options_description positional;
   positional.add("design", 1);

@@ -42,8 +42,8 @@ int runVoxelize(const std::vector<std::string>& args) {
       ("output,o", po::value<std::string>()->required(), "grid file to write (.vdb, grid \"modulus_mpa\")")
       ("voxel-size", po::value<std::string>(),
        "voxel size X,Y,Z in mm (z = build direction) instead of a printer profile's voxel")
-      ("threads", po::value<int>()->default_value(0), "worker threads (0 = all cores)")
       ("json", "print the statistics as JSON on stdout");
+  addThreadsOption(options, "the grid is the same for any count");
   addProfileOptions(options);
   po::positional_options_description positional;
   positional.add("design", 1);
@@ -66,6 +66,7 @@ int runVoxelize(const std::vector<std::string>& args) {
   const int threads = *threadsOption;
   const std::string file = vm["design"].as<std::string>(), output = vm["output"].as<std::string>();
   commandLineAccepted();
+  const ThreadLimit limit(threads);
   std::string profileName = "(--voxel-size)";
   if (!voxelSize) {
     const std::optional<printer_profiles::Profile> profile = profileFromOptions(vm, "nothing was written");

@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <iostream>
 #include <sstream>
+#include <thread>
 
 namespace rodfab::cli {
 
@@ -66,6 +67,19 @@ std::optional<int> threadCount(const std::string& command, const po::variables_m
                           std::to_string(threads));
   return std::nullopt;
 }
+
+void addThreadsOption(po::options_description& options, const std::string& what) {
+  options.add_options()("threads", po::value<int>()->default_value(0),
+                        ("worker threads, 0 = all cores, at most " + std::to_string(kMaxThreads) + "; " + what).c_str());
+}
+
+ThreadLimit::ThreadLimit(int threads)
+    : workers_(threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()))) {
+  if (threads > 0)
+    control_ = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
+}
+
+ThreadLimit::~ThreadLimit() = default;
 
 void validate(boost::any& out, const std::vector<std::string>& values, Seed*, int) {
   po::validators::check_first_occurrence(out);

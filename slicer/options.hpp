@@ -5,8 +5,10 @@
 #include "geometry/rod.hpp"
 
 #include <boost/program_options.hpp>
+#include <tbb/global_control.h>
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <ostream>
 #include <string>
@@ -57,8 +59,30 @@ inline constexpr int kMaxBandLayers = 4096;
 // More threads than this only add overhead on any machine rodfab runs on (and TBB fails far beyond).
 inline constexpr int kMaxThreads = 256;
 
+// Declares --threads N (default 0: all cores); `what` says what the workers do and whether the
+// result depends on their number ("the job is the same for any count").
+void addThreadsOption(po::options_description& options, const std::string& what);
+
 // The --threads value: 0 (all cores) or 1..kMaxThreads; nullopt (after a usage error) otherwise.
 std::optional<int> threadCount(const std::string& command, const po::variables_map& vm);
+
+// Every command's thread limit, for as long as it lives: `threads` > 0 caps TBB (every stage's
+// parallel loops, the job writer's encoders) at that many workers; 0 leaves TBB's default (all
+// cores). One per command, made after the command line is checked, on the command's thread.
+class ThreadLimit {
+public:
+  explicit ThreadLimit(int threads);
+  ~ThreadLimit();
+  ThreadLimit(const ThreadLimit&) = delete;
+  ThreadLimit& operator=(const ThreadLimit&) = delete;
+  // The workers a command that splits its own work should plan for: `threads`, or this machine's
+  // hardware threads (at least 1) for 0.
+  int workers() const { return workers_; }
+
+private:
+  int workers_;
+  std::unique_ptr<tbb::global_control> control_;
+};
 
 // Checks that `output` may be written under `policy` (common::checkOutputPath); prints the reason and
 // "nothing was written" and returns false otherwise (the command exits kFailed).
