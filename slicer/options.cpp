@@ -17,12 +17,16 @@ namespace rodfab::cli {
 
 std::optional<int> parseOptions(const std::string& command, const std::string& synopsis,
                                 po::options_description& options, const po::positional_options_description& positional,
-                                const std::vector<std::string>& args, po::variables_map& vm) {
+                                const std::vector<std::string>& args, po::variables_map& vm,
+                                const po::options_description* hidden) {
   options.add_options()("help,h", "show this help")
       ("max-memory", po::value<std::string>(),
        "memory budget, e.g. 8G or 512M (default: 80 % of this machine's memory); work beyond it is refused");
   try {
-    po::store(po::command_line_parser(args).options(options).positional(positional).run(), vm);
+    po::options_description all;
+    all.add(options);
+    if (hidden) all.add(*hidden);
+    po::store(po::command_line_parser(args).options(all).positional(positional).run(), vm);
     if (vm.count("help")) {
       std::cout << "usage: rodfab " << command << ' ' << synopsis << "\n\n" << options << '\n';
       return kOk;

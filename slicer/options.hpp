@@ -21,9 +21,11 @@ namespace po = boost::program_options;
 // Parses `args` against `options` (+ positionals), which gain --help and --max-memory (applied here:
 // common::setMemoryBudget). Prints help and returns kOk for --help, prints a
 // usage error and returns kUsage for bad options; returns nullopt when the command should go on.
+// `hidden` (optional) holds options accepted but not listed by --help (old spellings).
 std::optional<int> parseOptions(const std::string& command, const std::string& synopsis,
                                 po::options_description& options, const po::positional_options_description& positional,
-                                const std::vector<std::string>& args, po::variables_map& vm);
+                                const std::vector<std::string>& args, po::variables_map& vm,
+                                const po::options_description* hidden = nullptr);
 
 // Prints "rodfab COMMAND: MESSAGE" and where the options are listed; returns kUsage.
 int usageError(const std::string& command, const std::string& message);
