@@ -15,17 +15,15 @@ namespace rodfab::slicer {
 
 namespace {
 
-std::string mm(double v) {
+// `v` as printf's `format` for one double prints it ("%.3f": millimetres in messages).
+std::string printed(const char* format, double v) {
   char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3f", v);
+  std::snprintf(buf, sizeof buf, format, v);
   return buf;
 }
 
-std::string number(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.10g", v);
-  return buf;
-}
+std::string mm(double v) { return printed("%.3f", v); }
+std::string number(double v) { return printed("%.10g", v); }
 
 constexpr const char* kAxis[3] = {"x", "y", "z"};
 
@@ -36,6 +34,10 @@ openvdb::CoordBBox rowOf(const openvdb::Coord& bar, int gapI, int count) {
 nlohmann::json coord(const openvdb::Coord& c) { return {c.x(), c.y(), c.z()}; }
 
 }  // namespace
+
+std::string barSizeText(const CouponLayout& layout, const std::array<double, 3>& voxelMm) {
+  return mm(layout.bar.x() * voxelMm[0]) + " x " + mm(layout.bar.y() * voxelMm[1]) + " x " + mm(layout.bar.z() * voxelMm[2]) + " mm";
+}
 
 int CouponLayout::barAt(int i, int j) const {
   if (i < 0 || j < 0) return -1;

@@ -30,6 +30,9 @@ struct CouponLayout {
   int barAt(int i, int j) const;
 };
 
+// "30.014 x 5.080 x 1.500 mm": a bar of `layout` in whole voxels of `voxelMm`, for messages.
+std::string barSizeText(const CouponLayout& layout, const std::array<double, 3>& voxelMm);
+
 // A bar of `sizeMm` and gaps of `gapMm` (x and y) in whole voxels of `profile`, the nearest to what was
 // asked. Throws std::invalid_argument naming --size or --gap for less than one voxel (a usage error),
 // and std::runtime_error saying by how much for a bar larger than the tray (checked before the sizes

@@ -9,12 +9,6 @@ namespace rodfab::cli {
 
 namespace {
 
-std::string mm(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3f", v);
-  return buf;
-}
-
 std::array<double, 3> barMm(const slicer::CouponLayout& layout, const printer_profiles::Profile& profile) {
   const std::array<double, 3>& v = profile.voxelSizeMm;
   return {layout.bar.x() * v[0], layout.bar.y() * v[1], layout.bar.z() * v[2]};
@@ -51,8 +45,7 @@ openvdb::Vec3d couponOriginMm(const printer_profiles::Profile& profile) {
 }
 
 std::string barText(const slicer::CouponLayout& layout, const printer_profiles::Profile& profile) {
-  const std::array<double, 3> size = barMm(layout, profile);
-  return mm(size[0]) + " x " + mm(size[1]) + " x " + mm(size[2]) + " mm";
+  return slicer::barSizeText(layout, profile.voxelSizeMm);
 }
 
 nlohmann::json couponsManifest(const CouponRequest& r, const slicer::CouponLayout& layout,
