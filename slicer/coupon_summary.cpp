@@ -1,5 +1,6 @@
 #include "slicer/coupon_summary.hpp"
 
+#include "slicer/job_report.hpp"
 #include "slicer/value_parsers.hpp"
 
 #include <cstdio>
@@ -46,6 +47,25 @@ openvdb::Vec3d couponOriginMm(const printer_profiles::Profile& profile) {
 
 std::string barText(const slicer::CouponLayout& layout, const printer_profiles::Profile& profile) {
   return slicer::barSizeText(layout, profile.voxelSizeMm);
+}
+
+printer_profiles::JobSpec couponJobSpec(const CouponRequest& r, const printer_profiles::Profile& profile,
+                                        const slicer::CouponLayout& layout, const std::string& ditherName) {
+  printer_profiles::JobSpec spec;
+  spec.profile = profile;
+  spec.partBounds = layout.bounds;
+  spec.originMm = couponOriginMm(profile);
+  spec.metadata.ditherer = ditherName;
+  spec.metadata.seed = r.seed;
+  spec.options = r.job.job;
+  // report.html (slicer/job_report.hpp): coupons record no calibration or clamping; the rest applies.
+  spec.options.report = [verified = r.job.job.verify](const nlohmann::json& manifest, const auto& previews) {
+    slicer::ReportInputs inputs;
+    inputs.verified = verified;
+    const std::string page = slicer::renderJobReport(manifest, previews, inputs);
+    return printer_profiles::Bytes(page.begin(), page.end());
+  };
+  return spec;
 }
 
 nlohmann::json couponsManifest(const CouponRequest& r, const slicer::CouponLayout& layout,

@@ -29,6 +29,11 @@ openvdb::Vec3d couponOriginMm(const printer_profiles::Profile& profile);
 // "30.014 x 5.080 x 1.500 mm": a bar as laid out, in whole voxels.
 std::string barText(const slicer::CouponLayout& layout, const printer_profiles::Profile& profile);
 
+// The job's spec: the bars' bounds, origin (couponOriginMm), ditherer, seed, output options and a
+// report.html without calibration or clamping.
+printer_profiles::JobSpec couponJobSpec(const CouponRequest& request, const printer_profiles::Profile& profile,
+                                        const slicer::CouponLayout& layout, const std::string& ditherName);
+
 // The manifest's metadata.coupons: purpose, ditherer, seed, sizes asked and made, gaps, rows and `bars`
 // (slicer::couponBarsJson).
 nlohmann::json couponsManifest(const CouponRequest& request, const slicer::CouponLayout& layout,
