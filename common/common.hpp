@@ -7,3 +7,4 @@
 #include "common/memory_budget.hpp"
 #include "common/output_file.hpp"
 #include "common/sha256.hpp"
+#include "common/stopwatch.hpp"

@@ -94,6 +94,12 @@ const std::vector<std::string>& ditherMethodNames() {
   return names;
 }
 
+std::string canonicalDitherName(const std::string& name) {
+  if (name == "random" || name == "white-noise") return "white";
+  if (name == "blue-noise") return "blue";
+  return name;
+}
+
 std::unique_ptr<Ditherer> makeDitherer(std::string_view method, const DitherOptions& options) {
   if (method == "white") return std::make_unique<WhiteNoiseDitherer>(options.seed);
   if (method == "blue") return std::make_unique<BlueNoiseDitherer>(options.mask ? options.mask : BlueNoiseMask::bundled(), options.seed);

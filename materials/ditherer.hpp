@@ -69,6 +69,11 @@ protected:
 // Measured quality: materials/README.md and `rodfab dither-report`.
 const std::vector<std::string>& ditherMethodNames();
 
+// The ditherer's name as calibration data and job manifests record it: "random" (the published
+// pipeline's word) and "white-noise" mean "white", "blue-noise" means "blue"; other names are
+// returned unchanged (makeDitherer then judges them).
+std::string canonicalDitherName(const std::string& name);
+
 // Throws std::invalid_argument naming the valid names for an unknown `method`, and
 // std::runtime_error when "blue" needs the bundled mask and it cannot be read.
 std::unique_ptr<Ditherer> makeDitherer(std::string_view method, const DitherOptions& options = {});

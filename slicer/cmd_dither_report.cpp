@@ -1,19 +1,19 @@
+// rodfab dither-report: every ditherer's quality (bias, low-pass error, clustering, runs, speed) on
+// uniform blocks and a thin rod made at the profile's voxel (materials/dither_quality.hpp).
+#include "common/memory_budget.hpp"
+#include "common/stopwatch.hpp"
 #include "materials/materials.hpp"
 #include "slicer/command.hpp"
 #include "slicer/options.hpp"
 #include "slicer/profile_option.hpp"
-
-#include "common/memory_budget.hpp"
+#include "slicer/value_parsers.hpp"
 
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
-#include <cerrno>
-#include <cstdlib>
 #include <chrono>
 #include <cstdio>
 #include <iostream>
-#include <sstream>
 
 namespace rodfab::cli {
 
@@ -24,44 +24,10 @@ struct Region {
   openvdb::FloatGrid::Ptr fraction;
 };
 
-// "0.1,0.5" -> {0.1, 0.5}; nullopt when a token is not a number in [0, 1].
-std::optional<std::vector<float>> parseFractions(const std::string& text) {
-  std::vector<float> out;
-  std::stringstream in(text);
-  std::string token;
-  while (std::getline(in, token, ',')) {
-    try {
-      std::size_t used = 0;
-      const float f = std::stof(token, &used);
-      if (used != token.size() || !(f >= 0.0f && f <= 1.0f)) return std::nullopt;
-      out.push_back(f);
-    } catch (const std::exception&) {
-      return std::nullopt;
-    }
-  }
-  if (out.empty()) return std::nullopt;
-  return out;
-}
-
 // Block sides beyond this are not a dither measurement any more (and would leave OpenVDB's index range).
 constexpr int kMaxBlockSide = 1 << 16;
-
-std::optional<openvdb::Coord> parseSize(const std::string& text) {
-  int sides[3] = {0, 0, 0};
-  const char* at = text.c_str();
-  for (int a = 0; a < 3; ++a) {
-    if (a > 0 && *at++ != 'x') return std::nullopt;
-    if (*at < '0' || *at > '9') return std::nullopt;
-    char* end = nullptr;
-    errno = 0;
-    const long side = std::strtol(at, &end, 10);
-    if (errno == ERANGE || side < 1 || side > kMaxBlockSide) return std::nullopt;
-    sides[a] = static_cast<int>(side);
-    at = end;
-  }
-  if (*at != '\0') return std::nullopt;
-  return openvdb::Coord(sides[0], sides[1], sides[2]);
-}
+// More uniform blocks than this are not a report any more (the memory estimate bounds them too).
+constexpr std::size_t kMaxBlocks = 1000;
 
 // Memory for the regions (sparse float grids, ~4.2 bytes a voxel, all held at once) and for measuring
 // one of them (dense arrays over its box, ~56 bytes a voxel: materials/dither_quality.cpp).
@@ -75,16 +41,23 @@ std::uint64_t regionBytes(const openvdb::Coord& block, std::size_t blocks, doubl
 
 int usageError(const std::string& what) { return cli::usageError("dither-report", what); }
 
-}  // namespace
 
-int runDitherReport(const std::vector<std::string>& args) {
-  po::options_description options("options");
+// --dither: one ditherer's name (canonical: "random" is "white") or all of them; nullopt if unknown.
+std::optional<std::vector<std::string>> ditherMethods(const std::string& chosen) {
+  if (chosen == "all") return materials::ditherMethodNames();
+  const std::string name = materials::canonicalDitherName(chosen);
+  for (const std::string& n : materials::ditherMethodNames())
+    if (n == name) return std::vector<std::string>{name};
+  return std::nullopt;
+}
+
+void addDitherReportOptions(po::options_description& options) {
   options.add_options()
-      ("ditherer", po::value<std::string>()->default_value("all"), "white, blue, error-diffusion or all")
+      ("dither", po::value<std::string>()->default_value("all"), "white, blue, error-diffusion or all")
       ("seed", po::value<Seed>()->default_value(Seed{1}), "dithering seed")
-      ("block", po::value<std::string>()->default_value("128x64x180"), "uniform block size in voxels, XxYxZ")
-      ("fractions", po::value<std::string>()->default_value("0.1,0.2,0.3,0.4,0.5,0.6,0.7,0.8,0.9"),
-       "Vero fractions of the uniform blocks, comma-separated")
+      ("block", po::value<std::string>()->default_value("128x64x180"), "uniform block size XxYxZ in voxels")
+      ("fractions", po::value<std::string>()->default_value("0.1,0.2,...,0.9"),
+       "Vero fractions of the uniform blocks, comma-separated; A,B,...,Z continues the step B - A up to Z")
       ("rod-diameter", po::value<double>()->default_value(1.0), "rod diameter in mm")
       ("rod-length", po::value<double>()->default_value(10.0), "rod length in mm")
       ("rod-axis", po::value<char>()->default_value('x'), "rod direction: x, y or z")
@@ -92,42 +65,114 @@ int runDitherReport(const std::vector<std::string>& args) {
       ("mask", po::value<std::string>(), "blue-noise mask file (default: the bundled one)")
       ("json", "print the report as JSON on stdout");
   addProfileOptions(options);
-  po::positional_options_description positional;
-  po::variables_map vm;
-  if (auto code = parseOptions("dither-report", "[options]", options, positional, args, vm)) return *code;
+}
 
+struct ReportRequest {
   std::vector<std::string> methods;
-  const std::string chosen = vm["ditherer"].as<std::string>();
-  if (chosen == "all") {
-    methods = materials::ditherMethodNames();
-  } else {
-    bool known = false;
-    for (const std::string& n : materials::ditherMethodNames()) known = known || n == chosen;
-    if (!known) return usageError("unknown ditherer '" + chosen + "', expected white, blue, error-diffusion or all");
-    methods = {chosen};
+  std::vector<float> fractions;
+  openvdb::Coord block;
+  char axis = 'x';
+  double diameterMm = 0.0, lengthMm = 0.0;
+  float rodFraction = 0.0f;
+  bool json = false;
+};
+
+// The request from a parsed command line; nullopt after a usage error.
+std::optional<ReportRequest> readRequest(const po::variables_map& vm) {
+  ReportRequest r;
+  const std::string chosen = vm.count("ditherer") ? vm["ditherer"].as<std::string>() : vm["dither"].as<std::string>();
+  const std::optional<std::vector<std::string>> methods = ditherMethods(chosen);
+  if (!methods) return usageError("--dither: unknown ditherer '" + chosen + "', expected white, blue, error-diffusion or all"), std::nullopt;
+  r.methods = *methods;
+  try {
+    for (double f : parseFractionList("--fractions", vm["fractions"].as<std::string>(), kMaxBlocks))
+      r.fractions.push_back(static_cast<float>(f));
+    const std::array<int, 3> sides = parseSizeVoxels("--block", vm["block"].as<std::string>(), kMaxBlockSide);
+    r.block = openvdb::Coord(sides[0], sides[1], sides[2]);
+  } catch (const BadValue& e) {
+    return usageError(e.what()), std::nullopt;
   }
-  const auto fractions = parseFractions(vm["fractions"].as<std::string>());
-  if (!fractions) return usageError("--fractions: expected comma-separated numbers in [0, 1]");
-  const auto block = parseSize(vm["block"].as<std::string>());
-  if (!block)
-    return usageError("--block: expected XxYxZ voxel counts from 1 to " + std::to_string(kMaxBlockSide) + ", e.g. 128x64x180");
-  const char axisName = vm["rod-axis"].as<char>();
-  if (axisName < 'x' || axisName > 'z') return usageError("--rod-axis: expected x, y or z");
-  const std::optional<double> diameterOption = realOption("dither-report", vm, "rod-diameter", 1e-3, 1e3, "mm");
-  const std::optional<double> lengthOption = realOption("dither-report", vm, "rod-length", 1e-3, 1e4, "mm");
-  if (!diameterOption || !lengthOption) return kUsage;
-  const double diameter = *diameterOption, length = *lengthOption;
-  const float rodFractionValue = vm["rod-fraction"].as<float>();
-  if (!(rodFractionValue >= 0.0f && rodFractionValue <= 1.0f)) return usageError("--rod-fraction: expected a number in [0, 1]");
+  r.axis = vm["rod-axis"].as<char>();
+  if (r.axis < 'x' || r.axis > 'z') return usageError("--rod-axis: expected x, y or z"), std::nullopt;
+  const std::optional<double> diameter = realOption("dither-report", vm, "rod-diameter", 1e-3, 1e3, "mm");
+  const std::optional<double> length = realOption("dither-report", vm, "rod-length", 1e-3, 1e4, "mm");
+  if (!diameter || !length) return std::nullopt;
+  r.diameterMm = *diameter, r.lengthMm = *length;
+  r.rodFraction = vm["rod-fraction"].as<float>();
+  if (!(r.rodFraction >= 0.0f && r.rodFraction <= 1.0f)) return usageError("--rod-fraction: expected a number in [0, 1]"), std::nullopt;
+  r.json = vm.count("json") > 0;
+  return r;
+}
+
+std::vector<Region> makeRegions(const ReportRequest& r, const openvdb::Vec3d& voxel) {
+  std::vector<Region> regions;
+  for (float f : r.fractions) {
+    char name[64];
+    std::snprintf(name, sizeof name, "block %.2f", f);
+    regions.push_back({name, materials::makeUniformBlock(r.block, f, voxel)});
+  }
+  char rodName[64];
+  std::snprintf(rodName, sizeof rodName, "rod %c %.2f", r.axis, r.rodFraction);
+  regions.push_back({rodName, materials::makeRod(r.diameterMm, r.lengthMm, r.axis - 'x', r.rodFraction, voxel)});
+  return regions;
+}
+
+nlohmann::json qualityJson(const std::string& method, const Region& region, const materials::DitherQuality& q, double rate) {
+  return {{"ditherer", method},
+          {"region", region.name},
+          {"voxels", q.voxels},
+          {"target_mean", q.targetMean},
+          {"achieved_mean", q.achievedMean},
+          {"mean_bias", q.meanBias},
+          {"lowpass_rms_100um", q.lowPassRms100um},
+          {"lowpass_rms_250um", q.lowPassRms250um},
+          {"largest_vero_cluster_share", q.largestVeroClusterShare},
+          {"mean_run_length_voxels", q.meanRunLength},
+          {"mvoxels_per_second", rate}};
+}
+
+// Dithers every region with every method, measures it and prints a row (or the JSON array at the end).
+void report(const ReportRequest& r, const std::vector<Region>& regions, const materials::DitherOptions& ditherOptions) {
+  nlohmann::json rows = nlohmann::json::array();
+  if (!r.json)
+    std::printf("%-16s %-12s %8s %9s %10s %10s %8s %17s %9s\n", "ditherer", "region", "voxels", "bias",
+                "rms@100um", "rms@250um", "cluster", "runs x/y/z", "Mvox/s");
+  for (const std::string& method : r.methods) {
+    for (const Region& region : regions) {
+      const auto ditherer = materials::makeDitherer(method, ditherOptions);
+      const auto start = std::chrono::steady_clock::now();
+      const openvdb::BoolGrid::Ptr material = ditherer->dither(*region.fraction);
+      const double seconds = common::secondsSince(start);
+      const materials::DitherQuality q = materials::measureDitherQuality(*region.fraction, *material);
+      const double rate = seconds > 0 ? static_cast<double>(q.voxels) / seconds / 1e6 : 0.0;
+      if (r.json) rows.push_back(qualityJson(method, region, q, rate));
+      else
+        std::printf("%-16s %-12s %8zu %+9.5f %10.5f %10.5f %8.3f %5.2f/%5.2f/%5.2f %9.1f\n", method.c_str(),
+                    region.name.c_str(), q.voxels, q.meanBias, q.lowPassRms100um, q.lowPassRms250um,
+                    q.largestVeroClusterShare, q.meanRunLength[0], q.meanRunLength[1], q.meanRunLength[2], rate);
+    }
+  }
+  if (r.json) std::cout << rows.dump(2) << '\n';
+}
+
+}  // namespace
+
+int runDitherReport(const std::vector<std::string>& args) {
+  po::options_description options("options"), hidden;
+  addDitherReportOptions(options);
+  hidden.add_options()("ditherer", po::value<std::string>(), "the old spelling of --dither");
+  po::variables_map vm;
+  if (auto code = parseOptions("dither-report", "[options]", options, {}, args, vm, &hidden)) return *code;
+  const std::optional<ReportRequest> request = readRequest(vm);
+  if (!request) return kUsage;
   commandLineAccepted();
   // The regions are made at the printer's voxel: the profile's, the only source of it.
   const std::optional<printer_profiles::Profile> profile = profileFromOptions(vm, "no report was made");
   if (!profile) return kFailed;
   const openvdb::Vec3d voxel(profile->voxelSizeMm[0], profile->voxelSizeMm[1], profile->voxelSizeMm[2]);
-  common::requireMemory(regionBytes(*block, fractions->size(), diameter, length, voxel),
-                        "dither-report's " + std::to_string(fractions->size()) + " blocks and rod",
+  common::requireMemory(regionBytes(request->block, request->fractions.size(), request->diameterMm, request->lengthMm, voxel),
+                        "dither-report's " + std::to_string(request->fractions.size()) + " blocks and rod",
                         "use a smaller --block, fewer --fractions or a shorter --rod-length");
-  const float rodFraction = rodFractionValue;
   materials::DitherOptions ditherOptions;
   ditherOptions.seed = vm["seed"].as<Seed>().value;
   if (vm.count("mask")) {
@@ -138,50 +183,7 @@ int runDitherReport(const std::vector<std::string>& args) {
       return kFailed;
     }
   }
-
-  std::vector<Region> regions;
-  for (float f : *fractions) {
-    char name[64];
-    std::snprintf(name, sizeof name, "block %.2f", f);
-    regions.push_back({name, materials::makeUniformBlock(*block, f, voxel)});
-  }
-  char rodName[64];
-  std::snprintf(rodName, sizeof rodName, "rod %c %.2f", axisName, rodFraction);
-  regions.push_back({rodName, materials::makeRod(diameter, length, axisName - 'x', rodFraction, voxel)});
-
-  nlohmann::json report = nlohmann::json::array();
-  const bool json = vm.count("json") > 0;
-  if (!json)
-    std::printf("%-16s %-12s %8s %9s %10s %10s %8s %17s %9s\n", "ditherer", "region", "voxels", "bias",
-                "rms@100um", "rms@250um", "cluster", "runs x/y/z", "Mvox/s");
-  for (const std::string& method : methods) {
-    for (const Region& region : regions) {
-      const auto ditherer = materials::makeDitherer(method, ditherOptions);
-      const auto start = std::chrono::steady_clock::now();
-      const openvdb::BoolGrid::Ptr material = ditherer->dither(*region.fraction);
-      const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      const materials::DitherQuality q = materials::measureDitherQuality(*region.fraction, *material);
-      const double rate = seconds > 0 ? static_cast<double>(q.voxels) / seconds / 1e6 : 0.0;
-      if (json) {
-        report.push_back({{"ditherer", method},
-                          {"region", region.name},
-                          {"voxels", q.voxels},
-                          {"target_mean", q.targetMean},
-                          {"achieved_mean", q.achievedMean},
-                          {"mean_bias", q.meanBias},
-                          {"lowpass_rms_100um", q.lowPassRms100um},
-                          {"lowpass_rms_250um", q.lowPassRms250um},
-                          {"largest_vero_cluster_share", q.largestVeroClusterShare},
-                          {"mean_run_length_voxels", q.meanRunLength},
-                          {"mvoxels_per_second", rate}});
-      } else {
-        std::printf("%-16s %-12s %8zu %+9.5f %10.5f %10.5f %8.3f %5.2f/%5.2f/%5.2f %9.1f\n", method.c_str(),
-                    region.name.c_str(), q.voxels, q.meanBias, q.lowPassRms100um, q.lowPassRms250um,
-                    q.largestVeroClusterShare, q.meanRunLength[0], q.meanRunLength[1], q.meanRunLength[2], rate);
-      }
-    }
-  }
-  if (json) std::cout << report.dump(2) << '\n';
+  report(*request, makeRegions(*request, voxel), ditherOptions);
   return kOk;
 }
 

@@ -11,64 +11,33 @@ namespace rodfab::cli {
 
 namespace pp = printer_profiles;
 
-int runProfiles(const std::vector<std::string>& args) {
-  po::options_description options("options");
-  options.add_options()
-      ("profile", po::value<std::string>(), "show one profile in full (a bundled name or a profile file)")
-      ("json", "print as JSON on stdout");
-  po::positional_options_description positional;
-  positional.add("profile", 1);
-  po::variables_map vm;
-  if (auto code = parseOptions("profiles", "[PROFILE] [--json]", options, positional, args, vm)) return *code;
-  commandLineAccepted();
+namespace {
 
-  std::vector<pp::Profile> profiles;
-  try {
-    if (vm.count("profile")) {
-      profiles.push_back(pp::loadProfile(vm["profile"].as<std::string>()));
-    } else {
-      for (const std::string& name : pp::bundledProfileNames()) profiles.push_back(pp::loadProfile(name));
-    }
-  } catch (const pp::ProfileError& e) {
-    std::cerr << e.what() << '\n';
-    return kFailed;
+nlohmann::json profileJson(const pp::Profile& p) {
+  nlohmann::json materials = nlohmann::json::array();
+  for (const auto& m : p.materials) {
+    materials.push_back({{"name", m.name}, {"role", pp::toString(m.role)}, {"density_g_per_ml", m.densityGPerMl}});
+    if (p.jobFormat == pp::JobFormat::Gcvf && m.role != pp::MaterialRole::Support) materials.back()["rgba"] = m.rgba;
   }
-  if (vm.count("json")) {
-    nlohmann::json list = nlohmann::json::array();
-    for (const pp::Profile& p : profiles) {
-      nlohmann::json materials = nlohmann::json::array();
-      for (const auto& m : p.materials) {
-        materials.push_back({{"name", m.name}, {"role", pp::toString(m.role)}, {"density_g_per_ml", m.densityGPerMl}});
-        if (p.jobFormat == pp::JobFormat::Gcvf && m.role != pp::MaterialRole::Support) materials.back()["rgba"] = m.rgba;
-      }
-      nlohmann::json modes = nlohmann::json::array();
-      for (const pp::PrintMode& mode : p.printModes) modes.push_back({{"name", mode.name}, {"layer_thickness_mm", mode.layerThicknessMm}});
-      list.push_back({{"name", p.name},
-                      {"printer", p.printer},
-                      {"file", p.source.string()},
-                      {"dpi", {p.xDpi, p.yDpi}},
-                      {"voxel_size_mm", p.voxelSizeMm},
-                      {"tray_mm", p.trayMm},
-                      {"model_material_slots", p.modelMaterialSlots},
-                      {"materials", materials},
-                      {"output_format", pp::toString(p.jobFormat)},
-                      {"print_modes", modes},
-                      {"image_format", pp::toString(p.imageFormat)},
-                      {"bit_depth", p.imageBitDepth()},
-                      {"column_alignment", p.columnAlignment},
-                      {"support_policy", pp::toString(p.supportPolicy)}});
-    }
-    std::cout << list.dump(2) << '\n';
-    return kOk;
-  }
-  if (!vm.count("profile")) {
-    std::printf("bundled profiles (%s):\n", pp::bundledProfileDir().c_str());
-    for (const pp::Profile& p : profiles)
-      std::printf("  %-32s %s, %d x %d dpi, %.3f mm layers, tray %.0f x %.0f x %.0f mm\n", p.name.c_str(), p.printer.c_str(),
-                  p.xDpi, p.yDpi, p.voxelSizeMm[2], p.trayMm[0], p.trayMm[1], p.trayMm[2]);
-    return kOk;
-  }
-  const pp::Profile& p = profiles.front();
+  nlohmann::json modes = nlohmann::json::array();
+  for (const pp::PrintMode& mode : p.printModes) modes.push_back({{"name", mode.name}, {"layer_thickness_mm", mode.layerThicknessMm}});
+  return {{"name", p.name},
+                  {"printer", p.printer},
+                  {"file", p.source.string()},
+                  {"dpi", {p.xDpi, p.yDpi}},
+                  {"voxel_size_mm", p.voxelSizeMm},
+                  {"tray_mm", p.trayMm},
+                  {"model_material_slots", p.modelMaterialSlots},
+                  {"materials", materials},
+                  {"output_format", pp::toString(p.jobFormat)},
+                  {"print_modes", modes},
+                  {"image_format", pp::toString(p.imageFormat)},
+                  {"bit_depth", p.imageBitDepth()},
+                  {"column_alignment", p.columnAlignment},
+                  {"support_policy", pp::toString(p.supportPolicy)}};
+}
+
+void printProfile(const pp::Profile& p) {
   std::printf("profile:       %s (%s)\n", p.name.c_str(), p.source.c_str());
   std::printf("printer:       %s\n", p.printer.c_str());
   std::printf("resolution:    x %d dpi (image columns), y %d dpi (image rows), %.3f mm layers\n", p.xDpi, p.yDpi,
@@ -93,6 +62,46 @@ int runProfiles(const std::vector<std::string>& args) {
   std::printf("row order:     %s\n", p.rowOrder.c_str());
   std::printf("build file:    %s (format version %d)\n", p.buildFileName.c_str(), p.buildFormatVersion);
   std::printf("support:       %s\n", pp::toString(p.supportPolicy));
+}
+
+}  // namespace
+
+int runProfiles(const std::vector<std::string>& args) {
+  po::options_description options("options");
+  options.add_options()
+      ("profile", po::value<std::string>(), "show one profile in full (a bundled name or a profile file)")
+      ("json", "print as JSON on stdout");
+  po::positional_options_description positional;
+  positional.add("profile", 1);
+  po::variables_map vm;
+  if (auto code = parseOptions("profiles", "[PROFILE] [--json]", options, positional, args, vm)) return *code;
+  commandLineAccepted();
+
+  std::vector<pp::Profile> profiles;
+  try {
+    if (vm.count("profile")) {
+      profiles.push_back(pp::loadProfile(vm["profile"].as<std::string>()));
+    } else {
+      for (const std::string& name : pp::bundledProfileNames()) profiles.push_back(pp::loadProfile(name));
+    }
+  } catch (const pp::ProfileError& e) {
+    std::cerr << e.what() << '\n';
+    return kFailed;
+  }
+  if (vm.count("json")) {
+    nlohmann::json list = nlohmann::json::array();
+    for (const pp::Profile& p : profiles) list.push_back(profileJson(p));
+    std::cout << list.dump(2) << '\n';
+    return kOk;
+  }
+  if (!vm.count("profile")) {
+    std::printf("bundled profiles (%s):\n", pp::bundledProfileDir().c_str());
+    for (const pp::Profile& p : profiles)
+      std::printf("  %-32s %s, %d x %d dpi, %.3f mm layers, tray %.0f x %.0f x %.0f mm\n", p.name.c_str(), p.printer.c_str(),
+                  p.xDpi, p.yDpi, p.voxelSizeMm[2], p.trayMm[0], p.trayMm[1], p.trayMm[2]);
+    return kOk;
+  }
+  printProfile(profiles.front());
   return kOk;
 }
 

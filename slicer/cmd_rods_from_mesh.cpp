@@ -7,12 +7,10 @@
 #include "slicer/shape_options.hpp"
 
 #include <nlohmann/json.hpp>
-#include <tbb/global_control.h>
 
 #include <cstdio>
 #include <algorithm>
 #include <iostream>
-#include <thread>
 #include <variant>
 
 namespace rodfab::cli {
@@ -23,7 +21,7 @@ struct MeshSettings {
   std::string mesh, output, profile;
   meshing::MeshRodOptions options;
   bool force = false, json = false;
-  int workers = 1;
+  int threads = 0;  // --threads (0: all cores)
 };
 
 void addMeshOptions(po::options_description& options) {
@@ -34,9 +32,9 @@ void addMeshOptions(po::options_description& options) {
       ("output,o", po::value<std::string>()->required(), "design file to write (rodfab.design/1)")
       ("subdivisions", po::value<int>()->default_value(4), "points per rod projected onto the surface and interpolated")
       ("surface-tolerance", po::value<double>()->default_value(0.05), "largest distance of a centerline from the surface (mm)")
-      ("threads", po::value<int>()->default_value(0), "worker threads for the rods (0 = all cores); the result does not depend on it")
       ("force", "replace an existing design file at --output")
       ("json", "print the summary as JSON on stdout");
+  addThreadsOption(options, "they build the rods; the result does not depend on their number");
   // The frame's d1 is the surface normal: --diameter is the thickness normal to the surface, --breadth
   // the size within it.
   addRodShapeOptions(options);
@@ -60,7 +58,7 @@ std::variant<MeshSettings, int> parseMesh(const std::vector<std::string>& args) 
   const auto tolerance = realOption("rods-from-mesh", vm, "surface-tolerance", 1e-6, 1000, "mm");
   const std::optional<int> threads = threadCount("rods-from-mesh", vm);
   if (!faces || !subdivisions || !tolerance || !threads) return kUsage;
-  s.workers = *threads > 0 ? *threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  s.threads = *threads;
   const std::optional<RodShape> shape = parseRodShape("rods-from-mesh", vm);
   if (!shape) return kUsage;
   o.faces = *faces, o.subdivisions = *subdivisions, o.surfaceTolerance = *tolerance;
@@ -107,7 +105,7 @@ int runRodsFromMesh(const std::vector<std::string>& args) {
   if (const int* code = std::get_if<int>(&parsed)) return *code;
   const MeshSettings& s = std::get<MeshSettings>(parsed);
   commandLineAccepted();
-  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(s.workers));
+  const ThreadLimit limit(s.threads);
   std::string profileName;
   std::array<double, 3> trayMm{};
   if (!loadTrayProfile("rods-from-mesh", s.profile, trayMm, profileName)) return kFailed;

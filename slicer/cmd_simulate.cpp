@@ -6,7 +6,6 @@
 #include "slicer/options.hpp"
 
 #include <nlohmann/json.hpp>
-#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <cmath>
@@ -14,7 +13,6 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
-#include <thread>
 #include <variant>
 
 namespace rodfab::cli {
@@ -26,7 +24,7 @@ struct SimulateSettings {
   mechanics::Discretization discretization;
   mechanics::SolverOptions solver;
   mechanics::AccuracyOptions accuracy;
-  int workers = 1;
+  int threads = 0;  // --threads (0: all cores)
   bool json = false;
 };
 
@@ -48,8 +46,8 @@ void addSimulateOptions(po::options_description& options) {
       ("load-steps", po::value<int>()->default_value(0), "load steps (0: the design's mechanics.load_steps)")
       ("tolerance", po::value<double>()->default_value(1e-10), "Newton tolerance on the scaled residual or correction")
       ("max-iterations", po::value<int>()->default_value(30), "Newton iterations per load step before the step is cut")
-      ("threads", po::value<int>()->default_value(0), "worker threads for assembly (0 = all cores)")
       ("json", "print the convergence history and summary as JSON on stdout");
+  addThreadsOption(options, "they assemble the equations; the result does not depend on their number");
 }
 
 // The settings from the command line, or the exit code of a usage error or --help.
@@ -87,7 +85,7 @@ std::variant<SimulateSettings, int> parseSimulate(const std::vector<std::string>
   if (solver.maxIterations < 1 || solver.maxIterations > 1000) return usageError("simulate", "--max-iterations: expected 1..1000");
   const std::optional<int> threads = threadCount("simulate", vm);
   if (!threads) return kUsage;
-  s.workers = *threads > 0 ? *threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  s.threads = *threads;
   s.json = vm.count("json") > 0;
   return s;
 }
@@ -216,7 +214,7 @@ int runSimulate(const std::vector<std::string>& args) {
   if (const int* code = std::get_if<int>(&parsed)) return *code;
   const SimulateSettings& s = std::get<SimulateSettings>(parsed);
   commandLineAccepted();
-  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(s.workers));
+  const ThreadLimit limit(s.threads);
   const std::optional<geometry::RodStructure> read = readDesignOrReport(s.design, "nothing was written");
   if (!read) return kFailed;
   const geometry::RodStructure& design = *read;

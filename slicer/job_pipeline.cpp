@@ -1,5 +1,7 @@
 #include "slicer/job_pipeline.hpp"
 
+#include "common/stopwatch.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <stdexcept>
@@ -9,6 +11,7 @@ namespace rodfab::slicer {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+using common::secondsSince;
 
 }  // namespace
 
@@ -45,12 +48,6 @@ printer_profiles::JobResult streamJob(printer_profiles::JobSpec spec, const Band
   printer_profiles::JobResult result = writer.finalize();
   seconds.emit += secondsSince(start);
   return result;
-}
-
-std::string canonicalDitherName(const std::string& name) {
-  if (name == "random" || name == "white-noise") return "white";
-  if (name == "blue-noise") return "blue";
-  return name;
 }
 
 }  // namespace rodfab::slicer

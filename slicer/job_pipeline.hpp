@@ -9,7 +9,6 @@
 
 #include <openvdb/openvdb.h>
 
-#include <chrono>
 #include <functional>
 #include <string>
 
@@ -43,14 +42,5 @@ struct PipelineOptions {
 printer_profiles::JobResult streamJob(printer_profiles::JobSpec spec, const BandSource& source,
                                       materials::Ditherer& ditherer, const PipelineOptions& options,
                                       StageSeconds& seconds);
-
-// Seconds from `start` to now (steady clock): the stage timings of jobs.
-inline double secondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
-// The ditherer's name as calibration data and job manifests record it: "random" (the published
-// pipeline's word) and "white-noise" mean "white"; other names are returned unchanged.
-std::string canonicalDitherName(const std::string& name);
 
 }  // namespace rodfab::slicer

@@ -11,17 +11,22 @@
 #include <cstdlib>
 #include <iostream>
 #include <sstream>
+#include <thread>
 
 namespace rodfab::cli {
 
 std::optional<int> parseOptions(const std::string& command, const std::string& synopsis,
                                 po::options_description& options, const po::positional_options_description& positional,
-                                const std::vector<std::string>& args, po::variables_map& vm) {
+                                const std::vector<std::string>& args, po::variables_map& vm,
+                                const po::options_description* hidden) {
   options.add_options()("help,h", "show this help")
       ("max-memory", po::value<std::string>(),
        "memory budget, e.g. 8G or 512M (default: 80 % of this machine's memory); work beyond it is refused");
   try {
-    po::store(po::command_line_parser(args).options(options).positional(positional).run(), vm);
+    po::options_description all;
+    all.add(options);
+    if (hidden) all.add(*hidden);
+    po::store(po::command_line_parser(args).options(all).positional(positional).run(), vm);
     if (vm.count("help")) {
       std::cout << "usage: rodfab " << command << ' ' << synopsis << "\n\n" << options << '\n';
       return kOk;
@@ -66,6 +71,19 @@ std::optional<int> threadCount(const std::string& command, const po::variables_m
                           std::to_string(threads));
   return std::nullopt;
 }
+
+void addThreadsOption(po::options_description& options, const std::string& what) {
+  options.add_options()("threads", po::value<int>()->default_value(0),
+                        ("worker threads, 0 = all cores, at most " + std::to_string(kMaxThreads) + "; " + what).c_str());
+}
+
+ThreadLimit::ThreadLimit(int threads)
+    : workers_(threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()))) {
+  if (threads > 0)
+    control_ = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
+}
+
+ThreadLimit::~ThreadLimit() = default;
 
 void validate(boost::any& out, const std::vector<std::string>& values, Seed*, int) {
   po::validators::check_first_occurrence(out);

@@ -5,8 +5,10 @@
 #include "geometry/rod.hpp"
 
 #include <boost/program_options.hpp>
+#include <tbb/global_control.h>
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <ostream>
 #include <string>
@@ -19,9 +21,11 @@ namespace po = boost::program_options;
 // Parses `args` against `options` (+ positionals), which gain --help and --max-memory (applied here:
 // common::setMemoryBudget). Prints help and returns kOk for --help, prints a
 // usage error and returns kUsage for bad options; returns nullopt when the command should go on.
+// `hidden` (optional) holds options accepted but not listed by --help (old spellings).
 std::optional<int> parseOptions(const std::string& command, const std::string& synopsis,
                                 po::options_description& options, const po::positional_options_description& positional,
-                                const std::vector<std::string>& args, po::variables_map& vm);
+                                const std::vector<std::string>& args, po::variables_map& vm,
+                                const po::options_description* hidden = nullptr);
 
 // Prints "rodfab COMMAND: MESSAGE" and where the options are listed; returns kUsage.
 int usageError(const std::string& command, const std::string& message);
@@ -57,8 +61,30 @@ inline constexpr int kMaxBandLayers = 4096;
 // More threads than this only add overhead on any machine rodfab runs on (and TBB fails far beyond).
 inline constexpr int kMaxThreads = 256;
 
+// Declares --threads N (default 0: all cores); `what` says what the workers do and whether the
+// result depends on their number ("the job is the same for any count").
+void addThreadsOption(po::options_description& options, const std::string& what);
+
 // The --threads value: 0 (all cores) or 1..kMaxThreads; nullopt (after a usage error) otherwise.
 std::optional<int> threadCount(const std::string& command, const po::variables_map& vm);
+
+// Every command's thread limit, for as long as it lives: `threads` > 0 caps TBB (every stage's
+// parallel loops, the job writer's encoders) at that many workers; 0 leaves TBB's default (all
+// cores). One per command, made after the command line is checked, on the command's thread.
+class ThreadLimit {
+public:
+  explicit ThreadLimit(int threads);
+  ~ThreadLimit();
+  ThreadLimit(const ThreadLimit&) = delete;
+  ThreadLimit& operator=(const ThreadLimit&) = delete;
+  // The workers a command that splits its own work should plan for: `threads`, or this machine's
+  // hardware threads (at least 1) for 0.
+  int workers() const { return workers_; }
+
+private:
+  int workers_;
+  std::unique_ptr<tbb::global_control> control_;
+};
 
 // Checks that `output` may be written under `policy` (common::checkOutputPath); prints the reason and
 // "nothing was written" and returns false otherwise (the command exits kFailed).

@@ -1,6 +1,7 @@
 #include "slicer/slice_design.hpp"
 
 #include "common/interrupt.hpp"
+#include "common/stopwatch.hpp"
 #include "slicer/job_report.hpp"
 #include "voxel/diagnostics.hpp"
 
@@ -14,6 +15,7 @@ namespace rodfab::slicer {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+using common::secondsSince;
 
 // report.html (job_report.hpp), made when the writer finalizes the job: the bands are done by then.
 printer_profiles::JobReportHook reportHook(const SliceReport& report, const calibration::Calibration& calibration,

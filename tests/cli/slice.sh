@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # rodfab slice end to end: every bundled example into a job that inspect passes, identical bytes for
-# any thread count and band size, a clean interrupt, and bad input that writes nothing.
-#   slice.sh RODFAB SOURCE_DIR
+# any thread count and band size, a clean interrupt, and bad input that writes nothing. In sections,
+# each its own ctest entry (cli_slice_SECTION): examples, force, interrupts, input (default: all).
+#   slice.sh RODFAB SOURCE_DIR [SECTION ...]
 set -u
 rodfab=$1 src=$2
 tmp=$(mktemp -d)
@@ -14,6 +15,7 @@ only() {  # the folder holds exactly these names (nothing half-written, no hidde
 }
 mkdir "$tmp/out"
 
+section_examples() {  # (bodies not indented: their here-documents end at column 0)
 # Every bundled example, then inspect.
 for design in "$src"/examples/*.json; do
   name=$(basename "$design" .json)
@@ -52,6 +54,12 @@ for dither in white blue error-diffusion; do
   rm -f "$tmp"/[123]/job.zip
 done
 
+# "random" (the published pipeline's word, as calibration data records it) is white, as in coupons.
+"$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/1/job.zip" --dither random --seed 3 --quiet > /dev/null || fail "--dither random"
+"$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/2/job.zip" --dither white --seed 3 --quiet > /dev/null || fail "--dither white"
+cmp -s "$tmp/1/job.zip" "$tmp/2/job.zip" || fail "--dither random is not --dither white"
+rm -f "$tmp"/[12]/job.zip
+
 # PNG in a folder, explicit support: inspect passes.
 "$rodfab" slice "$src/examples/arm-cast.json" -o "$tmp/out/cast" --format dir --image-format png --support explicit --quiet > /dev/null 2> "$tmp/err" ||
   fail "png/dir/explicit: $(cat "$tmp/err")"
@@ -59,6 +67,9 @@ ls "$tmp/out/cast" | grep -q "^FullCure705_0000.png$" || fail "explicit support 
 "$rodfab" inspect "$tmp/out/cast" > /dev/null 2>&1 || fail "inspect png/dir job"
 rm -rf "$tmp/out/cast"
 
+}
+
+section_force() {  # (bodies not indented: their here-documents end at column 0)
 # An existing job is kept unless --force.
 before=$(sha256sum "$tmp/out/arm-cast.zip")
 "$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/out/arm-cast.zip" --quiet > /dev/null 2> "$tmp/err"
@@ -102,6 +113,9 @@ rm "$tmp/f/jobdir/mine.txt"
 [ -d "$tmp/f/job.zip" ] && "$rodfab" inspect "$tmp/f/job.zip" > /dev/null || fail "the replacing dir job"
 [ -z "$(ls -A "$tmp/f" | grep rodfab-partial)" ] || fail "temporaries left: $(ls -A "$tmp/f")"
 
+}
+
+section_interrupts() {  # (bodies not indented: their here-documents end at column 0)
 # Interrupt: SIGINT once the first band is done; exit 130, nothing left behind.
 "$rodfab" slice "$src/examples/buckling-spring.json" -o "$tmp/out/int.zip" --threads 1 --band-layers 8 > /dev/null 2> "$tmp/progress" &
 pid=$!
@@ -147,6 +161,9 @@ kill $holder
 only arm-cast.zip buckling-spring.zip unfolding-box.zip next.zip .held.zip.rodfab-partial-999999-0 .lookalike.rodfab-partial-x
 rm -r "$tmp/out/next.zip" "$tmp/out/.held.zip.rodfab-partial-999999-0" "$tmp/out/.lookalike.rodfab-partial-x"
 
+}
+
+section_input() {  # (bodies not indented: their here-documents end at column 0)
 # A design whose file name is not UTF-8 (recorded in the manifest): a job, not a JSON encoding error.
 odd=$(printf 'box\377.json')
 cp "$src/examples/unfolding-box.json" "$tmp/$odd"
@@ -202,5 +219,22 @@ expect 1 "mm along x" "$tmp/long.json" -o "$tmp/out/x.zip"
 # A profile whose build file would escape the job folder on Windows.
 sed 's/"name": "build.txt"/"name": "..\\\\evil.txt"/' "$src/printer_profiles/stratasys-objet500-connex3.json" > "$tmp/evil-profile.json"
 expect 1 "evil-profile.json: build_file.name: .* is not a portable file name" "$src/examples/unfolding-box.json" -o "$tmp/out/x.zip" --profile "$tmp/evil-profile.json"
+}
+
+# The other sections need three jobs in the output folder (any rodfab job will do): one slice, copied.
+setup_jobs() {
+  "$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/out/unfolding-box.zip" --quiet > /dev/null 2> "$tmp/err" ||
+    fail "slice unfolding-box: $(cat "$tmp/err")"
+  cp "$tmp/out/unfolding-box.zip" "$tmp/out/arm-cast.zip"
+  cp "$tmp/out/unfolding-box.zip" "$tmp/out/buckling-spring.zip"
+}
+
+sections=("${@:3}")
+[ ${#sections[@]} -gt 0 ] || sections=(examples force interrupts input)
+for section in "${sections[@]}"; do
+  declare -F "section_$section" > /dev/null || fail "no section '$section' (examples, force, interrupts, input)"
+  [ "$section" = examples ] || [ -e "$tmp/out/arm-cast.zip" ] || setup_jobs
+  "section_$section"
+done
 "$rodfab" slice --help | grep -q "usage: rodfab slice" || fail "--help"
-echo "slice: ok"
+echo "slice ${sections[*]}: ok"

@@ -269,7 +269,7 @@ def cases(ctx) -> list[Case]:
         ("huge-declared", {"mask.rfbn": mask_bytes(size=(1024, 1024, 1024), payload=b"\0" * 64)}, "mask.rfbn", {1}),
         ("valid-tiny", {"mask.rfbn": mask_bytes()}, "mask.rfbn", {0, 1}),
     ]:
-        cs.append(bad_file(f"mask-{tag}", dither_report(**{"--ditherer": "blue", "--mask": arg}), files, [arg, "--mask"],
+        cs.append(bad_file(f"mask-{tag}", dither_report(**{"--dither": "blue", "--mask": arg}), files, [arg, "--mask"],
                            expect=exp, note=f"--mask {tag}"))
     return cs
 

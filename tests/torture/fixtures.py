@@ -105,7 +105,7 @@ def bent(angle_deg: float, plane: str = "xy", length: float = 3.0) -> list:
 
 def dither_report(**options: str) -> list[str]:
     """`rodfab dither-report` on a small workload (a fraction of a second), with some options replaced."""
-    opts = {"--ditherer": "white", "--block": "16x16x16", "--fractions": "0.5", "--rod-length": "2"}
+    opts = {"--dither": "white", "--block": "16x16x16", "--fractions": "0.5", "--rod-length": "2"}
     opts.update(options)
     return ["dither-report"] + [a for kv in opts.items() for a in kv]
 

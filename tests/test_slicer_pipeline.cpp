@@ -1,0 +1,234 @@
+// The slicer library without the command line: automaticBandLayers against its closed form,
+// streamJob and sliceDesign into real jobs read back by printer_profiles::inspectJob (its own
+// decoder, not the writer's), the same bytes for any band size and thread count, and the coupon
+// layout's bars and counts.
+#include "calibration/calibration_file.hpp"
+#include "geometry/rod.hpp"
+#include "materials/materials.hpp"
+#include "printer_profiles/inspect.hpp"
+#include "printer_profiles/job_writer.hpp"
+#include "printer_profiles/profile.hpp"
+#include "slicer/coupon_layout.hpp"
+#include "slicer/job_pipeline.hpp"
+#include "slicer/slice_design.hpp"
+
+#include <catch2/catch.hpp>
+#include <tbb/global_control.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <numbers>
+#include <unistd.h>
+
+using namespace rodfab;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    path = fs::temp_directory_path() / ("rodfab-test-slicer-" + std::to_string(::getpid()) + "-" + std::to_string(counter()++));
+    fs::create_directories(path);
+  }
+  ~TempDir() { fs::remove_all(path); }
+  static int& counter() {
+    static int n = 0;
+    return n;
+  }
+};
+
+std::string fileBytes(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+const printer_profiles::Profile& connex3() {
+  static const printer_profiles::Profile p = printer_profiles::loadProfile("stratasys-objet500-connex3");
+  return p;
+}
+
+std::uint64_t inspectedVoxels(const printer_profiles::InspectReport& r, printer_profiles::MaterialRole role) {
+  std::uint64_t n = 0;
+  for (const auto& m : r.materials) n += m.role == role ? m.voxels : 0;
+  return n;
+}
+
+// Fraction 1 in box `rigid`, 0 in box `rubbery`, for the layers a band asks for.
+slicer::BandSource twoBoxes(const openvdb::CoordBBox& rigid, const openvdb::CoordBBox& rubbery, const openvdb::Vec3d& originMm) {
+  return [=](int k0, int k1, bool withNext) {
+    auto grid = openvdb::FloatGrid::create(0.0f);
+    grid->setName(materials::kFractionGridName);
+    grid->setTransform(printer_profiles::gridTransform(connex3(), originMm));
+    for (auto [box, value] : {std::pair{rigid, 1.0f}, std::pair{rubbery, 0.0f}}) {
+      box.min().z() = std::max(box.min().z(), k0);
+      box.max().z() = std::min(box.max().z(), k1 - 1 + (withNext ? 1 : 0));
+      if (!box.empty()) grid->tree().denseFill(box, value, true);
+    }
+    return slicer::BandGrids{grid, nullptr};
+  };
+}
+
+}  // namespace
+
+TEST_CASE("automaticBandLayers is 32 Mi voxels over the layer's voxels, between 1 and 64") {
+  const auto part = [](int w, int h) { return openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(w - 1, h - 1, 99)); };
+  CHECK(slicer::automaticBandLayers(part(100, 100)) == 64);       // 10^4 voxels a layer: 3355 layers, capped
+  CHECK(slicer::automaticBandLayers(part(4096, 2048)) == 4);      // 2^23 voxels a layer: 2^25 / 2^23
+  CHECK(slicer::automaticBandLayers(part(4096, 4096)) == 2);      // 2^24
+  CHECK(slicer::automaticBandLayers(part(3000, 5000)) == 2);      // 15e6: 33554432 / 15e6 = 2.24
+  CHECK(slicer::automaticBandLayers(part(11000, 4600)) == 1);     // 5.06e7: below one, at least 1
+  CHECK(slicer::automaticBandLayers(part(1024, 512)) == 64);      // 2^19: exactly 64
+}
+
+TEST_CASE("streamJob writes every band's material; the bytes do not depend on the band size") {
+  openvdb::initialize();
+  TempDir tmp;
+  const openvdb::CoordBBox rigid(openvdb::Coord(0, 0, 0), openvdb::Coord(39, 19, 22));
+  const openvdb::CoordBBox rubbery(openvdb::Coord(50, 0, 0), openvdb::Coord(69, 9, 22));
+  const openvdb::Vec3d origin(0.5, 0.5, 0.015);
+  std::vector<std::string> zips;
+  for (int bandLayers : {64, 5, 1}) {
+    for (const char* method : {"white", "error-diffusion"}) {
+      const fs::path folder = tmp.path / (std::string(method) + std::to_string(bandLayers));
+      fs::create_directories(folder);
+      printer_profiles::JobSpec spec;
+      spec.profile = connex3();
+      spec.partBounds = openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(69, 19, 22));
+      spec.originMm = origin;
+      spec.options.output = folder / "job.zip";
+      const auto ditherer = materials::makeDitherer(method, {});
+      slicer::PipelineOptions options;
+      options.bandLayers = bandLayers;
+      std::vector<int> done;
+      options.onBand = [&](int d, int total) {
+        CHECK(total == 23);
+        done.push_back(d);
+      };
+      slicer::StageSeconds seconds;
+      const printer_profiles::JobResult job = slicer::streamJob(spec, twoBoxes(rigid, rubbery, origin), *ditherer, options, seconds);
+      REQUIRE(done.size() == static_cast<std::size_t>((23 + bandLayers - 1) / bandLayers));
+      CHECK(done.back() == 23);
+      CHECK(std::is_sorted(done.begin(), done.end()));
+      const printer_profiles::InspectReport report = printer_profiles::inspectJob(job.path);
+      INFO((report.defects.empty() ? std::string() : report.defects.front()));
+      REQUIRE(report.ok());
+      CHECK(report.layers == 23);
+      // Fractions 1 and 0 are exact for every ditherer: all rigid, all rubbery.
+      CHECK(inspectedVoxels(report, printer_profiles::MaterialRole::Rigid) == static_cast<std::uint64_t>(rigid.volume()));
+      CHECK(inspectedVoxels(report, printer_profiles::MaterialRole::Rubbery) == static_cast<std::uint64_t>(rubbery.volume()));
+      zips.push_back(fileBytes(job.path));
+    }
+  }
+  // Same ditherer, other band sizes: the same bytes (zips[0,2,4] white, [1,3,5] error diffusion).
+  CHECK(zips[0] == zips[2]);
+  CHECK(zips[0] == zips[4]);
+  CHECK(zips[1] == zips[3]);
+  CHECK(zips[1] == zips[5]);
+}
+
+TEST_CASE("streamJob: an onBand that throws leaves no job and nothing staged") {
+  openvdb::initialize();
+  TempDir tmp;
+  const openvdb::CoordBBox box(openvdb::Coord(0), openvdb::Coord(9, 9, 29));
+  printer_profiles::JobSpec spec;
+  spec.profile = connex3();
+  spec.partBounds = box;
+  spec.originMm = openvdb::Vec3d(0.5, 0.5, 0.015);
+  spec.options.output = tmp.path / "job.zip";
+  const auto ditherer = materials::makeDitherer("white", {});
+  slicer::PipelineOptions options;
+  options.bandLayers = 4;
+  options.onBand = [](int done, int) {
+    if (done >= 8) throw std::runtime_error("stop");
+  };
+  slicer::StageSeconds seconds;
+  CHECK_THROWS_WITH(slicer::streamJob(spec, twoBoxes(box, {}, spec.originMm), *ditherer, options, seconds), "stop");
+  CHECK(fs::is_empty(tmp.path));
+  options.bandLayers = 0;
+  CHECK_THROWS_AS(slicer::streamJob(spec, twoBoxes(box, {}, spec.originMm), *ditherer, options, seconds), std::invalid_argument);
+}
+
+TEST_CASE("sliceDesign: a straight rod's voxels are its volume, every one in the job, for any band size and thread count") {
+  openvdb::initialize();
+  TempDir tmp;
+  const double radius = 0.6, length = 5.0;
+  const geometry::NurbsCurve axis(1, {0, 0, 1, 1}, {{0, 0, 0}, {length, 0, 0}});
+  const calibration::Calibration cal = calibration::loadDefaultCalibration();
+  // E from twice the floor to half the stiffest mix along the rod: both materials, nothing clamped.
+  geometry::Rod rod("rod", axis, geometry::Section::circle(2 * radius), std::nullopt, std::nullopt, geometry::CapStyle::Flat,
+                    geometry::BSplineField(1, {0, 0, 1, 1}, {2 * cal.floorMpa(), 0.5 * cal.maxModulusMpa()}));
+  const geometry::RodStructure design{"test", {rod}, {}};
+  std::vector<std::string> zips;
+  for (auto [threads, bandLayers] : {std::pair{0, 0}, std::pair{1, 7}, std::pair{2, 1}}) {
+    const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads > 0 ? threads : 64);
+    const fs::path folder = tmp.path / ("t" + std::to_string(threads) + "b" + std::to_string(bandLayers));
+    fs::create_directories(folder);
+    slicer::SliceSettings settings;
+    settings.designFile = "rod.json";
+    settings.threads = threads;
+    settings.bandLayers = bandLayers;
+    settings.job.output = folder / "rod.zip";
+    const auto ditherer = materials::makeDitherer("white", {});
+    const slicer::SliceReport report = slicer::sliceDesign(design, connex3(), cal, *ditherer, settings);
+    REQUIRE(report.voxelsPerRod.size() == 1);
+    CHECK(report.voxelsPerRod[0] == report.mapping.voxels);
+    const std::array<double, 3>& v = connex3().voxelSizeMm;
+    const double volume = std::numbers::pi * radius * radius * length;
+    CHECK(double(report.mapping.voxels) * v[0] * v[1] * v[2] == Approx(volume).epsilon(0.03));
+    CHECK(report.mapping.clamps.total() == 0);
+    const printer_profiles::InspectReport inspected = printer_profiles::inspectJob(report.job.path);
+    INFO((inspected.defects.empty() ? std::string() : inspected.defects.front()));
+    REQUIRE(inspected.ok());
+    CHECK(inspectedVoxels(inspected, printer_profiles::MaterialRole::Rigid) +
+              inspectedVoxels(inspected, printer_profiles::MaterialRole::Rubbery) ==
+          report.mapping.voxels);
+    CHECK(std::abs(inspected.layers - 2 * radius / v[2]) <= 1.0);  // the rod's diameter in layers
+    zips.push_back(fileBytes(report.job.path));
+  }
+  CHECK(zips[0] == zips[1]);
+  CHECK(zips[0] == zips[2]);
+}
+
+TEST_CASE("the coupon layout: bars of whole voxels, balanced rows, each voxel counted in its own bar") {
+  openvdb::initialize();
+  const printer_profiles::Profile& p = connex3();
+  const slicer::CouponVoxels sizes = slicer::couponVoxels(p, {30, 5, 1.5}, 5);
+  CHECK(sizes.bar == openvdb::Coord(std::lround(30 / p.voxelSizeMm[0]), std::lround(5 / p.voxelSizeMm[1]), 50));
+  CHECK(sizes.gapI == std::lround(5 / p.voxelSizeMm[0]));
+  CHECK_THROWS_WITH(slicer::couponVoxels(p, {30, 5, 0.01}, 5), Catch::Contains("--size") && Catch::Contains("along z"));
+  CHECK_THROWS_WITH(slicer::couponVoxels(p, {30, 5, 1}, 0.01), Catch::Contains("--gap"));
+  CHECK_THROWS_WITH(slicer::couponVoxels(p, {600, 5, 1}, 5), Catch::Contains("too large by") && Catch::Contains("along x"));
+
+  // 30 bars of 30 mm: a 490 mm tray takes 14 a row with 5 mm gaps (14 * 35 - 5 = 485), so 3 rows of 10.
+  const slicer::CouponLayout layout = slicer::planCouponLayout(p, 30, sizes);
+  CHECK(layout.rows == 3);
+  CHECK(layout.perRow == 10);
+  for (std::size_t n = 0; n < layout.bars.size(); ++n) {
+    const openvdb::CoordBBox& b = layout.bars[n];
+    CHECK(layout.barAt(b.min().x(), b.min().y()) == static_cast<int>(n));
+    CHECK(layout.barAt(b.max().x(), b.max().y()) == static_cast<int>(n));
+    CHECK(layout.barAt(b.max().x() + 1, b.min().y()) == -1);  // the gap after it
+    CHECK(layout.bounds.isInside(b));
+  }
+  CHECK(layout.barAt(layout.bars[0].min().x(), layout.bars[0].min().y()) == 0);
+  CHECK(layout.bars[0].min().y() > layout.bars[layout.bars.size() - 1].min().y());  // bar 0 in the top row
+
+  // Fractions 0 and 1 through the counting ditherer: every voxel counted once, Vero exactly where 1.
+  const slicer::CouponLayout two = slicer::planCouponLayout(p, 2, slicer::couponVoxels(p, {3, 1, 0.3}, 1));
+  const std::vector<double> fractions = {0.0, 1.0};
+  const auto white = materials::makeDitherer("white", {});
+  slicer::BarCountingDitherer counting(*white, two);
+  const slicer::BandSource bands = slicer::couponBands(two, fractions, p, openvdb::Vec3d(0.02, 0.04, 0.015));
+  counting.reset();
+  counting.ditherLayers(*bands(0, two.bar.z(), false).fraction, 0, two.bar.z());
+  CHECK(counting.voxels()[0] == static_cast<std::uint64_t>(two.bars[0].volume()));
+  CHECK(counting.voxels()[1] == static_cast<std::uint64_t>(two.bars[1].volume()));
+  CHECK(counting.vero()[0] == 0);
+  CHECK(counting.vero()[1] == counting.voxels()[1]);
+  const nlohmann::json bars = slicer::couponBarsJson(two, fractions, counting, 0, p.voxelSizeMm);
+  CHECK(bars[1]["vero_share"].get<double>() == 1.0);
+  CHECK(bars[0]["specimen"] == "coupon-00");
+}
