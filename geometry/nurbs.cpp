@@ -1,6 +1,7 @@
 #include "geometry/nurbs.hpp"
 
 #include <algorithm>
+#include <limits>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -278,6 +279,16 @@ double BSplineField::value(double u) const {
   double f = 0.0;
   for (int j = 0; j <= degree_; ++j) f += ders[0][j] * values_[span - degree_ + j];
   return f;
+}
+
+std::pair<double, double> BSplineField::valueBoundsOn(double a, double b) const {
+  double low = std::numeric_limits<double>::infinity(), high = -low;
+  for (std::size_t i = 0; i < values_.size(); ++i)
+    if (knots_[i] <= b && knots_[i + degree_ + 1] >= a) {
+      low = std::min(low, values_[i]);
+      high = std::max(high, values_[i]);
+    }
+  return {low, high};
 }
 
 double BSplineField::derivative(double u) const {

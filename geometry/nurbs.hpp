@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 
 #include <array>
+#include <utility>
 #include <vector>
 
 namespace rodfab::geometry {
@@ -88,6 +89,10 @@ public:
 
   double value(double u) const;
   double derivative(double u) const;
+  // Bounds of the field on [a, b] (a <= b, inside the domain): the least and greatest value of the
+  // control values whose basis functions do not vanish there (the convex-hull property), so every
+  // value(u) for u in [a, b] lies within them.
+  std::pair<double, double> valueBoundsOn(double a, double b) const;
 
 private:
   int degree_ = 0;

@@ -99,7 +99,9 @@ openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const 
       float* fractions = leaf->buffer().data();
       MappingStats& s = perLeaf[l];
       // Word by word over the active bits; the clamps are rare and counted where they happen.
-      const double floor = map.floorMpa(), maximum = map.maxModulusMpa();
+      // The grid holds E as floats: E = floor (or max) exactly is stored as the float nearest to it,
+      // which may lie just beyond; rounding is monotone, so these comparisons are E's own.
+      const auto floor = static_cast<float>(map.floorMpa()), maximum = static_cast<float>(map.maxModulusMpa());
       const auto floorFraction = static_cast<float>(map.floorFraction());
       for (openvdb::Index w = 0; w < detail::LeafMask::WORD_COUNT; ++w) {
         std::uint64_t active = mask.getWord<std::uint64_t>(w);

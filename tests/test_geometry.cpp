@@ -97,6 +97,30 @@ TEST_CASE("B-spline basis functions form a partition of unity", "[nurbs]") {
   }
 }
 
+TEST_CASE("B-spline field bounds on an interval hold every value there, from the controls that act there", "[nurbs]") {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> value(-50, 200), where(0, 1);
+  const BSplineField f(3, {0, 0, 0, 0, 0.2, 0.45, 0.7, 1, 1, 1, 1}, {10, -40, 150, 80, 5, 190, 30});
+  for (int trial = 0; trial < 200; ++trial) {
+    double a = where(rng), b = where(rng);
+    if (a > b) std::swap(a, b);
+    const auto [low, high] = f.valueBoundsOn(a, b);
+    double seenLow = 1e300, seenHigh = -1e300;
+    for (int k = 0; k <= 200; ++k) {
+      const double v = f.value(a + (b - a) * k / 200.0);
+      seenLow = std::min(seenLow, v);
+      seenHigh = std::max(seenHigh, v);
+    }
+    CHECK(low <= seenLow);
+    CHECK(high >= seenHigh);
+  }
+  // On [0.75, 0.95] only the last four controls act (the span [0.7, 1]).
+  const auto [low, high] = f.valueBoundsOn(0.75, 0.95);
+  CHECK(low == 5);
+  CHECK(high == 190);
+  CHECK(BSplineField::constant(42, 0, 1).valueBoundsOn(0.2, 0.3) == std::pair<double, double>(42, 42));
+}
+
 TEST_CASE("Closest point agrees with brute-force sampling", "[closest]") {
   const Rod rod("w", wigglyCubic(), Section::circle(0.5), std::nullopt, std::nullopt, CapStyle::Round,
                 BSplineField::constant(10, 0, 1));

@@ -508,6 +508,27 @@ TEST_CASE("materials: the table clamps exactly like the calibration", "[material
   CHECK(map.fraction(190.0).fraction == 1.0);
 }
 
+TEST_CASE("materials: E exactly at a floor or maximum that floats cannot hold is not a clamp", "[materials][mapping]") {
+  rodfab::calibration::ModelParameters p;
+  p.model = rodfab::calibration::Model::LogPower;
+  p.tangoModulusMpa = 0.5;
+  p.veroModulusMpa = 190.3;
+  p.exponent = 2.0;
+  const rodfab::calibration::Calibration calibration(p, 8.3);
+  const FractionMap map(calibration);
+  REQUIRE(double(static_cast<float>(8.3)) != 8.3);  // the grid's float lies beside the floor
+  auto grid = makeUniformBlock(openvdb::Coord(4, 1, 1), 0.0f, kTestVoxel);
+  const float floor = static_cast<float>(8.3), maximum = static_cast<float>(calibration.maxModulusMpa());
+  const float values[4] = {floor, maximum, std::nextafter(floor, 0.0f), std::nextafter(maximum, 1e9f)};
+  for (int x = 0; x < 4; ++x) grid->tree().setValue(openvdb::Coord(x, 0, 0), values[x]);
+  MappingStats stats;
+  const auto fractions = mapToFractions(*grid, map, stats);
+  CHECK(stats.clamps.belowFloor == 1);  // only the float below the floor's own
+  CHECK(stats.clamps.aboveMax == 1);
+  CHECK(fractions->tree().getValue(openvdb::Coord(0, 0, 0)) == Approx(map.floorFraction()).margin(1e-6));
+  CHECK(fractions->tree().getValue(openvdb::Coord(1, 0, 0)) == Approx(1.0).margin(1e-6));
+}
+
 TEST_CASE("materials: modulus grids map to fraction grids with counted clamps, by bands and threads", "[materials][mapping]") {
   const auto calibration = logPowerCalibration();
   const FractionMap map(calibration);

@@ -347,6 +347,38 @@ TEST_CASE("Voxels carry E at their closest centerline point", "[voxel][values]")
   }
 }
 
+TEST_CASE("A modulus at its bounds stays within them in every voxel", "[voxel][values]") {
+  // An optimizer's output: cubic E(u) whose control values sit at the bounds (8 and 190 MPa), with steep
+  // changes between. Interpolating E inside a piece must not step past the values the design asks for,
+  // or an optimized design prints with clamped voxels.
+  // Runs of four equal controls make E equal to a bound on whole spans, and the transitions between
+  // are where an interpolation overshoots.
+  const std::vector<double> values{8, 8, 8, 8, 190, 190, 190, 190, 8, 8, 8, 8, 190, 190, 190, 190};
+  std::vector<double> knots{0, 0, 0, 0};
+  for (int k = 1; k <= 12; ++k) knots.push_back(k / 13.0);
+  knots.insert(knots.end(), {1, 1, 1, 1});
+  const BSplineField e(3, knots, values);
+  const RodStructure s = design({
+      Rod("strip", arc(1.2, 0.9 * kPi), Section::rectangle(0.8, 0.3), Vec3(0, 0, 1), std::nullopt, CapStyle::Flat, e),
+      Rod("helix", helix(0.9, 1.0, 1.0), Section::circle(0.5), std::nullopt, std::nullopt, CapStyle::Round, e),
+  });
+  for (const Rod& rod : s.rods) {
+    const RodStructure one = design({rod});
+    const PrinterGrid g = voxel::makePrinterGrid(one, kTestVoxel);
+    const voxel::Rasterization ras = voxel::rasterize(one, g);
+    REQUIRE(ras.grid->activeVoxelCount() > 1000);
+    float low = 1e30f, high = -1e30f;
+    for (auto it = ras.grid->cbeginValueOn(); it; ++it) {
+      low = std::min(low, *it);
+      high = std::max(high, *it);
+    }
+    INFO(rod.name());
+    CHECK(low >= 8.0f);
+    CHECK(high <= 190.0f);
+    CHECK(high - low > 150.0f);  // the rod does span the range
+  }
+}
+
 TEST_CASE("The fast path decides every voxel exactly as Rod::classify", "[voxel][exact]") {
   SECTION("twisted rectangle from a quaternion spline, elliptic helix, round and flat caps") {
     const double s45 = std::sqrt(0.5);

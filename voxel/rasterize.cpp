@@ -59,9 +59,10 @@ typedef double Double2 __attribute__((vector_size(16)));
 struct SweptLanes {
   SweptLanes(const detail::RodPiece& p, double planeAgx, double planeBgx)
       : gxA(planeAgx), gxB(planeBgx), gx1Begin(p.x1Begin.gx), gx2Begin(p.x2Begin.gx), gx1End(p.x1End.gx), gx2End(p.x2End.gx),
-        x1Bow(p.x1Bow), x2Bow(p.x2Bow), modulusBegin(p.modulusBegin), modulusEnd(p.modulusEnd), modulusBow(p.modulusBow) {}
+        x1Bow(p.x1Bow), x2Bow(p.x2Bow), modulusBegin(p.modulusBegin), modulusEnd(p.modulusEnd), modulusBow(p.modulusBow),
+        modulusLow(p.modulusLow), modulusHigh(p.modulusHigh) {}
   double gxA, gxB, gx1Begin, gx2Begin, gx1End, gx2End;
-  double x1Bow, x2Bow, modulusBegin, modulusEnd, modulusBow;  // as in RodPiece
+  double x1Bow, x2Bow, modulusBegin, modulusEnd, modulusBow, modulusLow, modulusHigh;  // as in RodPiece
 };
 
 // A double band as a float that is not smaller.

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <tuple>
 
 namespace rodfab::voxel::detail {
 
@@ -81,6 +82,7 @@ Measurement measure(const geometry::Rod& rod, const Node& a, const Node& b, RodP
   piece.x1Bow = piece.x2Bow = piece.modulusBow = 0.0;
   piece.modulusBegin = a.modulus;
   piece.modulusEnd = b.modulus;
+  std::tie(piece.modulusLow, piece.modulusHigh) = rod.modulus().valueBoundsOn(a.u, b.u);
   const double radius = rod.section().boundingRadius();
   // The slab of a piece holds the sections of its own centerline only while they do not reach the
   // centres of curvature, where the normal planes cross (curvature times radius below 1, with a 10 %

@@ -43,6 +43,9 @@ struct RodPiece {
   IndexForm x1Begin, x2Begin, x1End, x2End;
   double x1Bow = 0.0, x2Bow = 0.0;
   double modulusBegin = 0.0, modulusEnd = 0.0, modulusBow = 0.0;
+  // The exact E's bounds on the piece (BSplineField::valueBoundsOn): the estimate is held within them,
+  // so a voxel never asks for a modulus outside what the design asks for there.
+  double modulusLow = 0.0, modulusHigh = 0.0;
   // Bound on the normalized-radius error of the approximation (inf where it could not be bounded).
   double normalizedRadiusBand = 0.0;
 
@@ -90,7 +93,7 @@ struct SweptEstimateOf {
 };
 using SweptEstimate = SweptEstimateOf<double>;
 // `Piece` is RodPiece or anything with its x1Bow, x2Bow (and, for the modulus, modulusBegin, modulusEnd,
-// modulusBow).
+// modulusBow, modulusLow, modulusHigh).
 template <typename T, typename Piece = RodPiece>
 inline SweptEstimateOf<T> estimateSwept(const Piece& piece, T a, T b, T x1Begin, T x2Begin, T x1End, T x2End) {
   const T lambda = a / (a - b);
@@ -100,8 +103,11 @@ inline SweptEstimateOf<T> estimateSwept(const Piece& piece, T a, T b, T x1Begin,
 }
 template <typename T, typename Piece = RodPiece>
 inline T estimateModulus(const Piece& piece, T lambda) {
-  return piece.modulusBegin + lambda * (piece.modulusEnd - piece.modulusBegin) +
-         lambda * (1.0 - lambda) * piece.modulusBow;
+  const T e = piece.modulusBegin + lambda * (piece.modulusEnd - piece.modulusBegin) +
+              lambda * (1.0 - lambda) * piece.modulusBow;
+  const T low = T{} + piece.modulusLow, high = T{} + piece.modulusHigh;
+  const T above = e < low ? low : e;
+  return above > high ? high : above;
 }
 
 }  // namespace rodfab::voxel::detail
