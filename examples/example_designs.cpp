@@ -264,22 +264,22 @@ RodStructure armCast() {
 
 namespace {
 
-geometry::RodEndRef placeAt(const Vec3& p, const std::string& path) {
-  geometry::RodEndRef ref;
+mechanics::RodEndRef placeAt(const Vec3& p, const std::string& path) {
+  mechanics::RodEndRef ref;
   ref.point = p;
   ref.path = path;
   return ref;
 }
 
-geometry::MechanicsSpec trainingSpec(int loadSteps) {
-  geometry::MechanicsSpec spec;
+mechanics::MechanicsSpec trainingSpec(int loadSteps) {
+  mechanics::MechanicsSpec spec;
   spec.present = true;
   spec.loadSteps = loadSteps;
   return spec;
 }
 
-geometry::Support support(const Vec3& p, std::size_t index, geometry::SupportKind kind, const Vec3& displacement = Vec3::Zero()) {
-  geometry::Support s;
+mechanics::Support support(const Vec3& p, std::size_t index, mechanics::SupportKind kind, const Vec3& displacement = Vec3::Zero()) {
+  mechanics::Support s;
   s.at = placeAt(p, "mechanics.supports[" + std::to_string(index) + "].at");
   s.kind = kind;
   s.displacement = displacement;
@@ -288,12 +288,12 @@ geometry::Support support(const Vec3& p, std::size_t index, geometry::SupportKin
 
 }  // namespace
 
-geometry::MechanicsSpec unfoldingBoxTraining(double force) {
+mechanics::MechanicsSpec unfoldingBoxTraining(double force) {
   constexpr double kSide = 20.0, kPitch = kSide + 2.5;  // as in unfoldingBox()
-  geometry::MechanicsSpec spec = trainingSpec(20);
+  mechanics::MechanicsSpec spec = trainingSpec(20);
   const Vec3 base(kPitch, kPitch, 0);
   for (const Vec3& corner : {Vec3(0, 0, 0), Vec3(kSide, 0, 0), Vec3(kSide, kSide, 0), Vec3(0, kSide, 0)})
-    spec.supports.push_back(support(base + corner, spec.supports.size(), geometry::SupportKind::Clamped));
+    spec.supports.push_back(support(base + corner, spec.supports.size(), mechanics::SupportKind::Clamped));
   // The outer edge of each outer square, by its middle and outward normal (in the plane).
   const std::pair<Vec3, Vec3> outerEdges[] = {
       {Vec3(kPitch + 0.5 * kSide, 0, 0), Vec3(0, -1, 0)},                   // square 10
@@ -301,7 +301,7 @@ geometry::MechanicsSpec unfoldingBoxTraining(double force) {
       {Vec3(2 * kPitch + kSide, kPitch + 0.5 * kSide, 0), Vec3(1, 0, 0)},   // square 21
       {Vec3(kPitch + 0.5 * kSide, 3 * kPitch + kSide, 0), Vec3(0, 1, 0)}};  // square 13 (the lid)
   for (const auto& [middle, outward] : outerEdges) {
-    geometry::PointLoad load;
+    mechanics::PointLoad load;
     load.at = placeAt(middle, "mechanics.loads[" + std::to_string(spec.loads.size()) + "].at");
     load.force = force * (Vec3(0, 0, 1) - outward).normalized();
     spec.loads.push_back(load);
@@ -309,24 +309,24 @@ geometry::MechanicsSpec unfoldingBoxTraining(double force) {
   return spec;
 }
 
-geometry::MechanicsSpec bucklingSpringTraining(const SpringParameters& p, double compression) {
-  geometry::MechanicsSpec spec = trainingSpec(20);
+mechanics::MechanicsSpec bucklingSpringTraining(const SpringParameters& p, double compression) {
+  mechanics::MechanicsSpec spec = trainingSpec(20);
   const double dTheta = 2.0 * kPi / p.nodesAround;
   auto node = [&](int i, int level) {  // as nodeAngle in bucklingSpring()
     const double a = dTheta * (i + 0.5 * (level % 2));
     return Vec3(p.radius * std::cos(a), p.radius * std::sin(a), p.height * level / p.levels);
   };
   for (int i = 0; i < p.nodesAround; ++i)
-    spec.supports.push_back(support(node(i, 0), spec.supports.size(), geometry::SupportKind::Clamped));
+    spec.supports.push_back(support(node(i, 0), spec.supports.size(), mechanics::SupportKind::Clamped));
   for (int k = 0; k < 4; ++k)
-    spec.supports.push_back(support(node(k * p.nodesAround / 4, p.levels), spec.supports.size(), geometry::SupportKind::Pinned,
+    spec.supports.push_back(support(node(k * p.nodesAround / 4, p.levels), spec.supports.size(), mechanics::SupportKind::Pinned,
                                     Vec3(0, 0, -compression * p.height)));
   return spec;
 }
 
-geometry::MechanicsSpec armCastTraining(double fraction) {
+mechanics::MechanicsSpec armCastTraining(double fraction) {
   constexpr double kRadius = 30.0, kLength = 70.0;  // as in armCast()
-  geometry::MechanicsSpec spec = trainingSpec(20);
+  mechanics::MechanicsSpec spec = trainingSpec(20);
   // Unrolled onto the plane z = R tangent to the crown, the rim at angle 0 lands at y = R pi / 2,
   // z = R, the one at pi at y = -R pi / 2.
   const geometry::RodStructure cast = armCast();
@@ -342,7 +342,7 @@ geometry::MechanicsSpec armCastTraining(double fraction) {
   for (const Vec3& p : rimEnds) {
     const double side = p.y() > 0 ? 1.0 : -1.0;
     const Vec3 flat(p.x(), side * kRadius * kPi / 2, kRadius);
-    spec.supports.push_back(support(p, spec.supports.size(), geometry::SupportKind::Pinned, fraction * (flat - p)));
+    spec.supports.push_back(support(p, spec.supports.size(), mechanics::SupportKind::Pinned, fraction * (flat - p)));
   }
   return spec;
 }

@@ -2,8 +2,8 @@
 // here (and written to examples/*.json by rodfab_generate_examples) so they stay reproducible.
 #pragma once
 
-#include "geometry/mechanics_spec.hpp"
 #include "geometry/rod.hpp"
+#include "mechanics/mechanics_spec.hpp"
 
 namespace rodfab::examples {
 
@@ -41,14 +41,14 @@ geometry::RodStructure armCast();
 // The box net folded up by forces on the outer edges of its four outer squares, perpendicular to
 // those edges (inwards and upwards at 45 degrees, `force` N each at the edge's middle), the middle
 // square clamped at its corners. The hinges end on the squares' edges: T-joints.
-geometry::MechanicsSpec unfoldingBoxTraining(double force = 0.03);
+mechanics::MechanicsSpec unfoldingBoxTraining(double force = 0.03);
 
 // The spring compressed by `compression` (a fraction of its height) through prescribed
 // displacements at four equidistant nodes of its top ring (pinned), the bottom ring's nodes clamped.
-geometry::MechanicsSpec bucklingSpringTraining(const SpringParameters& parameters = {}, double compression = 0.15);
+mechanics::MechanicsSpec bucklingSpringTraining(const SpringParameters& parameters = {}, double compression = 0.15);
 
 // The cast flattened: the rod ends on its two rims (pinned) moved to where unrolling the half
 // cylinder onto the plane tangent to its crown puts them (`fraction` of the way there).
-geometry::MechanicsSpec armCastTraining(double fraction = 1.0);
+mechanics::MechanicsSpec armCastTraining(double fraction = 1.0);
 
 }  // namespace rodfab::examples

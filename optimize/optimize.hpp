@@ -49,7 +49,7 @@ struct Settings {
 };
 
 // Applies a design's "optimize" block (positionWeight ... tolerance; bounds when given) to settings.
-void applySpec(const geometry::OptimizeSpec& spec, Settings& settings);
+void applySpec(const mechanics::OptimizeSpec& spec, Settings& settings);
 
 struct CaseObjective {
   std::string name;
@@ -70,7 +70,7 @@ class DesignProblem {
 public:
   // `design` must carry mechanics.loadCases with at least one target. Throws OptimizeError (named
   // case or path), mechanics::MechanicsError, std::invalid_argument for settings out of range.
-  DesignProblem(const geometry::RodStructure& design, const Settings& settings);
+  DesignProblem(const mechanics::Design& design, const Settings& settings);
   ~DesignProblem();
   DesignProblem(DesignProblem&&) noexcept;
   DesignProblem& operator=(DesignProblem&&) noexcept;
@@ -92,7 +92,7 @@ public:
   // The equilibrium states of the last evaluate(), per case.
   const Eigen::VectorXd& state(std::size_t c) const;
   // The design with each rod's modulus replaced by the B-spline with control values `modulus`.
-  geometry::RodStructure designWith(const Eigen::VectorXd& modulus) const;
+  mechanics::Design designWith(const Eigen::VectorXd& modulus) const;
 
 private:
   struct Impl;

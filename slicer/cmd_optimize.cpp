@@ -74,7 +74,7 @@ std::variant<OptimizeCommand, int> parseOptimize(const std::vector<std::string>&
 
 // The optimizer's settings: defaults, the calibration's bounds, the design's optimize block, the
 // command line, in rising precedence.
-optimize::Settings settingsFor(const OptimizeCommand& c, const geometry::RodStructure& design, const calibration::Calibration& cal) {
+optimize::Settings settingsFor(const OptimizeCommand& c, const mechanics::Design& design, const calibration::Calibration& cal) {
   optimize::Settings s;
   s.lowerMpa = cal.floorMpa();
   s.upperMpa = cal.maxModulusMpa();
@@ -86,12 +86,12 @@ optimize::Settings settingsFor(const OptimizeCommand& c, const geometry::RodStru
 
 // The optimized design: the input with the new moduli, its mechanics and optimize blocks kept, a
 // {"design": PATH} target rewritten relative to the output's folder.
-geometry::RodStructure optimizedDesign(const OptimizeCommand& c, const geometry::RodStructure& design,
+mechanics::Design optimizedDesign(const OptimizeCommand& c, const mechanics::Design& design,
                                        const optimize::DesignProblem& problem, const Eigen::VectorXd& modulus) {
-  geometry::RodStructure out = problem.designWith(modulus);
+  mechanics::Design out = problem.designWith(modulus);
   namespace fs = std::filesystem;
   const fs::path from = fs::absolute(fs::path(c.design)).parent_path(), to = fs::absolute(fs::path(c.output)).parent_path();
-  for (geometry::LoadCase& lc : out.mechanics.loadCases)
+  for (mechanics::LoadCase& lc : out.mechanics.loadCases)
     if (!lc.targetDesign.empty()) lc.targetDesign = fs::path(lc.targetDesign).is_absolute() ? lc.targetDesign
                                                      : (from / lc.targetDesign).lexically_normal().lexically_relative(to).string();
   out.optimize = design.optimize;
@@ -138,9 +138,9 @@ void printSummary(const OptimizeCommand& c, const optimize::Result& r) {
 }
 
 // The paths the output must not overwrite: the design and its target designs.
-std::vector<std::filesystem::path> inputsOf(const OptimizeCommand& c, const geometry::RodStructure& design) {
+std::vector<std::filesystem::path> inputsOf(const OptimizeCommand& c, const mechanics::Design& design) {
   std::vector<std::filesystem::path> inputs{c.design, c.calibration};
-  for (const geometry::LoadCase& lc : design.mechanics.loadCases)
+  for (const mechanics::LoadCase& lc : design.mechanics.loadCases)
     if (!lc.targetDesign.empty()) inputs.push_back(std::filesystem::path(c.design).parent_path() / lc.targetDesign);
   return inputs;
 }
@@ -153,9 +153,9 @@ int runOptimize(const std::vector<std::string>& args) {
   const OptimizeCommand& c = std::get<OptimizeCommand>(parsed);
   commandLineAccepted();
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(c.workers));
-  const std::optional<geometry::RodStructure> read = readDesignOrReport(c.design, "nothing was written");
+  const std::optional<mechanics::Design> read = readDesignOrReport(c.design, "nothing was written");
   if (!read) return kFailed;
-  const geometry::RodStructure& design = *read;
+  const mechanics::Design& design = *read;
   if (!outputAllowed(c.output, inputsOf(c, design), {"optimized design", true, "", geometry::isDesignFile})) return kFailed;
   std::vector<std::filesystem::path> plotInputs = inputsOf(c, design);
   plotInputs.push_back(c.output);
@@ -199,7 +199,7 @@ int runOptimize(const std::vector<std::string>& args) {
   }
   common::throwIfInterrupted();
   try {
-    geometry::writeDesign(optimizedDesign(c, design, *problem, result.modulus), c.output, "optimized by rodfab optimize from " + c.design);
+    mechanics::writeDesign(optimizedDesign(c, design, *problem, result.modulus), c.output, "optimized by rodfab optimize from " + c.design);
   } catch (const std::exception& e) {
     std::cerr << c.output << ": cannot write: " << e.what() << '\n';
     return kFailed;

@@ -36,16 +36,16 @@ std::size_t connectedComponents(const geometry::RodStructure& s, double toleranc
   return roots;
 }
 
-void requireMatchesCommittedFile(const geometry::RodStructure& generated, const std::string& file) {
-  const geometry::RodStructure committed = geometry::readDesign(std::string(RODFAB_SOURCE_DIR "/examples/") + file);
+void requireMatchesCommittedFile(const mechanics::Design& generated, const std::string& file) {
+  const mechanics::Design committed = mechanics::readDesign(std::string(RODFAB_SOURCE_DIR "/examples/") + file);
   INFO(file << ": regenerate with rodfab_generate_examples");
-  REQUIRE(geometry::designToJson(committed) == geometry::designToJson(generated));
+  REQUIRE(mechanics::designToJson(committed) == mechanics::designToJson(generated));
 }
 
 }  // namespace
 
 TEST_CASE("Unfolding box: 34 rods, flat, one connected net", "[examples]") {
-  auto box = examples::unfoldingBox();
+  mechanics::Design box(examples::unfoldingBox());
   box.mechanics = examples::unfoldingBoxTraining();
   requireMatchesCommittedFile(box, "unfolding-box.json");
   REQUIRE(box.rods.size() == 34);
@@ -61,7 +61,7 @@ TEST_CASE("Unfolding box: 34 rods, flat, one connected net", "[examples]") {
 
 TEST_CASE("Buckling spring: 312 rods on the cylinder, softest at mid-height", "[examples]") {
   const examples::SpringParameters p;
-  auto spring = examples::bucklingSpring(p);
+  mechanics::Design spring(examples::bucklingSpring(p));
   spring.mechanics = examples::bucklingSpringTraining(p);
   requireMatchesCommittedFile(spring, "buckling-spring.json");
   REQUIRE(spring.rods.size() == 312);
@@ -94,7 +94,7 @@ TEST_CASE("Scaled buckling spring fills the 6-gigavoxel envelope", "[examples]")
 }
 
 TEST_CASE("Arm cast: rectangular strips on a half cylinder, surface-normal frames", "[examples]") {
-  auto cast = examples::armCast();
+  mechanics::Design cast(examples::armCast());
   cast.mechanics = examples::armCastTraining();
   requireMatchesCommittedFile(cast, "arm-cast.json");
   REQUIRE(cast.rods.size() > 150);
@@ -120,7 +120,7 @@ TEST_CASE("Arm cast: rectangular strips on a half cylinder, surface-normal frame
 namespace {
 
 struct Trained {
-  geometry::RodStructure design;
+  mechanics::Design design;
   mechanics::Simulation sim;
   Vec3 at(std::size_t rod, double u) const { return sim.problem->position(sim.solution.state, rod, u); }
   std::size_t rod(const std::string& name) const {
@@ -133,7 +133,7 @@ struct Trained {
 
 // Simulated as `rodfab simulate FILE` does with its defaults.
 Trained trained(const std::string& file) {
-  Trained t{geometry::readDesign(std::string(RODFAB_SOURCE_DIR "/examples/") + file), {}};
+  Trained t{mechanics::readDesign(std::string(RODFAB_SOURCE_DIR "/examples/") + file), {}};
   REQUIRE(t.design.mechanics.present);
   t.sim = mechanics::simulate(t.design, {}, {}, t.design.mechanics.loadSteps);
   REQUIRE(t.sim.solution.steps.back().loadFactor == 1.0);

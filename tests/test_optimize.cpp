@@ -10,8 +10,8 @@
 #include <random>
 
 using namespace rodfab;
-using geometry::RodEnd;
-using geometry::RodStructure;
+using mechanics::RodEnd;
+using mechanics::Design;
 using geometry::Vec3;
 
 namespace {
@@ -34,14 +34,14 @@ geometry::Rod rod(const std::string& name, geometry::NurbsCurve c, double d, dou
                        geometry::CapStyle::Round, geometry::BSplineField::constant(E, a, b));
 }
 
-geometry::RodEndRef end(const std::string& name, RodEnd which) {
-  geometry::RodEndRef r;
+mechanics::RodEndRef end(const std::string& name, RodEnd which) {
+  mechanics::RodEndRef r;
   r.rod = name, r.end = which, r.path = "test";
   return r;
 }
 
-geometry::PointLoad load(const std::string& name, const Vec3& force, const Vec3& moment) {
-  geometry::PointLoad l;
+mechanics::PointLoad load(const std::string& name, const Vec3& force, const Vec3& moment) {
+  mechanics::PointLoad l;
   l.at = end(name, RodEnd::End), l.force = force, l.moment = moment;
   return l;
 }
@@ -49,17 +49,17 @@ geometry::PointLoad load(const std::string& name, const Vec3& force, const Vec3&
 // A clamped post, an arc joined rigidly to its top and a straight arm hanging from the arc's end:
 // three rods, two joints, bending and torsion everywhere. Two load cases at the arm's free end.
 // With `tJoint`, a loaded strut starts at the post's mid-height: a T-joint, the post's interior site.
-RodStructure frame(bool tJoint = false) {
-  RodStructure s;
+Design frame(bool tJoint = false) {
+  Design s;
   s.source = "frame";
   s.rods.push_back(rod("post", straight(Vec3(40, 0, 0), Vec3(40, 0, 60)), 4.0, 60.0));
   s.rods.push_back(rod("arc", arc(40, 60), 3.5, 60.0));
   s.rods.push_back(rod("arm", straight(Vec3(0, 40, 60), Vec3(0, 40, 20)), 3.0, 60.0));
   if (tJoint) s.rods.push_back(rod("strut", straight(Vec3(40, 0, 30), Vec3(60, 0, 30)), 2.5, 60.0));
   s.mechanics.present = true;
-  geometry::Support clamp;
+  mechanics::Support clamp;
   clamp.at = end("post", RodEnd::Start);
-  geometry::LoadCase push, twist;
+  mechanics::LoadCase push, twist;
   push.name = "push", push.path = "mechanics.load_cases[0]", push.loadSteps = 4;
   push.supports = {clamp};
   push.loads = {load("arm", Vec3(0.3, 0.0, -0.1), Vec3::Zero())};
@@ -67,16 +67,16 @@ RodStructure frame(bool tJoint = false) {
   twist.supports = {clamp};
   twist.loads = {load("arm", Vec3(0.0, -0.2, 0.0), Vec3(4.0, 0.0, 3.0))};
   if (tJoint)
-    for (geometry::LoadCase* c : {&push, &twist}) c->loads.push_back(load("strut", Vec3(0.0, 0.05, -0.05), Vec3::Zero()));
+    for (mechanics::LoadCase* c : {&push, &twist}) c->loads.push_back(load("strut", Vec3(0.0, 0.05, -0.05), Vec3::Zero()));
   s.mechanics.loadCases = {push, twist};
   s.mechanics.supports = {clamp};
   return s;
 }
 
 // Every case's target: the shapes `problem` reached at its last evaluation.
-void setTargetsFromStates(RodStructure& design, const optimize::DesignProblem& problem) {
+void setTargetsFromStates(Design& design, const optimize::DesignProblem& problem) {
   for (std::size_t c = 0; c < problem.caseCount(); ++c) {
-    const RodStructure deformed = problem.caseProblem(c).deformedStructure(problem.state(c));
+    const Design deformed = problem.caseProblem(c).deformedStructure(problem.state(c));
     auto& target = design.mechanics.loadCases[c].target;
     target.clear();
     for (const geometry::Rod& r : deformed.rods)
@@ -93,9 +93,9 @@ Eigen::VectorXd randomModulus(std::size_t n, double lo, double hi, unsigned seed
 }
 
 // The frame with targets: the shapes of a random modulus field between the bounds.
-RodStructure manufactured(const optimize::Settings& settings, unsigned seed, Eigen::VectorXd* truth = nullptr,
-                          bool tJoint = false) {
-  RodStructure design = frame(tJoint);
+Design manufactured(const optimize::Settings& settings, unsigned seed, Eigen::VectorXd* truth = nullptr,
+                    bool tJoint = false) {
+  Design design = frame(tJoint);
   for (auto& lc : design.mechanics.loadCases) lc.target.push_back({"post", straight(Vec3(40, 0, 0), Vec3(40, 0, 60)), std::nullopt, std::nullopt, "t"});
   optimize::DesignProblem generator(design, settings);
   const Eigen::VectorXd e = randomModulus(generator.variableCount(), settings.lowerMpa, settings.upperMpa, seed);
@@ -132,7 +132,7 @@ TEST_CASE("dF/dE matches central differences of the residual at an equilibrium",
   auto& perturbed = const_cast<mechanics::StaticProblem&>(copy.caseProblem(1));
   const int n = settings.modulusControls;
   double worst = 0, largest = 0;
-  const RodStructure withE = copy.designWith(e);
+  const Design withE = copy.designWith(e);
   for (Eigen::Index k = 0; k < dFdE.cols(); ++k) {
     const std::size_t rodIndex = static_cast<std::size_t>(k) / n;
     const geometry::Rod& r = withE.rods[rodIndex];
@@ -209,7 +209,7 @@ TEST_CASE("a target only reachable beyond the bounds ends on them, a stationary 
   // The shapes of a structure stiffer than the upper bound allows everywhere.
   optimize::Settings wide = settings;
   wide.upperMpa = 1000.0;
-  RodStructure design = frame();
+  Design design = frame();
   for (auto& lc : design.mechanics.loadCases) lc.target.push_back({"post", straight(Vec3(40, 0, 0), Vec3(40, 0, 60)), std::nullopt, std::nullopt, "t"});
   optimize::DesignProblem generator(design, wide);
   generator.evaluate(Eigen::VectorXd::Constant(static_cast<Eigen::Index>(generator.variableCount()), 400.0), false);
