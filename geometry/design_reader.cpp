@@ -67,6 +67,14 @@ bool sameDomain(double a0, double a1, double b0, double b1) {
   return std::abs(a0 - b0) <= tol && std::abs(a1 - b1) <= tol;
 }
 
+// True when there is no centerline or [begin, end] is its parameter domain; else an issue at `knotsPath`.
+bool domainMatches(DesignReader& reader, double begin, double end, const NurbsCurve* curve, const std::string& knotsPath) {
+  if (!curve || sameDomain(begin, end, curve->domainBegin(), curve->domainEnd())) return true;
+  reader.fail(knotsPath, "parameter domain [" + std::to_string(begin) + ", " + std::to_string(end) + "] must equal the centerline's [" +
+                             std::to_string(curve->domainBegin()) + ", " + std::to_string(curve->domainEnd()) + "]");
+  return false;
+}
+
 }  // namespace
 
 std::string describe(const json& j) {
@@ -344,12 +352,7 @@ std::optional<QuaternionSpline> DesignReader::orientation(const json& j, const s
     k = knots(*kn, memberPath(path, "knots"), p, quats ? std::optional<std::size_t>(quats->size()) : std::nullopt);
   if (!p || !quats || !k) return std::nullopt;
   QuaternionSpline spline(*p, *k, *quats);
-  if (curve && !sameDomain(spline.domainBegin(), spline.domainEnd(), curve->domainBegin(), curve->domainEnd())) {
-    fail(memberPath(path, "knots"), "parameter domain [" + std::to_string(spline.domainBegin()) + ", " +
-                                    std::to_string(spline.domainEnd()) + "] must equal the centerline's [" +
-                                    std::to_string(curve->domainBegin()) + ", " + std::to_string(curve->domainEnd()) + "]");
-    return std::nullopt;
-  }
+  if (!domainMatches(*this, spline.domainBegin(), spline.domainEnd(), curve, memberPath(path, "knots"))) return std::nullopt;
   return spline;
 }
 
@@ -401,12 +404,7 @@ std::optional<BSplineField> DesignReader::modulus(const json& j, const std::stri
     k = knots(*kn, memberPath(path, "knots"), p, values ? std::optional<std::size_t>(values->size()) : std::nullopt);
   if (!p || !values || !k) return std::nullopt;
   BSplineField field(*p, *k, *values);
-  if (curve && !sameDomain(field.domainBegin(), field.domainEnd(), curve->domainBegin(), curve->domainEnd())) {
-    fail(memberPath(path, "knots"), "parameter domain [" + std::to_string(field.domainBegin()) + ", " +
-                                    std::to_string(field.domainEnd()) + "] must equal the centerline's [" +
-                                    std::to_string(curve->domainBegin()) + ", " + std::to_string(curve->domainEnd()) + "]");
-    return std::nullopt;
-  }
+  if (!domainMatches(*this, field.domainBegin(), field.domainEnd(), curve, memberPath(path, "knots"))) return std::nullopt;
   return curve ? std::optional<BSplineField>(field) : std::nullopt;
 }
 
