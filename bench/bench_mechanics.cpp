@@ -30,7 +30,7 @@ double peakRssMb() {
 
 // Clamps every rod end at the lowest `axis` coordinate and moves every end at the highest by
 // `displacement`: a training load of the kind the published examples use.
-geometry::RodStructure withTrainingLoad(geometry::RodStructure s, int axis, const Vec3& displacement) {
+mechanics::Design withTrainingLoad(mechanics::Design s, int axis, const Vec3& displacement) {
   double lo = 1e300, hi = -1e300;
   for (const auto& r : s.rods)
     for (const Vec3& p : {r.centerline().points().front(), r.centerline().points().back()})
@@ -44,7 +44,7 @@ geometry::RodStructure withTrainingLoad(geometry::RodStructure s, int axis, cons
     for (const Vec3& p : {r.centerline().points().front(), r.centerline().points().back()}) {
       const bool low = p[axis] < lo + tol, high = p[axis] > hi - tol;
       if ((!low && !high) || !seen.insert(key(p)).second) continue;
-      geometry::Support support;
+      mechanics::Support support;
       support.at.point = p;
       support.at.path = "bench";
       if (high) support.displacement = displacement;
@@ -53,12 +53,12 @@ geometry::RodStructure withTrainingLoad(geometry::RodStructure s, int axis, cons
   return s;
 }
 
-geometry::RodStructure spring(int around, int levels) {
+mechanics::Design spring(int around, int levels) {
   examples::SpringParameters p;
   p.nodesAround = around;
   p.levels = levels;
   const auto s = examples::bucklingSpring(p);
-  return withTrainingLoad(s, 2, Vec3(0, 0, -0.05 * s.bounds().sizes().z()));
+  return withTrainingLoad(mechanics::Design(s), 2, Vec3(0, 0, -0.05 * s.bounds().sizes().z()));
 }
 
 // A grid shell of n x n nodes over a 140 mm square, rising 30 mm (z = h (1 - X^2) (1 - Y^2) with X, Y
@@ -66,11 +66,11 @@ geometry::RodStructure spring(int around, int levels) {
 // point half-way between its nodes. The boundary nodes are clamped; the interior nodes carry
 // 0.12 N downwards each on the 15 x 15 shell (the dome snaps through at about 0.19 N), the same
 // total on larger ones (10 load steps).
-geometry::RodStructure gridShell(int n) {
+mechanics::Design gridShell(int n) {
   const double side = 140.0, rise = 30.0;
   auto surface = [&](double X, double Y) { return Vec3(0.5 * side * X, 0.5 * side * Y, rise * (1 - X * X) * (1 - Y * Y)); };
   auto at = [&](int i, int j) { return Vec3(-1.0 + 2.0 * i / (n - 1), -1.0 + 2.0 * j / (n - 1), 0); };
-  geometry::RodStructure s;
+  mechanics::Design s;
   s.source = "grid-shell";
   int index = 0;
   auto addRod = [&](const Vec3& a, const Vec3& b) {  // a, b in (X, Y)
@@ -88,11 +88,11 @@ geometry::RodStructure gridShell(int n) {
     for (int j = 0; j < n; ++j) {
       const Vec3 p = surface(at(i, j).x(), at(i, j).y());
       if (i == 0 || j == 0 || i == n - 1 || j == n - 1) {
-        geometry::Support clamp;
+        mechanics::Support clamp;
         clamp.at.point = p, clamp.at.path = "bench";
         s.mechanics.supports.push_back(clamp);
       } else {
-        geometry::PointLoad load;
+        mechanics::PointLoad load;
         load.at.point = p, load.at.path = "bench";
         load.force = Vec3(0, 0, -0.12 * std::pow(14.0 / (n - 1), 2));
         s.mechanics.loads.push_back(load);
@@ -119,7 +119,7 @@ void countersFor(benchmark::State& state, const mechanics::StaticProblem& proble
 
 // One path solve on a fixed discretization; per-iteration figures with every step full Newton
 // (Arg 0), per-solve figures with chord steps (Arg 1, the default).
-void solveFixed(benchmark::State& state, const geometry::RodStructure& design, int spans) {
+void solveFixed(benchmark::State& state, const mechanics::Design& design, int spans) {
   mechanics::Discretization d;
   d.degree = 4, d.spans = spans;
   const mechanics::StaticProblem problem(design, d);
@@ -134,7 +134,7 @@ void solveFixed(benchmark::State& state, const geometry::RodStructure& design, i
 }
 
 // What `rodfab simulate` does: default discretization, path, error estimate, refinements.
-void simulateConverged(benchmark::State& state, const geometry::RodStructure& design) {
+void simulateConverged(benchmark::State& state, const mechanics::Design& design) {
   mechanics::Simulation last;
   for (auto _ : state) {
     last = mechanics::simulate(design, {}, {}, design.mechanics.loadSteps);
@@ -146,12 +146,12 @@ void simulateConverged(benchmark::State& state, const geometry::RodStructure& de
 }
 
 // A 4 x 3 spring: the size of the unfolding box (34 rods).
-const geometry::RodStructure& spring32() { static const auto s = spring(4, 3); return s; }
-const geometry::RodStructure& spring312() { static const auto s = spring(12, 12); return s; }
-const geometry::RodStructure& spring390() { static const auto s = spring(15, 12); return s; }
-const geometry::RodStructure& spring1008() { static const auto s = spring(24, 20); return s; }
-const geometry::RodStructure& shell420() { static const auto s = gridShell(15); return s; }
-const geometry::RodStructure& shell1012() { static const auto s = gridShell(23); return s; }
+const mechanics::Design& spring32() { static const auto s = spring(4, 3); return s; }
+const mechanics::Design& spring312() { static const auto s = spring(12, 12); return s; }
+const mechanics::Design& spring390() { static const auto s = spring(15, 12); return s; }
+const mechanics::Design& spring1008() { static const auto s = spring(24, 20); return s; }
+const mechanics::Design& shell420() { static const auto s = gridShell(15); return s; }
+const mechanics::Design& shell1012() { static const auto s = gridShell(23); return s; }
 
 void bucklingSpring32(benchmark::State& state) { solveFixed(state, spring32(), 8); }
 void bucklingSpring312(benchmark::State& state) { solveFixed(state, spring312(), 6); }
@@ -160,8 +160,8 @@ void bucklingSpring1008(benchmark::State& state) { solveFixed(state, spring1008(
 void bucklingSpring32Converged(benchmark::State& state) { simulateConverged(state, spring32()); }
 // The bundled unfolding box and its training case: 20 T-joints (hinge ends on the squares' edges).
 void unfoldingBoxConverged(benchmark::State& state) {
-  static const geometry::RodStructure box = [] {
-    geometry::RodStructure s = examples::unfoldingBox();
+  static const mechanics::Design box = [] {
+    mechanics::Design s(examples::unfoldingBox());
     s.mechanics = examples::unfoldingBoxTraining();
     return s;
   }();

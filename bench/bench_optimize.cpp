@@ -32,22 +32,22 @@ double peakRssMb() {
 
 // The spring with one load case: every bottom rod end clamped, every top one moved down by 5 % of
 // the height (by point, as a design file gives them).
-geometry::RodStructure spring(int around, int levels) {
+mechanics::Design spring(int around, int levels) {
   examples::SpringParameters p;
   p.nodesAround = around;
   p.levels = levels;
-  geometry::RodStructure s = examples::bucklingSpring(p);
+  mechanics::Design s(examples::bucklingSpring(p));
   double lo = 1e300, hi = -1e300;
   for (const auto& r : s.rods)
     for (const Vec3& q : {r.centerline().points().front(), r.centerline().points().back()}) lo = std::min(lo, q.z()), hi = std::max(hi, q.z());
-  geometry::LoadCase lc;
+  mechanics::LoadCase lc;
   lc.name = "compress", lc.path = "mechanics.load_cases[0]", lc.loadSteps = 5;
   std::set<std::tuple<long long, long long, long long>> seen;
   for (const auto& r : s.rods)
     for (const Vec3& q : {r.centerline().points().front(), r.centerline().points().back()}) {
       const bool low = q.z() < lo + 1e-6 * (hi - lo), high = q.z() > hi - 1e-6 * (hi - lo);
       if ((!low && !high) || !seen.insert({std::llround(q.x() * 1e4), std::llround(q.y() * 1e4), std::llround(q.z() * 1e4)}).second) continue;
-      geometry::Support support;
+      mechanics::Support support;
       support.at.point = q;
       support.at.path = "bench";
       if (high) support.displacement = Vec3(0, 0, -0.05 * (hi - lo));
@@ -71,8 +71,8 @@ optimize::Settings settings() {
 }
 
 // The spring's targets: its shapes with a random modulus field.
-geometry::RodStructure manufactured(int around, int levels) {
-  geometry::RodStructure design = spring(around, levels);
+mechanics::Design manufactured(int around, int levels) {
+  mechanics::Design design = spring(around, levels);
   design.mechanics.loadCases[0].target.push_back({design.rods[0].name(), design.rods[0].centerline(), {}, {}, "bench"});
   optimize::DesignProblem generator(design, settings());
   std::mt19937 rng(1);
@@ -80,7 +80,7 @@ geometry::RodStructure manufactured(int around, int levels) {
   Eigen::VectorXd e(static_cast<Eigen::Index>(generator.variableCount()));
   for (auto& v : e) v = u(rng);
   generator.evaluate(e, false);
-  const geometry::RodStructure deformed = generator.caseProblem(0).deformedStructure(generator.state(0));
+  const mechanics::Design deformed = generator.caseProblem(0).deformedStructure(generator.state(0));
   auto& target = design.mechanics.loadCases[0].target;
   target.clear();
   for (const auto& r : deformed.rods) target.push_back({r.name(), r.centerline(), r.orientation(), {}, "bench"});
@@ -88,7 +88,7 @@ geometry::RodStructure manufactured(int around, int levels) {
 }
 
 void optimizeSpring(benchmark::State& state, int around, int levels, optimize::Scaling scaling = optimize::Scaling::Linear) {
-  const geometry::RodStructure design = manufactured(around, levels);
+  const mechanics::Design design = manufactured(around, levels);
   optimize::Result last;
   std::size_t rods = 0, unknowns = 0, variables = 0;
   for (auto _ : state) {
@@ -116,7 +116,7 @@ void optimizeSpring(benchmark::State& state, int around, int levels, optimize::S
 
 // NLopt's gradient-based bounded methods on the same scaled problem, for `evaluations` solves.
 void nloptSpring(benchmark::State& state, nlopt::algorithm algorithm, int around, int levels, int evaluations) {
-  const geometry::RodStructure design = manufactured(around, levels);
+  const mechanics::Design design = manufactured(around, levels);
   double g0 = 0, best = 0;
   int count = 0;
   for (auto _ : state) {

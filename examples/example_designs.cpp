@@ -265,22 +265,22 @@ RodStructure armCast() {
 
 namespace {
 
-geometry::RodEndRef placeAt(const Vec3& p, const std::string& path) {
-  geometry::RodEndRef ref;
+mechanics::RodEndRef placeAt(const Vec3& p, const std::string& path) {
+  mechanics::RodEndRef ref;
   ref.point = p;
   ref.path = path;
   return ref;
 }
 
-geometry::MechanicsSpec trainingSpec(int loadSteps) {
-  geometry::MechanicsSpec spec;
+mechanics::MechanicsSpec trainingSpec(int loadSteps) {
+  mechanics::MechanicsSpec spec;
   spec.present = true;
   spec.loadSteps = loadSteps;
   return spec;
 }
 
-geometry::Support support(const Vec3& p, std::size_t index, geometry::SupportKind kind, const Vec3& displacement = Vec3::Zero()) {
-  geometry::Support s;
+mechanics::Support support(const Vec3& p, std::size_t index, mechanics::SupportKind kind, const Vec3& displacement = Vec3::Zero()) {
+  mechanics::Support s;
   s.at = placeAt(p, "mechanics.supports[" + std::to_string(index) + "].at");
   s.kind = kind;
   s.displacement = displacement;
@@ -289,12 +289,12 @@ geometry::Support support(const Vec3& p, std::size_t index, geometry::SupportKin
 
 }  // namespace
 
-geometry::MechanicsSpec unfoldingBoxTraining(double force) {
+mechanics::MechanicsSpec unfoldingBoxTraining(double force) {
   constexpr double kSide = 20.0, kPitch = kSide + 2.5;  // as in unfoldingBox()
-  geometry::MechanicsSpec spec = trainingSpec(20);
+  mechanics::MechanicsSpec spec = trainingSpec(20);
   const Vec3 base(kPitch, kPitch, 0);
   for (const Vec3& corner : {Vec3(0, 0, 0), Vec3(kSide, 0, 0), Vec3(kSide, kSide, 0), Vec3(0, kSide, 0)})
-    spec.supports.push_back(support(base + corner, spec.supports.size(), geometry::SupportKind::Clamped));
+    spec.supports.push_back(support(base + corner, spec.supports.size(), mechanics::SupportKind::Clamped));
   // The outer edge of each outer square, by its middle and outward normal (in the plane).
   const std::pair<Vec3, Vec3> outerEdges[] = {
       {Vec3(kPitch + 0.5 * kSide, 0, 0), Vec3(0, -1, 0)},                   // square 10
@@ -302,7 +302,7 @@ geometry::MechanicsSpec unfoldingBoxTraining(double force) {
       {Vec3(2 * kPitch + kSide, kPitch + 0.5 * kSide, 0), Vec3(1, 0, 0)},   // square 21
       {Vec3(kPitch + 0.5 * kSide, 3 * kPitch + kSide, 0), Vec3(0, 1, 0)}};  // square 13 (the lid)
   for (const auto& [middle, outward] : outerEdges) {
-    geometry::PointLoad load;
+    mechanics::PointLoad load;
     load.at = placeAt(middle, "mechanics.loads[" + std::to_string(spec.loads.size()) + "].at");
     load.force = force * (Vec3(0, 0, 1) - outward).normalized();
     spec.loads.push_back(load);
@@ -310,24 +310,24 @@ geometry::MechanicsSpec unfoldingBoxTraining(double force) {
   return spec;
 }
 
-geometry::MechanicsSpec bucklingSpringTraining(const SpringParameters& p, double compression) {
-  geometry::MechanicsSpec spec = trainingSpec(20);
+mechanics::MechanicsSpec bucklingSpringTraining(const SpringParameters& p, double compression) {
+  mechanics::MechanicsSpec spec = trainingSpec(20);
   const double dTheta = 2.0 * kPi / p.nodesAround;
   auto node = [&](int i, int level) {  // as nodeAngle in bucklingSpring()
     const double a = dTheta * (i + 0.5 * (level % 2));
     return Vec3(p.radius * std::cos(a), p.radius * std::sin(a), p.height * level / p.levels);
   };
   for (int i = 0; i < p.nodesAround; ++i)
-    spec.supports.push_back(support(node(i, 0), spec.supports.size(), geometry::SupportKind::Clamped));
+    spec.supports.push_back(support(node(i, 0), spec.supports.size(), mechanics::SupportKind::Clamped));
   for (int k = 0; k < 4; ++k)
-    spec.supports.push_back(support(node(k * p.nodesAround / 4, p.levels), spec.supports.size(), geometry::SupportKind::Pinned,
+    spec.supports.push_back(support(node(k * p.nodesAround / 4, p.levels), spec.supports.size(), mechanics::SupportKind::Pinned,
                                     Vec3(0, 0, -compression * p.height)));
   return spec;
 }
 
-geometry::MechanicsSpec armCastTraining(double fraction) {
+mechanics::MechanicsSpec armCastTraining(double fraction) {
   constexpr double kRadius = 30.0, kLength = 70.0;  // as in armCast()
-  geometry::MechanicsSpec spec = trainingSpec(20);
+  mechanics::MechanicsSpec spec = trainingSpec(20);
   // Unrolled onto the plane z = R tangent to the crown, the rim at angle 0 lands at y = R pi / 2,
   // z = R, the one at pi at y = -R pi / 2.
   const geometry::RodStructure cast = armCast();
@@ -343,7 +343,7 @@ geometry::MechanicsSpec armCastTraining(double fraction) {
   for (const Vec3& p : rimEnds) {
     const double side = p.y() > 0 ? 1.0 : -1.0;
     const Vec3 flat(p.x(), side * kRadius * kPi / 2, kRadius);
-    spec.supports.push_back(support(p, spec.supports.size(), geometry::SupportKind::Pinned, fraction * (flat - p)));
+    spec.supports.push_back(support(p, spec.supports.size(), mechanics::SupportKind::Pinned, fraction * (flat - p)));
   }
   return spec;
 }
@@ -359,10 +359,10 @@ namespace {
 // The target of `rod` under the deformation `map` of space: its centerline through the mapped
 // points at a quarter of its parameter apart (cubic, parameter kept), the frame seeded with the
 // design's d1 at the start carried by the map's differential (a central difference).
-geometry::TargetRod mappedTarget(const Rod& rod, const std::function<Vec3(const Vec3&)>& map) {
+mechanics::TargetRod mappedTarget(const Rod& rod, const std::function<Vec3(const Vec3&)>& map) {
   const NurbsCurve& c = rod.centerline();
   const double a = c.domainBegin(), b = c.domainEnd();
-  geometry::TargetRod t;
+  mechanics::TargetRod t;
   t.rod = rod.name();
   t.centerline = cubicThrough([&](double s) { return map(c.point(a + s * (b - a))); });
   const Vec3 start = c.point(a), d1 = rod.frame().at(c, a).d1;
@@ -371,8 +371,8 @@ geometry::TargetRod mappedTarget(const Rod& rod, const std::function<Vec3(const 
   return t;
 }
 
-geometry::LoadCase trainingCase(std::string name, const geometry::MechanicsSpec& training) {
-  geometry::LoadCase lc;
+mechanics::LoadCase trainingCase(std::string name, const mechanics::MechanicsSpec& training) {
+  mechanics::LoadCase lc;
   lc.name = std::move(name);
   lc.supports = training.supports;
   lc.loads = training.loads;
@@ -399,14 +399,14 @@ struct Fold {
 };
 
 // The target rods in name order, the order a design file's "rods" object is read back in.
-geometry::LoadCase sortedByName(geometry::LoadCase lc) {
-  std::sort(lc.target.begin(), lc.target.end(), [](const geometry::TargetRod& a, const geometry::TargetRod& b) { return a.rod < b.rod; });
+mechanics::LoadCase sortedByName(mechanics::LoadCase lc) {
+  std::sort(lc.target.begin(), lc.target.end(), [](const mechanics::TargetRod& a, const mechanics::TargetRod& b) { return a.rod < b.rod; });
   return lc;
 }
 
 }  // namespace
 
-geometry::LoadCase unfoldingBoxFold(double force) {
+mechanics::LoadCase unfoldingBoxFold(double force) {
   constexpr double kSide = 20.0, kGap = 2.5, kPitch = kSide + kGap;  // as in unfoldingBox()
   constexpr double lo = kPitch, hi = kPitch + kSide, eps = 1e-6;        // the middle square's sides
   const Fold front{Vec3(lo, lo, 0), Vec3(1, 0, 0), Vec3(0, -1, 0), kGap};  // square 10
@@ -414,7 +414,7 @@ geometry::LoadCase unfoldingBoxFold(double force) {
   const Fold lid{Vec3(lo, hi + kPitch, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), kGap};  // square 13 on 12
   const Fold left{Vec3(lo, lo, 0), Vec3(0, 1, 0), Vec3(-1, 0, 0), kGap};   // square 01
   const Fold right{Vec3(hi, lo, 0), Vec3(0, 1, 0), Vec3(1, 0, 0), kGap};   // square 21
-  geometry::LoadCase lc = trainingCase("fold", unfoldingBoxTraining(force));
+  mechanics::LoadCase lc = trainingCase("fold", unfoldingBoxTraining(force));
   for (const Rod& rod : unfoldingBox().rods) {
     // Each rod moves with the square (or gap) its middle lies in.
     const Vec3 m = rod.centerline().point(0.5 * (rod.centerline().domainBegin() + rod.centerline().domainEnd()));
@@ -429,7 +429,7 @@ geometry::LoadCase unfoldingBoxFold(double force) {
   return sortedByName(std::move(lc));
 }
 
-geometry::LoadCase bucklingSpringCompression(const SpringParameters& p, double compression) {
+mechanics::LoadCase bucklingSpringCompression(const SpringParameters& p, double compression) {
   const RodStructure spring = bucklingSpring(p);
   auto mapWith = [&](double bulge) {
     return [&p, compression, bulge](const Vec3& q) {
@@ -447,17 +447,17 @@ geometry::LoadCase bucklingSpringCompression(const SpringParameters& p, double c
   for (const Rod& rod : spring.rods) designLength += rod.centerline().arcLength();
   double low = 0.0, high = p.radius;
   for (int i = 0; i < 60; ++i) (totalLength(0.5 * (low + high)) < designLength ? low : high) = 0.5 * (low + high);
-  geometry::LoadCase lc = trainingCase("compression", bucklingSpringTraining(p, compression));
+  mechanics::LoadCase lc = trainingCase("compression", bucklingSpringTraining(p, compression));
   for (const Rod& rod : spring.rods) lc.target.push_back(mappedTarget(rod, mapWith(0.5 * (low + high))));
   return sortedByName(std::move(lc));
 }
 
-geometry::LoadCase armCastFlattened() {
+mechanics::LoadCase armCastFlattened() {
   static constexpr double kRadius = 30.0;  // as in armCast()
-  geometry::LoadCase lc = trainingCase("flatten", armCastTraining());
+  mechanics::LoadCase lc = trainingCase("flatten", armCastTraining());
   for (const Rod& rod : armCast().rods) {
     // The cylinder (x, R cos theta, R sin theta) unrolled: arc length R theta from the rim at theta = 0.
-    geometry::TargetRod t = mappedTarget(rod, [](const Vec3& q) {
+    mechanics::TargetRod t = mappedTarget(rod, [](const Vec3& q) {
       return Vec3(q.x(), kRadius * (0.5 * kPi - std::atan2(q.z(), q.y())), kRadius);
     });
     t.referenceNormal = Vec3(0, 0, 1);  // the strips' d1 (the surface normal) turned to the plane's

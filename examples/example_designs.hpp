@@ -2,8 +2,8 @@
 // here (and written to examples/*.json by rodfab_generate_examples) so they stay reproducible.
 #pragma once
 
-#include "geometry/mechanics_spec.hpp"
 #include "geometry/rod.hpp"
+#include "mechanics/mechanics_spec.hpp"
 
 #include <string>
 #include <vector>
@@ -75,15 +75,15 @@ geometry::RodStructure armCast();
 // The box net folded up by forces on the outer edges of its four outer squares, perpendicular to
 // those edges (inwards and upwards at 45 degrees, `force` N each at the edge's middle), the middle
 // square clamped at its corners. The hinges end on the squares' edges: T-joints.
-geometry::MechanicsSpec unfoldingBoxTraining(double force = 0.03);
+mechanics::MechanicsSpec unfoldingBoxTraining(double force = 0.03);
 
 // The spring compressed by `compression` (a fraction of its height) through prescribed
 // displacements at four equidistant nodes of its top ring (pinned), the bottom ring's nodes clamped.
-geometry::MechanicsSpec bucklingSpringTraining(const SpringParameters& parameters = {}, double compression = 0.15);
+mechanics::MechanicsSpec bucklingSpringTraining(const SpringParameters& parameters = {}, double compression = 0.15);
 
 // The cast flattened: the rod ends on its two rims (pinned) moved to where unrolling the half
 // cylinder onto the plane tangent to its crown puts them (`fraction` of the way there).
-geometry::MechanicsSpec armCastTraining(double fraction = 1.0);
+mechanics::MechanicsSpec armCastTraining(double fraction = 1.0);
 
 // ---- Training targets: the shape each training case should produce (the published target), as a
 // load case {supports and loads of the training case above, target rods} for `rodfab optimize`.
@@ -93,16 +93,16 @@ geometry::MechanicsSpec armCastTraining(double fraction = 1.0);
 // The net folded into a closed box: the four squares next to the middle one turn up by 90 degrees
 // and the lid (beyond the back wall) by another 90, each gap's hinge rods bending into a quarter
 // circle of their own length (radius 2 gap / pi), the squares rigid.
-geometry::LoadCase unfoldingBoxFold(double force = 0.03);
+mechanics::LoadCase unfoldingBoxFold(double force = 0.03);
 
 // The spring compressed uniformly (z -> (1 - compression) z, the training's prescribed displacement)
 // and buckled outwards at mid-height: radius R + b sin(pi z / H), b such that the struts keep their
 // total length (inextensible), the two rings unchanged but for the top one's descent.
-geometry::LoadCase bucklingSpringCompression(const SpringParameters& parameters = {}, double compression = 0.15);
+mechanics::LoadCase bucklingSpringCompression(const SpringParameters& parameters = {}, double compression = 0.15);
 
 // The cast unrolled onto the plane tangent to its crown (z = R): the point at arc length s from the
 // rim at angle 0 and axial position x goes to (x, R pi / 2 - s, R), the strips' normal to +z. An
 // isometry: every strip keeps its length and becomes straight.
-geometry::LoadCase armCastFlattened();
+mechanics::LoadCase armCastFlattened();
 
 }  // namespace rodfab::examples

@@ -1,4 +1,6 @@
-// The design file (`rodfab.design/1`, JSON, millimetres and MPa): reading with full validation, and writing.
+// The design file (`rodfab.design/1`, JSON, millimetres and MPa): its rods, read with full validation,
+// and written. The file's "mechanics" and "optimize" blocks belong to mechanics/ (mechanics/mechanics_file.hpp
+// reads and writes a design with them); here they are allowed and left unread.
 #pragma once
 
 #include "geometry/rod.hpp"
@@ -36,7 +38,7 @@ private:
   std::vector<DesignIssue> issues_;
 };
 
-// Throws DesignError (also for an unreadable file, with path "").
+// The rods of a design file. Throws DesignError (also for an unreadable file, with path "").
 RodStructure readDesign(const std::filesystem::path& file);
 // `sourceName` names the text in messages.
 RodStructure parseDesign(const std::string& text, const std::string& sourceName);
@@ -44,7 +46,8 @@ RodStructure parseDesign(const std::string& text, const std::string& sourceName)
 // Keys in the order of the format description (name, centerline, section, frame, caps, modulus).
 nlohmann::ordered_json designToJson(const RodStructure& structure, const std::string& description = {});
 // One rod per line, so diffs of generated designs stay readable. Written to a temporary name beside
-// `file` and renamed, so a reader never sees half a file.
+// `file` and renamed (common::writeFileAtomically), so a reader never sees half a file. Writes the
+// rods only: a design with mechanics goes through mechanics::writeDesign.
 void writeDesign(const RodStructure& structure, const std::filesystem::path& file, const std::string& description = {});
 
 // True when `file` is a regular file that starts as writeDesign writes (the format tag in its first

@@ -18,7 +18,6 @@
 //   1 - distance / capRadius (caps); E is taken at the u of the deepest (on exact ties, the lowest u).
 #pragma once
 #include "geometry/frame.hpp"
-#include "geometry/mechanics_spec.hpp"
 #include "geometry/nurbs.hpp"
 #include "geometry/section.hpp"
 
@@ -168,8 +167,6 @@ private:
 struct RodStructure {
   std::string source;  // where it was read from, for messages
   std::vector<Rod> rods;
-  MechanicsSpec mechanics;  // loads and supports for `rodfab simulate`; ignored by the slicer
-  OptimizeSpec optimize{};  // the "optimize" block for `rodfab optimize`; ignored by the slicer
 
   Box3 bounds() const;
 };

@@ -31,9 +31,9 @@ class FractionCheck {
 public:
   static bool valid(float f) { return f >= 0.0f && f <= 1.0f; }  // false for NaN
   void fail(std::size_t leafIndex, openvdb::Index offset) {
-    const std::uint64_t key = leafIndex * FloatLeaf::SIZE + offset;
+    const std::uint64_t position = leafIndex * FloatLeaf::SIZE + offset;  // in leaf order
     std::uint64_t seen = first_.load(std::memory_order_relaxed);
-    while (key < seen && !first_.compare_exchange_weak(seen, key, std::memory_order_relaxed)) {
+    while (position < seen && !first_.compare_exchange_weak(seen, position, std::memory_order_relaxed)) {
     }
   }
   // Throws std::invalid_argument naming the grid, the voxel and its value.

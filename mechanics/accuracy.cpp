@@ -18,7 +18,7 @@ struct Comparison {
   double displacement = 0.0;  // mm: largest |r_a(u) - r_a0(u)|
 };
 
-Comparison compare(const geometry::RodStructure& design, const StaticProblem& a, const Eigen::VectorXd& xa,
+Comparison compare(const Design& design, const StaticProblem& a, const Eigen::VectorXd& xa,
                    const StaticProblem& b, const Eigen::VectorXd& xb) {
   Comparison c;
   for (std::size_t r = 0; r < design.rods.size(); ++r) {
@@ -50,7 +50,7 @@ double richardson(double difference, double ratio) { return difference / (ratio 
 // The refinement loop of one simulate() call.
 class Refiner {
 public:
-  Refiner(const geometry::RodStructure& design, const SolverOptions& solver, int designLoadSteps,
+  Refiner(const Design& design, const SolverOptions& solver, int designLoadSteps,
           const AccuracyOptions& accuracy, const LevelCallback& onLevel, Simulation& out)
       : design_(design), solver_(solver), steps_(designLoadSteps), accuracy_(accuracy), onLevel_(onLevel), out_(out),
         order_(out.problem->convergenceOrder()), size_(design.bounds().diagonal().norm()) {}
@@ -125,7 +125,7 @@ private:
     e.comparedUnknowns = compared;
   }
 
-  const geometry::RodStructure& design_;
+  const Design& design_;
   const SolverOptions& solver_;
   int steps_;
   const AccuracyOptions& accuracy_;
@@ -138,7 +138,7 @@ private:
 
 }  // namespace
 
-Simulation simulate(const geometry::RodStructure& design, Discretization discretization, const SolverOptions& solver,
+Simulation simulate(const Design& design, Discretization discretization, const SolverOptions& solver,
                     int designLoadSteps, const AccuracyOptions& accuracy, const StepCallback& onStep,
                     const LevelCallback& onLevel) {
   if (!(accuracy.tolerance > 0) || accuracy.tolerance > 1 || accuracy.maxRefinements < 0)

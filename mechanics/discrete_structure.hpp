@@ -70,7 +70,7 @@ struct SiteSides {
 // Rod sites that share a position: a free end, a support, a load point, or a joint (two or more sites).
 struct Node {
   std::vector<Site> ends;  // the first site's slot carries the balance / support rows
-  std::optional<geometry::SupportKind> support;  // none: free (force and moment balance)
+  std::optional<SupportKind> support;  // none: free (force and moment balance)
   std::string supportPath;
   Eigen::Vector3d displacement = Eigen::Vector3d::Zero(), rotation = Eigen::Vector3d::Zero();
   Eigen::Vector3d force = Eigen::Vector3d::Zero(), moment = Eigen::Vector3d::Zero();
@@ -154,7 +154,7 @@ struct DiscreteStructure {
   Eigen::VectorXd reference;
   // The design's mechanics block with every reference by point turned into one by rod name and
   // end, so it still resolves once the ends have moved (deformedStructure).
-  geometry::MechanicsSpec spec;
+  MechanicsSpec spec;
   Discretization discretization;  // as resolved (perRod filled)
 
   // Pre-pass (nodes.cpp), before the rods are discretized: per design rod the parameters of its
@@ -174,15 +174,15 @@ struct DiscreteStructure {
   [[noreturn]] void fail(const std::string& path, const std::string& message) const;
 
   // discretization.cpp: appends rod `index` of `structure` with its unknowns and reference state.
-  void buildRod(const geometry::RodStructure& structure, std::size_t index, const Discretization& discretization);
+  void buildRod(const Design& structure, std::size_t index, const Discretization& discretization);
   // nodes.cpp: the interior sites (before buildRod), then joints, supports and loads; throws
   // MechanicsError for unresolvable or unsupported parts.
-  void findInteriorSites(const geometry::RodStructure& structure);
-  void buildNodes(const geometry::RodStructure& structure);
-  Place locate(const geometry::RodEndRef& ref, const geometry::RodStructure& structure) const;
+  void findInteriorSites(const Design& structure);
+  void buildNodes(const Design& structure);
+  Place locate(const RodEndRef& ref, const Design& structure) const;
   int siteNumber(const Place& place) const;  // 2 rod + end, or after all ends the interior sites in order
   Site siteOf(int number) const;
-  void keepSpec(const geometry::RodStructure& structure);
+  void keepSpec(const Design& structure);
   // equations.cpp: the rows and columns of every work item and the Jacobian's pattern.
   void buildLayouts();
   // The residual rows of one work item and, with `block`, their derivatives (rows by columns of

@@ -388,7 +388,7 @@ struct RodStiffness {
   double inertia = 0.0;     // max(I1, I2)
 };
 
-RodStiffness rodStiffness(const geometry::MechanicsSpec& spec, const geometry::Rod& src) {
+RodStiffness rodStiffness(const MechanicsSpec& spec, const geometry::Rod& src) {
   double nu = spec.poissonRatio;
   std::optional<double> shear = spec.shearFactor, torsion;
   for (const auto& over : spec.rods)
@@ -474,7 +474,7 @@ void setPointConstants(const DiscreteStructure& s, DiscreteRod& rod, const geome
 
 }  // namespace
 
-void DiscreteStructure::buildRod(const geometry::RodStructure& structure, std::size_t index,
+void DiscreteStructure::buildRod(const Design& structure, std::size_t index,
                                  const Discretization& discretization) {
   const geometry::Rod& src = structure.rods[index];
   DiscreteRod rod;

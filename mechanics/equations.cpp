@@ -74,7 +74,7 @@ public:
   void evaluate(double load) {
     if (node_.support) positionRows(load);
     else forceBalanceRows(load);
-    if (node_.support == geometry::SupportKind::Clamped) rotationRows(load);
+    if (node_.support == SupportKind::Clamped) rotationRows(load);
     else momentBalanceRows(load);
     f_[6] = site(0).s.q.squaredNorm() - 1.0;
     if (derivatives_) dSite(0).block<1, 4>(6, 6) = 2.0 * site(0).s.q.transpose();
@@ -287,7 +287,7 @@ std::vector<char> nodeMask(const DiscreteStructure& s, const Node& node, const I
     const std::size_t site = r / 7, local = r % 7;
     const bool rotationRow = local >= 3;  // rows 3..6: moments, rotations, unit norm
     const bool balance = site == 0 && ((local < 3 && !node.support) ||
-                                       (local >= 3 && local < 6 && node.support != geometry::SupportKind::Clamped));
+                                       (local >= 3 && local < 6 && node.support != SupportKind::Clamped));
     for (std::size_t c = 0; c < columns.size(); ++c) {
       const Column& col = columns[c];
       const bool tied = local == 6 ? col.site == site : (col.site == 0 || col.site == site);

@@ -7,6 +7,8 @@
 #pragma once
 
 #include "geometry/rod.hpp"
+#include "mechanics/mechanics_file.hpp"
+#include "mechanics/mechanics_spec.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
@@ -80,7 +82,7 @@ struct Discretization {
 class StaticProblem {
 public:
   // Throws MechanicsError, or std::invalid_argument for an out-of-range Discretization.
-  explicit StaticProblem(const geometry::RodStructure& structure, const Discretization& discretization = {});
+  explicit StaticProblem(const Design& structure, const Discretization& discretization = {});
   ~StaticProblem();
   StaticProblem(StaticProblem&&) noexcept;
   StaticProblem& operator=(StaticProblem&&) noexcept;
@@ -125,7 +127,7 @@ public:
   // input's mechanics block with places given by point turned into rod name and end, or rod name
   // and parameter (the points have moved), so the result can be simulated again. std::invalid_argument for x of the wrong
   // size; std::invalid_argument from geometry::Rod if a state degenerates a rod (no frame).
-  geometry::RodStructure deformedStructure(const Eigen::VectorXd& x) const;
+  Design deformedStructure(const Eigen::VectorXd& x) const;
 
   // ---- Design sensitivities (mechanics/modulus_sensitivity.cpp) -----------------------------
   // The design variables are the control values of every rod's modulus field E(u) (the design's
@@ -334,7 +336,7 @@ using LevelCallback = std::function<void(Level, const StaticProblem&)>;
 // critical points) is the first level's. A coarser or finer solve that fails leaves the estimate
 // unavailable or the refinement where it was (ErrorEstimate::note says so). Throws as StaticProblem
 // and solve() do for the first level, and std::invalid_argument for out-of-range accuracy options.
-Simulation simulate(const geometry::RodStructure& design, Discretization discretization, const SolverOptions& solver,
+Simulation simulate(const Design& design, Discretization discretization, const SolverOptions& solver,
                     int designLoadSteps, const AccuracyOptions& accuracy = {}, const StepCallback& onStep = {},
                     const LevelCallback& onLevel = {});
 

@@ -48,7 +48,7 @@ Eigen::AlignedBox3d controlBox(const geometry::Rod& rod, double margin) {
 
 // A rod's point at parameter u: its start or end when within the joint tolerance of it (so a
 // site never makes a piece shorter than that), else an interior place.
-Place placeOnRod(const geometry::RodStructure& structure, int rod, double u) {
+Place placeOnRod(const Design& structure, int rod, double u) {
   const geometry::Rod& r = structure.rods[rod];
   const Vec3 p = r.centerline().point(u);
   for (int end = 0; end < 2; ++end)
@@ -82,12 +82,12 @@ std::vector<int> DiscreteStructure::siteColumns(const Site& e) const {
   return points;
 }
 
-Place DiscreteStructure::locate(const geometry::RodEndRef& ref, const geometry::RodStructure& structure) const {
+Place DiscreteStructure::locate(const RodEndRef& ref, const Design& structure) const {
   const double tolerance = structure.mechanics.jointTolerance;
   if (!ref.point) {
     for (std::size_t i = 0; i < structure.rods.size(); ++i) {
       if (structure.rods[i].name() != ref.rod) continue;
-      if (!ref.parameter) return {static_cast<int>(i), ref.end == geometry::RodEnd::Start ? 0 : 1, 0.0};
+      if (!ref.parameter) return {static_cast<int>(i), ref.end == RodEnd::Start ? 0 : 1, 0.0};
       const geometry::NurbsCurve& c = structure.rods[i].centerline();
       if (!(*ref.parameter >= c.domainBegin() && *ref.parameter <= c.domainEnd()))
         fail(ref.path + ".parameter", "u = " + format(*ref.parameter) + " lies outside rod \"" + ref.rod +
@@ -138,7 +138,7 @@ double onC0Knot(const geometry::NurbsCurve& c, double u, double tolerance) {
 
 // Rod ends that lie on another rod's interior (within the tolerance, away from that rod's ends):
 // T-joints. Only rods whose control box holds the end are searched.
-std::vector<std::pair<int, Place>> findTJoints(const geometry::RodStructure& structure) {
+std::vector<std::pair<int, Place>> findTJoints(const Design& structure) {
   const double tolerance = structure.mechanics.jointTolerance;
   std::vector<Eigen::AlignedBox3d> boxes;
   for (const geometry::Rod& rod : structure.rods) boxes.push_back(controlBox(rod, tolerance));
@@ -162,8 +162,8 @@ std::vector<std::pair<int, Place>> findTJoints(const geometry::RodStructure& str
 
 // Every interior place the design refers to (T-joints, listed joints, supports, loads), per rod in
 // increasing parameter; places within the joint tolerance of each other are one site.
-void DiscreteStructure::findInteriorSites(const geometry::RodStructure& structure) {
-  const geometry::MechanicsSpec& spec = structure.mechanics;
+void DiscreteStructure::findInteriorSites(const Design& structure) {
+  const MechanicsSpec& spec = structure.mechanics;
   std::vector<std::vector<double>> wanted(structure.rods.size());
   auto want = [&](const Place& place) {
     if (place.end == Site::kInterior) wanted[place.rod].push_back(place.u);
@@ -221,8 +221,8 @@ const Vec3& endPoint(const DiscreteRod& rod, int end) { return end == 0 ? rod.cu
 
 // Joins the rod sites the design joins: all ends within the joint tolerance of each other and the
 // T-joints, or the listed groups.
-void joinSites(const DiscreteStructure& s, const geometry::RodStructure& structure, SiteSets& sets) {
-  const geometry::MechanicsSpec& spec = structure.mechanics;
+void joinSites(const DiscreteStructure& s, const Design& structure, SiteSets& sets) {
+  const MechanicsSpec& spec = structure.mechanics;
   const int endCount = static_cast<int>(2 * s.rods.size());
   if (spec.inferJoints) {
     // Sort ends by x so only neighbours within the tolerance are compared.
@@ -249,9 +249,9 @@ void joinSites(const DiscreteStructure& s, const geometry::RodStructure& structu
 
 }  // namespace
 
-void DiscreteStructure::keepSpec(const geometry::RodStructure& structure) {
+void DiscreteStructure::keepSpec(const Design& structure) {
   spec = structure.mechanics;
-  auto byName = [&](geometry::RodEndRef& ref) {
+  auto byName = [&](RodEndRef& ref) {
     if (!ref.point) return;
     const Place place = locate(ref, structure);
     ref.rod = rods[place.rod].name;
@@ -259,7 +259,7 @@ void DiscreteStructure::keepSpec(const geometry::RodStructure& structure) {
       const Site site = siteOf(siteNumber(place));
       ref.parameter = rods[site.rod].sites[site.index];
     } else {
-      ref.end = place.end == 0 ? geometry::RodEnd::Start : geometry::RodEnd::End;
+      ref.end = place.end == 0 ? RodEnd::Start : RodEnd::End;
     }
     ref.point.reset();
   };
@@ -269,8 +269,8 @@ void DiscreteStructure::keepSpec(const geometry::RodStructure& structure) {
   for (auto& load : spec.loads) byName(load.at);
 }
 
-void DiscreteStructure::buildNodes(const geometry::RodStructure& structure) {
-  const geometry::MechanicsSpec& spec = structure.mechanics;
+void DiscreteStructure::buildNodes(const Design& structure) {
+  const MechanicsSpec& spec = structure.mechanics;
   const int siteCount = siteBase.empty() ? 0 : siteBase.back() + static_cast<int>(rods.back().sites.size());
   SiteSets sets(siteCount);
   joinSites(*this, structure, sets);
@@ -281,7 +281,7 @@ void DiscreteStructure::buildNodes(const geometry::RodStructure& structure) {
     nodes[it->second].ends.push_back(siteOf(i));
   }
   for (const Node& node : nodes) joints += node.ends.size() > 1;
-  auto nodeAt = [&](const geometry::RodEndRef& ref) -> Node& { return nodes[nodeOf.at(sets.find(siteNumber(locate(ref, structure))))]; };
+  auto nodeAt = [&](const RodEndRef& ref) -> Node& { return nodes[nodeOf.at(sets.find(siteNumber(locate(ref, structure))))]; };
 
   for (const auto& s : spec.supports) {
     Node& node = nodeAt(s.at);

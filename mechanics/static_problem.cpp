@@ -22,7 +22,7 @@ bool samePattern(const Eigen::SparseMatrix<double>& a, const Eigen::SparseMatrix
 
 }  // namespace
 
-StaticProblem::StaticProblem(const geometry::RodStructure& structure, const Discretization& discretization)
+StaticProblem::StaticProblem(const Design& structure, const Discretization& discretization)
     : structure_(std::make_unique<DiscreteStructure>()) {
   DiscreteStructure& m = *structure_;
   m.source = structure.source;
@@ -146,10 +146,10 @@ double StaticProblem::stepNorm(const Eigen::VectorXd& dx) const {
   return norm;
 }
 
-geometry::RodStructure StaticProblem::deformedStructure(const Eigen::VectorXd& x) const {
+Design StaticProblem::deformedStructure(const Eigen::VectorXd& x) const {
   const DiscreteStructure& m = *structure_;
   if (static_cast<std::size_t>(x.size()) != m.unknowns) throw std::invalid_argument("StaticProblem::deformedStructure: wrong state size");
-  geometry::RodStructure out;
+  Design out;
   out.source = m.source;
   for (const DiscreteRod& rod : m.rods) {
     std::vector<Vec3> points(rod.count);

@@ -36,7 +36,7 @@ void checkSettings(const Settings& s) {
 
 }  // namespace
 
-void applySpec(const geometry::OptimizeSpec& spec, Settings& settings) {
+void applySpec(const mechanics::OptimizeSpec& spec, Settings& settings) {
   if (!spec.present) return;
   settings.positionWeight = spec.positionWeight;
   settings.curvatureWeight = spec.curvatureWeight;
@@ -52,14 +52,14 @@ struct DesignProblem::Impl {
     std::string name, path;
     double weight = 1.0;
     int loadSteps = 10;
-    std::unique_ptr<geometry::RodStructure> structure;  // the rods the problem points to
+    std::unique_ptr<mechanics::Design> structure;  // the rods the problem points to
     std::unique_ptr<mechanics::StaticProblem> problem;
     std::vector<RodTarget> targets;
     Eigen::VectorXd state;
     bool solved = false;
   };
   Settings settings;
-  geometry::RodStructure design;
+  mechanics::Design design;
   int degree = 3;
   std::vector<std::vector<double>> knots;  // per rod, of the optimizer's E(u)
   std::vector<Case> cases;
@@ -78,14 +78,14 @@ struct DesignProblem::Impl {
     }
     return rods;
   }
-  void addCase(const geometry::LoadCase& lc, const std::vector<geometry::Rod>& rods);
+  void addCase(const mechanics::LoadCase& lc, const std::vector<geometry::Rod>& rods);
   mechanics::Solution solve(Case& c) const;
 };
 
-void DesignProblem::Impl::addCase(const geometry::LoadCase& lc, const std::vector<geometry::Rod>& rods) {
+void DesignProblem::Impl::addCase(const mechanics::LoadCase& lc, const std::vector<geometry::Rod>& rods) {
   Case c;
   c.name = lc.name, c.path = lc.path, c.weight = lc.weight, c.loadSteps = lc.loadSteps;
-  c.structure = std::make_unique<geometry::RodStructure>();
+  c.structure = std::make_unique<mechanics::Design>();
   c.structure->source = design.source;
   c.structure->rods = rods;
   c.structure->mechanics = design.mechanics;
@@ -119,7 +119,7 @@ mechanics::Solution DesignProblem::Impl::solve(Case& c) const {
   }
 }
 
-DesignProblem::DesignProblem(const geometry::RodStructure& design, const Settings& settings)
+DesignProblem::DesignProblem(const mechanics::Design& design, const Settings& settings)
     : impl_(std::make_unique<Impl>()) {
   checkSettings(settings);
   Impl& m = *impl_;
@@ -128,13 +128,13 @@ DesignProblem::DesignProblem(const geometry::RodStructure& design, const Setting
   m.degree = std::min(settings.modulusDegree, settings.modulusControls - 1);
   if (design.rods.empty()) throw OptimizeError(design.source + ": rods: the design has no rods to optimize");
   std::size_t withTarget = 0;
-  for (const geometry::LoadCase& lc : design.mechanics.loadCases) withTarget += lc.target.empty() ? 0 : 1;
+  for (const mechanics::LoadCase& lc : design.mechanics.loadCases) withTarget += lc.target.empty() ? 0 : 1;
   if (withTarget == 0)
     throw OptimizeError(design.source + ": mechanics.load_cases: no load case with a \"target\" shape to optimize for");
   for (const geometry::Rod& rod : design.rods)
     m.knots.push_back(uniformKnots(m.degree, settings.modulusControls, rod.centerline().domainBegin(), rod.centerline().domainEnd()));
   const std::vector<geometry::Rod> rods = m.rodsWith(startingModulus());
-  for (const geometry::LoadCase& lc : design.mechanics.loadCases) m.addCase(lc, rods);
+  for (const mechanics::LoadCase& lc : design.mechanics.loadCases) m.addCase(lc, rods);
 }
 
 DesignProblem::~DesignProblem() = default;
@@ -210,7 +210,7 @@ std::vector<CaseAccuracy> DesignProblem::accuracyAt(const Eigen::VectorXd& modul
   std::vector<CaseAccuracy> out;
   for (const Impl::Case& c : m.cases) {
     if (poll) poll();
-    geometry::RodStructure s = *c.structure;
+    mechanics::Design s = *c.structure;
     s.rods = rods;
     try {
       const mechanics::Simulation sim = mechanics::simulate(s, c.problem->discretization(), m.settings.solver, c.loadSteps, accuracy,
@@ -225,10 +225,10 @@ std::vector<CaseAccuracy> DesignProblem::accuracyAt(const Eigen::VectorXd& modul
   return out;
 }
 
-geometry::RodStructure DesignProblem::designWith(const Eigen::VectorXd& modulus) const {
+mechanics::Design DesignProblem::designWith(const Eigen::VectorXd& modulus) const {
   if (static_cast<std::size_t>(modulus.size()) != variableCount())
     throw std::invalid_argument("DesignProblem::designWith: " + std::to_string(variableCount()) + " values expected");
-  geometry::RodStructure out = impl_->design;
+  mechanics::Design out = impl_->design;
   out.rods = impl_->rodsWith(modulus);
   return out;
 }

@@ -34,7 +34,7 @@ Eigen::Matrix3d frameMatrix(const geometry::Frame& f) {
 
 // The target's position and curvature at the design parameter u of a rod on [begin, end].
 struct TargetSampler {
-  const geometry::TargetRod& target;
+  const mechanics::TargetRod& target;
   geometry::RodFrame frame;  // when the target has no orientation spline
 
   double map(double u, double begin, double end) const {
@@ -57,13 +57,13 @@ struct TargetSampler {
 
 }  // namespace
 
-std::vector<RodTarget> sampleTargets(const geometry::RodStructure& design, const std::vector<geometry::TargetRod>& targets,
+std::vector<RodTarget> sampleTargets(const mechanics::Design& design, const std::vector<mechanics::TargetRod>& targets,
                                      const mechanics::StaticProblem& problem, const std::string& casePath) {
   std::map<std::string, std::size_t> index;
   for (std::size_t r = 0; r < design.rods.size(); ++r) index.emplace(design.rods[r].name(), r);
   std::vector<RodTarget> out;
   std::vector<char> seen(design.rods.size(), 0);
-  for (const geometry::TargetRod& t : targets) {
+  for (const mechanics::TargetRod& t : targets) {
     const auto found = index.find(t.rod);
     if (found == index.end())
       throw OptimizeError(design.source + ": " + (t.path.empty() ? casePath : t.path) + ": the target names rod \"" + t.rod +

@@ -20,7 +20,7 @@ struct RodTarget {
 
 // Samples `targets` (matched to the design's rods by name) at the collocation points of `problem`.
 // Throws OptimizeError for a target rod missing from the design or named twice.
-std::vector<RodTarget> sampleTargets(const geometry::RodStructure& design, const std::vector<geometry::TargetRod>& targets,
+std::vector<RodTarget> sampleTargets(const mechanics::Design& design, const std::vector<mechanics::TargetRod>& targets,
                                      const mechanics::StaticProblem& problem, const std::string& casePath);
 
 struct ShapeTerms {

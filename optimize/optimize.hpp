@@ -56,7 +56,7 @@ struct Settings {
 };
 
 // Applies a design's "optimize" block (positionWeight ... tolerance; bounds when given) to settings.
-void applySpec(const geometry::OptimizeSpec& spec, Settings& settings);
+void applySpec(const mechanics::OptimizeSpec& spec, Settings& settings);
 
 struct CaseObjective {
   std::string name;
@@ -84,7 +84,7 @@ class DesignProblem {
 public:
   // `design` must carry mechanics.loadCases with at least one target. Throws OptimizeError (named
   // case or path), mechanics::MechanicsError, std::invalid_argument for settings out of range.
-  DesignProblem(const geometry::RodStructure& design, const Settings& settings);
+  DesignProblem(const mechanics::Design& design, const Settings& settings);
   ~DesignProblem();
   DesignProblem(DesignProblem&&) noexcept;
   DesignProblem& operator=(DesignProblem&&) noexcept;
@@ -113,7 +113,7 @@ public:
   // not converge gets an estimate marked unavailable; throws mechanics::MechanicsError otherwise.
   std::vector<CaseAccuracy> accuracyAt(const Eigen::VectorXd& modulus, const std::function<void()>& poll = {}) const;
   // The design with each rod's modulus replaced by the B-spline with control values `modulus`.
-  geometry::RodStructure designWith(const Eigen::VectorXd& modulus) const;
+  mechanics::Design designWith(const Eigen::VectorXd& modulus) const;
 
 private:
   struct Impl;
@@ -169,7 +169,7 @@ struct ShapeColumns {
   std::vector<DrawnRod> target, start, optimized;
 };
 // The target rods of a load case, `samplesPerRod` + 1 points each (uniform in their parameter).
-std::vector<DrawnRod> drawnTarget(const std::vector<geometry::TargetRod>& target, int samplesPerRod = 16);
+std::vector<DrawnRod> drawnTarget(const std::vector<mechanics::TargetRod>& target, int samplesPerRod = 16);
 // Every rod of case `c` in the state of `problem`'s last evaluate() (the caller evaluates at
 // `modulus` first), with E from the control values `modulus` (MPa, variableCount()).
 // std::out_of_range for a bad case, std::invalid_argument for a wrong size.

@@ -167,9 +167,9 @@ void drawColourBar(cairo_t* cr, int top, double lower, double upper) {
 
 }  // namespace
 
-std::vector<DrawnRod> drawnTarget(const std::vector<geometry::TargetRod>& target, int samplesPerRod) {
+std::vector<DrawnRod> drawnTarget(const std::vector<mechanics::TargetRod>& target, int samplesPerRod) {
   std::vector<DrawnRod> out;
-  for (const geometry::TargetRod& t : target) {
+  for (const mechanics::TargetRod& t : target) {
     DrawnRod r;
     const double a = t.centerline.domainBegin(), b = t.centerline.domainEnd();
     for (int i = 0; i <= samplesPerRod; ++i) r.points.push_back(t.centerline.point(a + (b - a) * i / samplesPerRod));
@@ -179,7 +179,7 @@ std::vector<DrawnRod> drawnTarget(const std::vector<geometry::TargetRod>& target
 }
 
 std::vector<DrawnRod> drawnDeformed(const DesignProblem& problem, std::size_t c, const Eigen::VectorXd& modulus, int samplesPerRod) {
-  const geometry::RodStructure design = problem.designWith(modulus);
+  const mechanics::Design design = problem.designWith(modulus);
   const mechanics::StaticProblem& sp = problem.caseProblem(c);
   std::vector<DrawnRod> out;
   for (std::size_t rod = 0; rod < design.rods.size(); ++rod) {

@@ -1,5 +1,7 @@
 #include "printer_profiles/job_archive.hpp"
 
+#include "printer_profiles/zip_pool.hpp"
+
 #include <nlohmann/json.hpp>
 #include <zip.h>
 
@@ -12,6 +14,7 @@
 #include <cstring>
 #include <fstream>
 #include <mutex>
+#include <map>
 #include <optional>
 #include <set>
 #include <string_view>
@@ -57,10 +60,10 @@ private:
   std::vector<std::string> names_;
 };
 
-// libzip handles are not thread-safe: readers borrow one from a small pool.
+// libzip handles are not thread-safe: readers borrow one from a pool.
 class ZipJobFiles final : public JobFiles {
 public:
-  explicit ZipJobFiles(fs::path file) : file_(std::move(file)) {
+  explicit ZipJobFiles(fs::path file) : file_(std::move(file)), pool_([this] { return open(); }) {
     zip_t* za = open();
     const zip_int64_t count = zip_get_num_entries(za, 0);
     for (zip_int64_t n = 0; n < count; ++n) {
@@ -68,10 +71,7 @@ public:
       if (name && *name && name[std::strlen(name) - 1] != '/') names_.push_back(name);
     }
     std::sort(names_.begin(), names_.end());
-    release(za);
-  }
-  ~ZipJobFiles() override {
-    for (zip_t* za : pool_) zip_discard(za);
+    pool_.giveBack(za);
   }
   const fs::path& path() const override { return file_; }
   ArchiveFormat format() const override { return ArchiveFormat::Zip; }
@@ -80,15 +80,8 @@ public:
     return std::binary_search(names_.begin(), names_.end(), name);
   }
   Bytes read(const std::string& name) const override {
-    zip_t* za = acquire();
-    try {
-      Bytes data = readEntry(za, name);
-      release(za);
-      return data;
-    } catch (...) {
-      release(za);
-      throw;
-    }
+    const ZipPool::Lease za(pool_);
+    return readEntry(za.get(), name);
   }
 
 private:
@@ -103,21 +96,6 @@ private:
       throw JobReadError(file_.string() + ": not a readable zip archive (" + why + "); it may be truncated or damaged");
     }
     return za;
-  }
-  zip_t* acquire() const {
-    {
-      std::lock_guard lock(mutex_);
-      if (!pool_.empty()) {
-        zip_t* za = pool_.back();
-        pool_.pop_back();
-        return za;
-      }
-    }
-    return open();
-  }
-  void release(zip_t* za) const {
-    std::lock_guard lock(mutex_);
-    pool_.push_back(za);
   }
   Bytes readEntry(zip_t* za, const std::string& name) const {
     const zip_int64_t index = zip_name_locate(za, name.c_str(), 0);
@@ -140,8 +118,7 @@ private:
 
   fs::path file_;
   std::vector<std::string> names_;
-  mutable std::mutex mutex_;
-  mutable std::vector<zip_t*> pool_;
+  ZipPool pool_;
 };
 
 }  // namespace

@@ -1,6 +1,7 @@
 #include "printer_profiles/job_reader.hpp"
 
 #include "printer_profiles/deflate.hpp"
+#include "printer_profiles/zip_pool.hpp"
 
 #include <zip.h>
 
@@ -192,18 +193,15 @@ std::string zipErrorText(int code) {
   return why;
 }
 
-// libzip handles are not thread-safe: readers borrow one from a pool. Every handle is opened from a
-// descriptor checked to be the same regular file the first one was.
+// libzip handles are not thread-safe: readers borrow one from a pool (zip_pool.hpp). Every handle is
+// opened from a descriptor checked to be the same regular file the first one was.
 class ZipJobReader final : public JobReader {
 public:
   ZipJobReader(fs::path file, int fd, const struct stat& st, std::size_t maxEntries)
-      : file_(std::move(file)), dev_(st.st_dev), ino_(st.st_ino) {
+      : file_(std::move(file)), dev_(st.st_dev), ino_(st.st_ino), pool_([this] { return reopen(); }) {
     zip_t* za = adopt(fd);
+    pool_.giveBack(za);
     list(za, maxEntries);
-    release(za);
-  }
-  ~ZipJobReader() override {
-    for (zip_t* za : pool_) zip_discard(za);
   }
   const fs::path& path() const override { return file_; }
   ArchiveFormat format() const override { return ArchiveFormat::Zip; }
@@ -212,14 +210,8 @@ public:
 
   void stream(const JobEntry& entry, std::uint64_t maxBytes,
               const std::function<void(std::span<const std::uint8_t>)>& sink) const override {
-    zip_t* za = acquire();
-    try {
-      streamEntry(za, entry, maxBytes, sink);
-    } catch (...) {
-      release(za);
-      throw;
-    }
-    release(za);
+    const ZipPool::Lease za(pool_);
+    streamEntry(za.get(), entry, maxBytes, sink);
   }
 
 private:
@@ -350,15 +342,8 @@ private:
     zip_fclose(zf);
   }
 
-  zip_t* acquire() const {
-    {
-      std::lock_guard lock(mutex_);
-      if (!pool_.empty()) {
-        zip_t* za = pool_.back();
-        pool_.pop_back();
-        return za;
-      }
-    }
+  // Another handle, from a descriptor checked to be the same regular file the first one was.
+  zip_t* reopen() const {
     Fd fd(::open(file_.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY));
     struct stat st{};
     if (fd.fd < 0 || ::fstat(fd.fd, &st) != 0) throw JobReadError(file_.string() + ": cannot be reopened (" + errnoText() + ")");
@@ -366,18 +351,13 @@ private:
       throw JobReadError(file_.string() + ": was replaced while the job was being inspected");
     return adopt(fd.release());
   }
-  void release(zip_t* za) const {
-    std::lock_guard lock(mutex_);
-    pool_.push_back(za);
-  }
 
   fs::path file_;
   dev_t dev_;
   ino_t ino_;
   bool truncated_ = false;
   std::vector<JobEntry> entries_;
-  mutable std::mutex mutex_;
-  mutable std::vector<zip_t*> pool_;
+  ZipPool pool_;
 };
 
 bool isWindowsDeviceName(std::string_view component) {

@@ -86,7 +86,7 @@ std::variant<OptimizeCommand, int> parseOptimize(const std::vector<std::string>&
 
 // The optimizer's settings: defaults, the calibration's bounds, the design's optimize block, the
 // command line, in rising precedence.
-optimize::Settings settingsFor(const OptimizeCommand& c, const geometry::RodStructure& design, const calibration::Calibration& cal) {
+optimize::Settings settingsFor(const OptimizeCommand& c, const mechanics::Design& design, const calibration::Calibration& cal) {
   optimize::Settings s;
   s.lowerMpa = cal.floorMpa();
   s.upperMpa = cal.maxModulusMpa();
@@ -99,12 +99,12 @@ optimize::Settings settingsFor(const OptimizeCommand& c, const geometry::RodStru
 
 // The optimized design: the input with the new moduli, its mechanics and optimize blocks kept, a
 // {"design": PATH} target rewritten relative to the output's folder.
-geometry::RodStructure optimizedDesign(const OptimizeCommand& c, const geometry::RodStructure& design,
+mechanics::Design optimizedDesign(const OptimizeCommand& c, const mechanics::Design& design,
                                        const optimize::DesignProblem& problem, const Eigen::VectorXd& modulus) {
-  geometry::RodStructure out = problem.designWith(modulus);
+  mechanics::Design out = problem.designWith(modulus);
   namespace fs = std::filesystem;
   const fs::path from = fs::absolute(fs::path(c.design)).parent_path(), to = fs::absolute(fs::path(c.output)).parent_path();
-  for (geometry::LoadCase& lc : out.mechanics.loadCases)
+  for (mechanics::LoadCase& lc : out.mechanics.loadCases)
     if (!lc.targetDesign.empty()) lc.targetDesign = fs::path(lc.targetDesign).is_absolute() ? lc.targetDesign
                                                      : (from / lc.targetDesign).lexically_normal().lexically_relative(to).string();
   out.optimize = design.optimize;
@@ -181,9 +181,9 @@ void printSummary(const OptimizeCommand& c, const optimize::Result& r, const std
 }
 
 // The paths the output must not overwrite: the design and its target designs.
-std::vector<std::filesystem::path> inputsOf(const OptimizeCommand& c, const geometry::RodStructure& design) {
+std::vector<std::filesystem::path> inputsOf(const OptimizeCommand& c, const mechanics::Design& design) {
   std::vector<std::filesystem::path> inputs{c.design, c.calibration};
-  for (const geometry::LoadCase& lc : design.mechanics.loadCases)
+  for (const mechanics::LoadCase& lc : design.mechanics.loadCases)
     if (!lc.targetDesign.empty()) inputs.push_back(std::filesystem::path(c.design).parent_path() / lc.targetDesign);
   return inputs;
 }
@@ -198,7 +198,7 @@ struct Outcome {
 };
 
 // Every output may be written (checked before any work): never an input or another output.
-bool outputsAllowed(const OptimizeCommand& c, const geometry::RodStructure& design) {
+bool outputsAllowed(const OptimizeCommand& c, const mechanics::Design& design) {
   std::vector<std::filesystem::path> inputs = inputsOf(c, design);
   if (!outputAllowed(c.output, inputs, {"optimized design", true, "", geometry::isDesignFile})) return false;
   inputs.push_back(c.output);
@@ -207,7 +207,7 @@ bool outputsAllowed(const OptimizeCommand& c, const geometry::RodStructure& desi
   return c.render.empty() || outputAllowed(c.render, inputs, {"shape render", true, "", optimize::isHistoryPlot});
 }
 
-std::optional<optimize::Settings> settingsOrReport(const OptimizeCommand& c, const geometry::RodStructure& design) {
+std::optional<optimize::Settings> settingsOrReport(const OptimizeCommand& c, const mechanics::Design& design) {
   std::optional<calibration::Calibration> cal;
   try {
     cal = calibration::readCalibration(c.calibration);
@@ -224,14 +224,14 @@ std::optional<optimize::Settings> settingsOrReport(const OptimizeCommand& c, con
 }
 
 // The shapes with the starting modulus, taken at the optimizer's first report (its state then).
-void startShapes(const geometry::RodStructure& design, const optimize::DesignProblem& p, std::vector<optimize::ShapeColumns>& shapes) {
+void startShapes(const mechanics::Design& design, const optimize::DesignProblem& p, std::vector<optimize::ShapeColumns>& shapes) {
   for (std::size_t i = 0; i < p.caseCount(); ++i) {
-    const geometry::LoadCase& lc = design.mechanics.loadCases[i];
+    const mechanics::LoadCase& lc = design.mechanics.loadCases[i];
     if (!lc.target.empty()) shapes.push_back({lc.name, optimize::drawnTarget(lc.target), optimize::drawnDeformed(p, i, p.startingModulus()), {}});
   }
 }
 
-void finalShapes(const geometry::RodStructure& design, Outcome& o) {
+void finalShapes(const mechanics::Design& design, Outcome& o) {
   std::size_t k = 0;
   for (std::size_t i = 0; i < o.problem->caseCount(); ++i)
     if (!design.mechanics.loadCases[i].target.empty()) o.shapes.at(k++).optimized = optimize::drawnDeformed(*o.problem, i, o.result.modulus);
@@ -245,7 +245,7 @@ void printIteration(const optimize::Iteration& it) {
 
 // Sets up and runs the optimization, the shapes and the accuracy estimate; kOk, or kFailed after
 // saying why.
-int runOptimization(const OptimizeCommand& c, const geometry::RodStructure& design, const optimize::Settings& settings, Outcome& o) {
+int runOptimization(const OptimizeCommand& c, const mechanics::Design& design, const optimize::Settings& settings, Outcome& o) {
   try {
     if (design.mechanics.loadCases.empty())
       throw optimize::OptimizeError(c.design + ": mechanics.load_cases: missing; give training cases with a \"target\" shape "
@@ -272,10 +272,10 @@ int runOptimization(const OptimizeCommand& c, const geometry::RodStructure& desi
 }
 
 // The optimized design, then the plot and the render: all or none of them.
-int writeOutputs(const OptimizeCommand& c, const geometry::RodStructure& design, const Outcome& o) {
+int writeOutputs(const OptimizeCommand& c, const mechanics::Design& design, const Outcome& o) {
   common::throwIfInterrupted();
   try {
-    geometry::writeDesign(optimizedDesign(c, design, *o.problem, o.result.modulus), c.output, "optimized by rodfab optimize from " + c.design);
+    mechanics::writeDesign(optimizedDesign(c, design, *o.problem, o.result.modulus), c.output, "optimized by rodfab optimize from " + c.design);
   } catch (const std::exception& e) {
     std::cerr << c.output << ": cannot write: " << e.what() << '\n';
     return kFailed;
@@ -305,9 +305,9 @@ int runOptimize(const std::vector<std::string>& args) {
   const OptimizeCommand& c = std::get<OptimizeCommand>(parsed);
   commandLineAccepted();
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(c.workers));
-  const std::optional<geometry::RodStructure> read = readDesignOrReport(c.design, "nothing was written");
+  const std::optional<mechanics::Design> read = readDesignOrReport(c.design, "nothing was written");
   if (!read) return kFailed;
-  const geometry::RodStructure& design = *read;
+  const mechanics::Design& design = *read;
   if (!outputsAllowed(c, design)) return kFailed;
   const std::optional<optimize::Settings> settings = settingsOrReport(c, design);
   if (!settings) return kFailed;

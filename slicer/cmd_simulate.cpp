@@ -119,7 +119,7 @@ std::string describe(const mechanics::CriticalPoint& c) {
 }
 
 // Largest displacement of a centerline point (sampled densely) and the rod it is on.
-std::pair<double, std::string> largestDisplacement(const geometry::RodStructure& design, const mechanics::StaticProblem& problem,
+std::pair<double, std::string> largestDisplacement(const mechanics::Design& design, const mechanics::StaticProblem& problem,
                                                    const Eigen::VectorXd& x) {
   const Eigen::VectorXd& x0 = problem.referenceState();
   double largest = 0;
@@ -215,9 +215,9 @@ int runSimulate(const std::vector<std::string>& args) {
   const SimulateSettings& s = std::get<SimulateSettings>(parsed);
   commandLineAccepted();
   const ThreadLimit limit(s.threads);
-  const std::optional<geometry::RodStructure> read = readDesignOrReport(s.design, "nothing was written");
+  const std::optional<mechanics::Design> read = readDesignOrReport(s.design, "nothing was written");
   if (!read) return kFailed;
-  const geometry::RodStructure& design = *read;
+  const mechanics::Design& design = *read;
   // An existing design is replaced only when rodfab wrote it, and never the input.
   if (!outputAllowed(s.output, {s.design}, {"deformed design", true, "", geometry::isDesignFile})) return kFailed;
   if (!s.json)
@@ -253,9 +253,9 @@ int runSimulate(const std::vector<std::string>& args) {
   }
   const auto largest = largestDisplacement(design, *sim.problem, sim.solution.state);
   try {
-    geometry::RodStructure deformed = sim.problem->deformedStructure(sim.solution.state);
+    mechanics::Design deformed = sim.problem->deformedStructure(sim.solution.state);
     deformed.optimize = design.optimize;  // the design's "optimize" block too, so it can be optimized again
-    geometry::writeDesign(deformed, s.output, "deformed by rodfab simulate from " + s.design);
+    mechanics::writeDesign(deformed, s.output, "deformed by rodfab simulate from " + s.design);
   } catch (const std::exception& e) {
     std::cerr << s.output << ": cannot write: " << e.what() << '\n';
     return kFailed;

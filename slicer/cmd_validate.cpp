@@ -1,4 +1,5 @@
 #include "geometry/geometry.hpp"
+#include "mechanics/mechanics_file.hpp"
 #include "slicer/command.hpp"
 #include "slicer/options.hpp"
 
@@ -33,7 +34,7 @@ int runValidate(const std::vector<std::string>& args) {
   const std::string file = vm["design"].as<std::string>();
   geometry::RodStructure design;
   try {
-    design = geometry::readDesign(file);
+    design = mechanics::readDesign(file);
   } catch (const geometry::DesignError& e) {
     std::cerr << e.what() << '\n'
               << file << ": " << e.issues().size() << (e.issues().size() == 1 ? " error" : " errors")

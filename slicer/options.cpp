@@ -2,8 +2,8 @@
 
 #include "slicer/command.hpp"
 
-#include "geometry/design_file.hpp"
 #include "common/memory_budget.hpp"
+#include "mechanics/mechanics_file.hpp"
 
 #include <algorithm>
 #include <cerrno>
@@ -55,9 +55,9 @@ int usageError(const std::string& command, const std::string& message) {
   return kUsage;
 }
 
-std::optional<geometry::RodStructure> readDesignOrReport(const std::string& file, const std::string& consequence) {
+std::optional<mechanics::Design> readDesignOrReport(const std::string& file, const std::string& consequence) {
   try {
-    return geometry::readDesign(file);
+    return mechanics::readDesign(file);
   } catch (const geometry::DesignError& e) {
     std::cerr << e.what() << '\n' << file << ": the design is not valid; " << consequence << '\n';
     return std::nullopt;

@@ -3,6 +3,7 @@
 
 #include "common/output_file.hpp"
 #include "geometry/rod.hpp"
+#include "mechanics/mechanics_spec.hpp"
 
 #include <boost/program_options.hpp>
 #include <tbb/global_control.h>
@@ -37,8 +38,9 @@ void commandLineAccepted();
 void setCommandLineAcceptedHook(void (*hook)());
 
 // Reads a design for a command that writes something. On an invalid design prints its errors and
-// "FILE: the design is not valid; CONSEQUENCE" and returns nullopt (the command exits kFailed).
-std::optional<geometry::RodStructure> readDesignOrReport(const std::string& file, const std::string& consequence);
+// "FILE: the design is not valid; CONSEQUENCE" and returns nullopt (the command exits kFailed). The
+// mechanics and optimize blocks are read and checked too (mechanics::readDesign).
+std::optional<mechanics::Design> readDesignOrReport(const std::string& file, const std::string& consequence);
 
 // A dithering seed: 0 .. 2^64 - 1, written in decimal digits only (so "-1" is refused, not wrapped).
 struct Seed {

@@ -1,5 +1,6 @@
 // common/: SHA-256 against the FIPS 180-2 test vectors, the data folder's search order and errors.
 #include "common/data_dir.hpp"
+#include "common/located_issues.hpp"
 #include "common/sha256.hpp"
 
 #include <catch2/catch.hpp>
@@ -88,4 +89,14 @@ TEST_CASE("without RODFAB_DATA_DIR, a test in the build tree finds the build tre
   CHECK(fs::is_regular_file(dir / "calibration" / "default-60C.json"));
   CHECK(fs::is_directory(dir / "masks"));
   CHECK(dir.filename() == "rodfab");
+}
+
+TEST_CASE("located issues: one line each, FILE: PATH: MESSAGE, the path left out for the whole file") {
+  struct Issue {
+    std::string path, message;
+  };
+  CHECK(rodfab::common::formatLocatedIssues("d.json", std::vector<Issue>{}).empty());
+  CHECK(rodfab::common::formatLocatedIssues("d.json", std::vector<Issue>{{"", "cannot open"}}) == "d.json: cannot open");
+  CHECK(rodfab::common::formatLocatedIssues("d.json", std::vector<Issue>{{"rods[0].name", "missing"}, {"units", "expected \"mm\""}}) ==
+        "d.json: rods[0].name: missing\nd.json: units: expected \"mm\"");
 }

@@ -42,16 +42,16 @@ std::size_t connectedComponents(const geometry::RodStructure& s, double toleranc
   return roots;
 }
 
-void requireMatchesCommittedFile(const geometry::RodStructure& generated, const std::string& file) {
-  const geometry::RodStructure committed = geometry::readDesign(std::string(RODFAB_SOURCE_DIR "/examples/") + file);
+void requireMatchesCommittedFile(const mechanics::Design& generated, const std::string& file) {
+  const mechanics::Design committed = mechanics::readDesign(std::string(RODFAB_SOURCE_DIR "/examples/") + file);
   INFO(file << ": regenerate with rodfab_generate_examples");
-  REQUIRE(geometry::designToJson(committed) == geometry::designToJson(generated));
+  REQUIRE(mechanics::designToJson(committed) == mechanics::designToJson(generated));
 }
 
 }  // namespace
 
 TEST_CASE("Unfolding box: 34 rods, flat, one connected net", "[examples]") {
-  auto box = examples::unfoldingBox();
+  mechanics::Design box(examples::unfoldingBox());
   box.mechanics = examples::unfoldingBoxTraining();
   box.mechanics.loadCases = {examples::unfoldingBoxFold()};
   requireMatchesCommittedFile(box, "unfolding-box.json");
@@ -68,7 +68,7 @@ TEST_CASE("Unfolding box: 34 rods, flat, one connected net", "[examples]") {
 
 TEST_CASE("Buckling spring: 312 rods on the cylinder, softest at mid-height", "[examples]") {
   const examples::SpringParameters p;
-  auto spring = examples::bucklingSpring(p);
+  mechanics::Design spring(examples::bucklingSpring(p));
   spring.mechanics = examples::bucklingSpringTraining(p);
   spring.mechanics.loadCases = {examples::bucklingSpringCompression(p)};
   requireMatchesCommittedFile(spring, "buckling-spring.json");
@@ -102,7 +102,7 @@ TEST_CASE("Scaled buckling spring fills the 6-gigavoxel envelope", "[examples]")
 }
 
 TEST_CASE("Arm cast: rectangular strips on a half cylinder, surface-normal frames", "[examples]") {
-  auto cast = examples::armCast();
+  mechanics::Design cast(examples::armCast());
   cast.mechanics = examples::armCastTraining();
   cast.mechanics.loadCases = {examples::armCastFlattened()};
   requireMatchesCommittedFile(cast, "arm-cast.json");
@@ -129,7 +129,7 @@ TEST_CASE("Arm cast: rectangular strips on a half cylinder, surface-normal frame
 namespace {
 
 struct Trained {
-  geometry::RodStructure design;
+  mechanics::Design design;
   mechanics::Simulation sim;
   Vec3 at(std::size_t rod, double u) const { return sim.problem->position(sim.solution.state, rod, u); }
   std::size_t rod(const std::string& name) const {
@@ -142,7 +142,7 @@ struct Trained {
 
 // Simulated as `rodfab simulate FILE` does with its defaults.
 Trained trained(const std::string& file) {
-  Trained t{geometry::readDesign(std::string(RODFAB_SOURCE_DIR "/examples/") + file), {}};
+  Trained t{mechanics::readDesign(std::string(RODFAB_SOURCE_DIR "/examples/") + file), {}};
   REQUIRE(t.design.mechanics.present);
   t.sim = mechanics::simulate(t.design, {}, {}, t.design.mechanics.loadSteps);
   REQUIRE(t.sim.solution.steps.back().loadFactor == 1.0);
@@ -218,13 +218,13 @@ double lengthOf(const geometry::RodStructure& s, const std::string& name) {
 
 TEST_CASE("Unfolding box target: a closed box, squares rigid, hinges bent to quarter circles of their length", "[examples]") {
   const geometry::RodStructure box = examples::unfoldingBox();
-  const geometry::LoadCase fold = examples::unfoldingBoxFold();
+  const mechanics::LoadCase fold = examples::unfoldingBoxFold();
   REQUIRE(fold.target.size() == box.rods.size());
   REQUIRE(fold.supports.size() == 4);
   REQUIRE(fold.loads.size() == 4);
   const double radius = 2 * 2.5 / std::numbers::pi;  // a 2.5 mm hinge bent through 90 degrees
   Eigen::AlignedBox3d bounds;
-  for (const geometry::TargetRod& t : fold.target) {
+  for (const mechanics::TargetRod& t : fold.target) {
     INFO(t.rod);
     CHECK(t.centerline.arcLength() == Approx(lengthOf(box, t.rod)).epsilon(2e-3));  // an isometry
     for (double u : {0.0, 0.3, 0.7, 1.0}) bounds.extend(t.centerline.point(u));
@@ -245,14 +245,14 @@ TEST_CASE("Unfolding box target: a closed box, squares rigid, hinges bent to qua
 TEST_CASE("Buckling spring target: compressed by 15 %, bulging at mid-height, struts as long in total", "[examples]") {
   const examples::SpringParameters p;
   const geometry::RodStructure spring = examples::bucklingSpring(p);
-  const geometry::LoadCase c = examples::bucklingSpringCompression(p, 0.15);
+  const mechanics::LoadCase c = examples::bucklingSpringCompression(p, 0.15);
   REQUIRE(c.target.size() == spring.rods.size());
   double before = 0, after = 0, middle = 0, ends = 0;
-  std::map<std::string, const geometry::TargetRod*> byName;
-  for (const geometry::TargetRod& t : c.target) byName[t.rod] = &t;
+  std::map<std::string, const mechanics::TargetRod*> byName;
+  for (const mechanics::TargetRod& t : c.target) byName[t.rod] = &t;
   for (std::size_t r = 0; r < spring.rods.size(); ++r) {
     REQUIRE(byName.count(spring.rods[r].name()) == 1);
-    const geometry::TargetRod& t = *byName[spring.rods[r].name()];
+    const mechanics::TargetRod& t = *byName[spring.rods[r].name()];
     before += spring.rods[r].centerline().arcLength(), after += t.centerline.arcLength();
     const Vec3 from = spring.rods[r].centerline().point(0.5), to = t.centerline.point(0.5);
     CHECK(to.z() == Approx(0.85 * from.z()).margin(1e-3));
@@ -268,10 +268,10 @@ TEST_CASE("Buckling spring target: compressed by 15 %, bulging at mid-height, st
 
 TEST_CASE("Arm cast target: unrolled onto the plane of the crown, every strip straight and as long", "[examples]") {
   const geometry::RodStructure cast = examples::armCast();
-  const geometry::LoadCase c = examples::armCastFlattened();
+  const mechanics::LoadCase c = examples::armCastFlattened();
   REQUIRE(c.target.size() == cast.rods.size());
   double yMax = 0;
-  for (const geometry::TargetRod& t : c.target) {
+  for (const mechanics::TargetRod& t : c.target) {
     INFO(t.rod);
     CHECK(t.centerline.arcLength() == Approx(lengthOf(cast, t.rod)).epsilon(2e-3));
     const Vec3 a = t.centerline.point(0.0), b = t.centerline.point(1.0), m = t.centerline.point(0.5);

@@ -3,6 +3,7 @@
 // lie, zlib for deflate bombs, POSIX calls for FIFOs and links), must be refused with located findings,
 // in bounded time and memory, never crashing, hanging or reading anything outside the job.
 #include "printer_profiles/printer_profiles.hpp"
+#include "tests/printer_profiles_fixture.hpp"
 
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
@@ -22,29 +23,11 @@
 using namespace rodfab::printer_profiles;
 namespace fs = std::filesystem;
 using nlohmann::json;
+using rodfab::test::connex3;
+using rodfab::test::scratch;
+using rodfab::test::writeAll;
 
 namespace {
-
-const Profile& connex3() {
-  static const Profile p = loadProfile("stratasys-objet500-connex3");
-  return p;
-}
-
-fs::path scratchRoot() { return fs::temp_directory_path() / ("rodfab-test-inspect-" + std::to_string(::getpid())); }
-
-struct ScratchCleanup {
-  ~ScratchCleanup() {
-    std::error_code ec;
-    fs::remove_all(scratchRoot(), ec);
-  }
-} scratchCleanup;
-
-fs::path scratch(const std::string& name) {
-  const fs::path dir = scratchRoot() / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
 
 struct SmallJob {
   ArchiveFormat archive = ArchiveFormat::Zip;
@@ -85,11 +68,6 @@ void writeSmallJob(const fs::path& output, const SmallJob& job = {}) {
   JobWriter writer(std::move(spec));
   writer.addBand({grid, nullptr, 0, job.layers});
   writer.finalize();
-}
-
-void writeAll(const fs::path& file, std::span<const std::uint8_t> data) {
-  std::ofstream out(file, std::ios::binary | std::ios::trunc);
-  out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size()));
 }
 
 Bytes bytesOf(const std::string& s) { return Bytes(s.begin(), s.end()); }

@@ -1,6 +1,7 @@
 // mechanics/: the Cosserat rod solver against analytic and published solutions.
 #include "mechanics/mechanics.hpp"
 #include "mechanics/section_properties.hpp"
+#include "tests/mechanics_fixture.hpp"
 
 #include "geometry/geometry.hpp"
 
@@ -18,74 +19,33 @@ using geometry::BSplineField;
 using geometry::CapStyle;
 using geometry::NurbsCurve;
 using geometry::Rod;
-using geometry::RodEnd;
-using geometry::RodStructure;
 using geometry::Section;
 using geometry::Vec3;
+using mechanics::Design;
+using mechanics::RodEnd;
 using mechanics::StaticProblem;
+using test::arc;
+using test::at;
+using test::rod;
+using test::straight;
+using test::uniformKnots;
 
 namespace {
 
 constexpr double kPi = std::numbers::pi;
 
-// Clamped uniform knot vector for `count` control values of degree p on [0, 1].
-std::vector<double> uniformKnots(int p, int count) {
-  std::vector<double> k(p + 1, 0.0);
-  const int spans = count - p;
-  for (int i = 1; i < spans; ++i) k.push_back(static_cast<double>(i) / spans);
-  k.insert(k.end(), p + 1, 1.0);
-  return k;
-}
-
-// Straight rod from a to b, degree p, `count` control points at the Greville abscissae (so the
-// parameter is proportional to arc length).
-NurbsCurve straight(const Vec3& a, const Vec3& b, int p, int count) {
-  const auto knots = uniformKnots(p, count);
-  std::vector<Vec3> pts;
-  for (int j = 0; j < count; ++j) {
-    double t = 0;
-    for (int i = 1; i <= p; ++i) t += knots[j + i];
-    pts.push_back(a + (b - a) * (t / p));
-  }
-  return NurbsCurve(p, knots, pts);
-}
-
-// Circular arc of radius R about c in the xy-plane from angle a0 to a1 (< pi / 2 per call), exact
-// rational quadratic.
-NurbsCurve arc(double R, double a0, double a1, const Vec3& c = Vec3::Zero()) {
-  const double am = 0.5 * (a0 + a1), w = std::cos(0.5 * (a1 - a0));
-  return NurbsCurve(2, {0, 0, 0, 1, 1, 1},
-                    {c + R * Vec3(std::cos(a0), std::sin(a0), 0), c + R / w * Vec3(std::cos(am), std::sin(am), 0),
-                     c + R * Vec3(std::cos(a1), std::sin(a1), 0)},
-                    {1.0, w, 1.0});
-}
-
-Rod rod(const std::string& name, NurbsCurve curve, const Section& section, double E,
-        std::optional<Vec3> normal = std::nullopt) {
-  const double a = curve.domainBegin(), b = curve.domainEnd();
-  return Rod(name, std::move(curve), section, normal, std::nullopt, CapStyle::Round, BSplineField::constant(E, a, b));
-}
-
-geometry::RodEndRef end(const std::string& rodName, RodEnd which) {
-  geometry::RodEndRef r;
-  r.rod = rodName;
-  r.end = which;
-  r.path = "test";
-  return r;
-}
-
-RodStructure cantilever(NurbsCurve curve, const Section& section, double E, const Vec3& force, const Vec3& moment,
-                        std::optional<Vec3> normal = std::nullopt) {
-  RodStructure s;
+Design cantilever(NurbsCurve curve, const Section& section, double E, const Vec3& force, const Vec3& moment,
+                  std::optional<Vec3> normal = std::nullopt) {
+  Design s;
   s.source = "cantilever";
   s.rods.push_back(rod("beam", std::move(curve), section, E, normal));
   s.mechanics.present = true;
   s.mechanics.poissonRatio = 0.3;
-  geometry::Support clamp;
-  clamp.at = end("beam", RodEnd::Start);
+  mechanics::Support clamp;
+  clamp.at = at("beam", RodEnd::Start);
   s.mechanics.supports.push_back(clamp);
-  geometry::PointLoad load;
-  load.at = end("beam", RodEnd::End);
+  mechanics::PointLoad load;
+  load.at = at("beam", RodEnd::End);
   load.force = force;
   load.moment = moment;
   s.mechanics.loads.push_back(load);
@@ -141,7 +101,7 @@ TEST_CASE("section properties: areas, second moments and torsion constants", "[m
 }
 
 TEST_CASE("the reference configuration is an exact solution at load 0", "[mechanics]") {
-  RodStructure s = cantilever(arc(10, 0, 1.2), Section::rectangle(1.0, 0.6), 100.0, Vec3(0, 0, 1), Vec3::Zero(), Vec3(0, 0, 1));
+  Design s = cantilever(arc(10, 0, 1.2), Section::rectangle(1.0, 0.6), 100.0, Vec3(0, 0, 1), Vec3::Zero(), Vec3(0, 0, 1));
   const StaticProblem problem(s, designBasis(3));
   Eigen::VectorXd residual;
   problem.evaluate(problem.referenceState(), 0.0, residual);
@@ -153,24 +113,24 @@ TEST_CASE("the reference configuration is an exact solution at load 0", "[mechan
 TEST_CASE("the analytic Jacobian matches central finite differences", "[mechanics]") {
   // Two rods at an angle with a rigid joint, a rational arc, varying E, a distributed load, an
   // end moment, a pinned support with a displacement, in a perturbed (non-equilibrium) state.
-  RodStructure s;
+  Design s;
   s.source = "jacobian";
   NurbsCurve a = straight(Vec3(0, 0, 0), Vec3(4, 0, 1), 4, 7);
   s.rods.push_back(Rod("a", a, Section::ellipse(0.8, 0.5), Vec3(0, 0, 1), std::nullopt, CapStyle::Round,
                        BSplineField(3, {0, 0, 0, 0, 0.5, 1, 1, 1, 1}, {100, 140, 80, 120, 90})));
   s.rods.push_back(rod("b", arc(3, 0, 1.0, Vec3(1, 0, 1)), Section::circle(0.7), 60.0));
   s.mechanics.present = true;
-  geometry::Support pin;
-  pin.at = end("a", RodEnd::Start);
-  pin.kind = geometry::SupportKind::Pinned;
+  mechanics::Support pin;
+  pin.at = at("a", RodEnd::Start);
+  pin.kind = mechanics::SupportKind::Pinned;
   pin.displacement = Vec3(0.1, -0.2, 0.05);
   s.mechanics.supports.push_back(pin);
-  geometry::Support clamp;
-  clamp.at = end("b", RodEnd::End);
+  mechanics::Support clamp;
+  clamp.at = at("b", RodEnd::End);
   clamp.rotation = Vec3(0.2, 0.1, -0.3);
   s.mechanics.supports.push_back(clamp);
-  geometry::PointLoad load;
-  load.at = end("a", RodEnd::Start);
+  mechanics::PointLoad load;
+  load.at = at("a", RodEnd::Start);
   load.moment = Vec3(1, 2, 3);
   s.mechanics.loads.push_back(load);
   s.mechanics.distributedLoads.push_back({"b", Vec3(0.3, -0.2, 0.5), "test"});
@@ -268,7 +228,7 @@ TEST_CASE("large-deflection cantilever under a tip force matches Mattiasson's el
 TEST_CASE("45-degree bend under a transverse tip load matches Bathe and Bolourchi", "[mechanics]") {
   // Arc of radius 100 from the origin (tangent +x) to (70.71, 29.29, 0), square section 1 x 1,
   // E = 1e7, nu = 0, J = 1/6, shear stiffness G A, dead load 600 along z.
-  RodStructure s = cantilever(arc(100, -kPi / 2, -kPi / 4, Vec3(0, 100, 0)), Section::rectangle(1, 1), 1e7,
+  Design s = cantilever(arc(100, -kPi / 2, -kPi / 4, Vec3(0, 100, 0)), Section::rectangle(1, 1), 1e7,
                               Vec3(0, 0, 600), Vec3::Zero(), Vec3(0, 0, 1));
   s.mechanics.poissonRatio = 0.0;
   s.mechanics.rods.push_back({"beam", 1.0 / 6.0, 1.0, std::nullopt});
@@ -290,7 +250,7 @@ TEST_CASE("a clamped-free column's imperfection response blows up at the Euler l
   NurbsCurve column = straight(Vec3::Zero(), Vec3(0, 0, L), p, count);
   std::vector<Vec3> pts = column.points();
   for (Vec3& q : pts) q.x() = w0 * (1 - std::cos(kPi * q.z() / (2 * L)));
-  RodStructure s = cantilever(NurbsCurve(p, column.knots(), pts), Section::circle(d), E, Vec3(0, 0, -0.95 * euler), Vec3::Zero());
+  Design s = cantilever(NurbsCurve(p, column.knots(), pts), Section::circle(d), E, Vec3(0, 0, -0.95 * euler), Vec3::Zero());
   const StaticProblem problem(s);
   const double tip0 = problem.position(problem.referenceState(), 0, 1.0).x();
   std::vector<double> deflection, load;
@@ -321,16 +281,16 @@ TEST_CASE("an L-shaped frame with a rigid joint matches frame theory", "[mechani
   // small load P down at the arm's end. Timoshenko frame theory: the tip drops by
   // P (b^3 / 3EI + a b^2 / EI + a / EA + b / kGA) and moves sideways by P b a^2 / 2EI.
   const double a = 1.0, b = 0.8, d = 0.05, E = 1000.0, nu = 0.3, P = 1e-9;  // geometric nonlinearity ~ 3e-6
-  RodStructure s;
+  Design s;
   s.source = "frame";
   s.rods.push_back(rod("post", straight(Vec3::Zero(), Vec3(0, 0, a), 4, 12), Section::circle(d), E));
   s.rods.push_back(rod("arm", straight(Vec3(0, 0, a), Vec3(b, 0, a), 4, 12), Section::circle(d), E));
   s.mechanics.present = true;
   s.mechanics.poissonRatio = nu;
-  geometry::Support clamp;
-  clamp.at = end("post", RodEnd::Start);
+  mechanics::Support clamp;
+  clamp.at = at("post", RodEnd::Start);
   s.mechanics.supports.push_back(clamp);
-  geometry::PointLoad load;
+  mechanics::PointLoad load;
   load.at.point = Vec3(b, 0, a);  // by position, as a design file may give it
   load.at.path = "test";
   load.force = Vec3(0, 0, -P);
@@ -367,17 +327,17 @@ TEST_CASE("a bent rod cut in two and joined rigidly deforms like the whole rod",
     Eigen::Matrix3d turn;
   };
   auto solveTip = [&](std::vector<NurbsCurve> parts, int spans) {
-    RodStructure s;
+    Design s;
     s.source = "bend";
     for (std::size_t i = 0; i < parts.size(); ++i)
       // A circle: each rod's rotation-minimizing frame starts afresh, which only a round section ignores.
       s.rods.push_back(rod("part" + std::to_string(i), parts[i], Section::circle(0.25), 500.0));
     s.mechanics.present = true;
-    geometry::Support clamp;
-    clamp.at = end("part0", RodEnd::Start);
+    mechanics::Support clamp;
+    clamp.at = at("part0", RodEnd::Start);
     s.mechanics.supports.push_back(clamp);
-    geometry::PointLoad load;
-    load.at = end("part" + std::to_string(parts.size() - 1), RodEnd::End);
+    mechanics::PointLoad load;
+    load.at = at("part" + std::to_string(parts.size() - 1), RodEnd::End);
     load.force = Vec3(0.002, -0.003, -0.005);
     load.moment = Vec3(0.001, 0.0, 0.002);
     s.mechanics.loads.push_back(load);
@@ -480,7 +440,7 @@ namespace {
 // axis), raised by 1 / sqrt((1 - EIw / EIs) (1 - GJ / EIs)) = 1.012 for the in-plane deflection
 // before buckling.
 struct Strip {
-  RodStructure design;
+  Design design;
   double critical;  // N
 };
 
@@ -490,7 +450,7 @@ Strip strip(double loadFactor) {
   const auto props = mechanics::sectionProperties(section, nu);
   const double EIweak = E * props.inertia1, EIstrong = E * props.inertia2, GJ = E / (2 * (1 + nu)) * props.torsionConstant;
   const double critical = 4.0126 * std::sqrt(EIweak * GJ) / (L * L) / std::sqrt((1 - EIweak / EIstrong) * (1 - GJ / EIstrong));
-  RodStructure s = cantilever(straight(Vec3::Zero(), Vec3(L, 0, 0), 1, 2), section, E, Vec3(0, 0, -loadFactor * critical),
+  Design s = cantilever(straight(Vec3::Zero(), Vec3(L, 0, 0), 1, 2), section, E, Vec3(0, 0, -loadFactor * critical),
                               Vec3::Zero(), Vec3(0, 0, 1));
   s.mechanics.poissonRatio = nu;
   return {s, critical};
@@ -546,7 +506,7 @@ TEST_CASE("a strip below its lateral-torsional buckling load is stable, above it
 
 TEST_CASE("load steps: the planned number lands exactly on 1, cuts are reported", "[mechanics]") {
   const double L = 1.0, d = 0.1, E = 1000.0, EI = E * kPi * std::pow(d, 4) / 64;
-  const RodStructure s = cantilever(straight(Vec3::Zero(), Vec3(L, 0, 0), 1, 2), Section::circle(d), E, Vec3::Zero(),
+  const Design s = cantilever(straight(Vec3::Zero(), Vec3(L, 0, 0), 1, 2), Section::circle(d), E, Vec3::Zero(),
                                     Vec3(0, 0, 1.5 * kPi * EI / L));
   const StaticProblem problem(s);
   mechanics::SolverOptions options;
@@ -569,8 +529,8 @@ TEST_CASE("load steps: the planned number lands exactly on 1, cuts are reported"
 }
 
 TEST_CASE("a structure that can move freely is a mechanism", "[mechanics]") {
-  RodStructure s = cantilever(straight(Vec3::Zero(), Vec3(1, 0, 0), 1, 2), Section::circle(0.1), 1000.0, Vec3(0, 0.01, 0), Vec3::Zero());
-  s.mechanics.supports[0].kind = geometry::SupportKind::Pinned;  // free to turn about the pin
+  Design s = cantilever(straight(Vec3::Zero(), Vec3(1, 0, 0), 1, 2), Section::circle(0.1), 1000.0, Vec3(0, 0.01, 0), Vec3::Zero());
+  s.mechanics.supports[0].kind = mechanics::SupportKind::Pinned;  // free to turn about the pin
   const StaticProblem problem(s);
   mechanics::SolverOptions options;
   CHECK_THROWS_WITH(mechanics::solve(problem, options, 1), Catch::Contains("mechanism"));
@@ -583,8 +543,8 @@ namespace {
 // Bathe and Bolourchi's 45-degree bend: arc of radius 100 from the origin (tangent +x) to
 // (70.71, 29.29, 0), square section 1 x 1, E = 1e7, nu = 0, J = 1/6, shear stiffness G A, dead
 // load 600 along z.
-RodStructure batheBolourchi() {
-  RodStructure s = cantilever(arc(100, -kPi / 2, -kPi / 4, Vec3(0, 100, 0)), Section::rectangle(1, 1), 1e7,
+Design batheBolourchi() {
+  Design s = cantilever(arc(100, -kPi / 2, -kPi / 4, Vec3(0, 100, 0)), Section::rectangle(1, 1), 1e7,
                               Vec3(0, 0, 600), Vec3::Zero(), Vec3(0, 0, 1));
   s.mechanics.poissonRatio = 0.0;
   s.mechanics.rods.push_back({"beam", 1.0 / 6.0, 1.0, std::nullopt});
@@ -596,18 +556,18 @@ RodStructure batheBolourchi() {
 constexpr double kGradedLength = 50.0, kGradedDiameter = 2.0, kGradedNu = 0.3;
 double gradedModulus(double s) { return 190.0 + (8.0 - 190.0) * s / kGradedLength; }
 
-RodStructure gradedCantilever(const Vec3& force, const Vec3& moment) {
-  RodStructure s;
+Design gradedCantilever(const Vec3& force, const Vec3& moment) {
+  Design s;
   s.source = "graded";
   s.rods.emplace_back("beam", straight(Vec3::Zero(), Vec3(kGradedLength, 0, 0), 1, 2), Section::circle(kGradedDiameter),
                       std::nullopt, std::nullopt, CapStyle::Round, BSplineField(1, {0, 0, 1, 1}, {190.0, 8.0}));
   s.mechanics.present = true;
   s.mechanics.poissonRatio = kGradedNu;
-  geometry::Support clamp;
-  clamp.at = end("beam", RodEnd::Start);
+  mechanics::Support clamp;
+  clamp.at = at("beam", RodEnd::Start);
   s.mechanics.supports.push_back(clamp);
-  geometry::PointLoad load;
-  load.at = end("beam", RodEnd::End);
+  mechanics::PointLoad load;
+  load.at = at("beam", RodEnd::End);
   load.force = force, load.moment = moment;
   s.mechanics.loads.push_back(load);
   return s;
@@ -653,7 +613,7 @@ Vec3 reissnerTip(double P) {
   return Vec3(z[0], z[1], 0);
 }
 
-mechanics::Simulation simulated(const RodStructure& s, int steps) {
+mechanics::Simulation simulated(const Design& s, int steps) {
   mechanics::SolverOptions options;
   options.loadSteps = steps;
   return mechanics::simulate(s, {}, options, steps);
@@ -738,7 +698,7 @@ TEST_CASE("the error estimate tracks the true error of a coarse discretization",
 }
 
 TEST_CASE("automatic spans grow with slenderness, drawn turning and a falling modulus", "[mechanics]") {
-  auto spansOf = [](const RodStructure& s) { return StaticProblem(s).discretization().perRod.at(0); };
+  auto spansOf = [](const Design& s) { return StaticProblem(s).discretization().perRod.at(0); };
   const auto stubby = cantilever(straight(Vec3::Zero(), Vec3(10, 0, 0), 1, 2), Section::circle(2), 100, Vec3::Zero(), Vec3::Zero());
   const auto slender = cantilever(straight(Vec3::Zero(), Vec3(1000, 0, 0), 1, 2), Section::circle(2), 100, Vec3::Zero(), Vec3::Zero());
   const auto curved = cantilever(arc(640, 0, kPi / 2 - 1e-9), Section::circle(2), 100, Vec3::Zero(), Vec3::Zero(), Vec3(0, 0, 1));
@@ -755,13 +715,13 @@ TEST_CASE("automatic spans grow with slenderness, drawn turning and a falling mo
 
 TEST_CASE("the design's own basis (degree 0) is refined or refused, never used as drawn", "[mechanics]") {
   // A quarter-circle drawn as one rational quadratic span: 3 control points, one collocation point.
-  RodStructure arcDesign = cantilever(arc(40, -kPi / 2, 0, Vec3(0, 40, 0)), Section::circle(1.0), 100.0, Vec3(0, 0, -0.05),
+  Design arcDesign = cantilever(arc(40, -kPi / 2, 0, Vec3(0, 40, 0)), Section::circle(1.0), 100.0, Vec3(0, 0, -0.05),
                                       Vec3::Zero(), Vec3(0, 0, 1));
   mechanics::Discretization designOwn;
   designOwn.degree = 0;
   CHECK_THROWS_WITH(StaticProblem(arcDesign, designOwn), Catch::Contains("--degree 6"));
   // A quartic design is refined by knot insertion to the automatic span count.
-  RodStructure quartic = cantilever(straight(Vec3::Zero(), Vec3(20, 0, 0), 4, 5), Section::circle(1.0), 100.0, Vec3::Zero(),
+  Design quartic = cantilever(straight(Vec3::Zero(), Vec3(20, 0, 0), 4, 5), Section::circle(1.0), 100.0, Vec3::Zero(),
                                     Vec3(0, 0, 0.5 * kPi * 100.0 * kPi / 64 / 20));
   const StaticProblem refined(quartic, designOwn);
   CHECK(refined.discretization().perRod[0] > 4);
@@ -774,7 +734,7 @@ TEST_CASE("the design's own basis (degree 0) is refined or refused, never used a
 
 TEST_CASE("a kink of E(s) is followed by rebuilt rods, and on the design's basis kept off collocation points", "[mechanics]") {
   // A quartic rod, E falling from 100 to 20 MPa at its middle and back: kinked at u = 0.5.
-  RodStructure s = cantilever(straight(Vec3::Zero(), Vec3(20, 0, 0), 4, 5), Section::circle(1.0), 100.0, Vec3(0, -0.05, 0),
+  Design s = cantilever(straight(Vec3::Zero(), Vec3(20, 0, 0), 4, 5), Section::circle(1.0), 100.0, Vec3(0, -0.05, 0),
                               Vec3::Zero());
   s.rods[0] = Rod("beam", s.rods[0].centerline(), s.rods[0].section(), std::nullopt, std::nullopt, CapStyle::Round,
                   BSplineField(1, {0, 0, 0.5, 1, 1}, {100, 20, 100}));
@@ -810,12 +770,12 @@ TEST_CASE("a state moves between discretizations of one design", "[mechanics]") 
 }
 
 TEST_CASE("the deformed design keeps its mechanics block, rod ends by name", "[mechanics]") {
-  RodStructure s = batheBolourchi();
-  s.mechanics.loads[0].at = geometry::RodEndRef{};
+  Design s = batheBolourchi();
+  s.mechanics.loads[0].at = mechanics::RodEndRef{};
   s.mechanics.loads[0].at.point = s.rods[0].centerline().points().back();
   s.mechanics.loads[0].at.path = "test";
   const StaticProblem problem(s, rebuilt(6, 16));
-  const RodStructure deformed = problem.deformedStructure(solved(problem, 6));
+  const Design deformed = problem.deformedStructure(solved(problem, 6));
   REQUIRE(deformed.mechanics.present);
   REQUIRE(deformed.mechanics.loads.size() == 1);
   CHECK_FALSE(deformed.mechanics.loads[0].at.point.has_value());

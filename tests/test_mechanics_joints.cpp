@@ -2,6 +2,7 @@
 // points, against frame theory and against the same structure with the other rod split there.
 #include "mechanics/mechanics.hpp"
 #include "mechanics/section_properties.hpp"
+#include "tests/mechanics_fixture.hpp"
 
 #include "geometry/geometry.hpp"
 
@@ -17,70 +18,34 @@ using geometry::BSplineField;
 using geometry::CapStyle;
 using geometry::NurbsCurve;
 using geometry::Rod;
-using geometry::RodEnd;
-using geometry::RodStructure;
 using geometry::Section;
 using geometry::Vec3;
+using mechanics::Design;
+using mechanics::RodEnd;
 using mechanics::StaticProblem;
+using test::at;
+using test::atParameter;
+using test::atPoint;
+using test::clamp;
+using test::load;
+using test::straight;
 
 namespace {
-
-// Straight degree-3 rod from a to b with a parameter proportional to arc length on [0, 1].
-NurbsCurve straight(const Vec3& a, const Vec3& b) {
-  return NurbsCurve(3, {0, 0, 0, 0, 1, 1, 1, 1}, {a, a + (b - a) / 3.0, a + 2.0 * (b - a) / 3.0, b});
-}
-
-Rod circleRod(const std::string& name, NurbsCurve curve, double d, double E) {
-  const double a = curve.domainBegin(), b = curve.domainEnd();
-  return Rod(name, std::move(curve), Section::circle(d), std::nullopt, std::nullopt, CapStyle::Round,
-             BSplineField::constant(E, a, b));
-}
-
-geometry::RodEndRef at(const std::string& rod, RodEnd end, const std::string& path = "mechanics.test") {
-  geometry::RodEndRef r;
-  r.rod = rod, r.end = end, r.path = path;
-  return r;
-}
-
-geometry::RodEndRef atParameter(const std::string& rod, double u, const std::string& path = "mechanics.test") {
-  geometry::RodEndRef r;
-  r.rod = rod, r.parameter = u, r.path = path;
-  return r;
-}
-
-geometry::RodEndRef atPoint(const Vec3& p, const std::string& path = "mechanics.test") {
-  geometry::RodEndRef r;
-  r.point = p, r.path = path;
-  return r;
-}
-
-void clamp(RodStructure& s, const geometry::RodEndRef& where) {
-  geometry::Support c;
-  c.at = where;
-  s.mechanics.supports.push_back(c);
-}
-
-void load(RodStructure& s, const geometry::RodEndRef& where, const Vec3& force) {
-  geometry::PointLoad l;
-  l.at = where;
-  l.force = force;
-  s.mechanics.loads.push_back(l);
-}
 
 constexpr double kL = 1.0, kH = 0.8, kD = 0.05, kE = 1000.0, kNu = 0.3;
 
 // A symmetric T: the cross bar from (-L, 0, 0) to (L, 0, 0), clamped at both ends, as one rod or
 // split at its middle; the stem from the bar's middle up to (0, 0, H), loaded at its top.
-RodStructure tFrame(bool split, const Vec3& force) {
-  RodStructure s;
+Design tFrame(bool split, const Vec3& force) {
+  Design s;
   s.source = split ? "t-frame-split" : "t-frame";
   if (split) {
-    s.rods.push_back(circleRod("bar-left", straight(Vec3(-kL, 0, 0), Vec3::Zero()), kD, kE));
-    s.rods.push_back(circleRod("bar-right", straight(Vec3::Zero(), Vec3(kL, 0, 0)), kD, kE));
+    s.rods.push_back(test::rod("bar-left", straight(Vec3(-kL, 0, 0), Vec3::Zero()), Section::circle(kD), kE));
+    s.rods.push_back(test::rod("bar-right", straight(Vec3::Zero(), Vec3(kL, 0, 0)), Section::circle(kD), kE));
   } else {
-    s.rods.push_back(circleRod("bar", straight(Vec3(-kL, 0, 0), Vec3(kL, 0, 0)), kD, kE));
+    s.rods.push_back(test::rod("bar", straight(Vec3(-kL, 0, 0), Vec3(kL, 0, 0)), Section::circle(kD), kE));
   }
-  s.rods.push_back(circleRod("stem", straight(Vec3::Zero(), Vec3(0, 0, kH)), kD, kE));
+  s.rods.push_back(test::rod("stem", straight(Vec3::Zero(), Vec3(0, 0, kH)), Section::circle(kD), kE));
   s.mechanics.present = true;
   s.mechanics.poissonRatio = kNu;
   s.mechanics.loadSteps = 8;
@@ -95,7 +60,7 @@ Vec3 stemTipMotion(const StaticProblem& problem, const Eigen::VectorXd& x) {
   return problem.position(x, stem, 1.0) - problem.position(problem.referenceState(), stem, 1.0);
 }
 
-mechanics::Simulation simulated(const RodStructure& s, mechanics::Discretization d = {}) {
+mechanics::Simulation simulated(const Design& s, mechanics::Discretization d = {}) {
   return mechanics::simulate(s, d, {}, s.mechanics.loadSteps);
 }
 
@@ -119,7 +84,7 @@ TEST_CASE("a symmetric T-frame with a T-joint matches frame theory", "[mechanics
   const double theoryX = Px * (stem + kH * kH / turning + kL / (2 * EA));
   const double theoryY = Py * (stem + 8 * kL * kL * kL / (192 * EI) + 2 * kL / (4 * kGA) + kH * kH * kL / (2 * GJ));
 
-  const RodStructure s = tFrame(false, Vec3(Px, Py, 0));
+  const Design s = tFrame(false, Vec3(Px, Py, 0));
   const mechanics::Simulation sim = simulated(s);
   REQUIRE(sim.problem->jointCount() == 1);
   const Vec3 moved = stemTipMotion(*sim.problem, sim.solution.state);
@@ -136,7 +101,7 @@ TEST_CASE("a symmetric T-frame with a T-joint matches frame theory", "[mechanics
 TEST_CASE("a T-joint deforms like the same structure with the bar split at the joint", "[mechanics][joints]") {
   // A 3-D load that moves the tip by more than the stem is long: far into the nonlinear regime.
   const Vec3 force(0.006, -0.004, -0.002);
-  const RodStructure whole = tFrame(false, force), split = tFrame(true, force);
+  const Design whole = tFrame(false, force), split = tFrame(true, force);
 
   SECTION("same knots: the same discrete solution to rounding") {
     // The bar of 2 n spans has its C0 knot at the middle: the halves' knots, the same unknowns but
@@ -170,9 +135,9 @@ TEST_CASE("a load at an interior point, by parameter or by position, matches bea
   // by P a^2 (3L - a) / 6EI + P a / kGA.
   const double L = 1.0, a = 0.3, P = 1e-9;
   for (const bool byPoint : {false, true}) {
-    RodStructure s;
+    Design s;
     s.source = "cantilever";
-    s.rods.push_back(circleRod("beam", straight(Vec3::Zero(), Vec3(L, 0, 0)), kD, kE));
+    s.rods.push_back(test::rod("beam", straight(Vec3::Zero(), Vec3(L, 0, 0)), Section::circle(kD), kE));
     s.mechanics.present = true;
     s.mechanics.poissonRatio = kNu;
     s.mechanics.loadSteps = 1;
@@ -187,7 +152,7 @@ TEST_CASE("a load at an interior point, by parameter or by position, matches bea
     INFO((byPoint ? "by point" : "by parameter") << ": tip " << tipMove.transpose() << ", theory " << -theory);
     CHECK(-tipMove.z() == Approx(theory).epsilon(1e-4));
     // The deformed design names the place by rod and parameter.
-    const RodStructure deformed = sim.problem->deformedStructure(x);
+    const Design deformed = sim.problem->deformedStructure(x);
     REQUIRE(deformed.mechanics.loads.size() == 1);
     CHECK_FALSE(deformed.mechanics.loads[0].at.point);
     REQUIRE(deformed.mechanics.loads[0].at.parameter);
@@ -199,9 +164,9 @@ TEST_CASE("an interior support holds a rod there", "[mechanics][joints]") {
   // A rod clamped at its middle (by parameter) with equal and opposite loads at its ends: each half
   // is a cantilever of length L / 2.
   const double L = 2.0, P = 1e-9;
-  RodStructure s;
+  Design s;
   s.source = "middle-clamp";
-  s.rods.push_back(circleRod("beam", straight(Vec3::Zero(), Vec3(L, 0, 0)), kD, kE));
+  s.rods.push_back(test::rod("beam", straight(Vec3::Zero(), Vec3(L, 0, 0)), Section::circle(kD), kE));
   s.mechanics.present = true;
   s.mechanics.poissonRatio = kNu;
   s.mechanics.loadSteps = 1;
@@ -220,7 +185,7 @@ TEST_CASE("an interior support holds a rod there", "[mechanics][joints]") {
 }
 
 TEST_CASE("interior places: errors name the JSON path", "[mechanics][joints][errors]") {
-  RodStructure s = tFrame(false, Vec3(0, 0, -1e-3));
+  Design s = tFrame(false, Vec3(0, 0, -1e-3));
   SECTION("a parameter outside the rod's domain") {
     load(s, atParameter("bar", 1.5, "mechanics.loads[1].at"), Vec3(0, 0, 1));
     REQUIRE_THROWS_WITH(StaticProblem(s), Catch::Contains("mechanics.loads[1].at.parameter") &&
@@ -232,17 +197,17 @@ TEST_CASE("interior places: errors name the JSON path", "[mechanics][joints][err
                                               Catch::Contains("no rod lies within joint_tolerance"));
   }
   SECTION("a stem just beyond the joint tolerance is not joined") {
-    s.rods.back() = circleRod("stem", straight(Vec3(0, 0, 2e-3), Vec3(0, 0, kH)), kD, kE);
+    s.rods.back() = test::rod("stem", straight(Vec3(0, 0, 2e-3), Vec3(0, 0, kH)), Section::circle(kD), kE);
     REQUIRE_THROWS_WITH(StaticProblem(s), Catch::Contains("rod \"stem\" belongs to a part of the structure without any support"));
   }
 }
 
 TEST_CASE("listed joints join interior points too", "[mechanics][joints]") {
   const Vec3 force(2e-9, 1e-9, 0);
-  RodStructure listed = tFrame(false, force);
+  Design listed = tFrame(false, force);
   listed.mechanics.inferJoints = false;
   listed.mechanics.joints = {{at("stem", RodEnd::Start, "mechanics.joints[0][0]"), atParameter("bar", 0.5, "mechanics.joints[0][1]")}};
-  const RodStructure inferred = tFrame(false, force);
+  const Design inferred = tFrame(false, force);
   mechanics::Discretization d;
   d.perRod = {16, 8};
   const StaticProblem a(listed, d), b(inferred, d);
@@ -261,7 +226,7 @@ TEST_CASE("the analytic Jacobian at T-joints and interior places matches central
   const NurbsCurve arc(2, {0, 0, 0, 1, 1, 1}, {Vec3(3, 0, 0), Vec3(3, 3 * std::tan(0.5), 0), Vec3(3 * std::cos(1.0), 3 * std::sin(1.0), 0)},
                        {1.0, w, 1.0});
   const Vec3 joint = arc.point(0.4);
-  RodStructure s;
+  Design s;
   s.source = "jacobian-t";
   s.rods.push_back(Rod("arc", arc, Section::circle(0.7), std::nullopt, std::nullopt, CapStyle::Round,
                        BSplineField(1, {0, 0, 1, 1}, {60, 100})));
@@ -269,12 +234,12 @@ TEST_CASE("the analytic Jacobian at T-joints and interior places matches central
                        std::nullopt, CapStyle::Round, BSplineField::constant(80, 0, 1)));
   s.mechanics.present = true;
   clamp(s, at("arc", RodEnd::Start));
-  geometry::Support far;
+  mechanics::Support far;
   far.at = at("stem", RodEnd::End);
   far.rotation = Vec3(0.2, 0.1, -0.3);
   far.displacement = Vec3(0.1, 0, -0.1);
   s.mechanics.supports.push_back(far);
-  geometry::PointLoad l;
+  mechanics::PointLoad l;
   l.at = atParameter("arc", 0.8);
   l.force = Vec3(0.3, -0.2, 0.5);
   l.moment = Vec3(1, 2, 3);
@@ -315,11 +280,11 @@ TEST_CASE("the analytic Jacobian at T-joints and interior places matches central
 TEST_CASE("a deformed design with a T-joint can be simulated again", "[mechanics][joints]") {
   // Deformed, the bar has a corner at the joint (the stem's point force bends it there); the
   // joint is found again on the C0 knot, where the rebuilt basis is C0 too.
-  const RodStructure s = tFrame(false, Vec3(0.006, -0.004, -0.002));
+  const Design s = tFrame(false, Vec3(0.006, -0.004, -0.002));
   mechanics::Discretization d;
   d.perRod = {24, 12};
   const StaticProblem first(s, d);
-  const RodStructure deformed = first.deformedStructure(mechanics::solve(first, {}, 8).state);
+  const Design deformed = first.deformedStructure(mechanics::solve(first, {}, 8).state);
   const StaticProblem again(deformed);
   CHECK(again.jointCount() == 1);
   Eigen::VectorXd f;

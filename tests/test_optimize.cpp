@@ -10,8 +10,8 @@
 #include <random>
 
 using namespace rodfab;
-using geometry::RodEnd;
-using geometry::RodStructure;
+using mechanics::RodEnd;
+using mechanics::Design;
 using geometry::Vec3;
 
 namespace {
@@ -34,14 +34,14 @@ geometry::Rod rod(const std::string& name, geometry::NurbsCurve c, double d, dou
                        geometry::CapStyle::Round, geometry::BSplineField::constant(E, a, b));
 }
 
-geometry::RodEndRef end(const std::string& name, RodEnd which) {
-  geometry::RodEndRef r;
+mechanics::RodEndRef end(const std::string& name, RodEnd which) {
+  mechanics::RodEndRef r;
   r.rod = name, r.end = which, r.path = "test";
   return r;
 }
 
-geometry::PointLoad load(const std::string& name, const Vec3& force, const Vec3& moment) {
-  geometry::PointLoad l;
+mechanics::PointLoad load(const std::string& name, const Vec3& force, const Vec3& moment) {
+  mechanics::PointLoad l;
   l.at = end(name, RodEnd::End), l.force = force, l.moment = moment;
   return l;
 }
@@ -49,17 +49,17 @@ geometry::PointLoad load(const std::string& name, const Vec3& force, const Vec3&
 // A clamped post, an arc joined rigidly to its top and a straight arm hanging from the arc's end:
 // three rods, two joints, bending and torsion everywhere. Two load cases at the arm's free end.
 // With `tJoint`, a loaded strut starts at the post's mid-height: a T-joint, the post's interior site.
-RodStructure frame(bool tJoint = false) {
-  RodStructure s;
+Design frame(bool tJoint = false) {
+  Design s;
   s.source = "frame";
   s.rods.push_back(rod("post", straight(Vec3(40, 0, 0), Vec3(40, 0, 60)), 4.0, 60.0));
   s.rods.push_back(rod("arc", arc(40, 60), 3.5, 60.0));
   s.rods.push_back(rod("arm", straight(Vec3(0, 40, 60), Vec3(0, 40, 20)), 3.0, 60.0));
   if (tJoint) s.rods.push_back(rod("strut", straight(Vec3(40, 0, 30), Vec3(60, 0, 30)), 2.5, 60.0));
   s.mechanics.present = true;
-  geometry::Support clamp;
+  mechanics::Support clamp;
   clamp.at = end("post", RodEnd::Start);
-  geometry::LoadCase push, twist;
+  mechanics::LoadCase push, twist;
   push.name = "push", push.path = "mechanics.load_cases[0]", push.loadSteps = 4;
   push.supports = {clamp};
   push.loads = {load("arm", Vec3(0.3, 0.0, -0.1), Vec3::Zero())};
@@ -67,16 +67,16 @@ RodStructure frame(bool tJoint = false) {
   twist.supports = {clamp};
   twist.loads = {load("arm", Vec3(0.0, -0.2, 0.0), Vec3(4.0, 0.0, 3.0))};
   if (tJoint)
-    for (geometry::LoadCase* c : {&push, &twist}) c->loads.push_back(load("strut", Vec3(0.0, 0.05, -0.05), Vec3::Zero()));
+    for (mechanics::LoadCase* c : {&push, &twist}) c->loads.push_back(load("strut", Vec3(0.0, 0.05, -0.05), Vec3::Zero()));
   s.mechanics.loadCases = {push, twist};
   s.mechanics.supports = {clamp};
   return s;
 }
 
 // Every case's target: the shapes `problem` reached at its last evaluation.
-void setTargetsFromStates(RodStructure& design, const optimize::DesignProblem& problem) {
+void setTargetsFromStates(Design& design, const optimize::DesignProblem& problem) {
   for (std::size_t c = 0; c < problem.caseCount(); ++c) {
-    const RodStructure deformed = problem.caseProblem(c).deformedStructure(problem.state(c));
+    const Design deformed = problem.caseProblem(c).deformedStructure(problem.state(c));
     auto& target = design.mechanics.loadCases[c].target;
     target.clear();
     for (const geometry::Rod& r : deformed.rods)
@@ -93,9 +93,9 @@ Eigen::VectorXd randomModulus(std::size_t n, double lo, double hi, unsigned seed
 }
 
 // The frame with targets: the shapes of a random modulus field between the bounds.
-RodStructure manufactured(const optimize::Settings& settings, unsigned seed, Eigen::VectorXd* truth = nullptr,
-                          bool tJoint = false) {
-  RodStructure design = frame(tJoint);
+Design manufactured(const optimize::Settings& settings, unsigned seed, Eigen::VectorXd* truth = nullptr,
+                    bool tJoint = false) {
+  Design design = frame(tJoint);
   for (auto& lc : design.mechanics.loadCases) lc.target.push_back({"post", straight(Vec3(40, 0, 0), Vec3(40, 0, 60)), std::nullopt, std::nullopt, "t"});
   optimize::DesignProblem generator(design, settings);
   const Eigen::VectorXd e = randomModulus(generator.variableCount(), settings.lowerMpa, settings.upperMpa, seed);
@@ -132,7 +132,7 @@ TEST_CASE("dF/dE matches central differences of the residual at an equilibrium",
   auto& perturbed = const_cast<mechanics::StaticProblem&>(copy.caseProblem(1));
   const int n = settings.modulusControls;
   double worst = 0, largest = 0;
-  const RodStructure withE = copy.designWith(e);
+  const Design withE = copy.designWith(e);
   for (Eigen::Index k = 0; k < dFdE.cols(); ++k) {
     const std::size_t rodIndex = static_cast<std::size_t>(k) / n;
     const geometry::Rod& r = withE.rods[rodIndex];
@@ -211,7 +211,7 @@ TEST_CASE("a target only reachable beyond the bounds ends on them, a stationary 
   // The shapes of a structure stiffer than the upper bound allows everywhere.
   optimize::Settings wide = settings;
   wide.upperMpa = 1000.0;
-  RodStructure design = frame();
+  Design design = frame();
   for (auto& lc : design.mechanics.loadCases) lc.target.push_back({"post", straight(Vec3(40, 0, 0), Vec3(40, 0, 60)), std::nullopt, std::nullopt, "t"});
   optimize::DesignProblem generator(design, wide);
   generator.evaluate(Eigen::VectorXd::Constant(static_cast<Eigen::Index>(generator.variableCount()), 400.0), false);
@@ -232,7 +232,7 @@ TEST_CASE("an optimum on the lower bound is the bound to the last bit (exp(log 8
   // The shapes of a structure softer than the lower bound allows everywhere.
   optimize::Settings wide = settings;
   wide.lowerMpa = 1.0;
-  RodStructure design = frame();
+  Design design = frame();
   for (auto& lc : design.mechanics.loadCases) lc.target.push_back({"post", straight(Vec3(40, 0, 0), Vec3(40, 0, 60)), std::nullopt, std::nullopt, "t"});
   optimize::DesignProblem generator(design, wide);
   generator.evaluate(Eigen::VectorXd::Constant(static_cast<Eigen::Index>(generator.variableCount()), 7.0), false);
@@ -256,11 +256,11 @@ TEST_CASE("an optimized design resumes from its own control values; drawn shapes
   const std::vector<optimize::DrawnRod> drawn = optimize::drawnDeformed(problem, 1, e, 8);
   REQUIRE(drawn.size() == problem.rodCount());
   // The arm's free end as the deformed design (mechanics' own output) has it; E as the design has it.
-  const RodStructure deformed = problem.caseProblem(1).deformedStructure(problem.state(1));
+  const Design deformed = problem.caseProblem(1).deformedStructure(problem.state(1));
   const geometry::NurbsCurve& arm = deformed.rods[2].centerline();
   CHECK((drawn[2].points.back() - arm.point(arm.domainEnd())).norm() < 1e-9);
   CHECK((drawn[0].points.front() - Vec3(40, 0, 0)).norm() < 1e-9);  // the clamped foot
-  const RodStructure withE = problem.designWith(e);
+  const Design withE = problem.designWith(e);
   CHECK(drawn[1].modulusMpa[4] == Approx(withE.rods[1].modulus().value(0.5)));
   const std::vector<optimize::DrawnRod> target = optimize::drawnTarget(manufactured(settings, 7).mechanics.loadCases[0].target, 8);
   REQUIRE(target.size() == 3);
@@ -270,7 +270,7 @@ TEST_CASE("an optimized design resumes from its own control values; drawn shapes
 
 TEST_CASE("the accuracy at the optimum: the error estimate is the size of the difference from a finer solve", "[optimize]") {
   const optimize::Settings settings = testSettings();
-  const RodStructure design = manufactured(settings, 7);
+  const Design design = manufactured(settings, 7);
   optimize::DesignProblem problem(design, settings);
   const Eigen::VectorXd e = randomModulus(problem.variableCount(), 20, 150, 13);
   problem.evaluate(e, false);
@@ -281,8 +281,8 @@ TEST_CASE("the accuracy at the optimum: the error estimate is the size of the di
     INFO("case " << accuracy[c].name << ": " << est.note);
     REQUIRE(est.available);
     // The truth: the same case with four times the spans.
-    RodStructure s = problem.designWith(e);
-    const geometry::LoadCase& lc = design.mechanics.loadCases[c];
+    Design s = problem.designWith(e);
+    const mechanics::LoadCase& lc = design.mechanics.loadCases[c];
     s.mechanics.supports = lc.supports, s.mechanics.loads = lc.loads, s.mechanics.loadCases.clear();
     mechanics::Discretization fine = problem.caseProblem(c).discretization();
     for (int& spans : fine.perRod) spans *= 4;

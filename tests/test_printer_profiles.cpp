@@ -1,6 +1,7 @@
 // printer_profiles/: profiles, bitmap codecs, and jobs written from synthetic grids then decoded back
 // from their files and compared voxel for voxel; support, checksums, tampering, interrupts, sizes.
 #include "printer_profiles/printer_profiles.hpp"
+#include "tests/printer_profiles_fixture.hpp"
 
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
@@ -24,13 +25,12 @@
 using namespace rodfab::printer_profiles;
 namespace fs = std::filesystem;
 using nlohmann::json;
+using rodfab::test::connex3;
+using rodfab::test::readAll;
+using rodfab::test::scratch;
+using rodfab::test::writeAll;
 
 namespace {
-
-const Profile& connex3() {
-  static const Profile p = loadProfile("stratasys-objet500-connex3");
-  return p;
-}
 
 const openvdb::Vec3d kOrigin(-3.0, 5.0, 0.25);
 
@@ -40,24 +40,6 @@ openvdb::BoolGrid::Ptr newGrid() {
   grid->setName("material");
   grid->setTransform(gridTransform(connex3(), kOrigin));
   return grid;
-}
-
-fs::path scratchRoot() { return fs::temp_directory_path() / ("rodfab-test-printer-profiles-" + std::to_string(::getpid())); }
-
-// Removes this process's scratch folder when the test program ends.
-struct ScratchCleanup {
-  ~ScratchCleanup() {
-    std::error_code ec;
-    fs::remove_all(scratchRoot(), ec);
-  }
-} scratchCleanup;
-
-// A fresh, empty scratch directory per test.
-fs::path scratch(const std::string& name) {
-  const fs::path dir = scratchRoot() / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
 }
 
 // A box with a random Vero/Tango pattern, plus a slab overhanging one side at the top.
@@ -103,16 +85,6 @@ JobResult writeJob(const openvdb::BoolGrid& grid, JobSpec spec, int bandLayers) 
   for (int k = box.min().z(); k <= box.max().z(); k += bandLayers)
     writer.addBand({band(grid, k, std::min(k + bandLayers, box.max().z() + 1)), nullptr, k, std::min(k + bandLayers, box.max().z() + 1)});
   return writer.finalize();
-}
-
-Bytes readAll(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  return Bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
-
-void writeAll(const fs::path& file, const Bytes& data) {
-  std::ofstream out(file, std::ios::binary | std::ios::trunc);
-  out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size()));
 }
 
 using Voxel = std::tuple<int, int, int, int>;  // i, j, k, material (1 rigid, 0 rubbery, 2 support)

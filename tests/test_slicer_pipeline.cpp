@@ -160,7 +160,7 @@ TEST_CASE("sliceDesign: a straight rod's voxels are its volume, every one in the
   // E from twice the floor to half the stiffest mix along the rod: both materials, nothing clamped.
   geometry::Rod rod("rod", axis, geometry::Section::circle(2 * radius), std::nullopt, std::nullopt, geometry::CapStyle::Flat,
                     geometry::BSplineField(1, {0, 0, 1, 1}, {2 * cal.floorMpa(), 0.5 * cal.maxModulusMpa()}));
-  const geometry::RodStructure design{"test", {rod}, {}};
+  const geometry::RodStructure design{"test", {rod}};
   std::vector<std::string> zips;
   for (auto [threads, bandLayers] : {std::pair{0, 0}, std::pair{1, 7}, std::pair{2, 1}}) {
     const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads > 0 ? threads : 64);

@@ -74,7 +74,7 @@ Rod circularRod(NurbsCurve c, double radius, CapStyle caps, BSplineField e = BSp
   return Rod("rod", std::move(c), Section::circle(2 * radius), std::nullopt, std::nullopt, caps, std::move(e));
 }
 
-RodStructure design(std::vector<Rod> rods) { return RodStructure{"test", std::move(rods), {}}; }
+RodStructure design(std::vector<Rod> rods) { return RodStructure{"test", std::move(rods)}; }
 
 double occupiedVolume(const voxel::Rasterization& r, const PrinterGrid& g) {
   return double(r.grid->activeVoxelCount()) * g.voxelVolume();

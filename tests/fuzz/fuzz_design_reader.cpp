@@ -1,6 +1,8 @@
-// libFuzzer target: the design reader must answer every input with a design or a DesignError,
+// libFuzzer target: the design reader (rods by geometry/, the mechanics and optimize blocks by
+// mechanics/) must answer every input with a design or a DesignError,
 // never crash, hang or throw anything else; a design it accepts must be safe to summarize and query.
 #include "geometry/geometry.hpp"
+#include "mechanics/mechanics_file.hpp"
 
 #include <cstddef>
 #include <cstdint>
@@ -8,9 +10,9 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string text(reinterpret_cast<const char*>(data), size);
-  rodfab::geometry::RodStructure design;
+  rodfab::mechanics::Design design;
   try {
-    design = rodfab::geometry::parseDesign(text, "fuzz.json");
+    design = rodfab::mechanics::parseDesign(text, "fuzz.json");
   } catch (const rodfab::geometry::DesignError&) {
     return 0;
   }

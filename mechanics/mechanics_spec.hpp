@@ -1,17 +1,21 @@
-// The optional "mechanics" block of a design file: material constants, joints, supports and loads
-// for the Cosserat rod solver (mechanics/). Geometry owns it because it owns the design file; it is
-// plain data here, interpreted by the solver.
+// What a design file says beyond its rods: the optional "mechanics" block (material constants,
+// joints, supports, loads, training load cases with their targets) for the Cosserat rod solver, and
+// the optional "optimize" block for `rodfab optimize`. Plain data, read and written by
+// mechanics/mechanics_file.hpp, interpreted by the solver (mechanics.hpp) and the optimizer (optimize/).
 #pragma once
 
 #include "geometry/frame.hpp"
+#include "geometry/nurbs.hpp"
+#include "geometry/rod.hpp"
 
 #include <Eigen/Core>
 
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
-namespace rodfab::geometry {
+namespace rodfab::mechanics {
 
 enum class RodEnd { Start, End };
 
@@ -90,9 +94,9 @@ struct MechanicsSpec {
 // is mapped linearly onto the design rod's.
 struct TargetRod {
   std::string rod;  // the design rod's name
-  NurbsCurve centerline;
-  std::optional<QuaternionSpline> orientation;
-  std::optional<Vec3> referenceNormal;
+  geometry::NurbsCurve centerline;
+  std::optional<geometry::QuaternionSpline> orientation;
+  std::optional<geometry::Vec3> referenceNormal;
   std::string path;  // JSON path (or file and path) for messages
 };
 
@@ -122,4 +126,15 @@ struct OptimizeSpec {
   double tolerance = 1e-7;       // on the projected gradient of g / g0
 };
 
-}  // namespace rodfab::geometry
+// A design as its file gives it: the rods (geometry's RodStructure, so a Design goes wherever rods
+// are expected) with the mechanics and optimize blocks.
+struct Design : geometry::RodStructure {
+  Design() = default;
+  // The rods with neither block.
+  explicit Design(geometry::RodStructure rods) : geometry::RodStructure(std::move(rods)) {}
+
+  MechanicsSpec mechanics;  // loads and supports for `rodfab simulate`; ignored by the slicer
+  OptimizeSpec optimize{};  // the "optimize" block for `rodfab optimize`; ignored by the slicer
+};
+
+}  // namespace rodfab::mechanics

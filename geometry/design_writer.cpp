@@ -1,0 +1,90 @@
+// Writing design files: the rods as the format describes them, one per line, written atomically.
+#include "geometry/design_writer.hpp"
+
+#include "common/output_file.hpp"
+
+#include <sstream>
+
+namespace rodfab::geometry {
+
+using ordered = nlohmann::ordered_json;
+
+namespace {
+
+ordered curveJson(int degree, const std::vector<double>& knots) { return ordered{{"degree", degree}, {"knots", knots}}; }
+
+}  // namespace
+
+ordered vec3Json(const Vec3& v) { return ordered::array({v.x(), v.y(), v.z()}); }
+
+ordered nurbsJson(const NurbsCurve& c) {
+  ordered centerline = curveJson(c.degree(), c.knots());
+  ordered points = ordered::array();
+  for (const Vec3& p : c.points()) points.push_back({p.x(), p.y(), p.z()});
+  centerline["points"] = points;
+  if (c.isRational()) centerline["weights"] = c.weights();
+  return centerline;
+}
+
+ordered quaternionSplineJson(const QuaternionSpline& q) {
+  ordered o = curveJson(q.degree(), q.knots());
+  ordered quats = ordered::array();
+  for (const auto& v : q.quaternions()) quats.push_back({v[0], v[1], v[2], v[3]});
+  o["quaternions"] = quats;
+  return o;
+}
+
+nlohmann::ordered_json designToJson(const RodStructure& structure, const std::string& description) {
+  ordered rods = ordered::array();
+  for (const Rod& rod : structure.rods) {
+    ordered r{{"name", rod.name()}, {"centerline", nurbsJson(rod.centerline())}};
+    const Section& s = rod.section();
+    if (s.shape == SectionShape::Circle) r["section"] = {{"shape", "circle"}, {"diameter", s.width}};
+    else r["section"] = {{"shape", std::string(toString(s.shape))}, {"width", s.width}, {"height", s.height}};
+    if (rod.referenceNormal()) {
+      const Vec3& n = *rod.referenceNormal();
+      r["normal"] = {n.x(), n.y(), n.z()};
+    }
+    if (rod.orientation()) r["orientation"] = quaternionSplineJson(*rod.orientation());
+    if (rod.caps() == CapStyle::Flat) r["caps"] = "flat";
+    const BSplineField& e = rod.modulus();
+    if (e.isConstant()) {
+      r["modulus"] = e.values().front();
+    } else {
+      ordered m = curveJson(e.degree(), e.knots());
+      m["values"] = e.values();
+      r["modulus"] = m;
+    }
+    rods.push_back(std::move(r));
+  }
+  ordered doc{{"format", kDesignFormat}, {"units", "mm"}};
+  if (!description.empty()) doc["description"] = description;
+  doc["rods"] = std::move(rods);
+  return doc;
+}
+
+void writeDesignDocument(const ordered& doc, const std::filesystem::path& file) {
+  std::ostringstream out;
+  out << "{\n";
+  for (auto it = doc.begin(); it != doc.end(); ++it) {
+    if (it.key() == "rods" || it.key() == "mechanics") continue;
+    out << "  " << ordered(it.key()).dump() << ": " << it.value().dump() << ",\n";
+  }
+  out << "  \"rods\": [\n";
+  const auto& rods = doc["rods"];
+  for (std::size_t i = 0; i < rods.size(); ++i) out << "    " << rods[i].dump() << (i + 1 < rods.size() ? ",\n" : "\n");
+  out << "  ]";
+  if (auto m = doc.find("mechanics"); m != doc.end()) out << ",\n  \"mechanics\": " << m->dump(2, ' ');
+  out << "\n}\n";
+  common::writeFileAtomically(file, out.str());
+}
+
+void writeDesign(const RodStructure& structure, const std::filesystem::path& file, const std::string& description) {
+  writeDesignDocument(designToJson(structure, description), file);
+}
+
+bool isDesignFile(const std::filesystem::path& file) {
+  return common::fileStartsWith(file, "{", std::string("\"") + kDesignFormat + "\"", 256);
+}
+
+}  // namespace rodfab::geometry

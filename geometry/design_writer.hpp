@@ -1,0 +1,24 @@
+// Building blocks for stages that write their own blocks of the design file (mechanics/ writes
+// "mechanics" and "optimize"): the JSON of curves and vectors as the format gives them, and the
+// file's layout. Most code wants geometry/design_file.hpp instead.
+#pragma once
+
+#include "geometry/design_file.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <string>
+
+namespace rodfab::geometry {
+
+nlohmann::ordered_json vec3Json(const Vec3& v);                              // [x, y, z]
+nlohmann::ordered_json nurbsJson(const NurbsCurve& curve);                   // {degree, knots, points, weights}
+nlohmann::ordered_json quaternionSplineJson(const QuaternionSpline& spline);  // {degree, knots, quaternions}
+
+// Writes `doc` (a design as designToJson makes it, with any blocks of higher stages added) in the
+// file's layout: every top-level key but "rods" and "mechanics" on a line of its own, then one rod
+// per line, then the "mechanics" block indented. Atomic as writeDesign.
+void writeDesignDocument(const nlohmann::ordered_json& doc, const std::filesystem::path& file);
+
+}  // namespace rodfab::geometry

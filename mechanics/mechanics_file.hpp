@@ -1,0 +1,28 @@
+// A design file with its "mechanics" and "optimize" blocks: read with full validation (the rods by
+// geometry/design_reader.hpp, the blocks here, every issue of the file reported at once as
+// `FILE: JSON.PATH: MESSAGE`), and written. The format is described in the README ("Design file").
+#pragma once
+
+#include "geometry/design_file.hpp"
+#include "mechanics/mechanics_spec.hpp"
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <filesystem>
+#include <string>
+
+namespace rodfab::mechanics {
+
+// Reads `file` and every load case's {"design": PATH} target (relative to `file`; its rods must
+// carry names of this design). Throws geometry::DesignError (also for an unreadable file, path "").
+Design readDesign(const std::filesystem::path& file);
+// `sourceName` names the text in messages. Targets given as {"design": PATH} are not read (their
+// LoadCase::target stays empty): readDesign reads them.
+Design parseDesign(const std::string& text, const std::string& sourceName);
+
+// geometry::designToJson with the "mechanics" and "optimize" blocks (when present) after the rods.
+nlohmann::ordered_json designToJson(const Design& design, const std::string& description = {});
+// In the file's layout (geometry::writeDesignDocument), atomically.
+void writeDesign(const Design& design, const std::filesystem::path& file, const std::string& description = {});
+
+}  // namespace rodfab::mechanics
