@@ -92,14 +92,11 @@ public:
   const BSplineField& modulus() const { return modulus_; }
   double length() const { return length_; }
 
-  // Parameters of a polyline that follows the centerline within `sampleDeviation()` (mm): the seeds
-  // of closest-point searches and a cheap way for callers to visit the rod piece by piece. Every knot
+  // Parameters of a polyline that follows the centerline within a bounded deviation: the seeds of
+  // closest-point searches and a cheap way for callers to visit the rod piece by piece. Every knot
   // and so every C0 point is a sample; the segments turn by at most ~10 degrees where the curve could
   // be resolved (sampleResolved).
   const std::vector<double>& sampleParameters() const { return sampleU_; }
-  const std::vector<Vec3>& samplePoints() const { return samplePoint_; }
-  // Upper bound on the distance between the polyline segment [i, i+1] and the curve over it.
-  double sampleDeviation(std::size_t segment) const { return sampleDeviation_[segment]; }
   // Estimated upper bound on the curvature (1/mm) over segment i: twice the largest sampled; infinite
   // where the curve's speed vanishes or the segment is unresolved.
   double sampleCurvature(std::size_t segment) const { return sampleCurvature_[segment]; }

@@ -1,5 +1,6 @@
 // The dual of the simplified mesh, laid on the original surface: nodes, rods, the surface check.
 #include "common/interrupt.hpp"
+#include "common/stopwatch.hpp"
 #include "meshing/mesh.hpp"
 
 #include <tbb/parallel_for.h>
@@ -220,10 +221,6 @@ void checkOptions(const MeshRodOptions& o) {
   if (!(o.modulusMpa > 0) || !std::isfinite(o.modulusMpa)) throw std::invalid_argument("rodsFromMesh: modulus must be > 0");
 }
 
-double secondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
 }  // namespace
 
 MeshRods rodsFromMesh(const std::filesystem::path& file, const MeshRodOptions& options) {
@@ -238,16 +235,16 @@ MeshRods rodsFromMesh(const std::filesystem::path& file, const MeshRodOptions& o
   if (original.triangles.size() < static_cast<std::size_t>(options.faces))
     throw MeshError(file, "the mesh has " + std::to_string(original.triangles.size()) + " triangles, fewer than the " +
                               std::to_string(options.faces) + " asked for (--faces)");
-  report.readSeconds = secondsSince(clock);
+  report.readSeconds = common::secondsSince(clock);
   clock = std::chrono::steady_clock::now();
   const TriangleMesh simplified =
       original.triangles.size() == static_cast<std::size_t>(options.faces) ? original : simplifyMesh(original, options.faces);
   report.simplifiedVertices = simplified.points.size(), report.simplifiedFaces = simplified.triangles.size();
-  report.simplifySeconds = secondsSince(clock);
+  report.simplifySeconds = common::secondsSince(clock);
   clock = std::chrono::steady_clock::now();
   out.structure = buildRods(file, original, simplified, options, report);
   out.structure.source = file.string();
-  report.rodSeconds = secondsSince(clock);
+  report.rodSeconds = common::secondsSince(clock);
   return out;
 }
 

@@ -26,12 +26,6 @@ namespace fs = std::filesystem;
 
 const char* toString(ArchiveFormat format) { return format == ArchiveFormat::Zip ? "zip" : "dir"; }
 
-ArchiveFormat parseArchiveFormat(const std::string& text) {
-  if (text == "zip") return ArchiveFormat::Zip;
-  if (text == "dir") return ArchiveFormat::Directory;
-  throw std::invalid_argument("job format '" + text + "' is not one of: zip, dir");
-}
-
 namespace {
 
 class DirectoryJobFiles final : public JobFiles {

@@ -26,7 +26,6 @@ inline constexpr std::size_t kMaxManifestBytes = std::size_t{128} << 20;
 
 enum class ArchiveFormat { Zip, Directory };
 const char* toString(ArchiveFormat format);
-ArchiveFormat parseArchiveFormat(const std::string& text);  // "zip" | "dir"
 
 // Lowercase hex SHA-256 of `data` (common/sha256.hpp).
 using common::sha256Hex;
