@@ -15,6 +15,35 @@
 
 namespace rodfab::cli {
 
+namespace {
+
+// Boost's error text substitutes placeholders such as %canonical_option% with the user's tokens in a loop
+// that never ends when a token itself contains the placeholder (`-%canonical_option%o` hangs what()).
+// The message is therefore taken from a second parse of the same arguments with every '%' shown as
+// U+FF05 (fullwidth percent), which fails the same way and whose tokens cannot contain a placeholder.
+std::string parseErrorMessage(const po::error& error, const std::vector<std::string>& args,
+                              const po::options_description& options, const po::positional_options_description& positional,
+                              const po::options_description* hidden) {
+  const bool hasPercent = std::any_of(args.begin(), args.end(), [](const std::string& a) { return a.find('%') != std::string::npos; });
+  if (!hasPercent) return error.what();
+  std::vector<std::string> shown = args;
+  for (std::string& a : shown)
+    for (std::size_t at = a.find('%'); at != std::string::npos; at = a.find('%', at + 3)) a.replace(at, 1, "\xEF\xBC\x85");
+  try {
+    po::options_description all;
+    all.add(options);
+    if (hidden) all.add(*hidden);
+    po::variables_map unused;
+    po::store(po::command_line_parser(shown).options(all).positional(positional).run(), unused);
+    po::notify(unused);
+  } catch (const po::error& e) {
+    return e.what();
+  }
+  return "the command line could not be read (an argument contains '%')";
+}
+
+}  // namespace
+
 std::optional<int> parseOptions(const std::string& command, const std::string& synopsis,
                                 po::options_description& options, const po::positional_options_description& positional,
                                 const std::vector<std::string>& args, po::variables_map& vm,
@@ -43,7 +72,8 @@ std::optional<int> parseOptions(const std::string& command, const std::string& s
       }
     }
   } catch (const po::error& e) {
-    std::cerr << "rodfab " << command << ": " << e.what() << "\nusage: rodfab " << command << ' ' << synopsis
+    std::cerr << "rodfab " << command << ": " << parseErrorMessage(e, args, options, positional, hidden)
+              << "\nusage: rodfab " << command << ' ' << synopsis
               << "\n(rodfab " << command << " --help lists the options)\n";
     return kUsage;
   }
