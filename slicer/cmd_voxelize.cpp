@@ -4,7 +4,9 @@
 #include "slicer/profile_option.hpp"
 
 #include "common/interrupt.hpp"
+#include "common/memory_budget.hpp"
 #include "voxel/diagnostics.hpp"
+#include "voxel/memory_estimate.hpp"
 #include "voxel/voxel.hpp"
 
 #include <nlohmann/json.hpp>
@@ -152,6 +154,9 @@ int runVoxelize(const std::vector<std::string>& args) {
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();
   const voxel::PrinterGrid grid = voxel::makePrinterGrid(design, *voxelSize);
+  // The whole grid is held in memory (slice streams bands instead): refuse before the first voxel.
+  common::requireMemory(voxel::estimateRasterizationBytes(design, grid), "voxelizing " + file + " into one grid in memory",
+                        "use a coarser --voxel-size, or slice the design (`rodfab slice` streams it in bands)");
   const voxel::Rasterization ras = voxel::rasterize(design, grid, {threads, common::interruptRequested});
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
   const voxel::GridStatistics s = voxel::computeStatistics(*ras.grid, grid, ras.voxelsPerRod);

@@ -509,6 +509,36 @@ TEST_CASE("Memory follows the active voxels, not the envelope", "[voxel][sparse]
   REQUIRE(ras.grid->memUsage() < 100 * active);
 }
 
+TEST_CASE("The memory estimate made before rasterizing bounds the grid OpenVDB builds", "[voxel][sparse][memory]") {
+  // OpenVDB's own count of the tree's bytes is the independent truth; the estimate must not fall below
+  // it (a refusal would come too late) nor exceed it by so much that fitting designs are refused.
+  const Vec3 a(0.1, 0.2, 0.3), dir = Vec3(0.8, 0.5, 0.3).normalized();
+  const std::vector<std::pair<std::string, Rod>> rods = {
+      {"thick round", circularRod(line(a, a + 4.0 * dir), 1.2, CapStyle::Round)},
+      {"thin round", circularRod(line(a, a + 6.0 * dir), 0.1, CapStyle::Flat)},
+      {"flat ellipse", Rod("e", line(a, a + 5.0 * dir), Section::ellipse(3.0, 0.05), Vec3(0, 0, 1), std::nullopt,
+                           CapStyle::Flat, BSplineField::constant(50, 0, 1))},
+      {"rectangle", Rod("r", line(a, a + 5.0 * dir), Section::rectangle(1.5, 0.8), Vec3(0, 0, 1), std::nullopt,
+                        CapStyle::Round, BSplineField::constant(50, 0, 1))},
+  };
+  for (const auto& [name, rod] : rods) {
+    CAPTURE(name);
+    const RodStructure s = design({rod});
+    const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
+    const double built = double(voxel::rasterize(s, g).grid->memUsage());
+    const double estimate = double(voxel::estimateRasterizationBytes(s, g));
+    CAPTURE(built, estimate);
+    REQUIRE(estimate >= built);
+    REQUIRE(estimate <= 3.0 * built);
+  }
+  SECTION("a part far beyond any memory is estimated without overflow") {
+    const RodStructure s = design({circularRod(line({0, 0, 0}, {300, 0, 0}), 75.0, CapStyle::Round)});
+    const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
+    const double voxels = kPi * 75.0 * 75.0 * 300.0 / g.voxelVolume();
+    REQUIRE(double(voxel::estimateRasterizationBytes(s, g)) >= 4.0 * voxels);
+  }
+}
+
 TEST_CASE("Grid statistics agree with a direct count", "[voxel][statistics]") {
   const BSplineField e(1, {0, 0, 1, 1}, {12.0, 60.0});
   const RodStructure s = design({circularRod(line({0, 0, 0}, {2, 0, 0}), 0.4, CapStyle::Flat, e),
