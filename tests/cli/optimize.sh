@@ -145,7 +145,7 @@ PY
 # --start uniform: one E everywhere (the geometric mean of the bounds, or as given), g0 for it;
 # --method mma/ccsaq: NLopt's, one evaluation an iteration, g falls and the bounds hold.
 for start in uniform uniform=60; do
-  "$rodfab" optimize "$tmp/start.json" -o "$tmp/optimized.json" --start "$start" --max-iterations 30 --json > "$tmp/summary.json" 2> "$tmp/err" ||
+  "$rodfab" optimize "$tmp/start.json" -o "$tmp/variant.json" --start "$start" --max-iterations 30 --json > "$tmp/summary.json" 2> "$tmp/err" ||
     fail "optimize --start $start: $(cat "$tmp/err")"
   python3 - "$tmp/summary.json" "$start" <<'PY' || fail "--start $start summary: $(cat "$tmp/summary.json")"
 import json, math, sys
@@ -156,7 +156,7 @@ assert s["objective_final"] < 1e-2 * s["objective_initial"], s["relative"]
 PY
 done
 for method in mma ccsaq; do
-  "$rodfab" optimize "$tmp/start.json" -o "$tmp/optimized.json" --method "$method" --max-iterations 40 --json > "$tmp/summary.json" 2> "$tmp/err" ||
+  "$rodfab" optimize "$tmp/start.json" -o "$tmp/variant.json" --method "$method" --max-iterations 40 --json > "$tmp/summary.json" 2> "$tmp/err" ||
     fail "optimize --method $method: $(cat "$tmp/err")"
   python3 - "$tmp/summary.json" "$method" <<'PY' || fail "--method $method summary: $(cat "$tmp/summary.json")"
 import json, sys
@@ -166,7 +166,7 @@ assert s["objective_final"] < 1e-2 * s["objective_initial"], s["relative"]
 assert 8 <= s["modulus_range_mpa"][0] and s["modulus_range_mpa"][1] <= 190
 PY
 done
-rm -f "$tmp/optimized.json"
+rm -f "$tmp/variant.json"
 
 # The same output, byte for byte, on 1 and 2 threads.
 "$rodfab" optimize "$tmp/start.json" -o "$tmp/one.json" --threads 1 > /dev/null 2>&1 || fail "optimize --threads 1"
