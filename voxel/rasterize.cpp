@@ -17,7 +17,7 @@
 
 namespace rodfab::voxel {
 
-using detail::IndexForm;
+using detail::AffineInIndex;
 using detail::RodPiece;
 using detail::RodPieces;
 using LeafT = openvdb::FloatTree::LeafNodeType;
@@ -35,16 +35,16 @@ constexpr int kBlockLeaves = 1 << kBlockLeavesLog2;
 constexpr int kBlockXLog2 = kLeafLog2 + kBlockLeavesLog2;
 constexpr int kBlockX = 1 << kBlockXLog2;
 constexpr int kBlockVoxels = kBlockLeaves * kLeafVoxels;
-constexpr int kKeyBits = 21;  // per axis in a block key: PrinterGrid caps dims at 2^24 voxels
+constexpr int kPackedAxisBits = 21;  // per axis in a packed block coordinate: PrinterGrid caps dims at 2^24 voxels
 
 // Within this distance (mm) beyond an end plane Rod::classify still uses the section (its own plane
 // tolerance is 1e-9 (1 + bounding radius)); such voxel centres go to the exact test.
-double capPlaneBand(double boundingRadius) { return 1e-7 * (1.0 + boundingRadius); }
+double capPlaneTolerance(double boundingRadius) { return 1e-7 * (1.0 + boundingRadius); }
 
-// One rod's claim on a voxel, as the exact test and the cold paths of the overlap rule see it.
+// One rod as a candidate for a voxel, as the exact test and the cold paths of the overlap rule see it.
 struct Candidate {
   double depth = -std::numeric_limits<double>::infinity();
-  float band = 0.0f;  // |depth - exact depth| bound, rounded up; 0 when the exact test computed it
+  float errorBound = 0.0f;  // bound on |depth - exact depth|, rounded up; 0 when the exact test computed it
   float value = 0.0f;
   int rod = -1;       // -1: outside (the exact test found the centre outside the rod)
   int piece = -1;
@@ -59,16 +59,16 @@ typedef double Double2 __attribute__((vector_size(16)));
 struct SweptLanes {
   SweptLanes(const detail::RodPiece& p, double planeAgx, double planeBgx)
       : gxA(planeAgx), gxB(planeBgx), gx1Begin(p.x1Begin.gx), gx2Begin(p.x2Begin.gx), gx1End(p.x1End.gx), gx2End(p.x2End.gx),
-        x1Bow(p.x1Bow), x2Bow(p.x2Bow), modulusBegin(p.modulusBegin), modulusEnd(p.modulusEnd), modulusBow(p.modulusBow),
-        modulusLow(p.modulusLow), modulusHigh(p.modulusHigh) {}
+        x1Quadratic(p.x1Quadratic), x2Quadratic(p.x2Quadratic), modulusBegin(p.modulusBegin), modulusEnd(p.modulusEnd),
+        modulusQuadratic(p.modulusQuadratic), modulusLow(p.modulusLow), modulusHigh(p.modulusHigh) {}
   double gxA, gxB, gx1Begin, gx2Begin, gx1End, gx2End;
-  double x1Bow, x2Bow, modulusBegin, modulusEnd, modulusBow, modulusLow, modulusHigh;  // as in RodPiece
+  double x1Quadratic, x2Quadratic, modulusBegin, modulusEnd, modulusQuadratic, modulusLow, modulusHigh;  // as in RodPiece
 };
 
-// A double band as a float that is not smaller.
-float bandAsFloat(double band) {
-  const float f = static_cast<float>(band);
-  return double(f) >= band ? f : std::nextafter(f, std::numeric_limits<float>::infinity());
+// A double error bound as a float that is not smaller.
+float roundedUpToFloat(double bound) {
+  const float f = static_cast<float>(bound);
+  return double(f) >= bound ? f : std::nextafter(f, std::numeric_limits<float>::infinity());
 }
 
 // A piece reaching a block. Sorted by (block, rod, piece), a total order: every voxel sees its pieces
@@ -83,14 +83,14 @@ struct Entry {
   }
 };
 
-// Blocks in z-major order, so a band's blocks are contiguous.
-std::uint64_t blockKey(int bi, int bj, int bk) {
-  return (std::uint64_t(bk) << (2 * kKeyBits)) | (std::uint64_t(bj) << kKeyBits) | std::uint64_t(bi);
+// Block coordinates packed into one sort key, z-major, so the blocks of a band of layers are contiguous.
+std::uint64_t packBlock(int bi, int bj, int bk) {
+  return (std::uint64_t(bk) << (2 * kPackedAxisBits)) | (std::uint64_t(bj) << kPackedAxisBits) | std::uint64_t(bi);
 }
-openvdb::Coord blockOrigin(std::uint64_t key) {
-  const std::uint64_t mask = (std::uint64_t(1) << kKeyBits) - 1;
-  return openvdb::Coord(int(key & mask) << kBlockXLog2, int((key >> kKeyBits) & mask) << kLeafLog2,
-                        int(key >> (2 * kKeyBits)) << kLeafLog2);
+openvdb::Coord blockOrigin(std::uint64_t packed) {
+  const std::uint64_t mask = (std::uint64_t(1) << kPackedAxisBits) - 1;
+  return openvdb::Coord(int(packed & mask) << kBlockXLog2, int((packed >> kPackedAxisBits) & mask) << kLeafLog2,
+                        int(packed >> (2 * kPackedAxisBits)) << kLeafLog2);
 }
 
 int clampToInt(double v) { return static_cast<int>(std::clamp(v, -2.0e9, 2.0e9)); }
@@ -99,7 +99,7 @@ int clampToInt(double v) { return static_cast<int>(std::clamp(v, -2.0e9, 2.0e9))
 // clips keep that margin and the callers still test every voxel they are left with.
 constexpr double kClipMargin = 1e-6;
 
-// Depths closer than this are a tie (see rasterize.hpp): far below any approximation band, far above
+// Depths closer than this are a tie (see rasterize.hpp): far below any approximation error bound, far above
 // the round-off in a depth.
 constexpr double kTieTolerance = kDepthTieTolerance;
 
@@ -285,72 +285,75 @@ private:
     return {hit.depth, 0.0f, static_cast<float>(r.modulus().value(hit.u)), rod, pieceIndex};
   }
 
-  // A slot's key is its depth, except for approximate claims of rods with round sections
-  // (band > 0 and deferredDepth_), where it is the gauge squared: the square root is only taken when
-  // another claim contests the voxel, and it is the same expression the depth always came from.
-  // Approximate claims always have band > 0 (normalizedRadiusBand has a 1e-12 floor) and exact ones 0.
-  double depthOf(double key, float band, int rod) const {
-    return band > 0.0f && deferredDepth_[static_cast<std::size_t>(rod)] ? 1.0 - std::sqrt(key) : key;
+  // A slot stores its depth encoded: the depth itself, except for approximate candidates of rods with
+  // round sections (errorBound > 0 and deferredDepth_), where it stores the gauge squared, (1 - depth)^2:
+  // the square root is only taken when another rod competes for the voxel, and it is the same
+  // expression the depth always came from. Approximate candidates always have errorBound > 0
+  // (normalizedRadiusErrorBound has a 1e-12 floor) and exact ones 0.
+  double decodedDepth(double encodedDepth, float errorBound, int rod) const {
+    return errorBound > 0.0f && deferredDepth_[static_cast<std::size_t>(rod)] ? 1.0 - std::sqrt(encodedDepth) : encodedDepth;
   }
-  void store(int n, double key, float band, float value, std::uint64_t who) {
-    key_[n] = key;
-    band_[n] = band;
+  void store(int n, double encodedDepth, float errorBound, float value, std::uint64_t who) {
+    encodedDepth_[n] = encodedDepth;
+    errorBound_[n] = errorBound;
     value_[n] = value;
     owner_[n] = who;
   }
 
-  // An approximate claim that is inside for sure (key as in depthOf). The common case, an unclaimed
-  // voxel, is a plain store, and returns 1 for the caller to add to the rod's tally; a claimed one
-  // goes through the overlap rule.
-  int claim(int n, double key, float band, float value, int rod, int piece, int i, int j, int k) {
+  // An approximate candidate that is inside for sure (depth encoded as in decodedDepth). The common
+  // case, an empty slot, is a plain store, and returns 1 for the caller to add to the rod's tally; a
+  // filled one goes through the overlap rule.
+  int addSurelyInside(int n, double encodedDepth, float errorBound, float value, int rod, int piece, int i, int j, int k) {
     std::uint64_t& word = filled_[n >> 6];
     const std::uint64_t bit = std::uint64_t(1) << (n & 63);
     if (!(word & bit)) {
-      store(n, key, band, value, owner(rod, piece));
+      store(n, encodedDepth, errorBound, value, owner(rod, piece));
       word |= bit;
       return 1;
     }
-    contest(n, {depthOf(key, band, rod), band, value, rod, piece}, key, i, j, k);
+    resolveOverlap(n, {decodedDepth(encodedDepth, errorBound, rod), errorBound, value, rod, piece}, encodedDepth, i, j, k);
     return 0;
   }
-  // A claim with its depth at hand (exact, or caps), possibly outside.
-  void offer(const Candidate& c, int n, int i, int j, int k) {
+  // A candidate with its depth at hand (exact, or caps), possibly outside.
+  void addCandidate(const Candidate& c, int n, int i, int j, int k) {
     std::uint64_t& word = filled_[n >> 6];
     const std::uint64_t bit = std::uint64_t(1) << (n & 63);
     if (!(word & bit)) {
       if (c.inside()) {
-        store(n, c.depth, c.band, c.value, owner(c.rod, c.piece));
+        store(n, c.depth, c.errorBound, c.value, owner(c.rod, c.piece));
         word |= bit;
         ++voxelsPerRod[static_cast<std::size_t>(c.rod)];
       }
       return;
     }
-    contest(n, c, c.depth, i, j, k);
+    resolveOverlap(n, c, c.depth, i, j, k);
   }
 
-  // The overlap rule between filled slot n and candidate c (cKey: c's key). Near ties between
-  // approximate depths are settled on exact depths, so the winner is the one the exact test would
-  // pick; depths within kTieTolerance are equal (lower rod wins), which spares the exact test where
-  // round caps of rods meeting at a node coincide.
-  [[gnu::noinline]] void contest(int n, Candidate c, double cKey, int i, int j, int k) {
+  // The overlap rule between filled slot n and candidate c (cEncodedDepth: c's depth as the slot would
+  // store it). Near ties between approximate depths are settled on exact depths, so the winner is the
+  // one the exact test would pick; depths within kTieTolerance are equal (lower rod wins), which spares
+  // the exact test where round caps of rods meeting at a node coincide.
+  [[gnu::noinline]] void resolveOverlap(int n, Candidate c, double cEncodedDepth, int i, int j, int k) {
     const int sRod = static_cast<int>(owner_[n] >> 32);
-    Candidate s{depthOf(key_[n], band_[n], sRod), band_[n], value_[n], sRod, static_cast<int>(owner_[n] & 0xffffffffu)};
-    double sKey = key_[n];
+    Candidate s{decodedDepth(encodedDepth_[n], errorBound_[n], sRod), errorBound_[n], value_[n], sRod,
+                static_cast<int>(owner_[n] & 0xffffffffu)};
+    double sEncodedDepth = encodedDepth_[n];
     bool sChanged = false;
-    if (std::abs(s.depth - c.depth) <= double(s.band) + double(c.band) + kTieTolerance && (s.band > 0.0f || c.band > 0.0f)) {
-      if (s.band > 0.0f) {
+    if (std::abs(s.depth - c.depth) <= double(s.errorBound) + double(c.errorBound) + kTieTolerance &&
+        (s.errorBound > 0.0f || c.errorBound > 0.0f)) {
+      if (s.errorBound > 0.0f) {
         s = exact(s.rod, s.piece, i, j, k);
-        sKey = s.depth;
+        sEncodedDepth = s.depth;
         sChanged = true;
       }
-      if (c.band > 0.0f) {
+      if (c.errorBound > 0.0f) {
         c = exact(c.rod, c.piece, i, j, k);
-        cKey = c.depth;
+        cEncodedDepth = c.depth;
       }
-      if (!s.inside()) {  // the exact test overturned the approximate claim
+      if (!s.inside()) {  // the exact test overturned the approximate candidate
         --voxelsPerRod[static_cast<std::size_t>(sRod)];
         if (c.inside()) {
-          store(n, cKey, c.band, c.value, owner(c.rod, c.piece));
+          store(n, cEncodedDepth, c.errorBound, c.value, owner(c.rod, c.piece));
           ++voxelsPerRod[static_cast<std::size_t>(c.rod)];
         } else {
           filled_[n >> 6] &= ~(std::uint64_t(1) << (n & 63));
@@ -361,23 +364,26 @@ private:
     const double gain = c.depth - s.depth;
     if (c.inside() &&
         (gain > kTieTolerance || (gain >= -kTieTolerance && (c.rod < s.rod || (c.rod == s.rod && c.piece < s.piece))))) {
-      store(n, cKey, c.band, c.value, owner(c.rod, c.piece));
+      store(n, cEncodedDepth, c.errorBound, c.value, owner(c.rod, c.piece));
       --voxelsPerRod[static_cast<std::size_t>(s.rod)];
       ++voxelsPerRod[static_cast<std::size_t>(c.rod)];
     } else if (sChanged)
-      store(n, sKey, s.band, s.value, owner(s.rod, s.piece));
+      store(n, sEncodedDepth, s.errorBound, s.value, owner(s.rod, s.piece));
   }
 
   void sweep(int rod, int pieceIndex, const RodPiece& piece, const openvdb::CoordBBox& box) {
     const RodPieces& rp = rods_[rod];
-    const IndexForm& planeA = rp.planes[piece.plane];
-    const IndexForm& planeB = rp.planes[piece.plane + 1];
+    const AffineInIndex& planeA = rp.planes[piece.plane];
+    const AffineInIndex& planeB = rp.planes[piece.plane + 1];
     const double iA = rp.inverseHalfWidth, iB = rp.inverseHalfHeight;
     const bool rectangle = structure_.rods[rod].section().shape == geometry::SectionShape::Rectangle;
-    const double band = piece.normalizedRadiusBand;
-    const bool bounded = std::isfinite(band) && band < 1.0;
-    const float floatBand = bandAsFloat(band);
-    const double inner = bounded ? 1.0 - band : -1.0, outer = bounded ? 1.0 + band : std::numeric_limits<double>::infinity();
+    const double errorBound = piece.normalizedRadiusErrorBound;
+    const bool bounded = std::isfinite(errorBound) && errorBound < 1.0;
+    const float floatErrorBound = roundedUpToFloat(errorBound);
+    // Gauges below `inner` are inside for sure, above `outer` outside for sure; between them (the
+    // tolerance shell around the section boundary) the exact test decides.
+    const double inner = bounded ? 1.0 - errorBound : -1.0,
+                 outer = bounded ? 1.0 + errorBound : std::numeric_limits<double>::infinity();
     const double innerSq = inner > 0.0 ? inner * inner : -1.0, outerSq = outer * outer;
     // Layers, then rows, that can hold a voxel of the slab a >= 0 > b within the box: the extremes of
     // the planes over the box's i (and j) bound them before any row is set up.
@@ -424,30 +430,30 @@ private:
           if (!rectangle && i < hi && (sure[0] & sure[1])) {
             const int n0 = rowSlot | ((i & (kBlockX - 1)) << (2 * kLeafLog2));
             const int n1 = rowSlot | (((i + 1) & (kBlockX - 1)) << (2 * kLeafLog2));
-            fresh += claim(n0, g2v[0], floatBand, static_cast<float>(modulus[0]), rod, pieceIndex, i, j, k);
-            fresh += claim(n1, g2v[1], floatBand, static_cast<float>(modulus[1]), rod, pieceIndex, i + 1, j, k);
+            fresh += addSurelyInside(n0, g2v[0], floatErrorBound, static_cast<float>(modulus[0]), rod, pieceIndex, i, j, k);
+            fresh += addSurelyInside(n1, g2v[1], floatErrorBound, static_cast<float>(modulus[1]), rod, pieceIndex, i + 1, j, k);
             continue;
           }
           for (int l = 0; l < 2 && i + l <= hi; ++l) {
             if (!(av[l] >= 0.0 && bv[l] < 0.0)) continue;
-            double key;  // see depthOf
+            double encodedDepth;  // see decodedDepth
             bool sureInside, sureOutside;
             if (rectangle) {
               const double gauge = std::max(std::abs(e.x1[l]) * iA, std::abs(e.x2[l]) * iB);
               sureOutside = gauge > outer;
               sureInside = gauge < inner;
-              key = 1.0 - gauge;
+              encodedDepth = 1.0 - gauge;
             } else {
-              key = g2v[l];
-              sureOutside = key > outerSq;
-              sureInside = key < innerSq;
+              encodedDepth = g2v[l];
+              sureOutside = encodedDepth > outerSq;
+              sureInside = encodedDepth < innerSq;
             }
             if (sureOutside) continue;
             const int n = rowSlot | (((i + l) & (kBlockX - 1)) << (2 * kLeafLog2));
             if (sureInside)
-              fresh += claim(n, key, floatBand, static_cast<float>(modulus[l]), rod, pieceIndex, i + l, j, k);
+              fresh += addSurelyInside(n, encodedDepth, floatErrorBound, static_cast<float>(modulus[l]), rod, pieceIndex, i + l, j, k);
             else
-              offer(exact(rod, pieceIndex, i + l, j, k), n, i + l, j, k);
+              addCandidate(exact(rod, pieceIndex, i + l, j, k), n, i + l, j, k);
           }
         }
         voxelsPerRod[static_cast<std::size_t>(rod)] += fresh;
@@ -477,7 +483,7 @@ private:
           const std::uint64_t bit = std::uint64_t(1) << (n & 63);
           if (word & bit) continue;
           word |= bit;
-          offer(exact(rod, pieceIndex, i, j, k), n, i, j, k);
+          addCandidate(exact(rod, pieceIndex, i, j, k), n, i, j, k);
         }
       }
     }
@@ -486,14 +492,14 @@ private:
   void cap(int rod, int pieceIndex, const RodPiece& piece, const openvdb::CoordBBox& box) {
     const RodPieces& rp = rods_[rod];
     const geometry::Rod& r = structure_.rods[rod];
-    const IndexForm& plane = rp.planes[piece.plane];
+    const AffineInIndex& plane = rp.planes[piece.plane];
     const bool atEnd = piece.kind == RodPiece::Kind::EndCap, round = r.caps() == geometry::CapStyle::Round;
     // Beyond the plane: a >= 0 past the end, a < 0 before the beginning (the complements of the
     // swept pieces' conditions, evaluated identically).
     const double sign = atEnd ? 1.0 : -1.0;
-    const double nearPlane = capPlaneBand(r.section().boundingRadius());
+    const double nearPlane = capPlaneTolerance(r.section().boundingRadius());
     const double invCap = rp.inverseCapRadius;
-    constexpr double kCapBand = 1e-9;  // round-off in the cap's distance, relative to its radius
+    constexpr double kCapRoundOff = 1e-9;  // round-off in the cap's distance, relative to its radius
     const float endModulus = piece.capModulus;
     AxisCylinder cylinder(grid_, piece);
     const Slope slope(sign * plane.gx);
@@ -511,19 +517,19 @@ private:
           const double a = aRow + plane.gx * i;
           if (atEnd ? !(a >= 0.0) : !(a < 0.0)) continue;
           if (std::abs(a) <= nearPlane) {
-            offer(exact(rod, pieceIndex, i, j, k), offset(i, j, k), i, j, k);
+            addCandidate(exact(rod, pieceIndex, i, j, k), offset(i, j, k), i, j, k);
             continue;
           }
           if (!round) continue;
           const double wx = piece.capOffset[0].row(j, k) + piece.capOffset[0].gx * i;
           const double g = std::sqrt(wx * wx + wyz) * invCap;
-          if (g > 1.0 + kCapBand) continue;
+          if (g > 1.0 + kCapRoundOff) continue;
           // Inside for sure; the depth's round-off (1e-9 of the radius at most) is within the tie
           // tolerance, so it counts as exact.
-          if (g < 1.0 - kCapBand)
-            offer({1.0 - g, 0.0f, endModulus, rod, pieceIndex}, offset(i, j, k), i, j, k);
+          if (g < 1.0 - kCapRoundOff)
+            addCandidate({1.0 - g, 0.0f, endModulus, rod, pieceIndex}, offset(i, j, k), i, j, k);
           else
-            offer(exact(rod, pieceIndex, i, j, k), offset(i, j, k), i, j, k);
+            addCandidate(exact(rod, pieceIndex, i, j, k), offset(i, j, k), i, j, k);
         }
       }
     }
@@ -533,13 +539,13 @@ private:
   const std::vector<RodPieces>& rods_;
   const PrinterGrid& grid_;
   const std::function<bool()>& interrupted_;
-  std::vector<bool> deferredDepth_;  // per rod: round section (see depthOf)
+  std::vector<bool> deferredDepth_;  // per rod: round section (see decodedDepth)
   static constexpr int kWords = kBlockVoxels / 64;
   static_assert(kWords == kBlockX, "a word of filled_ per x in the block: the bits of a leaf's (y, z)");
   // The slots, field by field (24 bytes a voxel), read only where `filled_` says they were written:
   // left uninitialized, so that setting up a builder does not touch their 96 KiB.
-  std::array<double, kBlockVoxels> key_;
-  std::array<float, kBlockVoxels> band_, value_;
+  std::array<double, kBlockVoxels> encodedDepth_;
+  std::array<float, kBlockVoxels> errorBound_, value_;
   std::array<std::uint64_t, kBlockVoxels> owner_;
   std::array<std::uint64_t, kWords> filled_{};
   std::array<std::uint64_t, kWords> memo_{};  // voxels of the block exactly tested for rod memoRod_
@@ -615,7 +621,7 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
       for (int k = b.min().z() >> kLeafLog2; k <= b.max().z() >> kLeafLog2; ++k)
         for (int j = b.min().y() >> kLeafLog2; j <= b.max().y() >> kLeafLog2; ++j)
           for (int i = b.min().x() >> kBlockXLog2; i <= b.max().x() >> kBlockXLog2; ++i)
-            perRod[r].push_back({blockKey(i, j, k), std::uint32_t(r), std::uint32_t(p)});
+            perRod[r].push_back({packBlock(i, j, k), std::uint32_t(r), std::uint32_t(p)});
     }
   });
   std::vector<Entry> entries;
