@@ -1,3 +1,8 @@
+// The four-lane vectors of the swept loop (Double4 and friends, also through rod_pieces.hpp's templates)
+// pass between inline functions of this file only; GCC's note that their by-value ABI differs without
+// AVX concerns no interface anyone links to.
+#pragma GCC diagnostic ignored "-Wpsabi"
+
 #include "voxel/rasterize.hpp"
 
 #include "voxel/rod_pieces.hpp"
@@ -12,6 +17,7 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <memory>
 
@@ -51,8 +57,17 @@ struct Candidate {
   bool inside() const { return rod >= 0; }
 };
 
-// Two doubles in an SSE2 register (GCC vector extension): the swept estimate for two voxels at once.
-typedef double Double2 __attribute__((vector_size(16)));
+// Four doubles (GCC vector extension; two SSE2 registers in the baseline build, one AVX register in
+// the AVX2 clone of the swept loop): the swept estimate for four voxels at once. Lane by lane the same
+// IEEE operations as the scalar expressions, so the same bits.
+typedef double Double4 __attribute__((vector_size(32)));
+typedef float Float4 __attribute__((vector_size(16)));
+typedef std::int64_t Mask4 __attribute__((vector_size(32)));  // a comparison of Double4s: -1 true, 0 false
+
+// |v| lane by lane, exactly as std::abs (clears the sign bit).
+inline Double4 absolute(Double4 v) {
+  return reinterpret_cast<Double4>(reinterpret_cast<Mask4>(v) & std::numeric_limits<std::int64_t>::max());
+}
 
 // A swept piece's coefficients for the voxel loop, copied out of the piece (see sweep): the same
 // values, so estimateSwept and estimateModulus give the same bits.
@@ -234,27 +249,36 @@ public:
     memoRod_ = -1;
   }
   // Writes the block's filled slots into leaves; leaf(l) creates the block's l-th leaf along x.
-  // Slots are in the leaves' own order, so a leaf's value mask is its 8 words of `filled_`.
+  // Slots are row by row (see offset) and leaves column by column, so a leaf's value mask is the
+  // transpose of `filled_`: word x of leaf l holds bit (y, z) for column i = 8 l + x, where filled_
+  // holds bit i of row (y, z).
   template <typename MakeLeaf>
   void emit(MakeLeaf&& leaf) const {
-    constexpr int kLeafWords = kLeafVoxels / 64;
-    for (int l = 0; l < kBlockLeaves; ++l) {
-      const std::uint64_t* words = &filled_[static_cast<std::size_t>(l * kLeafWords)];
-      if (std::all_of(words, words + kLeafWords, [](std::uint64_t w) { return w == 0; })) continue;
-      LeafT& node = leaf(l);
-      float* values = node.buffer().data();
-      const float* slots = &value_[static_cast<std::size_t>(l * kLeafVoxels)];
-      for (int w = 0; w < kLeafWords; ++w) {
-        node.getValueMask().template getWord<std::uint64_t>(openvdb::Index(w)) = words[w];
-        if (words[w] == ~std::uint64_t(0)) {  // a full (y, z) slice, common inside the rods
-          std::copy_n(slots + w * 64, 64, values + w * 64);
-          continue;
-        }
-        for (std::uint64_t bits = words[w]; bits != 0; bits &= bits - 1) {
-          const int n = w * 64 + std::countr_zero(bits);
-          values[n] = slots[n];
-        }
+    std::uint64_t anyRow = 0;
+    for (std::uint64_t w : filled_) anyRow |= w;
+    if (anyRow == 0) return;
+    std::array<std::uint64_t, kBlockX> columns{};  // bit r of column i: slot (r << 6) | i filled
+    std::array<LeafT*, kBlockLeaves> nodes{};
+    std::array<float*, kBlockLeaves> values{};
+    for (int l = 0; l < kBlockLeaves; ++l)
+      if ((anyRow >> (l * kLeafDim)) & 0xffu) {
+        nodes[static_cast<std::size_t>(l)] = &leaf(l);
+        values[static_cast<std::size_t>(l)] = nodes[static_cast<std::size_t>(l)]->buffer().data();
       }
+    for (int r = 0; r < kRows; ++r) {
+      const std::uint64_t row = filled_[static_cast<std::size_t>(r)];
+      const float* slots = &value_[static_cast<std::size_t>(r << kBlockXLog2)];
+      for (std::uint64_t bits = row; bits != 0; bits &= bits - 1) {
+        const int i = std::countr_zero(bits);
+        columns[static_cast<std::size_t>(i)] |= std::uint64_t(1) << r;
+        values[static_cast<std::size_t>(i >> kLeafLog2)][((i & (kLeafDim - 1)) << (2 * kLeafLog2)) | r] = slots[i];
+      }
+    }
+    for (int l = 0; l < kBlockLeaves; ++l) {
+      if (!nodes[static_cast<std::size_t>(l)]) continue;
+      for (int x = 0; x < kLeafDim; ++x)
+        nodes[static_cast<std::size_t>(l)]->getValueMask().template getWord<std::uint64_t>(openvdb::Index(x)) =
+            columns[static_cast<std::size_t>(l * kLeafDim + x)];
     }
   }
 
@@ -266,12 +290,14 @@ public:
   }
 
 private:
-  // Slot of voxel (i, j, k) in its block: leaf by leaf along x, each in LeafNode order (z fastest), so
-  // (i & (kBlockX - 1)) << 6 is the leaf and x offset together and a voxel's bit of `filled_` is bit
-  // (j, k) of word i & (kBlockX - 1).
+  // Slot of voxel (i, j, k) in its block: row by row, the 64 voxels of a row (j, k) along x
+  // contiguous, so the swept loop fills four neighbours with one vector store, and a voxel's bit of
+  // `filled_` is bit i & (kBlockX - 1) of the row's word. Rows are numbered (y, z) as a leaf numbers
+  // the voxels of one x, which makes emit a transpose.
   static int offset(int i, int j, int k) {
-    return ((i & (kBlockX - 1)) << (2 * kLeafLog2)) | ((j & (kLeafDim - 1)) << kLeafLog2) | (k & (kLeafDim - 1));
+    return (rowOf(j, k) << kBlockXLog2) | (i & (kBlockX - 1));
   }
+  static int rowOf(int j, int k) { return ((j & (kLeafDim - 1)) << kLeafLog2) | (k & (kLeafDim - 1)); }
   static std::uint64_t owner(int rod, int piece) { return (std::uint64_t(std::uint32_t(rod)) << 32) | std::uint32_t(piece); }
   Candidate exact(int rod, int pieceIndex, int i, int j, int k) {
     // The exact test is the one costly step per voxel (a Newton solve per nearby polyline segment):
@@ -293,6 +319,15 @@ private:
   double decodedDepth(double encodedDepth, float errorBound, int rod) const {
     return errorBound > 0.0f && deferredDepth_[static_cast<std::size_t>(rod)] ? 1.0 - std::sqrt(encodedDepth) : encodedDepth;
   }
+  // Four neighbouring slots n .. n + 3 of one row (see offset), as four stores would fill them.
+  void storeFour(int n, Double4 encodedDepth, Float4 value, float errorBound, std::uint64_t who) {
+    std::memcpy(&encodedDepth_[static_cast<std::size_t>(n)], &encodedDepth, sizeof encodedDepth);
+    std::memcpy(&value_[static_cast<std::size_t>(n)], &value, sizeof value);
+    for (int l = 0; l < 4; ++l) {
+      errorBound_[static_cast<std::size_t>(n + l)] = errorBound;
+      owner_[static_cast<std::size_t>(n + l)] = who;
+    }
+  }
   void store(int n, double encodedDepth, float errorBound, float value, std::uint64_t who) {
     encodedDepth_[n] = encodedDepth;
     errorBound_[n] = errorBound;
@@ -311,8 +346,33 @@ private:
       word |= bit;
       return 1;
     }
-    resolveOverlap(n, {decodedDepth(encodedDepth, errorBound, rod), errorBound, value, rod, piece}, encodedDepth, i, j, k);
+    if (!clearOverlap(n, encodedDepth, errorBound, value, rod, piece))
+      resolveOverlap(n, {decodedDepth(encodedDepth, errorBound, rod), errorBound, value, rod, piece}, encodedDepth, i, j, k);
     return 0;
+  }
+  // The overlap rule's outcome without square roots, where it is clear: candidate and slot both
+  // approximate candidates of round-section rods (encoded depths g^2 < 1, gauges squared) whose depths are
+  // far from a tie. With both gauges below 1, |sqrt(a) - sqrt(b)| >= |a - b| / 2, so a difference of
+  // squares above 2 (bounds + tie tolerance), plus 1e-12 for the round-off of the depths, means
+  // resolveOverlap finds no near tie and lets the deeper one (the smaller g^2) win: the same outcome.
+  // Returns false where resolveOverlap must decide.
+  bool clearOverlap(int n, double encodedDepth, float errorBound, float value, int rod, int piece) {
+    const std::uint64_t slotOwner = owner_[static_cast<std::size_t>(n)];
+    const int slotRod = static_cast<int>(slotOwner >> 32);
+    const float slotBound = errorBound_[static_cast<std::size_t>(n)];
+    if (!(errorBound > 0.0f && slotBound > 0.0f && deferredDepth_[static_cast<std::size_t>(rod)] &&
+          deferredDepth_[static_cast<std::size_t>(slotRod)]))
+      return false;
+    const double slotDepth = encodedDepth_[static_cast<std::size_t>(n)];  // encoded: g^2
+    const double clear = 2.0 * (double(slotBound) + double(errorBound) + kTieTolerance) + 1e-12;
+    if (encodedDepth - slotDepth > clear) return true;  // the candidate is clearly shallower: the slot stays
+    if (slotDepth - encodedDepth > clear) {              // clearly deeper: it takes the slot
+      store(n, encodedDepth, errorBound, value, owner(rod, piece));
+      --voxelsPerRod[static_cast<std::size_t>(slotRod)];
+      ++voxelsPerRod[static_cast<std::size_t>(rod)];
+      return true;
+    }
+    return false;
   }
   // A candidate with its depth at hand (exact, or caps), possibly outside.
   void addCandidate(const Candidate& c, int n, int i, int j, int k) {
@@ -371,7 +431,10 @@ private:
       store(n, sEncodedDepth, s.errorBound, s.value, owner(s.rod, s.piece));
   }
 
-  void sweep(int rod, int pieceIndex, const RodPiece& piece, const openvdb::CoordBBox& box) {
+  // Cloned for AVX2 (four lanes in one register; AVX2 brings no FMA, so no multiply-add is fused and
+  // the clone computes the bits the baseline does), chosen at load time.
+  [[gnu::target_clones("avx2", "default")]] void sweep(int rod, int pieceIndex, const RodPiece& piece,
+                                                       const openvdb::CoordBBox& box) {
     const RodPieces& rp = rods_[rod];
     const AffineInIndex& planeA = rp.planes[piece.plane];
     const AffineInIndex& planeB = rp.planes[piece.plane + 1];
@@ -385,6 +448,8 @@ private:
     const double inner = bounded ? 1.0 - errorBound : -1.0,
                  outer = bounded ? 1.0 + errorBound : std::numeric_limits<double>::infinity();
     const double innerSq = inner > 0.0 ? inner * inner : -1.0, outerSq = outer * outer;
+    const double sureInsideBelow = rectangle ? inner : innerSq, sureOutsideAbove = rectangle ? outer : outerSq;
+    const std::uint64_t who = owner(rod, pieceIndex);
     // Layers, then rows, that can hold a voxel of the slab a >= 0 > b within the box: the extremes of
     // the planes over the box's i (and j) bound them before any row is set up.
     const auto extreme = [](double g, int from, int to, bool largest) {
@@ -413,45 +478,51 @@ private:
           continue;
         const double x1aRow = piece.x1Begin.row(j, k), x2aRow = piece.x2Begin.row(j, k);
         const double x1bRow = piece.x1End.row(j, k), x2bRow = piece.x2End.row(j, k);
-        const int rowSlot = offset(0, j, k);
+        const int row = rowOf(j, k);
         std::uint64_t fresh = 0;
-        // Two voxels at a time (see estimateSwept); the decisions per voxel. The coefficients are
-        // locals (`lanes`), which the slot stores cannot alias, so they stay in registers.
-        Double2 iv = double(lo) + Double2{0.0, 1.0};
-        for (int i = lo; i <= hi; i += 2, iv += 2.0) {
-          const Double2 av = aRow + lanes.gxA * iv, bv = bRow + lanes.gxB * iv;
-          const detail::SweptEstimateOf<Double2> e =
+        // Four voxels at a time (see estimateSwept); the decisions per voxel. The coefficients are
+        // locals (`lanes`), which the slot stores cannot alias, so they stay in registers. `test` is
+        // what the tolerance shell is tested on: the gauge squared for round sections (encoded depth
+        // as it is), the max-norm gauge for rectangles (encoded depth 1 - gauge).
+        Double4 iv = double(lo) + Double4{0.0, 1.0, 2.0, 3.0};
+        for (int i = lo; i <= hi; i += 4, iv += 4.0) {
+          const Double4 av = aRow + lanes.gxA * iv, bv = bRow + lanes.gxB * iv;
+          const detail::SweptEstimateOf<Double4> e =
               detail::estimateSwept(lanes, av, bv, x1aRow + lanes.gx1Begin * iv, x2aRow + lanes.gx2Begin * iv,
                                     x1bRow + lanes.gx1End * iv, x2bRow + lanes.gx2End * iv);
-          const Double2 g2v = (e.x1 * iA) * (e.x1 * iA) + (e.x2 * iB) * (e.x2 * iB);
-          const Double2 modulus = detail::estimateModulus(lanes, e.lambda);
-          // The common case, both voxels in the slab and inside for sure, without a branch per test.
-          const auto sure = (av >= 0.0) & (bv < 0.0) & (g2v < innerSq);
-          if (!rectangle && i < hi && (sure[0] & sure[1])) {
-            const int n0 = rowSlot | ((i & (kBlockX - 1)) << (2 * kLeafLog2));
-            const int n1 = rowSlot | (((i + 1) & (kBlockX - 1)) << (2 * kLeafLog2));
-            fresh += addSurelyInside(n0, g2v[0], floatErrorBound, static_cast<float>(modulus[0]), rod, pieceIndex, i, j, k);
-            fresh += addSurelyInside(n1, g2v[1], floatErrorBound, static_cast<float>(modulus[1]), rod, pieceIndex, i + 1, j, k);
+          Double4 test, encodedDepth;
+          if (rectangle) {
+            const Double4 g1 = absolute(e.x1) * iA, g2 = absolute(e.x2) * iB;
+            test = g1 < g2 ? g2 : g1;  // std::max(g1, g2), lane by lane
+            encodedDepth = 1.0 - test;
+          } else {
+            test = (e.x1 * iA) * (e.x1 * iA) + (e.x2 * iB) * (e.x2 * iB);
+            encodedDepth = test;
+          }
+          const Double4 modulus = detail::estimateModulus(lanes, e.lambda);
+          const Mask4 inSlab = (av >= 0.0) & (bv < 0.0);
+          const Mask4 sure = inSlab & (test < sureInsideBelow);
+          if (i + 3 <= hi && (sure[0] & sure[1] & sure[2] & sure[3])) {
+            // The common case: four neighbours inside for sure; into empty slots with one store each.
+            const int n = (row << kBlockXLog2) | (i & (kBlockX - 1));
+            std::uint64_t& word = filled_[static_cast<std::size_t>(row)];
+            if (((word >> (i & (kBlockX - 1))) & 0xfu) == 0) {
+              storeFour(n, encodedDepth, __builtin_convertvector(modulus, Float4), floatErrorBound, who);
+              word |= std::uint64_t(0xf) << (i & (kBlockX - 1));
+              fresh += 4;
+              continue;
+            }
+            for (int l = 0; l < 4; ++l)
+              fresh += addSurelyInside(n + l, encodedDepth[l], floatErrorBound, static_cast<float>(modulus[l]), rod, pieceIndex,
+                                       i + l, j, k);
             continue;
           }
-          for (int l = 0; l < 2 && i + l <= hi; ++l) {
-            if (!(av[l] >= 0.0 && bv[l] < 0.0)) continue;
-            double encodedDepth;  // see decodedDepth
-            bool sureInside, sureOutside;
-            if (rectangle) {
-              const double gauge = std::max(std::abs(e.x1[l]) * iA, std::abs(e.x2[l]) * iB);
-              sureOutside = gauge > outer;
-              sureInside = gauge < inner;
-              encodedDepth = 1.0 - gauge;
-            } else {
-              encodedDepth = g2v[l];
-              sureOutside = encodedDepth > outerSq;
-              sureInside = encodedDepth < innerSq;
-            }
-            if (sureOutside) continue;
-            const int n = rowSlot | (((i + l) & (kBlockX - 1)) << (2 * kLeafLog2));
-            if (sureInside)
-              fresh += addSurelyInside(n, encodedDepth, floatErrorBound, static_cast<float>(modulus[l]), rod, pieceIndex, i + l, j, k);
+          for (int l = 0; l < 4 && i + l <= hi; ++l) {
+            if (!inSlab[l] || test[l] > sureOutsideAbove) continue;
+            const int n = offset(i + l, j, k);
+            if (sure[l])
+              fresh += addSurelyInside(n, encodedDepth[l], floatErrorBound, static_cast<float>(modulus[l]), rod, pieceIndex,
+                                       i + l, j, k);
             else
               addCandidate(exact(rod, pieceIndex, i + l, j, k), n, i + l, j, k);
           }
@@ -539,9 +610,10 @@ private:
   const std::vector<RodPieces>& rods_;
   const PrinterGrid& grid_;
   const std::function<bool()>& interrupted_;
-  std::vector<bool> deferredDepth_;  // per rod: round section (see decodedDepth)
+  std::vector<unsigned char> deferredDepth_;  // per rod: round section (see decodedDepth)
+  static constexpr int kRows = kLeafDim * kLeafDim;
   static constexpr int kWords = kBlockVoxels / 64;
-  static_assert(kWords == kBlockX, "a word of filled_ per x in the block: the bits of a leaf's (y, z)");
+  static_assert(kWords == kRows && kBlockX == 64, "a word of filled_ per row (y, z) of the block: bit x");
   // The slots, field by field (24 bytes a voxel), read only where `filled_` says they were written:
   // left uninitialized, so that setting up a builder does not touch their 96 KiB.
   std::array<double, kBlockVoxels> encodedDepth_;
