@@ -70,6 +70,36 @@ void Rod::findSmoothPieces(const std::vector<double>& bp, std::vector<bool>& isC
   }
 }
 
+namespace {
+
+// The smooth pieces between consecutive C0 samples (`c0Samples`: the index in `sampleU` of every C0
+// point and of the last sample), with their parameter ranges and end tangents; evaluate(u, fromBelow,
+// d) gives r, r', r'' at u.
+template <class Evaluate>
+std::vector<SmoothPiece> piecesBetween(const std::vector<double>& sampleU, const std::vector<std::size_t>& c0Samples,
+                                       Evaluate evaluate) {
+  std::vector<SmoothPiece> pieces;
+  std::size_t first = 0;
+  for (const std::size_t last : c0Samples) {
+    SmoothPiece piece;
+    piece.begin = sampleU[first];
+    piece.end = sampleU[last];
+    piece.firstSample = first;
+    piece.lastSample = last;
+    piece.endFromBelow = last + 1 < sampleU.size();
+    Vec3 d[3];
+    evaluate(piece.begin, false, d);
+    piece.beginTangent = unitTangent(d[1], d[2]);
+    evaluate(piece.end, piece.endFromBelow, d);
+    piece.endTangent = piece.endFromBelow ? unitTangentFromBelow(d[1], d[2]) : unitTangent(d[1], d[2]);
+    pieces.push_back(piece);
+    first = last;
+  }
+  return pieces;
+}
+
+}  // namespace
+
 void Rod::sampleCenterline() {
   // Adaptive polyline: a piece is split while its chord strays from the curve by more than a small
   // fraction of the section or its end tangents turn by more than ~10 degrees. The turning bound
@@ -139,24 +169,8 @@ void Rod::sampleCenterline() {
   }
   sampleDeviation_ = std::move(devs);
 
-  pieces_.clear();
   c0Samples.push_back(out.size() - 1);
-  std::size_t first = 0;
-  for (const std::size_t last : c0Samples) {
-    SmoothPiece piece;
-    piece.begin = sampleU_[first];
-    piece.end = sampleU_[last];
-    piece.firstSample = first;
-    piece.lastSample = last;
-    piece.endFromBelow = last + 1 < out.size();
-    Vec3 d[3];
-    evaluate(piece.begin, false, d);
-    piece.beginTangent = unitTangent(d[1], d[2]);
-    evaluate(piece.end, piece.endFromBelow, d);
-    piece.endTangent = piece.endFromBelow ? unitTangentFromBelow(d[1], d[2]) : unitTangent(d[1], d[2]);
-    pieces_.push_back(piece);
-    first = last;
-  }
+  pieces_ = piecesBetween(sampleU_, c0Samples, [&](double u, bool fromBelow, Vec3* d) { evaluate(u, fromBelow, d); });
   estimateCurvature(unresolved);
   cacheJets();
 }
