@@ -223,6 +223,37 @@ void Rod::estimateCurvature(const std::vector<bool>& unresolved) {
   }
 }
 
+namespace {
+
+// Safeguarded Newton (Numerical Recipes' rtsafe) for a zero of g on [a, b], where g(a) < 0 < g(b):
+// `gAndSlope(u)` returns {g(u), g'(u)}. A Newton step that would leave the bracket, or shrink it
+// slower than bisection, is a bisection instead. Returns the zero clamped to [a, b].
+template <class GAndSlope>
+double safeguardedNewton(double a, double b, GAndSlope gAndSlope) {
+  double lo = a, hi = b;
+  double u = 0.5 * (a + b);
+  double dxOld = b - a, dx = dxOld;
+  const double tol = 1e-15 * std::max(1.0, std::abs(b) + std::abs(a));
+  for (int it = 0; it < 60; ++it) {
+    const auto [g, dg] = gAndSlope(u);
+    if (g < 0.0) lo = u; else hi = u;
+    const bool newtonOutside = ((u - hi) * dg - g) * ((u - lo) * dg - g) > 0.0;
+    const bool newtonSlow = std::abs(2.0 * g) > std::abs(dxOld * dg);
+    dxOld = dx;
+    if (newtonOutside || newtonSlow || dg <= 0.0) {
+      dx = 0.5 * (hi - lo);
+      u = lo + dx;
+    } else {
+      dx = g / dg;
+      u -= dx;
+    }
+    if (std::abs(dx) < tol || g == 0.0) break;
+  }
+  return std::clamp(u, a, b);
+}
+
+}  // namespace
+
 ClosestPoint Rod::closestPointInInterval(const Vec3& p, double a, double b) const {
   auto f = [&](double u, Vec3* d) {
     centerline_.derivatives(u, 2, d);
@@ -239,28 +270,11 @@ ClosestPoint Rod::closestPointInInterval(const Vec3& p, double a, double b) cons
   const double fb = f(b, d);
   if (fb <= 0.0) return result(b);
 
-  // Safeguarded Newton (Numerical Recipes' rtsafe) on g(u) = (r - p) . r', bracketed by [lo, hi].
-  double lo = a, hi = b;
-  double u = 0.5 * (a + b);
-  double dxOld = b - a, dx = dxOld;
-  const double tol = 1e-15 * std::max(1.0, std::abs(b) + std::abs(a));
-  for (int it = 0; it < 60; ++it) {
+  // g(u) = (r - p) . r', negative at a and positive at b.
+  return result(safeguardedNewton(a, b, [&](double u) {
     const double g = f(u, d);
-    const double dg = d[1].squaredNorm() + (d[0] - p).dot(d[2]);
-    if (g < 0.0) lo = u; else hi = u;
-    const bool newtonOutside = ((u - hi) * dg - g) * ((u - lo) * dg - g) > 0.0;
-    const bool newtonSlow = std::abs(2.0 * g) > std::abs(dxOld * dg);
-    dxOld = dx;
-    if (newtonOutside || newtonSlow || dg <= 0.0) {
-      dx = 0.5 * (hi - lo);
-      u = lo + dx;
-    } else {
-      dx = g / dg;
-      u -= dx;
-    }
-    if (std::abs(dx) < tol || g == 0.0) break;
-  }
-  return result(std::clamp(u, a, b));
+    return std::pair{g, d[1].squaredNorm() + (d[0] - p).dot(d[2])};
+  }));
 }
 
 ClosestPoint Rod::closestPoint(const Vec3& p) const {
@@ -280,34 +294,17 @@ ClosestPoint Rod::closestPoint(const Vec3& p) const {
 }
 
 double Rod::solveCrossing(const Vec3& p, double a, double b, double sign) const {
-  // Safeguarded Newton (Numerical Recipes' rtsafe) on sign * g(u), g = (r - p) . r', negative at a and
-  // positive at b; sign = -1 finds the zeros where g falls (farthest points, only on tight bends).
+  // A zero of sign * g(u), g = (r - p) . r', negative at a and positive at b; sign = -1 finds the zeros
+  // where g falls (farthest points, only on tight bends).
   auto f = [&](double u, Vec3* d) {
     centerline_.derivatives(u, 2, d);
     return sign * (d[0] - p).dot(d[1]);
   };
   Vec3 d[3];
-  double lo = a, hi = b;
-  double u = 0.5 * (a + b);
-  double dxOld = b - a, dx = dxOld;
-  const double tol = 1e-15 * std::max(1.0, std::abs(b) + std::abs(a));
-  for (int it = 0; it < 60; ++it) {
+  return safeguardedNewton(a, b, [&](double u) {
     const double g = f(u, d);
-    const double dg = sign * (d[1].squaredNorm() + (d[0] - p).dot(d[2]));
-    if (g < 0.0) lo = u; else hi = u;
-    const bool newtonOutside = ((u - hi) * dg - g) * ((u - lo) * dg - g) > 0.0;
-    const bool newtonSlow = std::abs(2.0 * g) > std::abs(dxOld * dg);
-    dxOld = dx;
-    if (newtonOutside || newtonSlow || dg <= 0.0) {
-      dx = 0.5 * (hi - lo);
-      u = lo + dx;
-    } else {
-      dx = g / dg;
-      u -= dx;
-    }
-    if (std::abs(dx) < tol || g == 0.0) break;
-  }
-  return std::clamp(u, a, b);
+    return std::pair{g, sign * (d[1].squaredNorm() + (d[0] - p).dot(d[2]))};
+  });
 }
 
 namespace {

@@ -255,6 +255,24 @@ bool emptyWord(const std::uint8_t* a, const std::uint8_t* b, std::size_t at) {
   return !(x | y);
 }
 
+// Calls visit(column, isRigid) for every pixel set in either row, left to right, a word of empty
+// bytes at a time where it can.
+template <class Visit>
+void forEachPixel(const std::uint8_t* rigid, const std::uint8_t* rubbery, std::size_t stride, Visit visit) {
+  for (std::size_t byte = 0; byte < stride; ++byte) {
+    if (byte % 8 == 0 && byte + 8 <= stride && emptyWord(rigid, rubbery, byte)) {
+      byte += 7;
+      continue;
+    }
+    const std::uint8_t any = rigid[byte] | rubbery[byte];
+    if (!any) continue;
+    for (int bit = 0; bit < 8; ++bit) {
+      if (!((any >> (7 - bit)) & 1)) continue;
+      visit(static_cast<int>(byte) * 8 + bit, ((rigid[byte] >> (7 - bit)) & 1) != 0);
+    }
+  }
+}
+
 }  // namespace
 
 void Previews::addLayer(int layer, const LayerBitmaps& b, const openvdb::FloatGrid* modulus) {
@@ -266,24 +284,13 @@ void Previews::addLayer(int layer, const LayerBitmaps& b, const openvdb::FloatGr
   for (int r = h - 1; r >= 0; --r) {
     const std::uint8_t* rigid = b.rigid.row(r);
     const std::uint8_t* rubbery = b.rubbery.row(r);
-    const std::size_t stride = b.rigid.stride();
-    for (std::size_t byte = 0; byte < stride; ++byte) {
-      if (byte % 8 == 0 && byte + 8 <= stride && emptyWord(rigid, rubbery, byte)) {
-        byte += 7;
-        continue;
-      }
-      const std::uint8_t any = rigid[byte] | rubbery[byte];
-      if (!any) continue;
-      for (int bit = 0; bit < 8; ++bit) {
-        if (!((any >> (7 - bit)) & 1)) continue;
-        const int c = static_cast<int>(byte) * 8 + bit;
-        const std::size_t at = static_cast<std::size_t>(layer) * w + c;
-        if (front_.material[at]) continue;
-        front_.material[at] = ((rigid[byte] >> (7 - bit)) & 1) ? 1 : 2;
-        front_.depth[at] = r;
-        front_.modulus[at] = modulusAt(modulus, acc ? &*acc : nullptr, {geometry_.i(c), geometry_.j(r), k});
-      }
-    }
+    forEachPixel(rigid, rubbery, b.rigid.stride(), [&](int c, bool isRigid) {
+      const std::size_t at = static_cast<std::size_t>(layer) * w + c;
+      if (front_.material[at]) return;
+      front_.material[at] = isRigid ? 1 : 2;
+      front_.depth[at] = r;
+      front_.modulus[at] = modulusAt(modulus, acc ? &*acc : nullptr, {geometry_.i(c), geometry_.j(r), k});
+    });
   }
   // Right side view: looking along -x, the visible voxel of a row has the largest x (last column).
   for (int r = 0; r < h; ++r) {
@@ -335,24 +342,13 @@ void Previews::addTopLayers(int first, const std::vector<LayerBitmaps>& layers, 
         const std::uint8_t* rigid = layers[n].rigid.row(r);
         const std::uint8_t* rubbery = layers[n].rubbery.row(r);
         const int layer = first + static_cast<int>(n);
-        const std::size_t stride = layers[n].rigid.stride();
-        for (std::size_t byte = 0; byte < stride; ++byte) {
-          if (byte % 8 == 0 && byte + 8 <= stride && emptyWord(rigid, rubbery, byte)) {
-            byte += 7;
-            continue;
-          }
-          const std::uint8_t any = rigid[byte] | rubbery[byte];
-          if (!any) continue;
-          for (int bit = 0; bit < 8; ++bit) {
-            if (!((any >> (7 - bit)) & 1)) continue;
-            const int c = static_cast<int>(byte) * 8 + bit;
-            const std::size_t at = static_cast<std::size_t>(r) * w + c;
-            if (top_.material[at] && top_.depth[at] >= first) continue;  // a higher layer of this band
-            top_.material[at] = ((rigid[byte] >> (7 - bit)) & 1) ? 1 : 2;
-            top_.depth[at] = layer;
-            if (modulus) top_.modulus[at] = modulusAt(modulus, &*acc, {geometry_.i(c), geometry_.j(r), geometry_.k(layer)});
-          }
-        }
+        forEachPixel(rigid, rubbery, layers[n].rigid.stride(), [&](int c, bool isRigid) {
+          const std::size_t at = static_cast<std::size_t>(r) * w + c;
+          if (top_.material[at] && top_.depth[at] >= first) return;  // a higher layer of this band
+          top_.material[at] = isRigid ? 1 : 2;
+          top_.depth[at] = layer;
+          if (modulus) top_.modulus[at] = modulusAt(modulus, &*acc, {geometry_.i(c), geometry_.j(r), geometry_.k(layer)});
+        });
       }
     }
   });
