@@ -228,7 +228,7 @@ TEST_CASE("NLopt's MMA and CCSAQ on the manufactured problem: g falls, one repor
   CHECK(problem.evaluate(result.modulus, false).objective == Approx(result.final.objective).epsilon(1e-9));
 }
 
-TEST_CASE("--start: the design's modulus, or one modulus everywhere within the bounds", "[optimize]") {
+TEST_CASE("The start (--start): the design's modulus, or one modulus everywhere within the bounds", "[optimize]") {
   CHECK_FALSE(optimize::parseStart("design")->uniform);
   CHECK(optimize::parseStart("uniform")->uniform);
   CHECK(optimize::parseStart("uniform")->mpa == 0.0);
