@@ -1,6 +1,7 @@
 #include "calibration/plot.hpp"
 
 #include "common/output_file.hpp"
+#include "common/plot_canvas.hpp"
 #include "common/png_tag.hpp"
 
 
@@ -13,7 +14,6 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
-#include <memory>
 #include <stdexcept>
 #include <string>
 
@@ -121,11 +121,6 @@ std::string fitLabel(const Calibration& c) {
     case Model::LogPower: return "fit: log-power law, exponent n = " + format("%.4f", p.exponent);
   }
   return {};
-}
-
-cairo_status_t appendToString(void* closure, const unsigned char* data, unsigned int length) {
-  static_cast<std::string*>(closure)->append(reinterpret_cast<const char*>(data), length);
-  return CAIRO_STATUS_SUCCESS;
 }
 
 using Groups = std::map<double, std::pair<double, int>>;  // fraction -> (sum of ln E, count)
@@ -243,14 +238,8 @@ std::string renderFitPlot(const Calibration& c) {
   for (const Measurement& m : measurements) lo = std::min(lo, m.modulusMpa), hi = std::max(hi, m.modulusMpa);
   const Axes a{std::floor(std::log10(lo)), std::max(std::ceil(std::log10(hi)), std::floor(std::log10(lo)) + 1)};
 
-  std::unique_ptr<cairo_surface_t, decltype(&cairo_surface_destroy)> surface(
-      cairo_image_surface_create(CAIRO_FORMAT_RGB24, kWidth, kHeight), cairo_surface_destroy);
-  std::unique_ptr<cairo_t, decltype(&cairo_destroy)> context(cairo_create(surface.get()), cairo_destroy);
-  cairo_t* cr = context.get();
-  if (cairo_status(cr) != CAIRO_STATUS_SUCCESS) throw std::runtime_error(std::string("cairo: ") + cairo_status_to_string(cairo_status(cr)));
-  cairo_select_font_face(cr, "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
-  cairo_set_source_rgb(cr, 1, 1, 1);
-  cairo_paint(cr);
+  const common::PlotCanvas canvas(kWidth, kHeight);
+  cairo_t* cr = canvas.context();
 
   const double yFloor = c.floorMpa() > 0 ? a.y(c.floorMpa()) : kHeight - kBottom;
   drawFloor(cr, a, c, yFloor);
@@ -265,11 +254,7 @@ std::string renderFitPlot(const Calibration& c) {
   drawLegend(cr, a, c, groups, floorText);
   text(cr, kLeft, 34, plotTitle(c.record()), Align::Left, 17);
 
-  cairo_surface_flush(surface.get());
-  std::string bytes;
-  const cairo_status_t status = cairo_surface_write_to_png_stream(surface.get(), appendToString, &bytes);
-  if (status != CAIRO_STATUS_SUCCESS) throw std::runtime_error(std::string("cairo PNG encoding failed: ") + cairo_status_to_string(status));
-  return common::withSoftwareTag(bytes, kSoftware);
+  return canvas.png(kSoftware);
 }
 
 void writeFitPlot(const Calibration& c, const std::filesystem::path& png) {
