@@ -3,10 +3,17 @@
 #include "materials/band_leaves.hpp"
 #include "materials/counter_hash.hpp"
 
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <array>
+#include <atomic>
+#include <limits>
 #include <stdexcept>
 #include <string>
+
+#include <utility>
 
 namespace rodfab::materials {
 
@@ -89,6 +96,196 @@ private:
   std::vector<std::int32_t> slots_;
 };
 
+constexpr int kNoRowYet = std::numeric_limits<int>::min();
+constexpr int kAllRows = std::numeric_limits<int>::max();
+
+// One layer of the band in flight: its voxels, the error they have received so far, and how far its
+// diffusion has got (the j of the last finished row; kAllRows when the layer is done). `preparedFor`
+// says which layer the slot holds: slots are reused round the ring.
+struct LayerSlot {
+  Layer layer;
+  std::vector<float> error;
+  std::atomic<int> finishedThroughRow{kNoRowYet};
+  std::atomic<int> preparedFor{kNoRowYet};
+};
+
+// Waits until `value` >= atLeast: a short spin (the worker below is usually a row ahead), then asleep
+// until the worker that stores the value wakes it (publish()), so a preempted worker costs no CPU.
+void waitUntil(const std::atomic<int>& value, int atLeast) {
+  for (int spins = 0; spins < 256; ++spins)
+    if (value.load(std::memory_order_acquire) >= atLeast) return;
+  for (int seen = value.load(std::memory_order_acquire); seen < atLeast; seen = value.load(std::memory_order_acquire))
+    value.wait(seen, std::memory_order_acquire);
+}
+
+void publish(std::atomic<int>& value, int newValue) {
+  value.store(newValue, std::memory_order_release);
+  value.notify_all();
+}
+
+// Floyd-Steinberg weights: ahead in the row, then behind / below / ahead in the next row.
+constexpr float kInLayer = 1.0f - ErrorDiffusionDitherer::kShareToNextLayer;
+constexpr std::array<float, 4> kWeights{7.0f / 16 * kInLayer, 3.0f / 16 * kInLayer, 5.0f / 16 * kInLayer,
+                                        1.0f / 16 * kInLayer};
+
+// The diffusion of one band, layer by layer as a wavefront: the worker on layer k starts its row j once
+// layer k - 1 has finished row j + 1. Row j of layer k receives error from row j of layer k - 1 (the
+// share sent up) and from its own rows j - 1 and j; row j + 1 from row j. Waiting for row j + 1 below
+// before writing into row j + 1 keeps every voxel's additions in the sequential sweep's order, so the
+// floats, and the pattern, are the same for any number of workers.
+class BandDiffusion {
+public:
+  BandDiffusion(const std::vector<const FloatLeaf*>& leaves, std::vector<std::unique_ptr<BoolLeaf>>& out, int k0, int k1,
+                std::uint64_t seed, int workers)
+      : leaves_(leaves), out_(out), k0_(k0), k1_(k1), seed_(seed), slots_(static_cast<std::size_t>(workers) + 2),
+        rowWidth_(xRange(leaves)), nextLayer_(k0) {
+    prepare(k0);
+  }
+  LayerSlot& firstLayer() { return slot(k0_); }
+
+  // Each worker claims the next layer until the band is done; a worker only ever waits for a layer
+  // claimed before its own, whose worker is running, so one worker alone does the whole band.
+  void work() {
+    RowIndex nextRowIndex(rowWidth_.first, rowWidth_.second), aboveIndex(rowWidth_.first, rowWidth_.second);
+    for (int k = nextLayer_.fetch_add(1); k < k1_; k = nextLayer_.fetch_add(1)) {
+      waitUntil(slot(k).preparedFor, k);
+      prepare(k + 1);
+      diffuseLayer(k, nextRowIndex, aboveIndex);
+    }
+  }
+  // After work(): the error left for layer k1, and the first voxel whose fraction was not in [0, 1].
+  const LayerSlot& lastLayer() { return slot(k1_); }
+  const detail::FractionCheck& check() const { return check_; }
+
+private:
+  static std::pair<int, int> xRange(const std::vector<const FloatLeaf*>& leaves) {
+    int xMin = 0, xMax = -1;
+    for (std::size_t l = 0; l < leaves.size(); ++l) {
+      xMin = l == 0 ? leaves[l]->origin().x() : std::min(xMin, leaves[l]->origin().x());
+      xMax = l == 0 ? leaves[l]->origin().x() + 7 : std::max(xMax, leaves[l]->origin().x() + 7);
+    }
+    return {xMin, xMax - xMin + 1};
+  }
+  LayerSlot& slot(int k) { return slots_[static_cast<std::size_t>(k - k0_) % slots_.size()]; }
+
+  // A slot is read by three workers: its own layer's, the one below (which sends error up into it) and
+  // the one above (which waits on its progress). So the slot of layer k - slots is reused for k once
+  // layer k - slots + 1 is done (layers finish in order). At most `workers` layers are in progress, the
+  // last ones claimed, so with slots = workers + 2 it is done by now; the wait makes that a guarantee.
+  void prepare(int k) {
+    LayerSlot& s = slot(k);
+    const int lastReader = k - static_cast<int>(slots_.size()) + 1;
+    if (lastReader > k0_) waitUntil(slot(lastReader).finishedThroughRow, kAllRows);
+    s.layer = enumerateLayer(leaves_, k);
+    s.error.assign(s.layer.voxels.size(), 0.0f);
+    s.finishedThroughRow.store(kNoRowYet, std::memory_order_relaxed);
+    publish(s.preparedFor, k);
+  }
+
+  void diffuseLayer(int k, RowIndex& nextRowIndex, RowIndex& aboveIndex) {
+    LayerSlot& here = slot(k);
+    LayerSlot& above = slot(k + 1);
+    const std::atomic<int>* below = k > k0_ ? &slot(k - 1).finishedThroughRow : nullptr;
+    const Layer& layer = here.layer;
+    std::size_t aboveRow = 0;
+    for (std::size_t r = 0; r < layer.rows.size(); ++r) {
+      const Row& row = layer.rows[r];
+      if (below) waitUntil(*below, row.j + 1);
+      const Row* nextRow = r + 1 < layer.rows.size() && layer.rows[r + 1].j == row.j + 1 ? &layer.rows[r + 1] : nullptr;
+      while (aboveRow < above.layer.rows.size() && above.layer.rows[aboveRow].j < row.j) ++aboveRow;
+      const Row* rowAbove =
+          aboveRow < above.layer.rows.size() && above.layer.rows[aboveRow].j == row.j ? &above.layer.rows[aboveRow] : nullptr;
+      if (nextRow) nextRowIndex.fill(layer, *nextRow);
+      if (rowAbove) aboveIndex.fill(above.layer, *rowAbove);
+      diffuseRow(k, layer, row, nextRow ? &nextRowIndex : nullptr, rowAbove ? &aboveIndex : nullptr, here.error, above.error);
+      if (nextRow) nextRowIndex.clear(layer, *nextRow);
+      if (rowAbove) aboveIndex.clear(above.layer, *rowAbove);
+      publish(here.finishedThroughRow, row.j);
+    }
+    if (below) waitUntil(*below, kAllRows);  // layers finish in order: see prepare()
+    publish(here.finishedThroughRow, kAllRows);
+  }
+
+  // Sets a voxel's bit with an atomic OR: the worker on the next layer writes the same leaves' words.
+  void setVero(const Voxel& voxel) {
+    auto* words = out_[voxel.leaf]->buffer().data();
+    std::atomic_ref<std::uint64_t>(words[voxel.offset >> 6]).fetch_or(std::uint64_t{1} << (voxel.offset & 63),
+                                                                       std::memory_order_relaxed);
+  }
+
+  // The serpentine sweep of one row (direction alternating with j + k), each voxel's error sent to the
+  // neighbours inside the part, weights renormalized over them.
+  void diffuseRow(int k, const Layer& layer, const Row& row, const RowIndex* nextRowIndex, const RowIndex* aboveIndex,
+                  std::vector<float>& error, std::vector<float>& errorAbove) {
+    const int dir = ((row.j + k) & 1) ? -1 : +1;
+    const auto count = static_cast<std::int64_t>(row.end - row.begin);
+    for (std::int64_t step = 0; step < count; ++step) {
+      const std::uint32_t v = dir > 0 ? row.begin + static_cast<std::uint32_t>(step) : row.end - 1 - static_cast<std::uint32_t>(step);
+      const Voxel& voxel = layer.voxels[v];
+      const float f = voxel.fraction;
+      if (!detail::FractionCheck::valid(f)) {
+        check_.fail(voxel.leaf, voxel.offset);
+        continue;
+      }
+      const float wanted = f + error[v];
+      const float threshold = 0.5f + ErrorDiffusionDitherer::kThresholdJitter * (voxelUniform(seed_, voxel.i, row.j, k) - 0.5f);
+      const bool vero = f >= 1.0f || (f > 0.0f && wanted >= threshold);
+      if (vero) setVero(voxel);
+      const float residual = wanted - (vero ? 1.0f : 0.0f);
+
+      std::array<std::int32_t, 4> targets{-1, -1, -1, -1};
+      if (step + 1 < count) {
+        const std::uint32_t a = dir > 0 ? v + 1 : v - 1;
+        if (layer.voxels[a].i == voxel.i + dir) targets[0] = static_cast<std::int32_t>(a);
+      }
+      if (nextRowIndex) {
+        targets[1] = nextRowIndex->at(voxel.i - dir);
+        targets[2] = nextRowIndex->at(voxel.i);
+        targets[3] = nextRowIndex->at(voxel.i + dir);
+      }
+      const std::int32_t up = aboveIndex ? aboveIndex->at(voxel.i) : -1;
+      float total = up >= 0 ? ErrorDiffusionDitherer::kShareToNextLayer : 0.0f;
+      for (int t = 0; t < 4; ++t)
+        if (targets[t] >= 0) total += kWeights[t];
+      if (total <= 0.0f) continue;  // an isolated voxel with nothing after it: its error has nowhere to go
+      const float scale = residual / total;
+      for (int t = 0; t < 4; ++t)
+        if (targets[t] >= 0) error[static_cast<std::size_t>(targets[t])] += kWeights[t] * scale;
+      if (up >= 0) errorAbove[static_cast<std::size_t>(up)] += ErrorDiffusionDitherer::kShareToNextLayer * scale;
+    }
+  }
+
+  const std::vector<const FloatLeaf*>& leaves_;
+  std::vector<std::unique_ptr<BoolLeaf>>& out_;
+  const int k0_, k1_;
+  const std::uint64_t seed_;
+  std::vector<LayerSlot> slots_;
+  const std::pair<int, int> rowWidth_;  // x of the band's first column and the number of columns
+  std::atomic<int> nextLayer_;
+  detail::FractionCheck check_;
+};
+
+// The previous band's error for layer k0, matched by (j, i): both lists are in that order.
+template <class Carries>
+void takeCarry(const Carries& carry, LayerSlot& first, int k0) {
+  const Layer& layer = first.layer;
+  std::size_t r = 0, v = 0;
+  for (const auto& c : carry) {
+    while (r < layer.rows.size() && layer.rows[r].j < c.j) ++r;
+    bool found = false;
+    if (r < layer.rows.size() && layer.rows[r].j == c.j) {
+      v = std::max<std::size_t>(v, layer.rows[r].begin);
+      while (v < layer.rows[r].end && layer.voxels[v].i < c.i) ++v;
+      found = v < layer.rows[r].end && layer.voxels[v].i == c.i;
+    }
+    if (!found)
+      throw std::logic_error("error-diffusion: voxel (" + std::to_string(c.i) + ", " + std::to_string(c.j) + ", " +
+                             std::to_string(k0) + ") was inside the part one layer past the previous band but "
+                             "is not in this band's grid: consecutive bands' grids disagree");
+    first.error[v] = c.error;
+  }
+}
+
 }  // namespace
 
 openvdb::BoolGrid::Ptr ErrorDiffusionDitherer::ditherLeafVoxels(const openvdb::FloatGrid& fraction, int k0, int k1) {
@@ -98,108 +295,26 @@ openvdb::BoolGrid::Ptr ErrorDiffusionDitherer::ditherLeafVoxels(const openvdb::F
   // One layer past the band: its active voxels decide where the last layer's error may go.
   const std::vector<const FloatLeaf*> leaves = detail::leavesInLayers(fraction.tree(), k0, k1 + 1);
   std::vector<std::unique_ptr<BoolLeaf>> out(leaves.size());
-  int xMin = 0, xMax = -1;
   for (std::size_t l = 0; l < leaves.size(); ++l) {
-    const FloatLeaf& in = *leaves[l];
-    xMin = l == 0 ? in.origin().x() : std::min(xMin, in.origin().x());
-    xMax = l == 0 ? in.origin().x() + 7 : std::max(xMax, in.origin().x() + 7);
-    const detail::LeafMask mask = detail::activeInLayers(in, k0, k1);
+    const detail::LeafMask mask = detail::activeInLayers(*leaves[l], k0, k1);
     if (mask.isOff()) continue;
-    out[l] = std::make_unique<BoolLeaf>(in.origin(), false, false);
+    out[l] = std::make_unique<BoolLeaf>(leaves[l]->origin(), false, false);
     out[l]->setValueMask(mask);
   }
   if (k0 == k1) return detail::assembleMaterialGrid(out, fraction);
 
-  detail::FractionCheck check;
-  RowIndex nextRowIndex(xMin, xMax - xMin + 1), aboveIndex(xMin, xMax - xMin + 1);
-  Layer layer = enumerateLayer(leaves, k0);
-  std::vector<float> error(layer.voxels.size(), 0.0f);
-  if (started_) {
-    // The previous band's error for this layer, matched by (j, i): both lists are in that order.
-    std::size_t r = 0, v = 0;
-    for (const Carry& c : carry_) {
-      while (r < layer.rows.size() && layer.rows[r].j < c.j) ++r;
-      bool found = false;
-      if (r < layer.rows.size() && layer.rows[r].j == c.j) {
-        v = std::max<std::size_t>(v, layer.rows[r].begin);
-        while (v < layer.rows[r].end && layer.voxels[v].i < c.i) ++v;
-        found = v < layer.rows[r].end && layer.voxels[v].i == c.i;
-      }
-      if (!found)
-        throw std::logic_error("error-diffusion: voxel (" + std::to_string(c.i) + ", " + std::to_string(c.j) + ", " +
-                               std::to_string(k0) + ") was inside the part one layer past the previous band but "
-                               "is not in this band's grid: consecutive bands' grids disagree");
-      error[v] = c.error;
-    }
-  }
-
-  // Floyd-Steinberg weights: ahead in the row, then behind / below / ahead in the next row.
-  constexpr float inLayer = 1.0f - kShareToNextLayer;
-  constexpr std::array<float, 4> weights{7.0f / 16 * inLayer, 3.0f / 16 * inLayer, 5.0f / 16 * inLayer,
-                                         1.0f / 16 * inLayer};
-  for (int k = k0; k < k1; ++k) {
-    Layer above = enumerateLayer(leaves, k + 1);
-    std::vector<float> errorAbove(above.voxels.size(), 0.0f);
-    std::size_t aboveRow = 0;
-    for (std::size_t r = 0; r < layer.rows.size(); ++r) {
-      const Row& row = layer.rows[r];
-      const Row* nextRow = r + 1 < layer.rows.size() && layer.rows[r + 1].j == row.j + 1 ? &layer.rows[r + 1] : nullptr;
-      while (aboveRow < above.rows.size() && above.rows[aboveRow].j < row.j) ++aboveRow;
-      const Row* rowAbove = aboveRow < above.rows.size() && above.rows[aboveRow].j == row.j ? &above.rows[aboveRow] : nullptr;
-      if (nextRow) nextRowIndex.fill(layer, *nextRow);
-      if (rowAbove) aboveIndex.fill(above, *rowAbove);
-
-      const int dir = ((row.j + k) & 1) ? -1 : +1;
-      const auto count = static_cast<std::int64_t>(row.end - row.begin);
-      for (std::int64_t step = 0; step < count; ++step) {
-        const std::uint32_t v = dir > 0 ? row.begin + static_cast<std::uint32_t>(step)
-                                        : row.end - 1 - static_cast<std::uint32_t>(step);
-        const Voxel& voxel = layer.voxels[v];
-        const float f = voxel.fraction;
-        if (!detail::FractionCheck::valid(f)) {
-          check.fail(voxel.leaf, voxel.offset);
-          continue;
-        }
-        const float wanted = f + error[v];
-        const float threshold = 0.5f + kThresholdJitter * (voxelUniform(seed_, voxel.i, row.j, k) - 0.5f);
-        const bool vero = f >= 1.0f || (f > 0.0f && wanted >= threshold);
-        if (vero) out[voxel.leaf]->setValueOnly(voxel.offset, true);
-        const float residual = wanted - (vero ? 1.0f : 0.0f);
-
-        // Neighbours that are inside the part, with their weights; renormalized below.
-        std::array<std::int32_t, 4> targets{-1, -1, -1, -1};
-        const std::int64_t aheadStep = step + 1;
-        if (aheadStep < count) {
-          const std::uint32_t a = dir > 0 ? v + 1 : v - 1;
-          if (layer.voxels[a].i == voxel.i + dir) targets[0] = static_cast<std::int32_t>(a);
-        }
-        if (nextRow) {
-          targets[1] = nextRowIndex.at(voxel.i - dir);
-          targets[2] = nextRowIndex.at(voxel.i);
-          targets[3] = nextRowIndex.at(voxel.i + dir);
-        }
-        const std::int32_t up = rowAbove ? aboveIndex.at(voxel.i) : -1;
-        float total = up >= 0 ? kShareToNextLayer : 0.0f;
-        for (int t = 0; t < 4; ++t)
-          if (targets[t] >= 0) total += weights[t];
-        if (total <= 0.0f) continue;  // an isolated voxel with nothing after it: its error has nowhere to go
-        const float scale = residual / total;
-        for (int t = 0; t < 4; ++t)
-          if (targets[t] >= 0) error[targets[t]] += weights[t] * scale;
-        if (up >= 0) errorAbove[up] += kShareToNextLayer * scale;
-      }
-      if (nextRow) nextRowIndex.clear(layer, *nextRow);
-      if (rowAbove) aboveIndex.clear(above, *rowAbove);
-    }
-    layer = std::move(above);
-    error = std::move(errorAbove);
-  }
-  check.throwIfFailed(fraction, leaves);
+  // Layers form a chain; more than a few workers would only wait on each other.
+  const int workers = std::clamp(tbb::this_task_arena::max_concurrency(), 1, 4);
+  BandDiffusion band(leaves, out, k0, k1, seed_, workers);
+  if (started_) takeCarry(carry_, band.firstLayer(), k0);
+  tbb::parallel_for(0, workers, [&](int) { band.work(); });
+  band.check().throwIfFailed(fraction, leaves);
 
   carry_.clear();
-  for (const Row& row : layer.rows)
+  const LayerSlot& last = band.lastLayer();
+  for (const Row& row : last.layer.rows)
     for (std::uint32_t v = row.begin; v < row.end; ++v)
-      if (error[v] != 0.0f) carry_.push_back({layer.voxels[v].i, row.j, error[v]});
+      if (last.error[v] != 0.0f) carry_.push_back({last.layer.voxels[v].i, row.j, last.error[v]});
   started_ = true;
   nextLayer_ = k1;
   return detail::assembleMaterialGrid(out, fraction);

@@ -19,6 +19,12 @@ namespace rodfab::materials {
 // their mean. The threshold is 0.5 jittered by +-kThresholdJitter/2 from a hash of (seed, i, j, k): it
 // breaks up the regular "worms" plain error diffusion draws at simple fractions, and the seed chooses
 // among equally good patterns.
+//
+// Threads: a band's layers are diffused as a wavefront on up to 4 of the arena's threads, the worker on
+// layer k starting its row j once layer k - 1 has finished row j + 1. Every voxel then receives its
+// error contributions in the order a single sweep gives them, so the pattern is bit for bit the same
+// for any thread count (tests/test_materials.cpp checks 1, 2 and 4). A waiting worker sleeps (C++20
+// atomic wait), so oversubscribed cores cost time, not CPU. Bands follow each other on one ditherer.
 class ErrorDiffusionDitherer final : public Ditherer {
 public:
   static constexpr float kShareToNextLayer = 0.8f;

@@ -4,6 +4,7 @@
 #include <catch2/catch.hpp>
 
 #include <tbb/global_control.h>
+#include <tbb/task_arena.h>
 
 #include <cmath>
 #include <filesystem>
@@ -252,6 +253,9 @@ TEST_CASE("materials: ditherers: identical for 1 and 2 threads and for any band 
       dual = makeDitherer(method, {3, nullptr})->dither(*part);
     }
     CHECK(sameMaterial(*single, *dual));
+    // More workers than cores: error diffusion's layer wavefront then waits on preempted workers.
+    tbb::task_arena four(4);
+    CHECK(sameMaterial(*single, *four.execute([&] { return makeDitherer(method, {3, nullptr})->dither(*part); })));
 
     for (int band : {1, 5, 8, 13, 64}) {
       INFO("band of " << band << " layers");
@@ -319,6 +323,10 @@ TEST_CASE("materials: ditherers: bad input is named", "[materials][dither]") {
   }
   grid->tree().setValue(openvdb::Coord(3, 4, 5), std::numeric_limits<float>::quiet_NaN());
   CHECK_THROWS_WITH(makeDitherer("white")->dither(*grid), Catch::Contains("(3, 4, 5)"));
+  // Error diffusion's workers each find bad voxels; the first in leaf order is reported, as above.
+  grid->tree().setValue(openvdb::Coord(6, 2, 7), -0.5f);
+  tbb::task_arena four(4);
+  four.execute([&] { CHECK_THROWS_WITH(makeDitherer("error-diffusion")->dither(*grid), Catch::Contains("(3, 4, 5)")); });
 
   // Error diffusion streams: bands must follow each other, and consecutive grids must agree.
   const auto block = makeUniformBlock(openvdb::Coord(10, 10, 10), 0.3f, kTestVoxel);
