@@ -98,6 +98,7 @@ private:
 
 constexpr int kNoRowYet = std::numeric_limits<int>::min();
 constexpr int kAllRows = std::numeric_limits<int>::max();
+constexpr int kWakeSlackRows = 8;
 
 // One layer of the band in flight: its voxels, the error they have received so far, and how far its
 // diffusion has got (the j of the last finished row; kAllRows when the layer is done). `preparedFor`
@@ -109,14 +110,16 @@ struct LayerSlot {
   std::atomic<int> preparedFor{kNoRowYet};
 };
 
-// Waits until `value` >= atLeast: a short spin (the worker below is usually a row ahead), then asleep
-// until the worker that stores the value wakes it (publish()), so a preempted worker costs no CPU.
-void waitUntil(const std::atomic<int>& value, int atLeast) {
+// Waits until `value` >= atLeast: a short spin (the worker below is usually ahead), then asleep until
+// the value reaches `wakeAt` (>= atLeast), stored and notified by publish(). Waking for a few rows more
+// than needed lets the follower run that many rows before it can catch up and sleep again.
+void waitUntil(const std::atomic<int>& value, int atLeast, int wakeAt) {
   for (int spins = 0; spins < 256; ++spins)
     if (value.load(std::memory_order_acquire) >= atLeast) return;
-  for (int seen = value.load(std::memory_order_acquire); seen < atLeast; seen = value.load(std::memory_order_acquire))
+  for (int seen = value.load(std::memory_order_acquire); seen < wakeAt; seen = value.load(std::memory_order_acquire))
     value.wait(seen, std::memory_order_acquire);
 }
+void waitUntil(const std::atomic<int>& value, int atLeast) { waitUntil(value, atLeast, atLeast); }
 
 void publish(std::atomic<int>& value, int newValue) {
   value.store(newValue, std::memory_order_release);
@@ -138,23 +141,38 @@ public:
   BandDiffusion(const std::vector<const FloatLeaf*>& leaves, std::vector<std::unique_ptr<BoolLeaf>>& out, int k0, int k1,
                 std::uint64_t seed, int workers)
       : leaves_(leaves), out_(out), k0_(k0), k1_(k1), seed_(seed), slots_(static_cast<std::size_t>(workers) + 2),
-        rowWidth_(xRange(leaves)), nextLayer_(k0) {
+        rowWidth_(xRange(leaves)), nextLayer_(k0), veroByWorker_(static_cast<std::size_t>(workers)) {
     prepare(k0);
   }
   LayerSlot& firstLayer() { return slot(k0_); }
 
   // Each worker claims the next layer until the band is done; a worker only ever waits for a layer
   // claimed before its own, whose worker is running, so one worker alone does the whole band.
-  void work() {
+  void work(int worker) {
+    std::vector<detail::LeafMask>& vero = veroByWorker_[static_cast<std::size_t>(worker)];
+    vero.resize(leaves_.size());
     RowIndex nextRowIndex(rowWidth_.first, rowWidth_.second), aboveIndex(rowWidth_.first, rowWidth_.second);
     for (int k = nextLayer_.fetch_add(1); k < k1_; k = nextLayer_.fetch_add(1)) {
       waitUntil(slot(k).preparedFor, k);
       prepare(k + 1);
-      diffuseLayer(k, nextRowIndex, aboveIndex);
+      diffuseLayer(k, nextRowIndex, aboveIndex, vero);
     }
   }
   // After work(): the error left for layer k1, and the first voxel whose fraction was not in [0, 1].
   const LayerSlot& lastLayer() { return slot(k1_); }
+  // After work(): sets the Vero bits the workers found (each its own masks: layers k and k + 1 share
+  // the leaves' words, and a shared atomic OR made the two workers fight over their cache lines).
+  void storeVero() {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, out_.size()), [&](const tbb::blocked_range<std::size_t>& range) {
+      for (std::size_t l = range.begin(); l != range.end(); ++l) {
+        if (!out_[l]) continue;
+        auto* words = out_[l]->buffer().data();
+        for (const auto& vero : veroByWorker_)
+          if (!vero.empty())
+            for (openvdb::Index w = 0; w < detail::LeafMask::WORD_COUNT; ++w) words[w] |= vero[l].template getWord<std::uint64_t>(w);
+      }
+    });
+  }
   const detail::FractionCheck& check() const { return check_; }
 
 private:
@@ -182,7 +200,7 @@ private:
     publish(s.preparedFor, k);
   }
 
-  void diffuseLayer(int k, RowIndex& nextRowIndex, RowIndex& aboveIndex) {
+  void diffuseLayer(int k, RowIndex& nextRowIndex, RowIndex& aboveIndex, std::vector<detail::LeafMask>& vero) {
     LayerSlot& here = slot(k);
     LayerSlot& above = slot(k + 1);
     const std::atomic<int>* below = k > k0_ ? &slot(k - 1).finishedThroughRow : nullptr;
@@ -190,14 +208,15 @@ private:
     std::size_t aboveRow = 0;
     for (std::size_t r = 0; r < layer.rows.size(); ++r) {
       const Row& row = layer.rows[r];
-      if (below) waitUntil(*below, row.j + 1);
+      if (below) waitUntil(*below, row.j + 1, row.j + 1 + kWakeSlackRows);
       const Row* nextRow = r + 1 < layer.rows.size() && layer.rows[r + 1].j == row.j + 1 ? &layer.rows[r + 1] : nullptr;
       while (aboveRow < above.layer.rows.size() && above.layer.rows[aboveRow].j < row.j) ++aboveRow;
       const Row* rowAbove =
           aboveRow < above.layer.rows.size() && above.layer.rows[aboveRow].j == row.j ? &above.layer.rows[aboveRow] : nullptr;
       if (nextRow) nextRowIndex.fill(layer, *nextRow);
       if (rowAbove) aboveIndex.fill(above.layer, *rowAbove);
-      diffuseRow(k, layer, row, nextRow ? &nextRowIndex : nullptr, rowAbove ? &aboveIndex : nullptr, here.error, above.error);
+      diffuseRow(k, layer, row, nextRow ? &nextRowIndex : nullptr, rowAbove ? &aboveIndex : nullptr, here.error, above.error,
+                 vero);
       if (nextRow) nextRowIndex.clear(layer, *nextRow);
       if (rowAbove) aboveIndex.clear(above.layer, *rowAbove);
       publish(here.finishedThroughRow, row.j);
@@ -206,17 +225,10 @@ private:
     publish(here.finishedThroughRow, kAllRows);
   }
 
-  // Sets a voxel's bit with an atomic OR: the worker on the next layer writes the same leaves' words.
-  void setVero(const Voxel& voxel) {
-    auto* words = out_[voxel.leaf]->buffer().data();
-    std::atomic_ref<std::uint64_t>(words[voxel.offset >> 6]).fetch_or(std::uint64_t{1} << (voxel.offset & 63),
-                                                                       std::memory_order_relaxed);
-  }
-
   // The serpentine sweep of one row (direction alternating with j + k), each voxel's error sent to the
   // neighbours inside the part, weights renormalized over them.
   void diffuseRow(int k, const Layer& layer, const Row& row, const RowIndex* nextRowIndex, const RowIndex* aboveIndex,
-                  std::vector<float>& error, std::vector<float>& errorAbove) {
+                  std::vector<float>& error, std::vector<float>& errorAbove, std::vector<detail::LeafMask>& vero) {
     const int dir = ((row.j + k) & 1) ? -1 : +1;
     const auto count = static_cast<std::int64_t>(row.end - row.begin);
     for (std::int64_t step = 0; step < count; ++step) {
@@ -229,9 +241,9 @@ private:
       }
       const float wanted = f + error[v];
       const float threshold = 0.5f + ErrorDiffusionDitherer::kThresholdJitter * (voxelUniform(seed_, voxel.i, row.j, k) - 0.5f);
-      const bool vero = f >= 1.0f || (f > 0.0f && wanted >= threshold);
-      if (vero) setVero(voxel);
-      const float residual = wanted - (vero ? 1.0f : 0.0f);
+      const bool isVero = f >= 1.0f || (f > 0.0f && wanted >= threshold);
+      if (isVero) vero[voxel.leaf].setOn(voxel.offset);
+      const float residual = wanted - (isVero ? 1.0f : 0.0f);
 
       std::array<std::int32_t, 4> targets{-1, -1, -1, -1};
       if (step + 1 < count) {
@@ -262,6 +274,7 @@ private:
   std::vector<LayerSlot> slots_;
   const std::pair<int, int> rowWidth_;  // x of the band's first column and the number of columns
   std::atomic<int> nextLayer_;
+  std::vector<std::vector<detail::LeafMask>> veroByWorker_;
   detail::FractionCheck check_;
 };
 
@@ -307,7 +320,8 @@ openvdb::BoolGrid::Ptr ErrorDiffusionDitherer::ditherLeafVoxels(const openvdb::F
   const int workers = std::clamp(tbb::this_task_arena::max_concurrency(), 1, 4);
   BandDiffusion band(leaves, out, k0, k1, seed_, workers);
   if (started_) takeCarry(carry_, band.firstLayer(), k0);
-  tbb::parallel_for(0, workers, [&](int) { band.work(); });
+  tbb::parallel_for(0, workers, [&](int worker) { band.work(worker); });
+  band.storeVero();
   band.check().throwIfFailed(fraction, leaves);
 
   carry_.clear();
