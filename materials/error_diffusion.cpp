@@ -9,6 +9,8 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <condition_variable>
+#include <mutex>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -100,31 +102,48 @@ constexpr int kNoRowYet = std::numeric_limits<int>::min();
 constexpr int kAllRows = std::numeric_limits<int>::max();
 constexpr int kWakeSlackRows = 8;
 
+// A value one worker raises and others wait on: a short spin (the worker below is usually ahead), then
+// asleep on a condition variable until it reaches `wakeAt` (>= atLeast; waking for a few rows more than
+// needed lets a follower run that many before it can catch up and sleep again). Not std::atomic::wait:
+// with GCC 12's libstdc++ a band hung in 2 of 3 benchmark runs, a wake-up lost.
+class Progress {
+public:
+  int get() const { return value_.load(std::memory_order_seq_cst); }
+  // Takes the mutex only when someone sleeps: the waiter counts itself before it checks the value, the
+  // publisher stores before it reads the count (both sequentially consistent), so one of them sees the
+  // other and no wake-up is lost.
+  void publish(int value) {
+    value_.store(value, std::memory_order_seq_cst);
+    if (sleepers_.load(std::memory_order_seq_cst) == 0) return;
+    { std::lock_guard<std::mutex> lock(mutex_); }
+    changed_.notify_all();
+  }
+  void waitUntil(int atLeast, int wakeAt) {
+    for (int spins = 0; spins < 256; ++spins)
+      if (get() >= atLeast) return;
+    std::unique_lock<std::mutex> lock(mutex_);
+    sleepers_.fetch_add(1, std::memory_order_seq_cst);
+    changed_.wait(lock, [&] { return get() >= wakeAt; });
+    sleepers_.fetch_sub(1, std::memory_order_seq_cst);
+  }
+  void waitUntil(int atLeast) { waitUntil(atLeast, atLeast); }
+
+private:
+  std::atomic<int> value_{kNoRowYet};
+  std::atomic<int> sleepers_{0};
+  std::mutex mutex_;
+  std::condition_variable changed_;
+};
+
 // One layer of the band in flight: its voxels, the error they have received so far, and how far its
 // diffusion has got (the j of the last finished row; kAllRows when the layer is done). `preparedFor`
 // says which layer the slot holds: slots are reused round the ring.
 struct LayerSlot {
   Layer layer;
   std::vector<float> error;
-  std::atomic<int> finishedThroughRow{kNoRowYet};
-  std::atomic<int> preparedFor{kNoRowYet};
+  Progress finishedThroughRow;
+  Progress preparedFor;
 };
-
-// Waits until `value` >= atLeast: a short spin (the worker below is usually ahead), then asleep until
-// the value reaches `wakeAt` (>= atLeast), stored and notified by publish(). Waking for a few rows more
-// than needed lets the follower run that many rows before it can catch up and sleep again.
-void waitUntil(const std::atomic<int>& value, int atLeast, int wakeAt) {
-  for (int spins = 0; spins < 256; ++spins)
-    if (value.load(std::memory_order_acquire) >= atLeast) return;
-  for (int seen = value.load(std::memory_order_acquire); seen < wakeAt; seen = value.load(std::memory_order_acquire))
-    value.wait(seen, std::memory_order_acquire);
-}
-void waitUntil(const std::atomic<int>& value, int atLeast) { waitUntil(value, atLeast, atLeast); }
-
-void publish(std::atomic<int>& value, int newValue) {
-  value.store(newValue, std::memory_order_release);
-  value.notify_all();
-}
 
 // Floyd-Steinberg weights: ahead in the row, then behind / below / ahead in the next row.
 constexpr float kInLayer = 1.0f - ErrorDiffusionDitherer::kShareToNextLayer;
@@ -140,9 +159,10 @@ class BandDiffusion {
 public:
   BandDiffusion(const std::vector<const FloatLeaf*>& leaves, std::vector<std::unique_ptr<BoolLeaf>>& out, int k0, int k1,
                 std::uint64_t seed, int workers)
-      : leaves_(leaves), out_(out), k0_(k0), k1_(k1), seed_(seed), slots_(static_cast<std::size_t>(workers) + 2),
+      : leaves_(leaves), out_(out), k0_(k0), k1_(k1), seed_(seed), slots_(static_cast<std::size_t>(workers) + 3),
         rowWidth_(xRange(leaves)), nextLayer_(k0), veroByWorker_(static_cast<std::size_t>(workers)) {
     prepare(k0);
+    prepare(k0 + 1);
   }
   LayerSlot& firstLayer() { return slot(k0_); }
 
@@ -153,8 +173,10 @@ public:
     vero.resize(leaves_.size());
     RowIndex nextRowIndex(rowWidth_.first, rowWidth_.second), aboveIndex(rowWidth_.first, rowWidth_.second);
     for (int k = nextLayer_.fetch_add(1); k < k1_; k = nextLayer_.fetch_add(1)) {
-      waitUntil(slot(k).preparedFor, k);
-      prepare(k + 1);
+      // Two layers ahead: the worker that claims k + 1 next must not wait for the enumeration.
+      if (k + 2 <= k1_) prepare(k + 2);
+      slot(k).preparedFor.waitUntil(k);
+      slot(k + 1).preparedFor.waitUntil(k + 1);
       diffuseLayer(k, nextRowIndex, aboveIndex, vero);
     }
   }
@@ -188,27 +210,28 @@ private:
 
   // A slot is read by three workers: its own layer's, the one below (which sends error up into it) and
   // the one above (which waits on its progress). So the slot of layer k - slots is reused for k once
-  // layer k - slots + 1 is done (layers finish in order). At most `workers` layers are in progress, the
-  // last ones claimed, so with slots = workers + 2 it is done by now; the wait makes that a guarantee.
+  // layer k - slots + 1 is done (layers finish in order). The worker on layer j prepares j + 2, and at
+  // most `workers` layers are in progress, the last ones claimed, so with slots = workers + 3 that layer
+  // is done by then; the wait makes it a guarantee.
   void prepare(int k) {
     LayerSlot& s = slot(k);
     const int lastReader = k - static_cast<int>(slots_.size()) + 1;
-    if (lastReader > k0_) waitUntil(slot(lastReader).finishedThroughRow, kAllRows);
+    if (lastReader > k0_) slot(lastReader).finishedThroughRow.waitUntil(kAllRows);
     s.layer = enumerateLayer(leaves_, k);
     s.error.assign(s.layer.voxels.size(), 0.0f);
-    s.finishedThroughRow.store(kNoRowYet, std::memory_order_relaxed);
-    publish(s.preparedFor, k);
+    s.finishedThroughRow.publish(kNoRowYet);
+    s.preparedFor.publish(k);
   }
 
   void diffuseLayer(int k, RowIndex& nextRowIndex, RowIndex& aboveIndex, std::vector<detail::LeafMask>& vero) {
     LayerSlot& here = slot(k);
     LayerSlot& above = slot(k + 1);
-    const std::atomic<int>* below = k > k0_ ? &slot(k - 1).finishedThroughRow : nullptr;
+    Progress* below = k > k0_ ? &slot(k - 1).finishedThroughRow : nullptr;
     const Layer& layer = here.layer;
     std::size_t aboveRow = 0;
     for (std::size_t r = 0; r < layer.rows.size(); ++r) {
       const Row& row = layer.rows[r];
-      if (below) waitUntil(*below, row.j + 1, row.j + 1 + kWakeSlackRows);
+      if (below) below->waitUntil(row.j + 1, row.j + 1 + kWakeSlackRows);
       const Row* nextRow = r + 1 < layer.rows.size() && layer.rows[r + 1].j == row.j + 1 ? &layer.rows[r + 1] : nullptr;
       while (aboveRow < above.layer.rows.size() && above.layer.rows[aboveRow].j < row.j) ++aboveRow;
       const Row* rowAbove =
@@ -219,10 +242,10 @@ private:
                  vero);
       if (nextRow) nextRowIndex.clear(layer, *nextRow);
       if (rowAbove) aboveIndex.clear(above.layer, *rowAbove);
-      publish(here.finishedThroughRow, row.j);
+      here.finishedThroughRow.publish(row.j);
     }
-    if (below) waitUntil(*below, kAllRows);  // layers finish in order: see prepare()
-    publish(here.finishedThroughRow, kAllRows);
+    if (below) below->waitUntil(kAllRows);  // layers finish in order: see prepare()
+    here.finishedThroughRow.publish(kAllRows);
   }
 
   // The serpentine sweep of one row (direction alternating with j + k), each voxel's error sent to the
