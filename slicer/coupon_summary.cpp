@@ -98,13 +98,15 @@ void printCouponSummary(const CouponRequest& r, const printer_profiles::JobResul
     j["rows"] = layout.rows;
     j["per_row"] = layout.perRow;
     j["bars"] = bars;
-    j["seconds"] = {{"bars", seconds.source}, {"dither", seconds.dither}, {"emit", seconds.emit}, {"total", total}};
+    j["seconds"] = {{"bands", seconds.wall},
+                    {"total", total},
+                    {"cpu", {{"bars", seconds.source}, {"dither", seconds.dither}, {"emit", seconds.emit}}}};
     std::cout << j.dump(2) << '\n';
     return;
   }
   printCouponLines(r, job, profile, layout, bars);
-  std::printf("time:        %.2f s bars, %.2f s dither, %.2f s emit; %.2f s total\n", seconds.source, seconds.dither,
-              seconds.emit, total);
+  std::printf("time:        %.2f s bands and job; %.2f s total (CPU: %.2f s bars, %.2f s dither, %.2f s emit)\n", seconds.wall,
+              total, seconds.source, seconds.dither, seconds.emit);
   std::printf("next:        measure the bars, put each one's fraction and '%s' (dither column) in the DMA data, rodfab calibrate\n",
               dither.c_str());
 }

@@ -1,7 +1,8 @@
 // The job pipeline: a part's layers, band by band, from Vero fractions through a ditherer into the
 // job writer. The source of the fractions is the caller's (a rasterized design for `rodfab slice`,
-// uniform bars for `rodfab coupons`); the pipeline keeps one band in flight while the writer encodes
-// the previous one, so memory holds two bands, not the part.
+// uniform bars for `rodfab coupons`). The three stages overlap: while the writer encodes band n, the
+// ditherer works on band n + 1 and the source builds band n + 2, so memory holds at most three bands
+// (one per stage), never the part.
 #pragma once
 
 #include "materials/ditherer.hpp"
@@ -20,25 +21,32 @@ struct BandGrids {
   openvdb::FloatGrid::Ptr modulus;   // "modulus_mpa" for the modulus previews; may be null
 };
 // (k0, k1, withNextLayer) -> the band. Its voxels must lie in the part bounds given to the writer.
+// Called for consecutive bands in increasing k, one call at a time (never concurrently), but on any
+// thread and while the ditherer and the writer work on earlier bands.
 using BandSource = std::function<BandGrids(int k0, int k1, bool withNextLayer)>;
 
+// CPU seconds (user + system time of every thread while it works for the stage, TBB workers included,
+// waiting for other stages excluded) and the wall time of the whole pipeline.
 struct StageSeconds {
   double source = 0.0;   // building the bands' fractions (rasterization and mapping for slice)
   double dither = 0.0;
-  double emit = 0.0;     // waiting for the writer's encoding, and finalize (manifest, zip, verification)
+  double emit = 0.0;     // the writer: bitmaps, images, compression, previews, and finalize (manifest, zip, verification)
+  double wall = 0.0;     // from the writer's start to the job in place: about the slowest stage when they overlap
 };
 
 struct PipelineOptions {
   int bandLayers = 64;
-  // Called after every band with (layers done, layers in the part). May throw to abort (interrupts):
-  // the writer then removes everything it staged.
+  // Called after every band is written with (layers done, layers in the part), on the thread that
+  // called streamJob or a TBB worker, never concurrently. May throw to abort (interrupts): the
+  // pipeline stops, and the writer removes everything it staged.
   std::function<void(int, int)> onBand;
   // Called after the last band, before the manifest is written: fill in what the bands counted.
   std::function<void(printer_profiles::JobMetadata&)> beforeFinalize;
 };
 
 // Streams every layer of `spec.partBounds` through `source`, `ditherer` and a JobWriter, then
-// finalizes the job. Adds the time spent per stage to `seconds`.
+// finalizes the job. Adds the CPU time per stage and the wall time to `seconds`. The job's bytes do
+// not depend on the thread count or the band size.
 printer_profiles::JobResult streamJob(printer_profiles::JobSpec spec, const BandSource& source,
                                       materials::Ditherer& ditherer, const PipelineOptions& options,
                                       StageSeconds& seconds);

@@ -29,8 +29,12 @@ void printSliceJson(const SliceSummary& s, const slicer::SliceReport& report) {
   j["clamped_moduli"] = {{"below_floor", mapping.clamps.belowFloor}, {"above_max", mapping.clamps.aboveMax},
                          {"floor_mpa", report.floorMpa}, {"max_mpa", report.maxModulusMpa}};
   j["rods_without_voxels"] = rodsWithoutVoxels(report);
-  j["seconds"] = {{"inputs", s.inputSeconds}, {"support", report.supportSeconds}, {"voxelize_and_map", seconds.source},
-                  {"dither", seconds.dither}, {"emit", seconds.emit}, {"total", s.totalSeconds}};
+  // Wall times, and the CPU time of each overlapping stage of the bands (job_pipeline.hpp).
+  j["seconds"] = {{"inputs", s.inputSeconds},
+                  {"support", report.supportSeconds},
+                  {"bands", seconds.wall},
+                  {"total", s.totalSeconds},
+                  {"cpu", {{"voxelize_and_map", seconds.source}, {"dither", seconds.dither}, {"emit", seconds.emit}}}};
   std::cout << j.dump(2) << '\n';
 }
 
@@ -50,8 +54,9 @@ void printSliceLines(const SliceSummary& s, const slicer::SliceReport& report, c
   std::printf("clamped moduli: %s below the floor, %s above the stiffest mix\n", formatCount(mapping.clamps.belowFloor).c_str(),
               formatCount(mapping.clamps.aboveMax).c_str());
   const slicer::StageSeconds& t = report.seconds;
-  std::printf("time:           %.2f s inputs, %.2f s support, %.2f s voxelize + map, %.2f s dither, %.2f s emit; %.2f s total\n",
-              s.inputSeconds, report.supportSeconds, t.source, t.dither, t.emit, s.totalSeconds);
+  std::printf("time:           %.2f s inputs, %.2f s support, %.2f s bands and job; %.2f s total\n", s.inputSeconds,
+              report.supportSeconds, t.wall, s.totalSeconds);
+  std::printf("CPU time:       %.2f s voxelize + map, %.2f s dither, %.2f s emit (the stages overlap)\n", t.source, t.dither, t.emit);
 }
 
 }  // namespace
