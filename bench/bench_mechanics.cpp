@@ -7,49 +7,25 @@
 //    discretization (degree 6, automatic spans), the error estimate and any refinement included:
 //    what `rodfab simulate` costs.
 // Items are Newton iterations.
+#include "bench/bench_fixtures.hpp"
 #include "examples/example_designs.hpp"
 #include "mechanics/mechanics.hpp"
 
 #include <benchmark/benchmark.h>
 
-#include <sys/resource.h>
-
 #include <cmath>
-#include <set>
 
 using namespace rodfab;
 using geometry::Vec3;
 
 namespace {
 
-double peakRssMb() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return static_cast<double>(usage.ru_maxrss) / 1024.0;
-}
-
 // Clamps every rod end at the lowest `axis` coordinate and moves every end at the highest by
 // `displacement`: a training load of the kind the published examples use.
 mechanics::Design withTrainingLoad(mechanics::Design s, int axis, const Vec3& displacement) {
-  double lo = 1e300, hi = -1e300;
-  for (const auto& r : s.rods)
-    for (const Vec3& p : {r.centerline().points().front(), r.centerline().points().back()})
-      lo = std::min(lo, p[axis]), hi = std::max(hi, p[axis]);
-  const double tol = 1e-6 * (hi - lo);
   s.mechanics.present = true;
   s.mechanics.loadSteps = 5;
-  auto key = [](const Vec3& p) { return std::make_tuple(std::llround(p.x() * 1e4), std::llround(p.y() * 1e4), std::llround(p.z() * 1e4)); };
-  std::set<std::tuple<long long, long long, long long>> seen;
-  for (const auto& r : s.rods)
-    for (const Vec3& p : {r.centerline().points().front(), r.centerline().points().back()}) {
-      const bool low = p[axis] < lo + tol, high = p[axis] > hi - tol;
-      if ((!low && !high) || !seen.insert(key(p)).second) continue;
-      mechanics::Support support;
-      support.at.point = p;
-      support.at.path = "bench";
-      if (high) support.displacement = displacement;
-      s.mechanics.supports.push_back(support);
-    }
+  s.mechanics.supports = bench::trainingSupports(s.rods, axis, displacement);
   return s;
 }
 
@@ -114,7 +90,7 @@ void countersFor(benchmark::State& state, const mechanics::StaticProblem& proble
   state.counters["lu_share"] = last.factorizeSeconds / last.totalSeconds;
   state.counters["fresh_factorizations"] = last.factorizations;
   state.counters["pivot_renewals"] = last.pivotRenewals;
-  state.counters["peak_rss_MiB"] = peakRssMb();
+  state.counters["peak_rss_MiB"] = bench::peakRssMb();
 }
 
 // One path solve on a fixed discretization; per-iteration figures with every step full Newton

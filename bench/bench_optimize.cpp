@@ -7,28 +7,20 @@
 //  - optimizeSpring*: rodfab's optimizer (L-BFGS-B, LBFGS++).
 //  - mma/ccsaqSpring32: NLopt's MMA and CCSAQ on the same problem, the same scaling (E in [0, 1],
 //    g / g0) and as many solves as L-BFGS-B used, for the comparison in optimize/README.md.
+#include "bench/bench_fixtures.hpp"
 #include "examples/example_designs.hpp"
 #include "optimize/optimize.hpp"
 
 #include <benchmark/benchmark.h>
 #include <nlopt.hpp>
 
-#include <sys/resource.h>
-
 #include <algorithm>
 #include <random>
-#include <set>
 
 using namespace rodfab;
 using geometry::Vec3;
 
 namespace {
-
-double peakRssMb() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return static_cast<double>(usage.ru_maxrss) / 1024.0;
-}
 
 // The spring with one load case: every bottom rod end clamped, every top one moved down by 5 % of
 // the height (by point, as a design file gives them).
@@ -37,22 +29,10 @@ mechanics::Design spring(int around, int levels) {
   p.nodesAround = around;
   p.levels = levels;
   mechanics::Design s(examples::bucklingSpring(p));
-  double lo = 1e300, hi = -1e300;
-  for (const auto& r : s.rods)
-    for (const Vec3& q : {r.centerline().points().front(), r.centerline().points().back()}) lo = std::min(lo, q.z()), hi = std::max(hi, q.z());
+  const auto [lo, hi] = bench::endRange(s.rods, 2);
   mechanics::LoadCase lc;
   lc.name = "compress", lc.path = "mechanics.load_cases[0]", lc.loadSteps = 5;
-  std::set<std::tuple<long long, long long, long long>> seen;
-  for (const auto& r : s.rods)
-    for (const Vec3& q : {r.centerline().points().front(), r.centerline().points().back()}) {
-      const bool low = q.z() < lo + 1e-6 * (hi - lo), high = q.z() > hi - 1e-6 * (hi - lo);
-      if ((!low && !high) || !seen.insert({std::llround(q.x() * 1e4), std::llround(q.y() * 1e4), std::llround(q.z() * 1e4)}).second) continue;
-      mechanics::Support support;
-      support.at.point = q;
-      support.at.path = "bench";
-      if (high) support.displacement = Vec3(0, 0, -0.05 * (hi - lo));
-      lc.supports.push_back(support);
-    }
+  lc.supports = bench::trainingSupports(s.rods, 2, Vec3(0, 0, -0.05 * (hi - lo)));
   for (auto& r : s.rods)
     r = geometry::Rod(r.name(), r.centerline(), r.section(), r.referenceNormal(), r.orientation(), r.caps(),
                       geometry::BSplineField::constant(60.0, r.centerline().domainBegin(), r.centerline().domainEnd()));
@@ -111,7 +91,7 @@ void optimizeSpring(benchmark::State& state, int around, int levels, optimize::S
   state.counters["g_over_g0"] = last.final.objective / last.initial.objective;
   state.counters["seconds"] = last.seconds;
   state.counters["seconds_per_iteration"] = last.seconds / std::max(1, last.iterations);
-  state.counters["peak_rss_MiB"] = peakRssMb();
+  state.counters["peak_rss_MiB"] = bench::peakRssMb();
 }
 
 // NLopt's gradient-based bounded methods on the same scaled problem, for `evaluations` solves.

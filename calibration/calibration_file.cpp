@@ -113,6 +113,106 @@ ordered_json measurementToJson(const Measurement& m) {
   return j;
 }
 
+// The parameters of a pchip model: its nodes, from fraction 0 to 1, strictly increasing.
+void readPchipNodes(const Reader& in, const json& params, ModelParameters& p) {
+  in.onlyKeys(params, "parameters", {"points"});
+  const json& points = in.get(params, "parameters", "points", "the pchip nodes");
+  if (!points.is_array() || points.size() < 2)
+    in.fail("parameters.points", "expected an array of at least two {vero_fraction, modulus_mpa} nodes, got " + describe(points));
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const std::string path = index("parameters.points", i);
+    in.object(points[i], path, "a node {vero_fraction, modulus_mpa}");
+    in.onlyKeys(points[i], path, {"vero_fraction", "modulus_mpa"});
+    const double f = in.fraction(in.get(points[i], path, "vero_fraction", "a Vero fraction"), member(path, "vero_fraction"));
+    const double e = in.positive(in.get(points[i], path, "modulus_mpa", "a modulus in MPa"), member(path, "modulus_mpa"), "a modulus in MPa");
+    if (i == 0 && f != 0.0) in.fail(member(path, "vero_fraction"), "the first node must be at Vero fraction 0, got " + describe(points[i]["vero_fraction"]));
+    if (i + 1 == points.size() && f != 1.0) in.fail(member(path, "vero_fraction"), "the last node must be at Vero fraction 1, got " + describe(points[i]["vero_fraction"]));
+    if (i > 0 && !(f > p.fractions.back())) in.fail(member(path, "vero_fraction"), "node fractions must strictly increase");
+    if (i > 0 && !(e > p.moduliMpa.back())) in.fail(member(path, "modulus_mpa"), "node moduli must strictly increase with the fraction");
+    p.fractions.push_back(f);
+    p.moduliMpa.push_back(e);
+  }
+}
+
+// The parameters of the Lichtenecker and log-power models: the end moduli and the exponent.
+void readPowerLaw(const Reader& in, const json& params, ModelParameters& p) {
+  in.onlyKeys(params, "parameters", {"tango_modulus_mpa", "vero_modulus_mpa", "exponent"});
+  p.tangoModulusMpa = in.positive(in.get(params, "parameters", "tango_modulus_mpa", "the modulus at 0 % Vero in MPa"),
+                                  "parameters.tango_modulus_mpa", "a modulus in MPa");
+  p.veroModulusMpa = in.positive(in.get(params, "parameters", "vero_modulus_mpa", "the modulus at 100 % Vero in MPa"),
+                                 "parameters.vero_modulus_mpa", "a modulus in MPa");
+  if (!(p.veroModulusMpa > p.tangoModulusMpa))
+    in.fail("parameters.vero_modulus_mpa", "expected more than tango_modulus_mpa (" + describe(params["tango_modulus_mpa"]) + ")");
+  const json& exponent = in.get(params, "parameters", "exponent", "the fitted exponent");
+  p.exponent = p.model == Model::LogPower ? in.positive(exponent, "parameters.exponent", "a log-power exponent")
+                                          : in.number(exponent, "parameters.exponent", "a Lichtenecker exponent (a number)");
+}
+
+ModelParameters readParameters(const Reader& in, const json& j, Model model) {
+  ModelParameters p;
+  p.model = model;
+  const json& params = in.object(in.get(j, "", "parameters", "the model parameters"), "parameters", "the model parameters");
+  if (p.model == Model::Pchip) readPchipNodes(in, params, p);
+  else readPowerLaw(in, params, p);
+  return p;
+}
+
+// Optional (files written before it existed have none): the materials the coupons were printed in.
+void readMaterials(const Reader& in, const json& j, FitRecord& r) {
+  const json& mat = in.object(j["materials"], "materials", "{rigid, rubbery} material names or null");
+  in.onlyKeys(mat, "materials", {"rigid", "rubbery"});
+  r.rigidMaterial = in.string(in.get(mat, "materials", "rigid", "the rigid material's name"), "materials.rigid", "a material name");
+  r.rubberyMaterial = in.string(in.get(mat, "materials", "rubbery", "the rubbery material's name"), "materials.rubbery", "a material name");
+  if (r.rigidMaterial.empty() || r.rubberyMaterial.empty()) in.fail("materials", "expected two non-empty material names");
+}
+
+void readMeasurements(const Reader& in, const json& rows, FitRecord& r) {
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const std::string path = index("data.measurements", i);
+    in.object(rows[i], path, "a measurement");
+    in.onlyKeys(rows[i], path, {"line", "vero_fraction", "modulus_mpa", "temperature_c", "specimen", "dither", "date"});
+    Measurement m;
+    m.line = static_cast<int>(in.count(in.get(rows[i], path, "line", "the CSV line number"), member(path, "line")));
+    m.veroFraction = in.fraction(in.get(rows[i], path, "vero_fraction", "a Vero fraction"), member(path, "vero_fraction"));
+    m.modulusMpa = in.positive(in.get(rows[i], path, "modulus_mpa", "a modulus in MPa"), member(path, "modulus_mpa"), "a modulus in MPa");
+    m.temperatureC = in.optionalNumber(rows[i], path, "temperature_c", "a temperature in degrees Celsius");
+    m.specimen = in.optionalString(rows[i], path, "specimen", "the specimen name");
+    m.dither = in.optionalString(rows[i], path, "dither", "the ditherer's name");
+    m.date = in.optionalString(rows[i], path, "date", "the date");
+    r.measurements.push_back(std::move(m));
+  }
+}
+
+void readQuality(const Reader& in, const json& quality, FitQuality& q) {
+  in.onlyKeys(quality, "quality", {"measurements", "fractions", "rms_ln", "r2_ln", "max_relative_error", "leave_one_out_rms_ln"});
+  q.measurements = in.count(in.get(quality, "quality", "measurements", "the number of measurements"), "quality.measurements");
+  q.fractions = in.count(in.get(quality, "quality", "fractions", "the number of distinct fractions"), "quality.fractions");
+  q.rmsLn = in.number(in.get(quality, "quality", "rms_ln", "the RMS error in ln E"), "quality.rms_ln", "a number");
+  q.r2Ln = in.number(in.get(quality, "quality", "r2_ln", "R^2 in ln E"), "quality.r2_ln", "a number");
+  q.maxRelativeError = in.number(in.get(quality, "quality", "max_relative_error", "the max relative error"), "quality.max_relative_error", "a number");
+  q.leaveOneOutRmsLn = in.optionalNumber(quality, "quality", "leave_one_out_rms_ln", "the leave-one-out RMS error in ln E or null");
+}
+
+// The record of the fit: temperature, dither, materials, the data fitted and the fit's quality.
+FitRecord readRecord(const Reader& in, const json& j) {
+  FitRecord r;
+  r.temperatureC = in.optionalNumber(j, "", "temperature_c", "a temperature in degrees Celsius or null");
+  r.dither = in.optionalString(j, "", "dither", "the ditherer's name or null");
+  if (j.contains("materials") && !j["materials"].is_null()) readMaterials(in, j, r);
+  const json& data = in.object(in.get(j, "", "data", "{file, sha256, measurements}"), "data", "the fitted data");
+  in.onlyKeys(data, "data", {"file", "sha256", "measurements"});
+  r.dataFile = in.string(in.get(data, "data", "file", "the data file name"), "data.file", "the data file name");
+  r.dataSha256 = in.string(in.get(data, "data", "sha256", "the SHA-256 of the data file"), "data.sha256", "64 hex digits");
+  if (r.dataSha256.size() != 64 || r.dataSha256.find_first_not_of("0123456789abcdef") != std::string::npos)
+    in.fail("data.sha256", "expected 64 lowercase hex digits, got " + describe(data["sha256"]));
+  const json& rows = in.get(data, "data", "measurements", "the measurements fitted");
+  if (!rows.is_array()) in.fail("data.measurements", "expected an array of measurements, got " + describe(rows));
+  readMeasurements(in, rows, r);
+  const json& quality = in.object(in.get(j, "", "quality", "the fit quality"), "quality", "the fit quality");
+  readQuality(in, quality, r.quality);
+  return r;
+}
+
 }  // namespace
 
 CalibrationFileError::CalibrationFileError(const std::string& file, const std::string& path, const std::string& message)
@@ -162,39 +262,7 @@ Calibration calibrationFromJson(const json& j, const std::string& sourceName) {
   const auto model = parseModel(modelText);
   if (!model) in.fail("model", "expected \"pchip\", \"lichtenecker\" or \"log-power\", got " + describe(j["model"]));
 
-  ModelParameters p;
-  p.model = *model;
-  const json& params = in.object(in.get(j, "", "parameters", "the model parameters"), "parameters", "the model parameters");
-  if (p.model == Model::Pchip) {
-    in.onlyKeys(params, "parameters", {"points"});
-    const json& points = in.get(params, "parameters", "points", "the pchip nodes");
-    if (!points.is_array() || points.size() < 2)
-      in.fail("parameters.points", "expected an array of at least two {vero_fraction, modulus_mpa} nodes, got " + describe(points));
-    for (std::size_t i = 0; i < points.size(); ++i) {
-      const std::string path = index("parameters.points", i);
-      in.object(points[i], path, "a node {vero_fraction, modulus_mpa}");
-      in.onlyKeys(points[i], path, {"vero_fraction", "modulus_mpa"});
-      const double f = in.fraction(in.get(points[i], path, "vero_fraction", "a Vero fraction"), member(path, "vero_fraction"));
-      const double e = in.positive(in.get(points[i], path, "modulus_mpa", "a modulus in MPa"), member(path, "modulus_mpa"), "a modulus in MPa");
-      if (i == 0 && f != 0.0) in.fail(member(path, "vero_fraction"), "the first node must be at Vero fraction 0, got " + describe(points[i]["vero_fraction"]));
-      if (i + 1 == points.size() && f != 1.0) in.fail(member(path, "vero_fraction"), "the last node must be at Vero fraction 1, got " + describe(points[i]["vero_fraction"]));
-      if (i > 0 && !(f > p.fractions.back())) in.fail(member(path, "vero_fraction"), "node fractions must strictly increase");
-      if (i > 0 && !(e > p.moduliMpa.back())) in.fail(member(path, "modulus_mpa"), "node moduli must strictly increase with the fraction");
-      p.fractions.push_back(f);
-      p.moduliMpa.push_back(e);
-    }
-  } else {
-    in.onlyKeys(params, "parameters", {"tango_modulus_mpa", "vero_modulus_mpa", "exponent"});
-    p.tangoModulusMpa = in.positive(in.get(params, "parameters", "tango_modulus_mpa", "the modulus at 0 % Vero in MPa"),
-                                    "parameters.tango_modulus_mpa", "a modulus in MPa");
-    p.veroModulusMpa = in.positive(in.get(params, "parameters", "vero_modulus_mpa", "the modulus at 100 % Vero in MPa"),
-                                   "parameters.vero_modulus_mpa", "a modulus in MPa");
-    if (!(p.veroModulusMpa > p.tangoModulusMpa))
-      in.fail("parameters.vero_modulus_mpa", "expected more than tango_modulus_mpa (" + describe(params["tango_modulus_mpa"]) + ")");
-    const json& exponent = in.get(params, "parameters", "exponent", "the fitted exponent");
-    p.exponent = p.model == Model::LogPower ? in.positive(exponent, "parameters.exponent", "a log-power exponent")
-                                            : in.number(exponent, "parameters.exponent", "a Lichtenecker exponent (a number)");
-  }
+  ModelParameters p = readParameters(in, j, *model);
 
   const json& floor = in.object(in.get(j, "", "floor", "{modulus_mpa, vero_fraction}"), "floor", "the floor");
   in.onlyKeys(floor, "floor", {"modulus_mpa", "vero_fraction"});
@@ -202,48 +270,7 @@ Calibration calibrationFromJson(const json& j, const std::string& sourceName) {
   const double floorFraction = in.fraction(in.get(floor, "floor", "vero_fraction", "the floor's Vero fraction"), "floor.vero_fraction");
   const double maxModulus = in.positive(in.get(j, "", "max_modulus_mpa", "the modulus at 100 % Vero in MPa"), "max_modulus_mpa", "a modulus in MPa");
 
-  FitRecord r;
-  r.temperatureC = in.optionalNumber(j, "", "temperature_c", "a temperature in degrees Celsius or null");
-  r.dither = in.optionalString(j, "", "dither", "the ditherer's name or null");
-  if (j.contains("materials") && !j["materials"].is_null()) {
-    // Optional (files written before it existed have none): the materials the coupons were printed in.
-    const json& mat = in.object(j["materials"], "materials", "{rigid, rubbery} material names or null");
-    in.onlyKeys(mat, "materials", {"rigid", "rubbery"});
-    r.rigidMaterial = in.string(in.get(mat, "materials", "rigid", "the rigid material's name"), "materials.rigid", "a material name");
-    r.rubberyMaterial = in.string(in.get(mat, "materials", "rubbery", "the rubbery material's name"), "materials.rubbery", "a material name");
-    if (r.rigidMaterial.empty() || r.rubberyMaterial.empty()) in.fail("materials", "expected two non-empty material names");
-  }
-  const json& data = in.object(in.get(j, "", "data", "{file, sha256, measurements}"), "data", "the fitted data");
-  in.onlyKeys(data, "data", {"file", "sha256", "measurements"});
-  r.dataFile = in.string(in.get(data, "data", "file", "the data file name"), "data.file", "the data file name");
-  r.dataSha256 = in.string(in.get(data, "data", "sha256", "the SHA-256 of the data file"), "data.sha256", "64 hex digits");
-  if (r.dataSha256.size() != 64 || r.dataSha256.find_first_not_of("0123456789abcdef") != std::string::npos)
-    in.fail("data.sha256", "expected 64 lowercase hex digits, got " + describe(data["sha256"]));
-  const json& rows = in.get(data, "data", "measurements", "the measurements fitted");
-  if (!rows.is_array()) in.fail("data.measurements", "expected an array of measurements, got " + describe(rows));
-  for (std::size_t i = 0; i < rows.size(); ++i) {
-    const std::string path = index("data.measurements", i);
-    in.object(rows[i], path, "a measurement");
-    in.onlyKeys(rows[i], path, {"line", "vero_fraction", "modulus_mpa", "temperature_c", "specimen", "dither", "date"});
-    Measurement m;
-    m.line = static_cast<int>(in.count(in.get(rows[i], path, "line", "the CSV line number"), member(path, "line")));
-    m.veroFraction = in.fraction(in.get(rows[i], path, "vero_fraction", "a Vero fraction"), member(path, "vero_fraction"));
-    m.modulusMpa = in.positive(in.get(rows[i], path, "modulus_mpa", "a modulus in MPa"), member(path, "modulus_mpa"), "a modulus in MPa");
-    m.temperatureC = in.optionalNumber(rows[i], path, "temperature_c", "a temperature in degrees Celsius");
-    m.specimen = in.optionalString(rows[i], path, "specimen", "the specimen name");
-    m.dither = in.optionalString(rows[i], path, "dither", "the ditherer's name");
-    m.date = in.optionalString(rows[i], path, "date", "the date");
-    r.measurements.push_back(std::move(m));
-  }
-  const json& quality = in.object(in.get(j, "", "quality", "the fit quality"), "quality", "the fit quality");
-  in.onlyKeys(quality, "quality", {"measurements", "fractions", "rms_ln", "r2_ln", "max_relative_error", "leave_one_out_rms_ln"});
-  FitQuality& q = r.quality;
-  q.measurements = in.count(in.get(quality, "quality", "measurements", "the number of measurements"), "quality.measurements");
-  q.fractions = in.count(in.get(quality, "quality", "fractions", "the number of distinct fractions"), "quality.fractions");
-  q.rmsLn = in.number(in.get(quality, "quality", "rms_ln", "the RMS error in ln E"), "quality.rms_ln", "a number");
-  q.r2Ln = in.number(in.get(quality, "quality", "r2_ln", "R^2 in ln E"), "quality.r2_ln", "a number");
-  q.maxRelativeError = in.number(in.get(quality, "quality", "max_relative_error", "the max relative error"), "quality.max_relative_error", "a number");
-  q.leaveOneOutRmsLn = in.optionalNumber(quality, "quality", "leave_one_out_rms_ln", "the leave-one-out RMS error in ln E or null");
+  FitRecord r = readRecord(in, j);
 
   try {
     Calibration c(std::move(p), floorMpa, std::move(r));

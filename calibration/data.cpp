@@ -90,6 +90,76 @@ std::optional<std::vector<std::string>> splitFields(const std::string& line) {
   }
 }
 
+using Issues = std::vector<DataIssue>;
+
+// The header's columns: per field position (nullopt for a rejected name) and each column's position.
+struct Header {
+  std::vector<std::optional<Column>> columns;
+  std::map<Column, std::size_t> position;
+};
+
+// The header line's columns; an issue for every unknown or repeated name and missing required column.
+Header readHeader(const std::vector<std::string>& fields, int lineNumber, Issues& issues) {
+  const auto fail = [&](std::string message) { issues.push_back({lineNumber, std::move(message)}); };
+  Header header;
+  for (std::size_t i = 0; i < fields.size(); ++i) {
+    const std::string name = boost::algorithm::to_lower_copy(fields[i]);
+    const auto known = kColumns.find(name);
+    if (known == kColumns.end()) {
+      fail(unknownColumnMessage(name));
+      header.columns.push_back(std::nullopt);
+      continue;
+    }
+    if (header.position.count(known->second)) fail("column '" + name + "' appears twice");
+    header.position[known->second] = i;
+    header.columns.push_back(known->second);
+  }
+  for (const char* required : {"vero_fraction", "modulus_mpa"})
+    if (!header.position.count(kColumns.find(required)->second))
+      fail(std::string("the header lacks the required column '") + required + "' (expected: " + kColumnList + ")");
+  return header;
+}
+
+// One data row's measurement; nullopt after an issue for every field that cannot be used.
+std::optional<Measurement> readRow(const std::vector<std::string>& fields, const Header& header, int lineNumber, Issues& issues) {
+  const auto fail = [&](std::string message) { issues.push_back({lineNumber, std::move(message)}); };
+  Measurement m;
+  m.line = lineNumber;
+  bool ok = true;
+  const auto field = [&](Column c) -> const std::string* {
+    auto it = header.position.find(c);
+    return it == header.position.end() ? nullptr : &fields[it->second];
+  };
+  const auto number = [&](Column c, const char* name, const char* what, bool required) -> std::optional<double> {
+    const std::string* f = field(c);
+    if (!f || f->empty()) {
+      if (required) fail(std::string(name) + ": missing; expected " + what), ok = false;
+      return std::nullopt;
+    }
+    auto v = parseNumber(*f);
+    if (!v) fail(std::string(name) + ": expected " + what + ", got " + shown(*f)), ok = false;
+    return v;
+  };
+  if (auto f = number(Column::VeroFraction, "vero_fraction", "a Vero fraction from 0 to 1", true)) {
+    if (*f < 0.0 || *f > 1.0) {
+      fail("vero_fraction: expected a fraction from 0 to 1, got " + shown(*field(Column::VeroFraction)) +
+           (*f > 1.0 && *f <= 100.0 ? " (a percentage? write it as a fraction)" : ""));
+      ok = false;
+    }
+    m.veroFraction = *f;
+  }
+  if (auto e = number(Column::ModulusMpa, "modulus_mpa", "a modulus in MPa", true)) {
+    if (!(*e > 0.0)) fail("modulus_mpa: expected a modulus > 0 MPa, got " + shown(*field(Column::ModulusMpa))), ok = false;
+    m.modulusMpa = *e;
+  }
+  m.temperatureC = number(Column::TemperatureC, "temperature_c", "a temperature in degrees Celsius", false);
+  if (const std::string* s = field(Column::Specimen)) m.specimen = *s;
+  if (const std::string* s = field(Column::Dither)) m.dither = *s;
+  if (const std::string* s = field(Column::Date)) m.date = *s;
+  if (!ok) return std::nullopt;
+  return m;
+}
+
 }  // namespace
 
 DataError::DataError(std::string file, std::vector<DataIssue> issues)
@@ -99,14 +169,12 @@ DataSet parseData(std::string_view text, const std::string& sourceName) {
   DataSet data;
   data.source = sourceName;
   data.sha256 = sha256Hex(text);
-  std::vector<DataIssue> issues;
+  Issues issues;
   const auto fail = [&](int line, std::string message) { issues.push_back({line, std::move(message)}); };
 
   if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);  // spreadsheet exports start with a BOM
 
-  std::vector<std::optional<Column>> header;  // per field position; nullopt for a rejected name
-  std::map<Column, std::size_t> position;
-  bool haveHeader = false;
+  std::optional<Header> header;
   std::istringstream lines{std::string(text)};
   std::string raw;
   int lineNumber = 0;
@@ -120,67 +188,19 @@ DataSet parseData(std::string_view text, const std::string& sourceName) {
       fail(lineNumber, "unbalanced quotes or a bad escape in " + shown(line));
       continue;
     }
-    if (!haveHeader) {
-      haveHeader = true;
-      for (std::size_t i = 0; i < fields->size(); ++i) {
-        const std::string name = boost::algorithm::to_lower_copy((*fields)[i]);
-        const auto known = kColumns.find(name);
-        if (known == kColumns.end()) {
-          fail(lineNumber, unknownColumnMessage(name));
-          header.push_back(std::nullopt);
-          continue;
-        }
-        if (position.count(known->second)) fail(lineNumber, "column '" + name + "' appears twice");
-        position[known->second] = i;
-        header.push_back(known->second);
-      }
-      for (const char* required : {"vero_fraction", "modulus_mpa"})
-        if (!position.count(kColumns.find(required)->second))
-          fail(lineNumber, std::string("the header lacks the required column '") + required + "' (expected: " + kColumnList + ")");
+    if (!header) {
+      header = readHeader(*fields, lineNumber, issues);
       if (!issues.empty()) break;  // rows cannot be read against a broken header
       continue;
     }
-    if (fields->size() != header.size()) {
-      fail(lineNumber, "expected " + std::to_string(header.size()) + " fields (as in the header), got " +
+    if (fields->size() != header->columns.size()) {
+      fail(lineNumber, "expected " + std::to_string(header->columns.size()) + " fields (as in the header), got " +
                            std::to_string(fields->size()));
       continue;
     }
-    Measurement m;
-    m.line = lineNumber;
-    bool ok = true;
-    const auto field = [&](Column c) -> const std::string* {
-      auto it = position.find(c);
-      return it == position.end() ? nullptr : &(*fields)[it->second];
-    };
-    const auto number = [&](Column c, const char* name, const char* what, bool required) -> std::optional<double> {
-      const std::string* f = field(c);
-      if (!f || f->empty()) {
-        if (required) fail(lineNumber, std::string(name) + ": missing; expected " + what), ok = false;
-        return std::nullopt;
-      }
-      auto v = parseNumber(*f);
-      if (!v) fail(lineNumber, std::string(name) + ": expected " + what + ", got " + shown(*f)), ok = false;
-      return v;
-    };
-    if (auto f = number(Column::VeroFraction, "vero_fraction", "a Vero fraction from 0 to 1", true)) {
-      if (*f < 0.0 || *f > 1.0) {
-        fail(lineNumber, "vero_fraction: expected a fraction from 0 to 1, got " + shown(*field(Column::VeroFraction)) +
-                             (*f > 1.0 && *f <= 100.0 ? " (a percentage? write it as a fraction)" : ""));
-        ok = false;
-      }
-      m.veroFraction = *f;
-    }
-    if (auto e = number(Column::ModulusMpa, "modulus_mpa", "a modulus in MPa", true)) {
-      if (!(*e > 0.0)) fail(lineNumber, "modulus_mpa: expected a modulus > 0 MPa, got " + shown(*field(Column::ModulusMpa))), ok = false;
-      m.modulusMpa = *e;
-    }
-    m.temperatureC = number(Column::TemperatureC, "temperature_c", "a temperature in degrees Celsius", false);
-    if (const std::string* s = field(Column::Specimen)) m.specimen = *s;
-    if (const std::string* s = field(Column::Dither)) m.dither = *s;
-    if (const std::string* s = field(Column::Date)) m.date = *s;
-    if (ok) data.measurements.push_back(std::move(m));
+    if (std::optional<Measurement> m = readRow(*fields, *header, lineNumber, issues)) data.measurements.push_back(std::move(*m));
   }
-  if (issues.empty() && !haveHeader)
+  if (issues.empty() && !header)
     fail(0, std::string("no header line; expected a header naming the columns (") + kColumnList + ")");
   else if (issues.empty() && data.measurements.empty())
     fail(0, "no measurements after the header");

@@ -199,19 +199,9 @@ FitQuality assess(const Calibration& c, Model model, const std::vector<Group>& g
   return q;
 }
 
-}  // namespace
-
-Calibration fitCalibration(const DataSet& data, const FitOptions& options) {
-  const std::string where = data.source + ": ";
-  if (data.measurements.empty()) throw FitError(where + "no measurements to fit");
-  if (!std::isfinite(options.floorMpa) || !(options.floorMpa > 0.0))
-    throw FitError(where + "the floor must be a modulus > 0 MPa, got " + fmt("%g", options.floorMpa));
-
-  FitRecord record;
-  record.dataFile = data.source;
-  record.dataSha256 = data.sha256;
-  record.measurements = data.measurements;
-
+// The process the measurements describe, recorded in `record`: their (single) training temperature
+// and ditherer. Throws FitError when they mix temperatures (more than 1 C apart) or ditherers.
+void recordProcess(FitRecord& record, const std::string& where) {
   // One calibration describes one printing process at one training temperature.
   const Measurement* coolest = nullptr;
   const Measurement* warmest = nullptr;
@@ -242,8 +232,11 @@ Calibration fitCalibration(const DataSet& data, const FitOptions& options) {
                    "); the modulus depends on the ditherer: fit each one on its own");
   }
   if (!dithers.empty()) record.dither = dithers.begin()->first;
+}
 
-  const std::vector<Group> groups = groupByFraction(record.measurements);
+// Throws FitError unless the groups span pure Tango to pure Vero, stiffen from one to the other, hold
+// enough fractions for `model` and, for pchip, stiffen at every step.
+void checkGroups(const std::vector<Group>& groups, Model model, const std::string& where) {
   if (groups.front().fraction != 0.0)
     throw FitError(where + "no coupon at vero_fraction 0 (pure Tango); the lowest fraction measured is " + describe(groups.front()) +
                    ". The curve is never extrapolated: measure both pure materials");
@@ -252,10 +245,10 @@ Calibration fitCalibration(const DataSet& data, const FitOptions& options) {
                    ". The curve is never extrapolated: measure both pure materials");
   if (!(groups.back().meanLn > groups.front().meanLn))
     throw FitError(where + "pure Vero " + describe(groups.back()) + " is not stiffer than pure Tango " + describe(groups.front()));
-  if (groups.size() < minimumFractions(options.model))
-    throw FitError(where + "the " + std::string(modelName(options.model)) +
+  if (groups.size() < minimumFractions(model))
+    throw FitError(where + "the " + std::string(modelName(model)) +
                    " exponent needs measurements at a third Vero fraction between 0 and 1");
-  if (options.model == Model::Pchip) {
+  if (model == Model::Pchip) {
     std::string offending;
     for (std::size_t k = 0; k + 1 < groups.size(); ++k)
       if (!(groups[k + 1].meanLn > groups[k].meanLn))
@@ -265,6 +258,24 @@ Calibration fitCalibration(const DataSet& data, const FitOptions& options) {
                      "\nCheck or remeasure those coupons, or fit a parametric model (lichtenecker or log-power), "
                      "which is monotone by construction and fits such data by least squares");
   }
+}
+
+}  // namespace
+
+Calibration fitCalibration(const DataSet& data, const FitOptions& options) {
+  const std::string where = data.source + ": ";
+  if (data.measurements.empty()) throw FitError(where + "no measurements to fit");
+  if (!std::isfinite(options.floorMpa) || !(options.floorMpa > 0.0))
+    throw FitError(where + "the floor must be a modulus > 0 MPa, got " + fmt("%g", options.floorMpa));
+
+  FitRecord record;
+  record.dataFile = data.source;
+  record.dataSha256 = data.sha256;
+  record.measurements = data.measurements;
+
+  recordProcess(record, where);
+  const std::vector<Group> groups = groupByFraction(record.measurements);
+  checkGroups(groups, options.model, where);
 
   bool atSearchEdge = false;
   ModelParameters parameters = fitParameters(options.model, groups, &atSearchEdge);

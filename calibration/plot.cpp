@@ -1,6 +1,7 @@
 #include "calibration/plot.hpp"
 
 #include "common/output_file.hpp"
+#include "common/plot_canvas.hpp"
 #include "common/png_tag.hpp"
 
 
@@ -13,7 +14,6 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
-#include <memory>
 #include <stdexcept>
 #include <string>
 
@@ -123,48 +123,28 @@ std::string fitLabel(const Calibration& c) {
   return {};
 }
 
-cairo_status_t appendToString(void* closure, const unsigned char* data, unsigned int length) {
-  static_cast<std::string*>(closure)->append(reinterpret_cast<const char*>(data), length);
-  return CAIRO_STATUS_SUCCESS;
-}
+using Groups = std::map<double, std::pair<double, int>>;  // fraction -> (sum of ln E, count)
+constexpr double kDash[] = {7, 5};
 
-}  // namespace
-
-std::string renderFitPlot(const Calibration& c) {
-  const auto& measurements = c.record().measurements;
-  double lo = std::min({c.minModulusMpa(), c.floorMpa()}), hi = c.maxModulusMpa();
-  for (const Measurement& m : measurements) lo = std::min(lo, m.modulusMpa), hi = std::max(hi, m.modulusMpa);
-  const Axes a{std::floor(std::log10(lo)), std::max(std::ceil(std::log10(hi)), std::floor(std::log10(lo)) + 1)};
-
-  std::unique_ptr<cairo_surface_t, decltype(&cairo_surface_destroy)> surface(
-      cairo_image_surface_create(CAIRO_FORMAT_RGB24, kWidth, kHeight), cairo_surface_destroy);
-  std::unique_ptr<cairo_t, decltype(&cairo_destroy)> context(cairo_create(surface.get()), cairo_destroy);
-  cairo_t* cr = context.get();
-  if (cairo_status(cr) != CAIRO_STATUS_SUCCESS) throw std::runtime_error(std::string("cairo: ") + cairo_status_to_string(cairo_status(cr)));
-  cairo_select_font_face(cr, "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
-  cairo_set_source_rgb(cr, 1, 1, 1);
-  cairo_paint(cr);
-
-  // Requests below the floor are raised to it: shade that band like the paper's red box.
-  const double yFloor = c.floorMpa() > 0 ? a.y(c.floorMpa()) : kHeight - kBottom;
+// The band below the floor shaded like the paper's red box (requests there are raised to the floor),
+// the axes over it, and the floor: its modulus across the plot, its fraction down to the axis.
+void drawFloor(cairo_t* cr, const Axes& a, const Calibration& c, double yFloor) {
   color(cr, kFloorShade);
   cairo_rectangle(cr, a.x(0), yFloor, a.x(1) - a.x(0), kHeight - kBottom - yFloor);
   cairo_fill(cr);
   drawAxes(cr, a);
-
-  // The floor: its modulus across the plot, its fraction down to the axis.
   color(cr, kFloor);
   cairo_set_line_width(cr, 1.5);
-  const double dash[] = {7, 5};
-  cairo_set_dash(cr, dash, 2, 0);
+  cairo_set_dash(cr, kDash, 2, 0);
   cairo_move_to(cr, a.x(0), yFloor);
   cairo_line_to(cr, a.x(1), yFloor);
   cairo_move_to(cr, a.x(c.floorFraction()), yFloor);
   cairo_line_to(cr, a.x(c.floorFraction()), kHeight - kBottom);
   cairo_stroke(cr);
   cairo_set_dash(cr, nullptr, 0, 0);
+}
 
-  // The fitted curve.
+void drawCurve(cairo_t* cr, const Axes& a, const Calibration& c) {
   color(cr, kCurve);
   cairo_set_line_width(cr, 2.5);
   constexpr int kSamples = 500;
@@ -174,14 +154,12 @@ std::string renderFitPlot(const Calibration& c) {
     else cairo_line_to(cr, a.x(f), a.y(c.modulusMpa(f)));
   }
   cairo_stroke(cr);
+}
 
-  // The floor point under the measurements, so a coupon measured right at the floor stays visible.
-  color(cr, kFloor);
-  circle(cr, a.x(c.floorFraction()), yFloor, 4);
-  cairo_fill(cr);
-
-  // Every replicate as an open circle, and each fraction's mean (in ln E) as a bar where there are replicates.
-  std::map<double, std::pair<double, int>> groups;
+// Every replicate as an open circle, and each fraction's mean (in ln E) as a bar where there are
+// replicates; returns the measurements grouped by fraction.
+Groups drawMeasurements(cairo_t* cr, const Axes& a, const std::vector<Measurement>& measurements) {
+  Groups groups;
   color(cr, kInk);
   cairo_set_line_width(cr, 1.6);
   for (const Measurement& m : measurements) {
@@ -198,11 +176,13 @@ std::string renderFitPlot(const Calibration& c) {
     cairo_line_to(cr, a.x(f) + 10, y);
   }
   cairo_stroke(cr);
+  return groups;
+}
 
-  const std::string floorText = format("%g MPa", c.floorMpa()) + " at " + format("%.1f %% Vero", 100 * c.floorFraction());
-  text(cr, a.x(c.floorFraction()) + 10, yFloor + 20, floorText, Align::Left, 13);
-
-  // Legend, top left inside the plot where the curve is low.
+// The legend, top left inside the plot where the curve is low: the fit, the measurements, the floor
+// and the band below it.
+void drawLegend(cairo_t* cr, const Axes& a, const Calibration& c, const Groups& groups, const std::string& floorText) {
+  const std::size_t measurements = c.record().measurements.size();
   const double lx = a.x(0) + 16, ly = kTop + 16;
   color(cr, Rgb{1, 1, 1});
   cairo_rectangle(cr, lx - 8, ly - 8, 410, 104);
@@ -221,14 +201,14 @@ std::string renderFitPlot(const Calibration& c) {
   cairo_set_line_width(cr, 1.6);
   circle(cr, lx + 15, ly + 8 + row, 5);
   cairo_stroke(cr);
-  const std::size_t replicates = measurements.size() - groups.size();
+  const std::size_t replicates = measurements - groups.size();
   text(cr, lx + 40, ly + 13 + row,
-       std::to_string(measurements.size()) + " measurements at " + std::to_string(groups.size()) + " fractions" +
+       std::to_string(measurements) + " measurements at " + std::to_string(groups.size()) + " fractions" +
            (replicates ? " (bars: means in ln E)" : ""),
        Align::Left, 13);
   color(cr, kFloor);
   cairo_set_line_width(cr, 1.5);
-  cairo_set_dash(cr, dash, 2, 0);
+  cairo_set_dash(cr, kDash, 2, 0);
   cairo_move_to(cr, lx, ly + 8 + 2 * row);
   cairo_line_to(cr, lx + 30, ly + 8 + 2 * row);
   cairo_stroke(cr);
@@ -240,18 +220,41 @@ std::string renderFitPlot(const Calibration& c) {
   cairo_fill(cr);
   color(cr, kInk);
   text(cr, lx + 40, ly + 13 + 3 * row, "below the floor: raised to the floor's fraction", Align::Left, 13);
+}
 
+std::string plotTitle(const FitRecord& r) {
   std::string title = "Modulus vs Vero fraction";
-  if (c.record().temperatureC) title += format(" at %.0f \u00B0C", *c.record().temperatureC);
-  if (!c.record().dither.empty()) title += ", " + c.record().dither + " dither";
-  if (!c.record().dataFile.empty()) title += ", " + std::filesystem::path(c.record().dataFile).filename().string();
-  text(cr, kLeft, 34, title, Align::Left, 17);
+  if (r.temperatureC) title += format(" at %.0f \u00B0C", *r.temperatureC);
+  if (!r.dither.empty()) title += ", " + r.dither + " dither";
+  if (!r.dataFile.empty()) title += ", " + std::filesystem::path(r.dataFile).filename().string();
+  return title;
+}
 
-  cairo_surface_flush(surface.get());
-  std::string bytes;
-  const cairo_status_t status = cairo_surface_write_to_png_stream(surface.get(), appendToString, &bytes);
-  if (status != CAIRO_STATUS_SUCCESS) throw std::runtime_error(std::string("cairo PNG encoding failed: ") + cairo_status_to_string(status));
-  return common::withSoftwareTag(bytes, kSoftware);
+}  // namespace
+
+std::string renderFitPlot(const Calibration& c) {
+  const auto& measurements = c.record().measurements;
+  double lo = std::min({c.minModulusMpa(), c.floorMpa()}), hi = c.maxModulusMpa();
+  for (const Measurement& m : measurements) lo = std::min(lo, m.modulusMpa), hi = std::max(hi, m.modulusMpa);
+  const Axes a{std::floor(std::log10(lo)), std::max(std::ceil(std::log10(hi)), std::floor(std::log10(lo)) + 1)};
+
+  const common::PlotCanvas canvas(kWidth, kHeight);
+  cairo_t* cr = canvas.context();
+
+  const double yFloor = c.floorMpa() > 0 ? a.y(c.floorMpa()) : kHeight - kBottom;
+  drawFloor(cr, a, c, yFloor);
+  drawCurve(cr, a, c);
+  // The floor point under the measurements, so a coupon measured right at the floor stays visible.
+  color(cr, kFloor);
+  circle(cr, a.x(c.floorFraction()), yFloor, 4);
+  cairo_fill(cr);
+  const Groups groups = drawMeasurements(cr, a, measurements);
+  const std::string floorText = format("%g MPa", c.floorMpa()) + " at " + format("%.1f %% Vero", 100 * c.floorFraction());
+  text(cr, a.x(c.floorFraction()) + 10, yFloor + 20, floorText, Align::Left, 13);
+  drawLegend(cr, a, c, groups, floorText);
+  text(cr, kLeft, 34, plotTitle(c.record()), Align::Left, 17);
+
+  return canvas.png(kSoftware);
 }
 
 void writeFitPlot(const Calibration& c, const std::filesystem::path& png) {

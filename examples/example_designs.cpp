@@ -164,68 +164,90 @@ RodStructure bucklingSpringScaledTo(const Vec3& envelope, double rodDiameter) {
   return s;
 }
 
-RodStructure armCast() {
-  constexpr double kRadius = 30.0, kLength = 70.0, kCell = 7.25;  // mm; kCell = hexagon edge length
-  const double arcLength = kPi * kRadius;
-  using Point = Eigen::Vector2d;  // unrolled cast: x = arc length around, y = axial
-  using Key = std::pair<long, long>;
-  auto key = [](const Point& q) { return Key(std::lround(q.x() * 1000.0), std::lround(q.y() * 1000.0)); };
-  // Pointy-top hexagons clipped to the unrolled rectangle; a sorted map keeps the order deterministic.
-  std::map<std::pair<Key, Key>, std::pair<Point, Point>> edges;
-  auto addEdge = [&](Point a, Point b) {
-    Key ka = key(a), kb = key(b);
-    if (ka == kb) return;
-    if (kb < ka) std::swap(ka, kb), std::swap(a, b);
-    edges.emplace(std::make_pair(ka, kb), std::make_pair(a, b));
-  };
-  // Liang-Barsky clipping of a segment to [0, arcLength] x [0, kLength].
-  auto clip = [&](const Point& a, const Point& b, Point& ca, Point& cb) {
-    double t0 = 0.0, t1 = 1.0;
-    const Point d = b - a;
-    const double p[4] = {-d.x(), d.x(), -d.y(), d.y()};
-    const double q[4] = {a.x(), arcLength - a.x(), a.y(), kLength - a.y()};
-    for (int i = 0; i < 4; ++i) {
-      if (p[i] == 0.0) {
-        if (q[i] < 0.0) return false;
-        continue;
-      }
-      const double t = q[i] / p[i];
-      if (p[i] < 0.0) t0 = std::max(t0, t); else t1 = std::min(t1, t);
+namespace {
+
+using Point2 = Eigen::Vector2d;
+using PointKey = std::pair<long, long>;  // a point to 1 um
+// Segments by their ends' keys, lower key first: a sorted map keeps the order deterministic and keeps
+// a segment met twice once.
+using SegmentMap = std::map<std::pair<PointKey, PointKey>, std::pair<Point2, Point2>>;
+
+void addSegment(SegmentMap& segments, Point2 a, Point2 b) {
+  auto key = [](const Point2& q) { return PointKey(std::lround(q.x() * 1000.0), std::lround(q.y() * 1000.0)); };
+  PointKey ka = key(a), kb = key(b);
+  if (ka == kb) return;
+  if (kb < ka) std::swap(ka, kb), std::swap(a, b);
+  segments.emplace(std::make_pair(ka, kb), std::make_pair(a, b));
+}
+
+// Liang-Barsky clipping of the segment ab to [0, width] x [0, height]; false when nothing is left.
+bool clipToRectangle(const Point2& a, const Point2& b, double width, double height, Point2& ca, Point2& cb) {
+  double t0 = 0.0, t1 = 1.0;
+  const Point2 d = b - a;
+  const double p[4] = {-d.x(), d.x(), -d.y(), d.y()};
+  const double q[4] = {a.x(), width - a.x(), a.y(), height - a.y()};
+  for (int i = 0; i < 4; ++i) {
+    if (p[i] == 0.0) {
+      if (q[i] < 0.0) return false;
+      continue;
     }
-    if (t1 - t0 < 1e-9) return false;
-    ca = a + t0 * d;
-    cb = a + t1 * d;
-    return true;
-  };
-  const double dx = std::sqrt(3.0) * kCell, dy = 1.5 * kCell;
-  for (int row = -1; row * dy <= kLength + 2 * kCell; ++row) {
-    for (int col = -1; col * dx <= arcLength + 2 * kCell; ++col) {
-      const Point centre(dx * (col + 0.5 * (row & 1)), dy * row);
+    const double t = q[i] / p[i];
+    if (p[i] < 0.0) t0 = std::max(t0, t); else t1 = std::min(t1, t);
+  }
+  if (t1 - t0 < 1e-9) return false;
+  ca = a + t0 * d;
+  cb = a + t1 * d;
+  return true;
+}
+
+// The edges of pointy-top hexagons of edge `cell` clipped to [0, width] x [0, height], without
+// slivers (a quarter of the edge or less) and without pieces along the border.
+SegmentMap hexagonLattice(double width, double height, double cell) {
+  SegmentMap edges;
+  const double dx = std::sqrt(3.0) * cell, dy = 1.5 * cell;
+  for (int row = -1; row * dy <= height + 2 * cell; ++row) {
+    for (int col = -1; col * dx <= width + 2 * cell; ++col) {
+      const Point2 centre(dx * (col + 0.5 * (row & 1)), dy * row);
       for (int k = 0; k < 6; ++k) {
         const double a0 = kPi / 6 + k * kPi / 3, a1 = a0 + kPi / 3;
-        Point ca, cb;
-        if (!clip(centre + kCell * Point(std::cos(a0), std::sin(a0)), centre + kCell * Point(std::cos(a1), std::sin(a1)), ca, cb))
+        Point2 ca, cb;
+        if (!clipToRectangle(centre + cell * Point2(std::cos(a0), std::sin(a0)), centre + cell * Point2(std::cos(a1), std::sin(a1)),
+                             width, height, ca, cb))
           continue;
         // Drop slivers along the border: they duplicate the rim rods.
-        const bool alongBorder = (std::abs(ca.x() - cb.x()) < 1e-9 && (std::abs(ca.x()) < 1e-9 || std::abs(ca.x() - arcLength) < 1e-9)) ||
-                                 (std::abs(ca.y() - cb.y()) < 1e-9 && (std::abs(ca.y()) < 1e-9 || std::abs(ca.y() - kLength) < 1e-9));
-        if ((cb - ca).norm() > 0.25 * kCell && !alongBorder) addEdge(ca, cb);
+        const bool alongBorder = (std::abs(ca.x() - cb.x()) < 1e-9 && (std::abs(ca.x()) < 1e-9 || std::abs(ca.x() - width) < 1e-9)) ||
+                                 (std::abs(ca.y() - cb.y()) < 1e-9 && (std::abs(ca.y()) < 1e-9 || std::abs(ca.y() - height) < 1e-9));
+        if ((cb - ca).norm() > 0.25 * cell && !alongBorder) addSegment(edges, ca, cb);
       }
     }
   }
-  // The rim: the border of the rectangle, split where lattice edges end on it so joints are rod ends.
-  std::vector<Point> border = {{0, 0}, {arcLength, 0}, {arcLength, kLength}, {0, kLength}};
+  return edges;
+}
+
+// The rim: the border of [0, width] x [0, height], split where edges end on it so joints are rod ends.
+void addRim(SegmentMap& edges, double width, double height) {
+  std::vector<Point2> border = {{0, 0}, {width, 0}, {width, height}, {0, height}};
   for (const auto& [k, e] : edges)
-    for (const Point& q : {e.first, e.second})
-      if (q.x() < 1e-9 || q.x() > arcLength - 1e-9 || q.y() < 1e-9 || q.y() > kLength - 1e-9) border.push_back(q);
-  auto perimeter = [&](const Point& q) {  // position along the border, counter-clockwise from (0, 0)
+    for (const Point2& q : {e.first, e.second})
+      if (q.x() < 1e-9 || q.x() > width - 1e-9 || q.y() < 1e-9 || q.y() > height - 1e-9) border.push_back(q);
+  auto perimeter = [&](const Point2& q) {  // position along the border, counter-clockwise from (0, 0)
     if (q.y() < 1e-9) return q.x();
-    if (q.x() > arcLength - 1e-9) return arcLength + q.y();
-    if (q.y() > kLength - 1e-9) return 2 * arcLength + kLength - q.x();
-    return 2 * arcLength + 2 * kLength - q.y();
+    if (q.x() > width - 1e-9) return width + q.y();
+    if (q.y() > height - 1e-9) return 2 * width + height - q.x();
+    return 2 * width + 2 * height - q.y();
   };
-  std::sort(border.begin(), border.end(), [&](const Point& a, const Point& b) { return perimeter(a) < perimeter(b); });
-  for (std::size_t i = 0; i < border.size(); ++i) addEdge(border[i], border[(i + 1) % border.size()]);
+  std::sort(border.begin(), border.end(), [&](const Point2& a, const Point2& b) { return perimeter(a) < perimeter(b); });
+  for (std::size_t i = 0; i < border.size(); ++i) addSegment(edges, border[i], border[(i + 1) % border.size()]);
+}
+
+}  // namespace
+
+RodStructure armCast() {
+  constexpr double kRadius = 30.0, kLength = 70.0, kCell = 7.25;  // mm; kCell = hexagon edge length
+  const double arcLength = kPi * kRadius;
+  using Point = Point2;  // unrolled cast: x = arc length around, y = axial
+  SegmentMap edges = hexagonLattice(arcLength, kLength, kCell);
+  addRim(edges, arcLength, kLength);
 
   auto onCylinder = [&](const Point& q) {
     const double theta = q.x() / kRadius;

@@ -70,6 +70,36 @@ void Rod::findSmoothPieces(const std::vector<double>& bp, std::vector<bool>& isC
   }
 }
 
+namespace {
+
+// The smooth pieces between consecutive C0 samples (`c0Samples`: the index in `sampleU` of every C0
+// point and of the last sample), with their parameter ranges and end tangents; evaluate(u, fromBelow,
+// d) gives r, r', r'' at u.
+template <class Evaluate>
+std::vector<SmoothPiece> piecesBetween(const std::vector<double>& sampleU, const std::vector<std::size_t>& c0Samples,
+                                       Evaluate evaluate) {
+  std::vector<SmoothPiece> pieces;
+  std::size_t first = 0;
+  for (const std::size_t last : c0Samples) {
+    SmoothPiece piece;
+    piece.begin = sampleU[first];
+    piece.end = sampleU[last];
+    piece.firstSample = first;
+    piece.lastSample = last;
+    piece.endFromBelow = last + 1 < sampleU.size();
+    Vec3 d[3];
+    evaluate(piece.begin, false, d);
+    piece.beginTangent = unitTangent(d[1], d[2]);
+    evaluate(piece.end, piece.endFromBelow, d);
+    piece.endTangent = piece.endFromBelow ? unitTangentFromBelow(d[1], d[2]) : unitTangent(d[1], d[2]);
+    pieces.push_back(piece);
+    first = last;
+  }
+  return pieces;
+}
+
+}  // namespace
+
 void Rod::sampleCenterline() {
   // Adaptive polyline: a piece is split while its chord strays from the curve by more than a small
   // fraction of the section or its end tangents turn by more than ~10 degrees. The turning bound
@@ -139,24 +169,8 @@ void Rod::sampleCenterline() {
   }
   sampleDeviation_ = std::move(devs);
 
-  pieces_.clear();
   c0Samples.push_back(out.size() - 1);
-  std::size_t first = 0;
-  for (const std::size_t last : c0Samples) {
-    SmoothPiece piece;
-    piece.begin = sampleU_[first];
-    piece.end = sampleU_[last];
-    piece.firstSample = first;
-    piece.lastSample = last;
-    piece.endFromBelow = last + 1 < out.size();
-    Vec3 d[3];
-    evaluate(piece.begin, false, d);
-    piece.beginTangent = unitTangent(d[1], d[2]);
-    evaluate(piece.end, piece.endFromBelow, d);
-    piece.endTangent = piece.endFromBelow ? unitTangentFromBelow(d[1], d[2]) : unitTangent(d[1], d[2]);
-    pieces_.push_back(piece);
-    first = last;
-  }
+  pieces_ = piecesBetween(sampleU_, c0Samples, [&](double u, bool fromBelow, Vec3* d) { evaluate(u, fromBelow, d); });
   estimateCurvature(unresolved);
   cacheJets();
 }
@@ -209,6 +223,37 @@ void Rod::estimateCurvature(const std::vector<bool>& unresolved) {
   }
 }
 
+namespace {
+
+// Safeguarded Newton (Numerical Recipes' rtsafe) for a zero of g on [a, b], where g(a) < 0 < g(b):
+// `gAndSlope(u)` returns {g(u), g'(u)}. A Newton step that would leave the bracket, or shrink it
+// slower than bisection, is a bisection instead. Returns the zero clamped to [a, b].
+template <class GAndSlope>
+double safeguardedNewton(double a, double b, GAndSlope gAndSlope) {
+  double lo = a, hi = b;
+  double u = 0.5 * (a + b);
+  double dxOld = b - a, dx = dxOld;
+  const double tol = 1e-15 * std::max(1.0, std::abs(b) + std::abs(a));
+  for (int it = 0; it < 60; ++it) {
+    const auto [g, dg] = gAndSlope(u);
+    if (g < 0.0) lo = u; else hi = u;
+    const bool newtonOutside = ((u - hi) * dg - g) * ((u - lo) * dg - g) > 0.0;
+    const bool newtonSlow = std::abs(2.0 * g) > std::abs(dxOld * dg);
+    dxOld = dx;
+    if (newtonOutside || newtonSlow || dg <= 0.0) {
+      dx = 0.5 * (hi - lo);
+      u = lo + dx;
+    } else {
+      dx = g / dg;
+      u -= dx;
+    }
+    if (std::abs(dx) < tol || g == 0.0) break;
+  }
+  return std::clamp(u, a, b);
+}
+
+}  // namespace
+
 ClosestPoint Rod::closestPointInInterval(const Vec3& p, double a, double b) const {
   auto f = [&](double u, Vec3* d) {
     centerline_.derivatives(u, 2, d);
@@ -225,28 +270,11 @@ ClosestPoint Rod::closestPointInInterval(const Vec3& p, double a, double b) cons
   const double fb = f(b, d);
   if (fb <= 0.0) return result(b);
 
-  // Safeguarded Newton (Numerical Recipes' rtsafe) on g(u) = (r - p) . r', bracketed by [lo, hi].
-  double lo = a, hi = b;
-  double u = 0.5 * (a + b);
-  double dxOld = b - a, dx = dxOld;
-  const double tol = 1e-15 * std::max(1.0, std::abs(b) + std::abs(a));
-  for (int it = 0; it < 60; ++it) {
+  // g(u) = (r - p) . r', negative at a and positive at b.
+  return result(safeguardedNewton(a, b, [&](double u) {
     const double g = f(u, d);
-    const double dg = d[1].squaredNorm() + (d[0] - p).dot(d[2]);
-    if (g < 0.0) lo = u; else hi = u;
-    const bool newtonOutside = ((u - hi) * dg - g) * ((u - lo) * dg - g) > 0.0;
-    const bool newtonSlow = std::abs(2.0 * g) > std::abs(dxOld * dg);
-    dxOld = dx;
-    if (newtonOutside || newtonSlow || dg <= 0.0) {
-      dx = 0.5 * (hi - lo);
-      u = lo + dx;
-    } else {
-      dx = g / dg;
-      u -= dx;
-    }
-    if (std::abs(dx) < tol || g == 0.0) break;
-  }
-  return result(std::clamp(u, a, b));
+    return std::pair{g, d[1].squaredNorm() + (d[0] - p).dot(d[2])};
+  }));
 }
 
 ClosestPoint Rod::closestPoint(const Vec3& p) const {
@@ -266,34 +294,17 @@ ClosestPoint Rod::closestPoint(const Vec3& p) const {
 }
 
 double Rod::solveCrossing(const Vec3& p, double a, double b, double sign) const {
-  // Safeguarded Newton (Numerical Recipes' rtsafe) on sign * g(u), g = (r - p) . r', negative at a and
-  // positive at b; sign = -1 finds the zeros where g falls (farthest points, only on tight bends).
+  // A zero of sign * g(u), g = (r - p) . r', negative at a and positive at b; sign = -1 finds the zeros
+  // where g falls (farthest points, only on tight bends).
   auto f = [&](double u, Vec3* d) {
     centerline_.derivatives(u, 2, d);
     return sign * (d[0] - p).dot(d[1]);
   };
   Vec3 d[3];
-  double lo = a, hi = b;
-  double u = 0.5 * (a + b);
-  double dxOld = b - a, dx = dxOld;
-  const double tol = 1e-15 * std::max(1.0, std::abs(b) + std::abs(a));
-  for (int it = 0; it < 60; ++it) {
+  return safeguardedNewton(a, b, [&](double u) {
     const double g = f(u, d);
-    const double dg = sign * (d[1].squaredNorm() + (d[0] - p).dot(d[2]));
-    if (g < 0.0) lo = u; else hi = u;
-    const bool newtonOutside = ((u - hi) * dg - g) * ((u - lo) * dg - g) > 0.0;
-    const bool newtonSlow = std::abs(2.0 * g) > std::abs(dxOld * dg);
-    dxOld = dx;
-    if (newtonOutside || newtonSlow || dg <= 0.0) {
-      dx = 0.5 * (hi - lo);
-      u = lo + dx;
-    } else {
-      dx = g / dg;
-      u -= dx;
-    }
-    if (std::abs(dx) < tol || g == 0.0) break;
-  }
-  return std::clamp(u, a, b);
+    return std::pair{g, sign * (d[1].squaredNorm() + (d[0] - p).dot(d[2]))};
+  });
 }
 
 namespace {

@@ -31,4 +31,10 @@ double Section::area() const {
   return std::numbers::pi * 0.25 * width * height;
 }
 
+double Section::perimeter() const {
+  if (shape == SectionShape::Rectangle) return 2.0 * (width + height);
+  const double a = 0.5 * width, b = 0.5 * height, h = (a - b) * (a - b) / ((a + b) * (a + b));
+  return std::numbers::pi * (a + b) * (1.0 + 3.0 * h / (10.0 + std::sqrt(4.0 - 3.0 * h)));
+}
+
 }  // namespace rodfab::geometry

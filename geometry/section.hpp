@@ -30,6 +30,9 @@ struct Section {
   // Radius of a round end cap: half the smaller section dimension.
   double capRadius() const { return 0.5 * (width < height ? width : height); }
   double area() const;
+  // Boundary length in mm (Ramanujan's second approximation for ellipses: relative error below 5e-4 at
+  // any aspect ratio).
+  double perimeter() const;
   bool isRotationallySymmetric() const { return shape == SectionShape::Circle; }
 };
 

@@ -73,7 +73,12 @@ struct Node {
   std::optional<SupportKind> support;  // none: free (force and moment balance)
   std::string supportPath;
   Eigen::Vector3d displacement = Eigen::Vector3d::Zero(), rotation = Eigen::Vector3d::Zero();
-  Eigen::Vector3d force = Eigen::Vector3d::Zero(), moment = Eigen::Vector3d::Zero();
+  Eigen::Vector3d force = Eigen::Vector3d::Zero(), moment = Eigen::Vector3d::Zero();  // dead, in space
+  // Follower loads: given in space for the drawn shape (followerForce0, followerMoment0), and the
+  // same in the first site's material frame (R0^T times them), turned by its rotation R(q).
+  Eigen::Vector3d followerForce0 = Eigen::Vector3d::Zero(), followerMoment0 = Eigen::Vector3d::Zero();
+  Eigen::Vector3d followerForce = Eigen::Vector3d::Zero(), followerMoment = Eigen::Vector3d::Zero();
+  bool hasFollower = false;
   // Reference data: the first site's position and unit quaternion; per further site its offset
   // from the first and the relative rotation conj(q_first) q_site to keep.
   Eigen::Vector3d position0;

@@ -103,6 +103,9 @@ private:
   void rotationRows(double load);
   void momentBalanceRows(double load);
   void jointRows(std::size_t i);
+  // Adds load R(q) local to rows [row, row + 3) (scaled by `rowScale`), with the derivative with
+  // respect to the first site's q: a follower force or moment.
+  void addFollower(const Vector3d& local, double load, Eigen::Index row, double rowScale, Vector3d& sum);
 
   const DiscreteStructure& s_;
   const Node& node_;
@@ -148,8 +151,21 @@ void NodeEquations::positionRows(double load) {
   if (derivatives_) dSite(0).block<3, 3>(0, 0) = Eigen::Matrix3d::Identity() * positionRow_;
 }
 
+void NodeEquations::addFollower(const Vector3d& local, double load, Eigen::Index row, double rowScale, Vector3d& sum) {
+  if (local.isZero()) return;
+  using D = Dual<4>;
+  V4<D> q;
+  for (int j = 0; j < 4; ++j) q[j] = D(site(0).s.q[j], 4, j);
+  const V3<D> f = rotationNumerator<D>(q) * local.cast<D>() / q.squaredNorm() * D(load);
+  for (int j = 0; j < 3; ++j) {
+    sum[j] += f[j].value();
+    if (derivatives_) dSite(0).block<1, 4>(row + j, 6) += rowScale * f[j].derivatives().transpose();
+  }
+}
+
 void NodeEquations::forceBalanceRows(double load) {
   Vector3d sum = load * node_.force;
+  if (node_.hasFollower) addFollower(node_.followerForce, load, 0, forceRow_, sum);
   for (std::size_t k = 0; k < sides_.size(); ++k) {
     sum += sides_[k].side.sign * sides_[k].n;
     if (derivatives_) dSide_[k].block<3, 14>(0, 0) += sides_[k].side.sign * sides_[k].dn * forceRow_;
@@ -170,6 +186,7 @@ void NodeEquations::rotationRows(double load) {
 
 void NodeEquations::momentBalanceRows(double load) {
   Vector3d sum = load * node_.moment;
+  if (node_.hasFollower) addFollower(node_.followerMoment, load, 3, momentRow_, sum);
   for (std::size_t k = 0; k < sides_.size(); ++k) {
     const SideData& d = sides_[k];
     const double sign = d.side.sign;

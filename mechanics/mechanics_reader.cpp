@@ -210,7 +210,7 @@ std::optional<Support> MechanicsReader::support(const json& e, const std::string
 }
 
 std::optional<PointLoad> MechanicsReader::pointLoad(const json& e, const std::string& ep, const RodNames& names) {
-  onlyKeys(e, ep, {"at", "force", "moment"});
+  onlyKeys(e, ep, {"at", "force", "moment", "follower"});
   PointLoad l;
   std::optional<RodEndRef> at;
   if (auto a = require(e, ep, "at", "a place {\"rod\", \"end\"}, {\"rod\", \"parameter\"} or {\"point\"}")) at = endRef(*a, memberPath(ep, "at"), names);
@@ -220,6 +220,10 @@ std::optional<PointLoad> MechanicsReader::pointLoad(const json& e, const std::st
   }
   if (auto m = e.find("moment"); m != e.end()) {
     if (auto v = vector3(*m, memberPath(ep, "moment"), "a moment in N mm")) l.moment = *v; else ok = false;
+  }
+  if (auto f = e.find("follower"); f != e.end()) {
+    if (f->is_boolean()) l.follower = f->get<bool>();
+    else fail(memberPath(ep, "follower"), "expected true (the load turns with the cross-section) or false (a dead load), got " + describe(*f)), ok = false;
   }
   if (!e.contains("force") && !e.contains("moment")) fail(ep, "a load needs \"force\" (N) or \"moment\" (N mm)"), ok = false;
   if (!at || !ok) return std::nullopt;

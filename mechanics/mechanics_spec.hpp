@@ -43,11 +43,16 @@ struct Support {
   Eigen::Vector3d rotation = Eigen::Vector3d::Zero();      // rad, axis * angle in space; clamped only
 };
 
-// Dead force and moment at a rod end, joint or interior point, scaled by the load factor.
+// Force and moment at a rod end, joint or interior point, scaled by the load factor. Given in space
+// for the drawn shape; a dead load keeps that direction, a follower load ("follower": true) keeps
+// its direction in the cross-section's material frame there: in the deformed state it is
+// R R0^T times the given vector, R0 and R the section's rotation drawn and deformed (at a joint
+// every rod's section turns alike, the joint being rigid).
 struct PointLoad {
   RodEndRef at;
   Eigen::Vector3d force = Eigen::Vector3d::Zero();   // N
   Eigen::Vector3d moment = Eigen::Vector3d::Zero();  // N mm
+  bool follower = false;
 };
 
 // Dead force per unit of reference length along a whole rod (for example its weight).

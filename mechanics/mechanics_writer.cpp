@@ -75,8 +75,11 @@ ordered mechanicsJson(const MechanicsSpec& spec) {
   }
   m["supports"] = supports;
   ordered loads = ordered::array();
-  for (const PointLoad& l : spec.loads)
-    loads.push_back({{"at", endRefJson(l.at)}, {"force", vec3Json(l.force)}, {"moment", vec3Json(l.moment)}});
+  for (const PointLoad& l : spec.loads) {
+    ordered o{{"at", endRefJson(l.at)}, {"force", vec3Json(l.force)}, {"moment", vec3Json(l.moment)}};
+    if (l.follower) o["follower"] = true;
+    loads.push_back(o);
+  }
   m["loads"] = loads;
   if (!spec.distributedLoads.empty()) {
     ordered d = ordered::array();

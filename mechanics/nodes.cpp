@@ -294,8 +294,14 @@ void DiscreteStructure::buildNodes(const Design& structure) {
   }
   for (const auto& l : spec.loads) {
     Node& node = nodeAt(l.at);
-    node.force += l.force;
-    node.moment += l.moment;
+    if (l.follower) {
+      node.followerForce0 += l.force;
+      node.followerMoment0 += l.moment;
+      node.hasFollower = true;
+    } else {
+      node.force += l.force;
+      node.moment += l.moment;
+    }
   }
   if (supports == 0)
     fail("mechanics.supports", "no support: the structure could move as a rigid body; clamp or pin at least one rod end");
@@ -319,6 +325,9 @@ void DiscreteStructure::buildNodes(const Design& structure) {
     const LocalState s0 = localState(rodOf(first), siteBasis(first), reference);
     node.position0 = s0.r;
     node.quaternion0 = s0.q.normalized();
+    const Eigen::Matrix3d R0 = rotationNumerator<double>(node.quaternion0);  // |q0| = 1
+    node.followerForce = R0.transpose() * node.followerForce0;
+    node.followerMoment = R0.transpose() * node.followerMoment0;
     const Eigen::Vector4d conj0(node.quaternion0[0], -node.quaternion0[1], -node.quaternion0[2], -node.quaternion0[3]);
     for (std::size_t i = 1; i < node.ends.size(); ++i) {
       const LocalState s = localState(rodOf(node.ends[i]), siteBasis(node.ends[i]), reference);

@@ -4,7 +4,10 @@
 #include "optimize/optimize.hpp"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
+#include <sstream>
 
 namespace rodfab::optimize {
 
@@ -200,27 +203,69 @@ Evaluation DesignProblem::evaluate(const Eigen::VectorXd& modulus, bool gradient
   return out;
 }
 
+namespace {
+
+// Largest difference of centerline displacements between two discretizations of one design (4
+// samples per span of the finer, `b`), and the largest displacement of `a`, both in mm.
+std::pair<double, double> displacementDifference(const mechanics::Design& design, const mechanics::StaticProblem& a,
+                                                 const Eigen::VectorXd& xa, const mechanics::StaticProblem& b,
+                                                 const Eigen::VectorXd& xb) {
+  double difference = 0, displacement = 0;
+  for (std::size_t r = 0; r < design.rods.size(); ++r) {
+    const geometry::NurbsCurve& curve = design.rods[r].centerline();
+    const int designSpans = static_cast<int>(curve.breakpoints().size()) - 1;
+    const int samples = 4 * b.discretization().perRod[r] * (b.discretization().degree > 0 ? 1 : designSpans);
+    for (int i = 0; i <= samples; ++i) {
+      const double u = curve.domainBegin() + (curve.domainEnd() - curve.domainBegin()) * i / samples;
+      const Eigen::Vector3d da = a.position(xa, r, u) - a.position(a.referenceState(), r, u);
+      const Eigen::Vector3d db = b.position(xb, r, u) - b.position(b.referenceState(), r, u);
+      difference = std::max(difference, (da - db).norm());
+      displacement = std::max(displacement, da.norm());
+    }
+  }
+  return {difference, displacement};
+}
+
+}  // namespace
+
+// The error of the optimizer's level from a solve with twice the spans: if errors fall by r per
+// doubling, e = d + e / r, so e = d r / (r - 1), r = 2^(order - 2) as mechanics assumes before it
+// has observed one (a quarter of the asymptotic rate). Comparing with the finer level rather than
+// a coarser one (what mechanics::simulate does) measures the level itself: the coarser level's
+// error is not that of the optimizer's, and its solve is the one that fails on stiff problems.
 std::vector<CaseAccuracy> DesignProblem::accuracyAt(const Eigen::VectorXd& modulus, const std::function<void()>& poll) const {
   const Impl& m = *impl_;
   if (static_cast<std::size_t>(modulus.size()) != variableCount())
     throw std::invalid_argument("DesignProblem::accuracyAt: " + std::to_string(variableCount()) + " values expected");
   const std::vector<geometry::Rod> rods = m.rodsWith(modulus);
-  mechanics::AccuracyOptions accuracy;
-  accuracy.maxRefinements = 0;  // the optimizer's discretization as it is: estimate, do not refine
+  mechanics::AccuracyOptions once;
+  once.estimate = false;  // the optimizer's discretization as it is
   std::vector<CaseAccuracy> out;
   for (const Impl::Case& c : m.cases) {
     if (poll) poll();
     mechanics::Design s = *c.structure;
     s.rods = rods;
+    mechanics::ErrorEstimate e;
     try {
-      const mechanics::Simulation sim = mechanics::simulate(s, c.problem->discretization(), m.settings.solver, c.loadSteps, accuracy,
+      const mechanics::Simulation sim = mechanics::simulate(s, c.problem->discretization(), m.settings.solver, c.loadSteps, once,
                                                             [&](const mechanics::LoadStepReport&, const Eigen::VectorXd&) { if (poll) poll(); });
-      out.push_back({c.name, sim.estimate});
-    } catch (const mechanics::ConvergenceError& e) {
-      mechanics::ErrorEstimate none;
-      none.note = std::string("the load path does not converge: ") + e.what();
-      out.push_back({c.name, none});
+      mechanics::Discretization finer = c.problem->discretization();
+      for (int& spans : finer.perRod) spans = std::min(2 * spans, mechanics::kMaxSpansPerRod);
+      const mechanics::StaticProblem fine(s, finer);
+      if (poll) poll();
+      const mechanics::Solution f = mechanics::solveFrom(fine, fine.transferredState(*sim.problem, sim.solution.state), m.settings.solver, c.loadSteps);
+      const auto [difference, displacement] = displacementDifference(s, *sim.problem, sim.solution.state, fine, f.state);
+      const double ratio = std::max(2.0, std::ldexp(1.0, c.problem->convergenceOrder() - 2));
+      e.available = true;
+      e.positionError = difference * ratio / (ratio - 1.0);
+      e.largestDisplacement = displacement;
+      e.relative = e.positionError / std::max(displacement, 1e-6 * s.bounds().diagonal().norm());
+      e.comparedUnknowns = fine.unknownCount();
+    } catch (const mechanics::ConvergenceError& err) {
+      e.available = false;
+      e.note = std::string("a solve does not converge: ") + err.what();
     }
+    out.push_back({c.name, e});
   }
   return out;
 }
@@ -231,6 +276,31 @@ mechanics::Design DesignProblem::designWith(const Eigen::VectorXd& modulus) cons
   mechanics::Design out = impl_->design;
   out.rods = impl_->rodsWith(modulus);
   return out;
+}
+
+std::optional<Start> parseStart(const std::string& text) {
+  if (text == "design") return Start{};
+  if (text == "uniform") return Start{true, 0.0};
+  const std::string prefix = "uniform=";
+  if (text.rfind(prefix, 0) != 0 || text.size() == prefix.size() || text.size() > prefix.size() + 32) return std::nullopt;
+  const std::string number = text.substr(prefix.size());
+  char* end = nullptr;
+  errno = 0;
+  const double mpa = std::strtod(number.c_str(), &end);
+  if (end != number.c_str() + number.size() || errno == ERANGE || !std::isfinite(mpa) || !(mpa > 0)) return std::nullopt;
+  return Start{true, mpa};
+}
+
+Eigen::VectorXd startingModulus(const DesignProblem& problem, const Start& start) {
+  if (!start.uniform) return problem.startingModulus();
+  const Settings& s = problem.settings();
+  const double value = start.mpa > 0 ? start.mpa : std::clamp(std::sqrt(s.lowerMpa * s.upperMpa), s.lowerMpa, s.upperMpa);
+  if (value < s.lowerMpa || value > s.upperMpa) {
+    std::ostringstream m;
+    m << "--start uniform=" << value << ": outside the bounds [" << s.lowerMpa << ", " << s.upperMpa << "] MPa";
+    throw OptimizeError(m.str());
+  }
+  return Eigen::VectorXd::Constant(static_cast<Eigen::Index>(problem.variableCount()), value);
 }
 
 }  // namespace rodfab::optimize

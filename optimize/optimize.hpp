@@ -21,6 +21,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -38,6 +39,11 @@ public:
 // E = E0 (E1 / E0)^t (logarithmic: equal steps are equal ratios of E).
 enum class Scaling { Linear, Logarithmic };
 
+// The bounded optimizer: L-BFGS-B (LBFGS++, More-Thuente line search; an iteration is one line
+// search), or NLopt's MMA or CCSAQ (the method of moving asymptotes and its conservative
+// quadratic variant; an iteration is one evaluation, maxIterations bounds the evaluations).
+enum class Method { LbfgsB, Mma, Ccsaq };
+
 struct Settings {
   double positionWeight = 1.0;   // C_r (dimensionless: positions are divided by the rod length)
   double curvatureWeight = 1.0;  // C_k (dimensionless: curvatures are multiplied by the rod length)
@@ -50,6 +56,7 @@ struct Settings {
   // Logarithmic by default: where only ratios of E set the shape (displacement-driven cases) g is
   // flat along E -> a E, and equal steps in log E condition that far better (optimize/README.md).
   Scaling scaling = Scaling::Logarithmic;
+  Method method = Method::LbfgsB;  // L-BFGS-B by default: optimize/README.md compares the three
   // The discretization is resolved once, for the starting design, and kept for every solve.
   mechanics::Discretization discretization;
   mechanics::SolverOptions solver;
@@ -107,10 +114,12 @@ public:
   // The equilibrium states of the last evaluate(), per case.
   const Eigen::VectorXd& state(std::size_t c) const;
   // How accurate the equilibria at `modulus` are: per case, a fresh solve along the load path on the
-  // optimizer's discretization and one with half the spans (mechanics::simulate with no
-  // refinement), about twice a solve's cost. `poll` (may be empty) is called before each case and
-  // after each load step; what it throws (common::Interrupted) passes through. A case whose path does
-  // not converge gets an estimate marked unavailable; throws mechanics::MechanicsError otherwise.
+  // optimizer's discretization and one with twice the spans from it (Newton at full load); the
+  // largest difference d of centerline displacements gives the optimizer's level's error
+  // d r / (r - 1), r = 2^(order - 2) (optimize/README.md), at about three solves' cost. `poll`
+  // (may be empty) is called before each case, after each load step and before the finer solve;
+  // what it throws (common::Interrupted) passes through. A case whose solves do not converge gets
+  // an estimate marked unavailable; throws mechanics::MechanicsError otherwise.
   std::vector<CaseAccuracy> accuracyAt(const Eigen::VectorXd& modulus, const std::function<void()>& poll = {}) const;
   // The design with each rod's modulus replaced by the B-spline with control values `modulus`.
   mechanics::Design designWith(const Eigen::VectorXd& modulus) const;
@@ -119,6 +128,18 @@ private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+// Where an optimization starts: the design's own E(u) (DesignProblem::startingModulus), or one
+// modulus everywhere ("uniform material", as the published optimizations start).
+struct Start {
+  bool uniform = false;
+  double mpa = 0.0;  // with `uniform`: the modulus (MPa); 0: the geometric mean of the bounds
+};
+// "design", "uniform" or "uniform=MPa" (MPa a finite number > 0); nullopt for anything else.
+std::optional<Start> parseStart(const std::string& text);
+// The control values `start` stands for on `problem`. Throws OptimizeError naming --start when a
+// uniform modulus lies outside the settings' bounds.
+Eigen::VectorXd startingModulus(const DesignProblem& problem, const Start& start);
 
 struct Iteration {
   int index = 0;                 // 0: the start
@@ -139,7 +160,8 @@ struct Result {
   double seconds = 0.0;
 };
 
-// Minimizes g from `start` (startingModulus() when empty) within the settings' bounds by L-BFGS-B.
+// Minimizes g from `start` (startingModulus() when empty) within the settings' bounds by the
+// settings' method.
 // `onIteration` is called at the start and after every iteration; an exception it throws (for
 // example common::Interrupted) passes through. Throws as DesignProblem::evaluate.
 Result optimize(DesignProblem& problem, const std::function<void(const Iteration&)>& onIteration = {},

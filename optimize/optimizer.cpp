@@ -1,7 +1,9 @@
-// The bounded quasi-Newton loop: L-BFGS-B (LBFGS++) on log E (or E) scaled to [0, 1] and g scaled by g0.
+// The bounded optimizers on log E (or E) scaled to [0, 1] and g scaled by g0: L-BFGS-B (LBFGS++),
+// or NLopt's MMA / CCSAQ.
 #include "optimize/optimize.hpp"
 
 #include <LBFGSB.h>
+#include <nlopt.hpp>
 
 #include <chrono>
 #include <cmath>
@@ -135,6 +137,64 @@ public:
   }
 };
 
+// L-BFGS-B from t: the iterations done; throws what the objective or LBFGS++ throws.
+int minimizeLbfgsB(ScaledObjective& objective, const Settings& settings, Eigen::VectorXd& t, double& f) {
+  LBFGSpp::LBFGSBParam<double> param;
+  param.m = 10;
+  param.epsilon = settings.tolerance;
+  param.epsilon_rel = 0.0;
+  param.max_iterations = settings.maxIterations;
+  param.max_linesearch = 30;
+  LBFGSpp::LBFGSBSolver<double, ReportingLineSearch> solver(param);
+  const Eigen::VectorXd lower = Eigen::VectorXd::Zero(t.size()), upper = Eigen::VectorXd::Ones(t.size());
+  return solver.minimize(objective, t, f, lower, upper);
+}
+
+// NLopt's MMA or CCSAQ from t, every evaluation reported as an iteration, at most maxIterations of
+// them; stops where the projected gradient is below the tolerance. Returns the iterations done.
+// NLopt's C++ wrapper swallows what an objective throws, so the objective keeps it and stops
+// NLopt, and it is thrown again here.
+int minimizeNlopt(ScaledObjective& objective, const Settings& settings, const Eigen::VectorXd& t, double f0,
+                  const Eigen::VectorXd& grad0, const Result& result) {
+  nlopt::opt opt(settings.method == Method::Mma ? nlopt::LD_MMA : nlopt::LD_CCSAQ, static_cast<unsigned>(t.size()));
+  opt.set_lower_bounds(0.0);
+  opt.set_upper_bounds(1.0);
+  opt.set_maxeval(settings.maxIterations + 1);  // NLopt's first evaluation is the start, evaluated already
+  std::exception_ptr thrown;
+  bool first = true;
+  auto f = [&](const std::vector<double>& x, std::vector<double>& grad) {
+    try {
+      const Eigen::VectorXd tx = Eigen::Map<const Eigen::VectorXd>(x.data(), static_cast<Eigen::Index>(x.size()));
+      Eigen::VectorXd g = grad0;
+      double value = f0;
+      if (!first || tx != t) {
+        value = objective(tx, g);
+        objective.iterationDone(tx, value, g);
+      }
+      first = false;
+      if (!grad.empty()) Eigen::Map<Eigen::VectorXd>(grad.data(), g.size()) = g;
+      if (result.history.back().projectedGradient <= settings.tolerance) opt.force_stop();
+      return value;
+    } catch (...) {
+      thrown = std::current_exception();
+      opt.force_stop();
+      return 0.0;
+    }
+  };
+  using F = decltype(f);
+  opt.set_min_objective([](const std::vector<double>& x, std::vector<double>& grad, void* data) { return (*static_cast<F*>(data))(x, grad); },
+                        &f);
+  std::vector<double> x(t.data(), t.data() + t.size());
+  double value = 0;
+  try {
+    opt.optimize(x, value);
+  } catch (const nlopt::forced_stop&) {
+  } catch (const nlopt::roundoff_limited&) {  // rounding stops progress: the best point stands
+  }
+  if (thrown) std::rethrow_exception(thrown);
+  return static_cast<int>(result.history.size()) - 1;
+}
+
 }  // namespace
 
 Result optimize(DesignProblem& problem, const std::function<void(const Iteration&)>& onIteration, Eigen::VectorXd start) {
@@ -146,15 +206,6 @@ Result optimize(DesignProblem& problem, const std::function<void(const Iteration
   const auto begin = Clock::now();
   ScaledObjective objective(problem, onIteration, result);
   Eigen::VectorXd t = objective.scaled(start).cwiseMax(0.0).cwiseMin(1.0);
-  const Eigen::VectorXd lower = Eigen::VectorXd::Zero(t.size()), upper = Eigen::VectorXd::Ones(t.size());
-
-  LBFGSpp::LBFGSBParam<double> param;
-  param.m = 10;
-  param.epsilon = settings.tolerance;
-  param.epsilon_rel = 0.0;
-  param.max_iterations = settings.maxIterations;
-  param.max_linesearch = 30;
-  LBFGSpp::LBFGSBSolver<double, ReportingLineSearch> solver(param);
   double f = 0;
   Eigen::VectorXd grad(t.size());
   try {
@@ -162,7 +213,9 @@ Result optimize(DesignProblem& problem, const std::function<void(const Iteration
     f = objective(t, grad);
     objective.iterationDone(t, f, grad);
     const bool done = settings.maxIterations == 0 || result.history.back().projectedGradient <= settings.tolerance;
-    result.iterations = done ? 0 : solver.minimize(objective, t, f, lower, upper);
+    if (done) result.iterations = 0;
+    else if (settings.method == Method::LbfgsB) result.iterations = minimizeLbfgsB(objective, settings, t, f);
+    else result.iterations = minimizeNlopt(objective, settings, t, f, grad, result);
     result.stopReason = result.iterations >= settings.maxIterations ? "iteration limit" : "converged";
   } catch (const Abort& abort) {
     std::rethrow_exception(abort.error);

@@ -3,6 +3,7 @@
 #include "optimize/optimize.hpp"
 
 #include "common/output_file.hpp"
+#include "common/plot_canvas.hpp"
 #include "common/png_tag.hpp"
 
 #include <cairo.h>
@@ -10,7 +11,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <memory>
 #include <string_view>
 
 namespace rodfab::optimize {
@@ -20,11 +20,6 @@ namespace {
 constexpr std::string_view kSoftware = "rodfab optimize";  // the tag that marks the plots rodfab may replace
 constexpr int kWidth = 960, kHeight = 640;
 constexpr double kLeft = 96, kRight = 32, kTop = 56, kBottom = 76;
-
-cairo_status_t appendToString(void* closure, const unsigned char* data, unsigned int length) {
-  static_cast<std::string*>(closure)->append(reinterpret_cast<const char*>(data), length);
-  return CAIRO_STATUS_SUCCESS;
-}
 
 void text(cairo_t* cr, double x, double y, const std::string& s, double size = 14, bool right = false) {
   cairo_set_font_size(cr, size);
@@ -71,14 +66,8 @@ void writeHistoryPlot(const std::vector<Iteration>& history, const std::filesyst
   double lowest = 1.0;
   for (const Iteration& it : history) lowest = std::min(lowest, std::max(it.relative, 1e-300));
   const Axes a{history.back().index, std::min(-1, static_cast<int>(std::floor(std::log10(lowest))))};
-  std::unique_ptr<cairo_surface_t, decltype(&cairo_surface_destroy)> surface(
-      cairo_image_surface_create(CAIRO_FORMAT_RGB24, kWidth, kHeight), cairo_surface_destroy);
-  std::unique_ptr<cairo_t, decltype(&cairo_destroy)> context(cairo_create(surface.get()), cairo_destroy);
-  cairo_t* cr = context.get();
-  if (cairo_status(cr) != CAIRO_STATUS_SUCCESS) throw std::runtime_error(png.string() + ": cairo: " + cairo_status_to_string(cairo_status(cr)));
-  cairo_select_font_face(cr, "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
-  cairo_set_source_rgb(cr, 1, 1, 1);
-  cairo_paint(cr);
+  const common::PlotCanvas canvas(kWidth, kHeight);
+  cairo_t* cr = canvas.context();
   drawAxes(cr, a);
   cairo_set_source_rgb(cr, 0.12, 0.35, 0.75);
   cairo_set_line_width(cr, 2.5);
@@ -89,11 +78,7 @@ void writeHistoryPlot(const std::vector<Iteration>& history, const std::filesyst
   char final[96];
   std::snprintf(final, sizeof final, "g/g0 = %.3g after %d iterations", history.back().relative, history.back().index);
   text(cr, kLeft, 34, title.empty() ? final : title + ": " + final, 17);
-  cairo_surface_flush(surface.get());
-  std::string bytes;
-  const cairo_status_t status = cairo_surface_write_to_png_stream(surface.get(), appendToString, &bytes);
-  if (status != CAIRO_STATUS_SUCCESS) throw std::runtime_error(png.string() + ": cairo PNG encoding failed: " + cairo_status_to_string(status));
-  common::writeFileAtomically(png, common::withSoftwareTag(bytes, kSoftware));
+  common::writeFileAtomically(png, canvas.png(kSoftware));
 }
 
 bool isHistoryPlot(const std::filesystem::path& png) { return common::hasSoftwareTag(png, kSoftware); }

@@ -5,7 +5,7 @@
 
 #include "common/interrupt.hpp"
 #include "common/output_file.hpp"
-#include "common/png_tag.hpp"
+#include "common/plot_canvas.hpp"
 
 #include <cairo.h>
 
@@ -14,7 +14,6 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
-#include <memory>
 #include <string_view>
 
 namespace rodfab::optimize {
@@ -44,11 +43,6 @@ Eigen::Vector3d colourOf(double t) {
   const double x = std::clamp(std::isfinite(t) ? t : 0.0, 0.0, 1.0) * (stops.size() - 1);
   const std::size_t i = std::min(static_cast<std::size_t>(x), stops.size() - 2);
   return stops[i] + (x - i) * (stops[i + 1] - stops[i]);
-}
-
-cairo_status_t appendToString(void* closure, const unsigned char* data, unsigned int length) {
-  static_cast<std::string*>(closure)->append(reinterpret_cast<const char*>(data), length);
-  return CAIRO_STATUS_SUCCESS;
 }
 
 void text(cairo_t* cr, double x, double y, const std::string& s, double size, bool centred = false) {
@@ -203,26 +197,17 @@ void writeShapeRender(const std::vector<ShapeColumns>& cases, double lowerMpa, d
   const std::size_t drawn = std::min(cases.size(), kMaxCases);
   const int caseHeight = kCaseHeader + kViews * (kPanel + kLabel);
   const int width = 2 * kMargin + kColumns * kPanel + kBar, height = kTitle + static_cast<int>(drawn) * caseHeight + kMargin;
-  std::unique_ptr<cairo_surface_t, decltype(&cairo_surface_destroy)> surface(
-      cairo_image_surface_create(CAIRO_FORMAT_RGB24, width, height), cairo_surface_destroy);
-  std::unique_ptr<cairo_t, decltype(&cairo_destroy)> context(cairo_create(surface.get()), cairo_destroy);
-  cairo_t* cr = context.get();
-  if (cairo_status(cr) != CAIRO_STATUS_SUCCESS) throw std::runtime_error(png.string() + ": cairo: " + cairo_status_to_string(cairo_status(cr)));
-  cairo_select_font_face(cr, "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
-  cairo_set_source_rgb(cr, 1, 1, 1);
-  cairo_paint(cr);
+  const common::PlotCanvas canvas(width, height);
+  cairo_t* cr = canvas.context();
   cairo_set_source_rgb(cr, 0.1, 0.1, 0.1);
   std::string heading = title.empty() ? "target, start and optimized shapes" : title;
   if (drawn < cases.size()) heading += " (the first " + std::to_string(drawn) + " of " + std::to_string(cases.size()) + " load cases)";
   text(cr, kMargin, 30, heading, 17);
   for (std::size_t c = 0; c < drawn; ++c) drawCase(cr, cases[c], kTitle + static_cast<int>(c) * caseHeight, lowerMpa, upperMpa);
   drawColourBar(cr, kTitle + kCaseHeader + kLabel, lowerMpa, upperMpa);
-  cairo_surface_flush(surface.get());
-  std::string bytes;
-  const cairo_status_t status = cairo_surface_write_to_png_stream(surface.get(), appendToString, &bytes);
-  if (status != CAIRO_STATUS_SUCCESS) throw std::runtime_error(png.string() + ": cairo PNG encoding failed: " + cairo_status_to_string(status));
+  const std::string bytes = canvas.png(kSoftware);
   common::throwIfInterrupted();
-  common::writeFileAtomically(png, common::withSoftwareTag(bytes, kSoftware));
+  common::writeFileAtomically(png, bytes);
 }
 
 }  // namespace rodfab::optimize

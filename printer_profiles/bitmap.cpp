@@ -219,7 +219,12 @@ struct PngWriteSpec {
   int filter = -1;  // a PNG_FILTER_* mask; -1: none for 1-bit rows, libpng's choice otherwise
 };
 
-bool writePng(PngIo& io, const PngWriteSpec& spec) {
+// Creates libpng's write structs on `io`, writes IHDR and pHYs from `spec` through them, runs
+// `body(png, info)` for the rest and destroys them; false when libpng failed (io.error says why).
+// libpng's longjmp lands here, so `body` must hold nothing with a destructor: buffers live in the
+// callers.
+template <class Body>
+bool writeWithLibpng(PngIo& io, const PngWriteSpec& spec, Body body) {
   png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &io, pngError, pngWarning);
   if (!png) return false;
   png_infop info = png_create_info_struct(png);
@@ -231,18 +236,24 @@ bool writePng(PngIo& io, const PngWriteSpec& spec) {
   png_set_IHDR(png, info, spec.width, spec.height, spec.bitDepth, spec.colourType, PNG_INTERLACE_NONE,
                PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
   if (spec.xPpm) png_set_pHYs(png, info, spec.xPpm, spec.yPpm, PNG_RESOLUTION_METER);
-  png_set_compression_level(png, spec.compressionLevel);
-  if (spec.filter >= 0) png_set_filter(png, 0, spec.filter);
-  else if (spec.bitDepth == 1) png_set_filter(png, 0, PNG_FILTER_NONE);  // filters do not help 1-bit rows
-  png_write_info(png, info);
-  std::vector<std::uint8_t> row(spec.rowAt ? spec.stride : 0);
-  for (png_uint_32 r = 0; r < spec.height; ++r) {
-    if (spec.rowAt) spec.rowAt(static_cast<int>(r), row.data());
-    png_write_row(png, spec.rowAt ? row.data() : spec.rows + r * spec.stride);
-  }
-  png_write_end(png, nullptr);
+  body(png, info);
   png_destroy_write_struct(&png, &info);
   return true;
+}
+
+bool writePng(PngIo& io, const PngWriteSpec& spec) {
+  std::vector<std::uint8_t> row(spec.rowAt ? spec.stride : 0);
+  return writeWithLibpng(io, spec, [&](png_structp png, png_infop info) {
+    png_set_compression_level(png, spec.compressionLevel);
+    if (spec.filter >= 0) png_set_filter(png, 0, spec.filter);
+    else if (spec.bitDepth == 1) png_set_filter(png, 0, PNG_FILTER_NONE);  // filters do not help 1-bit rows
+    png_write_info(png, info);
+    for (png_uint_32 r = 0; r < spec.height; ++r) {
+      if (spec.rowAt) spec.rowAt(static_cast<int>(r), row.data());
+      png_write_row(png, spec.rowAt ? row.data() : spec.rows + r * spec.stride);
+    }
+    png_write_end(png, nullptr);
+  });
 }
 
 // Layer images: libpng writes the signature, IHDR and pHYs and frames every chunk (length, CRC), but
@@ -252,24 +263,13 @@ bool writePng(PngIo& io, const PngWriteSpec& spec) {
 constexpr std::size_t kIdatChunkBytes = std::size_t{1} << 18;
 
 bool writePngWithIdat(PngIo& io, const PngWriteSpec& spec, std::span<const std::uint8_t> zlibData) {
-  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &io, pngError, pngWarning);
-  if (!png) return false;
-  png_infop info = png_create_info_struct(png);
-  if (!info || setjmp(png_jmpbuf(png))) {
-    png_destroy_write_struct(&png, &info);
-    return false;
-  }
-  png_set_write_fn(png, &io, pngWrite, pngFlush);
-  png_set_IHDR(png, info, spec.width, spec.height, spec.bitDepth, spec.colourType, PNG_INTERLACE_NONE,
-               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
-  if (spec.xPpm) png_set_pHYs(png, info, spec.xPpm, spec.yPpm, PNG_RESOLUTION_METER);
-  png_write_info(png, info);
-  for (std::size_t at = 0; at < zlibData.size(); at += kIdatChunkBytes)
-    png_write_chunk(png, reinterpret_cast<png_const_bytep>("IDAT"), zlibData.data() + at,
-                    std::min(kIdatChunkBytes, zlibData.size() - at));
-  png_write_chunk(png, reinterpret_cast<png_const_bytep>("IEND"), nullptr, 0);
-  png_destroy_write_struct(&png, &info);
-  return true;
+  return writeWithLibpng(io, spec, [&](png_structp png, png_infop info) {
+    png_write_info(png, info);
+    for (std::size_t at = 0; at < zlibData.size(); at += kIdatChunkBytes)
+      png_write_chunk(png, reinterpret_cast<png_const_bytep>("IDAT"), zlibData.data() + at,
+                      std::min(kIdatChunkBytes, zlibData.size() - at));
+    png_write_chunk(png, reinterpret_cast<png_const_bytep>("IEND"), nullptr, 0);
+  });
 }
 
 Bytes writePngWithIdatOrThrow(const PngWriteSpec& spec, std::span<const std::uint8_t> zlibData) {

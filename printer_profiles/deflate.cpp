@@ -35,8 +35,9 @@ void checkLevel(int level) {
 bool compressOnce(std::span<const std::uint8_t> input, int level, DeflateWrapper wrapper, std::vector<std::uint8_t>& out) {
   thread_local std::vector<std::uint8_t> levelBuffer;
   levelBuffer.resize(std::max(levelBuffer.size(), levelBufferSize(level)));
-  isal_zstream stream;
+  isal_zstream stream{};  // stateless_init leaves fields igzip reads (hist_bits among them) unset
   isal_deflate_stateless_init(&stream);
+  stream.hist_bits = ISAL_DEF_MAX_HIST_BITS;
   stream.level = static_cast<std::uint32_t>(level);
   stream.level_buf = levelBuffer.data();
   stream.level_buf_size = static_cast<std::uint32_t>(levelBufferSize(level));

@@ -200,7 +200,8 @@ private:
 bool nearlyEqual(double a, double b) { return std::abs(a - b) <= 1e-9 * std::max({1.0, std::abs(a), std::abs(b)}); }
 
 // The manifest's "profile" block must restate the profile: a mismatch means the images were made for
-// other numbers (a 600/300 dpi swap prints the part at twice or half its size).
+// other numbers (x and y dpi swapped print the part at twice or half its size on a printer, such as
+// the Connex3, whose two differ).
 void checkProfileBlock(const json& m, const Profile& p, Fields& f) {
   const json* block = f.object(m, "", "profile");
   if (!block) return;
@@ -212,7 +213,7 @@ void checkProfileBlock(const json& m, const Profile& p, Fields& f) {
     if (const auto got = f.integer(*block, "profile", key, 1, 1000000); got && *got != dpi[a])
       f.fail("profile." + key, std::to_string(*got) + ", but the " + p.name + " profile is " + std::to_string(dpi[a]) +
                                    " dpi along " + axis[a] + " (x is the image columns): the part would print at the wrong size" +
-                                   (*got == dpi[1 - a] ? " (600/300 dpi swapped?)" : ""));
+                                   (*got == dpi[1 - a] ? " (" + std::to_string(dpi[0]) + "/" + std::to_string(dpi[1]) + " dpi swapped?)" : ""));
   }
   if (const auto v = f.vec3(*block, "profile", "voxel_size_mm"); v)
     for (int a = 0; a < 3; ++a)

@@ -5,6 +5,8 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
+#include <initializer_list>
 #include <cstring>
 #include <bit>
 #include <cmath>
@@ -93,6 +95,126 @@ struct Canvas {
   Canvas(const Canvas&) = delete;
   Canvas& operator=(const Canvas&) = delete;
 };
+
+constexpr int kMargin = 24;  // pixels around the drawings
+
+// Where the three views go on the projections' canvas, in pixels, and its scale (pixels per mm).
+struct ProjectionLayout {
+  double scale = 0.0, xMm = 0.0;  // the part's extent along x, mm
+  int margin = kMargin, gap = 56, header = 84;
+  int topW = 0, topH = 0, frontH = 0, sideW = 0, width = 0, height = 0;
+  int topX = 0, topY = 0, frontY = 0, sideX = 0;
+};
+
+ProjectionLayout projectionLayout(const JobGeometry& g, const std::array<double, 3>& vx) {
+  ProjectionLayout l;
+  l.xMm = g.width * vx[0];
+  const double yMm = g.height * vx[1], zMm = g.layers * vx[2];
+  // Pixels per mm: the third-angle layout (top above front, side right of front) fits ~1400 x 1000.
+  l.scale = std::min({1400.0 / (l.xMm + yMm), 1000.0 / (yMm + zMm), 60.0});
+  const auto px = [&](double mmLength) { return std::max(1, static_cast<int>(std::lround(mmLength * l.scale))); };
+  l.topW = px(l.xMm), l.topH = px(yMm), l.frontH = px(zMm), l.sideW = px(yMm);
+  l.width = std::max(l.margin * 2 + l.topW + l.gap + l.sideW, 720);
+  l.height = l.header + l.topH + l.gap + l.frontH + l.margin + 40;
+  l.topX = l.margin, l.topY = l.header, l.frontY = l.header + l.topH + l.gap, l.sideX = l.margin + l.topW + l.gap;
+  return l;
+}
+
+// The range of the moduli the views show, for their log colour scale.
+struct ModulusScale {
+  bool known = false;  // some voxel of the views has a modulus on the scale
+  float min = std::numeric_limits<float>::max(), max = 0.0f;
+  double logMin = 0.0, logSpan = 1.0;
+};
+
+template <class ViewT>
+ModulusScale modulusScale(bool haveModulus, std::initializer_list<const ViewT*> views) {
+  ModulusScale s;
+  for (const ViewT* v : views)
+    for (float e : v->modulus)
+      if (onScale(e)) {
+        s.min = std::min(s.min, e);
+        s.max = std::max(s.max, e);
+      }
+  s.known = haveModulus && s.max > 0.0f;
+  if (s.known) s.logMin = std::log(s.min), s.logSpan = std::log(s.max) - s.logMin;
+  return s;
+}
+
+// Colours one view's w x h pixels at (ox, oy): by material, or by modulus on `byModulus`'s scale when
+// given, shaded by depth. cellOf(x, y, w, h) maps a pixel to the view's cell (v = 0 at the top).
+template <class ViewT, class CellOf>
+void drawView(cairo_surface_t* surface, const ViewT& view, int ox, int oy, int w, int h, int depthRange,
+              const ModulusScale* byModulus, const ProfileMaterial& rigid, const ProfileMaterial& rubbery, CellOf cellOf) {
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const auto [cx, cy] = cellOf(x, y, w, h);
+      const std::size_t at = static_cast<std::size_t>(cy) * view.width + cx;
+      const std::uint8_t m = view.material[at];
+      if (!m) {
+        putPixel(surface, ox + x, oy + y, kBackground);
+        continue;
+      }
+      const double shade = 0.55 + 0.45 * (depthRange > 1 ? static_cast<double>(view.depth[at]) / (depthRange - 1) : 1.0);
+      std::uint8_t rgb[3];
+      if (byModulus) {
+        const float e = view.modulus[at];
+        if (onScale(e)) modulusColour(byModulus->logSpan > 0 ? (std::log(e) - byModulus->logMin) / byModulus->logSpan : 1.0, rgb);
+        else rgb[0] = rgb[1] = rgb[2] = 128;
+      } else {
+        const auto& c = (m == 1 ? rigid : rubbery).previewRgb;
+        std::copy(c.begin(), c.end(), rgb);
+      }
+      putPixel(surface, ox + x, oy + y, rgb, m == 2 && !byModulus ? 0.6 + 0.4 * shade : shade);
+    }
+}
+
+// The title, the views' captions and a 10 mm scale bar (1 mm for small parts) under the front view.
+void drawCaptions(cairo_t* cr, const ProjectionLayout& l, const std::string& title, bool byModulus) {
+  text(cr, l.margin, 26, title, 16);
+  text(cr, l.margin, 48,
+       std::string(byModulus ? "coloured by Young's modulus (log scale)" : "coloured by material") +
+           "; shaded by depth (brighter = nearer); to scale, " + format("%.1f", 10.0 * l.scale) + " px per cm",
+       12);
+  text(cr, l.topX, l.topY - 6, "top (looking down: x right, y up)", 12);
+  text(cr, l.topX, l.frontY - 6, "front (looking along +y: x right, z up)", 12);
+  text(cr, l.sideX, l.frontY - 6, "right side (looking along -x: y right, z up)", 12);
+  const double barMm = l.xMm >= 20 ? 10.0 : 1.0;
+  const double barY = l.frontY + l.frontH + 20;
+  cairo_set_source_rgb(cr, 0.1, 0.1, 0.12);
+  cairo_rectangle(cr, l.topX, barY, barMm * l.scale, 4);
+  cairo_fill(cr);
+  text(cr, l.topX + barMm * l.scale + 8, barY + 7, format("%.0f mm", barMm), 12);
+}
+
+// The legend to the right of the top view: the modulus ramp with its ends, or the two materials.
+void drawLegend(cairo_t* cr, const ProjectionLayout& l, const ModulusScale* byModulus, const ProfileMaterial& rigid,
+                const ProfileMaterial& rubbery) {
+  double ly = l.topY + 8;
+  const double lx = l.sideX;
+  if (byModulus) {
+    for (int i = 0; i < 120; ++i) {
+      std::uint8_t rgb[3];
+      modulusColour(i / 119.0, rgb);
+      cairo_set_source_rgb(cr, rgb[0] / 255.0, rgb[1] / 255.0, rgb[2] / 255.0);
+      cairo_rectangle(cr, lx + i * 2, ly, 2, 14);
+      cairo_fill(cr);
+    }
+    text(cr, lx, ly + 30, format("%.3g MPa", byModulus->min), 12);
+    text(cr, lx + 200, ly + 30, format("%.3g MPa", byModulus->max), 12);
+    return;
+  }
+  for (const ProfileMaterial* m : {&rigid, &rubbery}) {
+    cairo_set_source_rgb(cr, m->previewRgb[0] / 255.0, m->previewRgb[1] / 255.0, m->previewRgb[2] / 255.0);
+    cairo_rectangle(cr, lx, ly, 16, 16);
+    cairo_fill_preserve(cr);
+    cairo_set_source_rgb(cr, 0.3, 0.3, 0.3);
+    cairo_set_line_width(cr, 1);
+    cairo_stroke(cr);
+    text(cr, lx + 24, ly + 13, m->name + " (" + toString(m->role) + ")", 12);
+    ly += 24;
+  }
+}
 
 }  // namespace
 
@@ -246,133 +368,56 @@ void Previews::addTopLayers(int first, const std::vector<LayerBitmaps>& layers, 
   });
 }
 
-std::vector<std::pair<std::string, Bytes>> Previews::render(const std::string& title) const {
-  std::vector<std::pair<std::string, Bytes>> out;
-  const auto& vx = profile_.voxelSizeMm;
-  const double xMm = geometry_.width * vx[0], yMm = geometry_.height * vx[1], zMm = geometry_.layers * vx[2];
-  // Pixels per mm: the third-angle layout (top above front, side right of front) fits ~1400 x 1000.
-  const double scale = std::min({1400.0 / (xMm + yMm), 1000.0 / (yMm + zMm), 60.0});
-  const int gap = 56, margin = 24, header = 84;
-  const auto px = [&](double mmLength) { return std::max(1, static_cast<int>(std::lround(mmLength * scale))); };
-  const int topW = px(xMm), topH = px(yMm), frontH = px(zMm), sideW = px(yMm);
-  const int width = std::max(margin * 2 + topW + gap + sideW, 720);
-  const int height = header + topH + gap + frontH + margin + 40;
+namespace {
 
-  const ProfileMaterial& rigid = profile_.material(MaterialRole::Rigid);
-  const ProfileMaterial& rubbery = profile_.material(MaterialRole::Rubbery);
-  const ProfileMaterial& support = profile_.material(MaterialRole::Support);
+// The top, front and right side views on one image (third-angle layout, to scale), coloured by
+// material or, with `byModulus`, by modulus; captions, scale bar and legend.
+template <class ViewT>
+Bytes renderProjections(const std::string& title, const JobGeometry& g, const Profile& profile, const ViewT& top,
+                        const ViewT& front, const ViewT& side, const ModulusScale* byModulus) {
+  const ProjectionLayout l = projectionLayout(g, profile.voxelSizeMm);
+  const ProfileMaterial& rigid = profile.material(MaterialRole::Rigid);
+  const ProfileMaterial& rubbery = profile.material(MaterialRole::Rubbery);
+  Canvas canvas(l.width, l.height);
+  const auto clampCell = [](double v, int n) { return std::clamp(static_cast<int>(v), 0, n - 1); };
+  // Top: x to the right, y up (image rows already run from the largest y down).
+  drawView(canvas.surface, top, l.topX, l.topY, l.topW, l.topH, g.layers, byModulus, rigid, rubbery, [&](int x, int y, int w, int h) {
+    return std::pair{clampCell((x + 0.5) * g.width / w, g.width), clampCell((y + 0.5) * g.height / h, g.height)};
+  });
+  // Front: x to the right, z up; shade by nearness (larger row = nearer the viewer).
+  drawView(canvas.surface, front, l.topX, l.frontY, l.topW, l.frontH, g.height, byModulus, rigid, rubbery, [&](int x, int y, int w, int h) {
+    return std::pair{clampCell((x + 0.5) * g.width / w, g.width), clampCell((h - 1 - y + 0.5) * g.layers / h, g.layers)};
+  });
+  // Right side: y to the right, z up; shade by nearness (larger column = nearer the viewer).
+  drawView(canvas.surface, side, l.sideX, l.frontY, l.sideW, l.frontH, g.width, byModulus, rigid, rubbery, [&](int x, int y, int w, int h) {
+    // Image row 0 is the largest y, so y to the right runs from the last row to the first.
+    return std::pair{clampCell((w - 1 - x + 0.5) * g.height / w, g.height), clampCell((h - 1 - y + 0.5) * g.layers / h, g.layers)};
+  });
+  cairo_surface_mark_dirty(canvas.surface);
+  drawCaptions(canvas.cr, l, title, byModulus != nullptr);
+  drawLegend(canvas.cr, l, byModulus, rigid, rubbery);
+  return surfaceToPng(canvas.surface);
+}
 
-  float eMin = std::numeric_limits<float>::max(), eMax = 0.0f;
-  for (const View* v : {&top_, &front_, &side_})
-    for (float e : v->modulus)
-      if (onScale(e)) {
-        eMin = std::min(eMin, e);
-        eMax = std::max(eMax, e);
-      }
-  const bool modulusKnown = haveModulus_ && eMax > 0.0f;
-  const double logMin = modulusKnown ? std::log(eMin) : 0.0, logSpan = modulusKnown ? std::log(eMax) - logMin : 1.0;
-
-  for (int byModulus = 0; byModulus < (modulusKnown ? 2 : 1); ++byModulus) {
-    Canvas canvas(width, height);
-    // One view: (u, v) in view pixels -> voxel cell of the view's map, v = 0 at the top of the drawing.
-    const auto drawView = [&](const View& view, int ox, int oy, int w, int h, int depthRange, auto cellOf) {
-      for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) {
-          const auto [cx, cy] = cellOf(x, y, w, h);
-          const std::size_t at = static_cast<std::size_t>(cy) * view.width + cx;
-          const std::uint8_t m = view.material[at];
-          if (!m) {
-            putPixel(canvas.surface, ox + x, oy + y, kBackground);
-            continue;
-          }
-          const double shade = 0.55 + 0.45 * (depthRange > 1 ? static_cast<double>(view.depth[at]) / (depthRange - 1) : 1.0);
-          std::uint8_t rgb[3];
-          if (byModulus) {
-            const float e = view.modulus[at];
-            if (onScale(e)) modulusColour(logSpan > 0 ? (std::log(e) - logMin) / logSpan : 1.0, rgb);
-            else rgb[0] = rgb[1] = rgb[2] = 128;
-          } else {
-            const auto& c = (m == 1 ? rigid : rubbery).previewRgb;
-            std::copy(c.begin(), c.end(), rgb);
-          }
-          putPixel(canvas.surface, ox + x, oy + y, rgb, m == 2 && !byModulus ? 0.6 + 0.4 * shade : shade);
-        }
-    };
-    const int topX = margin, topY = header, frontY = header + topH + gap, sideX = margin + topW + gap;
-    const auto clampCell = [](double v, int n) { return std::clamp(static_cast<int>(v), 0, n - 1); };
-    // Top: x to the right, y up (image rows already run from the largest y down).
-    drawView(top_, topX, topY, topW, topH, geometry_.layers, [&](int x, int y, int w, int h) {
-      return std::pair{clampCell((x + 0.5) * geometry_.width / w, geometry_.width), clampCell((y + 0.5) * geometry_.height / h, geometry_.height)};
-    });
-    // Front: x to the right, z up; shade by nearness (larger row = nearer the viewer).
-    drawView(front_, topX, frontY, topW, frontH, geometry_.height, [&](int x, int y, int w, int h) {
-      return std::pair{clampCell((x + 0.5) * geometry_.width / w, geometry_.width),
-                       clampCell((h - 1 - y + 0.5) * geometry_.layers / h, geometry_.layers)};
-    });
-    // Right side: y to the right, z up; shade by nearness (larger column = nearer the viewer).
-    drawView(side_, sideX, frontY, sideW, frontH, geometry_.width, [&](int x, int y, int w, int h) {
-      // Image row 0 is the largest y, so y to the right runs from the last row to the first.
-      return std::pair{clampCell((w - 1 - x + 0.5) * geometry_.height / w, geometry_.height),
-                       clampCell((h - 1 - y + 0.5) * geometry_.layers / h, geometry_.layers)};
-    });
-    cairo_surface_mark_dirty(canvas.surface);
-    cairo_t* cr = canvas.cr;
-    text(cr, margin, 26, title, 16);
-    text(cr, margin, 48,
-         std::string(byModulus ? "coloured by Young's modulus (log scale)" : "coloured by material") +
-             "; shaded by depth (brighter = nearer); to scale, " + format("%.1f", 10.0 * scale) + " px per cm",
-         12);
-    text(cr, topX, topY - 6, "top (looking down: x right, y up)", 12);
-    text(cr, topX, frontY - 6, "front (looking along +y: x right, z up)", 12);
-    text(cr, sideX, frontY - 6, "right side (looking along -x: y right, z up)", 12);
-    // A 10 mm scale bar (or 1 mm for small parts) under the front view.
-    const double barMm = xMm >= 20 ? 10.0 : 1.0;
-    const double barY = frontY + frontH + 20;
-    cairo_set_source_rgb(cr, 0.1, 0.1, 0.12);
-    cairo_rectangle(cr, topX, barY, barMm * scale, 4);
-    cairo_fill(cr);
-    text(cr, topX + barMm * scale + 8, barY + 7, format("%.0f mm", barMm), 12);
-    // Legend to the right of the top view.
-    double ly = topY + 8;
-    const double lx = sideX;
-    if (byModulus) {
-      for (int i = 0; i < 120; ++i) {
-        std::uint8_t rgb[3];
-        modulusColour(i / 119.0, rgb);
-        cairo_set_source_rgb(cr, rgb[0] / 255.0, rgb[1] / 255.0, rgb[2] / 255.0);
-        cairo_rectangle(cr, lx + i * 2, ly, 2, 14);
-        cairo_fill(cr);
-      }
-      text(cr, lx, ly + 30, format("%.3g MPa", eMin), 12);
-      text(cr, lx + 200, ly + 30, format("%.3g MPa", eMax), 12);
-    } else {
-      for (const ProfileMaterial* m : {&rigid, &rubbery}) {
-        cairo_set_source_rgb(cr, m->previewRgb[0] / 255.0, m->previewRgb[1] / 255.0, m->previewRgb[2] / 255.0);
-        cairo_rectangle(cr, lx, ly, 16, 16);
-        cairo_fill_preserve(cr);
-        cairo_set_source_rgb(cr, 0.3, 0.3, 0.3);
-        cairo_set_line_width(cr, 1);
-        cairo_stroke(cr);
-        text(cr, lx + 24, ly + 13, m->name + " (" + toString(m->role) + ")", 12);
-        ly += 24;
-      }
-    }
-    out.emplace_back(byModulus ? "previews/projections-modulus.png" : "previews/projections-material.png",
-                     surfaceToPng(canvas.surface));
-  }
-
-  // Contact sheet: evenly spaced layers, four per row, as seen from above.
-  const int columns = std::min<int>(4, static_cast<int>(contactLayers_.size()));
-  const int rows = (static_cast<int>(contactLayers_.size()) + columns - 1) / columns;
-  const int cellW = tileWidth_ + 24, cellH = tileHeight_ + 40;
+// The contact sheet: the evenly spaced `layers` (their tiles, tileWidth x tileHeight
+// codes: 0 empty, 1 rigid, 2 rubbery, 3 support), four per row, as seen from above.
+Bytes renderContactSheet(const std::string& title, const Profile& profile, const std::vector<int>& layers,
+                         const std::vector<std::vector<std::uint8_t>>& tiles, int tileWidth, int tileHeight) {
+  const ProfileMaterial& rigid = profile.material(MaterialRole::Rigid);
+  const ProfileMaterial& rubbery = profile.material(MaterialRole::Rubbery);
+  const ProfileMaterial& support = profile.material(MaterialRole::Support);
+  const int margin = kMargin;
+  const int columns = std::min<int>(4, static_cast<int>(layers.size()));
+  const int rows = (static_cast<int>(layers.size()) + columns - 1) / columns;
+  const int cellW = tileWidth + 24, cellH = tileHeight + 40;
   const int sheetW = std::max(margin * 2 + columns * cellW, 560), sheetH = 64 + rows * cellH + margin;
   Canvas sheet(sheetW, sheetH);
-  for (std::size_t s = 0; s < contactLayers_.size(); ++s) {
+  for (std::size_t s = 0; s < layers.size(); ++s) {
     const int ox = margin + static_cast<int>(s % columns) * cellW, oy = 64 + static_cast<int>(s / columns) * cellH + 20;
-    const std::vector<std::uint8_t>& tile = tiles_[s];
-    for (int y = 0; y < tileHeight_; ++y)
-      for (int x = 0; x < tileWidth_; ++x) {
-        const std::uint8_t code = tile.empty() ? 0 : tile[static_cast<std::size_t>(y) * tileWidth_ + x];
+    const std::vector<std::uint8_t>& tile = tiles[s];
+    for (int y = 0; y < tileHeight; ++y)
+      for (int x = 0; x < tileWidth; ++x) {
+        const std::uint8_t code = tile.empty() ? 0 : tile[static_cast<std::size_t>(y) * tileWidth + x];
         const std::uint8_t* rgb = code == 1 ? rigid.previewRgb.data()
                                   : code == 2 ? rubbery.previewRgb.data()
                                   : code == 3 ? support.previewRgb.data()
@@ -386,12 +431,26 @@ std::vector<std::pair<std::string, Bytes>> Previews::render(const std::string& t
        "layers seen from above (x right, y up): " + rigid.name + " light, " + rubbery.name + " dark, " + support.name +
            " amber",
        12);
-  for (std::size_t s = 0; s < contactLayers_.size(); ++s) {
+  for (std::size_t s = 0; s < layers.size(); ++s) {
     const int ox = margin + static_cast<int>(s % columns) * cellW, oy = 64 + static_cast<int>(s / columns) * cellH + 14;
-    text(sheet.cr, ox, oy, "layer " + std::to_string(contactLayers_[s]) + "  z " +
-                               format("%.2f mm", contactLayers_[s] * profile_.voxelSizeMm[2]), 12);
+    text(sheet.cr, ox, oy, "layer " + std::to_string(layers[s]) + "  z " +
+                               format("%.2f mm", layers[s] * profile.voxelSizeMm[2]), 12);
   }
-  out.emplace_back("previews/contact-sheet.png", surfaceToPng(sheet.surface));
+  return surfaceToPng(sheet.surface);
+}
+
+}  // namespace
+
+std::vector<std::pair<std::string, Bytes>> Previews::render(const std::string& title) const {
+  std::vector<std::pair<std::string, Bytes>> out;
+  const ModulusScale modulus = modulusScale(haveModulus_, {&top_, &front_, &side_});
+  const auto projections = [&](const ModulusScale* byModulus) {
+    return renderProjections(title, geometry_, profile_, top_, front_, side_, byModulus);
+  };
+  out.emplace_back("previews/projections-material.png", projections(nullptr));
+  if (modulus.known) out.emplace_back("previews/projections-modulus.png", projections(&modulus));
+  out.emplace_back("previews/contact-sheet.png",
+                   renderContactSheet(title, profile_, contactLayers_, tiles_, tileWidth_, tileHeight_));
   return out;
 }
 

@@ -8,13 +8,11 @@
 #include "slicer/options.hpp"
 
 #include <nlohmann/json.hpp>
-#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
-#include <thread>
 #include <variant>
 
 namespace rodfab::cli {
@@ -25,9 +23,11 @@ struct OptimizeCommand {
   std::string design, output, calibration, plot, render;
   int modulusControls = 0;  // 0: the design's optimize block, else 4
   int maxIterations = -1;   // -1: the design's optimize block, else 200
-  int workers = 1;
+  int threads = 0;  // --threads (0: all cores)
   bool json = false;
+  optimize::Start start;  // --start
   optimize::Scaling scaling = optimize::Scaling::Logarithmic;
+  std::optional<optimize::Method> method;  // none: the default (L-BFGS-B)
 };
 
 void addOptimizeOptions(po::options_description& options) {
@@ -41,14 +41,19 @@ void addOptimizeOptions(po::options_description& options) {
        "B-spline control values of E per rod, 2..64 (0: the design's optimize.modulus_controls, else 4)")
       ("max-iterations", po::value<int>()->default_value(-1),
        "L-BFGS-B iterations, 0..100000 (-1: the design's optimize.max_iterations, else 200)")
+      ("start", po::value<std::string>()->default_value("design"),
+       "the starting modulus: design (the file's E(s), default) or uniform[=MPa] (one E everywhere, as the published "
+       "optimizations start; without a value the geometric mean of the bounds)")
+      ("method", po::value<std::string>()->default_value("lbfgsb"),
+       "the optimizer: lbfgsb (L-BFGS-B, default), mma or ccsaq (NLopt; an iteration is one evaluation)")
       ("scaling", po::value<std::string>()->default_value("log"),
        "the optimizer's variables: log (equal steps are equal ratios of E; default) or linear in E")
-      ("threads", po::value<int>()->default_value(0), "worker threads for assembly (0 = all cores)")
       ("plot", po::value<std::string>(), "also write the convergence plot (g/g0 against iteration, log scale) to this PNG")
       ("render", po::value<std::string>(),
        "also write the shapes to this PNG: per load case the target, the deformed shape with the starting modulus and "
        "with the optimized one, side by side in three views, coloured by E")
       ("json", "print a summary as JSON on stdout instead of the progress lines");
+  addThreadsOption(options, "the optimized design is the same for any count");
 }
 
 std::variant<OptimizeCommand, int> parseOptimize(const std::vector<std::string>& args) {
@@ -58,7 +63,7 @@ std::variant<OptimizeCommand, int> parseOptimize(const std::vector<std::string>&
   positional.add("design", 1);
   po::variables_map vm;
   const char* synopsis = "DESIGN.json --output OPTIMIZED.json [--calibration CAL.json] [--modulus-controls N] "
-                         "[--max-iterations N] [--scaling log|linear] [--threads N] [--plot HISTORY.png] [--render SHAPES.png] [--json]";
+                         "[--max-iterations N] [--start design|uniform[=MPa]] [--method lbfgsb|mma|ccsaq] [--scaling log|linear] [--threads N] [--plot HISTORY.png] [--render SHAPES.png] [--json]";
   if (auto code = parseOptions("optimize", synopsis, options, positional, args, vm)) return *code;
   OptimizeCommand c;
   c.design = vm["design"].as<std::string>(), c.output = vm["output"].as<std::string>();
@@ -77,9 +82,17 @@ std::variant<OptimizeCommand, int> parseOptimize(const std::vector<std::string>&
   const std::string scaling = vm["scaling"].as<std::string>();
   if (scaling != "log" && scaling != "linear") return usageError("optimize", "--scaling: expected log or linear, got \"" + scaling + "\"");
   c.scaling = scaling == "log" ? optimize::Scaling::Logarithmic : optimize::Scaling::Linear;
+  const std::string method = vm["method"].as<std::string>();
+  if (method == "lbfgsb") c.method = optimize::Method::LbfgsB;
+  else if (method == "mma") c.method = optimize::Method::Mma;
+  else if (method == "ccsaq") c.method = optimize::Method::Ccsaq;
+  else return usageError("optimize", "--method: expected lbfgsb, mma or ccsaq, got \"" + method + "\"");
+  const std::string start = vm["start"].as<std::string>();
+  if (const std::optional<optimize::Start> parsed = optimize::parseStart(start)) c.start = *parsed;
+  else return usageError("optimize", "--start: expected design, uniform or uniform=MPa (a modulus > 0), got \"" + start + "\"");
   const std::optional<int> threads = threadCount("optimize", vm);
   if (!threads) return kUsage;
-  c.workers = *threads > 0 ? *threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  c.threads = *threads;
   c.json = vm.count("json") > 0;
   return c;
 }
@@ -94,6 +107,7 @@ optimize::Settings settingsFor(const OptimizeCommand& c, const mechanics::Design
   if (c.modulusControls > 0) s.modulusControls = c.modulusControls;
   if (c.maxIterations >= 0) s.maxIterations = c.maxIterations;
   s.scaling = c.scaling;
+  if (c.method) s.method = *c.method;
   return s;
 }
 
@@ -149,6 +163,8 @@ nlohmann::json summaryJson(const OptimizeCommand& c, const optimize::DesignProbl
   return {{"design", c.design}, {"output", c.output}, {"rods", p.rodCount()}, {"unknowns", p.unknownCount()},
           {"load_cases", p.caseCount()}, {"design_variables", p.variableCount()}, {"modulus_controls", s.modulusControls},
           {"scaling", s.scaling == optimize::Scaling::Logarithmic ? "log" : "linear"},
+          {"method", s.method == optimize::Method::LbfgsB ? "lbfgsb" : s.method == optimize::Method::Mma ? "mma" : "ccsaq"},
+          {"start", c.start.uniform ? nlohmann::json{{"uniform_mpa", optimize::startingModulus(p, c.start)[0]}} : nlohmann::json("design")},
           {"bounds_mpa", {s.lowerMpa, s.upperMpa}}, {"objective_initial", r.initial.objective},
           {"objective_final", r.final.objective},
           {"relative", r.initial.objective > 0 ? r.final.objective / r.initial.objective : 0.0},
@@ -192,6 +208,7 @@ std::vector<std::filesystem::path> inputsOf(const OptimizeCommand& c, const mech
 // and the accuracy of the optimum's equilibria.
 struct Outcome {
   std::optional<optimize::DesignProblem> problem;
+  Eigen::VectorXd start;  // the starting control values
   optimize::Result result;
   std::vector<optimize::ShapeColumns> shapes;
   std::vector<optimize::CaseAccuracy> accuracy;
@@ -224,10 +241,11 @@ std::optional<optimize::Settings> settingsOrReport(const OptimizeCommand& c, con
 }
 
 // The shapes with the starting modulus, taken at the optimizer's first report (its state then).
-void startShapes(const mechanics::Design& design, const optimize::DesignProblem& p, std::vector<optimize::ShapeColumns>& shapes) {
+void startShapes(const mechanics::Design& design, const optimize::DesignProblem& p, const Eigen::VectorXd& start,
+                 std::vector<optimize::ShapeColumns>& shapes) {
   for (std::size_t i = 0; i < p.caseCount(); ++i) {
     const mechanics::LoadCase& lc = design.mechanics.loadCases[i];
-    if (!lc.target.empty()) shapes.push_back({lc.name, optimize::drawnTarget(lc.target), optimize::drawnDeformed(p, i, p.startingModulus()), {}});
+    if (!lc.target.empty()) shapes.push_back({lc.name, optimize::drawnTarget(lc.target), optimize::drawnDeformed(p, i, start), {}});
   }
 }
 
@@ -254,11 +272,12 @@ int runOptimization(const OptimizeCommand& c, const mechanics::Design& design, c
     if (!c.json)
       std::printf("design:    %s: %zu rods, %zu load cases, %zu unknowns per case, %zu design variables, E in [%g, %g] MPa\n",
                   c.design.c_str(), p.rodCount(), p.caseCount(), p.unknownCount(), p.variableCount(), settings.lowerMpa, settings.upperMpa);
+    o.start = optimize::startingModulus(p, c.start);
     o.result = optimize::optimize(p, [&](const optimize::Iteration& it) {
       common::throwIfInterrupted();
-      if (it.index == 0 && !c.render.empty()) startShapes(design, p, o.shapes);
+      if (it.index == 0 && !c.render.empty()) startShapes(design, p, o.start, o.shapes);
       if (!c.json) printIteration(it);
-    });
+    }, o.start);
     if (!c.render.empty()) finalShapes(design, o);
     o.accuracy = p.accuracyAt(o.result.modulus, [] { common::throwIfInterrupted(); });
   } catch (const optimize::OptimizeError& e) {
@@ -304,7 +323,7 @@ int runOptimize(const std::vector<std::string>& args) {
   if (const int* code = std::get_if<int>(&parsed)) return *code;
   const OptimizeCommand& c = std::get<OptimizeCommand>(parsed);
   commandLineAccepted();
-  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(c.workers));
+  const ThreadLimit limit(c.threads);
   const std::optional<mechanics::Design> read = readDesignOrReport(c.design, "nothing was written");
   if (!read) return kFailed;
   const mechanics::Design& design = *read;

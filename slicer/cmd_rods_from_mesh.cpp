@@ -1,15 +1,12 @@
 // rodfab rods-from-mesh: a triangle mesh becomes a rod structure (the dual of its simplified version,
-// laid on the original surface), written as a design file.
+// laid on the original surface), written as a design file (slicer/mesh_rods_summary.hpp reports it).
 #include "geometry/geometry.hpp"
 #include "meshing/meshing.hpp"
 #include "slicer/command.hpp"
+#include "slicer/mesh_rods_summary.hpp"
 #include "slicer/options.hpp"
 #include "slicer/shape_options.hpp"
 
-#include <nlohmann/json.hpp>
-
-#include <cstdio>
-#include <algorithm>
 #include <iostream>
 #include <variant>
 
@@ -67,37 +64,6 @@ std::variant<MeshSettings, int> parseMesh(const std::vector<std::string>& args) 
   return s;
 }
 
-nlohmann::json summaryJson(const MeshSettings& s, const meshing::MeshRodReport& r, const geometry::RodStructure& rods) {
-  const geometry::Box3 box = rods.bounds();
-  return {{"mesh", s.mesh}, {"output", s.output},
-          {"input", {{"vertices", r.inputVertices}, {"faces", r.inputFaces}, {"welded_vertices", r.weldedVertices}}},
-          {"simplified", {{"vertices", r.simplifiedVertices}, {"faces", r.simplifiedFaces}, {"boundary_edges", r.boundaryEdges}}},
-          {"nodes", r.nodes}, {"rods", r.rods}, {"components", r.components},
-          {"surface", {{"tolerance_mm", s.options.surfaceTolerance}, {"largest_distance_mm", r.largestSurfaceDistance},
-                       {"refined_rods", r.refinedRods}, {"rods_above_tolerance", r.rodsAboveTolerance}}},
-          {"bounds_mm", {{"min", {box.min().x(), box.min().y(), box.min().z()}}, {"max", {box.max().x(), box.max().y(), box.max().z()}}}},
-          {"seconds", {{"read", r.readSeconds}, {"simplify", r.simplifySeconds}, {"rods", r.rodSeconds}}}};
-}
-
-void printSummary(const MeshSettings& s, const meshing::MeshRodReport& r) {
-  std::printf("mesh:       %s: %zu vertices, %zu triangles (%zu duplicate vertices welded), %.2f s\n", s.mesh.c_str(),
-              r.inputVertices, r.inputFaces, r.weldedVertices, r.readSeconds);
-  std::printf("simplified: %zu triangles, %zu boundary edges, %.2f s\n", r.simplifiedFaces, r.boundaryEdges, r.simplifySeconds);
-  std::printf("rods:       %zu rods, %zu nodes, %zu connected part%s, %.2f s\n", r.rods, r.nodes, r.components,
-              r.components == 1 ? "" : "s", r.rodSeconds);
-  std::printf("surface:    centerlines within %.3g mm of the mesh (tolerance %.3g mm; %zu rods refined)\n",
-              r.largestSurfaceDistance, s.options.surfaceTolerance, r.refinedRods);
-  std::printf("wrote:      %s\n", s.output.c_str());
-}
-
-void printWarnings(const MeshSettings& s, const meshing::MeshRodReport& r) {
-  if (r.rodsAboveTolerance > 0)
-    std::fprintf(stderr, "warning: %zu rods leave the surface by up to %.3g mm, more than --surface-tolerance %g: "
-                 "give more --faces or --subdivisions\n", r.rodsAboveTolerance, r.largestSurfaceDistance, s.options.surfaceTolerance);
-  if (r.components > 1)
-    std::fprintf(stderr, "warning: the rods form %zu separate parts (the mesh has separate pieces)\n", r.components);
-}
-
 }  // namespace
 
 int runRodsFromMesh(const std::vector<std::string>& args) {
@@ -120,10 +86,11 @@ int runRodsFromMesh(const std::vector<std::string>& args) {
   const std::string description = "rods from " + s.mesh + " by rodfab rods-from-mesh (" +
                                   std::to_string(result.report.simplifiedFaces) + " faces)";
   geometry::writeDesign(result.structure, s.output, description);
-  printWarnings(s, result.report);
+  const MeshRodsSummary summary{s.mesh, s.output, s.options.surfaceTolerance, result.report, result.structure};
+  warnMeshRods(summary);
   warnTrayOverhang(result.structure, trayMm, profileName);
-  if (s.json) std::cout << summaryJson(s, result.report, result.structure).dump(2) << '\n';
-  else printSummary(s, result.report);
+  if (s.json) std::cout << meshRodsJson(summary).dump(2) << '\n';
+  else printMeshRodsLines(summary);
   return kOk;
 }
 

@@ -15,6 +15,42 @@
 
 namespace rodfab::cli {
 
+namespace {
+
+// Parses `args` against `options` (and the undocumented `hidden` ones) into `vm`; throws po::error.
+void storeArguments(const std::vector<std::string>& args, const po::options_description& options,
+                    const po::positional_options_description& positional, const po::options_description* hidden,
+                    po::variables_map& vm) {
+  po::options_description all;
+  all.add(options);
+  if (hidden) all.add(*hidden);
+  po::store(po::command_line_parser(args).options(all).positional(positional).run(), vm);
+}
+
+// Boost's error text substitutes placeholders such as %canonical_option% with the user's tokens in a loop
+// that never ends when a token itself contains the placeholder (`-%canonical_option%o` hangs what()).
+// The message is therefore taken from a second parse of the same arguments with every '%' shown as
+// U+FF05 (fullwidth percent), which fails the same way and whose tokens cannot contain a placeholder.
+std::string parseErrorMessage(const po::error& error, const std::vector<std::string>& args,
+                              const po::options_description& options, const po::positional_options_description& positional,
+                              const po::options_description* hidden) {
+  const bool hasPercent = std::any_of(args.begin(), args.end(), [](const std::string& a) { return a.find('%') != std::string::npos; });
+  if (!hasPercent) return error.what();
+  std::vector<std::string> shown = args;
+  for (std::string& a : shown)
+    for (std::size_t at = a.find('%'); at != std::string::npos; at = a.find('%', at + 3)) a.replace(at, 1, "\xEF\xBC\x85");
+  try {
+    po::variables_map unused;
+    storeArguments(shown, options, positional, hidden, unused);
+    po::notify(unused);
+  } catch (const po::error& e) {
+    return e.what();
+  }
+  return "the command line could not be read (an argument contains '%')";
+}
+
+}  // namespace
+
 std::optional<int> parseOptions(const std::string& command, const std::string& synopsis,
                                 po::options_description& options, const po::positional_options_description& positional,
                                 const std::vector<std::string>& args, po::variables_map& vm,
@@ -23,10 +59,7 @@ std::optional<int> parseOptions(const std::string& command, const std::string& s
       ("max-memory", po::value<std::string>(),
        "memory budget, e.g. 8G or 512M (default: 80 % of this machine's memory); work beyond it is refused");
   try {
-    po::options_description all;
-    all.add(options);
-    if (hidden) all.add(*hidden);
-    po::store(po::command_line_parser(args).options(all).positional(positional).run(), vm);
+    storeArguments(args, options, positional, hidden, vm);
     if (vm.count("help")) {
       std::cout << "usage: rodfab " << command << ' ' << synopsis << "\n\n" << options << '\n';
       return kOk;
@@ -43,7 +76,8 @@ std::optional<int> parseOptions(const std::string& command, const std::string& s
       }
     }
   } catch (const po::error& e) {
-    std::cerr << "rodfab " << command << ": " << e.what() << "\nusage: rodfab " << command << ' ' << synopsis
+    std::cerr << "rodfab " << command << ": " << parseErrorMessage(e, args, options, positional, hidden)
+              << "\nusage: rodfab " << command << ' ' << synopsis
               << "\n(rodfab " << command << " --help lists the options)\n";
     return kUsage;
   }

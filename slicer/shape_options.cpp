@@ -2,6 +2,7 @@
 
 #include "geometry/design_file.hpp"
 #include "printer_profiles/profile.hpp"
+#include "slicer/profile_option.hpp"
 
 #include <cstdio>
 #include <iostream>
@@ -14,7 +15,7 @@ void addRodShapeOptions(po::options_description& options) {
       ("breadth", po::value<double>(), "ellipse or rectangle: the size along the frame's d2 (mm; default: --diameter)")
       ("modulus", po::value<double>()->default_value(120.0), "Young's modulus of every rod (MPa)")
       ("caps", po::value<std::string>()->default_value("round"), "rod ends: round | flat")
-      ("profile", po::value<std::string>()->default_value("stratasys-objet500-connex3"),
+      ("profile", po::value<std::string>()->default_value(kDefaultProfileName),
        "printer profile whose tray the result is checked against (a warning when it does not fit)");
 }
 

@@ -124,4 +124,25 @@ std::array<int, 3> parseSizeVoxels(const std::string& option, const std::string&
   return sides;
 }
 
+std::array<double, 3> parseVoxelSizeMm(const std::string& option, const std::string& text) {
+  std::array<double, 3> size{};
+  std::istringstream in(text);
+  bool ok = true;
+  for (std::size_t a = 0; a < 3 && ok; ++a) {
+    ok = (a == 0 || in.get() == ',') && (in >> size[a]) && size[a] >= 1e-3 && size[a] <= 10.0;
+  }
+  if (!ok || in.peek() != std::char_traits<char>::eof())
+    throw BadValue(option + ": expected three sizes from 0.001 to 10 mm as X,Y,Z (e.g. 0.0423,0.0846,0.030), got '" + text + "'");
+  return size;
+}
+
+std::array<std::string, 2> parseMaterialPair(const std::string& option, const std::string& text) {
+  const std::size_t comma = text.find(',');
+  std::array<std::string, 2> pair;
+  if (comma != std::string::npos) pair = {text.substr(0, comma), text.substr(comma + 1)};
+  if (pair[0].empty() || pair[1].empty() || pair[1].find(',') != std::string::npos)
+    throw BadValue(option + ": expected RIGID,RUBBERY (two material names), got '" + text + "'");
+  return pair;
+}
+
 }  // namespace rodfab::cli

@@ -210,7 +210,7 @@ TEST_CASE("Quaternion frames follow the spline's rotation", "[frame]") {
   REQUIRE((mid.d3 - Vec3(0, 0, 1)).norm() < 1e-12);
 }
 
-TEST_CASE("Sections: normalized radius, inside test, areas", "[section]") {
+TEST_CASE("Sections: normalized radius, inside test, areas, perimeters", "[section]") {
   const Section e = Section::ellipse(4.0, 2.0);
   REQUIRE(e.normalizedRadius(2.0, 0.0) == Approx(1.0));
   REQUIRE(e.normalizedRadius(0.0, 1.0) == Approx(1.0));
@@ -223,6 +223,20 @@ TEST_CASE("Sections: normalized radius, inside test, areas", "[section]") {
   REQUIRE(r.capRadius() == Approx(1.0));
   REQUIRE(Section::circle(2.0).area() == Approx(std::numbers::pi));
   REQUIRE(e.area() == Approx(2.0 * std::numbers::pi));
+  REQUIRE(Section::circle(2.0).perimeter() == Approx(2.0 * std::numbers::pi).epsilon(1e-12));
+  REQUIRE(r.perimeter() == Approx(12.0));
+  // Ellipses against the arc length summed over 200,000 chords, from round to 1000:1 flat.
+  for (const double h : {2.0, 1.0, 0.1, 0.004}) {
+    const Section flat = Section::ellipse(4.0, h);
+    double chords = 0.0;
+    constexpr int kSteps = 200000;
+    for (int i = 0; i < kSteps; ++i) {
+      const double t0 = 2 * std::numbers::pi * i / kSteps, t1 = 2 * std::numbers::pi * (i + 1) / kSteps;
+      chords += std::hypot(2.0 * (std::cos(t1) - std::cos(t0)), 0.5 * h * (std::sin(t1) - std::sin(t0)));
+    }
+    CAPTURE(h);
+    REQUIRE(flat.perimeter() == Approx(chords).epsilon(5e-4));
+  }
 }
 
 TEST_CASE("Rod inside test covers the swept section and the caps", "[rod]") {

@@ -47,7 +47,7 @@ TEST_CASE("The mechanics block reads, round-trips, and is optional", "[design][m
     "supports": [{"at": {"rod": "edge-0", "end": "start"}, "type": "clamped", "rotation": [0, 0, 0.1]},
                  {"at": {"point": [3, 1, 0]}, "type": "pinned", "displacement": [0, 0, -1]}],
     "loads": [{"at": {"rod": "edge-0", "end": "end"}, "force": [0, 0, -2], "moment": [0.5, 0, 0]},
-              {"at": {"rod": "edge-0", "parameter": 0.25}, "force": [0, 1, 0]}],
+              {"at": {"rod": "edge-0", "parameter": 0.25}, "force": [0, 1, 0], "follower": true}],
     "distributed_loads": [{"rod": "edge-0", "force": [0, 0, -0.01]}],
     "rods": {"edge-0": {"torsion_constant": 0.2, "poisson_ratio": 0.25}},
     "load_steps": 7 })");
@@ -68,6 +68,8 @@ TEST_CASE("The mechanics block reads, round-trips, and is optional", "[design][m
   REQUIRE(m.loads.size() == 2);
   CHECK(*m.loads[1].at.parameter == 0.25);
   CHECK_FALSE(m.loads[0].at.parameter);
+  CHECK_FALSE(m.loads[0].follower);  // dead by default, as in files from before follower loads
+  CHECK(m.loads[1].follower);
   CHECK(m.distributedLoads[0].force.z() == -0.01);
   CHECK(*m.rods[0].torsionConstant == 0.2);
   CHECK(m.loadSteps == 7);
@@ -97,6 +99,12 @@ TEST_CASE("Bad mechanics blocks are reported with their paths", "[design][mechan
                 "expected a point in mm as [x, y, z]");
   REQUIRE_ISSUE(with(R"({"loads": [{"at": {"rod": "edge-0", "end": "end"}}]})"), "mechanics.loads[0]",
                 "a load needs \"force\"");
+  REQUIRE_ISSUE(with(R"({"loads": [{"at": {"rod": "edge-0", "end": "end"}, "force": [0, 0, 1], "follower": "yes"}]})"),
+                "mechanics.loads[0].follower", "expected true (the load turns with the cross-section) or false");
+  REQUIRE_ISSUE(with(R"({"load_cases": [{"name": "a", "supports": [{"at": {"rod": "edge-0", "end": "start"}, "type": "clamped"}],
+                "loads": [{"at": {"rod": "edge-0", "end": "end"}, "force": [0, 0, 1], "follower": 1}],
+                "target": {"design": "t.json"}}]})"),
+                "mechanics.load_cases[0].loads[0].follower", "expected true");
   REQUIRE_ISSUE(with(R"({"loads": [{"at": {"rod": "edge-0", "point": [0, 0, 0]}, "force": [0, 0, 1]}]})"),
                 "mechanics.loads[0].at", "give either \"rod\" with \"end\" or \"parameter\", or \"point\"");
   REQUIRE_ISSUE(with(R"({"loads": [{"at": {"rod": "edge-0", "end": "end", "parameter": 0.5}, "force": [0, 0, 1]}]})"),

@@ -8,6 +8,7 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <iomanip>
 #include <random>
@@ -160,6 +161,47 @@ TEST_CASE("a load at an interior point, by parameter or by position, matches bea
   }
 }
 
+TEST_CASE("a follower load turns with the section: at the solution it is the dead load R R0^T F", "[mechanics][joints]") {
+  // The split T: a large force at the stem's free tip and a moment at the three-rod joint, both
+  // followers, solved. At that state the same structure with dead loads turned by the rotations
+  // found there is in equilibrium too (its residual vanishes), and with the loads as given it is
+  // not. At the joint any of its rods gives the same R R0^T (the joint is rigid).
+  const Vec3 force(1e-3, 0.5e-3, 0), moment(0, 1e-4, 0.5e-4);
+  Design s = tFrame(true, force);
+  s.mechanics.loads[0].follower = true;
+  mechanics::PointLoad twist;
+  twist.at = at("stem", RodEnd::Start);
+  twist.moment = moment;
+  twist.follower = true;
+  s.mechanics.loads.push_back(twist);
+  const mechanics::Simulation follower = simulated(s);
+  const StaticProblem& p = *follower.problem;
+  const Eigen::VectorXd& x = follower.solution.state;
+  const std::size_t stem = 2;
+  const auto turn = [&](std::size_t rod, double u) {
+    return Eigen::Matrix3d(p.rotation(x, rod, u) * p.rotation(p.referenceState(), rod, u).transpose());
+  };
+  const Eigen::Matrix3d atJoint = turn(stem, 0.0);
+  CHECK((turn(0, 1.0) - atJoint).norm() < 1e-9);  // bar-left's end at the joint turns alike
+  CHECK(std::acos(std::clamp(0.5 * (turn(stem, 1.0).trace() - 1.0), -1.0, 1.0)) > 0.5);  // the tip turns by radians
+  Design dead = s;
+  dead.mechanics.loads[0].follower = dead.mechanics.loads[1].follower = false;
+  dead.mechanics.loads[0].force = turn(stem, 1.0) * force;
+  dead.mechanics.loads[1].moment = atJoint * moment;
+  Eigen::VectorXd f;
+  StaticProblem(dead, p.discretization()).evaluate(x, 1.0, f);
+  const double turned = f.lpNorm<Eigen::Infinity>();
+  Design asGiven = dead;
+  asGiven.mechanics.loads[0].force = force;
+  asGiven.mechanics.loads[1].moment = moment;
+  StaticProblem(asGiven, p.discretization()).evaluate(x, 1.0, f);
+  const double given = f.lpNorm<Eigen::Infinity>();
+  INFO("tip at " << p.position(x, stem, 1.0).transpose() << "; scaled residual of the turned dead loads " << turned
+                 << ", of the loads as given " << given);
+  CHECK(turned < 1e-7);  // Newton's tolerance (1e-10 on the residual or the correction), against 1e-2 and more
+  CHECK(given > 1e-2);
+}
+
 TEST_CASE("an interior support holds a rod there", "[mechanics][joints]") {
   // A rod clamped at its middle (by parameter) with equal and opposite loads at its ends: each half
   // is a cantilever of length L / 2.
@@ -243,6 +285,9 @@ TEST_CASE("the analytic Jacobian at T-joints and interior places matches central
   l.at = atParameter("arc", 0.8);
   l.force = Vec3(0.3, -0.2, 0.5);
   l.moment = Vec3(1, 2, 3);
+  // Dead, or turning with the section (a follower load: its derivative in q enters the Jacobian).
+  l.follower = GENERATE(false, true);
+  INFO((l.follower ? "follower" : "dead") << " load");
   s.mechanics.loads.push_back(l);
   for (const bool designBasis : {true, false}) {
     mechanics::Discretization d;

@@ -49,7 +49,8 @@ mechanics::PointLoad load(const std::string& name, const Vec3& force, const Vec3
 // A clamped post, an arc joined rigidly to its top and a straight arm hanging from the arc's end:
 // three rods, two joints, bending and torsion everywhere. Two load cases at the arm's free end.
 // With `tJoint`, a loaded strut starts at the post's mid-height: a T-joint, the post's interior site.
-Design frame(bool tJoint = false) {
+// With `follower`, every load turns with its section (follower loads).
+Design frame(bool tJoint = false, bool follower = false) {
   Design s;
   s.source = "frame";
   s.rods.push_back(rod("post", straight(Vec3(40, 0, 0), Vec3(40, 0, 60)), 4.0, 60.0));
@@ -68,6 +69,8 @@ Design frame(bool tJoint = false) {
   twist.loads = {load("arm", Vec3(0.0, -0.2, 0.0), Vec3(4.0, 0.0, 3.0))};
   if (tJoint)
     for (mechanics::LoadCase* c : {&push, &twist}) c->loads.push_back(load("strut", Vec3(0.0, 0.05, -0.05), Vec3::Zero()));
+  for (mechanics::LoadCase* c : {&push, &twist})
+    for (mechanics::PointLoad& l : c->loads) l.follower = follower;
   s.mechanics.loadCases = {push, twist};
   s.mechanics.supports = {clamp};
   return s;
@@ -94,8 +97,8 @@ Eigen::VectorXd randomModulus(std::size_t n, double lo, double hi, unsigned seed
 
 // The frame with targets: the shapes of a random modulus field between the bounds.
 Design manufactured(const optimize::Settings& settings, unsigned seed, Eigen::VectorXd* truth = nullptr,
-                    bool tJoint = false) {
-  Design design = frame(tJoint);
+                    bool tJoint = false, bool follower = false) {
+  Design design = frame(tJoint, follower);
   for (auto& lc : design.mechanics.loadCases) lc.target.push_back({"post", straight(Vec3(40, 0, 0), Vec3(40, 0, 60)), std::nullopt, std::nullopt, "t"});
   optimize::DesignProblem generator(design, settings);
   const Eigen::VectorXd e = randomModulus(generator.variableCount(), settings.lowerMpa, settings.upperMpa, seed);
@@ -158,8 +161,9 @@ TEST_CASE("the adjoint gradient matches central finite differences (joints, a T-
   optimize::Settings settings = testSettings();
   settings.curvatureWeight = 3.0;
   const bool tJoint = GENERATE(false, true);
-  INFO((tJoint ? "with" : "without") << " a T-joint");
-  optimize::DesignProblem problem(manufactured(settings, 11, nullptr, tJoint), settings);
+  const bool follower = GENERATE(false, true);  // follower loads: their q-derivative is in the adjoint's Jacobian
+  INFO((tJoint ? "with" : "without") << " a T-joint, " << (follower ? "follower" : "dead") << " loads");
+  optimize::DesignProblem problem(manufactured(settings, 11, nullptr, tJoint, follower), settings);
   REQUIRE(problem.caseCount() == 2);
   const Eigen::VectorXd e = randomModulus(problem.variableCount(), 20, 150, 5);
   const optimize::Evaluation ev = problem.evaluate(e, true);
@@ -202,6 +206,45 @@ TEST_CASE("a manufactured problem: from a uniform modulus to g / g0 <= 1e-6 with
   CHECK(reports == result.iterations + 1);
   CHECK(result.modulus.minCoeff() >= settings.lowerMpa);
   CHECK(result.modulus.maxCoeff() <= settings.upperMpa);
+}
+
+TEST_CASE("NLopt's MMA and CCSAQ on the manufactured problem: g falls, one report per evaluation, bounds kept", "[optimize]") {
+  optimize::Settings settings = testSettings();
+  settings.method = GENERATE(optimize::Method::Mma, optimize::Method::Ccsaq);
+  INFO((settings.method == optimize::Method::Mma ? "MMA" : "CCSAQ"));
+  settings.maxIterations = 60;
+  optimize::DesignProblem problem(manufactured(settings, 21, nullptr, false, true), settings);
+  int reports = 0;
+  const optimize::Result result = optimize::optimize(problem, [&](const optimize::Iteration&) { ++reports; });
+  const double relative = result.final.objective / result.initial.objective;
+  INFO("g/g0 " << relative << " after " << result.iterations << " iterations: " << result.stopReason);
+  CHECK(relative <= 1e-2);
+  CHECK(result.evaluations == result.iterations + 1);  // the start is evaluated once
+  CHECK(reports == result.iterations + 1);
+  CHECK(result.iterations <= settings.maxIterations);
+  CHECK(result.modulus.minCoeff() >= settings.lowerMpa);
+  CHECK(result.modulus.maxCoeff() <= settings.upperMpa);
+  // The states belong to the best point.
+  CHECK(problem.evaluate(result.modulus, false).objective == Approx(result.final.objective).epsilon(1e-9));
+}
+
+TEST_CASE("The start (--start): the design's modulus, or one modulus everywhere within the bounds", "[optimize]") {
+  CHECK_FALSE(optimize::parseStart("design")->uniform);
+  CHECK(optimize::parseStart("uniform")->uniform);
+  CHECK(optimize::parseStart("uniform")->mpa == 0.0);
+  CHECK(optimize::parseStart("uniform=42.5")->mpa == 42.5);
+  for (const char* bad : {"", "flat", "uniform=", "uniform=0", "uniform=-1", "uniform=nan", "uniform=inf", "uniform=12x", "uniform=1e999"})
+    CHECK_FALSE(optimize::parseStart(bad));
+  const optimize::Settings settings = testSettings();
+  optimize::DesignProblem problem(manufactured(settings, 3), settings);
+  const Eigen::VectorXd mean = optimize::startingModulus(problem, *optimize::parseStart("uniform"));
+  CHECK(mean.size() == static_cast<Eigen::Index>(problem.variableCount()));
+  CHECK(mean.minCoeff() == Approx(std::sqrt(8.0 * 190.0)));
+  CHECK(mean.maxCoeff() == mean.minCoeff());
+  CHECK(optimize::startingModulus(problem, *optimize::parseStart("uniform=150"))[0] == 150.0);
+  CHECK(optimize::startingModulus(problem, *optimize::parseStart("design")) == problem.startingModulus());
+  CHECK_THROWS_WITH(optimize::startingModulus(problem, *optimize::parseStart("uniform=7")),
+                    Catch::Contains("--start uniform=7: outside the bounds [8, 190] MPa"));
 }
 
 TEST_CASE("a target only reachable beyond the bounds ends on them, a stationary point of the bounded problem", "[optimize]") {
@@ -295,7 +338,7 @@ TEST_CASE("the accuracy at the optimum: the error estimate is the size of the di
         truth = std::max(truth, (ref.problem->position(ref.solution.state, r, u) -
                                  problem.caseProblem(c).position(problem.state(c), r, u)).norm());
     INFO("estimated " << est.positionError << " mm, difference from the finer solve " << truth << " mm");
-    CHECK(est.positionError > 0.2 * truth);
-    CHECK(est.positionError < 5.0 * truth);
+    CHECK(est.positionError > 0.8 * truth);
+    CHECK(est.positionError < 1.5 * truth);
   }
 }

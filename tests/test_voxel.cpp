@@ -509,6 +509,36 @@ TEST_CASE("Memory follows the active voxels, not the envelope", "[voxel][sparse]
   REQUIRE(ras.grid->memUsage() < 100 * active);
 }
 
+TEST_CASE("The memory estimate made before rasterizing bounds the grid OpenVDB builds", "[voxel][sparse][memory]") {
+  // OpenVDB's own count of the tree's bytes is the independent truth; the estimate must not fall below
+  // it (a refusal would come too late) nor exceed it by so much that fitting designs are refused.
+  const Vec3 a(0.1, 0.2, 0.3), dir = Vec3(0.8, 0.5, 0.3).normalized();
+  const std::vector<std::pair<std::string, Rod>> rods = {
+      {"thick round", circularRod(line(a, a + 4.0 * dir), 1.2, CapStyle::Round)},
+      {"thin round", circularRod(line(a, a + 6.0 * dir), 0.1, CapStyle::Flat)},
+      {"flat ellipse", Rod("e", line(a, a + 5.0 * dir), Section::ellipse(3.0, 0.05), Vec3(0, 0, 1), std::nullopt,
+                           CapStyle::Flat, BSplineField::constant(50, 0, 1))},
+      {"rectangle", Rod("r", line(a, a + 5.0 * dir), Section::rectangle(1.5, 0.8), Vec3(0, 0, 1), std::nullopt,
+                        CapStyle::Round, BSplineField::constant(50, 0, 1))},
+  };
+  for (const auto& [name, rod] : rods) {
+    CAPTURE(name);
+    const RodStructure s = design({rod});
+    const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
+    const double built = double(voxel::rasterize(s, g).grid->memUsage());
+    const double estimate = double(voxel::estimateRasterizationBytes(s, g));
+    CAPTURE(built, estimate);
+    REQUIRE(estimate >= built);
+    REQUIRE(estimate <= 3.0 * built);
+  }
+  SECTION("a part far beyond any memory is estimated without overflow") {
+    const RodStructure s = design({circularRod(line({0, 0, 0}, {300, 0, 0}), 75.0, CapStyle::Round)});
+    const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
+    const double voxels = kPi * 75.0 * 75.0 * 300.0 / g.voxelVolume();
+    REQUIRE(double(voxel::estimateRasterizationBytes(s, g)) >= 4.0 * voxels);
+  }
+}
+
 TEST_CASE("Grid statistics agree with a direct count", "[voxel][statistics]") {
   const BSplineField e(1, {0, 0, 1, 1}, {12.0, 60.0});
   const RodStructure s = design({circularRod(line({0, 0, 0}, {2, 0, 0}), 0.4, CapStyle::Flat, e),
@@ -755,6 +785,39 @@ TEST_CASE("A kinked centerline is the union of its smooth pieces, voxel for voxe
     const Rod rod("rod", NurbsCurve(2, {0, 0, 0, 0.5, 0.5, 1, 1, 1}, {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {3, 0, 0}, {3, 1, 0}}),
                   Section::circle(0.5), std::nullopt, std::nullopt, CapStyle::Round, BSplineField::constant(5, 0, 1));
     REQUIRE(rod.smoothPieces().size() == 1);
+  }
+}
+
+TEST_CASE("Rows of every length and offset: rods along x, y and z across block edges, overlapping at a kink", "[voxel][exact][kink]") {
+  // The swept loop fills four neighbours along x at once and the blocks are 64 voxels long in x: rows
+  // of 1 to 3 voxels (thin rods across x), rows starting at every offset, rows cut by a block edge and
+  // slots already filled by another rod (joints, a kink's overlapping pieces) all take other paths.
+  const openvdb::Vec3d voxel(0.05, 0.07, 0.04);
+  const BSplineField rising(1, {0, 0, 1, 1}, {12, 150});
+  const RodStructure s = design({
+      Rod("thin-along-x", line({0.1, 0.62, 0.5}, {6.3, 0.66, 0.52}), Section::circle(0.12), std::nullopt, std::nullopt,
+          CapStyle::Round, rising),
+      Rod("flat-along-y", line({3.17, -0.2, 0.45}, {3.2, 1.6, 0.5}), Section::rectangle(0.5, 0.26), Vec3(0, 0, 1), std::nullopt,
+          CapStyle::Flat, BSplineField::constant(70, 0, 1)),
+      makeRod(polyline({{0.4, 0.6, 0.1}, {3.25, 0.7, 0.5}, {3.3, 0.75, 1.9}}), Section::rectangle(0.3, 0.22), CapStyle::Round,
+              Vec3(0, 1, 0)),
+      Rod("thin-along-z", line({3.2, 0.64, -0.4}, {3.21, 0.64, 1.4}), Section::circle(0.07), std::nullopt, std::nullopt,
+          CapStyle::Round, BSplineField::constant(180, 0, 1)),
+  });
+  const PrinterGrid g = voxel::makePrinterGrid(s, voxel);
+  REQUIRE(g.dims.x() > 128);  // the x rod crosses two block edges
+  for (const int threads : {1, 2}) {
+    const voxel::Rasterization ras = voxel::rasterize(s, g, {threads});
+    REQUIRE(requireMatchesExactTest(s, g, ras) > 100000);
+    std::uint64_t won = 0;
+    for (const std::uint64_t n : ras.voxelsPerRod) {
+      REQUIRE(n > 0);
+      won += n;
+    }
+    REQUIRE(won == ras.grid->activeVoxelCount());
+    // Inactive voxels of the leaves hold the background, as OpenVDB writes them.
+    for (auto leaf = ras.grid->tree().cbeginLeaf(); leaf; ++leaf)
+      for (auto v = leaf->cbeginValueOff(); v; ++v) REQUIRE(*v == 0.0f);
   }
 }
 

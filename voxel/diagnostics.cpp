@@ -50,7 +50,7 @@ RasterEstimate estimateRaster(const geometry::RodStructure& structure, const Pri
   for (const geometry::Rod& rod : structure.rods) {
     const std::uint64_t pieces = detail::pieceBudget(rod, grid);
     e.maxPieces += pieces;
-    e.pieceBytes += double(pieces) * double(sizeof(detail::RodPiece) + sizeof(detail::IndexForm));
+    e.pieceBytes += double(pieces) * double(sizeof(detail::RodPiece) + sizeof(detail::AffineInIndex));
     e.activeVoxels += rodVolume(rod) / grid.voxelVolume();
     // The nodes touched by the rod as a tube of its bounding radius (the internal nodes of rods close
     // together are shared: an upper estimate).

@@ -1,3 +1,8 @@
+// The four-lane vectors of the swept loop (Double4 and friends, also through rod_pieces.hpp's templates)
+// pass between inline functions of this file only; GCC's note that their by-value ABI differs without
+// AVX concerns no interface anyone links to.
+#pragma GCC diagnostic ignored "-Wpsabi"
+
 #include "voxel/rasterize.hpp"
 
 #include "voxel/rod_pieces.hpp"
@@ -12,12 +17,13 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <memory>
 
 namespace rodfab::voxel {
 
-using detail::IndexForm;
+using detail::AffineInIndex;
 using detail::RodPiece;
 using detail::RodPieces;
 using LeafT = openvdb::FloatTree::LeafNodeType;
@@ -35,40 +41,49 @@ constexpr int kBlockLeaves = 1 << kBlockLeavesLog2;
 constexpr int kBlockXLog2 = kLeafLog2 + kBlockLeavesLog2;
 constexpr int kBlockX = 1 << kBlockXLog2;
 constexpr int kBlockVoxels = kBlockLeaves * kLeafVoxels;
-constexpr int kKeyBits = 21;  // per axis in a block key: PrinterGrid caps dims at 2^24 voxels
+constexpr int kPackedAxisBits = 21;  // per axis in a packed block coordinate: PrinterGrid caps dims at 2^24 voxels
 
 // Within this distance (mm) beyond an end plane Rod::classify still uses the section (its own plane
 // tolerance is 1e-9 (1 + bounding radius)); such voxel centres go to the exact test.
-double capPlaneBand(double boundingRadius) { return 1e-7 * (1.0 + boundingRadius); }
+double capPlaneTolerance(double boundingRadius) { return 1e-7 * (1.0 + boundingRadius); }
 
-// One rod's claim on a voxel, as the exact test and the cold paths of the overlap rule see it.
+// One rod as a candidate for a voxel, as the exact test and the cold paths of the overlap rule see it.
 struct Candidate {
   double depth = -std::numeric_limits<double>::infinity();
-  float band = 0.0f;  // |depth - exact depth| bound, rounded up; 0 when the exact test computed it
+  float errorBound = 0.0f;  // bound on |depth - exact depth|, rounded up; 0 when the exact test computed it
   float value = 0.0f;
   int rod = -1;       // -1: outside (the exact test found the centre outside the rod)
   int piece = -1;
   bool inside() const { return rod >= 0; }
 };
 
-// Two doubles in an SSE2 register (GCC vector extension): the swept estimate for two voxels at once.
-typedef double Double2 __attribute__((vector_size(16)));
+// Four doubles (GCC vector extension; two SSE2 registers in the baseline build, one AVX register in
+// the AVX2 clone of the swept loop): the swept estimate for four voxels at once. Lane by lane the same
+// IEEE operations as the scalar expressions, so the same bits.
+typedef double Double4 __attribute__((vector_size(32)));
+typedef float Float4 __attribute__((vector_size(16)));
+typedef std::int64_t Mask4 __attribute__((vector_size(32)));  // a comparison of Double4s: -1 true, 0 false
+
+// |v| lane by lane, exactly as std::abs (clears the sign bit).
+inline Double4 absolute(Double4 v) {
+  return reinterpret_cast<Double4>(reinterpret_cast<Mask4>(v) & std::numeric_limits<std::int64_t>::max());
+}
 
 // A swept piece's coefficients for the voxel loop, copied out of the piece (see sweep): the same
 // values, so estimateSwept and estimateModulus give the same bits.
 struct SweptLanes {
   SweptLanes(const detail::RodPiece& p, double planeAgx, double planeBgx)
       : gxA(planeAgx), gxB(planeBgx), gx1Begin(p.x1Begin.gx), gx2Begin(p.x2Begin.gx), gx1End(p.x1End.gx), gx2End(p.x2End.gx),
-        x1Bow(p.x1Bow), x2Bow(p.x2Bow), modulusBegin(p.modulusBegin), modulusEnd(p.modulusEnd), modulusBow(p.modulusBow),
-        modulusLow(p.modulusLow), modulusHigh(p.modulusHigh) {}
+        x1Quadratic(p.x1Quadratic), x2Quadratic(p.x2Quadratic), modulusBegin(p.modulusBegin), modulusEnd(p.modulusEnd),
+        modulusQuadratic(p.modulusQuadratic), modulusLow(p.modulusLow), modulusHigh(p.modulusHigh) {}
   double gxA, gxB, gx1Begin, gx2Begin, gx1End, gx2End;
-  double x1Bow, x2Bow, modulusBegin, modulusEnd, modulusBow, modulusLow, modulusHigh;  // as in RodPiece
+  double x1Quadratic, x2Quadratic, modulusBegin, modulusEnd, modulusQuadratic, modulusLow, modulusHigh;  // as in RodPiece
 };
 
-// A double band as a float that is not smaller.
-float bandAsFloat(double band) {
-  const float f = static_cast<float>(band);
-  return double(f) >= band ? f : std::nextafter(f, std::numeric_limits<float>::infinity());
+// A double error bound as a float that is not smaller.
+float roundedUpToFloat(double bound) {
+  const float f = static_cast<float>(bound);
+  return double(f) >= bound ? f : std::nextafter(f, std::numeric_limits<float>::infinity());
 }
 
 // A piece reaching a block. Sorted by (block, rod, piece), a total order: every voxel sees its pieces
@@ -83,14 +98,14 @@ struct Entry {
   }
 };
 
-// Blocks in z-major order, so a band's blocks are contiguous.
-std::uint64_t blockKey(int bi, int bj, int bk) {
-  return (std::uint64_t(bk) << (2 * kKeyBits)) | (std::uint64_t(bj) << kKeyBits) | std::uint64_t(bi);
+// Block coordinates packed into one sort key, z-major, so the blocks of a band of layers are contiguous.
+std::uint64_t packBlock(int bi, int bj, int bk) {
+  return (std::uint64_t(bk) << (2 * kPackedAxisBits)) | (std::uint64_t(bj) << kPackedAxisBits) | std::uint64_t(bi);
 }
-openvdb::Coord blockOrigin(std::uint64_t key) {
-  const std::uint64_t mask = (std::uint64_t(1) << kKeyBits) - 1;
-  return openvdb::Coord(int(key & mask) << kBlockXLog2, int((key >> kKeyBits) & mask) << kLeafLog2,
-                        int(key >> (2 * kKeyBits)) << kLeafLog2);
+openvdb::Coord blockOrigin(std::uint64_t packed) {
+  const std::uint64_t mask = (std::uint64_t(1) << kPackedAxisBits) - 1;
+  return openvdb::Coord(int(packed & mask) << kBlockXLog2, int((packed >> kPackedAxisBits) & mask) << kLeafLog2,
+                        int(packed >> (2 * kPackedAxisBits)) << kLeafLog2);
 }
 
 int clampToInt(double v) { return static_cast<int>(std::clamp(v, -2.0e9, 2.0e9)); }
@@ -99,7 +114,7 @@ int clampToInt(double v) { return static_cast<int>(std::clamp(v, -2.0e9, 2.0e9))
 // clips keep that margin and the callers still test every voxel they are left with.
 constexpr double kClipMargin = 1e-6;
 
-// Depths closer than this are a tie (see rasterize.hpp): far below any approximation band, far above
+// Depths closer than this are a tie (see rasterize.hpp): far below any approximation error bound, far above
 // the round-off in a depth.
 constexpr double kTieTolerance = kDepthTieTolerance;
 
@@ -234,27 +249,36 @@ public:
     memoRod_ = -1;
   }
   // Writes the block's filled slots into leaves; leaf(l) creates the block's l-th leaf along x.
-  // Slots are in the leaves' own order, so a leaf's value mask is its 8 words of `filled_`.
+  // Slots are row by row (see offset) and leaves column by column, so a leaf's value mask is the
+  // transpose of `filled_`: word x of leaf l holds bit (y, z) for column i = 8 l + x, where filled_
+  // holds bit i of row (y, z).
   template <typename MakeLeaf>
   void emit(MakeLeaf&& leaf) const {
-    constexpr int kLeafWords = kLeafVoxels / 64;
-    for (int l = 0; l < kBlockLeaves; ++l) {
-      const std::uint64_t* words = &filled_[static_cast<std::size_t>(l * kLeafWords)];
-      if (std::all_of(words, words + kLeafWords, [](std::uint64_t w) { return w == 0; })) continue;
-      LeafT& node = leaf(l);
-      float* values = node.buffer().data();
-      const float* slots = &value_[static_cast<std::size_t>(l * kLeafVoxels)];
-      for (int w = 0; w < kLeafWords; ++w) {
-        node.getValueMask().template getWord<std::uint64_t>(openvdb::Index(w)) = words[w];
-        if (words[w] == ~std::uint64_t(0)) {  // a full (y, z) slice, common inside the rods
-          std::copy_n(slots + w * 64, 64, values + w * 64);
-          continue;
-        }
-        for (std::uint64_t bits = words[w]; bits != 0; bits &= bits - 1) {
-          const int n = w * 64 + std::countr_zero(bits);
-          values[n] = slots[n];
-        }
+    std::uint64_t anyRow = 0;
+    for (std::uint64_t w : filled_) anyRow |= w;
+    if (anyRow == 0) return;
+    std::array<std::uint64_t, kBlockX> columns{};  // bit r of column i: slot (r << 6) | i filled
+    std::array<LeafT*, kBlockLeaves> nodes{};
+    std::array<float*, kBlockLeaves> values{};
+    for (int l = 0; l < kBlockLeaves; ++l)
+      if ((anyRow >> (l * kLeafDim)) & 0xffu) {
+        nodes[static_cast<std::size_t>(l)] = &leaf(l);
+        values[static_cast<std::size_t>(l)] = nodes[static_cast<std::size_t>(l)]->buffer().data();
       }
+    for (int r = 0; r < kRows; ++r) {
+      const std::uint64_t row = filled_[static_cast<std::size_t>(r)];
+      const float* slots = &value_[static_cast<std::size_t>(r << kBlockXLog2)];
+      for (std::uint64_t bits = row; bits != 0; bits &= bits - 1) {
+        const int i = std::countr_zero(bits);
+        columns[static_cast<std::size_t>(i)] |= std::uint64_t(1) << r;
+        values[static_cast<std::size_t>(i >> kLeafLog2)][((i & (kLeafDim - 1)) << (2 * kLeafLog2)) | r] = slots[i];
+      }
+    }
+    for (int l = 0; l < kBlockLeaves; ++l) {
+      if (!nodes[static_cast<std::size_t>(l)]) continue;
+      for (int x = 0; x < kLeafDim; ++x)
+        nodes[static_cast<std::size_t>(l)]->getValueMask().template getWord<std::uint64_t>(openvdb::Index(x)) =
+            columns[static_cast<std::size_t>(l * kLeafDim + x)];
     }
   }
 
@@ -266,12 +290,14 @@ public:
   }
 
 private:
-  // Slot of voxel (i, j, k) in its block: leaf by leaf along x, each in LeafNode order (z fastest), so
-  // (i & (kBlockX - 1)) << 6 is the leaf and x offset together and a voxel's bit of `filled_` is bit
-  // (j, k) of word i & (kBlockX - 1).
+  // Slot of voxel (i, j, k) in its block: row by row, the 64 voxels of a row (j, k) along x
+  // contiguous, so the swept loop fills four neighbours with one vector store, and a voxel's bit of
+  // `filled_` is bit i & (kBlockX - 1) of the row's word. Rows are numbered (y, z) as a leaf numbers
+  // the voxels of one x, which makes emit a transpose.
   static int offset(int i, int j, int k) {
-    return ((i & (kBlockX - 1)) << (2 * kLeafLog2)) | ((j & (kLeafDim - 1)) << kLeafLog2) | (k & (kLeafDim - 1));
+    return (rowOf(j, k) << kBlockXLog2) | (i & (kBlockX - 1));
   }
+  static int rowOf(int j, int k) { return ((j & (kLeafDim - 1)) << kLeafLog2) | (k & (kLeafDim - 1)); }
   static std::uint64_t owner(int rod, int piece) { return (std::uint64_t(std::uint32_t(rod)) << 32) | std::uint32_t(piece); }
   Candidate exact(int rod, int pieceIndex, int i, int j, int k) {
     // The exact test is the one costly step per voxel (a Newton solve per nearby polyline segment):
@@ -285,72 +311,109 @@ private:
     return {hit.depth, 0.0f, static_cast<float>(r.modulus().value(hit.u)), rod, pieceIndex};
   }
 
-  // A slot's key is its depth, except for approximate claims of rods with round sections
-  // (band > 0 and deferredDepth_), where it is the gauge squared: the square root is only taken when
-  // another claim contests the voxel, and it is the same expression the depth always came from.
-  // Approximate claims always have band > 0 (normalizedRadiusBand has a 1e-12 floor) and exact ones 0.
-  double depthOf(double key, float band, int rod) const {
-    return band > 0.0f && deferredDepth_[static_cast<std::size_t>(rod)] ? 1.0 - std::sqrt(key) : key;
+  // A slot stores its depth encoded: the depth itself, except for approximate candidates of rods with
+  // round sections (errorBound > 0 and deferredDepth_), where it stores the gauge squared, (1 - depth)^2:
+  // the square root is only taken when another rod competes for the voxel, and it is the same
+  // expression the depth always came from. Approximate candidates always have errorBound > 0
+  // (normalizedRadiusErrorBound has a 1e-12 floor) and exact ones 0.
+  double decodedDepth(double encodedDepth, float errorBound, int rod) const {
+    return errorBound > 0.0f && deferredDepth_[static_cast<std::size_t>(rod)] ? 1.0 - std::sqrt(encodedDepth) : encodedDepth;
   }
-  void store(int n, double key, float band, float value, std::uint64_t who) {
-    key_[n] = key;
-    band_[n] = band;
+  // Four neighbouring slots n .. n + 3 of one row (see offset), as four stores would fill them.
+  void storeFour(int n, Double4 encodedDepth, Float4 value, float errorBound, std::uint64_t who) {
+    std::memcpy(&encodedDepth_[static_cast<std::size_t>(n)], &encodedDepth, sizeof encodedDepth);
+    std::memcpy(&value_[static_cast<std::size_t>(n)], &value, sizeof value);
+    for (int l = 0; l < 4; ++l) {
+      errorBound_[static_cast<std::size_t>(n + l)] = errorBound;
+      owner_[static_cast<std::size_t>(n + l)] = who;
+    }
+  }
+  void store(int n, double encodedDepth, float errorBound, float value, std::uint64_t who) {
+    encodedDepth_[n] = encodedDepth;
+    errorBound_[n] = errorBound;
     value_[n] = value;
     owner_[n] = who;
   }
 
-  // An approximate claim that is inside for sure (key as in depthOf). The common case, an unclaimed
-  // voxel, is a plain store, and returns 1 for the caller to add to the rod's tally; a claimed one
-  // goes through the overlap rule.
-  int claim(int n, double key, float band, float value, int rod, int piece, int i, int j, int k) {
+  // An approximate candidate that is inside for sure (depth encoded as in decodedDepth). The common
+  // case, an empty slot, is a plain store, and returns 1 for the caller to add to the rod's tally; a
+  // filled one goes through the overlap rule.
+  int addSurelyInside(int n, double encodedDepth, float errorBound, float value, int rod, int piece, int i, int j, int k) {
     std::uint64_t& word = filled_[n >> 6];
     const std::uint64_t bit = std::uint64_t(1) << (n & 63);
     if (!(word & bit)) {
-      store(n, key, band, value, owner(rod, piece));
+      store(n, encodedDepth, errorBound, value, owner(rod, piece));
       word |= bit;
       return 1;
     }
-    contest(n, {depthOf(key, band, rod), band, value, rod, piece}, key, i, j, k);
+    if (!clearOverlap(n, encodedDepth, errorBound, value, rod, piece))
+      resolveOverlap(n, {decodedDepth(encodedDepth, errorBound, rod), errorBound, value, rod, piece}, encodedDepth, i, j, k);
     return 0;
   }
-  // A claim with its depth at hand (exact, or caps), possibly outside.
-  void offer(const Candidate& c, int n, int i, int j, int k) {
+  // The overlap rule's outcome without square roots, where it is clear: candidate and slot both
+  // approximate candidates of round-section rods (encoded depths g^2 < 1, gauges squared) whose depths are
+  // far from a tie. With both gauges below 1, |sqrt(a) - sqrt(b)| >= |a - b| / 2, so a difference of
+  // squares above 2 (bounds + tie tolerance), plus 1e-12 for the round-off of the depths, means
+  // resolveOverlap finds no near tie and lets the deeper one (the smaller g^2) win: the same outcome.
+  // Returns false where resolveOverlap must decide.
+  bool clearOverlap(int n, double encodedDepth, float errorBound, float value, int rod, int piece) {
+    const std::uint64_t slotOwner = owner_[static_cast<std::size_t>(n)];
+    const int slotRod = static_cast<int>(slotOwner >> 32);
+    const float slotBound = errorBound_[static_cast<std::size_t>(n)];
+    if (!(errorBound > 0.0f && slotBound > 0.0f && deferredDepth_[static_cast<std::size_t>(rod)] &&
+          deferredDepth_[static_cast<std::size_t>(slotRod)]))
+      return false;
+    const double slotDepth = encodedDepth_[static_cast<std::size_t>(n)];  // encoded: g^2
+    const double clear = 2.0 * (double(slotBound) + double(errorBound) + kTieTolerance) + 1e-12;
+    if (encodedDepth - slotDepth > clear) return true;  // the candidate is clearly shallower: the slot stays
+    if (slotDepth - encodedDepth > clear) {              // clearly deeper: it takes the slot
+      store(n, encodedDepth, errorBound, value, owner(rod, piece));
+      --voxelsPerRod[static_cast<std::size_t>(slotRod)];
+      ++voxelsPerRod[static_cast<std::size_t>(rod)];
+      return true;
+    }
+    return false;
+  }
+  // A candidate with its depth at hand (exact, or caps), possibly outside.
+  void addCandidate(const Candidate& c, int n, int i, int j, int k) {
     std::uint64_t& word = filled_[n >> 6];
     const std::uint64_t bit = std::uint64_t(1) << (n & 63);
     if (!(word & bit)) {
       if (c.inside()) {
-        store(n, c.depth, c.band, c.value, owner(c.rod, c.piece));
+        store(n, c.depth, c.errorBound, c.value, owner(c.rod, c.piece));
         word |= bit;
         ++voxelsPerRod[static_cast<std::size_t>(c.rod)];
       }
       return;
     }
-    contest(n, c, c.depth, i, j, k);
+    resolveOverlap(n, c, c.depth, i, j, k);
   }
 
-  // The overlap rule between filled slot n and candidate c (cKey: c's key). Near ties between
-  // approximate depths are settled on exact depths, so the winner is the one the exact test would
-  // pick; depths within kTieTolerance are equal (lower rod wins), which spares the exact test where
-  // round caps of rods meeting at a node coincide.
-  [[gnu::noinline]] void contest(int n, Candidate c, double cKey, int i, int j, int k) {
+  // The overlap rule between filled slot n and candidate c (cEncodedDepth: c's depth as the slot would
+  // store it). Near ties between approximate depths are settled on exact depths, so the winner is the
+  // one the exact test would pick; depths within kTieTolerance are equal (lower rod wins), which spares
+  // the exact test where round caps of rods meeting at a node coincide.
+  [[gnu::noinline]] void resolveOverlap(int n, Candidate c, double cEncodedDepth, int i, int j, int k) {
     const int sRod = static_cast<int>(owner_[n] >> 32);
-    Candidate s{depthOf(key_[n], band_[n], sRod), band_[n], value_[n], sRod, static_cast<int>(owner_[n] & 0xffffffffu)};
-    double sKey = key_[n];
+    Candidate s{decodedDepth(encodedDepth_[n], errorBound_[n], sRod), errorBound_[n], value_[n], sRod,
+                static_cast<int>(owner_[n] & 0xffffffffu)};
+    double sEncodedDepth = encodedDepth_[n];
     bool sChanged = false;
-    if (std::abs(s.depth - c.depth) <= double(s.band) + double(c.band) + kTieTolerance && (s.band > 0.0f || c.band > 0.0f)) {
-      if (s.band > 0.0f) {
+    if (std::abs(s.depth - c.depth) <= double(s.errorBound) + double(c.errorBound) + kTieTolerance &&
+        (s.errorBound > 0.0f || c.errorBound > 0.0f)) {
+      if (s.errorBound > 0.0f) {
         s = exact(s.rod, s.piece, i, j, k);
-        sKey = s.depth;
+        sEncodedDepth = s.depth;
         sChanged = true;
       }
-      if (c.band > 0.0f) {
+      if (c.errorBound > 0.0f) {
         c = exact(c.rod, c.piece, i, j, k);
-        cKey = c.depth;
+        cEncodedDepth = c.depth;
       }
-      if (!s.inside()) {  // the exact test overturned the approximate claim
+      if (!s.inside()) {  // the exact test overturned the approximate candidate
         --voxelsPerRod[static_cast<std::size_t>(sRod)];
         if (c.inside()) {
-          store(n, cKey, c.band, c.value, owner(c.rod, c.piece));
+          store(n, cEncodedDepth, c.errorBound, c.value, owner(c.rod, c.piece));
           ++voxelsPerRod[static_cast<std::size_t>(c.rod)];
         } else {
           filled_[n >> 6] &= ~(std::uint64_t(1) << (n & 63));
@@ -361,24 +424,32 @@ private:
     const double gain = c.depth - s.depth;
     if (c.inside() &&
         (gain > kTieTolerance || (gain >= -kTieTolerance && (c.rod < s.rod || (c.rod == s.rod && c.piece < s.piece))))) {
-      store(n, cKey, c.band, c.value, owner(c.rod, c.piece));
+      store(n, cEncodedDepth, c.errorBound, c.value, owner(c.rod, c.piece));
       --voxelsPerRod[static_cast<std::size_t>(s.rod)];
       ++voxelsPerRod[static_cast<std::size_t>(c.rod)];
     } else if (sChanged)
-      store(n, sKey, s.band, s.value, owner(s.rod, s.piece));
+      store(n, sEncodedDepth, s.errorBound, s.value, owner(s.rod, s.piece));
   }
 
-  void sweep(int rod, int pieceIndex, const RodPiece& piece, const openvdb::CoordBBox& box) {
+  // Cloned for AVX2 (four lanes in one register; AVX2 brings no FMA, so no multiply-add is fused and
+  // the clone computes the bits the baseline does), chosen at load time.
+  [[gnu::target_clones("avx2", "default")]] void sweep(int rod, int pieceIndex, const RodPiece& piece,
+                                                       const openvdb::CoordBBox& box) {
     const RodPieces& rp = rods_[rod];
-    const IndexForm& planeA = rp.planes[piece.plane];
-    const IndexForm& planeB = rp.planes[piece.plane + 1];
+    const AffineInIndex& planeA = rp.planes[piece.plane];
+    const AffineInIndex& planeB = rp.planes[piece.plane + 1];
     const double iA = rp.inverseHalfWidth, iB = rp.inverseHalfHeight;
     const bool rectangle = structure_.rods[rod].section().shape == geometry::SectionShape::Rectangle;
-    const double band = piece.normalizedRadiusBand;
-    const bool bounded = std::isfinite(band) && band < 1.0;
-    const float floatBand = bandAsFloat(band);
-    const double inner = bounded ? 1.0 - band : -1.0, outer = bounded ? 1.0 + band : std::numeric_limits<double>::infinity();
+    const double errorBound = piece.normalizedRadiusErrorBound;
+    const bool bounded = std::isfinite(errorBound) && errorBound < 1.0;
+    const float floatErrorBound = roundedUpToFloat(errorBound);
+    // Gauges below `inner` are inside for sure, above `outer` outside for sure; between them (the
+    // tolerance shell around the section boundary) the exact test decides.
+    const double inner = bounded ? 1.0 - errorBound : -1.0,
+                 outer = bounded ? 1.0 + errorBound : std::numeric_limits<double>::infinity();
     const double innerSq = inner > 0.0 ? inner * inner : -1.0, outerSq = outer * outer;
+    const double sureInsideBelow = rectangle ? inner : innerSq, sureOutsideAbove = rectangle ? outer : outerSq;
+    const std::uint64_t who = owner(rod, pieceIndex);
     // Layers, then rows, that can hold a voxel of the slab a >= 0 > b within the box: the extremes of
     // the planes over the box's i (and j) bound them before any row is set up.
     const auto extreme = [](double g, int from, int to, bool largest) {
@@ -407,47 +478,53 @@ private:
           continue;
         const double x1aRow = piece.x1Begin.row(j, k), x2aRow = piece.x2Begin.row(j, k);
         const double x1bRow = piece.x1End.row(j, k), x2bRow = piece.x2End.row(j, k);
-        const int rowSlot = offset(0, j, k);
+        const int row = rowOf(j, k);
         std::uint64_t fresh = 0;
-        // Two voxels at a time (see estimateSwept); the decisions per voxel. The coefficients are
-        // locals (`lanes`), which the slot stores cannot alias, so they stay in registers.
-        Double2 iv = double(lo) + Double2{0.0, 1.0};
-        for (int i = lo; i <= hi; i += 2, iv += 2.0) {
-          const Double2 av = aRow + lanes.gxA * iv, bv = bRow + lanes.gxB * iv;
-          const detail::SweptEstimateOf<Double2> e =
+        // Four voxels at a time (see estimateSwept); the decisions per voxel. The coefficients are
+        // locals (`lanes`), which the slot stores cannot alias, so they stay in registers. `test` is
+        // what the tolerance shell is tested on: the gauge squared for round sections (encoded depth
+        // as it is), the max-norm gauge for rectangles (encoded depth 1 - gauge).
+        Double4 iv = double(lo) + Double4{0.0, 1.0, 2.0, 3.0};
+        for (int i = lo; i <= hi; i += 4, iv += 4.0) {
+          const Double4 av = aRow + lanes.gxA * iv, bv = bRow + lanes.gxB * iv;
+          const detail::SweptEstimateOf<Double4> e =
               detail::estimateSwept(lanes, av, bv, x1aRow + lanes.gx1Begin * iv, x2aRow + lanes.gx2Begin * iv,
                                     x1bRow + lanes.gx1End * iv, x2bRow + lanes.gx2End * iv);
-          const Double2 g2v = (e.x1 * iA) * (e.x1 * iA) + (e.x2 * iB) * (e.x2 * iB);
-          const Double2 modulus = detail::estimateModulus(lanes, e.lambda);
-          // The common case, both voxels in the slab and inside for sure, without a branch per test.
-          const auto sure = (av >= 0.0) & (bv < 0.0) & (g2v < innerSq);
-          if (!rectangle && i < hi && (sure[0] & sure[1])) {
-            const int n0 = rowSlot | ((i & (kBlockX - 1)) << (2 * kLeafLog2));
-            const int n1 = rowSlot | (((i + 1) & (kBlockX - 1)) << (2 * kLeafLog2));
-            fresh += claim(n0, g2v[0], floatBand, static_cast<float>(modulus[0]), rod, pieceIndex, i, j, k);
-            fresh += claim(n1, g2v[1], floatBand, static_cast<float>(modulus[1]), rod, pieceIndex, i + 1, j, k);
+          Double4 test, encodedDepth;
+          if (rectangle) {
+            const Double4 g1 = absolute(e.x1) * iA, g2 = absolute(e.x2) * iB;
+            test = g1 < g2 ? g2 : g1;  // std::max(g1, g2), lane by lane
+            encodedDepth = 1.0 - test;
+          } else {
+            test = (e.x1 * iA) * (e.x1 * iA) + (e.x2 * iB) * (e.x2 * iB);
+            encodedDepth = test;
+          }
+          const Double4 modulus = detail::estimateModulus(lanes, e.lambda);
+          const Mask4 inSlab = (av >= 0.0) & (bv < 0.0);
+          const Mask4 sure = inSlab & (test < sureInsideBelow);
+          if (i + 3 <= hi && (sure[0] & sure[1] & sure[2] & sure[3])) {
+            // The common case: four neighbours inside for sure; into empty slots with one store each.
+            const int n = (row << kBlockXLog2) | (i & (kBlockX - 1));
+            std::uint64_t& word = filled_[static_cast<std::size_t>(row)];
+            if (((word >> (i & (kBlockX - 1))) & 0xfu) == 0) {
+              storeFour(n, encodedDepth, __builtin_convertvector(modulus, Float4), floatErrorBound, who);
+              word |= std::uint64_t(0xf) << (i & (kBlockX - 1));
+              fresh += 4;
+              continue;
+            }
+            for (int l = 0; l < 4; ++l)
+              fresh += addSurelyInside(n + l, encodedDepth[l], floatErrorBound, static_cast<float>(modulus[l]), rod, pieceIndex,
+                                       i + l, j, k);
             continue;
           }
-          for (int l = 0; l < 2 && i + l <= hi; ++l) {
-            if (!(av[l] >= 0.0 && bv[l] < 0.0)) continue;
-            double key;  // see depthOf
-            bool sureInside, sureOutside;
-            if (rectangle) {
-              const double gauge = std::max(std::abs(e.x1[l]) * iA, std::abs(e.x2[l]) * iB);
-              sureOutside = gauge > outer;
-              sureInside = gauge < inner;
-              key = 1.0 - gauge;
-            } else {
-              key = g2v[l];
-              sureOutside = key > outerSq;
-              sureInside = key < innerSq;
-            }
-            if (sureOutside) continue;
-            const int n = rowSlot | (((i + l) & (kBlockX - 1)) << (2 * kLeafLog2));
-            if (sureInside)
-              fresh += claim(n, key, floatBand, static_cast<float>(modulus[l]), rod, pieceIndex, i + l, j, k);
+          for (int l = 0; l < 4 && i + l <= hi; ++l) {
+            if (!inSlab[l] || test[l] > sureOutsideAbove) continue;
+            const int n = offset(i + l, j, k);
+            if (sure[l])
+              fresh += addSurelyInside(n, encodedDepth[l], floatErrorBound, static_cast<float>(modulus[l]), rod, pieceIndex,
+                                       i + l, j, k);
             else
-              offer(exact(rod, pieceIndex, i + l, j, k), n, i + l, j, k);
+              addCandidate(exact(rod, pieceIndex, i + l, j, k), n, i + l, j, k);
           }
         }
         voxelsPerRod[static_cast<std::size_t>(rod)] += fresh;
@@ -477,7 +554,7 @@ private:
           const std::uint64_t bit = std::uint64_t(1) << (n & 63);
           if (word & bit) continue;
           word |= bit;
-          offer(exact(rod, pieceIndex, i, j, k), n, i, j, k);
+          addCandidate(exact(rod, pieceIndex, i, j, k), n, i, j, k);
         }
       }
     }
@@ -486,14 +563,14 @@ private:
   void cap(int rod, int pieceIndex, const RodPiece& piece, const openvdb::CoordBBox& box) {
     const RodPieces& rp = rods_[rod];
     const geometry::Rod& r = structure_.rods[rod];
-    const IndexForm& plane = rp.planes[piece.plane];
+    const AffineInIndex& plane = rp.planes[piece.plane];
     const bool atEnd = piece.kind == RodPiece::Kind::EndCap, round = r.caps() == geometry::CapStyle::Round;
     // Beyond the plane: a >= 0 past the end, a < 0 before the beginning (the complements of the
     // swept pieces' conditions, evaluated identically).
     const double sign = atEnd ? 1.0 : -1.0;
-    const double nearPlane = capPlaneBand(r.section().boundingRadius());
+    const double nearPlane = capPlaneTolerance(r.section().boundingRadius());
     const double invCap = rp.inverseCapRadius;
-    constexpr double kCapBand = 1e-9;  // round-off in the cap's distance, relative to its radius
+    constexpr double kCapRoundOff = 1e-9;  // round-off in the cap's distance, relative to its radius
     const float endModulus = piece.capModulus;
     AxisCylinder cylinder(grid_, piece);
     const Slope slope(sign * plane.gx);
@@ -511,19 +588,19 @@ private:
           const double a = aRow + plane.gx * i;
           if (atEnd ? !(a >= 0.0) : !(a < 0.0)) continue;
           if (std::abs(a) <= nearPlane) {
-            offer(exact(rod, pieceIndex, i, j, k), offset(i, j, k), i, j, k);
+            addCandidate(exact(rod, pieceIndex, i, j, k), offset(i, j, k), i, j, k);
             continue;
           }
           if (!round) continue;
           const double wx = piece.capOffset[0].row(j, k) + piece.capOffset[0].gx * i;
           const double g = std::sqrt(wx * wx + wyz) * invCap;
-          if (g > 1.0 + kCapBand) continue;
+          if (g > 1.0 + kCapRoundOff) continue;
           // Inside for sure; the depth's round-off (1e-9 of the radius at most) is within the tie
           // tolerance, so it counts as exact.
-          if (g < 1.0 - kCapBand)
-            offer({1.0 - g, 0.0f, endModulus, rod, pieceIndex}, offset(i, j, k), i, j, k);
+          if (g < 1.0 - kCapRoundOff)
+            addCandidate({1.0 - g, 0.0f, endModulus, rod, pieceIndex}, offset(i, j, k), i, j, k);
           else
-            offer(exact(rod, pieceIndex, i, j, k), offset(i, j, k), i, j, k);
+            addCandidate(exact(rod, pieceIndex, i, j, k), offset(i, j, k), i, j, k);
         }
       }
     }
@@ -533,13 +610,14 @@ private:
   const std::vector<RodPieces>& rods_;
   const PrinterGrid& grid_;
   const std::function<bool()>& interrupted_;
-  std::vector<bool> deferredDepth_;  // per rod: round section (see depthOf)
+  std::vector<unsigned char> deferredDepth_;  // per rod: round section (see decodedDepth)
+  static constexpr int kRows = kLeafDim * kLeafDim;
   static constexpr int kWords = kBlockVoxels / 64;
-  static_assert(kWords == kBlockX, "a word of filled_ per x in the block: the bits of a leaf's (y, z)");
+  static_assert(kWords == kRows && kBlockX == 64, "a word of filled_ per row (y, z) of the block: bit x");
   // The slots, field by field (24 bytes a voxel), read only where `filled_` says they were written:
   // left uninitialized, so that setting up a builder does not touch their 96 KiB.
-  std::array<double, kBlockVoxels> key_;
-  std::array<float, kBlockVoxels> band_, value_;
+  std::array<double, kBlockVoxels> encodedDepth_;
+  std::array<float, kBlockVoxels> errorBound_, value_;
   std::array<std::uint64_t, kBlockVoxels> owner_;
   std::array<std::uint64_t, kWords> filled_{};
   std::array<std::uint64_t, kWords> memo_{};  // voxels of the block exactly tested for rod memoRod_
@@ -615,7 +693,7 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
       for (int k = b.min().z() >> kLeafLog2; k <= b.max().z() >> kLeafLog2; ++k)
         for (int j = b.min().y() >> kLeafLog2; j <= b.max().y() >> kLeafLog2; ++j)
           for (int i = b.min().x() >> kBlockXLog2; i <= b.max().x() >> kBlockXLog2; ++i)
-            perRod[r].push_back({blockKey(i, j, k), std::uint32_t(r), std::uint32_t(p)});
+            perRod[r].push_back({packBlock(i, j, k), std::uint32_t(r), std::uint32_t(p)});
     }
   });
   std::vector<Entry> entries;

@@ -12,7 +12,7 @@ namespace rodfab::voxel::detail {
 
 using geometry::Vec3;
 
-IndexForm indexForm(const PrinterGrid& grid, const Vec3& n, const Vec3& q) {
+AffineInIndex affineInIndex(const PrinterGrid& grid, const Vec3& n, const Vec3& q) {
   const Vec3 origin(grid.origin.x(), grid.origin.y(), grid.origin.z());
   return {n.dot(origin - q), n.x() * grid.voxelSize.x(), n.y() * grid.voxelSize.y(), n.z() * grid.voxelSize.z()};
 }
@@ -65,10 +65,11 @@ struct Measurement {
   double chordDeviation = 0;  // bound on the distance from the centerline to the chord (mm)
 };
 
-// Fits the bow terms of `piece` and measures its error against points whose exact answer is known
-// by construction: p = r(u) + x1 d1(u) + x2 d2(u) has closest point r(u) and frame coordinates (x1, x2)
-// wherever the rod's radius is below its radius of curvature. Like the geometry's polyline deviation,
-// the largest measured error is doubled (plus a floor) to bound the error between test points.
+// Fits the quadratic terms (coefficients of lambda (1 - lambda)) of `piece` and measures its error
+// against points whose exact answer is known by construction: p = r(u) + x1 d1(u) + x2 d2(u) has
+// closest point r(u) and frame coordinates (x1, x2) wherever the rod's radius is below its radius of
+// curvature. Like the geometry's polyline deviation, the largest measured error is doubled (plus a
+// floor) to bound the error between test points.
 Measurement measure(const geometry::Rod& rod, const Node& a, const Node& b, RodPiece& piece) {
   Measurement m;
   const Node mid = node(rod, 0.5 * (a.u + b.u));
@@ -79,7 +80,7 @@ Measurement measure(const geometry::Rod& rod, const Node& a, const Node& b, RodP
     curvature = std::max(curvature, n.curvature);
   }
   m.chordDeviation = 2.0 * deviation + 1e-9;
-  piece.x1Bow = piece.x2Bow = piece.modulusBow = 0.0;
+  piece.x1Quadratic = piece.x2Quadratic = piece.modulusQuadratic = 0.0;
   piece.modulusBegin = a.modulus;
   piece.modulusEnd = b.modulus;
   std::tie(piece.modulusLow, piece.modulusHigh) = rod.modulus().valueBoundsOn(a.u, b.u);
@@ -89,11 +90,11 @@ Measurement measure(const geometry::Rod& rod, const Node& a, const Node& b, RodP
   // margin for the sampled curvature): past that the sections fold over and the piece goes exact.
   if (!(1.1 * curvature * radius < 1.0)) return m;
   const WorldEstimate centre = estimateAt(piece, a, b, mid.r);
-  const double bow = centre.estimate.lambda * (1.0 - centre.estimate.lambda);
-  if (!centre.inSlab || !(bow > 0.0)) return m;
-  piece.x1Bow = -centre.estimate.x1 / bow;
-  piece.x2Bow = -centre.estimate.x2 / bow;
-  piece.modulusBow = (mid.modulus - estimateModulus(piece, centre.estimate.lambda)) / bow;
+  const double quadraticWeight = centre.estimate.lambda * (1.0 - centre.estimate.lambda);
+  if (!centre.inSlab || !(quadraticWeight > 0.0)) return m;
+  piece.x1Quadratic = -centre.estimate.x1 / quadraticWeight;
+  piece.x2Quadratic = -centre.estimate.x2 / quadraticWeight;
+  piece.modulusQuadratic = (mid.modulus - estimateModulus(piece, centre.estimate.lambda)) / quadraticWeight;
 
   constexpr int kDirections = 8;
   double coordinateError = 0.0, modulusError = 0.0;
@@ -161,11 +162,11 @@ RodPieces buildRodPieces(const geometry::Rod& rod, const PrinterGrid& grid, cons
   };
   auto addSwept = [&](const Node& a, const Node& b, const Measurement& m, RodPiece piece) {
     piece.kind = RodPiece::Kind::Swept;
-    piece.x1Begin = indexForm(grid, a.d1, a.r);
-    piece.x2Begin = indexForm(grid, a.d2, a.r);
-    piece.x1End = indexForm(grid, b.d1, b.r);
-    piece.x2End = indexForm(grid, b.d2, b.r);
-    piece.normalizedRadiusBand = gaugeFactor * m.coordinateError * inverseMinHalf + 1e-12;
+    piece.x1Begin = affineInIndex(grid, a.d1, a.r);
+    piece.x2Begin = affineInIndex(grid, a.d2, a.r);
+    piece.x1End = affineInIndex(grid, b.d1, b.r);
+    piece.x2End = affineInIndex(grid, b.d2, b.r);
+    piece.normalizedRadiusErrorBound = gaugeFactor * m.coordinateError * inverseMinHalf + 1e-12;
     // A voxel the piece owns is within the bounding radius of a centerline point of the piece, and
     // that point within the chord deviation of the chord; those decided exactly lie up to the
     // coordinate bound further out.
@@ -174,7 +175,7 @@ RodPieces buildRodPieces(const geometry::Rod& rod, const PrinterGrid& grid, cons
   auto addExact = [&](const Node& a, const Node& b, const Measurement& m) {
     RodPiece piece;
     piece.kind = RodPiece::Kind::Exact;
-    piece.normalizedRadiusBand = std::numeric_limits<double>::infinity();
+    piece.normalizedRadiusErrorBound = std::numeric_limits<double>::infinity();
     // Every point of the piece's centerline is within its deviation bound of the chord, or (where
     // the curve folds back) within half its polyline length of the chord's ends.
     finish(a, b, std::max(m.chordDeviation, 0.5 * ((b.r - a.r).norm() + 2.0 * m.chordDeviation)), piece);
@@ -215,7 +216,7 @@ RodPieces buildRodPieces(const geometry::Rod& rod, const PrinterGrid& grid, cons
     RodPiece cap;
     cap.kind = atEnd ? RodPiece::Kind::EndCap : RodPiece::Kind::BeginCap;
     cap.plane = static_cast<int>(plane);
-    for (int k = 0; k < 3; ++k) cap.capOffset[k] = indexForm(grid, Vec3::Unit(k), n.r);
+    for (int k = 0; k < 3; ++k) cap.capOffset[k] = affineInIndex(grid, Vec3::Unit(k), n.r);
     cap.capModulus = capModulus;
     cap.axisPoint = n.r;
     cap.axisDirection = n.t;
@@ -237,7 +238,7 @@ RodPieces buildRodPieces(const geometry::Rod& rod, const PrinterGrid& grid, cons
     addCap(nodes.size() - 1, true,
            static_cast<float>(k + 1 == smooth.size() ? modulus.value(modulus.domainEnd()) : modulus.value(sp.end)));
   }
-  for (const Node& n : nodes) out.planes.push_back(indexForm(grid, n.t, n.r));
+  for (const Node& n : nodes) out.planes.push_back(affineInIndex(grid, n.t, n.r));
   out.pieces.insert(out.pieces.end(), caps.begin(), caps.end());
   for (const RodPiece& p : out.pieces)
     if (!p.box.empty()) out.box.expand(p.box);

@@ -13,7 +13,7 @@ namespace rodfab::voxel::detail {
 
 // An affine function of the voxel index. Always evaluated as row(j, k) + gx * i, so two pieces that
 // share a plane compute bit-identical values at every voxel and split space without gaps or overlap.
-struct IndexForm {
+struct AffineInIndex {
   double c = 0.0, gx = 0.0, gy = 0.0, gz = 0.0;
 
   double row(int j, int k) const { return (c + gy * j) + gz * k; }
@@ -21,7 +21,7 @@ struct IndexForm {
 };
 
 // f(p) = n . (p - q) for world points p, as a function of the voxel index of p.
-IndexForm indexForm(const PrinterGrid& grid, const geometry::Vec3& n, const geometry::Vec3& q);
+AffineInIndex affineInIndex(const PrinterGrid& grid, const geometry::Vec3& n, const geometry::Vec3& q);
 
 // Approximation accuracy asked of every swept piece (mm, in frame coordinates). Voxel centres whose
 // approximate position is within the piece's measured bound of the section boundary are decided by
@@ -40,17 +40,17 @@ struct RodPiece {
 
   // Swept: frame coordinates measured in the two bounding planes, blended by the position
   // lambda = a / (a - b) between them, plus a lambda (1 - lambda) curvature correction.
-  IndexForm x1Begin, x2Begin, x1End, x2End;
-  double x1Bow = 0.0, x2Bow = 0.0;
-  double modulusBegin = 0.0, modulusEnd = 0.0, modulusBow = 0.0;
+  AffineInIndex x1Begin, x2Begin, x1End, x2End;
+  double x1Quadratic = 0.0, x2Quadratic = 0.0;
+  double modulusBegin = 0.0, modulusEnd = 0.0, modulusQuadratic = 0.0;
   // The exact E's bounds on the piece (BSplineField::valueBoundsOn): the estimate is held within them,
   // so a voxel never asks for a modulus outside what the design asks for there.
   double modulusLow = 0.0, modulusHigh = 0.0;
   // Bound on the normalized-radius error of the approximation (inf where it could not be bounded).
-  double normalizedRadiusBand = 0.0;
+  double normalizedRadiusErrorBound = 0.0;
 
-  // Round caps: the components of p - (centerline end point), one form per world axis, and E there.
-  IndexForm capOffset[3];
+  // Round caps: the components of p - (centerline end point), one affine function per world axis, and E there.
+  AffineInIndex capOffset[3];
   float capModulus = 0.0f;
 
   // Every voxel the piece can own lies within `reach` (mm) of the line through `axisPoint` along
@@ -61,7 +61,7 @@ struct RodPiece {
 };
 
 struct RodPieces {
-  std::vector<IndexForm> planes;  // one chain per smooth piece of the rod, in order
+  std::vector<AffineInIndex> planes;  // one chain per smooth piece of the rod, in order
   std::vector<RodPiece> pieces;
   openvdb::CoordBBox box;  // union of the pieces' boxes
   double inverseHalfWidth = 0.0, inverseHalfHeight = 0.0, inverseCapRadius = 0.0;
@@ -92,19 +92,19 @@ struct SweptEstimateOf {
   T lambda, x1, x2;
 };
 using SweptEstimate = SweptEstimateOf<double>;
-// `Piece` is RodPiece or anything with its x1Bow, x2Bow (and, for the modulus, modulusBegin, modulusEnd,
-// modulusBow, modulusLow, modulusHigh).
+// `Piece` is RodPiece or anything with its x1Quadratic, x2Quadratic (and, for the modulus, modulusBegin, modulusEnd,
+// modulusQuadratic, modulusLow, modulusHigh).
 template <typename T, typename Piece = RodPiece>
 inline SweptEstimateOf<T> estimateSwept(const Piece& piece, T a, T b, T x1Begin, T x2Begin, T x1End, T x2End) {
   const T lambda = a / (a - b);
-  const T bow = lambda * (1.0 - lambda);
-  return {lambda, x1Begin + lambda * (x1End - x1Begin) + bow * piece.x1Bow,
-          x2Begin + lambda * (x2End - x2Begin) + bow * piece.x2Bow};
+  const T quadraticWeight = lambda * (1.0 - lambda);
+  return {lambda, x1Begin + lambda * (x1End - x1Begin) + quadraticWeight * piece.x1Quadratic,
+          x2Begin + lambda * (x2End - x2Begin) + quadraticWeight * piece.x2Quadratic};
 }
 template <typename T, typename Piece = RodPiece>
 inline T estimateModulus(const Piece& piece, T lambda) {
   const T e = piece.modulusBegin + lambda * (piece.modulusEnd - piece.modulusBegin) +
-              lambda * (1.0 - lambda) * piece.modulusBow;
+              lambda * (1.0 - lambda) * piece.modulusQuadratic;
   const T low = T{} + piece.modulusLow, high = T{} + piece.modulusHigh;
   const T above = e < low ? low : e;
   return above > high ? high : above;

@@ -3,6 +3,7 @@
 
 #include "voxel/diagnostics.hpp"
 #include "voxel/grid_statistics.hpp"
+#include "voxel/memory_estimate.hpp"
 #include "voxel/printer_grid.hpp"
 #include "voxel/rasterize.hpp"
 #include "voxel/vdb_file.hpp"

@@ -142,6 +142,32 @@ assert estimate["available"] and 0 < estimate["relative"] < 1e-2 and s["error_es
 assert len(s["history"]) == s["iterations"] + 1
 PY
 
+# --start uniform: one E everywhere (the geometric mean of the bounds, or as given), g0 for it;
+# --method mma/ccsaq: NLopt's, one evaluation an iteration, g falls and the bounds hold.
+for start in uniform uniform=60; do
+  "$rodfab" optimize "$tmp/start.json" -o "$tmp/variant.json" --start "$start" --max-iterations 30 --json > "$tmp/summary.json" 2> "$tmp/err" ||
+    fail "optimize --start $start: $(cat "$tmp/err")"
+  python3 - "$tmp/summary.json" "$start" <<'PY' || fail "--start $start summary: $(cat "$tmp/summary.json")"
+import json, math, sys
+s, start = json.load(open(sys.argv[1])), sys.argv[2]
+want = math.sqrt(8 * 190) if start == "uniform" else 60.0
+assert abs(s["start"]["uniform_mpa"] - want) < 1e-9 * want, s["start"]
+assert s["objective_final"] < 1e-2 * s["objective_initial"], s["relative"]
+PY
+done
+for method in mma ccsaq; do
+  "$rodfab" optimize "$tmp/start.json" -o "$tmp/variant.json" --method "$method" --max-iterations 40 --json > "$tmp/summary.json" 2> "$tmp/err" ||
+    fail "optimize --method $method: $(cat "$tmp/err")"
+  python3 - "$tmp/summary.json" "$method" <<'PY' || fail "--method $method summary: $(cat "$tmp/summary.json")"
+import json, sys
+s = json.load(open(sys.argv[1]))
+assert s["method"] == sys.argv[2] and s["evaluations"] <= 41 and s["iterations"] == s["evaluations"] - 1, s
+assert s["objective_final"] < 1e-2 * s["objective_initial"], s["relative"]
+assert 8 <= s["modulus_range_mpa"][0] and s["modulus_range_mpa"][1] <= 190
+PY
+done
+rm -f "$tmp/variant.json"
+
 # The same output, byte for byte, on 1 and 2 threads.
 "$rodfab" optimize "$tmp/start.json" -o "$tmp/one.json" --threads 1 > /dev/null 2>&1 || fail "optimize --threads 1"
 "$rodfab" optimize "$tmp/start.json" -o "$tmp/two.json" --threads 2 > /dev/null 2>&1 || fail "optimize --threads 2"
@@ -182,6 +208,11 @@ expect_failure() {  # CODE FRAGMENT ARGS...
 expect_failure 2 "--modulus-controls: expected 2..64" "$tmp/start.json" -o "$tmp/optimized.json" --modulus-controls 1
 expect_failure 2 "--max-iterations" "$tmp/start.json" -o "$tmp/optimized.json" --max-iterations -5
 expect_failure 2 '--scaling: expected log or linear, got "cubic"' "$tmp/start.json" -o "$tmp/optimized.json" --scaling cubic
+expect_failure 2 '--start: expected design, uniform or uniform=MPa (a modulus > 0), got "uniform=-3"' "$tmp/start.json" -o "$tmp/optimized.json" --start uniform=-3
+expect_failure 2 '--start: expected design' "$tmp/start.json" -o "$tmp/optimized.json" --start flat
+expect_failure 1 '--start uniform=500: outside the bounds [8, 190] MPa' "$tmp/start.json" -o "$tmp/optimized.json" --start uniform=500
+expect_failure 2 '--method: expected lbfgsb, mma or ccsaq, got "newton"' "$tmp/start.json" -o "$tmp/optimized.json" --method newton
+expect_failure 2 "--threads: expected 0 (all cores) or a count from 1 to 256, got 999" "$tmp/start.json" -o "$tmp/optimized.json" --threads 999
 expect_failure 1 "mechanics.load_cases: missing" "$tmp/graded.json" -o "$tmp/optimized.json"
 expect_failure 1 "is also an input of this command" "$tmp/start.json" -o "$tmp/target.json"
 expect_failure 1 "is also an input of this command" "$tmp/start.json" -o "$tmp/optimized.json" --plot "$tmp/optimized.json"

@@ -182,6 +182,17 @@ def cases(ctx) -> list[Case]:
             bad_option(f"coupons-threads-{value}", ["coupons", "-o", "c.zip", "--threads", value], "--threads"),
             bad_option(f"simulate-threads-{value}", ["simulate", "m.json", "-o", "o.json", "--threads", value], "--threads", m),
         ]
+    # Boost's error text loops forever on a token holding one of its own placeholders (found by fuzz_command_line).
+    for placeholder in ["%canonical_option%", "%option%", "%value%", "%original_token%", "%prefix%"]:
+        bare = placeholder.strip("%")
+        cs += [
+            bad_option(f"simulate-option-named-{bare}", ["simulate", "m.json", "-o", "o.json", f"-{placeholder}o"], bare, m,
+                       note="an option name holding a Boost placeholder"),
+            bad_option(f"slice-threads-{bare}", ["slice", "d.json", "-o", "j.zip", "--threads", placeholder], bare, b,
+                       note="an option value holding a Boost placeholder"),
+            bad_option(f"coupons-missing-value-{bare}", ["coupons", f"--{placeholder}"], bare,
+                       note="a long option holding a Boost placeholder"),
+        ]
     for block, exp in [("2000x2000x2000", {1, 2}), ("100000x100000x1", {1, 2}), ("1x1x4294967297", {2}), ("0x64x180", {2}),
                        ("-5x64x180", {2}), ("128x64", {2})]:
         cs.append(bad_option(f"dither-report-block-{block}", dither_report(**{"--block": block}), "--block", expect=exp,

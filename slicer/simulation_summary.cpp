@@ -1,0 +1,154 @@
+#include "slicer/simulation_summary.hpp"
+
+#include <algorithm>
+#include <cstdio>
+
+namespace rodfab::cli {
+
+namespace {
+
+const char* stabilityName(mechanics::Stability s) {
+  switch (s) {
+    case mechanics::Stability::Stable: return "stable";
+    case mechanics::Stability::Unstable: return "unstable";
+    case mechanics::Stability::Undetermined: return "undetermined";
+  }
+  return "?";
+}
+
+std::string describe(const mechanics::CriticalPoint& c) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "%s between load factors %.6g and %.6g%s",
+                c.kind == mechanics::CriticalPoint::Kind::Bifurcation ? "bifurcation" : "limit point", c.fromLoad, c.toLoad,
+                c.branchSwitched ? " (continued on the stable branch)" : "");
+  return buf;
+}
+
+std::string basisSummary(const mechanics::StaticProblem& problem, const mechanics::Discretization& asked) {
+  const mechanics::Discretization& d = problem.discretization();
+  const auto [lo, hi] = std::minmax_element(d.perRod.begin(), d.perRod.end());
+  const std::string range = *lo == *hi ? std::to_string(*lo) : std::to_string(*lo) + ".." + std::to_string(*hi);
+  const bool automatic = d.degree > 0 ? asked.spans == 0 : asked.refine < 0;
+  const std::string how = automatic ? "automatic" : d.degree > 0 ? "--spans" : "--refine";
+  const std::string basis = d.degree > 0 ? "degree " + std::to_string(d.degree) + ", " + range + " spans per rod"
+                                         : "the design's own, " + range + " solver spans per design span";
+  return basis + " (" + how + "); " + std::to_string(problem.unknownCount()) + " unknowns";
+}
+
+nlohmann::json estimateJson(const mechanics::Simulation& sim, const mechanics::AccuracyOptions& accuracy) {
+  const mechanics::ErrorEstimate& e = sim.estimate;
+  if (!accuracy.estimate) return nullptr;
+  nlohmann::json j{{"available", e.available}, {"tolerance", accuracy.tolerance}, {"refinements", sim.refinements}};
+  if (!e.available) {
+    j["note"] = e.note;
+    return j;
+  }
+  j.update({{"position_error_mm", e.positionError}, {"relative", e.relative}, {"within_tolerance", e.relative <= accuracy.tolerance},
+            {"compared_unknowns", e.comparedUnknowns}, {"observed_ratio", e.ratio}});
+  return j;
+}
+
+nlohmann::json criticalPointsJson(const std::vector<mechanics::CriticalPoint>& points) {
+  nlohmann::json critical = nlohmann::json::array();
+  for (const auto& c : points)
+    critical.push_back({{"kind", c.kind == mechanics::CriticalPoint::Kind::Bifurcation ? "bifurcation" : "limit_point"},
+                        {"from_load", c.fromLoad}, {"to_load", c.toLoad}, {"load_alignment", c.loadAlignment},
+                        {"branch_switched", c.branchSwitched}});
+  return critical;
+}
+
+// The accuracy line, and the warning when the estimate is missing or above the tolerance.
+void printAccuracy(const mechanics::ErrorEstimate& e, const mechanics::AccuracyOptions& accuracy) {
+  if (!accuracy.estimate) std::printf("accuracy:  not estimated (--no-estimate)\n");
+  else if (!e.available) std::printf("accuracy:  no estimate: %s\n", e.note.c_str());
+  else std::printf("accuracy:  estimated position error %.3g mm = %.2g of the largest displacement (--accuracy %g)\n",
+                   e.positionError, e.relative, accuracy.tolerance);
+  if (accuracy.estimate && (!e.available || e.relative > accuracy.tolerance))
+    std::fprintf(stderr, "warning: the discretization error may exceed --accuracy %g; give more --spans (or --max-refinements)\n",
+                 accuracy.tolerance);
+}
+
+// The stability line, and the warning when the final state is not known to be stable.
+void printStability(const mechanics::Solution& sol, bool followStableBranch) {
+  std::printf("stability: %s", stabilityName(sol.stability));
+  for (const auto& c : sol.criticalPoints) std::printf("; %s", describe(c).c_str());
+  std::printf("\n");
+  if (sol.stability == mechanics::Stability::Unstable)
+    std::fprintf(stderr, "warning: the final state is an unstable equilibrium (det J changed sign along the path)%s\n",
+                 followStableBranch ? "" : "; --follow-stable-branch continues on the stable (buckled) branch");
+  else if (sol.stability == mechanics::Stability::Undetermined)
+    std::fprintf(stderr, "warning: %zu critical points passed: the final state may be unstable\n", sol.criticalPoints.size());
+}
+
+}  // namespace
+
+void printLoadStep(const mechanics::LoadStepReport& r) {
+  std::printf("step %3d  load %.4f  Newton:", r.index, r.loadFactor);
+  for (double v : r.residuals) std::printf(" %.1e", v);
+  std::printf("  (%zu iterations", r.residuals.size() - 1);
+  if (r.chordIterations > 0) std::printf(", %d with the previous factorization", r.chordIterations);
+  std::printf(")");
+  if (r.cuts > 0) std::printf("  [step cut %d time%s: +%.4g]", r.cuts, r.cuts > 1 ? "s" : "", r.increment);
+  std::printf("\n");
+  std::fflush(stdout);
+}
+
+nlohmann::json loadStepJson(const mechanics::LoadStepReport& r) {
+  return {{"step", r.index}, {"load_factor", r.loadFactor}, {"increment", r.increment}, {"residuals", r.residuals},
+          {"chord_iterations", r.chordIterations}, {"cuts", r.cuts}, {"det_sign", r.determinantSign}};
+}
+
+void printSolverLevel(mechanics::Level level, const mechanics::StaticProblem& p, const mechanics::Discretization& asked) {
+  if (level == mechanics::Level::Path)
+    std::printf("structure: %zu joints, %zu supports\nbasis:     %s\n", p.jointCount(), p.supportCount(),
+                basisSummary(p, asked).c_str());
+  else if (level == mechanics::Level::Estimate)
+    std::printf("estimate:  solving with half the spans (%zu unknowns)\n", p.unknownCount());
+  else
+    std::printf("refining:  every rod's spans doubled (%zu unknowns)\n", p.unknownCount());
+  std::fflush(stdout);
+}
+
+LargestDisplacement largestDisplacement(const mechanics::Design& design, const mechanics::StaticProblem& problem,
+                                        const Eigen::VectorXd& x) {
+  const Eigen::VectorXd& x0 = problem.referenceState();
+  LargestDisplacement largest;
+  for (std::size_t r = 0; r < problem.rodCount(); ++r) {
+    const auto& c = design.rods[r].centerline();
+    for (int i = 0; i <= 64; ++i) {
+      const double u = c.domainBegin() + (c.domainEnd() - c.domainBegin()) * i / 64;
+      const double d = (problem.position(x, r, u) - problem.position(x0, r, u)).norm();
+      if (d > largest.mm) largest.mm = d, largest.rod = design.rods[r].name();
+    }
+  }
+  return largest;
+}
+
+nlohmann::json simulationJson(const SimulationSummary& s) {
+  const mechanics::Solution& sol = s.simulation.solution;
+  const mechanics::StaticProblem& p = *s.simulation.problem;
+  return {{"design", s.design}, {"output", s.output}, {"rods", p.rodCount()}, {"joints", p.jointCount()},
+          {"supports", p.supportCount()}, {"unknowns", p.unknownCount()},
+          {"discretization", {{"degree", p.discretization().degree}, {"spans_per_rod", p.discretization().perRod}}},
+          {"load_steps", s.history}, {"newton_iterations", sol.newtonIterations}, {"chord_iterations", sol.chordIterations},
+          {"stability", stabilityName(sol.stability)}, {"critical_points", criticalPointsJson(sol.criticalPoints)},
+          {"error_estimate", estimateJson(s.simulation, s.settings.accuracy)},
+          {"largest_displacement_mm", s.largest.mm}, {"largest_displacement_rod", s.largest.rod},
+          {"seconds", {{"total", s.simulation.seconds}, {"assemble", sol.assembleSeconds}, {"factorize_and_solve", sol.factorizeSeconds}}}};
+}
+
+void printSimulationSummary(const SimulationSummary& s) {
+  const mechanics::Simulation& sim = s.simulation;
+  const mechanics::Solution& sol = sim.solution;
+  std::printf("converged: %zu load steps, %d Newton iterations (+%d reusing a factorization), %.3f s (assembly %.3f s, "
+              "LU %.3f s)\n", sol.steps.size(), sol.newtonIterations, sol.chordIterations, sim.seconds, sol.assembleSeconds,
+              sol.factorizeSeconds);
+  if (sim.refinements > 0) std::printf("basis:     refined %d time%s: %s\n", sim.refinements, sim.refinements > 1 ? "s" : "",
+                                       basisSummary(*sim.problem, s.settings.discretization).c_str());
+  printAccuracy(sim.estimate, s.settings.accuracy);
+  printStability(sol, s.settings.solver.followStableBranch);
+  std::printf("largest displacement: %.6g mm (rod '%s')\n", s.largest.mm, s.largest.rod.c_str());
+  std::printf("wrote:     %s\n", s.output.c_str());
+}
+
+}  // namespace rodfab::cli

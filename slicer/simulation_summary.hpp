@@ -1,0 +1,54 @@
+// What rodfab simulate reports: a line per load step and per solver level while it runs, then the
+// summary on stdout (text, or JSON with the convergence history) and its warnings on stderr.
+#pragma once
+
+#include "mechanics/mechanics.hpp"
+#include "slicer/solver_options.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+
+namespace rodfab::cli {
+
+// The step's line on stdout ("step N  load F  Newton: residuals ..."), flushed.
+void printLoadStep(const mechanics::LoadStepReport& step);
+
+// The step as the JSON history lists it: step, load_factor, increment, residuals, chord_iterations,
+// cuts, det_sign.
+nlohmann::json loadStepJson(const mechanics::LoadStepReport& step);
+
+// The line that opens a solver level on stdout (the structure and basis for the first solve, the
+// unknowns of the estimate's and of a refinement's solve), flushed. `asked` is the discretization the
+// command line asked for (it says whether the spans were chosen automatically).
+void printSolverLevel(mechanics::Level level, const mechanics::StaticProblem& problem, const mechanics::Discretization& asked);
+
+// The largest displacement (mm) of a centerline point, sampled at 65 evenly spaced parameters per
+// rod, from `problem`'s reference state to `state`, and the name of the rod it is on ("" when
+// nothing moved).
+struct LargestDisplacement {
+  double mm = 0.0;
+  std::string rod;
+};
+LargestDisplacement largestDisplacement(const mechanics::Design& design, const mechanics::StaticProblem& problem,
+                                        const Eigen::VectorXd& state);
+
+// A finished simulation, as the summary reports it.
+struct SimulationSummary {
+  const std::string& design;  // the files as given
+  const std::string& output;
+  const SolverSettings& settings;
+  const mechanics::Simulation& simulation;
+  const nlohmann::json& history;  // loadStepJson of every step
+  LargestDisplacement largest;
+};
+
+// The summary as JSON: files, structure, discretization, history, iterations, stability, critical
+// points, error estimate, largest displacement and times.
+nlohmann::json simulationJson(const SimulationSummary& summary);
+
+// The summary lines on stdout; warnings on stderr when the error estimate is above --accuracy (or
+// missing) and when the final state is unstable or undetermined.
+void printSimulationSummary(const SimulationSummary& summary);
+
+}  // namespace rodfab::cli
