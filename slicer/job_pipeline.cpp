@@ -1,22 +1,18 @@
 #include "slicer/job_pipeline.hpp"
 
+#include "common/interrupt.hpp"
 #include "common/stopwatch.hpp"
 
 #include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
-#include <tbb/task_scheduler_observer.h>
 
-#include <pthread.h>
-#include <time.h>
+#include <sys/resource.h>
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <stdexcept>
-#include <unordered_map>
 
 namespace rodfab::slicer {
 
@@ -25,69 +21,35 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using common::secondsSince;
 
-std::int64_t cpuNanoseconds(clockid_t clock) {
-  timespec t{};
-  if (::clock_gettime(clock, &t) != 0) return 0;
-  return static_cast<std::int64_t>(t.tv_sec) * 1'000'000'000 + t.tv_nsec;
+// User + system CPU seconds of the whole process so far (every thread, live or ended).
+double processCpuSeconds() {
+  rusage usage{};
+  if (::getrusage(RUSAGE_SELF, &usage) != 0) return 0.0;
+  const auto seconds = [](const timeval& t) { return static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_usec); };
+  return seconds(usage.ru_utime) + seconds(usage.ru_stime);
 }
 
-// The CPU time of the threads while they work in one task arena: from when a thread joins the arena
-// to when it leaves, read from its thread CPU clock.
-class ArenaCpuClock final : public tbb::task_scheduler_observer {
-public:
-  explicit ArenaCpuClock(tbb::task_arena& arena) : tbb::task_scheduler_observer(arena) { observe(true); }
-  ~ArenaCpuClock() override { observe(false); }
-  ArenaCpuClock(const ArenaCpuClock&) = delete;
-  ArenaCpuClock& operator=(const ArenaCpuClock&) = delete;
-
-  // Seconds so far, threads still in the arena included.
-  double seconds() const {
-    std::lock_guard lock(mutex_);
-    std::int64_t ns = finishedNs_;
-    for (const auto& [thread, entry] : inside_) ns += cpuNanoseconds(entry.clock) - entry.startNs;
-    return static_cast<double>(ns) * 1e-9;
-  }
-
-  void on_scheduler_entry(bool) override {
-    clockid_t clock{};
-    if (::pthread_getcpuclockid(::pthread_self(), &clock) != 0) return;
-    const std::int64_t now = cpuNanoseconds(clock);
-    std::lock_guard lock(mutex_);
-    inside_[::pthread_self()] = {clock, now};
-  }
-  void on_scheduler_exit(bool) override {
-    std::lock_guard lock(mutex_);
-    const auto it = inside_.find(::pthread_self());
-    if (it == inside_.end()) return;
-    finishedNs_ += cpuNanoseconds(it->second.clock) - it->second.startNs;
-    inside_.erase(it);
-  }
-
-private:
-  struct Entry {
-    clockid_t clock;
-    std::int64_t startNs;
-  };
-  mutable std::mutex mutex_;
-  std::unordered_map<pthread_t, Entry> inside_;
-  std::int64_t finishedNs_ = 0;
-};
-
-// One stage's own task arena and its CPU clock. Threads in one arena never run another arena's tasks
-// (not even while they wait), so a stage is not charged for the work of the stages it overlaps.
+// One stage's own task arena: a thread waiting inside one stage (joining its parallel loops) never
+// picks up another stage's tasks, so a band is not held up by work of the stages it overlaps.
+// `run` adds the wall time of `f` to `busy`; it is called by one thread at a time (serial filters).
 class StageArena {
 public:
-  explicit StageArena(int concurrency) : arena_(concurrency), clock_((arena_.initialize(), arena_)) {}
+  explicit StageArena(int concurrency) : arena_(concurrency) {}
 
   template <class F>
-  void run(F&& f) {
-    arena_.execute(std::forward<F>(f));
+  void run(double& busy, F&& f) {
+    const auto start = Clock::now();
+    try {
+      arena_.execute(std::forward<F>(f));
+    } catch (...) {
+      busy += secondsSince(start);
+      throw;
+    }
+    busy += secondsSince(start);
   }
-  double cpuSeconds() const { return clock_.seconds(); }
 
 private:
   tbb::task_arena arena_;
-  ArenaCpuClock clock_;
 };
 
 // One band on its way through the stages.
@@ -96,6 +58,8 @@ struct Band {
   BandGrids grids;
   openvdb::BoolGrid::Ptr material;
 };
+
+using BandPtr = std::shared_ptr<Band>;
 
 }  // namespace
 
@@ -109,52 +73,53 @@ printer_profiles::JobResult streamJob(printer_profiles::JobSpec spec, const Band
   const int kFirst = part.min().z(), kLast = part.max().z(), layers = kLast - kFirst + 1;
 
   const auto start = Clock::now();
+  const double cpuStart = processCpuSeconds();
+  const auto account = [&] {
+    seconds.wall += secondsSince(start);
+    seconds.cpu += processCpuSeconds() - cpuStart;
+  };
   const int threads = tbb::this_task_arena::max_concurrency();
   StageArena sourceArena(threads), ditherArena(threads), emitArena(threads);
-  const auto account = [&] {
-    seconds.source += sourceArena.cpuSeconds();
-    seconds.dither += ditherArena.cpuSeconds();
-    seconds.emit += emitArena.cpuSeconds();
-    seconds.wall += secondsSince(start);
-  };
   try {
     std::optional<printer_profiles::JobWriter> writer;
-    emitArena.run([&] { writer.emplace(std::move(spec)); });
+    emitArena.run(seconds.emit, [&] { writer.emplace(std::move(spec)); });
     ditherer.reset();
     int nextK0 = kFirst;
-    // One token per stage: each stage works on its own band, in order.
-    tbb::parallel_pipeline(
-        3,
-        tbb::make_filter<void, std::shared_ptr<Band>>(tbb::filter_mode::serial_in_order,
-                                                      [&](tbb::flow_control& fc) -> std::shared_ptr<Band> {
-                                                        if (nextK0 > kLast) {
-                                                          fc.stop();
-                                                          return nullptr;
-                                                        }
-                                                        auto band = std::make_shared<Band>();
-                                                        band->k0 = nextK0;
-                                                        band->k1 = std::min(kLast + 1, nextK0 + options.bandLayers);
-                                                        nextK0 = band->k1;
-                                                        const bool next = readsNextLayer && band->k1 <= kLast;
-                                                        sourceArena.run([&] { band->grids = source(band->k0, band->k1, next); });
-                                                        return band;
-                                                      }) &
-            tbb::make_filter<std::shared_ptr<Band>, std::shared_ptr<Band>>(
-                tbb::filter_mode::serial_in_order,
-                [&](std::shared_ptr<Band> band) {
-                  ditherArena.run([&] { band->material = ditherer.ditherLayers(*band->grids.fraction, band->k0, band->k1); });
-                  band->grids.fraction.reset();  // the fractions are done with: free them before the band waits
-                  return band;
-                }) &
-            tbb::make_filter<std::shared_ptr<Band>, void>(tbb::filter_mode::serial_in_order, [&](std::shared_ptr<Band> band) {
-              emitArena.run([&] { writer->addBand({band->material, band->grids.modulus, band->k0, band->k1}); });
-              const int done = band->k1 - kFirst;
-              band.reset();
-              if (options.onBand) options.onBand(done, layers);
-            }));
+    // Serial stages, one token each: while the writer encodes band n, band n + 1 is dithered and
+    // band n + 2 made. Each stage checks for an interrupt before it starts a band.
+    const auto make = [&](tbb::flow_control& fc) -> BandPtr {
+      if (nextK0 > kLast) {
+        fc.stop();
+        return nullptr;
+      }
+      common::throwIfInterrupted();
+      auto band = std::make_shared<Band>();
+      band->k0 = nextK0;
+      band->k1 = std::min(kLast + 1, nextK0 + options.bandLayers);
+      nextK0 = band->k1;
+      const bool next = readsNextLayer && band->k1 <= kLast;
+      sourceArena.run(seconds.source, [&] { band->grids = source(band->k0, band->k1, next); });
+      return band;
+    };
+    const auto dither = [&](BandPtr band) {
+      common::throwIfInterrupted();
+      ditherArena.run(seconds.dither, [&] { band->material = ditherer.ditherLayers(*band->grids.fraction, band->k0, band->k1); });
+      band->grids.fraction.reset();  // the fractions are done with: free them before the band waits
+      return band;
+    };
+    const auto emit = [&](BandPtr band) {
+      common::throwIfInterrupted();
+      emitArena.run(seconds.emit, [&] { writer->addBand({band->material, band->grids.modulus, band->k0, band->k1}); });
+      const int done = band->k1 - kFirst;
+      band.reset();
+      if (options.onBand) options.onBand(done, layers);
+    };
+    tbb::parallel_pipeline(3, tbb::make_filter<void, BandPtr>(tbb::filter_mode::serial_in_order, make) &
+                                  tbb::make_filter<BandPtr, BandPtr>(tbb::filter_mode::serial_in_order, dither) &
+                                  tbb::make_filter<BandPtr, void>(tbb::filter_mode::serial_in_order, emit));
     if (options.beforeFinalize) options.beforeFinalize(writer->metadata());
     printer_profiles::JobResult result;
-    emitArena.run([&] { result = writer->finalize(); });
+    emitArena.run(seconds.emit, [&] { result = writer->finalize(); });
     account();
     return result;
   } catch (...) {

@@ -25,28 +25,36 @@ struct BandGrids {
 // thread and while the ditherer and the writer work on earlier bands.
 using BandSource = std::function<BandGrids(int k0, int k1, bool withNextLayer)>;
 
-// CPU seconds (user + system time of every thread while it works for the stage, TBB workers included,
-// waiting for other stages excluded) and the wall time of the whole pipeline.
+// Where the pipeline's time went. Wall seconds, except `cpu`. The stages run at the same time, so
+// each stage's busy time counts only its own calls (from the start of its work on a band to the end,
+// whatever the other stages did meanwhile): each is at most `wall`, and together they exceed it by
+// as much as the stages overlapped. `cpu` is the process's user + system time over `wall`, every
+// thread included (TBB workers, the rasterizer's own arena), so no stage is missed or counted twice.
 struct StageSeconds {
-  double source = 0.0;   // building the bands' fractions (rasterization and mapping for slice)
-  double dither = 0.0;
-  double emit = 0.0;     // the writer: bitmaps, images, compression, previews, and finalize (manifest, zip, verification)
-  double wall = 0.0;     // from the writer's start to the job in place: about the slowest stage when they overlap
+  double source = 0.0;   // busy building the bands' fractions (rasterization and mapping for slice)
+  double dither = 0.0;   // busy dithering
+  double emit = 0.0;     // busy in the writer: its start, the bands (bitmaps, images, compression,
+                         // previews) and finalize (manifest, zip, verification)
+  double wall = 0.0;     // from the writer's start to the job in place
+  double cpu = 0.0;      // process CPU time (user + system, all threads) over `wall`
 };
 
 struct PipelineOptions {
   int bandLayers = 64;
   // Called after every band is written with (layers done, layers in the part), on the thread that
-  // called streamJob or a TBB worker, never concurrently. May throw to abort (interrupts): the
-  // pipeline stops, and the writer removes everything it staged.
+  // called streamJob or a TBB worker, never concurrently. May throw to abort: the pipeline stops
+  // (the other stages finish the band they are on, start no other), and the writer removes
+  // everything it staged.
   std::function<void(int, int)> onBand;
   // Called after the last band, before the manifest is written: fill in what the bands counted.
   std::function<void(printer_profiles::JobMetadata&)> beforeFinalize;
 };
 
 // Streams every layer of `spec.partBounds` through `source`, `ditherer` and a JobWriter, then
-// finalizes the job. Adds the CPU time per stage and the wall time to `seconds`. The job's bytes do
-// not depend on the thread count or the band size.
+// finalizes the job. Adds the time spent to `seconds`. The job's bytes do not depend on the thread
+// count or the band size. Interrupts (common/interrupt.hpp): every stage checks for a pending signal
+// before each band and throws common::Interrupted, so the pipeline stops within one band's work of a
+// stage (the rasterizer and the writer's finalize also check as they go); nothing is left staged.
 printer_profiles::JobResult streamJob(printer_profiles::JobSpec spec, const BandSource& source,
                                       materials::Ditherer& ditherer, const PipelineOptions& options,
                                       StageSeconds& seconds);
