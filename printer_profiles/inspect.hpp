@@ -29,6 +29,17 @@ struct InspectOptions {
   // The profile the job must match. Default: the bundled profile whose name the manifest gives (a name
   // that is not bundled is a defect: pass the profile file's contents here instead).
   std::optional<Profile> profile;
+  // For the writer's check of its own job (JobOptions::verify); `inspect` keeps the defaults, which
+  // check everything. Layer images are decoded and checked (size, resolution, counts against the
+  // manifest, no voxel of two materials) in layers 0, n, 2n, ... and the last one, n = decodeEvery
+  // (values below 1 count as 1). Every other layer image is still read through, its size checked
+  // against the manifest. When not every layer is decoded, InspectReport::materials counts the
+  // decoded layers only and the orientation check (which needs every voxel) is not made.
+  int decodeEvery = 1;
+  // In a zip job, a layer image that is not decoded is checked by the CRC-32 the zip records for it
+  // (verified as it is inflated) instead of by its SHA-256 against the manifest: enough for a writer
+  // that computed both over the same bytes; never for a job from elsewhere.
+  bool zipCrcForSkippedLayers = false;
 };
 
 // What the job says about itself, filled only from values that passed their checks.

@@ -57,7 +57,10 @@ void Inspector::checkLayers() {
   tbb::task_arena arena(workers);
   arena.execute([&] {
     tbb::parallel_for(tbb::blocked_range<int>(0, layout_.layers, 1), [&](const tbb::blocked_range<int>& range) {
-      for (int l = range.begin(); l != range.end(); ++l) checkLayer(l, results[static_cast<std::size_t>(l)]);
+      for (int l = range.begin(); l != range.end(); ++l) {
+        if (decodesLayer(l)) checkLayer(l, results[static_cast<std::size_t>(l)]);
+        else readLayerThrough(l, results[static_cast<std::size_t>(l)]);
+      }
     });
   });
   std::vector<DecodedMoments> moments(materials);
@@ -69,14 +72,29 @@ void Inspector::checkLayers() {
       moments[n].merge(r.moments[n]);
     }
   }
+  report_.filesChecked = filesChecked_;
   const auto& v = profile_.voxelSizeMm;
   for (std::size_t n = 0; n < materials; ++n) {
     const ProfileMaterial& m = *layout_.materials[n];
     const double ml = static_cast<double>(totals[n]) * v[0] * v[1] * v[2] / 1000.0;
     report_.materials.push_back({m.name, m.role, totals[n], ml, ml * m.densityGPerMl});
   }
+  for (int l = 0; l < layout_.layers; ++l)
+    if (!decodesLayer(l)) return;  // the part's position needs every layer
   checkOrientation(moments);
-  report_.filesChecked = filesChecked_;
+}
+
+bool Inspector::decodesLayer(int l) const {
+  return options_.decodeEvery <= 1 || l % options_.decodeEvery == 0 || l == layout_.layers - 1;
+}
+
+void Inspector::readLayerThrough(int l, LayerResult& out) const {
+  const std::size_t materials = gcvf() ? 1 : layout_.materials.size();
+  out.voxels.assign(layout_.materials.size(), 0);
+  out.moments.assign(layout_.materials.size(), {});
+  const bool hash = !(options_.zipCrcForSkippedLayers && reader_->format() == ArchiveFormat::Zip);
+  for (std::size_t n = 0; n < materials; ++n)
+    fetch(profile_.layerFileName(*layout_.materials[n], l, layout_.imageFormat), 0, out.findings, hash);
 }
 
 // One layer image decoded and checked against the job's size and resolution; nullopt after a finding.

@@ -81,7 +81,8 @@ private:
 
   // Streams an expected entry: its declared and actual size against its cap, its size and checksum
   // against the manifest. Keeps at most `keep` leading bytes. nullopt after a finding.
-  std::optional<Bytes> fetch(const std::string& name, std::uint64_t keep, Findings& out) const;
+  // With `hash` false the SHA-256 is not computed (the zip's CRC-32 still is, by the reader).
+  std::optional<Bytes> fetch(const std::string& name, std::uint64_t keep, Findings& out, bool hash = true) const;
   void checkBuildFile();
 
   // Previews are only looked at by people: their checksum and that they are 8-bit RGB PNGs suffice.
@@ -94,6 +95,9 @@ private:
   // One layer image decoded and checked against the job's size and resolution; nullopt after a finding.
   std::optional<Bitmap> layerImage(int l, std::size_t n, Findings& out) const;
   void checkLayer(int l, LayerResult& out) const;
+  bool decodesLayer(int l) const;
+  // A layer that is not decoded: its images read through (sizes, and checksums as InspectOptions says).
+  void readLayerThrough(int l, LayerResult& out) const;
 
   // A GrabCAD Voxel Print layer: one RGBA image, each colour a material (nothing else), counts as listed.
   void checkGcvfLayer(int l, LayerResult& out) const;

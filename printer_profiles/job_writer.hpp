@@ -59,7 +59,10 @@ struct JobOptions {
   // there (a user's file or folder, a link, a job with files added) is never replaced.
   bool force = false;
   int contactSheetLayers = 16;                   // layers shown in previews/contact-sheet.png
-  bool verify = true;                            // re-open and inspect before the rename
+  // Re-open and inspect before the rename: the layout, manifest, build file and previews as `inspect`
+  // does; every layer image's size, and its zip CRC-32 (folder jobs: its SHA-256); one layer in 32
+  // (and the last) decoded and checked against the manifest.
+  bool verify = true;
   // Asked whether to stop (throw to stop; e.g. on SIGINT) as finalize() begins, after the zip is built,
   // immediately before the job is renamed into place and immediately after. Thrown after the rename,
   // the rename is undone (the new job removed, a job it replaced put back) before the exception
@@ -114,9 +117,10 @@ openvdb::math::Transform::Ptr gridTransform(const Profile& profile, const openvd
 std::filesystem::path checkJobOutput(const JobOptions& options);
 
 // Writes one job. Usage: construct, addBand() for consecutive bands covering every layer of the
-// part in increasing k, finalize(). Each band is encoded (bitmaps, PNG/BMP, checksums, previews) on
-// TBB workers while the caller builds the next one; addBand waits only for the band before. The
-// bytes written depend on the grids alone, not on the thread count or the band sizes.
+// part in increasing k, finalize(). addBand encodes the band (bitmaps, PNG/BMP, checksums, previews,
+// compression) on TBB workers of the caller's task arena and returns when it is staged; a caller
+// overlaps the next band's making with it on other threads (slicer's job pipeline does). One call at
+// a time. The bytes written depend on the grids alone, not on the thread count or the band sizes.
 // Until finalize() commits the job, everything lives in one hidden staging folder beside the target,
 // ".NAME.rodfab-partial-PID-N", holding a lock file the writer keeps flock'ed while it lives; the
 // destructor removes the folder on every path (errors, exceptions, interrupts). A killed process

@@ -255,20 +255,23 @@ bool emptyWord(const std::uint8_t* a, const std::uint8_t* b, std::size_t at) {
   return !(x | y);
 }
 
-// Calls visit(column, isRigid) for every pixel set in either row, left to right, a word of empty
-// bytes at a time where it can.
+// Calls visit(byte, bits) for the pixels of a row (rigid or rubbery) not yet in `claimed`, one byte
+// of 8 pixels at a time, and adds them to `claimed`: a view decides each of its pixels once. Skips a
+// word at a time where there is nothing new (layers are mostly empty, columns soon claimed).
 template <class Visit>
-void forEachPixel(const std::uint8_t* rigid, const std::uint8_t* rubbery, std::size_t stride, Visit visit) {
-  for (std::size_t byte = 0; byte < stride; ++byte) {
-    if (byte % 8 == 0 && byte + 8 <= stride && emptyWord(rigid, rubbery, byte)) {
-      byte += 7;
-      continue;
-    }
-    const std::uint8_t any = rigid[byte] | rubbery[byte];
-    if (!any) continue;
-    for (int bit = 0; bit < 8; ++bit) {
-      if (!((any >> (7 - bit)) & 1)) continue;
-      visit(static_cast<int>(byte) * 8 + bit, ((rigid[byte] >> (7 - bit)) & 1) != 0);
+void forEachFresh(const std::uint8_t* rigid, const std::uint8_t* rubbery, std::uint8_t* claimed, std::size_t stride, Visit&& visit) {
+  for (std::size_t at = 0; at < stride; at += 8) {
+    const std::size_t n = std::min<std::size_t>(8, stride - at);
+    std::uint64_t a = 0, b = 0, c = 0;
+    std::memcpy(&a, rigid + at, n);
+    std::memcpy(&b, rubbery + at, n);
+    std::memcpy(&c, claimed + at, n);
+    if (!((a | b) & ~c)) continue;
+    for (std::size_t byte = at; byte < at + n; ++byte) {
+      const auto fresh = static_cast<unsigned>((rigid[byte] | rubbery[byte]) & ~claimed[byte] & 0xffu);
+      if (!fresh) continue;
+      claimed[byte] = static_cast<std::uint8_t>(claimed[byte] | fresh);
+      visit(byte, fresh);
     }
   }
 }
@@ -281,15 +284,20 @@ void Previews::addLayer(int layer, const LayerBitmaps& b, const openvdb::FloatGr
   const int w = geometry_.width, h = geometry_.height;
   const int k = geometry_.k(layer);
   // Front view: looking along +y, the visible voxel of a column has the smallest y (largest row).
+  // `claimed` marks the columns a lower row already showed, so each column is decided once.
+  std::vector<std::uint8_t> claimed(b.rigid.stride(), 0);
   for (int r = h - 1; r >= 0; --r) {
     const std::uint8_t* rigid = b.rigid.row(r);
     const std::uint8_t* rubbery = b.rubbery.row(r);
-    forEachPixel(rigid, rubbery, b.rigid.stride(), [&](int c, bool isRigid) {
-      const std::size_t at = static_cast<std::size_t>(layer) * w + c;
-      if (front_.material[at]) return;
-      front_.material[at] = isRigid ? 1 : 2;
-      front_.depth[at] = r;
-      front_.modulus[at] = modulusAt(modulus, acc ? &*acc : nullptr, {geometry_.i(c), geometry_.j(r), k});
+    forEachFresh(rigid, rubbery, claimed.data(), b.rigid.stride(), [&](std::size_t byte, unsigned fresh) {
+      for (; fresh; fresh &= fresh - 1) {
+        const int bit = 7 - std::countr_zero(fresh);
+        const int c = static_cast<int>(byte) * 8 + bit;
+        const std::size_t at = static_cast<std::size_t>(layer) * w + c;
+        front_.material[at] = ((rigid[byte] >> (7 - bit)) & 1) ? 1 : 2;
+        front_.depth[at] = r;
+        front_.modulus[at] = modulusAt(modulus, acc ? &*acc : nullptr, {geometry_.i(c), geometry_.j(r), k});
+      }
     });
   }
   // Right side view: looking along -x, the visible voxel of a row has the largest x (last column).
@@ -335,19 +343,25 @@ void Previews::addTopLayers(int first, const std::vector<LayerBitmaps>& layers, 
   tbb::parallel_for(tbb::blocked_range<int>(0, geometry_.height), [&](const tbb::blocked_range<int>& rows) {
     std::optional<openvdb::FloatGrid::ConstAccessor> acc;
     if (modulus) acc.emplace(modulus->getConstAccessor());
+    std::vector<std::uint8_t> claimed;
     for (int r = rows.begin(); r != rows.end(); ++r) {
       // Layers from the band's top down: the first one seen in a column is its top within the band,
-      // and replaces what earlier bands left (their layers are below `first`).
+      // and replaces what earlier bands left (their layers are below `first`). `claimed` marks the
+      // columns a higher layer of this band already took.
+      claimed.assign(layers.empty() ? 0 : layers[0].rigid.stride(), 0);
       for (std::size_t n = layers.size(); n-- > 0;) {
         const std::uint8_t* rigid = layers[n].rigid.row(r);
         const std::uint8_t* rubbery = layers[n].rubbery.row(r);
         const int layer = first + static_cast<int>(n);
-        forEachPixel(rigid, rubbery, layers[n].rigid.stride(), [&](int c, bool isRigid) {
-          const std::size_t at = static_cast<std::size_t>(r) * w + c;
-          if (top_.material[at] && top_.depth[at] >= first) return;  // a higher layer of this band
-          top_.material[at] = isRigid ? 1 : 2;
-          top_.depth[at] = layer;
-          if (modulus) top_.modulus[at] = modulusAt(modulus, &*acc, {geometry_.i(c), geometry_.j(r), geometry_.k(layer)});
+        forEachFresh(rigid, rubbery, claimed.data(), layers[n].rigid.stride(), [&](std::size_t byte, unsigned fresh) {
+          for (; fresh; fresh &= fresh - 1) {
+            const int bit = 7 - std::countr_zero(fresh);
+            const int c = static_cast<int>(byte) * 8 + bit;
+            const std::size_t at = static_cast<std::size_t>(r) * w + c;
+            top_.material[at] = ((rigid[byte] >> (7 - bit)) & 1) ? 1 : 2;
+            top_.depth[at] = layer;
+            if (modulus) top_.modulus[at] = modulusAt(modulus, &*acc, {geometry_.i(c), geometry_.j(r), geometry_.k(layer)});
+          }
         });
       }
     }

@@ -98,13 +98,17 @@ void printCouponSummary(const CouponRequest& r, const printer_profiles::JobResul
     j["rows"] = layout.rows;
     j["per_row"] = layout.perRow;
     j["bars"] = bars;
-    j["seconds"] = {{"bars", seconds.source}, {"dither", seconds.dither}, {"emit", seconds.emit}, {"total", total}};
+    j["seconds"] = {{"bands", seconds.wall},
+                    {"total", total},
+                    {"busy", {{"bars", seconds.source}, {"dither", seconds.dither}, {"emit", seconds.emit}}},
+                    {"cpu_bands", seconds.cpu}};
     std::cout << j.dump(2) << '\n';
     return;
   }
   printCouponLines(r, job, profile, layout, bars);
-  std::printf("time:        %.2f s bars, %.2f s dither, %.2f s emit; %.2f s total\n", seconds.source, seconds.dither,
-              seconds.emit, total);
+  std::printf("time:        %.2f s bands and job, %.2f s total (wall); busy %.2f s bars, %.2f s dither, %.2f s emit (overlapping); "
+              "%.2f s CPU in the bands\n",
+              seconds.wall, total, seconds.source, seconds.dither, seconds.emit, seconds.cpu);
   std::printf("next:        measure the bars, put each one's fraction and '%s' (dither column) in the DMA data, rodfab calibrate\n",
               dither.c_str());
 }

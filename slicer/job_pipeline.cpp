@@ -1,9 +1,17 @@
 #include "slicer/job_pipeline.hpp"
 
+#include "common/interrupt.hpp"
 #include "common/stopwatch.hpp"
+
+#include <tbb/parallel_pipeline.h>
+#include <tbb/task_arena.h>
+
+#include <sys/resource.h>
 
 #include <algorithm>
 #include <chrono>
+#include <memory>
+#include <optional>
 #include <stdexcept>
 
 namespace rodfab::slicer {
@@ -12,6 +20,46 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 using common::secondsSince;
+
+// User + system CPU seconds of the whole process so far (every thread, live or ended).
+double processCpuSeconds() {
+  rusage usage{};
+  if (::getrusage(RUSAGE_SELF, &usage) != 0) return 0.0;
+  const auto seconds = [](const timeval& t) { return static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_usec); };
+  return seconds(usage.ru_utime) + seconds(usage.ru_stime);
+}
+
+// One stage's own task arena: a thread waiting inside one stage (joining its parallel loops) never
+// picks up another stage's tasks, so a band is not held up by work of the stages it overlaps.
+// `run` adds the wall time of `f` to `busy`; it is called by one thread at a time (serial filters).
+class StageArena {
+public:
+  explicit StageArena(int concurrency) : arena_(concurrency) {}
+
+  template <class F>
+  void run(double& busy, F&& f) {
+    const auto start = Clock::now();
+    try {
+      arena_.execute(std::forward<F>(f));
+    } catch (...) {
+      busy += secondsSince(start);
+      throw;
+    }
+    busy += secondsSince(start);
+  }
+
+private:
+  tbb::task_arena arena_;
+};
+
+// One band on its way through the stages.
+struct Band {
+  int k0 = 0, k1 = 0;
+  BandGrids grids;
+  openvdb::BoolGrid::Ptr material;
+};
+
+using BandPtr = std::shared_ptr<Band>;
 
 }  // namespace
 
@@ -24,30 +72,60 @@ printer_profiles::JobResult streamJob(printer_profiles::JobSpec spec, const Band
   const bool readsNextLayer = ditherer.name() == "error-diffusion";
   const int kFirst = part.min().z(), kLast = part.max().z(), layers = kLast - kFirst + 1;
 
-  auto start = Clock::now();
-  printer_profiles::JobWriter writer(std::move(spec));
-  seconds.emit += secondsSince(start);
-  ditherer.reset();
-  for (int k0 = kFirst; k0 <= kLast; k0 += options.bandLayers) {
-    const int k1 = std::min(kLast + 1, k0 + options.bandLayers);
-    start = Clock::now();
-    BandGrids band = source(k0, k1, readsNextLayer && k1 <= kLast);
-    seconds.source += secondsSince(start);
-
-    start = Clock::now();
-    openvdb::BoolGrid::Ptr material = ditherer.ditherLayers(*band.fraction, k0, k1);
-    seconds.dither += secondsSince(start);
-
-    start = Clock::now();
-    writer.addBand({material, band.modulus, k0, k1});  // waits for the previous band's encoding only
-    seconds.emit += secondsSince(start);
-    if (options.onBand) options.onBand(k1 - kFirst, layers);
+  const auto start = Clock::now();
+  const double cpuStart = processCpuSeconds();
+  const auto account = [&] {
+    seconds.wall += secondsSince(start);
+    seconds.cpu += processCpuSeconds() - cpuStart;
+  };
+  const int threads = tbb::this_task_arena::max_concurrency();
+  StageArena sourceArena(threads), ditherArena(threads), emitArena(threads);
+  try {
+    std::optional<printer_profiles::JobWriter> writer;
+    emitArena.run(seconds.emit, [&] { writer.emplace(std::move(spec)); });
+    ditherer.reset();
+    int nextK0 = kFirst;
+    // Serial stages, one token each: while the writer encodes band n, band n + 1 is dithered and
+    // band n + 2 made. Each stage checks for an interrupt before it starts a band.
+    const auto make = [&](tbb::flow_control& fc) -> BandPtr {
+      if (nextK0 > kLast) {
+        fc.stop();
+        return nullptr;
+      }
+      common::throwIfInterrupted();
+      auto band = std::make_shared<Band>();
+      band->k0 = nextK0;
+      band->k1 = std::min(kLast + 1, nextK0 + options.bandLayers);
+      nextK0 = band->k1;
+      const bool next = readsNextLayer && band->k1 <= kLast;
+      sourceArena.run(seconds.source, [&] { band->grids = source(band->k0, band->k1, next); });
+      return band;
+    };
+    const auto dither = [&](BandPtr band) {
+      common::throwIfInterrupted();
+      ditherArena.run(seconds.dither, [&] { band->material = ditherer.ditherLayers(*band->grids.fraction, band->k0, band->k1); });
+      band->grids.fraction.reset();  // the fractions are done with: free them before the band waits
+      return band;
+    };
+    const auto emit = [&](BandPtr band) {
+      common::throwIfInterrupted();
+      emitArena.run(seconds.emit, [&] { writer->addBand({band->material, band->grids.modulus, band->k0, band->k1}); });
+      const int done = band->k1 - kFirst;
+      band.reset();
+      if (options.onBand) options.onBand(done, layers);
+    };
+    tbb::parallel_pipeline(3, tbb::make_filter<void, BandPtr>(tbb::filter_mode::serial_in_order, make) &
+                                  tbb::make_filter<BandPtr, BandPtr>(tbb::filter_mode::serial_in_order, dither) &
+                                  tbb::make_filter<BandPtr, void>(tbb::filter_mode::serial_in_order, emit));
+    if (options.beforeFinalize) options.beforeFinalize(writer->metadata());
+    printer_profiles::JobResult result;
+    emitArena.run(seconds.emit, [&] { result = writer->finalize(); });
+    account();
+    return result;
+  } catch (...) {
+    account();
+    throw;
   }
-  if (options.beforeFinalize) options.beforeFinalize(writer.metadata());
-  start = Clock::now();
-  printer_profiles::JobResult result = writer.finalize();
-  seconds.emit += secondsSince(start);
-  return result;
 }
 
 }  // namespace rodfab::slicer

@@ -1,7 +1,8 @@
 // The job pipeline: a part's layers, band by band, from Vero fractions through a ditherer into the
 // job writer. The source of the fractions is the caller's (a rasterized design for `rodfab slice`,
-// uniform bars for `rodfab coupons`); the pipeline keeps one band in flight while the writer encodes
-// the previous one, so memory holds two bands, not the part.
+// uniform bars for `rodfab coupons`). The three stages overlap: while the writer encodes band n, the
+// ditherer works on band n + 1 and the source builds band n + 2, so memory holds at most three bands
+// (one per stage), never the part.
 #pragma once
 
 #include "materials/ditherer.hpp"
@@ -20,25 +21,40 @@ struct BandGrids {
   openvdb::FloatGrid::Ptr modulus;   // "modulus_mpa" for the modulus previews; may be null
 };
 // (k0, k1, withNextLayer) -> the band. Its voxels must lie in the part bounds given to the writer.
+// Called for consecutive bands in increasing k, one call at a time (never concurrently), but on any
+// thread and while the ditherer and the writer work on earlier bands.
 using BandSource = std::function<BandGrids(int k0, int k1, bool withNextLayer)>;
 
+// Where the pipeline's time went. Wall seconds, except `cpu`. The stages run at the same time, so
+// each stage's busy time counts only its own calls (from the start of its work on a band to the end,
+// whatever the other stages did meanwhile): each is at most `wall`, and together they exceed it by
+// as much as the stages overlapped. `cpu` is the process's user + system time over `wall`, every
+// thread included (TBB workers, the rasterizer's own arena), so no stage is missed or counted twice.
 struct StageSeconds {
-  double source = 0.0;   // building the bands' fractions (rasterization and mapping for slice)
-  double dither = 0.0;
-  double emit = 0.0;     // waiting for the writer's encoding, and finalize (manifest, zip, verification)
+  double source = 0.0;   // busy building the bands' fractions (rasterization and mapping for slice)
+  double dither = 0.0;   // busy dithering
+  double emit = 0.0;     // busy in the writer: its start, the bands (bitmaps, images, compression,
+                         // previews) and finalize (manifest, zip, verification)
+  double wall = 0.0;     // from the writer's start to the job in place
+  double cpu = 0.0;      // process CPU time (user + system, all threads) over `wall`
 };
 
 struct PipelineOptions {
   int bandLayers = 64;
-  // Called after every band with (layers done, layers in the part). May throw to abort (interrupts):
-  // the writer then removes everything it staged.
+  // Called after every band is written with (layers done, layers in the part), on the thread that
+  // called streamJob or a TBB worker, never concurrently. May throw to abort: the pipeline stops
+  // (the other stages finish the band they are on, start no other), and the writer removes
+  // everything it staged.
   std::function<void(int, int)> onBand;
   // Called after the last band, before the manifest is written: fill in what the bands counted.
   std::function<void(printer_profiles::JobMetadata&)> beforeFinalize;
 };
 
 // Streams every layer of `spec.partBounds` through `source`, `ditherer` and a JobWriter, then
-// finalizes the job. Adds the time spent per stage to `seconds`.
+// finalizes the job. Adds the time spent to `seconds`. The job's bytes do not depend on the thread
+// count or the band size. Interrupts (common/interrupt.hpp): every stage checks for a pending signal
+// before each band and throws common::Interrupted, so the pipeline stops within one band's work of a
+// stage (the rasterizer and the writer's finalize also check as they go); nothing is left staged.
 printer_profiles::JobResult streamJob(printer_profiles::JobSpec spec, const BandSource& source,
                                       materials::Ditherer& ditherer, const PipelineOptions& options,
                                       StageSeconds& seconds);

@@ -84,9 +84,12 @@ void ClampMap::addOutline(const openvdb::FloatGrid& modulus, int k0, int k1) {
     box.min().z() = std::max(box.min().z(), k0);
     box.max().z() = std::min(box.max().z(), k1 - 1);
     if (!clip(box)) continue;
-    for (int i = box.min().x(); i <= box.max().x(); ++i) {
-      for (int j = box.min().y(); j <= box.max().y(); ++j) top_.count(i / bin_, j / bin_, 0, 0);
-      for (int k = box.min().z(); k <= box.max().z(); ++k) front_.count(i / bin_, k / bin_, 0, 0);
+    // Bin by bin rather than voxel by voxel: the outline only marks the bins the leaf reaches.
+    const openvdb::Coord lo(box.min().x() / bin_, box.min().y() / bin_, box.min().z() / bin_);
+    const openvdb::Coord hi(box.max().x() / bin_, box.max().y() / bin_, box.max().z() / bin_);
+    for (int u = lo.x(); u <= hi.x(); ++u) {
+      for (int v = lo.y(); v <= hi.y(); ++v) top_.count(u, v, 0, 0);
+      for (int w = lo.z(); w <= hi.z(); ++w) front_.count(u, w, 0, 0);
     }
   }
 }

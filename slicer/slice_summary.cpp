@@ -29,8 +29,14 @@ void printSliceJson(const SliceSummary& s, const slicer::SliceReport& report) {
   j["clamped_moduli"] = {{"below_floor", mapping.clamps.belowFloor}, {"above_max", mapping.clamps.aboveMax},
                          {"floor_mpa", report.floorMpa}, {"max_mpa", report.maxModulusMpa}};
   j["rods_without_voxels"] = rodsWithoutVoxels(report);
-  j["seconds"] = {{"inputs", s.inputSeconds}, {"support", report.supportSeconds}, {"voxelize_and_map", seconds.source},
-                  {"dither", seconds.dither}, {"emit", seconds.emit}, {"total", s.totalSeconds}};
+  // Wall times; the stages' busy times overlap inside "bands" (job_pipeline.hpp); CPU of the whole
+  // process over the bands.
+  j["seconds"] = {{"inputs", s.inputSeconds},
+                  {"support", report.supportSeconds},
+                  {"bands", seconds.wall},
+                  {"total", s.totalSeconds},
+                  {"busy", {{"voxelize_and_map", seconds.source}, {"dither", seconds.dither}, {"emit", seconds.emit}}},
+                  {"cpu_bands", seconds.cpu}};
   std::cout << j.dump(2) << '\n';
 }
 
@@ -50,8 +56,10 @@ void printSliceLines(const SliceSummary& s, const slicer::SliceReport& report, c
   std::printf("clamped moduli: %s below the floor, %s above the stiffest mix\n", formatCount(mapping.clamps.belowFloor).c_str(),
               formatCount(mapping.clamps.aboveMax).c_str());
   const slicer::StageSeconds& t = report.seconds;
-  std::printf("time:           %.2f s inputs, %.2f s support, %.2f s voxelize + map, %.2f s dither, %.2f s emit; %.2f s total\n",
-              s.inputSeconds, report.supportSeconds, t.source, t.dither, t.emit, s.totalSeconds);
+  std::printf("time:           %.2f s inputs, %.2f s support, %.2f s bands and job; %.2f s total (wall)\n", s.inputSeconds,
+              report.supportSeconds, t.wall, s.totalSeconds);
+  std::printf("bands:          busy %.2f s voxelize + map, %.2f s dither, %.2f s emit (wall, overlapping); %.2f s CPU, all threads\n",
+              t.source, t.dither, t.emit, t.cpu);
 }
 
 }  // namespace

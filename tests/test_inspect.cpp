@@ -261,6 +261,58 @@ TEST_CASE("Valid small jobs of every form pass inspect", "[inspect]") {
   CHECK(inspectJobFiles(*openJobFiles(dir / "bmp.zip")).ok());
 }
 
+TEST_CASE("The writer's own check: a sample of layers decoded, the others read through their zip CRC-32", "[inspect]") {
+  const fs::path dir = scratch("writer-check");
+  const fs::path job = dir / "job.zip";
+  writeSmallJob(job, {.layers = 40});
+  InspectOptions writerCheck{connex3()};
+  writerCheck.decodeEvery = 32;  // layers 0, 32 and 39 decoded
+  writerCheck.zipCrcForSkippedLayers = true;
+  REQUIRE(inspectJob(job, writerCheck).ok());
+  const ProfileMaterial& rigid = connex3().material(MaterialRole::Rigid);
+  const std::string skipped = connex3().layerFileName(rigid, 5, ImageFormat::Bmp);
+  const std::string decoded = connex3().layerFileName(rigid, 32, ImageFormat::Bmp);
+  const auto files = unzip(job);
+  const auto damaged = [&](const std::string& name, bool relist) {
+    auto out = files;
+    for (auto& [n, data] : out)
+      if (n == name) data[static_cast<std::size_t>(data[10])] ^= 0x80;  // the first pixel byte (bfOffBits < 256)
+    if (relist)
+      for (const auto& [n, data] : out)
+        if (n == name) {
+          json m = manifestOf(out);
+          m["files"][name]["sha256"] = sha256Hex(data);
+          setManifest(out, m);
+        }
+    return out;
+  };
+
+  SECTION("bytes that do not match the zip's CRC are found in a layer that is not decoded") {
+    // The damaged image stored under the true image's CRC-32 and size.
+    std::vector<RawEntry> raw = rawEntries(files);
+    const auto changed = damaged(skipped, false);
+    for (RawEntry& e : raw)
+      for (const auto& [n, data] : changed)
+        if (e.name == skipped && n == skipped) e.stored = deflateRaw(0, &data);
+    for (RawEntry& e : raw) e.compressedSize = static_cast<std::uint32_t>(e.stored.size());
+    writeRawZip(job, raw);
+    CHECK(hasDefect(inspectJob(job, writerCheck), "CRC"));
+    CHECK_FALSE(inspectJob(job).ok());
+  }
+  SECTION("a decoded layer's image is checked against the manifest's counts") {
+    rezip(job, damaged(decoded, true));
+    CHECK(hasDefect(inspectJob(job, writerCheck), "the manifest says"));
+    CHECK(hasDefect(inspectJob(job), "the manifest says"));
+  }
+  SECTION("an image changed in a layer that is not decoded, with a fresh CRC, is only for inspect to find") {
+    // The writer's mode trusts that the manifest's SHA-256 and the zip's CRC-32 were computed over the
+    // same bytes (the writer does so); a job from elsewhere gets the full check.
+    rezip(job, damaged(skipped, false));
+    CHECK(inspectJob(job, writerCheck).ok());
+    CHECK(hasDefect(inspectJob(job), "checksum mismatch"));
+  }
+}
+
 TEST_CASE("The profile comes from the bundled ones by name or from the caller, never from a path in the manifest",
           "[inspect][hostile]") {
   const fs::path dir = scratch("profile-name");

@@ -20,6 +20,8 @@
 #include <fstream>
 #include <iterator>
 #include <numbers>
+#include <thread>
+#include <time.h>
 #include <unistd.h>
 
 using namespace rodfab;
@@ -149,6 +151,80 @@ TEST_CASE("streamJob: an onBand that throws leaves no job and nothing staged") {
   CHECK(fs::is_empty(tmp.path));
   options.bandLayers = 0;
   CHECK_THROWS_AS(slicer::streamJob(spec, twoBoxes(box, {}, spec.originMm), *ditherer, options, seconds), std::invalid_argument);
+}
+
+TEST_CASE("streamJob: a source that throws while later stages hold earlier bands leaves no job and nothing staged") {
+  openvdb::initialize();
+  TempDir tmp;
+  const openvdb::CoordBBox box(openvdb::Coord(0), openvdb::Coord(9, 9, 29));
+  printer_profiles::JobSpec spec;
+  spec.profile = connex3();
+  spec.partBounds = box;
+  spec.originMm = openvdb::Vec3d(0.5, 0.5, 0.015);
+  spec.options.output = tmp.path / "job.zip";
+  const auto ditherer = materials::makeDitherer("error-diffusion", {});
+  slicer::PipelineOptions options;
+  options.bandLayers = 3;
+  int written = 0;
+  options.onBand = [&](int, int) { ++written; };
+  const slicer::BandSource boxes = twoBoxes(box, {}, spec.originMm);
+  const slicer::BandSource failing = [&](int k0, int k1, bool next) {
+    if (k0 >= 15) throw std::runtime_error("source failed");
+    return boxes(k0, k1, next);
+  };
+  slicer::StageSeconds seconds;
+  CHECK_THROWS_WITH(slicer::streamJob(spec, failing, *ditherer, options, seconds), "source failed");
+  CHECK(written <= 5);  // bands [0, 15) at most
+  CHECK(fs::is_empty(tmp.path));
+  CHECK(seconds.wall > 0.0);
+}
+
+// Busy-waits until this thread has used `seconds` of CPU time.
+static void burnCpu(double seconds) {
+  const auto cpu = [] {
+    timespec t{};
+    ::clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+  };
+  const double end = cpu() + seconds;
+  volatile std::uint64_t x = 0;
+  while (cpu() < end) x = x + 1;
+}
+
+TEST_CASE("streamJob's times: each stage's busy time within the wall time, the CPU time of every thread") {
+  openvdb::initialize();
+  TempDir tmp;
+  const openvdb::CoordBBox box(openvdb::Coord(0), openvdb::Coord(9, 9, 9));
+  printer_profiles::JobSpec spec;
+  spec.profile = connex3();
+  spec.partBounds = box;
+  spec.originMm = openvdb::Vec3d(0.5, 0.5, 0.015);
+  spec.options.output = tmp.path / "job.zip";
+  const auto ditherer = materials::makeDitherer("white", {});
+  slicer::PipelineOptions options;
+  options.bandLayers = 2;  // 5 bands
+  const slicer::BandSource boxes = twoBoxes(box, {}, spec.originMm);
+  // The source works 40 ms of CPU a band, on a thread of its own: it is busy at least that long,
+  // and the process's CPU time includes it (a thread of the source's making is one of every thread).
+  const slicer::BandSource slow = [&](int k0, int k1, bool next) {
+    std::thread worker([] { burnCpu(0.04); });
+    worker.join();
+    return boxes(k0, k1, next);
+  };
+  slicer::StageSeconds seconds;
+  slicer::streamJob(spec, slow, *ditherer, options, seconds);
+  CHECK(seconds.source >= 5 * 0.04);
+  CHECK(seconds.cpu >= 5 * 0.04);
+  for (double busy : {seconds.source, seconds.dither, seconds.emit}) {
+    CHECK(busy > 0.0);
+    CHECK(busy <= seconds.wall);
+  }
+  // Times add to what the caller gave: a second job adds its own.
+  const slicer::StageSeconds first = seconds;
+  fs::remove(tmp.path / "job.zip");
+  slicer::streamJob(spec, slow, *ditherer, options, seconds);
+  CHECK(seconds.source >= first.source + 5 * 0.04);
+  CHECK(seconds.wall > first.wall);
 }
 
 TEST_CASE("sliceDesign: a straight rod's voxels are its volume, every one in the job, for any band size and thread count") {

@@ -1,0 +1,79 @@
+// Internal to printer_profiles/: what the job writer records per layer and file, and the job's
+// manifest.json built from it (the format `inspect` reads back; printer_profiles/README.md).
+#pragma once
+
+#include "printer_profiles/job_archive.hpp"
+#include "printer_profiles/job_layout.hpp"
+#include "printer_profiles/job_writer.hpp"
+#include "printer_profiles/profile.hpp"
+
+#include <nlohmann/json.hpp>
+#include <openvdb/openvdb.h>
+
+#include <array>
+#include <bit>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace rodfab::printer_profiles {
+
+// Integer sums of voxel indices: exact, so order and thread count cannot change them.
+struct Moments {
+  std::uint64_t count = 0;
+  std::int64_t sum[3] = {0, 0, 0};
+  openvdb::Coord min = openvdb::Coord::max(), max = openvdb::Coord::min();
+
+  // The 8 voxels (i = firstI .. firstI + 7, most significant bit first) of row j, layer k set in `bits`.
+  void add(std::uint8_t bits, int firstI, int j, int k) {
+    if (!bits) return;
+    const int n = std::popcount(bits);
+    count += static_cast<std::uint64_t>(n);
+    int sumX = 0;
+    for (int x = 0; x < 8; ++x)
+      if ((bits >> (7 - x)) & 1) sumX += x;
+    sum[0] += static_cast<std::int64_t>(n) * firstI + sumX;
+    sum[1] += static_cast<std::int64_t>(n) * j;
+    sum[2] += static_cast<std::int64_t>(n) * k;
+    const openvdb::Coord lo(firstI + std::countl_zero(bits), j, k), hi(firstI + 7 - std::countr_zero(bits), j, k);
+    min.minComponent(lo);
+    max.maxComponent(hi);
+  }
+  void merge(const Moments& o) {
+    count += o.count;
+    for (int a = 0; a < 3; ++a) sum[a] += o.sum[a];
+    min.minComponent(o.min);
+    max.maxComponent(o.max);
+  }
+};
+
+struct FileRecord {
+  std::string name;
+  std::uintmax_t bytes = 0;
+  std::string sha256;  // of the bytes as written (lowercase hex)
+};
+
+struct LayerRecord {
+  std::array<std::uint64_t, 3> voxels{};  // by MaterialRole
+  std::array<Moments, 2> moments;         // rigid, rubbery, from the grid
+  std::vector<FileRecord> files;          // in profile material order
+  std::vector<StagedZipData> zipped;      // zip jobs: each file's zip form, staged with its band
+};
+
+// Everything the manifest says, as the writer holds it.
+struct ManifestInputs {
+  const JobSpec& spec;
+  const JobGeometry& geometry;
+  ImageFormat imageFormat;
+  SupportPolicy support;
+  const std::vector<const ProfileMaterial*>& emitted;  // materials with bitmap stacks, in profile order
+  const std::vector<LayerRecord>& layers;               // every layer of the job, bottom-up
+  const std::vector<int>& contactLayers;                // the contact sheet's layers
+};
+
+// manifest.json: `files` is its file table (every file but the manifest; empty for the version the
+// job report is made from), `previewNames` the previews' names in the job.
+nlohmann::json jobManifest(const ManifestInputs& in, const std::vector<FileRecord>& files,
+                           const std::vector<std::string>& previewNames);
+
+}  // namespace rodfab::printer_profiles
