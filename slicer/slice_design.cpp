@@ -43,7 +43,9 @@ openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const
 }
 
 int automaticBandLayers(const openvdb::CoordBBox& partBounds) {
-  constexpr double kBandVoxels = 32.0 * (1 << 20);
+  // Three bands are in flight (made, dithered, emitted; streamJob), so ~21 M voxels each keeps the
+  // ~64 M voxels two bands of 32 M held before the stages overlapped.
+  constexpr double kBandVoxels = 21.0 * (1 << 20);
   const double layerVoxels = std::max(1.0, double(partBounds.dim().x()) * double(partBounds.dim().y()));
   return static_cast<int>(std::clamp(kBandVoxels / layerVoxels, 1.0, 64.0));
 }
