@@ -75,14 +75,15 @@ slicer::BandSource twoBoxes(const openvdb::CoordBBox& rigid, const openvdb::Coor
 
 }  // namespace
 
-TEST_CASE("automaticBandLayers is 32 Mi voxels over the layer's voxels, between 1 and 64") {
+TEST_CASE("automaticBandLayers is 21 Mi voxels over the layer's voxels, between 1 and 64") {
   const auto part = [](int w, int h) { return openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(w - 1, h - 1, 99)); };
-  CHECK(slicer::automaticBandLayers(part(100, 100)) == 64);       // 10^4 voxels a layer: 3355 layers, capped
-  CHECK(slicer::automaticBandLayers(part(4096, 2048)) == 4);      // 2^23 voxels a layer: 2^25 / 2^23
-  CHECK(slicer::automaticBandLayers(part(4096, 4096)) == 2);      // 2^24
-  CHECK(slicer::automaticBandLayers(part(3000, 5000)) == 2);      // 15e6: 33554432 / 15e6 = 2.24
-  CHECK(slicer::automaticBandLayers(part(11000, 4600)) == 1);     // 5.06e7: below one, at least 1
-  CHECK(slicer::automaticBandLayers(part(1024, 512)) == 64);      // 2^19: exactly 64
+  CHECK(slicer::automaticBandLayers(part(100, 100)) == 64);    // 10^4 voxels a layer: 2202 layers, capped
+  CHECK(slicer::automaticBandLayers(part(4096, 2048)) == 2);   // 2^23 voxels a layer: 22020096 / 2^23 = 2.6
+  CHECK(slicer::automaticBandLayers(part(4096, 4096)) == 1);   // 2^24: 1.3
+  CHECK(slicer::automaticBandLayers(part(2000, 1000)) == 11);  // the dense benchmark block: 11.01
+  CHECK(slicer::automaticBandLayers(part(11000, 4600)) == 1);  // 5.06e7: below one, at least 1
+  CHECK(slicer::automaticBandLayers(part(672, 512)) == 64);    // 344064 = 21 Mi / 64: exactly 64
+  CHECK(slicer::automaticBandLayers(part(673, 512)) == 63);    // one column more: 63.9
 }
 
 TEST_CASE("streamJob writes every band's material; the bytes do not depend on the band size") {
