@@ -156,6 +156,9 @@ struct Result {
   std::vector<Iteration> history;
   int iterations = 0;
   int evaluations = 0;
+  // L-BFGS-B's line searches that LBFGS++'s More-Thuente gave up on and that took their lowest
+  // trial with sufficient decrease instead (optimize/README.md: a bug of the Debian LBFGS++ 0.1.0)
+  int lineSearchFallbacks = 0;
   std::string stopReason;   // "converged", "objective below tolerance", "iteration limit", "line search: ..."
   double seconds = 0.0;
 };
