@@ -143,7 +143,7 @@ struct TrialRecorder {
 
 // LBFGS++'s More-Thuente line search, then the iteration's report. Debian's LBFGS++ 0.1.0 tests
 // its case 2 (the trial lower and still descending: extrapolate) with gt * (fI_lo - step) where
-// More and Thuente (and LBFGS++ from 0.2.0) have gt * (I_lo - step): once a step past the minimum
+// More and Thuente (and later LBFGS++ versions) have gt * (I_lo - step): once a step past the minimum
 // has become the interval's low end, a trial below it that still descends is taken as case 2 and
 // extrapolated backwards, to a negative step ("smaller than the minimum value allowed"). On the
 // follower box this stopped L-BFGS-B after 5 iterations with an exact gradient and g smooth along
