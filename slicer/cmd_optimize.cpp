@@ -1,7 +1,6 @@
 // rodfab optimize: the modulus field E(u) of every rod that trains a design into the target shapes
 // of its load cases (optimize/), written as the same design with the optimized moduli. The command
 // line is slicer/optimize_options.hpp; what it prints is slicer/optimize_summary.hpp.
-#include "calibration/calibration.hpp"
 #include "common/interrupt.hpp"
 #include "optimize/optimize.hpp"
 #include "slicer/command.hpp"
@@ -27,22 +26,6 @@ struct Outcome {
   std::vector<optimize::ShapeColumns> shapes;
   std::vector<optimize::CaseAccuracy> accuracy;
 };
-
-std::optional<optimize::Settings> settingsOrReport(const OptimizeCommand& c, const mechanics::Design& design) {
-  std::optional<calibration::Calibration> cal;
-  try {
-    cal = calibration::readCalibration(c.calibration);
-  } catch (const std::exception& e) {
-    std::cerr << "rodfab optimize: calibration " << c.calibration << ": " << e.what() << "\nnothing was written\n";
-    return std::nullopt;
-  }
-  const optimize::Settings settings = optimizeSettings(c, design, *cal);
-  if (settings.lowerMpa < cal->floorMpa() || settings.upperMpa > cal->maxModulusMpa())
-    std::cerr << "rodfab optimize: warning: optimize.bounds_mpa [" << settings.lowerMpa << ", " << settings.upperMpa
-              << "] reaches beyond what " << c.calibration << " can print [" << cal->floorMpa() << ", " << cal->maxModulusMpa()
-              << "]: slicing will clamp those moduli\n";
-  return settings;
-}
 
 // Sets up and runs the optimization, the shapes and the accuracy estimate; kOk, or kFailed after
 // saying why.
@@ -112,7 +95,7 @@ int runOptimize(const std::vector<std::string>& args) {
   if (!read) return kFailed;
   const mechanics::Design& design = *read;
   if (!optimizeOutputsAllowed(c, design)) return kFailed;
-  const std::optional<optimize::Settings> settings = settingsOrReport(c, design);
+  const std::optional<optimize::Settings> settings = optimizeSettingsOrReport(c, design);
   if (!settings) return kFailed;
   Outcome o;
   if (runOptimization(c, design, *settings, o) != kOk || writeOutputs(c, design, o) != kOk) return kFailed;

@@ -5,6 +5,7 @@
 #include "slicer/options.hpp"
 
 #include <filesystem>
+#include <iostream>
 
 namespace rodfab::cli {
 
@@ -95,6 +96,22 @@ optimize::Settings optimizeSettings(const OptimizeCommand& c, const mechanics::D
   s.scaling = c.scaling;
   if (c.method) s.method = *c.method;
   return s;
+}
+
+std::optional<optimize::Settings> optimizeSettingsOrReport(const OptimizeCommand& c, const mechanics::Design& design) {
+  std::optional<calibration::Calibration> cal;
+  try {
+    cal = calibration::readCalibration(c.calibration);
+  } catch (const std::exception& e) {
+    std::cerr << "rodfab optimize: calibration " << c.calibration << ": " << e.what() << "\nnothing was written\n";
+    return std::nullopt;
+  }
+  const optimize::Settings settings = optimizeSettings(c, design, *cal);
+  if (settings.lowerMpa < cal->floorMpa() || settings.upperMpa > cal->maxModulusMpa())
+    std::cerr << "rodfab optimize: warning: optimize.bounds_mpa [" << settings.lowerMpa << ", " << settings.upperMpa
+              << "] reaches beyond what " << c.calibration << " can print [" << cal->floorMpa() << ", " << cal->maxModulusMpa()
+              << "]: slicing will clamp those moduli\n";
+  return settings;
 }
 
 bool optimizeOutputsAllowed(const OptimizeCommand& c, const mechanics::Design& design) {

@@ -35,6 +35,11 @@ std::variant<OptimizeCommand, int> parseOptimize(const std::vector<std::string>&
 // command line, in rising precedence.
 optimize::Settings optimizeSettings(const OptimizeCommand& c, const mechanics::Design& design, const calibration::Calibration& cal);
 
+// optimizeSettings with the calibration read from c.calibration; nullopt after printing why it
+// cannot be read and "nothing was written". Warns on stderr when the design's optimize.bounds_mpa
+// reach beyond what the calibration can print (slicing would clamp those moduli).
+std::optional<optimize::Settings> optimizeSettingsOrReport(const OptimizeCommand& c, const mechanics::Design& design);
+
 // True when every output may be written (outputAllowed): never the design, its target designs, the
 // calibration or another output; an existing file only when rodfab wrote it (a design, or a plot or
 // render of optimize); false after printing why and "nothing was written".
