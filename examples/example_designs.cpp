@@ -317,16 +317,17 @@ mechanics::MechanicsSpec unfoldingBoxTraining(double force) {
   const Vec3 base(kPitch, kPitch, 0);
   for (const Vec3& corner : {Vec3(0, 0, 0), Vec3(kSide, 0, 0), Vec3(kSide, kSide, 0), Vec3(0, kSide, 0)})
     spec.supports.push_back(support(base + corner, spec.supports.size(), mechanics::SupportKind::Clamped));
-  // The outer edge of each outer square, by its middle and outward normal (in the plane).
-  const std::pair<Vec3, Vec3> outerEdges[] = {
-      {Vec3(kPitch + 0.5 * kSide, 0, 0), Vec3(0, -1, 0)},                   // square 10
-      {Vec3(0, kPitch + 0.5 * kSide, 0), Vec3(-1, 0, 0)},                   // square 01
-      {Vec3(2 * kPitch + kSide, kPitch + 0.5 * kSide, 0), Vec3(1, 0, 0)},   // square 21
-      {Vec3(kPitch + 0.5 * kSide, 3 * kPitch + kSide, 0), Vec3(0, 1, 0)}};  // square 13 (the lid)
-  for (const auto& [middle, outward] : outerEdges) {
+  // The middle of each outer square's outer edge.
+  const Vec3 outerEdges[] = {Vec3(kPitch + 0.5 * kSide, 0, 0),                   // square 10
+                             Vec3(0, kPitch + 0.5 * kSide, 0),                   // square 01
+                             Vec3(2 * kPitch + kSide, kPitch + 0.5 * kSide, 0),  // square 21
+                             Vec3(kPitch + 0.5 * kSide, 3 * kPitch + kSide, 0)};  // square 13 (the lid)
+  for (const Vec3& middle : outerEdges) {
     mechanics::PointLoad load;
     load.at = placeAt(middle, "mechanics.loads[" + std::to_string(spec.loads.size()) + "].at");
-    load.force = force * (Vec3(0, 0, 1) - outward).normalized();
+    // Normal to the square (and so perpendicular to its outer edge), turning with it as it folds.
+    load.force = force * Vec3(0, 0, 1);
+    load.follower = true;
     spec.loads.push_back(load);
   }
   return spec;

@@ -73,8 +73,10 @@ geometry::RodStructure armCast();
 // optimization). Attach one with `design.mechanics = ...Training(...)`.
 
 // The box net folded up by forces on the outer edges of its four outer squares, perpendicular to
-// those edges (inwards and upwards at 45 degrees, `force` N each at the edge's middle), the middle
-// square clamped at its corners. The hinges end on the squares' edges: T-joints.
+// those edges as in the published training (`force` N each at the edge's middle, normal to the
+// square): follower loads, turning with the edge's cross-section as the square folds, so each
+// keeps bending its hinges the same way (a dead load past 90 degrees would open them again). The
+// middle square is clamped at its corners. The hinges end on the squares' edges: T-joints.
 mechanics::MechanicsSpec unfoldingBoxTraining(double force = 0.03);
 
 // The spring compressed by `compression` (a fraction of its height) through prescribed

@@ -303,4 +303,16 @@ Eigen::VectorXd startingModulus(const DesignProblem& problem, const Start& start
   return Eigen::VectorXd::Constant(static_cast<Eigen::Index>(problem.variableCount()), value);
 }
 
+mechanics::Design optimizedDesign(const DesignProblem& problem, const Eigen::VectorXd& modulus, const mechanics::Design& design,
+                                  const std::filesystem::path& designFile, const std::filesystem::path& outputFile) {
+  namespace fs = std::filesystem;
+  mechanics::Design out = problem.designWith(modulus);
+  const fs::path from = fs::absolute(designFile).parent_path(), to = fs::absolute(outputFile).parent_path();
+  for (mechanics::LoadCase& lc : out.mechanics.loadCases)
+    if (!lc.targetDesign.empty()) lc.targetDesign = fs::path(lc.targetDesign).is_absolute() ? lc.targetDesign
+                                                     : (from / lc.targetDesign).lexically_normal().lexically_relative(to).string();
+  out.optimize = design.optimize;
+  return out;
+}
+
 }  // namespace rodfab::optimize

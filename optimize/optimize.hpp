@@ -129,6 +129,12 @@ private:
   std::unique_ptr<Impl> impl_;
 };
 
+// The optimized design as written to `outputFile`: problem.designWith(modulus) with `design`'s
+// optimize block, each {"design": PATH} target (relative to `designFile`'s folder) rewritten
+// relative to `outputFile`'s folder; absolute paths are kept. `design` is the one `problem` was made from.
+mechanics::Design optimizedDesign(const DesignProblem& problem, const Eigen::VectorXd& modulus, const mechanics::Design& design,
+                                  const std::filesystem::path& designFile, const std::filesystem::path& outputFile);
+
 // Where an optimization starts: the design's own E(u) (DesignProblem::startingModulus), or one
 // modulus everywhere ("uniform material", as the published optimizations start).
 struct Start {
@@ -156,6 +162,9 @@ struct Result {
   std::vector<Iteration> history;
   int iterations = 0;
   int evaluations = 0;
+  // L-BFGS-B's line searches that LBFGS++'s More-Thuente gave up on and that took their lowest
+  // trial with sufficient decrease instead (optimize/README.md: a bug of the Debian LBFGS++ 0.1.0)
+  int lineSearchFallbacks = 0;
   std::string stopReason;   // "converged", "objective below tolerance", "iteration limit", "line search: ..."
   double seconds = 0.0;
 };
@@ -197,6 +206,15 @@ std::vector<DrawnRod> drawnTarget(const std::vector<mechanics::TargetRod>& targe
 // std::out_of_range for a bad case, std::invalid_argument for a wrong size.
 std::vector<DrawnRod> drawnDeformed(const DesignProblem& problem, std::size_t c, const Eigen::VectorXd& modulus,
                                     int samplesPerRod = 16);
+// The render's columns of every load case of `design` (the design `problem` was made from) that has
+// a target, in case order: the target and the deformed shape in `problem`'s current state with the
+// control values `start`, `optimized` left empty. Call it while the last evaluate() was at `start`
+// (the optimizer's first report). Throws as drawnDeformed.
+std::vector<ShapeColumns> startingShapes(const mechanics::Design& design, const DesignProblem& problem, const Eigen::VectorXd& start);
+// Fills the `optimized` column of startingShapes' `shapes` from `problem`'s current state with the
+// control values `modulus` (after optimize(), whose last evaluation is its best point).
+void addOptimizedShapes(const mechanics::Design& design, const DesignProblem& problem, const Eigen::VectorXd& modulus,
+                        std::vector<ShapeColumns>& shapes);
 // The render: per case (at most the first 4) a row per orthographic view (front: x right, z up;
 // side: y right, z up; top: x right, y up) of three 300-pixel panels (target in blue; start and
 // optimized coloured by E on viridis between `lowerMpa` and `upperMpa`, over the target in pale

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <exception>
 #include <limits>
+#include <stdexcept>
 
 namespace rodfab::optimize {
 
@@ -71,6 +72,8 @@ public:
   }
 
   bool lastWasBest() const { return lastWasBest_; }
+  // A line search that LBFGS++ gave up on and that ended at its lowest trial instead.
+  void recordFallback() { ++result_.lineSearchFallbacks; }
 
 private:
   double evaluate(const Eigen::VectorXd& t, Eigen::VectorXd& grad) {
@@ -124,7 +127,29 @@ private:
   bool lastWasBest_ = true;
 };
 
-// LBFGS++'s More-Thuente line search, then the iteration's report.
+// The objective as a line search sees it, keeping the trial with the lowest f.
+template <class Objective>
+struct TrialRecorder {
+  explicit TrialRecorder(Objective& objective) : f(objective) {}
+  Objective& f;
+  double bestF = std::numeric_limits<double>::infinity();
+  Eigen::VectorXd bestX, bestGrad;
+  double operator()(const Eigen::VectorXd& x, Eigen::VectorXd& grad) {
+    const double value = f(x, grad);
+    if (value < bestF) bestF = value, bestX = x, bestGrad = grad;
+    return value;
+  }
+};
+
+// LBFGS++'s More-Thuente line search, then the iteration's report. Debian's LBFGS++ 0.1.0 tests
+// its case 2 (the trial lower and still descending: extrapolate) with gt * (fI_lo - step) where
+// More and Thuente (and later LBFGS++ versions) have gt * (I_lo - step): once a step past the minimum
+// has become the interval's low end, a trial below it that still descends is taken as case 2 and
+// extrapolated backwards, to a negative step ("smaller than the minimum value allowed"). On the
+// follower box this stopped L-BFGS-B after 5 iterations with an exact gradient and g smooth along
+// the search direction (optimize/README.md). When the search throws, the lowest trial is accepted
+// if it decreases f sufficiently (Armijo, ftol), as a backtracking search would; L-BFGS-B skips
+// the curvature pair when s'y <= 0, so a step without the curvature condition is safe.
 template <class Scalar>
 class ReportingLineSearch {
 public:
@@ -132,7 +157,16 @@ public:
   static void LineSearch(Objective& f, Scalar& fx, Eigen::VectorXd& x, Eigen::VectorXd& grad, Scalar& step,
                          const Scalar& stepMax, const Eigen::VectorXd& drt, const Eigen::VectorXd& xp,
                          const LBFGSpp::LBFGSBParam<Scalar>& param) {
-    LBFGSpp::LineSearchMoreThuente<Scalar>::LineSearch(f, fx, x, grad, step, stepMax, drt, xp, param);
+    const Scalar fInit = fx, slope = grad.dot(drt);
+    TrialRecorder<Objective> trials(f);
+    try {
+      LBFGSpp::LineSearchMoreThuente<Scalar>::LineSearch(trials, fx, x, grad, step, stepMax, drt, xp, param);
+    } catch (const std::runtime_error&) {
+      const Scalar bestStep = trials.bestX.size() ? (trials.bestX - xp).dot(drt) / drt.squaredNorm() : Scalar(0);
+      if (!(bestStep > 0 && trials.bestF <= fInit + param.ftol * bestStep * slope)) throw;
+      x = trials.bestX, fx = trials.bestF, grad = trials.bestGrad, step = bestStep;
+      f.recordFallback();
+    }
     f.iterationDone(x, fx, grad);
   }
 };

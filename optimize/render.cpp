@@ -210,4 +210,20 @@ void writeShapeRender(const std::vector<ShapeColumns>& cases, double lowerMpa, d
   common::writeFileAtomically(png, bytes);
 }
 
+std::vector<ShapeColumns> startingShapes(const mechanics::Design& design, const DesignProblem& problem, const Eigen::VectorXd& start) {
+  std::vector<ShapeColumns> shapes;
+  for (std::size_t i = 0; i < problem.caseCount(); ++i) {
+    const mechanics::LoadCase& lc = design.mechanics.loadCases.at(i);
+    if (!lc.target.empty()) shapes.push_back({lc.name, drawnTarget(lc.target), drawnDeformed(problem, i, start), {}});
+  }
+  return shapes;
+}
+
+void addOptimizedShapes(const mechanics::Design& design, const DesignProblem& problem, const Eigen::VectorXd& modulus,
+                        std::vector<ShapeColumns>& shapes) {
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < problem.caseCount(); ++i)
+    if (!design.mechanics.loadCases.at(i).target.empty()) shapes.at(k++).optimized = drawnDeformed(problem, i, modulus);
+}
+
 }  // namespace rodfab::optimize
