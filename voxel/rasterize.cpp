@@ -346,33 +346,61 @@ private:
       word |= bit;
       return 1;
     }
-    if (!clearOverlap(n, encodedDepth, errorBound, value, rod, piece))
-      resolveOverlap(n, {decodedDepth(encodedDepth, errorBound, rod), errorBound, value, rod, piece}, encodedDepth, i, j, k);
+    const bool round = deferredDepth_[static_cast<std::size_t>(rod)];
+    if (clearOverlap(n, round ? encodedDepth : (1.0 - encodedDepth) * (1.0 - encodedDepth), encodedDepth, errorBound, value, rod, piece))
+      return 0;
+    const Candidate c{decodedDepth(encodedDepth, errorBound, rod), errorBound, value, rod, piece};
+    if (!overlapWithoutExactTest(n, c, encodedDepth)) resolveOverlap(n, c, encodedDepth, i, j, k);
     return 0;
   }
-  // The overlap rule's outcome without square roots, where it is clear: candidate and slot both
-  // approximate candidates of round-section rods (encoded depths g^2 < 1, gauges squared) whose depths are
-  // far from a tie. With both gauges below 1, |sqrt(a) - sqrt(b)| >= |a - b| / 2, so a difference of
-  // squares above 2 (bounds + tie tolerance), plus 1e-12 for the round-off of the depths, means
-  // resolveOverlap finds no near tie and lets the deeper one (the smaller g^2) win: the same outcome.
-  // Returns false where resolveOverlap must decide.
-  bool clearOverlap(int n, double encodedDepth, float errorBound, float value, int rod, int piece) {
+  // The overlap rule's outcome without square roots, where it is clear. Both sides are ranked by their
+  // gauge squared, g^2 = (1 - depth)^2 with g in [0, 1]: an approximate round-section slot stores it
+  // (encoded depth), an exact or cap slot with a depth in [0, 1] gives it as (1 - depth)^2, and the
+  // caller passes the candidate's (`gaugeSquared`, in [0, 1]). With both gauges in [0, 1],
+  // |sqrt(a) - sqrt(b)| >= |a - b| / 2, so a difference of squares above 2 (bounds + tie tolerance),
+  // plus 1e-12 for the round-off of the depths and squares (below 1e-15), means resolveOverlap finds no
+  // near tie and lets the deeper one (the smaller g^2) win: the same outcome, with the same stores.
+  // Returns false where resolveOverlap must decide (or the slot's gauge is not at hand: an approximate
+  // rectangle, an exact depth outside [0, 1]).
+  bool clearOverlap(int n, double gaugeSquared, double encodedDepth, float errorBound, float value, int rod, int piece) {
     const std::uint64_t slotOwner = owner_[static_cast<std::size_t>(n)];
     const int slotRod = static_cast<int>(slotOwner >> 32);
     const float slotBound = errorBound_[static_cast<std::size_t>(n)];
-    if (!(errorBound > 0.0f && slotBound > 0.0f && deferredDepth_[static_cast<std::size_t>(rod)] &&
-          deferredDepth_[static_cast<std::size_t>(slotRod)]))
-      return false;
-    const double slotDepth = encodedDepth_[static_cast<std::size_t>(n)];  // encoded: g^2
+    const double slotEncoded = encodedDepth_[static_cast<std::size_t>(n)];
+    double slotGaugeSquared;
+    if (slotBound > 0.0f) {
+      if (!deferredDepth_[static_cast<std::size_t>(slotRod)]) return false;
+      slotGaugeSquared = slotEncoded;
+    } else {
+      if (!(slotEncoded >= 0.0 && slotEncoded <= 1.0)) return false;
+      slotGaugeSquared = (1.0 - slotEncoded) * (1.0 - slotEncoded);
+    }
     const double clear = 2.0 * (double(slotBound) + double(errorBound) + kTieTolerance) + 1e-12;
-    if (encodedDepth - slotDepth > clear) return true;  // the candidate is clearly shallower: the slot stays
-    if (slotDepth - encodedDepth > clear) {              // clearly deeper: it takes the slot
+    if (gaugeSquared - slotGaugeSquared > clear) return true;  // the candidate is clearly shallower: the slot stays
+    if (slotGaugeSquared - gaugeSquared > clear) {              // clearly deeper: it takes the slot
       store(n, encodedDepth, errorBound, value, owner(rod, piece));
       --voxelsPerRod[static_cast<std::size_t>(slotRod)];
       ++voxelsPerRod[static_cast<std::size_t>(rod)];
       return true;
     }
     return false;
+  }
+  // A round cap's candidate inside it for sure, gauge g < 1 (depth 1 - g, exact up to round-off within
+  // the tie tolerance). At a node nearly all of a cap lies inside the rods around it, whose deeper
+  // candidates already hold most of its slots: clearOverlap settles those without a square root.
+  void addCapCandidate(int n, double g, float value, int rod, int piece, int i, int j, int k) {
+    std::uint64_t& word = filled_[static_cast<std::size_t>(n >> 6)];
+    const std::uint64_t bit = std::uint64_t(1) << (n & 63);
+    const double depth = 1.0 - g;
+    if (!(word & bit)) {
+      store(n, depth, 0.0f, value, owner(rod, piece));
+      word |= bit;
+      ++voxelsPerRod[static_cast<std::size_t>(rod)];
+      return;
+    }
+    if (clearOverlap(n, g * g, depth, 0.0f, value, rod, piece)) return;
+    const Candidate c{depth, 0.0f, value, rod, piece};
+    if (!overlapWithoutExactTest(n, c, depth)) resolveOverlap(n, c, depth, i, j, k);
   }
   // A candidate with its depth at hand (exact, or caps), possibly outside.
   void addCandidate(const Candidate& c, int n, int i, int j, int k) {
@@ -386,7 +414,28 @@ private:
       }
       return;
     }
-    resolveOverlap(n, c, c.depth, i, j, k);
+    if (!overlapWithoutExactTest(n, c, c.depth)) resolveOverlap(n, c, c.depth, i, j, k);
+  }
+
+  // resolveOverlap where it needs no exact test (no near tie involving an approximate depth): the same
+  // expressions in the same order, so the same decision, inline and without a copy of the slot. At
+  // the lattice's nodes this is nearly every overlap of a round cap with the rods around it.
+  // Returns false where resolveOverlap must decide (a near tie).
+  [[gnu::always_inline]] bool overlapWithoutExactTest(int n, const Candidate& c, double cEncodedDepth) {
+    const std::uint64_t slotOwner = owner_[static_cast<std::size_t>(n)];
+    const int sRod = static_cast<int>(slotOwner >> 32);
+    const float sBound = errorBound_[static_cast<std::size_t>(n)];
+    const double sDepth = decodedDepth(encodedDepth_[static_cast<std::size_t>(n)], sBound, sRod);
+    if (std::abs(sDepth - c.depth) <= double(sBound) + double(c.errorBound) + kTieTolerance && (sBound > 0.0f || c.errorBound > 0.0f))
+      return false;
+    const double gain = c.depth - sDepth;
+    const int sPiece = static_cast<int>(slotOwner & 0xffffffffu);
+    if (c.inside() && (gain > kTieTolerance || (gain >= -kTieTolerance && (c.rod < sRod || (c.rod == sRod && c.piece < sPiece))))) {
+      store(n, cEncodedDepth, c.errorBound, c.value, owner(c.rod, c.piece));
+      --voxelsPerRod[static_cast<std::size_t>(sRod)];
+      ++voxelsPerRod[static_cast<std::size_t>(c.rod)];
+    }
+    return true;
   }
 
   // The overlap rule between filled slot n and candidate c (cEncodedDepth: c's depth as the slot would
@@ -598,7 +647,7 @@ private:
           // Inside for sure; the depth's round-off (1e-9 of the radius at most) is within the tie
           // tolerance, so it counts as exact.
           if (g < 1.0 - kCapRoundOff)
-            addCandidate({1.0 - g, 0.0f, endModulus, rod, pieceIndex}, offset(i, j, k), i, j, k);
+            addCapCandidate(offset(i, j, k), g, endModulus, rod, pieceIndex, i, j, k);
           else
             addCandidate(exact(rod, pieceIndex, i, j, k), offset(i, j, k), i, j, k);
         }
