@@ -13,6 +13,8 @@
 #include <tbb/parallel_sort.h>
 #include <tbb/task_arena.h>
 
+#include <emmintrin.h>
+
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -248,37 +250,39 @@ public:
     filled_.fill(0);
     memoRod_ = -1;
   }
-  // Writes the block's filled slots into leaves; leaf(l) creates the block's l-th leaf along x.
-  // Slots are row by row (see offset) and leaves column by column, so a leaf's value mask is the
-  // transpose of `filled_`: word x of leaf l holds bit (y, z) for column i = 8 l + x, where filled_
-  // holds bit i of row (y, z).
+  // Writes the block's filled slots into leaves; leaf(l) creates the block's l-th leaf along x (its
+  // values 0). Slots are row by row (see offset) and leaves column by column, so a leaf's value mask
+  // is the transpose of `filled_`: word x of leaf l holds bit r = (y, z) for column i = 8 l + x, where
+  // filled_ holds bit i of row r. Per leaf, each row's byte of `filled_` writes its eight values at
+  // once (the slot's value where the bit is set, else the leaf's 0: the slots of an empty voxel hold
+  // some earlier block's value, never an indeterminate one, see value_), and the mask words come
+  // from the 64 row bytes by movemask, eight bits a row at a time.
   template <typename MakeLeaf>
   void emit(MakeLeaf&& leaf) const {
     std::uint64_t anyRow = 0;
     for (std::uint64_t w : filled_) anyRow |= w;
-    if (anyRow == 0) return;
-    std::array<std::uint64_t, kBlockX> columns{};  // bit r of column i: slot (r << 6) | i filled
-    std::array<LeafT*, kBlockLeaves> nodes{};
-    std::array<float*, kBlockLeaves> values{};
-    for (int l = 0; l < kBlockLeaves; ++l)
-      if ((anyRow >> (l * kLeafDim)) & 0xffu) {
-        nodes[static_cast<std::size_t>(l)] = &leaf(l);
-        values[static_cast<std::size_t>(l)] = nodes[static_cast<std::size_t>(l)]->buffer().data();
-      }
-    for (int r = 0; r < kRows; ++r) {
-      const std::uint64_t row = filled_[static_cast<std::size_t>(r)];
-      const float* slots = &value_[static_cast<std::size_t>(r << kBlockXLog2)];
-      for (std::uint64_t bits = row; bits != 0; bits &= bits - 1) {
-        const int i = std::countr_zero(bits);
-        columns[static_cast<std::size_t>(i)] |= std::uint64_t(1) << r;
-        values[static_cast<std::size_t>(i >> kLeafLog2)][((i & (kLeafDim - 1)) << (2 * kLeafLog2)) | r] = slots[i];
-      }
-    }
     for (int l = 0; l < kBlockLeaves; ++l) {
-      if (!nodes[static_cast<std::size_t>(l)]) continue;
-      for (int x = 0; x < kLeafDim; ++x)
-        nodes[static_cast<std::size_t>(l)]->getValueMask().template getWord<std::uint64_t>(openvdb::Index(x)) =
-            columns[static_cast<std::size_t>(l * kLeafDim + x)];
+      if (((anyRow >> (l * kLeafDim)) & 0xffu) == 0) continue;
+      LeafT& node = leaf(l);
+      float* values = node.buffer().data();
+      alignas(16) std::array<std::uint8_t, kRows> bytes;
+      for (int r = 0; r < kRows; ++r) {
+        const unsigned byte = static_cast<unsigned>(filled_[static_cast<std::size_t>(r)] >> (l * kLeafDim)) & 0xffu;
+        bytes[static_cast<std::size_t>(r)] = static_cast<std::uint8_t>(byte);
+        if (byte == 0) continue;
+        const float* slots = &value_[static_cast<std::size_t>((r << kBlockXLog2) | (l * kLeafDim))];
+        for (int x = 0; x < kLeafDim; ++x) values[(x << (2 * kLeafLog2)) | r] = (byte >> x) & 1u ? slots[x] : 0.0f;
+      }
+      for (int x = 0; x < kLeafDim; ++x) {
+        // Bit x of every row byte to its top bit (a 64-bit shift moves no bit across a byte's top).
+        const __m128i shift = _mm_cvtsi32_si128(kLeafDim - 1 - x);
+        std::uint64_t column = 0;
+        for (int q = 0; q < kRows / 16; ++q) {
+          const __m128i v = _mm_load_si128(reinterpret_cast<const __m128i*>(&bytes[static_cast<std::size_t>(16 * q)]));
+          column |= std::uint64_t(static_cast<std::uint16_t>(_mm_movemask_epi8(_mm_sll_epi64(v, shift)))) << (16 * q);
+        }
+        node.getValueMask().template getWord<std::uint64_t>(openvdb::Index(x)) = column;
+      }
     }
   }
 
@@ -694,10 +698,12 @@ private:
   static constexpr int kRows = kLeafDim * kLeafDim;
   static constexpr int kWords = kBlockVoxels / 64;
   static_assert(kWords == kRows && kBlockX == 64, "a word of filled_ per row (y, z) of the block: bit x");
-  // The slots, field by field (24 bytes a voxel), read only where `filled_` says they were written:
-  // left uninitialized, so that setting up a builder does not touch their 96 KiB.
+  // The slots, field by field (24 bytes a voxel), read only where `filled_` says they were written
+  // (but for emit's reads of value_): left uninitialized, so that setting up a builder does not touch
+  // their 80 KiB.
   std::array<double, kBlockVoxels> encodedDepth_;
-  std::array<float, kBlockVoxels> errorBound_, value_;
+  std::array<float, kBlockVoxels> errorBound_;
+  std::array<float, kBlockVoxels> value_{};  // zeroed once: emit reads the slots of a row's empty voxels too
   std::array<std::uint64_t, kBlockVoxels> owner_;
   std::array<std::uint64_t, kWords> filled_{};
   std::array<std::uint64_t, kWords> memo_{};  // voxels of the block exactly tested for rod memoRod_
@@ -803,7 +809,7 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
   std::vector<std::array<std::unique_ptr<LeafT>, kBlockLeaves>> leaves(groups);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, groups), [&](const tbb::blocked_range<std::size_t>& range) {
     ThreadState& state = states.local();
-    if (!state.builder) state.builder.reset(new LeafBuilder(*structure_, rods_, grid_, options_.wasInterrupted));  // default-initialized slots
+    if (!state.builder) state.builder.reset(new LeafBuilder(*structure_, rods_, grid_, options_.wasInterrupted));  // slots mostly uninitialized
     LeafBuilder& builder = *state.builder;
     for (std::size_t g = range.begin(); g != range.end(); ++g) {
       checkInterrupt();
