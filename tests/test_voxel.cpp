@@ -416,6 +416,42 @@ TEST_CASE("The fast path decides every voxel exactly as Rod::classify", "[voxel]
       REQUIRE(ras.voxelsPerRod.size() == 54);
     }
   }
+  SECTION("many rods ending at one node: round caps inside the rods around them, coinciding caps, an elliptic and a flat end") {
+    // Twelve rods start or end at the node: collinear pairs of equal radius along x, y and z (each cap
+    // lies inside the continuing rod), diagonals of other radii, an ellipse whose end plane reaches beyond its
+    // round cap, a flat-capped rod. Each rod has its own E, so matching E is matching the owner.
+    const Vec3 node(0.013, -0.021, 0.017);
+    std::vector<Rod> rods;
+    double e = 10.0;
+    const auto add = [&](const Vec3& from, const Vec3& to, Section section, CapStyle caps) {
+      rods.emplace_back("r", line(from, to), section, std::nullopt, std::nullopt, caps, BSplineField::constant(e, 0, 1));
+      e += 10.0;
+    };
+    for (int axis = 0; axis < 3; ++axis) {
+      const Vec3 d = 0.9 * Vec3::Unit(axis);
+      add(node - d, node, Section::circle(0.5), CapStyle::Round);  // ends at the node
+      add(node, node + d, Section::circle(0.5), CapStyle::Round);  // begins there
+    }
+    add(node, node + Vec3(0.6, 0.6, 0.6), Section::circle(0.44), CapStyle::Round);
+    add(node + Vec3(-0.6, 0.6, -0.5), node, Section::circle(0.36), CapStyle::Round);
+    add(node, node + Vec3(0.7, -0.5, 0.2), Section::ellipse(0.56, 0.3), CapStyle::Round);
+    add(node + Vec3(-0.3, -0.7, 0.6), node, Section::circle(0.5), CapStyle::Round);  // the same cap as the axis rods
+    add(node, node + Vec3(-0.5, -0.4, -0.6), Section::circle(0.3), CapStyle::Flat);
+    add(node + Vec3(0.8, 0.1, -0.4), node + Vec3(0.05, 0.0, 0.02), Section::circle(0.4), CapStyle::Round);  // ends near it
+    const RodStructure s = design(std::move(rods));
+    const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
+    const voxel::Rasterization ras = voxel::rasterize(s, g);
+    REQUIRE(requireMatchesExactTest(s, g, ras) > 100000);
+    std::uint64_t won = 0;
+    for (std::uint64_t v : ras.voxelsPerRod) won += v;
+    REQUIRE(won == ras.grid->activeVoxelCount());
+    // Every rod owns part of the joint or of its own length, and two threads agree to the bit.
+    for (std::uint64_t v : ras.voxelsPerRod) REQUIRE(v > 0);
+    const voxel::Rasterization two = voxel::rasterize(s, g, {2});
+    REQUIRE(two.voxelsPerRod == ras.voxelsPerRod);
+    const auto acc = two.grid->getConstAccessor();
+    for (auto it = ras.grid->cbeginValueOn(); it; ++it) REQUIRE(acc.getValue(it.getCoord()) == *it);
+  }
   SECTION("the bundled buckling spring (every 5th layer)") {
     const RodStructure s = examples::bucklingSpring();
     const PrinterGrid g = voxel::makePrinterGrid(s, {0.2, 0.2, 0.2});

@@ -13,6 +13,8 @@
 #include <tbb/parallel_sort.h>
 #include <tbb/task_arena.h>
 
+#include <emmintrin.h>
+
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -248,37 +250,39 @@ public:
     filled_.fill(0);
     memoRod_ = -1;
   }
-  // Writes the block's filled slots into leaves; leaf(l) creates the block's l-th leaf along x.
-  // Slots are row by row (see offset) and leaves column by column, so a leaf's value mask is the
-  // transpose of `filled_`: word x of leaf l holds bit (y, z) for column i = 8 l + x, where filled_
-  // holds bit i of row (y, z).
+  // Writes the block's filled slots into leaves; leaf(l) creates the block's l-th leaf along x (its
+  // values 0). Slots are row by row (see offset) and leaves column by column, so a leaf's value mask
+  // is the transpose of `filled_`: word x of leaf l holds bit r = (y, z) for column i = 8 l + x, where
+  // filled_ holds bit i of row r. Per leaf, each row's byte of `filled_` writes its eight values at
+  // once (the slot's value where the bit is set, else the leaf's 0: the slots of an empty voxel hold
+  // some earlier block's value, never an indeterminate one, see value_), and the mask words come
+  // from the 64 row bytes by movemask, eight bits a row at a time.
   template <typename MakeLeaf>
   void emit(MakeLeaf&& leaf) const {
     std::uint64_t anyRow = 0;
     for (std::uint64_t w : filled_) anyRow |= w;
-    if (anyRow == 0) return;
-    std::array<std::uint64_t, kBlockX> columns{};  // bit r of column i: slot (r << 6) | i filled
-    std::array<LeafT*, kBlockLeaves> nodes{};
-    std::array<float*, kBlockLeaves> values{};
-    for (int l = 0; l < kBlockLeaves; ++l)
-      if ((anyRow >> (l * kLeafDim)) & 0xffu) {
-        nodes[static_cast<std::size_t>(l)] = &leaf(l);
-        values[static_cast<std::size_t>(l)] = nodes[static_cast<std::size_t>(l)]->buffer().data();
-      }
-    for (int r = 0; r < kRows; ++r) {
-      const std::uint64_t row = filled_[static_cast<std::size_t>(r)];
-      const float* slots = &value_[static_cast<std::size_t>(r << kBlockXLog2)];
-      for (std::uint64_t bits = row; bits != 0; bits &= bits - 1) {
-        const int i = std::countr_zero(bits);
-        columns[static_cast<std::size_t>(i)] |= std::uint64_t(1) << r;
-        values[static_cast<std::size_t>(i >> kLeafLog2)][((i & (kLeafDim - 1)) << (2 * kLeafLog2)) | r] = slots[i];
-      }
-    }
     for (int l = 0; l < kBlockLeaves; ++l) {
-      if (!nodes[static_cast<std::size_t>(l)]) continue;
-      for (int x = 0; x < kLeafDim; ++x)
-        nodes[static_cast<std::size_t>(l)]->getValueMask().template getWord<std::uint64_t>(openvdb::Index(x)) =
-            columns[static_cast<std::size_t>(l * kLeafDim + x)];
+      if (((anyRow >> (l * kLeafDim)) & 0xffu) == 0) continue;
+      LeafT& node = leaf(l);
+      float* values = node.buffer().data();
+      alignas(16) std::array<std::uint8_t, kRows> bytes;
+      for (int r = 0; r < kRows; ++r) {
+        const unsigned byte = static_cast<unsigned>(filled_[static_cast<std::size_t>(r)] >> (l * kLeafDim)) & 0xffu;
+        bytes[static_cast<std::size_t>(r)] = static_cast<std::uint8_t>(byte);
+        if (byte == 0) continue;
+        const float* slots = &value_[static_cast<std::size_t>((r << kBlockXLog2) | (l * kLeafDim))];
+        for (int x = 0; x < kLeafDim; ++x) values[(x << (2 * kLeafLog2)) | r] = (byte >> x) & 1u ? slots[x] : 0.0f;
+      }
+      for (int x = 0; x < kLeafDim; ++x) {
+        // Bit x of every row byte to its top bit (a 64-bit shift moves no bit across a byte's top).
+        const __m128i shift = _mm_cvtsi32_si128(kLeafDim - 1 - x);
+        std::uint64_t column = 0;
+        for (int q = 0; q < kRows / 16; ++q) {
+          const __m128i v = _mm_load_si128(reinterpret_cast<const __m128i*>(&bytes[static_cast<std::size_t>(16 * q)]));
+          column |= std::uint64_t(static_cast<std::uint16_t>(_mm_movemask_epi8(_mm_sll_epi64(v, shift)))) << (16 * q);
+        }
+        node.getValueMask().template getWord<std::uint64_t>(openvdb::Index(x)) = column;
+      }
     }
   }
 
@@ -346,33 +350,61 @@ private:
       word |= bit;
       return 1;
     }
-    if (!clearOverlap(n, encodedDepth, errorBound, value, rod, piece))
-      resolveOverlap(n, {decodedDepth(encodedDepth, errorBound, rod), errorBound, value, rod, piece}, encodedDepth, i, j, k);
+    const bool round = deferredDepth_[static_cast<std::size_t>(rod)];
+    if (clearOverlap(n, round ? encodedDepth : (1.0 - encodedDepth) * (1.0 - encodedDepth), encodedDepth, errorBound, value, rod, piece))
+      return 0;
+    const Candidate c{decodedDepth(encodedDepth, errorBound, rod), errorBound, value, rod, piece};
+    if (!overlapWithoutExactTest(n, c, encodedDepth)) resolveOverlap(n, c, encodedDepth, i, j, k);
     return 0;
   }
-  // The overlap rule's outcome without square roots, where it is clear: candidate and slot both
-  // approximate candidates of round-section rods (encoded depths g^2 < 1, gauges squared) whose depths are
-  // far from a tie. With both gauges below 1, |sqrt(a) - sqrt(b)| >= |a - b| / 2, so a difference of
-  // squares above 2 (bounds + tie tolerance), plus 1e-12 for the round-off of the depths, means
-  // resolveOverlap finds no near tie and lets the deeper one (the smaller g^2) win: the same outcome.
-  // Returns false where resolveOverlap must decide.
-  bool clearOverlap(int n, double encodedDepth, float errorBound, float value, int rod, int piece) {
+  // The overlap rule's outcome without square roots, where it is clear. Both sides are ranked by their
+  // gauge squared, g^2 = (1 - depth)^2 with g in [0, 1]: an approximate round-section slot stores it
+  // (encoded depth), an exact or cap slot with a depth in [0, 1] gives it as (1 - depth)^2, and the
+  // caller passes the candidate's (`gaugeSquared`, in [0, 1]). With both gauges in [0, 1],
+  // |sqrt(a) - sqrt(b)| >= |a - b| / 2, so a difference of squares above 2 (bounds + tie tolerance),
+  // plus 1e-12 for the round-off of the depths and squares (below 1e-15), means resolveOverlap finds no
+  // near tie and lets the deeper one (the smaller g^2) win: the same outcome, with the same stores.
+  // Returns false where resolveOverlap must decide (or the slot's gauge is not at hand: an approximate
+  // rectangle, an exact depth outside [0, 1]).
+  bool clearOverlap(int n, double gaugeSquared, double encodedDepth, float errorBound, float value, int rod, int piece) {
     const std::uint64_t slotOwner = owner_[static_cast<std::size_t>(n)];
     const int slotRod = static_cast<int>(slotOwner >> 32);
     const float slotBound = errorBound_[static_cast<std::size_t>(n)];
-    if (!(errorBound > 0.0f && slotBound > 0.0f && deferredDepth_[static_cast<std::size_t>(rod)] &&
-          deferredDepth_[static_cast<std::size_t>(slotRod)]))
-      return false;
-    const double slotDepth = encodedDepth_[static_cast<std::size_t>(n)];  // encoded: g^2
+    const double slotEncoded = encodedDepth_[static_cast<std::size_t>(n)];
+    double slotGaugeSquared;
+    if (slotBound > 0.0f) {
+      if (!deferredDepth_[static_cast<std::size_t>(slotRod)]) return false;
+      slotGaugeSquared = slotEncoded;
+    } else {
+      if (!(slotEncoded >= 0.0 && slotEncoded <= 1.0)) return false;
+      slotGaugeSquared = (1.0 - slotEncoded) * (1.0 - slotEncoded);
+    }
     const double clear = 2.0 * (double(slotBound) + double(errorBound) + kTieTolerance) + 1e-12;
-    if (encodedDepth - slotDepth > clear) return true;  // the candidate is clearly shallower: the slot stays
-    if (slotDepth - encodedDepth > clear) {              // clearly deeper: it takes the slot
+    if (gaugeSquared - slotGaugeSquared > clear) return true;  // the candidate is clearly shallower: the slot stays
+    if (slotGaugeSquared - gaugeSquared > clear) {              // clearly deeper: it takes the slot
       store(n, encodedDepth, errorBound, value, owner(rod, piece));
       --voxelsPerRod[static_cast<std::size_t>(slotRod)];
       ++voxelsPerRod[static_cast<std::size_t>(rod)];
       return true;
     }
     return false;
+  }
+  // A round cap's candidate inside it for sure, gauge g < 1 (depth 1 - g, exact up to round-off within
+  // the tie tolerance). At a node nearly all of a cap lies inside the rods around it, whose deeper
+  // candidates already hold most of its slots: clearOverlap settles those without a square root.
+  void addCapCandidate(int n, double g, float value, int rod, int piece, int i, int j, int k) {
+    std::uint64_t& word = filled_[static_cast<std::size_t>(n >> 6)];
+    const std::uint64_t bit = std::uint64_t(1) << (n & 63);
+    const double depth = 1.0 - g;
+    if (!(word & bit)) {
+      store(n, depth, 0.0f, value, owner(rod, piece));
+      word |= bit;
+      ++voxelsPerRod[static_cast<std::size_t>(rod)];
+      return;
+    }
+    if (clearOverlap(n, g * g, depth, 0.0f, value, rod, piece)) return;
+    const Candidate c{depth, 0.0f, value, rod, piece};
+    if (!overlapWithoutExactTest(n, c, depth)) resolveOverlap(n, c, depth, i, j, k);
   }
   // A candidate with its depth at hand (exact, or caps), possibly outside.
   void addCandidate(const Candidate& c, int n, int i, int j, int k) {
@@ -386,7 +418,28 @@ private:
       }
       return;
     }
-    resolveOverlap(n, c, c.depth, i, j, k);
+    if (!overlapWithoutExactTest(n, c, c.depth)) resolveOverlap(n, c, c.depth, i, j, k);
+  }
+
+  // resolveOverlap where it needs no exact test (no near tie involving an approximate depth): the same
+  // expressions in the same order, so the same decision, inline and without a copy of the slot. At
+  // the lattice's nodes this is nearly every overlap of a round cap with the rods around it.
+  // Returns false where resolveOverlap must decide (a near tie).
+  [[gnu::always_inline]] bool overlapWithoutExactTest(int n, const Candidate& c, double cEncodedDepth) {
+    const std::uint64_t slotOwner = owner_[static_cast<std::size_t>(n)];
+    const int sRod = static_cast<int>(slotOwner >> 32);
+    const float sBound = errorBound_[static_cast<std::size_t>(n)];
+    const double sDepth = decodedDepth(encodedDepth_[static_cast<std::size_t>(n)], sBound, sRod);
+    if (std::abs(sDepth - c.depth) <= double(sBound) + double(c.errorBound) + kTieTolerance && (sBound > 0.0f || c.errorBound > 0.0f))
+      return false;
+    const double gain = c.depth - sDepth;
+    const int sPiece = static_cast<int>(slotOwner & 0xffffffffu);
+    if (c.inside() && (gain > kTieTolerance || (gain >= -kTieTolerance && (c.rod < sRod || (c.rod == sRod && c.piece < sPiece))))) {
+      store(n, cEncodedDepth, c.errorBound, c.value, owner(c.rod, c.piece));
+      --voxelsPerRod[static_cast<std::size_t>(sRod)];
+      ++voxelsPerRod[static_cast<std::size_t>(c.rod)];
+    }
+    return true;
   }
 
   // The overlap rule between filled slot n and candidate c (cEncodedDepth: c's depth as the slot would
@@ -560,6 +613,29 @@ private:
     }
   }
 
+  // The voxels of a cap's row that can do anything: those near the end plane (|a| <= nearPlane, sent
+  // to the exact test) and, for round caps, those of the ball (|wx| <= sqrt(rest), wx = wxRow + gx i,
+  // rest = radius^2 - wy^2 - wz^2 with the radius a little enlarged). Narrows `bounds` to the hull of
+  // the two ranges, as conservatively as the other clips (see Slope); false when both are empty. Outside
+  // them the loop would skip every voxel: the ball clip keeps the rows of an axis-aligned cap to its
+  // half-ball instead of the half-cylinder (2/3 of the voxels) or the half-box (a third).
+  static bool capRow(bool round, double aRow, double nearPlane, const Slope& rising, const Slope& falling, double wxRow,
+                     double rest, const Slope& alongX, const Slope& againstX, RowBounds& bounds) {
+    RowBounds near, ball;
+    const bool anyNear = rising.bound(aRow + nearPlane, near.lo, near.hi) && falling.bound(nearPlane - aRow, near.lo, near.hi);
+    bool anyBall = false;
+    if (round && rest >= 0.0) {
+      const double reach = std::sqrt(rest);
+      anyBall = alongX.bound(wxRow + reach, ball.lo, ball.hi) && againstX.bound(reach - wxRow, ball.lo, ball.hi);
+    }
+    if (!anyNear && !anyBall) return false;
+    const double lo = !anyBall ? near.lo : !anyNear ? ball.lo : std::min(near.lo, ball.lo);
+    const double hi = !anyBall ? near.hi : !anyNear ? ball.hi : std::max(near.hi, ball.hi);
+    bounds.lo = std::max(bounds.lo, lo);
+    bounds.hi = std::min(bounds.hi, hi);
+    return true;
+  }
+
   void cap(int rod, int pieceIndex, const RodPiece& piece, const openvdb::CoordBBox& box) {
     const RodPieces& rp = rods_[rod];
     const geometry::Rod& r = structure_.rods[rod];
@@ -573,17 +649,25 @@ private:
     constexpr double kCapRoundOff = 1e-9;  // round-off in the cap's distance, relative to its radius
     const float endModulus = piece.capModulus;
     AxisCylinder cylinder(grid_, piece);
-    const Slope slope(sign * plane.gx);
+    const Slope slope(sign * plane.gx), rising(plane.gx), falling(-plane.gx);
+    const Slope alongX(piece.capOffset[0].gx), againstX(-piece.capOffset[0].gx);
+    // A little more than the largest |p - end point| the loop keeps (g <= 1 + kCapRoundOff, computed):
+    // the margin (1e-9 of the radius) dwarfs the round-off of the distance and of the clip.
+    const double ballRadiusSquared = ((1.0 + 2.0 * kCapRoundOff) / invCap) * ((1.0 + 2.0 * kCapRoundOff) / invCap);
     for (int k = box.min().z(); k <= box.max().z(); ++k) {
       int jLo = box.min().y(), jHi = box.max().y();
       if (!cylinder.layer(k, jLo, jLo, jHi)) continue;
       for (int j = jLo; j <= jHi; ++j) {
         const double aRow = plane.row(j, k);
-        RowBounds bounds;
-        int lo = box.min().x(), hi = box.max().x();
-        if (!slope.bound(sign * aRow, bounds.lo, bounds.hi) || !cylinder.row(j, bounds) || !bounds.round(lo, hi)) continue;
         const double wy = piece.capOffset[1].row(j, k), wz = piece.capOffset[2].row(j, k);
         const double wyz = wy * wy + wz * wz;
+        RowBounds bounds;
+        int lo = box.min().x(), hi = box.max().x();
+        if (!slope.bound(sign * aRow, bounds.lo, bounds.hi) || !cylinder.row(j, bounds) ||
+            !capRow(round, aRow, nearPlane, rising, falling, piece.capOffset[0].row(j, k), ballRadiusSquared - wyz, alongX,
+                    againstX, bounds) ||
+            !bounds.round(lo, hi))
+          continue;
         for (int i = lo; i <= hi; ++i) {
           const double a = aRow + plane.gx * i;
           if (atEnd ? !(a >= 0.0) : !(a < 0.0)) continue;
@@ -598,7 +682,7 @@ private:
           // Inside for sure; the depth's round-off (1e-9 of the radius at most) is within the tie
           // tolerance, so it counts as exact.
           if (g < 1.0 - kCapRoundOff)
-            addCandidate({1.0 - g, 0.0f, endModulus, rod, pieceIndex}, offset(i, j, k), i, j, k);
+            addCapCandidate(offset(i, j, k), g, endModulus, rod, pieceIndex, i, j, k);
           else
             addCandidate(exact(rod, pieceIndex, i, j, k), offset(i, j, k), i, j, k);
         }
@@ -614,10 +698,12 @@ private:
   static constexpr int kRows = kLeafDim * kLeafDim;
   static constexpr int kWords = kBlockVoxels / 64;
   static_assert(kWords == kRows && kBlockX == 64, "a word of filled_ per row (y, z) of the block: bit x");
-  // The slots, field by field (24 bytes a voxel), read only where `filled_` says they were written:
-  // left uninitialized, so that setting up a builder does not touch their 96 KiB.
+  // The slots, field by field (24 bytes a voxel), read only where `filled_` says they were written
+  // (but for emit's reads of value_): left uninitialized, so that setting up a builder does not touch
+  // their 80 KiB.
   std::array<double, kBlockVoxels> encodedDepth_;
-  std::array<float, kBlockVoxels> errorBound_, value_;
+  std::array<float, kBlockVoxels> errorBound_;
+  std::array<float, kBlockVoxels> value_{};  // zeroed once: emit reads the slots of a row's empty voxels too
   std::array<std::uint64_t, kBlockVoxels> owner_;
   std::array<std::uint64_t, kWords> filled_{};
   std::array<std::uint64_t, kWords> memo_{};  // voxels of the block exactly tested for rod memoRod_
@@ -723,7 +809,7 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
   std::vector<std::array<std::unique_ptr<LeafT>, kBlockLeaves>> leaves(groups);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, groups), [&](const tbb::blocked_range<std::size_t>& range) {
     ThreadState& state = states.local();
-    if (!state.builder) state.builder.reset(new LeafBuilder(*structure_, rods_, grid_, options_.wasInterrupted));  // default-initialized slots
+    if (!state.builder) state.builder.reset(new LeafBuilder(*structure_, rods_, grid_, options_.wasInterrupted));  // slots mostly uninitialized
     LeafBuilder& builder = *state.builder;
     for (std::size_t g = range.begin(); g != range.end(); ++g) {
       checkInterrupt();
