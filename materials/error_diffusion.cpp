@@ -5,8 +5,10 @@
 
 #include <algorithm>
 #include <array>
+#include <memory>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace rodfab::materials {
 
@@ -89,6 +91,112 @@ private:
   std::vector<std::int32_t> slots_;
 };
 
+// The previous band's error for `layer` (its first layer k0), matched by (j, i): both lists are in that
+// order. Throws std::logic_error for an entry whose voxel is not in `layer` (the bands' grids disagree).
+template <typename CarryList>
+std::vector<float> errorFromCarry(const Layer& layer, const CarryList& carry) {
+  std::vector<float> error(layer.voxels.size(), 0.0f);
+  std::size_t r = 0, v = 0;
+  for (const auto& c : carry) {
+    while (r < layer.rows.size() && layer.rows[r].j < c.j) ++r;
+    bool found = false;
+    if (r < layer.rows.size() && layer.rows[r].j == c.j) {
+      v = std::max<std::size_t>(v, layer.rows[r].begin);
+      while (v < layer.rows[r].end && layer.voxels[v].i < c.i) ++v;
+      found = v < layer.rows[r].end && layer.voxels[v].i == c.i;
+    }
+    if (!found)
+      throw std::logic_error("error-diffusion: voxel (" + std::to_string(c.i) + ", " + std::to_string(c.j) + ", " +
+                             std::to_string(layer.k) + ") was inside the part one layer past the previous band but "
+                             "is not in this band's grid: consecutive bands' grids disagree");
+    error[v] = c.error;
+  }
+  return error;
+}
+
+// Diffuses the error of one layer after another: serpentine rows, Floyd-Steinberg weights within the
+// layer and kShareToNextLayer straight up, renormalized over the neighbours inside the part. Writes
+// Vero voxels into `out` (one leaf per band leaf) and records invalid fractions in `check`.
+class LayerDiffusion {
+public:
+  LayerDiffusion(int xMin, int xMax, std::uint64_t seed, std::vector<std::unique_ptr<BoolLeaf>>& out,
+                 detail::FractionCheck& check)
+      : nextRowIndex_(xMin, xMax - xMin + 1), aboveIndex_(xMin, xMax - xMin + 1), seed_(seed), out_(out), check_(check) {}
+
+  // Dithers `layer` (layer k) with the error already on its voxels; returns the error it passes to `above`.
+  std::vector<float> run(const Layer& layer, std::vector<float>& error, const Layer& above, int k) {
+    std::vector<float> errorAbove(above.voxels.size(), 0.0f);
+    std::size_t aboveRow = 0;
+    for (std::size_t r = 0; r < layer.rows.size(); ++r) {
+      const Row& row = layer.rows[r];
+      const Row* nextRow = r + 1 < layer.rows.size() && layer.rows[r + 1].j == row.j + 1 ? &layer.rows[r + 1] : nullptr;
+      while (aboveRow < above.rows.size() && above.rows[aboveRow].j < row.j) ++aboveRow;
+      const Row* rowAbove = aboveRow < above.rows.size() && above.rows[aboveRow].j == row.j ? &above.rows[aboveRow] : nullptr;
+      if (nextRow) nextRowIndex_.fill(layer, *nextRow);
+      if (rowAbove) aboveIndex_.fill(above, *rowAbove);
+      diffuseRow(layer, row, nextRow != nullptr, rowAbove != nullptr, k, error, errorAbove);
+      if (nextRow) nextRowIndex_.clear(layer, *nextRow);
+      if (rowAbove) aboveIndex_.clear(above, *rowAbove);
+    }
+    return errorAbove;
+  }
+
+private:
+  static constexpr float kShareToNextLayer = ErrorDiffusionDitherer::kShareToNextLayer;
+  static constexpr float kInLayer = 1.0f - kShareToNextLayer;
+  // Floyd-Steinberg weights: ahead in the row, then behind / below / ahead in the next row.
+  static constexpr std::array<float, 4> kWeights{7.0f / 16 * kInLayer, 3.0f / 16 * kInLayer, 5.0f / 16 * kInLayer,
+                                                 1.0f / 16 * kInLayer};
+
+  void diffuseRow(const Layer& layer, const Row& row, bool hasNextRow, bool hasRowAbove, int k, std::vector<float>& error,
+                  std::vector<float>& errorAbove) {
+    const int dir = ((row.j + k) & 1) ? -1 : +1;
+    const auto count = static_cast<std::int64_t>(row.end - row.begin);
+    for (std::int64_t step = 0; step < count; ++step) {
+      const std::uint32_t v = dir > 0 ? row.begin + static_cast<std::uint32_t>(step)
+                                      : row.end - 1 - static_cast<std::uint32_t>(step);
+      const Voxel& voxel = layer.voxels[v];
+      const float f = voxel.fraction;
+      if (!detail::FractionCheck::valid(f)) {
+        check_.fail(voxel.leaf, voxel.offset);
+        continue;
+      }
+      const float wanted = f + error[v];
+      const float threshold =
+          0.5f + ErrorDiffusionDitherer::kThresholdJitter * (voxelUniform(seed_, voxel.i, row.j, k) - 0.5f);
+      const bool vero = f >= 1.0f || (f > 0.0f && wanted >= threshold);
+      if (vero) out_[voxel.leaf]->setValueOnly(voxel.offset, true);
+      const float residual = wanted - (vero ? 1.0f : 0.0f);
+
+      // Neighbours that are inside the part, with their weights; renormalized below.
+      std::array<std::int32_t, 4> targets{-1, -1, -1, -1};
+      if (step + 1 < count) {
+        const std::uint32_t a = dir > 0 ? v + 1 : v - 1;
+        if (layer.voxels[a].i == voxel.i + dir) targets[0] = static_cast<std::int32_t>(a);
+      }
+      if (hasNextRow) {
+        targets[1] = nextRowIndex_.at(voxel.i - dir);
+        targets[2] = nextRowIndex_.at(voxel.i);
+        targets[3] = nextRowIndex_.at(voxel.i + dir);
+      }
+      const std::int32_t up = hasRowAbove ? aboveIndex_.at(voxel.i) : -1;
+      float total = up >= 0 ? kShareToNextLayer : 0.0f;
+      for (int t = 0; t < 4; ++t)
+        if (targets[t] >= 0) total += kWeights[t];
+      if (total <= 0.0f) continue;  // an isolated voxel with nothing after it: its error has nowhere to go
+      const float scale = residual / total;
+      for (int t = 0; t < 4; ++t)
+        if (targets[t] >= 0) error[targets[t]] += kWeights[t] * scale;
+      if (up >= 0) errorAbove[up] += kShareToNextLayer * scale;
+    }
+  }
+
+  RowIndex nextRowIndex_, aboveIndex_;
+  std::uint64_t seed_;
+  std::vector<std::unique_ptr<BoolLeaf>>& out_;
+  detail::FractionCheck& check_;
+};
+
 }  // namespace
 
 openvdb::BoolGrid::Ptr ErrorDiffusionDitherer::ditherLeafVoxels(const openvdb::FloatGrid& fraction, int k0, int k1) {
@@ -111,86 +219,12 @@ openvdb::BoolGrid::Ptr ErrorDiffusionDitherer::ditherLeafVoxels(const openvdb::F
   if (k0 == k1) return detail::assembleMaterialGrid(out, fraction);
 
   detail::FractionCheck check;
-  RowIndex nextRowIndex(xMin, xMax - xMin + 1), aboveIndex(xMin, xMax - xMin + 1);
+  LayerDiffusion diffusion(xMin, xMax, seed_, out, check);
   Layer layer = enumerateLayer(leaves, k0);
-  std::vector<float> error(layer.voxels.size(), 0.0f);
-  if (started_) {
-    // The previous band's error for this layer, matched by (j, i): both lists are in that order.
-    std::size_t r = 0, v = 0;
-    for (const Carry& c : carry_) {
-      while (r < layer.rows.size() && layer.rows[r].j < c.j) ++r;
-      bool found = false;
-      if (r < layer.rows.size() && layer.rows[r].j == c.j) {
-        v = std::max<std::size_t>(v, layer.rows[r].begin);
-        while (v < layer.rows[r].end && layer.voxels[v].i < c.i) ++v;
-        found = v < layer.rows[r].end && layer.voxels[v].i == c.i;
-      }
-      if (!found)
-        throw std::logic_error("error-diffusion: voxel (" + std::to_string(c.i) + ", " + std::to_string(c.j) + ", " +
-                               std::to_string(k0) + ") was inside the part one layer past the previous band but "
-                               "is not in this band's grid: consecutive bands' grids disagree");
-      error[v] = c.error;
-    }
-  }
-
-  // Floyd-Steinberg weights: ahead in the row, then behind / below / ahead in the next row.
-  constexpr float inLayer = 1.0f - kShareToNextLayer;
-  constexpr std::array<float, 4> weights{7.0f / 16 * inLayer, 3.0f / 16 * inLayer, 5.0f / 16 * inLayer,
-                                         1.0f / 16 * inLayer};
+  std::vector<float> error = started_ ? errorFromCarry(layer, carry_) : std::vector<float>(layer.voxels.size(), 0.0f);
   for (int k = k0; k < k1; ++k) {
     Layer above = enumerateLayer(leaves, k + 1);
-    std::vector<float> errorAbove(above.voxels.size(), 0.0f);
-    std::size_t aboveRow = 0;
-    for (std::size_t r = 0; r < layer.rows.size(); ++r) {
-      const Row& row = layer.rows[r];
-      const Row* nextRow = r + 1 < layer.rows.size() && layer.rows[r + 1].j == row.j + 1 ? &layer.rows[r + 1] : nullptr;
-      while (aboveRow < above.rows.size() && above.rows[aboveRow].j < row.j) ++aboveRow;
-      const Row* rowAbove = aboveRow < above.rows.size() && above.rows[aboveRow].j == row.j ? &above.rows[aboveRow] : nullptr;
-      if (nextRow) nextRowIndex.fill(layer, *nextRow);
-      if (rowAbove) aboveIndex.fill(above, *rowAbove);
-
-      const int dir = ((row.j + k) & 1) ? -1 : +1;
-      const auto count = static_cast<std::int64_t>(row.end - row.begin);
-      for (std::int64_t step = 0; step < count; ++step) {
-        const std::uint32_t v = dir > 0 ? row.begin + static_cast<std::uint32_t>(step)
-                                        : row.end - 1 - static_cast<std::uint32_t>(step);
-        const Voxel& voxel = layer.voxels[v];
-        const float f = voxel.fraction;
-        if (!detail::FractionCheck::valid(f)) {
-          check.fail(voxel.leaf, voxel.offset);
-          continue;
-        }
-        const float wanted = f + error[v];
-        const float threshold = 0.5f + kThresholdJitter * (voxelUniform(seed_, voxel.i, row.j, k) - 0.5f);
-        const bool vero = f >= 1.0f || (f > 0.0f && wanted >= threshold);
-        if (vero) out[voxel.leaf]->setValueOnly(voxel.offset, true);
-        const float residual = wanted - (vero ? 1.0f : 0.0f);
-
-        // Neighbours that are inside the part, with their weights; renormalized below.
-        std::array<std::int32_t, 4> targets{-1, -1, -1, -1};
-        const std::int64_t aheadStep = step + 1;
-        if (aheadStep < count) {
-          const std::uint32_t a = dir > 0 ? v + 1 : v - 1;
-          if (layer.voxels[a].i == voxel.i + dir) targets[0] = static_cast<std::int32_t>(a);
-        }
-        if (nextRow) {
-          targets[1] = nextRowIndex.at(voxel.i - dir);
-          targets[2] = nextRowIndex.at(voxel.i);
-          targets[3] = nextRowIndex.at(voxel.i + dir);
-        }
-        const std::int32_t up = rowAbove ? aboveIndex.at(voxel.i) : -1;
-        float total = up >= 0 ? kShareToNextLayer : 0.0f;
-        for (int t = 0; t < 4; ++t)
-          if (targets[t] >= 0) total += weights[t];
-        if (total <= 0.0f) continue;  // an isolated voxel with nothing after it: its error has nowhere to go
-        const float scale = residual / total;
-        for (int t = 0; t < 4; ++t)
-          if (targets[t] >= 0) error[targets[t]] += weights[t] * scale;
-        if (up >= 0) errorAbove[up] += kShareToNextLayer * scale;
-      }
-      if (nextRow) nextRowIndex.clear(layer, *nextRow);
-      if (rowAbove) aboveIndex.clear(above, *rowAbove);
-    }
+    std::vector<float> errorAbove = diffusion.run(layer, error, above, k);
     layer = std::move(above);
     error = std::move(errorAbove);
   }
