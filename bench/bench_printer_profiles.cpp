@@ -30,21 +30,21 @@ pp::Bitmap latticeLayer(int width, int height) {
 
 void BM_EncodeBmp(benchmark::State& state) {
   const pp::Bitmap b = latticeLayer(2048, 1024);
-  for (auto _ : state) benchmark::DoNotOptimize(pp::encodeBmp(b, 600, 300));
+  for (auto _ : state) benchmark::DoNotOptimize(pp::encodeBmp(b, profile().xDpi, profile().yDpi));
   state.SetBytesProcessed(state.iterations() * static_cast<int64_t>(b.bytes().size()));
 }
 BENCHMARK(BM_EncodeBmp)->Unit(benchmark::kMicrosecond);
 
 void BM_EncodePng1(benchmark::State& state) {
   const pp::Bitmap b = latticeLayer(2048, 1024);
-  for (auto _ : state) benchmark::DoNotOptimize(pp::encodePng1(b, 600, 300));
+  for (auto _ : state) benchmark::DoNotOptimize(pp::encodePng1(b, profile().xDpi, profile().yDpi));
   state.SetBytesProcessed(state.iterations() * static_cast<int64_t>(b.bytes().size()));
 }
 BENCHMARK(BM_EncodePng1)->Unit(benchmark::kMicrosecond);
 
 // Raw deflate of one layer BMP at each igzip level (printer_profiles/deflate.hpp; the README's table).
 void BM_DeflateLayer(benchmark::State& state) {
-  const pp::Bytes bmp = pp::encodeBmp(latticeLayer(2048, 1024), 600, 300);
+  const pp::Bytes bmp = pp::encodeBmp(latticeLayer(2048, 1024), profile().xDpi, profile().yDpi);
   std::size_t compressed = 0;
   for (auto _ : state) compressed = pp::deflateBytes(bmp, static_cast<int>(state.range(0)), pp::DeflateWrapper::Raw).size();
   state.SetBytesProcessed(state.iterations() * static_cast<int64_t>(bmp.size()));
