@@ -1,5 +1,6 @@
 // materials/: dithering throughput per ditherer (items = voxels, on all cores TBB gives), the
 // modulus-to-fraction mapping and blue-noise mask generation. Peak resident memory as a counter.
+#include "bench/bench_profile.hpp"
 #include "materials/materials.hpp"
 
 #include <benchmark/benchmark.h>
@@ -13,8 +14,11 @@ using namespace rodfab::materials;
 
 namespace {
 
-// The Connex3 profile's voxel (600 x 300 dpi, 30 um layers).
-const openvdb::Vec3d kBenchVoxel(0.0423, 0.0846, 0.030);
+// The voxel of the benchmark's printer profile (bench/bench_profile.hpp).
+const openvdb::Vec3d& benchVoxel() {
+  static const openvdb::Vec3d voxel = rodfab::bench::benchVoxelMm();
+  return voxel;
+}
 
 double peakRssMb() {
   rusage usage{};
@@ -26,7 +30,7 @@ double peakRssMb() {
 const openvdb::FloatGrid& denseBlock() {
   static const openvdb::FloatGrid::Ptr grid = [] {
     openvdb::initialize();
-    auto g = makeUniformBlock(openvdb::Coord(256, 128, 192), 0.5f, kBenchVoxel);
+    auto g = makeUniformBlock(openvdb::Coord(256, 128, 192), 0.5f, benchVoxel());
     for (auto it = g->beginValueOn(); it; ++it) {
       const openvdb::Coord c = it.getCoord();
       it.setValue(0.6f + 0.3f * std::sin(0.02f * c.x()) * std::cos(0.03f * c.y() + 0.01f * c.z()));
@@ -40,11 +44,11 @@ const openvdb::FloatGrid& denseBlock() {
 const openvdb::FloatGrid& rodBundle() {
   static const openvdb::FloatGrid::Ptr grid = [] {
     openvdb::initialize();
-    auto g = makeRod(1.0, 20.0, 0, 0.3f, kBenchVoxel);
+    auto g = makeRod(1.0, 20.0, 0, 0.3f, benchVoxel());
     const auto one = g->deepCopy();
     for (int r = 1; r < 16; ++r) {
-      const openvdb::Coord shift(0, static_cast<int>((r % 4) * 2.0 / kBenchVoxel[1]),
-                                 static_cast<int>((r / 4) * 2.0 / kBenchVoxel[2]));
+      const openvdb::Coord shift(0, static_cast<int>((r % 4) * 2.0 / benchVoxel()[1]),
+                                 static_cast<int>((r / 4) * 2.0 / benchVoxel()[2]));
       auto acc = g->getAccessor();
       for (auto it = one->cbeginValueOn(); it; ++it) acc.setValueOn(it.getCoord() + shift, *it);
     }
@@ -86,9 +90,10 @@ void mapModulusToFraction(benchmark::State& state) {
 }
 BENCHMARK(mapModulusToFraction)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-// The bundled 64 x 32 x 90 mask from scratch (items = mask cells); single-threaded by design.
+// The bundled 64 x 32 x 90 mask from scratch (items = mask cells); single-threaded by design. Its
+// parameters, voxel included, are the mask file's (BlueNoiseParameters::bundledMask()).
 void generateBlueNoiseMask(benchmark::State& state) {
-  const BlueNoiseParameters parameters;
+  const BlueNoiseParameters parameters = BlueNoiseParameters::bundledMask();
   for (auto _ : state) benchmark::DoNotOptimize(BlueNoiseMask::generate(parameters));
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()) * 64 * 32 * 90);
   state.counters["peak_rss_MB"] = peakRssMb();

@@ -1,4 +1,5 @@
 // printer_profiles/: layer encoding and whole-job throughput (bitmaps, PNG/BMP, zip, verification).
+#include "bench/bench_profile.hpp"
 #include "printer_profiles/deflate.hpp"
 #include "printer_profiles/printer_profiles.hpp"
 
@@ -15,10 +16,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const pp::Profile& connex3() {
-  static const pp::Profile p = pp::loadProfile("stratasys-objet500-connex3");
-  return p;
-}
+// The printer of bench/bench_profile.hpp ($RODFAB_BENCH_PROFILE, default the bundled default profile).
+const pp::Profile& profile() { return rodfab::bench::benchProfile(); }
 
 // A layer of a rod lattice: ~8% of the pixels set, in runs, like a sliced rod structure.
 pp::Bitmap latticeLayer(int width, int height) {
@@ -31,21 +30,21 @@ pp::Bitmap latticeLayer(int width, int height) {
 
 void BM_EncodeBmp(benchmark::State& state) {
   const pp::Bitmap b = latticeLayer(2048, 1024);
-  for (auto _ : state) benchmark::DoNotOptimize(pp::encodeBmp(b, 600, 300));
+  for (auto _ : state) benchmark::DoNotOptimize(pp::encodeBmp(b, profile().xDpi, profile().yDpi));
   state.SetBytesProcessed(state.iterations() * static_cast<int64_t>(b.bytes().size()));
 }
 BENCHMARK(BM_EncodeBmp)->Unit(benchmark::kMicrosecond);
 
 void BM_EncodePng1(benchmark::State& state) {
   const pp::Bitmap b = latticeLayer(2048, 1024);
-  for (auto _ : state) benchmark::DoNotOptimize(pp::encodePng1(b, 600, 300));
+  for (auto _ : state) benchmark::DoNotOptimize(pp::encodePng1(b, profile().xDpi, profile().yDpi));
   state.SetBytesProcessed(state.iterations() * static_cast<int64_t>(b.bytes().size()));
 }
 BENCHMARK(BM_EncodePng1)->Unit(benchmark::kMicrosecond);
 
 // Raw deflate of one layer BMP at each igzip level (printer_profiles/deflate.hpp; the README's table).
 void BM_DeflateLayer(benchmark::State& state) {
-  const pp::Bytes bmp = pp::encodeBmp(latticeLayer(2048, 1024), 600, 300);
+  const pp::Bytes bmp = pp::encodeBmp(latticeLayer(2048, 1024), profile().xDpi, profile().yDpi);
   std::size_t compressed = 0;
   for (auto _ : state) compressed = pp::deflateBytes(bmp, static_cast<int>(state.range(0)), pp::DeflateWrapper::Raw).size();
   state.SetBytesProcessed(state.iterations() * static_cast<int64_t>(bmp.size()));
@@ -64,11 +63,11 @@ BENCHMARK(BM_Sha256)->Unit(benchmark::kMicrosecond);
 openvdb::BoolGrid::Ptr rodLattice() {
   openvdb::initialize();
   auto grid = openvdb::BoolGrid::create(false);
-  grid->setTransform(pp::gridTransform(connex3(), openvdb::Vec3d(0, 0, 0)));
+  grid->setTransform(pp::gridTransform(profile(), openvdb::Vec3d(0, 0, 0)));
   auto acc = grid->getAccessor();
   std::mt19937 rng(5);
   std::bernoulli_distribution vero(0.45);
-  const auto& v = connex3().voxelSizeMm;
+  const auto& v = profile().voxelSizeMm;
   const double radius = 0.7;
   for (int k = 0; k < 100; ++k)
     for (int j = 0; j < 236; ++j)
@@ -115,7 +114,7 @@ void BM_WriteJob(benchmark::State& state) {
   std::uintmax_t bytes = 0;
   for (auto _ : state) {
     pp::JobSpec spec;
-    spec.profile = connex3();
+    spec.profile = profile();
     spec.partBounds = lattice.box;
     spec.originMm = openvdb::Vec3d(0, 0, 0);
     spec.options.output = dir / "job.zip";

@@ -1,8 +1,9 @@
 // voxel/: rasterization throughput (items = active voxels) for the 6-gigavoxel scaled buckling spring
-// (84.6 x 84.6 x 90 mm at the Connex3 voxel: ~2000 x 1000 x 3000) and the bundled buckling spring,
+// (84.6 x 84.6 x 90 mm: ~2000 x 1000 x 3000 voxels at the default profile's voxel; bench/bench_profile.hpp) and the bundled buckling spring,
 // whole design at once and streamed in bands of 64 layers; the piece building (Rasterizer
 // construction) on its own. Arg = TBB worker count. Peak resident memory is process-wide: run one
 // workload per invocation (--benchmark_filter) to get its own peak; see bench/README.md.
+#include "bench/bench_profile.hpp"
 #include "examples/example_designs.hpp"
 #include "materials/fraction_map.hpp"
 #include "voxel/voxel.hpp"
@@ -40,7 +41,7 @@ struct Workload {
 Workload makeWorkload(rodfab::geometry::RodStructure structure) {
   openvdb::initialize();
   Workload w{std::move(structure), {}};
-  w.grid = voxel::makePrinterGrid(w.structure, openvdb::Vec3d(0.0423, 0.0846, 0.030));  // the Connex3 profile's voxel
+  w.grid = voxel::makePrinterGrid(w.structure, rodfab::bench::benchVoxelMm());  // the benchmark profile's voxel
   return w;
 }
 

@@ -290,7 +290,8 @@ BlueNoiseMask BlueNoiseMask::generate(const BlueNoiseParameters& p) {
     if (p.size[a] < 2 || p.size[a] > 1024)
       throw std::invalid_argument("blue-noise mask: size " + std::to_string(p.size[a]) + " on axis " +
                                   std::to_string(a) + ", expected 2 .. 1024 voxels");
-    if (!(p.voxelSizeMm[a] > 0)) throw std::invalid_argument("blue-noise mask: voxel size must be > 0 mm");
+    if (!(p.voxelSizeMm[a] > 0))
+      throw std::invalid_argument("blue-noise mask: voxel size on axis " + std::to_string(a) + " must be > 0 mm (the printer's voxel)");
   }
   if (!(p.sigmaMm > 0)) throw std::invalid_argument("blue-noise mask: sigma must be > 0 mm");
   if (!(p.initialDensity > 0 && p.initialDensity <= 0.5))
@@ -383,8 +384,18 @@ BlueNoiseMask BlueNoiseMask::load(const std::filesystem::path& file) {
   return BlueNoiseMask(p, std::move(ranks));
 }
 
+BlueNoiseParameters BlueNoiseParameters::bundledMask() {
+  BlueNoiseParameters p;
+  p.size = {64, 32, 90};
+  p.voxelSizeMm = {0.0423, 0.0846, 0.030};
+  p.sigmaMm = 0.072;
+  p.initialDensity = 0.1;
+  p.seed = 1;
+  return p;
+}
+
 std::filesystem::path BlueNoiseMask::bundledPath() {
-  const BlueNoiseParameters p;
+  const BlueNoiseParameters p = BlueNoiseParameters::bundledMask();
   return common::dataFile(std::filesystem::path("masks") / ("blue-noise-" + std::to_string(p.size[0]) + "x" + std::to_string(p.size[1]) + "x" +
                 std::to_string(p.size[2]) + ".rfbn"));
 }

@@ -13,12 +13,21 @@ namespace rodfab::materials {
 
 // Everything that determines a mask: the same parameters give the same ranks, bit for bit, on any
 // machine (the generator runs on integer energies, so no floating-point drift or reordering matters).
+// The voxel size has no default: the filter is isotropic in millimetres for that voxel only, so a mask
+// belongs to one printer voxel. That voxel is a property of the mask (saved in its file as
+// voxel_size_nm, parameters() after load), not of this code; the printer's voxel comes from its profile.
 struct BlueNoiseParameters {
-  std::array<int, 3> size{64, 32, 90};                // tile in voxels (x, y, z); about 2.7 mm each way
-  std::array<double, 3> voxelSizeMm{0.0423, 0.0846, 0.030};  // Connex3 voxel the filter is isotropic for
-  double sigmaMm = 0.072;                              // energy filter: 1.70, 0.85, 2.40 voxels
-  double initialDensity = 0.1;                         // share of ones in the random starting pattern
+  std::array<int, 3> size{64, 32, 90};     // tile in voxels (x, y, z)
+  std::array<double, 3> voxelSizeMm{};     // the voxel (x, y, z in mm) the filter is isotropic for; > 0
+  double sigmaMm = 0.072;                  // energy filter, in mm along every axis
+  double initialDensity = 0.1;             // share of ones in the random starting pattern
   std::uint64_t seed = 1;
+
+  // The parameters of the bundled mask file (materials/README.md): a 64 x 32 x 90 tile for a
+  // 0.0423 x 0.0846 x 0.030 mm voxel (600 x 300 dpi, 30 um layers: the voxel the file records), about
+  // 2.7 mm each way, sigma 0.072 mm = 1.70, 0.85, 2.40 voxels, seed 1. Regenerating with these
+  // reproduces the file byte for byte.
+  static BlueNoiseParameters bundledMask();
 };
 
 class BlueNoiseMask {
@@ -30,8 +39,10 @@ public:
   // Reads a mask file (format in materials/README.md) and checks it is a complete permutation;
   // throws std::runtime_error naming the file and the field that is wrong.
   static BlueNoiseMask load(const std::filesystem::path& file);
-  // The mask shipped in materials/ (generated from the default BlueNoiseParameters), read once per
-  // process and shared. Found in masks/ of rodfab's data folder (common/data_dir.hpp; installed from
+  // The mask shipped in materials/ (generated from BlueNoiseParameters::bundledMask()), read once per
+  // process and shared. It is applied by voxel index on any printer grid: every tile still holds each
+  // rank once, so a fraction f turns on round(f * N) cells a tile on any voxel; only its blue-noise
+  // spectrum is isotropic in mm for the voxel it records (voxelSizeMm()) and stretched on another. Found in masks/ of rodfab's data folder (common/data_dir.hpp; installed from
   // materials/); bundledPath() throws common::DataDirError when it is missing.
   static std::shared_ptr<const BlueNoiseMask> bundled();
   static std::filesystem::path bundledPath();
@@ -41,6 +52,8 @@ public:
 
   const BlueNoiseParameters& parameters() const { return parameters_; }
   const std::array<int, 3>& size() const { return parameters_.size; }
+  // The voxel (x, y, z in mm) the mask was made for, as its file records it.
+  const std::array<double, 3>& voxelSizeMm() const { return parameters_.voxelSizeMm; }
   std::size_t cellCount() const { return ranks_.size(); }
   // Ranks in x-fastest order: cell (i, j, k) of the tile is at (k * ny + j) * nx + i.
   const std::vector<std::uint32_t>& ranks() const { return ranks_; }

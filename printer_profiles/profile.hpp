@@ -140,6 +140,10 @@ private:
   std::vector<ProfileIssue> issues_;
 };
 
+// The bundled profile used when a command or benchmark is not told which printer it is for. Code takes
+// the voxel size and the printer transform from a loaded Profile, never from this name.
+inline constexpr const char* kDefaultProfileName = "stratasys-objet500-connex3";
+
 // The folder holding the bundled profiles: profiles/ in rodfab's data folder (common/data_dir.hpp);
 // throws common::DataDirError when that is not found.
 std::filesystem::path bundledProfileDir();

@@ -56,29 +56,6 @@ std::optional<CouponRequest> parseCoupons(const std::vector<std::string>& args, 
   return r;
 }
 
-// The bars on the tray of `profile`; nullopt after printing why they cannot be made (exitCode says how).
-std::optional<slicer::CouponLayout> layOut(const CouponRequest& r, const printer_profiles::Profile& profile, int& exitCode) {
-  slicer::CouponVoxels voxels;
-  try {
-    voxels = slicer::couponVoxels(profile, r.sizeMm, r.gapMm);
-  } catch (const std::invalid_argument& e) {
-    return exitCode = usageError("coupons", e.what()), std::nullopt;
-  } catch (const std::runtime_error& e) {
-    std::cerr << "rodfab coupons: " << e.what() << "\nno job was written\n";
-    return exitCode = kFailed, std::nullopt;
-  }
-  slicer::CouponLayout layout = slicer::planCouponLayout(profile, r.fractions.size(), voxels);
-  try {
-    printer_profiles::planJob(profile, layout.bounds);
-  } catch (const printer_profiles::TrayFitError& e) {
-    std::cerr << "rodfab coupons: " << r.fractions.size() << " bar(s) of " << barText(layout, profile) << " with "
-              << formatNumber(r.gapMm) << " mm gaps, " << layout.rows << " row(s) of up to " << layout.perRow << ": "
-              << e.what() << "\nno job was written\n";
-    return exitCode = kFailed, std::nullopt;
-  }
-  return layout;
-}
-
 }  // namespace
 
 int runCoupons(const std::vector<std::string>& args) {
@@ -93,7 +70,7 @@ int runCoupons(const std::vector<std::string>& args) {
   const ThreadLimit threadLimit(r.job.threads);
   const std::optional<printer_profiles::Profile> profile = profileFromOptions(vm, "no job was written");
   if (!profile) return kFailed;
-  const std::optional<slicer::CouponLayout> layout = layOut(r, *profile, exitCode);
+  const std::optional<slicer::CouponLayout> layout = layOutCoupons(r, *profile, exitCode);
   if (!layout) return exitCode;
   commandLineAccepted();
   const int bandLayers = r.job.bandLayers > 0 ? r.job.bandLayers : slicer::automaticBandLayers(layout->bounds);

@@ -72,7 +72,11 @@ int runDitherReport(const std::vector<std::string>& args) {
   addDitherReportOptions(options);
   hidden.add_options()("ditherer", po::value<std::string>(), "the old spelling of --dither");
   po::variables_map vm;
-  if (auto code = parseOptions("dither-report", "[options]", options, {}, args, vm, &hidden)) return *code;
+  if (auto code = parseOptions("dither-report",
+                                 "[--dither white|blue|error-diffusion|all] [--seed N] [--block 128x64x180] [--fractions 0.1,0.2,...,0.9] "
+                                 "[--rod-diameter 1] [--rod-length 10] [--rod-axis x|y|z] [--rod-fraction 0.3] [--mask MASK.rfbn] "
+                                 "[--profile NAME|FILE] [--print-mode MODE] [--json]",
+                                 options, {}, args, vm, &hidden)) return *code;
   const std::optional<DitherReportRequest> request = readRequest(vm);
   if (!request) return kUsage;
   commandLineAccepted();

@@ -25,8 +25,9 @@ int runRodsFromCad(const std::vector<std::string>& args) {
   po::positional_options_description positional;
   positional.add("model", 1);
   po::variables_map vm;
-  const char* synopsis = "FILE.step|FILE.iges --diameter D --output DESIGN.json [--joint-tolerance T] [--section ...] "
-                         "[--modulus E] [--force] [--json]";
+  const char* synopsis = "FILE.step|.stp|.iges|.igs --diameter D --output DESIGN.json [--joint-tolerance T] "
+                         "[--section circle|ellipse|rectangle] [--breadth B] [--modulus E] [--caps round|flat] [--profile NAME|FILE] "
+                         "[--force] [--json]";
   if (auto code = parseOptions("rods-from-cad", synopsis, options, positional, args, vm)) return *code;
   const std::string model = vm["model"].as<std::string>(), output = vm["output"].as<std::string>();
   const auto tolerance = realOption("rods-from-cad", vm, "joint-tolerance", 1e-9, 100, "mm");

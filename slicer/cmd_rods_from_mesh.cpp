@@ -43,8 +43,9 @@ std::variant<MeshSettings, int> parseMesh(const std::vector<std::string>& args) 
   po::positional_options_description positional;
   positional.add("mesh", 1);
   po::variables_map vm;
-  const char* synopsis = "MESH --faces N --diameter D --output DESIGN.json [--section circle|ellipse|rectangle] "
-                         "[--breadth B] [--modulus E] [--subdivisions K] [--surface-tolerance T] [--threads N] [--force] [--json]";
+  const char* synopsis = "MESH.stl|.obj|.ply|.off --faces N --diameter D --output DESIGN.json [--subdivisions K] [--surface-tolerance T] "
+                         "[--section circle|ellipse|rectangle] [--breadth B] [--modulus E] [--caps round|flat] [--profile NAME|FILE] "
+                         "[--threads N] [--force] [--json]";
   if (auto code = parseOptions("rods-from-mesh", synopsis, options, positional, args, vm)) return *code;
   MeshSettings s;
   s.mesh = vm["mesh"].as<std::string>(), s.output = vm["output"].as<std::string>();

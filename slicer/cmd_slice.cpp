@@ -30,7 +30,7 @@ std::optional<JobCommandOptions> parseSlice(const std::vector<std::string>& args
   po::positional_options_description positional;
   positional.add("design", 1);
   const char* synopsis =
-      "DESIGN.json --output JOB.zip [--profile NAME|FILE] [--print-mode MODE] [--calibration CAL.json] [--dither white|blue|error-diffusion] "
+      "DESIGN.json --output JOB.zip|JOB.gcvf [--profile NAME|FILE] [--print-mode MODE] [--calibration CAL.json] [--dither white|blue|error-diffusion] "
       "[--seed N] [--threads N] [--band-layers N] [--format zip|dir] [--image-format bmp|png] [--support printer|explicit] "
       "[--allow-calibration-materials-mismatch] [--force] [--quiet] [--json]";
   if (auto code = parseOptions("slice", synopsis, options, positional, args, vm)) return exitCode = *code, std::nullopt;

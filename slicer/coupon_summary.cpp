@@ -1,10 +1,14 @@
 #include "slicer/coupon_summary.hpp"
 
+#include "printer_profiles/printer_profiles.hpp"
+#include "slicer/command.hpp"
 #include "slicer/job_report.hpp"
+#include "slicer/options.hpp"
 #include "slicer/value_parsers.hpp"
 
 #include <cstdio>
 #include <iostream>
+#include <stdexcept>
 
 namespace rodfab::cli {
 
@@ -111,6 +115,28 @@ void printCouponSummary(const CouponRequest& r, const printer_profiles::JobResul
               seconds.wall, total, seconds.source, seconds.dither, seconds.emit, seconds.cpu);
   std::printf("next:        measure the bars, put each one's fraction and '%s' (dither column) in the DMA data, rodfab calibrate\n",
               dither.c_str());
+}
+
+std::optional<slicer::CouponLayout> layOutCoupons(const CouponRequest& r, const printer_profiles::Profile& profile, int& exitCode) {
+  slicer::CouponVoxels voxels;
+  try {
+    voxels = slicer::couponVoxels(profile, r.sizeMm, r.gapMm);
+  } catch (const std::invalid_argument& e) {
+    return exitCode = usageError("coupons", e.what()), std::nullopt;
+  } catch (const std::runtime_error& e) {
+    std::cerr << "rodfab coupons: " << e.what() << "\nno job was written\n";
+    return exitCode = kFailed, std::nullopt;
+  }
+  slicer::CouponLayout layout = slicer::planCouponLayout(profile, r.fractions.size(), voxels);
+  try {
+    printer_profiles::planJob(profile, layout.bounds);
+  } catch (const printer_profiles::TrayFitError& e) {
+    std::cerr << "rodfab coupons: " << r.fractions.size() << " bar(s) of " << barText(layout, profile) << " with "
+              << formatNumber(r.gapMm) << " mm gaps, " << layout.rows << " row(s) of up to " << layout.perRow << ": "
+              << e.what() << "\nno job was written\n";
+    return exitCode = kFailed, std::nullopt;
+  }
+  return layout;
 }
 
 }  // namespace rodfab::cli

@@ -10,6 +10,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -28,6 +29,13 @@ openvdb::Vec3d couponOriginMm(const printer_profiles::Profile& profile);
 
 // "30.014 x 5.080 x 1.500 mm": a bar as laid out, in whole voxels.
 std::string barText(const slicer::CouponLayout& layout, const printer_profiles::Profile& profile);
+
+// The bars of `request` on the tray of `profile` (slicer::couponVoxels, planCouponLayout, then
+// printer_profiles::planJob). On failure prints why to stderr and returns nullopt with `exitCode` set:
+// kUsage for a bar or gap under one voxel (a usage error naming --size or --gap), kFailed with "no job
+// was written" for bars that do not fit the tray (with the bar size, gaps and rows in the message).
+std::optional<slicer::CouponLayout> layOutCoupons(const CouponRequest& request, const printer_profiles::Profile& profile,
+                                                  int& exitCode);
 
 // The job's spec: the bars' bounds, origin (couponOriginMm), ditherer, seed, output options and a
 // report.html without calibration or clamping.

@@ -11,7 +11,7 @@
 namespace rodfab::cli {
 
 // The profile a command uses when --profile is not given.
-inline constexpr const char* kDefaultProfileName = "stratasys-objet500-connex3";
+inline constexpr const char* kDefaultProfileName = printer_profiles::kDefaultProfileName;
 
 // Declares --profile NAME|FILE (default kDefaultProfileName) and --print-mode MODE.
 void addProfileOptions(po::options_description& options);

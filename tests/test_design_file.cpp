@@ -56,7 +56,7 @@ TEST_CASE("Design files round-trip through the writer", "[design]") {
   REQUIRE(b.rods[1].section().shape == SectionShape::Rectangle);
 }
 
-TEST_CASE("Every kind of bad design is reported with its path", "[design][errors]") {
+TEST_CASE("Every kind of bad format, units and centerline is reported with its path", "[design][errors]") {
   SECTION("malformed JSON, with line and column") {
     const auto issues = issuesOf(std::string("{\n  \"format\": \"rodfab.design/1\",\n  \"rods\": [ }"));
     REQUIRE(issues.size() == 1);
@@ -112,6 +112,9 @@ TEST_CASE("Every kind of bad design is reported with its path", "[design][errors
     REQUIRE(hasIssue(issues, "rods[0].centerline.weights[1]", "> 0"));
     REQUIRE(hasIssue(issues, "rods[0].centerline.weights[2]", "> 0"));
   }
+}
+
+TEST_CASE("Every kind of bad section, modulus, frame and key is reported with its path", "[design][errors]") {
   SECTION("negative diameter") {
     json d = validDesign();
     d["rods"][0]["section"]["diameter"] = -1.5;

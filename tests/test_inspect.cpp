@@ -518,6 +518,13 @@ TEST_CASE("The job's complete layout is checked against the profile", "[inspect]
     CHECK(hasDefect(report, "t.zip: notes.txt: unexpected entry"));
     CHECK(hasDefect(report, "t.zip: previews/extra.png: unexpected entry"));
   }
+}
+
+TEST_CASE("The manifest's image size, nesting and value types are checked", "[inspect][hostile]") {
+  const fs::path dir = scratch("manifest-values");
+  writeSmallJob(dir / "job.zip");
+  const auto original = unzip(dir / "job.zip");
+
   SECTION("images larger than the tray") {
     auto files = original;
     json m = manifestOf(files);

@@ -120,11 +120,12 @@ double whiteNoiseLowPassRms(const openvdb::Coord& size, double f, const openvdb:
 
 TEST_CASE("materials: the bundled blue-noise mask is a permutation and regenerates bit for bit", "[materials][mask]") {
   const auto bundled = BlueNoiseMask::bundled();
-  const BlueNoiseParameters defaults;
+  const BlueNoiseParameters defaults = BlueNoiseParameters::bundledMask();
   REQUIRE(bundled->size() == defaults.size);
   REQUIRE(bundled->cellCount() == 64u * 32u * 90u);
   CHECK(isPermutation(bundled->ranks()));
   CHECK(bundled->parameters().seed == defaults.seed);
+  CHECK(bundled->voxelSizeMm() == defaults.voxelSizeMm);  // the file records the voxel it was made for
 
   // A few seconds: the generator is fast enough to check the whole committed file in every run.
   const BlueNoiseMask regenerated = BlueNoiseMask::generate(defaults);
@@ -136,7 +137,7 @@ TEST_CASE("materials: the bundled blue-noise mask is a permutation and regenerat
 }
 
 TEST_CASE("materials: void-and-cluster masks: deterministic, seed-dependent, permutations, blue", "[materials][mask]") {
-  BlueNoiseParameters p;
+  BlueNoiseParameters p = BlueNoiseParameters::bundledMask();
   p.size = {24, 12, 34};
   const BlueNoiseMask a = BlueNoiseMask::generate(p);
   CHECK(isPermutation(a.ranks()));
@@ -172,7 +173,7 @@ TEST_CASE("materials: void-and-cluster masks: deterministic, seed-dependent, per
 }
 
 TEST_CASE("materials: mask files: round trip and errors naming the file and field", "[materials][mask]") {
-  BlueNoiseParameters p;
+  BlueNoiseParameters p = BlueNoiseParameters::bundledMask();
   p.size = {8, 4, 10};
   const BlueNoiseMask mask = BlueNoiseMask::generate(p);
   const auto file = tempPath("small.rfbn");
@@ -208,6 +209,10 @@ TEST_CASE("materials: mask files: round trip and errors naming the file and fiel
 
   p.size = {1, 4, 10};
   CHECK_THROWS_AS(BlueNoiseMask::generate(p), std::invalid_argument);
+  // No printer's voxel is assumed: parameters without one are refused.
+  BlueNoiseParameters noVoxel;
+  noVoxel.size = {8, 4, 10};
+  CHECK_THROWS_WITH(BlueNoiseMask::generate(noVoxel), Catch::Contains("voxel size on axis 0 must be > 0 mm"));
 }
 
 TEST_CASE("materials: ditherers: exact fractions 0 and 1, topology, grid names", "[materials][dither]") {

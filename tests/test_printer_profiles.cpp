@@ -363,7 +363,7 @@ TEST_CASE("Explicit support fills under the overhang down to the tray and never 
   CHECK_THROWS_WITH(JobWriter(noTops), Catch::Contains("ColumnTops"));
 }
 
-TEST_CASE("Inspect catches tampering, truncation, flips and a 600/300 swap", "[inspect]") {
+TEST_CASE("Inspect catches tampering and truncation of a zip job", "[inspect]") {
   const fs::path dir = scratch("inspect");
   const auto grid = overhangPart(15);
 
@@ -384,7 +384,11 @@ TEST_CASE("Inspect catches tampering, truncation, flips and a 600/300 swap", "[i
     REQUIRE_FALSE(report.ok());
     CHECK(report.defects[0].find("truncated") != std::string::npos);
   }
+}
 
+TEST_CASE("Inspect catches edits, flips, a 600/300 swap and mixed voxels in a folder job", "[inspect]") {
+  const fs::path dir = scratch("inspect-folder");
+  const auto grid = overhangPart(15);
   // Directory jobs let a test rewrite one image and its checksum, so only the deeper checks can object.
   JobSpec spec = specFor(*grid, dir / "job");
   spec.options.archive = ArchiveFormat::Directory;
