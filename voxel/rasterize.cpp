@@ -291,6 +291,7 @@ public:
     if (piece.kind == RodPiece::Kind::Swept) sweep(rod, pieceIndex, piece, box);
     else if (piece.kind == RodPiece::Kind::Exact) exactRegion(rod, pieceIndex, piece, box);
     else cap(rod, pieceIndex, piece, box);
+    if (interruptSeen_) throw Interrupted("rasterizer: interrupted");
   }
 
 private:
@@ -306,8 +307,12 @@ private:
   Candidate exact(int rod, int pieceIndex, int i, int j, int k) {
     // The exact test is the one costly step per voxel (a Newton solve per nearby polyline segment):
     // the interrupter is polled between every 64 of them.
-    if (interrupted_ && ++exactEvaluations % 64 == 0 && interrupted_()) throw Interrupted("rasterizer: interrupted");
+    // No throw here: sweep() is a target_clones function, and GCC 12 treats a call to one as unable to
+    // throw, so an exception leaving it ended the process (std::terminate). The first poll that sees
+    // the interrupt marks the builder; the rest of the piece is skipped and addPiece() throws.
+    if (interrupted_ && ++exactEvaluations % 64 == 0 && interrupted_()) interruptSeen_ = true;
     if (!interrupted_) ++exactEvaluations;
+    if (interruptSeen_) return {};
     const openvdb::Vec3d p = grid_.worldPoint(openvdb::Coord(i, j, k));
     const geometry::Rod& r = structure_.rods[rod];
     const geometry::RodHit hit = r.classify(geometry::Vec3(p.x(), p.y(), p.z()));
@@ -694,6 +699,7 @@ private:
   const std::vector<RodPieces>& rods_;
   const PrinterGrid& grid_;
   const std::function<bool()>& interrupted_;
+  bool interruptSeen_ = false;  // exact() saw the interrupt: the block is abandoned (see exact)
   std::vector<unsigned char> deferredDepth_;  // per rod: round section (see decodedDepth)
   static constexpr int kRows = kLeafDim * kLeafDim;
   static constexpr int kWords = kBlockVoxels / 64;
@@ -836,6 +842,7 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
     }
   });
 
+  checkInterrupt();  // a builder that saw the interrupt while settling a block left it incomplete
   for (ThreadState& s : states) {
     out.exactEvaluations += s.builder->exactEvaluations;
     for (std::size_t r = 0; r < rods_.size(); ++r) out.voxelsPerRod[r] += s.builder->voxelsPerRod[r];
