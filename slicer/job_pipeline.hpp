@@ -1,8 +1,8 @@
 // The job pipeline: a part's layers, band by band, from Vero fractions through a ditherer into the
 // job writer. The source of the fractions is the caller's (a rasterized design for `rodfab slice`,
-// uniform bars for `rodfab coupons`). The three stages overlap: while the writer encodes band n, the
-// ditherer works on band n + 1 and the source builds band n + 2, so memory holds at most three bands
-// (one per stage), never the part.
+// uniform bars for `rodfab coupons`). The three stages overlap with two bands in flight: while the
+// writer encodes band n, band n + 1 is built by the source or dithered, so memory holds at most two
+// bands, never the part.
 #pragma once
 
 #include "materials/ditherer.hpp"

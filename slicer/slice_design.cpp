@@ -43,8 +43,8 @@ openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const
 }
 
 int automaticBandLayers(const openvdb::CoordBBox& partBounds) {
-  // Three bands are in flight (made, dithered, emitted; streamJob), so ~21 M voxels each keeps the
-  // ~64 M voxels two bands of 32 M held before the stages overlapped.
+  // ~21 M voxels a band (32 M before the stages overlapped): with two bands in flight in streamJob,
+  // the pipeline's buffers and the writer's staging come on top of the bands.
   constexpr double kBandVoxels = 21.0 * (1 << 20);
   const double layerVoxels = std::max(1.0, double(partBounds.dim().x()) * double(partBounds.dim().y()));
   return static_cast<int>(std::clamp(kBandVoxels / layerVoxels, 1.0, 64.0));

@@ -49,8 +49,7 @@ struct SliceReport {
 openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const voxel::PrinterGrid& grid);
 
 // Layers per band when the caller does not choose: 64, fewer when the part's layer box is so large
-// that 64 dense layers would not stay within ~21 million voxels (a solid block must stream too; three
-// bands are in flight at once).
+// that 64 dense layers would not stay within ~21 million voxels (a solid block must stream too).
 int automaticBandLayers(const openvdb::CoordBBox& partBounds);
 
 // Throws TrayFitError for a design the tray cannot hold, std::runtime_error for an output that
