@@ -103,7 +103,7 @@ std::string canonicalDitherName(const std::string& name) {
 std::unique_ptr<Ditherer> makeDitherer(std::string_view method, const DitherOptions& options) {
   if (method == "white") return std::make_unique<WhiteNoiseDitherer>(options.seed);
   if (method == "blue") return std::make_unique<BlueNoiseDitherer>(options.mask ? options.mask : BlueNoiseMask::bundled(), options.seed);
-  if (method == "error-diffusion") return std::make_unique<ErrorDiffusionDitherer>(options.seed);
+  if (method == "error-diffusion") return std::make_unique<ErrorDiffusionDitherer>(options.seed, options.checkInterrupt);
   std::string valid;
   for (const std::string& n : ditherMethodNames()) valid += (valid.empty() ? "" : ", ") + n;
   throw std::invalid_argument("unknown ditherer '" + std::string(method) + "', expected one of: " + valid);

@@ -17,9 +17,11 @@
 #include <openvdb/openvdb.h>
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace rodfab::materials {
@@ -30,9 +32,15 @@ inline constexpr const char* kFractionGridName = "vero_fraction";
 inline constexpr const char* kMaterialGridName = "material";
 
 struct DitherOptions {
+  DitherOptions(std::uint64_t seedValue = 0, std::shared_ptr<const BlueNoiseMask> maskToUse = {})
+      : seed(seedValue), mask(std::move(maskToUse)) {}
   std::uint64_t seed = 0;
   // Threshold mask of the "blue" ditherer; null = the bundled mask (BlueNoiseMask::bundled()).
   std::shared_ptr<const BlueNoiseMask> mask;
+  // Cancellation: when set, long dithering work calls it from its worker threads (error diffusion:
+  // before each layer, so within one layer's time) and lets what it throws leave ditherLayers. A
+  // ditherer left that way must be reset() before it streams again.
+  std::function<void()> checkInterrupt;
 };
 
 class Ditherer {
@@ -65,7 +73,7 @@ protected:
 // "white": Vero where a counter-based uniform number of (seed, i, j, k) is below the fraction (mezzotint).
 // "blue": Vero where the fraction exceeds the tiled blue-noise mask's threshold; the seed shifts the tiling.
 // "error-diffusion": 3D serpentine Floyd-Steinberg renormalized over the part, most error carried to the
-//   voxel above; the seed jitters the threshold. Sequential: one thread, streamed layer by layer.
+//   voxel above; the seed jitters the threshold. A wavefront over the layers on up to 4 threads.
 // Measured quality: materials/README.md and `rodfab dither-report`.
 const std::vector<std::string>& ditherMethodNames();
 

@@ -102,10 +102,14 @@ constexpr int kNoRowYet = std::numeric_limits<int>::min();
 constexpr int kAllRows = std::numeric_limits<int>::max();
 constexpr int kWakeSlackRows = 8;
 
+// Thrown inside a waiting worker when another worker failed: the band is abandoned.
+struct BandAbandoned {};
+
 // A value one worker raises and others wait on: a short spin (the worker below is usually ahead), then
 // asleep on a condition variable until it reaches `wakeAt` (>= atLeast; waking for a few rows more than
 // needed lets a follower run that many before it can catch up and sleep again). Not std::atomic::wait:
-// with GCC 12's libstdc++ a band hung in 2 of 3 benchmark runs, a wake-up lost.
+// with GCC 12's libstdc++ a band hung in 2 of 3 benchmark runs, a wake-up lost. abandon() wakes every
+// waiter with BandAbandoned, so a worker that failed never leaves the others asleep.
 class Progress {
 public:
   int get() const { return value_.load(std::memory_order_seq_cst); }
@@ -118,19 +122,28 @@ public:
     { std::lock_guard<std::mutex> lock(mutex_); }
     changed_.notify_all();
   }
+  void abandon() {
+    abandoned_.store(true, std::memory_order_seq_cst);
+    { std::lock_guard<std::mutex> lock(mutex_); }
+    changed_.notify_all();
+  }
   void waitUntil(int atLeast, int wakeAt) {
-    for (int spins = 0; spins < 256; ++spins)
+    for (int spins = 0; spins < 256; ++spins) {
       if (get() >= atLeast) return;
+      if (abandoned_.load(std::memory_order_relaxed)) throw BandAbandoned{};
+    }
     std::unique_lock<std::mutex> lock(mutex_);
     sleepers_.fetch_add(1, std::memory_order_seq_cst);
-    changed_.wait(lock, [&] { return get() >= wakeAt; });
+    changed_.wait(lock, [&] { return get() >= wakeAt || abandoned_.load(std::memory_order_seq_cst); });
     sleepers_.fetch_sub(1, std::memory_order_seq_cst);
+    if (get() < atLeast) throw BandAbandoned{};
   }
   void waitUntil(int atLeast) { waitUntil(atLeast, atLeast); }
 
 private:
   std::atomic<int> value_{kNoRowYet};
   std::atomic<int> sleepers_{0};
+  std::atomic<bool> abandoned_{false};
   std::mutex mutex_;
   std::condition_variable changed_;
 };
@@ -158,8 +171,9 @@ constexpr std::array<float, 4> kWeights{7.0f / 16 * kInLayer, 3.0f / 16 * kInLay
 class BandDiffusion {
 public:
   BandDiffusion(const std::vector<const FloatLeaf*>& leaves, std::vector<std::unique_ptr<BoolLeaf>>& out, int k0, int k1,
-                std::uint64_t seed, int workers)
-      : leaves_(leaves), out_(out), k0_(k0), k1_(k1), seed_(seed), slots_(static_cast<std::size_t>(workers) + 3),
+                std::uint64_t seed, const std::function<void()>& checkInterrupt, int workers)
+      : leaves_(leaves), out_(out), k0_(k0), k1_(k1), seed_(seed), checkInterrupt_(checkInterrupt),
+        slots_(static_cast<std::size_t>(workers) + 3),
         rowWidth_(xRange(leaves)), nextLayer_(k0), veroByWorker_(static_cast<std::size_t>(workers)) {
     prepare(k0);
     prepare(k0 + 1);
@@ -167,20 +181,31 @@ public:
   LayerSlot& firstLayer() { return slot(k0_); }
 
   // Each worker claims the next layer until the band is done; a worker only ever waits for a layer
-  // claimed before its own, whose worker is running, so one worker alone does the whole band.
+  // claimed before its own, whose worker is running, so one worker alone does the whole band. A worker
+  // that throws abandons the band (waking the others) and keeps the first exception for rethrow().
   void work(int worker) {
-    std::vector<detail::LeafMask>& vero = veroByWorker_[static_cast<std::size_t>(worker)];
-    vero.resize(leaves_.size());
-    RowIndex nextRowIndex(rowWidth_.first, rowWidth_.second), aboveIndex(rowWidth_.first, rowWidth_.second);
-    for (int k = nextLayer_.fetch_add(1); k < k1_; k = nextLayer_.fetch_add(1)) {
-      // Two layers ahead: the worker that claims k + 1 next must not wait for the enumeration.
-      if (k + 2 <= k1_) prepare(k + 2);
-      slot(k).preparedFor.waitUntil(k);
-      slot(k + 1).preparedFor.waitUntil(k + 1);
-      diffuseLayer(k, nextRowIndex, aboveIndex, vero);
+    try {
+      std::vector<detail::LeafMask>& vero = veroByWorker_[static_cast<std::size_t>(worker)];
+      vero.resize(leaves_.size());
+      RowIndex nextRowIndex(rowWidth_.first, rowWidth_.second), aboveIndex(rowWidth_.first, rowWidth_.second);
+      for (int k = nextLayer_.fetch_add(1); k < k1_; k = nextLayer_.fetch_add(1)) {
+        if (checkInterrupt_) checkInterrupt_();
+        // Two layers ahead: the worker that claims k + 1 next must not wait for the enumeration.
+        if (k + 2 <= k1_) prepare(k + 2);
+        slot(k).preparedFor.waitUntil(k);
+        slot(k + 1).preparedFor.waitUntil(k + 1);
+        diffuseLayer(k, nextRowIndex, aboveIndex, vero);
+      }
+    } catch (const BandAbandoned&) {
+    } catch (...) {
+      abandon(std::current_exception());
     }
   }
-  // After work(): the error left for layer k1, and the first voxel whose fraction was not in [0, 1].
+  // After work(): throws what a worker threw.
+  void rethrow() const {
+    if (failure_) std::rethrow_exception(failure_);
+  }
+  // After work(): the error left for layer k1.
   const LayerSlot& lastLayer() { return slot(k1_); }
   // After work(): sets the Vero bits the workers found (each its own masks: layers k and k + 1 share
   // the leaves' words, and a shared atomic OR made the two workers fight over their cache lines).
@@ -207,6 +232,17 @@ private:
     return {xMin, xMax - xMin + 1};
   }
   LayerSlot& slot(int k) { return slots_[static_cast<std::size_t>(k - k0_) % slots_.size()]; }
+
+  void abandon(std::exception_ptr failure) {
+    {
+      std::lock_guard<std::mutex> lock(failureMutex_);
+      if (!failure_) failure_ = std::move(failure);
+    }
+    for (LayerSlot& s : slots_) {
+      s.finishedThroughRow.abandon();
+      s.preparedFor.abandon();
+    }
+  }
 
   // A slot is read by three workers: its own layer's, the one below (which sends error up into it) and
   // the one above (which waits on its progress). So the slot of layer k - slots is reused for k once
@@ -294,11 +330,14 @@ private:
   std::vector<std::unique_ptr<BoolLeaf>>& out_;
   const int k0_, k1_;
   const std::uint64_t seed_;
+  const std::function<void()>& checkInterrupt_;
   std::vector<LayerSlot> slots_;
   const std::pair<int, int> rowWidth_;  // x of the band's first column and the number of columns
   std::atomic<int> nextLayer_;
   std::vector<std::vector<detail::LeafMask>> veroByWorker_;
   detail::FractionCheck check_;
+  std::mutex failureMutex_;
+  std::exception_ptr failure_;
 };
 
 // The previous band's error for layer k0, matched by (j, i): both lists are in that order.
@@ -341,9 +380,10 @@ openvdb::BoolGrid::Ptr ErrorDiffusionDitherer::ditherLeafVoxels(const openvdb::F
 
   // Layers form a chain; more than a few workers would only wait on each other.
   const int workers = std::clamp(tbb::this_task_arena::max_concurrency(), 1, 4);
-  BandDiffusion band(leaves, out, k0, k1, seed_, workers);
+  BandDiffusion band(leaves, out, k0, k1, seed_, checkInterrupt_, workers);
   if (started_) takeCarry(carry_, band.firstLayer(), k0);
   tbb::parallel_for(0, workers, [&](int worker) { band.work(worker); });
+  band.rethrow();
   band.storeVero();
   band.check().throwIfFailed(fraction, leaves);
 

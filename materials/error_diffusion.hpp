@@ -5,6 +5,7 @@
 #include "materials/ditherer.hpp"
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 namespace rodfab::materials {
@@ -24,8 +25,10 @@ namespace rodfab::materials {
 // layer k starting its row j once layer k - 1 has finished row j + 1. Every voxel then receives its
 // error contributions in the order a single sweep gives them, so the pattern is bit for bit the same
 // for any thread count (tests/test_materials.cpp checks 1, 2 and 4 workers). A waiting worker sleeps
-// on a condition variable, so oversubscribed cores cost time, not CPU. Each worker keeps its own Vero
-// masks, merged after the band (layers k and k + 1 share the leaves' words). Measured with bench_dither
+// on a condition variable, so oversubscribed cores cost time, not CPU. A worker that throws (an
+// interrupt, std::bad_alloc) wakes the others, which stop; the first exception leaves ditherLayers.
+// Each worker keeps its own Vero masks, merged after the band (layers k and k + 1 share the leaves'
+// words). Measured with bench_dither
 // on the shared 2-core machine (real-time priority, so the other sessions' load does not count):
 // 27 -> 40 M voxels/s on the dense block, 28 -> 36 M/s on the rod bundle. Bands follow each other on
 // one ditherer.
@@ -34,7 +37,8 @@ public:
   static constexpr float kShareToNextLayer = 0.8f;
   static constexpr float kThresholdJitter = 0.1f;
 
-  explicit ErrorDiffusionDitherer(std::uint64_t seed) : seed_(seed) {}
+  explicit ErrorDiffusionDitherer(std::uint64_t seed, std::function<void()> checkInterrupt = {})
+      : seed_(seed), checkInterrupt_(std::move(checkInterrupt)) {}
   std::string_view name() const override { return "error-diffusion"; }
   void reset() override {
     started_ = false;
@@ -50,6 +54,7 @@ private:
     float error;
   };
   std::uint64_t seed_;
+  std::function<void()> checkInterrupt_;  // DitherOptions::checkInterrupt
   bool started_ = false;
   int nextLayer_ = 0;
   std::vector<Carry> carry_;  // error waiting for layer nextLayer_, sorted by (j, i)

@@ -352,6 +352,7 @@ struct JobWriter::Impl {
     const openvdb::FloatGrid* modulus = band.modulus.get();
     tbb::parallel_for(tbb::blocked_range<int>(0, count, 1), [&](const tbb::blocked_range<int>& range) {
       for (int n = range.begin(); n != range.end(); ++n) {
+        common::throwIfInterrupted();  // a band of large layers takes seconds
         const int k = band.kBegin + n, layer = firstLayer + n;
         LayerBitmaps& b = bitmaps[static_cast<std::size_t>(n)];
         LayerRecord& record = layers[static_cast<std::size_t>(layer)];

@@ -105,12 +105,14 @@ std::uint64_t couponJobBytes(const printer_profiles::Profile&, const CouponLayou
   constexpr double kPreviewBytes = 9.0;
   // Per pixel of a layer: the writer's images and encoders, measured (~30 B).
   constexpr double kLayerImageBytes = 30.0;
-  // Per voxel of a band, both bands in flight: fractions (float leaves), material (bool leaves).
+  // Per voxel of a band, both bands in flight: fractions (float leaves), material (bool leaves). The
+  // leaves hold whole 8-layer slabs, whatever the band's layers.
   constexpr double kBandBytes = 5.0;
+  const int heldLayers = (bandLayers + kLeafLayers - 1) / kLeafLayers * kLeafLayers;
   const openvdb::Coord d = layout.bounds.dim();
   const double w = d.x(), h = d.y(), layers = d.z();
   const double bytes = 64.0 * (1 << 20) + kPreviewBytes * (w * h + w * layers + h * layers) + kLayerImageBytes * w * h +
-                       kBandBytes * (bandLayers + 1.0) * w * h;
+                       kBandBytes * (heldLayers + 1.0) * w * h;
   return bytes > 1.8e19 ? std::uint64_t(1.8e19) : static_cast<std::uint64_t>(bytes);
 }
 
@@ -123,6 +125,7 @@ BandSource couponBands(const CouponLayout& layout, const std::vector<double>& fr
     grid->setTransform(transform->copy());
     const int top = k1 - 1 + (withNextLayer ? 1 : 0);
     for (std::size_t n = 0; n < layout.bars.size(); ++n) {
+      common::throwIfInterrupted();  // a band of a long bar takes a second
       openvdb::CoordBBox box = layout.bars[n];
       box.min().z() = std::max(box.min().z(), k0);
       box.max().z() = std::min(box.max().z(), top);

@@ -78,6 +78,7 @@ std::unique_ptr<materials::Ditherer> ditherFromName(const std::string& command, 
                                                     const po::variables_map& vm) {
   materials::DitherOptions options;
   options.seed = vm["seed"].as<Seed>().value;
+  options.checkInterrupt = [] { common::throwIfInterrupted(); };  // a band of error diffusion takes seconds
   try {
     return materials::makeDitherer(materials::canonicalDitherName(name), options);
   } catch (const std::invalid_argument& e) {

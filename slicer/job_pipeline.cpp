@@ -61,6 +61,14 @@ struct Band {
 
 using BandPtr = std::shared_ptr<Band>;
 
+// The end of the band starting at k0: on a slab boundary when the band size is whole slabs.
+int bandEnd(int k0, int bandLayers) {
+  const int end = k0 + bandLayers;
+  if (bandLayers % kLeafLayers != 0) return end;
+  const int aligned = end - ((end % kLeafLayers) + kLeafLayers) % kLeafLayers;  // floor, negative k too
+  return aligned > k0 ? aligned : end;
+}
+
 }  // namespace
 
 printer_profiles::JobResult streamJob(printer_profiles::JobSpec spec, const BandSource& source,
@@ -96,7 +104,7 @@ printer_profiles::JobResult streamJob(printer_profiles::JobSpec spec, const Band
       common::throwIfInterrupted();
       auto band = std::make_shared<Band>();
       band->k0 = nextK0;
-      band->k1 = std::min(kLast + 1, nextK0 + options.bandLayers);
+      band->k1 = std::min(kLast + 1, bandEnd(nextK0, options.bandLayers));
       nextK0 = band->k1;
       const bool next = readsNextLayer && band->k1 <= kLast;
       sourceArena.run(seconds.source, [&] { band->grids = source(band->k0, band->k1, next); });

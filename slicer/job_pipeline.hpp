@@ -39,7 +39,13 @@ struct StageSeconds {
   double cpu = 0.0;      // process CPU time (user + system, all threads) over `wall`
 };
 
+// Layers in one leaf of OpenVDB's float and bool trees: a band's grids hold whole 8-layer slabs of
+// leaves, so a band of 1 layer costs as much memory as a band of 8.
+inline constexpr int kLeafLayers = 8;
+
 struct PipelineOptions {
+  // Layers per band. A multiple of kLeafLayers makes the bands end on slab boundaries (the first band
+  // is shorter when the part does not start on one), so no band's leaves are shared with the next.
   int bandLayers = 64;
   // Called after every band is written with (layers done, layers in the part), on the thread that
   // called streamJob or a TBB worker, never concurrently. May throw to abort: the pipeline stops

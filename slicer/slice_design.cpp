@@ -44,10 +44,13 @@ openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const
 
 int automaticBandLayers(const openvdb::CoordBBox& partBounds) {
   // ~21 M voxels a band (32 M before the stages overlapped): with two bands in flight in streamJob,
-  // the pipeline's buffers and the writer's staging come on top of the bands.
+  // the pipeline's buffers and the writer's staging come on top of the bands. Whole leaf slabs: a
+  // band of fewer layers would hold a slab's leaves anyway (a 400 x 40 mm coupon plate at 1 layer a
+  // band: 1.33 GB and 39 s for 50 layers; at 8: 1.28 GB and 18.7 s).
   constexpr double kBandVoxels = 21.0 * (1 << 20);
   const double layerVoxels = std::max(1.0, double(partBounds.dim().x()) * double(partBounds.dim().y()));
-  return static_cast<int>(std::clamp(kBandVoxels / layerVoxels, 1.0, 64.0));
+  const double slabs = std::clamp(std::floor(kBandVoxels / (kLeafLayers * layerVoxels)), 1.0, 8.0);
+  return kLeafLayers * static_cast<int>(slabs);
 }
 
 SliceReport sliceDesign(const geometry::RodStructure& design, const printer_profiles::Profile& profile,

@@ -49,7 +49,8 @@ struct SliceReport {
 openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const voxel::PrinterGrid& grid);
 
 // Layers per band when the caller does not choose: 64, fewer when the part's layer box is so large
-// that 64 dense layers would not stay within ~21 million voxels (a solid block must stream too).
+// that 64 dense layers would not stay within ~21 million voxels (a solid block must stream too); always
+// whole 8-layer leaf slabs (kLeafLayers), so at least 8.
 int automaticBandLayers(const openvdb::CoordBBox& partBounds);
 
 // Throws TrayFitError for a design the tray cannot hold, std::runtime_error for an output that

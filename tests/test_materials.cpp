@@ -6,6 +6,7 @@
 #include <tbb/global_control.h>
 #include <tbb/task_arena.h>
 
+#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -286,6 +287,30 @@ TEST_CASE("materials: ditherers: identical for 1 and 2 threads and for any band 
       for (auto it = piece->cbeginValueOn(); it; ++it) merged->tree().setValueOn(it.getCoord(), *it);
     }
     CHECK(sameMaterial(*merged, *single));
+  }
+}
+
+TEST_CASE("materials: error diffusion: a worker that throws stops the band, the others never hang", "[materials][dither]") {
+  const auto part = mixedPart();
+  const auto reference = makeDitherer("error-diffusion", {3, nullptr})->dither(*part);
+  const int layers = part->evalActiveVoxelBoundingBox().dim().z();
+  // checkInterrupt runs before each layer, on whichever worker claims it: throw at the n-th call.
+  for (int workers : {2, 4}) {
+    tbb::task_arena arena(workers);
+    for (int stopAt = 1; stopAt <= layers + 1; ++stopAt) {
+      INFO(workers << " workers, stop at call " << stopAt);
+      std::atomic<int> calls{0};
+      DitherOptions options{3, nullptr};
+      options.checkInterrupt = [&] {
+        if (++calls == stopAt) throw std::runtime_error("stop requested");
+      };
+      const auto ditherer = makeDitherer("error-diffusion", options);
+      if (stopAt <= layers) {
+        CHECK_THROWS_WITH(arena.execute([&] { return ditherer->dither(*part); }), "stop requested");
+        ditherer->reset();  // a ditherer left by an exception streams again after reset()
+      }
+      CHECK(sameMaterial(*arena.execute([&] { return ditherer->dither(*part); }), *reference));
+    }
   }
 }
 

@@ -75,15 +75,15 @@ slicer::BandSource twoBoxes(const openvdb::CoordBBox& rigid, const openvdb::Coor
 
 }  // namespace
 
-TEST_CASE("automaticBandLayers is 21 Mi voxels over the layer's voxels, between 1 and 64") {
+TEST_CASE("automaticBandLayers is 21 Mi voxels over the layer's voxels in whole 8-layer slabs, 8 to 64") {
   const auto part = [](int w, int h) { return openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(w - 1, h - 1, 99)); };
-  CHECK(slicer::automaticBandLayers(part(100, 100)) == 64);    // 10^4 voxels a layer: 2202 layers, capped
-  CHECK(slicer::automaticBandLayers(part(4096, 2048)) == 2);   // 2^23 voxels a layer: 22020096 / 2^23 = 2.6
-  CHECK(slicer::automaticBandLayers(part(4096, 4096)) == 1);   // 2^24: 1.3
-  CHECK(slicer::automaticBandLayers(part(2000, 1000)) == 11);  // the dense benchmark block: 11.01
-  CHECK(slicer::automaticBandLayers(part(11000, 4600)) == 1);  // 5.06e7: below one, at least 1
-  CHECK(slicer::automaticBandLayers(part(672, 512)) == 64);    // 344064 = 21 Mi / 64: exactly 64
-  CHECK(slicer::automaticBandLayers(part(673, 512)) == 63);    // one column more: 63.9
+  CHECK(slicer::automaticBandLayers(part(100, 100)) == 64);    // 10^4 voxels a layer: 275 slabs, capped at 8
+  CHECK(slicer::automaticBandLayers(part(1024, 1024)) == 16);  // 2^20: 22020096 / 2^23 = 2.6 slabs
+  CHECK(slicer::automaticBandLayers(part(4096, 2048)) == 8);   // 2^23 voxels a layer: 0.33 slabs, at least 1
+  CHECK(slicer::automaticBandLayers(part(2000, 1000)) == 8);   // the dense benchmark block: 1.38 slabs
+  CHECK(slicer::automaticBandLayers(part(11000, 4600)) == 8);  // 5.06e7: below one slab, at least 1
+  CHECK(slicer::automaticBandLayers(part(672, 512)) == 64);    // 344064 = 21 Mi / 64: exactly 8 slabs
+  CHECK(slicer::automaticBandLayers(part(673, 512)) == 56);    // one column more: 7.99 slabs
 }
 
 TEST_CASE("streamJob writes every band's material; the bytes do not depend on the band size") {
@@ -130,6 +130,36 @@ TEST_CASE("streamJob writes every band's material; the bytes do not depend on th
   CHECK(zips[0] == zips[4]);
   CHECK(zips[1] == zips[3]);
   CHECK(zips[1] == zips[5]);
+}
+
+TEST_CASE("streamJob: bands of whole slabs end on slab boundaries, the first one shorter; the same bytes") {
+  openvdb::initialize();
+  TempDir tmp;
+  const openvdb::CoordBBox rigid(openvdb::Coord(0, 0, 3), openvdb::Coord(39, 19, 25));
+  const openvdb::CoordBBox rubbery(openvdb::Coord(50, 0, 3), openvdb::Coord(69, 9, 25));
+  const openvdb::Vec3d origin(0.5, 0.5, 0.015);
+  std::vector<std::string> zips;
+  for (const auto& [bandLayers, expected] : {std::pair{8, std::vector<int>{5, 13, 21, 23}}, std::pair{16, std::vector<int>{13, 23}},
+                                             std::pair{3, std::vector<int>{3, 6, 9, 12, 15, 18, 21, 23}}}) {
+    INFO(bandLayers << " layers a band");
+    printer_profiles::JobSpec spec;
+    spec.profile = connex3();
+    spec.partBounds = openvdb::CoordBBox(openvdb::Coord(0, 0, 3), openvdb::Coord(69, 19, 25));  // starts off a slab
+    spec.originMm = origin;
+    fs::create_directories(tmp.path / std::to_string(bandLayers));
+    spec.options.output = tmp.path / std::to_string(bandLayers) / "job.zip";  // the manifest names the file
+    slicer::PipelineOptions options;
+    options.bandLayers = bandLayers;
+    std::vector<int> done;
+    options.onBand = [&](int d, int) { done.push_back(d); };
+    slicer::StageSeconds seconds;
+    const auto ditherer = materials::makeDitherer("error-diffusion", {});
+    const printer_profiles::JobResult job = slicer::streamJob(spec, twoBoxes(rigid, rubbery, origin), *ditherer, options, seconds);
+    CHECK(done == expected);
+    zips.push_back(fileBytes(job.path));
+  }
+  CHECK(zips[0] == zips[1]);
+  CHECK(zips[0] == zips[2]);
 }
 
 TEST_CASE("streamJob: an onBand that throws leaves no job and nothing staged") {
