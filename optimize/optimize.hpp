@@ -165,7 +165,9 @@ struct Result {
   // L-BFGS-B's line searches that LBFGS++'s More-Thuente gave up on and that took their lowest
   // trial with sufficient decrease instead (optimize/README.md: a bug of the Debian LBFGS++ 0.1.0)
   int lineSearchFallbacks = 0;
-  std::string stopReason;   // "converged", "objective below tolerance", "iteration limit", "line search: ..."
+  // "converged", "objective below tolerance", "iteration limit", "line search: ..."; with L-BFGS-B,
+  // " (after N restarts of L-BFGS-B from the best point)" when LBFGS++ gave up N times on the way
+  std::string stopReason;
   double seconds = 0.0;
 };
 

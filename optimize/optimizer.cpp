@@ -171,17 +171,39 @@ public:
   }
 };
 
-// L-BFGS-B from t: the iterations done; throws what the objective or LBFGS++ throws.
-int minimizeLbfgsB(ScaledObjective& objective, const Settings& settings, Eigen::VectorXd& t, double& f) {
+// One run of L-BFGS-B from t, at most `iterations`; throws what the objective or LBFGS++ throws.
+void runLbfgsB(ScaledObjective& objective, const Settings& settings, int iterations, Eigen::VectorXd& t, double& f) {
   LBFGSpp::LBFGSBParam<double> param;
   param.m = 10;
   param.epsilon = settings.tolerance;
   param.epsilon_rel = 0.0;
-  param.max_iterations = settings.maxIterations;
+  param.max_iterations = iterations;
   param.max_linesearch = 30;
   LBFGSpp::LBFGSBSolver<double, ReportingLineSearch> solver(param);
   const Eigen::VectorXd lower = Eigen::VectorXd::Zero(t.size()), upper = Eigen::VectorXd::Ones(t.size());
-  return solver.minimize(objective, t, f, lower, upper);
+  solver.minimize(objective, t, f, lower, upper);
+}
+
+// L-BFGS-B from t: the iterations done (the reports after the start). When LBFGS++ gives up on its
+// own (a subspace minimization whose direction does not descend, "the moving direction does not
+// decrease the objective function value", LBFGS++ issue 15; a line search without a sufficient
+// decrease) after a run that took an iteration and lowered g, L-BFGS-B starts again from the best point with an empty
+// memory: its first direction is then the projected steepest descent. A run that lowers nothing
+// ends the optimization with LBFGS++'s message (rounding stops g from decreasing).
+int minimizeLbfgsB(ScaledObjective& objective, const Settings& settings, Eigen::VectorXd& t, double& f, Result& result, int& restarts) {
+  for (;;) {
+    const double bestBefore = result.final.objective;
+    const int done = static_cast<int>(result.history.size()) - 1;
+    try {
+      runLbfgsB(objective, settings, settings.maxIterations - done, t, f);
+      return static_cast<int>(result.history.size()) - 1;
+    } catch (const std::exception&) {
+      const int now = static_cast<int>(result.history.size()) - 1;
+      if (now == done || !(result.final.objective < bestBefore) || now >= settings.maxIterations) throw;
+      ++restarts;
+      t = objective.scaled(result.modulus).cwiseMax(0.0).cwiseMin(1.0);
+    }
+  }
 }
 
 // NLopt's MMA or CCSAQ from t, every evaluation reported as an iteration, at most maxIterations of
@@ -241,6 +263,7 @@ Result optimize(DesignProblem& problem, const std::function<void(const Iteration
   ScaledObjective objective(problem, onIteration, result);
   Eigen::VectorXd t = objective.scaled(start).cwiseMax(0.0).cwiseMin(1.0);
   double f = 0;
+  int restarts = 0;
   Eigen::VectorXd grad(t.size());
   try {
     // The start's report: LBFGS++ evaluates it again and does not report it.
@@ -248,7 +271,7 @@ Result optimize(DesignProblem& problem, const std::function<void(const Iteration
     objective.iterationDone(t, f, grad);
     const bool done = settings.maxIterations == 0 || result.history.back().projectedGradient <= settings.tolerance;
     if (done) result.iterations = 0;
-    else if (settings.method == Method::LbfgsB) result.iterations = minimizeLbfgsB(objective, settings, t, f);
+    else if (settings.method == Method::LbfgsB) result.iterations = minimizeLbfgsB(objective, settings, t, f, result, restarts);
     else result.iterations = minimizeNlopt(objective, settings, t, f, grad, result);
     result.stopReason = result.iterations >= settings.maxIterations ? "iteration limit" : "converged";
   } catch (const Abort& abort) {
@@ -261,6 +284,9 @@ Result optimize(DesignProblem& problem, const std::function<void(const Iteration
     result.iterations = static_cast<int>(result.history.size()) - 1;
     result.stopReason = std::string("line search: ") + e.what();
   }
+  if (restarts > 0)
+    result.stopReason += " (after " + std::to_string(restarts) + " restart" + (restarts > 1 ? "s" : "") +
+                         " of L-BFGS-B from the best point)";
   // The states of the cases belong to the best point.
   if (!objective.lastWasBest()) problem.evaluate(result.modulus, false);
   result.seconds = std::chrono::duration<double>(Clock::now() - begin).count();

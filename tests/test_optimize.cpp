@@ -2,7 +2,11 @@
 // differences, and the optimizer on manufactured problems whose exact answer is known.
 #include "optimize/optimize.hpp"
 
+#include "calibration/calibration.hpp"
 #include "geometry/geometry.hpp"
+#include "materials/fraction_map.hpp"
+#include "voxel/printer_grid.hpp"
+#include "voxel/rasterize.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -287,6 +291,48 @@ TEST_CASE("an optimum on the lower bound is the bound to the last bit (exp(log 8
   CHECK(result.modulus.maxCoeff() <= settings.upperMpa);
   CHECK(result.final.objective < result.initial.objective);
   CHECK(result.history.back().projectedGradient < 1e-3);
+}
+
+TEST_CASE("an optimum on both bounds prints without a clamped voxel (issue 16)", "[optimize][slice]") {
+  openvdb::initialize();
+  optimize::Settings settings = testSettings();
+  settings.maxIterations = 100;
+  // Targets only reachable with E beyond both bounds along each rod: the optimum sits on them, and
+  // E(u) of each rod runs from one bound to the other (where a voxel's interpolated E could step past).
+  optimize::Settings wide = settings;
+  wide.lowerMpa = 1.0, wide.upperMpa = 1000.0;
+  Design design = frame();
+  for (auto& lc : design.mechanics.loadCases) lc.target.push_back({"post", straight(Vec3(40, 0, 0), Vec3(40, 0, 60)), std::nullopt, std::nullopt, "t"});
+  optimize::DesignProblem generator(design, wide);
+  Eigen::VectorXd beyond(static_cast<Eigen::Index>(generator.variableCount()));
+  for (Eigen::Index k = 0; k < beyond.size(); ++k) beyond[k] = (k / 2) % 2 ? 3.0 : 600.0;
+  generator.evaluate(beyond, false);
+  setTargetsFromStates(design, generator);
+  optimize::DesignProblem problem(design, settings);
+  const optimize::Result result = optimize::optimize(problem);
+  INFO("E " << result.modulus.transpose() << "\n" << result.stopReason);
+  REQUIRE(result.modulus.minCoeff() == settings.lowerMpa);
+  REQUIRE(result.modulus.maxCoeff() == settings.upperMpa);
+
+  // Sliced as `rodfab slice` does: rasterized, then mapped through a calibration whose floor and
+  // stiffest mix are the bounds (the bundled 60 C fit's nodes).
+  calibration::ModelParameters fit;
+  fit.fractions = {0.0, 0.3, 1.0};
+  fit.moduliMpa = {0.5, 8.0, 190.0};
+  const calibration::Calibration cal(fit, 8.0);
+  const geometry::RodStructure optimized = problem.designWith(result.modulus);
+  const voxel::PrinterGrid grid = voxel::makePrinterGrid(optimized, openvdb::Vec3d(0.2, 0.2, 0.2));
+  const voxel::Rasterization ras = voxel::rasterize(optimized, grid);
+  float low = 1e30f, high = -1e30f;
+  for (auto it = ras.grid->cbeginValueOn(); it; ++it) low = std::min(low, *it), high = std::max(high, *it);
+  INFO("voxel E in [" << low << ", " << high << "]");
+  CHECK(low == 8.0f);  // the voxels do reach both bounds
+  CHECK(high == 190.0f);
+  materials::MappingStats stats;
+  materials::mapToFractions(*ras.grid, materials::FractionMap(cal), stats);
+  CHECK(stats.voxels > 100000);
+  CHECK(stats.clamps.belowFloor == 0);
+  CHECK(stats.clamps.aboveMax == 0);
 }
 
 TEST_CASE("an optimized design resumes from its own control values; drawn shapes are the solved states", "[optimize]") {
