@@ -1,5 +1,7 @@
 #include "slicer/job_report.hpp"
 
+#include "common/plot_canvas.hpp"
+
 #include "calibration/plot.hpp"
 
 #include <cairo.h>
@@ -102,12 +104,6 @@ struct Rgb {
 
 void setColor(cairo_t* cr, Rgb c) { cairo_set_source_rgb(cr, c.r, c.g, c.b); }
 
-cairo_status_t appendBytes(void* closure, const unsigned char* data, unsigned int length) {
-  auto* out = static_cast<Bytes*>(closure);
-  out->insert(out->end(), data, data + length);
-  return CAIRO_STATUS_SUCCESS;
-}
-
 void label(cairo_t* cr, double x, double y, const std::string& text, double size = 13) {
   cairo_set_font_size(cr, size);
   cairo_move_to(cr, x, y);
@@ -123,14 +119,8 @@ Bytes ClampMap::renderPng() const {
   const double scale = kPanel / std::max({xMm, yMm, zMm});  // pixels per mm, the same in both views
   const int width = static_cast<int>(2 * kMargin + kGap + 2 * xMm * scale) + 1;
   const int height = static_cast<int>(2 * kMargin + 30 + std::max(yMm, zMm) * scale) + 1;
-  std::unique_ptr<cairo_surface_t, decltype(&cairo_surface_destroy)> surface(
-      cairo_image_surface_create(CAIRO_FORMAT_RGB24, width, height), cairo_surface_destroy);
-  std::unique_ptr<cairo_t, decltype(&cairo_destroy)> context(cairo_create(surface.get()), cairo_destroy);
-  cairo_t* cr = context.get();
-  if (cairo_status(cr) != CAIRO_STATUS_SUCCESS) throw std::runtime_error(std::string("cairo: ") + cairo_status_to_string(cairo_status(cr)));
-  cairo_set_source_rgb(cr, 1, 1, 1);
-  cairo_paint(cr);
-  cairo_select_font_face(cr, "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
+  const common::PlotCanvas canvas(width, height);  // white, sans-serif
+  cairo_t* cr = canvas.context();
 
   // A view's bins, v growing upwards (y or z), drawn with its lower-left corner at (x0, y0).
   const auto drawView = [&](const View& view, double x0, double y0, double vMm, const std::string& title) {
@@ -154,11 +144,8 @@ Bytes ClampMap::renderPng() const {
   std::snprintf(legend, sizeof legend, "grey: part   blue: below the floor   red: above the stiffest mix   (bins of %d voxels)", bin_);
   label(cr, kMargin, height - 14, legend, 12);
 
-  cairo_surface_flush(surface.get());
-  Bytes png;
-  const cairo_status_t status = cairo_surface_write_to_png_stream(surface.get(), appendBytes, &png);
-  if (status != CAIRO_STATUS_SUCCESS) throw std::runtime_error(std::string("cairo PNG encoding failed: ") + cairo_status_to_string(status));
-  return png;
+  const std::string png = canvas.png({});
+  return Bytes(png.begin(), png.end());
 }
 
 // ------------------------------------------------------------------------------------------ report.html

@@ -77,6 +77,7 @@ nlohmann::json optimizeSummaryJson(const OptimizeSummary& summary) {
           {"objective_final", r.final.objective},
           {"relative", r.initial.objective > 0 ? r.final.objective / r.initial.objective : 0.0},
           {"iterations", r.iterations}, {"evaluations", r.evaluations}, {"stop_reason", r.stopReason},
+          {"line_search_fallbacks", r.lineSearchFallbacks},
           {"modulus_range_mpa", {r.modulus.minCoeff(), r.modulus.maxCoeff()}}, {"cases", casesJson(r, summary.accuracy)},
           {"error_estimate_relative", worstRelativeError(summary.accuracy)}, {"history", historyJson(r.history)},
           {"seconds", r.seconds}};

@@ -137,6 +137,7 @@ assert s["design_variables"] == 8 and s["rods"] == 2
 assert s["objective_final"] / s["objective_initial"] < 1e-4, s["relative"]
 assert s["cases"][0]["name"] == "push" and abs(s["cases"][0]["objective_final"] - s["objective_final"]) < 1e-12
 assert s["bounds_mpa"] == [8, 190] and s["scaling"] == "log"
+assert isinstance(s["line_search_fallbacks"], int) and s["line_search_fallbacks"] >= 0
 estimate = s["cases"][0]["error_estimate"]  # the equilibrium's accuracy at the optimum
 assert estimate["available"] and 0 < estimate["relative"] < 1e-2 and s["error_estimate_relative"] == estimate["relative"], estimate
 assert len(s["history"]) == s["iterations"] + 1

@@ -17,8 +17,10 @@ for ((i = 0; i < runs; i += 2)); do
   mkdir "$tmp/$i" "$tmp/$((i + 1))"  # one folder a run: the job's name is part of its bytes
   slice $i 1 & first=$!
   slice $((i + 1)) 2 & second=$!
-  wait $first || exit 1
-  wait $second || exit 1
+  ok=0
+  wait $first || ok=1
+  wait $second || ok=1  # both waited for: none left running while the trap removes $tmp
+  [ $ok = 0 ] || exit 1
 done
 count=$(sha256sum "$tmp"/*/arm-cast.zip | cut -d' ' -f1 | sort -u | wc -l)
 [ "$count" = 1 ] || { sha256sum "$tmp"/*/arm-cast.zip; fail "$runs runs gave $count different jobs"; }
