@@ -655,7 +655,8 @@ private:
   // the two ranges, as conservatively as the other clips (see Slope); false when both are empty. Outside
   // them the loop would skip every voxel: the ball clip keeps the rows of an axis-aligned cap to its
   // half-ball instead of the half-cylinder (2/3 of the voxels) or the half-box (a third).
-  [[gnu::always_inline]] static bool capRow(bool round, double aRow, double nearPlane, const Slope& rising, const Slope& falling, double wxRow,
+  [[gnu::always_inline]]
+  static bool capRow(bool round, double aRow, double nearPlane, const Slope& rising, const Slope& falling, double wxRow,
                      double rest, const Slope& alongX, const Slope& againstX, RowBounds& bounds) {
     RowBounds near, ball;
     const bool anyNear = rising.bound(aRow + nearPlane, near.lo, near.hi) && falling.bound(nearPlane - aRow, near.lo, near.hi);
