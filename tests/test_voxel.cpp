@@ -952,9 +952,10 @@ TEST_CASE("Interruption: the hook is polled often and stops construction and ras
     const voxel::Rasterizer stopping(s, g, {2, [&] { return ++calls > 2000; }});
     REQUIRE_THROWS_AS(stopping.rasterize(), voxel::Interrupted);
   }
-  SECTION("interrupted at any poll, inside the AVX2-cloned swept loop too") {
+  SECTION("interrupted at any poll, inside the AVX2-cloned swept and cap loops too") {
     // GCC 12 treats a call to a target_clones function as unable to throw: an Interrupted leaving the
-    // swept loop ended the process (std::terminate, 1 SIGINT in 10 during `rodfab slice`).
+    // swept loop ended the process (std::terminate, 1 SIGINT in 10 during `rodfab slice`). The round
+    // caps' loop is cloned too, and its voxels on the end planes go to the exact test, which polls.
     long polls = 0;
     bool armed = false;
     const voxel::Rasterizer counting(s, g, {1, [&] { return armed && ++polls < 0; }});

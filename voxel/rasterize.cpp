@@ -71,6 +71,12 @@ inline Double4 absolute(Double4 v) {
   return reinterpret_cast<Double4>(reinterpret_cast<Mask4>(v) & std::numeric_limits<std::int64_t>::max());
 }
 
+// sqrt lane by lane (correctly rounded, as std::sqrt), two lanes per SSE2 instruction.
+inline Double4 squareRoot(Double4 v) {
+  const __m128d low = _mm_sqrt_pd(_mm_set_pd(v[1], v[0])), high = _mm_sqrt_pd(_mm_set_pd(v[3], v[2]));
+  return Double4{low[0], low[1], high[0], high[1]};
+}
+
 // A swept piece's coefficients for the voxel loop, copied out of the piece (see sweep): the same
 // values, so estimateSwept and estimateModulus give the same bits.
 struct SweptLanes {
@@ -139,14 +145,14 @@ bool clipHalfLine(double base, double slope, int& lo, int& hi) {
 struct Slope {
   double slope, inverse;
   explicit Slope(double s) : slope(s), inverse(std::isfinite(1.0 / s) ? 1.0 / s : 0.0) {}
-  bool clip(double base, int& lo, int& hi) const {
+  [[gnu::always_inline]] bool clip(double base, int& lo, int& hi) const {
     if (slope > 0.0) lo = std::max(lo, clampToInt(std::ceil(-base * inverse - kClipMargin)));
     else if (slope < 0.0) hi = std::min(hi, clampToInt(std::floor(-base * inverse + kClipMargin)));
     else if (base < 0.0) return false;
     return lo <= hi;
   }
   // The same bound on the real line, for RowBounds; false when no i qualifies.
-  bool bound(double base, double& lo, double& hi) const {
+  [[gnu::always_inline]] bool bound(double base, double& lo, double& hi) const {
     if (slope > 0.0) lo = std::max(lo, -base * inverse);
     else if (slope < 0.0) hi = std::min(hi, -base * inverse);
     else if (base < 0.0) return false;
@@ -159,7 +165,7 @@ struct Slope {
 // per side give the same range as rounding every bound.
 struct RowBounds {
   double lo = -std::numeric_limits<double>::infinity(), hi = std::numeric_limits<double>::infinity();
-  bool round(int& first, int& last) const {
+  [[gnu::always_inline]] bool round(int& first, int& last) const {
     first = std::max(first, clampToInt(std::ceil(lo - kClipMargin)));
     last = std::min(last, clampToInt(std::floor(hi + kClipMargin)));
     return first <= last;
@@ -205,7 +211,7 @@ public:
   }
 
   // Row j of the current layer: narrows the bounds to the voxels inside the cylinder.
-  bool row(int j, RowBounds& b) const {
+  [[gnu::always_inline]] bool row(int j, RowBounds& b) const {
     if (alongX_) return true;  // row (nearly) parallel to the axis: the other clips bound it
     const double dj = j - j0_;
     const double beta = b0_ + b1_ * dj, gamma = g0_ + (g1_ + g2_ * dj) * dj;
@@ -410,6 +416,31 @@ private:
     if (clearOverlap(n, g * g, depth, 0.0f, value, rod, piece)) return;
     const Candidate c{depth, 0.0f, value, rod, piece};
     if (!overlapWithoutExactTest(n, c, depth)) resolveOverlap(n, c, depth, i, j, k);
+  }
+  // Four neighbouring round-cap candidates of one row (slots n .. n + 3), inside for sure (gauges g < 1),
+  // as addCapCandidate would take them one by one. Their common fate at a node, four filled slots each
+  // clearly deeper than the cap, is settled with one comparison of four lanes: clearOverlap's
+  // expressions lane by lane (the candidate's error bound is 0, so `clear` gets the same bits). Any
+  // other case goes voxel by voxel.
+  void addFourCapCandidates(int n, Double4 g, float value, int rod, int piece, int i, int j, int k) {
+    if (((filled_[static_cast<std::size_t>(n >> 6)] >> (n & 63)) & 0xfu) == 0xfu) {
+      Double4 slotEncoded;
+      Float4 slotBoundFloat;
+      std::memcpy(&slotEncoded, &encodedDepth_[static_cast<std::size_t>(n)], sizeof slotEncoded);
+      std::memcpy(&slotBoundFloat, &errorBound_[static_cast<std::size_t>(n)], sizeof slotBoundFloat);
+      const Double4 slotBound = __builtin_convertvector(slotBoundFloat, Double4);
+      Mask4 roundSlot;
+      for (int l = 0; l < 4; ++l)
+        roundSlot[l] = deferredDepth_[static_cast<std::size_t>(owner_[static_cast<std::size_t>(n + l)] >> 32)] ? -1 : 0;
+      const Mask4 approximate = slotBound > 0.0;
+      // Where the slot's gauge is at hand (see clearOverlap); elsewhere the lane is not clear.
+      const Mask4 atHand = (approximate & roundSlot) | (~approximate & (slotEncoded >= 0.0) & (slotEncoded <= 1.0));
+      const Double4 slotGaugeSquared = approximate ? slotEncoded : (1.0 - slotEncoded) * (1.0 - slotEncoded);
+      const Double4 clear = 2.0 * (slotBound + 0.0 + kTieTolerance) + 1e-12;
+      const Mask4 slotStays = atHand & (g * g - slotGaugeSquared > clear);
+      if (slotStays[0] & slotStays[1] & slotStays[2] & slotStays[3]) return;
+    }
+    for (int l = 0; l < 4; ++l) addCapCandidate(n + l, g[l], value, rod, piece, i + l, j, k);
   }
   // A candidate with its depth at hand (exact, or caps), possibly outside.
   void addCandidate(const Candidate& c, int n, int i, int j, int k) {
@@ -624,6 +655,7 @@ private:
   // the two ranges, as conservatively as the other clips (see Slope); false when both are empty. Outside
   // them the loop would skip every voxel: the ball clip keeps the rows of an axis-aligned cap to its
   // half-ball instead of the half-cylinder (2/3 of the voxels) or the half-box (a third).
+  [[gnu::always_inline]]
   static bool capRow(bool round, double aRow, double nearPlane, const Slope& rising, const Slope& falling, double wxRow,
                      double rest, const Slope& alongX, const Slope& againstX, RowBounds& bounds) {
     RowBounds near, ball;
@@ -641,7 +673,11 @@ private:
     return true;
   }
 
-  void cap(int rod, int pieceIndex, const RodPiece& piece, const openvdb::CoordBBox& box) {
+  // Cloned for AVX2 like sweep (no FMA there either, so the clones compute the same bits). Four voxels
+  // a step: the plane value and the distance to the end point (with its square root) for four
+  // neighbours at once, lane by lane the scalar expressions; then the decisions per voxel, in order.
+  [[gnu::target_clones("avx2", "default")]] void cap(int rod, int pieceIndex, const RodPiece& piece,
+                                                     const openvdb::CoordBBox& box) {
     const RodPieces& rp = rods_[rod];
     const geometry::Rod& r = structure_.rods[rod];
     const AffineInIndex& plane = rp.planes[piece.plane];
@@ -652,10 +688,12 @@ private:
     const double nearPlane = capPlaneTolerance(r.section().boundingRadius());
     const double invCap = rp.inverseCapRadius;
     constexpr double kCapRoundOff = 1e-9;  // round-off in the cap's distance, relative to its radius
+    constexpr double kSurelyInside = 1.0 - kCapRoundOff, kSurelyOutside = 1.0 + kCapRoundOff;
     const float endModulus = piece.capModulus;
     AxisCylinder cylinder(grid_, piece);
     const Slope slope(sign * plane.gx), rising(plane.gx), falling(-plane.gx);
     const Slope alongX(piece.capOffset[0].gx), againstX(-piece.capOffset[0].gx);
+    const double gxPlane = plane.gx, gxOffset = piece.capOffset[0].gx;
     // A little more than the largest |p - end point| the loop keeps (g <= 1 + kCapRoundOff, computed):
     // the margin (1e-9 of the radius) dwarfs the round-off of the distance and of the clip.
     const double ballRadiusSquared = ((1.0 + 2.0 * kCapRoundOff) / invCap) * ((1.0 + 2.0 * kCapRoundOff) / invCap);
@@ -663,33 +701,38 @@ private:
       int jLo = box.min().y(), jHi = box.max().y();
       if (!cylinder.layer(k, jLo, jLo, jHi)) continue;
       for (int j = jLo; j <= jHi; ++j) {
-        const double aRow = plane.row(j, k);
+        const double aRow = plane.row(j, k), wxRow = piece.capOffset[0].row(j, k);
         const double wy = piece.capOffset[1].row(j, k), wz = piece.capOffset[2].row(j, k);
         const double wyz = wy * wy + wz * wz;
         RowBounds bounds;
         int lo = box.min().x(), hi = box.max().x();
         if (!slope.bound(sign * aRow, bounds.lo, bounds.hi) || !cylinder.row(j, bounds) ||
-            !capRow(round, aRow, nearPlane, rising, falling, piece.capOffset[0].row(j, k), ballRadiusSquared - wyz, alongX,
-                    againstX, bounds) ||
+            !capRow(round, aRow, nearPlane, rising, falling, wxRow, ballRadiusSquared - wyz, alongX, againstX, bounds) ||
             !bounds.round(lo, hi))
           continue;
-        for (int i = lo; i <= hi; ++i) {
-          const double a = aRow + plane.gx * i;
-          if (atEnd ? !(a >= 0.0) : !(a < 0.0)) continue;
-          if (std::abs(a) <= nearPlane) {
-            addCandidate(exact(rod, pieceIndex, i, j, k), offset(i, j, k), i, j, k);
-            continue;
+        Double4 iv = double(lo) + Double4{0.0, 1.0, 2.0, 3.0};
+        for (int i = lo; i <= hi; i += 4, iv += 4.0) {
+          const Double4 a = aRow + gxPlane * iv;
+          const Mask4 beyond = atEnd ? (a >= 0.0) : (a < 0.0);
+          const Mask4 near = absolute(a) <= nearPlane;
+          Double4 g = Double4{} + std::numeric_limits<double>::infinity();  // flat caps: only the near-plane voxels
+          if (round) {
+            const Double4 wx = wxRow + gxOffset * iv;
+            g = squareRoot(wx * wx + wyz) * invCap;
           }
-          if (!round) continue;
-          const double wx = piece.capOffset[0].row(j, k) + piece.capOffset[0].gx * i;
-          const double g = std::sqrt(wx * wx + wyz) * invCap;
-          if (g > 1.0 + kCapRoundOff) continue;
           // Inside for sure; the depth's round-off (1e-9 of the radius at most) is within the tie
           // tolerance, so it counts as exact.
-          if (g < 1.0 - kCapRoundOff)
-            addCapCandidate(offset(i, j, k), g, endModulus, rod, pieceIndex, i, j, k);
-          else
-            addCandidate(exact(rod, pieceIndex, i, j, k), offset(i, j, k), i, j, k);
+          const Mask4 sure = beyond & ~near & (g < kSurelyInside);
+          if (i + 3 <= hi && (sure[0] & sure[1] & sure[2] & sure[3])) {
+            const int n = offset(i, j, k);
+            addFourCapCandidates(n, g, endModulus, rod, pieceIndex, i, j, k);
+            continue;
+          }
+          for (int l = 0; l < 4 && i + l <= hi; ++l) {
+            if (!beyond[l] || (!near[l] && g[l] > kSurelyOutside)) continue;
+            if (sure[l]) addCapCandidate(offset(i + l, j, k), g[l], endModulus, rod, pieceIndex, i + l, j, k);
+            else addCandidate(exact(rod, pieceIndex, i + l, j, k), offset(i + l, j, k), i + l, j, k);
+          }
         }
       }
     }
@@ -715,6 +758,79 @@ private:
   std::array<std::uint64_t, kWords> memo_{};  // voxels of the block exactly tested for rod memoRod_
   int memoRod_ = -1;
 };
+
+// The pieces reaching each block of a band: entries sorted (see Entry), those of block g from
+// start[g] to start[g + 1].
+struct BlockList {
+  std::vector<Entry> entries;
+  std::vector<std::size_t> start;
+  std::size_t count() const { return start.size() - 1; }
+};
+
+// Which pieces reach which blocks within layers zBegin <= k < zEnd; `poll` throws on an interrupt.
+template <typename Poll>
+BlockList listBlocks(const std::vector<RodPieces>& rods, int zBegin, int zEnd, const Poll& poll) {
+  std::vector<std::vector<Entry>> perRod(rods.size());
+  tbb::parallel_for(std::size_t(0), rods.size(), [&](std::size_t r) {
+    const RodPieces& rod = rods[r];
+    if (rod.box.empty() || rod.box.max().z() < zBegin || rod.box.min().z() >= zEnd) return;
+    for (std::size_t p = 0; p < rod.pieces.size(); ++p) {
+      if (p % 1024 == 0) poll();
+      openvdb::CoordBBox b = rod.pieces[p].box;
+      b.min().z() = std::max(b.min().z(), zBegin);
+      b.max().z() = std::min(b.max().z(), zEnd - 1);
+      if (b.empty()) continue;
+      for (int k = b.min().z() >> kLeafLog2; k <= b.max().z() >> kLeafLog2; ++k)
+        for (int j = b.min().y() >> kLeafLog2; j <= b.max().y() >> kLeafLog2; ++j)
+          for (int i = b.min().x() >> kBlockXLog2; i <= b.max().x() >> kBlockXLog2; ++i)
+            perRod[r].push_back({packBlock(i, j, k), std::uint32_t(r), std::uint32_t(p)});
+    }
+  });
+  BlockList list;
+  std::size_t total = 0;
+  for (const auto& v : perRod) total += v.size();
+  list.entries.reserve(total);
+  for (auto& v : perRod) {
+    list.entries.insert(list.entries.end(), v.begin(), v.end());
+    std::vector<Entry>().swap(v);
+  }
+  poll();
+  tbb::parallel_sort(list.entries.begin(), list.entries.end());
+  poll();
+  for (std::size_t e = 0; e < list.entries.size(); ++e)
+    if (e == 0 || list.entries[e].block != list.entries[e - 1].block) list.start.push_back(e);
+  list.start.push_back(list.entries.size());
+  return list;
+}
+
+using BlockLeaves = std::array<std::unique_ptr<LeafT>, kBlockLeaves>;
+
+// Block g of the list, its pieces added in sorted order within the band, into `leaves` (none where
+// no piece reaches a voxel of the band).
+template <typename Poll>
+void buildBlock(LeafBuilder& builder, const std::vector<RodPieces>& rods, const BlockList& list, std::size_t g, int zBegin,
+                int zEnd, const Poll& poll, BlockLeaves& leaves) {
+  const openvdb::Coord origin = blockOrigin(list.entries[list.start[g]].block);
+  openvdb::CoordBBox blockBox(origin, origin + openvdb::Coord((kLeafDim << kBlockLeavesLog2) - 1, kLeafDim - 1, kLeafDim - 1));
+  blockBox.min().z() = std::max(blockBox.min().z(), zBegin);
+  blockBox.max().z() = std::min(blockBox.max().z(), zEnd - 1);
+  builder.clear();
+  bool touched = false;
+  for (std::size_t e = list.start[g]; e < list.start[g + 1]; ++e) {
+    if ((e - list.start[g]) % 8 == 7) poll();
+    const Entry& entry = list.entries[e];
+    openvdb::CoordBBox b = rods[entry.rod].pieces[entry.piece].box;
+    b.intersect(blockBox);
+    if (b.empty()) continue;
+    builder.addPiece(int(entry.rod), int(entry.piece), b);
+    touched = true;
+  }
+  if (!touched) return;
+  builder.emit([&](int l) -> LeafT& {
+    leaves[static_cast<std::size_t>(l)] = std::make_unique<LeafT>(origin.offsetBy(l * kLeafDim, 0, 0), 0.0f, false);
+    return *leaves[static_cast<std::size_t>(l)];
+  });
+}
 
 }  // namespace
 
@@ -771,74 +887,20 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
   zEnd = std::min(zEnd, grid_.dims.z());
   if (zBegin >= zEnd) return out;
 
-  // Which pieces reach which leaves (within the band).
-  std::vector<std::vector<Entry>> perRod(rods_.size());
-  tbb::parallel_for(std::size_t(0), rods_.size(), [&](std::size_t r) {
-    const RodPieces& rod = rods_[r];
-    if (rod.box.empty() || rod.box.max().z() < zBegin || rod.box.min().z() >= zEnd) return;
-    for (std::size_t p = 0; p < rod.pieces.size(); ++p) {
-      if (p % 1024 == 0) checkInterrupt();
-      openvdb::CoordBBox b = rod.pieces[p].box;
-      b.min().z() = std::max(b.min().z(), zBegin);
-      b.max().z() = std::min(b.max().z(), zEnd - 1);
-      if (b.empty()) continue;
-      for (int k = b.min().z() >> kLeafLog2; k <= b.max().z() >> kLeafLog2; ++k)
-        for (int j = b.min().y() >> kLeafLog2; j <= b.max().y() >> kLeafLog2; ++j)
-          for (int i = b.min().x() >> kBlockXLog2; i <= b.max().x() >> kBlockXLog2; ++i)
-            perRod[r].push_back({packBlock(i, j, k), std::uint32_t(r), std::uint32_t(p)});
-    }
-  });
-  std::vector<Entry> entries;
-  {
-    std::size_t total = 0;
-    for (const auto& v : perRod) total += v.size();
-    entries.reserve(total);
-    for (auto& v : perRod) {
-      entries.insert(entries.end(), v.begin(), v.end());
-      std::vector<Entry>().swap(v);
-    }
-  }
-  checkInterrupt();
-  tbb::parallel_sort(entries.begin(), entries.end());
-  checkInterrupt();
-  std::vector<std::size_t> groupStart;
-  for (std::size_t e = 0; e < entries.size(); ++e)
-    if (e == 0 || entries[e].block != entries[e - 1].block) groupStart.push_back(e);
-  groupStart.push_back(entries.size());
-  const std::size_t groups = groupStart.size() - 1;
-
+  const auto poll = [this] { checkInterrupt(); };
+  const BlockList blocks = listBlocks(rods_, zBegin, zEnd, poll);
   // Each block built by one task from its pieces, in sorted order.
   struct ThreadState {
     std::unique_ptr<LeafBuilder> builder;
   };
   tbb::enumerable_thread_specific<ThreadState> states;
-  std::vector<std::array<std::unique_ptr<LeafT>, kBlockLeaves>> leaves(groups);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, groups), [&](const tbb::blocked_range<std::size_t>& range) {
+  std::vector<BlockLeaves> leaves(blocks.count());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks.count()), [&](const tbb::blocked_range<std::size_t>& range) {
     ThreadState& state = states.local();
     if (!state.builder) state.builder.reset(new LeafBuilder(*structure_, rods_, grid_, options_.wasInterrupted));  // slots mostly uninitialized
-    LeafBuilder& builder = *state.builder;
     for (std::size_t g = range.begin(); g != range.end(); ++g) {
-      checkInterrupt();
-      const openvdb::Coord origin = blockOrigin(entries[groupStart[g]].block);
-      openvdb::CoordBBox blockBox(origin, origin + openvdb::Coord((kLeafDim << kBlockLeavesLog2) - 1, kLeafDim - 1, kLeafDim - 1));
-      blockBox.min().z() = std::max(blockBox.min().z(), zBegin);
-      blockBox.max().z() = std::min(blockBox.max().z(), zEnd - 1);
-      builder.clear();
-      bool touched = false;
-      for (std::size_t e = groupStart[g]; e < groupStart[g + 1]; ++e) {
-        if ((e - groupStart[g]) % 8 == 7) checkInterrupt();
-        openvdb::CoordBBox b = rods_[entries[e].rod].pieces[entries[e].piece].box;
-        b.intersect(blockBox);
-        if (b.empty()) continue;
-        builder.addPiece(int(entries[e].rod), int(entries[e].piece), b);
-        touched = true;
-      }
-      if (!touched) continue;
-      auto& blockLeaves = leaves[g];
-      builder.emit([&](int l) -> LeafT& {
-        blockLeaves[static_cast<std::size_t>(l)] = std::make_unique<LeafT>(origin.offsetBy(l * kLeafDim, 0, 0), 0.0f, false);
-        return *blockLeaves[static_cast<std::size_t>(l)];
-      });
+      poll();
+      buildBlock(*state.builder, rods_, blocks, g, zBegin, zEnd, poll, leaves[g]);
     }
   });
 
@@ -848,7 +910,7 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
     for (std::size_t r = 0; r < rods_.size(); ++r) out.voxelsPerRod[r] += s.builder->voxelsPerRod[r];
   }
   openvdb::FloatTree& tree = out.grid->tree();
-  for (auto& blockLeaves : leaves)
+  for (BlockLeaves& blockLeaves : leaves)
     for (std::unique_ptr<LeafT>& leaf : blockLeaves)
       if (leaf) tree.addLeaf(leaf.release());
   return out;
