@@ -393,9 +393,7 @@ private:
     const double clear = 2.0 * (double(slotBound) + double(errorBound) + kTieTolerance) + 1e-12;
     if (gaugeSquared - slotGaugeSquared > clear) return true;  // the candidate is clearly shallower: the slot stays
     if (slotGaugeSquared - gaugeSquared > clear) {              // clearly deeper: it takes the slot
-      store(n, encodedDepth, errorBound, value, owner(rod, piece));
-      --voxelsPerRod[static_cast<std::size_t>(slotRod)];
-      ++voxelsPerRod[static_cast<std::size_t>(rod)];
+      replaceSlot(n, encodedDepth, errorBound, value, rod, piece, slotRod);
       return true;
     }
     return false;
@@ -457,6 +455,18 @@ private:
     if (!overlapWithoutExactTest(n, c, c.depth)) resolveOverlap(n, c, c.depth, i, j, k);
   }
 
+  // The overlap rule, in one place: a candidate `gain` deeper than the slot's holder (sRod, sPiece)
+  // takes the slot when it is deeper by more than kTieTolerance, or within it and of a lower rod (then
+  // a lower piece). It decides which rod owns a voxel, so the job's bytes.
+  [[gnu::always_inline]] static bool takesSlot(double gain, const Candidate& c, int sRod, int sPiece) {
+    return gain > kTieTolerance || (gain >= -kTieTolerance && (c.rod < sRod || (c.rod == sRod && c.piece < sPiece)));
+  }
+  [[gnu::always_inline]] void replaceSlot(int n, double encodedDepth, float errorBound, float value, int rod, int piece, int oldRod) {
+    store(n, encodedDepth, errorBound, value, owner(rod, piece));
+    --voxelsPerRod[static_cast<std::size_t>(oldRod)];
+    ++voxelsPerRod[static_cast<std::size_t>(rod)];
+  }
+
   // resolveOverlap where it needs no exact test (no near tie involving an approximate depth): the same
   // expressions in the same order, so the same decision, inline and without a copy of the slot. At
   // the lattice's nodes this is nearly every overlap of a round cap with the rods around it.
@@ -470,11 +480,7 @@ private:
       return false;
     const double gain = c.depth - sDepth;
     const int sPiece = static_cast<int>(slotOwner & 0xffffffffu);
-    if (c.inside() && (gain > kTieTolerance || (gain >= -kTieTolerance && (c.rod < sRod || (c.rod == sRod && c.piece < sPiece))))) {
-      store(n, cEncodedDepth, c.errorBound, c.value, owner(c.rod, c.piece));
-      --voxelsPerRod[static_cast<std::size_t>(sRod)];
-      ++voxelsPerRod[static_cast<std::size_t>(c.rod)];
-    }
+    if (c.inside() && takesSlot(gain, c, sRod, sPiece)) replaceSlot(n, cEncodedDepth, c.errorBound, c.value, c.rod, c.piece, sRod);
     return true;
   }
 
@@ -511,12 +517,9 @@ private:
       }
     }
     const double gain = c.depth - s.depth;
-    if (c.inside() &&
-        (gain > kTieTolerance || (gain >= -kTieTolerance && (c.rod < s.rod || (c.rod == s.rod && c.piece < s.piece))))) {
-      store(n, cEncodedDepth, c.errorBound, c.value, owner(c.rod, c.piece));
-      --voxelsPerRod[static_cast<std::size_t>(s.rod)];
-      ++voxelsPerRod[static_cast<std::size_t>(c.rod)];
-    } else if (sChanged)
+    if (c.inside() && takesSlot(gain, c, s.rod, s.piece))
+      replaceSlot(n, cEncodedDepth, c.errorBound, c.value, c.rod, c.piece, s.rod);
+    else if (sChanged)
       store(n, sEncodedDepth, s.errorBound, s.value, owner(s.rod, s.piece));
   }
 
