@@ -44,7 +44,7 @@ std::variant<MeshSettings, int> parseMesh(const std::vector<std::string>& args) 
   const char* synopsis = "MESH.stl|.obj|.ply|.off --faces N --diameter D --output DESIGN.json [--subdivisions K] [--surface-tolerance T] "
                          "[--section circle|ellipse|rectangle] [--breadth B] [--modulus E] [--caps round|flat] [--profile NAME|FILE] "
                          "[--threads N] [--force] [--json]";
-  if (auto code = parseOptions("rods-from-mesh", synopsis, options, "mesh", args, vm)) return *code;
+  if (auto code = parseOptionsWithInput("rods-from-mesh", synopsis, options, "mesh", args, vm)) return *code;
   MeshSettings s;
   s.mesh = vm["mesh"].as<std::string>(), s.output = vm["output"].as<std::string>();
   s.force = vm.count("force") > 0, s.json = vm.count("json") > 0;

@@ -54,7 +54,7 @@ int runVoxelize(const std::vector<std::string>& args) {
   po::variables_map vm;
   const char* synopsis =
       "DESIGN.json --output GRID.vdb [--profile NAME|FILE] [--print-mode MODE] [--voxel-size X,Y,Z] [--threads N] [--json]";
-  if (auto code = parseOptions("voxelize", synopsis, options, "design", args, vm)) return *code;
+  if (auto code = parseOptionsWithInput("voxelize", synopsis, options, "design", args, vm)) return *code;
   auto voxelSizeOrCode = voxelSizeOption(vm);
   if (const int* code = std::get_if<int>(&voxelSizeOrCode)) return *code;
   std::optional<openvdb::Vec3d> voxelSize = std::get<0>(voxelSizeOrCode);
