@@ -1,6 +1,7 @@
 // End to end (`rodfab slice` without the command line): design -> voxel bands -> Vero fractions ->
-// dithering -> BMP stacks in a zip, verified. The benchmark classes of examples::benchmarkDesign at the
-// Connex3 voxel (rodfab_generate_examples --benchmark CLASS FILE writes each as a design file):
+// dithering -> BMP stacks in a zip, verified, for the benchmark profile (bench_profile.hpp). The
+// benchmark classes of examples::benchmarkDesign (rodfab_generate_examples --benchmark CLASS FILE writes
+// each as a design file), in voxels of the default profile (Connex3):
 //   spring:         the buckling spring scaled to 84.6 x 84.6 x 90 mm (2000 x 1000 x 3000 voxels, 6
 //                   gigavoxels; 43 M of them in 312 curved rods)
 //   lattice:        1,520 straight rods joined at 8 x 8 x 9 nodes in the same envelope (269 M printed)
@@ -11,6 +12,7 @@
 // Arg = TBB thread count. Counters: envelope and active voxels per second, per-stage seconds, peak
 // resident memory (process-wide: run one workload per invocation, as scripts/bench.sh does) and
 // the job's size. One iteration each: a run takes seconds and writes a job.
+#include "bench/bench_profile.hpp"
 #include "calibration/calibration.hpp"
 #include "examples/example_designs.hpp"
 #include "materials/materials.hpp"
@@ -39,7 +41,7 @@ double peakRssMb() {
 void slice(benchmark::State& state, const char* designClass, const char* method) {
   openvdb::initialize();
   const geometry::RodStructure design = examples::benchmarkDesign(designClass);
-  const printer_profiles::Profile profile = printer_profiles::loadProfile("stratasys-objet500-connex3");
+  const printer_profiles::Profile& profile = rodfab::bench::benchProfile();
   const calibration::Calibration cal = calibration::loadDefaultCalibration();
   const int threads = static_cast<int>(state.range(0));
   const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));

@@ -3,9 +3,10 @@
 //   raster_band CLASS K0 K1 [map]
 // prints the band's active voxels, exact evaluations and a checksum (FNV-1a over every active voxel's
 // coordinate and value bits, leaves in coordinate order) of the modulus grid, and of the fraction grid
-// with `map`. Profile with
+// with `map`, at the voxel of the benchmark profile (bench_profile.hpp). Profile with
 //   valgrind --tool=callgrind --toggle-collect='rodfab::voxel::Rasterizer::rasterizeLayers(int, int) const'
 //     --toggle-collect='rodfab::materials::mapToFractions(*' build/bench/raster_band lattice 1500 1532 map
+#include "bench/bench_profile.hpp"
 #include "calibration/calibration_file.hpp"
 #include "examples/example_designs.hpp"
 #include "materials/fraction_map.hpp"
@@ -49,7 +50,7 @@ int main(int argc, char** argv) {
   }
   openvdb::initialize();
   const rodfab::geometry::RodStructure structure = rodfab::examples::benchmarkDesign(argv[1]);
-  const rodfab::voxel::PrinterGrid grid = rodfab::voxel::makePrinterGrid(structure, openvdb::Vec3d(0.0423, 0.0846, 0.030));
+  const rodfab::voxel::PrinterGrid grid = rodfab::voxel::makePrinterGrid(structure, rodfab::bench::benchVoxelMm());
   const int k0 = std::stoi(argv[2]), k1 = std::stoi(argv[3]);
   const rodfab::voxel::Rasterizer rasterizer(structure, grid, {1});
   const rodfab::voxel::Rasterization r = rasterizer.rasterizeLayers(k0, k1);

@@ -75,6 +75,22 @@ bool domainMatches(DesignReader& reader, double begin, double end, const NurbsCu
   return false;
 }
 
+// False, after an issue at `path`, when `count` controls (WHAT) are too few for a spline of degree p.
+bool enoughControls(DesignReader& reader, std::optional<int> p, std::size_t count, const std::string& path, const std::string& what) {
+  if (!p || count >= static_cast<std::size_t>(*p) + 1) return true;
+  reader.fail(path, "degree " + std::to_string(*p) + " needs at least " + std::to_string(*p + 1) + " " + what + ", got " +
+                        std::to_string(count));
+  return false;
+}
+
+// The "knots" of the spline object `j` for degree p and `count` controls (each as far as it was read).
+std::optional<std::vector<double>> splineKnots(DesignReader& reader, const json& j, const std::string& path, std::optional<int> p,
+                                               std::optional<std::size_t> count) {
+  const json* kn = reader.require(j, path, "knots", "an array of knot values");
+  if (!kn) return std::nullopt;
+  return reader.knots(*kn, memberPath(path, "knots"), p, count);
+}
+
 }  // namespace
 
 std::string describe(const json& j) {
@@ -238,9 +254,8 @@ std::optional<NurbsCurve> DesignReader::centerline(const json& j, const std::str
       if (ok) points = std::move(v);
     }
   }
-  std::optional<std::vector<double>> k;
-  if (auto kn = require(j, path, "knots", "an array of knot values"))
-    k = knots(*kn, memberPath(path, "knots"), p, points ? std::optional<std::size_t>(points->size()) : std::nullopt);
+  const std::optional<std::vector<double>> k =
+      splineKnots(*this, j, path, p, points ? std::optional<std::size_t>(points->size()) : std::nullopt);
   std::vector<double> weights;
   bool weightsOk = true;
   if (auto w = j.find("weights"); w != j.end()) {
@@ -339,17 +354,12 @@ std::optional<QuaternionSpline> DesignReader::orientation(const json& j, const s
         }
         if (cok) v.push_back(c); else ok = false;
       }
-      if (ok && p && v.size() < static_cast<std::size_t>(*p) + 1) {
-        fail(qp, "degree " + std::to_string(*p) + " needs at least " + std::to_string(*p + 1) + " quaternions, got " +
-                     std::to_string(v.size()));
-        ok = false;
-      }
+      if (ok && !enoughControls(*this, p, v.size(), qp, "quaternions")) ok = false;
       if (ok) quats = std::move(v);
     }
   }
-  std::optional<std::vector<double>> k;
-  if (auto kn = require(j, path, "knots", "an array of knot values"))
-    k = knots(*kn, memberPath(path, "knots"), p, quats ? std::optional<std::size_t>(quats->size()) : std::nullopt);
+  const std::optional<std::vector<double>> k =
+      splineKnots(*this, j, path, p, quats ? std::optional<std::size_t>(quats->size()) : std::nullopt);
   if (!p || !quats || !k) return std::nullopt;
   QuaternionSpline spline(*p, *k, *quats);
   if (!domainMatches(*this, spline.domainBegin(), spline.domainEnd(), curve, memberPath(path, "knots"))) return std::nullopt;
@@ -391,17 +401,12 @@ std::optional<BSplineField> DesignReader::modulus(const json& j, const std::stri
         auto x = youngsModulus((*v)[i], indexPath(vp, i));
         if (x) out.push_back(*x); else ok = false;
       }
-      if (ok && p && out.size() < static_cast<std::size_t>(*p) + 1) {
-        fail(vp, "degree " + std::to_string(*p) + " needs at least " + std::to_string(*p + 1) + " values, got " +
-                     std::to_string(out.size()));
-        ok = false;
-      }
+      if (ok && !enoughControls(*this, p, out.size(), vp, "values")) ok = false;
       if (ok) values = std::move(out);
     }
   }
-  std::optional<std::vector<double>> k;
-  if (auto kn = require(j, path, "knots", "an array of knot values"))
-    k = knots(*kn, memberPath(path, "knots"), p, values ? std::optional<std::size_t>(values->size()) : std::nullopt);
+  const std::optional<std::vector<double>> k =
+      splineKnots(*this, j, path, p, values ? std::optional<std::size_t>(values->size()) : std::nullopt);
   if (!p || !values || !k) return std::nullopt;
   BSplineField field(*p, *k, *values);
   if (!domainMatches(*this, field.domainBegin(), field.domainEnd(), curve, memberPath(path, "knots"))) return std::nullopt;

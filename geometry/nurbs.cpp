@@ -271,14 +271,22 @@ BSplineField BSplineField::constant(double value, double begin, double end) {
   return field;
 }
 
-double BSplineField::value(double u) const {
-  u = std::clamp(u, domainBegin(), domainEnd());
-  const int span = findKnotSpan(knots_, degree_, static_cast<int>(values_.size()), u);
+namespace {
+
+// The field's value (order 0) or first derivative (order 1) at u, a parameter in its domain.
+double fieldDerivative(const std::vector<double>& knots, int degree, const std::vector<double>& values, double u, int order) {
+  const int span = findKnotSpan(knots, degree, static_cast<int>(values.size()), u);
   BasisDerivatives ders;
-  basisFunctionDerivatives(knots_, degree_, span, u, 0, ders);
+  basisFunctionDerivatives(knots, degree, span, u, order, ders);
   double f = 0.0;
-  for (int j = 0; j <= degree_; ++j) f += ders[0][j] * values_[span - degree_ + j];
+  for (int j = 0; j <= degree; ++j) f += ders[order][j] * values[span - degree + j];
   return f;
+}
+
+}  // namespace
+
+double BSplineField::value(double u) const {
+  return fieldDerivative(knots_, degree_, values_, std::clamp(u, domainBegin(), domainEnd()), 0);
 }
 
 std::pair<double, double> BSplineField::valueBoundsOn(double a, double b) const {
@@ -292,13 +300,7 @@ std::pair<double, double> BSplineField::valueBoundsOn(double a, double b) const 
 }
 
 double BSplineField::derivative(double u) const {
-  u = std::clamp(u, domainBegin(), domainEnd());
-  const int span = findKnotSpan(knots_, degree_, static_cast<int>(values_.size()), u);
-  BasisDerivatives ders;
-  basisFunctionDerivatives(knots_, degree_, span, u, 1, ders);
-  double f = 0.0;
-  for (int j = 0; j <= degree_; ++j) f += ders[1][j] * values_[span - degree_ + j];
-  return f;
+  return fieldDerivative(knots_, degree_, values_, std::clamp(u, domainBegin(), domainEnd()), 1);
 }
 
 }  // namespace rodfab::geometry

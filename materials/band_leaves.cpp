@@ -45,10 +45,10 @@ LeafMask activeInLayers(const FloatLeaf& leaf, int k0, int k1) {
 }
 
 void FractionCheck::throwIfFailed(const openvdb::FloatGrid& grid, const std::vector<const FloatLeaf*>& leaves) const {
-  const std::uint64_t key = first_.load();
-  if (key == ~std::uint64_t{0}) return;
-  const FloatLeaf& leaf = *leaves[key / FloatLeaf::SIZE];
-  const auto offset = static_cast<openvdb::Index>(key % FloatLeaf::SIZE);
+  const std::uint64_t position = first_.load();
+  if (position == ~std::uint64_t{0}) return;
+  const FloatLeaf& leaf = *leaves[position / FloatLeaf::SIZE];
+  const auto offset = static_cast<openvdb::Index>(position % FloatLeaf::SIZE);
   const openvdb::Coord ijk = leaf.offsetToGlobalCoord(offset);
   const std::string name = grid.getName().empty() ? std::string(kFractionGridName) : grid.getName();
   throw std::invalid_argument("grid '" + name + "': voxel (" + std::to_string(ijk.x()) + ", " +

@@ -25,6 +25,12 @@ public:
   OptimizeSpec optimize(const json& j, const std::string& path);
 
 private:
+  // True when a rod is named `name`; false after an issue at `path`.
+  bool knownRod(const std::string& name, const std::string& path, const RodNames& names) {
+    if (names.count(name)) return true;
+    fail(path, "no rod is named \"" + name + "\"");
+    return false;
+  }
   // {"rod", "end"}, {"rod", "parameter"} or {"point"}. The parameter's range is checked by the
   // solver, which knows each rod's domain.
   std::optional<RodEndRef> endRef(const json& j, const std::string& path, const RodNames& names);
@@ -86,10 +92,7 @@ std::optional<RodEndRef> MechanicsReader::endRef(const json& j, const std::strin
   }
   auto name = string(j["rod"], memberPath(path, "rod"), "a rod name");
   if (!name) return std::nullopt;
-  if (!names.count(*name)) {
-    fail(memberPath(path, "rod"), "no rod is named \"" + *name + "\"");
-    return std::nullopt;
-  }
+  if (!knownRod(*name, memberPath(path, "rod"), names)) return std::nullopt;
   ref.rod = *name;
   if (j.contains("parameter")) {
     if (j.contains("end")) {
@@ -238,7 +241,7 @@ std::optional<DistributedLoad> MechanicsReader::distributedLoad(const json& e, c
   std::optional<std::string> rod;
   if (auto r = require(e, ep, "rod", "a rod name")) {
     rod = string(*r, memberPath(ep, "rod"), "a rod name");
-    if (rod && !names.count(*rod)) fail(memberPath(ep, "rod"), "no rod is named \"" + *rod + "\""), rod.reset();
+    if (rod && !knownRod(*rod, memberPath(ep, "rod"), names)) rod.reset();
   }
   std::optional<geometry::Vec3> f;
   if (auto x = require(e, ep, "force", "a force per length in N/mm")) f = vector3(*x, memberPath(ep, "force"), "a force per length in N/mm");
@@ -256,10 +259,7 @@ void MechanicsReader::rodOverrides(const json& j, const std::string& rp, const R
   }
   for (auto it = j.begin(); it != j.end(); ++it) {
     const std::string ep = memberPath(rp, it.key());
-    if (!names.count(it.key())) {
-      fail(ep, "no rod is named \"" + it.key() + "\"");
-      continue;
-    }
+    if (!knownRod(it.key(), ep, names)) continue;
     if (!it->is_object()) {
       fail(ep, "expected an object {torsion_constant, shear_factor, poisson_ratio}, got " + describe(*it));
       continue;
@@ -351,10 +351,7 @@ void MechanicsReader::target(const json& j, const std::string& path, const RodNa
   }
   for (auto it = rods.begin(); it != rods.end(); ++it) {
     const std::string ep = memberPath(rp, it.key());
-    if (!names.count(it.key())) {
-      fail(ep, "no rod is named \"" + it.key() + "\"");
-      continue;
-    }
+    if (!knownRod(it.key(), ep, names)) continue;
     if (auto t = targetRod(*it, ep)) {
       t->rod = it.key();
       lc.target.push_back(std::move(*t));

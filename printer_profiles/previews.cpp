@@ -255,9 +255,9 @@ bool emptyWord(const std::uint8_t* a, const std::uint8_t* b, std::size_t at) {
   return !(x | y);
 }
 
-// Calls visit(byte, bits) for the pixels of a row (rigid or rubbery) not yet in `claimed`, one byte
-// of 8 pixels at a time, and adds them to `claimed`: a view decides each of its pixels once. Skips a
-// word at a time where there is nothing new (layers are mostly empty, columns soon claimed).
+// Calls visit(column, isRigid) for the pixels of a row (rigid or rubbery) not yet in `claimed`, left
+// to right, and adds them to `claimed`: a view decides each of its pixels once. Skips a word at a
+// time where there is nothing new (layers are mostly empty, columns soon claimed).
 template <class Visit>
 void forEachFresh(const std::uint8_t* rigid, const std::uint8_t* rubbery, std::uint8_t* claimed, std::size_t stride, Visit&& visit) {
   for (std::size_t at = 0; at < stride; at += 8) {
@@ -271,7 +271,10 @@ void forEachFresh(const std::uint8_t* rigid, const std::uint8_t* rubbery, std::u
       const auto fresh = static_cast<unsigned>((rigid[byte] | rubbery[byte]) & ~claimed[byte] & 0xffu);
       if (!fresh) continue;
       claimed[byte] = static_cast<std::uint8_t>(claimed[byte] | fresh);
-      visit(byte, fresh);
+      for (unsigned bits = fresh; bits; bits &= bits - 1) {
+        const int bit = 7 - std::countr_zero(bits);
+        visit(static_cast<int>(byte) * 8 + bit, ((rigid[byte] >> (7 - bit)) & 1) != 0);
+      }
     }
   }
 }
@@ -289,15 +292,11 @@ void Previews::addLayer(int layer, const LayerBitmaps& b, const openvdb::FloatGr
   for (int r = h - 1; r >= 0; --r) {
     const std::uint8_t* rigid = b.rigid.row(r);
     const std::uint8_t* rubbery = b.rubbery.row(r);
-    forEachFresh(rigid, rubbery, claimed.data(), b.rigid.stride(), [&](std::size_t byte, unsigned fresh) {
-      for (; fresh; fresh &= fresh - 1) {
-        const int bit = 7 - std::countr_zero(fresh);
-        const int c = static_cast<int>(byte) * 8 + bit;
-        const std::size_t at = static_cast<std::size_t>(layer) * w + c;
-        front_.material[at] = ((rigid[byte] >> (7 - bit)) & 1) ? 1 : 2;
-        front_.depth[at] = r;
-        front_.modulus[at] = modulusAt(modulus, acc ? &*acc : nullptr, {geometry_.i(c), geometry_.j(r), k});
-      }
+    forEachFresh(rigid, rubbery, claimed.data(), b.rigid.stride(), [&](int c, bool isRigid) {
+      const std::size_t at = static_cast<std::size_t>(layer) * w + c;
+      front_.material[at] = isRigid ? 1 : 2;
+      front_.depth[at] = r;
+      front_.modulus[at] = modulusAt(modulus, acc ? &*acc : nullptr, {geometry_.i(c), geometry_.j(r), k});
     });
   }
   // Right side view: looking along -x, the visible voxel of a row has the largest x (last column).
@@ -353,15 +352,11 @@ void Previews::addTopLayers(int first, const std::vector<LayerBitmaps>& layers, 
         const std::uint8_t* rigid = layers[n].rigid.row(r);
         const std::uint8_t* rubbery = layers[n].rubbery.row(r);
         const int layer = first + static_cast<int>(n);
-        forEachFresh(rigid, rubbery, claimed.data(), layers[n].rigid.stride(), [&](std::size_t byte, unsigned fresh) {
-          for (; fresh; fresh &= fresh - 1) {
-            const int bit = 7 - std::countr_zero(fresh);
-            const int c = static_cast<int>(byte) * 8 + bit;
-            const std::size_t at = static_cast<std::size_t>(r) * w + c;
-            top_.material[at] = ((rigid[byte] >> (7 - bit)) & 1) ? 1 : 2;
-            top_.depth[at] = layer;
-            if (modulus) top_.modulus[at] = modulusAt(modulus, &*acc, {geometry_.i(c), geometry_.j(r), geometry_.k(layer)});
-          }
+        forEachFresh(rigid, rubbery, claimed.data(), layers[n].rigid.stride(), [&](int c, bool isRigid) {
+          const std::size_t at = static_cast<std::size_t>(r) * w + c;
+          top_.material[at] = isRigid ? 1 : 2;
+          top_.depth[at] = layer;
+          if (modulus) top_.modulus[at] = modulusAt(modulus, &*acc, {geometry_.i(c), geometry_.j(r), geometry_.k(layer)});
         });
       }
     }

@@ -40,13 +40,11 @@ void addMeshOptions(po::options_description& options) {
 std::variant<MeshSettings, int> parseMesh(const std::vector<std::string>& args) {
   po::options_description options("options");
   addMeshOptions(options);
-  po::positional_options_description positional;
-  positional.add("mesh", 1);
   po::variables_map vm;
   const char* synopsis = "MESH.stl|.obj|.ply|.off --faces N --diameter D --output DESIGN.json [--subdivisions K] [--surface-tolerance T] "
                          "[--section circle|ellipse|rectangle] [--breadth B] [--modulus E] [--caps round|flat] [--profile NAME|FILE] "
                          "[--threads N] [--force] [--json]";
-  if (auto code = parseOptions("rods-from-mesh", synopsis, options, positional, args, vm)) return *code;
+  if (auto code = parseOptionsWithInput("rods-from-mesh", synopsis, options, "mesh", args, vm)) return *code;
   MeshSettings s;
   s.mesh = vm["mesh"].as<std::string>(), s.output = vm["output"].as<std::string>();
   s.force = vm.count("force") > 0, s.json = vm.count("json") > 0;

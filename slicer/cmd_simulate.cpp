@@ -34,12 +34,10 @@ std::variant<SimulateSettings, int> parseSimulate(const std::vector<std::string>
   addSolverOptions(options);
   options.add_options()("json", "print the convergence history and summary as JSON on stdout");
   addThreadsOption(options, "they assemble the equations; the result does not depend on their number");
-  po::positional_options_description positional;
-  positional.add("design", 1);
   po::variables_map vm;
   const char* synopsis = "DESIGN.json --output DEFORMED.json [--degree 6] [--spans N] [--refine N] [--load-steps N] [--accuracy 1e-4] "
       "[--max-refinements N] [--no-estimate] [--follow-stable-branch] [--tolerance 1e-10] [--max-iterations 30] [--threads N] [--json]";
-  if (auto code = parseOptions("simulate", synopsis, options, positional, args, vm)) return *code;
+  if (auto code = parseOptionsWithInput("simulate", synopsis, options, "design", args, vm)) return *code;
   SimulateSettings s;
   s.design = vm["design"].as<std::string>(), s.output = vm["output"].as<std::string>();
   const std::optional<SolverSettings> solver = solverSettings("simulate", vm);

@@ -51,12 +51,10 @@ bool gridFile(const std::filesystem::path& p) { return voxel::isGridFile(p.strin
 int runVoxelize(const std::vector<std::string>& args) {
   po::options_description options("options");
   addVoxelizeOptions(options);
-  po::positional_options_description positional;
-  positional.add("design", 1);
   po::variables_map vm;
   const char* synopsis =
       "DESIGN.json --output GRID.vdb [--profile NAME|FILE] [--print-mode MODE] [--voxel-size X,Y,Z] [--threads N] [--json]";
-  if (auto code = parseOptions("voxelize", synopsis, options, positional, args, vm)) return *code;
+  if (auto code = parseOptionsWithInput("voxelize", synopsis, options, "design", args, vm)) return *code;
   auto voxelSizeOrCode = voxelSizeOption(vm);
   if (const int* code = std::get_if<int>(&voxelSizeOrCode)) return *code;
   std::optional<openvdb::Vec3d> voxelSize = std::get<0>(voxelSizeOrCode);

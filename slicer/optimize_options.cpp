@@ -58,12 +58,10 @@ int parseChoices(const po::variables_map& vm, OptimizeCommand& c) {
 std::variant<OptimizeCommand, int> parseOptimize(const std::vector<std::string>& args) {
   po::options_description options("options");
   addOptimizeOptions(options);
-  po::positional_options_description positional;
-  positional.add("design", 1);
   po::variables_map vm;
   const char* synopsis = "DESIGN.json --output OPTIMIZED.json [--calibration CAL.json] [--modulus-controls N] "
                          "[--max-iterations N] [--start design|uniform[=MPa]] [--method lbfgsb|mma|ccsaq] [--scaling log|linear] [--threads N] [--plot HISTORY.png] [--render SHAPES.png] [--json]";
-  if (auto code = parseOptions("optimize", synopsis, options, positional, args, vm)) return *code;
+  if (auto code = parseOptionsWithInput("optimize", synopsis, options, "design", args, vm)) return *code;
   OptimizeCommand c;
   c.design = vm["design"].as<std::string>(), c.output = vm["output"].as<std::string>();
   c.calibration = vm.count("calibration") ? vm["calibration"].as<std::string>() : calibration::defaultCalibrationPath().string();

@@ -84,6 +84,13 @@ std::optional<int> parseOptions(const std::string& command, const std::string& s
   return std::nullopt;
 }
 
+std::optional<int> parseOptionsWithInput(const std::string& command, const std::string& synopsis, po::options_description& options,
+                                           const std::string& positional, const std::vector<std::string>& args, po::variables_map& vm) {
+  po::positional_options_description one;
+  one.add(positional.c_str(), 1);
+  return parseOptions(command, synopsis, options, one, args, vm);
+}
+
 int usageError(const std::string& command, const std::string& message) {
   std::cerr << "rodfab " << command << ": " << message << "\n(rodfab " << command << " --help lists the options)\n";
   return kUsage;

@@ -27,6 +27,10 @@ std::optional<int> parseOptions(const std::string& command, const std::string& s
                                 po::options_description& options, const po::positional_options_description& positional,
                                 const std::vector<std::string>& args, po::variables_map& vm,
                                 const po::options_description* hidden = nullptr);
+// parseOptions for a command whose one positional argument is the value of the option named `positional`
+// (its input file: "design", "mesh", ...).
+std::optional<int> parseOptionsWithInput(const std::string& command, const std::string& synopsis, po::options_description& options,
+                                           const std::string& positional, const std::vector<std::string>& args, po::variables_map& vm);
 
 // Prints "rodfab COMMAND: MESSAGE" and where the options are listed; returns kUsage.
 int usageError(const std::string& command, const std::string& message);

@@ -73,6 +73,16 @@ slicer::BandSource twoBoxes(const openvdb::CoordBBox& rigid, const openvdb::Coor
   };
 }
 
+// A job of part `box` at the origin the box tests use, written to `output`.
+printer_profiles::JobSpec boxJob(const openvdb::CoordBBox& box, const fs::path& output) {
+  printer_profiles::JobSpec spec;
+  spec.profile = connex3();
+  spec.partBounds = box;
+  spec.originMm = openvdb::Vec3d(0.5, 0.5, 0.015);
+  spec.options.output = output;
+  return spec;
+}
+
 }  // namespace
 
 TEST_CASE("automaticBandLayers is 21 Mi voxels over the layer's voxels in whole 8-layer slabs, 8 to 64") {
@@ -91,17 +101,12 @@ TEST_CASE("streamJob writes every band's material; the bytes do not depend on th
   TempDir tmp;
   const openvdb::CoordBBox rigid(openvdb::Coord(0, 0, 0), openvdb::Coord(39, 19, 22));
   const openvdb::CoordBBox rubbery(openvdb::Coord(50, 0, 0), openvdb::Coord(69, 9, 22));
-  const openvdb::Vec3d origin(0.5, 0.5, 0.015);
   std::vector<std::string> zips;
   for (int bandLayers : {64, 5, 1}) {
     for (const char* method : {"white", "error-diffusion"}) {
       const fs::path folder = tmp.path / (std::string(method) + std::to_string(bandLayers));
       fs::create_directories(folder);
-      printer_profiles::JobSpec spec;
-      spec.profile = connex3();
-      spec.partBounds = openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(69, 19, 22));
-      spec.originMm = origin;
-      spec.options.output = folder / "job.zip";
+      const printer_profiles::JobSpec spec = boxJob(openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(69, 19, 22)), folder / "job.zip");
       const auto ditherer = materials::makeDitherer(method, {});
       slicer::PipelineOptions options;
       options.bandLayers = bandLayers;
@@ -111,7 +116,7 @@ TEST_CASE("streamJob writes every band's material; the bytes do not depend on th
         done.push_back(d);
       };
       slicer::StageSeconds seconds;
-      const printer_profiles::JobResult job = slicer::streamJob(spec, twoBoxes(rigid, rubbery, origin), *ditherer, options, seconds);
+      const printer_profiles::JobResult job = slicer::streamJob(spec, twoBoxes(rigid, rubbery, spec.originMm), *ditherer, options, seconds);
       REQUIRE(done.size() == static_cast<std::size_t>((23 + bandLayers - 1) / bandLayers));
       CHECK(done.back() == 23);
       CHECK(std::is_sorted(done.begin(), done.end()));
@@ -166,11 +171,7 @@ TEST_CASE("streamJob: an onBand that throws leaves no job and nothing staged") {
   openvdb::initialize();
   TempDir tmp;
   const openvdb::CoordBBox box(openvdb::Coord(0), openvdb::Coord(9, 9, 29));
-  printer_profiles::JobSpec spec;
-  spec.profile = connex3();
-  spec.partBounds = box;
-  spec.originMm = openvdb::Vec3d(0.5, 0.5, 0.015);
-  spec.options.output = tmp.path / "job.zip";
+  const printer_profiles::JobSpec spec = boxJob(box, tmp.path / "job.zip");
   const auto ditherer = materials::makeDitherer("white", {});
   slicer::PipelineOptions options;
   options.bandLayers = 4;
@@ -188,11 +189,7 @@ TEST_CASE("streamJob: a source that throws while later stages hold earlier bands
   openvdb::initialize();
   TempDir tmp;
   const openvdb::CoordBBox box(openvdb::Coord(0), openvdb::Coord(9, 9, 29));
-  printer_profiles::JobSpec spec;
-  spec.profile = connex3();
-  spec.partBounds = box;
-  spec.originMm = openvdb::Vec3d(0.5, 0.5, 0.015);
-  spec.options.output = tmp.path / "job.zip";
+  const printer_profiles::JobSpec spec = boxJob(box, tmp.path / "job.zip");
   const auto ditherer = materials::makeDitherer("error-diffusion", {});
   slicer::PipelineOptions options;
   options.bandLayers = 3;
@@ -226,11 +223,7 @@ TEST_CASE("streamJob's times: each stage's busy time within the wall time, the C
   openvdb::initialize();
   TempDir tmp;
   const openvdb::CoordBBox box(openvdb::Coord(0), openvdb::Coord(9, 9, 9));
-  printer_profiles::JobSpec spec;
-  spec.profile = connex3();
-  spec.partBounds = box;
-  spec.originMm = openvdb::Vec3d(0.5, 0.5, 0.015);
-  spec.options.output = tmp.path / "job.zip";
+  const printer_profiles::JobSpec spec = boxJob(box, tmp.path / "job.zip");
   const auto ditherer = materials::makeDitherer("white", {});
   slicer::PipelineOptions options;
   options.bandLayers = 2;  // 5 bands

@@ -132,58 +132,64 @@ std::size_t pieceBudget(const geometry::Rod& rod, const PrinterGrid& grid) {
   return static_cast<std::size_t>(std::min(8.0 * segments + perLength, 1e15)) + 2 * rod.smoothPieces().size() + 64;
 }
 
-RodPieces buildRodPieces(const geometry::Rod& rod, const PrinterGrid& grid, const std::function<bool()>& interrupted) {
-  RodPieces out;
-  const geometry::Section& section = rod.section();
-  out.inverseHalfWidth = 2.0 / section.width;
-  out.inverseHalfHeight = 2.0 / section.height;
-  out.inverseCapRadius = 1.0 / section.capRadius();
-  const double boundingRadius = section.boundingRadius();
-  const double inverseMinHalf = std::max(out.inverseHalfWidth, out.inverseHalfHeight);
-  // |d normalizedRadius| <= |(dx1, dx2)| / min half-dimension for ellipses; the rectangle's max-norm gauge
-  // changes by at most max(|dx1|, |dx2|) / min half-dimension.
-  const double gaugeFactor = section.shape == geometry::SectionShape::Rectangle ? 1.0 : std::numbers::sqrt2;
-  constexpr int kMaxRefinement = 24;
-  const double minLength = minimumPieceLength(grid);
-  const std::size_t budget = pieceBudget(rod, grid);
-  // Pieces so far if no more splits came: the segments and the caps.
-  std::size_t planned = rod.sampleParameters().size() - 1 + 2 * rod.smoothPieces().size(), steps = 0;
+namespace {
 
-  std::vector<Node> nodes;  // one per plane
-  auto finish = [&](const Node& a, const Node& b, double slack, RodPiece& piece) {
-    piece.plane = static_cast<int>(nodes.size()) - 1;
-    const Vec3 chord = b.r - a.r;
-    piece.axisPoint = a.r;
-    piece.axisDirection = chord.norm() > 0.0 ? Vec3(chord.normalized()) : a.t;
-    piece.reach = boundingRadius + slack + 1e-7;
-    piece.box = indexBox(grid, a.r.cwiseMin(b.r).array() - piece.reach, a.r.cwiseMax(b.r).array() + piece.reach);
-    out.pieces.push_back(piece);
-    nodes.push_back(b);
-  };
-  auto addSwept = [&](const Node& a, const Node& b, const Measurement& m, RodPiece piece) {
-    piece.kind = RodPiece::Kind::Swept;
-    piece.x1Begin = affineInIndex(grid, a.d1, a.r);
-    piece.x2Begin = affineInIndex(grid, a.d2, a.r);
-    piece.x1End = affineInIndex(grid, b.d1, b.r);
-    piece.x2End = affineInIndex(grid, b.d2, b.r);
-    piece.normalizedRadiusErrorBound = gaugeFactor * m.coordinateError * inverseMinHalf + 1e-12;
-    // A voxel the piece owns is within the bounding radius of a centerline point of the piece, and
-    // that point within the chord deviation of the chord; those decided exactly lie up to the
-    // coordinate bound further out.
-    finish(a, b, m.chordDeviation + m.coordinateError, piece);
-  };
-  auto addExact = [&](const Node& a, const Node& b, const Measurement& m) {
+// Cuts one rod into pieces: the refinement of every polyline segment (refine), the pieces it emits
+// (addSwept, addExact) and the caps at the ends of every smooth piece (addCap). Pieces are appended in
+// the order the planes are made, so a rod always gets the same pieces.
+class PieceBuilder {
+ public:
+  PieceBuilder(const geometry::Rod& rod, const PrinterGrid& grid, const std::function<bool()>& interrupted)
+      : rod_(rod), grid_(grid), interrupted_(interrupted), minLength_(minimumPieceLength(grid)),
+        budget_(pieceBudget(rod, grid)),
+        planned_(rod.sampleParameters().size() - 1 + 2 * rod.smoothPieces().size()) {
+    const geometry::Section& section = rod.section();
+    out_.inverseHalfWidth = 2.0 / section.width;
+    out_.inverseHalfHeight = 2.0 / section.height;
+    out_.inverseCapRadius = 1.0 / section.capRadius();
+    boundingRadius_ = section.boundingRadius();
+    inverseMinHalf_ = std::max(out_.inverseHalfWidth, out_.inverseHalfHeight);
+    // |d normalizedRadius| <= |(dx1, dx2)| / min half-dimension for ellipses; the rectangle's max-norm
+    // gauge changes by at most max(|dx1|, |dx2|) / min half-dimension.
+    gaugeFactor_ = section.shape == geometry::SectionShape::Rectangle ? 1.0 : std::numbers::sqrt2;
+    // Flat caps own no voxels beyond the plane, but voxel centres within round-off of it are handed to
+    // the exact test like any other borderline case.
+    capReach_ = std::max(boundingRadius_, section.capRadius()) + 1e-7;
+  }
+
+  RodPieces build() {
+    const std::vector<geometry::SmoothPiece>& smooth = rod_.smoothPieces();
+    for (std::size_t k = 0; k < smooth.size(); ++k) cutSmoothPiece(smooth[k], k == 0, k + 1 == smooth.size());
+    for (const Node& n : nodes_) out_.planes.push_back(affineInIndex(grid_, n.t, n.r));
+    out_.pieces.insert(out_.pieces.end(), caps_.begin(), caps_.end());
+    for (const RodPiece& p : out_.pieces)
+      if (!p.box.empty()) out_.box.expand(p.box);
+    return std::move(out_);
+  }
+
+ private:
+  static constexpr int kMaxRefinement = 24;
+
+  // The segments of one smooth piece, then the half-spaces beyond its two end planes (the caps).
+  void cutSmoothPiece(const geometry::SmoothPiece& sp, bool firstOfRod, bool lastOfRod) {
+    const std::vector<double>& u = rod_.sampleParameters();
+    const geometry::BSplineField& modulus = rod_.modulus();
+    nodes_.push_back(node(rod_, u[sp.firstSample]));
+    const std::size_t firstPlane = nodes_.size() - 1;
+    for (std::size_t s = sp.firstSample + 1; s <= sp.lastSample; ++s) {
+      const Node a = nodes_.back();
+      refine(a, node(rod_, u[s], sp.endFromBelow && s == sp.lastSample), 0);
+    }
+    // E at the rod's ends as the field's own domain ends (it may differ from the centerline's by round-off).
+    addCap(firstPlane, false, static_cast<float>(firstOfRod ? modulus.value(modulus.domainBegin()) : modulus.value(sp.begin)));
+    addCap(nodes_.size() - 1, true, static_cast<float>(lastOfRod ? modulus.value(modulus.domainEnd()) : modulus.value(sp.end)));
+  }
+
+  void refine(const Node& a, const Node& b, int depth) {
+    if (interrupted_ && ++steps_ % 256 == 0 && interrupted_())
+      throw Interrupted("rasterizer: interrupted while cutting rod '" + rod_.name() + "' into pieces");
     RodPiece piece;
-    piece.kind = RodPiece::Kind::Exact;
-    piece.normalizedRadiusErrorBound = std::numeric_limits<double>::infinity();
-    // Every point of the piece's centerline is within its deviation bound of the chord, or (where
-    // the curve folds back) within half its polyline length of the chord's ends.
-    finish(a, b, std::max(m.chordDeviation, 0.5 * ((b.r - a.r).norm() + 2.0 * m.chordDeviation)), piece);
-  };
-  auto refine = [&](auto&& self, const Node& a, const Node& b, int depth) -> void {
-    if (interrupted && ++steps % 256 == 0 && interrupted()) throw Interrupted("rasterizer: interrupted while cutting rod '" + rod.name() + "' into pieces");
-    RodPiece piece;
-    const Measurement m = measure(rod, a, b, piece);
+    const Measurement m = measure(rod_, a, b, piece);
     const double modulusTolerance = 1e-6 * std::max({std::abs(a.modulus), std::abs(b.modulus), 1e-3});
     const bool modulusAccurate = m.modulusError <= modulusTolerance;
     const bool accurate = m.valid && m.coordinateError <= kCoordinateTolerance && modulusAccurate;
@@ -193,56 +199,82 @@ RodPieces buildRodPieces(const geometry::Rod& rod, const PrinterGrid& grid, cons
     // the depth limit confines. What is left inaccurate keeps its measured bound or goes exact.
     const bool geometryAccurate = m.valid && m.coordinateError <= kCoordinateTolerance;
     const double length = (b.r - a.r).norm() + m.chordDeviation;
-    if (!accurate && depth < kMaxRefinement && (geometryAccurate || length >= minLength) && planned < budget && b.u > a.u) {
-      ++planned;
-      const Node mid = node(rod, 0.5 * (a.u + b.u));
-      self(self, a, mid, depth + 1);
-      self(self, mid, b, depth + 1);
+    if (!accurate && depth < kMaxRefinement && (geometryAccurate || length >= minLength_) && planned_ < budget_ && b.u > a.u) {
+      ++planned_;
+      const Node mid = node(rod_, 0.5 * (a.u + b.u));
+      refine(a, mid, depth + 1);
+      refine(mid, b, depth + 1);
       return;
     }
     if (m.valid && modulusAccurate) addSwept(a, b, m, piece);
     else addExact(a, b, m);
-  };
+  }
 
-  const std::vector<double>& u = rod.sampleParameters();
-  const geometry::BSplineField& modulus = rod.modulus();
-  std::vector<RodPiece> caps;
-  // The caps: the half-spaces beyond the end planes of every smooth piece. Flat caps own no voxels
-  // beyond the plane, but voxel centres within round-off of it are handed to the exact test like any
-  // other borderline case.
-  const double capReach = std::max(boundingRadius, section.capRadius()) + 1e-7;
-  auto addCap = [&](std::size_t plane, bool atEnd, float capModulus) {
-    const Node& n = nodes[plane];
+  void addSwept(const Node& a, const Node& b, const Measurement& m, RodPiece piece) {
+    piece.kind = RodPiece::Kind::Swept;
+    piece.x1Begin = affineInIndex(grid_, a.d1, a.r);
+    piece.x2Begin = affineInIndex(grid_, a.d2, a.r);
+    piece.x1End = affineInIndex(grid_, b.d1, b.r);
+    piece.x2End = affineInIndex(grid_, b.d2, b.r);
+    piece.normalizedRadiusErrorBound = gaugeFactor_ * m.coordinateError * inverseMinHalf_ + 1e-12;
+    // A voxel the piece owns is within the bounding radius of a centerline point of the piece, and
+    // that point within the chord deviation of the chord; those decided exactly lie up to the
+    // coordinate bound further out.
+    finish(a, b, m.chordDeviation + m.coordinateError, piece);
+  }
+
+  void addExact(const Node& a, const Node& b, const Measurement& m) {
+    RodPiece piece;
+    piece.kind = RodPiece::Kind::Exact;
+    piece.normalizedRadiusErrorBound = std::numeric_limits<double>::infinity();
+    // Every point of the piece's centerline is within its deviation bound of the chord, or (where
+    // the curve folds back) within half its polyline length of the chord's ends.
+    finish(a, b, std::max(m.chordDeviation, 0.5 * ((b.r - a.r).norm() + 2.0 * m.chordDeviation)), piece);
+  }
+
+  // Places the piece between the last plane and b's, and makes b's plane the last.
+  void finish(const Node& a, const Node& b, double slack, RodPiece& piece) {
+    piece.plane = static_cast<int>(nodes_.size()) - 1;
+    const Vec3 chord = b.r - a.r;
+    piece.axisPoint = a.r;
+    piece.axisDirection = chord.norm() > 0.0 ? Vec3(chord.normalized()) : a.t;
+    piece.reach = boundingRadius_ + slack + 1e-7;
+    piece.box = indexBox(grid_, a.r.cwiseMin(b.r).array() - piece.reach, a.r.cwiseMax(b.r).array() + piece.reach);
+    out_.pieces.push_back(piece);
+    nodes_.push_back(b);
+  }
+
+  void addCap(std::size_t plane, bool atEnd, float capModulus) {
+    const Node& n = nodes_[plane];
     RodPiece cap;
     cap.kind = atEnd ? RodPiece::Kind::EndCap : RodPiece::Kind::BeginCap;
     cap.plane = static_cast<int>(plane);
-    for (int k = 0; k < 3; ++k) cap.capOffset[k] = affineInIndex(grid, Vec3::Unit(k), n.r);
+    for (int k = 0; k < 3; ++k) cap.capOffset[k] = affineInIndex(grid_, Vec3::Unit(k), n.r);
     cap.capModulus = capModulus;
     cap.axisPoint = n.r;
     cap.axisDirection = n.t;
-    cap.reach = capReach;
-    cap.box = indexBox(grid, n.r.array() - capReach, n.r.array() + capReach);
-    caps.push_back(cap);
-  };
-  const std::vector<geometry::SmoothPiece>& smooth = rod.smoothPieces();
-  for (std::size_t k = 0; k < smooth.size(); ++k) {
-    const geometry::SmoothPiece& sp = smooth[k];
-    nodes.push_back(node(rod, u[sp.firstSample]));
-    const std::size_t firstPlane = nodes.size() - 1;
-    for (std::size_t s = sp.firstSample + 1; s <= sp.lastSample; ++s) {
-      const Node a = nodes.back();
-      refine(refine, a, node(rod, u[s], sp.endFromBelow && s == sp.lastSample), 0);
-    }
-    // E at the rod's ends as the field's own domain ends (it may differ from the centerline's by round-off).
-    addCap(firstPlane, false, static_cast<float>(k == 0 ? modulus.value(modulus.domainBegin()) : modulus.value(sp.begin)));
-    addCap(nodes.size() - 1, true,
-           static_cast<float>(k + 1 == smooth.size() ? modulus.value(modulus.domainEnd()) : modulus.value(sp.end)));
+    cap.reach = capReach_;
+    cap.box = indexBox(grid_, n.r.array() - capReach_, n.r.array() + capReach_);
+    caps_.push_back(cap);
   }
-  for (const Node& n : nodes) out.planes.push_back(affineInIndex(grid, n.t, n.r));
-  out.pieces.insert(out.pieces.end(), caps.begin(), caps.end());
-  for (const RodPiece& p : out.pieces)
-    if (!p.box.empty()) out.box.expand(p.box);
-  return out;
+
+  const geometry::Rod& rod_;
+  const PrinterGrid& grid_;
+  const std::function<bool()>& interrupted_;
+  const double minLength_;
+  const std::size_t budget_;
+  std::size_t planned_;  // pieces so far if no more splits came: the segments and the caps
+  std::size_t steps_ = 0;
+  double boundingRadius_ = 0.0, inverseMinHalf_ = 0.0, gaugeFactor_ = 0.0, capReach_ = 0.0;
+  RodPieces out_;
+  std::vector<Node> nodes_;  // one per plane
+  std::vector<RodPiece> caps_;
+};
+
+}  // namespace
+
+RodPieces buildRodPieces(const geometry::Rod& rod, const PrinterGrid& grid, const std::function<bool()>& interrupted) {
+  return PieceBuilder(rod, grid, interrupted).build();
 }
 
 }  // namespace rodfab::voxel::detail
