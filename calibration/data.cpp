@@ -163,7 +163,7 @@ std::optional<Measurement> readRow(const std::vector<std::string>& fields, const
 }  // namespace
 
 DataError::DataError(std::string file, std::vector<DataIssue> issues)
-    : std::runtime_error(formatIssues(file, issues)), file_(std::move(file)), issues_(std::move(issues)) {}
+    : IssueListError(formatIssues(file, issues), file, issues) {}
 
 DataSet parseData(std::string_view text, const std::string& sourceName) {
   DataSet data;

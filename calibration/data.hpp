@@ -1,6 +1,7 @@
 // DMA measurements of printed coupons: the CSV format (see calibration/README.md) and its reader.
 #pragma once
 
+#include "common/located_issues.hpp"
 #include "common/sha256.hpp"
 
 #include <filesystem>
@@ -36,15 +37,9 @@ struct DataIssue {
 
 // Every bad row of one file (reading does not stop at the first); what() lists them, one per line,
 // as `FILE: line N: MESSAGE`.
-class DataError : public std::runtime_error {
+class DataError : public common::IssueListError<DataIssue> {
 public:
   DataError(std::string file, std::vector<DataIssue> issues);
-  const std::string& file() const { return file_; }
-  const std::vector<DataIssue>& issues() const { return issues_; }
-
-private:
-  std::string file_;
-  std::vector<DataIssue> issues_;
 };
 
 // DMA data sets are a few thousand rows; a larger file is refused before it is read whole.

@@ -3,6 +3,8 @@
 // reads and writes a design with them); here they are allowed and left unread.
 #pragma once
 
+#include "common/located_issues.hpp"
+
 #include "geometry/rod.hpp"
 
 #include <nlohmann/json_fwd.hpp>
@@ -27,15 +29,9 @@ struct DesignIssue {
 
 // Every violation found in one file (reading does not stop at the first). what() lists them all,
 // one per line, as `FILE: PATH: MESSAGE`.
-class DesignError : public std::runtime_error {
+class DesignError : public common::IssueListError<DesignIssue> {
 public:
   DesignError(std::string file, std::vector<DesignIssue> issues);
-  const std::string& file() const { return file_; }
-  const std::vector<DesignIssue>& issues() const { return issues_; }
-
-private:
-  std::string file_;
-  std::vector<DesignIssue> issues_;
 };
 
 // The rods of a design file. Throws DesignError (also for an unreadable file, with path "").

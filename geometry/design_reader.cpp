@@ -482,7 +482,7 @@ std::optional<Rod> DesignReader::rod(const json& j, const std::string& path, Rod
 }
 
 DesignError::DesignError(std::string file, std::vector<DesignIssue> issues)
-    : std::runtime_error(common::formatLocatedIssues(file, issues)), file_(std::move(file)), issues_(std::move(issues)) {}
+    : IssueListError(common::formatLocatedIssues(file, issues), file, issues) {}
 
 namespace {
 

@@ -43,10 +43,13 @@ struct Layer {
 
 int floorToLeaf(int k) { return k & ~static_cast<int>(FloatLeaf::DIM - 1); }
 
-// Leaves are sorted by origin (z, y, x), so a slab's leaves are contiguous and grouped by y.
-Layer enumerateLayer(const std::vector<const FloatLeaf*>& leaves, int k) {
-  Layer layer;
+// Leaves are sorted by origin (z, y, x), so a slab's leaves are contiguous and grouped by y. Fills
+// `layer` in place: a slot's vectors keep their capacity from the layer it held before (layers of
+// millions of voxels otherwise cost a fresh allocation, its page faults and its growth copies each).
+void enumerateLayer(const std::vector<const FloatLeaf*>& leaves, int k, Layer& layer) {
   layer.k = k;
+  layer.voxels.clear();
+  layer.rows.clear();
   const int z0 = floorToLeaf(k);
   auto first = std::lower_bound(leaves.begin(), leaves.end(), z0,
                                 [](const FloatLeaf* l, int z) { return l->origin().z() < z; });
@@ -73,7 +76,6 @@ Layer enumerateLayer(const std::vector<const FloatLeaf*>& leaves, int k) {
     }
     group = groupEnd;
   }
-  return layer;
 }
 
 // Voxel indices of one row by x, for O(1) neighbour lookups; filled for a row and cleared after.
@@ -158,6 +160,22 @@ struct LayerSlot {
   Progress preparedFor;
 };
 
+// The slots' vectors between bands, swapped in and out (their capacity is what is kept).
+struct SlotBuffers {
+  std::vector<Layer> layers;
+  std::vector<std::vector<float>> errors;
+  SlotBuffers& lend(std::vector<LayerSlot>& slots) {
+    layers.resize(std::max(layers.size(), slots.size()));
+    errors.resize(layers.size());
+    for (std::size_t n = 0; n < slots.size(); ++n) {
+      std::swap(slots[n].layer, layers[n]);
+      std::swap(slots[n].error, errors[n]);
+    }
+    return *this;
+  }
+  void giveBack(std::vector<LayerSlot>& slots) { lend(slots); }  // swapping again restores them
+};
+
 // Floyd-Steinberg weights: ahead in the row, then behind / below / ahead in the next row.
 constexpr float kInLayer = 1.0f - ErrorDiffusionDitherer::kShareToNextLayer;
 constexpr std::array<float, 4> kWeights{7.0f / 16 * kInLayer, 3.0f / 16 * kInLayer, 5.0f / 16 * kInLayer,
@@ -170,14 +188,18 @@ constexpr std::array<float, 4> kWeights{7.0f / 16 * kInLayer, 3.0f / 16 * kInLay
 // floats, and the pattern, are the same for any number of workers.
 class BandDiffusion {
 public:
+  // `buffers` lend the slots their vectors for the band (given back by the destructor).
   BandDiffusion(const std::vector<const FloatLeaf*>& leaves, std::vector<std::unique_ptr<BoolLeaf>>& out, int k0, int k1,
-                std::uint64_t seed, const std::function<void()>& checkInterrupt, int workers)
+                std::uint64_t seed, const std::function<void()>& checkInterrupt, int workers, SlotBuffers& buffers)
       : leaves_(leaves), out_(out), k0_(k0), k1_(k1), seed_(seed), checkInterrupt_(checkInterrupt),
-        slots_(static_cast<std::size_t>(workers) + 3),
+        slots_(static_cast<std::size_t>(workers) + 3), buffers_(buffers.lend(slots_)),
         rowWidth_(xRange(leaves)), nextLayer_(k0), veroByWorker_(static_cast<std::size_t>(workers)) {
     prepare(k0);
     prepare(k0 + 1);
   }
+  ~BandDiffusion() { buffers_.giveBack(slots_); }
+  BandDiffusion(const BandDiffusion&) = delete;
+  BandDiffusion& operator=(const BandDiffusion&) = delete;
   LayerSlot& firstLayer() { return slot(k0_); }
 
   // Each worker claims the next layer until the band is done; a worker only ever waits for a layer
@@ -253,7 +275,7 @@ private:
     LayerSlot& s = slot(k);
     const int lastReader = k - static_cast<int>(slots_.size()) + 1;
     if (lastReader > k0_) slot(lastReader).finishedThroughRow.waitUntil(kAllRows);
-    s.layer = enumerateLayer(leaves_, k);
+    enumerateLayer(leaves_, k, s.layer);
     s.error.assign(s.layer.voxels.size(), 0.0f);
     s.finishedThroughRow.publish(kNoRowYet);
     s.preparedFor.publish(k);
@@ -332,6 +354,7 @@ private:
   const std::uint64_t seed_;
   const std::function<void()>& checkInterrupt_;
   std::vector<LayerSlot> slots_;
+  SlotBuffers& buffers_;
   const std::pair<int, int> rowWidth_;  // x of the band's first column and the number of columns
   std::atomic<int> nextLayer_;
   std::vector<std::vector<detail::LeafMask>> veroByWorker_;
@@ -363,6 +386,8 @@ void takeCarry(const Carries& carry, LayerSlot& first, int k0) {
 
 }  // namespace
 
+struct ErrorDiffusionDitherer::LayerBuffers : SlotBuffers {};
+
 openvdb::BoolGrid::Ptr ErrorDiffusionDitherer::ditherLeafVoxels(const openvdb::FloatGrid& fraction, int k0, int k1) {
   if (started_ && k0 != nextLayer_)
     throw std::logic_error("error-diffusion: bands must follow each other: expected a band starting at layer " +
@@ -380,7 +405,8 @@ openvdb::BoolGrid::Ptr ErrorDiffusionDitherer::ditherLeafVoxels(const openvdb::F
 
   // Layers form a chain; more than a few workers would only wait on each other.
   const int workers = std::clamp(tbb::this_task_arena::max_concurrency(), 1, 4);
-  BandDiffusion band(leaves, out, k0, k1, seed_, checkInterrupt_, workers);
+  if (!buffers_) buffers_ = std::make_shared<LayerBuffers>();
+  BandDiffusion band(leaves, out, k0, k1, seed_, checkInterrupt_, workers, *buffers_);
   if (started_) takeCarry(carry_, band.firstLayer(), k0);
   tbb::parallel_for(0, workers, [&](int worker) { band.work(worker); });
   band.rethrow();

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <vector>
 
 namespace rodfab::materials {
@@ -58,6 +59,10 @@ private:
   bool started_ = false;
   int nextLayer_ = 0;
   std::vector<Carry> carry_;  // error waiting for layer nextLayer_, sorted by (j, i)
+  // The layers' voxel lists and error, kept from band to band: layers of millions of voxels would
+  // otherwise cost fresh allocations, their page faults and growth copies (error_diffusion.cpp).
+  struct LayerBuffers;
+  std::shared_ptr<LayerBuffers> buffers_;
 };
 
 }  // namespace rodfab::materials

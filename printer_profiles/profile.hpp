@@ -2,6 +2,8 @@
 // Bundled profiles live in this folder and are selected by name; any other file is selected by path.
 #pragma once
 
+#include "common/located_issues.hpp"
+
 #include <array>
 #include <cstdint>
 #include <filesystem>
@@ -129,15 +131,9 @@ struct ProfileIssue {
 };
 
 // Every violation found in one profile file; what() lists them as `FILE: PATH: MESSAGE`, one per line.
-class ProfileError : public std::runtime_error {
+class ProfileError : public common::IssueListError<ProfileIssue> {
 public:
   ProfileError(std::string file, std::vector<ProfileIssue> issues);
-  const std::string& file() const { return file_; }
-  const std::vector<ProfileIssue>& issues() const { return issues_; }
-
-private:
-  std::string file_;
-  std::vector<ProfileIssue> issues_;
 };
 
 // The bundled profile used when a command or benchmark is not told which printer it is for. Code takes

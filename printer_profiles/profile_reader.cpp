@@ -502,7 +502,7 @@ std::string portableNameProblem(const std::string& name) {
 }
 
 ProfileError::ProfileError(std::string file, std::vector<ProfileIssue> issues)
-    : std::runtime_error(common::formatLocatedIssues(file, issues)), file_(std::move(file)), issues_(std::move(issues)) {}
+    : IssueListError(common::formatLocatedIssues(file, issues), file, issues) {}
 
 Profile parseProfile(const std::string& text, const std::string& sourceName) {
   if (text.size() > kMaxProfileBytes)
