@@ -1,4 +1,4 @@
-// Shared by the printer_profiles tests (tests/test_printer_profiles.cpp, tests/test_inspect.cpp):
+// Shared by the printer_profiles tests (tests/test_printer_profiles.cpp, test_printer_jobs.cpp, test_inspect.cpp):
 // the bundled Connex3 profile, per-test scratch folders removed when the program ends, whole-file
 // reads and writes.
 #pragma once
