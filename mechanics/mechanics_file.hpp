@@ -20,6 +20,12 @@ Design readDesign(const std::filesystem::path& file);
 // LoadCase::target stays empty): readDesign reads them.
 Design parseDesign(const std::string& text, const std::string& sourceName);
 
+// The file a load case's {"design": PATH} target names: PATH as written when absolute, else PATH
+// relative to the folder of `designFile` (the file the case was read from). Empty for an inline target.
+// The one rule for readDesign, the optimizer's output (which rewrites PATH for its own folder) and the
+// commands' input/output checks.
+std::filesystem::path targetDesignFile(const LoadCase& loadCase, const std::filesystem::path& designFile);
+
 // geometry::designToJson with the "mechanics" and "optimize" blocks (when present) after the rods.
 nlohmann::ordered_json designToJson(const Design& design, const std::string& description = {});
 // In the file's layout (geometry::writeDesignDocument), atomically.

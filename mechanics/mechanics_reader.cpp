@@ -10,6 +10,11 @@
 
 namespace rodfab::mechanics {
 
+std::filesystem::path targetDesignFile(const LoadCase& loadCase, const std::filesystem::path& designFile) {
+  if (loadCase.targetDesign.empty()) return {};
+  return designFile.parent_path() / loadCase.targetDesign;  // `/` keeps an absolute PATH as it is
+}
+
 using geometry::describe;
 using geometry::DesignIssue;
 using geometry::indexPath;
@@ -435,7 +440,7 @@ void resolveTargetDesigns(Design& design, const std::filesystem::path& file) {
   for (LoadCase& lc : design.mechanics.loadCases) {
     if (lc.targetDesign.empty()) continue;
     const std::string where = lc.path + ".target.design";
-    const std::filesystem::path targetFile = file.parent_path() / lc.targetDesign;
+    const std::filesystem::path targetFile = targetDesignFile(lc, file);
     Design target;
     try {
       target = parseDesign(common::readBoundedFile(targetFile.string()), targetFile.string());

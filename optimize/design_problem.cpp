@@ -1,5 +1,6 @@
 // DesignProblem: the training cases on a fixed discretization, their solves by continuation in E,
 // and the objective's adjoint gradient.
+#include "mechanics/mechanics_file.hpp"
 #include "optimize/objective.hpp"
 #include "optimize/optimize.hpp"
 
@@ -307,10 +308,11 @@ mechanics::Design optimizedDesign(const DesignProblem& problem, const Eigen::Vec
                                   const std::filesystem::path& designFile, const std::filesystem::path& outputFile) {
   namespace fs = std::filesystem;
   mechanics::Design out = problem.designWith(modulus);
-  const fs::path from = fs::absolute(designFile).parent_path(), to = fs::absolute(outputFile).parent_path();
+  const fs::path outputFolder = fs::absolute(outputFile).parent_path();
   for (mechanics::LoadCase& lc : out.mechanics.loadCases)
-    if (!lc.targetDesign.empty()) lc.targetDesign = fs::path(lc.targetDesign).is_absolute() ? lc.targetDesign
-                                                     : (from / lc.targetDesign).lexically_normal().lexically_relative(to).string();
+    if (!lc.targetDesign.empty() && !fs::path(lc.targetDesign).is_absolute())
+      lc.targetDesign =
+          mechanics::targetDesignFile(lc, fs::absolute(designFile)).lexically_normal().lexically_relative(outputFolder).string();
   out.optimize = design.optimize;
   return out;
 }

@@ -1,6 +1,7 @@
 #include "slicer/optimize_options.hpp"
 
 #include "geometry/geometry.hpp"
+#include "mechanics/mechanics_file.hpp"
 #include "slicer/command.hpp"
 #include "slicer/options.hpp"
 
@@ -115,7 +116,7 @@ std::optional<optimize::Settings> optimizeSettingsOrReport(const OptimizeCommand
 bool optimizeOutputsAllowed(const OptimizeCommand& c, const mechanics::Design& design) {
   std::vector<std::filesystem::path> inputs{c.design, c.calibration};
   for (const mechanics::LoadCase& lc : design.mechanics.loadCases)
-    if (!lc.targetDesign.empty()) inputs.push_back(std::filesystem::path(c.design).parent_path() / lc.targetDesign);
+    if (!lc.targetDesign.empty()) inputs.push_back(mechanics::targetDesignFile(lc, c.design));
   if (!outputAllowed(c.output, inputs, {"optimized design", true, "", geometry::isDesignFile})) return false;
   inputs.push_back(c.output);
   if (!c.plot.empty() && !outputAllowed(c.plot, inputs, {"convergence plot", true, "", optimize::isHistoryPlot})) return false;

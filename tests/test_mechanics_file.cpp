@@ -146,6 +146,18 @@ json withLoadCases() {
 
 }  // namespace
 
+TEST_CASE("A target design's file is relative to the design that names it, unless absolute", "[design][optimize]") {
+  LoadCase lc;
+  CHECK(targetDesignFile(lc, "/a/b/design.json").empty());  // an inline target names no file
+  lc.targetDesign = "shapes/target.json";
+  CHECK(targetDesignFile(lc, "/a/b/design.json") == std::filesystem::path("/a/b/shapes/target.json"));
+  CHECK(targetDesignFile(lc, "design.json") == std::filesystem::path("shapes/target.json"));
+  lc.targetDesign = "../target.json";
+  CHECK(targetDesignFile(lc, "/a/b/design.json").lexically_normal() == std::filesystem::path("/a/target.json"));
+  lc.targetDesign = "/elsewhere/target.json";
+  CHECK(targetDesignFile(lc, "/a/b/design.json") == std::filesystem::path("/elsewhere/target.json"));
+}
+
 TEST_CASE("Load cases, targets and the optimize block read and round-trip", "[design][optimize]") {
   const Design s = parseDesign(withLoadCases().dump(), "ok.json");
   const auto& cases = s.mechanics.loadCases;
