@@ -112,6 +112,7 @@ void BM_WriteJob(benchmark::State& state) {
   const fs::path dir = fs::temp_directory_path() / ("rodfab-bench-job-" + std::to_string(::getpid()));
   fs::create_directories(dir);
   std::uintmax_t bytes = 0;
+  double bitmapBytes = 0;  // of the layer bitmaps the job holds (rigid and rubbery; support is the printer's)
   for (auto _ : state) {
     pp::JobSpec spec;
     spec.profile = profile();
@@ -121,6 +122,8 @@ void BM_WriteJob(benchmark::State& state) {
     spec.options.force = true;
     spec.options.verify = state.range(1) != 0;
     pp::JobWriter writer(spec);
+    const pp::JobGeometry& g = writer.geometry();
+    bitmapBytes = 2.0 * ((g.width + 7) / 8) * g.height * g.layers;
     for (const pp::LayerBand& band : lattice.bands) writer.addBand(band);
     bytes = writer.finalize().bytes;
   }
@@ -130,6 +133,8 @@ void BM_WriteJob(benchmark::State& state) {
   state.counters["layers/s"] = benchmark::Counter(static_cast<double>(lattice.box.dim().z()) * state.iterations(),
                                                   benchmark::Counter::kIsRate);
   state.counters["zip_MB"] = static_cast<double>(bytes) / 1e6;
+  state.counters["bitmap_bytes/s"] = benchmark::Counter(bitmapBytes * static_cast<double>(state.iterations()),
+                                                        benchmark::Counter::kIsRate, benchmark::Counter::kIs1000);
 }
 BENCHMARK(BM_WriteJob)->Args({1, 0})->Args({2, 0})->Args({2, 1})->Unit(benchmark::kMillisecond)->UseRealTime();
 

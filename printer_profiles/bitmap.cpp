@@ -51,6 +51,8 @@ std::size_t countCommonBits(std::span<const std::uint8_t> a, std::span<const std
   return countWords(a.data(), b.data(), a.size());
 }
 
+void Bitmap::clear() { std::fill(bits_.begin(), bits_.end(), std::uint8_t{0}); }
+
 std::size_t Bitmap::count() const { return countSetBits(bits_); }
 
 RgbImage::RgbImage(int w, int h, std::uint8_t r, std::uint8_t g, std::uint8_t b) : width(w), height(h) {
@@ -93,10 +95,17 @@ std::size_t bmpStride(int width) { return (static_cast<std::size_t>(width) + 31)
 }  // namespace
 
 Bytes encodeBmp(const Bitmap& bitmap, int xDpi, int yDpi) {
+  Bytes out;
+  encodeBmpInto(bitmap, xDpi, yDpi, out);
+  return out;
+}
+
+void encodeBmpInto(const Bitmap& bitmap, int xDpi, int yDpi, Bytes& out) {
   const std::size_t stride = bmpStride(bitmap.width());
   const std::size_t offset = kFileHeaderSize + kInfoHeaderSize + kPaletteSize;
   const std::size_t imageSize = stride * static_cast<std::size_t>(bitmap.height());
-  Bytes out(offset + imageSize, 0);
+  out.resize(offset + imageSize);  // every byte is written below: rows, their padding and the headers
+  std::fill(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(offset), std::uint8_t{0});
   out[0] = 'B';
   out[1] = 'M';
   put32(out, 2, static_cast<std::uint32_t>(out.size()));
@@ -115,10 +124,10 @@ Bytes encodeBmp(const Bitmap& bitmap, int xDpi, int yDpi) {
   // Palette (blue, green, red, reserved): index 0 black, index 1 white.
   out[58] = out[59] = out[60] = 0xff;
   for (int r = 0; r < bitmap.height(); ++r) {
-    const std::uint8_t* src = bitmap.row(bitmap.height() - 1 - r);
-    std::memcpy(out.data() + offset + static_cast<std::size_t>(r) * stride, src, bitmap.stride());
+    std::uint8_t* dst = out.data() + offset + static_cast<std::size_t>(r) * stride;
+    std::memcpy(dst, bitmap.row(bitmap.height() - 1 - r), bitmap.stride());
+    std::memset(dst + bitmap.stride(), 0, stride - bitmap.stride());
   }
-  return out;
 }
 
 DecodedBitmap decodeBmp(std::span<const std::uint8_t> in) {

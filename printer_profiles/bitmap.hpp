@@ -38,6 +38,7 @@ public:
   std::span<std::uint8_t> bytes() { return bits_; }
   std::span<const std::uint8_t> bytes() const { return bits_; }
 
+  void clear();                // every pixel 0, keeping the memory
   std::size_t count() const;  // pixels set
   bool operator==(const Bitmap& other) const = default;
 
@@ -71,6 +72,8 @@ std::uint32_t pixelsPerMetre(int dpi);
 
 // BMP: BITMAPINFOHEADER, two-entry palette (0 black, 1 white), rows bottom-up as the format's default.
 Bytes encodeBmp(const Bitmap& bitmap, int xDpi, int yDpi);
+// The same into `out` (resized to the file's size), so a caller can reuse one buffer for every layer.
+void encodeBmpInto(const Bitmap& bitmap, int xDpi, int yDpi, Bytes& out);
 // Accepts 1-bit BMPs with either row order; the pixel value is the palette index (1 = deposit).
 DecodedBitmap decodeBmp(std::span<const std::uint8_t> file);
 

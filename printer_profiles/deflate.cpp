@@ -31,8 +31,8 @@ void checkLevel(int level) {
                                 std::to_string(ISAL_DEF_MAX_LEVEL));
 }
 
-// One stateless compression into `out` (sized by the caller); false when `out` was too small.
-bool compressOnce(std::span<const std::uint8_t> input, int level, DeflateWrapper wrapper, std::vector<std::uint8_t>& out) {
+// One stateless compression into `out`: the bytes written, or nullopt when `out` was too small.
+std::optional<std::size_t> compressOnce(std::span<const std::uint8_t> input, int level, DeflateWrapper wrapper, std::span<std::uint8_t> out) {
   thread_local std::vector<std::uint8_t> levelBuffer;
   levelBuffer.resize(std::max(levelBuffer.size(), levelBufferSize(level)));
   isal_zstream stream{};  // stateless_init leaves fields igzip reads (hist_bits among them) unset
@@ -51,20 +51,32 @@ bool compressOnce(std::span<const std::uint8_t> input, int level, DeflateWrapper
   stream.next_out = out.data();
   stream.avail_out = static_cast<std::uint32_t>(out.size());
   const int status = isal_deflate_stateless(&stream);
-  if (status == STATELESS_OVERFLOW) return false;
+  if (status == STATELESS_OVERFLOW) return std::nullopt;
   if (status != COMP_OK) throw std::runtime_error("igzip deflate failed (status " + std::to_string(status) + ")");
-  out.resize(out.size() - stream.avail_out);
-  return true;
+  return out.size() - stream.avail_out;
 }
 
 }  // namespace
 
 std::vector<std::uint8_t> deflateBytes(std::span<const std::uint8_t> input, int level, DeflateWrapper wrapper) {
   checkLevel(level);
-  std::vector<std::uint8_t> out(outputBound(input.size()));
-  while (!compressOnce(input, level, wrapper, out)) out.assign(out.size() * 2, 0);
-  out.shrink_to_fit();
-  return out;
+  // Compressed into a buffer kept by the thread (its pages stay mapped from layer to layer), then
+  // copied out at its size: layers compress 40 times or more, so the copy is small.
+  thread_local std::unique_ptr<std::uint8_t[]> scratch;  // uninitialised: igzip writes before anything reads
+  thread_local std::size_t scratchSize = 0;
+  std::size_t room = outputBound(input.size());
+  for (;; room *= 2) {
+    if (scratchSize < room) {
+      scratch.reset();
+      scratch.reset(new std::uint8_t[room]);
+      scratchSize = room;
+    }
+    if (const auto produced = compressOnce(input, level, wrapper, {scratch.get(), room})) {
+      std::vector<std::uint8_t> out(scratch.get(), scratch.get() + *produced);
+      if (scratchSize > (std::size_t{64} << 20)) scratch.reset(), scratchSize = 0;  // a huge input does not pin its buffer
+      return out;
+    }
+  }
 }
 
 DeflateStream::DeflateStream(int level, DeflateWrapper wrapper)

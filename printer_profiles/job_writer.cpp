@@ -1,36 +1,20 @@
 #include "printer_profiles/job_writer.hpp"
 
-#include "common/interrupt.hpp"
-
-#include "printer_profiles/deflate.hpp"
+#include "printer_profiles/band_encoder.hpp"
 #include "printer_profiles/gcvf_writer.hpp"
 #include "printer_profiles/inspect.hpp"
 #include "printer_profiles/job_manifest.hpp"
+#include "printer_profiles/job_staging.hpp"
 #include "printer_profiles/leaf_bits.hpp"
 #include "printer_profiles/previews.hpp"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
-#include <fcntl.h>
-#include <sys/file.h>
 #include <sys/stat.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <bit>
-#include <cerrno>
-#include <charconv>
-#include <csignal>
-#include <cstdio>  // renameat2, RENAME_EXCHANGE, RENAME_NOREPLACE (glibc 2.28)
-#include <cstring>
-#include <fstream>
-#include <limits>
+#include <cstdio>
 #include <sstream>
-#include <string_view>
-#include <system_error>
 
 namespace rodfab::printer_profiles {
 
@@ -39,168 +23,13 @@ using nlohmann::json;
 
 namespace {
 
-constexpr const char* kPartialTag = ".rodfab-partial-";
 // The writer's verification decodes one layer in this many (and the first and last; see verify()).
 constexpr int kVerifyDecodeEvery = 32;
-
-void writeFile(const fs::path& path, std::span<const std::uint8_t> data) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size()));
-  out.close();
-  if (!out) throw std::runtime_error(path.string() + ": cannot write (disk full or no permission?)");
-}
 
 std::string describeVoxelSize(const openvdb::Vec3d& v) {
   std::ostringstream s;
   s << v.x() << " x " << v.y() << " x " << v.z() << " mm";
   return s.str();
-}
-
-bool processAlive(long pid) { return pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM); }
-
-constexpr const char* kLockName = ".lock";
-
-// ".NAME.rodfab-partial-PID-N" for the target NAME and this process.
-fs::path stagingPath(const fs::path& target, long n) {
-  std::string name(".");  // appended piece by piece (GCC 12 warns wrongly about "." + std::string)
-  name += target.filename().string();
-  name += kPartialTag;
-  name += std::to_string(::getpid());
-  name += '-';
-  name += std::to_string(n);
-  return target.parent_path() / name;
-}
-
-// ".NAME.rodfab-partial-PID-N" (this version's staging folders), and the names older versions left:
-// ".NAME.rodfab-partial-PID-N.zip" and ".NAME.rodfab-partial-PID-old". Returns the PID, or 0 when
-// `name` is not exactly one of these.
-long stagingPid(const std::string& name) {
-  const std::size_t tag = name.rfind(kPartialTag);
-  if (name.size() < 2 || name[0] != '.' || tag == std::string::npos || tag < 2) return 0;
-  std::string_view rest = std::string_view(name).substr(tag + std::strlen(kPartialTag));
-  long pid = 0;
-  const auto [end, ec] = std::from_chars(rest.data(), rest.data() + rest.size(), pid);
-  if (ec != std::errc() || end == rest.data() || pid <= 0 || pid > std::numeric_limits<pid_t>::max()) return 0;
-  rest.remove_prefix(static_cast<std::size_t>(end - rest.data()));
-  if (rest == "-old") return pid;
-  if (!rest.starts_with('-')) return 0;
-  rest.remove_prefix(1);
-  if (rest.ends_with(".zip")) rest.remove_suffix(4);
-  const bool digits = !rest.empty() && rest.find_first_not_of("0123456789") == std::string_view::npos;
-  return digits ? pid : 0;
-}
-
-// Whether the staging folder's writer is gone: its lock file is free (flock dies with its holder, so
-// a reused pid cannot fool it). Folders without a lock file (older versions, or a writer between
-// mkdir and locking) are judged by their pid.
-bool writerGone(const fs::path& folder, long pid) {
-  const int fd = ::open((folder / kLockName).c_str(), O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC);
-  if (fd < 0) return errno == ENOENT && !processAlive(pid);
-  const bool free = ::flock(fd, LOCK_EX | LOCK_NB) == 0;
-  const bool unsupported = !free && errno != EWOULDBLOCK;
-  ::close(fd);  // a later writer cannot take this name: names carry live pids
-  return free || (unsupported && !processAlive(pid));
-}
-
-// Leftovers of writers that died (killed, crashed) in `folder`, whatever job they were writing: only
-// entries named exactly like staging folders (or older versions' temporaries), only when their writer
-// is gone; a link is never followed.
-void removeDeadStaging(const fs::path& folder) {
-  std::error_code ec;
-  for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
-    const std::string name = it->path().filename().string();
-    const long pid = stagingPid(name);
-    if (!pid) continue;
-    std::error_code statusError;
-    const fs::file_status status = it->symlink_status(statusError);
-    if (statusError) continue;
-    std::error_code ignored;
-    if (fs::is_directory(status) && writerGone(it->path(), pid)) fs::remove_all(it->path(), ignored);
-    else if (fs::is_regular_file(status) && !processAlive(pid)) fs::remove(it->path(), ignored);
-  }
-}
-
-// The writer's hidden folder beside the target (see JobWriter). Created with its lock file taken;
-// removed with everything in it when the object goes, on every path.
-class Staging {
-public:
-  explicit Staging(const fs::path& target) {
-    static std::atomic<int> counter{0};
-    const fs::path parent = target.parent_path();
-    for (int attempt = 0;; ++attempt) {
-      root_ = stagingPath(target, counter++);
-      if (::mkdir(root_.c_str(), 0777) == 0) break;
-      if (errno != EEXIST || attempt == 100) fail(parent, std::strerror(errno), false);
-    }
-    common::registerCleanup(root_);  // removed on interrupt or a fatal error too (common/interrupt.hpp)
-    std::error_code ec;
-    fs::create_directories(files() / "previews", ec);
-    if (ec) fail(parent, ec.message(), true);
-    lock();
-  }
-  ~Staging() { remove(); }
-  Staging(const Staging&) = delete;
-  Staging& operator=(const Staging&) = delete;
-
-  const fs::path& root() const { return root_; }
-  fs::path files() const { return root_ / "job"; }    // the job's files (a directory job as it will be)
-  fs::path zip() const { return root_ / "job.zip"; }  // the zip job
-  void remove() {
-    std::error_code ec;
-    if (!root_.empty()) {
-      fs::remove_all(root_, ec);
-      common::unregisterCleanup(root_);
-    }
-    root_.clear();
-    if (lockFd_ >= 0) ::close(lockFd_);
-    lockFd_ = -1;
-  }
-
-private:
-  [[noreturn]] void fail(const fs::path& parent, const std::string& why, bool created) {
-    std::error_code ignored;
-    if (created) fs::remove_all(root_, ignored);
-    root_.clear();
-    throw std::runtime_error(parent.string() + ": cannot write the job there (" + why + ")");
-  }
-  // Locked under a name nobody checks, then renamed: whoever finds ".lock" finds it locked while we live.
-  void lock() {
-    const fs::path initial = root_ / ".lock-init";
-    lockFd_ = ::open(initial.c_str(), O_RDWR | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
-    if (lockFd_ < 0) fail(root_.parent_path(), std::strerror(errno), true);
-    if (::flock(lockFd_, LOCK_EX | LOCK_NB) == 0) {
-      if (::rename(initial.c_str(), (root_ / kLockName).c_str()) != 0) fail(root_.parent_path(), std::strerror(errno), true);
-      return;
-    }
-    // A file system without flock: the folder goes by its pid alone, like older versions' folders.
-    ::close(lockFd_);
-    lockFd_ = -1;
-    ::unlink(initial.c_str());
-  }
-
-  fs::path root_;
-  int lockFd_ = -1;
-};
-
-// Linux renameat2: swap two names in one step, or rename without replacing. False when the file
-// system does not offer it (the caller falls back); other errors throw, naming both paths (EEXIST for
-// RENAME_NOREPLACE: the target appeared, said as such).
-bool renameWith(const fs::path& from, const fs::path& to, unsigned flags) {
-  if (::renameat2(AT_FDCWD, from.c_str(), AT_FDCWD, to.c_str(), flags) == 0) return true;
-  if (errno == EINVAL || errno == ENOSYS || errno == ENOTSUP) return false;
-  if (errno == EEXIST && (flags & RENAME_NOREPLACE))
-    throw std::runtime_error(to.string() + ": appeared while the job was being written; it was left as it is");
-  throw std::system_error(errno, std::generic_category(), "cannot rename " + from.string() + " to " + to.string());
-}
-
-void renameOrThrow(const fs::path& from, const fs::path& to) {
-  if (::rename(from.c_str(), to.c_str()) != 0)
-    throw std::system_error(errno, std::generic_category(), "cannot rename " + from.string() + " to " + to.string());
-}
-
-std::string refusal(const fs::path& target, const OutputOccupant& occupant) {
-  return target.string() + ": is " + occupant.description +
-         "; rodfab replaces only its own jobs (even with --force), so it was left as it is: choose another output";
 }
 
 }  // namespace
@@ -245,6 +74,7 @@ struct JobWriter::Impl {
   int nextK = 0;
   std::vector<LayerRecord> layers;
   std::unique_ptr<Previews> previews;
+  std::unique_ptr<BandEncoder> encoder;
   bool finished = false;
 
   explicit Impl(JobSpec s) : spec(std::move(s)) {
@@ -270,6 +100,9 @@ struct JobWriter::Impl {
     removeDeadStaging(target.parent_path());
     staging = std::make_unique<Staging>(target);  // last: nothing after it may throw
     filesDir = staging->files();
+    encoder = std::make_unique<BandEncoder>(BandEncoderSetup{spec.profile, geometry, imageFormat, support, emitted,
+                                                             spec.supportTops.get(), spec.options.archive == ArchiveFormat::Zip,
+                                                             filesDir, staging->root()});
   }
 
   bool gcvf() const { return spec.profile.jobFormat == JobFormat::Gcvf; }
@@ -325,149 +158,6 @@ struct JobWriter::Impl {
     bool inside = true;
     forEachActiveTile(tree, [&](const openvdb::CoordBBox& box, bool) { inside = inside && allowed.isInside(box); });
     return inside;
-  }
-
-  struct BandLeaf {
-    openvdb::Coord origin;
-    LeafBytes active, value;
-  };
-
-  void encodeBand(const LayerBand& band) {
-    const int firstLayer = geometry.layer(band.kBegin);
-    const int count = band.kEnd - band.kBegin;
-    const int zBase = band.kBegin & ~7;
-    // Leaves bucketed by their 8-layer slab; their bytes read once per band.
-    std::vector<std::vector<BandLeaf>> slabs(static_cast<std::size_t>((band.kEnd - 1 - zBase) / 8 + 1));
-    for (auto leaf = band.material->tree().cbeginLeaf(); leaf; ++leaf)
-      slabs[static_cast<std::size_t>((leaf->origin().z() - zBase) / 8)].push_back(
-          {leaf->origin(), maskBytes(leaf->getValueMask()), boolValueBytes(*leaf)});
-    std::vector<std::pair<openvdb::CoordBBox, bool>> tiles;
-    forEachActiveTile(band.material->tree(), [&](const openvdb::CoordBBox& box, bool value) { tiles.emplace_back(box, value); });
-
-    std::vector<LayerBitmaps> bitmaps(static_cast<std::size_t>(count));
-    // Zip jobs keep each image's zip form (deflated BMP, or the PNG as it is) in memory until the band
-    // is staged in one file: staging thousands of files costs more in the file system than compressing.
-    const bool zip = spec.options.archive == ArchiveFormat::Zip;
-    std::vector<std::vector<Bytes>> zipForms(zip ? static_cast<std::size_t>(count) : 0);
-    const openvdb::FloatGrid* modulus = band.modulus.get();
-    tbb::parallel_for(tbb::blocked_range<int>(0, count, 1), [&](const tbb::blocked_range<int>& range) {
-      for (int n = range.begin(); n != range.end(); ++n) {
-        common::throwIfInterrupted();  // a band of large layers takes seconds
-        const int k = band.kBegin + n, layer = firstLayer + n;
-        LayerBitmaps& b = bitmaps[static_cast<std::size_t>(n)];
-        LayerRecord& record = layers[static_cast<std::size_t>(layer)];
-        rasterize(k, slabs[static_cast<std::size_t>((k - zBase) / 8)], tiles, b, record);
-        if (support == SupportPolicy::Explicit) addSupport(layer, b);
-        record.voxels = {b.rigid.count(), b.rubbery.count(), b.hasSupport ? b.support.count() : 0};
-        previews->addLayer(layer, b, modulus);
-        writeLayerFiles(layer, b, record, zip ? &zipForms[static_cast<std::size_t>(n)] : nullptr);
-      }
-    });
-    previews->addTopLayers(firstLayer, bitmaps, modulus);
-    if (zip) stageBand(firstLayer, zipForms);
-  }
-
-  // One staged file per band, the layers' zip forms one after another; named by the band's first
-  // layer. Each entry's bytes depend on its image alone, so the band size never shows in the job.
-  void stageBand(int firstLayer, const std::vector<std::vector<Bytes>>& zipForms) {
-    const fs::path file = staging->root() / ("layers-" + std::to_string(firstLayer) + ".bin");
-    std::ofstream out(file, std::ios::binary | std::ios::trunc);
-    std::uint64_t offset = 0;
-    for (std::size_t n = 0; n < zipForms.size(); ++n) {
-      LayerRecord& record = layers[static_cast<std::size_t>(firstLayer) + n];
-      for (std::size_t f = 0; f < zipForms[n].size(); ++f) {
-        const Bytes& data = zipForms[n][f];
-        out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size()));
-        StagedZipData& z = record.zipped[f];
-        z.file = file;
-        z.offset = offset;
-        offset += data.size();
-      }
-    }
-    out.close();
-    if (!out) throw std::runtime_error(file.string() + ": cannot write (disk full or no permission?)");
-  }
-
-  ZipStorage layerStorage() const { return imageFormat == ImageFormat::Png ? ZipStorage::Store : ZipStorage::Deflate; }
-
-  void rasterize(int k, const std::vector<BandLeaf>& leaves, const std::vector<std::pair<openvdb::CoordBBox, bool>>& tiles,
-                 LayerBitmaps& b, LayerRecord& record) const {
-    b.rigid = Bitmap(geometry.width, geometry.height);
-    b.rubbery = Bitmap(geometry.width, geometry.height);
-    for (const BandLeaf& leaf : leaves) {
-      const int z = k - leaf.origin.z();
-      const auto byte = static_cast<std::size_t>(geometry.column(leaf.origin.x()) / 8);
-      for (int y = 0; y < 8; ++y) {
-        const std::uint8_t active = leaf.active.row(y, z);
-        if (!active) continue;
-        const std::uint8_t value = leaf.value.row(y, z);
-        const int j = leaf.origin.y() + y, row = geometry.row(j);
-        const auto rigid = static_cast<std::uint8_t>(active & value), rubbery = static_cast<std::uint8_t>(active & ~value);
-        b.rigid.row(row)[byte] |= rigid;
-        b.rubbery.row(row)[byte] |= rubbery;
-        record.moments[0].add(rigid, leaf.origin.x(), j, k);
-        record.moments[1].add(rubbery, leaf.origin.x(), j, k);
-      }
-    }
-    for (const auto& [box, value] : tiles) {
-      if (k < box.min().z() || k > box.max().z()) continue;
-      Bitmap& target = value ? b.rigid : b.rubbery;
-      for (int j = box.min().y(); j <= box.max().y(); ++j)
-        for (int i = box.min().x(); i <= box.max().x(); i += 8) {
-          target.row(geometry.row(j))[geometry.column(i) / 8] = 0xff;  // tiles are 8-aligned in x
-          record.moments[value ? 0 : 1].add(0xff, i, j, k);
-        }
-    }
-  }
-
-  // Support fills each column from the tray up to its highest model voxel, wherever the model is not.
-  void addSupport(int layer, LayerBitmaps& b) const {
-    const ColumnTops& tops = *spec.supportTops;
-    b.support = Bitmap(geometry.width, geometry.height);
-    b.hasSupport = true;
-    for (int r = 0; r < geometry.height; ++r) {
-      if (tops.rowMaximum()[static_cast<std::size_t>(r)] <= layer) continue;
-      std::uint8_t* out = b.support.row(r);
-      const std::uint8_t* rigid = b.rigid.row(r);
-      const std::uint8_t* rubbery = b.rubbery.row(r);
-      for (std::size_t byte = 0; byte < b.support.stride(); ++byte) {
-        std::uint8_t above = 0;
-        for (int bit = 0; bit < 8; ++bit)
-          if (tops.top(static_cast<int>(byte) * 8 + bit, r) > layer) above = static_cast<std::uint8_t>(above | (0x80u >> bit));
-        out[byte] = static_cast<std::uint8_t>(above & ~(rigid[byte] | rubbery[byte]));
-      }
-    }
-  }
-
-  // Encodes the layer's images; writes them to the staging folder, or hands their zip forms to
-  // `zipForms` (deflated BMP, PNG as it is) and records their sizes and CRCs in record.zipped.
-  void writeLayerFiles(int layer, const LayerBitmaps& b, LayerRecord& record, std::vector<Bytes>* zipForms) const {
-    record.files.clear();
-    record.zipped.clear();
-    const auto keep = [&](const ProfileMaterial& m, Bytes data) {
-      FileRecord f{spec.profile.layerFileName(m, layer, imageFormat), data.size(), sha256Hex(data)};
-      if (!zipForms) {
-        writeFile(filesDir / f.name, data);
-      } else {
-        StagedZipData z;
-        z.size = data.size();
-        z.crc32 = zipCrc32(data);
-        if (layerStorage() == ZipStorage::Deflate) data = deflateBytes(data, kLayerDeflateLevel, DeflateWrapper::Raw);
-        z.length = data.size();
-        record.zipped.push_back(z);
-        zipForms->push_back(std::move(data));
-      }
-      record.files.push_back(std::move(f));
-    };
-    if (gcvf()) {  // one RGBA image holds every material of the layer
-      keep(*emitted[0], encodeGcvfLayer(b.rigid, b.rubbery, spec.profile));
-      return;
-    }
-    for (const ProfileMaterial* m : emitted) {
-      const Bitmap& bitmap = m->role == MaterialRole::Rigid ? b.rigid : m->role == MaterialRole::Rubbery ? b.rubbery : b.support;
-      keep(*m, imageFormat == ImageFormat::Bmp ? encodeBmp(bitmap, spec.profile.xDpi, spec.profile.yDpi)
-                                               : encodePng1(bitmap, spec.profile.xDpi, spec.profile.yDpi));
-    }
   }
 
   FileRecord writeStaged(const std::string& name, std::span<const std::uint8_t> data) const {
@@ -542,7 +232,7 @@ struct JobWriter::Impl {
       entries.push_back({files[n].name, filesDir / files[n].name, png ? ZipStorage::Store : ZipStorage::Deflate, std::nullopt});
     }
     for (const LayerRecord& r : layers)
-      for (std::size_t f = 0; f < r.files.size(); ++f) entries.push_back({r.files[f].name, {}, layerStorage(), r.zipped[f]});
+      for (std::size_t f = 0; f < r.files.size(); ++f) entries.push_back({r.files[f].name, {}, encoder->layerStorage(), r.zipped[f]});
     writeZip(staging->zip(), entries);
   }
 
@@ -579,75 +269,16 @@ struct JobWriter::Impl {
     if (spec.options.verify) verify(built);
 
     checkInterrupt();  // the last moment at which nothing was written
-    const Commit commit = commitJob(built);
+    const Commit commit = commitJob(built, target, spec.options.force, *staging);
     try {
       checkInterrupt();
     } catch (...) {
-      undo(commit);
+      undoCommit(commit, target, *staging);
       throw;
     }
     finished = true;
     staging->remove();  // temporaries, and the job this one replaced
     return result(files.size() + 1, commit);
-  }
-
-  struct Commit {
-    bool replaced = false;
-    fs::path oldJob;    // where the job it replaced lies now (in the staging folder)
-    bool exchanged = false;
-    std::uint64_t device = 0, inode = 0;  // of the new job
-  };
-
-  // Puts the staged job `built` at the target: a rename that never replaces, or, for a rodfab job
-  // there and force, an exchange of the two names in one step. What is at the target is examined
-  // again now: it may have changed while the job was written.
-  Commit commitJob(const fs::path& built) {
-    Commit c;
-    struct stat st {};
-    if (::lstat(built.c_str(), &st) != 0) throw std::system_error(errno, std::generic_category(), built.string());
-    c.device = static_cast<std::uint64_t>(st.st_dev);
-    c.inode = static_cast<std::uint64_t>(st.st_ino);
-    const OutputOccupant occupant = examineOutput(target);
-    if (occupant.kind == OutputOccupant::Kind::Other) throw std::runtime_error(refusal(target, occupant));
-    if (occupant.kind == OutputOccupant::Kind::Nothing) {
-      if (!renameWith(built, target, RENAME_NOREPLACE)) {
-        if (fs::exists(fs::symlink_status(target)))
-          throw std::runtime_error(target.string() + ": appeared while the job was being written; it was left as it is");
-        renameOrThrow(built, target);
-      }
-      return c;
-    }
-    if (!spec.options.force)
-      throw std::runtime_error(target.string() + ": a job appeared there while this one was being written; use --force to replace it");
-    c.replaced = true;
-    c.exchanged = renameWith(built, target, RENAME_EXCHANGE);
-    if (c.exchanged) {
-      c.oldJob = built;
-      // The exchange took whatever was at the target a moment ago: it must be the job examined above.
-      const OutputOccupant taken = examineOutput(c.oldJob);
-      if (taken.device != occupant.device || taken.inode != occupant.inode) {
-        renameWith(c.oldJob, target, RENAME_EXCHANGE);
-        throw std::runtime_error(target.string() + ": changed while the job was being written; nothing was replaced");
-      }
-      return c;
-    }
-    // No exchange on this file system: the old job is moved aside into the staging folder first.
-    c.oldJob = staging->root() / "replaced";
-    renameOrThrow(target, c.oldJob);
-    try {
-      renameOrThrow(built, target);
-    } catch (...) {
-      renameOrThrow(c.oldJob, target);
-      throw;
-    }
-    return c;
-  }
-
-  // Takes a committed job back: the target holds again what it held before (nothing, or the old job).
-  void undo(const Commit& c) {
-    if (c.exchanged && renameWith(c.oldJob, target, RENAME_EXCHANGE)) return;  // new job back into staging
-    renameOrThrow(target, staging->root() / "withdrawn");
-    if (c.replaced) renameOrThrow(c.oldJob, target);
   }
 
   JobResult result(std::size_t fileCount, const Commit& commit) const {
@@ -694,7 +325,7 @@ void JobWriter::addBand(LayerBand band) {
   if (impl_->finished) throw std::logic_error("addBand after finalize");
   impl_->checkBand(band);
   impl_->nextK = band.kEnd;
-  impl_->encodeBand(band);
+  impl_->encoder->encode(band, impl_->layers, *impl_->previews);
 }
 
 JobResult JobWriter::finalize() {

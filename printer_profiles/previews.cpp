@@ -149,7 +149,7 @@ void drawView(cairo_surface_t* surface, const ViewT& view, int ox, int oy, int w
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
       const auto [cx, cy] = cellOf(x, y, w, h);
-      const std::size_t at = static_cast<std::size_t>(cy) * view.width + cx;
+      const std::size_t at = view.at(cx, cy);
       const std::uint8_t m = view.material[at];
       if (!m) {
         putPixel(surface, ox + x, oy + y, kBackground);
@@ -218,20 +218,39 @@ void drawLegend(cairo_t* cr, const ProjectionLayout& l, const ModulusScale* byMo
 
 }  // namespace
 
-void Previews::View::resize(int w, int h) {
-  width = w;
-  height = h;
-  const std::size_t n = static_cast<std::size_t>(w) * h;
+AxisSamples::AxisSamples(int cells, int pixels)
+    : cells_(cells), pixels_(pixels), slots_(static_cast<std::size_t>(cells), -1), hidden_((static_cast<std::size_t>(cells) + 7) / 8, 0xff) {
+  for (int p = 0; p < pixels; ++p) {
+    const int c = cellOfPixel(p);  // never decreases with p: slots follow the cells' order
+    if (slots_[static_cast<std::size_t>(c)] >= 0) continue;
+    slots_[static_cast<std::size_t>(c)] = kept_++;
+    hidden_[static_cast<std::size_t>(c) / 8] = static_cast<std::uint8_t>(hidden_[static_cast<std::size_t>(c) / 8] & ~(0x80u >> (c % 8)));
+  }
+}
+
+// The same arithmetic as the views' drawing always used (double, then truncated and clamped).
+int AxisSamples::cellOfPixel(int p) const { return std::clamp(static_cast<int>((p + 0.5) * cells_ / pixels_), 0, cells_ - 1); }
+
+Previews::View::View(AxisSamples us, AxisSamples vs) : u(std::move(us)), v(std::move(vs)), width(u.kept()), height(v.kept()) {
+  const std::size_t n = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
   material.assign(n, 0);
   depth.assign(n, -1);
   modulus.assign(n, kNoModulus);
 }
 
+void Previews::View::set(std::size_t at, bool rigid, int depthValue, float modulusValue) {
+  material[at] = rigid ? 1 : 2;
+  depth[at] = depthValue;
+  modulus[at] = modulusValue;
+}
+
 Previews::Previews(const JobGeometry& geometry, const Profile& profile, int contactSheetLayers)
     : geometry_(geometry), profile_(profile) {
-  top_.resize(geometry.width, geometry.height);
-  front_.resize(geometry.width, geometry.layers);
-  side_.resize(geometry.height, geometry.layers);
+  const ProjectionLayout l = projectionLayout(geometry, profile.voxelSizeMm);
+  const AxisSamples columns(geometry.width, l.topW), layers(geometry.layers, l.frontH);
+  top_ = View(columns, AxisSamples(geometry.height, l.topH));
+  front_ = View(columns, layers);
+  side_ = View(AxisSamples(geometry.height, l.sideW), layers);
   const int n = std::clamp(contactSheetLayers, 1, geometry.layers);
   for (int s = 0; s < n; ++s)
     contactLayers_.push_back(n == 1 ? geometry.layers / 2
@@ -245,6 +264,13 @@ Previews::Previews(const JobGeometry& geometry, const Profile& profile, int cont
   tiles_.resize(contactLayers_.size());
 }
 
+std::size_t Previews::memoryBytes() const {
+  std::size_t bytes = 0;
+  for (const View* v : {&top_, &front_, &side_}) bytes += v->material.size() + 4 * v->depth.size() + 4 * v->modulus.size();
+  for (const auto& t : tiles_) bytes += t.size();
+  return bytes;
+}
+
 namespace {
 
 // Whether bytes [at, at + 8) of both rows are empty: layers are mostly empty, so scans skip a word at a time.
@@ -255,13 +281,13 @@ bool emptyWord(const std::uint8_t* a, const std::uint8_t* b, std::size_t at) {
   return !(x | y);
 }
 
-// Calls visit(column, isRigid) for the pixels of a row (rigid or rubbery) not yet in `claimed`, left
+// Calls visit(column, isRigid) for the pixels of a row's `span` (rigid or rubbery) not yet in `claimed`, left
 // to right, and adds them to `claimed`: a view decides each of its pixels once. Skips a word at a
 // time where there is nothing new (layers are mostly empty, columns soon claimed).
 template <class Visit>
-void forEachFresh(const std::uint8_t* rigid, const std::uint8_t* rubbery, std::uint8_t* claimed, std::size_t stride, Visit&& visit) {
-  for (std::size_t at = 0; at < stride; at += 8) {
-    const std::size_t n = std::min<std::size_t>(8, stride - at);
+void forEachFresh(const std::uint8_t* rigid, const std::uint8_t* rubbery, std::uint8_t* claimed, RowSpan span, Visit&& visit) {
+  for (std::size_t at = span.begin; at < span.end; at += 8) {
+    const std::size_t n = std::min<std::size_t>(8, span.end - at);
     std::uint64_t a = 0, b = 0, c = 0;
     std::memcpy(&a, rigid + at, n);
     std::memcpy(&b, rubbery + at, n);
@@ -282,29 +308,36 @@ void forEachFresh(const std::uint8_t* rigid, const std::uint8_t* rubbery, std::u
 }  // namespace
 
 void Previews::addLayer(int layer, const LayerBitmaps& b, const openvdb::FloatGrid* modulus) {
+  if (front_.v.slot(layer) >= 0) addFrontAndSide(layer, b, modulus);  // both views show the same layers
+  addContactTile(layer, b);
+}
+
+void Previews::addFrontAndSide(int layer, const LayerBitmaps& b, const openvdb::FloatGrid* modulus) {
   std::optional<openvdb::FloatGrid::ConstAccessor> acc;
   if (modulus) acc.emplace(modulus->getConstAccessor());
-  const int w = geometry_.width, h = geometry_.height;
-  const int k = geometry_.k(layer);
+  const int h = geometry_.height, k = geometry_.k(layer);
+  const auto modulusOf = [&](int c, int r) { return modulusAt(modulus, acc ? &*acc : nullptr, {geometry_.i(c), geometry_.j(r), k}); };
   // Front view: looking along +y, the visible voxel of a column has the smallest y (largest row).
-  // `claimed` marks the columns a lower row already showed, so each column is decided once.
-  std::vector<std::uint8_t> claimed(b.rigid.stride(), 0);
-  for (int r = h - 1; r >= 0; --r) {
-    const std::uint8_t* rigid = b.rigid.row(r);
-    const std::uint8_t* rubbery = b.rubbery.row(r);
-    forEachFresh(rigid, rubbery, claimed.data(), b.rigid.stride(), [&](int c, bool isRigid) {
-      const std::size_t at = static_cast<std::size_t>(layer) * w + c;
-      front_.material[at] = isRigid ? 1 : 2;
-      front_.depth[at] = r;
-      front_.modulus[at] = modulusAt(modulus, acc ? &*acc : nullptr, {geometry_.i(c), geometry_.j(r), k});
+  // `claimed` marks the columns a lower row already showed (and those no pixel shows), so each column
+  // is decided once; the scan ends when every shown column is decided.
+  std::vector<std::uint8_t> claimed = front_.u.hiddenMask();
+  int undecided = front_.u.kept();
+  for (int r = h - 1; r >= 0 && undecided > 0; --r) {
+    const RowSpan span = b.span(r);
+    if (span.empty()) continue;
+    forEachFresh(b.rigid.row(r), b.rubbery.row(r), claimed.data(), span, [&](int c, bool isRigid) {
+      --undecided;
+      front_.set(front_.at(c, layer), isRigid, r, modulusOf(c, r));
     });
   }
   // Right side view: looking along -x, the visible voxel of a row has the largest x (last column).
   for (int r = 0; r < h; ++r) {
+    const RowSpan span = b.span(r);
+    if (side_.u.slot(r) < 0 || span.empty()) continue;
     const std::uint8_t* rigid = b.rigid.row(r);
     const std::uint8_t* rubbery = b.rubbery.row(r);
-    for (std::size_t byte = b.rigid.stride(); byte-- > 0;) {
-      if (byte % 8 == 7 && emptyWord(rigid, rubbery, byte - 7)) {
+    for (std::size_t byte = span.end; byte-- > span.begin;) {
+      if (byte >= span.begin + 7 && byte % 8 == 7 && emptyWord(rigid, rubbery, byte - 7)) {
         byte -= 7;
         continue;
       }
@@ -312,13 +345,14 @@ void Previews::addLayer(int layer, const LayerBitmaps& b, const openvdb::FloatGr
       if (!any) continue;
       const int bit = 7 - std::countr_zero(any);
       const int c = static_cast<int>(byte) * 8 + bit;
-      const std::size_t at = static_cast<std::size_t>(layer) * h + r;
-      side_.material[at] = ((rigid[byte] >> (7 - bit)) & 1) ? 1 : 2;
-      side_.depth[at] = c;
-      side_.modulus[at] = modulusAt(modulus, acc ? &*acc : nullptr, {geometry_.i(c), geometry_.j(r), k});
+      side_.set(side_.at(r, layer), ((rigid[byte] >> (7 - bit)) & 1) != 0, c, modulusOf(c, r));
       break;
     }
   }
+}
+
+void Previews::addContactTile(int layer, const LayerBitmaps& b) {
+  const int w = geometry_.width, h = geometry_.height;
   const auto slot = std::find(contactLayers_.begin(), contactLayers_.end(), layer);
   if (slot == contactLayers_.end()) return;
   std::vector<std::uint8_t>& tile = tiles_[static_cast<std::size_t>(slot - contactLayers_.begin())];
@@ -338,25 +372,24 @@ void Previews::addLayer(int layer, const LayerBitmaps& b, const openvdb::FloatGr
 
 void Previews::addTopLayers(int first, const std::vector<LayerBitmaps>& layers, const openvdb::FloatGrid* modulus) {
   if (modulus) haveModulus_ = true;
-  const int w = geometry_.width;
+  if (layers.empty()) return;
   tbb::parallel_for(tbb::blocked_range<int>(0, geometry_.height), [&](const tbb::blocked_range<int>& rows) {
     std::optional<openvdb::FloatGrid::ConstAccessor> acc;
     if (modulus) acc.emplace(modulus->getConstAccessor());
     std::vector<std::uint8_t> claimed;
     for (int r = rows.begin(); r != rows.end(); ++r) {
+      if (top_.v.slot(r) < 0) continue;
       // Layers from the band's top down: the first one seen in a column is its top within the band,
       // and replaces what earlier bands left (their layers are below `first`). `claimed` marks the
-      // columns a higher layer of this band already took.
-      claimed.assign(layers.empty() ? 0 : layers[0].rigid.stride(), 0);
+      // columns a higher layer of this band already took, and those no pixel shows.
+      claimed = top_.u.hiddenMask();
       for (std::size_t n = layers.size(); n-- > 0;) {
-        const std::uint8_t* rigid = layers[n].rigid.row(r);
-        const std::uint8_t* rubbery = layers[n].rubbery.row(r);
         const int layer = first + static_cast<int>(n);
-        forEachFresh(rigid, rubbery, claimed.data(), layers[n].rigid.stride(), [&](int c, bool isRigid) {
-          const std::size_t at = static_cast<std::size_t>(r) * w + c;
-          top_.material[at] = isRigid ? 1 : 2;
-          top_.depth[at] = layer;
-          if (modulus) top_.modulus[at] = modulusAt(modulus, &*acc, {geometry_.i(c), geometry_.j(r), geometry_.k(layer)});
+        const RowSpan span = layers[n].span(r);
+        if (span.empty()) continue;
+        forEachFresh(layers[n].rigid.row(r), layers[n].rubbery.row(r), claimed.data(), span, [&](int c, bool isRigid) {
+          const float e = modulus ? modulusAt(modulus, &*acc, {geometry_.i(c), geometry_.j(r), geometry_.k(layer)}) : kNoModulus;
+          top_.set(top_.at(c, r), isRigid, layer, e);
         });
       }
     }

@@ -10,16 +10,48 @@
 
 #include <openvdb/openvdb.h>
 
+#include <cstdint>
 #include <string>
 #include <utility>
 #include <vector>
 
 namespace rodfab::printer_profiles {
 
+// Bytes [begin, end) of a bitmap row (begin >= end: none).
+struct RowSpan {
+  std::uint32_t begin = 0, end = 0;
+  bool empty() const { return begin >= end; }
+};
+
 // The model bitmaps of one layer (support may be empty when the printer adds it).
 struct LayerBitmaps {
   Bitmap rigid, rubbery, support;
   bool hasSupport = false;
+  // Per row, the bytes outside which rigid and rubbery are clear, so scans of mostly empty layers
+  // skip the empty part; no entries: every row may hold anything.
+  std::vector<RowSpan> spans;
+  RowSpan span(int row) const {
+    return spans.empty() ? RowSpan{0, static_cast<std::uint32_t>(rigid.stride())} : spans[static_cast<std::size_t>(row)];
+  }
+};
+
+// Which cells of one axis of a view its `pixels` pixels show: pixel p shows the cell nearest its
+// centre, floor((p + 0.5) * cells / pixels). A view keeps only those cells, so its memory follows the
+// rendered size, not the part's (a 400 x 40 x 150 mm coupon plate held 564 MB at full resolution).
+class AxisSamples {
+public:
+  AxisSamples() = default;
+  AxisSamples(int cells, int pixels);
+  int kept() const { return kept_; }                                               // cells some pixel shows
+  int slot(int cell) const { return slots_[static_cast<std::size_t>(cell)]; }     // -1: no pixel shows it
+  int cellOfPixel(int p) const;
+  // Bit per cell as bitmap rows pack them (cell 0 in bit 7 of byte 0): 1 where no pixel shows the cell.
+  const std::vector<std::uint8_t>& hiddenMask() const { return hidden_; }
+
+private:
+  int cells_ = 0, pixels_ = 0, kept_ = 0;
+  std::vector<int> slots_;
+  std::vector<std::uint8_t> hidden_;
 };
 
 class Previews {
@@ -36,14 +68,29 @@ public:
   // (file name inside the job, PNG bytes), in a fixed order.
   std::vector<std::pair<std::string, Bytes>> render(const std::string& title) const;
 
-private:
+  // Bytes the views and tiles hold (for tests and memory estimates).
+  std::size_t memoryBytes() const;
+
+  // One projection at the resolution it is drawn: the cells its pixels show along u (its columns) and
+  // v (its rows), each keeping the voxel seen there.
   struct View {
-    int width = 0, height = 0;  // in voxels: (columns, rows) of top, (columns, layers) front, (rows, layers) side
+    AxisSamples u, v;  // top: (columns, rows); front: (columns, layers); side: (rows, layers)
+    int width = 0, height = 0;           // cells kept: u.kept() x v.kept()
     std::vector<std::uint8_t> material;  // 0 empty, 1 rigid, 2 rubbery
     std::vector<std::int32_t> depth;     // layer (top), row (front) or column (side) of the visible voxel
     std::vector<float> modulus;          // MPa at that voxel, NaN when unknown
-    void resize(int w, int h);
+    View() = default;
+    View(AxisSamples us, AxisSamples vs);
+    // The kept cell at (u cell, v cell), which must be shown by some pixel.
+    std::size_t at(int uCell, int vCell) const {
+      return static_cast<std::size_t>(v.slot(vCell)) * static_cast<std::size_t>(width) + static_cast<std::size_t>(u.slot(uCell));
+    }
+    void set(std::size_t at, bool rigid, int depthValue, float modulusValue);
   };
+
+private:
+  void addFrontAndSide(int layer, const LayerBitmaps& b, const openvdb::FloatGrid* modulus);
+  void addContactTile(int layer, const LayerBitmaps& b);
 
   JobGeometry geometry_;
   Profile profile_;

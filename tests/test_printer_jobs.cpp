@@ -1,6 +1,7 @@
 // printer_profiles/ jobs: written from synthetic grids, then decoded back from their files and compared
 // voxel for voxel; support, checksums, tampering, force, atomic replacement, interrupts, staging
 // folders and previews. Profiles, bitmaps and the layout: tests/test_printer_profiles.cpp.
+#include "printer_profiles/previews.hpp"  // internal: the views' memory
 #include "printer_profiles/printer_profiles.hpp"
 #include "tests/printer_profiles_fixture.hpp"
 
@@ -679,4 +680,33 @@ TEST_CASE("Moduli beyond the float range, infinite or NaN neither crash the prev
     CHECK(coloured);
   }
   CHECK(std::distance(fs::directory_iterator(dir), fs::directory_iterator()) == 2);
+}
+
+TEST_CASE("Preview views keep only the cells their pixels show", "[job][previews]") {
+  SECTION("the axis sampling: every pixel's cell is kept, nothing else") {
+    for (const auto& [cells, pixels] : {std::pair{2000, 485}, std::pair{9456, 1273}, std::pair{7, 300}, std::pair{1, 1}}) {
+      const AxisSamples axis(cells, pixels);
+      std::set<int> shown;
+      for (int p = 0; p < pixels; ++p) {
+        // The pixel's centre, mapped onto the cells, lies in the cell it shows.
+        const int c = axis.cellOfPixel(p);
+        CHECK(c == std::min(cells - 1, static_cast<int>(std::floor((p + 0.5) * cells / pixels))));
+        shown.insert(c);
+      }
+      CHECK(axis.kept() == static_cast<int>(shown.size()));
+      for (int c = 0; c < cells; ++c) {
+        const bool hidden = (axis.hiddenMask()[static_cast<std::size_t>(c / 8)] >> (7 - c % 8)) & 1;
+        CHECK((axis.slot(c) >= 0) == shown.contains(c));
+        CHECK(hidden == !shown.contains(c));
+      }
+    }
+  }
+  SECTION("a 400 x 40 x 150 mm coupon plate's views fit in a few MB, not 564 MB") {
+    JobGeometry g;
+    g.width = 9456, g.height = 473, g.layers = 5000;  // 400 x 40 x 150 mm of Connex3 voxels
+    const Previews previews(g, connex3(), 16);
+    const std::size_t fullResolution = 9 * (std::size_t{9456} * 473 + std::size_t{9456} * 5000 + std::size_t{473} * 5000);
+    CHECK(fullResolution > 400'000'000);
+    CHECK(previews.memoryBytes() < 8'000'000);
+  }
 }

@@ -1,0 +1,222 @@
+#include "printer_profiles/band_encoder.hpp"
+
+#include "common/interrupt.hpp"
+
+#include "printer_profiles/deflate.hpp"
+#include "printer_profiles/gcvf_writer.hpp"
+#include "printer_profiles/job_staging.hpp"
+#include "printer_profiles/leaf_bits.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cstring>
+#include <fstream>
+#include <string>
+#include <utility>
+
+namespace rodfab::printer_profiles {
+
+namespace fs = std::filesystem;
+
+struct BandEncoder::BandLeaf {
+  openvdb::Coord origin;
+  LeafBytes active, value;
+};
+
+// The band's voxels as the layers read them: leaves bucketed by their 8-layer slab (their bytes read
+// once per band), and the active tiles above leaf level.
+struct BandEncoder::BandVoxels {
+  int zBase = 0;
+  std::vector<std::vector<BandLeaf>> slabs;
+  std::vector<std::pair<openvdb::CoordBBox, bool>> tiles;
+  const std::vector<BandLeaf>& slab(int k) const { return slabs[static_cast<std::size_t>((k - zBase) / 8)]; }
+};
+
+namespace {
+
+// Clears what the layer's bitmaps hold from their last layer: only the spans it wrote, when they
+// have the job's size (mostly empty layers then cost next to nothing to clear).
+void clearModel(LayerBitmaps& b, const JobGeometry& g) {
+  if (b.rigid.width() != g.width || b.rigid.height() != g.height || b.spans.size() != static_cast<std::size_t>(g.height)) {
+    b.rigid = Bitmap(g.width, g.height);
+    b.rubbery = Bitmap(g.width, g.height);
+  } else {
+    for (int r = 0; r < g.height; ++r)
+      if (const RowSpan s = b.spans[static_cast<std::size_t>(r)]; !s.empty()) {
+        std::memset(b.rigid.row(r) + s.begin, 0, s.end - s.begin);
+        std::memset(b.rubbery.row(r) + s.begin, 0, s.end - s.begin);
+      }
+  }
+  b.spans.assign(static_cast<std::size_t>(g.height), RowSpan{static_cast<std::uint32_t>(b.rigid.stride()), 0});
+}
+
+void widen(RowSpan& span, std::size_t byte) {
+  span.begin = std::min(span.begin, static_cast<std::uint32_t>(byte));
+  span.end = std::max(span.end, static_cast<std::uint32_t>(byte + 1));
+}
+
+// Pixels set in `bitmap` within the rows' spans.
+std::uint64_t countInSpans(const Bitmap& bitmap, const std::vector<RowSpan>& spans) {
+  std::uint64_t n = 0;
+  for (int r = 0; r < bitmap.height(); ++r)
+    if (const RowSpan s = spans[static_cast<std::size_t>(r)]; !s.empty()) n += countSetBits({bitmap.row(r) + s.begin, s.end - s.begin});
+  return n;
+}
+
+}  // namespace
+
+BandEncoder::BandVoxels BandEncoder::collect(const LayerBand& band) const {
+  BandVoxels v;
+  v.zBase = band.kBegin & ~7;
+  v.slabs.resize(static_cast<std::size_t>((band.kEnd - 1 - v.zBase) / 8 + 1));
+  for (auto leaf = band.material->tree().cbeginLeaf(); leaf; ++leaf)
+    v.slabs[static_cast<std::size_t>((leaf->origin().z() - v.zBase) / 8)].push_back(
+        {leaf->origin(), maskBytes(leaf->getValueMask()), boolValueBytes(*leaf)});
+  forEachActiveTile(band.material->tree(), [&](const openvdb::CoordBBox& box, bool value) { v.tiles.emplace_back(box, value); });
+  return v;
+}
+
+void BandEncoder::encode(const LayerBand& band, std::vector<LayerRecord>& layers, Previews& previews) {
+  const int firstLayer = s_.geometry.layer(band.kBegin);
+  const int count = band.kEnd - band.kBegin;
+  const BandVoxels voxels = collect(band);
+  bitmaps_.resize(static_cast<std::size_t>(count));
+  // Zip jobs keep each image's zip form (deflated BMP, or the PNG as it is) in memory until the band
+  // is staged in one file: staging thousands of files costs more in the file system than compressing.
+  std::vector<std::vector<Bytes>> zipForms(s_.zip ? static_cast<std::size_t>(count) : 0);
+  const openvdb::FloatGrid* modulus = band.modulus.get();
+  tbb::parallel_for(tbb::blocked_range<int>(0, count, 1), [&](const tbb::blocked_range<int>& range) {
+    for (int n = range.begin(); n != range.end(); ++n) {
+      common::throwIfInterrupted();  // a band of large layers takes seconds
+      const int k = band.kBegin + n, layer = firstLayer + n;
+      LayerBitmaps& b = bitmaps_[static_cast<std::size_t>(n)];
+      LayerRecord& record = layers[static_cast<std::size_t>(layer)];
+      rasterize(k, voxels, b, record);
+      if (s_.support == SupportPolicy::Explicit) addSupport(layer, b);
+      record.voxels = {countInSpans(b.rigid, b.spans), countInSpans(b.rubbery, b.spans), b.hasSupport ? b.support.count() : 0};
+      previews.addLayer(layer, b, modulus);
+      encodeImages(layer, b, record, s_.zip ? &zipForms[static_cast<std::size_t>(n)] : nullptr);
+    }
+  });
+  previews.addTopLayers(firstLayer, bitmaps_, modulus);
+  if (s_.zip) stageBand(firstLayer, zipForms, layers);
+}
+
+// One staged file per band, the layers' zip forms one after another; named by the band's first
+// layer. Each entry's bytes depend on its image alone, so the band size never shows in the job.
+void BandEncoder::stageBand(int firstLayer, const std::vector<std::vector<Bytes>>& zipForms, std::vector<LayerRecord>& layers) const {
+  const fs::path file = s_.stagingRoot / ("layers-" + std::to_string(firstLayer) + ".bin");
+  std::ofstream out(file, std::ios::binary | std::ios::trunc);
+  std::uint64_t offset = 0;
+  for (std::size_t n = 0; n < zipForms.size(); ++n) {
+    LayerRecord& record = layers[static_cast<std::size_t>(firstLayer) + n];
+    for (std::size_t f = 0; f < zipForms[n].size(); ++f) {
+      const Bytes& data = zipForms[n][f];
+      out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size()));
+      StagedZipData& z = record.zipped[f];
+      z.file = file;
+      z.offset = offset;
+      offset += data.size();
+    }
+  }
+  out.close();
+  if (!out) throw std::runtime_error(file.string() + ": cannot write (disk full or no permission?)");
+}
+
+
+void BandEncoder::rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, LayerRecord& record) const {
+  const JobGeometry& g = s_.geometry;
+  clearModel(b, g);
+  record.moments = {};
+  for (const BandLeaf& leaf : voxels.slab(k)) {
+    const int z = k - leaf.origin.z();
+    const auto byte = static_cast<std::size_t>(g.column(leaf.origin.x()) / 8);
+    for (int y = 0; y < 8; ++y) {
+      const std::uint8_t active = leaf.active.row(y, z);
+      if (!active) continue;
+      const std::uint8_t value = leaf.value.row(y, z);
+      const int j = leaf.origin.y() + y, row = g.row(j);
+      const auto rigid = static_cast<std::uint8_t>(active & value), rubbery = static_cast<std::uint8_t>(active & ~value);
+      b.rigid.row(row)[byte] |= rigid;
+      b.rubbery.row(row)[byte] |= rubbery;
+      widen(b.spans[static_cast<std::size_t>(row)], byte);
+      record.moments[0].add(rigid, leaf.origin.x(), j, k);
+      record.moments[1].add(rubbery, leaf.origin.x(), j, k);
+    }
+  }
+  for (const auto& [box, value] : voxels.tiles) {
+    if (k < box.min().z() || k > box.max().z()) continue;
+    Bitmap& target = value ? b.rigid : b.rubbery;
+    for (int j = box.min().y(); j <= box.max().y(); ++j)
+      for (int i = box.min().x(); i <= box.max().x(); i += 8) {
+        const auto byte = static_cast<std::size_t>(g.column(i) / 8);
+        target.row(g.row(j))[byte] = 0xff;  // tiles are 8-aligned in x
+        widen(b.spans[static_cast<std::size_t>(g.row(j))], byte);
+        record.moments[value ? 0 : 1].add(0xff, i, j, k);
+      }
+  }
+}
+
+// Support fills each column from the tray up to its highest model voxel, wherever the model is not.
+void BandEncoder::addSupport(int layer, LayerBitmaps& b) const {
+  const ColumnTops& tops = *s_.supportTops;
+  if (b.support.width() == s_.geometry.width && b.support.height() == s_.geometry.height) b.support.clear();
+  else b.support = Bitmap(s_.geometry.width, s_.geometry.height);
+  b.hasSupport = true;
+  for (int r = 0; r < s_.geometry.height; ++r) {
+    if (tops.rowMaximum()[static_cast<std::size_t>(r)] <= layer) continue;
+    std::uint8_t* out = b.support.row(r);
+    const std::uint8_t* rigid = b.rigid.row(r);
+    const std::uint8_t* rubbery = b.rubbery.row(r);
+    for (std::size_t byte = 0; byte < b.support.stride(); ++byte) {
+      std::uint8_t above = 0;
+      for (int bit = 0; bit < 8; ++bit)
+        if (tops.top(static_cast<int>(byte) * 8 + bit, r) > layer) above = static_cast<std::uint8_t>(above | (0x80u >> bit));
+      out[byte] = static_cast<std::uint8_t>(above & ~(rigid[byte] | rubbery[byte]));
+    }
+  }
+}
+
+// Encodes the layer's images; writes them to the staging folder, or hands their zip forms to
+// `zipForms` (deflated BMP, PNG as it is) and records their sizes and CRCs in record.zipped.
+void BandEncoder::encodeImages(int layer, const LayerBitmaps& b, LayerRecord& record, std::vector<Bytes>* zipForms) const {
+  record.files.clear();
+  record.zipped.clear();
+  if (gcvf()) {  // one RGBA image holds every material of the layer
+    keepImage(*s_.emitted[0], layer, encodeGcvfLayer(b.rigid, b.rubbery, s_.profile), record, zipForms);
+    return;
+  }
+  thread_local Bytes bmp;  // a BMP is as large as its bitmap: encoded into one buffer per thread, reused
+  for (const ProfileMaterial* m : s_.emitted) {
+    const Bitmap& bitmap = m->role == MaterialRole::Rigid ? b.rigid : m->role == MaterialRole::Rubbery ? b.rubbery : b.support;
+    if (s_.imageFormat == ImageFormat::Png) {
+      keepImage(*m, layer, encodePng1(bitmap, s_.profile.xDpi, s_.profile.yDpi), record, zipForms);
+      continue;
+    }
+    encodeBmpInto(bitmap, s_.profile.xDpi, s_.profile.yDpi, bmp);
+    keepImage(*m, layer, bmp, record, zipForms);
+  }
+}
+
+// One image of the layer: its manifest record (size, SHA-256), and the file written or its zip form kept.
+void BandEncoder::keepImage(const ProfileMaterial& m, int layer, std::span<const std::uint8_t> image, LayerRecord& record,
+                            std::vector<Bytes>* zipForms) const {
+  FileRecord f{s_.profile.layerFileName(m, layer, s_.imageFormat), image.size(), sha256Hex(image)};
+  if (!zipForms) {
+    writeFile(s_.filesDir / f.name, image);
+  } else {
+    StagedZipData z;
+    z.size = image.size();
+    z.crc32 = zipCrc32(image);
+    Bytes form = layerStorage() == ZipStorage::Deflate ? deflateBytes(image, kLayerDeflateLevel, DeflateWrapper::Raw)
+                                                       : Bytes(image.begin(), image.end());
+    z.length = form.size();
+    record.zipped.push_back(z);
+    zipForms->push_back(std::move(form));
+  }
+  record.files.push_back(std::move(f));
+}
+
+}  // namespace rodfab::printer_profiles

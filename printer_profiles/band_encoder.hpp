@@ -1,0 +1,56 @@
+// Internal to printer_profiles/: a band of layers from the material grid to the job's layer images.
+// Per layer: the material bitmaps (from the grid's leaf masks), support, voxel counts and moments,
+// the previews' share, and the images encoded (BMP, 1-bit PNG or GrabCAD RGBA), hashed for the
+// manifest and, for zip jobs, deflated with their zip CRC-32 and staged one file per band.
+#pragma once
+
+#include "printer_profiles/job_manifest.hpp"
+#include "printer_profiles/job_writer.hpp"
+#include "printer_profiles/previews.hpp"
+
+#include <filesystem>
+#include <vector>
+
+namespace rodfab::printer_profiles {
+
+// What the encoder needs to know of the job; all of it fixed for the job's life.
+struct BandEncoderSetup {
+  const Profile& profile;
+  const JobGeometry& geometry;
+  ImageFormat imageFormat;
+  SupportPolicy support;
+  const std::vector<const ProfileMaterial*>& emitted;  // materials with bitmap stacks, in profile order
+  const ColumnTops* supportTops;                        // SupportPolicy::Explicit only
+  bool zip;                                             // stage zip forms (else write the files)
+  std::filesystem::path filesDir, stagingRoot;          // where files, and zip jobs' band files, go
+};
+
+class BandEncoder {
+public:
+  explicit BandEncoder(const BandEncoderSetup& setup) : s_(setup) {}
+
+  // Layers [band.kBegin, band.kEnd) on the caller's TBB arena: fills their records in `layers`
+  // (indexed by layer) and adds them to `previews`. The bytes depend on each layer alone.
+  void encode(const LayerBand& band, std::vector<LayerRecord>& layers, Previews& previews);
+
+  // How the layer images go into the zip: PNG as it is (already compressed), BMP deflated.
+  ZipStorage layerStorage() const { return s_.imageFormat == ImageFormat::Png ? ZipStorage::Store : ZipStorage::Deflate; }
+
+private:
+  struct BandLeaf;
+  struct BandVoxels;
+  BandVoxels collect(const LayerBand& band) const;
+  void rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, LayerRecord& record) const;
+  void addSupport(int layer, LayerBitmaps& b) const;
+  void encodeImages(int layer, const LayerBitmaps& b, LayerRecord& record, std::vector<Bytes>* zipForms) const;
+  void keepImage(const ProfileMaterial& m, int layer, std::span<const std::uint8_t> image, LayerRecord& record,
+                 std::vector<Bytes>* zipForms) const;
+  void stageBand(int firstLayer, const std::vector<std::vector<Bytes>>& zipForms, std::vector<LayerRecord>& layers) const;
+  bool gcvf() const { return s_.profile.jobFormat == JobFormat::Gcvf; }
+
+  BandEncoderSetup s_;
+  // The band's bitmaps, kept from band to band: cleared, not reallocated (fresh pages cost a fault each).
+  std::vector<LayerBitmaps> bitmaps_;
+};
+
+}  // namespace rodfab::printer_profiles
