@@ -61,7 +61,7 @@ const openvdb::FloatGrid& rodBundle() {
 // Lattice workload: a 12 mm slab (400 layers) of the `lattice` benchmark class's geometry across its
 // whole 84.6 x 84.6 mm footprint (examples::benchmarkDesign: 8 x 8 nodes 12.09 mm apart, 1.5 mm rods):
 // the 64 vertical rods and, at mid-slab, one level of horizontal rods along x and along y. Rods of a
-// few leaves across, so most leaves are partly filled, as in the class (about 34 M voxels). Fractions
+// few leaves across, so most leaves are partly filled, as in the class (27 M voxels). Fractions
 // vary smoothly over 0.2 .. 0.8 (the class's modulus varies with height).
 const openvdb::FloatGrid& latticeSlab() {
   static const openvdb::FloatGrid::Ptr grid = [] {
