@@ -71,6 +71,13 @@ void throwFirstInvalid(const openvdb::FloatGrid& fraction, int k0, int k1) {
   check.throwIfFailed(fraction, leaves);
 }
 
+openvdb::BoolGrid::Ptr materialGrid(openvdb::BoolTree::Ptr tree, const openvdb::FloatGrid& like) {
+  auto grid = openvdb::BoolGrid::create(tree);
+  grid->setTransform(like.transform().copy());
+  grid->setName(kMaterialGridName);
+  return grid;
+}
+
 openvdb::BoolGrid::Ptr assembleMaterialGrid(std::vector<std::unique_ptr<BoolLeaf>>& leaves,
                                             const openvdb::FloatGrid& like) {
   auto grid = openvdb::BoolGrid::create(false);

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <openvdb/openvdb.h>
+#include <openvdb/tools/Prune.h>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -52,6 +53,9 @@ private:
 // is not a fraction, if any: for work that ran on the leaves in tree order and found one.
 void throwFirstInvalid(const openvdb::FloatGrid& fraction, int k0, int k1);
 
+// A "material" grid with `like`'s transform holding `tree`.
+openvdb::BoolGrid::Ptr materialGrid(openvdb::BoolTree::Ptr tree, const openvdb::FloatGrid& like);
+
 // A "material" grid with `like`'s transform made of `leaves` (null entries skipped).
 openvdb::BoolGrid::Ptr assembleMaterialGrid(std::vector<std::unique_ptr<BoolLeaf>>& leaves,
                                             const openvdb::FloatGrid& like);
@@ -78,43 +82,72 @@ inline std::uint64_t invalidBits(const float* values) {
   return bits;
 }
 
+// The Vero bits of leaf `in`'s voxels in `mask` by `rule` (see ditherPointwise); a voxel that is not a
+// fraction goes to `check` as voxel `leafIndex` of the list.
+template <typename Rule>
+LeafMask ditherLeaf(const FloatLeaf& in, const LeafMask& mask, const Rule& rule, FractionCheck& check, std::size_t leafIndex) {
+  std::array<std::uint8_t, 64> flags;
+  const float* values = in.buffer().data();
+  LeafMask vero;
+  for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w) {
+    const std::uint64_t active = mask.template getWord<std::uint64_t>(w);
+    if (!active) continue;
+    if (const std::uint64_t bad = invalidBits(values + 64 * w) & active) {
+      check.fail(leafIndex, w * 64 + static_cast<openvdb::Index>(std::countr_zero(bad)));
+      continue;
+    }
+    rule(w, values + 64 * w, flags);
+    vero.template getWord<std::uint64_t>(w) = packFlags(flags) & active;
+  }
+  return vero;
+}
+
 // Dithers layers [k0, k1) leaf by leaf in parallel, for rules that look at nothing but the voxel:
 // ruleForLeaf(origin) returns the leaf's rule, called as rule(w, values, flags) for each leaf word w
 // (offsets 64 w .. 64 w + 63, i.e. x = origin.x + w, y = origin.y + b / 8, z = origin.z + b % 8) that
 // holds an active voxel; it sets flags[b] = 1 where values[b] makes Vero, for all 64 voxels, active or
 // not (a loop without branches; inactive voxels are masked off after).
+// When the band holds most of the grid's leaves (a whole grid, or a slicer's band grid), the output is
+// the grid's topology copied in parallel, its leaves filled in place and the ones outside the band
+// pruned: adding leaves one by one to a new tree took as long as dithering them, on one thread.
 template <typename RuleForLeaf>
 openvdb::BoolGrid::Ptr ditherPointwise(const openvdb::FloatGrid& fraction, int k0, int k1, const RuleForLeaf& ruleForLeaf) {
-  const std::vector<const FloatLeaf*> leaves = leavesInLayers(fraction.tree(), k0, k1, LeafOrder::Tree);
-  std::vector<std::unique_ptr<BoolLeaf>> out(leaves.size());
+  std::vector<const FloatLeaf*> leaves = leavesInLayers(fraction.tree(), k0, k1, LeafOrder::Tree);
+  const bool copyTopology = leaves.size() * 4 >= fraction.tree().leafCount() * 3;
+  auto tree = copyTopology ? std::make_shared<openvdb::BoolTree>(fraction.tree(), false, openvdb::TopologyCopy())
+                           : std::make_shared<openvdb::BoolTree>(false);
+  std::vector<BoolLeaf*> copied;
+  if (copyTopology) {
+    leaves.clear();
+    fraction.tree().getNodes(leaves);  // the same order as the copy's leaves: same topology
+    tree->getNodes(copied);
+  }
+  std::vector<std::unique_ptr<BoolLeaf>> added(copyTopology ? 0 : leaves.size());
   FractionCheck check;
+  std::atomic<bool> outsideBand{false};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leaves.size()), [&](const tbb::blocked_range<std::size_t>& r) {
-    std::array<std::uint8_t, 64> flags;
     for (std::size_t l = r.begin(); l != r.end(); ++l) {
       const FloatLeaf& in = *leaves[l];
       const LeafMask mask = activeInLayers(in, k0, k1);
-      if (mask.isOff()) continue;
-      const float* values = in.buffer().data();
-      const auto rule = ruleForLeaf(in.origin());
-      LeafMask vero;
-      for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w) {
-        const std::uint64_t active = mask.template getWord<std::uint64_t>(w);
-        if (!active) continue;
-        if (const std::uint64_t bad = invalidBits(values + 64 * w) & active) {
-          check.fail(l, w * 64 + static_cast<openvdb::Index>(std::countr_zero(bad)));
-          continue;
+      BoolLeaf* leaf = copyTopology ? copied[l] : nullptr;
+      if (mask.isOff()) {
+        if (leaf) {
+          leaf->setValuesOff();
+          outsideBand = true;
         }
-        rule(w, values + 64 * w, flags);
-        vero.template getWord<std::uint64_t>(w) = packFlags(flags) & active;
+        continue;
       }
-      auto leaf = std::make_unique<BoolLeaf>(in.origin(), false, false);
+      const LeafMask vero = ditherLeaf(in, mask, ruleForLeaf(in.origin()), check, l);
+      if (!leaf) leaf = (added[l] = std::make_unique<BoolLeaf>(in.origin(), false, false)).get();
       leaf->setValueMask(mask);
       leaf->buffer() = BoolLeaf::Buffer(vero);
-      out[l] = std::move(leaf);
     }
   });
   if (check.failed()) throwFirstInvalid(fraction, k0, k1);
-  return assembleMaterialGrid(out, fraction);
+  if (outsideBand) openvdb::tools::pruneInactive(*tree);
+  for (auto& leaf : added)
+    if (leaf) tree->addLeaf(leaf.release());
+  return materialGrid(tree, fraction);
 }
 
 }  // namespace rodfab::materials::detail
