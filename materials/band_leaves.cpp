@@ -9,7 +9,7 @@
 
 namespace rodfab::materials::detail {
 
-std::vector<const FloatLeaf*> leavesInLayers(const openvdb::FloatTree& tree, int k0, int k1) {
+std::vector<const FloatLeaf*> leavesInLayers(const openvdb::FloatTree& tree, int k0, int k1, LeafOrder order) {
   // Visit the leaf parents (128^3 voxels each) and skip the ones outside the band: a slicer streaming a
   // tall job calls this once per band, and the parents are a few hundred times fewer than the leaves.
   using LeafParent = openvdb::FloatTree::RootNodeType::ChildNodeType::ChildNodeType;
@@ -24,6 +24,7 @@ std::vector<const FloatLeaf*> leavesInLayers(const openvdb::FloatTree& tree, int
       if (leafZ < k1 && leafZ + static_cast<int>(FloatLeaf::DIM) > k0) leaves.push_back(&*it);
     }
   }
+  if (order == LeafOrder::Tree) return leaves;
   std::sort(leaves.begin(), leaves.end(), [](const FloatLeaf* a, const FloatLeaf* b) {
     const openvdb::Coord& p = a->origin();
     const openvdb::Coord& q = b->origin();
@@ -54,6 +55,27 @@ void FractionCheck::throwIfFailed(const openvdb::FloatGrid& grid, const std::vec
   throw std::invalid_argument("grid '" + name + "': voxel (" + std::to_string(ijk.x()) + ", " +
                               std::to_string(ijk.y()) + ", " + std::to_string(ijk.z()) + ") has fraction " +
                               std::to_string(leaf.getValue(offset)) + ", expected a Vero fraction in [0, 1]");
+}
+
+void throwFirstInvalid(const openvdb::FloatGrid& fraction, int k0, int k1) {
+  const std::vector<const FloatLeaf*> leaves = leavesInLayers(fraction.tree(), k0, k1, LeafOrder::ZYX);
+  FractionCheck check;
+  for (std::size_t l = 0; l < leaves.size() && !check.failed(); ++l) {
+    const LeafMask mask = activeInLayers(*leaves[l], k0, k1);
+    for (auto it = mask.beginOn(); it; ++it)
+      if (!FractionCheck::valid(leaves[l]->getValue(it.pos()))) {
+        check.fail(l, it.pos());
+        break;
+      }
+  }
+  check.throwIfFailed(fraction, leaves);
+}
+
+openvdb::BoolGrid::Ptr materialGrid(openvdb::BoolTree::Ptr tree, const openvdb::FloatGrid& like) {
+  auto grid = openvdb::BoolGrid::create(tree);
+  grid->setTransform(like.transform().copy());
+  grid->setName(kMaterialGridName);
+  return grid;
 }
 
 openvdb::BoolGrid::Ptr assembleMaterialGrid(std::vector<std::unique_ptr<BoolLeaf>>& leaves,

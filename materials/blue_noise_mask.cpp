@@ -385,12 +385,8 @@ BlueNoiseMask BlueNoiseMask::load(const std::filesystem::path& file) {
 }
 
 BlueNoiseParameters BlueNoiseParameters::bundledMask() {
-  BlueNoiseParameters p;
-  p.size = {64, 32, 90};
+  BlueNoiseParameters p;  // size, sigma, density and seed: the member defaults
   p.voxelSizeMm = {0.0423, 0.0846, 0.030};
-  p.sigmaMm = 0.072;
-  p.initialDensity = 0.1;
-  p.seed = 1;
   return p;
 }
 

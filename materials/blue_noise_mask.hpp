@@ -17,16 +17,16 @@ namespace rodfab::materials {
 // belongs to one printer voxel. That voxel is a property of the mask (saved in its file as
 // voxel_size_nm, parameters() after load), not of this code; the printer's voxel comes from its profile.
 struct BlueNoiseParameters {
+  // The defaults are the bundled mask's (bundledMask() adds its voxel), written here only.
   std::array<int, 3> size{64, 32, 90};     // tile in voxels (x, y, z)
   std::array<double, 3> voxelSizeMm{};     // the voxel (x, y, z in mm) the filter is isotropic for; > 0
   double sigmaMm = 0.072;                  // energy filter, in mm along every axis
   double initialDensity = 0.1;             // share of ones in the random starting pattern
   std::uint64_t seed = 1;
 
-  // The parameters of the bundled mask file (materials/README.md): a 64 x 32 x 90 tile for a
-  // 0.0423 x 0.0846 x 0.030 mm voxel (600 x 300 dpi, 30 um layers: the voxel the file records), about
-  // 2.7 mm each way, sigma 0.072 mm = 1.70, 0.85, 2.40 voxels, seed 1. Regenerating with these
-  // reproduces the file byte for byte.
+  // The parameters of the bundled mask file (materials/README.md): the defaults above for the Connex3
+  // voxel (600 x 300 dpi, 30 um layers: the voxel the file records), a tile of about 2.7 mm each way.
+  // Regenerating with these reproduces the file byte for byte.
   static BlueNoiseParameters bundledMask();
 };
 

@@ -12,7 +12,8 @@ namespace rodfab::materials {
 namespace {
 
 // Mezzotint as in the published pipeline: Vero where a uniform number drawn for the voxel is below its
-// fraction. The number is a hash of (seed, i, j, k), never a sequential stream.
+// fraction. The number is a hash of (seed, leaf origin) and the voxel's offset, never a sequential
+// stream (counter_hash.hpp).
 class WhiteNoiseDitherer final : public Ditherer {
 public:
   explicit WhiteNoiseDitherer(std::uint64_t seed) : seed_(seed) {}
@@ -22,9 +23,9 @@ protected:
   openvdb::BoolGrid::Ptr ditherLeafVoxels(const openvdb::FloatGrid& fraction, int k0, int k1) override {
     const std::uint64_t seed = seed_;
     return detail::ditherPointwise(fraction, k0, k1, [seed](const openvdb::Coord& origin) {
-      return [seed, origin](openvdb::Index n, float f) {
-        const openvdb::Coord ijk = origin + openvdb::Coord(n >> 6, (n >> 3) & 7, n & 7);
-        return voxelUniform(seed, ijk.x(), ijk.y(), ijk.z()) < f;
+      const std::uint64_t key = whiteNoiseLeafKey(seed, origin.x(), origin.y(), origin.z());
+      return [key](openvdb::Index w, const float* values, std::array<std::uint8_t, 64>& flags) {
+        for (std::uint32_t b = 0; b < 64; ++b) flags[b] = whiteNoiseUniform(key, 64 * w + b) < values[b];
       };
     });
   }
@@ -39,35 +40,53 @@ public:
   BlueNoiseDitherer(std::shared_ptr<const BlueNoiseMask> mask, std::uint64_t seed) : mask_(std::move(mask)) {
     const auto r = philox(seed, 0, 0, 0, HashStream::MaskOffset);
     for (int a = 0; a < 3; ++a) offset_[a] = static_cast<int>(r[a] % static_cast<std::uint32_t>(mask_->size()[a]));
+    buildColumns();
   }
   std::string_view name() const override { return "blue"; }
 
 protected:
   openvdb::BoolGrid::Ptr ditherLeafVoxels(const openvdb::FloatGrid& fraction, int k0, int k1) override {
-    const BlueNoiseMask& mask = *mask_;
-    const std::array<int, 3> size = mask.size();
-    const std::array<int, 3> offset = offset_;
-    const float* thresholds = mask.thresholds().data();
-    return detail::ditherPointwise(fraction, k0, k1, [&](const openvdb::Coord& origin) {
-      // Per leaf: the tile cell's index split into x, y and z parts for the leaf's 8 x 8 x 8 voxels.
-      std::array<std::array<std::size_t, 8>, 3> part{};
-      const std::array<std::size_t, 3> stride{1, static_cast<std::size_t>(size[0]),
-                                              static_cast<std::size_t>(size[0]) * size[1]};
-      for (int a = 0; a < 3; ++a)
-        for (int d = 0; d < 8; ++d) {
-          const std::int64_t v = static_cast<std::int64_t>(origin[a]) + d + offset[a];
-          const std::int64_t wrapped = ((v % size[a]) + size[a]) % size[a];
-          part[a][d] = static_cast<std::size_t>(wrapped) * stride[a];
-        }
-      return [part, thresholds](openvdb::Index n, float f) {
-        return f > thresholds[part[0][n >> 6] + part[1][(n >> 3) & 7] + part[2][n & 7]];
+    return detail::ditherPointwise(fraction, k0, k1, [this](const openvdb::Coord& origin) {
+      // The leaf's 8 x 8 columns of thresholds along z, each 8 consecutive floats of columns_.
+      std::array<std::array<const float*, 8>, 8> column;
+      const std::array<int, 8> i = cells(origin.x(), 0), j = cells(origin.y(), 1);
+      const int k = cells(origin.z(), 2)[0];
+      for (int x = 0; x < 8; ++x)
+        for (int y = 0; y < 8; ++y) column[x][y] = columns_.data() + columnStart(i[x], j[y]) + k;
+      return [column](openvdb::Index w, const float* values, std::array<std::uint8_t, 64>& flags) {
+        for (int y = 0; y < 8; ++y)
+          for (int z = 0; z < 8; ++z) flags[8 * y + z] = values[8 * y + z] > column[w][y][z];
       };
     });
   }
 
 private:
+  // The mask's cell indices along `axis` for voxel indices v .. v + 7 (tiled, shifted by the offset).
+  std::array<int, 8> cells(int v, int axis) const {
+    const std::int64_t n = mask_->size()[axis];
+    int c = static_cast<int>(((static_cast<std::int64_t>(v) + offset_[axis]) % n + n) % n);
+    std::array<int, 8> out;
+    for (int d = 0; d < 8; ++d, c = c + 1 == n ? 0 : c + 1) out[d] = c;
+    return out;
+  }
+  std::size_t columnStart(int i, int j) const {
+    return (static_cast<std::size_t>(j) * mask_->size()[0] + i) * (mask_->size()[2] + 7);
+  }
+  // The thresholds rearranged z-fastest, each (i, j) column extended by its first 7 values again, so a
+  // leaf's 8 layers are 8 consecutive floats from any start (the mask's own order puts them a plane
+  // apart: 8 cache lines a column).
+  void buildColumns() {
+    const std::array<int, 3>& size = mask_->size();
+    columns_.resize(static_cast<std::size_t>(size[0]) * size[1] * (size[2] + 7));
+    for (int j = 0; j < size[1]; ++j)
+      for (int i = 0; i < size[0]; ++i)
+        for (int k = 0; k < size[2] + 7; ++k)
+          columns_[columnStart(i, j) + k] = mask_->thresholds()[mask_->index(i, j, k % size[2])];
+  }
+
   std::shared_ptr<const BlueNoiseMask> mask_;
   std::array<int, 3> offset_{};
+  std::vector<float> columns_;
 };
 
 }  // namespace

@@ -290,6 +290,25 @@ TEST_CASE("materials: ditherers: identical for 1 and 2 threads and for any band 
   }
 }
 
+TEST_CASE("materials: a band of a grid whose other leaves lie outside it holds the band's voxels only", "[materials][dither]") {
+  // 33 layers: leaf rows at z = 0, 8, 16, 24 lie in layers [0, 32) and the row at z = 32 (layer 32
+  // only) outside, so the band holds 4/5 of the leaves (the pointwise ditherers then copy the grid's
+  // topology and prune what the band does not hold).
+  const auto block = makeUniformBlock(openvdb::Coord(40, 24, 33), 0.45f, kTestVoxel);
+  for (const std::string& method : {std::string("white"), std::string("blue")}) {
+    INFO(method);
+    const auto whole = makeDitherer(method, {4, nullptr})->dither(*block);
+    const auto band = makeDitherer(method, {4, nullptr})->ditherLayers(*block, 0, 32);
+    CHECK(band->activeVoxelCount() == 40 * 24 * 32);
+    CHECK(band->tree().probeConstLeaf(openvdb::Coord(0, 0, 32)) == nullptr);
+    std::size_t wrong = 0;
+    const auto w = whole->getConstAccessor();
+    for (auto it = band->cbeginValueOn(); it; ++it)
+      wrong += it.getCoord().z() >= 32 || *it != w.getValue(it.getCoord());
+    CHECK(wrong == 0);
+  }
+}
+
 TEST_CASE("materials: error diffusion: a worker that throws stops the band, the others never hang", "[materials][dither]") {
   const auto part = mixedPart();
   const auto reference = makeDitherer("error-diffusion", {3, nullptr})->dither(*part);
