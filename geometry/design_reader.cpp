@@ -1,5 +1,6 @@
-// Reading design files: strict JSON, then every check of the format, units and rods, each violation
-// recorded at its JSON path (geometry/design_reader.hpp). The blocks of higher stages are read there.
+// Reading design files: strict JSON, then every check of the format, units and values, each violation
+// recorded at its JSON path (geometry/design_reader.hpp). The rods are read in design_rods.cpp; the
+// blocks of higher stages by their stages, with the same DesignReader.
 #include "geometry/design_reader.hpp"
 
 #include "common/json_input.hpp"
@@ -60,35 +61,6 @@ std::string tagOverflowingNumbers(const std::string& text) {
   if (copied == 0) return text;
   out.append(text, copied, std::string::npos);
   return out;
-}
-
-bool sameDomain(double a0, double a1, double b0, double b1) {
-  const double tol = 1e-9 * std::max({1.0, std::abs(a0), std::abs(a1)});
-  return std::abs(a0 - b0) <= tol && std::abs(a1 - b1) <= tol;
-}
-
-// True when there is no centerline or [begin, end] is its parameter domain; else an issue at `knotsPath`.
-bool domainMatches(DesignReader& reader, double begin, double end, const NurbsCurve* curve, const std::string& knotsPath) {
-  if (!curve || sameDomain(begin, end, curve->domainBegin(), curve->domainEnd())) return true;
-  reader.fail(knotsPath, "parameter domain [" + std::to_string(begin) + ", " + std::to_string(end) + "] must equal the centerline's [" +
-                             std::to_string(curve->domainBegin()) + ", " + std::to_string(curve->domainEnd()) + "]");
-  return false;
-}
-
-// False, after an issue at `path`, when `count` controls (WHAT) are too few for a spline of degree p.
-bool enoughControls(DesignReader& reader, std::optional<int> p, std::size_t count, const std::string& path, const std::string& what) {
-  if (!p || count >= static_cast<std::size_t>(*p) + 1) return true;
-  reader.fail(path, "degree " + std::to_string(*p) + " needs at least " + std::to_string(*p + 1) + " " + what + ", got " +
-                        std::to_string(count));
-  return false;
-}
-
-// The "knots" of the spline object `j` for degree p and `count` controls (each as far as it was read).
-std::optional<std::vector<double>> splineKnots(DesignReader& reader, const json& j, const std::string& path, std::optional<int> p,
-                                               std::optional<std::size_t> count) {
-  const json* kn = reader.require(j, path, "knots", "an array of knot values");
-  if (!kn) return std::nullopt;
-  return reader.knots(*kn, memberPath(path, "knots"), p, count);
 }
 
 }  // namespace
@@ -214,6 +186,24 @@ std::optional<std::vector<double>> DesignReader::knots(const json& j, const std:
   return k;
 }
 
+std::optional<Eigen::Vector4d> DesignReader::quaternion(const json& j, const std::string& path) {
+  if (!j.is_array() || j.size() != 4) {
+    fail(path, "expected a quaternion [w, x, y, z], got " + describe(j));
+    return std::nullopt;
+  }
+  Eigen::Vector4d c;
+  bool ok = true;
+  for (std::size_t k = 0; k < 4; ++k) {
+    auto x = number(j[k], indexPath(path, k), "a number");
+    if (x) c[k] = *x; else ok = false;
+  }
+  if (ok && !(c.cwiseAbs().maxCoeff() > 0.0)) {  // not c.norm(): 1e-170 would underflow to zero
+    fail(path, "a zero quaternion has no rotation");
+    ok = false;
+  }
+  return ok ? std::optional<Eigen::Vector4d>(c) : std::nullopt;
+}
+
 std::optional<std::string> DesignReader::string(const json& j, const std::string& path, const std::string& what) {
   if (!j.is_string()) {
     fail(path, "expected " + what + " (a string), got " + describe(j));
@@ -222,264 +212,6 @@ std::optional<std::string> DesignReader::string(const json& j, const std::string
   return j.get<std::string>();
 }
 
-std::optional<NurbsCurve> DesignReader::centerline(const json& j, const std::string& path) {
-  if (!j.is_object()) {
-    fail(path, "expected an object {degree, knots, points, weights}, got " + describe(j));
-    return std::nullopt;
-  }
-  onlyKeys(j, path, {"degree", "knots", "points", "weights"});
-  std::optional<int> p;
-  if (auto d = require(j, path, "degree", "an integer degree")) p = degree(*d, memberPath(path, "degree"));
-  std::optional<std::vector<Vec3>> points;
-  if (auto pts = require(j, path, "points", "an array of [x, y, z] control points")) {
-    const std::string pp = memberPath(path, "points");
-    if (!pts->is_array()) {
-      fail(pp, "expected an array of [x, y, z] control points, got " + describe(*pts));
-    } else {
-      std::vector<Vec3> v;
-      bool ok = true;
-      for (std::size_t i = 0; i < pts->size(); ++i) {
-        auto c = vector3((*pts)[i], indexPath(pp, i), "a control point");
-        if (c && !(c->cwiseAbs().maxCoeff() <= kMaxCoordinateMm)) {
-          fail(indexPath(pp, i), "expected coordinates within +-1e9 mm (designs are in millimetres), got " + describe((*pts)[i]));
-          c.reset();
-        }
-        if (c) v.push_back(*c); else ok = false;
-      }
-      if (ok && p && v.size() < static_cast<std::size_t>(*p) + 1) {
-        fail(pp, "a degree-" + std::to_string(*p) + " curve needs at least " + std::to_string(*p + 1) +
-                     " control points, got " + std::to_string(v.size()));
-        ok = false;
-      }
-      if (ok) points = std::move(v);
-    }
-  }
-  const std::optional<std::vector<double>> k =
-      splineKnots(*this, j, path, p, points ? std::optional<std::size_t>(points->size()) : std::nullopt);
-  std::vector<double> weights;
-  bool weightsOk = true;
-  if (auto w = j.find("weights"); w != j.end()) {
-    const std::string wp = memberPath(path, "weights");
-    if (!w->is_array()) {
-      fail(wp, "expected an array of positive weights, got " + describe(*w));
-      weightsOk = false;
-    } else {
-      for (std::size_t i = 0; i < w->size(); ++i) {
-        auto v = positive((*w)[i], indexPath(wp, i), "a weight");
-        if (v) weights.push_back(*v); else weightsOk = false;
-      }
-      if (weightsOk && points && weights.size() != points->size()) {
-        fail(wp, "expected one weight per control point (" + std::to_string(points->size()) + "), got " +
-                     std::to_string(weights.size()));
-        weightsOk = false;
-      }
-    }
-  }
-  if (!p || !points || !k || !weightsOk) return std::nullopt;
-  NurbsCurve curve(*p, *k, *points, weights);
-  const double length = curve.arcLength();
-  Box3 box;
-  for (const Vec3& q : *points) box.extend(q);
-  if (!std::isfinite(length)) {
-    fail(path, "the centerline's length is not a finite number (weights too extreme for double precision?)");
-    return std::nullopt;
-  }
-  if (!(length > 1e-9 * std::max(1.0, box.diagonal().norm()))) {
-    fail(path, "degenerate centerline: its length is zero (all control points coincide?)");
-    return std::nullopt;
-  }
-  return curve;
-}
-
-std::optional<Section> DesignReader::section(const json& j, const std::string& path) {
-  if (!j.is_object()) {
-    fail(path, "expected an object {shape, ...}, got " + describe(j));
-    return std::nullopt;
-  }
-  const json* shape = require(j, path, "shape", "\"circle\", \"ellipse\" or \"rectangle\"");
-  if (!shape) return std::nullopt;
-  auto name = string(*shape, memberPath(path, "shape"), "the section shape");
-  if (!name) return std::nullopt;
-  if (*name == "circle") {
-    onlyKeys(j, path, {"shape", "diameter"});
-    const json* d = require(j, path, "diameter", "the diameter in mm");
-    if (!d) return std::nullopt;
-    auto v = positive(*d, memberPath(path, "diameter"), "a diameter in mm");
-    return v ? std::optional<Section>(Section::circle(*v)) : std::nullopt;
-  }
-  if (*name == "ellipse" || *name == "rectangle") {
-    onlyKeys(j, path, {"shape", "width", "height"});
-    std::optional<double> w, h;
-    if (auto x = require(j, path, "width", "the width along d1 in mm")) w = positive(*x, memberPath(path, "width"), "a width in mm");
-    if (auto x = require(j, path, "height", "the height along d2 in mm")) h = positive(*x, memberPath(path, "height"), "a height in mm");
-    if (!w || !h) return std::nullopt;
-    return *name == "ellipse" ? Section::ellipse(*w, *h) : Section::rectangle(*w, *h);
-  }
-  fail(memberPath(path, "shape"), "unknown section shape " + describe(*shape) + " (expected \"circle\", \"ellipse\" or \"rectangle\")");
-  return std::nullopt;
-}
-
-std::optional<QuaternionSpline> DesignReader::orientation(const json& j, const std::string& path, const NurbsCurve* curve) {
-  if (!j.is_object()) {
-    fail(path, "expected an object {degree, knots, quaternions}, got " + describe(j));
-    return std::nullopt;
-  }
-  onlyKeys(j, path, {"degree", "knots", "quaternions"});
-  std::optional<int> p;
-  if (auto d = require(j, path, "degree", "an integer degree")) p = degree(*d, memberPath(path, "degree"));
-  std::optional<std::vector<Eigen::Vector4d>> quats;
-  if (auto q = require(j, path, "quaternions", "an array of [w, x, y, z] quaternions")) {
-    const std::string qp = memberPath(path, "quaternions");
-    if (!q->is_array()) {
-      fail(qp, "expected an array of [w, x, y, z] quaternions, got " + describe(*q));
-    } else {
-      std::vector<Eigen::Vector4d> v;
-      bool ok = true;
-      for (std::size_t i = 0; i < q->size(); ++i) {
-        const json& e = (*q)[i];
-        if (!e.is_array() || e.size() != 4) {
-          fail(indexPath(qp, i), "expected a quaternion [w, x, y, z], got " + describe(e));
-          ok = false;
-          continue;
-        }
-        Eigen::Vector4d c;
-        bool cok = true;
-        for (std::size_t k = 0; k < 4; ++k) {
-          auto x = number(e[k], indexPath(indexPath(qp, i), k), "a number");
-          if (x) c[k] = *x; else cok = false;
-        }
-        if (cok && !(c.cwiseAbs().maxCoeff() > 0.0)) {  // not c.norm(): 1e-170 would underflow to zero
-          fail(indexPath(qp, i), "a zero quaternion has no rotation");
-          cok = false;
-        }
-        if (cok) v.push_back(c); else ok = false;
-      }
-      if (ok && !enoughControls(*this, p, v.size(), qp, "quaternions")) ok = false;
-      if (ok) quats = std::move(v);
-    }
-  }
-  const std::optional<std::vector<double>> k =
-      splineKnots(*this, j, path, p, quats ? std::optional<std::size_t>(quats->size()) : std::nullopt);
-  if (!p || !quats || !k) return std::nullopt;
-  QuaternionSpline spline(*p, *k, *quats);
-  if (!domainMatches(*this, spline.domainBegin(), spline.domainEnd(), curve, memberPath(path, "knots"))) return std::nullopt;
-  return spline;
-}
-
-std::optional<double> DesignReader::youngsModulus(const json& j, const std::string& path) {
-  auto v = positive(j, path, "a Young's modulus in MPa");
-  if (v && *v > kMaxModulusMpa) {
-    fail(path, "expected a Young's modulus of at most " + describe(json(kMaxModulusMpa)) +
-                   " MPa (stiffer than any printable material), got " + describe(j));
-    return std::nullopt;
-  }
-  return v;
-}
-
-std::optional<BSplineField> DesignReader::modulus(const json& j, const std::string& path, const NurbsCurve* curve) {
-  if (j.is_number()) {
-    auto v = youngsModulus(j, path);
-    if (!v || !curve) return std::nullopt;
-    return BSplineField::constant(*v, curve->domainBegin(), curve->domainEnd());
-  }
-  if (!j.is_object()) {
-    fail(path, "expected a modulus in MPa (a number > 0) or a B-spline {degree, knots, values}, got " + describe(j));
-    return std::nullopt;
-  }
-  onlyKeys(j, path, {"degree", "knots", "values"});
-  std::optional<int> p;
-  if (auto d = require(j, path, "degree", "an integer degree")) p = degree(*d, memberPath(path, "degree"));
-  std::optional<std::vector<double>> values;
-  if (auto v = require(j, path, "values", "an array of moduli in MPa")) {
-    const std::string vp = memberPath(path, "values");
-    if (!v->is_array()) {
-      fail(vp, "expected an array of moduli in MPa, got " + describe(*v));
-    } else {
-      std::vector<double> out;
-      bool ok = true;
-      for (std::size_t i = 0; i < v->size(); ++i) {
-        auto x = youngsModulus((*v)[i], indexPath(vp, i));
-        if (x) out.push_back(*x); else ok = false;
-      }
-      if (ok && !enoughControls(*this, p, out.size(), vp, "values")) ok = false;
-      if (ok) values = std::move(out);
-    }
-  }
-  const std::optional<std::vector<double>> k =
-      splineKnots(*this, j, path, p, values ? std::optional<std::size_t>(values->size()) : std::nullopt);
-  if (!p || !values || !k) return std::nullopt;
-  BSplineField field(*p, *k, *values);
-  if (!domainMatches(*this, field.domainBegin(), field.domainEnd(), curve, memberPath(path, "knots"))) return std::nullopt;
-  return curve ? std::optional<BSplineField>(field) : std::nullopt;
-}
-
-std::optional<Rod> DesignReader::rod(const json& j, const std::string& path, RodNames& names) {
-  if (!j.is_object()) {
-    fail(path, "expected a rod object, got " + describe(j));
-    return std::nullopt;
-  }
-  onlyKeys(j, path, {"name", "centerline", "section", "normal", "orientation", "caps", "modulus"});
-  const std::size_t before = issues.size();
-
-  std::string name;
-  if (auto n = require(j, path, "name", "a rod name")) {
-    if (auto s = string(*n, memberPath(path, "name"), "a rod name")) {
-      name = *s;
-      if (name.empty()) fail(memberPath(path, "name"), "expected a non-empty rod name");
-      auto [it, fresh] = names.emplace(name, path);
-      if (!fresh) fail(memberPath(path, "name"), "duplicate rod name \"" + name + "\" (also " + it->second + ")");
-    }
-  }
-  std::optional<NurbsCurve> curve;
-  if (auto c = require(j, path, "centerline", "a NURBS curve {degree, knots, points, weights}"))
-    curve = centerline(*c, memberPath(path, "centerline"));
-  std::optional<Section> sec;
-  if (auto s = require(j, path, "section", "a cross-section {shape, ...}")) sec = section(*s, memberPath(path, "section"));
-
-  std::optional<Vec3> normal;
-  std::optional<QuaternionSpline> orient;
-  const auto nIt = j.find("normal");
-  const auto oIt = j.find("orientation");
-  if (nIt != j.end() && oIt != j.end()) fail(path, "give either \"normal\" or \"orientation\", not both");
-  if (nIt != j.end()) {
-    const std::string np = memberPath(path, "normal");
-    normal = vector3(*nIt, np, "a reference normal");
-    if (normal && !(normal->cwiseAbs().maxCoeff() > 0.0)) {
-      fail(np, "the reference normal must not be zero");
-      normal.reset();
-    } else if (normal && curve) {
-      Vec3 d[3];
-      curve->derivatives(curve->domainBegin(), 2, d);
-      const Vec3 t = unitTangent(d[1], d[2]);
-      if ((*normal * powerOfTwoScale(*normal)).normalized().cross(t).norm() < 1e-6) {  // scaled: 1e300 does not overflow
-        fail(np, "the reference normal " + describe(*nIt) + " is parallel to the centerline's tangent at its start; "
-                 "expected a direction across the rod");
-        normal.reset();
-      }
-    }
-  }
-  if (oIt != j.end()) orient = orientation(*oIt, memberPath(path, "orientation"), curve ? &*curve : nullptr);
-  if (sec && !sec->isRotationallySymmetric() && nIt == j.end() && oIt == j.end())
-    fail(path, "a " + std::string(toString(sec->shape)) + " section needs a frame: give \"normal\" or \"orientation\"");
-
-  CapStyle caps = CapStyle::Round;
-  if (auto c = j.find("caps"); c != j.end()) {
-    if (*c == "round") caps = CapStyle::Round;
-    else if (*c == "flat") caps = CapStyle::Flat;
-    else fail(memberPath(path, "caps"), "expected \"round\" or \"flat\", got " + describe(*c));
-  }
-  std::optional<BSplineField> e;
-  if (auto m = require(j, path, "modulus", "a Young's modulus in MPa or a B-spline {degree, knots, values}"))
-    e = modulus(*m, memberPath(path, "modulus"), curve ? &*curve : nullptr);
-
-  if (issues.size() != before || !curve || !sec || !e) return std::nullopt;
-  try {
-    return Rod(name, *curve, *sec, normal, orient, caps, *e);
-  } catch (const std::invalid_argument& error) {  // e.g. a centerline too intricate to sample
-    fail(path, error.what());
-    return std::nullopt;
-  }
-}
 
 DesignError::DesignError(std::string file, std::vector<DesignIssue> issues)
     : IssueListError(common::formatLocatedIssues(file, issues), file, issues) {}

@@ -42,6 +42,8 @@ public:
   std::optional<double> positive(const nlohmann::json& j, const std::string& path, const std::string& what);
   std::optional<int> degree(const nlohmann::json& j, const std::string& path);  // 1..kMaxDegree
   std::optional<Vec3> vector3(const nlohmann::json& j, const std::string& path, const std::string& what);
+  // A rotation [w, x, y, z], not normalized but not zero.
+  std::optional<Eigen::Vector4d> quaternion(const nlohmann::json& j, const std::string& path);
   std::optional<std::string> string(const nlohmann::json& j, const std::string& path, const std::string& what);
   // A knot vector for `count` control values of degree `p` (either may be unknown: then only the
   // entries are checked).

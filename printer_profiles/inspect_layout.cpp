@@ -118,21 +118,21 @@ public:
     }
     return &*it;
   }
-  const json* object(const json& parent, const std::string& path, const std::string& key) {
-    const json* j = get(parent, path, key, "an object");
-    if (j && !j->is_object()) {
-      wrong(member(path, key), "an object", *j);
+  // parent[key] when `isKind` holds for it (`what`: "an object", ...); nullptr after an issue.
+  const json* ofKind(const json& parent, const std::string& path, const std::string& key, const char* what,
+                     bool (json::*isKind)() const noexcept) {
+    const json* j = get(parent, path, key, what);
+    if (j && !(j->*isKind)()) {
+      wrong(member(path, key), what, *j);
       return nullptr;
     }
     return j;
   }
+  const json* object(const json& parent, const std::string& path, const std::string& key) {
+    return ofKind(parent, path, key, "an object", &json::is_object);
+  }
   const json* array(const json& parent, const std::string& path, const std::string& key) {
-    const json* j = get(parent, path, key, "an array");
-    if (j && !j->is_array()) {
-      wrong(member(path, key), "an array", *j);
-      return nullptr;
-    }
-    return j;
+    return ofKind(parent, path, key, "an array", &json::is_array);
   }
   std::optional<std::string> string(const json& parent, const std::string& path, const std::string& key) {
     const json* j = get(parent, path, key, "a string");

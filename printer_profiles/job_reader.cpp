@@ -79,7 +79,7 @@ void streamFd(int fd, const std::string& where, std::uint64_t maxBytes,
 class DirectoryJobReader final : public JobReader {
 public:
   DirectoryJobReader(fs::path root, int rootFd, std::size_t maxEntries, int maxDepth)
-      : root_(std::move(root)), maxEntries_(maxEntries), maxDepth_(maxDepth) {
+      : JobReader(std::move(root), ArchiveFormat::Directory, maxEntries), maxDepth_(maxDepth) {
     dirs_.push_back(rootFd);
     try {
       walk(0, "", 1);
@@ -91,15 +91,10 @@ public:
   ~DirectoryJobReader() override {
     for (int fd : dirs_) ::close(fd);
   }
-  const fs::path& path() const override { return root_; }
-  ArchiveFormat format() const override { return ArchiveFormat::Directory; }
-  const std::vector<JobEntry>& entries() const override { return entries_; }
-  bool truncated() const override { return truncated_; }
-
   void stream(const JobEntry& entry, std::uint64_t maxBytes,
               const std::function<void(std::span<const std::uint8_t>)>& sink) const override {
     const Found& f = found_.at(entry.index);
-    const std::string where = root_.string() + ": " + printableName(entry.name);
+    const std::string where = path().string() + ": " + printableName(entry.name);
     // O_NOFOLLOW: a link put in place since the listing is refused; O_NONBLOCK: so is a FIFO, at once.
     Fd fd(::openat(dirs_[f.dir], f.leaf.c_str(), O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC | O_NOCTTY));
     if (fd.fd < 0) throw JobReadError(where + ": cannot be opened (" + errnoText() + ")");
@@ -121,13 +116,13 @@ private:
   std::vector<std::string> sortedNames(int dirFd) {
     Fd copy(::dup(dirFd));
     DIR* d = copy.fd >= 0 ? ::fdopendir(copy.fd) : nullptr;
-    if (!d) throw JobReadError(root_.string() + ": cannot list the folder (" + errnoText() + ")");
+    if (!d) throw JobReadError(path().string() + ": cannot list the folder (" + errnoText() + ")");
     copy.release();
     std::vector<std::string> names;
     while (const dirent* e = ::readdir(d)) {
       const std::string name = e->d_name;
       if (name == "." || name == "..") continue;
-      if (names.size() > maxEntries_) break;  // enough to know there are too many
+      if (names.size() > maxEntries()) break;  // enough to know there are too many
       names.push_back(name);
     }
     ::closedir(d);
@@ -136,19 +131,15 @@ private:
   }
 
   void add(JobEntry entry) {
-    if (entries_.size() >= maxEntries_) {
-      truncated_ = true;
-      return;
-    }
-    entries_.push_back(std::move(entry));
+    if (roomForEntry()) addEntry(std::move(entry));
   }
 
   void walk(std::size_t dir, const std::string& prefix, int depth) {
     for (const std::string& leaf : sortedNames(dirs_[dir])) {
-      if (truncated_) return;
+      if (truncated()) return;
       struct stat st{};
       if (::fstatat(dirs_[dir], leaf.c_str(), &st, AT_SYMLINK_NOFOLLOW) != 0)
-        throw JobReadError(root_.string() + ": " + printableName(prefix + leaf) + ": cannot be examined (" + errnoText() + ")");
+        throw JobReadError(path().string() + ": " + printableName(prefix + leaf) + ": cannot be examined (" + errnoText() + ")");
       JobEntry entry{prefix + leaf, EntryKind::Other, static_cast<std::uint64_t>(st.st_size), describeMode(st.st_mode), 0};
       if (S_ISREG(st.st_mode)) {
         entry.kind = EntryKind::File;
@@ -169,17 +160,13 @@ private:
 
   void descend(std::size_t dir, const std::string& leaf, const std::string& prefix, int depth) {
     const int fd = ::openat(dirs_[dir], leaf.c_str(), O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
-    if (fd < 0) throw JobReadError(root_.string() + ": " + printableName(prefix) + ": cannot be opened (" + errnoText() + ")");
+    if (fd < 0) throw JobReadError(path().string() + ": " + printableName(prefix) + ": cannot be opened (" + errnoText() + ")");
     dirs_.push_back(fd);
     walk(dirs_.size() - 1, prefix, depth);
   }
 
-  fs::path root_;
-  std::size_t maxEntries_;
   int maxDepth_;
-  bool truncated_ = false;
   std::vector<int> dirs_;
-  std::vector<JobEntry> entries_;
   std::vector<Found> found_;
 };
 
@@ -198,16 +185,12 @@ std::string zipErrorText(int code) {
 class ZipJobReader final : public JobReader {
 public:
   ZipJobReader(fs::path file, int fd, const struct stat& st, std::size_t maxEntries)
-      : file_(std::move(file)), dev_(st.st_dev), ino_(st.st_ino), pool_([this] { return reopen(); }) {
+      : JobReader(std::move(file), ArchiveFormat::Zip, maxEntries), dev_(st.st_dev), ino_(st.st_ino),
+        pool_([this] { return reopen(); }) {
     zip_t* za = adopt(fd);
     pool_.giveBack(za);
-    list(za, maxEntries);
+    list(za);
   }
-  const fs::path& path() const override { return file_; }
-  ArchiveFormat format() const override { return ArchiveFormat::Zip; }
-  const std::vector<JobEntry>& entries() const override { return entries_; }
-  bool truncated() const override { return truncated_; }
-
   void stream(const JobEntry& entry, std::uint64_t maxBytes,
               const std::function<void(std::span<const std::uint8_t>)>& sink) const override {
     const ZipPool::Lease za(pool_);
@@ -221,30 +204,26 @@ private:
     if (!za) {
       ::close(fd);
       if (error == ZIP_ER_EXISTS)  // libzip refuses a central directory naming one entry twice
-        throw JobReadError(file_.string() + ": holds two entries of the same name (unpacking would keep only one)");
-      throw JobReadError(file_.string() + ": not a readable zip archive (" + zipErrorText(error) +
+        throw JobReadError(path().string() + ": holds two entries of the same name (unpacking would keep only one)");
+      throw JobReadError(path().string() + ": not a readable zip archive (" + zipErrorText(error) +
                          "); it may be truncated or damaged");
     }
     return za;
   }
 
-  void list(zip_t* za, std::size_t maxEntries) {
+  void list(zip_t* za) {
     const zip_int64_t count = zip_get_num_entries(za, 0);
-    for (zip_int64_t n = 0; n < count; ++n) {
-      if (entries_.size() >= maxEntries) {
-        truncated_ = true;
-        return;
-      }
+    for (zip_int64_t n = 0; n < count && roomForEntry(); ++n) {
       const auto index = static_cast<zip_uint64_t>(n);
       zip_stat_t st;
       zip_stat_init(&st);
       if (zip_stat_index(za, index, ZIP_FL_ENC_RAW, &st) != 0 || !(st.valid & ZIP_STAT_NAME))
-        throw JobReadError(file_.string() + ": entry " + std::to_string(n) + " of the archive cannot be read (" +
+        throw JobReadError(path().string() + ": entry " + std::to_string(n) + " of the archive cannot be read (" +
                            zip_strerror(za) + ")");
       JobEntry entry{st.name, EntryKind::File, (st.valid & ZIP_STAT_SIZE) ? st.size : 0, "", index};
       if (!entry.name.empty() && entry.name.back() == '/') entry.kind = EntryKind::Directory;
       classify(za, st, entry);
-      entries_.push_back(std::move(entry));
+      addEntry(std::move(entry));
     }
   }
 
@@ -273,7 +252,7 @@ private:
 
   void streamEntry(zip_t* za, const JobEntry& entry, std::uint64_t maxBytes,
                    const std::function<void(std::span<const std::uint8_t>)>& sink) const {
-    const std::string where = file_.string() + ": " + printableName(entry.name);
+    const std::string where = path().string() + ": " + printableName(entry.name);
     if (entry.declaredBytes > maxBytes)
       throw EntryTooLarge(where + ": its zip header declares " + std::to_string(entry.declaredBytes) +
                               " bytes, more than the " + std::to_string(maxBytes) + " it can take",
@@ -344,19 +323,16 @@ private:
 
   // Another handle, from a descriptor checked to be the same regular file the first one was.
   zip_t* reopen() const {
-    Fd fd(::open(file_.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY));
+    Fd fd(::open(path().c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY));
     struct stat st{};
-    if (fd.fd < 0 || ::fstat(fd.fd, &st) != 0) throw JobReadError(file_.string() + ": cannot be reopened (" + errnoText() + ")");
+    if (fd.fd < 0 || ::fstat(fd.fd, &st) != 0) throw JobReadError(path().string() + ": cannot be reopened (" + errnoText() + ")");
     if (!S_ISREG(st.st_mode) || st.st_dev != dev_ || st.st_ino != ino_)
-      throw JobReadError(file_.string() + ": was replaced while the job was being inspected");
+      throw JobReadError(path().string() + ": was replaced while the job was being inspected");
     return adopt(fd.release());
   }
 
-  fs::path file_;
   dev_t dev_;
   ino_t ino_;
-  bool truncated_ = false;
-  std::vector<JobEntry> entries_;
   ZipPool pool_;
 };
 

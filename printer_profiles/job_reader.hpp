@@ -16,6 +16,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace rodfab::printer_profiles {
@@ -47,13 +48,13 @@ private:
 class JobReader {
 public:
   virtual ~JobReader() = default;
-  virtual const std::filesystem::path& path() const = 0;
-  virtual ArchiveFormat format() const = 0;
+  const std::filesystem::path& path() const { return path_; }
+  ArchiveFormat format() const { return format_; }
   // Every entry found, in archive order (zip) or sorted by name (folder); at most the `maxEntries` given
   // to openJobReader (see truncated()).
-  virtual const std::vector<JobEntry>& entries() const = 0;
+  const std::vector<JobEntry>& entries() const { return entries_; }
   // True when the job holds more entries than were listed.
-  virtual bool truncated() const = 0;
+  bool truncated() const { return truncated_; }
   // Streams a File entry to `sink` in chunks of at most 64 KiB, in order. Throws EntryTooLarge as soon as
   // more than `maxBytes` bytes come out, JobReadError (naming the entry) when it cannot be read, is
   // damaged (zip CRC) or was swapped for something else since it was listed. Safe to call from several
@@ -63,6 +64,26 @@ public:
 
   // stream() into memory (at most maxBytes are ever held).
   Bytes read(const JobEntry& entry, std::uint64_t maxBytes) const;
+
+protected:
+  JobReader(std::filesystem::path path, ArchiveFormat format, std::size_t maxEntries)
+      : path_(std::move(path)), format_(format), maxEntries_(maxEntries) {}
+  // Whether the listing has room for another entry; once it has not, truncated() is true and the
+  // reader lists no more.
+  bool roomForEntry() {
+    if (entries_.size() >= maxEntries_) truncated_ = true;
+    return !truncated_;
+  }
+  std::size_t maxEntries() const { return maxEntries_; }
+  // Lists `entry` (the caller made sure of roomForEntry()).
+  void addEntry(JobEntry entry) { entries_.push_back(std::move(entry)); }
+
+private:
+  std::filesystem::path path_;
+  ArchiveFormat format_;
+  std::size_t maxEntries_;
+  bool truncated_ = false;
+  std::vector<JobEntry> entries_;
 };
 
 // A folder is read as a folder job, a regular file as a zip archive; anything else (FIFO, device, a

@@ -10,7 +10,7 @@ namespace rodfab::cli {
 
 void addCalibrationOptions(po::options_description& options) {
   options.add_options()
-      ("calibration", po::value<std::string>(), "calibration file (rodfab calibrate); default: the bundled 60 C fit")
+      ("calibration", po::value<std::string>()->value_name("CAL.json"), "calibration file (rodfab calibrate); default: the bundled 60 C fit")
       ("allow-calibration-materials-mismatch",
        "use a calibration measured on other materials than the profile's (the job's moduli are then estimates)");
 }

@@ -14,18 +14,15 @@ namespace rodfab::cli {
 
 namespace {
 
-constexpr const char* kSynopsis =
-    "DATA.csv [--model pchip|lichtenecker|log-power] [--floor-mpa 8] [--output CAL.json] [--plot FIT.png] [--materials RIGID,RUBBERY]";
-
 void addCalibrateOptions(po::options_description& options) {
   options.add_options()
-      ("data", po::value<std::string>()->required(), "DMA measurements (CSV: vero_fraction, modulus_mpa, ...)")
-      ("model", po::value<std::string>()->default_value("pchip"), "pchip, lichtenecker or log-power")
-      ("floor-mpa", po::value<double>()->default_value(calibration::kDefaultFloorMpa),
+      ("data", po::value<std::string>()->required()->value_name("DATA.csv"), "DMA measurements (CSV: vero_fraction, modulus_mpa, ...)")
+      ("model", po::value<std::string>()->default_value("pchip")->value_name("pchip|lichtenecker|log-power"), "pchip, lichtenecker or log-power")
+      ("floor-mpa", po::value<double>()->default_value(calibration::kDefaultFloorMpa)->value_name("MPA"),
        "minimum modulus that keeps shape fixity at room temperature (MPa)")
-      ("output,o", po::value<std::string>(), "write the calibration file (JSON) here")
-      ("plot", po::value<std::string>(), "write a PNG plot of the fit here")
-      ("materials", po::value<std::string>(),
+      ("output,o", po::value<std::string>()->value_name("CAL.json"), "write the calibration file (JSON) here")
+      ("plot", po::value<std::string>()->value_name("FIT.png"), "write a PNG plot of the fit here")
+      ("materials", po::value<std::string>()->value_name("RIGID,RUBBERY"),
        "RIGID,RUBBERY: the materials the coupons were printed in, as the printer profile names them "
        "(e.g. VeroUltraWhite,Agilus30Black); recorded so that slice refuses the calibration for other materials");
 }
@@ -36,7 +33,7 @@ struct FitRequest {
 };
 
 // --model, --floor-mpa and --materials checked; nullopt after printing the last usage error found.
-std::optional<FitRequest> readFitRequest(const po::variables_map& vm) {
+std::optional<FitRequest> readFitRequest(const po::variables_map& vm, const std::string& synopsis) {
   const std::string modelText = vm["model"].as<std::string>();
   const auto model = calibration::parseModel(modelText);
   const double floorMpa = vm["floor-mpa"].as<double>();
@@ -53,7 +50,7 @@ std::optional<FitRequest> readFitRequest(const po::variables_map& vm) {
     }
   }
   if (!usageError.empty()) {
-    std::cerr << "rodfab calibrate: " << usageError << "\nusage: rodfab calibrate " << kSynopsis << '\n';
+    std::cerr << "rodfab calibrate: " << usageError << "\nusage: rodfab calibrate " << synopsis << '\n';
     return std::nullopt;
   }
   r.fit = {*model, floorMpa};
@@ -76,9 +73,10 @@ int runCalibrate(const std::vector<std::string>& args) {
   addCalibrateOptions(options);
   po::positional_options_description positional;
   positional.add("data", 1);
+  const std::string synopsis = synopsisOf(options, positional);
   po::variables_map vm;
-  if (auto code = parseOptions("calibrate", kSynopsis, options, positional, args, vm)) return *code;
-  const std::optional<FitRequest> request = readFitRequest(vm);
+  if (auto code = parseOptions("calibrate", options, positional, args, vm)) return *code;
+  const std::optional<FitRequest> request = readFitRequest(vm, synopsis);
   if (!request) return kUsage;
 
   commandLineAccepted();

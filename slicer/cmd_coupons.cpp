@@ -23,53 +23,43 @@ namespace {
 
 constexpr std::size_t kMaxCoupons = 1000;
 
-std::optional<CouponRequest> parseCoupons(const std::vector<std::string>& args, po::variables_map& vm, int& exitCode) {
+Parsed<CouponRequest> parseCoupons(const std::vector<std::string>& args, po::variables_map& vm) {
   po::options_description options("options");
   addJobOutputOptions(options);
   options.add_options()
-      ("fractions", po::value<std::string>()->default_value("0,0.1,...,1"),
+      ("fractions", po::value<std::string>()->default_value("0,0.1,...,1")->value_name("A,B,...,Z"),
        "Vero fractions of the bars, comma-separated; A,B,...,Z continues the step B - A up to Z")
-      ("size", po::value<std::string>()->default_value("30x5x1.5"), "bar size LENGTHxWIDTHxHEIGHT in millimetres (length along x)")
-      ("gap", po::value<double>()->default_value(5.0), "gap between bars in mm, along x and y");
+      ("size", po::value<std::string>()->default_value("30x5x1.5")->value_name("LxWxH"), "bar size LENGTHxWIDTHxHEIGHT in millimetres (length along x)")
+      ("gap", po::value<double>()->default_value(5.0)->value_name("MM"), "gap between bars in mm, along x and y");
   addDitherOptions(options, "white", "white (random, as published) | blue | error-diffusion: the ditherer the jobs will use");
   addProfileOptions(options);
-  const char* synopsis =
-      "--output JOB.zip [--fractions 0,0.1,...,1] [--dither white|blue|error-diffusion] [--seed N] [--size 30x5x1.5] "
-      "[--gap 5] [--profile NAME|FILE] [--print-mode MODE] [--threads N] [--band-layers N] [--format zip|dir] "
-      "[--image-format bmp|png] [--force] [--quiet] [--json]";
-  if (auto code = parseOptions("coupons", synopsis, options, {}, args, vm)) return exitCode = *code, std::nullopt;
-  exitCode = kUsage;
+  if (auto code = parseOptions("coupons", options, {}, args, vm)) return *code;
   std::optional<JobCommandOptions> job = jobCommandOptions("coupons", vm);
-  if (!job) return std::nullopt;
+  if (!job) return kUsage;
   CouponRequest r;
   r.job = *std::move(job);
   try {
     r.fractions = parseFractionList("--fractions", vm["fractions"].as<std::string>(), kMaxCoupons);
     r.sizeMm = parseSizeMm("--size", vm["size"].as<std::string>());
   } catch (const BadValue& e) {
-    return usageError("coupons", e.what()), std::nullopt;
+    return usageError("coupons", e.what());
   }
   r.gapMm = vm["gap"].as<double>();
   if (!(r.gapMm > 0.0 && r.gapMm <= 1000.0))
-    return usageError("coupons", "--gap: expected a gap in mm, > 0 and at most 1000, got " + formatNumber(r.gapMm)), std::nullopt;
+    return usageError("coupons", "--gap: expected a gap in mm, > 0 and at most 1000, got " + formatNumber(r.gapMm));
   r.seed = vm["seed"].as<Seed>().value;
   return r;
 }
 
-}  // namespace
-
-int runCoupons(const std::vector<std::string>& args) {
-  po::variables_map vm;
-  int exitCode = kOk;
-  const std::optional<CouponRequest> request = parseCoupons(args, vm, exitCode);
-  if (!request) return exitCode;
-  const CouponRequest& r = *request;
+// The coupons' job: the bars laid out and checked, then streamed and summarized; the exit code.
+int makeCoupons(const po::variables_map& vm, const CouponRequest& r) {
   const std::unique_ptr<materials::Ditherer> ditherer = ditherFromName("coupons", vm["dither"].as<std::string>(), vm);
   if (!ditherer) return kUsage;
   const auto start = std::chrono::steady_clock::now();
   const ThreadLimit threadLimit(r.job.threads);
   const std::optional<printer_profiles::Profile> profile = profileFromOptions(vm, "no job was written");
   if (!profile) return kFailed;
+  int exitCode = kOk;
   const std::optional<slicer::CouponLayout> layout = layOutCoupons(r, *profile, exitCode);
   if (!layout) return exitCode;
   commandLineAccepted();
@@ -102,6 +92,13 @@ int runCoupons(const std::vector<std::string>& args) {
   progress.finish();
   printCouponSummary(r, job, *profile, *layout, bars, seconds, common::secondsSince(start));
   return finishJob("coupons", job);
+}
+
+}  // namespace
+
+int runCoupons(const std::vector<std::string>& args) {
+  po::variables_map vm;
+  return runParsed(parseCoupons(args, vm), [&](const CouponRequest& request) { return makeCoupons(vm, request); });
 }
 
 }  // namespace rodfab::cli

@@ -24,16 +24,16 @@ int usageError(const std::string& what) { return cli::usageError("dither-report"
 
 void addDitherReportOptions(po::options_description& options) {
   options.add_options()
-      ("dither", po::value<std::string>()->default_value("all"), "white, blue, error-diffusion or all")
-      ("seed", po::value<Seed>()->default_value(Seed{1}), "dithering seed")
-      ("block", po::value<std::string>()->default_value("128x64x180"), "uniform block size XxYxZ in voxels")
-      ("fractions", po::value<std::string>()->default_value("0.1,0.2,...,0.9"),
+      ("dither", po::value<std::string>()->default_value("all")->value_name("white|blue|error-diffusion|all"), "white, blue, error-diffusion or all")
+      ("seed", po::value<Seed>()->default_value(Seed{1})->value_name("N"), "dithering seed")
+      ("block", po::value<std::string>()->default_value("128x64x180")->value_name("XxYxZ"), "uniform block size XxYxZ in voxels")
+      ("fractions", po::value<std::string>()->default_value("0.1,0.2,...,0.9")->value_name("A,B,...,Z"),
        "Vero fractions of the uniform blocks, comma-separated; A,B,...,Z continues the step B - A up to Z")
-      ("rod-diameter", po::value<double>()->default_value(1.0), "rod diameter in mm")
-      ("rod-length", po::value<double>()->default_value(10.0), "rod length in mm")
-      ("rod-axis", po::value<char>()->default_value('x'), "rod direction: x, y or z")
-      ("rod-fraction", po::value<float>()->default_value(0.3f), "Vero fraction of the rod")
-      ("mask", po::value<std::string>(), "blue-noise mask file (default: the bundled one)")
+      ("rod-diameter", po::value<double>()->default_value(1.0)->value_name("MM"), "rod diameter in mm")
+      ("rod-length", po::value<double>()->default_value(10.0)->value_name("MM"), "rod length in mm")
+      ("rod-axis", po::value<char>()->default_value('x')->value_name("x|y|z"), "rod direction: x, y or z")
+      ("rod-fraction", po::value<float>()->default_value(0.3f)->value_name("F"), "Vero fraction of the rod")
+      ("mask", po::value<std::string>()->value_name("MASK.rfbn"), "blue-noise mask file (default: the bundled one)")
       ("json", "print the report as JSON on stdout");
   addProfileOptions(options);
 }
@@ -72,11 +72,7 @@ int runDitherReport(const std::vector<std::string>& args) {
   addDitherReportOptions(options);
   hidden.add_options()("ditherer", po::value<std::string>(), "the old spelling of --dither");
   po::variables_map vm;
-  if (auto code = parseOptions("dither-report",
-                                 "[--dither white|blue|error-diffusion|all] [--seed N] [--block 128x64x180] [--fractions 0.1,0.2,...,0.9] "
-                                 "[--rod-diameter 1] [--rod-length 10] [--rod-axis x|y|z] [--rod-fraction 0.3] [--mask MASK.rfbn] "
-                                 "[--profile NAME|FILE] [--print-mode MODE] [--json]",
-                                 options, {}, args, vm, &hidden)) return *code;
+  if (auto code = parseOptions("dither-report", options, {}, args, vm, &hidden)) return *code;
   const std::optional<DitherReportRequest> request = readRequest(vm);
   if (!request) return kUsage;
   commandLineAccepted();

@@ -1,5 +1,6 @@
 #include "printer_profiles/printer_profiles.hpp"
 #include "slicer/command.hpp"
+#include "slicer/job_options.hpp"
 #include "slicer/options.hpp"
 
 #include <cstdio>
@@ -12,10 +13,6 @@ namespace pp = printer_profiles;
 namespace {
 
 nlohmann::json reportJson(const pp::InspectReport& report) {
-  nlohmann::json materials = nlohmann::json::array();
-  for (const auto& m : report.materials)
-    materials.push_back({{"name", m.name}, {"role", pp::toString(m.role)}, {"voxels", m.voxels},
-                         {"volume_ml", m.volumeMl}, {"mass_g", m.massG}});
   const pp::InspectSummary& s = report.summary;
   return {{"job", report.job.string()},
           {"ok", report.ok()},
@@ -25,7 +22,7 @@ nlohmann::json reportJson(const pp::InspectReport& report) {
           {"image", {{"width", report.width}, {"height", report.height}, {"format", s.imageFormat}}},
           {"layers", report.layers},
           {"support", s.supportPolicy},
-          {"materials", materials}};
+          {"materials", materialTotalsJson(report.materials)}};
 }
 
 // Every value printed comes from the report's checked summary, never from the raw manifest.
@@ -56,15 +53,13 @@ void printReport(const pp::InspectReport& report) {
 int runInspect(const std::vector<std::string>& args) {
   po::options_description options("options");
   options.add_options()
-      ("job", po::value<std::string>()->required(), "the job: a .zip archive or a directory written by rodfab")
-      ("profile", po::value<std::string>(),
+      ("job", po::value<std::string>()->required()->value_name("JOB"), "the job: a .zip archive or a directory written by rodfab")
+      ("profile", po::value<std::string>()->value_name("NAME|FILE"),
        "check against this printer profile (a bundled name or a profile file); default: the bundled profile the "
        "job's manifest names (a manifest never chooses a file)")
       ("json", "print the report as JSON on stdout");
-  po::positional_options_description positional;
-  positional.add("job", 1);
   po::variables_map vm;
-  if (auto code = parseOptions("inspect", "JOB [--profile NAME|FILE] [--json]", options, positional, args, vm)) return *code;
+  if (auto code = parseOptionsWithInput("inspect", options, "job", args, vm)) return *code;
   commandLineAccepted();
 
   pp::InspectOptions inspectOptions;

@@ -83,17 +83,8 @@ int writeOutputs(const OptimizeCommand& c, const mechanics::Design& design, cons
   return kOk;
 }
 
-}  // namespace
-
-int runOptimize(const std::vector<std::string>& args) {
-  auto parsed = parseOptimize(args);
-  if (const int* code = std::get_if<int>(&parsed)) return *code;
-  const OptimizeCommand& c = std::get<OptimizeCommand>(parsed);
-  commandLineAccepted();
-  const ThreadLimit limit(c.threads);
-  const std::optional<mechanics::Design> read = readDesignOrReport(c.design, "nothing was written");
-  if (!read) return kFailed;
-  const mechanics::Design& design = *read;
+// The optimization of `design`, its outputs written and the summary printed; the exit code.
+int optimizeDesign(const OptimizeCommand& c, const mechanics::Design& design) {
   if (!optimizeOutputsAllowed(c, design)) return kFailed;
   const std::optional<optimize::Settings> settings = optimizeSettingsOrReport(c, design);
   if (!settings) return kFailed;
@@ -103,5 +94,9 @@ int runOptimize(const std::vector<std::string>& args) {
   else printOptimizeSummary({c, *o.problem, o.result, o.accuracy});
   return kOk;
 }
+
+}  // namespace
+
+int runOptimize(const std::vector<std::string>& args) { return runOnDesign(parseOptimize(args), optimizeDesign); }
 
 }  // namespace rodfab::cli

@@ -69,12 +69,10 @@ void printProfile(const pp::Profile& p) {
 int runProfiles(const std::vector<std::string>& args) {
   po::options_description options("options");
   options.add_options()
-      ("profile", po::value<std::string>(), "show one profile in full (a bundled name or a profile file)")
+      ("profile", po::value<std::string>()->value_name("PROFILE"), "show one profile in full (a bundled name or a profile file)")
       ("json", "print as JSON on stdout");
-  po::positional_options_description positional;
-  positional.add("profile", 1);
   po::variables_map vm;
-  if (auto code = parseOptions("profiles", "[PROFILE] [--json]", options, positional, args, vm)) return *code;
+  if (auto code = parseOptionsWithInput("profiles", options, "profile", args, vm)) return *code;
   commandLineAccepted();
 
   std::vector<pp::Profile> profiles;

@@ -15,20 +15,15 @@ namespace rodfab::cli {
 int runRodsFromCad(const std::vector<std::string>& args) {
   po::options_description options("options");
   options.add_options()
-      ("model", po::value<std::string>()->required(), "CAD model: .step/.stp or .iges/.igs (lengths in mm)")
-      ("diameter", po::value<double>()->required(), "rod diameter (mm); for ellipses and rectangles the size along the frame's d1")
-      ("output,o", po::value<std::string>()->required(), "design file to write (rodfab.design/1)")
-      ("joint-tolerance", po::value<double>()->default_value(1e-3), "curve ends closer than this (mm) become one joint")
+      ("model", po::value<std::string>()->required()->value_name("FILE.step|.stp|.iges|.igs"), "CAD model: .step/.stp or .iges/.igs (lengths in mm)")
+      ("diameter", po::value<double>()->required()->value_name("D"), "rod diameter (mm); for ellipses and rectangles the size along the frame's d1")
+      ("output,o", po::value<std::string>()->required()->value_name("DESIGN.json"), "design file to write (rodfab.design/1)")
+      ("joint-tolerance", po::value<double>()->default_value(1e-3)->value_name("T"), "curve ends closer than this (mm) become one joint")
       ("force", "replace an existing design file at --output")
       ("json", "print the summary as JSON on stdout");
   addRodShapeOptions(options);
-  po::positional_options_description positional;
-  positional.add("model", 1);
   po::variables_map vm;
-  const char* synopsis = "FILE.step|.stp|.iges|.igs --diameter D --output DESIGN.json [--joint-tolerance T] "
-                         "[--section circle|ellipse|rectangle] [--breadth B] [--modulus E] [--caps round|flat] [--profile NAME|FILE] "
-                         "[--force] [--json]";
-  if (auto code = parseOptions("rods-from-cad", synopsis, options, positional, args, vm)) return *code;
+  if (auto code = parseOptionsWithInput("rods-from-cad", options, "model", args, vm)) return *code;
   const std::string model = vm["model"].as<std::string>(), output = vm["output"].as<std::string>();
   const auto tolerance = realOption("rods-from-cad", vm, "joint-tolerance", 1e-9, 100, "mm");
   const std::optional<RodShape> shape = parseRodShape("rods-from-cad", vm);

@@ -23,12 +23,12 @@ struct MeshSettings {
 
 void addMeshOptions(po::options_description& options) {
   options.add_options()
-      ("mesh", po::value<std::string>()->required(), "triangle mesh: .stl (binary or ASCII), .obj, .ply or .off, in mm")
-      ("faces", po::value<int>()->default_value(200), "triangles of the simplified mesh: about this many rod nodes, 1.5 times as many rods")
-      ("diameter", po::value<double>()->required(), "rod diameter (mm); for ellipses and rectangles the thickness normal to the surface")
-      ("output,o", po::value<std::string>()->required(), "design file to write (rodfab.design/1)")
-      ("subdivisions", po::value<int>()->default_value(4), "points per rod projected onto the surface and interpolated")
-      ("surface-tolerance", po::value<double>()->default_value(0.05), "largest distance of a centerline from the surface (mm)")
+      ("mesh", po::value<std::string>()->required()->value_name("MESH.stl|.obj|.ply|.off"), "triangle mesh: .stl (binary or ASCII), .obj, .ply or .off, in mm")
+      ("faces", po::value<int>()->default_value(200)->value_name("N"), "triangles of the simplified mesh: about this many rod nodes, 1.5 times as many rods")
+      ("diameter", po::value<double>()->required()->value_name("D"), "rod diameter (mm); for ellipses and rectangles the thickness normal to the surface")
+      ("output,o", po::value<std::string>()->required()->value_name("DESIGN.json"), "design file to write (rodfab.design/1)")
+      ("subdivisions", po::value<int>()->default_value(4)->value_name("K"), "points per rod projected onto the surface and interpolated")
+      ("surface-tolerance", po::value<double>()->default_value(0.05)->value_name("T"), "largest distance of a centerline from the surface (mm)")
       ("force", "replace an existing design file at --output")
       ("json", "print the summary as JSON on stdout");
   addThreadsOption(options, "they build the rods; the result does not depend on their number");
@@ -37,14 +37,9 @@ void addMeshOptions(po::options_description& options) {
   addRodShapeOptions(options);
 }
 
-std::variant<MeshSettings, int> parseMesh(const std::vector<std::string>& args) {
-  po::options_description options("options");
-  addMeshOptions(options);
+Parsed<MeshSettings> parseMesh(const std::vector<std::string>& args) {
   po::variables_map vm;
-  const char* synopsis = "MESH.stl|.obj|.ply|.off --faces N --diameter D --output DESIGN.json [--subdivisions K] [--surface-tolerance T] "
-                         "[--section circle|ellipse|rectangle] [--breadth B] [--modulus E] [--caps round|flat] [--profile NAME|FILE] "
-                         "[--threads N] [--force] [--json]";
-  if (auto code = parseOptionsWithInput("rods-from-mesh", synopsis, options, "mesh", args, vm)) return *code;
+  if (auto code = parseOptionsWithInput("rods-from-mesh", addMeshOptions, "mesh", args, vm)) return *code;
   MeshSettings s;
   s.mesh = vm["mesh"].as<std::string>(), s.output = vm["output"].as<std::string>();
   s.force = vm.count("force") > 0, s.json = vm.count("json") > 0;
@@ -63,14 +58,8 @@ std::variant<MeshSettings, int> parseMesh(const std::vector<std::string>& args) 
   return s;
 }
 
-}  // namespace
-
-int runRodsFromMesh(const std::vector<std::string>& args) {
-  auto parsed = parseMesh(args);
-  if (const int* code = std::get_if<int>(&parsed)) return *code;
-  const MeshSettings& s = std::get<MeshSettings>(parsed);
-  commandLineAccepted();
-  const ThreadLimit limit(s.threads);
+// The rods made from the mesh, written and reported; the exit code.
+int meshToRods(const MeshSettings& s) {
   std::string profileName;
   std::array<double, 3> trayMm{};
   if (!loadTrayProfile("rods-from-mesh", s.profile, trayMm, profileName)) return kFailed;
@@ -92,5 +81,9 @@ int runRodsFromMesh(const std::vector<std::string>& args) {
   else printMeshRodsLines(summary);
   return kOk;
 }
+
+}  // namespace
+
+int runRodsFromMesh(const std::vector<std::string>& args) { return runAccepted(parseMesh(args), meshToRods); }
 
 }  // namespace rodfab::cli

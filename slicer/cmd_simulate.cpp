@@ -26,18 +26,16 @@ struct SimulateSettings {
 };
 
 // The settings from the command line, or the exit code of a usage error or --help.
-std::variant<SimulateSettings, int> parseSimulate(const std::vector<std::string>& args) {
+Parsed<SimulateSettings> parseSimulate(const std::vector<std::string>& args) {
   po::options_description options("options");
   options.add_options()
-      ("design", po::value<std::string>()->required(), "design file with a \"mechanics\" block (supports, loads)")
-      ("output,o", po::value<std::string>()->required(), "deformed design to write (rodfab.design/1, with orientation splines)");
+      ("design", po::value<std::string>()->required()->value_name("DESIGN.json"), "design file with a \"mechanics\" block (supports, loads)")
+      ("output,o", po::value<std::string>()->required()->value_name("DEFORMED.json"), "deformed design to write (rodfab.design/1, with orientation splines)");
   addSolverOptions(options);
   options.add_options()("json", "print the convergence history and summary as JSON on stdout");
   addThreadsOption(options, "they assemble the equations; the result does not depend on their number");
   po::variables_map vm;
-  const char* synopsis = "DESIGN.json --output DEFORMED.json [--degree 6] [--spans N] [--refine N] [--load-steps N] [--accuracy 1e-4] "
-      "[--max-refinements N] [--no-estimate] [--follow-stable-branch] [--tolerance 1e-10] [--max-iterations 30] [--threads N] [--json]";
-  if (auto code = parseOptionsWithInput("simulate", synopsis, options, "design", args, vm)) return *code;
+  if (auto code = parseOptionsWithInput("simulate", options, "design", args, vm)) return *code;
   SimulateSettings s;
   s.design = vm["design"].as<std::string>(), s.output = vm["output"].as<std::string>();
   const std::optional<SolverSettings> solver = solverSettings("simulate", vm);
@@ -72,17 +70,8 @@ std::optional<mechanics::Simulation> simulate(const SimulateSettings& s, const m
   return std::nullopt;
 }
 
-}  // namespace
-
-int runSimulate(const std::vector<std::string>& args) {
-  auto parsed = parseSimulate(args);
-  if (const int* code = std::get_if<int>(&parsed)) return *code;
-  const SimulateSettings& s = std::get<SimulateSettings>(parsed);
-  commandLineAccepted();
-  const ThreadLimit limit(s.threads);
-  const std::optional<mechanics::Design> read = readDesignOrReport(s.design, "nothing was written");
-  if (!read) return kFailed;
-  const mechanics::Design& design = *read;
+// The simulation of `design`, the deformed design written and the summary printed; the exit code.
+int simulateDesign(const SimulateSettings& s, const mechanics::Design& design) {
   // An existing design is replaced only when rodfab wrote it, and never the input.
   if (!outputAllowed(s.output, {s.design}, {"deformed design", true, "", geometry::isDesignFile})) return kFailed;
   if (!s.json)
@@ -104,5 +93,9 @@ int runSimulate(const std::vector<std::string>& args) {
   else printSimulationSummary(summary);
   return kOk;
 }
+
+}  // namespace
+
+int runSimulate(const std::vector<std::string>& args) { return runOnDesign(parseSimulate(args), simulateDesign); }
 
 }  // namespace rodfab::cli

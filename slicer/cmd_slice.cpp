@@ -18,24 +18,19 @@ namespace rodfab::cli {
 
 namespace {
 
-std::optional<JobCommandOptions> parseSlice(const std::vector<std::string>& args, po::variables_map& vm, int& exitCode) {
+Parsed<JobCommandOptions> parseSlice(const std::vector<std::string>& args, po::variables_map& vm) {
   po::options_description options("options");
-  options.add_options()("design", po::value<std::string>()->required(), "design file (rodfab.design/1 JSON)");
+  options.add_options()("design", po::value<std::string>()->required()->value_name("DESIGN.json"), "design file (rodfab.design/1 JSON)");
   addJobOutputOptions(options);
-  options.add_options()("support", po::value<std::string>(), "printer | explicit (default: the profile's)");
+  options.add_options()("support", po::value<std::string>()->value_name("printer|explicit"), "printer | explicit (default: the profile's)");
   addCalibrationOptions(options);
   addDitherOptions(options, nullptr,
                    "white | blue | error-diffusion (default: the ditherer the calibration coupons were printed with)");
   addProfileOptions(options);
-  po::positional_options_description positional;
-  positional.add("design", 1);
-  const char* synopsis =
-      "DESIGN.json --output JOB.zip|JOB.gcvf [--profile NAME|FILE] [--print-mode MODE] [--calibration CAL.json] [--dither white|blue|error-diffusion] "
-      "[--seed N] [--threads N] [--band-layers N] [--format zip|dir] [--image-format bmp|png] [--support printer|explicit] "
-      "[--allow-calibration-materials-mismatch] [--force] [--quiet] [--json]";
-  if (auto code = parseOptions("slice", synopsis, options, positional, args, vm)) return exitCode = *code, std::nullopt;
-  exitCode = kUsage;
-  return jobCommandOptions("slice", vm);
+  if (auto code = parseOptionsWithInput("slice", options, "design", args, vm)) return *code;
+  std::optional<JobCommandOptions> job = jobCommandOptions("slice", vm);
+  if (!job) return kUsage;
+  return *std::move(job);
 }
 
 // --dither, or the ditherer the calibration's coupons were printed with (white when it does not say);
@@ -66,16 +61,11 @@ slicer::SliceSettings sliceSettings(const std::string& designFile, const ChosenC
   return settings;
 }
 
-}  // namespace
-
-int runSlice(const std::vector<std::string>& args) {
-  po::variables_map vm;
-  int exitCode = kOk;
-  const std::optional<JobCommandOptions> options = parseSlice(args, vm, exitCode);
-  if (!options) return exitCode;
+// The job: every input checked before anything is written, then sliced, summarized; the exit code.
+int slice(const po::variables_map& vm, const JobCommandOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   // One limit for every stage (TBB arenas, the writer's encoders); results do not depend on it.
-  const ThreadLimit threadLimit(options->threads);
+  const ThreadLimit threadLimit(options.threads);
 
   // Inputs: every one is checked before anything is written.
   const std::string designFile = vm["design"].as<std::string>();
@@ -90,12 +80,12 @@ int runSlice(const std::vector<std::string>& args) {
   if (!ditherer) return kUsage;
 
   // The output is refused now (a user's folder, a job without --force) rather than after the work.
-  printer_profiles::checkJobOutput(options->job);
+  printer_profiles::checkJobOutput(options.job);
   common::installInterruptHandlers();
   SliceSummary summary{designFile, design->rods.size(), &*profile, &*cal, std::string(ditherer->name()),
                        vm["seed"].as<Seed>().value};
-  slicer::SliceSettings settings = sliceSettings(designFile, *cal, summary.seed, *options);
-  BandProgress progress(options->quiet);
+  slicer::SliceSettings settings = sliceSettings(designFile, *cal, summary.seed, options);
+  BandProgress progress(options.quiet);
   settings.onBand = [&](int done, int total) {
     progress.update(done, total);
     common::throwIfInterrupted();
@@ -106,8 +96,15 @@ int runSlice(const std::vector<std::string>& args) {
   summary.totalSeconds = common::secondsSince(start);
   summary.inputSeconds += report.prepareSeconds;
   common::registerCleanup(report.job.path);  // until the command returns, a signal still removes the job
-  printSliceSummary(summary, report, *options);
+  printSliceSummary(summary, report, options);
   return finishJob("slice", report.job);
+}
+
+}  // namespace
+
+int runSlice(const std::vector<std::string>& args) {
+  po::variables_map vm;
+  return runParsed(parseSlice(args, vm), [&](const JobCommandOptions& options) { return slice(vm, options); });
 }
 
 }  // namespace rodfab::cli

@@ -23,12 +23,10 @@ std::string formatPoint(const geometry::Vec3& p) {
 int runValidate(const std::vector<std::string>& args) {
   po::options_description options("options");
   options.add_options()
-      ("design", po::value<std::string>()->required(), "design file (rodfab.design/1 JSON)")
+      ("design", po::value<std::string>()->required()->value_name("DESIGN.json"), "design file (rodfab.design/1 JSON)")
       ("json", "print the summary as JSON on stdout");
-  po::positional_options_description positional;
-  positional.add("design", 1);
   po::variables_map vm;
-  if (auto code = parseOptions("validate", "DESIGN.json [--json]", options, positional, args, vm)) return *code;
+  if (auto code = parseOptionsWithInput("validate", options, "design", args, vm)) return *code;
 
   commandLineAccepted();
   const std::string file = vm["design"].as<std::string>();

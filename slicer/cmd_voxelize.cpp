@@ -22,9 +22,9 @@ namespace {
 
 void addVoxelizeOptions(po::options_description& options) {
   options.add_options()
-      ("design", po::value<std::string>()->required(), "design file (rodfab.design/1 JSON)")
-      ("output,o", po::value<std::string>()->required(), "grid file to write (.vdb, grid \"modulus_mpa\")")
-      ("voxel-size", po::value<std::string>(),
+      ("design", po::value<std::string>()->required()->value_name("DESIGN.json"), "design file (rodfab.design/1 JSON)")
+      ("output,o", po::value<std::string>()->required()->value_name("GRID.vdb"), "grid file to write (.vdb, grid \"modulus_mpa\")")
+      ("voxel-size", po::value<std::string>()->value_name("X,Y,Z"),
        "voxel size X,Y,Z in mm (z = build direction) instead of a printer profile's voxel")
       ("json", "print the statistics as JSON on stdout");
   addThreadsOption(options, "the grid is the same for any count");
@@ -49,12 +49,8 @@ bool gridFile(const std::filesystem::path& p) { return voxel::isGridFile(p.strin
 }  // namespace
 
 int runVoxelize(const std::vector<std::string>& args) {
-  po::options_description options("options");
-  addVoxelizeOptions(options);
   po::variables_map vm;
-  const char* synopsis =
-      "DESIGN.json --output GRID.vdb [--profile NAME|FILE] [--print-mode MODE] [--voxel-size X,Y,Z] [--threads N] [--json]";
-  if (auto code = parseOptionsWithInput("voxelize", synopsis, options, "design", args, vm)) return *code;
+  if (auto code = parseOptionsWithInput("voxelize", addVoxelizeOptions, "design", args, vm)) return *code;
   auto voxelSizeOrCode = voxelSizeOption(vm);
   if (const int* code = std::get_if<int>(&voxelSizeOrCode)) return *code;
   std::optional<openvdb::Vec3d> voxelSize = std::get<0>(voxelSizeOrCode);

@@ -15,11 +15,13 @@ enum ExitCode : int {
   kUsage = 2,   // bad command line
 };
 
+// A command's run: `args` excludes the program and subcommand names; returns the exit code.
+using RunCommand = int(const std::vector<std::string>& args);
+
 struct Command {
   const char* name;
   const char* summary;
-  // `args` excludes the program and subcommand names.
-  int (*run)(const std::vector<std::string>& args);
+  RunCommand* run;
 };
 
 // Every command, in the order `rodfab` lists them; nullptr for an unknown name.
@@ -31,17 +33,8 @@ void printUsage(std::ostream& out);
 // 128 + signal; out of memory and other errors: kFailed). Does not install handlers or a budget.
 int runCommand(const Command& command, const std::vector<std::string>& args);
 
-int runValidate(const std::vector<std::string>& args);
-int runVoxelize(const std::vector<std::string>& args);
-int runSlice(const std::vector<std::string>& args);
-int runCoupons(const std::vector<std::string>& args);
-int runCalibrate(const std::vector<std::string>& args);
-int runProfiles(const std::vector<std::string>& args);
-int runInspect(const std::vector<std::string>& args);
-int runDitherReport(const std::vector<std::string>& args);
-int runSimulate(const std::vector<std::string>& args);
-int runOptimize(const std::vector<std::string>& args);
-int runRodsFromMesh(const std::vector<std::string>& args);
-int runRodsFromCad(const std::vector<std::string>& args);
+// The commands' runs, one per cmd_*.cpp.
+RunCommand runValidate, runVoxelize, runSlice, runCoupons, runCalibrate, runProfiles, runInspect, runDitherReport,
+    runSimulate, runOptimize, runRodsFromMesh, runRodsFromCad;
 
 }  // namespace rodfab::cli

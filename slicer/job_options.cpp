@@ -20,10 +20,10 @@ std::string formatCount(std::uint64_t n) {
 
 void addJobOutputOptions(po::options_description& options) {
   options.add_options()
-      ("output,o", po::value<std::string>()->required(), "the job: NAME.zip, or a folder with --format dir")
-      ("format", po::value<std::string>()->default_value("zip"), "zip | dir")
-      ("image-format", po::value<std::string>(), "bmp | png (default: the profile's)")
-      ("band-layers", po::value<int>()->default_value(0),
+      ("output,o", po::value<std::string>()->required()->value_name("JOB.zip|JOB.gcvf"), "the job: NAME.zip, or a folder with --format dir")
+      ("format", po::value<std::string>()->default_value("zip")->value_name("zip|dir"), "zip | dir")
+      ("image-format", po::value<std::string>()->value_name("bmp|png"), "bmp | png (default: the profile's)")
+      ("band-layers", po::value<int>()->default_value(0)->value_name("N"),
        "layers per streamed band (0 = automatic: 64, fewer for parts with large layers, to bound memory)")
       ("force", "replace an existing job at --output")
       ("quiet,q", "no progress bar or progress lines and no notes on stderr (the summary, warnings and errors are still printed)")
@@ -32,11 +32,10 @@ void addJobOutputOptions(po::options_description& options) {
 }
 
 void addDitherOptions(po::options_description& options, const char* defaultDither, const std::string& ditherHelp) {
-  if (defaultDither)
-    options.add_options()("dither", po::value<std::string>()->default_value(defaultDither), ditherHelp.c_str());
-  else
-    options.add_options()("dither", po::value<std::string>(), ditherHelp.c_str());
-  options.add_options()("seed", po::value<Seed>()->default_value(Seed{0}), "dithering seed");
+  auto* dither = po::value<std::string>()->value_name("white|blue|error-diffusion");
+  if (defaultDither) dither->default_value(defaultDither);
+  options.add_options()("dither", dither, ditherHelp.c_str());
+  options.add_options()("seed", po::value<Seed>()->default_value(Seed{0})->value_name("N"), "dithering seed");
 }
 
 std::optional<std::string> parseJobOptions(const po::variables_map& vm, printer_profiles::JobOptions& out) {
@@ -131,18 +130,22 @@ void printMaterialLines(const printer_profiles::JobResult& job) {
                 formatCount(m.voxels).c_str(), m.volumeMl, m.massG);
 }
 
+nlohmann::json materialTotalsJson(const std::vector<printer_profiles::MaterialTotals>& materials) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& m : materials)
+    out.push_back({{"name", m.name}, {"role", printer_profiles::toString(m.role)}, {"voxels", m.voxels},
+                   {"volume_ml", m.volumeMl}, {"mass_g", m.massG}});
+  return out;
+}
+
 nlohmann::json jobJson(const printer_profiles::JobResult& job, const printer_profiles::Profile& profile) {
-  nlohmann::json materials = nlohmann::json::array();
-  for (const auto& m : job.materials)
-    materials.push_back({{"name", m.name}, {"role", printer_profiles::toString(m.role)}, {"voxels", m.voxels},
-                         {"volume_ml", m.volumeMl}, {"mass_g", m.massG}});
   const printer_profiles::JobGeometry& g = job.geometry;
   return {{"job", job.path.string()},
           {"profile", profile.name},
           {"layers", g.layers},
           {"image_size", {g.width, g.height}},
           {"print_height_mm", printHeightMm(job, profile)},
-          {"materials", materials},
+          {"materials", materialTotalsJson(job.materials)},
           {"files", job.files},
           {"bytes", job.bytes}};
 }

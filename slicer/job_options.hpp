@@ -73,6 +73,10 @@ void printPrinterLine(const printer_profiles::Profile& profile, int width);
 void printLayersLine(const printer_profiles::JobResult& job, const printer_profiles::Profile& profile, int width);
 void printMaterialLines(const printer_profiles::JobResult& job);
 
+// Per material, as written (JobResult) or as counted back from a job's images (InspectReport): name,
+// role, voxels, volume_ml, mass_g.
+nlohmann::json materialTotalsJson(const std::vector<printer_profiles::MaterialTotals>& materials);
+
 // The same in --json: job, profile, layers, image_size, print_height_mm, materials, files, bytes.
 nlohmann::json jobJson(const printer_profiles::JobResult& job, const printer_profiles::Profile& profile);
 

@@ -14,24 +14,24 @@ namespace {
 
 void addOptimizeOptions(po::options_description& options) {
   options.add_options()
-      ("design", po::value<std::string>()->required(), "design file with mechanics.load_cases that have a \"target\"")
-      ("output,o", po::value<std::string>()->required(), "optimized design to write (the design with the optimized moduli)")
-      ("calibration", po::value<std::string>(),
+      ("design", po::value<std::string>()->required()->value_name("DESIGN.json"), "design file with mechanics.load_cases that have a \"target\"")
+      ("output,o", po::value<std::string>()->required()->value_name("OPTIMIZED.json"), "optimized design to write (the design with the optimized moduli)")
+      ("calibration", po::value<std::string>()->value_name("CAL.json"),
        "calibration file whose floor and stiffest mix bound E (default: the bundled 60 C fit); the design's "
        "optimize.bounds_mpa takes precedence")
-      ("modulus-controls", po::value<int>()->default_value(0),
+      ("modulus-controls", po::value<int>()->default_value(0)->value_name("N"),
        "B-spline control values of E per rod, 2..64 (0: the design's optimize.modulus_controls, else 4)")
-      ("max-iterations", po::value<int>()->default_value(-1),
+      ("max-iterations", po::value<int>()->default_value(-1)->value_name("N"),
        "L-BFGS-B iterations, 0..100000 (-1: the design's optimize.max_iterations, else 200)")
-      ("start", po::value<std::string>()->default_value("design"),
+      ("start", po::value<std::string>()->default_value("design")->value_name("design|uniform[=MPa]"),
        "the starting modulus: design (the file's E(s), default) or uniform[=MPa] (one E everywhere, as the published "
        "optimizations start; without a value the geometric mean of the bounds)")
-      ("method", po::value<std::string>()->default_value("lbfgsb"),
+      ("method", po::value<std::string>()->default_value("lbfgsb")->value_name("lbfgsb|mma|ccsaq"),
        "the optimizer: lbfgsb (L-BFGS-B, default), mma or ccsaq (NLopt; an iteration is one evaluation)")
-      ("scaling", po::value<std::string>()->default_value("log"),
+      ("scaling", po::value<std::string>()->default_value("log")->value_name("log|linear"),
        "the optimizer's variables: log (equal steps are equal ratios of E; default) or linear in E")
-      ("plot", po::value<std::string>(), "also write the convergence plot (g/g0 against iteration, log scale) to this PNG")
-      ("render", po::value<std::string>(),
+      ("plot", po::value<std::string>()->value_name("HISTORY.png"), "also write the convergence plot (g/g0 against iteration, log scale) to this PNG")
+      ("render", po::value<std::string>()->value_name("SHAPES.png"),
        "also write the shapes to this PNG: per load case the target, the deformed shape with the starting modulus and "
        "with the optimized one, side by side in three views, coloured by E")
       ("json", "print a summary as JSON on stdout instead of the progress lines");
@@ -56,13 +56,9 @@ int parseChoices(const po::variables_map& vm, OptimizeCommand& c) {
 
 }  // namespace
 
-std::variant<OptimizeCommand, int> parseOptimize(const std::vector<std::string>& args) {
-  po::options_description options("options");
-  addOptimizeOptions(options);
+Parsed<OptimizeCommand> parseOptimize(const std::vector<std::string>& args) {
   po::variables_map vm;
-  const char* synopsis = "DESIGN.json --output OPTIMIZED.json [--calibration CAL.json] [--modulus-controls N] "
-                         "[--max-iterations N] [--start design|uniform[=MPa]] [--method lbfgsb|mma|ccsaq] [--scaling log|linear] [--threads N] [--plot HISTORY.png] [--render SHAPES.png] [--json]";
-  if (auto code = parseOptionsWithInput("optimize", synopsis, options, "design", args, vm)) return *code;
+  if (auto code = parseOptionsWithInput("optimize", addOptimizeOptions, "design", args, vm)) return *code;
   OptimizeCommand c;
   c.design = vm["design"].as<std::string>(), c.output = vm["output"].as<std::string>();
   c.calibration = vm.count("calibration") ? vm["calibration"].as<std::string>() : calibration::defaultCalibrationPath().string();

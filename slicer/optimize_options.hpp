@@ -3,6 +3,7 @@
 #pragma once
 
 #include "calibration/calibration.hpp"
+#include "slicer/options.hpp"
 #include "mechanics/mechanics.hpp"
 #include "optimize/optimize.hpp"
 
@@ -29,7 +30,7 @@ struct OptimizeCommand {
 // printed naming the option: --modulus-controls 0 or 2..64, --max-iterations -1..100000, --scaling
 // log|linear, --method lbfgsb|mma|ccsaq, --start design|uniform[=MPa], --plot and --render two
 // different non-empty names) or --help (0).
-std::variant<OptimizeCommand, int> parseOptimize(const std::vector<std::string>& args);
+Parsed<OptimizeCommand> parseOptimize(const std::vector<std::string>& args);
 
 // The optimizer's settings: defaults, the calibration's bounds, the design's optimize block, the
 // command line, in rising precedence.

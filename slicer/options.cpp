@@ -49,14 +49,50 @@ std::string parseErrorMessage(const po::error& error, const std::vector<std::str
   return "the command line could not be read (an argument contains '%')";
 }
 
+// An option's value name as --help shows it, without the " (=default)" Boost appends.
+std::string valueName(const po::option_description& option) {
+  const std::string name = option.semantic()->name();
+  return name.substr(0, name.find(" (="));
+}
+
+// "[word]": an optional part of a synopsis. (Built by appending: GCC 12 warns falsely, -Wrestrict,
+// on "[" + std::string&&.)
+std::string bracketed(const std::string& word) {
+  std::string out = "[";
+  out += word;
+  out += ']';
+  return out;
+}
+
 }  // namespace
 
-std::optional<int> parseOptions(const std::string& command, const std::string& synopsis,
-                                po::options_description& options, const po::positional_options_description& positional,
+std::string synopsisOf(const po::options_description& options, const po::positional_options_description& positional) {
+  std::string out;
+  const auto append = [&](const std::string& word) { out += (out.empty() ? "" : " ") + word; };
+  std::vector<std::string> positionalNames;
+  for (unsigned i = 0; i < positional.max_total_count(); ++i) {
+    const std::string& name = positional.name_for_position(i);
+    const po::option_description& option = options.find(name, false);
+    positionalNames.push_back(name);
+    const std::string value = valueName(option);
+    append(option.semantic()->is_required() ? value : bracketed(value));
+  }
+  for (const auto& option : options.options()) {
+    if (std::ranges::find(positionalNames, option->long_name()) != positionalNames.end()) continue;
+    std::string word = "--" + option->long_name();
+    if (option->semantic()->max_tokens() > 0) word += ' ' + valueName(*option);
+    append(option->semantic()->is_required() ? word : bracketed(word));
+  }
+  return out;
+}
+
+std::optional<int> parseOptions(const std::string& command, po::options_description& options,
+                                const po::positional_options_description& positional,
                                 const std::vector<std::string>& args, po::variables_map& vm,
                                 const po::options_description* hidden) {
+  const std::string synopsis = synopsisOf(options, positional);
   options.add_options()("help,h", "show this help")
-      ("max-memory", po::value<std::string>(),
+      ("max-memory", po::value<std::string>()->value_name("SIZE"),
        "memory budget, e.g. 8G or 512M (default: 80 % of this machine's memory); work beyond it is refused");
   try {
     storeArguments(args, options, positional, hidden, vm);
@@ -84,11 +120,20 @@ std::optional<int> parseOptions(const std::string& command, const std::string& s
   return std::nullopt;
 }
 
-std::optional<int> parseOptionsWithInput(const std::string& command, const std::string& synopsis, po::options_description& options,
-                                           const std::string& positional, const std::vector<std::string>& args, po::variables_map& vm) {
+std::optional<int> parseOptionsWithInput(const std::string& command, po::options_description& options,
+                                         const std::string& positional, const std::vector<std::string>& args,
+                                         po::variables_map& vm) {
   po::positional_options_description one;
   one.add(positional.c_str(), 1);
-  return parseOptions(command, synopsis, options, one, args, vm);
+  return parseOptions(command, options, one, args, vm);
+}
+
+std::optional<int> parseOptionsWithInput(const std::string& command, void (*declare)(po::options_description&),
+                                         const std::string& positional, const std::vector<std::string>& args,
+                                         po::variables_map& vm) {
+  po::options_description options("options");
+  declare(options);
+  return parseOptionsWithInput(command, options, positional, args, vm);
 }
 
 int usageError(const std::string& command, const std::string& message) {
@@ -114,7 +159,7 @@ std::optional<int> threadCount(const std::string& command, const po::variables_m
 }
 
 void addThreadsOption(po::options_description& options, const std::string& what) {
-  options.add_options()("threads", po::value<int>()->default_value(0),
+  options.add_options()("threads", po::value<int>()->default_value(0)->value_name("N"),
                         ("worker threads, 0 = all cores, at most " + std::to_string(kMaxThreads) + "; " + what).c_str());
 }
 

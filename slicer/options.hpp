@@ -2,6 +2,7 @@
 #pragma once
 
 #include "common/output_file.hpp"
+#include "slicer/command.hpp"
 #include "geometry/rod.hpp"
 #include "mechanics/mechanics_spec.hpp"
 
@@ -13,24 +14,38 @@
 #include <optional>
 #include <ostream>
 #include <string>
+#include <utility>
+#include <variant>
 #include <vector>
 
 namespace rodfab::cli {
 
 namespace po = boost::program_options;
 
+// A command's synopsis, built from its options so that the two cannot drift: the positional arguments
+// first, as their value names ("DESIGN.json"; "[PROFILE]" when optional), then every option in the order
+// declared: "--name VALUE" when required, "[--name VALUE]" otherwise, "[--name]" for a flag. VALUE is
+// the option's value_name(), which every option that takes a value sets (Boost's "arg" otherwise).
+std::string synopsisOf(const po::options_description& options, const po::positional_options_description& positional);
+
 // Parses `args` against `options` (+ positionals), which gain --help and --max-memory (applied here:
-// common::setMemoryBudget). Prints help and returns kOk for --help, prints a
-// usage error and returns kUsage for bad options; returns nullopt when the command should go on.
-// `hidden` (optional) holds options accepted but not listed by --help (old spellings).
-std::optional<int> parseOptions(const std::string& command, const std::string& synopsis,
-                                po::options_description& options, const po::positional_options_description& positional,
+// common::setMemoryBudget; neither is in the synopsis). Prints "usage: rodfab COMMAND SYNOPSIS" (synopsisOf)
+// and the options and returns kOk for --help, prints a usage error with the synopsis and returns kUsage
+// for bad options; returns nullopt when the command should go on.
+// `hidden` (optional) holds options accepted but not listed by --help nor the synopsis (old spellings).
+std::optional<int> parseOptions(const std::string& command, po::options_description& options,
+                                const po::positional_options_description& positional,
                                 const std::vector<std::string>& args, po::variables_map& vm,
                                 const po::options_description* hidden = nullptr);
 // parseOptions for a command whose one positional argument is the value of the option named `positional`
 // (its input file: "design", "mesh", ...).
-std::optional<int> parseOptionsWithInput(const std::string& command, const std::string& synopsis, po::options_description& options,
-                                           const std::string& positional, const std::vector<std::string>& args, po::variables_map& vm);
+std::optional<int> parseOptionsWithInput(const std::string& command, po::options_description& options,
+                                         const std::string& positional, const std::vector<std::string>& args,
+                                         po::variables_map& vm);
+// The same for a command whose options `declare` adds to an options_description("options").
+std::optional<int> parseOptionsWithInput(const std::string& command, void (*declare)(po::options_description&),
+                                         const std::string& positional, const std::vector<std::string>& args,
+                                         po::variables_map& vm);
 
 // Prints "rodfab COMMAND: MESSAGE" and where the options are listed; returns kUsage.
 int usageError(const std::string& command, const std::string& message);
@@ -91,6 +106,39 @@ private:
   int workers_;
   std::unique_ptr<tbb::global_control> control_;
 };
+
+// A parsed command line: the command's settings, or the exit code to return at once (kOk after
+// --help, kUsage after a usage error).
+template <class Settings>
+using Parsed = std::variant<Settings, int>;
+
+// The exit code `parsed` holds, or `work(settings)`: a command's run is its parser and its work.
+template <class Settings, class Work>
+int runParsed(const Parsed<Settings>& parsed, Work&& work) {
+  if (const int* code = std::get_if<int>(&parsed)) return *code;
+  return std::forward<Work>(work)(std::get<Settings>(parsed));
+}
+
+// runParsed for settings with a thread count (`threads`, checked): `work(settings)` runs once the command
+// line is accepted (commandLineAccepted) and under that ThreadLimit.
+template <class Settings, class Work>
+int runAccepted(const Parsed<Settings>& parsed, Work&& work) {
+  return runParsed(parsed, [&](const Settings& settings) {
+    commandLineAccepted();
+    const ThreadLimit limit(settings.threads);
+    return work(settings);
+  });
+}
+
+// runAccepted for settings that also name a design file (`design`): `work(settings, design)` with the
+// design read (mechanics::readDesign), or kFailed after readDesignOrReport printed why it could not be.
+template <class Settings, class Work>
+int runOnDesign(const Parsed<Settings>& parsed, Work&& work) {
+  return runAccepted(parsed, [&](const Settings& settings) {
+    const std::optional<mechanics::Design> design = readDesignOrReport(settings.design, "nothing was written");
+    return design ? work(settings, *design) : static_cast<int>(kFailed);
+  });
+}
 
 // Checks that `output` may be written under `policy` (common::checkOutputPath); prints the reason and
 // "nothing was written" and returns false otherwise (the command exits kFailed).

@@ -6,9 +6,9 @@ namespace rodfab::cli {
 
 void addProfileOptions(po::options_description& options) {
   options.add_options()
-      ("profile", po::value<std::string>()->default_value(kDefaultProfileName),
+      ("profile", po::value<std::string>()->default_value(kDefaultProfileName)->value_name("NAME|FILE"),
        "printer profile: a bundled name (rodfab profiles lists them) or a profile file")
-      ("print-mode", po::value<std::string>(),
+      ("print-mode", po::value<std::string>()->value_name("MODE"),
        "the printer's print mode, for profiles that have several (e.g. high-speed | high-mix); default: the profile's first");
 }
 

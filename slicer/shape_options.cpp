@@ -11,11 +11,11 @@ namespace rodfab::cli {
 
 void addRodShapeOptions(po::options_description& options) {
   options.add_options()
-      ("section", po::value<std::string>()->default_value("circle"), "circle | ellipse | rectangle")
-      ("breadth", po::value<double>(), "ellipse or rectangle: the size along the frame's d2 (mm; default: --diameter)")
-      ("modulus", po::value<double>()->default_value(120.0), "Young's modulus of every rod (MPa)")
-      ("caps", po::value<std::string>()->default_value("round"), "rod ends: round | flat")
-      ("profile", po::value<std::string>()->default_value(kDefaultProfileName),
+      ("section", po::value<std::string>()->default_value("circle")->value_name("circle|ellipse|rectangle"), "circle | ellipse | rectangle")
+      ("breadth", po::value<double>()->value_name("B"), "ellipse or rectangle: the size along the frame's d2 (mm; default: --diameter)")
+      ("modulus", po::value<double>()->default_value(120.0)->value_name("E"), "Young's modulus of every rod (MPa)")
+      ("caps", po::value<std::string>()->default_value("round")->value_name("round|flat"), "rod ends: round | flat")
+      ("profile", po::value<std::string>()->default_value(kDefaultProfileName)->value_name("NAME|FILE"),
        "printer profile whose tray the result is checked against (a warning when it does not fit)");
 }
 

@@ -45,20 +45,20 @@ bool readSolver(const std::string& command, const po::variables_map& vm, mechani
 
 void addSolverOptions(po::options_description& options) {
   options.add_options()
-      ("degree", po::value<int>()->default_value(6),
+      ("degree", po::value<int>()->default_value(6)->value_name("N"),
        "B-spline degree of the solver's basis (even degrees converge best); 0 keeps each centerline's own NURBS")
-      ("spans", po::value<int>()->default_value(0),
+      ("spans", po::value<int>()->default_value(0)->value_name("N"),
        "knot spans per rod (0: automatic, from each rod's slenderness, drawn curvature and modulus field)")
-      ("refine", po::value<int>()->default_value(-1),
+      ("refine", po::value<int>()->default_value(-1)->value_name("N"),
        "with --degree 0: knots inserted into every span of the design's centerlines (-1: automatic)")
-      ("accuracy", po::value<double>()->default_value(1e-4),
+      ("accuracy", po::value<double>()->default_value(1e-4)->value_name("TOL"),
        "target for the estimated position error over the largest displacement; a warning when above")
-      ("max-refinements", po::value<int>()->default_value(2), "doublings of every rod's spans while above --accuracy")
+      ("max-refinements", po::value<int>()->default_value(2)->value_name("N"), "doublings of every rod's spans while above --accuracy")
       ("no-estimate", "solve once on the basis as chosen: no error estimate, no refinement")
       ("follow-stable-branch", "after a bifurcation, perturb along the critical mode and continue on the stable branch")
-      ("load-steps", po::value<int>()->default_value(0), "load steps (0: the design's mechanics.load_steps)")
-      ("tolerance", po::value<double>()->default_value(1e-10), "Newton tolerance on the scaled residual or correction")
-      ("max-iterations", po::value<int>()->default_value(30), "Newton iterations per load step before the step is cut");
+      ("load-steps", po::value<int>()->default_value(0)->value_name("N"), "load steps (0: the design's mechanics.load_steps)")
+      ("tolerance", po::value<double>()->default_value(1e-10)->value_name("TOL"), "Newton tolerance on the scaled residual or correction")
+      ("max-iterations", po::value<int>()->default_value(30)->value_name("N"), "Newton iterations per load step before the step is cut");
 }
 
 std::optional<SolverSettings> solverSettings(const std::string& command, const po::variables_map& vm) {
