@@ -1,4 +1,5 @@
 #include "examples/example_designs.hpp"
+#include "mechanics/mechanics.hpp"
 
 #include <algorithm>
 #include <array>
@@ -254,8 +255,11 @@ RodStructure armCast() {
     return Vec3(q.y(), kRadius * std::cos(theta), kRadius * std::sin(theta));
   };
   auto modulusAt = [&](double s) {
-    const double t = std::abs(s / arcLength - 0.5) * 2.0;  // 0 on the crown, 1 on the rims
-    return 8.0 + 112.0 * t * t;
+    // 0 on the crown, 1 on the rims. The crown at 39 MPa, the middle of the printable 8..190 MPa on
+    // a log scale: with 8 or 12 MPa there (a rim-to-crown contrast of 15 or 10) the flattening with
+    // clamped, turned rims meets a limit point at 75 or 80 % of the load (optimize/README.md).
+    const double t = std::abs(s / arcLength - 0.5) * 2.0;
+    return 39.0 + 81.0 * t * t;
   };
   RodStructure cast;
   cast.source = "arm-cast";
@@ -333,7 +337,11 @@ mechanics::MechanicsSpec unfoldingBoxTraining(double force) {
   return spec;
 }
 
-mechanics::MechanicsSpec bucklingSpringTraining(const SpringParameters& p, double compression) {
+namespace {
+
+// The spring's bottom-ring nodes clamped and `pushed` equidistant top-ring nodes pinned and moved
+// down by `compression` of its height.
+mechanics::MechanicsSpec springCompressedAt(const SpringParameters& p, double compression, int pushed) {
   mechanics::MechanicsSpec spec = trainingSpec(20);
   const double dTheta = 2.0 * kPi / p.nodesAround;
   auto node = [&](int i, int level) {  // as nodeAngle in bucklingSpring()
@@ -342,10 +350,20 @@ mechanics::MechanicsSpec bucklingSpringTraining(const SpringParameters& p, doubl
   };
   for (int i = 0; i < p.nodesAround; ++i)
     spec.supports.push_back(support(node(i, 0), spec.supports.size(), mechanics::SupportKind::Clamped));
-  for (int k = 0; k < 4; ++k)
-    spec.supports.push_back(support(node(k * p.nodesAround / 4, p.levels), spec.supports.size(), mechanics::SupportKind::Pinned,
+  for (int k = 0; k < pushed; ++k)
+    spec.supports.push_back(support(node(k * p.nodesAround / pushed, p.levels), spec.supports.size(), mechanics::SupportKind::Pinned,
                                     Vec3(0, 0, -compression * p.height)));
   return spec;
+}
+
+}  // namespace
+
+mechanics::MechanicsSpec bucklingSpringTraining(const SpringParameters& p, double compression) {
+  return springCompressedAt(p, compression, 4);
+}
+
+mechanics::MechanicsSpec bucklingSpringUniformCompression(const SpringParameters& p, double compression) {
+  return springCompressedAt(p, compression, p.nodesAround);
 }
 
 mechanics::MechanicsSpec armCastTraining(double fraction) {
@@ -366,7 +384,11 @@ mechanics::MechanicsSpec armCastTraining(double fraction) {
   for (const Vec3& p : rimEnds) {
     const double side = p.y() > 0 ? 1.0 : -1.0;
     const Vec3 flat(p.x(), side * kRadius * kPi / 2, kRadius);
-    spec.supports.push_back(support(p, spec.supports.size(), mechanics::SupportKind::Pinned, fraction * (flat - p)));
+    // Held flat, as hands would: clamped and turned a quarter turn about the cast's axis (x), so the
+    // strip's d1, the surface normal (+-y on the rims), becomes +z. Pinned rims keep their curl.
+    mechanics::Support held = support(p, spec.supports.size(), mechanics::SupportKind::Clamped, fraction * (flat - p));
+    held.rotation = Vec3(fraction * side * kPi / 2, 0, 0);
+    spec.supports.push_back(held);
   }
   return spec;
 }
@@ -427,6 +449,28 @@ mechanics::LoadCase sortedByName(mechanics::LoadCase lc) {
   return lc;
 }
 
+// The shape `design` takes under its mechanics block, simulated as `rodfab simulate` does with its
+// defaults (degree 6, automatic spans, error estimate): every rod's solved centerline and frames.
+// Throws std::runtime_error when the estimate is missing or above the default accuracy, so a
+// target is never a poorly resolved solve.
+std::vector<mechanics::TargetRod> simulatedShape(const mechanics::Design& design) {
+  const mechanics::AccuracyOptions accuracy;
+  const mechanics::Simulation sim = mechanics::simulate(design, {}, {}, design.mechanics.loadSteps, accuracy);
+  if (!sim.estimate.available || sim.estimate.relative > accuracy.tolerance)
+    throw std::runtime_error(design.source + ": the simulated target's error estimate is not below " +
+                             std::to_string(accuracy.tolerance) + " (" + sim.estimate.note + ")");
+  const mechanics::Design deformed = sim.problem->deformedStructure(sim.solution.state);
+  std::vector<mechanics::TargetRod> target;
+  for (const Rod& rod : deformed.rods) {
+    mechanics::TargetRod t;
+    t.rod = rod.name();
+    t.centerline = rod.centerline();
+    t.orientation = rod.orientation();
+    target.push_back(std::move(t));
+  }
+  return target;
+}
+
 }  // namespace
 
 mechanics::LoadCase unfoldingBoxFold(double force) {
@@ -453,25 +497,10 @@ mechanics::LoadCase unfoldingBoxFold(double force) {
 }
 
 mechanics::LoadCase bucklingSpringCompression(const SpringParameters& p, double compression) {
-  const RodStructure spring = bucklingSpring(p);
-  auto mapWith = [&](double bulge) {
-    return [&p, compression, bulge](const Vec3& q) {
-      const double r = std::hypot(q.x(), q.y()), grow = (r + bulge * std::sin(kPi * q.z() / p.height)) / r;
-      return Vec3(q.x() * grow, q.y() * grow, (1 - compression) * q.z());
-    };
-  };
-  auto totalLength = [&](double bulge) {
-    double sum = 0;
-    for (const Rod& rod : spring.rods) sum += mappedTarget(rod, mapWith(bulge)).centerline.arcLength();
-    return sum;
-  };
-  // The bulge that keeps the total length: bisection (the length grows with the bulge).
-  double designLength = 0;
-  for (const Rod& rod : spring.rods) designLength += rod.centerline().arcLength();
-  double low = 0.0, high = p.radius;
-  for (int i = 0; i < 60; ++i) (totalLength(0.5 * (low + high)) < designLength ? low : high) = 0.5 * (low + high);
+  mechanics::Design uniform(bucklingSpring(p));
+  uniform.mechanics = bucklingSpringUniformCompression(p, compression);
   mechanics::LoadCase lc = trainingCase("compression", bucklingSpringTraining(p, compression));
-  for (const Rod& rod : spring.rods) lc.target.push_back(mappedTarget(rod, mapWith(0.5 * (low + high))));
+  lc.target = simulatedShape(uniform);
   return sortedByName(std::move(lc));
 }
 

@@ -65,7 +65,7 @@ std::vector<std::string> benchmarkClasses();
 geometry::RodStructure benchmarkDesign(const std::string& name);
 
 // A half-cylindrical hexagonal lattice (an arm cast) of rectangular strips, the strips' width
-// across the surface; stiff along the cast's rim, softer over its crown where it is flattened.
+// across the surface; stiff along the cast's rim (120 MPa), softer over its crown (39 MPa).
 geometry::RodStructure armCast();
 
 // ---- Training cases: each a design's mechanics block (supports, loads, load steps), the
@@ -80,26 +80,40 @@ geometry::RodStructure armCast();
 mechanics::MechanicsSpec unfoldingBoxTraining(double force = 0.03);
 
 // The spring compressed by `compression` (a fraction of its height) through prescribed
-// displacements at four equidistant nodes of its top ring (pinned), the bottom ring's nodes clamped.
+// displacements at four equidistant nodes of its top ring (pinned), the bottom ring's nodes clamped:
+// the published training ("a prescribed displacement on the top of the structure at four
+// equidistant locations").
 mechanics::MechanicsSpec bucklingSpringTraining(const SpringParameters& parameters = {}, double compression = 0.15);
 
-// The cast flattened: the rod ends on its two rims (pinned) moved to where unrolling the half
-// cylinder onto the plane tangent to its crown puts them (`fraction` of the way there).
+// The same compression applied uniformly: every node of the top ring pinned and moved down alike
+// (the published target's "uniform compression of the structure").
+mechanics::MechanicsSpec bucklingSpringUniformCompression(const SpringParameters& parameters = {}, double compression = 0.15);
+
+// The cast flattened: the rod ends on its two rims clamped, moved to where unrolling the half
+// cylinder onto the plane tangent to its crown puts them and turned a quarter turn about the cast's
+// axis so the strips lie in that plane (`fraction` of the way there), as hands hold it flat.
 mechanics::MechanicsSpec armCastTraining(double fraction = 1.0);
 
 // ---- Training targets: the shape each training case should produce (the published target), as a
 // load case {supports and loads of the training case above, target rods} for `rodfab optimize`.
-// Derived from geometry alone (rigid folds, an inextensible compression, an unrolling), never from
-// a simulation. Every rod of the design has a target; the target rods are in name order.
+// The box's and the cast's are derived from geometry alone (rigid folds, an unrolling); the
+// spring's is a mechanical equilibrium (below). Every rod of the design has a target; the target
+// rods are in name order.
 
 // The net folded into a closed box: the four squares next to the middle one turn up by 90 degrees
 // and the lid (beyond the back wall) by another 90, each gap's hinge rods bending into a quarter
 // circle of their own length (radius 2 gap / pi), the squares rigid.
 mechanics::LoadCase unfoldingBoxFold(double force = 0.03);
 
-// The spring compressed uniformly (z -> (1 - compression) z, the training's prescribed displacement)
-// and buckled outwards at mid-height: radius R + b sin(pi z / H), b such that the struts keep their
-// total length (inextensible), the two rings unchanged but for the top one's descent.
+// The spring's training (bucklingSpringTraining: four top nodes pushed down) with, as target, the
+// equilibrium of the graded spring (bucklingSpring(parameters), its own E) under the uniform
+// compression (bucklingSpringUniformCompression): "a uniform compression of the structure,
+// resulting in buckling of the curved rods at the vertical center". Simulated with the mechanics
+// solver as `rodfab simulate` does with its defaults (degree 6, automatic spans, error estimate
+// below 1e-4 or std::runtime_error); each target rod is the solved centerline and orientation.
+// A geometric map (z scaled, a radial bulge) is not used: it turns the rods at every joint, which
+// rigid joints cannot follow (optimize/README.md). Deterministic: the solver's result does not
+// depend on the thread count. Takes a few seconds (one simulation of 36,624 unknowns).
 mechanics::LoadCase bucklingSpringCompression(const SpringParameters& parameters = {}, double compression = 0.15);
 
 // The cast unrolled onto the plane tangent to its crown (z = R): the point at arc length s from the

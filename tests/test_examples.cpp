@@ -247,28 +247,55 @@ TEST_CASE("Unfolding box target: a closed box, squares rigid, hinges bent to qua
   CHECK(bounds.max().z() == Approx(20 + 2 * radius).margin(0.05));
 }
 
-TEST_CASE("Buckling spring target: compressed by 15 %, bulging at mid-height, struts as long in total", "[examples]") {
+TEST_CASE("Buckling spring target: the graded spring's equilibrium under a uniform compression, as the solver finds it", "[examples][mechanics]") {
+  // The committed target against an independent solve of what it claims to be: the graded spring
+  // with every top node moved down by 15 %, simulated as `rodfab simulate` does. They must agree
+  // within the solver's own error estimate, and the solve must show the published shape.
   const examples::SpringParameters p;
-  const geometry::RodStructure spring = examples::bucklingSpring(p);
-  const mechanics::LoadCase c = examples::bucklingSpringCompression(p, 0.15);
-  REQUIRE(c.target.size() == spring.rods.size());
-  double before = 0, after = 0, middle = 0, ends = 0;
+  mechanics::Design uniform(examples::bucklingSpring(p));
+  uniform.mechanics = examples::bucklingSpringUniformCompression(p, 0.15);
+  REQUIRE(uniform.mechanics.supports.size() == 2 * static_cast<std::size_t>(p.nodesAround));
+  const mechanics::Simulation sim = mechanics::simulate(uniform, {}, {}, uniform.mechanics.loadSteps);
+  REQUIRE(sim.solution.steps.back().loadFactor == 1.0);
+  REQUIRE(sim.estimate.available);
+  const double tolerance = sim.estimate.positionError;
+  INFO("estimated position error " << tolerance << " mm (" << sim.estimate.relative << " of the largest displacement)");
+  CHECK(sim.estimate.relative < 1e-4);
+
+  const mechanics::Design committed = mechanics::readDesign(RODFAB_SOURCE_DIR "/examples/buckling-spring.json");
+  REQUIRE(committed.mechanics.loadCases.size() == 1);
+  const mechanics::LoadCase& c = committed.mechanics.loadCases[0];
+  CHECK(c.supports.size() == static_cast<std::size_t>(p.nodesAround) + 4);  // trained at four top nodes
   std::map<std::string, const mechanics::TargetRod*> byName;
   for (const mechanics::TargetRod& t : c.target) byName[t.rod] = &t;
-  for (std::size_t r = 0; r < spring.rods.size(); ++r) {
-    REQUIRE(byName.count(spring.rods[r].name()) == 1);
-    const mechanics::TargetRod& t = *byName[spring.rods[r].name()];
-    before += spring.rods[r].centerline().arcLength(), after += t.centerline.arcLength();
-    const Vec3 from = spring.rods[r].centerline().point(0.5), to = t.centerline.point(0.5);
-    CHECK(to.z() == Approx(0.85 * from.z()).margin(1e-3));
+  REQUIRE(byName.size() == uniform.rods.size());
+  double worst = 0, middle = 0, ends = 0;
+  for (std::size_t r = 0; r < uniform.rods.size(); ++r) {
+    const geometry::NurbsCurve& drawn = uniform.rods[r].centerline();
+    REQUIRE(byName.count(uniform.rods[r].name()) == 1);
+    const mechanics::TargetRod& t = *byName[uniform.rods[r].name()];
+    REQUIRE(t.orientation.has_value());  // the solved frames, so the target curvature includes twist
+    for (int k = 0; k <= 8; ++k) {
+      const double f = k / 8.0;
+      const double u = drawn.domainBegin() + f * (drawn.domainEnd() - drawn.domainBegin());
+      const double v = t.centerline.domainBegin() + f * (t.centerline.domainEnd() - t.centerline.domainBegin());
+      worst = std::max(worst, (t.centerline.point(v) - sim.problem->position(sim.solution.state, r, u)).norm());
+    }
+    // Every top node 15 % lower (the ring arcs' ends); the struts buckled out at mid-height.
+    const Vec3 from = drawn.point(0.5 * (drawn.domainBegin() + drawn.domainEnd()));
+    const Vec3 to = t.centerline.point(0.5 * (t.centerline.domainBegin() + t.centerline.domainEnd()));
+    if (std::abs(drawn.point(drawn.domainBegin()).z() - p.height) < 1e-9) {
+      CHECK(t.centerline.point(t.centerline.domainBegin()).z() == Approx(0.85 * p.height).margin(1e-6));
+      CHECK(t.centerline.point(t.centerline.domainEnd()).z() == Approx(0.85 * p.height).margin(1e-6));
+    }
     const double bulge = std::hypot(to.x(), to.y()) - std::hypot(from.x(), from.y());
     if (std::abs(from.z() - 0.5 * p.height) < 0.1 * p.height) middle = std::max(middle, bulge);
-    if (t.rod.rfind("ring-", 0) == 0) ends = std::max(ends, std::abs(bulge));
+    else if (std::abs(from.z() - 0.5 * p.height) > 0.4 * p.height) ends = std::max(ends, std::abs(bulge));
   }
-  CHECK(after == Approx(before).epsilon(1e-9));
-  INFO("bulge at mid-height " << middle << " mm, of the rings " << ends << " mm");
-  CHECK(middle > 1.0);
-  CHECK(ends < 0.01);
+  INFO("largest distance from the solve " << worst << " mm; bulge at mid-height " << middle << " mm, near the ends " << ends << " mm");
+  CHECK(worst <= tolerance);
+  CHECK(middle > 0.25 * 0.15 * p.height);
+  CHECK(middle > 4 * ends);
 }
 
 TEST_CASE("Arm cast target: unrolled onto the plane of the crown, every strip straight and as long", "[examples]") {
