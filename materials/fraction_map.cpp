@@ -75,14 +75,14 @@ FractionMap::FractionMap(const calibration::Calibration& calibration, std::size_
 }
 
 openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
-                                       MappingStats& stats) {
+                                       MappingStats& stats, const std::function<void()>& checkInterrupt) {
   if (k0 > k1)
     throw std::invalid_argument("modulus to fraction: band of layers [" + std::to_string(k0) + ", " +
                                 std::to_string(k1) + ") is reversed, expected k0 <= k1");
   if (modulus.tree().hasActiveTiles()) {
     const openvdb::FloatGrid::Ptr voxels = modulus.deepCopy();
     voxels->tree().voxelizeActiveTiles();
-    return mapToFractions(*voxels, map, k0, k1, stats);
+    return mapToFractions(*voxels, map, k0, k1, stats, checkInterrupt);
   }
   using detail::FloatLeaf;
   const std::vector<const FloatLeaf*> leaves = detail::leavesInLayers(modulus.tree(), k0, k1);
@@ -90,6 +90,7 @@ openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const 
   std::vector<MappingStats> perLeaf(leaves.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leaves.size()), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t l = r.begin(); l != r.end(); ++l) {
+      if (checkInterrupt) checkInterrupt();
       const FloatLeaf& in = *leaves[l];
       const detail::LeafMask mask = detail::activeInLayers(in, k0, k1);
       if (mask.isOff()) continue;

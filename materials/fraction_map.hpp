@@ -12,6 +12,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 namespace rodfab::materials {
@@ -81,9 +82,11 @@ struct MappingStats {
 
 // Maps the active voxels of layers [k0, k1) (active tiles included); counts clamps per leaf in
 // parallel and sums them, so `stats` is the same for any thread count. Throws std::invalid_argument
-// for k0 > k1.
+// for k0 > k1. `checkInterrupt`, when given, is called before each leaf on whichever thread maps it
+// (so a band of large layers stops within one leaf's work); what it throws stops the other leaves and
+// leaves this function, with `stats` unchanged.
 openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
-                                       MappingStats& stats);
+                                       MappingStats& stats, const std::function<void()>& checkInterrupt = {});
 // The whole grid.
 openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const FractionMap& map, MappingStats& stats);
 

@@ -101,7 +101,7 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
     const voxel::Rasterization ras = rasterizer.rasterizeLayers(k0, k1 + (withNextLayer ? 1 : 0));
     const std::uint64_t clampedBefore = report.mapping.clamps.total();
     for (std::size_t r = 0; r < report.voxelsPerRod.size(); ++r) report.voxelsPerRod[r] += ras.voxelsPerRod[r];
-    BandGrids band{materials::mapToFractions(*ras.grid, fractionMap, k0, k1, report.mapping), ras.grid};
+    BandGrids band{materials::mapToFractions(*ras.grid, fractionMap, k0, k1, report.mapping, common::throwIfInterrupted), ras.grid};
     if (withNextLayer) {
       // Error diffusion reads the next layer's voxels; they are counted with their own band.
       materials::MappingStats ignored;

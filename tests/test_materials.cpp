@@ -641,6 +641,23 @@ TEST_CASE("materials: modulus grids map to fraction grids with counted clamps, b
 
   CHECK_THROWS_AS(mapToFractions(*modulus, map, 4, 2, banded), std::invalid_argument);
 
+  // An interrupt check runs before each leaf: it is called once per leaf of the band when it never
+  // throws, and what it throws at the n-th call leaves mapToFractions with the counts untouched.
+  const openvdb::CoordBBox box = modulus->evalActiveVoxelBoundingBox();
+  const int k0 = box.min().z(), k1 = box.max().z() + 1;
+  std::atomic<int> calls{0};
+  MappingStats counted;
+  mapToFractions(*modulus, map, k0, k1, counted, [&] { ++calls; });
+  CHECK(calls.load() == static_cast<int>(modulus->tree().leafCount()));
+  struct Stop {};
+  for (const int n : {1, 2, calls.load()}) {
+    std::atomic<int> seen{0};
+    MappingStats stopped;
+    CHECK_THROWS_AS(mapToFractions(*modulus, map, k0, k1, stopped, [&] { if (++seen == n) throw Stop{}; }), Stop);
+    CHECK(stopped.voxels == 0);
+    CHECK(stopped.clamps.total() == 0);
+  }
+
   // The mapped fractions dither like any other: the whole chain, modulus to material.
   const auto material = makeDitherer("blue")->dither(*whole);
   CHECK(material->activeVoxelCount() == modulus->activeVoxelCount());
