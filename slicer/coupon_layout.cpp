@@ -4,6 +4,7 @@
 #include "printer_profiles/job_writer.hpp"
 #include "materials/fraction_map.hpp"
 #include "common/interrupt.hpp"
+#include "voxel/printer_grid.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -101,8 +102,9 @@ CouponLayout planCouponLayout(const printer_profiles::Profile& profile, std::siz
 }
 
 std::uint64_t couponJobBytes(const printer_profiles::Profile&, const CouponLayout& layout, int bandLayers) {
-  // Per pixel of a preview view: material (1 byte), depth (4) and modulus (4): printer_profiles/previews.
-  constexpr double kPreviewBytes = 9.0;
+  // The preview views keep only the cells their pixels show, 9 bytes each (material, depth, modulus;
+  // printer_profiles/previews), and the three views share a canvas of about 1400 x 1000 pixels.
+  constexpr double kPreviewBytes = 9.0 * 1400.0 * 1000.0;
   // Per pixel of a layer: the writer's images and encoders, measured (~30 B).
   constexpr double kLayerImageBytes = 30.0;
   // Per voxel of a band, both bands in flight: fractions (float leaves), material (bool leaves). The
@@ -110,15 +112,15 @@ std::uint64_t couponJobBytes(const printer_profiles::Profile&, const CouponLayou
   constexpr double kBandBytes = 5.0;
   const int heldLayers = (bandLayers + kLeafLayers - 1) / kLeafLayers * kLeafLayers;
   const openvdb::Coord d = layout.bounds.dim();
-  const double w = d.x(), h = d.y(), layers = d.z();
-  const double bytes = 64.0 * (1 << 20) + kPreviewBytes * (w * h + w * layers + h * layers) + kLayerImageBytes * w * h +
+  const double w = d.x(), h = d.y();
+  const double bytes = 64.0 * (1 << 20) + kPreviewBytes + kLayerImageBytes * w * h +
                        kBandBytes * (heldLayers + 1.0) * w * h;
   return bytes > 1.8e19 ? std::uint64_t(1.8e19) : static_cast<std::uint64_t>(bytes);
 }
 
 BandSource couponBands(const CouponLayout& layout, const std::vector<double>& fractions,
                        const printer_profiles::Profile& profile, const openvdb::Vec3d& originMm) {
-  return [&layout, &fractions, transform = printer_profiles::gridTransform(profile, originMm)](int k0, int k1, bool withNextLayer) {
+  return [&layout, &fractions, transform = voxel::printerTransform({profile.voxelSizeMm[0], profile.voxelSizeMm[1], profile.voxelSizeMm[2]}, originMm)](int k0, int k1, bool withNextLayer) {
     common::throwIfInterrupted();
     openvdb::FloatGrid::Ptr grid = openvdb::FloatGrid::create(0.0f);
     grid->setName(materials::kFractionGridName);
