@@ -2,6 +2,7 @@
 #include "bench/bench_profile.hpp"
 #include "printer_profiles/deflate.hpp"
 #include "printer_profiles/printer_profiles.hpp"
+#include "voxel/printer_grid.hpp"
 
 #include <benchmark/benchmark.h>
 #include <tbb/global_control.h>
@@ -63,7 +64,7 @@ BENCHMARK(BM_Sha256)->Unit(benchmark::kMicrosecond);
 openvdb::BoolGrid::Ptr rodLattice() {
   openvdb::initialize();
   auto grid = openvdb::BoolGrid::create(false);
-  grid->setTransform(pp::gridTransform(profile(), openvdb::Vec3d(0, 0, 0)));
+  grid->setTransform(rodfab::voxel::printerTransform({profile().voxelSizeMm[0], profile().voxelSizeMm[1], profile().voxelSizeMm[2]}, openvdb::Vec3d(0, 0, 0)));
   auto acc = grid->getAccessor();
   std::mt19937 rng(5);
   std::bernoulli_distribution vero(0.45);

@@ -34,13 +34,6 @@ std::string describeVoxelSize(const openvdb::Vec3d& v) {
 
 }  // namespace
 
-openvdb::math::Transform::Ptr gridTransform(const Profile& profile, const openvdb::Vec3d& originMm) {
-  auto xform = openvdb::math::Transform::createLinearTransform(
-      openvdb::math::scale<openvdb::Mat4d>(openvdb::Vec3d(profile.voxelSizeMm[0], profile.voxelSizeMm[1], profile.voxelSizeMm[2])));
-  xform->postTranslate(originMm);
-  return xform;
-}
-
 fs::path checkJobOutput(const JobOptions& options) {
   fs::path t = options.output;
   if (t.empty()) throw std::invalid_argument("no output path given for the job");

@@ -83,7 +83,7 @@ struct JobSpec {
 
 // Layers [kBegin, kEnd) of the part. `material` holds every model voxel of those layers (active =
 // deposit; true = the rigid material, false = the rubbery one) and nothing outside them; its transform
-// must be the profile's voxel size placed at JobSpec::originMm (see gridTransform). `modulus`
+// must be the profile's voxel size placed at JobSpec::originMm (voxel::printerTransform builds it). `modulus`
 // (optional, MPa) colours the modulus previews.
 struct LayerBand {
   openvdb::BoolGrid::ConstPtr material;
@@ -106,9 +106,6 @@ struct JobResult {
   std::size_t files = 0;                  // including the manifest
   std::uintmax_t bytes = 0;               // of the job on disk
 };
-
-// The transform of a printer-space grid for `profile`: voxel (0,0,0) centred at `originMm`.
-openvdb::math::Transform::Ptr gridTransform(const Profile& profile, const openvdb::Vec3d& originMm);
 
 // The absolute path a job with these options will have. Throws std::runtime_error naming it when its
 // folder does not exist, when something is there that is not a rodfab job (saying what it is), or a

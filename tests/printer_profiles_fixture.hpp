@@ -4,6 +4,7 @@
 #pragma once
 
 #include "printer_profiles/printer_profiles.hpp"
+#include "voxel/printer_grid.hpp"
 
 #include <unistd.h>
 
@@ -15,6 +16,12 @@
 #include <string>
 
 namespace rodfab::test {
+
+// The transform of a grid in `profile`'s voxels with voxel (0,0,0) centred at `originMm` (voxel's
+// printerTransform, the one place rodfab builds it).
+inline openvdb::math::Transform::Ptr profileTransform(const printer_profiles::Profile& profile, const openvdb::Vec3d& originMm) {
+  return voxel::printerTransform({profile.voxelSizeMm[0], profile.voxelSizeMm[1], profile.voxelSizeMm[2]}, originMm);
+}
 
 inline const printer_profiles::Profile& connex3() {
   static const printer_profiles::Profile p = printer_profiles::loadProfile("stratasys-objet500-connex3");

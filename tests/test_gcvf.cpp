@@ -7,6 +7,7 @@
 #include "printer_profiles/inspect_gcvf.hpp"
 #include "printer_profiles/job_writer.hpp"
 #include "printer_profiles/profile.hpp"
+#include "voxel/printer_grid.hpp"
 #include "slicer/calibration_materials.hpp"
 
 #include <catch2/catch.hpp>
@@ -66,7 +67,7 @@ const openvdb::Vec3d kOrigin(1.0, -2.0, 0.5);
 openvdb::BoolGrid::Ptr part(const Profile& profile, unsigned seed) {
   openvdb::initialize();
   auto grid = openvdb::BoolGrid::create(false);
-  grid->setTransform(gridTransform(profile, kOrigin));
+  grid->setTransform(rodfab::voxel::printerTransform({profile.voxelSizeMm[0], profile.voxelSizeMm[1], profile.voxelSizeMm[2]}, kOrigin));
   auto acc = grid->getAccessor();
   std::mt19937 rng(seed);
   std::bernoulli_distribution rigid(0.6);

@@ -44,7 +44,7 @@ void writeSmallJob(const fs::path& output, const SmallJob& job = {}) {
   const Profile& profile = job.profile ? *job.profile : connex3();
   const openvdb::Vec3d origin(1.0, 2.0, 0.0);
   auto grid = openvdb::BoolGrid::create(false);
-  grid->setTransform(gridTransform(profile, origin));
+  grid->setTransform(rodfab::test::profileTransform(profile, origin));
   auto acc = grid->getAccessor();
   std::mt19937 rng(5);
   for (int k = 0; k < job.layers; ++k)

@@ -38,7 +38,7 @@ openvdb::BoolGrid::Ptr newGrid() {
   openvdb::initialize();
   auto grid = openvdb::BoolGrid::create(false);
   grid->setName("material");
-  grid->setTransform(gridTransform(connex3(), kOrigin));
+  grid->setTransform(rodfab::test::profileTransform(connex3(), kOrigin));
   return grid;
 }
 
@@ -642,7 +642,7 @@ TEST_CASE("Moduli beyond the float range, infinite or NaN neither crash the prev
   const fs::path dir = scratch("hostile-moduli");
   const auto grid = overhangPart(28);
   auto modulus = openvdb::FloatGrid::create(std::numeric_limits<float>::quiet_NaN());
-  modulus->setTransform(gridTransform(connex3(), kOrigin));
+  modulus->setTransform(rodfab::test::profileTransform(connex3(), kOrigin));
   const float hostile[] = {std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity(),
                            std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::max(),
                            std::numeric_limits<float>::denorm_min(), 0.0f, -5.0f};

@@ -7,10 +7,10 @@
 
 namespace rodfab::voxel {
 
-openvdb::math::Transform::Ptr PrinterGrid::transform() const {
+openvdb::math::Transform::Ptr printerTransform(const openvdb::Vec3d& voxelSizeMm, const openvdb::Vec3d& originMm) {
   openvdb::math::Mat4d m = openvdb::math::Mat4d::identity();
-  m.setToScale(voxelSize);
-  m.setTranslation(origin);
+  m.setToScale(voxelSizeMm);
+  m.setTranslation(originMm);
   return openvdb::math::Transform::createLinearTransform(m);
 }
 

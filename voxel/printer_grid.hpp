@@ -10,6 +10,11 @@ namespace rodfab::voxel {
 // Largest grid extent along one axis (2^24 voxels: 700 m at 600 x 300 dpi).
 constexpr int kMaxVoxelsPerAxis = 1 << 24;
 
+// The transform of a printer-space grid: voxel (i, j, k) centred at originMm + (i, j, k) * voxelSizeMm
+// (mm; the printer profile's voxel). The only place rodfab builds one: the rasterizer's grids, the
+// coupon blocks and the tests all take it from here, and the job writer checks a grid's against its profile.
+openvdb::math::Transform::Ptr printerTransform(const openvdb::Vec3d& voxelSizeMm, const openvdb::Vec3d& originMm);
+
 // Voxel (i, j, k) is centred at origin + (i, j, k) * voxelSize (mm); OpenVDB's convention of voxel
 // centres at integer index coordinates, so the transform is a plain scale plus translation.
 struct PrinterGrid {
@@ -19,7 +24,7 @@ struct PrinterGrid {
   // Voxels per axis covering the padded bounding box: indices [0, dims) hold the whole design.
   openvdb::Coord dims{0, 0, 0};
 
-  openvdb::math::Transform::Ptr transform() const;
+  openvdb::math::Transform::Ptr transform() const { return printerTransform(voxelSize, origin); }
   openvdb::Vec3d worldPoint(const openvdb::Coord& ijk) const {
     return {origin.x() + ijk.x() * voxelSize.x(), origin.y() + ijk.y() * voxelSize.y(),
             origin.z() + ijk.z() * voxelSize.z()};
