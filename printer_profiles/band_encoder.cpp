@@ -79,7 +79,7 @@ BandEncoder::BandVoxels BandEncoder::collect(const LayerBand& band) const {
 }
 
 void BandEncoder::encode(const LayerBand& band, std::vector<LayerRecord>& layers, Previews& previews) {
-  const int firstLayer = s_.geometry.layer(band.kBegin);
+  const int firstLayer = s_.form.geometry.layer(band.kBegin);
   const int count = band.kEnd - band.kBegin;
   const BandVoxels voxels = collect(band);
   bitmaps_.resize(static_cast<std::size_t>(count));
@@ -94,7 +94,7 @@ void BandEncoder::encode(const LayerBand& band, std::vector<LayerRecord>& layers
       LayerBitmaps& b = bitmaps_[static_cast<std::size_t>(n)];
       LayerRecord& record = layers[static_cast<std::size_t>(layer)];
       rasterize(k, voxels, b, record);
-      if (s_.support == SupportPolicy::Explicit) addSupport(layer, b);
+      if (s_.form.support == SupportPolicy::Explicit) addSupport(layer, b);
       record.voxels = {countInSpans(b.rigid, b.spans), countInSpans(b.rubbery, b.spans), b.hasSupport ? b.support.count() : 0};
       previews.addLayer(layer, b, modulus);
       encodeImages(layer, b, record, s_.zip ? &zipForms[static_cast<std::size_t>(n)] : nullptr);
@@ -127,7 +127,7 @@ void BandEncoder::stageBand(int firstLayer, const std::vector<std::vector<Bytes>
 
 
 void BandEncoder::rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, LayerRecord& record) const {
-  const JobGeometry& g = s_.geometry;
+  const JobGeometry& g = s_.form.geometry;
   clearModel(b, g);
   record.moments = {};
   for (const BandLeaf& leaf : voxels.slab(k)) {
@@ -162,10 +162,10 @@ void BandEncoder::rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, La
 // Support fills each column from the tray up to its highest model voxel, wherever the model is not.
 void BandEncoder::addSupport(int layer, LayerBitmaps& b) const {
   const ColumnTops& tops = *s_.supportTops;
-  if (b.support.width() == s_.geometry.width && b.support.height() == s_.geometry.height) b.support.clear();
-  else b.support = Bitmap(s_.geometry.width, s_.geometry.height);
+  if (b.support.width() == s_.form.geometry.width && b.support.height() == s_.form.geometry.height) b.support.clear();
+  else b.support = Bitmap(s_.form.geometry.width, s_.form.geometry.height);
   b.hasSupport = true;
-  for (int r = 0; r < s_.geometry.height; ++r) {
+  for (int r = 0; r < s_.form.geometry.height; ++r) {
     if (tops.rowMaximum()[static_cast<std::size_t>(r)] <= layer) continue;
     std::uint8_t* out = b.support.row(r);
     const std::uint8_t* rigid = b.rigid.row(r);
@@ -185,13 +185,13 @@ void BandEncoder::encodeImages(int layer, const LayerBitmaps& b, LayerRecord& re
   record.files.clear();
   record.zipped.clear();
   if (gcvf()) {  // one RGBA image holds every material of the layer
-    keepImage(*s_.emitted[0], layer, encodeGcvfLayer(b.rigid, b.rubbery, s_.profile), record, zipForms);
+    keepImage(*s_.form.emitted[0], layer, encodeGcvfLayer(b.rigid, b.rubbery, s_.profile), record, zipForms);
     return;
   }
   thread_local Bytes bmp;  // a BMP is as large as its bitmap: encoded into one buffer per thread, reused
-  for (const ProfileMaterial* m : s_.emitted) {
+  for (const ProfileMaterial* m : s_.form.emitted) {
     const Bitmap& bitmap = m->role == MaterialRole::Rigid ? b.rigid : m->role == MaterialRole::Rubbery ? b.rubbery : b.support;
-    if (s_.imageFormat == ImageFormat::Png) {
+    if (s_.form.imageFormat == ImageFormat::Png) {
       keepImage(*m, layer, encodePng1(bitmap, s_.profile.xDpi, s_.profile.yDpi), record, zipForms);
       continue;
     }
@@ -203,7 +203,7 @@ void BandEncoder::encodeImages(int layer, const LayerBitmaps& b, LayerRecord& re
 // One image of the layer: its manifest record (size, SHA-256), and the file written or its zip form kept.
 void BandEncoder::keepImage(const ProfileMaterial& m, int layer, std::span<const std::uint8_t> image, LayerRecord& record,
                             std::vector<Bytes>* zipForms) const {
-  FileRecord f{s_.profile.layerFileName(m, layer, s_.imageFormat), image.size(), sha256Hex(image)};
+  FileRecord f{s_.profile.layerFileName(m, layer, s_.form.imageFormat), image.size(), sha256Hex(image)};
   if (!zipForms) {
     writeFile(s_.filesDir / f.name, image);
   } else {

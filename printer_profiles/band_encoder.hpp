@@ -16,10 +16,7 @@ namespace rodfab::printer_profiles {
 // What the encoder needs to know of the job; all of it fixed for the job's life.
 struct BandEncoderSetup {
   const Profile& profile;
-  const JobGeometry& geometry;
-  ImageFormat imageFormat;
-  SupportPolicy support;
-  const std::vector<const ProfileMaterial*>& emitted;  // materials with bitmap stacks, in profile order
+  LayerImageForm form;
   const ColumnTops* supportTops;                        // SupportPolicy::Explicit only
   bool zip;                                             // stage zip forms (else write the files)
   std::filesystem::path filesDir, stagingRoot;          // where files, and zip jobs' band files, go
@@ -34,7 +31,7 @@ public:
   void encode(const LayerBand& band, std::vector<LayerRecord>& layers, Previews& previews);
 
   // How the layer images go into the zip: PNG as it is (already compressed), BMP deflated.
-  ZipStorage layerStorage() const { return s_.imageFormat == ImageFormat::Png ? ZipStorage::Store : ZipStorage::Deflate; }
+  ZipStorage layerStorage() const { return s_.form.imageFormat == ImageFormat::Png ? ZipStorage::Store : ZipStorage::Deflate; }
 
 private:
   struct BandLeaf;

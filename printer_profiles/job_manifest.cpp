@@ -21,10 +21,10 @@ json profileBlock(const Profile& p) {
 
 json imageBlock(const ManifestInputs& in) {
   const Profile& p = in.spec.profile;
-  return {{"format", toString(in.imageFormat)},
+  return {{"format", toString(in.form.imageFormat)},
           {"bit_depth", p.imageBitDepth()},
-          {"width", in.geometry.width},
-          {"height", in.geometry.height},
+          {"width", in.form.geometry.width},
+          {"height", in.form.geometry.height},
           {"x_pixels_per_metre", pixelsPerMetre(p.xDpi)},
           {"y_pixels_per_metre", pixelsPerMetre(p.yDpi)},
           {"origin", "top-left"},
@@ -34,12 +34,12 @@ json imageBlock(const ManifestInputs& in) {
 json frameBlock(const ManifestInputs& in) {
   const auto& v = in.spec.profile.voxelSizeMm;
   const openvdb::Vec3d& o = in.spec.originMm;
-  const openvdb::CoordBBox& part = in.geometry.partBounds;
+  const openvdb::CoordBBox& part = in.form.geometry.partBounds;
   return {{"origin_mm", {o.x(), o.y(), o.z()}},
           {"origin_note", "design position of the centre of voxel (0, 0, 0)"},
-          {"first_column_i", in.geometry.firstColumnI},
-          {"top_row_j", in.geometry.topRowJ},
-          {"first_layer_k", in.geometry.firstLayerK},
+          {"first_column_i", in.form.geometry.firstColumnI},
+          {"top_row_j", in.form.geometry.topRowJ},
+          {"first_layer_k", in.form.geometry.firstLayerK},
           {"pixel_to_design_mm",
            "x = origin_x + (first_column_i + column) * voxel_x; y = origin_y + (top_row_j - row) * voxel_y; "
            "z = origin_z + (first_layer_k + layer) * voxel_z"},
@@ -49,18 +49,18 @@ json frameBlock(const ManifestInputs& in) {
 
 json materialsBlock(const ManifestInputs& in) {
   json materials = json::array();
-  for (const ProfileMaterial* m : in.emitted)
+  for (const ProfileMaterial* m : in.form.emitted)
     materials.push_back({{"name", m->name},
                          {"role", toString(m->role)},
                          {"density_g_per_ml", m->densityGPerMl},
-                         {"file_pattern", in.spec.profile.layerFilePattern(*m, in.imageFormat)}});
+                         {"file_pattern", in.spec.profile.layerFilePattern(*m, in.form.imageFormat)}});
   return materials;
 }
 
 json supportBlock(const ManifestInputs& in) {
-  return {{"policy", toString(in.support)},
+  return {{"policy", toString(in.form.support)},
           {"material", in.spec.profile.material(MaterialRole::Support).name},
-          {"note", in.support == SupportPolicy::Printer ? "no support bitmaps: the printer software adds support"
+          {"note", in.form.support == SupportPolicy::Printer ? "no support bitmaps: the printer software adds support"
                                                         : "support bitmaps fill every column from the tray up to its "
                                                           "highest model voxel, never overlapping the model"}};
 }
@@ -68,11 +68,11 @@ json supportBlock(const ManifestInputs& in) {
 // The per-layer table; adds every layer's voxels to `totals` (by role) and moments to `moments`.
 json layersBlock(const ManifestInputs& in, std::array<std::uint64_t, 3>& totals, std::array<Moments, 2>& moments) {
   json layerFiles = json::array();
-  for (int l = 0; l < in.geometry.layers; ++l) {
+  for (int l = 0; l < in.form.geometry.layers; ++l) {
     const LayerRecord& r = in.layers[static_cast<std::size_t>(l)];
     json filesOf = json::object(), voxelsOf = json::object();
-    for (const ProfileMaterial* m : in.emitted) {
-      filesOf[m->name] = in.spec.profile.layerFileName(*m, l, in.imageFormat);  // gcvf: one file for all
+    for (const ProfileMaterial* m : in.form.emitted) {
+      filesOf[m->name] = in.spec.profile.layerFileName(*m, l, in.form.imageFormat);  // gcvf: one file for all
       voxelsOf[m->name] = r.voxels[static_cast<std::size_t>(m->role)];
     }
     layerFiles.push_back({{"layer", l}, {"files", filesOf}, {"voxels", voxelsOf}});
@@ -95,7 +95,7 @@ json statisticsBlock(const ManifestInputs& in, const std::array<std::uint64_t, 3
   const Profile& p = in.spec.profile;
   json stats = json::object();
   std::uint64_t model = 0;
-  for (const ProfileMaterial* m : in.emitted) {
+  for (const ProfileMaterial* m : in.form.emitted) {
     const std::uint64_t n = totals[static_cast<std::size_t>(m->role)];
     const double ml = static_cast<double>(n) * p.voxelVolumeMm3() / 1000.0;
     stats[m->name] = {{"role", toString(m->role)}, {"voxels", n}, {"volume_ml", ml}, {"mass_g", ml * m->densityGPerMl}};
@@ -147,7 +147,7 @@ json jobManifest(const ManifestInputs& in, const std::vector<FileRecord>& files,
   j["format"] = kJobFormat;
   j["profile"] = profileBlock(spec.profile);
   j["image"] = imageBlock(in);
-  j["layer_count"] = in.geometry.layers;
+  j["layer_count"] = in.form.geometry.layers;
   j["frame"] = frameBlock(in);
   j["materials"] = materialsBlock(in);
   j["support"] = supportBlock(in);

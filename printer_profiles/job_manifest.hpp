@@ -60,13 +60,19 @@ struct LayerRecord {
   std::vector<StagedZipData> zipped;      // zip jobs: each file's zip form, staged with its band
 };
 
-// Everything the manifest says, as the writer holds it.
-struct ManifestInputs {
-  const JobSpec& spec;
+// The job's layer images, fixed when the writer starts: what the band encoder makes and the manifest
+// describes.
+struct LayerImageForm {
   const JobGeometry& geometry;
   ImageFormat imageFormat;
   SupportPolicy support;
   const std::vector<const ProfileMaterial*>& emitted;  // materials with bitmap stacks, in profile order
+};
+
+// Everything the manifest says, as the writer holds it.
+struct ManifestInputs {
+  const JobSpec& spec;
+  LayerImageForm form;
   const std::vector<LayerRecord>& layers;               // every layer of the job, bottom-up
   const std::vector<int>& contactLayers;                // the contact sheet's layers
 };

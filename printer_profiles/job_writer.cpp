@@ -93,7 +93,7 @@ struct JobWriter::Impl {
     removeDeadStaging(target.parent_path());
     staging = std::make_unique<Staging>(target);  // last: nothing after it may throw
     filesDir = staging->files();
-    encoder = std::make_unique<BandEncoder>(BandEncoderSetup{spec.profile, geometry, imageFormat, support, emitted,
+    encoder = std::make_unique<BandEncoder>(BandEncoderSetup{spec.profile, {geometry, imageFormat, support, emitted},
                                                              spec.supportTops.get(), spec.options.archive == ArchiveFormat::Zip,
                                                              filesDir, staging->root()});
   }
@@ -186,7 +186,7 @@ struct JobWriter::Impl {
   }
 
   json manifest(const std::vector<FileRecord>& files, const std::vector<std::string>& previewNames) const {
-    return jobManifest({spec, geometry, imageFormat, support, emitted, layers, previews->contactLayers()}, files, previewNames);
+    return jobManifest({spec, {geometry, imageFormat, support, emitted}, layers, previews->contactLayers()}, files, previewNames);
   }
 
   void checkInterrupt() const {
