@@ -62,6 +62,33 @@ std::optional<std::vector<T>> readArray(DesignReader& reader, const json& j, con
   return ok ? std::optional<std::vector<T>>(std::move(out)) : std::nullopt;
 }
 
+// A B-spline's degree, control values and knots, read together.
+template <class T>
+struct SplineParts {
+  int degree = 0;
+  std::vector<T> controls;
+  std::vector<double> knots;
+};
+
+// The {degree, knots, KEY} members of the spline object `j`, the controls under KEY read one by one by
+// `readControl`; nullopt unless all three are valid together (every issue is recorded either way).
+template <class T, class ReadControl>
+std::optional<SplineParts<T>> splineParts(DesignReader& reader, const json& j, const std::string& path, const std::string& key,
+                                          const std::string& what, ReadControl readControl) {
+  std::optional<int> p;
+  if (auto d = reader.require(j, path, "degree", "an integer degree")) p = reader.degree(*d, memberPath(path, "degree"));
+  std::optional<std::vector<T>> controls;
+  if (auto c = reader.require(j, path, key, what)) {
+    const std::string cp = memberPath(path, key);
+    controls = readArray<T>(reader, *c, cp, what, readControl);
+    if (controls && !enoughControls(reader, p, controls->size(), cp, key)) controls.reset();
+  }
+  const std::optional<std::vector<double>> k =
+      splineKnots(reader, j, path, p, controls ? std::optional<std::size_t>(controls->size()) : std::nullopt);
+  if (!p || !controls || !k) return std::nullopt;
+  return SplineParts<T>{*p, std::move(*controls), *k};
+}
+
 }  // namespace
 
 std::optional<NurbsCurve> DesignReader::centerline(const json& j, const std::string& path) {
@@ -152,19 +179,10 @@ std::optional<QuaternionSpline> DesignReader::orientation(const json& j, const s
     return std::nullopt;
   }
   onlyKeys(j, path, {"degree", "knots", "quaternions"});
-  std::optional<int> p;
-  if (auto d = require(j, path, "degree", "an integer degree")) p = degree(*d, memberPath(path, "degree"));
-  std::optional<std::vector<Eigen::Vector4d>> quats;
-  if (auto q = require(j, path, "quaternions", "an array of [w, x, y, z] quaternions")) {
-    const std::string qp = memberPath(path, "quaternions");
-    quats = readArray<Eigen::Vector4d>(*this, *q, qp, "an array of [w, x, y, z] quaternions",
-                                       [&](const json& e, const std::string& ep) { return quaternion(e, ep); });
-    if (quats && !enoughControls(*this, p, quats->size(), qp, "quaternions")) quats.reset();
-  }
-  const std::optional<std::vector<double>> k =
-      splineKnots(*this, j, path, p, quats ? std::optional<std::size_t>(quats->size()) : std::nullopt);
-  if (!p || !quats || !k) return std::nullopt;
-  QuaternionSpline spline(*p, *k, *quats);
+  const auto parts = splineParts<Eigen::Vector4d>(*this, j, path, "quaternions", "an array of [w, x, y, z] quaternions",
+                                                  [&](const json& e, const std::string& ep) { return quaternion(e, ep); });
+  if (!parts) return std::nullopt;
+  QuaternionSpline spline(parts->degree, parts->knots, parts->controls);
   if (!domainMatches(*this, spline.domainBegin(), spline.domainEnd(), curve, memberPath(path, "knots"))) return std::nullopt;
   return spline;
 }
@@ -190,19 +208,10 @@ std::optional<BSplineField> DesignReader::modulus(const json& j, const std::stri
     return std::nullopt;
   }
   onlyKeys(j, path, {"degree", "knots", "values"});
-  std::optional<int> p;
-  if (auto d = require(j, path, "degree", "an integer degree")) p = degree(*d, memberPath(path, "degree"));
-  std::optional<std::vector<double>> values;
-  if (auto v = require(j, path, "values", "an array of moduli in MPa")) {
-    const std::string vp = memberPath(path, "values");
-    values = readArray<double>(*this, *v, vp, "an array of moduli in MPa",
-                               [&](const json& e, const std::string& ep) { return youngsModulus(e, ep); });
-    if (values && !enoughControls(*this, p, values->size(), vp, "values")) values.reset();
-  }
-  const std::optional<std::vector<double>> k =
-      splineKnots(*this, j, path, p, values ? std::optional<std::size_t>(values->size()) : std::nullopt);
-  if (!p || !values || !k) return std::nullopt;
-  BSplineField field(*p, *k, *values);
+  const auto parts = splineParts<double>(*this, j, path, "values", "an array of moduli in MPa",
+                                         [&](const json& e, const std::string& ep) { return youngsModulus(e, ep); });
+  if (!parts) return std::nullopt;
+  BSplineField field(parts->degree, parts->knots, parts->controls);
   if (!domainMatches(*this, field.domainBegin(), field.domainEnd(), curve, memberPath(path, "knots"))) return std::nullopt;
   return curve ? std::optional<BSplineField>(field) : std::nullopt;
 }
