@@ -1,5 +1,7 @@
 #include "printer_profiles/gcvf_writer.hpp"
 
+#include "common/markup.hpp"
+
 #include <cmath>
 #include <cstring>
 #include <sstream>
@@ -7,21 +9,6 @@
 namespace rodfab::printer_profiles {
 
 namespace {
-
-std::string escapeXml(const std::string& text) {
-  std::string out;
-  for (const char c : text) {
-    switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      case '\'': out += "&apos;"; break;
-      default: out += c;
-    }
-  }
-  return out;
-}
 
 void putPixel(std::uint8_t* out, const std::array<unsigned char, 4>& rgba) { std::memcpy(out, rgba.data(), 4); }
 
@@ -56,7 +43,7 @@ Bytes encodeGcvfLayer(const Bitmap& rigid, const Bitmap& rubbery, const Profile&
 std::string gcvfConfigXml(const Profile& p, int width, int height, int layers, const std::vector<GcvfMaterialCount>& counts) {
   std::ostringstream x;
   x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-    << "<!-- GCVF - GrabCAD Voxel Print File, written by rodfab for " << escapeXml(p.printer) << " -->\n"
+    << "<!-- GCVF - GrabCAD Voxel Print File, written by rodfab for " << common::escapeMarkup(p.printer) << " -->\n"
     << "<GCVF>\n"
     << "    <Version>" << p.gcvf.version << "</Version>\n"
     << "    <Resolution>\n"
@@ -75,13 +62,13 @@ std::string gcvfConfigXml(const Profile& p, int width, int height, int layers, c
     << "    <BitDepth>" << p.gcvf.bitDepth << "</BitDepth>\n"
     << "    <MaxNumberOfColors>" << p.gcvf.maxNumberOfColors << "</MaxNumberOfColors>\n"
     << "    <DataSemantics>Materials</DataSemantics>\n"
-    << "    <CreationMode>" << escapeXml(p.gcvf.creationMode) << "</CreationMode>\n"
-    << "    <ImageFilePrefix>" << escapeXml(p.gcvf.imageFilePrefix) << "</ImageFilePrefix>\n"
+    << "    <CreationMode>" << common::escapeMarkup(p.gcvf.creationMode) << "</CreationMode>\n"
+    << "    <ImageFilePrefix>" << common::escapeMarkup(p.gcvf.imageFilePrefix) << "</ImageFilePrefix>\n"
     << "    <MaterialList>\n"
     << "        <BackGroundMaterialRGBA>" << gcvfRgbaText(p.gcvf.backgroundRgba) << "</BackGroundMaterialRGBA>\n";
   for (const GcvfMaterialCount& c : counts)
     x << "        <Material>\n"
-      << "            <Name>" << escapeXml(c.material->name) << "</Name>\n"
+      << "            <Name>" << common::escapeMarkup(c.material->name) << "</Name>\n"
       << "            <RGBA>" << gcvfRgbaText(c.material->rgba) << "</RGBA>\n"
       << "            <VoxelCount>" << c.voxels << "</VoxelCount>\n"
       << "        </Material>\n";

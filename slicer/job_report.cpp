@@ -1,5 +1,6 @@
 #include "slicer/job_report.hpp"
 
+#include "common/markup.hpp"
 #include "common/plot_canvas.hpp"
 
 #include "calibration/plot.hpp"
@@ -170,18 +171,7 @@ std::string pngDataUri(const Bytes& png) { return "data:image/png;base64," + bas
 // Text made safe for HTML (also in attribute values); invalid UTF-8 (a design's odd file name) becomes U+FFFD.
 std::string html(const std::string& raw) {
   const std::string text = json::parse(json(raw).dump(-1, ' ', false, json::error_handler_t::replace)).get<std::string>();
-  std::string out;
-  for (char c : text) {
-    switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      case '\'': out += "&#39;"; break;
-      default: out += c;
-    }
-  }
-  return out;
+  return common::escapeMarkup(text);
 }
 
 std::string fixed(double v, int decimals) {
