@@ -15,17 +15,7 @@
 #include <numbers>
 
 using namespace rodfab;
-using geometry::BSplineField;
-using geometry::CapStyle;
-using geometry::NurbsCurve;
-using geometry::Rod;
-using geometry::RodStructure;
-using geometry::Section;
-using geometry::Vec3;
-using voxel::PrinterGrid;
-
-using namespace rodfab::test;
-
+using namespace rodfab::test;  // with the fixture's geometry and voxel names
 
 namespace {
 
