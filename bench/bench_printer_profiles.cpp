@@ -1,5 +1,7 @@
 // printer_profiles/: layer encoding and whole-job throughput (bitmaps, PNG/BMP, zip, verification).
 #include "bench/bench_profile.hpp"
+#include "common/sha256.hpp"
+#include "common/xxh128.hpp"
 #include "printer_profiles/deflate.hpp"
 #include "printer_profiles/printer_profiles.hpp"
 #include "voxel/printer_grid.hpp"
@@ -53,12 +55,20 @@ void BM_DeflateLayer(benchmark::State& state) {
 }
 BENCHMARK(BM_DeflateLayer)->DenseRange(0, 3)->Unit(benchmark::kMicrosecond);
 
+// The manifest's checksum of one layer image: SHA-256 (the job's until 2026-12-02) and XXH3-128 (since).
 void BM_Sha256(benchmark::State& state) {
   const pp::Bitmap b = latticeLayer(2048, 1024);
-  for (auto _ : state) benchmark::DoNotOptimize(pp::sha256Hex(b.bytes()));
+  for (auto _ : state) benchmark::DoNotOptimize(rodfab::common::sha256Hex(b.bytes()));
   state.SetBytesProcessed(state.iterations() * static_cast<int64_t>(b.bytes().size()));
 }
 BENCHMARK(BM_Sha256)->Unit(benchmark::kMicrosecond);
+
+void BM_Xxh128(benchmark::State& state) {
+  const pp::Bitmap b = latticeLayer(2048, 1024);
+  for (auto _ : state) benchmark::DoNotOptimize(rodfab::common::xxh128Hex(b.bytes()));
+  state.SetBytesProcessed(state.iterations() * static_cast<int64_t>(b.bytes().size()));
+}
+BENCHMARK(BM_Xxh128)->Unit(benchmark::kMicrosecond);
 
 // Rods along x and y through a 20 x 20 x 3 mm block, white-noise Vero/Tango: ~470 x 236 px x 100 layers.
 openvdb::BoolGrid::Ptr rodLattice() {

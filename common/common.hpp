@@ -8,4 +8,5 @@
 #include "common/memory_budget.hpp"
 #include "common/output_file.hpp"
 #include "common/sha256.hpp"
+#include "common/xxh128.hpp"
 #include "common/stopwatch.hpp"

@@ -1,6 +1,7 @@
 #include "printer_profiles/band_encoder.hpp"
 
 #include "common/interrupt.hpp"
+#include "common/xxh128.hpp"
 
 #include "printer_profiles/deflate.hpp"
 #include "printer_profiles/gcvf_writer.hpp"
@@ -185,14 +186,18 @@ void BandEncoder::encodeImages(int layer, const LayerBitmaps& b, LayerRecord& re
   record.files.clear();
   record.zipped.clear();
   if (gcvf()) {  // one RGBA image holds every material of the layer
-    keepImage(*s_.form.emitted[0], layer, encodeGcvfLayer(b.rigid, b.rubbery, s_.profile), record, zipForms);
+    Bytes rgba = encodeGcvfLayer(b.rigid, b.rubbery, s_.profile);
+    keepImage(*s_.form.emitted[0], layer, rgba, record, zipForms, &rgba);
     return;
   }
-  thread_local Bytes bmp;  // a BMP is as large as its bitmap: encoded into one buffer per thread, reused
+  // A BMP is as large as its bitmap: encoded into one buffer per thread, reused. Nothing below waits on
+  // TBB, so this thread cannot pick up another layer's encodeImages while the buffer is in use.
+  thread_local Bytes bmp;
   for (const ProfileMaterial* m : s_.form.emitted) {
     const Bitmap& bitmap = m->role == MaterialRole::Rigid ? b.rigid : m->role == MaterialRole::Rubbery ? b.rubbery : b.support;
     if (s_.form.imageFormat == ImageFormat::Png) {
-      keepImage(*m, layer, encodePng1(bitmap, s_.profile.xDpi, s_.profile.yDpi), record, zipForms);
+      Bytes png = encodePng1(bitmap, s_.profile.xDpi, s_.profile.yDpi);
+      keepImage(*m, layer, png, record, zipForms, &png);
       continue;
     }
     encodeBmpInto(bitmap, s_.profile.xDpi, s_.profile.yDpi, bmp);
@@ -200,10 +205,11 @@ void BandEncoder::encodeImages(int layer, const LayerBitmaps& b, LayerRecord& re
   }
 }
 
-// One image of the layer: its manifest record (size, SHA-256), and the file written or its zip form kept.
+// One image of the layer: its manifest record (size, XXH3-128), and the file written or its zip form
+// kept. `owned`, when given, holds `image` and may be moved from (a PNG is kept as it is, not copied).
 void BandEncoder::keepImage(const ProfileMaterial& m, int layer, std::span<const std::uint8_t> image, LayerRecord& record,
-                            std::vector<Bytes>* zipForms) const {
-  FileRecord f{s_.profile.layerFileName(m, layer, s_.form.imageFormat), image.size(), sha256Hex(image)};
+                            std::vector<Bytes>* zipForms, Bytes* owned) const {
+  FileRecord f{s_.profile.layerFileName(m, layer, s_.form.imageFormat), image.size(), common::xxh128Hex(image)};
   if (!zipForms) {
     writeFile(s_.filesDir / f.name, image);
   } else {
@@ -211,7 +217,8 @@ void BandEncoder::keepImage(const ProfileMaterial& m, int layer, std::span<const
     z.size = image.size();
     z.crc32 = zipCrc32(image);
     Bytes form = layerStorage() == ZipStorage::Deflate ? deflateBytes(image, kLayerDeflateLevel, DeflateWrapper::Raw)
-                                                       : Bytes(image.begin(), image.end());
+                 : owned                                ? std::move(*owned)
+                                                        : Bytes(image.begin(), image.end());
     z.length = form.size();
     record.zipped.push_back(z);
     zipForms->push_back(std::move(form));

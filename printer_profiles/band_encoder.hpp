@@ -41,7 +41,7 @@ private:
   void addSupport(int layer, LayerBitmaps& b) const;
   void encodeImages(int layer, const LayerBitmaps& b, LayerRecord& record, std::vector<Bytes>* zipForms) const;
   void keepImage(const ProfileMaterial& m, int layer, std::span<const std::uint8_t> image, LayerRecord& record,
-                 std::vector<Bytes>* zipForms) const;
+                 std::vector<Bytes>* zipForms, Bytes* owned = nullptr) const;
   void stageBand(int firstLayer, const std::vector<std::vector<Bytes>>& zipForms, std::vector<LayerRecord>& layers) const;
   bool gcvf() const { return s_.profile.jobFormat == JobFormat::Gcvf; }
 

@@ -3,7 +3,9 @@
 #include "printer_profiles/inspect.hpp"
 
 #include "common/sha256.hpp"
+#include "common/xxh128.hpp"
 #include "printer_profiles/inspector.hpp"
+#include "printer_profiles/job_staging.hpp"  // kPartialTag
 
 #include <algorithm>
 #include <cctype>
@@ -11,6 +13,7 @@
 #include <set>
 #include <sstream>
 #include <string_view>
+#include <variant>
 
 namespace rodfab::printer_profiles {
 
@@ -21,7 +24,22 @@ namespace {
 
 constexpr int kMaxFolderDepth = 2;  // the job and its previews/ folder; deeper folders are listed, not entered
 
-using common::Sha256;  // files are checked as they stream
+// A file's checksum taken as it streams, by the algorithm its manifest row names.
+class StreamedDigest {
+public:
+  explicit StreamedDigest(FileDigest::Algorithm a) {
+    if (a == FileDigest::Algorithm::Sha256) hasher_.emplace<common::Sha256>();
+  }
+  void update(std::span<const std::uint8_t> chunk) {
+    std::visit([chunk](auto& h) { h.update(chunk); }, hasher_);
+  }
+  std::string hex() {
+    return std::visit([](auto& h) { return h.hex(); }, hasher_);
+  }
+
+private:
+  std::variant<common::Xxh128, common::Sha256> hasher_;
+};
 
 std::string lowercase(std::string s) {
   for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -285,11 +303,11 @@ std::optional<Bytes> Inspector::fetch(const std::string& name, std::uint64_t kee
     return std::nullopt;
   }
   Bytes kept;
-  Sha256 sha;
+  StreamedDigest digest(listed->second.digest.algorithm);
   std::uint64_t bytes = 0;
   try {
     reader_->stream(*file->second, cap, [&](std::span<const std::uint8_t> chunk) {
-      if (hash) sha.update(chunk);
+      if (hash) digest.update(chunk);
       bytes += chunk.size();
       const std::size_t room = static_cast<std::size_t>(std::min<std::uint64_t>(keep - kept.size(), chunk.size()));
       kept.insert(kept.end(), chunk.begin(), chunk.begin() + static_cast<std::ptrdiff_t>(room));
@@ -298,7 +316,7 @@ std::optional<Bytes> Inspector::fetch(const std::string& name, std::uint64_t kee
     out.located(e.what());
     return std::nullopt;
   }
-  if (bytes != listed->second.bytes || (hash && sha.hex() != listed->second.sha256)) {
+  if (bytes != listed->second.bytes || (hash && digest.hex() != listed->second.digest.hex)) {
     out.at(name, "checksum mismatch (the file was changed or damaged): " + std::to_string(bytes) +
                      " bytes, the manifest says " + std::to_string(listed->second.bytes));
     return std::nullopt;
@@ -361,7 +379,7 @@ InspectReport inspectJobFiles(const JobFiles& files, const InspectOptions& optio
 InspectReport inspectJob(const fs::path& job, const InspectOptions& options) {
   InspectReport report;
   report.job = job;
-  if (job.filename().string().find(".rodfab-partial-") != std::string::npos) {
+  if (job.filename().string().find(kPartialTag) != std::string::npos) {
     report.defects.push_back(job.string() + ": an unfinished job (temporary name of an interrupted or running write)");
     return report;
   }

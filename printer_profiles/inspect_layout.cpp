@@ -5,6 +5,8 @@
 #include "printer_profiles/job_writer.hpp"
 
 #include "common/json_input.hpp"
+#include "common/sha256.hpp"
+#include "common/xxh128.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -344,8 +346,22 @@ void readLayers(const json& m, const Profile& p, JobLayout& out, Fields& f, Find
     f.fail("layers", "and " + std::to_string(layersWithProblems - kLayersReported) + " more layers with such problems");
 }
 
-bool isSha256(const std::string& s) {
-  return s.size() == 64 && std::all_of(s.begin(), s.end(), [](char c) { return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'); });
+// A file row's checksum: "xxh128" (32 lowercase hex digits) or, in jobs written before it, "sha256" (64).
+std::optional<FileDigest> readFileDigest(const json& row, const std::string& path, Fields& f) {
+  const bool xxh = row.is_object() && row.contains("xxh128"), sha = row.is_object() && row.contains("sha256");
+  if (xxh == sha) {
+    f.fail(path, xxh ? "holds both \"xxh128\" and \"sha256\"; expected one checksum"
+                     : "has no checksum; expected \"xxh128\" (32 lowercase hex digits)");
+    return std::nullopt;
+  }
+  const char* key = xxh ? "xxh128" : "sha256";
+  const auto hex = f.string(row, path, key);
+  if (!hex) return std::nullopt;
+  if (xxh ? !common::isXxh128Hex(*hex) : !common::isSha256Hex(*hex)) {
+    f.fail(path + "." + key, std::string("expected ") + (xxh ? "32" : "64") + " lowercase hex digits, got " + describe(json(*hex)));
+    return std::nullopt;
+  }
+  return FileDigest{xxh ? FileDigest::Algorithm::Xxh128 : FileDigest::Algorithm::Sha256, *hex};
 }
 
 void readFileTable(const json& m, JobLayout& out, Fields& f) {
@@ -354,10 +370,9 @@ void readFileTable(const json& m, JobLayout& out, Fields& f) {
   for (const auto& [name, row] : table->items()) {
     const std::string path = "files." + printableName(name);
     const auto bytes = row.is_object() && row.contains("bytes") ? f.count(row["bytes"], path + ".bytes") : std::nullopt;
-    const auto sha = f.string(row, path, "sha256");
-    if (sha && !isSha256(*sha)) f.fail(path + ".sha256", "expected 64 lowercase hex digits, got " + describe(json(*sha)));
+    const auto digest = row.is_object() ? readFileDigest(row, path, f) : std::nullopt;
     if (!row.is_object() || !row.contains("bytes")) f.fail(path + ".bytes", "missing; expected the file's size");
-    if (bytes && sha && isSha256(*sha)) out.listed[name] = {*bytes, *sha};
+    if (bytes && digest) out.listed[name] = {*bytes, *digest};
   }
 }
 

@@ -64,9 +64,16 @@ struct ExpectedEntry {
   int layer = -1, material = -1;
 };
 
+// A file's checksum as the manifest gives it: XXH3-128 (jobs written since 2026-12-02) or SHA-256
+// (jobs written before, still read).
+struct FileDigest {
+  enum class Algorithm { Xxh128, Sha256 } algorithm = Algorithm::Xxh128;
+  std::string hex;  // lowercase
+};
+
 struct ListedFile {
   std::uint64_t bytes = 0;
-  std::string sha256;
+  FileDigest digest;
 };
 
 struct OrientationRecord {

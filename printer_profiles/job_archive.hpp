@@ -2,7 +2,6 @@
 // in a fixed entry order with fixed timestamps, and SHA-256 checksums (OpenSSL EVP).
 #pragma once
 
-#include "common/sha256.hpp"
 #include "printer_profiles/bitmap.hpp"
 
 #include <cstdint>
@@ -26,9 +25,6 @@ inline constexpr std::size_t kMaxManifestBytes = std::size_t{128} << 20;
 
 enum class ArchiveFormat { Zip, Directory };
 const char* toString(ArchiveFormat format);
-
-// Lowercase hex SHA-256 of `data` (common/sha256.hpp).
-using common::sha256Hex;
 
 // Raised when a job cannot be opened or one of its files cannot be read; names the job and file.
 class JobReadError : public std::runtime_error {

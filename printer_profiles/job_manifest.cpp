@@ -166,7 +166,7 @@ json jobManifest(const ManifestInputs& in, const std::vector<FileRecord>& files,
   meta["design"] = spec.metadata.design;
   j["metadata"] = meta;
   json fileTable = json::object();
-  for (const FileRecord& f : files) fileTable[f.name] = {{"bytes", f.bytes}, {"sha256", f.sha256}};
+  for (const FileRecord& f : files) fileTable[f.name] = {{"bytes", f.bytes}, {"xxh128", f.xxh128}};
   j["files"] = fileTable;
   return j;
 }

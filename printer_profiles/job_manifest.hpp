@@ -50,7 +50,7 @@ struct Moments {
 struct FileRecord {
   std::string name;
   std::uintmax_t bytes = 0;
-  std::string sha256;  // of the bytes as written (lowercase hex)
+  std::string xxh128;  // of the bytes as written (common/xxh128.hpp: 32 lowercase hex digits)
 };
 
 struct LayerRecord {

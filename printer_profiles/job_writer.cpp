@@ -8,6 +8,8 @@
 #include "printer_profiles/leaf_bits.hpp"
 #include "printer_profiles/previews.hpp"
 
+#include "common/xxh128.hpp"
+
 #include <sys/stat.h>
 
 #include <algorithm>
@@ -91,7 +93,7 @@ struct JobWriter::Impl {
     layers.resize(static_cast<std::size_t>(geometry.layers));
     previews = std::make_unique<Previews>(geometry, spec.profile, spec.options.contactSheetLayers);
     removeDeadStaging(target.parent_path());
-    staging = std::make_unique<Staging>(target);  // last: nothing after it may throw
+    staging = std::make_unique<Staging>(target);  // if anything below throws, its destructor removes the folder
     filesDir = staging->files();
     encoder = std::make_unique<BandEncoder>(BandEncoderSetup{spec.profile, {geometry, imageFormat, support, emitted},
                                                              spec.supportTops.get(), spec.options.archive == ArchiveFormat::Zip,
@@ -155,7 +157,7 @@ struct JobWriter::Impl {
 
   FileRecord writeStaged(const std::string& name, std::span<const std::uint8_t> data) const {
     writeFile(filesDir / name, data);
-    return {name, data.size(), sha256Hex(data)};
+    return {name, data.size(), common::xxh128Hex(data)};
   }
 
   std::string buildFileText() const {
@@ -231,7 +233,7 @@ struct JobWriter::Impl {
 
   void verify(const fs::path& built) const {
     InspectOptions options{spec.profile};
-    // The layer images' SHA-256 and the zip's CRC-32 were computed over the same bytes (writeLayerFiles):
+    // The layer images' XXH3-128 and the zip's CRC-32 were computed over the same bytes (BandEncoder::keepImage):
     // reading each entry back through its CRC proves the zip holds them. Decoding every image again
     // would check the encoders, which the tests do (inspect, the CLI decoder tests); a sample of layers
     // is still decoded, so a broken encoder cannot write a job.

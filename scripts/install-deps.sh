@@ -19,6 +19,7 @@ packages=(
   nlohmann-json3-dev
   libcairo2-dev                                              # calibration plots, previews
   libssl-dev                                                 # SHA-256 checksums (libcrypto)
+  libxxhash-dev xxhash                                       # XXH3-128 job file checksums; xxhsum checks them in tests
   libsuitesparse-dev                                         # KLU: the mechanics solver's sparse LU
   liblbfgspp-dev                                             # L-BFGS-B for rodfab optimize (header-only)
   libnlopt-cxx-dev                                           # MMA / CCSAQ, compared in bench_optimize

@@ -1,7 +1,8 @@
-// common/: SHA-256 against the FIPS 180-2 test vectors, the data folder's search order and errors.
+// common/: SHA-256 against the FIPS 180-2 test vectors, XXH3-128 against xxhsum -H2, the data folder's search order and errors.
 #include "common/data_dir.hpp"
 #include "common/located_issues.hpp"
 #include "common/sha256.hpp"
+#include "common/xxh128.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -30,6 +31,21 @@ TEST_CASE("SHA-256 gives the FIPS 180-2 digests, in one piece or streamed") {
   CHECK(isSha256Hex(sha256Hex(std::string_view("x"))));
   CHECK_FALSE(isSha256Hex("BA7816BF8F01CFEA414140DE5DAE2223B00361A396177A9CB410FF61F20015AD"));
   CHECK_FALSE(isSha256Hex("abc"));
+}
+
+// The digests `xxhsum -H2` (Debian package xxhash) prints for the same inputs.
+TEST_CASE("XXH3-128 gives xxhsum's digests, in one piece or streamed") {
+  CHECK(xxh128Hex(std::string_view("")) == "99aa06d3014798d86001c324468d497f");
+  CHECK(xxh128Hex(std::string_view("abc")) == "06b05ab6733a618578af5f94892f3950");
+  const std::vector<std::uint8_t> zeros(1000000, 0);
+  CHECK(xxh128Hex(std::span<const std::uint8_t>(zeros)) == "ef233fc372a159319d648391f361d99a");
+  Xxh128 streamed;  // split across XXH3's internal 256-byte stripes and its buffer
+  for (const std::size_t piece : {1u, 255u, 4096u, 70000u}) streamed.update(std::span(zeros).first(piece));
+  streamed.update(std::span(zeros).subspan(1 + 255 + 4096 + 70000));
+  CHECK(streamed.hex() == "ef233fc372a159319d648391f361d99a");
+  CHECK(isXxh128Hex(xxh128Hex(std::string_view("x"))));
+  CHECK_FALSE(isXxh128Hex("06B05AB6733A618578AF5F94892F3950"));
+  CHECK_FALSE(isXxh128Hex(sha256Hex(std::string_view("abc"))));
 }
 
 TEST_CASE("the data folder is looked for beside the executable, one to three levels up") {

@@ -2,6 +2,8 @@
 // other code than the reader's (libzip to rebuild archives, a hand-written zip encoder for headers that
 // lie, zlib for deflate bombs, POSIX calls for FIFOs and links), must be refused with located findings,
 // in bounded time and memory, never crashing, hanging or reading anything outside the job.
+#include "common/sha256.hpp"
+#include "common/xxh128.hpp"
 #include "printer_profiles/printer_profiles.hpp"
 #include "tests/printer_profiles_fixture.hpp"
 
@@ -17,12 +19,16 @@
 
 #include <csignal>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <random>
+#include <stdexcept>
 
 using namespace rodfab::printer_profiles;
 namespace fs = std::filesystem;
 using nlohmann::json;
+using rodfab::common::sha256Hex;
+using rodfab::common::xxh128Hex;
 using rodfab::test::connex3;
 using rodfab::test::scratch;
 using rodfab::test::writeAll;
@@ -200,6 +206,12 @@ std::vector<RawEntry> rawEntries(const std::vector<std::pair<std::string, Bytes>
   return out;
 }
 
+const Bytes& entryBytes(const std::vector<std::pair<std::string, Bytes>>& files, const std::string& name) {
+  for (const auto& [n, data] : files)
+    if (n == name) return data;
+  throw std::out_of_range("no entry " + name);
+}
+
 json manifestOf(const std::vector<std::pair<std::string, Bytes>>& files) {
   for (const auto& [name, data] : files)
     if (name == "manifest.json") return json::parse(data.begin(), data.end());
@@ -215,7 +227,7 @@ void setManifest(std::vector<std::pair<std::string, Bytes>>& files, const json& 
 // Adds `name` to the job and lists it in the manifest with its true size and checksum.
 void addListed(std::vector<std::pair<std::string, Bytes>>& files, const std::string& name, const Bytes& data) {
   json m = manifestOf(files);
-  m["files"][name] = {{"bytes", data.size()}, {"sha256", sha256Hex(data)}};
+  m["files"][name] = {{"bytes", data.size()}, {"xxh128", xxh128Hex(data)}};
   setManifest(files, m);
   files.emplace_back(name, data);
 }
@@ -281,7 +293,7 @@ TEST_CASE("The writer's own check: a sample of layers decoded, the others read t
       for (const auto& [n, data] : out)
         if (n == name) {
           json m = manifestOf(out);
-          m["files"][name]["sha256"] = sha256Hex(data);
+          m["files"][name]["xxh128"] = xxh128Hex(data);
           setManifest(out, m);
         }
     return out;
@@ -568,6 +580,48 @@ TEST_CASE("The manifest's image size, nesting and value types are checked", "[in
   }
 }
 
+// Jobs list XXH3-128 checksums since 2026-12-02 (common/xxh128.hpp) and SHA-256 before: both are read,
+// each file's row names exactly one, and a checksum of the wrong length or algorithm is refused.
+TEST_CASE("File checksums: XXH3-128, or SHA-256 in older jobs, one per file, each checked", "[inspect][hostile]") {
+  const fs::path dir = scratch("checksums");
+  writeSmallJob(dir / "job.zip");
+  const auto original = unzip(dir / "job.zip");
+  const json written = manifestOf(original);
+  const std::string layer = written["layers"][1]["files"].begin().value().get<std::string>();
+  REQUIRE(xxh128Hex(entryBytes(original, layer)) == written["files"][layer]["xxh128"]);
+  const auto inspectWith = [&](const std::function<void(json&)>& edit) {
+    auto files = original;
+    json m = written;
+    edit(m);
+    setManifest(files, m);
+    rezip(dir / "t.zip", files);
+    return inspectJob(dir / "t.zip");
+  };
+  SECTION("an older job, every file listed by SHA-256, passes; a wrong SHA-256 does not") {
+    const auto toSha256 = [&](json& m) {
+      for (auto& [name, row] : m["files"].items()) row = {{"bytes", row["bytes"]}, {"sha256", sha256Hex(entryBytes(original, name))}};
+    };
+    CHECK(inspectWith(toSha256).ok());
+    const InspectReport wrong = inspectWith([&](json& m) {
+      toSha256(m);
+      m["files"][layer]["sha256"] = sha256Hex(std::string_view("another file"));
+    });
+    CHECK(hasDefect(wrong, layer + ": checksum mismatch"));
+  }
+  SECTION("a wrong XXH3-128 is a mismatch") {
+    const InspectReport report = inspectWith([&](json& m) { m["files"][layer]["xxh128"] = xxh128Hex(std::string_view("x")); });
+    CHECK(hasDefect(report, layer + ": checksum mismatch"));
+  }
+  SECTION("two checksums, none, or one of the wrong form are located") {
+    const InspectReport both = inspectWith([&](json& m) { m["files"][layer]["sha256"] = sha256Hex(entryBytes(original, layer)); });
+    CHECK(hasDefect(both, "files." + layer + ": holds both \"xxh128\" and \"sha256\"; expected one checksum"));
+    const InspectReport none = inspectWith([&](json& m) { m["files"][layer].erase("xxh128"); });
+    CHECK(hasDefect(none, "files." + layer + ": has no checksum; expected \"xxh128\""));
+    const InspectReport shaLength = inspectWith([&](json& m) { m["files"][layer]["xxh128"] = sha256Hex(entryBytes(original, layer)); });
+    CHECK(hasDefect(shaLength, "files." + layer + ".xxh128: expected 32 lowercase hex digits"));
+  }
+}
+
 TEST_CASE("Folder jobs: links, FIFOs and devices are never opened, and inspect never hangs", "[inspect][hostile]") {
   const fs::path dir = scratch("folder");
   const HangGuard guard(60);
@@ -625,7 +679,7 @@ TEST_CASE("Write the seeds of the inspect fuzz target", "[.make-seeds]") {
       if (name.starts_with("previews/")) data = encodePngRgb(RgbImage(2, 2, 90, 90, 90));
     json m = manifestOf(files);
     for (const auto& [name, data] : files)
-      if (name.starts_with("previews/")) m["files"][name] = {{"bytes", data.size()}, {"sha256", sha256Hex(data)}};
+      if (name.starts_with("previews/")) m["files"][name] = {{"bytes", data.size()}, {"xxh128", xxh128Hex(data)}};
     for (const char* key : {"statistics", "metadata", "calibration"}) m.erase(key);
     for (const char* key : {"origin_note", "pixel_to_design_mm", "part_voxels"}) m["frame"].erase(key);
     for (const char* key : {"row_order", "origin", "x_pixels_per_metre", "y_pixels_per_metre"}) m["image"].erase(key);

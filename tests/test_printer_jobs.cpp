@@ -2,6 +2,7 @@
 // voxel for voxel; support, checksums, tampering, force, atomic replacement, interrupts, staging
 // folders and previews. Profiles, bitmaps and the layout: tests/test_printer_profiles.cpp.
 #include "printer_profiles/previews.hpp"  // internal: the views' memory
+#include "common/xxh128.hpp"
 #include "printer_profiles/printer_profiles.hpp"
 #include "tests/printer_profiles_fixture.hpp"
 
@@ -258,7 +259,7 @@ TEST_CASE("Inspect catches edits, flips, a 600/300 swap and mixed voxels in a fo
   const auto replaceLayer = [&](const Bytes& data) {
     writeAll(layerFile, data);
     json manifest = json::parse(readAll(dir / "job" / "manifest.json"));
-    manifest["files"]["VeroWhitePlus_0021.bmp"] = {{"bytes", data.size()}, {"sha256", sha256Hex(data)}};
+    manifest["files"]["VeroWhitePlus_0021.bmp"] = {{"bytes", data.size()}, {"xxh128", rodfab::common::xxh128Hex(data)}};
     const std::string text = manifest.dump(1);
     writeAll(dir / "job" / "manifest.json", Bytes(text.begin(), text.end()));
   };

@@ -1,0 +1,47 @@
+#include "common/xxh128.hpp"
+
+#include <xxhash.h>
+
+#include <new>
+
+namespace rodfab::common {
+
+namespace {
+
+std::string canonicalHex(XXH128_hash_t hash) {
+  static constexpr char kHex[] = "0123456789abcdef";
+  XXH128_canonical_t canonical;
+  XXH128_canonicalFromHash(&canonical, hash);
+  std::string hex;
+  hex.reserve(2 * sizeof canonical.digest);
+  for (const unsigned char byte : canonical.digest) {
+    hex += kHex[byte >> 4];
+    hex += kHex[byte & 15];
+  }
+  return hex;
+}
+
+XXH3_state_t* state(void* p) { return static_cast<XXH3_state_t*>(p); }
+
+}  // namespace
+
+std::string xxh128Hex(std::span<const std::uint8_t> data) { return canonicalHex(XXH3_128bits(data.data(), data.size())); }
+
+std::string xxh128Hex(std::string_view data) { return canonicalHex(XXH3_128bits(data.data(), data.size())); }
+
+bool isXxh128Hex(std::string_view text) {
+  return text.size() == 32 && text.find_first_not_of("0123456789abcdef") == std::string_view::npos;
+}
+
+Xxh128::Xxh128() : state_(XXH3_createState()) {
+  if (!state_) throw std::bad_alloc();
+  XXH3_128bits_reset(state(state_));
+}
+
+Xxh128::~Xxh128() { XXH3_freeState(state(state_)); }
+
+void Xxh128::update(std::span<const std::uint8_t> data) { XXH3_128bits_update(state(state_), data.data(), data.size()); }
+
+std::string Xxh128::hex() const { return canonicalHex(XXH3_128bits_digest(state(state_))); }
+
+}  // namespace rodfab::common
