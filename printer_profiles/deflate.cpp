@@ -67,6 +67,7 @@ std::vector<std::uint8_t> deflateBytes(std::span<const std::uint8_t> input, int 
   std::size_t room = outputBound(input.size());
   for (;; room *= 2) {
     if (scratchSize < room) {
+      scratchSize = 0;  // a bad_alloc below leaves no buffer, and no size claiming one
       scratch.reset();
       scratch.reset(new std::uint8_t[room]);
       scratchSize = room;

@@ -141,22 +141,27 @@ ModulusScale modulusScale(bool haveModulus, std::initializer_list<const ViewT*> 
   return s;
 }
 
-// Colours one view's w x h pixels at (ox, oy): by material, or by modulus on `byModulus`'s scale when
-// given, shaded by depth. cellOf(x, y, w, h) maps a pixel to the view's cell (v = 0 at the top).
-template <class ViewT, class CellOf>
-void drawView(cairo_surface_t* surface, const ViewT& view, int ox, int oy, int w, int h, int depthRange,
-              const ModulusScale* byModulus, const ProfileMaterial& rigid, const ProfileMaterial& rubbery, CellOf cellOf) {
+// How a view's axes run on the image: u to the right and v down, or reversed.
+struct ViewAxes {
+  bool uLeftward = false, vUpward = false;
+};
+
+// Colours one view's pixels (as many as its axes sample) at (ox, oy): by material, or by modulus on
+// `byModulus`'s scale when given, shaded by depth. Each pixel shows the cell its axes sample there.
+template <class ViewT>
+void drawView(cairo_surface_t* surface, const ViewT& view, int ox, int oy, ViewAxes axes, int depthRange,
+              const ModulusScale* byModulus, const ProfileMaterial& rigid, const ProfileMaterial& rubbery) {
+  const int w = view.u.pixels(), h = view.v.pixels();
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
-      const auto [cx, cy] = cellOf(x, y, w, h);
-      const std::size_t at = view.at(cx, cy);
+      const std::size_t at = view.at(view.u.cellOfPixel(axes.uLeftward ? w - 1 - x : x), view.v.cellOfPixel(axes.vUpward ? h - 1 - y : y));
       const std::uint8_t m = view.material[at];
       if (!m) {
         putPixel(surface, ox + x, oy + y, kBackground);
         continue;
       }
       const double shade = 0.55 + 0.45 * (depthRange > 1 ? static_cast<double>(view.depth[at]) / (depthRange - 1) : 1.0);
-      std::uint8_t rgb[3];
+      std::uint8_t rgb[3] = {};  // set below; zeroed so no compiler sees it read unset
       if (byModulus) {
         const float e = view.modulus[at];
         if (onScale(e)) modulusColour(byModulus->logSpan > 0 ? (std::log(e) - byModulus->logMin) / byModulus->logSpan : 1.0, rgb);
@@ -194,7 +199,7 @@ void drawLegend(cairo_t* cr, const ProjectionLayout& l, const ModulusScale* byMo
   const double lx = l.sideX;
   if (byModulus) {
     for (int i = 0; i < 120; ++i) {
-      std::uint8_t rgb[3];
+      std::uint8_t rgb[3] = {};  // set below; zeroed so no compiler sees it read unset
       modulusColour(i / 119.0, rgb);
       cairo_set_source_rgb(cr, rgb[0] / 255.0, rgb[1] / 255.0, rgb[2] / 255.0);
       cairo_rectangle(cr, lx + i * 2, ly, 2, 14);
@@ -407,20 +412,13 @@ Bytes renderProjections(const std::string& title, const JobGeometry& g, const Pr
   const ProfileMaterial& rigid = profile.material(MaterialRole::Rigid);
   const ProfileMaterial& rubbery = profile.material(MaterialRole::Rubbery);
   Canvas canvas(l.width, l.height);
-  const auto clampCell = [](double v, int n) { return std::clamp(static_cast<int>(v), 0, n - 1); };
   // Top: x to the right, y up (image rows already run from the largest y down).
-  drawView(canvas.surface, top, l.topX, l.topY, l.topW, l.topH, g.layers, byModulus, rigid, rubbery, [&](int x, int y, int w, int h) {
-    return std::pair{clampCell((x + 0.5) * g.width / w, g.width), clampCell((y + 0.5) * g.height / h, g.height)};
-  });
+  drawView(canvas.surface, top, l.topX, l.topY, {}, g.layers, byModulus, rigid, rubbery);
   // Front: x to the right, z up; shade by nearness (larger row = nearer the viewer).
-  drawView(canvas.surface, front, l.topX, l.frontY, l.topW, l.frontH, g.height, byModulus, rigid, rubbery, [&](int x, int y, int w, int h) {
-    return std::pair{clampCell((x + 0.5) * g.width / w, g.width), clampCell((h - 1 - y + 0.5) * g.layers / h, g.layers)};
-  });
-  // Right side: y to the right, z up; shade by nearness (larger column = nearer the viewer).
-  drawView(canvas.surface, side, l.sideX, l.frontY, l.sideW, l.frontH, g.width, byModulus, rigid, rubbery, [&](int x, int y, int w, int h) {
-    // Image row 0 is the largest y, so y to the right runs from the last row to the first.
-    return std::pair{clampCell((w - 1 - x + 0.5) * g.height / w, g.height), clampCell((h - 1 - y + 0.5) * g.layers / h, g.layers)};
-  });
+  drawView(canvas.surface, front, l.topX, l.frontY, {.vUpward = true}, g.height, byModulus, rigid, rubbery);
+  // Right side: y to the right, z up; shade by nearness (larger column = nearer the viewer). Image row
+  // 0 is the largest y, so y to the right runs from the last row to the first.
+  drawView(canvas.surface, side, l.sideX, l.frontY, {.uLeftward = true, .vUpward = true}, g.width, byModulus, rigid, rubbery);
   cairo_surface_mark_dirty(canvas.surface);
   drawCaptions(canvas.cr, l, title, byModulus != nullptr);
   drawLegend(canvas.cr, l, byModulus, rigid, rubbery);

@@ -10,6 +10,7 @@
 
 #include <openvdb/openvdb.h>
 
+#include <cassert>
 #include <cstdint>
 #include <string>
 #include <utility>
@@ -44,6 +45,7 @@ public:
   AxisSamples(int cells, int pixels);
   int kept() const { return kept_; }                                               // cells some pixel shows
   int slot(int cell) const { return slots_[static_cast<std::size_t>(cell)]; }     // -1: no pixel shows it
+  int pixels() const { return pixels_; }
   int cellOfPixel(int p) const;
   // Bit per cell as bitmap rows pack them (cell 0 in bit 7 of byte 0): 1 where no pixel shows the cell.
   const std::vector<std::uint8_t>& hiddenMask() const { return hidden_; }
@@ -81,8 +83,9 @@ public:
     std::vector<float> modulus;          // MPa at that voxel, NaN when unknown
     View() = default;
     View(AxisSamples us, AxisSamples vs);
-    // The kept cell at (u cell, v cell), which must be shown by some pixel.
+    // The kept cell at (u cell, v cell), which must be shown by some pixel (cellOfPixel's cells are).
     std::size_t at(int uCell, int vCell) const {
+      assert(u.slot(uCell) >= 0 && v.slot(vCell) >= 0);
       return static_cast<std::size_t>(v.slot(vCell)) * static_cast<std::size_t>(width) + static_cast<std::size_t>(u.slot(uCell));
     }
     void set(std::size_t at, bool rigid, int depthValue, float modulusValue);
