@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <variant>
 
 namespace rodfab::cli {
 
@@ -32,8 +33,8 @@ struct FitRequest {
   std::string rigid, rubbery;  // both empty without --materials
 };
 
-// --model, --floor-mpa and --materials checked; nullopt after printing the last usage error found.
-std::optional<FitRequest> readFitRequest(const po::variables_map& vm, const std::string& synopsis) {
+// --model, --floor-mpa and --materials checked; the last usage error found, or the request.
+std::variant<FitRequest, std::string> readFitRequest(const po::variables_map& vm) {
   const std::string modelText = vm["model"].as<std::string>();
   const auto model = calibration::parseModel(modelText);
   const double floorMpa = vm["floor-mpa"].as<double>();
@@ -49,10 +50,7 @@ std::optional<FitRequest> readFitRequest(const po::variables_map& vm, const std:
       usageError = e.what();
     }
   }
-  if (!usageError.empty()) {
-    std::cerr << "rodfab calibrate: " << usageError << "\nusage: rodfab calibrate " << synopsis << '\n';
-    return std::nullopt;
-  }
+  if (!usageError.empty()) return usageError;
   r.fit = {*model, floorMpa};
   return r;
 }
@@ -73,11 +71,11 @@ int runCalibrate(const std::vector<std::string>& args) {
   addCalibrateOptions(options);
   po::positional_options_description positional;
   positional.add("data", 1);
-  const std::string synopsis = synopsisOf(options, positional);
   po::variables_map vm;
   if (auto code = parseOptions("calibrate", options, positional, args, vm)) return *code;
-  const std::optional<FitRequest> request = readFitRequest(vm, synopsis);
-  if (!request) return kUsage;
+  const std::variant<FitRequest, std::string> read = readFitRequest(vm);
+  if (const auto* error = std::get_if<std::string>(&read)) return cli::usageError("calibrate", *error);
+  const FitRequest& request = std::get<FitRequest>(read);
 
   commandLineAccepted();
   const std::string file = vm["data"].as<std::string>();
@@ -97,7 +95,7 @@ int runCalibrate(const std::vector<std::string>& args) {
               << file << ": " << e.issues().size() << (e.issues().size() == 1 ? " error" : " errors") << "; nothing fitted\n";
     return kFailed;
   }
-  const calibration::Calibration fit = withMaterials(calibration::fitCalibration(data, request->fit), *request);
+  const calibration::Calibration fit = withMaterials(calibration::fitCalibration(data, request.fit), request);
   printCalibrationFit(fit);
   if (vm.count("output")) {
     calibration::writeCalibration(fit, output);

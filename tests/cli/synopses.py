@@ -48,7 +48,9 @@ for command in commands:
     if re.search(r"\barg\b", help_text):
         failures.append(f"{command}: an option without a value name in --help")
     at = words.find(synopsis + " ")
-    if at < 0 and not words.endswith(synopsis):
+    if at < 0 and words.endswith(synopsis):
+        at = len(words) - len(synopsis)  # the last words of the README: nothing follows
+    if at < 0:
         failures.append(f"{command}: README.md does not show the synopsis of --help:\n  {synopsis}")
         continue
     rest = words[at + len(synopsis):].split()
