@@ -97,43 +97,31 @@ std::optional<NurbsCurve> DesignReader::centerline(const json& j, const std::str
     return std::nullopt;
   }
   onlyKeys(j, path, {"degree", "knots", "points", "weights"});
-  std::optional<int> p;
-  if (auto d = require(j, path, "degree", "an integer degree")) p = degree(*d, memberPath(path, "degree"));
-  std::optional<std::vector<Vec3>> points;
-  if (auto pts = require(j, path, "points", "an array of [x, y, z] control points")) {
-    const std::string pp = memberPath(path, "points");
-    points = readArray<Vec3>(*this, *pts, pp, "an array of [x, y, z] control points", [&](const json& e, const std::string& ep) {
-      std::optional<Vec3> c = vector3(e, ep, "a control point");
-      if (c && !(c->cwiseAbs().maxCoeff() <= kMaxCoordinateMm)) {
-        fail(ep, "expected coordinates within +-1e9 mm (designs are in millimetres), got " + describe(e));
-        c.reset();
-      }
-      return c;
-    });
-    if (points && p && points->size() < static_cast<std::size_t>(*p) + 1) {
-      fail(pp, "a degree-" + std::to_string(*p) + " curve needs at least " + std::to_string(*p + 1) +
-                   " control points, got " + std::to_string(points->size()));
-      points.reset();
+  auto parts = splineParts<Vec3>(*this, j, path, "points", "an array of [x, y, z] control points", [&](const json& e, const std::string& ep) {
+    std::optional<Vec3> c = vector3(e, ep, "a control point");
+    if (c && !(c->cwiseAbs().maxCoeff() <= kMaxCoordinateMm)) {
+      fail(ep, "expected coordinates within +-1e9 mm (designs are in millimetres), got " + describe(e));
+      c.reset();
     }
-  }
-  const std::optional<std::vector<double>> k =
-      splineKnots(*this, j, path, p, points ? std::optional<std::size_t>(points->size()) : std::nullopt);
+    return c;
+  });
   std::optional<std::vector<double>> weights = std::vector<double>{};  // none given: a polynomial curve
   if (auto w = j.find("weights"); w != j.end()) {
     const std::string wp = memberPath(path, "weights");
     weights = readArray<double>(*this, *w, wp, "an array of positive weights",
                                 [&](const json& e, const std::string& ep) { return positive(e, ep, "a weight"); });
-    if (weights && points && weights->size() != points->size()) {
-      fail(wp, "expected one weight per control point (" + std::to_string(points->size()) + "), got " +
+    if (weights && parts && weights->size() != parts->controls.size()) {
+      fail(wp, "expected one weight per control point (" + std::to_string(parts->controls.size()) + "), got " +
                    std::to_string(weights->size()));
       weights.reset();
     }
   }
-  if (!p || !points || !k || !weights) return std::nullopt;
-  NurbsCurve curve(*p, *k, *points, *weights);
+  if (!parts || !weights) return std::nullopt;
+  const std::vector<Vec3>& points = parts->controls;
+  NurbsCurve curve(parts->degree, parts->knots, points, *weights);
   const double length = curve.arcLength();
   Box3 box;
-  for (const Vec3& q : *points) box.extend(q);
+  for (const Vec3& q : points) box.extend(q);
   if (!std::isfinite(length)) {
     fail(path, "the centerline's length is not a finite number (weights too extreme for double precision?)");
     return std::nullopt;

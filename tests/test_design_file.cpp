@@ -80,7 +80,7 @@ TEST_CASE("Every kind of bad format, units and centerline is reported with its p
   SECTION("too few points for the degree") {
     json d = validDesign();
     d["rods"][0]["centerline"]["points"] = {{0, 0, 0}, {1, 0, 0}};
-    REQUIRE_ISSUE(d, "rods[0].centerline.points", "at least 4 control points");
+    REQUIRE_ISSUE(d, "rods[0].centerline.points", "degree 3 needs at least 4 points, got 2");
   }
   SECTION("decreasing knots") {
     json d = validDesign();
