@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <bit>
 #include <condition_variable>
 #include <mutex>
 #include <limits>
@@ -23,82 +24,159 @@ namespace {
 
 using detail::BoolLeaf;
 using detail::FloatLeaf;
+using detail::LeafMask;
 
-struct Voxel {
-  int i;
-  float fraction;
-  std::uint32_t leaf;     // index into the band's leaves
-  std::uint16_t offset;   // within that leaf
-};
 struct Row {
   int j;
   std::uint32_t begin, end;  // voxels [begin, end), ascending i
 };
-// One layer's active voxels in (j, i) order.
+
+// Which neighbours of a voxel are inside the part: bits of Layer::links, set when the layer is prepared
+// (kUp when the layer above is), so the sweep itself does no lookups.
+enum Link : std::uint8_t {
+  kLeft = 1,        // (i - 1, j, k): voxel v - 1
+  kRight = 2,       // (i + 1, j, k): voxel v + 1
+  kNextLeft = 4,    // (i - 1, j + 1, k): voxel nextRow[v]
+  kNextSame = 8,    // (i, j + 1, k): the next voxel of the next row
+  kNextRight = 16,  // (i + 1, j + 1, k): the one after
+  kUp = 32,         // (i, j, k + 1): voxel up[v] of the layer above
+};
+constexpr std::uint32_t kNoVoxel = std::numeric_limits<std::uint32_t>::max();
+
+// One layer's active voxels in (j, i) order, as arrays: the sweep reads them one after the other.
 struct Layer {
   int k = 0;
-  std::vector<Voxel> voxels;
   std::vector<Row> rows;
+  std::vector<int> i;
+  std::vector<float> fraction;
+  std::vector<float> threshold;        // the jittered threshold of each voxel
+  std::vector<std::uint32_t> leaf;     // index into the band's leaves
+  std::vector<std::uint16_t> offset;   // within that leaf
+  std::vector<std::uint8_t> links;     // Link bits
+  std::vector<std::uint32_t> nextRow;  // the first voxel of row j + 1 with x >= i - 1 (when it has one)
+  std::vector<std::uint32_t> up;       // the voxel above, kNoVoxel if none
+  std::size_t size() const { return i.size(); }
+  void resize(std::size_t n) {
+    i.resize(n);
+    fraction.resize(n);
+    threshold.resize(n);
+    leaf.resize(n);
+    offset.resize(n);
+    links.resize(n);
+    nextRow.resize(n);
+    up.resize(n);
+  }
 };
 
 int floorToLeaf(int k) { return k & ~static_cast<int>(FloatLeaf::DIM - 1); }
 
-// Leaves are sorted by origin (z, y, x), so a slab's leaves are contiguous and grouped by y. Fills
-// `layer` in place: a slot's vectors keep their capacity from the layer it held before (layers of
-// millions of voxels otherwise cost a fresh allocation, its page faults and its growth copies each).
-void enumerateLayer(const std::vector<const FloatLeaf*>& leaves, int k, Layer& layer) {
-  layer.k = k;
-  layer.voxels.clear();
-  layer.rows.clear();
+// The leaves of `leaves` (sorted by origin (z, y, x)) in the slab holding layer k: contiguous, grouped by y.
+std::pair<std::size_t, std::size_t> slabOf(const std::vector<const FloatLeaf*>& leaves, int k) {
   const int z0 = floorToLeaf(k);
   auto first = std::lower_bound(leaves.begin(), leaves.end(), z0,
                                 [](const FloatLeaf* l, int z) { return l->origin().z() < z; });
   auto last = std::lower_bound(first, leaves.end(), z0 + 1,
                                [](const FloatLeaf* l, int z) { return l->origin().z() < z; });
-  const openvdb::Index dz = static_cast<openvdb::Index>(k - z0);
-  for (auto group = first; group != last;) {
-    const int y0 = (*group)->origin().y();
-    auto groupEnd = std::find_if(group, last, [y0](const FloatLeaf* l) { return l->origin().y() != y0; });
-    for (openvdb::Index dy = 0; dy < FloatLeaf::DIM; ++dy) {
-      const auto begin = static_cast<std::uint32_t>(layer.voxels.size());
-      for (auto it = group; it != groupEnd; ++it) {
-        const FloatLeaf& leaf = **it;
+  return {static_cast<std::size_t>(first - leaves.begin()), static_cast<std::size_t>(last - leaves.begin())};
+}
+
+// Fills `layer`'s rows and voxels (i, fraction, leaf, offset) in place: its vectors keep their capacity
+// from the layer the slot held before (layers of millions of voxels otherwise cost a fresh allocation,
+// its page faults and its growth copies each). Counts first, so each array is sized once.
+void enumerateLayer(const std::vector<const FloatLeaf*>& leaves, int k, Layer& layer) {
+  layer.k = k;
+  layer.rows.clear();
+  const auto [first, last] = slabOf(leaves, k);
+  const auto dz = static_cast<unsigned>(k - floorToLeaf(k));
+  const std::uint64_t layerBits = 0x0101010101010101ull << dz;  // (y, dz) for every y of a word
+  std::size_t count = 0;
+  for (std::size_t l = first; l != last; ++l)
+    for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w)
+      count += static_cast<std::size_t>(std::popcount(leaves[l]->getValueMask().template getWord<std::uint64_t>(w) & layerBits));
+  layer.resize(count);
+  std::uint32_t n = 0;
+  for (std::size_t group = first; group != last;) {
+    const int y0 = leaves[group]->origin().y();
+    std::size_t groupEnd = group;
+    while (groupEnd != last && leaves[groupEnd]->origin().y() == y0) ++groupEnd;
+    for (unsigned dy = 0; dy < FloatLeaf::DIM; ++dy) {
+      const std::uint32_t begin = n;
+      for (std::size_t l = group; l != groupEnd; ++l) {
+        const FloatLeaf& leaf = *leaves[l];
         const float* values = leaf.buffer().data();
-        for (openvdb::Index dx = 0; dx < FloatLeaf::DIM; ++dx) {
-          const openvdb::Index n = (dx << 6) | (dy << 3) | dz;
-          if (!leaf.isValueOn(n)) continue;
-          layer.voxels.push_back({leaf.origin().x() + static_cast<int>(dx), values[n],
-                                  static_cast<std::uint32_t>(it - leaves.begin()), static_cast<std::uint16_t>(n)});
+        for (unsigned dx = 0; dx < FloatLeaf::DIM; ++dx) {
+          const unsigned bit = (dy << 3) | dz;
+          if (!((leaf.getValueMask().template getWord<std::uint64_t>(dx) >> bit) & 1)) continue;
+          const auto offset = static_cast<std::uint16_t>((dx << 6) | bit);
+          layer.i[n] = leaf.origin().x() + static_cast<int>(dx);
+          layer.fraction[n] = values[offset];
+          layer.leaf[n] = static_cast<std::uint32_t>(l);
+          layer.offset[n] = offset;
+          ++n;
         }
       }
-      const auto end = static_cast<std::uint32_t>(layer.voxels.size());
-      if (end > begin) layer.rows.push_back({y0 + static_cast<int>(dy), begin, end});
+      if (n > begin) layer.rows.push_back({y0 + static_cast<int>(dy), begin, n});
     }
     group = groupEnd;
   }
 }
 
-// Voxel indices of one row by x, for O(1) neighbour lookups; filled for a row and cleared after.
-class RowIndex {
-public:
-  RowIndex(int xBase, int width) : xBase_(xBase), slots_(static_cast<std::size_t>(std::max(width, 0)) + 2, -1) {}
-  void fill(const Layer& layer, const Row& row) {
-    for (std::uint32_t v = row.begin; v < row.end; ++v) slot(layer.voxels[v].i) = static_cast<std::int32_t>(v);
-  }
-  void clear(const Layer& layer, const Row& row) {
-    for (std::uint32_t v = row.begin; v < row.end; ++v) slot(layer.voxels[v].i) = -1;
-  }
-  // -1 outside the part (or outside the band's x range).
-  std::int32_t at(int i) const {
-    const int s = i - xBase_ + 1;
-    return s >= 0 && s < static_cast<int>(slots_.size()) ? slots_[s] : -1;
-  }
+// The Philox draw of each voxel of a row as a uniform number (voxelUniform), in one loop the compiler
+// vectorizes: the draws were a third of the sweep's time. Integer arithmetic and an exact conversion,
+// so every clone gives the same numbers; no throw in a target_clones function (GCC 12 assumes none).
+[[gnu::target_clones("avx2", "default")]] void drawUniforms(std::uint64_t seed, const int* i, int j, int k, float* out,
+                                                          std::uint32_t count) noexcept {
+  for (std::uint32_t v = 0; v < count; ++v) out[v] = voxelUniform(seed, i[v], j, k);
+}
 
-private:
-  std::int32_t& slot(int i) { return slots_[static_cast<std::size_t>(i - xBase_ + 1)]; }
-  int xBase_;
-  std::vector<std::int32_t> slots_;
-};
+// Each voxel's threshold: 0.5 jittered by +-kThresholdJitter / 2 from its uniform number.
+void computeThresholds(std::uint64_t seed, Layer& layer) {
+  for (const Row& row : layer.rows)
+    drawUniforms(seed, layer.i.data() + row.begin, row.j, layer.k, layer.threshold.data() + row.begin, row.end - row.begin);
+  for (float& t : layer.threshold) t = 0.5f + ErrorDiffusionDitherer::kThresholdJitter * (t - 0.5f);
+}
+
+// The in-layer Link bits and nextRow of every voxel, walking each row alongside the next.
+void linkWithinLayer(Layer& layer) {
+  const std::vector<int>& x = layer.i;
+  for (std::size_t r = 0; r < layer.rows.size(); ++r) {
+    const Row& row = layer.rows[r];
+    const bool hasNext = r + 1 < layer.rows.size() && layer.rows[r + 1].j == row.j + 1;
+    const std::uint32_t nextEnd = hasNext ? layer.rows[r + 1].end : 0;
+    std::uint32_t n = hasNext ? layer.rows[r + 1].begin : 0;
+    for (std::uint32_t v = row.begin; v < row.end; ++v) {
+      unsigned bits = 0;
+      if (v > row.begin && x[v - 1] == x[v] - 1) bits |= kLeft;
+      if (v + 1 < row.end && x[v + 1] == x[v] + 1) bits |= kRight;
+      if (hasNext) {
+        while (n < nextEnd && x[n] < x[v] - 1) ++n;
+        std::uint32_t m = n;
+        if (m < nextEnd && x[m] == x[v] - 1) bits |= kNextLeft, ++m;
+        if (m < nextEnd && x[m] == x[v]) bits |= kNextSame, ++m;
+        if (m < nextEnd && x[m] == x[v] + 1) bits |= kNextRight;
+      }
+      layer.links[v] = static_cast<std::uint8_t>(bits);
+      layer.nextRow[v] = n;
+    }
+  }
+}
+
+// Layer `below`'s up links (kUp and up[]) into `above`, the layer over it, walking rows of equal j.
+void linkUp(Layer& below, const Layer& above) {
+  std::size_t ra = 0;
+  for (const Row& row : below.rows) {
+    while (ra < above.rows.size() && above.rows[ra].j < row.j) ++ra;
+    const bool hasAbove = ra < above.rows.size() && above.rows[ra].j == row.j;
+    std::uint32_t a = hasAbove ? above.rows[ra].begin : 0;
+    const std::uint32_t aEnd = hasAbove ? above.rows[ra].end : 0;
+    for (std::uint32_t v = row.begin; v < row.end; ++v) {
+      while (a < aEnd && above.i[a] < below.i[v]) ++a;
+      const bool found = a < aEnd && above.i[a] == below.i[v];
+      below.up[v] = found ? a : kNoVoxel;
+      if (found) below.links[v] |= kUp;
+    }
+  }
+}
 
 constexpr int kNoRowYet = std::numeric_limits<int>::min();
 constexpr int kAllRows = std::numeric_limits<int>::max();
@@ -181,6 +259,24 @@ constexpr float kInLayer = 1.0f - ErrorDiffusionDitherer::kShareToNextLayer;
 constexpr std::array<float, 4> kWeights{7.0f / 16 * kInLayer, 3.0f / 16 * kInLayer, 5.0f / 16 * kInLayer,
                                         1.0f / 16 * kInLayer};
 
+// The neighbours' total weight for each combination of Link bits, in a row swept towards +x (Dir = 1)
+// or -x: the share sent up first, then the weights in kWeights' order, added as the sweep always added
+// them (the floats must come out the same).
+template <int Dir>
+std::array<float, 64> totalWeights() {
+  constexpr unsigned ahead = Dir > 0 ? kRight : kLeft, behind = Dir > 0 ? kNextLeft : kNextRight;
+  constexpr unsigned aheadNext = Dir > 0 ? kNextRight : kNextLeft;
+  constexpr std::array<unsigned, 4> role{ahead, behind, kNextSame, aheadNext};
+  std::array<float, 64> totals{};
+  for (unsigned links = 0; links < 64; ++links) {
+    float total = (links & kUp) ? ErrorDiffusionDitherer::kShareToNextLayer : 0.0f;
+    for (int t = 0; t < 4; ++t)
+      if (links & role[t]) total += kWeights[t];
+    totals[links] = total;
+  }
+  return totals;
+}
+
 // The diffusion of one band, layer by layer as a wavefront: the worker on layer k starts its row j once
 // layer k - 1 has finished row j + 1. Row j of layer k receives error from row j of layer k - 1 (the
 // share sent up) and from its own rows j - 1 and j; row j + 1 from row j. Waiting for row j + 1 below
@@ -193,7 +289,7 @@ public:
                 std::uint64_t seed, const std::function<void()>& checkInterrupt, int workers, SlotBuffers& buffers)
       : leaves_(leaves), out_(out), k0_(k0), k1_(k1), seed_(seed), checkInterrupt_(checkInterrupt),
         slots_(static_cast<std::size_t>(workers) + 3), buffers_(buffers.lend(slots_)),
-        rowWidth_(xRange(leaves)), nextLayer_(k0), veroByWorker_(static_cast<std::size_t>(workers)) {
+        nextLayer_(k0), veroByWorker_(static_cast<std::size_t>(workers)) {
     prepare(k0);
     prepare(k0 + 1);
   }
@@ -209,14 +305,13 @@ public:
     try {
       std::vector<detail::LeafMask>& vero = veroByWorker_[static_cast<std::size_t>(worker)];
       vero.resize(leaves_.size());
-      RowIndex nextRowIndex(rowWidth_.first, rowWidth_.second), aboveIndex(rowWidth_.first, rowWidth_.second);
       for (int k = nextLayer_.fetch_add(1); k < k1_; k = nextLayer_.fetch_add(1)) {
         if (checkInterrupt_) checkInterrupt_();
         // Two layers ahead: the worker that claims k + 1 next must not wait for the enumeration.
         if (k + 2 <= k1_) prepare(k + 2);
         slot(k).preparedFor.waitUntil(k);
         slot(k + 1).preparedFor.waitUntil(k + 1);
-        diffuseLayer(k, nextRowIndex, aboveIndex, vero);
+        diffuseLayer(k, vero);
       }
     } catch (const BandAbandoned&) {
     } catch (...) {
@@ -245,14 +340,6 @@ public:
   const detail::FractionCheck& check() const { return check_; }
 
 private:
-  static std::pair<int, int> xRange(const std::vector<const FloatLeaf*>& leaves) {
-    int xMin = 0, xMax = -1;
-    for (std::size_t l = 0; l < leaves.size(); ++l) {
-      xMin = l == 0 ? leaves[l]->origin().x() : std::min(xMin, leaves[l]->origin().x());
-      xMax = l == 0 ? leaves[l]->origin().x() + 7 : std::max(xMax, leaves[l]->origin().x() + 7);
-    }
-    return {xMin, xMax - xMin + 1};
-  }
   LayerSlot& slot(int k) { return slots_[static_cast<std::size_t>(k - k0_) % slots_.size()]; }
 
   void abandon(std::exception_ptr failure) {
@@ -276,75 +363,69 @@ private:
     const int lastReader = k - static_cast<int>(slots_.size()) + 1;
     if (lastReader > k0_) slot(lastReader).finishedThroughRow.waitUntil(kAllRows);
     enumerateLayer(leaves_, k, s.layer);
-    s.error.assign(s.layer.voxels.size(), 0.0f);
+    if (k < k1_) computeThresholds(seed_, s.layer);  // layer k1 is only where error may go
+    linkWithinLayer(s.layer);
+    s.error.assign(s.layer.size(), 0.0f);
+    if (k > k0_) {
+      // Layer k - 1's up links, before anyone sweeps it: its worker waits for this slot to be prepared.
+      LayerSlot& below = slot(k - 1);
+      below.preparedFor.waitUntil(k - 1);
+      linkUp(below.layer, s.layer);
+    }
     s.finishedThroughRow.publish(kNoRowYet);
     s.preparedFor.publish(k);
   }
 
-  void diffuseLayer(int k, RowIndex& nextRowIndex, RowIndex& aboveIndex, std::vector<detail::LeafMask>& vero) {
+  void diffuseLayer(int k, std::vector<detail::LeafMask>& vero) {
     LayerSlot& here = slot(k);
-    LayerSlot& above = slot(k + 1);
+    float* errorAbove = slot(k + 1).error.data();
     Progress* below = k > k0_ ? &slot(k - 1).finishedThroughRow : nullptr;
-    const Layer& layer = here.layer;
-    std::size_t aboveRow = 0;
-    for (std::size_t r = 0; r < layer.rows.size(); ++r) {
-      const Row& row = layer.rows[r];
+    for (const Row& row : here.layer.rows) {
       if (below) below->waitUntil(row.j + 1, row.j + 1 + kWakeSlackRows);
-      const Row* nextRow = r + 1 < layer.rows.size() && layer.rows[r + 1].j == row.j + 1 ? &layer.rows[r + 1] : nullptr;
-      while (aboveRow < above.layer.rows.size() && above.layer.rows[aboveRow].j < row.j) ++aboveRow;
-      const Row* rowAbove =
-          aboveRow < above.layer.rows.size() && above.layer.rows[aboveRow].j == row.j ? &above.layer.rows[aboveRow] : nullptr;
-      if (nextRow) nextRowIndex.fill(layer, *nextRow);
-      if (rowAbove) aboveIndex.fill(above.layer, *rowAbove);
-      diffuseRow(k, layer, row, nextRow ? &nextRowIndex : nullptr, rowAbove ? &aboveIndex : nullptr, here.error, above.error,
-                 vero);
-      if (nextRow) nextRowIndex.clear(layer, *nextRow);
-      if (rowAbove) aboveIndex.clear(above.layer, *rowAbove);
+      if ((row.j + k) & 1)
+        diffuseRow<-1>(here.layer, row, here.error.data(), errorAbove, vero);
+      else
+        diffuseRow<+1>(here.layer, row, here.error.data(), errorAbove, vero);
       here.finishedThroughRow.publish(row.j);
     }
     if (below) below->waitUntil(kAllRows);  // layers finish in order: see prepare()
     here.finishedThroughRow.publish(kAllRows);
   }
 
-  // The serpentine sweep of one row (direction alternating with j + k), each voxel's error sent to the
-  // neighbours inside the part, weights renormalized over them.
-  void diffuseRow(int k, const Layer& layer, const Row& row, const RowIndex* nextRowIndex, const RowIndex* aboveIndex,
-                  std::vector<float>& error, std::vector<float>& errorAbove, std::vector<detail::LeafMask>& vero) {
-    const int dir = ((row.j + k) & 1) ? -1 : +1;
-    const auto count = static_cast<std::int64_t>(row.end - row.begin);
-    for (std::int64_t step = 0; step < count; ++step) {
-      const std::uint32_t v = dir > 0 ? row.begin + static_cast<std::uint32_t>(step) : row.end - 1 - static_cast<std::uint32_t>(step);
-      const Voxel& voxel = layer.voxels[v];
-      const float f = voxel.fraction;
+  // The serpentine sweep of one row (towards +x for Dir = 1), each voxel's error sent to the neighbours
+  // inside the part, weights renormalized over them. The loop carries the error from voxel to voxel:
+  // everything about the neighbours was worked out when the layers were prepared.
+  template <int Dir>
+  void diffuseRow(const Layer& layer, const Row& row, float* error, float* errorAbove, std::vector<detail::LeafMask>& vero) {
+    static const std::array<float, 64> totals = totalWeights<Dir>();
+    constexpr unsigned ahead = Dir > 0 ? kRight : kLeft;
+    constexpr unsigned behind = Dir > 0 ? kNextLeft : kNextRight, aheadNext = Dir > 0 ? kNextRight : kNextLeft;
+    const std::int64_t first = Dir > 0 ? row.begin : static_cast<std::int64_t>(row.end) - 1;
+    const std::int64_t stop = Dir > 0 ? row.end : static_cast<std::int64_t>(row.begin) - 1;
+    for (std::int64_t v = first; v != stop; v += Dir) {
+      const float f = layer.fraction[v];
       if (!detail::FractionCheck::valid(f)) {
-        check_.fail(voxel.leaf, voxel.offset);
+        check_.fail(layer.leaf[v], layer.offset[v]);
         continue;
       }
       const float wanted = f + error[v];
-      const float threshold = 0.5f + ErrorDiffusionDitherer::kThresholdJitter * (voxelUniform(seed_, voxel.i, row.j, k) - 0.5f);
-      const bool isVero = f >= 1.0f || (f > 0.0f && wanted >= threshold);
-      if (isVero) vero[voxel.leaf].setOn(voxel.offset);
+      const bool isVero = (f >= 1.0f) | ((f > 0.0f) & (wanted >= layer.threshold[v]));
+      const unsigned offset = layer.offset[v];
+      vero[layer.leaf[v]].template getWord<std::uint64_t>(offset >> 6) |= std::uint64_t{isVero} << (offset & 63);
       const float residual = wanted - (isVero ? 1.0f : 0.0f);
-
-      std::array<std::int32_t, 4> targets{-1, -1, -1, -1};
-      if (step + 1 < count) {
-        const std::uint32_t a = dir > 0 ? v + 1 : v - 1;
-        if (layer.voxels[a].i == voxel.i + dir) targets[0] = static_cast<std::int32_t>(a);
-      }
-      if (nextRowIndex) {
-        targets[1] = nextRowIndex->at(voxel.i - dir);
-        targets[2] = nextRowIndex->at(voxel.i);
-        targets[3] = nextRowIndex->at(voxel.i + dir);
-      }
-      const std::int32_t up = aboveIndex ? aboveIndex->at(voxel.i) : -1;
-      float total = up >= 0 ? ErrorDiffusionDitherer::kShareToNextLayer : 0.0f;
-      for (int t = 0; t < 4; ++t)
-        if (targets[t] >= 0) total += kWeights[t];
+      const unsigned links = layer.links[v];
+      const float total = totals[links];
       if (total <= 0.0f) continue;  // an isolated voxel with nothing after it: its error has nowhere to go
       const float scale = residual / total;
-      for (int t = 0; t < 4; ++t)
-        if (targets[t] >= 0) error[static_cast<std::size_t>(targets[t])] += kWeights[t] * scale;
-      if (up >= 0) errorAbove[static_cast<std::size_t>(up)] += ErrorDiffusionDitherer::kShareToNextLayer * scale;
+      if (links & ahead) error[v + Dir] += kWeights[0] * scale;
+      // The next row's voxels at i - 1, i, i + 1, those that are inside the part, in that order.
+      const std::uint32_t left = layer.nextRow[v];
+      const std::uint32_t same = left + ((links & kNextLeft) ? 1 : 0);
+      const std::uint32_t right = same + ((links & kNextSame) ? 1 : 0);
+      if (links & behind) error[Dir > 0 ? left : right] += kWeights[1] * scale;
+      if (links & kNextSame) error[same] += kWeights[2] * scale;
+      if (links & aheadNext) error[Dir > 0 ? right : left] += kWeights[3] * scale;
+      if (links & kUp) errorAbove[layer.up[v]] += ErrorDiffusionDitherer::kShareToNextLayer * scale;
     }
   }
 
@@ -355,7 +436,6 @@ private:
   const std::function<void()>& checkInterrupt_;
   std::vector<LayerSlot> slots_;
   SlotBuffers& buffers_;
-  const std::pair<int, int> rowWidth_;  // x of the band's first column and the number of columns
   std::atomic<int> nextLayer_;
   std::vector<std::vector<detail::LeafMask>> veroByWorker_;
   detail::FractionCheck check_;
@@ -373,8 +453,8 @@ void takeCarry(const Carries& carry, LayerSlot& first, int k0) {
     bool found = false;
     if (r < layer.rows.size() && layer.rows[r].j == c.j) {
       v = std::max<std::size_t>(v, layer.rows[r].begin);
-      while (v < layer.rows[r].end && layer.voxels[v].i < c.i) ++v;
-      found = v < layer.rows[r].end && layer.voxels[v].i == c.i;
+      while (v < layer.rows[r].end && layer.i[v] < c.i) ++v;
+      found = v < layer.rows[r].end && layer.i[v] == c.i;
     }
     if (!found)
       throw std::logic_error("error-diffusion: voxel (" + std::to_string(c.i) + ", " + std::to_string(c.j) + ", " +
@@ -417,7 +497,7 @@ openvdb::BoolGrid::Ptr ErrorDiffusionDitherer::ditherLeafVoxels(const openvdb::F
   const LayerSlot& last = band.lastLayer();
   for (const Row& row : last.layer.rows)
     for (std::uint32_t v = row.begin; v < row.end; ++v)
-      if (last.error[v] != 0.0f) carry_.push_back({last.layer.voxels[v].i, row.j, last.error[v]});
+      if (last.error[v] != 0.0f) carry_.push_back({last.layer.i[v], row.j, last.error[v]});
   started_ = true;
   nextLayer_ = k1;
   return detail::assembleMaterialGrid(out, fraction);
