@@ -40,6 +40,9 @@ public:
 
   explicit ErrorDiffusionDitherer(std::uint64_t seed, std::function<void()> checkInterrupt = {})
       : seed_(seed), checkInterrupt_(std::move(checkInterrupt)) {}
+  // Not copyable: a copy would share buffers_ and race with the original on the same layers' lists.
+  ErrorDiffusionDitherer(const ErrorDiffusionDitherer&) = delete;
+  ErrorDiffusionDitherer& operator=(const ErrorDiffusionDitherer&) = delete;
   std::string_view name() const override { return "error-diffusion"; }
   void reset() override {
     started_ = false;
