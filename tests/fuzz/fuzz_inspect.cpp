@@ -4,6 +4,7 @@
 // entries arrive) with the manifest's checksums recomputed for the files present, so that the folder's
 // inspection reaches the image decoders and layout checks. inspect must never crash, hang, throw or
 // grow memory without bound; its defects must be printable; a zip it passes must pass as a folder too.
+#include "common/xxh128.hpp"
 #include "printer_profiles/printer_profiles.hpp"
 
 #include <nlohmann/json.hpp>
@@ -137,7 +138,7 @@ void fixChecksums(const fs::path& root) {
     if (!harmlessName(name) || !fs::is_regular_file(fs::symlink_status(file, ec))) continue;
     std::ifstream f(file, std::ios::binary);
     const pp::Bytes bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-    row = {{"bytes", bytes.size()}, {"sha256", pp::sha256Hex(bytes)}};
+    row = {{"bytes", bytes.size()}, {"xxh128", rodfab::common::xxh128Hex(bytes)}};
   }
   const std::string fixed = manifest.dump(1, ' ', false, json::error_handler_t::replace);
   writeFile(manifestPath, reinterpret_cast<const std::uint8_t*>(fixed.data()), fixed.size());
