@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 using namespace rodfab::materials;
 
@@ -119,6 +120,55 @@ BENCHMARK(ditherDenseBlock)->DenseRange(0, 2)->Unit(benchmark::kMillisecond)->Us
 BENCHMARK(ditherRodBundle)->DenseRange(0, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
 void ditherLatticeSlab(benchmark::State& state) { dither(state, latticeSlab()); }
 BENCHMARK(ditherLatticeSlab)->DenseRange(0, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The lattice slab as `rodfab slice` streams it: one fraction grid per band of 8 layers (a leaf slab,
+// as slicer::automaticBandLayers picks for the lattice class's 2000 x 1000 voxel layers), holding the
+// band's leaves only, dithered band after band with two outputs alive at a time (the pipeline's two
+// bands in flight), so that per-band costs (output trees, leaf allocation) count as in the slicer.
+constexpr int kBandLayers = 8;
+const std::vector<openvdb::FloatGrid::Ptr>& latticeSlabBands() {
+  static const std::vector<openvdb::FloatGrid::Ptr> bands = [] {
+    const openvdb::FloatGrid& slab = latticeSlab();
+    const openvdb::CoordBBox box = slab.evalActiveVoxelBoundingBox();
+    std::vector<openvdb::FloatGrid::Ptr> out;
+    for (int k0 = box.min().z(); k0 <= box.max().z(); k0 += kBandLayers) {
+      auto band = openvdb::FloatGrid::create(0.0f);
+      band->setTransform(slab.transform().copy());
+      band->setName(kFractionGridName);
+      for (auto leaf = slab.tree().cbeginLeaf(); leaf; ++leaf)
+        if (leaf->origin().z() >= k0 && leaf->origin().z() < k0 + kBandLayers)
+          band->tree().addLeaf(new openvdb::FloatTree::LeafNodeType(*leaf));
+      out.push_back(band);
+    }
+    return out;
+  }();
+  return bands;
+}
+
+void ditherLatticeBands(benchmark::State& state) {
+  const std::string method = ditherMethodNames()[static_cast<std::size_t>(state.range(0))];
+  const auto ditherer = makeDitherer(method, {1, nullptr});
+  const auto& bands = latticeSlabBands();
+  const int k0 = bands.front()->evalActiveVoxelBoundingBox().min().z();
+  std::int64_t voxels = 0;
+  for (const auto& band : bands) voxels += static_cast<std::int64_t>(band->activeVoxelCount());
+  for (auto _ : state) {
+    ditherer->reset();
+    openvdb::BoolGrid::Ptr previous, current;
+    for (std::size_t b = 0; b < bands.size(); ++b) {
+      const int bandK0 = k0 + static_cast<int>(b) * kBandLayers;
+      previous = std::move(current);
+      current = ditherer->ditherLayers(*bands[b], bandK0, bandK0 + kBandLayers);
+      benchmark::DoNotOptimize(current);
+    }
+  }
+  state.SetLabel(method);
+  state.SetItemsProcessed(state.iterations() * voxels);
+  state.counters["voxels"] = static_cast<double>(voxels);
+  state.counters["bands"] = static_cast<double>(bands.size());
+  state.counters["peak_rss_MB"] = peakRssMb();
+}
+BENCHMARK(ditherLatticeBands)->DenseRange(0, 1)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // Moduli spanning 2 .. 400 MPa through the bundled calibration's lookup table.
 void mapModulusToFraction(benchmark::State& state) {

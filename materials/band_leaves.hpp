@@ -3,7 +3,6 @@
 #pragma once
 
 #include <openvdb/openvdb.h>
-#include <openvdb/tools/Prune.h>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -13,6 +12,7 @@
 #include <bit>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <vector>
 
 namespace rodfab::materials::detail {
@@ -26,6 +26,15 @@ using LeafMask = FloatLeaf::NodeMaskType;
 enum class LeafOrder { ZYX, Tree };
 std::vector<const FloatLeaf*> leavesInLayers(const openvdb::FloatTree& tree, int k0, int k1,
                                              LeafOrder order = LeafOrder::ZYX);
+
+// The leaves of leavesInLayers (tree order) grouped by their parent node (128^3 voxels): parent p holds
+// leaves[begin[p]] .. leaves[begin[p + 1] - 1], so an output tree can be assembled parent by parent.
+struct LeafGroups {
+  std::vector<const FloatLeaf*> leaves;
+  std::vector<std::size_t> begin{0};  // one more than the parents
+  std::size_t parentCount() const { return begin.size() - 1; }
+};
+LeafGroups leafGroupsInLayers(const openvdb::FloatTree& tree, int k0, int k1);
 
 // The leaf's active voxels that lie in layers [k0, k1).
 LeafMask activeInLayers(const FloatLeaf& leaf, int k0, int k1);
@@ -60,6 +69,56 @@ openvdb::BoolGrid::Ptr materialGrid(openvdb::BoolTree::Ptr tree, const openvdb::
 openvdb::BoolGrid::Ptr assembleMaterialGrid(std::vector<std::unique_ptr<BoolLeaf>>& leaves,
                                             const openvdb::FloatGrid& like);
 
+using BoolLeafParent = openvdb::BoolTree::RootNodeType::ChildNodeType::ChildNodeType;  // 128^3 voxels
+using BoolUpperNode = openvdb::BoolTree::RootNodeType::ChildNodeType;                    // 4096^3 voxels
+
+// Nodes taken from an output tree its owners let go of, to build the next one from. Each spare is
+// handed out by index (so threads can take them without a lock); the ones not taken are deleted.
+class SpareNodes {
+public:
+  SpareNodes() = default;
+  SpareNodes(SpareNodes&&) = default;
+  SpareNodes& operator=(SpareNodes&&) = delete;
+  ~SpareNodes();
+  // Spare leaf or parent `index` moved to `origin`, or a new node there if there is no such spare.
+  // A reused leaf keeps its old values and value mask: the caller sets both.
+  std::unique_ptr<BoolLeaf> leaf(std::size_t index, const openvdb::Coord& origin);
+  std::unique_ptr<BoolLeafParent> parent(std::size_t index, const openvdb::Coord& origin);
+  std::unique_ptr<BoolUpperNode> upper(std::size_t index, const openvdb::Coord& origin);
+
+private:
+  friend class OutputTreeRecycler;
+  std::vector<BoolLeaf*> leaves_;
+  std::vector<BoolLeafParent*> parents_;
+  std::vector<BoolUpperNode*> uppers_;
+};
+
+// The output trees of earlier bands come back here when their last owner (the slicer's writer) lets
+// them go, and the next band's tree is built from their nodes: a slicer streaming thousands of bands
+// then allocates its output leaves and internal nodes for the first bands only, instead of once per
+// band (malloc, zeroing the 32 KB node tables and page faults on fresh memory cost as much as the
+// dithering arithmetic on the lattice class). At most kKeptTrees trees wait here; further ones, and
+// every one returned after the recycler is gone, are deleted. Thread-safe: trees come back from any
+// thread.
+class OutputTreeRecycler {
+public:
+  static constexpr std::size_t kKeptTrees = 2;
+  OutputTreeRecycler();
+  // The nodes of the tree that came back first (none if no tree came back yet).
+  SpareNodes takeSpares();
+  // A tree with the leaves `leaves` (null entries skipped; grouped by parent as in `groups`), its
+  // internal nodes taken from `spares` where there are any, that returns here when its owners let go.
+  openvdb::BoolTree::Ptr assemble(const LeafGroups& groups, std::vector<std::unique_ptr<BoolLeaf>>& leaves,
+                                  SpareNodes& spares) const;
+
+private:
+  struct Returned {
+    std::mutex mutex;
+    std::vector<std::unique_ptr<openvdb::BoolTree>> trees;
+  };
+  std::shared_ptr<Returned> returned_;
+};
+
 // Bit b of the result is flags[b] (each 0 or 1): eight flags at a time, by the multiply that gathers
 // the low bit of every byte into the top byte.
 inline std::uint64_t packFlags(const std::array<std::uint8_t, 64>& flags) {
@@ -82,13 +141,15 @@ inline std::uint64_t invalidBits(const float* values) {
   return bits;
 }
 
+// The words of a leaf's 512 Vero bits, word w = offsets 64 w .. 64 w + 63.
+using LeafWords = std::array<std::uint64_t, LeafMask::WORD_COUNT>;
+
 // The Vero bits of leaf `in`'s voxels in `mask` by `rule` (see ditherPointwise); a voxel that is not a
 // fraction goes to `check` as voxel `leafIndex` of the list.
 template <typename Rule>
 LeafMask ditherLeaf(const FloatLeaf& in, const LeafMask& mask, const Rule& rule, FractionCheck& check, std::size_t leafIndex) {
-  std::array<std::uint8_t, 64> flags;
   const float* values = in.buffer().data();
-  LeafMask vero;
+  unsigned words = 0;  // bit w: word w has active voxels, all of them fractions
   for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w) {
     const std::uint64_t active = mask.template getWord<std::uint64_t>(w);
     if (!active) continue;
@@ -96,58 +157,50 @@ LeafMask ditherLeaf(const FloatLeaf& in, const LeafMask& mask, const Rule& rule,
       check.fail(leafIndex, w * 64 + static_cast<openvdb::Index>(std::countr_zero(bad)));
       continue;
     }
-    rule(w, values + 64 * w, flags);
-    vero.template getWord<std::uint64_t>(w) = packFlags(flags) & active;
+    words |= 1u << w;
   }
+  LeafWords bits{};
+  if (words) rule(values, words, bits);
+  LeafMask vero;
+  for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w)
+    vero.template getWord<std::uint64_t>(w) = (words >> w & 1u) ? bits[w] & mask.template getWord<std::uint64_t>(w) : 0;
   return vero;
 }
 
 // Dithers layers [k0, k1) leaf by leaf in parallel, for rules that look at nothing but the voxel:
-// ruleForLeaf(origin) returns the leaf's rule, called as rule(w, values, flags) for each leaf word w
-// (offsets 64 w .. 64 w + 63, i.e. x = origin.x + w, y = origin.y + b / 8, z = origin.z + b % 8) that
-// holds an active voxel; it sets flags[b] = 1 where values[b] makes Vero, for all 64 voxels, active or
-// not (a loop without branches; inactive voxels are masked off after).
-// When the band holds most of the grid's leaves (a whole grid, or a slicer's band grid), the output is
-// the grid's topology copied in parallel, its leaves filled in place and the ones outside the band
-// pruned: adding leaves one by one to a new tree took as long as dithering them, on one thread.
+// ruleForLeaf(origin) returns the leaf's rule, called once a leaf as rule(values, words, bits): for
+// each word w whose bit is set in `words` (offsets 64 w + b, i.e. x = origin.x + w, y = origin.y + b / 8,
+// z = origin.z + b % 8, holding active voxels) it sets bit b of bits[w] where values[64 w + b] makes
+// Vero, for all 64 voxels, active or not (loops without branches; inactive voxels are masked off after).
+// The output leaves and internal nodes come from `recycler`'s spares (earlier bands' outputs) where it
+// has any, and the output tree goes back to it when its owners let go.
 template <typename RuleForLeaf>
-openvdb::BoolGrid::Ptr ditherPointwise(const openvdb::FloatGrid& fraction, int k0, int k1, const RuleForLeaf& ruleForLeaf) {
-  std::vector<const FloatLeaf*> leaves = leavesInLayers(fraction.tree(), k0, k1, LeafOrder::Tree);
-  const bool copyTopology = leaves.size() * 4 >= fraction.tree().leafCount() * 3;
-  auto tree = copyTopology ? std::make_shared<openvdb::BoolTree>(fraction.tree(), false, openvdb::TopologyCopy())
-                           : std::make_shared<openvdb::BoolTree>(false);
-  std::vector<BoolLeaf*> copied;
-  if (copyTopology) {
-    leaves.clear();
-    fraction.tree().getNodes(leaves);  // the same order as the copy's leaves: same topology
-    tree->getNodes(copied);
-  }
-  std::vector<std::unique_ptr<BoolLeaf>> added(copyTopology ? 0 : leaves.size());
+openvdb::BoolGrid::Ptr ditherPointwise(const openvdb::FloatGrid& fraction, int k0, int k1, const RuleForLeaf& ruleForLeaf,
+                                       OutputTreeRecycler& recycler) {
+  const LeafGroups groups = leafGroupsInLayers(fraction.tree(), k0, k1);
+  SpareNodes spares = recycler.takeSpares();
+  std::vector<std::unique_ptr<BoolLeaf>> out(groups.leaves.size());
   FractionCheck check;
-  std::atomic<bool> outsideBand{false};
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leaves.size()), [&](const tbb::blocked_range<std::size_t>& r) {
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, groups.leaves.size()), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t l = r.begin(); l != r.end(); ++l) {
-      const FloatLeaf& in = *leaves[l];
+      const FloatLeaf& in = *groups.leaves[l];
       const LeafMask mask = activeInLayers(in, k0, k1);
-      BoolLeaf* leaf = copyTopology ? copied[l] : nullptr;
-      if (mask.isOff()) {
-        if (leaf) {
-          leaf->setValuesOff();
-          outsideBand = true;
-        }
-        continue;
-      }
+      if (mask.isOff()) continue;
       const LeafMask vero = ditherLeaf(in, mask, ruleForLeaf(in.origin()), check, l);
-      if (!leaf) leaf = (added[l] = std::make_unique<BoolLeaf>(in.origin(), false, false)).get();
-      leaf->setValueMask(mask);
-      leaf->buffer() = BoolLeaf::Buffer(vero);
+      out[l] = spares.leaf(l, in.origin());
+      out[l]->setValueMask(mask);
+      out[l]->buffer() = BoolLeaf::Buffer(vero);
     }
   });
   if (check.failed()) throwFirstInvalid(fraction, k0, k1);
-  if (outsideBand) openvdb::tools::pruneInactive(*tree);
-  for (auto& leaf : added)
-    if (leaf) tree->addLeaf(leaf.release());
-  return materialGrid(tree, fraction);
+  return materialGrid(recycler.assemble(groups, out, spares), fraction);
+}
+
+// The same without reuse: a fresh tree for every call.
+template <typename RuleForLeaf>
+openvdb::BoolGrid::Ptr ditherPointwise(const openvdb::FloatGrid& fraction, int k0, int k1, const RuleForLeaf& ruleForLeaf) {
+  OutputTreeRecycler fresh;
+  return ditherPointwise(fraction, k0, k1, ruleForLeaf, fresh);
 }
 
 }  // namespace rodfab::materials::detail

@@ -11,6 +11,42 @@ namespace rodfab::materials {
 
 namespace {
 
+// The rules' leaf kernels are compiled for AVX-512 and AVX2 as well as the baseline, and the loader
+// picks by CPU (GCC's target_clones). Every path gives the same bits: integer arithmetic and float
+// comparisons of exactly converted values.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define RODFAB_CPU_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+#else
+#define RODFAB_CPU_CLONES
+#endif
+
+// The white-noise rule for a whole leaf (see detail::ditherPointwise). SplitMix64's 64-bit multiplies
+// vectorize only with AVX-512's vpmullq (8 lanes) or, emulated, with AVX2: 0.3 ns a voxel with AVX-512
+// where the baseline takes 2.3 to 3.4 ns (GCC's SSE2 emulation, slower than scalar code).
+RODFAB_CPU_CLONES
+void whiteNoiseLeafBits(std::uint64_t key, const float* values, unsigned words, detail::LeafWords& bits) {
+  for (unsigned w = 0; w < detail::LeafMask::WORD_COUNT; ++w) {
+    if (!(words >> w & 1u)) continue;
+    std::array<std::uint8_t, 64> flags;
+    for (std::uint32_t b = 0; b < 64; ++b) flags[b] = whiteNoiseUniform(key, 64 * w + b) < values[64 * w + b];
+    bits[w] = detail::packFlags(flags);
+  }
+}
+
+// The blue-noise rule for a whole leaf: column[x][y] points at the thresholds of the leaf's layers at
+// (x, y), 8 consecutive floats; also compiled for AVX-512 and AVX2 (8 or 16 comparisons at once).
+using ThresholdColumns = std::array<std::array<const float*, 8>, 8>;
+RODFAB_CPU_CLONES
+void blueNoiseLeafBits(const ThresholdColumns& column, const float* values, unsigned words, detail::LeafWords& bits) {
+  for (unsigned w = 0; w < detail::LeafMask::WORD_COUNT; ++w) {
+    if (!(words >> w & 1u)) continue;
+    std::array<std::uint8_t, 64> flags;
+    for (int y = 0; y < 8; ++y)
+      for (int z = 0; z < 8; ++z) flags[8 * y + z] = values[64 * w + 8 * y + z] > column[w][y][z];
+    bits[w] = detail::packFlags(flags);
+  }
+}
+
 // Mezzotint as in the published pipeline: Vero where a uniform number drawn for the voxel is below its
 // fraction. The number is a hash of (seed, leaf origin) and the voxel's offset, never a sequential
 // stream (counter_hash.hpp).
@@ -24,14 +60,13 @@ protected:
     const std::uint64_t seed = seed_;
     return detail::ditherPointwise(fraction, k0, k1, [seed](const openvdb::Coord& origin) {
       const std::uint64_t key = whiteNoiseLeafKey(seed, origin.x(), origin.y(), origin.z());
-      return [key](openvdb::Index w, const float* values, std::array<std::uint8_t, 64>& flags) {
-        for (std::uint32_t b = 0; b < 64; ++b) flags[b] = whiteNoiseUniform(key, 64 * w + b) < values[b];
-      };
-    });
+      return [key](const float* values, unsigned words, detail::LeafWords& bits) { whiteNoiseLeafBits(key, values, words, bits); };
+    }, recycler_);
   }
 
 private:
   std::uint64_t seed_;
+  detail::OutputTreeRecycler recycler_;
 };
 
 // Ordered dithering with a tiled blue-noise threshold mask; the seed picks where the tiling starts.
@@ -48,16 +83,13 @@ protected:
   openvdb::BoolGrid::Ptr ditherLeafVoxels(const openvdb::FloatGrid& fraction, int k0, int k1) override {
     return detail::ditherPointwise(fraction, k0, k1, [this](const openvdb::Coord& origin) {
       // The leaf's 8 x 8 columns of thresholds along z, each 8 consecutive floats of columns_.
-      std::array<std::array<const float*, 8>, 8> column;
+      ThresholdColumns column;
       const std::array<int, 8> i = cells(origin.x(), 0), j = cells(origin.y(), 1);
       const int k = cells(origin.z(), 2)[0];
       for (int x = 0; x < 8; ++x)
         for (int y = 0; y < 8; ++y) column[x][y] = columns_.data() + columnStart(i[x], j[y]) + k;
-      return [column](openvdb::Index w, const float* values, std::array<std::uint8_t, 64>& flags) {
-        for (int y = 0; y < 8; ++y)
-          for (int z = 0; z < 8; ++z) flags[8 * y + z] = values[8 * y + z] > column[w][y][z];
-      };
-    });
+      return [column](const float* values, unsigned words, detail::LeafWords& bits) { blueNoiseLeafBits(column, values, words, bits); };
+    }, recycler_);
   }
 
 private:
@@ -87,6 +119,7 @@ private:
   std::shared_ptr<const BlueNoiseMask> mask_;
   std::array<int, 3> offset_{};
   std::vector<float> columns_;
+  detail::OutputTreeRecycler recycler_;
 };
 
 }  // namespace

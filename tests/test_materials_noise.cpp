@@ -1,12 +1,14 @@
 // materials/: the white-noise generator (counter_hash.hpp) is uniform and its neighbours independent,
-// and the "white" ditherer follows it voxel for voxel.
+// and the "white" ditherer follows it voxel for voxel, also when streamed bands reuse earlier outputs' nodes.
 #include "materials/counter_hash.hpp"
 #include "materials/materials.hpp"
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <string>
 #include <vector>
 
 using namespace rodfab::materials;
@@ -114,4 +116,45 @@ TEST_CASE("materials: the white ditherer is the white-noise number against the f
   std::size_t wrong = 0;
   for (auto it = grid->cbeginValueOn(); it; ++it) wrong += m.getValue(it.getCoord()) != (whiteAt(21, it.getCoord()) < *it);
   CHECK(wrong == 0);
+}
+
+TEST_CASE("materials: streamed bands reuse earlier outputs' nodes and stay exact, whatever the owners did to them", "[materials][noise]") {
+  auto grid = openvdb::FloatGrid::create(0.0f);
+  for (auto it = kBox.begin(); it; ++it) {
+    const openvdb::Coord c = *it;
+    if ((c.x() * c.x() + 3 * c.y() + c.z()) % 7 == 0) continue;  // partly filled leaves
+    grid->tree().setValueOn(c, static_cast<float>(0.5 + 0.45 * std::cos(0.09 * c.x() - 0.11 * c.y() + 0.06 * c.z())));
+  }
+  const auto blueWhole = makeDitherer("blue", {21, nullptr})->dither(*grid);
+  for (const char* method : {"white", "blue"}) {
+    // Bands of 8 layers on leaf boundaries, then of 5 and 11 (leaves cut by the band).
+    for (int bandLayers : {8, 5, 11}) {
+      INFO(method << ", bands of " << bandLayers << " layers");
+      const auto ditherer = makeDitherer(method, {21, nullptr});
+      openvdb::BoolGrid::Ptr kept;  // one output alive while the next is made, as in the slicer
+      std::size_t wrong = 0, wrongCounts = 0;
+      for (int k0 = kBox.min().z(); k0 <= kBox.max().z(); k0 += bandLayers) {
+        const int k1 = std::min(k0 + bandLayers, kBox.max().z() + 1);
+        const auto material = ditherer->ditherLayers(*grid, k0, k1);
+        const auto m = material->getConstAccessor();
+        const auto blue = blueWhole->getConstAccessor();
+        openvdb::Index64 bandVoxels = 0;
+        for (auto it = grid->cbeginValueOn(); it; ++it) {
+          const openvdb::Coord c = it.getCoord();
+          if (c.z() < k0 || c.z() >= k1) continue;
+          const bool truth = std::string(method) == "white" ? whiteAt(21, c) < *it : blue.getValue(c);
+          wrong += !m.isValueOn(c) || m.getValue(c) != truth;
+          ++bandVoxels;
+        }
+        wrongCounts += material->activeVoxelCount() != bandVoxels;  // nothing outside the band
+        // An owner that changes the tree before letting it go: a voxel, a tile and values elsewhere.
+        material->tree().setValueOn(openvdb::Coord(1000, 1000, k0), true);
+        material->tree().addTile(1, openvdb::Coord(0, 0, 4096), true, true);
+        material->tree().setValueOff(openvdb::Coord(kBox.min().x(), kBox.min().y(), k0), true);
+        kept = material;
+      }
+      CHECK(wrong == 0);
+      CHECK(wrongCounts == 0);
+    }
+  }
 }
