@@ -102,7 +102,7 @@ private:
   // An approximate candidate that is inside for sure (depth encoded as in decodedDepth). The common
   // case, an empty slot, is a plain store, and returns 1 for the caller to add to the rod's tally; a
   // filled one goes through the overlap rule.
-  int addSurelyInside(int n, double encodedDepth, float errorBound, float value, int rod, int piece, int i, int j, int k) {
+  [[gnu::always_inline]] int addSurelyInside(int n, double encodedDepth, float errorBound, float value, int rod, int piece, int i, int j, int k) {
     std::uint64_t& word = filled_[n >> 6];
     const std::uint64_t bit = std::uint64_t(1) << (n & 63);
     if (!(word & bit)) {
