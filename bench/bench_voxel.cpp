@@ -11,6 +11,7 @@
 #include <benchmark/benchmark.h>
 #include <tbb/global_control.h>
 
+#include <malloc.h>
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -26,6 +27,15 @@ namespace materials = rodfab::materials;
 namespace calibration = rodfab::calibration;
 
 namespace {
+
+// glibc gives the freed top of a heap back to the system as soon as it exceeds M_TRIM_THRESHOLD
+// (128 KiB, raised only by frees of mmapped blocks), so band after band made and freed in turn by
+// the same thread page-faulted every band's leaves in afresh: on the lattice (main 49723ca) 366 k
+// minor faults and 7.8 CPU s for rasterizing on 1 thread, 2.5 s and 19.5 k faults with the threshold
+// raised; those faults made 1-thread runs cost more CPU than 2-thread ones. `rodfab slice`, whose
+// pipeline holds several bands at once, took 49 k faults for the whole lattice job either way. The
+// benchmarks keep freed memory for reuse, so they time the rasterizer and the mapping, not the kernel.
+[[maybe_unused]] const int keepFreedMemory = [] { return mallopt(M_TRIM_THRESHOLD, 1 << 30); }();
 
 double peakRssMb() {
   rusage usage{};

@@ -1,0 +1,126 @@
+#include "voxel/leaf_builder.hpp"
+
+#include <emmintrin.h>
+
+#include <cmath>
+
+namespace rodfab::voxel::detail {
+
+void LeafBuilder::emit(const openvdb::Coord& origin, BlockLeaves& leaves) const {
+  std::uint64_t anyRow = 0;
+  for (std::uint64_t w : filled_) anyRow |= w;
+  for (int l = 0; l < kBlockLeaves; ++l) {
+    if (((anyRow >> (l * kLeafDim)) & 0xffu) == 0) continue;
+    leaves[static_cast<std::size_t>(l)] = std::make_unique<LeafT>(origin.offsetBy(l * kLeafDim, 0, 0), 0.0f, false);
+    LeafT& node = *leaves[static_cast<std::size_t>(l)];
+    float* values = node.buffer().data();
+    alignas(16) std::array<std::uint8_t, kRows> bytes;
+    for (int r = 0; r < kRows; ++r) {
+      const unsigned byte = static_cast<unsigned>(filled_[static_cast<std::size_t>(r)] >> (l * kLeafDim)) & 0xffu;
+      bytes[static_cast<std::size_t>(r)] = static_cast<std::uint8_t>(byte);
+      if (byte == 0) continue;
+      const float* slots = &value_[static_cast<std::size_t>((r << kBlockXLog2) | (l * kLeafDim))];
+      for (int x = 0; x < kLeafDim; ++x) values[(x << (2 * kLeafLog2)) | r] = (byte >> x) & 1u ? slots[x] : 0.0f;
+    }
+    for (int x = 0; x < kLeafDim; ++x) {
+      // Bit x of every row byte to its top bit (a 64-bit shift moves no bit across a byte's top).
+      const __m128i shift = _mm_cvtsi32_si128(kLeafDim - 1 - x);
+      std::uint64_t column = 0;
+      for (int q = 0; q < kRows / 16; ++q) {
+        const __m128i v = _mm_load_si128(reinterpret_cast<const __m128i*>(&bytes[static_cast<std::size_t>(16 * q)]));
+        column |= std::uint64_t(static_cast<std::uint16_t>(_mm_movemask_epi8(_mm_sll_epi64(v, shift)))) << (16 * q);
+      }
+      node.getValueMask().template getWord<std::uint64_t>(openvdb::Index(x)) = column;
+    }
+  }
+}
+
+void LeafBuilder::addPiece(int rod, int pieceIndex, const openvdb::CoordBBox& box) {
+  const RodPiece& piece = rods_[rod].pieces[pieceIndex];
+  if (piece.kind == RodPiece::Kind::Swept) sweep(rod, pieceIndex, piece, box);
+  else if (piece.kind == RodPiece::Kind::Exact) exactRegion(rod, pieceIndex, piece, box);
+  else cap(rod, pieceIndex, piece, box);
+  if (interruptSeen_) throw Interrupted("rasterizer: interrupted");
+}
+
+Candidate LeafBuilder::exact(int rod, int pieceIndex, int i, int j, int k) {
+  // The exact test is the one costly step per voxel (a Newton solve per nearby polyline segment):
+  // the interrupter is polled between every 64 of them.
+  // No throw here: sweep() is a target_clones function, and GCC 12 treats a call to one as unable to
+  // throw, so an exception leaving it ended the process (std::terminate). The first poll that sees
+  // the interrupt marks the builder; the rest of the piece is skipped and addPiece() throws.
+  if (interrupted_ && ++exactEvaluations % 64 == 0 && interrupted_()) interruptSeen_ = true;
+  if (!interrupted_) ++exactEvaluations;
+  if (interruptSeen_) return {};
+  const openvdb::Vec3d p = grid_.worldPoint(openvdb::Coord(i, j, k));
+  const geometry::Rod& r = structure_.rods[rod];
+  const geometry::RodHit hit = r.classify(geometry::Vec3(p.x(), p.y(), p.z()));
+  if (!hit.inside) return {};
+  return {hit.depth, 0.0f, static_cast<float>(r.modulus().value(hit.u)), rod, pieceIndex};
+}
+
+// The overlap rule between filled slot n and candidate c (cEncodedDepth: c's depth as the slot would
+// store it). Near ties between approximate depths are settled on exact depths, so the winner is the
+// one the exact test would pick; depths within kTieTolerance are equal (lower rod wins), which spares
+// the exact test where round caps of rods meeting at a node coincide.
+void LeafBuilder::resolveOverlap(int n, Candidate c, double cEncodedDepth, int i, int j, int k) {
+  const int sRod = static_cast<int>(owner_[n] >> 32);
+  Candidate s{decodedDepth(encodedDepth_[n], errorBound_[n], sRod), errorBound_[n], value_[n], sRod,
+              static_cast<int>(owner_[n] & 0xffffffffu)};
+  double sEncodedDepth = encodedDepth_[n];
+  bool sChanged = false;
+  if (std::abs(s.depth - c.depth) <= double(s.errorBound) + double(c.errorBound) + kTieTolerance &&
+      (s.errorBound > 0.0f || c.errorBound > 0.0f)) {
+    if (s.errorBound > 0.0f) {
+      s = exact(s.rod, s.piece, i, j, k);
+      sEncodedDepth = s.depth;
+      sChanged = true;
+    }
+    if (c.errorBound > 0.0f) {
+      c = exact(c.rod, c.piece, i, j, k);
+      cEncodedDepth = c.depth;
+    }
+    if (!s.inside()) {  // the exact test overturned the approximate candidate
+      --voxelsPerRod[static_cast<std::size_t>(sRod)];
+      if (c.inside()) {
+        store(n, cEncodedDepth, c.errorBound, c.value, owner(c.rod, c.piece));
+        ++voxelsPerRod[static_cast<std::size_t>(c.rod)];
+      } else {
+        filled_[n >> 6] &= ~(std::uint64_t(1) << (n & 63));
+      }
+      return;
+    }
+  }
+  const double gain = c.depth - s.depth;
+  if (c.inside() && takesSlot(gain, c, s.rod, s.piece))
+    replaceSlot(n, cEncodedDepth, c.errorBound, c.value, c.rod, c.piece, s.rod);
+  else if (sChanged)
+    store(n, sEncodedDepth, s.errorBound, s.value, owner(s.rod, s.piece));
+}
+
+void LeafBuilder::exactRegion(int rod, int pieceIndex, const RodPiece& piece, const openvdb::CoordBBox& box) {
+  if (memoRod_ != rod) {
+    memo_.fill(0);
+    memoRod_ = rod;
+  }
+  AxisCylinder cylinder(grid_, piece);
+  for (int k = box.min().z(); k <= box.max().z(); ++k) {
+    int jLo = box.min().y(), jHi = box.max().y();
+    if (!cylinder.layer(k, jLo, jLo, jHi)) continue;
+    for (int j = jLo; j <= jHi; ++j) {
+      RowBounds bounds;
+      int lo = box.min().x(), hi = box.max().x();
+      if (!cylinder.row(j, bounds) || !bounds.round(lo, hi)) continue;
+      for (int i = lo; i <= hi; ++i) {
+        const int n = offset(i, j, k);
+        std::uint64_t& word = memo_[static_cast<std::size_t>(n >> 6)];
+        const std::uint64_t bit = std::uint64_t(1) << (n & 63);
+        if (word & bit) continue;
+        word |= bit;
+        addCandidate(exact(rod, pieceIndex, i, j, k), n, i, j, k);
+      }
+    }
+  }
+}
+
+}  // namespace rodfab::voxel::detail

@@ -1,0 +1,197 @@
+// Internal to voxel/ (the rasterizer's translation units): the block layout, the four-lane vectors
+// of the swept and cap loops, and the clips that bound a piece's voxels row by row (planes, the
+// piece's axis cylinder). Nothing here is part of the stage's interface.
+#pragma once
+
+// The four-lane vectors (Double4 and friends, also through rod_pieces.hpp's templates) pass between
+// inline functions of the rasterizer only; GCC's note that their by-value ABI differs without AVX
+// concerns no interface anyone links to.
+#pragma GCC diagnostic ignored "-Wpsabi"
+
+#include "voxel/printer_grid.hpp"
+#include "voxel/rasterize.hpp"
+#include "voxel/rod_pieces.hpp"
+
+#include <emmintrin.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+namespace rodfab::voxel::detail {
+
+inline constexpr int kLeafLog2 = 3;
+inline constexpr int kLeafDim = 1 << kLeafLog2;
+inline constexpr int kLeafVoxels = kLeafDim * kLeafDim * kLeafDim;
+// Work is binned by blocks of 8 leaves along x (64 x 8 x 8 voxels): rows along x then run up to 64
+// voxels per setup instead of 8 (a 1.2 mm rod spans 28 voxels in x, so fewer rows are cut by a block
+// edge than with 32), and a block holds 96 KiB of candidates (within the L2 cache's share).
+inline constexpr int kBlockLeavesLog2 = 3;
+inline constexpr int kBlockLeaves = 1 << kBlockLeavesLog2;
+inline constexpr int kBlockXLog2 = kLeafLog2 + kBlockLeavesLog2;
+inline constexpr int kBlockX = 1 << kBlockXLog2;
+inline constexpr int kBlockVoxels = kBlockLeaves * kLeafVoxels;
+inline constexpr int kPackedAxisBits = 21;  // per axis in a packed block coordinate: PrinterGrid caps dims at 2^24 voxels
+
+// Within this distance (mm) beyond an end plane Rod::classify still uses the section (its own plane
+// tolerance is 1e-9 (1 + bounding radius)); such voxel centres go to the exact test.
+inline double capPlaneTolerance(double boundingRadius) { return 1e-7 * (1.0 + boundingRadius); }
+
+// Four doubles (GCC vector extension; two SSE2 registers in the baseline build, one AVX register in
+// the AVX2 clone of the swept loop): the swept estimate for four voxels at once. Lane by lane the same
+// IEEE operations as the scalar expressions, so the same bits.
+typedef double Double4 __attribute__((vector_size(32)));
+typedef float Float4 __attribute__((vector_size(16)));
+typedef std::int64_t Mask4 __attribute__((vector_size(32)));  // a comparison of Double4s: -1 true, 0 false
+
+// |v| lane by lane, exactly as std::abs (clears the sign bit).
+inline Double4 absolute(Double4 v) {
+  return reinterpret_cast<Double4>(reinterpret_cast<Mask4>(v) & std::numeric_limits<std::int64_t>::max());
+}
+
+// sqrt lane by lane (correctly rounded, as std::sqrt), two lanes per SSE2 instruction.
+inline Double4 squareRoot(Double4 v) {
+  const __m128d low = _mm_sqrt_pd(_mm_set_pd(v[1], v[0])), high = _mm_sqrt_pd(_mm_set_pd(v[3], v[2]));
+  return Double4{low[0], low[1], high[0], high[1]};
+}
+
+// A swept piece's coefficients for the voxel loop, copied out of the piece (see sweep): the same
+// values, so estimateSwept and estimateModulus give the same bits.
+struct SweptLanes {
+  SweptLanes(const detail::RodPiece& p, double planeAgx, double planeBgx)
+      : gxA(planeAgx), gxB(planeBgx), gx1Begin(p.x1Begin.gx), gx2Begin(p.x2Begin.gx), gx1End(p.x1End.gx), gx2End(p.x2End.gx),
+        x1Quadratic(p.x1Quadratic), x2Quadratic(p.x2Quadratic), modulusBegin(p.modulusBegin), modulusEnd(p.modulusEnd),
+        modulusQuadratic(p.modulusQuadratic), modulusLow(p.modulusLow), modulusHigh(p.modulusHigh) {}
+  double gxA, gxB, gx1Begin, gx2Begin, gx1End, gx2End;
+  double x1Quadratic, x2Quadratic, modulusBegin, modulusEnd, modulusQuadratic, modulusLow, modulusHigh;  // as in RodPiece
+};
+
+// A double error bound as a float that is not smaller.
+inline float roundedUpToFloat(double bound) {
+  const float f = static_cast<float>(bound);
+  return double(f) >= bound ? f : std::nextafter(f, std::numeric_limits<float>::infinity());
+}
+
+inline int clampToInt(double v) { return static_cast<int>(std::clamp(v, -2.0e9, 2.0e9)); }
+
+// Voxel indices are below 2^24, so a root computed in double is off by far less than this; the
+// clips keep that margin and the callers still test every voxel they are left with.
+inline constexpr double kClipMargin = 1e-6;
+
+// Depths closer than this are a tie (see rasterize.hpp): far below any approximation error bound, far above
+// the round-off in a depth.
+inline constexpr double kTieTolerance = kDepthTieTolerance;
+
+// Restricts [lo, hi] to the i with base + slope * i >= 0 (conservatively). Returns false when
+// nothing is left.
+inline bool clipHalfLine(double base, double slope, int& lo, int& hi) {
+  if (slope > 0.0) {
+    lo = std::max(lo, clampToInt(std::ceil(-base / slope - kClipMargin)));
+  } else if (slope < 0.0) {
+    hi = std::min(hi, clampToInt(std::floor(-base / slope + kClipMargin)));
+  } else if (base < 0.0) {
+    return false;
+  }
+  return lo <= hi;
+}
+
+// A slope and its reciprocal, for clipping every row of a piece with a multiplication rather than a
+// division: within the grid (|-base / slope| < 2^24) the product is off by under 1e-8 voxel, far
+// inside kClipMargin. A reciprocal that overflows is replaced by 0, which clips nothing.
+struct Slope {
+  double slope, inverse;
+  explicit Slope(double s) : slope(s), inverse(std::isfinite(1.0 / s) ? 1.0 / s : 0.0) {}
+  [[gnu::always_inline]] bool clip(double base, int& lo, int& hi) const {
+    if (slope > 0.0) lo = std::max(lo, clampToInt(std::ceil(-base * inverse - kClipMargin)));
+    else if (slope < 0.0) hi = std::min(hi, clampToInt(std::floor(-base * inverse + kClipMargin)));
+    else if (base < 0.0) return false;
+    return lo <= hi;
+  }
+  // The same bound on the real line, for RowBounds; false when no i qualifies.
+  [[gnu::always_inline]] bool bound(double base, double& lo, double& hi) const {
+    if (slope > 0.0) lo = std::max(lo, -base * inverse);
+    else if (slope < 0.0) hi = std::min(hi, -base * inverse);
+    else if (base < 0.0) return false;
+    return true;
+  }
+};
+
+// Bounds on a row's i, gathered as reals and rounded once: ceil(max(x) - margin) is the largest of
+// the ceil(x - margin) (rounding, ceil and the clamp are monotone), so one ceil, clamp and conversion
+// per side give the same range as rounding every bound.
+struct RowBounds {
+  double lo = -std::numeric_limits<double>::infinity(), hi = std::numeric_limits<double>::infinity();
+  [[gnu::always_inline]] bool round(int& first, int& last) const {
+    first = std::max(first, clampToInt(std::ceil(lo - kClipMargin)));
+    last = std::min(last, clampToInt(std::floor(hi + kClipMargin)));
+    return first <= last;
+  }
+};
+
+// The infinite cylinder of radius `reach` around a piece's axis, restricted to rows. With w the offset
+// of a voxel centre from the axis point, the centre is inside where |w|^2 - (w.e)^2 <= reach^2: along a
+// row (steps of vx in x) alpha i^2 + 2 beta i + gamma <= 0, where beta is linear and gamma quadratic in
+// j. `layer` sets up the coefficients of one layer (once), `row` solves one row's quadratic with a
+// square root and no division.
+class AxisCylinder {
+public:
+  AxisCylinder(const PrinterGrid& grid, const RodPiece& piece)
+      : grid_(grid), piece_(piece), e_(piece.axisDirection), vx_(grid.voxelSize.x()), vy_(grid.voxelSize.y()),
+        alpha_(vx_ * vx_ * (1.0 - e_.x() * e_.x())), alongX_(alpha_ <= 1e-9 * vx_ * vx_),
+        inverseAlpha_(alongX_ ? 0.0 : 1.0 / alpha_), b1_(-vx_ * vy_ * e_.y() * e_.x()),
+        g2_(vy_ * vy_ * (1.0 - e_.y() * e_.y())), A_(b1_ * b1_ - alpha_ * g2_), inLayer_(!(A_ < -1e-12 * vx_ * vx_ * vy_ * vy_)),
+        inverse2A_(inLayer_ ? 0.0 : 0.5 / A_) {}
+
+  // Layer k, rows counted from j0: narrows [lo, hi] to the rows that meet the cylinder (the
+  // discriminant of the row's quadratic, a quadratic in j whose leading coefficient works out to
+  // -(vx vy e_z)^2, is >= 0 on one interval). With the axis along x every row is kept and `row`
+  // clips nothing, as with the axis (nearly) in the layer.
+  bool layer(int k, int j0, int& lo, int& hi) {
+    j0_ = j0;
+    if (alongX_) return lo <= hi;
+    const geometry::Vec3 w(grid_.origin.x() - piece_.axisPoint.x(), grid_.origin.y() + j0 * vy_ - piece_.axisPoint.y(),
+                           grid_.origin.z() + k * grid_.voxelSize.z() - piece_.axisPoint.z());
+    const double we = w.dot(e_);
+    b0_ = vx_ * (w.x() - we * e_.x());
+    g0_ = w.squaredNorm() - we * we - piece_.reach * piece_.reach;
+    g1_ = 2.0 * vy_ * (w.y() - we * e_.y());
+    if (inLayer_) return lo <= hi;  // axis (nearly) in the layer: no bound in j
+    const double B = 2.0 * b0_ * b1_ - alpha_ * g1_, C = b0_ * b0_ - alpha_ * g0_;
+    const double disc = B * B - 4.0 * A_ * C;
+    if (disc < 0.0) return false;
+    const double root = std::sqrt(disc);
+    // A < 0: D(j) >= 0 between the roots (multiplying by 1 / 2A is as conservative as a division, see Slope).
+    lo = std::max(lo, j0 + clampToInt(std::ceil((-B + root) * inverse2A_ - kClipMargin)));
+    hi = std::min(hi, j0 + clampToInt(std::floor((-B - root) * inverse2A_ + kClipMargin)));
+    return lo <= hi;
+  }
+
+  // Row j of the current layer: narrows the bounds to the voxels inside the cylinder.
+  [[gnu::always_inline]] bool row(int j, RowBounds& b) const {
+    if (alongX_) return true;  // row (nearly) parallel to the axis: the other clips bound it
+    const double dj = j - j0_;
+    const double beta = b0_ + b1_ * dj, gamma = g0_ + (g1_ + g2_ * dj) * dj;
+    const double disc = beta * beta - alpha_ * gamma;
+    if (disc < 0.0) return false;
+    const double root = std::sqrt(disc);
+    b.lo = std::max(b.lo, (-beta - root) * inverseAlpha_);
+    b.hi = std::min(b.hi, (-beta + root) * inverseAlpha_);
+    return true;
+  }
+
+private:
+  const PrinterGrid& grid_;
+  const RodPiece& piece_;
+  const geometry::Vec3& e_;
+  double vx_, vy_, alpha_;
+  bool alongX_;
+  double inverseAlpha_;
+  double b1_, g2_, A_;  // the parts of the coefficients that do not depend on the layer
+  bool inLayer_;
+  double inverse2A_;
+  int j0_ = 0;
+  double b0_ = 0.0, g0_ = 0.0, g1_ = 0.0;
+};
+
+}  // namespace rodfab::voxel::detail

@@ -1,0 +1,112 @@
+// The swept pieces' voxel loop: rows of the slab between a piece's two normal planes, four voxels a step.
+#pragma GCC diagnostic ignored "-Wpsabi"  // see raster_clips.hpp
+
+#include "voxel/leaf_builder.hpp"
+
+#include <cmath>
+#include <limits>
+
+namespace rodfab::voxel::detail {
+
+// Cloned for AVX2 (four lanes in one register; AVX2 brings no FMA, so no multiply-add is fused and
+// the clone computes the bits the baseline does), chosen at load time.
+[[gnu::target_clones("avx2", "default")]] void LeafBuilder::sweep(int rod, int pieceIndex, const RodPiece& piece,
+                                                                  const openvdb::CoordBBox& box) {
+  const RodPieces& rp = rods_[rod];
+  const AffineInIndex& planeA = rp.planes[piece.plane];
+  const AffineInIndex& planeB = rp.planes[piece.plane + 1];
+  const double iA = rp.inverseHalfWidth, iB = rp.inverseHalfHeight;
+  const bool rectangle = structure_.rods[rod].section().shape == geometry::SectionShape::Rectangle;
+  const double errorBound = piece.normalizedRadiusErrorBound;
+  const bool bounded = std::isfinite(errorBound) && errorBound < 1.0;
+  const float floatErrorBound = roundedUpToFloat(errorBound);
+  // Gauges below `inner` are inside for sure, above `outer` outside for sure; between them (the
+  // tolerance shell around the section boundary) the exact test decides.
+  const double inner = bounded ? 1.0 - errorBound : -1.0,
+               outer = bounded ? 1.0 + errorBound : std::numeric_limits<double>::infinity();
+  const double innerSq = inner > 0.0 ? inner * inner : -1.0, outerSq = outer * outer;
+  const double sureInsideBelow = rectangle ? inner : innerSq, sureOutsideAbove = rectangle ? outer : outerSq;
+  const std::uint64_t who = owner(rod, pieceIndex);
+  // Layers, then rows, that can hold a voxel of the slab a >= 0 > b within the box: the extremes of
+  // the planes over the box's i (and j) bound them before any row is set up.
+  const auto extreme = [](double g, int from, int to, bool largest) {
+    return largest ? std::max(g * from, g * to) : std::min(g * from, g * to);
+  };
+  const openvdb::Coord &bmin = box.min(), &bmax = box.max();
+  const double aMaxI = extreme(planeA.gx, bmin.x(), bmax.x(), true), bMinI = extreme(planeB.gx, bmin.x(), bmax.x(), false);
+  int kLo = bmin.z(), kHi = bmax.z();
+  if (!clipHalfLine(planeA.c + aMaxI + extreme(planeA.gy, bmin.y(), bmax.y(), true), planeA.gz, kLo, kHi) ||
+      !clipHalfLine(-(planeB.c + bMinI + extreme(planeB.gy, bmin.y(), bmax.y(), false)), -planeB.gz, kLo, kHi))
+    return;
+  AxisCylinder cylinder(grid_, piece);
+  const Slope slopeA(planeA.gx), slopeB(-planeB.gx), slopeAy(planeA.gy), slopeBy(-planeB.gy);
+  const SweptLanes lanes(piece, planeA.gx, planeB.gx);
+  for (int k = kLo; k <= kHi; ++k) {
+    int jLo = bmin.y(), jHi = bmax.y();
+    if (!slopeAy.clip(planeA.c + planeA.gz * k + aMaxI, jLo, jHi) || !slopeBy.clip(-(planeB.c + planeB.gz * k + bMinI), jLo, jHi) ||
+        !cylinder.layer(k, bmin.y(), jLo, jHi))
+      continue;
+    for (int j = jLo; j <= jHi; ++j) {
+      const double aRow = planeA.row(j, k), bRow = planeB.row(j, k);
+      RowBounds bounds;
+      int lo = bmin.x(), hi = bmax.x();
+      if (!slopeA.bound(aRow, bounds.lo, bounds.hi) || !slopeB.bound(-bRow, bounds.lo, bounds.hi) ||
+          !cylinder.row(j, bounds) || !bounds.round(lo, hi))
+        continue;
+      const double x1aRow = piece.x1Begin.row(j, k), x2aRow = piece.x2Begin.row(j, k);
+      const double x1bRow = piece.x1End.row(j, k), x2bRow = piece.x2End.row(j, k);
+      const int row = rowOf(j, k);
+      std::uint64_t fresh = 0;
+      // Four voxels at a time (see estimateSwept); the decisions per voxel. The coefficients are
+      // locals (`lanes`), which the slot stores cannot alias, so they stay in registers. `test` is
+      // what the tolerance shell is tested on: the gauge squared for round sections (encoded depth
+      // as it is), the max-norm gauge for rectangles (encoded depth 1 - gauge).
+      Double4 iv = double(lo) + Double4{0.0, 1.0, 2.0, 3.0};
+      for (int i = lo; i <= hi; i += 4, iv += 4.0) {
+        const Double4 av = aRow + lanes.gxA * iv, bv = bRow + lanes.gxB * iv;
+        const detail::SweptEstimateOf<Double4> e =
+            detail::estimateSwept(lanes, av, bv, x1aRow + lanes.gx1Begin * iv, x2aRow + lanes.gx2Begin * iv,
+                                  x1bRow + lanes.gx1End * iv, x2bRow + lanes.gx2End * iv);
+        Double4 test, encodedDepth;
+        if (rectangle) {
+          const Double4 g1 = absolute(e.x1) * iA, g2 = absolute(e.x2) * iB;
+          test = g1 < g2 ? g2 : g1;  // std::max(g1, g2), lane by lane
+          encodedDepth = 1.0 - test;
+        } else {
+          test = (e.x1 * iA) * (e.x1 * iA) + (e.x2 * iB) * (e.x2 * iB);
+          encodedDepth = test;
+        }
+        const Double4 modulus = detail::estimateModulus(lanes, e.lambda);
+        const Mask4 inSlab = (av >= 0.0) & (bv < 0.0);
+        const Mask4 sure = inSlab & (test < sureInsideBelow);
+        if (i + 3 <= hi && (sure[0] & sure[1] & sure[2] & sure[3])) {
+          // The common case: four neighbours inside for sure; into empty slots with one store each.
+          const int n = (row << kBlockXLog2) | (i & (kBlockX - 1));
+          std::uint64_t& word = filled_[static_cast<std::size_t>(row)];
+          if (((word >> (i & (kBlockX - 1))) & 0xfu) == 0) {
+            storeFour(n, encodedDepth, __builtin_convertvector(modulus, Float4), floatErrorBound, who);
+            word |= std::uint64_t(0xf) << (i & (kBlockX - 1));
+            fresh += 4;
+            continue;
+          }
+          for (int l = 0; l < 4; ++l)
+            fresh += addSurelyInside(n + l, encodedDepth[l], floatErrorBound, static_cast<float>(modulus[l]), rod, pieceIndex,
+                                     i + l, j, k);
+          continue;
+        }
+        for (int l = 0; l < 4 && i + l <= hi; ++l) {
+          if (!inSlab[l] || test[l] > sureOutsideAbove) continue;
+          const int n = offset(i + l, j, k);
+          if (sure[l])
+            fresh += addSurelyInside(n, encodedDepth[l], floatErrorBound, static_cast<float>(modulus[l]), rod, pieceIndex,
+                                     i + l, j, k);
+          else
+            addCandidate(exact(rod, pieceIndex, i + l, j, k), n, i + l, j, k);
+        }
+      }
+      voxelsPerRod[static_cast<std::size_t>(rod)] += fresh;
+    }
+  }
+}
+
+}  // namespace rodfab::voxel::detail
