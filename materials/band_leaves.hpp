@@ -11,6 +11,7 @@
 #include <atomic>
 #include <bit>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <vector>
@@ -173,16 +174,18 @@ LeafMask ditherLeaf(const FloatLeaf& in, const LeafMask& mask, const Rule& rule,
 // z = origin.z + b % 8, holding active voxels) it sets bit b of bits[w] where values[64 w + b] makes
 // Vero, for all 64 voxels, active or not (loops without branches; inactive voxels are masked off after).
 // The output leaves and internal nodes come from `recycler`'s spares (earlier bands' outputs) where it
-// has any, and the output tree goes back to it when its owners let go.
+// has any, and the output tree goes back to it when its owners let go. `checkInterrupt`, when set, is
+// called before each leaf (DitherOptions::checkInterrupt); what it throws leaves the call.
 template <typename RuleForLeaf>
 openvdb::BoolGrid::Ptr ditherPointwise(const openvdb::FloatGrid& fraction, int k0, int k1, const RuleForLeaf& ruleForLeaf,
-                                       OutputTreeRecycler& recycler) {
+                                       OutputTreeRecycler& recycler, const std::function<void()>& checkInterrupt = {}) {
   const LeafGroups groups = leafGroupsInLayers(fraction.tree(), k0, k1);
   SpareNodes spares = recycler.takeSpares();
   std::vector<std::unique_ptr<BoolLeaf>> out(groups.leaves.size());
   FractionCheck check;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, groups.leaves.size()), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t l = r.begin(); l != r.end(); ++l) {
+      if (checkInterrupt) checkInterrupt();
       const FloatLeaf& in = *groups.leaves[l];
       const LeafMask mask = activeInLayers(in, k0, k1);
       if (mask.isOff()) continue;

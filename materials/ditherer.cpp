@@ -52,7 +52,8 @@ void blueNoiseLeafBits(const ThresholdColumns& column, const float* values, unsi
 // stream (counter_hash.hpp).
 class WhiteNoiseDitherer final : public Ditherer {
 public:
-  explicit WhiteNoiseDitherer(std::uint64_t seed) : seed_(seed) {}
+  WhiteNoiseDitherer(std::uint64_t seed, std::function<void()> checkInterrupt)
+      : seed_(seed), checkInterrupt_(std::move(checkInterrupt)) {}
   std::string_view name() const override { return "white"; }
 
 protected:
@@ -61,18 +62,20 @@ protected:
     return detail::ditherPointwise(fraction, k0, k1, [seed](const openvdb::Coord& origin) {
       const std::uint64_t key = whiteNoiseLeafKey(seed, origin.x(), origin.y(), origin.z());
       return [key](const float* values, unsigned words, detail::LeafWords& bits) { whiteNoiseLeafBits(key, values, words, bits); };
-    }, recycler_);
+    }, recycler_, checkInterrupt_);
   }
 
 private:
   std::uint64_t seed_;
+  std::function<void()> checkInterrupt_;  // DitherOptions::checkInterrupt
   detail::OutputTreeRecycler recycler_;
 };
 
 // Ordered dithering with a tiled blue-noise threshold mask; the seed picks where the tiling starts.
 class BlueNoiseDitherer final : public Ditherer {
 public:
-  BlueNoiseDitherer(std::shared_ptr<const BlueNoiseMask> mask, std::uint64_t seed) : mask_(std::move(mask)) {
+  BlueNoiseDitherer(std::shared_ptr<const BlueNoiseMask> mask, std::uint64_t seed, std::function<void()> checkInterrupt)
+      : mask_(std::move(mask)), checkInterrupt_(std::move(checkInterrupt)) {
     const auto r = philox(seed, 0, 0, 0, HashStream::MaskOffset);
     for (int a = 0; a < 3; ++a) offset_[a] = static_cast<int>(r[a] % static_cast<std::uint32_t>(mask_->size()[a]));
     buildColumns();
@@ -89,7 +92,7 @@ protected:
       for (int x = 0; x < 8; ++x)
         for (int y = 0; y < 8; ++y) column[x][y] = columns_.data() + columnStart(i[x], j[y]) + k;
       return [column](const float* values, unsigned words, detail::LeafWords& bits) { blueNoiseLeafBits(column, values, words, bits); };
-    }, recycler_);
+    }, recycler_, checkInterrupt_);
   }
 
 private:
@@ -117,6 +120,7 @@ private:
   }
 
   std::shared_ptr<const BlueNoiseMask> mask_;
+  std::function<void()> checkInterrupt_;  // DitherOptions::checkInterrupt
   std::array<int, 3> offset_{};
   std::vector<float> columns_;
   detail::OutputTreeRecycler recycler_;
@@ -153,8 +157,9 @@ std::string canonicalDitherName(const std::string& name) {
 }
 
 std::unique_ptr<Ditherer> makeDitherer(std::string_view method, const DitherOptions& options) {
-  if (method == "white") return std::make_unique<WhiteNoiseDitherer>(options.seed);
-  if (method == "blue") return std::make_unique<BlueNoiseDitherer>(options.mask ? options.mask : BlueNoiseMask::bundled(), options.seed);
+  if (method == "white") return std::make_unique<WhiteNoiseDitherer>(options.seed, options.checkInterrupt);
+  if (method == "blue")
+    return std::make_unique<BlueNoiseDitherer>(options.mask ? options.mask : BlueNoiseMask::bundled(), options.seed, options.checkInterrupt);
   if (method == "error-diffusion") return std::make_unique<ErrorDiffusionDitherer>(options.seed, options.checkInterrupt);
   std::string valid;
   for (const std::string& n : ditherMethodNames()) valid += (valid.empty() ? "" : ", ") + n;

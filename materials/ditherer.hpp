@@ -37,9 +37,9 @@ struct DitherOptions {
   std::uint64_t seed = 0;
   // Threshold mask of the "blue" ditherer; null = the bundled mask (BlueNoiseMask::bundled()).
   std::shared_ptr<const BlueNoiseMask> mask;
-  // Cancellation: when set, long dithering work calls it from its worker threads (error diffusion:
-  // before each layer, so within one layer's time) and lets what it throws leave ditherLayers. A
-  // ditherer left that way must be reset() before it streams again.
+  // Cancellation: when set, every ditherer calls it from its worker threads (white and blue: before
+  // each 8^3 leaf; error diffusion: before each layer, so within one layer's time) and lets what it
+  // throws leave ditherLayers. A ditherer left that way must be reset() before it streams again.
   std::function<void()> checkInterrupt;
 };
 

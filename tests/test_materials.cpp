@@ -333,6 +333,32 @@ TEST_CASE("materials: error diffusion: a worker that throws stops the band, the 
   }
 }
 
+TEST_CASE("materials: white and blue noise check for an interrupt before every leaf and stop at it", "[materials][dither]") {
+  const auto part = mixedPart();
+  const std::size_t leaves = part->tree().leafCount();
+  for (const std::string method : {"white", "blue"}) {
+    const auto reference = makeDitherer(method, {3, nullptr})->dither(*part);
+    std::atomic<std::size_t> calls{0};
+    DitherOptions counting{3, nullptr};
+    counting.checkInterrupt = [&] { ++calls; };
+    CHECK(sameMaterial(*makeDitherer(method, counting)->dither(*part), *reference));
+    CHECK(calls == leaves);  // one call a leaf of the fraction grid
+    for (const std::size_t stopAt : {std::size_t{1}, leaves / 2, leaves}) {
+      INFO(method << ", stop at call " << stopAt << " of " << leaves);
+      std::atomic<std::size_t> n{0};
+      DitherOptions options{3, nullptr};
+      options.checkInterrupt = [&] {
+        if (++n == stopAt) throw std::runtime_error("stop requested");
+      };
+      const auto ditherer = makeDitherer(method, options);
+      CHECK_THROWS_WITH(ditherer->dither(*part), "stop requested");
+      ditherer->reset();
+      n = leaves + 1;  // no further throw: the ditherer still gives the reference pattern
+      CHECK(sameMaterial(*ditherer->dither(*part), *reference));
+    }
+  }
+}
+
 TEST_CASE("materials: ditherers: a seed fixes the pattern, another seed changes it", "[materials][dither]") {
   const auto block = makeUniformBlock(openvdb::Coord(40, 20, 30), 0.3f, kTestVoxel);
   for (const std::string& method : ditherMethodNames()) {
