@@ -18,14 +18,9 @@ using nlohmann::ordered_json;
 
 namespace {
 
-std::string member(const std::string& path, const std::string& key) { return path.empty() ? key : path + "." + key; }
-std::string index(const std::string& path, std::size_t i) { return path + "[" + std::to_string(i) + "]"; }
-
-std::string describe(const json& j) {
-  std::string s = j.dump();
-  if (s.size() > 40) s = s.substr(0, 37) + "...";
-  return s;
-}
+using common::describeJson;
+using common::indexPath;
+using common::memberPath;
 
 class Reader {
 public:
@@ -40,58 +35,58 @@ public:
       if (allowed.count(it.key())) continue;
       std::string list;
       for (const auto& k : allowed) list += (list.empty() ? "" : ", ") + k;
-      fail(member(path, it.key()), "unknown key (expected one of: " + list + ")");
+      fail(memberPath(path, it.key()), "unknown key (expected one of: " + list + ")");
     }
   }
 
   const json& object(const json& j, const std::string& path, const std::string& what) const {
-    if (!j.is_object()) fail(path, "expected " + what + " (an object), got " + describe(j));
+    if (!j.is_object()) fail(path, "expected " + what + " (an object), got " + describeJson(j));
     return j;
   }
 
   const json& get(const json& obj, const std::string& path, const std::string& key, const std::string& what) const {
     auto it = obj.find(key);
-    if (it == obj.end()) fail(member(path, key), "missing; expected " + what);
+    if (it == obj.end()) fail(memberPath(path, key), "missing; expected " + what);
     return *it;
   }
 
   double number(const json& j, const std::string& path, const std::string& what) const {
-    if (!j.is_number()) fail(path, "expected " + what + ", got " + describe(j));
+    if (!j.is_number()) fail(path, "expected " + what + ", got " + describeJson(j));
     return j.get<double>();
   }
 
   double positive(const json& j, const std::string& path, const std::string& what) const {
     const double v = number(j, path, what + " (a number > 0)");
-    if (!(v > 0.0)) fail(path, "expected " + what + " > 0, got " + describe(j));
+    if (!(v > 0.0)) fail(path, "expected " + what + " > 0, got " + describeJson(j));
     return v;
   }
 
   double fraction(const json& j, const std::string& path) const {
     const double v = number(j, path, "a Vero fraction from 0 to 1");
-    if (v < 0.0 || v > 1.0) fail(path, "expected a Vero fraction from 0 to 1, got " + describe(j));
+    if (v < 0.0 || v > 1.0) fail(path, "expected a Vero fraction from 0 to 1, got " + describeJson(j));
     return v;
   }
 
   std::size_t count(const json& j, const std::string& path) const {
-    if (!j.is_number_unsigned()) fail(path, "expected a count (an integer >= 0), got " + describe(j));
+    if (!j.is_number_unsigned()) fail(path, "expected a count (an integer >= 0), got " + describeJson(j));
     return j.get<std::size_t>();
   }
 
   std::string string(const json& j, const std::string& path, const std::string& what) const {
-    if (!j.is_string()) fail(path, "expected " + what + " (a string), got " + describe(j));
+    if (!j.is_string()) fail(path, "expected " + what + " (a string), got " + describeJson(j));
     return j.get<std::string>();
   }
 
   std::optional<double> optionalNumber(const json& obj, const std::string& path, const std::string& key, const std::string& what) const {
     auto it = obj.find(key);
     if (it == obj.end() || it->is_null()) return std::nullopt;
-    return number(*it, member(path, key), what);
+    return number(*it, memberPath(path, key), what);
   }
 
   std::string optionalString(const json& obj, const std::string& path, const std::string& key, const std::string& what) const {
     auto it = obj.find(key);
     if (it == obj.end() || it->is_null()) return {};
-    return string(*it, member(path, key), what);
+    return string(*it, memberPath(path, key), what);
   }
 
   const std::string& file() const { return file_; }
@@ -118,17 +113,17 @@ void readPchipNodes(const Reader& in, const json& params, ModelParameters& p) {
   in.onlyKeys(params, "parameters", {"points"});
   const json& points = in.get(params, "parameters", "points", "the pchip nodes");
   if (!points.is_array() || points.size() < 2)
-    in.fail("parameters.points", "expected an array of at least two {vero_fraction, modulus_mpa} nodes, got " + describe(points));
+    in.fail("parameters.points", "expected an array of at least two {vero_fraction, modulus_mpa} nodes, got " + describeJson(points));
   for (std::size_t i = 0; i < points.size(); ++i) {
-    const std::string path = index("parameters.points", i);
+    const std::string path = indexPath("parameters.points", i);
     in.object(points[i], path, "a node {vero_fraction, modulus_mpa}");
     in.onlyKeys(points[i], path, {"vero_fraction", "modulus_mpa"});
-    const double f = in.fraction(in.get(points[i], path, "vero_fraction", "a Vero fraction"), member(path, "vero_fraction"));
-    const double e = in.positive(in.get(points[i], path, "modulus_mpa", "a modulus in MPa"), member(path, "modulus_mpa"), "a modulus in MPa");
-    if (i == 0 && f != 0.0) in.fail(member(path, "vero_fraction"), "the first node must be at Vero fraction 0, got " + describe(points[i]["vero_fraction"]));
-    if (i + 1 == points.size() && f != 1.0) in.fail(member(path, "vero_fraction"), "the last node must be at Vero fraction 1, got " + describe(points[i]["vero_fraction"]));
-    if (i > 0 && !(f > p.fractions.back())) in.fail(member(path, "vero_fraction"), "node fractions must strictly increase");
-    if (i > 0 && !(e > p.moduliMpa.back())) in.fail(member(path, "modulus_mpa"), "node moduli must strictly increase with the fraction");
+    const double f = in.fraction(in.get(points[i], path, "vero_fraction", "a Vero fraction"), memberPath(path, "vero_fraction"));
+    const double e = in.positive(in.get(points[i], path, "modulus_mpa", "a modulus in MPa"), memberPath(path, "modulus_mpa"), "a modulus in MPa");
+    if (i == 0 && f != 0.0) in.fail(memberPath(path, "vero_fraction"), "the first node must be at Vero fraction 0, got " + describeJson(points[i]["vero_fraction"]));
+    if (i + 1 == points.size() && f != 1.0) in.fail(memberPath(path, "vero_fraction"), "the last node must be at Vero fraction 1, got " + describeJson(points[i]["vero_fraction"]));
+    if (i > 0 && !(f > p.fractions.back())) in.fail(memberPath(path, "vero_fraction"), "node fractions must strictly increase");
+    if (i > 0 && !(e > p.moduliMpa.back())) in.fail(memberPath(path, "modulus_mpa"), "node moduli must strictly increase with the fraction");
     p.fractions.push_back(f);
     p.moduliMpa.push_back(e);
   }
@@ -142,7 +137,7 @@ void readPowerLaw(const Reader& in, const json& params, ModelParameters& p) {
   p.veroModulusMpa = in.positive(in.get(params, "parameters", "vero_modulus_mpa", "the modulus at 100 % Vero in MPa"),
                                  "parameters.vero_modulus_mpa", "a modulus in MPa");
   if (!(p.veroModulusMpa > p.tangoModulusMpa))
-    in.fail("parameters.vero_modulus_mpa", "expected more than tango_modulus_mpa (" + describe(params["tango_modulus_mpa"]) + ")");
+    in.fail("parameters.vero_modulus_mpa", "expected more than tango_modulus_mpa (" + describeJson(params["tango_modulus_mpa"]) + ")");
   const json& exponent = in.get(params, "parameters", "exponent", "the fitted exponent");
   p.exponent = p.model == Model::LogPower ? in.positive(exponent, "parameters.exponent", "a log-power exponent")
                                           : in.number(exponent, "parameters.exponent", "a Lichtenecker exponent (a number)");
@@ -168,13 +163,13 @@ void readMaterials(const Reader& in, const json& j, FitRecord& r) {
 
 void readMeasurements(const Reader& in, const json& rows, FitRecord& r) {
   for (std::size_t i = 0; i < rows.size(); ++i) {
-    const std::string path = index("data.measurements", i);
+    const std::string path = indexPath("data.measurements", i);
     in.object(rows[i], path, "a measurement");
     in.onlyKeys(rows[i], path, {"line", "vero_fraction", "modulus_mpa", "temperature_c", "specimen", "dither", "date"});
     Measurement m;
-    m.line = static_cast<int>(in.count(in.get(rows[i], path, "line", "the CSV line number"), member(path, "line")));
-    m.veroFraction = in.fraction(in.get(rows[i], path, "vero_fraction", "a Vero fraction"), member(path, "vero_fraction"));
-    m.modulusMpa = in.positive(in.get(rows[i], path, "modulus_mpa", "a modulus in MPa"), member(path, "modulus_mpa"), "a modulus in MPa");
+    m.line = static_cast<int>(in.count(in.get(rows[i], path, "line", "the CSV line number"), memberPath(path, "line")));
+    m.veroFraction = in.fraction(in.get(rows[i], path, "vero_fraction", "a Vero fraction"), memberPath(path, "vero_fraction"));
+    m.modulusMpa = in.positive(in.get(rows[i], path, "modulus_mpa", "a modulus in MPa"), memberPath(path, "modulus_mpa"), "a modulus in MPa");
     m.temperatureC = in.optionalNumber(rows[i], path, "temperature_c", "a temperature in degrees Celsius");
     m.specimen = in.optionalString(rows[i], path, "specimen", "the specimen name");
     m.dither = in.optionalString(rows[i], path, "dither", "the ditherer's name");
@@ -204,9 +199,9 @@ FitRecord readRecord(const Reader& in, const json& j) {
   r.dataFile = in.string(in.get(data, "data", "file", "the data file name"), "data.file", "the data file name");
   r.dataSha256 = in.string(in.get(data, "data", "sha256", "the SHA-256 of the data file"), "data.sha256", "64 hex digits");
   if (r.dataSha256.size() != 64 || r.dataSha256.find_first_not_of("0123456789abcdef") != std::string::npos)
-    in.fail("data.sha256", "expected 64 lowercase hex digits, got " + describe(data["sha256"]));
+    in.fail("data.sha256", "expected 64 lowercase hex digits, got " + describeJson(data["sha256"]));
   const json& rows = in.get(data, "data", "measurements", "the measurements fitted");
-  if (!rows.is_array()) in.fail("data.measurements", "expected an array of measurements, got " + describe(rows));
+  if (!rows.is_array()) in.fail("data.measurements", "expected an array of measurements, got " + describeJson(rows));
   readMeasurements(in, rows, r);
   const json& quality = in.object(in.get(j, "", "quality", "the fit quality"), "quality", "the fit quality");
   readQuality(in, quality, r.quality);
@@ -257,10 +252,10 @@ Calibration calibrationFromJson(const json& j, const std::string& sourceName) {
   in.object(j, "", "a calibration");
   in.onlyKeys(j, "", {"format", "model", "parameters", "floor", "max_modulus_mpa", "temperature_c", "dither", "materials", "data", "quality"});
   const std::string format = in.string(in.get(j, "", "format", std::string("\"") + kCalibrationFormat + "\""), "format", "the format tag");
-  if (format != kCalibrationFormat) in.fail("format", std::string("expected \"") + kCalibrationFormat + "\", got " + describe(j["format"]));
+  if (format != kCalibrationFormat) in.fail("format", std::string("expected \"") + kCalibrationFormat + "\", got " + describeJson(j["format"]));
   const std::string modelText = in.string(in.get(j, "", "model", "the model name"), "model", "the model name");
   const auto model = parseModel(modelText);
-  if (!model) in.fail("model", "expected \"pchip\", \"lichtenecker\" or \"log-power\", got " + describe(j["model"]));
+  if (!model) in.fail("model", "expected \"pchip\", \"lichtenecker\" or \"log-power\", got " + describeJson(j["model"]));
 
   ModelParameters p = readParameters(in, j, *model);
 
@@ -277,10 +272,10 @@ Calibration calibrationFromJson(const json& j, const std::string& sourceName) {
     // A hand-edited parameter that no longer matches its derived values is caught here, not at print time.
     if (!agrees(floorFraction, c.floorFraction(), 1e-9))
       in.fail("floor.vero_fraction", "the model gives Vero fraction " + std::to_string(c.floorFraction()) + " for the floor, the file says " +
-                                         describe(floor["vero_fraction"]));
+                                         describeJson(floor["vero_fraction"]));
     if (!agrees(maxModulus, c.maxModulusMpa(), 1e-9))
       in.fail("max_modulus_mpa", "the model gives " + std::to_string(c.maxModulusMpa()) + " MPa at 100 % Vero, the file says " +
-                                     describe(j["max_modulus_mpa"]));
+                                     describeJson(j["max_modulus_mpa"]));
     return c;
   } catch (const std::invalid_argument& e) {
     in.fail("", e.what());

@@ -223,4 +223,39 @@ json parseJsonStrict(const std::string& text, int maxDepth, std::size_t maxValue
   }
 }
 
+std::string memberPath(const std::string& path, const std::string& key) {
+  return path.empty() ? key : path + "." + key;
+}
+
+std::string indexPath(const std::string& path, std::size_t i) { return path + "[" + std::to_string(i) + "]"; }
+
+namespace {
+
+// Whether `j` holds at most `budget` values in all (itself included); stops as soon as it does not.
+bool withinValues(const nlohmann::json& j, std::size_t& budget) {
+  if (budget == 0) return false;
+  --budget;
+  if (j.is_structured())
+    for (const auto& element : j)
+      if (!withinValues(element, budget)) return false;
+  return true;
+}
+
+}  // namespace
+
+std::string describeJson(const nlohmann::json& j, std::size_t maxChars) {
+  constexpr std::size_t kMostValuesDumped = 64;
+  std::size_t budget = kMostValuesDumped;
+  if (!withinValues(j, budget))
+    return j.is_array() ? "an array of " + std::to_string(j.size()) + " values"
+                        : "an object of " + std::to_string(j.size()) + " members";
+  // A long string is cut before it is escaped, so a 100 MB value is not copied whole.
+  const nlohmann::json shown = j.is_string() && j.get_ref<const std::string&>().size() > maxChars
+                                   ? nlohmann::json(j.get_ref<const std::string&>().substr(0, maxChars))
+                                   : nlohmann::json();
+  std::string s = (shown.is_null() ? j : shown).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+  if (s.size() > maxChars) s = s.substr(0, maxChars > 3 ? maxChars - 3 : 0) + "...";
+  return s;
+}
+
 }  // namespace rodfab::common

@@ -40,4 +40,15 @@ std::string readBoundedFile(const std::string& file, std::size_t maxBytes = kMax
 // 1-based line and column of byte `offset` in `text`.
 std::pair<std::size_t, std::size_t> lineAndColumn(const std::string& text, std::size_t offset);
 
+// JSON paths for located messages: memberPath("rods[3]", "modulus") is "rods[3].modulus",
+// memberPath("", "rods") is "rods", indexPath("rods", 3) is "rods[3]".
+std::string memberPath(const std::string& path, const std::string& key);
+std::string indexPath(const std::string& path, std::size_t i);
+
+// A value as a message shows it: its compact JSON, cut to at most `maxChars` characters ("..." at
+// the end when cut); bytes that are not UTF-8 are shown as U+FFFD. Arrays and objects holding more
+// than 64 values in all are described by kind and size ("an array of 20000 values"), and long strings
+// are cut before they are escaped, so describing a huge value costs no more than a small one.
+std::string describeJson(const nlohmann::json& j, std::size_t maxChars = 40);
+
 }  // namespace rodfab::common

@@ -67,13 +67,8 @@ std::string tagOverflowingNumbers(const std::string& text) {
 
 std::string describe(const json& j) {
   if (const auto literal = overflowLiteral(j)) return *literal + " (beyond the range of a double)";
-  std::string s = j.dump();
-  if (s.size() > 40) s = s.substr(0, 37) + "...";
-  return s;
+  return common::describeJson(j);
 }
-
-std::string indexPath(const std::string& path, std::size_t i) { return path + "[" + std::to_string(i) + "]"; }
-std::string memberPath(const std::string& path, const std::string& key) { return path.empty() ? key : path + "." + key; }
 
 void DesignReader::fail(const std::string& path, const std::string& message) { issues.push_back({path, message}); }
 

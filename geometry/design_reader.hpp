@@ -3,6 +3,7 @@
 // collect every violation at its JSON path. Most code wants geometry/design_file.hpp instead.
 #pragma once
 
+#include "common/json_input.hpp"
 #include "geometry/design_file.hpp"
 
 #include <nlohmann/json.hpp>
@@ -15,12 +16,12 @@
 
 namespace rodfab::geometry {
 
-// `j` as it appears in messages: its JSON text, cut to 40 characters (a number beyond the range of
-// a double is named as written).
+// `j` as it appears in messages: common::describeJson, except that a number beyond the range of a
+// double is named as written.
 std::string describe(const nlohmann::json& j);
 // JSON paths: `path[i]` and `path.key` (just `key` at the top level).
-std::string indexPath(const std::string& path, std::size_t i);
-std::string memberPath(const std::string& path, const std::string& key);
+using common::indexPath;
+using common::memberPath;
 
 // The rod names of a design, each with the JSON path of the rod that carries it.
 using RodNames = std::map<std::string, std::string>;

@@ -4,6 +4,7 @@
 #include <catch2/catch.hpp>
 
 #include <string>
+#include <vector>
 
 using rodfab::common::JsonInputError;
 using rodfab::common::parseJsonStrict;
@@ -42,4 +43,32 @@ TEST_CASE("Duplicate keys, depth and the number of values are refused at a path"
   CHECK(many.message.find("more than 4 values") != std::string::npos);
   CHECK(many.path == "x[2]");  // the object, the array and two numbers are the first four
   CHECK(parseJsonStrict(R"({"x": [1, 2, 3]})", 64, 5)["x"].size() == 3);
+}
+
+TEST_CASE("Messages name JSON paths and show values cut to a bounded size", "[common]") {
+  using rodfab::common::describeJson;
+  using rodfab::common::indexPath;
+  using rodfab::common::memberPath;
+  CHECK(memberPath("", "rods") == "rods");
+  CHECK(memberPath(indexPath("rods", 3), "modulus") == "rods[3].modulus");
+  CHECK(describeJson(nlohmann::json::parse(R"({"a":[1,2.5,"x"]})")) == R"({"a":[1,2.5,"x"]})");
+  CHECK(describeJson(nlohmann::json("stiff")) == "\"stiff\"");
+
+  SECTION("a long string is cut to the limit, quotes and dots included") {
+    const std::string shown = describeJson(nlohmann::json(std::string(1'000'000, 'a')));
+    CHECK(shown.size() == 40);
+    CHECK(shown == "\"" + std::string(36, 'a') + "...");
+  }
+  SECTION("bytes that are not UTF-8 are replaced, not thrown on") {
+    CHECK(describeJson(nlohmann::json(std::string("a\xff" "b"))) == "\"a\xef\xbf\xbd" "b\"");
+  }
+  SECTION("containers of more than 64 values are named by kind and size, nested or not") {
+    CHECK(describeJson(nlohmann::json(std::vector<int>(20000, 7))) == "an array of 20000 values");
+    nlohmann::json nested = nlohmann::json::array();
+    for (int i = 0; i < 8; ++i) nested.push_back(std::vector<int>(10, i));
+    CHECK(describeJson(nested) == "an array of 8 values");
+    nlohmann::json small = nlohmann::json::object();
+    small["k"] = std::vector<int>(3, 1);
+    CHECK(describeJson(small) == R"({"k":[1,1,1]})");
+  }
 }
