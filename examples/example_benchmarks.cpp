@@ -11,19 +11,7 @@
 
 namespace rodfab::examples {
 
-using geometry::BSplineField;
-using geometry::CapStyle;
-using geometry::NurbsCurve;
-using geometry::RodStructure;
-using geometry::Section;
-using geometry::Vec3;
-
-using detail::circleRod;
-using detail::cubicThrough;
-using detail::kPi;
-using detail::numbered;
-using detail::straight;
-using detail::threePointModulus;
+using namespace detail;
 
 namespace {
 

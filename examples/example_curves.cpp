@@ -4,14 +4,6 @@
 #include <cstdio>
 
 namespace rodfab::examples::detail {
-
-using geometry::BSplineField;
-using geometry::CapStyle;
-using geometry::NurbsCurve;
-using geometry::Rod;
-using geometry::Section;
-using geometry::Vec3;
-
 NurbsCurve straight(const Vec3& a, const Vec3& b) { return NurbsCurve(1, {0, 0, 1, 1}, {a, b}); }
 
 NurbsCurve cubicThrough(const std::function<Vec3(double)>& q) {

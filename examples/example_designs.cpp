@@ -13,20 +13,7 @@
 
 namespace rodfab::examples {
 
-using geometry::BSplineField;
-using geometry::CapStyle;
-using geometry::RodStructure;
-using geometry::Section;
-using geometry::Vec3;
-
-using detail::circleRod;
-using detail::cubicThrough;
-using detail::kPi;
-using detail::numbered;
-using detail::quaternionsThrough;
-using detail::ringArc;
-using detail::straight;
-using detail::threePointModulus;
+using namespace detail;
 
 RodStructure unfoldingBox() {
   constexpr double kSide = 20.0, kGap = 2.5, kPitch = kSide + kGap;

@@ -14,13 +14,7 @@
 
 namespace rodfab::examples {
 
-using geometry::NurbsCurve;
-using geometry::Rod;
-using geometry::RodStructure;
-using geometry::Vec3;
-
-using detail::cubicThrough;
-using detail::kPi;
+using namespace detail;
 
 namespace {
 
