@@ -1,7 +1,9 @@
+// Error diffusion's sweep: a band's layers diffused as a wavefront on up to 4 threads (BandDiffusion),
+// the error carried from band to band. The layers' preparation is error_diffusion_layers.cpp.
 #include "materials/error_diffusion.hpp"
 
 #include "materials/band_leaves.hpp"
-#include "materials/counter_hash.hpp"
+#include "materials/error_diffusion_layers.hpp"
 
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
@@ -22,161 +24,8 @@ namespace rodfab::materials {
 
 namespace {
 
-using detail::BoolLeaf;
-using detail::FloatLeaf;
-using detail::LeafMask;
-
-struct Row {
-  int j;
-  std::uint32_t begin, end;  // voxels [begin, end), ascending i
-};
-
-// Which neighbours of a voxel are inside the part: bits of Layer::links, set when the layer is prepared
-// (kUp when the layer above is), so the sweep itself does no lookups.
-enum Link : std::uint8_t {
-  kLeft = 1,        // (i - 1, j, k): voxel v - 1
-  kRight = 2,       // (i + 1, j, k): voxel v + 1
-  kNextLeft = 4,    // (i - 1, j + 1, k): voxel nextRow[v]
-  kNextSame = 8,    // (i, j + 1, k): the next voxel of the next row
-  kNextRight = 16,  // (i + 1, j + 1, k): the one after
-  kUp = 32,         // (i, j, k + 1): voxel up[v] of the layer above
-};
-constexpr std::uint32_t kNoVoxel = std::numeric_limits<std::uint32_t>::max();
-
-// One layer's active voxels in (j, i) order, as arrays: the sweep reads them one after the other.
-struct Layer {
-  int k = 0;
-  std::vector<Row> rows;
-  std::vector<int> i;
-  std::vector<float> fraction;
-  std::vector<float> threshold;        // the jittered threshold of each voxel
-  std::vector<std::uint32_t> leaf;     // index into the band's leaves
-  std::vector<std::uint16_t> offset;   // within that leaf
-  std::vector<std::uint8_t> links;     // Link bits
-  std::vector<std::uint32_t> nextRow;  // the first voxel of row j + 1 with x >= i - 1 (when it has one)
-  std::vector<std::uint32_t> up;       // the voxel above, kNoVoxel if none
-  std::size_t size() const { return i.size(); }
-  void resize(std::size_t n) {
-    i.resize(n);
-    fraction.resize(n);
-    threshold.resize(n);
-    leaf.resize(n);
-    offset.resize(n);
-    links.resize(n);
-    nextRow.resize(n);
-    up.resize(n);
-  }
-};
-
-int floorToLeaf(int k) { return k & ~static_cast<int>(FloatLeaf::DIM - 1); }
-
-// The leaves of `leaves` (sorted by origin (z, y, x)) in the slab holding layer k: contiguous, grouped by y.
-std::pair<std::size_t, std::size_t> slabOf(const std::vector<const FloatLeaf*>& leaves, int k) {
-  const int z0 = floorToLeaf(k);
-  auto first = std::lower_bound(leaves.begin(), leaves.end(), z0,
-                                [](const FloatLeaf* l, int z) { return l->origin().z() < z; });
-  auto last = std::lower_bound(first, leaves.end(), z0 + 1,
-                               [](const FloatLeaf* l, int z) { return l->origin().z() < z; });
-  return {static_cast<std::size_t>(first - leaves.begin()), static_cast<std::size_t>(last - leaves.begin())};
-}
-
-// Fills `layer`'s rows and voxels (i, fraction, leaf, offset) in place: its vectors keep their capacity
-// from the layer the slot held before (layers of millions of voxels otherwise cost a fresh allocation,
-// its page faults and its growth copies each). Counts first, so each array is sized once.
-void enumerateLayer(const std::vector<const FloatLeaf*>& leaves, int k, Layer& layer) {
-  layer.k = k;
-  layer.rows.clear();
-  const auto [first, last] = slabOf(leaves, k);
-  const auto dz = static_cast<unsigned>(k - floorToLeaf(k));
-  const std::uint64_t layerBits = 0x0101010101010101ull << dz;  // (y, dz) for every y of a word
-  std::size_t count = 0;
-  for (std::size_t l = first; l != last; ++l)
-    for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w)
-      count += static_cast<std::size_t>(std::popcount(leaves[l]->getValueMask().template getWord<std::uint64_t>(w) & layerBits));
-  layer.resize(count);
-  std::uint32_t n = 0;
-  for (std::size_t group = first; group != last;) {
-    const int y0 = leaves[group]->origin().y();
-    std::size_t groupEnd = group;
-    while (groupEnd != last && leaves[groupEnd]->origin().y() == y0) ++groupEnd;
-    for (unsigned dy = 0; dy < FloatLeaf::DIM; ++dy) {
-      const std::uint32_t begin = n;
-      for (std::size_t l = group; l != groupEnd; ++l) {
-        const FloatLeaf& leaf = *leaves[l];
-        const float* values = leaf.buffer().data();
-        for (unsigned dx = 0; dx < FloatLeaf::DIM; ++dx) {
-          const unsigned bit = (dy << 3) | dz;
-          if (!((leaf.getValueMask().template getWord<std::uint64_t>(dx) >> bit) & 1)) continue;
-          const auto offset = static_cast<std::uint16_t>((dx << 6) | bit);
-          layer.i[n] = leaf.origin().x() + static_cast<int>(dx);
-          layer.fraction[n] = values[offset];
-          layer.leaf[n] = static_cast<std::uint32_t>(l);
-          layer.offset[n] = offset;
-          ++n;
-        }
-      }
-      if (n > begin) layer.rows.push_back({y0 + static_cast<int>(dy), begin, n});
-    }
-    group = groupEnd;
-  }
-}
-
-// The Philox draw of each voxel of a row as a uniform number (voxelUniform), in one loop the compiler
-// vectorizes: the draws were a third of the sweep's time. Integer arithmetic and an exact conversion,
-// so every clone gives the same numbers; no throw in a target_clones function (GCC 12 assumes none).
-[[gnu::target_clones("avx2", "default")]] void drawUniforms(std::uint64_t seed, const int* i, int j, int k, float* out,
-                                                          std::uint32_t count) noexcept {
-  for (std::uint32_t v = 0; v < count; ++v) out[v] = voxelUniform(seed, i[v], j, k);
-}
-
-// Each voxel's threshold: 0.5 jittered by +-kThresholdJitter / 2 from its uniform number.
-void computeThresholds(std::uint64_t seed, Layer& layer) {
-  for (const Row& row : layer.rows)
-    drawUniforms(seed, layer.i.data() + row.begin, row.j, layer.k, layer.threshold.data() + row.begin, row.end - row.begin);
-  for (float& t : layer.threshold) t = 0.5f + ErrorDiffusionDitherer::kThresholdJitter * (t - 0.5f);
-}
-
-// The in-layer Link bits and nextRow of every voxel, walking each row alongside the next.
-void linkWithinLayer(Layer& layer) {
-  const std::vector<int>& x = layer.i;
-  for (std::size_t r = 0; r < layer.rows.size(); ++r) {
-    const Row& row = layer.rows[r];
-    const bool hasNext = r + 1 < layer.rows.size() && layer.rows[r + 1].j == row.j + 1;
-    const std::uint32_t nextEnd = hasNext ? layer.rows[r + 1].end : 0;
-    std::uint32_t n = hasNext ? layer.rows[r + 1].begin : 0;
-    for (std::uint32_t v = row.begin; v < row.end; ++v) {
-      unsigned bits = 0;
-      if (v > row.begin && x[v - 1] == x[v] - 1) bits |= kLeft;
-      if (v + 1 < row.end && x[v + 1] == x[v] + 1) bits |= kRight;
-      if (hasNext) {
-        while (n < nextEnd && x[n] < x[v] - 1) ++n;
-        std::uint32_t m = n;
-        if (m < nextEnd && x[m] == x[v] - 1) bits |= kNextLeft, ++m;
-        if (m < nextEnd && x[m] == x[v]) bits |= kNextSame, ++m;
-        if (m < nextEnd && x[m] == x[v] + 1) bits |= kNextRight;
-      }
-      layer.links[v] = static_cast<std::uint8_t>(bits);
-      layer.nextRow[v] = n;
-    }
-  }
-}
-
-// Layer `below`'s up links (kUp and up[]) into `above`, the layer over it, walking rows of equal j.
-void linkUp(Layer& below, const Layer& above) {
-  std::size_t ra = 0;
-  for (const Row& row : below.rows) {
-    while (ra < above.rows.size() && above.rows[ra].j < row.j) ++ra;
-    const bool hasAbove = ra < above.rows.size() && above.rows[ra].j == row.j;
-    std::uint32_t a = hasAbove ? above.rows[ra].begin : 0;
-    const std::uint32_t aEnd = hasAbove ? above.rows[ra].end : 0;
-    for (std::uint32_t v = row.begin; v < row.end; ++v) {
-      while (a < aEnd && above.i[a] < below.i[v]) ++a;
-      const bool found = a < aEnd && above.i[a] == below.i[v];
-      below.up[v] = found ? a : kNoVoxel;
-      if (found) below.links[v] |= kUp;
-    }
-  }
-}
+using namespace detail;  // leaves, Layer and its Link bits, the preparation steps
+using Row = LayerRow;
 
 constexpr int kNoRowYet = std::numeric_limits<int>::min();
 constexpr int kAllRows = std::numeric_limits<int>::max();
@@ -363,7 +212,7 @@ private:
     const int lastReader = k - static_cast<int>(slots_.size()) + 1;
     if (lastReader > k0_) slot(lastReader).finishedThroughRow.waitUntil(kAllRows);
     enumerateLayer(leaves_, k, s.layer);
-    if (k < k1_) computeThresholds(seed_, s.layer);  // layer k1 is only where error may go
+    if (k < k1_) computeThresholds(seed_, ErrorDiffusionDitherer::kThresholdJitter, s.layer);  // layer k1 is only where error may go
     linkWithinLayer(s.layer);
     s.error.assign(s.layer.size(), 0.0f);
     if (k > k0_) {
