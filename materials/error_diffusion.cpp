@@ -13,6 +13,7 @@
 #include <atomic>
 #include <bit>
 #include <condition_variable>
+#include <cstdint>
 #include <mutex>
 #include <limits>
 #include <stdexcept>
@@ -126,6 +127,13 @@ std::array<float, 64> totalWeights() {
   return totals;
 }
 
+// `yes` if `condition`, else `no`, by masking the bits: a branch on a dithering decision would be
+// mispredicted about as often as it is taken.
+inline float select(bool condition, float yes, float no) {
+  const std::uint32_t mask = 0u - static_cast<std::uint32_t>(condition);
+  return std::bit_cast<float>((std::bit_cast<std::uint32_t>(yes) & mask) | (std::bit_cast<std::uint32_t>(no) & ~mask));
+}
+
 // The diffusion of one band, layer by layer as a wavefront: the worker on layer k starts its row j once
 // layer k - 1 has finished row j + 1. Row j of layer k receives error from row j of layer k - 1 (the
 // share sent up) and from its own rows j - 1 and j; row j + 1 from row j. Waiting for row j + 1 below
@@ -152,7 +160,7 @@ public:
   // that throws abandons the band (waking the others) and keeps the first exception for rethrow().
   void work(int worker) {
     try {
-      std::vector<detail::LeafMask>& vero = veroByWorker_[static_cast<std::size_t>(worker)];
+      std::vector<LeafMask>& vero = veroByWorker_[static_cast<std::size_t>(worker)];
       vero.resize(leaves_.size());
       for (int k = nextLayer_.fetch_add(1); k < k1_; k = nextLayer_.fetch_add(1)) {
         if (checkInterrupt_) checkInterrupt_();
@@ -182,11 +190,11 @@ public:
         auto* words = out_[l]->buffer().data();
         for (const auto& vero : veroByWorker_)
           if (!vero.empty())
-            for (openvdb::Index w = 0; w < detail::LeafMask::WORD_COUNT; ++w) words[w] |= vero[l].template getWord<std::uint64_t>(w);
+            for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w) words[w] |= vero[l].template getWord<std::uint64_t>(w);
       }
     });
   }
-  const detail::FractionCheck& check() const { return check_; }
+  const FractionCheck& check() const { return check_; }
 
 private:
   LayerSlot& slot(int k) { return slots_[static_cast<std::size_t>(k - k0_) % slots_.size()]; }
@@ -225,7 +233,7 @@ private:
     s.preparedFor.publish(k);
   }
 
-  void diffuseLayer(int k, std::vector<detail::LeafMask>& vero) {
+  void diffuseLayer(int k, std::vector<LeafMask>& vero) {
     LayerSlot& here = slot(k);
     float* errorAbove = slot(k + 1).error.data();
     Progress* below = k > k0_ ? &slot(k - 1).finishedThroughRow : nullptr;
@@ -242,31 +250,38 @@ private:
   }
 
   // The serpentine sweep of one row (towards +x for Dir = 1), each voxel's error sent to the neighbours
-  // inside the part, weights renormalized over them. The loop carries the error from voxel to voxel:
-  // everything about the neighbours was worked out when the layers were prepared.
+  // inside the part, weights renormalized over them. Everything about the neighbours was worked out
+  // when the layers were prepared. The error carried from voxel to voxel is the loop's critical path
+  // (add, compare, divide, multiply, add): the share sent ahead stays in a register instead of making a
+  // round trip through memory, and both outcomes' divisions start before the comparison settles. The
+  // floats are the same: the share ahead is still added last, as the single sweep adds it.
   template <int Dir>
-  void diffuseRow(const Layer& layer, const Row& row, float* error, float* errorAbove, std::vector<detail::LeafMask>& vero) {
+  void diffuseRow(const Layer& layer, const Row& row, float* error, float* errorAbove, std::vector<LeafMask>& vero) {
     static const std::array<float, 64> totals = totalWeights<Dir>();
     constexpr unsigned ahead = Dir > 0 ? kRight : kLeft;
     constexpr unsigned behind = Dir > 0 ? kNextLeft : kNextRight, aheadNext = Dir > 0 ? kNextRight : kNextLeft;
     const std::int64_t first = Dir > 0 ? row.begin : static_cast<std::int64_t>(row.end) - 1;
     const std::int64_t stop = Dir > 0 ? row.end : static_cast<std::int64_t>(row.begin) - 1;
+    float sentAhead = 0.0f;  // what the voxel before sent to this one, when it sent anything
+    bool received = false;
     for (std::int64_t v = first; v != stop; v += Dir) {
+      const bool hasSentAhead = std::exchange(received, false);
       const float f = layer.fraction[v];
-      if (!detail::FractionCheck::valid(f)) {
+      if (!FractionCheck::valid(f)) {
         check_.fail(layer.leaf[v], layer.offset[v]);
         continue;
       }
-      const float wanted = f + error[v];
+      const float wanted = f + (hasSentAhead ? error[v] + sentAhead : error[v]);
       const bool isVero = (f >= 1.0f) | ((f > 0.0f) & (wanted >= layer.threshold[v]));
       const unsigned offset = layer.offset[v];
       vero[layer.leaf[v]].template getWord<std::uint64_t>(offset >> 6) |= std::uint64_t{isVero} << (offset & 63);
-      const float residual = wanted - (isVero ? 1.0f : 0.0f);
       const unsigned links = layer.links[v];
       const float total = totals[links];
       if (total <= 0.0f) continue;  // an isolated voxel with nothing after it: its error has nowhere to go
-      const float scale = residual / total;
-      if (links & ahead) error[v + Dir] += kWeights[0] * scale;
+      // residual / total for residual = wanted - 1 (Vero) or wanted - 0 (= wanted, bit for bit).
+      const float scale = select(isVero, (wanted - 1.0f) / total, wanted / total);
+      sentAhead = kWeights[0] * scale;
+      received = (links & ahead) != 0;
       // The next row's voxels at i - 1, i, i + 1, those that are inside the part, in that order.
       const std::uint32_t left = layer.nextRow[v];
       const std::uint32_t same = left + ((links & kNextLeft) ? 1 : 0);
@@ -286,8 +301,8 @@ private:
   std::vector<LayerSlot> slots_;
   SlotBuffers& buffers_;
   std::atomic<int> nextLayer_;
-  std::vector<std::vector<detail::LeafMask>> veroByWorker_;
-  detail::FractionCheck check_;
+  std::vector<std::vector<LeafMask>> veroByWorker_;
+  FractionCheck check_;
   std::mutex failureMutex_;
   std::exception_ptr failure_;
 };

@@ -35,6 +35,16 @@ std::pair<std::size_t, std::size_t> slabOf(const std::vector<const FloatLeaf*>& 
   return {static_cast<std::size_t>(first - leaves.begin()), static_cast<std::size_t>(last - leaves.begin())};
 }
 
+// A leaf's active voxels in its layer dz as one word: bit 8 y + x for voxel (x, y, dz) (in the mask,
+// word x holds bit 8 y + z). Eight shifts and masks instead of a test per voxel.
+std::uint64_t layerRows(const LeafMask& mask, unsigned dz) {
+  constexpr std::uint64_t kLowBitOfEachByte = 0x0101010101010101ull;
+  std::uint64_t rows = 0;
+  for (unsigned dx = 0; dx < FloatLeaf::DIM; ++dx)
+    rows |= ((mask.template getWord<std::uint64_t>(dx) >> dz) & kLowBitOfEachByte) << dx;
+  return rows;
+}
+
 // The Philox draw of each voxel of a row as a uniform number (voxelUniform), in one loop the compiler
 // vectorizes: the draws were a third of the sweep's time. Integer arithmetic and an exact conversion,
 // so every clone gives the same numbers; no throw in a target_clones function (GCC 12 assumes none).
@@ -47,17 +57,21 @@ std::pair<std::size_t, std::size_t> slabOf(const std::vector<const FloatLeaf*>& 
 
 // Fills `layer`'s rows and voxels (i, fraction, leaf, offset) in place: its vectors keep their capacity
 // from the layer the slot held before (layers of millions of voxels otherwise cost a fresh allocation,
-// its page faults and its growth copies each). Counts first, so each array is sized once.
+// its page faults and its growth copies each). Each leaf's voxels in the layer are gathered into one
+// word first (layerRows), which also gives the count, so each array is sized once and the voxels are
+// then visited bit by bit, with no test (and no mispredicted branch) per inactive voxel.
 void enumerateLayer(const std::vector<const FloatLeaf*>& leaves, int k, Layer& layer) {
   layer.k = k;
   layer.rows.clear();
   const auto [first, last] = slabOf(leaves, k);
   const auto dz = static_cast<unsigned>(k - floorToLeaf(k));
-  const std::uint64_t layerBits = 0x0101010101010101ull << dz;  // (y, dz) for every y of a word
+  layer.leafRows.resize(last - first);
   std::size_t count = 0;
-  for (std::size_t l = first; l != last; ++l)
-    for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w)
-      count += static_cast<std::size_t>(std::popcount(leaves[l]->getValueMask().template getWord<std::uint64_t>(w) & layerBits));
+  for (std::size_t l = first; l != last; ++l) {
+    const std::uint64_t rows = layerRows(leaves[l]->getValueMask(), dz);
+    layer.leafRows[l - first] = rows;
+    count += static_cast<std::size_t>(std::popcount(rows));
+  }
   layer.resize(count);
   std::uint32_t n = 0;
   for (std::size_t group = first; group != last;) {
@@ -67,12 +81,13 @@ void enumerateLayer(const std::vector<const FloatLeaf*>& leaves, int k, Layer& l
     for (unsigned dy = 0; dy < FloatLeaf::DIM; ++dy) {
       const std::uint32_t begin = n;
       for (std::size_t l = group; l != groupEnd; ++l) {
+        const unsigned row = static_cast<unsigned>(layer.leafRows[l - first] >> (8 * dy)) & 0xffu;
+        if (!row) continue;
         const FloatLeaf& leaf = *leaves[l];
         const float* values = leaf.buffer().data();
-        for (unsigned dx = 0; dx < FloatLeaf::DIM; ++dx) {
-          const unsigned bit = (dy << 3) | dz;
-          if (!((leaf.getValueMask().template getWord<std::uint64_t>(dx) >> bit) & 1)) continue;
-          const auto offset = static_cast<std::uint16_t>((dx << 6) | bit);
+        for (unsigned xs = row; xs; xs &= xs - 1) {
+          const auto dx = static_cast<unsigned>(std::countr_zero(xs));
+          const auto offset = static_cast<std::uint16_t>((dx << 6) | (dy << 3) | dz);
           layer.i[n] = leaf.origin().x() + static_cast<int>(dx);
           layer.fraction[n] = values[offset];
           layer.leaf[n] = static_cast<std::uint32_t>(l);

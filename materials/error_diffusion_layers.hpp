@@ -40,6 +40,7 @@ struct Layer {
   std::vector<std::uint8_t> links;     // Link bits
   std::vector<std::uint32_t> nextRow;  // the first voxel of row j + 1 with x >= i - 1 (when it has one)
   std::vector<std::uint32_t> up;       // the voxel above, kNoVoxel if none
+  std::vector<std::uint64_t> leafRows;  // scratch of enumerateLayer: each slab leaf's voxels in layer k
   std::size_t size() const { return i.size(); }
   void resize(std::size_t n);
 };
