@@ -18,6 +18,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 
 #include <utility>
 
@@ -142,7 +143,7 @@ inline float select(bool condition, float yes, float no) {
 class BandDiffusion {
 public:
   // `buffers` lend the slots their vectors for the band (given back by the destructor).
-  BandDiffusion(const std::vector<const FloatLeaf*>& leaves, std::vector<std::unique_ptr<BoolLeaf>>& out, int k0, int k1,
+  BandDiffusion(const std::vector<const FloatLeaf*>& leaves, const std::vector<BoolLeaf*>& out, int k0, int k1,
                 std::uint64_t seed, const std::function<void()>& checkInterrupt, int workers, SlotBuffers& buffers)
       : leaves_(leaves), out_(out), k0_(k0), k1_(k1), seed_(seed), checkInterrupt_(checkInterrupt),
         slots_(static_cast<std::size_t>(workers) + 3), buffers_(buffers.lend(slots_)),
@@ -187,7 +188,8 @@ public:
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, out_.size()), [&](const tbb::blocked_range<std::size_t>& range) {
       for (std::size_t l = range.begin(); l != range.end(); ++l) {
         if (!out_[l]) continue;
-        auto* words = out_[l]->buffer().data();
+        auto* words = out_[l]->buffer().data();  // a reused leaf holds an earlier band's values
+        for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w) words[w] = 0;
         for (const auto& vero : veroByWorker_)
           if (!vero.empty())
             for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w) words[w] |= vero[l].template getWord<std::uint64_t>(w);
@@ -294,7 +296,7 @@ private:
   }
 
   const std::vector<const FloatLeaf*>& leaves_;
-  std::vector<std::unique_ptr<BoolLeaf>>& out_;
+  const std::vector<BoolLeaf*>& out_;  // by leaf, null where the leaf has no voxel in the band
   const int k0_, k1_;
   const std::uint64_t seed_;
   const std::function<void()>& checkInterrupt_;
@@ -328,6 +330,38 @@ void takeCarry(const Carries& carry, LayerSlot& first, int k0) {
   }
 }
 
+// The band's leaves sorted by origin (z, y, x), as the layers are enumerated, and the output leaf of
+// each (null where the leaf has no voxel in the band's layers).
+struct BandLeaves {
+  std::vector<const FloatLeaf*> leaves;
+  std::vector<BoolLeaf*> out;
+};
+
+// Sorts `groups`' leaves and makes the output leaves, in `out` (groups' order, for the recycler's
+// assembly), from `spares` where it has any: a slicer's thousands of bands then reuse the first bands'
+// output nodes instead of allocating and zeroing new ones (malloc, memset and page faults were a third
+// of the lattice bands' time in bench_dither). The leaves' values are set by storeVero.
+BandLeaves bandLeaves(const LeafGroups& groups, int k0, int k1, SpareNodes& spares, std::vector<std::unique_ptr<BoolLeaf>>& out) {
+  std::vector<std::size_t> order(groups.leaves.size());
+  for (std::size_t g = 0; g < order.size(); ++g) order[g] = g;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    const openvdb::Coord& p = groups.leaves[a]->origin();
+    const openvdb::Coord& q = groups.leaves[b]->origin();
+    return std::tuple(p.z(), p.y(), p.x()) < std::tuple(q.z(), q.y(), q.x());
+  });
+  BandLeaves band{std::vector<const FloatLeaf*>(order.size()), std::vector<BoolLeaf*>(order.size(), nullptr)};
+  for (std::size_t l = 0; l < order.size(); ++l) {
+    const std::size_t g = order[l];
+    band.leaves[l] = groups.leaves[g];
+    const LeafMask mask = activeInLayers(*groups.leaves[g], k0, k1);
+    if (mask.isOff()) continue;
+    out[g] = spares.leaf(g, groups.leaves[g]->origin());
+    out[g]->setValueMask(mask);
+    band.out[l] = out[g].get();
+  }
+  return band;
+}
+
 }  // namespace
 
 struct ErrorDiffusionDitherer::LayerBuffers : SlotBuffers {};
@@ -337,34 +371,31 @@ openvdb::BoolGrid::Ptr ErrorDiffusionDitherer::ditherLeafVoxels(const openvdb::F
     throw std::logic_error("error-diffusion: bands must follow each other: expected a band starting at layer " +
                            std::to_string(nextLayer_) + ", got " + std::to_string(k0) + " (reset() to start over)");
   // One layer past the band: its active voxels decide where the last layer's error may go.
-  const std::vector<const FloatLeaf*> leaves = detail::leavesInLayers(fraction.tree(), k0, k1 + 1);
-  std::vector<std::unique_ptr<BoolLeaf>> out(leaves.size());
-  for (std::size_t l = 0; l < leaves.size(); ++l) {
-    const detail::LeafMask mask = detail::activeInLayers(*leaves[l], k0, k1);
-    if (mask.isOff()) continue;
-    out[l] = std::make_unique<BoolLeaf>(leaves[l]->origin(), false, false);
-    out[l]->setValueMask(mask);
-  }
-  if (k0 == k1) return detail::assembleMaterialGrid(out, fraction);
+  const detail::LeafGroups groups = detail::leafGroupsInLayers(fraction.tree(), k0, k1 + 1);
+  detail::SpareNodes spares = recycler_.takeSpares();
+  std::vector<std::unique_ptr<BoolLeaf>> out(groups.leaves.size());  // in the groups' order
+  const BandLeaves band = bandLeaves(groups, k0, k1, spares, out);
+  if (k0 == k1) return detail::materialGrid(recycler_.assemble(groups, out, spares), fraction);
+  const std::vector<const FloatLeaf*>& leaves = band.leaves;
 
   // Layers form a chain; more than a few workers would only wait on each other.
   const int workers = std::clamp(tbb::this_task_arena::max_concurrency(), 1, 4);
   if (!buffers_) buffers_ = std::make_shared<LayerBuffers>();
-  BandDiffusion band(leaves, out, k0, k1, seed_, checkInterrupt_, workers, *buffers_);
-  if (started_) takeCarry(carry_, band.firstLayer(), k0);
-  tbb::parallel_for(0, workers, [&](int worker) { band.work(worker); });
-  band.rethrow();
-  band.storeVero();
-  band.check().throwIfFailed(fraction, leaves);
+  BandDiffusion diffusion(leaves, band.out, k0, k1, seed_, checkInterrupt_, workers, *buffers_);
+  if (started_) takeCarry(carry_, diffusion.firstLayer(), k0);
+  tbb::parallel_for(0, workers, [&](int worker) { diffusion.work(worker); });
+  diffusion.rethrow();
+  diffusion.storeVero();
+  diffusion.check().throwIfFailed(fraction, leaves);
 
   carry_.clear();
-  const LayerSlot& last = band.lastLayer();
+  const LayerSlot& last = diffusion.lastLayer();
   for (const Row& row : last.layer.rows)
     for (std::uint32_t v = row.begin; v < row.end; ++v)
       if (last.error[v] != 0.0f) carry_.push_back({last.layer.i[v], row.j, last.error[v]});
   started_ = true;
   nextLayer_ = k1;
-  return detail::assembleMaterialGrid(out, fraction);
+  return detail::materialGrid(recycler_.assemble(groups, out, spares), fraction);
 }
 
 }  // namespace rodfab::materials

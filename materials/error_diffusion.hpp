@@ -2,6 +2,7 @@
 // makeDitherer("error-diffusion").
 #pragma once
 
+#include "materials/band_leaves.hpp"
 #include "materials/ditherer.hpp"
 
 #include <cstdint>
@@ -65,6 +66,7 @@ private:
   // otherwise cost fresh allocations, their page faults and growth copies (error_diffusion.cpp).
   struct LayerBuffers;
   std::shared_ptr<LayerBuffers> buffers_;
+  detail::OutputTreeRecycler recycler_;  // the output trees' nodes, reused from band to band
 };
 
 }  // namespace rodfab::materials
