@@ -83,6 +83,7 @@ void enumerateLayer(const std::vector<const FloatLeaf*>& leaves, int k, Layer& l
   layer.leafRows.resize(last - first);
   std::size_t count = 0;
   for (std::size_t l = first; l != last; ++l) {
+    if (l + kPrefetchLeaves < last) __builtin_prefetch(&leaves[l + kPrefetchLeaves]->getValueMask());
     const std::uint64_t rows = layerRows(leaves[l]->getValueMask(), dz);
     layer.leafRows[l - first] = rows;
     count += static_cast<std::size_t>(std::popcount(rows));
@@ -126,33 +127,40 @@ void computeThresholds(std::uint64_t seed, float jitter, Layer& layer) {
   for (float& t : layer.threshold) t = 0.5f + jitter * (t - 0.5f);
 }
 
-// The in-layer Link bits and nextRow of every voxel, walking each row alongside the next.
+// The in-layer Link bits and nextRow of every voxel, walking each row alongside the next. Through raw
+// pointers: a byte store (links) may alias anything, and the vectors' pointers were reloaded after each.
 void linkWithinLayer(Layer& layer) {
-  const std::vector<int>& x = layer.i;
-  for (std::size_t r = 0; r < layer.rows.size(); ++r) {
-    const LayerRow& row = layer.rows[r];
-    const bool hasNext = r + 1 < layer.rows.size() && layer.rows[r + 1].j == row.j + 1;
-    const std::uint32_t nextEnd = hasNext ? layer.rows[r + 1].end : 0;
-    std::uint32_t n = hasNext ? layer.rows[r + 1].begin : 0;
+  const int* x = layer.i.data();
+  std::uint8_t* links = layer.links.data();
+  std::uint32_t* nextRow = layer.nextRow.data();
+  const std::vector<LayerRow>& rows = layer.rows;
+  for (std::size_t r = 0; r < rows.size(); ++r) {
+    const LayerRow row = rows[r];
+    const bool hasNext = r + 1 < rows.size() && rows[r + 1].j == row.j + 1;
+    const std::uint32_t nextEnd = hasNext ? rows[r + 1].end : 0;
+    std::uint32_t n = hasNext ? rows[r + 1].begin : 0;
     for (std::uint32_t v = row.begin; v < row.end; ++v) {
+      const int xv = x[v];
       unsigned bits = 0;
-      if (v > row.begin && x[v - 1] == x[v] - 1) bits |= kLeft;
-      if (v + 1 < row.end && x[v + 1] == x[v] + 1) bits |= kRight;
-      if (hasNext) {
-        while (n < nextEnd && x[n] < x[v] - 1) ++n;
-        std::uint32_t m = n;
-        if (m < nextEnd && x[m] == x[v] - 1) bits |= kNextLeft, ++m;
-        if (m < nextEnd && x[m] == x[v]) bits |= kNextSame, ++m;
-        if (m < nextEnd && x[m] == x[v] + 1) bits |= kNextRight;
-      }
-      layer.links[v] = static_cast<std::uint8_t>(bits);
-      layer.nextRow[v] = n;
+      if (v > row.begin && x[v - 1] == xv - 1) bits |= kLeft;
+      if (v + 1 < row.end && x[v + 1] == xv + 1) bits |= kRight;
+      while (n < nextEnd && x[n] < xv - 1) ++n;
+      std::uint32_t m = n;
+      if (m < nextEnd && x[m] == xv - 1) bits |= kNextLeft, ++m;
+      if (m < nextEnd && x[m] == xv) bits |= kNextSame, ++m;
+      if (m < nextEnd && x[m] == xv + 1) bits |= kNextRight;
+      links[v] = static_cast<std::uint8_t>(bits);
+      nextRow[v] = n;
     }
   }
 }
 
 // Layer `below`'s up links (kUp and up[]) into `above`, the layer over it, walking rows of equal j.
 void linkUp(Layer& below, const Layer& above) {
+  const int* x = below.i.data();
+  const int* xAbove = above.i.data();
+  std::uint8_t* links = below.links.data();
+  std::uint32_t* up = below.up.data();
   std::size_t ra = 0;
   for (const LayerRow& row : below.rows) {
     while (ra < above.rows.size() && above.rows[ra].j < row.j) ++ra;
@@ -160,10 +168,10 @@ void linkUp(Layer& below, const Layer& above) {
     std::uint32_t a = hasAbove ? above.rows[ra].begin : 0;
     const std::uint32_t aEnd = hasAbove ? above.rows[ra].end : 0;
     for (std::uint32_t v = row.begin; v < row.end; ++v) {
-      while (a < aEnd && above.i[a] < below.i[v]) ++a;
-      const bool found = a < aEnd && above.i[a] == below.i[v];
-      below.up[v] = found ? a : kNoVoxel;
-      if (found) below.links[v] |= kUp;
+      while (a < aEnd && xAbove[a] < x[v]) ++a;
+      const bool found = a < aEnd && xAbove[a] == x[v];
+      up[v] = found ? a : kNoVoxel;
+      links[v] = static_cast<std::uint8_t>(links[v] | (found ? unsigned{kUp} : 0u));
     }
   }
 }
