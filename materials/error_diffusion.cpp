@@ -1,7 +1,9 @@
+// Error diffusion's sweep: a band's layers diffused as a wavefront on up to 4 threads (BandDiffusion),
+// the error carried from band to band. The layers' preparation is error_diffusion_layers.cpp.
 #include "materials/error_diffusion.hpp"
 
 #include "materials/band_leaves.hpp"
-#include "materials/counter_hash.hpp"
+#include "materials/error_diffusion_layers.hpp"
 
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
@@ -11,10 +13,12 @@
 #include <atomic>
 #include <bit>
 #include <condition_variable>
+#include <cstdint>
 #include <mutex>
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 
 #include <utility>
 
@@ -22,161 +26,8 @@ namespace rodfab::materials {
 
 namespace {
 
-using detail::BoolLeaf;
-using detail::FloatLeaf;
-using detail::LeafMask;
-
-struct Row {
-  int j;
-  std::uint32_t begin, end;  // voxels [begin, end), ascending i
-};
-
-// Which neighbours of a voxel are inside the part: bits of Layer::links, set when the layer is prepared
-// (kUp when the layer above is), so the sweep itself does no lookups.
-enum Link : std::uint8_t {
-  kLeft = 1,        // (i - 1, j, k): voxel v - 1
-  kRight = 2,       // (i + 1, j, k): voxel v + 1
-  kNextLeft = 4,    // (i - 1, j + 1, k): voxel nextRow[v]
-  kNextSame = 8,    // (i, j + 1, k): the next voxel of the next row
-  kNextRight = 16,  // (i + 1, j + 1, k): the one after
-  kUp = 32,         // (i, j, k + 1): voxel up[v] of the layer above
-};
-constexpr std::uint32_t kNoVoxel = std::numeric_limits<std::uint32_t>::max();
-
-// One layer's active voxels in (j, i) order, as arrays: the sweep reads them one after the other.
-struct Layer {
-  int k = 0;
-  std::vector<Row> rows;
-  std::vector<int> i;
-  std::vector<float> fraction;
-  std::vector<float> threshold;        // the jittered threshold of each voxel
-  std::vector<std::uint32_t> leaf;     // index into the band's leaves
-  std::vector<std::uint16_t> offset;   // within that leaf
-  std::vector<std::uint8_t> links;     // Link bits
-  std::vector<std::uint32_t> nextRow;  // the first voxel of row j + 1 with x >= i - 1 (when it has one)
-  std::vector<std::uint32_t> up;       // the voxel above, kNoVoxel if none
-  std::size_t size() const { return i.size(); }
-  void resize(std::size_t n) {
-    i.resize(n);
-    fraction.resize(n);
-    threshold.resize(n);
-    leaf.resize(n);
-    offset.resize(n);
-    links.resize(n);
-    nextRow.resize(n);
-    up.resize(n);
-  }
-};
-
-int floorToLeaf(int k) { return k & ~static_cast<int>(FloatLeaf::DIM - 1); }
-
-// The leaves of `leaves` (sorted by origin (z, y, x)) in the slab holding layer k: contiguous, grouped by y.
-std::pair<std::size_t, std::size_t> slabOf(const std::vector<const FloatLeaf*>& leaves, int k) {
-  const int z0 = floorToLeaf(k);
-  auto first = std::lower_bound(leaves.begin(), leaves.end(), z0,
-                                [](const FloatLeaf* l, int z) { return l->origin().z() < z; });
-  auto last = std::lower_bound(first, leaves.end(), z0 + 1,
-                               [](const FloatLeaf* l, int z) { return l->origin().z() < z; });
-  return {static_cast<std::size_t>(first - leaves.begin()), static_cast<std::size_t>(last - leaves.begin())};
-}
-
-// Fills `layer`'s rows and voxels (i, fraction, leaf, offset) in place: its vectors keep their capacity
-// from the layer the slot held before (layers of millions of voxels otherwise cost a fresh allocation,
-// its page faults and its growth copies each). Counts first, so each array is sized once.
-void enumerateLayer(const std::vector<const FloatLeaf*>& leaves, int k, Layer& layer) {
-  layer.k = k;
-  layer.rows.clear();
-  const auto [first, last] = slabOf(leaves, k);
-  const auto dz = static_cast<unsigned>(k - floorToLeaf(k));
-  const std::uint64_t layerBits = 0x0101010101010101ull << dz;  // (y, dz) for every y of a word
-  std::size_t count = 0;
-  for (std::size_t l = first; l != last; ++l)
-    for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w)
-      count += static_cast<std::size_t>(std::popcount(leaves[l]->getValueMask().template getWord<std::uint64_t>(w) & layerBits));
-  layer.resize(count);
-  std::uint32_t n = 0;
-  for (std::size_t group = first; group != last;) {
-    const int y0 = leaves[group]->origin().y();
-    std::size_t groupEnd = group;
-    while (groupEnd != last && leaves[groupEnd]->origin().y() == y0) ++groupEnd;
-    for (unsigned dy = 0; dy < FloatLeaf::DIM; ++dy) {
-      const std::uint32_t begin = n;
-      for (std::size_t l = group; l != groupEnd; ++l) {
-        const FloatLeaf& leaf = *leaves[l];
-        const float* values = leaf.buffer().data();
-        for (unsigned dx = 0; dx < FloatLeaf::DIM; ++dx) {
-          const unsigned bit = (dy << 3) | dz;
-          if (!((leaf.getValueMask().template getWord<std::uint64_t>(dx) >> bit) & 1)) continue;
-          const auto offset = static_cast<std::uint16_t>((dx << 6) | bit);
-          layer.i[n] = leaf.origin().x() + static_cast<int>(dx);
-          layer.fraction[n] = values[offset];
-          layer.leaf[n] = static_cast<std::uint32_t>(l);
-          layer.offset[n] = offset;
-          ++n;
-        }
-      }
-      if (n > begin) layer.rows.push_back({y0 + static_cast<int>(dy), begin, n});
-    }
-    group = groupEnd;
-  }
-}
-
-// The Philox draw of each voxel of a row as a uniform number (voxelUniform), in one loop the compiler
-// vectorizes: the draws were a third of the sweep's time. Integer arithmetic and an exact conversion,
-// so every clone gives the same numbers; no throw in a target_clones function (GCC 12 assumes none).
-[[gnu::target_clones("avx2", "default")]] void drawUniforms(std::uint64_t seed, const int* i, int j, int k, float* out,
-                                                          std::uint32_t count) noexcept {
-  for (std::uint32_t v = 0; v < count; ++v) out[v] = voxelUniform(seed, i[v], j, k);
-}
-
-// Each voxel's threshold: 0.5 jittered by +-kThresholdJitter / 2 from its uniform number.
-void computeThresholds(std::uint64_t seed, Layer& layer) {
-  for (const Row& row : layer.rows)
-    drawUniforms(seed, layer.i.data() + row.begin, row.j, layer.k, layer.threshold.data() + row.begin, row.end - row.begin);
-  for (float& t : layer.threshold) t = 0.5f + ErrorDiffusionDitherer::kThresholdJitter * (t - 0.5f);
-}
-
-// The in-layer Link bits and nextRow of every voxel, walking each row alongside the next.
-void linkWithinLayer(Layer& layer) {
-  const std::vector<int>& x = layer.i;
-  for (std::size_t r = 0; r < layer.rows.size(); ++r) {
-    const Row& row = layer.rows[r];
-    const bool hasNext = r + 1 < layer.rows.size() && layer.rows[r + 1].j == row.j + 1;
-    const std::uint32_t nextEnd = hasNext ? layer.rows[r + 1].end : 0;
-    std::uint32_t n = hasNext ? layer.rows[r + 1].begin : 0;
-    for (std::uint32_t v = row.begin; v < row.end; ++v) {
-      unsigned bits = 0;
-      if (v > row.begin && x[v - 1] == x[v] - 1) bits |= kLeft;
-      if (v + 1 < row.end && x[v + 1] == x[v] + 1) bits |= kRight;
-      if (hasNext) {
-        while (n < nextEnd && x[n] < x[v] - 1) ++n;
-        std::uint32_t m = n;
-        if (m < nextEnd && x[m] == x[v] - 1) bits |= kNextLeft, ++m;
-        if (m < nextEnd && x[m] == x[v]) bits |= kNextSame, ++m;
-        if (m < nextEnd && x[m] == x[v] + 1) bits |= kNextRight;
-      }
-      layer.links[v] = static_cast<std::uint8_t>(bits);
-      layer.nextRow[v] = n;
-    }
-  }
-}
-
-// Layer `below`'s up links (kUp and up[]) into `above`, the layer over it, walking rows of equal j.
-void linkUp(Layer& below, const Layer& above) {
-  std::size_t ra = 0;
-  for (const Row& row : below.rows) {
-    while (ra < above.rows.size() && above.rows[ra].j < row.j) ++ra;
-    const bool hasAbove = ra < above.rows.size() && above.rows[ra].j == row.j;
-    std::uint32_t a = hasAbove ? above.rows[ra].begin : 0;
-    const std::uint32_t aEnd = hasAbove ? above.rows[ra].end : 0;
-    for (std::uint32_t v = row.begin; v < row.end; ++v) {
-      while (a < aEnd && above.i[a] < below.i[v]) ++a;
-      const bool found = a < aEnd && above.i[a] == below.i[v];
-      below.up[v] = found ? a : kNoVoxel;
-      if (found) below.links[v] |= kUp;
-    }
-  }
-}
+using namespace detail;  // leaves, Layer and its Link bits, the preparation steps
+using Row = LayerRow;
 
 constexpr int kNoRowYet = std::numeric_limits<int>::min();
 constexpr int kAllRows = std::numeric_limits<int>::max();
@@ -277,6 +128,13 @@ std::array<float, 64> totalWeights() {
   return totals;
 }
 
+// `yes` if `condition`, else `no`, by masking the bits: a branch on a dithering decision would be
+// mispredicted about as often as it is taken.
+inline float select(bool condition, float yes, float no) {
+  const std::uint32_t mask = 0u - static_cast<std::uint32_t>(condition);
+  return std::bit_cast<float>((std::bit_cast<std::uint32_t>(yes) & mask) | (std::bit_cast<std::uint32_t>(no) & ~mask));
+}
+
 // The diffusion of one band, layer by layer as a wavefront: the worker on layer k starts its row j once
 // layer k - 1 has finished row j + 1. Row j of layer k receives error from row j of layer k - 1 (the
 // share sent up) and from its own rows j - 1 and j; row j + 1 from row j. Waiting for row j + 1 below
@@ -285,7 +143,7 @@ std::array<float, 64> totalWeights() {
 class BandDiffusion {
 public:
   // `buffers` lend the slots their vectors for the band (given back by the destructor).
-  BandDiffusion(const std::vector<const FloatLeaf*>& leaves, std::vector<std::unique_ptr<BoolLeaf>>& out, int k0, int k1,
+  BandDiffusion(const std::vector<const FloatLeaf*>& leaves, const std::vector<BoolLeaf*>& out, int k0, int k1,
                 std::uint64_t seed, const std::function<void()>& checkInterrupt, int workers, SlotBuffers& buffers)
       : leaves_(leaves), out_(out), k0_(k0), k1_(k1), seed_(seed), checkInterrupt_(checkInterrupt),
         slots_(static_cast<std::size_t>(workers) + 3), buffers_(buffers.lend(slots_)),
@@ -303,7 +161,7 @@ public:
   // that throws abandons the band (waking the others) and keeps the first exception for rethrow().
   void work(int worker) {
     try {
-      std::vector<detail::LeafMask>& vero = veroByWorker_[static_cast<std::size_t>(worker)];
+      std::vector<LeafMask>& vero = veroByWorker_[static_cast<std::size_t>(worker)];
       vero.resize(leaves_.size());
       for (int k = nextLayer_.fetch_add(1); k < k1_; k = nextLayer_.fetch_add(1)) {
         if (checkInterrupt_) checkInterrupt_();
@@ -330,14 +188,15 @@ public:
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, out_.size()), [&](const tbb::blocked_range<std::size_t>& range) {
       for (std::size_t l = range.begin(); l != range.end(); ++l) {
         if (!out_[l]) continue;
-        auto* words = out_[l]->buffer().data();
+        auto* words = out_[l]->buffer().data();  // a reused leaf holds an earlier band's values
+        for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w) words[w] = 0;
         for (const auto& vero : veroByWorker_)
           if (!vero.empty())
-            for (openvdb::Index w = 0; w < detail::LeafMask::WORD_COUNT; ++w) words[w] |= vero[l].template getWord<std::uint64_t>(w);
+            for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w) words[w] |= vero[l].template getWord<std::uint64_t>(w);
       }
     });
   }
-  const detail::FractionCheck& check() const { return check_; }
+  const FractionCheck& check() const { return check_; }
 
 private:
   LayerSlot& slot(int k) { return slots_[static_cast<std::size_t>(k - k0_) % slots_.size()]; }
@@ -363,7 +222,7 @@ private:
     const int lastReader = k - static_cast<int>(slots_.size()) + 1;
     if (lastReader > k0_) slot(lastReader).finishedThroughRow.waitUntil(kAllRows);
     enumerateLayer(leaves_, k, s.layer);
-    if (k < k1_) computeThresholds(seed_, s.layer);  // layer k1 is only where error may go
+    if (k < k1_) computeThresholds(seed_, ErrorDiffusionDitherer::kThresholdJitter, s.layer);  // layer k1 is only where error may go
     linkWithinLayer(s.layer);
     s.error.assign(s.layer.size(), 0.0f);
     if (k > k0_) {
@@ -376,7 +235,7 @@ private:
     s.preparedFor.publish(k);
   }
 
-  void diffuseLayer(int k, std::vector<detail::LeafMask>& vero) {
+  void diffuseLayer(int k, std::vector<LeafMask>& vero) {
     LayerSlot& here = slot(k);
     float* errorAbove = slot(k + 1).error.data();
     Progress* below = k > k0_ ? &slot(k - 1).finishedThroughRow : nullptr;
@@ -393,31 +252,38 @@ private:
   }
 
   // The serpentine sweep of one row (towards +x for Dir = 1), each voxel's error sent to the neighbours
-  // inside the part, weights renormalized over them. The loop carries the error from voxel to voxel:
-  // everything about the neighbours was worked out when the layers were prepared.
+  // inside the part, weights renormalized over them. Everything about the neighbours was worked out
+  // when the layers were prepared. The error carried from voxel to voxel is the loop's critical path
+  // (add, compare, divide, multiply, add): the share sent ahead stays in a register instead of making a
+  // round trip through memory, and both outcomes' divisions start before the comparison settles. The
+  // floats are the same: the share ahead is still added last, as the single sweep adds it.
   template <int Dir>
-  void diffuseRow(const Layer& layer, const Row& row, float* error, float* errorAbove, std::vector<detail::LeafMask>& vero) {
+  void diffuseRow(const Layer& layer, const Row& row, float* error, float* errorAbove, std::vector<LeafMask>& vero) {
     static const std::array<float, 64> totals = totalWeights<Dir>();
     constexpr unsigned ahead = Dir > 0 ? kRight : kLeft;
     constexpr unsigned behind = Dir > 0 ? kNextLeft : kNextRight, aheadNext = Dir > 0 ? kNextRight : kNextLeft;
     const std::int64_t first = Dir > 0 ? row.begin : static_cast<std::int64_t>(row.end) - 1;
     const std::int64_t stop = Dir > 0 ? row.end : static_cast<std::int64_t>(row.begin) - 1;
+    float sentAhead = 0.0f;  // what the voxel before sent to this one, when it sent anything
+    bool received = false;
     for (std::int64_t v = first; v != stop; v += Dir) {
+      const bool hasSentAhead = std::exchange(received, false);
       const float f = layer.fraction[v];
-      if (!detail::FractionCheck::valid(f)) {
+      if (!FractionCheck::valid(f)) {
         check_.fail(layer.leaf[v], layer.offset[v]);
         continue;
       }
-      const float wanted = f + error[v];
+      const float wanted = f + (hasSentAhead ? error[v] + sentAhead : error[v]);
       const bool isVero = (f >= 1.0f) | ((f > 0.0f) & (wanted >= layer.threshold[v]));
       const unsigned offset = layer.offset[v];
       vero[layer.leaf[v]].template getWord<std::uint64_t>(offset >> 6) |= std::uint64_t{isVero} << (offset & 63);
-      const float residual = wanted - (isVero ? 1.0f : 0.0f);
       const unsigned links = layer.links[v];
       const float total = totals[links];
       if (total <= 0.0f) continue;  // an isolated voxel with nothing after it: its error has nowhere to go
-      const float scale = residual / total;
-      if (links & ahead) error[v + Dir] += kWeights[0] * scale;
+      // residual / total for residual = wanted - 1 (Vero) or wanted - 0 (= wanted, bit for bit).
+      const float scale = select(isVero, (wanted - 1.0f) / total, wanted / total);
+      sentAhead = kWeights[0] * scale;
+      received = (links & ahead) != 0;
       // The next row's voxels at i - 1, i, i + 1, those that are inside the part, in that order.
       const std::uint32_t left = layer.nextRow[v];
       const std::uint32_t same = left + ((links & kNextLeft) ? 1 : 0);
@@ -430,15 +296,15 @@ private:
   }
 
   const std::vector<const FloatLeaf*>& leaves_;
-  std::vector<std::unique_ptr<BoolLeaf>>& out_;
+  const std::vector<BoolLeaf*>& out_;  // by leaf, null where the leaf has no voxel in the band
   const int k0_, k1_;
   const std::uint64_t seed_;
   const std::function<void()>& checkInterrupt_;
   std::vector<LayerSlot> slots_;
   SlotBuffers& buffers_;
   std::atomic<int> nextLayer_;
-  std::vector<std::vector<detail::LeafMask>> veroByWorker_;
-  detail::FractionCheck check_;
+  std::vector<std::vector<LeafMask>> veroByWorker_;
+  FractionCheck check_;
   std::mutex failureMutex_;
   std::exception_ptr failure_;
 };
@@ -464,6 +330,38 @@ void takeCarry(const Carries& carry, LayerSlot& first, int k0) {
   }
 }
 
+// The band's leaves sorted by origin (z, y, x), as the layers are enumerated, and the output leaf of
+// each (null where the leaf has no voxel in the band's layers).
+struct BandLeaves {
+  std::vector<const FloatLeaf*> leaves;
+  std::vector<BoolLeaf*> out;
+};
+
+// Sorts `groups`' leaves and makes the output leaves, in `out` (groups' order, for the recycler's
+// assembly), from `spares` where it has any: a slicer's thousands of bands then reuse the first bands'
+// output nodes instead of allocating and zeroing new ones (malloc, memset and page faults were a third
+// of the lattice bands' time in bench_dither). The leaves' values are set by storeVero.
+BandLeaves bandLeaves(const LeafGroups& groups, int k0, int k1, SpareNodes& spares, std::vector<std::unique_ptr<BoolLeaf>>& out) {
+  std::vector<std::size_t> order(groups.leaves.size());
+  for (std::size_t g = 0; g < order.size(); ++g) order[g] = g;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    const openvdb::Coord& p = groups.leaves[a]->origin();
+    const openvdb::Coord& q = groups.leaves[b]->origin();
+    return std::tuple(p.z(), p.y(), p.x()) < std::tuple(q.z(), q.y(), q.x());
+  });
+  BandLeaves band{std::vector<const FloatLeaf*>(order.size()), std::vector<BoolLeaf*>(order.size(), nullptr)};
+  for (std::size_t l = 0; l < order.size(); ++l) {
+    const std::size_t g = order[l];
+    band.leaves[l] = groups.leaves[g];
+    const LeafMask mask = activeInLayers(*groups.leaves[g], k0, k1);
+    if (mask.isOff()) continue;
+    out[g] = spares.leaf(g, groups.leaves[g]->origin());
+    out[g]->setValueMask(mask);
+    band.out[l] = out[g].get();
+  }
+  return band;
+}
+
 }  // namespace
 
 struct ErrorDiffusionDitherer::LayerBuffers : SlotBuffers {};
@@ -473,34 +371,31 @@ openvdb::BoolGrid::Ptr ErrorDiffusionDitherer::ditherLeafVoxels(const openvdb::F
     throw std::logic_error("error-diffusion: bands must follow each other: expected a band starting at layer " +
                            std::to_string(nextLayer_) + ", got " + std::to_string(k0) + " (reset() to start over)");
   // One layer past the band: its active voxels decide where the last layer's error may go.
-  const std::vector<const FloatLeaf*> leaves = detail::leavesInLayers(fraction.tree(), k0, k1 + 1);
-  std::vector<std::unique_ptr<BoolLeaf>> out(leaves.size());
-  for (std::size_t l = 0; l < leaves.size(); ++l) {
-    const detail::LeafMask mask = detail::activeInLayers(*leaves[l], k0, k1);
-    if (mask.isOff()) continue;
-    out[l] = std::make_unique<BoolLeaf>(leaves[l]->origin(), false, false);
-    out[l]->setValueMask(mask);
-  }
-  if (k0 == k1) return detail::assembleMaterialGrid(out, fraction);
+  const detail::LeafGroups groups = detail::leafGroupsInLayers(fraction.tree(), k0, k1 + 1);
+  detail::SpareNodes spares = recycler_.takeSpares();
+  std::vector<std::unique_ptr<BoolLeaf>> out(groups.leaves.size());  // in the groups' order
+  const BandLeaves band = bandLeaves(groups, k0, k1, spares, out);
+  if (k0 == k1) return detail::materialGrid(recycler_.assemble(groups, out, spares), fraction);
+  const std::vector<const FloatLeaf*>& leaves = band.leaves;
 
   // Layers form a chain; more than a few workers would only wait on each other.
   const int workers = std::clamp(tbb::this_task_arena::max_concurrency(), 1, 4);
   if (!buffers_) buffers_ = std::make_shared<LayerBuffers>();
-  BandDiffusion band(leaves, out, k0, k1, seed_, checkInterrupt_, workers, *buffers_);
-  if (started_) takeCarry(carry_, band.firstLayer(), k0);
-  tbb::parallel_for(0, workers, [&](int worker) { band.work(worker); });
-  band.rethrow();
-  band.storeVero();
-  band.check().throwIfFailed(fraction, leaves);
+  BandDiffusion diffusion(leaves, band.out, k0, k1, seed_, checkInterrupt_, workers, *buffers_);
+  if (started_) takeCarry(carry_, diffusion.firstLayer(), k0);
+  tbb::parallel_for(0, workers, [&](int worker) { diffusion.work(worker); });
+  diffusion.rethrow();
+  diffusion.storeVero();
+  diffusion.check().throwIfFailed(fraction, leaves);
 
   carry_.clear();
-  const LayerSlot& last = band.lastLayer();
+  const LayerSlot& last = diffusion.lastLayer();
   for (const Row& row : last.layer.rows)
     for (std::uint32_t v = row.begin; v < row.end; ++v)
       if (last.error[v] != 0.0f) carry_.push_back({last.layer.i[v], row.j, last.error[v]});
   started_ = true;
   nextLayer_ = k1;
-  return detail::assembleMaterialGrid(out, fraction);
+  return detail::materialGrid(recycler_.assemble(groups, out, spares), fraction);
 }
 
 }  // namespace rodfab::materials

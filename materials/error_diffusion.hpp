@@ -2,6 +2,7 @@
 // makeDitherer("error-diffusion").
 #pragma once
 
+#include "materials/band_leaves.hpp"
 #include "materials/ditherer.hpp"
 
 #include <cstdint>
@@ -23,16 +24,15 @@ namespace rodfab::materials {
 // among equally good patterns.
 //
 // Threads: a band's layers are diffused as a wavefront on up to 4 of the arena's threads, the worker on
-// layer k starting its row j once layer k - 1 has finished row j + 1. Every voxel then receives its
-// error contributions in the order a single sweep gives them, so the pattern is bit for bit the same
-// for any thread count (tests/test_materials.cpp checks 1, 2 and 4 workers). A waiting worker sleeps
-// on a condition variable, so oversubscribed cores cost time, not CPU. A worker that throws (an
-// interrupt, std::bad_alloc) wakes the others, which stop; the first exception leaves ditherLayers.
-// Each worker keeps its own Vero masks, merged after the band (layers k and k + 1 share the leaves'
-// words). Measured with bench_dither
-// on the shared 2-core machine (real-time priority, so the other sessions' load does not count):
-// 27 -> 40 M voxels/s on the dense block, 28 -> 36 M/s on the rod bundle. Bands follow each other on
-// one ditherer.
+// layer k starting its row j once layer k - 1 has finished row j + 1. Every voxel then receives its error
+// contributions in the order a single sweep gives them, so the pattern is bit for bit the same for any
+// thread count (tests/test_materials_error_diffusion.cpp checks 1, 2 and 4 workers). A waiting worker
+// sleeps on a condition variable, so oversubscribed cores cost time, not CPU. A worker that throws (an
+// interrupt, std::bad_alloc) wakes the others, which stop; the first exception leaves ditherLayers. Each
+// worker keeps its own Vero masks, merged after the band (layers k and k + 1 share the leaves' words).
+// Measured with bench_dither on the shared 2-core machine (real-time priority, so the other sessions' load
+// does not count): 27 -> 40 M voxels/s on the dense block, 28 -> 36 M/s on the rod bundle. Bands follow
+// each other on one ditherer.
 class ErrorDiffusionDitherer final : public Ditherer {
 public:
   static constexpr float kShareToNextLayer = 0.8f;
@@ -66,6 +66,7 @@ private:
   // otherwise cost fresh allocations, their page faults and growth copies (error_diffusion.cpp).
   struct LayerBuffers;
   std::shared_ptr<LayerBuffers> buffers_;
+  detail::OutputTreeRecycler recycler_;  // the output trees' nodes, reused from band to band
 };
 
 }  // namespace rodfab::materials

@@ -121,13 +121,19 @@ TEST_CASE("materials: error diffusion follows the single sweep of its definition
       CHECK(differences(*arena.execute([&] { return makeDitherer("error-diffusion", {seed, nullptr})->dither(*part); }),
                         *reference) == 0);
       // Streamed in bands of 5 layers (not a leaf's 8), each from a grid of the band and one layer more.
+      // Each band's output is let go before the next, whose leaves are then the earlier bands' leaves
+      // reused: none may keep an earlier band's Vero on a voxel outside the band's layers.
       const auto ditherer = makeDitherer("error-diffusion", {seed, nullptr});
       auto merged = openvdb::BoolGrid::create(false);
+      std::size_t staleVero = 0;
       for (int k0 = box.min().z(); k0 <= box.max().z(); k0 += 5) {
         const auto piece = arena.execute([&] { return ditherer->ditherLayers(*layersOf(*part, k0, k0 + 6), k0, k0 + 5); });
         for (auto it = piece->cbeginValueOn(); it; ++it) merged->tree().setValueOn(it.getCoord(), *it);
+        for (auto leaf = piece->tree().cbeginLeaf(); leaf; ++leaf)
+          for (openvdb::Index n = 0; n < leaf->SIZE; ++n) staleVero += !leaf->isValueOn(n) && leaf->getValue(n);
       }
       CHECK(differences(*merged, *reference) == 0);
+      CHECK(staleVero == 0);
     }
   }
 }
