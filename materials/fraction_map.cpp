@@ -59,6 +59,10 @@ typedef std::uint32_t UInt4 __attribute__((vector_size(16)));
   const Int4 lane = {0, 1, 2, 3};
   Int4 belowCount = {}, aboveCount = {};  // minus the clamped active voxels, lane by lane
   for (int q = 0; q < 64; q += 4) {
+    if (!(active >> q & 0xfu)) {  // the thin parts of a rod leave whole quads inactive
+      std::memcpy(fractions + q, &zero, sizeof zero);
+      continue;
+    }
     Float4 e;
     std::memcpy(&e, moduli + q, sizeof e);
     const UInt4 bits = reinterpret_cast<UInt4>(e);
