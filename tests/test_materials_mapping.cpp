@@ -246,3 +246,23 @@ TEST_CASE("materials: a leaf word maps four voxels a step exactly as the scalar 
     CHECK(clamps.aboveMax == above);
   }
 }
+
+TEST_CASE("materials: voxels far apart, negative coordinates included, map into the nodes OpenVDB puts them in", "[materials][mapping]") {
+  // Leaves in different leaf parents (128 voxels) and upper nodes (4096), on both sides of 0: the output
+  // tree is assembled parent by parent, then upper node by upper node.
+  const FractionMap map(logPowerCalibration());
+  auto modulus = openvdb::FloatGrid::create(0.0f);
+  const std::vector<openvdb::Coord> where = {{0, 0, 0},       {1, 0, 0},      {200, 3, 1},       {5000, -300, 2},
+                                             {-5000, 9000, 3}, {-1, -1, -1}, {-4097, -129, 0}};
+  for (std::size_t v = 0; v < where.size(); ++v) modulus->tree().setValueOn(where[v], 3.0f + 40.0f * static_cast<float>(v));
+  MappingStats stats;
+  const auto fractions = mapToFractions(*modulus, map, -10, 10, stats);
+  CHECK(stats.voxels == where.size());
+  CHECK(stats.clamps.belowFloor == 1);  // 3 MPa
+  CHECK(fractions->tree().hasSameTopology(modulus->tree()));
+  CHECK(fractions->tree().nodeCount() == modulus->tree().nodeCount());
+  for (const openvdb::Coord& c : where) {
+    const float e = modulus->tree().getValue(c);
+    CHECK(fractions->tree().getValue(c) == static_cast<float>(map.fraction(e).fraction));
+  }
+}

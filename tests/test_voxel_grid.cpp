@@ -141,3 +141,26 @@ TEST_CASE(".vdb files round-trip and are written atomically", "[voxel][io]") {
                       Catch::Contains("x.vdb: cannot write"));
   std::filesystem::remove_all(dir);
 }
+
+TEST_CASE("Rods in different upper nodes: every voxel as the exact test says, the nodes where OpenVDB puts them", "[voxel][grid][tree]") {
+  // 180 mm apart along x (an upper node spans 4096 voxels, 173 mm at 0.0423 mm) and 12 mm along y
+  // (another leaf parent): the output tree is assembled parent by parent, then upper node by upper node.
+  const Rod near = circularRod(line({0, 0, 0}, {0.6, 0.3, 0.4}), 0.25, CapStyle::Round);
+  const Rod far = circularRod(line({180, 12, 0.2}, {180.5, 12.2, 0.7}), 0.25, CapStyle::Round);
+  const RodStructure both = design({near, far});
+  const PrinterGrid g = voxel::makePrinterGrid(both, kTestVoxel);
+  const voxel::Rasterization r = voxel::rasterize(both, g);
+  std::uint64_t alone = 0;
+  for (const Rod& rod : {near, far}) {
+    const RodStructure one = design({rod});
+    requireMatchesExactTest(one, g, r);  // the pair's grid around this rod (the other is far away)
+    alone += voxel::rasterize(one, g).grid->activeVoxelCount();
+  }
+  REQUIRE(r.grid->activeVoxelCount() == alone);
+  REQUIRE(r.grid->tree().root().childCount() == 2);
+  // OpenVDB's own assembly of the same leaves, one at a time from the root: the same nodes.
+  openvdb::FloatTree byLeaf(0.0f);
+  for (auto it = r.grid->tree().cbeginLeaf(); it; ++it) byLeaf.addLeaf(new openvdb::FloatTree::LeafNodeType(*it));
+  REQUIRE(byLeaf.hasSameTopology(r.grid->tree()));
+  REQUIRE(byLeaf.nodeCount() == r.grid->tree().nodeCount());
+}
