@@ -1,11 +1,18 @@
+// The mapping's four-lane vectors pass between functions of this file only; GCC's note that their
+// by-value ABI differs without AVX concerns no interface anyone links to.
+#pragma GCC diagnostic ignored "-Wpsabi"
+
 #include "materials/fraction_map.hpp"
 
 #include "materials/band_leaves.hpp"
 #include "materials/ditherer.hpp"
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 #include <string>
 
@@ -25,7 +32,66 @@ double lineAt(double x0, double y0, double x1, double y1, double x) {
   return x1 > x0 ? y0 + (x - x0) * (y1 - y0) / (x1 - x0) : y1;
 }
 
+// Four lanes (GCC vector extensions; one AVX register in the AVX2 clone of mapWord, two SSE2 ones
+// otherwise): lane by lane the same IEEE operations as the scalar expressions.
+typedef double Double4 __attribute__((vector_size(32)));
+typedef float Float4 __attribute__((vector_size(16)));
+typedef std::int32_t Int4 __attribute__((vector_size(16)));
+typedef std::uint32_t UInt4 __attribute__((vector_size(16)));
+
 }  // namespace
+
+// Cloned for AVX2 (chosen at load time); AVX2 brings no FMA, so no multiply-add is fused and both
+// clones give interpolate's bits. Integers in 32 bits: a positive float's bits are below 2^31, so the
+// interval and the offset in it (interpolate's 64-bit expressions) are the same numbers; lanes that
+// are clamped (negative, NaN, out of range) compute garbage within the table's bounds, then take the
+// clamp's value.
+[[gnu::target_clones("avx2", "default")]] FractionMap::WordClamps FractionMap::mapWord(const float* moduli, std::uint64_t active,
+                                                                                      float* fractions) const {
+  // The members in locals: the stores through `fractions` (memcpy) could alias them otherwise.
+  const Segment* segments = segments_.data();
+  const int shift = shift_;
+  const double inverseWidth = inverseWidth_;
+  const Float4 floor = Float4{} + static_cast<float>(floorMpa_), maximum = Float4{} + static_cast<float>(maxModulusMpa_);
+  const Float4 floorFraction = Float4{} + static_cast<float>(floorFraction_), one = Float4{} + 1.0f, zero = Float4{};
+  const Double4 lowest = Double4{} + floorFraction_, highest = Double4{} + 1.0;
+  const Int4 first = Int4{} + static_cast<std::int32_t>(firstInterval_), last = Int4{} + static_cast<std::int32_t>(lastInterval_);
+  const Int4 lane = {0, 1, 2, 3};
+  Int4 belowCount = {}, aboveCount = {};  // minus the clamped active voxels, lane by lane
+  for (int q = 0; q < 64; q += 4) {
+    if (!(active >> q & 0xfu)) {  // the thin parts of a rod leave whole quads inactive
+      std::memcpy(fractions + q, &zero, sizeof zero);
+      continue;
+    }
+    Float4 e;
+    std::memcpy(&e, moduli + q, sizeof e);
+    const UInt4 bits = reinterpret_cast<UInt4>(e);
+    Int4 interval = reinterpret_cast<Int4>(bits >> shift) - first;
+    interval = interval < 0 ? Int4{} : interval;
+    interval = interval > last ? last : interval;
+    const Int4 offset = reinterpret_cast<Int4>(bits - (reinterpret_cast<UInt4>(first + interval) << shift));
+    const Double4 t = __builtin_convertvector(offset, Double4) * inverseWidth;
+    Double4 start, rise;
+    for (int l = 0; l < 4; ++l) {
+      const Segment& s = segments[interval[l]];
+      start[l] = s.start;
+      rise[l] = s.rise;
+    }
+    Double4 v = start + t * rise;
+    v = v < lowest ? lowest : v;  // std::clamp(v, floorFraction_, 1.0)
+    v = highest < v ? highest : v;
+    Float4 f = __builtin_convertvector(v, Float4);
+    const Int4 on = ((Int4{} + static_cast<std::int32_t>(active >> q & 0xfu)) >> lane & 1) == 1;
+    const Int4 below = ~(e >= floor) & on, above = (e > maximum) & ~below & on;
+    f = below ? floorFraction : above ? one : f;
+    f = on ? f : zero;
+    std::memcpy(fractions + q, &f, sizeof f);
+    belowCount += below;
+    aboveCount += above;
+  }
+  return {static_cast<std::uint64_t>(-(belowCount[0] + belowCount[1] + belowCount[2] + belowCount[3])),
+          static_cast<std::uint64_t>(-(aboveCount[0] + aboveCount[1] + aboveCount[2] + aboveCount[3]))};
+}
 
 FractionMap::FractionMap(const calibration::Calibration& calibration, std::size_t nodes)
     : floorMpa_(calibration.floorMpa()), floorFraction_(calibration.floorFraction()), maxModulusMpa_(calibration.maxModulusMpa()) {
@@ -60,6 +126,8 @@ FractionMap::FractionMap(const calibration::Calibration& calibration, std::size_
   table_[std::size_t(L + 1)] = x0 >= maxModulusMpa_ ? 1.0 : lineAt(x0, y0, maxModulusMpa_, 1.0, node(L + 1));
   // The inverse is solved to 1e-9; keep the table monotone regardless.
   for (std::size_t n = 1; n < table_.size(); ++n) table_[n] = std::max(table_[n], table_[n - 1]);
+  segments_.resize(table_.size() - 1);
+  for (std::size_t n = 0; n + 1 < table_.size(); ++n) segments_[n] = {table_[n], table_[n + 1] - table_[n]};
 
   // Midpoint errors of every interval (cut to [floor, max]) as the lookup computes them.
   double worst = 0.0;
@@ -74,6 +142,63 @@ FractionMap::FractionMap(const calibration::Calibration& calibration, std::size_
   errorBound_ = 2.0 * worst + std::ldexp(1.0, -23);
 }
 
+namespace {
+
+using detail::FloatLeaf;
+using FloatLeafParent = openvdb::FloatTree::RootNodeType::ChildNodeType::ChildNodeType;  // 128^3 voxels
+using FloatUpperNode = openvdb::FloatTree::RootNodeType::ChildNodeType;                    // 4096^3 voxels
+
+// A tree (background 0) of `leaves` (null entries skipped), grouped by parent as in `groups`: the
+// parents in parallel, each taking its own leaves, then the few upper nodes and the root. The same tree
+// as adding the leaves one by one (every node created with the background, inactive), without a
+// serial walk from the root per leaf.
+openvdb::FloatTree::Ptr assembleTree(const detail::LeafGroups& groups, std::vector<std::unique_ptr<FloatLeaf>>& leaves) {
+  std::vector<std::unique_ptr<FloatLeafParent>> parents(groups.parentCount());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, parents.size()), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t p = r.begin(); p != r.end(); ++p) {
+      const std::size_t first = groups.begin[p], last = groups.begin[p + 1];
+      for (std::size_t l = first; l != last; ++l) {
+        if (!leaves[l]) continue;
+        if (!parents[p]) parents[p] = std::make_unique<FloatLeafParent>(leaves[l]->origin() & ~(FloatLeafParent::DIM - 1), 0.0f, false);
+        parents[p]->addChild(leaves[l].release());
+      }
+    }
+  });
+  auto tree = std::make_shared<openvdb::FloatTree>(0.0f);
+  std::vector<FloatUpperNode*> uppers;  // owned by the tree
+  for (auto& parent : parents) {
+    if (!parent) continue;
+    const openvdb::Coord origin = parent->origin() & ~(FloatUpperNode::DIM - 1);
+    auto upper = std::find_if(uppers.begin(), uppers.end(), [&](const FloatUpperNode* u) { return u->origin() == origin; });
+    if (upper == uppers.end()) {
+      auto node = std::make_unique<FloatUpperNode>(origin, 0.0f, false);
+      upper = uppers.insert(uppers.end(), node.get());
+      tree->root().addChild(node.release());
+    }
+    (*upper)->addChild(parent.release());
+  }
+  return tree;
+}
+
+// The fractions of leaf `in`'s voxels in `mask`, word by word (FractionMap::mapWord); counts into `s`.
+std::unique_ptr<FloatLeaf> mapLeaf(const FloatLeaf& in, const detail::LeafMask& mask, const FractionMap& map, MappingStats& s) {
+  auto leaf = std::make_unique<FloatLeaf>(in.origin(), 0.0f, false);
+  leaf->setValueMask(mask);
+  const float* moduli = in.buffer().data();
+  float* fractions = leaf->buffer().data();
+  for (openvdb::Index w = 0; w < detail::LeafMask::WORD_COUNT; ++w) {
+    const std::uint64_t active = mask.getWord<std::uint64_t>(w);
+    if (!active) continue;  // the leaf's values are 0 already
+    const FractionMap::WordClamps clamps = map.mapWord(moduli + 64 * w, active, fractions + 64 * w);
+    s.voxels += static_cast<std::uint64_t>(std::popcount(active));
+    s.clamps.belowFloor += clamps.belowFloor;
+    s.clamps.aboveMax += clamps.aboveMax;
+  }
+  return leaf;
+}
+
+}  // namespace
+
 openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
                                        MappingStats& stats, const std::function<void()>& checkInterrupt) {
   if (k0 > k1)
@@ -84,55 +209,24 @@ openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const 
     voxels->tree().voxelizeActiveTiles();
     return mapToFractions(*voxels, map, k0, k1, stats, checkInterrupt);
   }
-  using detail::FloatLeaf;
-  const std::vector<const FloatLeaf*> leaves = detail::leavesInLayers(modulus.tree(), k0, k1);
-  std::vector<std::unique_ptr<FloatLeaf>> out(leaves.size());
-  std::vector<MappingStats> perLeaf(leaves.size());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leaves.size()), [&](const tbb::blocked_range<std::size_t>& r) {
+  // The leaves in the tree's order, grouped by parent (the counts are sums, the same in any order).
+  const detail::LeafGroups groups = detail::leafGroupsInLayers(modulus.tree(), k0, k1);
+  std::vector<std::unique_ptr<FloatLeaf>> out(groups.leaves.size());
+  std::vector<MappingStats> perLeaf(groups.leaves.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, groups.leaves.size()), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t l = r.begin(); l != r.end(); ++l) {
       if (checkInterrupt) checkInterrupt();
-      const FloatLeaf& in = *leaves[l];
-      const detail::LeafMask mask = detail::activeInLayers(in, k0, k1);
-      if (mask.isOff()) continue;
-      auto leaf = std::make_unique<FloatLeaf>(in.origin(), 0.0f, false);
-      leaf->setValueMask(mask);
-      const float* moduli = in.buffer().data();
-      float* fractions = leaf->buffer().data();
-      MappingStats& s = perLeaf[l];
-      // Word by word over the active bits; the clamps are rare and counted where they happen.
-      // The grid holds E as floats: E = floor (or max) exactly is stored as the float nearest to it,
-      // which may lie just beyond; rounding is monotone, so these comparisons are E's own.
-      const auto floor = static_cast<float>(map.floorMpa()), maximum = static_cast<float>(map.maxModulusMpa());
-      const auto floorFraction = static_cast<float>(map.floorFraction());
-      for (openvdb::Index w = 0; w < detail::LeafMask::WORD_COUNT; ++w) {
-        std::uint64_t active = mask.getWord<std::uint64_t>(w);
-        s.voxels += static_cast<std::uint64_t>(std::popcount(active));
-        while (active) {
-          const openvdb::Index n = w * 64 + static_cast<openvdb::Index>(std::countr_zero(active));
-          active &= active - 1;
-          const float e = moduli[n];
-          if (!(e >= floor)) {  // also NaN
-            fractions[n] = floorFraction;
-            s.clamps.count(calibration::Clamp::BelowFloor);
-          } else if (e > maximum) {
-            fractions[n] = 1.0f;
-            s.clamps.count(calibration::Clamp::AboveMax);
-          } else {
-            fractions[n] = static_cast<float>(map.interpolate(e));
-          }
-        }
-      }
-      out[l] = std::move(leaf);
+      const detail::LeafMask mask = detail::activeInLayers(*groups.leaves[l], k0, k1);
+      if (!mask.isOff()) out[l] = mapLeaf(*groups.leaves[l], mask, map, perLeaf[l]);
     }
   });
-  auto grid = openvdb::FloatGrid::create(0.0f);
+  for (const MappingStats& s : perLeaf) {
+    stats.voxels += s.voxels;
+    stats.clamps += s.clamps;
+  }
+  auto grid = openvdb::FloatGrid::create(assembleTree(groups, out));
   grid->setTransform(modulus.transform().copy());
   grid->setName(kFractionGridName);
-  for (std::size_t l = 0; l < leaves.size(); ++l) {
-    stats.voxels += perLeaf[l].voxels;
-    stats.clamps += perLeaf[l].clamps;
-    if (out[l]) grid->tree().addLeaf(out[l].release());
-  }
   return grid;
 }
 

@@ -55,9 +55,19 @@ public:
     // result is clamped to the range of the inverse.
     const std::int64_t interval = std::clamp<std::int64_t>(std::int64_t(bits >> shift_) - firstInterval_, 0, lastInterval_);
     const double t = static_cast<double>(std::int64_t(bits) - ((firstInterval_ + interval) << shift_)) * inverseWidth_;
-    const double a = table_[static_cast<std::size_t>(interval)], b = table_[static_cast<std::size_t>(interval) + 1];
-    return std::clamp(a + t * (b - a), floorFraction_, 1.0);
+    const Segment& s = segments_[static_cast<std::size_t>(interval)];
+    return std::clamp(s.start + t * s.rise, floorFraction_, 1.0);
   }
+
+  // The fractions of one leaf word (offsets 64 w .. 64 w + 63 of a leaf): fractions[b] for the 64
+  // moduli[b] whose bit b of `active` is set, by mapToFractions' rule (the clamps decided on the float:
+  // !(E >= float(floor)), NaN too, gives the floor's fraction, E > float(max) gives 1, anything else
+  // float(interpolate(E))), and 0 where the bit is clear. Four voxels a step without branches, lane by
+  // lane the scalar expressions (same bits). Returns how many active voxels were clamped.
+  struct WordClamps {
+    std::uint64_t belowFloor = 0, aboveMax = 0;
+  };
+  WordClamps mapWord(const float* moduli, std::uint64_t active, float* fractions) const;
 
   double interpolationErrorBound() const { return errorBound_; }
   double floorMpa() const { return floorMpa_; }
@@ -68,6 +78,12 @@ public:
 
 private:
   std::vector<double> table_;  // node values; interval n spans float bits [(first + n) << shift, (first + n + 1) << shift)
+  // Interval n as interpolate uses it: its first node's value and the rise to the next, table_[n + 1] -
+  // table_[n] (computed once; the same double the subtraction gives per voxel).
+  struct Segment {
+    double start, rise;
+  };
+  std::vector<Segment> segments_;
   double floorMpa_, floorFraction_, maxModulusMpa_;
   int shift_ = 13;
   std::int64_t firstInterval_ = 0, lastInterval_ = 0;
