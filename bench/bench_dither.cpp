@@ -1,7 +1,10 @@
 // materials/: dithering throughput per ditherer (items = voxels, on all cores TBB gives), the
 // modulus-to-fraction mapping and blue-noise mask generation. Peak resident memory as a counter.
 #include "bench/bench_profile.hpp"
+#include "calibration/calibration.hpp"
+#include "examples/example_designs.hpp"
 #include "materials/materials.hpp"
+#include "voxel/voxel.hpp"
 
 #include <benchmark/benchmark.h>
 
@@ -68,47 +71,19 @@ const openvdb::FloatGrid& rodBundle() {
   return *grid;
 }
 
-// Lattice workload: a 12 mm slab (400 layers) of the `lattice` benchmark class's geometry across its
-// whole 84.6 x 84.6 mm footprint (examples::benchmarkDesign: 8 x 8 nodes 12.09 mm apart, 1.5 mm rods):
-// the 64 vertical rods and, at mid-slab, one level of horizontal rods along x and along y. Rods of a
-// few leaves across, so most leaves are partly filled, as in the class (27 M voxels). Fractions
-// vary smoothly over 0.2 .. 0.8 (the class's modulus varies with height).
+// Lattice workload: 400 layers (a 12 mm slab) from the middle of the `lattice` benchmark class
+// (examples::benchmarkDesign), rasterized and mapped to fractions as `rodfab slice` does (bundled
+// calibration): rods a few leaves across, most leaves partly filled, the class's own fractions.
 const openvdb::FloatGrid& latticeSlab() {
   static const openvdb::FloatGrid::Ptr grid = [] {
     openvdb::initialize();
-    const openvdb::Vec3d voxel = benchVoxel();
-    const double spacing = 84.6 / 7, radius = 0.75, height = 12.0, level = 6.0;
-    const openvdb::Vec3i count(static_cast<int>(84.6 / voxel[0]), static_cast<int>(84.6 / voxel[1]),
-                               static_cast<int>(height / voxel[2]));
-    auto g = openvdb::FloatGrid::create(0.0f);
-    g->setTransform(openvdb::math::Transform::createLinearTransform(openvdb::math::scale<openvdb::Mat4d>(voxel)));
-    g->setName(kFractionGridName);
-    auto acc = g->getAccessor();
-    // Marks the voxels of the box [lo, hi] (index) within `radius` of the line through `centre` along `axis`.
-    auto addRod = [&](int axis, const openvdb::Vec3d& centre) {
-      openvdb::Coord lo, hi;
-      for (int a = 0; a < 3; ++a) {
-        lo[a] = a == axis ? 0 : std::max(0, static_cast<int>(std::floor((centre[a] - radius) / voxel[a])));
-        hi[a] = a == axis ? count[a] - 1 : std::min(count[a] - 1, static_cast<int>(std::ceil((centre[a] + radius) / voxel[a])));
-      }
-      for (openvdb::Coord c = lo; c.x() <= hi.x(); ++c.x())
-        for (c.y() = lo.y(); c.y() <= hi.y(); ++c.y())
-          for (c.z() = lo.z(); c.z() <= hi.z(); ++c.z()) {
-            double d2 = 0;
-            for (int a = 0; a < 3; ++a)
-              if (a != axis) d2 += (c[a] * voxel[a] - centre[a]) * (c[a] * voxel[a] - centre[a]);
-            if (d2 > radius * radius) continue;
-            const float f = static_cast<float>(0.5 + 0.3 * std::sin(0.7 * c.x() * voxel[0]) * std::cos(0.5 * c.y() * voxel[1] + 0.9 * c.z() * voxel[2]));
-            acc.setValueOn(c, f);
-          }
-    };
-    for (int a = 0; a < 8; ++a)
-      for (int b = 0; b < 8; ++b) addRod(2, openvdb::Vec3d(a * spacing, b * spacing, 0));
-    for (int a = 0; a < 8; ++a) {
-      addRod(0, openvdb::Vec3d(0, a * spacing, level));
-      addRod(1, openvdb::Vec3d(a * spacing, 0, level));
-    }
-    return g;
+    const rodfab::geometry::RodStructure design = rodfab::examples::benchmarkDesign("lattice");
+    const rodfab::voxel::PrinterGrid printerGrid = rodfab::voxel::makePrinterGrid(design, benchVoxel());
+    const rodfab::voxel::Rasterizer rasterizer(design, printerGrid);
+    const int k0 = printerGrid.dims.z() / 2 / 8 * 8, k1 = k0 + 400;  // starts on a leaf slab
+    const rodfab::voxel::Rasterization band = rasterizer.rasterizeLayers(k0, k1);
+    MappingStats stats;
+    return mapToFractions(*band.grid, FractionMap(rodfab::calibration::loadDefaultCalibration()), k0, k1, stats);
   }();
   return *grid;
 }
