@@ -2,8 +2,7 @@
 // are checked in inspect_layers.cpp).
 #include "printer_profiles/inspect.hpp"
 
-#include "common/sha256.hpp"
-#include "common/xxh128.hpp"
+#include "common/file_hasher.hpp"
 #include "printer_profiles/inspector.hpp"
 #include "printer_profiles/job_staging.hpp"  // kPartialTag
 
@@ -13,7 +12,7 @@
 #include <set>
 #include <sstream>
 #include <string_view>
-#include <variant>
+#include <optional>
 
 namespace rodfab::printer_profiles {
 
@@ -23,23 +22,6 @@ using nlohmann::json;
 namespace {
 
 constexpr int kMaxFolderDepth = 2;  // the job and its previews/ folder; deeper folders are listed, not entered
-
-// A file's checksum taken as it streams, by the algorithm its manifest row names.
-class StreamedDigest {
-public:
-  explicit StreamedDigest(FileDigest::Algorithm a) {
-    if (a == FileDigest::Algorithm::Sha256) hasher_.emplace<common::Sha256>();
-  }
-  void update(std::span<const std::uint8_t> chunk) {
-    std::visit([chunk](auto& h) { h.update(chunk); }, hasher_);
-  }
-  std::string hex() {
-    return std::visit([](auto& h) { return h.hex(); }, hasher_);
-  }
-
-private:
-  std::variant<common::Xxh128, common::Sha256> hasher_;
-};
 
 std::string lowercase(std::string s) {
   for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -303,11 +285,12 @@ std::optional<Bytes> Inspector::fetch(const std::string& name, std::uint64_t kee
     return std::nullopt;
   }
   Bytes kept;
-  StreamedDigest digest(listed->second.digest.algorithm);
+  std::optional<common::FileHasher> digest;  // only when hashing
+  if (hash) digest.emplace(listed->second.digest.algorithm);
   std::uint64_t bytes = 0;
   try {
     reader_->stream(*file->second, cap, [&](std::span<const std::uint8_t> chunk) {
-      if (hash) digest.update(chunk);
+      if (digest) digest->update(chunk);
       bytes += chunk.size();
       const std::size_t room = static_cast<std::size_t>(std::min<std::uint64_t>(keep - kept.size(), chunk.size()));
       kept.insert(kept.end(), chunk.begin(), chunk.begin() + static_cast<std::ptrdiff_t>(room));
@@ -316,7 +299,7 @@ std::optional<Bytes> Inspector::fetch(const std::string& name, std::uint64_t kee
     out.located(e.what());
     return std::nullopt;
   }
-  if (bytes != listed->second.bytes || (hash && digest.hex() != listed->second.digest.hex)) {
+  if (bytes != listed->second.bytes || (digest && digest->hex() != listed->second.digest.hex)) {
     out.at(name, "checksum mismatch (the file was changed or damaged): " + std::to_string(bytes) +
                      " bytes, the manifest says " + std::to_string(listed->second.bytes));
     return std::nullopt;
