@@ -19,8 +19,6 @@ std::string toHex(const unsigned char* digest, unsigned int length) {
   return hex;
 }
 
-EVP_MD_CTX* context(void* p) { return static_cast<EVP_MD_CTX*>(p); }
-
 }  // namespace
 
 std::string sha256Hex(std::span<const std::uint8_t> data) {
@@ -37,28 +35,6 @@ std::string sha256Hex(std::string_view data) {
 
 bool isSha256Hex(std::string_view text) {
   return text.size() == 64 && text.find_first_not_of("0123456789abcdef") == std::string_view::npos;
-}
-
-Sha256::Sha256() : context_(EVP_MD_CTX_new()) {
-  if (!context_ || EVP_DigestInit_ex(context(context_), EVP_sha256(), nullptr) != 1) {
-    EVP_MD_CTX_free(context(context_));
-    throw std::runtime_error("SHA-256 unavailable (OpenSSL EVP)");
-  }
-}
-
-Sha256::~Sha256() { EVP_MD_CTX_free(context(context_)); }
-
-void Sha256::update(std::span<const std::uint8_t> data) {
-  if (EVP_DigestUpdate(context(context_), data.data(), data.size()) != 1)
-    throw std::runtime_error("SHA-256 computation failed (OpenSSL EVP_DigestUpdate)");
-}
-
-std::string Sha256::hex() {
-  unsigned char digest[EVP_MAX_MD_SIZE];
-  unsigned int length = 0;
-  if (EVP_DigestFinal_ex(context(context_), digest, &length) != 1)
-    throw std::runtime_error("SHA-256 computation failed (OpenSSL EVP_DigestFinal_ex)");
-  return toHex(digest, length);
 }
 
 }  // namespace rodfab::common

@@ -2,8 +2,6 @@
 
 #include <xxhash.h>
 
-#include <new>
-
 namespace rodfab::common {
 
 namespace {
@@ -21,8 +19,6 @@ std::string canonicalHex(XXH128_hash_t hash) {
   return hex;
 }
 
-XXH3_state_t* state(void* p) { return static_cast<XXH3_state_t*>(p); }
-
 }  // namespace
 
 std::string xxh128Hex(std::span<const std::uint8_t> data) { return canonicalHex(XXH3_128bits(data.data(), data.size())); }
@@ -32,16 +28,5 @@ std::string xxh128Hex(std::string_view data) { return canonicalHex(XXH3_128bits(
 bool isXxh128Hex(std::string_view text) {
   return text.size() == 32 && text.find_first_not_of("0123456789abcdef") == std::string_view::npos;
 }
-
-Xxh128::Xxh128() : state_(XXH3_createState()) {
-  if (!state_) throw std::bad_alloc();
-  XXH3_128bits_reset(state(state_));
-}
-
-Xxh128::~Xxh128() { XXH3_freeState(state(state_)); }
-
-void Xxh128::update(std::span<const std::uint8_t> data) { XXH3_128bits_update(state(state_), data.data(), data.size()); }
-
-std::string Xxh128::hex() const { return canonicalHex(XXH3_128bits_digest(state(state_))); }
 
 }  // namespace rodfab::common

@@ -5,8 +5,8 @@
 // design and calibration a job names keep SHA-256 (common/sha256.hpp).
 //
 // Digests are returned as 32 lowercase hex digits in XXH128's canonical (big-endian) order, which is
-// what `xxhsum -H2` prints. Thread safety: the free functions are reentrant; one Xxh128 object must not
-// be used from two threads at once (separate objects may). Errors (allocation failure): std::bad_alloc.
+// what `xxhsum -H2` prints. The functions are reentrant. Streamed data: common::FileHasher
+// (common/file_hasher.hpp).
 #pragma once
 
 #include <cstdint>
@@ -22,20 +22,5 @@ std::string xxh128Hex(std::string_view data);
 
 // True when `text` is 32 lowercase hex digits (how the functions above write a digest).
 bool isXxh128Hex(std::string_view text);
-
-// Incremental XXH3-128, for data that streams (a file checked as it is read).
-class Xxh128 {
-public:
-  Xxh128();
-  ~Xxh128();
-  Xxh128(const Xxh128&) = delete;
-  Xxh128& operator=(const Xxh128&) = delete;
-  void update(std::span<const std::uint8_t> data);
-  // The digest of everything given to update() so far.
-  std::string hex() const;
-
-private:
-  void* state_;  // XXH3_state_t, kept out of this header
-};
 
 }  // namespace rodfab::common

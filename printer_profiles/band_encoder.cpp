@@ -206,7 +206,7 @@ void BandEncoder::encodeImages(int layer, const LayerBitmaps& b, LayerRecord& re
 }
 
 // One image of the layer: its manifest record (size, XXH3-128), and the file written or its zip form
-// kept. `owned`, when given, holds `image` and may be moved from (a PNG is kept as it is, not copied).
+// kept with its size, CRC-32 and XXH3-128. `owned`, when given, holds `image` and may be moved from (a PNG is kept as it is, not copied).
 void BandEncoder::keepImage(const ProfileMaterial& m, int layer, std::span<const std::uint8_t> image, LayerRecord& record,
                             std::vector<Bytes>* zipForms, Bytes* owned) const {
   FileRecord f{s_.profile.layerFileName(m, layer, s_.form.imageFormat), image.size(), common::xxh128Hex(image)};
@@ -220,7 +220,8 @@ void BandEncoder::keepImage(const ProfileMaterial& m, int layer, std::span<const
                  : owned                                ? std::move(*owned)
                                                         : Bytes(image.begin(), image.end());
     z.length = form.size();
-    record.zipped.push_back(z);
+    z.xxh128 = common::xxh128Hex(form);  // lets the verification read the zip's bytes back without inflating them
+    record.zipped.push_back(std::move(z));
     zipForms->push_back(std::move(form));
   }
   record.files.push_back(std::move(f));

@@ -2,8 +2,7 @@
 // are checked in inspect_layers.cpp).
 #include "printer_profiles/inspect.hpp"
 
-#include "common/sha256.hpp"
-#include "common/xxh128.hpp"
+#include "common/file_hasher.hpp"
 #include "printer_profiles/inspector.hpp"
 #include "printer_profiles/job_staging.hpp"  // kPartialTag
 
@@ -13,7 +12,6 @@
 #include <set>
 #include <sstream>
 #include <string_view>
-#include <variant>
 
 namespace rodfab::printer_profiles {
 
@@ -23,23 +21,6 @@ using nlohmann::json;
 namespace {
 
 constexpr int kMaxFolderDepth = 2;  // the job and its previews/ folder; deeper folders are listed, not entered
-
-// A file's checksum taken as it streams, by the algorithm its manifest row names.
-class StreamedDigest {
-public:
-  explicit StreamedDigest(FileDigest::Algorithm a) {
-    if (a == FileDigest::Algorithm::Sha256) hasher_.emplace<common::Sha256>();
-  }
-  void update(std::span<const std::uint8_t> chunk) {
-    std::visit([chunk](auto& h) { h.update(chunk); }, hasher_);
-  }
-  std::string hex() {
-    return std::visit([](auto& h) { return h.hex(); }, hasher_);
-  }
-
-private:
-  std::variant<common::Xxh128, common::Sha256> hasher_;
-};
 
 std::string lowercase(std::string s) {
   for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -292,7 +273,7 @@ void Inspector::reportMissing() {
 
 // Streams an expected entry: its declared and actual size against its cap, its size and checksum
 // against the manifest. Keeps at most `keep` leading bytes. nullopt after a finding.
-std::optional<Bytes> Inspector::fetch(const std::string& name, std::uint64_t keep, Findings& out, bool hash) const {
+std::optional<Bytes> Inspector::fetch(const std::string& name, std::uint64_t keep, Findings& out) const {
   const auto file = files_.find(name);
   const auto listed = layout_.listed.find(name);
   if (file == files_.end() || listed == layout_.listed.end()) return std::nullopt;  // reported by checkEntries
@@ -303,11 +284,11 @@ std::optional<Bytes> Inspector::fetch(const std::string& name, std::uint64_t kee
     return std::nullopt;
   }
   Bytes kept;
-  StreamedDigest digest(listed->second.digest.algorithm);
+  common::FileHasher digest(listed->second.digest.algorithm);
   std::uint64_t bytes = 0;
   try {
     reader_->stream(*file->second, cap, [&](std::span<const std::uint8_t> chunk) {
-      if (hash) digest.update(chunk);
+      digest.update(chunk);
       bytes += chunk.size();
       const std::size_t room = static_cast<std::size_t>(std::min<std::uint64_t>(keep - kept.size(), chunk.size()));
       kept.insert(kept.end(), chunk.begin(), chunk.begin() + static_cast<std::ptrdiff_t>(room));
@@ -316,13 +297,37 @@ std::optional<Bytes> Inspector::fetch(const std::string& name, std::uint64_t kee
     out.located(e.what());
     return std::nullopt;
   }
-  if (bytes != listed->second.bytes || (hash && digest.hex() != listed->second.digest.hex)) {
+  if (bytes != listed->second.bytes || digest.hex() != listed->second.digest.hex) {
     out.at(name, "checksum mismatch (the file was changed or damaged): " + std::to_string(bytes) +
                      " bytes, the manifest says " + std::to_string(listed->second.bytes));
     return std::nullopt;
   }
   ++filesChecked_;
   return kept;
+}
+
+void Inspector::checkStored(const std::string& name, const StoredForm& want, Findings& out) const {
+  const auto file = files_.find(name);
+  const auto listed = layout_.listed.find(name);
+  if (file == files_.end() || listed == layout_.listed.end()) return;  // reported by checkEntries
+  common::FileHasher digest(common::HashAlgorithm::Xxh128);
+  std::uint64_t bytes = 0;
+  StoredEntryInfo directory;
+  try {
+    directory = reader_->streamStored(*file->second, want.storedBytes, [&](std::span<const std::uint8_t> chunk) {
+      digest.update(chunk);
+      bytes += chunk.size();
+    });
+  } catch (const JobReadError& e) {
+    out.located(e.what());
+    return;
+  }
+  if (bytes != want.storedBytes || digest.hex() != want.xxh128)
+    return out.at(name, "its stored bytes are not those the writer staged (" + std::to_string(bytes) + " bytes, staged " +
+                            std::to_string(want.storedBytes) + "): the file was changed or damaged");
+  if (directory.deflated != want.deflated || directory.crc32 != want.crc32 || directory.size != listed->second.bytes)
+    return out.at(name, "the zip's directory records another method, CRC-32 or size than the writer gave it");
+  ++filesChecked_;
 }
 
 void Inspector::checkBuildFile() {

@@ -19,11 +19,20 @@
 
 #include <array>
 #include <filesystem>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
 
 namespace rodfab::printer_profiles {
+
+// A zip entry as its writer staged it: what the writer's verification compares the archive with.
+struct StoredForm {
+  std::string xxh128;            // of the entry's bytes as stored (deflated, or the file itself)
+  std::uint64_t storedBytes = 0; // their length
+  bool deflated = false;         // else stored as it is
+  std::uint32_t crc32 = 0;       // of the contents, for the zip's directory
+};
 
 struct InspectOptions {
   // The profile the job must match. Default: the bundled profile whose name the manifest gives (a name
@@ -36,10 +45,13 @@ struct InspectOptions {
   // against the manifest. When not every layer is decoded, InspectReport::materials counts the
   // decoded layers only and the orientation check (which needs every voxel) is not made.
   int decodeEvery = 1;
-  // In a zip job, a layer image that is not decoded is checked by the CRC-32 the zip records for it
-  // (verified as it is inflated) instead of by its SHA-256 against the manifest: enough for a writer
-  // that computed both over the same bytes; never for a job from elsewhere.
-  bool zipCrcForSkippedLayers = false;
+  // In a zip job, a layer image that is not decoded and is named here is checked by its stored form
+  // instead of being inflated and hashed: its bytes as the archive holds them must have this length
+  // and XXH3-128, and the zip's directory must record this method and CRC-32 and the manifest's size.
+  // Enough for the writer, which recorded these as it staged the bytes it had hashed for the manifest
+  // (printer_profiles/README.md, "What the writer's own verification checks"); never for a job from
+  // elsewhere. Images not named here are checked as usual.
+  std::map<std::string, StoredForm> storedForms{};
 };
 
 // What the job says about itself, filled only from values that passed their checks.

@@ -92,9 +92,13 @@ void Inspector::readLayerThrough(int l, LayerResult& out) const {
   const std::size_t materials = gcvf() ? 1 : layout_.materials.size();
   out.voxels.assign(layout_.materials.size(), 0);
   out.moments.assign(layout_.materials.size(), {});
-  const bool hash = !(options_.zipCrcForSkippedLayers && reader_->format() == ArchiveFormat::Zip);
-  for (std::size_t n = 0; n < materials; ++n)
-    fetch(profile_.layerFileName(*layout_.materials[n], l, layout_.imageFormat), 0, out.findings, hash);
+  const bool zip = reader_->format() == ArchiveFormat::Zip;
+  for (std::size_t n = 0; n < materials; ++n) {
+    const std::string name = profile_.layerFileName(*layout_.materials[n], l, layout_.imageFormat);
+    const auto stored = zip ? options_.storedForms.find(name) : options_.storedForms.end();
+    if (stored != options_.storedForms.end()) checkStored(name, stored->second, out.findings);
+    else fetch(name, 0, out.findings);
+  }
 }
 
 // One layer image decoded and checked against the job's size and resolution; nullopt after a finding.

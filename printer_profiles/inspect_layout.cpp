@@ -347,8 +347,9 @@ void readLayers(const json& m, const Profile& p, JobLayout& out, Fields& f, Find
 }
 
 // A file row's checksum: "xxh128" (32 lowercase hex digits) or, in jobs written before it, "sha256" (64).
+// `row` is an object (the caller checks).
 std::optional<FileDigest> readFileDigest(const json& row, const std::string& path, Fields& f) {
-  const bool xxh = row.is_object() && row.contains("xxh128"), sha = row.is_object() && row.contains("sha256");
+  const bool xxh = row.contains("xxh128"), sha = row.contains("sha256");
   if (xxh == sha) {
     f.fail(path, xxh ? "holds both \"xxh128\" and \"sha256\"; expected one checksum"
                      : "has no checksum; expected \"xxh128\" (32 lowercase hex digits)");
@@ -361,7 +362,7 @@ std::optional<FileDigest> readFileDigest(const json& row, const std::string& pat
     f.fail(path + "." + key, std::string("expected ") + (xxh ? "32" : "64") + " lowercase hex digits, got " + describe(json(*hex)));
     return std::nullopt;
   }
-  return FileDigest{xxh ? FileDigest::Algorithm::Xxh128 : FileDigest::Algorithm::Sha256, *hex};
+  return FileDigest{xxh ? common::HashAlgorithm::Xxh128 : common::HashAlgorithm::Sha256, *hex};
 }
 
 void readFileTable(const json& m, JobLayout& out, Fields& f) {

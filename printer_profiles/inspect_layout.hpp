@@ -4,6 +4,7 @@
 // as untrusted JSON (size, depth and value count limited before it is built, never re-serialized).
 #pragma once
 
+#include "common/file_hasher.hpp"
 #include "printer_profiles/bitmap.hpp"
 #include "printer_profiles/profile.hpp"
 
@@ -67,7 +68,7 @@ struct ExpectedEntry {
 // A file's checksum as the manifest gives it: XXH3-128 (jobs written since 2026-12-02) or SHA-256
 // (jobs written before, still read).
 struct FileDigest {
-  enum class Algorithm { Xxh128, Sha256 } algorithm = Algorithm::Xxh128;
+  common::HashAlgorithm algorithm = common::HashAlgorithm::Xxh128;
   std::string hex;  // lowercase
 };
 

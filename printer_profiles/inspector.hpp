@@ -81,8 +81,11 @@ private:
 
   // Streams an expected entry: its declared and actual size against its cap, its size and checksum
   // against the manifest. Keeps at most `keep` leading bytes. nullopt after a finding.
-  // With `hash` false the SHA-256 is not computed (the zip's CRC-32 still is, by the reader).
-  std::optional<Bytes> fetch(const std::string& name, std::uint64_t keep, Findings& out, bool hash = true) const;
+  std::optional<Bytes> fetch(const std::string& name, std::uint64_t keep, Findings& out) const;
+  // A zip entry the caller staged (InspectOptions::storedForms): its bytes as stored, not decoded,
+  // against their recorded length and XXH3-128; the zip's directory against the method and CRC-32
+  // recorded and the manifest's size.
+  void checkStored(const std::string& name, const StoredForm& want, Findings& out) const;
   void checkBuildFile();
 
   // Previews are only looked at by people: their checksum and that they are 8-bit RGB PNGs suffice.
@@ -96,7 +99,7 @@ private:
   std::optional<Bitmap> layerImage(int l, std::size_t n, Findings& out) const;
   void checkLayer(int l, LayerResult& out) const;
   bool decodesLayer(int l) const;
-  // A layer that is not decoded: its images read through (sizes, and checksums as InspectOptions says).
+  // A layer that is not decoded: its images read through (sizes and checksums, or their stored forms).
   void readLayerThrough(int l, LayerResult& out) const;
 
   // A GrabCAD Voxel Print layer: one RGBA image, each colour a material (nothing else), counts as listed.

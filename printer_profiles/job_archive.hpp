@@ -1,5 +1,5 @@
 // A job on disk, as a zip archive (libzip) or a plain directory: reading its files, writing the zip
-// in a fixed entry order with fixed timestamps, and SHA-256 checksums (OpenSSL EVP).
+// in a fixed entry order with fixed timestamps.
 #pragma once
 
 #include "printer_profiles/bitmap.hpp"
@@ -74,6 +74,7 @@ struct StagedZipData {
   std::uint64_t offset = 0, length = 0;
   std::uint64_t size = 0;    // of the contents, uncompressed
   std::uint32_t crc32 = 0;   // of the contents (zipCrc32, deflate.hpp)
+  std::string xxh128{};      // of the staged bytes, for the writer's verification (InspectOptions::storedForms)
 };
 
 struct ZipEntry {

@@ -197,6 +197,26 @@ public:
     streamEntry(za.get(), entry, maxBytes, sink);
   }
 
+  StoredEntryInfo streamStored(const JobEntry& entry, std::uint64_t maxBytes,
+                               const std::function<void(std::span<const std::uint8_t>)>& sink) const override {
+    const ZipPool::Lease za(pool_);
+    const std::string where = path().string() + ": " + printableName(entry.name);
+    zip_stat_t st;
+    zip_stat_init(&st);
+    constexpr zip_uint64_t kNeeded = ZIP_STAT_COMP_METHOD | ZIP_STAT_CRC | ZIP_STAT_SIZE;
+    if (zip_stat_index(za.get(), entry.index, 0, &st) != 0 || (st.valid & kNeeded) != kNeeded ||
+        (st.comp_method != ZIP_CM_DEFLATE && st.comp_method != ZIP_CM_STORE))
+      throw JobReadError(where + ": is neither stored nor deflated, or its zip directory record cannot be read");
+    std::uint64_t total = 0;
+    forEachChunk(za.get(), entry, ZIP_FL_COMPRESSED, where, [&](std::span<const std::uint8_t> raw) {
+      total += raw.size();
+      if (total > maxBytes)
+        throw EntryTooLarge(where + ": holds more than " + std::to_string(maxBytes) + " stored bytes, the most it can take", maxBytes);
+      sink(raw);
+    });
+    return {st.comp_method == ZIP_CM_DEFLATE, st.size, st.crc};
+  }
+
 private:
   zip_t* adopt(int fd) const {
     int error = 0;
@@ -354,6 +374,11 @@ std::optional<std::string> unsafeComponent(std::string_view c) {
 }
 
 }  // namespace
+
+StoredEntryInfo JobReader::streamStored(const JobEntry& entry, std::uint64_t,
+                                        const std::function<void(std::span<const std::uint8_t>)>&) const {
+  throw JobReadError(path().string() + ": " + printableName(entry.name) + ": a folder job's file has no stored form to read");
+}
 
 Bytes JobReader::read(const JobEntry& entry, std::uint64_t maxBytes) const {
   Bytes data;

@@ -45,6 +45,13 @@ private:
   std::uint64_t cap_;
 };
 
+// What a zip archive's directory records for an entry (JobReader::streamStored).
+struct StoredEntryInfo {
+  bool deflated = false;     // else stored as it is
+  std::uint64_t size = 0;    // of the contents
+  std::uint32_t crc32 = 0;   // of the contents
+};
+
 class JobReader {
 public:
   virtual ~JobReader() = default;
@@ -61,6 +68,13 @@ public:
   // threads at once.
   virtual void stream(const JobEntry& entry, std::uint64_t maxBytes,
                       const std::function<void(std::span<const std::uint8_t>)>& sink) const = 0;
+
+  // Zip jobs: streams a File entry's bytes as the archive holds them (deflated or stored, not decoded and
+  // not checked against the CRC: the caller knows what they must be), in order, and returns what the
+  // archive's directory records for the entry. Throws EntryTooLarge past `maxBytes`, JobReadError as
+  // stream() does, and for folder jobs (their files have no other form). Safe from several threads.
+  virtual StoredEntryInfo streamStored(const JobEntry& entry, std::uint64_t maxBytes,
+                                       const std::function<void(std::span<const std::uint8_t>)>& sink) const;
 
   // stream() into memory (at most maxBytes are ever held).
   Bytes read(const JobEntry& entry, std::uint64_t maxBytes) const;

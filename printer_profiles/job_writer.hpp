@@ -60,8 +60,9 @@ struct JobOptions {
   bool force = false;
   int contactSheetLayers = 16;                   // layers shown in previews/contact-sheet.png
   // Re-open and inspect before the rename: the layout, manifest, build file and previews as `inspect`
-  // does; every layer image's size, and its zip CRC-32 (folder jobs: its SHA-256); one layer in 32
-  // (and the last) decoded and checked against the manifest.
+  // does; one layer in 32 (and the last) decoded and checked against the manifest; every other layer
+  // image's bytes as the zip stores them against the XXH3-128 the writer took when it staged them, and
+  // its zip directory record (method, size, CRC-32) (folder jobs: every image's XXH3-128).
   bool verify = true;
   // Asked whether to stop (throw to stop; e.g. on SIGINT) as finalize() begins, after the zip is built,
   // immediately before the job is renamed into place and immediately after. Thrown after the rename,

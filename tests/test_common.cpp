@@ -1,5 +1,6 @@
-// common/: SHA-256 against the FIPS 180-2 test vectors, XXH3-128 against xxhsum -H2, the data folder's search order and errors.
+// common/: SHA-256 against the FIPS 180-2 test vectors, XXH3-128 against xxhsum -H2 (in one piece and through FileHasher), the data folder's search order and errors.
 #include "common/data_dir.hpp"
+#include "common/file_hasher.hpp"
 #include "common/located_issues.hpp"
 #include "common/sha256.hpp"
 #include "common/xxh128.hpp"
@@ -23,7 +24,7 @@ TEST_CASE("SHA-256 gives the FIPS 180-2 digests, in one piece or streamed") {
   CHECK(sha256Hex(std::string_view("")) == "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
   const std::string twoBlocks = "abcdbcdecdefdefgefghfghighijhijkijkljklmklmnlmnomnopnopq";
   CHECK(sha256Hex(std::string_view(twoBlocks)) == "248d6a61d20638b8e5c026930c3e6039a33ce45964ff2167f6ecedd419db06c1");
-  Sha256 streamed;
+  FileHasher streamed(HashAlgorithm::Sha256);
   const std::vector<std::uint8_t> bytes(twoBlocks.begin(), twoBlocks.end());
   streamed.update(std::span(bytes).first(7));
   streamed.update(std::span(bytes).subspan(7));
@@ -39,7 +40,7 @@ TEST_CASE("XXH3-128 gives xxhsum's digests, in one piece or streamed") {
   CHECK(xxh128Hex(std::string_view("abc")) == "06b05ab6733a618578af5f94892f3950");
   const std::vector<std::uint8_t> zeros(1000000, 0);
   CHECK(xxh128Hex(std::span<const std::uint8_t>(zeros)) == "ef233fc372a159319d648391f361d99a");
-  Xxh128 streamed;  // split across XXH3's internal 256-byte stripes and its buffer
+  FileHasher streamed(HashAlgorithm::Xxh128);  // split across XXH3's internal 256-byte stripes and its buffer
   for (const std::size_t piece : {1u, 255u, 4096u, 70000u}) streamed.update(std::span(zeros).first(piece));
   streamed.update(std::span(zeros).subspan(1 + 255 + 4096 + 70000));
   CHECK(streamed.hex() == "ef233fc372a159319d648391f361d99a");

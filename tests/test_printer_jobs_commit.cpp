@@ -1,0 +1,304 @@
+// printer_profiles/ jobs on disk: a job replaces only a rodfab job and only with force, a failed or
+// interrupted write leaves nothing that looks like a job and the target as it was, withdrawJob and the
+// removal of dead writers' staging folders touch nothing else. Helpers: tests/printer_jobs_fixture.hpp.
+#include "tests/printer_jobs_fixture.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <csignal>
+#include <fstream>
+#include <map>
+
+using namespace rodfab::test;
+
+TEST_CASE("An existing job is not overwritten without force", "[job]") {
+  const fs::path dir = scratch("force");
+  const auto grid = overhangPart(16);
+  writeJob(*grid, specFor(*grid, dir / "job.zip"), 24);
+  const Bytes before = readAll(dir / "job.zip");
+  CHECK_THROWS_WITH(writeJob(*grid, specFor(*grid, dir / "job.zip"), 24), Catch::Contains("--force"));
+  CHECK(readAll(dir / "job.zip") == before);
+  const auto other = overhangPart(17);
+  JobSpec spec = specFor(*other, dir / "job.zip");
+  spec.options.force = true;
+  writeJob(*other, spec, 24);
+  CHECK((decodeJob(dir / "job.zip") == gridVoxels(*other)));
+}
+
+TEST_CASE("A failed or interrupted write leaves nothing that looks like a job", "[job][atomic]") {
+  const fs::path dir = scratch("interrupt");
+  const auto grid = overhangPart(18);
+  const auto leftovers = [&] { return std::distance(fs::directory_iterator(dir), fs::directory_iterator()); };
+
+  SECTION("the writer is dropped before finalize") {
+    {
+      JobWriter writer(specFor(*grid, dir / "job.zip"));
+      writer.addBand({band(*grid, 3, 10), nullptr, 3, 10});
+    }
+    CHECK(leftovers() == 0);
+  }
+  SECTION("a band with voxels outside its layers is refused and nothing stays") {
+    {
+      JobWriter writer(specFor(*grid, dir / "job.zip"));
+      CHECK_THROWS_WITH(writer.addBand({band(*grid, 3, 12), nullptr, 3, 10}), Catch::Contains("outside the band"));
+    }
+    CHECK(leftovers() == 0);
+  }
+  SECTION("finalize before every layer came") {
+    {
+      JobWriter writer(specFor(*grid, dir / "job.zip"));
+      writer.addBand({band(*grid, 3, 10), nullptr, 3, 10});
+      CHECK_THROWS_WITH(writer.finalize(), Catch::Contains("never added"));
+    }
+    CHECK(leftovers() == 0);
+  }
+  SECTION("the process is killed mid-job") {
+    const pid_t child = ::fork();
+    REQUIRE(child >= 0);
+    if (child == 0) {
+      JobWriter writer(specFor(*grid, dir / "job.zip"));
+      writer.addBand({band(*grid, 3, 10), nullptr, 3, 10});
+      writer.addBand({band(*grid, 10, 20), nullptr, 10, 20});
+      ::raise(SIGKILL);
+    }
+    int status = 0;
+    ::waitpid(child, &status, 0);
+    REQUIRE(WIFSIGNALED(status));
+    CHECK_FALSE(fs::exists(dir / "job.zip"));
+    for (const auto& e : fs::directory_iterator(dir)) {
+      CHECK(e.path().filename().string().starts_with(".job.zip.rodfab-partial-"));
+      CHECK_FALSE(inspectJob(e.path()).ok());
+    }
+    // The next job for the same target clears the dead writer's leftovers.
+    writeJob(*grid, specFor(*grid, dir / "job.zip"), 24);
+    CHECK(leftovers() == 1);
+  }
+}
+
+
+namespace {
+
+// Everything below `root` without following links: relative path -> kind and contents (bytes or link
+// target), so a folder can be compared byte for byte before and after.
+std::map<std::string, std::string> snapshot(const fs::path& root) {
+  std::map<std::string, std::string> out;
+  for (auto it = fs::recursive_directory_iterator(root); it != fs::recursive_directory_iterator(); ++it) {
+    const std::string name = fs::relative(it->path(), root).generic_string();
+    const fs::file_status status = it->symlink_status();
+    if (fs::is_symlink(status)) out[name] = "link:" + fs::read_symlink(it->path()).string();
+    else if (fs::is_directory(status)) out[name] = "dir";
+    else if (!fs::is_regular_file(status)) out[name] = "special";
+    else {
+      const Bytes data = readAll(it->path());
+      out[name] = "file:" + std::string(data.begin(), data.end());
+    }
+  }
+  return out;
+}
+
+// A zip whose entries are (name, text) in this order.
+void writeTestZip(const fs::path& file, const std::vector<std::pair<std::string, std::string>>& entries) {
+  std::vector<ZipMemoryEntry> zip;
+  for (const auto& [name, text] : entries)
+    zip.push_back({name, std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size())});
+  writeZipFromMemory(file, zip);
+}
+
+}  // namespace
+
+TEST_CASE("Force replaces only rodfab jobs: anything else is refused and left byte for byte", "[job][force]") {
+  const fs::path dir = scratch("force-refusals");
+  const auto grid = overhangPart(21);
+  writeJob(*grid, specFor(*grid, dir / "real.zip"), 24);
+  JobSpec realDir = specFor(*grid, dir / "real-dir");
+  realDir.options.archive = ArchiveFormat::Directory;
+  writeJob(*grid, realDir, 24);
+  // A user's folder, an empty one, a file, foreign zips, a link to a job, a job folder with a file added.
+  fs::create_directories(dir / "mydata" / "sub");
+  writeAll(dir / "mydata" / "notes.txt", Bytes{'h', 'i'});
+  writeAll(dir / "mydata" / "sub" / "manifest.json", Bytes{'{', '}'});
+  fs::create_directories(dir / "empty");
+  writeAll(dir / "thesis.zip", Bytes{'n', 'o', 't', ' ', 'a', ' ', 'z', 'i', 'p'});
+  writeTestZip(dir / "photos.zip", {{"IMG_0001.jpg", "jpeg"}, {"manifest.json", std::string("{\"format\": \"") + kJobFormat + "\"}"}});
+  writeTestZip(dir / "other-tool.zip", {{"manifest.json", "{\"format\": \"other.job/1\", \"files\": {}}"}});
+  writeTestZip(dir / "deep.zip", {{"manifest.json", std::string(100000, '[') + std::string(100000, ']')}});
+  fs::create_symlink(dir / "real.zip", dir / "link.zip");
+  fs::create_symlink(dir / "mydata", dir / "link-dir");
+  fs::copy(dir / "real-dir", dir / "job-plus", fs::copy_options::recursive);
+  writeAll(dir / "job-plus" / "my-notes.txt", Bytes{'!'});
+  fs::copy(dir / "real-dir", dir / "job-plus-preview", fs::copy_options::recursive);
+  writeAll(dir / "job-plus-preview" / "previews" / "mine.png", Bytes{'!'});
+  REQUIRE(::mkfifo((dir / "pipe").c_str(), 0600) == 0);
+  const auto before = snapshot(dir);
+
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"mydata", "a folder without a rodfab job manifest"},
+      {"mydata/", "a folder without a rodfab job manifest"},
+      {"empty", "a folder without a rodfab job manifest"},
+      {"thesis.zip", "a file that is not a zip archive"},
+      {"photos.zip", "whose first entry is not a rodfab job manifest"},
+      {"other-tool.zip", "is not a rodfab job manifest"},
+      {"deep.zip", "is not a rodfab job manifest"},
+      {"link.zip", "a symbolic link"},
+      {"link-dir", "a symbolic link"},
+      {"job-plus", "'my-notes.txt', which is not part of that job"},
+      {"job-plus-preview", "'previews/mine.png', which is not part of that job"},
+      {"pipe", "a named pipe"},
+  };
+  for (const auto& [name, what] : cases)
+    for (const bool force : {true, false}) {
+      INFO(name << (force ? " with force" : " without force"));
+      JobSpec spec = specFor(*grid, dir.string() + "/" + name);
+      spec.options.force = force;
+      CHECK_THROWS_WITH(writeJob(*grid, spec, 24), Catch::Contains(what) && Catch::Contains("rodfab replaces only its own jobs"));
+    }
+  CHECK((snapshot(dir) == before));  // every refused path intact, and no temporaries anywhere
+  // Names reserved for staging folders (a later job would remove such a job as a dead writer's).
+  CHECK_THROWS_WITH(JobWriter(specFor(*grid, dir / ".job.zip.rodfab-partial-1-0")), Catch::Contains("named like rodfab's hidden staging"));
+  CHECK_THROWS_WITH(JobWriter(specFor(*grid, dir / ".")), Catch::Contains("give the job a name of its own"));
+  CHECK((snapshot(dir) == before));
+}
+
+TEST_CASE("Force replaces a rodfab job, zip or folder, by one of either kind", "[job][force]") {
+  const fs::path dir = scratch("force-replace");
+  const auto first = overhangPart(22), second = overhangPart(23);
+  for (const ArchiveFormat oldFormat : {ArchiveFormat::Zip, ArchiveFormat::Directory})
+    for (const ArchiveFormat newFormat : {ArchiveFormat::Zip, ArchiveFormat::Directory}) {
+      INFO(toString(oldFormat) << " replaced by " << toString(newFormat));
+      fs::remove_all(dir / "job");
+      JobSpec old = specFor(*first, dir / "job");
+      old.options.archive = oldFormat;
+      writeJob(*first, old, 24);
+      JobSpec spec = specFor(*second, dir / "job");
+      spec.options.archive = newFormat;
+      CHECK_THROWS_WITH(writeJob(*second, spec, 24), Catch::Contains("already exists there; use --force"));
+      spec.options.force = true;
+      writeJob(*second, spec, 24);
+      CHECK(fs::is_directory(dir / "job") == (newFormat == ArchiveFormat::Directory));
+      CHECK((decodeJob(dir / "job") == gridVoxels(*second)));
+      CHECK(inspectJob(dir / "job").ok());
+      CHECK(std::distance(fs::directory_iterator(dir), fs::directory_iterator()) == 1);  // no old job, no temporaries
+    }
+}
+
+TEST_CASE("An interrupt at any check of finalize leaves the target as it was", "[job][atomic][interrupt]") {
+  const fs::path dir = scratch("interrupt-checks");
+  const auto first = overhangPart(24), second = overhangPart(25);
+  struct Stop {};
+  for (const ArchiveFormat format : {ArchiveFormat::Zip, ArchiveFormat::Directory})
+    for (const bool replacing : {false, true}) {
+      fs::remove_all(dir);
+      fs::create_directories(dir);
+      if (replacing) writeJob(*first, specFor(*first, dir / "job.zip"), 24);
+      const auto before = snapshot(dir);
+      // Checks: as finalize begins, after the zip is built (zip jobs), before the rename, after it.
+      const int checks = format == ArchiveFormat::Zip ? 4 : 3;
+      for (int stopAt = 1; stopAt <= checks; ++stopAt) {
+        INFO(toString(format) << (replacing ? ", replacing a job" : ", new target") << ", interrupted at check " << stopAt);
+        int calls = 0;
+        JobSpec spec = specFor(*second, dir / "job.zip");
+        spec.options.archive = format;
+        spec.options.force = replacing;
+        spec.options.checkInterrupt = [&] {
+          if (++calls == stopAt) throw Stop{};
+        };
+        CHECK_THROWS_AS(writeJob(*second, spec, 24), Stop);
+        CHECK(calls == stopAt);
+        CHECK((snapshot(dir) == before));  // the old job back, or nothing; no temporaries
+      }
+      int calls = 0;
+      JobSpec spec = specFor(*second, dir / "job.zip");
+      spec.options.archive = format;
+      spec.options.force = replacing;
+      spec.options.checkInterrupt = [&] { ++calls; };
+      const JobResult result = writeJob(*second, spec, 24);
+      CHECK(calls == checks);
+      CHECK((decodeJob(dir / "job.zip") == gridVoxels(*second)));
+      // Taken back after finalize returned (a late signal): only our own job is removed.
+      CHECK(withdrawJob(result));
+      CHECK(fs::is_empty(dir));
+      CHECK_FALSE(withdrawJob(result));
+    }
+}
+
+TEST_CASE("withdrawJob removes nothing that is not the job it wrote", "[job][interrupt]") {
+  const fs::path dir = scratch("withdraw");
+  const auto grid = overhangPart(26);
+  const JobResult result = writeJob(*grid, specFor(*grid, dir / "job.zip"), 24);
+  fs::rename(dir / "job.zip", dir / "moved.zip");
+  writeAll(dir / "job.zip", Bytes{'u', 's', 'e', 'r'});  // someone else's file now has the name
+  CHECK_FALSE(withdrawJob(result));
+  CHECK((readAll(dir / "job.zip") == Bytes{'u', 's', 'e', 'r'}));
+  CHECK(fs::exists(dir / "moved.zip"));
+}
+
+TEST_CASE("Staging folders of dead writers go, whatever their target; live ones and strangers stay", "[job][atomic]") {
+  const fs::path dir = scratch("stale-staging");
+  const auto grid = overhangPart(27);
+  // A writer killed mid-job (SIGKILL: no cleanup at all).
+  const pid_t killed = ::fork();
+  REQUIRE(killed >= 0);
+  if (killed == 0) {
+    JobWriter writer(specFor(*grid, dir / "killed.zip"));
+    writer.addBand({band(*grid, 3, 10), nullptr, 3, 10});
+    writer.addBand({band(*grid, 10, 20), nullptr, 10, 20});
+    ::raise(SIGKILL);
+  }
+  int status = 0;
+  ::waitpid(killed, &status, 0);
+  REQUIRE(WIFSIGNALED(status));
+  std::vector<fs::path> dead;
+  for (const auto& e : fs::directory_iterator(dir)) dead.push_back(e.path());
+  REQUIRE(dead.size() == 1);
+  CHECK(dead[0].filename().string().starts_with(".killed.zip.rodfab-partial-" + std::to_string(killed) + "-"));
+  CHECK_FALSE(inspectJob(dead[0]).ok());
+
+  // A live writer in another process, holding its staging folder while this one writes.
+  int toChild[2], toParent[2];
+  REQUIRE(::pipe(toChild) == 0);
+  REQUIRE(::pipe(toParent) == 0);
+  const pid_t live = ::fork();
+  REQUIRE(live >= 0);
+  if (live == 0) {
+    JobWriter writer(specFor(*grid, dir / "live.zip"));
+    char c = 'r';
+    if (::write(toParent[1], &c, 1) != 1 || ::read(toChild[0], &c, 1) != 1) ::_exit(2);
+    for (int k = 3; k < 27; k += 8) writer.addBand({band(*grid, k, std::min(k + 8, 27)), nullptr, k, std::min(k + 8, 27)});
+    writer.finalize();
+    ::_exit(0);
+  }
+  char c = 0;
+  REQUIRE(::read(toParent[0], &c, 1) == 1);
+  // Strangers: names that only look like ours, a lock-less folder of a live pid (ours), a held lock.
+  fs::create_directories(dir / ".notes.rodfab-partial-abc");
+  fs::create_directories(dir / ".x.zip.rodfab-partial-" / "keep");
+  fs::create_directories(dir / ("..rodfab-partial-" + std::to_string(killed) + "-0"));
+  fs::create_directories(dir / (".mine.zip.rodfab-partial-" + std::to_string(::getpid()) + "-7"));
+  writeAll(dir / ".user.rodfab-partial-1-2.txt", Bytes{'u'});
+  const std::set<std::string> strangers = {".notes.rodfab-partial-abc", ".x.zip.rodfab-partial-",
+                                           "..rodfab-partial-" + std::to_string(killed) + "-0",
+                                           ".mine.zip.rodfab-partial-" + std::to_string(::getpid()) + "-7",
+                                           ".user.rodfab-partial-1-2.txt"};
+  // An older version's lock-less folder of a dead pid goes.
+  fs::create_directories(dir / (".old.zip.rodfab-partial-" + std::to_string(killed) + "-3") / "previews");
+
+  writeJob(*grid, specFor(*grid, dir / "other.zip"), 24);  // another target name in the same folder
+  std::set<std::string> left;
+  for (const auto& e : fs::directory_iterator(dir)) left.insert(e.path().filename().string());
+  for (const std::string& s : strangers) CHECK(left.contains(s));
+  CHECK(left.contains("other.zip"));
+  CHECK_FALSE(left.contains(dead[0].filename().string()));
+  CHECK(std::count_if(left.begin(), left.end(), [&](const std::string& n) { return n.starts_with(".live.zip.rodfab-partial-"); }) == 1);
+  CHECK(left.size() == strangers.size() + 2);  // + other.zip + the live writer's staging folder
+
+  REQUIRE(::write(toChild[1], &c, 1) == 1);  // the live writer finishes its job undisturbed
+  ::waitpid(live, &status, 0);
+  CHECK((WIFEXITED(status) && WEXITSTATUS(status) == 0));
+  CHECK((decodeJob(dir / "live.zip") == gridVoxels(*grid)));
+  for (int fd : {toChild[0], toChild[1], toParent[0], toParent[1]}) ::close(fd);
+}
+
