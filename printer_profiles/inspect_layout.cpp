@@ -102,8 +102,8 @@ std::string describe(const json& j) {
   return std::string("a") + (j.is_object() || j.is_array() ? "n " : " ") + j.type_name();
 }
 
-std::string member(const std::string& path, const std::string& key) { return path.empty() ? key : path + "." + key; }
-std::string element(const std::string& path, std::size_t i) { return path + "[" + std::to_string(i) + "]"; }
+using common::indexPath;
+using common::memberPath;
 
 // Typed access to manifest fields; each failure is a finding at "manifest.json: PATH".
 class Fields {
@@ -115,7 +115,7 @@ public:
   const json* get(const json& parent, const std::string& path, const std::string& key, const char* what) {
     const auto it = parent.is_object() ? parent.find(key) : parent.end();
     if (it == parent.end()) {
-      fail(member(path, key), std::string("missing; expected ") + what);
+      fail(memberPath(path, key), std::string("missing; expected ") + what);
       return nullptr;
     }
     return &*it;
@@ -125,7 +125,7 @@ public:
                      bool (json::*isKind)() const noexcept) {
     const json* j = get(parent, path, key, what);
     if (j && !(j->*isKind)()) {
-      wrong(member(path, key), what, *j);
+      wrong(memberPath(path, key), what, *j);
       return nullptr;
     }
     return j;
@@ -140,7 +140,7 @@ public:
     const json* j = get(parent, path, key, "a string");
     if (!j) return std::nullopt;
     if (!j->is_string()) {
-      wrong(member(path, key), "a string", *j);
+      wrong(memberPath(path, key), "a string", *j);
       return std::nullopt;
     }
     return j->get<std::string>();
@@ -157,7 +157,7 @@ public:
   std::optional<std::int64_t> integer(const json& parent, const std::string& path, const std::string& key, std::int64_t lo,
                                       std::int64_t hi) {
     const json* j = get(parent, path, key, "an integer");
-    return j ? integer(*j, member(path, key), lo, hi) : std::nullopt;
+    return j ? integer(*j, memberPath(path, key), lo, hi) : std::nullopt;
   }
   std::optional<std::uint64_t> count(const json& j, const std::string& path) {
     if (!j.is_number_unsigned() && !(j.is_number_integer() && j.get<std::int64_t>() >= 0)) {
@@ -170,7 +170,7 @@ public:
     const json* j = get(parent, path, key, "a number");
     if (!j) return std::nullopt;
     if (!j->is_number() || !std::isfinite(j->get<double>())) {
-      wrong(member(path, key), "a finite number", *j);
+      wrong(memberPath(path, key), "a finite number", *j);
       return std::nullopt;
     }
     return j->get<double>();
@@ -181,7 +181,7 @@ public:
     if (!j->is_array() || j->size() != 3 || !std::all_of(j->begin(), j->end(), [](const json& v) {
           return v.is_number() && std::isfinite(v.get<double>());
         })) {
-      wrong(member(path, key), "an array of three finite numbers", *j);
+      wrong(memberPath(path, key), "an array of three finite numbers", *j);
       return std::nullopt;
     }
     return std::array<double, 3>{(*j)[0].get<double>(), (*j)[1].get<double>(), (*j)[2].get<double>()};
@@ -189,7 +189,7 @@ public:
   // `key` must hold exactly `want` (a string).
   void same(const json& parent, const std::string& path, const std::string& key, const std::string& want, const std::string& why) {
     if (const auto got = string(parent, path, key); got && *got != want)
-      fail(member(path, key), "expected \"" + printableName(want) + "\" (" + why + "), got " + describe(json(*got)));
+      fail(memberPath(path, key), "expected \"" + printableName(want) + "\" (" + why + "), got " + describe(json(*got)));
   }
 
 private:
@@ -220,7 +220,7 @@ void checkProfileBlock(const json& m, const Profile& p, Fields& f) {
   if (const auto v = f.vec3(*block, "profile", "voxel_size_mm"); v)
     for (int a = 0; a < 3; ++a)
       if (!nearlyEqual((*v)[a], p.voxelSizeMm[a]))
-        f.fail(element("profile.voxel_size_mm", a), "expected " + describe(json(p.voxelSizeMm[a])) + " mm, the profile's");
+        f.fail(indexPath("profile.voxel_size_mm", a), "expected " + describe(json(p.voxelSizeMm[a])) + " mm, the profile's");
   if (const auto got = f.integer(*block, "profile", "column_alignment", 1, 1 << 20); got && *got != p.columnAlignment)
     f.fail("profile.column_alignment", "expected " + std::to_string(p.columnAlignment) + ", the profile's");
 }
@@ -288,7 +288,7 @@ void readMaterials(const json& m, const Profile& p, JobLayout& out, Fields& f) {
   }
   for (std::size_t n = 0; n < out.materials.size(); ++n) {
     const json& jm = (*list)[n];
-    const std::string path = element("materials", n);
+    const std::string path = indexPath("materials", n);
     const ProfileMaterial& want = *out.materials[n];
     if (!jm.is_object()) {
       f.fail(path, "expected an object, got " + describe(jm));
@@ -298,30 +298,30 @@ void readMaterials(const json& m, const Profile& p, JobLayout& out, Fields& f) {
     f.same(jm, path, "role", toString(want.role), "materials are listed rigid, rubbery, support");
     f.same(jm, path, "file_pattern", p.layerFilePattern(want, out.imageFormat), "the profile's naming");
     if (const auto d = f.number(jm, path, "density_g_per_ml"); d && !nearlyEqual(*d, want.densityGPerMl))
-      f.fail(member(path, "density_g_per_ml"), "expected " + describe(json(want.densityGPerMl)) + ", the profile's");
+      f.fail(memberPath(path, "density_g_per_ml"), "expected " + describe(json(want.densityGPerMl)) + ", the profile's");
   }
 }
 
 // One layer's entry of the manifest.
 void readLayer(const json& entry, std::size_t l, const Profile& p, JobLayout& out, Fields& f) {
   const std::uint64_t pixels = static_cast<std::uint64_t>(out.width) * static_cast<std::uint64_t>(out.height);
-  const std::string path = element("layers", l);
+  const std::string path = indexPath("layers", l);
   if (!entry.is_object()) {
     f.fail(path, "expected an object, got " + describe(entry));
     return;
   }
   if (const auto n = f.integer(entry, path, "layer", 0, out.layers); n && *n != static_cast<std::int64_t>(l))
-    f.fail(member(path, "layer"), "expected " + std::to_string(l));
+    f.fail(memberPath(path, "layer"), "expected " + std::to_string(l));
   const json* files = f.object(entry, path, "files");
   const json* voxels = f.object(entry, path, "voxels");
   if (files && files->size() != out.materials.size())
-    f.fail(member(path, "files"), "names " + std::to_string(files->size()) + " files; expected one per material (" +
+    f.fail(memberPath(path, "files"), "names " + std::to_string(files->size()) + " files; expected one per material (" +
                                       std::to_string(out.materials.size()) + ")");
   for (std::size_t n = 0; n < out.materials.size(); ++n) {
     const ProfileMaterial& mat = *out.materials[n];
-    if (files) f.same(*files, member(path, "files"), mat.name, p.layerFileName(mat, static_cast<int>(l), out.imageFormat), "the profile's naming");
-    if (const json* v = voxels ? f.get(*voxels, member(path, "voxels"), mat.name, "a voxel count") : nullptr)
-      if (const auto c = f.count(*v, member(member(path, "voxels"), mat.name)); c && *c <= pixels) out.layerVoxels[l][n] = c;
+    if (files) f.same(*files, memberPath(path, "files"), mat.name, p.layerFileName(mat, static_cast<int>(l), out.imageFormat), "the profile's naming");
+    if (const json* v = voxels ? f.get(*voxels, memberPath(path, "voxels"), mat.name, "a voxel count") : nullptr)
+      if (const auto c = f.count(*v, memberPath(memberPath(path, "voxels"), mat.name)); c && *c <= pixels) out.layerVoxels[l][n] = c;
   }
 }
 
@@ -385,7 +385,7 @@ void readPreviews(const json& m, JobLayout& out, Fields& f) {
   if (const json* list = f.array(m, "", "contact_sheet_layers")) {
     std::int64_t last = -1;
     for (std::size_t n = 0; n < list->size() && n <= contactLayers; ++n)
-      if (const auto l = f.integer((*list)[n], element("contact_sheet_layers", n), last + 1, out.layers - 1)) last = *l;
+      if (const auto l = f.integer((*list)[n], indexPath("contact_sheet_layers", n), last + 1, out.layers - 1)) last = *l;
       else break;
     if (list->empty() || list->size() > contactLayers)
       f.fail("contact_sheet_layers", "expected 1 to " + std::to_string(contactLayers) + " layers, got " + std::to_string(list->size()));

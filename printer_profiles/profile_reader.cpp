@@ -75,8 +75,8 @@ private:
   std::string path() const {
     std::string p;
     for (const Frame& f : stack_) {
-      if (f.array) p = index(p, f.next);
-      else if (!f.key.empty()) p = member(p, f.key);
+      if (f.array) p = indexPath(p, f.next);
+      else if (!f.key.empty()) p = memberPath(p, f.key);
       else break;  // an object before its first key
     }
     return p;

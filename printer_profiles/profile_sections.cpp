@@ -40,7 +40,7 @@ void readResolution(Validator& v, const json& doc, Profile& p) {
           << " means " << fromDpi << " mm";
       if (std::abs(p.voxelSizeMm[a] - 25.4 / dpi[1 - a]) < 0.005 * p.voxelSizeMm[a])
         msg << " (x and y look swapped: x is the image columns, y the image rows)";
-      v.fail(index("resolution.voxel_size_mm", a), msg.str());
+      v.fail(indexPath("resolution.voxel_size_mm", a), msg.str());
     }
   }
   if (sizesOk && layer && std::abs(*layer - p.voxelSizeMm[2]) > 1e-9)
@@ -89,21 +89,21 @@ void readPrintModes(Validator& v, const json& doc, Profile& p) {
   if (!res || !res->contains("print_modes")) return;
   const json& modes = (*res)["print_modes"];
   if (!modes.is_array() || modes.empty() || modes.size() > 16) {
-    v.fail("resolution.print_modes", "expected an array of 1 to 16 print modes, got " + describe(modes));
+    v.fail("resolution.print_modes", "expected an array of 1 to 16 print modes, got " + describeJson(modes));
     return;
   }
   std::set<std::string> names;
   for (std::size_t i = 0; i < modes.size(); ++i) {
-    const std::string path = index("resolution.print_modes", i);
+    const std::string path = indexPath("resolution.print_modes", i);
     if (!modes[i].is_object()) {
-      v.fail(path, "expected an object, got " + describe(modes[i]));
+      v.fail(path, "expected an object, got " + describeJson(modes[i]));
       continue;
     }
     PrintMode mode;
     mode.name = v.fileName(modes[i], path, "name").value_or("");
-    if (!mode.name.empty() && !names.insert(mode.name).second) v.fail(member(path, "name"), "\"" + mode.name + "\" is named twice");
+    if (!mode.name.empty() && !names.insert(mode.name).second) v.fail(memberPath(path, "name"), "\"" + mode.name + "\" is named twice");
     if (const json* t = v.require(modes[i], path, "layer_thickness_mm", "the layer thickness in mm"))
-      mode.layerThicknessMm = v.real(*t, member(path, "layer_thickness_mm"), "a layer thickness in mm", kMinVoxelMm, kMaxVoxelMm, true).value_or(0);
+      mode.layerThicknessMm = v.real(*t, memberPath(path, "layer_thickness_mm"), "a layer thickness in mm", kMinVoxelMm, kMaxVoxelMm, true).value_or(0);
     p.printModes.push_back(mode);
   }
   if (!p.printModes.empty() && p.voxelSizeMm[2] > 0 && std::abs(p.printModes[0].layerThicknessMm - p.voxelSizeMm[2]) > 1e-9)
@@ -126,7 +126,7 @@ void checkGcvf(Validator& v, const Profile& p) {
     if (m.role == MaterialRole::Support) continue;
     ++used;
     if (!colours.insert(m.rgba).second)
-      v.fail(member(index("materials", i), "rgba"), "expected a colour of its own (not the background's or another material's): "
+      v.fail(memberPath(indexPath("materials", i), "rgba"), "expected a colour of its own (not the background's or another material's): "
                                                     "each colour in a GrabCAD Voxel Print image is one material");
   }
   if (used > p.gcvf.maxNumberOfColors)
@@ -142,11 +142,11 @@ void readMaterial(Validator& v, const json& m, const std::string& path, Profile&
     if (*role == "rigid") pm.role = MaterialRole::Rigid;
     else if (*role == "rubbery") pm.role = MaterialRole::Rubbery;
     else if (*role == "support") pm.role = MaterialRole::Support;
-    else v.fail(member(path, "role"), "expected one of: rigid, rubbery, support; got \"" + *role + "\"");
+    else v.fail(memberPath(path, "role"), "expected one of: rigid, rubbery, support; got \"" + *role + "\"");
     count[static_cast<int>(pm.role)]++;
   }
   if (const json* d = v.require(m, path, "density_g_per_ml", "the cured density in g/mL"))
-    pm.densityGPerMl = v.real(*d, member(path, "density_g_per_ml"), "a density in g/mL", 0.0, kMaxDensity).value_or(0.0);
+    pm.densityGPerMl = v.real(*d, memberPath(path, "density_g_per_ml"), "a density in g/mL", 0.0, kMaxDensity).value_or(0.0);
   v.array<3>(m, path, "preview_rgb", "colour components 0..255", [&](const json& j, const std::string& cp, std::size_t c) {
     auto value = v.integer(j, cp, "a colour component", 0, 255);
     if (value) pm.previewRgb[c] = static_cast<unsigned char>(*value);
@@ -163,14 +163,14 @@ void readMaterials(Validator& v, const json& doc, Profile& p) {
   const json* mats = v.require(doc, "", "materials", "an array of materials");
   if (!mats) return;
   if (!mats->is_array()) {
-    v.fail("materials", "expected an array of materials, got " + describe(*mats));
+    v.fail("materials", "expected an array of materials, got " + describeJson(*mats));
     return;
   }
   int count[3] = {0, 0, 0};
   for (std::size_t i = 0; i < mats->size() && i < 16; ++i) {
     const json& m = (*mats)[i];
-    if (!m.is_object()) v.fail(index("materials", i), "expected an object, got " + describe(m));
-    else readMaterial(v, m, index("materials", i), p, count);
+    if (!m.is_object()) v.fail(indexPath("materials", i), "expected an object, got " + describeJson(m));
+    else readMaterial(v, m, indexPath("materials", i), p, count);
   }
   if (mats->size() > 16) v.fail("materials", "expected at most 16 materials, got " + std::to_string(mats->size()));
   const char* roles[3] = {"rigid", "rubbery", "support"};
@@ -194,8 +194,8 @@ void readImage(Validator& v, const json& doc, Profile& p) {
   }
   if (const json* depth = v.require(*image, "image", "bit_depth", "bits per pixel"); depth && *depth != p.imageBitDepth())
     v.fail("image.bit_depth", p.jobFormat == JobFormat::Gcvf
-                                  ? "expected 32 (GrabCAD Voxel Print takes 8-bit RGBA images), got " + describe(*depth)
-                                  : "expected 1 (voxel printing takes 1-bit bitmaps), got " + describe(*depth));
+                                  ? "expected 32 (GrabCAD Voxel Print takes 8-bit RGBA images), got " + describeJson(*depth)
+                                  : "expected 1 (voxel printing takes 1-bit bitmaps), got " + describeJson(*depth));
   if (const json* a = v.require(*image, "image", "column_alignment", "the column-count multiple"))
     p.columnAlignment = v.integer(*a, "image.column_alignment", "a column multiple", 8, 4096).value_or(32);
   if (p.columnAlignment % 8 != 0) v.fail("image.column_alignment", "expected a multiple of 8 (whole bytes per row)");
@@ -246,7 +246,7 @@ void checkTrayVoxels(Validator& v, const Profile& p) {
   for (int a = 0; a < 3; ++a) {
     voxels[a] = std::floor(p.trayMm[a] / p.voxelSizeMm[a]);
     if (voxels[a] > kMaxTrayVoxels) {
-      v.fail(index("tray_mm", a), "the tray holds " + number(voxels[a]) + " " + what[a] + " of " + number(p.voxelSizeMm[a]) +
+      v.fail(indexPath("tray_mm", a), "the tray holds " + number(voxels[a]) + " " + what[a] + " of " + number(p.voxelSizeMm[a]) +
                                       " mm; expected at most " + std::to_string(kMaxTrayVoxels));
       ok = false;
     }
@@ -255,7 +255,7 @@ void checkTrayVoxels(Validator& v, const Profile& p) {
   // limits when its job is planned).
   for (std::size_t m = 0; m < p.printModes.size(); ++m)
     if (p.printModes[m].layerThicknessMm > 0 && std::floor(p.trayMm[2] / p.printModes[m].layerThicknessMm) > kMaxTrayVoxels)
-      v.fail(member(index("resolution.print_modes", m), "layer_thickness_mm"),
+      v.fail(memberPath(indexPath("resolution.print_modes", m), "layer_thickness_mm"),
              "the tray holds more than " + std::to_string(kMaxTrayVoxels) + " layers of it");
   const char* faces[3] = {"a layer image (columns x rows)", "the front preview (columns x layers)", "the side preview (rows x layers)"};
   const double pixels[3] = {voxels[0] * voxels[1], voxels[0] * voxels[2], voxels[1] * voxels[2]};
@@ -265,7 +265,7 @@ void checkTrayVoxels(Validator& v, const Profile& p) {
                             std::to_string(kMaxTrayFacePixels));
   for (int a = 0; a < 2 && ok; ++a)
     if (2.0 * p.paddingVoxels[a] + 1.0 > voxels[a])
-      v.fail(index("image.padding_voxels", a), "expected at most " + number(std::max(0.0, std::floor((voxels[a] - 1) / 2))) +
+      v.fail(indexPath("image.padding_voxels", a), "expected at most " + number(std::max(0.0, std::floor((voxels[a] - 1) / 2))) +
                                                    " voxels: a one-voxel part with this margin on both sides must fit the tray's " +
                                                    number(voxels[a]) + " " + what[a]);
 }
@@ -281,7 +281,7 @@ void checkNamesUnique(Validator& v, const Profile& p) {
   for (std::size_t i = 0; i < p.materials.size(); ++i) {
     const std::string& name = p.materials[i].name;
     if (name.empty()) continue;
-    const std::string path = member(index("materials", i), "name");
+    const std::string path = memberPath(indexPath("materials", i), "name");
     if (auto [at, fresh] = taken.emplace(lower(name), path); !fresh)
       v.fail(path, "\"" + name + "\" is the same name as " + at->second +
                        " on a case-insensitive file system (Windows, macOS); expected names that differ in more than case");

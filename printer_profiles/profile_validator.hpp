@@ -4,6 +4,7 @@
 // thread-safe: one Validator per profile read.
 #pragma once
 
+#include "common/json_input.hpp"
 #include "printer_profiles/profile.hpp"
 
 #include <nlohmann/json.hpp>
@@ -21,14 +22,9 @@ namespace rodfab::printer_profiles::detail {
 
 using nlohmann::json;
 
-inline std::string describe(const json& j) {
-  std::string s = j.dump(-1, ' ', false, json::error_handler_t::replace);
-  if (s.size() > 40) s = s.substr(0, 37) + "...";
-  return s;
-}
-
-inline std::string member(const std::string& path, const std::string& key) { return path.empty() ? key : path + "." + key; }
-inline std::string index(const std::string& path, std::size_t i) { return path + "[" + std::to_string(i) + "]"; }
+using common::describeJson;
+using common::indexPath;
+using common::memberPath;
 
 inline std::string lower(std::string s) {
   for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -52,7 +48,7 @@ public:
   const json* object(const json& parent, const std::string& path, const std::string& key) {
     const json* j = require(parent, path, key, "an object");
     if (j && !j->is_object()) {
-      fail(member(path, key), "expected an object, got " + describe(*j));
+      fail(memberPath(path, key), "expected an object, got " + describeJson(*j));
       return nullptr;
     }
     return j;
@@ -61,7 +57,7 @@ public:
   const json* require(const json& parent, const std::string& path, const std::string& key, const std::string& what) {
     auto it = parent.find(key);
     if (it == parent.end()) {
-      fail(member(path, key), "missing; expected " + what);
+      fail(memberPath(path, key), "missing; expected " + what);
       return nullptr;
     }
     return &*it;
@@ -72,7 +68,7 @@ public:
     const json* j = require(parent, path, key, "a string");
     if (!j) return std::nullopt;
     if (!j->is_string() || j->get<std::string>().empty() || j->get<std::string>().size() > maxLength) {
-      fail(member(path, key), "expected a non-empty string of at most " + std::to_string(maxLength) + " bytes, got " + describe(*j));
+      fail(memberPath(path, key), "expected a non-empty string of at most " + std::to_string(maxLength) + " bytes, got " + describeJson(*j));
       return std::nullopt;
     }
     return j->get<std::string>();
@@ -85,7 +81,7 @@ public:
                     (closedBelow ? j.get<double>() >= lo : j.get<double>() > lo) && j.get<double>() <= hi;
     if (!ok) {
       fail(path, "expected " + what + " (a number " + (closedBelow ? ">= " : "> ") + number(lo) + " and <= " + number(hi) +
-                     "), got " + describe(j));
+                     "), got " + describeJson(j));
       return std::nullopt;
     }
     return j.get<double>();
@@ -97,7 +93,7 @@ public:
                     (j.is_number_integer() && !j.is_number_unsigned() && j.get<long long>() >= lo && j.get<long long>() <= hi);
     if (!ok) {
       fail(path, "expected " + what + " (an integer in " + std::to_string(lo) + ".." + std::to_string(hi) + "), got " +
-                     describe(j));
+                     describeJson(j));
       return std::nullopt;
     }
     return static_cast<int>(j.get<long long>());
@@ -107,13 +103,13 @@ public:
   bool array(const json& parent, const std::string& path, const std::string& key, const std::string& what, Read read) {
     const json* j = require(parent, path, key, "an array of " + std::to_string(N) + " " + what);
     if (!j) return false;
-    const std::string p = member(path, key);
+    const std::string p = memberPath(path, key);
     if (!j->is_array() || j->size() != N) {
-      fail(p, "expected an array of " + std::to_string(N) + " " + what + ", got " + describe(*j));
+      fail(p, "expected an array of " + std::to_string(N) + " " + what + ", got " + describeJson(*j));
       return false;
     }
     bool ok = true;
-    for (std::size_t i = 0; i < N; ++i) ok = read((*j)[i], index(p, i), i) && ok;
+    for (std::size_t i = 0; i < N; ++i) ok = read((*j)[i], indexPath(p, i), i) && ok;
     return ok;
   }
 
@@ -122,7 +118,7 @@ public:
     const std::optional<std::string> name = string(parent, path, key, kMaxFileNameLength);
     if (!name) return std::nullopt;
     if (const std::string problem = portableNameProblem(*name); !problem.empty()) {
-      fail(member(path, key), "\"" + *name + "\" is not a portable file name: " + problem);
+      fail(memberPath(path, key), "\"" + *name + "\" is not a portable file name: " + problem);
       return std::nullopt;
     }
     return name;
