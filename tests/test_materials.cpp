@@ -1,5 +1,6 @@
 // materials/: blue-noise masks and the ditherers against independent truth.
 #include "materials/materials.hpp"
+#include "tests/materials_fixture.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -15,17 +16,11 @@
 #include <random>
 
 using namespace rodfab::materials;
+using rodfab::test::kTestVoxel;
 
 namespace {
 
-struct VdbInit {
-  VdbInit() { openvdb::initialize(); }
-} vdbInit;
-
 // Same active voxels and the same value at each.
-// The Connex3 profile's voxel (600 x 300 dpi, 30 um layers), which the numbers in these tests assume.
-const openvdb::Vec3d kTestVoxel(0.0423, 0.0846, 0.030);
-
 bool sameMaterial(const openvdb::BoolGrid& a, const openvdb::BoolGrid& b) {
   if (a.activeVoxelCount() != b.activeVoxelCount()) return false;
   auto other = b.getConstAccessor();

@@ -1,5 +1,6 @@
 // materials/: the modulus-to-fraction table and the mapping of modulus grids to fraction grids.
 #include "materials/materials.hpp"
+#include "tests/materials_fixture.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -15,15 +16,10 @@
 #include <vector>
 
 using namespace rodfab::materials;
+using rodfab::test::kTestVoxel;
 
 namespace {
 
-struct VdbInit {
-  VdbInit() { openvdb::initialize(); }
-} vdbInit;
-
-// The Connex3 profile's voxel (600 x 300 dpi, 30 um layers), which the numbers in these tests assume.
-const openvdb::Vec3d kTestVoxel(0.0423, 0.0846, 0.030);
 
 // ln E = ln E_T + ln(E_V / E_T) f^2, so f = sqrt((ln E - ln E_T) / ln(E_V / E_T)) in closed form.
 rodfab::calibration::Calibration logPowerCalibration() {

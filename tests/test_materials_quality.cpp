@@ -1,5 +1,6 @@
 // materials/: dither-quality metrics against hand-built truth and the ditherers measured by them.
 #include "materials/materials.hpp"
+#include "tests/materials_fixture.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -14,15 +15,10 @@
 #include <vector>
 
 using namespace rodfab::materials;
+using rodfab::test::kTestVoxel;
 
 namespace {
 
-struct VdbInit {
-  VdbInit() { openvdb::initialize(); }
-} vdbInit;
-
-// The Connex3 profile's voxel (600 x 300 dpi, 30 um layers), which the numbers in these tests assume.
-const openvdb::Vec3d kTestVoxel(0.0423, 0.0846, 0.030);
 
 std::size_t countVero(const openvdb::BoolGrid& g) {
   std::size_t n = 0;
