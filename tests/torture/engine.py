@@ -321,13 +321,16 @@ class Running:
         if self.signum is not None and self.sent_at is None:
             fire = (now >= self.trigger) if isinstance(self.trigger, (int, float)) else _safe(self.trigger, self.cwd)
             if fire:
-                # Were its outputs already in place (renamed into place: complete)? Only then may it
-                # still exit 0: the work was done when the signal came.
-                out.done_at_signal = bool(self.step.outputs) and all((self.cwd / o).exists() for o in self.step.outputs)
                 self.cpu_at_signal = _cpu_seconds(self.proc.pid)
                 self.parallelism = max(1, min(_threads(self.proc.pid), os.cpu_count() or 1))
                 os.kill(self.proc.pid, self.signum)
                 self.sent_at = time.monotonic()
+                # Were its outputs in place (renamed into place: complete) when the signal came? Only
+                # then may it still exit 0: the work was done. Looked at after the kill, not before:
+                # the signal arrives at the kill or later, and a short job (a small simulate output)
+                # can commit and finish between a look before the kill and the kill itself (a CI run
+                # failed so: exit 0, 20 ms after a signal sent "before" the output existed).
+                out.done_at_signal = bool(self.step.outputs) and all((self.cwd / o).exists() for o in self.step.outputs)
                 out.sent, out.sent_after = self.signum, self.sent_at - self.start
         if self.sent_at is not None and self.signum != sig.SIGKILL:
             if time.monotonic() - self.sent_at > SIGNAL_GRACE * TIME_SCALE + 4.0:
