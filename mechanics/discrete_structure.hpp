@@ -29,7 +29,7 @@ Basis rationalBasis(const geometry::NurbsCurve& curve, double u);
 // The same from the span that ends at u (the limit from below): differs at a C0 knot.
 Basis rationalBasisBelow(const geometry::NurbsCurve& curve, double u);
 
-// The automatic span count of a rebuilt rod (discretization.cpp); above kMaxSpansPerRod when the
+// The automatic span count of a rebuilt rod (solver_basis.cpp); above kMaxSpansPerRod when the
 // degree converges too slowly for `tolerance`.
 int automaticSpans(const geometry::Rod& rod, int degree, double tolerance);
 
