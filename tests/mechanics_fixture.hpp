@@ -1,11 +1,12 @@
-// Shared by the mechanics tests (tests/test_mechanics.cpp, tests/test_mechanics_joints.cpp): curves,
-// rods, places on them, and supports and loads added to a design.
+// Shared by the mechanics tests (tests/test_mechanics*.cpp): curves, rods, places on them, supports
+// and loads added to a design, a loaded cantilever, discretizations and solves.
 #pragma once
 
 #include "geometry/geometry.hpp"
 #include "mechanics/mechanics.hpp"
 
 #include <cmath>
+#include <numbers>
 #include <optional>
 #include <string>
 #include <vector>
@@ -82,6 +83,55 @@ inline void load(mechanics::Design& s, const mechanics::RodEndRef& where, const 
   l.at = where;
   l.force = force;
   s.mechanics.loads.push_back(l);
+}
+
+// ---- Cantilevers, discretizations, solves
+
+inline constexpr double kPi = std::numbers::pi;
+
+// One rod "beam" clamped at its start and loaded at its end (nu = 0.3).
+inline mechanics::Design cantilever(geometry::NurbsCurve curve, const geometry::Section& section, double E, const Vec3& force,
+                                    const Vec3& moment, std::optional<Vec3> normal = std::nullopt) {
+  mechanics::Design s;
+  s.source = "cantilever";
+  s.rods.push_back(rod("beam", std::move(curve), section, E, normal));
+  s.mechanics.present = true;
+  s.mechanics.poissonRatio = 0.3;
+  clamp(s, at("beam", mechanics::RodEnd::Start));
+  mechanics::PointLoad tipLoad;
+  tipLoad.at = at("beam", mechanics::RodEnd::End);
+  tipLoad.force = force;
+  tipLoad.moment = moment;
+  s.mechanics.loads.push_back(tipLoad);
+  return s;
+}
+
+// Rod `rodIndex`'s centerline point at u = 1 (the end of a rod drawn on [0, 1]) in state x.
+inline Vec3 tip(const mechanics::StaticProblem& problem, const Eigen::VectorXd& x, std::size_t rodIndex = 0) {
+  return problem.position(x, rodIndex, 1.0);
+}
+
+// The design's own basis, `refine` knots inserted per span.
+inline mechanics::Discretization designBasis(int refine) {
+  mechanics::Discretization d;
+  d.degree = 0;
+  d.refine = refine;
+  return d;
+}
+
+// Every rod rebuilt at `degree` with `spans` uniform spans.
+inline mechanics::Discretization rebuilt(int degree, int spans) {
+  mechanics::Discretization d;
+  d.degree = degree;
+  d.spans = spans;
+  return d;
+}
+
+// The state at load 1, reached in `steps` load steps.
+inline Eigen::VectorXd solved(const mechanics::StaticProblem& problem, int steps) {
+  mechanics::SolverOptions options;
+  options.loadSteps = steps;
+  return mechanics::solve(problem, options, steps).state;
 }
 
 }  // namespace rodfab::test

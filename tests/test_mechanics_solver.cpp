@@ -1,0 +1,200 @@
+// mechanics/: the sparse LU, the load path (steps, stability) and mechanisms.
+#include "mechanics/mechanics.hpp"
+#include "mechanics/section_properties.hpp"
+#include "tests/mechanics_fixture.hpp"
+
+#include "geometry/geometry.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <limits>
+#include <random>
+
+using namespace rodfab;
+using geometry::Section;
+using geometry::Vec3;
+using mechanics::Design;
+using mechanics::StaticProblem;
+using test::at;
+using test::cantilever;
+using test::kPi;
+using test::straight;
+using test::tip;
+
+// ---- Sparse LU -----------------------------------------------------------------------------------
+
+namespace {
+
+// A random sparse 49 x 49 matrix in 7 x 7 blocks: dense diagonal blocks with zeros on their
+// diagonal (as the collocation Jacobian has) and a few off-diagonal blocks.
+Eigen::SparseMatrix<double> blockMatrix(std::mt19937& rng) {
+  std::uniform_real_distribution<double> value(-1.0, 1.0);
+  std::vector<Eigen::Triplet<double>> entries;
+  for (int b = 0; b < 7; ++b)
+    for (int r = 0; r < 7; ++r)
+      for (int c = 0; c < 7; ++c) {
+        if (r == c && r % 2 == 0) continue;  // a structurally zero diagonal entry in every other row
+        entries.emplace_back(7 * b + r, 7 * b + c, value(rng));
+        if (b > 0 && (r + c) % 3 == 0) entries.emplace_back(7 * b + r, 7 * (b - 1) + c, 0.3 * value(rng));
+        if (b + 1 < 7 && (r * c) % 5 == 1) entries.emplace_back(7 * b + r, 7 * (b + 1) + c, 0.3 * value(rng));
+      }
+  Eigen::SparseMatrix<double> m(49, 49);
+  m.setFromTriplets(entries.begin(), entries.end());
+  m.makeCompressed();
+  return m;
+}
+
+}  // namespace
+
+TEST_CASE("JacobianLU solves, solves transposed and gives the determinant's sign, against a dense LU", "[mechanics]") {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> value(-1.0, 1.0);
+  mechanics::JacobianLU lu(7);
+  Eigen::SparseMatrix<double> m = blockMatrix(rng);
+  for (int round = 0; round < 4; ++round) {
+    // Same pattern, new values: the later rounds refactorize along the first pivots.
+    if (round > 0)
+      for (Eigen::Index i = 0; i < m.nonZeros(); ++i) m.valuePtr()[i] *= 1.0 + 0.2 * value(rng);
+    REQUIRE(lu.factorize(m));
+    const Eigen::MatrixXd dense(m);
+    const Eigen::PartialPivLU<Eigen::MatrixXd> reference(dense);
+    Eigen::VectorXd b(49);
+    for (Eigen::Index i = 0; i < b.size(); ++i) b[i] = value(rng);
+    INFO("round " << round);
+    CHECK((lu.solve(b) - reference.solve(b)).norm() < 1e-10 * reference.solve(b).norm());
+    const Eigen::VectorXd y = lu.solveTransposed(b);
+    CHECK((dense.transpose() * y - b).norm() < 1e-10 * b.norm());
+    CHECK(lu.determinantSign() == (reference.determinant() > 0 ? 1 : -1));
+  }
+  CHECK(lu.analyses() == 1);
+  CHECK(lu.refactorizations() + lu.factorizations() == 4);
+  // Flipping one row flips the sign.
+  Eigen::SparseMatrix<double> flipped = m;
+  for (int c = 0; c < flipped.outerSize(); ++c)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(flipped, c); it; ++it)
+      if (it.row() == 3) it.valueRef() = -it.value();
+  const int before = lu.determinantSign();
+  REQUIRE(lu.factorize(flipped, mechanics::JacobianLU::Pivoting::Fresh));
+  CHECK(lu.determinantSign() == -before);
+}
+
+TEST_CASE("JacobianLU reports a singular matrix and refuses bad input", "[mechanics]") {
+  std::mt19937 rng(5);
+  Eigen::SparseMatrix<double> m = blockMatrix(rng);
+  for (int c = 0; c < m.outerSize(); ++c)  // row 10 := row 9: singular
+    for (Eigen::SparseMatrix<double>::InnerIterator it(m, c); it; ++it)
+      if (it.row() == 10) it.valueRef() = 0.0;
+  mechanics::JacobianLU lu(7);
+  CHECK_FALSE(lu.factorize(m));
+  CHECK_THROWS_AS(lu.solve(Eigen::VectorXd::Ones(49)), std::logic_error);
+  CHECK_THROWS_AS(lu.factorize(Eigen::SparseMatrix<double>(3, 4)), std::invalid_argument);
+  Eigen::SparseMatrix<double> bad = blockMatrix(rng);
+  bad.valuePtr()[5] = std::numeric_limits<double>::quiet_NaN();
+  CHECK_FALSE(lu.factorize(bad));
+}
+
+// ---- Load path, stability ------------------------------------------------------------------------
+
+namespace {
+
+// A 100 x 10 x 1 mm strip clamped at one end, loaded at the other in the plane of its height:
+// lateral-torsional buckling at P = 4.0126 sqrt(EI GJ) / L^2 (Timoshenko & Gere; EI about the weak
+// axis), raised by 1 / sqrt((1 - EIw / EIs) (1 - GJ / EIs)) = 1.012 for the in-plane deflection
+// before buckling.
+struct Strip {
+  Design design;
+  double critical;  // N
+};
+
+Strip strip(double loadFactor) {
+  const double L = 100, E = 1000, nu = 0.3;
+  const Section section = Section::rectangle(10, 1);  // 10 along d1 = z, 1 along d2
+  const auto props = mechanics::sectionProperties(section, nu);
+  const double EIweak = E * props.inertia1, EIstrong = E * props.inertia2, GJ = E / (2 * (1 + nu)) * props.torsionConstant;
+  const double critical = 4.0126 * std::sqrt(EIweak * GJ) / (L * L) / std::sqrt((1 - EIweak / EIstrong) * (1 - GJ / EIstrong));
+  Design s = cantilever(straight(Vec3::Zero(), Vec3(L, 0, 0), 1, 2), section, E, Vec3(0, 0, -loadFactor * critical),
+                              Vec3::Zero(), Vec3(0, 0, 1));
+  s.mechanics.poissonRatio = nu;
+  return {s, critical};
+}
+
+}  // namespace
+
+TEST_CASE("a strip below its lateral-torsional buckling load is stable, above it unstable", "[mechanics]") {
+  mechanics::SolverOptions options;
+  options.loadSteps = 10;
+  SECTION("at 0.9 of the critical load: stable, no critical point, no lateral deflection") {
+    const Strip s = strip(0.9);
+    const StaticProblem problem(s.design);
+    const auto solution = mechanics::solve(problem, options, 10);
+    CHECK(solution.stability == mechanics::Stability::Stable);
+    CHECK(solution.criticalPoints.empty());
+    for (const auto& step : solution.steps) CHECK(step.determinantSign == 1);
+    CHECK(std::abs(tip(problem, solution.state).y()) < 1e-9);
+  }
+  SECTION("at 1.1 of it: the straight state is unstable; the bifurcation is found at the critical load") {
+    const Strip s = strip(1.1);
+    const StaticProblem problem(s.design);
+    const auto solution = mechanics::solve(problem, options, 10);
+    CHECK(solution.stability == mechanics::Stability::Unstable);
+    REQUIRE(solution.criticalPoints.size() == 1);
+    const auto& c = solution.criticalPoints[0];
+    CHECK(c.kind == mechanics::CriticalPoint::Kind::Bifurcation);
+    CHECK(c.loadAlignment < 1e-6);  // the lateral mode is orthogonal to the in-plane load by symmetry
+    CHECK(c.toLoad - c.fromLoad <= 1e-3 + 1e-12);
+    const double found = 0.5 * (c.fromLoad + c.toLoad) * 1.1;  // in units of the critical load
+    INFO("critical load found at " << found << " of the closed form");
+    CHECK(std::abs(found - 1) < 0.005);
+    CHECK(solution.steps.back().determinantSign == -1);
+    CHECK(std::abs(tip(problem, solution.state).y()) < 1e-9);  // still straight: the unstable branch
+  }
+  SECTION("at 1.1 with followStableBranch: the strip buckles sideways and is stable") {
+    const Strip s = strip(1.1);
+    const StaticProblem problem(s.design);
+    options.followStableBranch = true;
+    const auto solution = mechanics::solve(problem, options, 10);
+    CHECK(solution.stability == mechanics::Stability::Stable);
+    REQUIRE(solution.criticalPoints.size() == 1);
+    CHECK(solution.criticalPoints[0].branchSwitched);
+    const Vec3 t = tip(problem, solution.state);
+    INFO("buckled tip " << t.transpose());
+    CHECK(std::abs(t.y()) > 5.0);  // mm sideways
+    // The residual is that of an equilibrium at load 1.
+    Eigen::VectorXd residual;
+    problem.evaluate(solution.state, 1.0, residual);
+    CHECK(residual.lpNorm<Eigen::Infinity>() < 1e-8);
+  }
+}
+
+TEST_CASE("load steps: the planned number lands exactly on 1, cuts are reported", "[mechanics]") {
+  const double L = 1.0, d = 0.1, E = 1000.0, EI = E * kPi * std::pow(d, 4) / 64;
+  const Design s = cantilever(straight(Vec3::Zero(), Vec3(L, 0, 0), 1, 2), Section::circle(d), E, Vec3::Zero(),
+                                    Vec3(0, 0, 1.5 * kPi * EI / L));
+  const StaticProblem problem(s);
+  mechanics::SolverOptions options;
+  options.loadSteps = 10;
+  const auto ten = mechanics::solve(problem, options, 10);
+  REQUIRE(ten.steps.size() == 10);
+  CHECK(ten.steps.back().loadFactor == 1.0);
+  for (const auto& step : ten.steps) CHECK(step.cuts == 0);
+  // Three quarters of a turn in one step is too much for Newton: the step is cut and says so.
+  options.loadSteps = 1;
+  options.maxIterations = 6;
+  const auto one = mechanics::solve(problem, options, 1);
+  REQUIRE(one.steps.size() > 1);
+  CHECK(one.steps.front().cuts > 0);
+  CHECK(one.steps.front().increment < 1.0);
+  CHECK(one.steps.back().loadFactor == 1.0);
+  double sum = 0;
+  for (const auto& step : one.steps) sum += step.increment;
+  CHECK(sum == Approx(1.0).epsilon(1e-12));
+}
+
+TEST_CASE("a structure that can move freely is a mechanism", "[mechanics]") {
+  Design s = cantilever(straight(Vec3::Zero(), Vec3(1, 0, 0), 1, 2), Section::circle(0.1), 1000.0, Vec3(0, 0.01, 0), Vec3::Zero());
+  s.mechanics.supports[0].kind = mechanics::SupportKind::Pinned;  // free to turn about the pin
+  const StaticProblem problem(s);
+  mechanics::SolverOptions options;
+  CHECK_THROWS_WITH(mechanics::solve(problem, options, 1), Catch::Contains("mechanism"));
+}
