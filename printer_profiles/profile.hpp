@@ -4,6 +4,8 @@
 
 #include "common/located_issues.hpp"
 
+#include <openvdb/math/Vec3.h>
+
 #include <array>
 #include <cstdint>
 #include <filesystem>
@@ -118,6 +120,8 @@ struct Profile {
   const ProfileMaterial& material(MaterialRole role) const;
   double layerThicknessMm() const { return voxelSizeMm[2]; }
   double voxelVolumeMm3() const { return voxelSizeMm[0] * voxelSizeMm[1] * voxelSizeMm[2]; }
+  // voxelSizeMm as the voxel grids take it (voxel::makePrinterGrid, printerTransform): mm, x y z.
+  openvdb::math::Vec3d voxelSize() const { return {voxelSizeMm[0], voxelSizeMm[1], voxelSizeMm[2]}; }
   // `<material>_<layer>.<ext>`; layer zero-padded to layerDigits (more digits when it needs them). For
   // format gcvf every material is in the layer's one image, `<gcvf.imageFilePrefix><layer>.png`.
   std::string layerFileName(const ProfileMaterial& material, int layer, ImageFormat format) const;

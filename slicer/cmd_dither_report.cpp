@@ -79,7 +79,7 @@ int runDitherReport(const std::vector<std::string>& args) {
   // The regions are made at the printer's voxel: the profile's, the only source of it.
   const std::optional<printer_profiles::Profile> profile = profileFromOptions(vm, "no report was made");
   if (!profile) return kFailed;
-  const openvdb::Vec3d voxel(profile->voxelSizeMm[0], profile->voxelSizeMm[1], profile->voxelSizeMm[2]);
+  const openvdb::Vec3d voxel = profile->voxelSize();
   common::requireMemory(ditherReportBytes(*request, voxel),
                         "dither-report's " + std::to_string(request->fractions.size()) + " blocks and rod",
                         "use a smaller --block, fewer --fractions or a shorter --rod-length");

@@ -63,7 +63,7 @@ int runVoxelize(const std::vector<std::string>& args) {
   if (!voxelSize) {
     const std::optional<printer_profiles::Profile> profile = profileFromOptions(vm, "nothing was written");
     if (!profile) return kFailed;
-    voxelSize = openvdb::Vec3d(profile->voxelSizeMm[0], profile->voxelSizeMm[1], profile->voxelSizeMm[2]);
+    voxelSize = profile->voxelSize();
     profileName = profile->name + (profile->printMode.empty() ? "" : " (" + profile->printMode + ")");
   }
   const std::optional<geometry::RodStructure> design = readDesignOrReport(file, "nothing was written");

@@ -120,7 +120,7 @@ std::uint64_t couponJobBytes(const printer_profiles::Profile&, const CouponLayou
 
 BandSource couponBands(const CouponLayout& layout, const std::vector<double>& fractions,
                        const printer_profiles::Profile& profile, const openvdb::Vec3d& originMm) {
-  return [&layout, &fractions, transform = voxel::printerTransform({profile.voxelSizeMm[0], profile.voxelSizeMm[1], profile.voxelSizeMm[2]}, originMm)](int k0, int k1, bool withNextLayer) {
+  return [&layout, &fractions, transform = voxel::printerTransform(profile.voxelSize(), originMm)](int k0, int k1, bool withNextLayer) {
     common::throwIfInterrupted();
     openvdb::FloatGrid::Ptr grid = openvdb::FloatGrid::create(0.0f);
     grid->setName(materials::kFractionGridName);

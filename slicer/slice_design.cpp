@@ -59,7 +59,7 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   SliceReport report;
   auto start = Clock::now();
   const voxel::PrinterGrid grid =
-      voxel::makePrinterGrid(design, openvdb::Vec3d(profile.voxelSizeMm[0], profile.voxelSizeMm[1], profile.voxelSizeMm[2]));
+      voxel::makePrinterGrid(design, profile.voxelSize());
   const openvdb::CoordBBox partBounds = designVoxelBounds(design, grid);
   const int bandLayers = settings.bandLayers > 0 ? settings.bandLayers : automaticBandLayers(partBounds);
   for (const voxel::ThinRod& thin : voxel::findThinRods(design, grid)) report.warnings.push_back(thin.reason);
