@@ -101,9 +101,10 @@ CouponLayout planCouponLayout(const printer_profiles::Profile& profile, std::siz
   return l;
 }
 
-std::uint64_t couponJobBytes(const printer_profiles::Profile&, const CouponLayout& layout, int bandLayers) {
+std::uint64_t couponJobBytes(const CouponLayout& layout, int bandLayers) {
   // The preview views keep only the cells their pixels show, 9 bytes each (material, depth, modulus;
   // printer_profiles/previews), and the three views share a canvas of about 1400 x 1000 pixels.
+  // Both figures are the previews' (Previews::View, previews.cpp's projectionLayout): no public estimate exists.
   constexpr double kPreviewBytes = 9.0 * 1400.0 * 1000.0;
   // Per pixel of a layer: the writer's images and encoders, measured (~30 B).
   constexpr double kLayerImageBytes = 30.0;

@@ -52,7 +52,7 @@ CouponLayout planCouponLayout(const printer_profiles::Profile& profile, std::siz
 // and top views of the whole part), its per-layer images, and two bands of fractions and material in
 // flight, each holding whole 8-layer slabs of leaves. Measured on three 400 x 40 mm bars at 8 layers a
 // band (peak resident: 1.28 GB at 1.5 mm tall, 1.8 GB at 150 mm; the estimate: 1.29 and 1.85 GB).
-std::uint64_t couponJobBytes(const printer_profiles::Profile& profile, const CouponLayout& layout, int bandLayers);
+std::uint64_t couponJobBytes(const CouponLayout& layout, int bandLayers);
 
 // Layers [k0, k1) of every bar (and layer k1 when asked), each voxel at its bar's fraction
 // (`fractions[n]` for bar n), in the printer grid of `profile` with voxel (0,0,0) centred at `originMm`.
