@@ -8,7 +8,9 @@
 #include "printer_profiles/job_writer.hpp"
 #include "printer_profiles/previews.hpp"
 
+#include <cstdint>
 #include <filesystem>
+#include <string>
 #include <vector>
 
 namespace rodfab::printer_profiles {
@@ -40,7 +42,13 @@ private:
   void rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, LayerRecord& record) const;
   void addSupport(int layer, LayerBitmaps& b) const;
   void encodeImages(int layer, const LayerBitmaps& b, LayerRecord& record, std::vector<Bytes>* zipForms) const;
-  void keepImage(const ProfileMaterial& m, int layer, std::span<const std::uint8_t> image, LayerRecord& record,
+  // An image's checksums as the job records them: XXH3-128 (manifest), CRC-32 (zip directory; zip jobs only).
+  struct ImageSums {
+    std::string xxh128;
+    std::uint32_t crc32 = 0;
+  };
+  static ImageSums sumsOf(std::span<const std::uint8_t> image, bool zip);
+  void keepImage(const ProfileMaterial& m, int layer, std::span<const std::uint8_t> image, ImageSums sums, LayerRecord& record,
                  std::vector<Bytes>* zipForms, Bytes* owned = nullptr) const;
   void stageBand(int firstLayer, const std::vector<std::vector<Bytes>>& zipForms, std::vector<LayerRecord>& layers) const;
   bool gcvf() const { return s_.profile.jobFormat == JobFormat::Gcvf; }

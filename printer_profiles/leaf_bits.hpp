@@ -30,6 +30,18 @@ struct LeafBytes {
   }
 };
 
+// A leaf's bits as image rows: byte z * 8 + y holds LeafBytes::row(y, z). Gathered once per leaf, so a
+// layer reads its 8 rows of the leaf as bytes instead of gathering each bit by bit, layer after layer.
+struct LeafRows {
+  std::array<std::uint8_t, 64> bytes{};
+
+  explicit LeafRows(const LeafBytes& leaf) {
+    for (int z = 0; z < 8; ++z)
+      for (int y = 0; y < 8; ++y) bytes[static_cast<std::size_t>(z * 8 + y)] = leaf.row(y, z);
+  }
+  std::uint8_t row(int y, int z) const { return bytes[static_cast<std::size_t>(z * 8 + y)]; }
+};
+
 template <typename MaskT>
 LeafBytes maskBytes(const MaskT& mask) {
   LeafBytes out;
