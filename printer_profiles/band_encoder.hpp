@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -21,7 +22,7 @@ struct BandEncoderSetup {
   LayerImageForm form;
   const ColumnTops* supportTops;                        // SupportPolicy::Explicit only
   bool zip;                                             // stage zip forms (else write the files)
-  std::filesystem::path filesDir, stagingRoot;          // where files, and zip jobs' band files, go
+  std::filesystem::path filesDir, stagingRoot;          // where files, and zip jobs' staged layers, go
 };
 
 class BandEncoder {
@@ -50,12 +51,15 @@ private:
   static ImageSums sumsOf(std::span<const std::uint8_t> image, bool zip);
   void keepImage(const ProfileMaterial& m, int layer, std::span<const std::uint8_t> image, ImageSums sums, LayerRecord& record,
                  std::vector<Bytes>* zipForms, Bytes* owned = nullptr) const;
-  void stageBand(int firstLayer, const std::vector<std::vector<Bytes>>& zipForms, std::vector<LayerRecord>& layers) const;
+  void stageBand(int firstLayer, const std::vector<std::vector<Bytes>>& zipForms, std::vector<LayerRecord>& layers);
   bool gcvf() const { return s_.profile.jobFormat == JobFormat::Gcvf; }
 
   BandEncoderSetup s_;
   // The band's bitmaps, kept from band to band: cleared, not reallocated (fresh pages cost a fault each).
   std::vector<LayerBitmaps> bitmaps_;
+  // Zip jobs: every band's zip forms one after another in one staged file, created with the first band.
+  std::ofstream staged_;
+  std::uint64_t stagedBytes_ = 0;
 };
 
 }  // namespace rodfab::printer_profiles
