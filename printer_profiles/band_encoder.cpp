@@ -202,8 +202,8 @@ void BandEncoder::encodeImages(int layer, const LayerBitmaps& b, LayerRecord& re
       keepImage(*m, layer, png, sumsOf(png, zipForms != nullptr), record, zipForms, &png);
       continue;
     }
-    // Checksummed piece by piece as it is written, while each piece is in the L1 cache: hashing the
-    // whole BMP afterwards read it back from memory at a quarter of XXH3's speed (bench/README.md, emit4).
+    // Checksummed piece by piece as it is written, while each piece is in the L1 cache, instead of two
+    // more passes over the whole image (bench/README.md, "Emit, round 4").
     common::FileHasher hasher(common::HashAlgorithm::Xxh128);
     std::uint32_t crc = 0;
     encodeBmpInto(bitmap, s_.profile.xDpi, s_.profile.yDpi, bmp, [&](std::span<const std::uint8_t> piece) {

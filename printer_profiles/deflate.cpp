@@ -23,7 +23,7 @@ __attribute__((target("avx"))) void zeroUpperVectorHalves() { _mm256_zeroupper()
 // igzip's and the CRC's AVX-512 code return with the upper halves of the vector registers dirty (no
 // vzeroupper), and until something clears them every legacy SSE instruction on the thread runs slowly:
 // XXH3 (libxxhash, SSE2) hashed a layer image at 3.7 GB/s after an igzip call and 16 GB/s after this
-// (bench/README.md, "Emit: clean vector state"). Called after every call into ISA-L.
+// (bench/README.md, "Emit, round 4"). Called after every call into ISA-L.
 void afterIsal() {
 #if defined(__x86_64__)
   static const bool avx = __builtin_cpu_supports("avx");

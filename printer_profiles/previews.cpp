@@ -475,7 +475,7 @@ std::vector<std::pair<std::string, Bytes>> Previews::render(const std::string& t
     return renderProjections(title, geometry_, profile_, top_, front_, side_, byModulus);
   };
   // Each image on its own surface, drawn and compressed at once on the caller's arena: the PNGs'
-  // zlib compression was most of finalize()'s serial time (bench/README.md, emit4).
+  // zlib compression was most of finalize()'s serial time (bench/README.md, "Emit, round 4").
   Bytes material, byModulus, sheet;
   tbb::parallel_invoke([&] { material = projections(nullptr); },
                        [&] {
