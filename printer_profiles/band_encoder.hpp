@@ -1,7 +1,7 @@
 // Internal to printer_profiles/: a band of layers from the material grid to the job's layer images.
 // Per layer: the material bitmaps (from the grid's leaf masks), support, voxel counts and moments,
 // the previews' share, and the images encoded (BMP, 1-bit PNG or GrabCAD RGBA), hashed for the
-// manifest and, for zip jobs, deflated with their zip CRC-32 and staged one file per band.
+// manifest and, for zip jobs, deflated with their zip CRC-32 and appended to the job's one staged file.
 #pragma once
 
 #include "printer_profiles/job_manifest.hpp"
