@@ -1,5 +1,6 @@
 #include "printer_profiles/band_encoder.hpp"
 
+#include "common/file_hasher.hpp"
 #include "common/interrupt.hpp"
 #include "common/xxh128.hpp"
 
@@ -23,7 +24,7 @@ namespace fs = std::filesystem;
 
 struct BandEncoder::BandLeaf {
   openvdb::Coord origin;
-  LeafBytes active, value;
+  LeafRows active, value;
 };
 
 // The band's voxels as the layers read them: leaves bucketed by their 8-layer slab (their bytes read
@@ -74,7 +75,7 @@ BandEncoder::BandVoxels BandEncoder::collect(const LayerBand& band) const {
   v.slabs.resize(static_cast<std::size_t>((band.kEnd - 1 - v.zBase) / 8 + 1));
   for (auto leaf = band.material->tree().cbeginLeaf(); leaf; ++leaf)
     v.slabs[static_cast<std::size_t>((leaf->origin().z() - v.zBase) / 8)].push_back(
-        {leaf->origin(), maskBytes(leaf->getValueMask()), boolValueBytes(*leaf)});
+        {leaf->origin(), LeafRows(maskBytes(leaf->getValueMask())), LeafRows(boolValueBytes(*leaf))});
   forEachActiveTile(band.material->tree(), [&](const openvdb::CoordBBox& box, bool value) { v.tiles.emplace_back(box, value); });
   return v;
 }
@@ -105,25 +106,26 @@ void BandEncoder::encode(const LayerBand& band, std::vector<LayerRecord>& layers
   if (s_.zip) stageBand(firstLayer, zipForms, layers);
 }
 
-// One staged file per band, the layers' zip forms one after another; named by the band's first
-// layer. Each entry's bytes depend on its image alone, so the band size never shows in the job.
-void BandEncoder::stageBand(int firstLayer, const std::vector<std::vector<Bytes>>& zipForms, std::vector<LayerRecord>& layers) const {
-  const fs::path file = s_.stagingRoot / ("layers-" + std::to_string(firstLayer) + ".bin");
-  std::ofstream out(file, std::ios::binary | std::ios::trunc);
-  std::uint64_t offset = 0;
+// The band's zip forms appended to the job's one staged file, the layers' one after another. One file
+// for the job, not one a band: creating a file cost an ext4 inode allocation each (find_inode_bit,
+// 1.5 % of the spring's samples), and the zip's builder opened it once an entry. Each entry's bytes
+// depend on its image alone, so the band size never shows in the job.
+void BandEncoder::stageBand(int firstLayer, const std::vector<std::vector<Bytes>>& zipForms, std::vector<LayerRecord>& layers) {
+  const fs::path file = s_.stagingRoot / "layers.bin";
+  if (!staged_.is_open()) staged_.open(file, std::ios::binary | std::ios::trunc);
   for (std::size_t n = 0; n < zipForms.size(); ++n) {
     LayerRecord& record = layers[static_cast<std::size_t>(firstLayer) + n];
     for (std::size_t f = 0; f < zipForms[n].size(); ++f) {
       const Bytes& data = zipForms[n][f];
-      out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size()));
+      staged_.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size()));
       StagedZipData& z = record.zipped[f];
       z.file = file;
-      z.offset = offset;
-      offset += data.size();
+      z.offset = stagedBytes_;
+      stagedBytes_ += data.size();
     }
   }
-  out.close();
-  if (!out) throw std::runtime_error(file.string() + ": cannot write (disk full or no permission?)");
+  staged_.flush();  // the zip is built from the file through other handles
+  if (!staged_) throw std::runtime_error(file.string() + ": cannot write (disk full or no permission?)");
 }
 
 
@@ -187,7 +189,7 @@ void BandEncoder::encodeImages(int layer, const LayerBitmaps& b, LayerRecord& re
   record.zipped.clear();
   if (gcvf()) {  // one RGBA image holds every material of the layer
     Bytes rgba = encodeGcvfLayer(b.rigid, b.rubbery, s_.profile);
-    keepImage(*s_.form.emitted[0], layer, rgba, record, zipForms, &rgba);
+    keepImage(*s_.form.emitted[0], layer, rgba, sumsOf(rgba, zipForms != nullptr), record, zipForms, &rgba);
     return;
   }
   // A BMP is as large as its bitmap: encoded into one buffer per thread, reused. Nothing below waits on
@@ -197,25 +199,37 @@ void BandEncoder::encodeImages(int layer, const LayerBitmaps& b, LayerRecord& re
     const Bitmap& bitmap = m->role == MaterialRole::Rigid ? b.rigid : m->role == MaterialRole::Rubbery ? b.rubbery : b.support;
     if (s_.form.imageFormat == ImageFormat::Png) {
       Bytes png = encodePng1(bitmap, s_.profile.xDpi, s_.profile.yDpi);
-      keepImage(*m, layer, png, record, zipForms, &png);
+      keepImage(*m, layer, png, sumsOf(png, zipForms != nullptr), record, zipForms, &png);
       continue;
     }
-    encodeBmpInto(bitmap, s_.profile.xDpi, s_.profile.yDpi, bmp);
-    keepImage(*m, layer, bmp, record, zipForms);
+    // Checksummed piece by piece as it is written, while each piece is in the L1 cache, instead of two
+    // more passes over the whole image (bench/README.md, "Emit, round 4").
+    common::FileHasher hasher(common::HashAlgorithm::Xxh128);
+    std::uint32_t crc = 0;
+    encodeBmpInto(bitmap, s_.profile.xDpi, s_.profile.yDpi, bmp, [&](std::span<const std::uint8_t> piece) {
+      hasher.update(piece);
+      if (zipForms) crc = zipCrc32(piece, crc);
+    });
+    keepImage(*m, layer, bmp, {hasher.hex(), crc}, record, zipForms);
   }
 }
 
-// One image of the layer: its manifest record (size, XXH3-128), and the file written or its zip form
-// kept with its size, CRC-32 and XXH3-128. `owned`, when given, holds `image` and may be moved from (a PNG is kept as it is, not copied).
-void BandEncoder::keepImage(const ProfileMaterial& m, int layer, std::span<const std::uint8_t> image, LayerRecord& record,
+BandEncoder::ImageSums BandEncoder::sumsOf(std::span<const std::uint8_t> image, bool zip) {
+  return {common::xxh128Hex(image), zip ? zipCrc32(image) : 0};
+}
+
+// One image of the layer with its checksums: its manifest record (size, XXH3-128), and the file
+// written or its zip form kept with its size, CRC-32 and the form's XXH3-128. `owned`, when given,
+// holds `image` and may be moved from (a PNG is kept as it is, not copied).
+void BandEncoder::keepImage(const ProfileMaterial& m, int layer, std::span<const std::uint8_t> image, ImageSums sums, LayerRecord& record,
                             std::vector<Bytes>* zipForms, Bytes* owned) const {
-  FileRecord f{s_.profile.layerFileName(m, layer, s_.form.imageFormat), image.size(), common::xxh128Hex(image)};
+  FileRecord f{s_.profile.layerFileName(m, layer, s_.form.imageFormat), image.size(), std::move(sums.xxh128)};
   if (!zipForms) {
     writeFile(s_.filesDir / f.name, image);
   } else {
     StagedZipData z;
     z.size = image.size();
-    z.crc32 = zipCrc32(image);
+    z.crc32 = sums.crc32;
     Bytes form = layerStorage() == ZipStorage::Deflate ? deflateBytes(image, kLayerDeflateLevel, DeflateWrapper::Raw)
                  : owned                                ? std::move(*owned)
                                                         : Bytes(image.begin(), image.end());

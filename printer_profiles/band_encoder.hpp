@@ -1,14 +1,17 @@
 // Internal to printer_profiles/: a band of layers from the material grid to the job's layer images.
 // Per layer: the material bitmaps (from the grid's leaf masks), support, voxel counts and moments,
 // the previews' share, and the images encoded (BMP, 1-bit PNG or GrabCAD RGBA), hashed for the
-// manifest and, for zip jobs, deflated with their zip CRC-32 and staged one file per band.
+// manifest and, for zip jobs, deflated with their zip CRC-32 and appended to the job's one staged file.
 #pragma once
 
 #include "printer_profiles/job_manifest.hpp"
 #include "printer_profiles/job_writer.hpp"
 #include "printer_profiles/previews.hpp"
 
+#include <cstdint>
 #include <filesystem>
+#include <fstream>
+#include <string>
 #include <vector>
 
 namespace rodfab::printer_profiles {
@@ -19,7 +22,7 @@ struct BandEncoderSetup {
   LayerImageForm form;
   const ColumnTops* supportTops;                        // SupportPolicy::Explicit only
   bool zip;                                             // stage zip forms (else write the files)
-  std::filesystem::path filesDir, stagingRoot;          // where files, and zip jobs' band files, go
+  std::filesystem::path filesDir, stagingRoot;          // where files, and zip jobs' staged layers, go
 };
 
 class BandEncoder {
@@ -40,14 +43,23 @@ private:
   void rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, LayerRecord& record) const;
   void addSupport(int layer, LayerBitmaps& b) const;
   void encodeImages(int layer, const LayerBitmaps& b, LayerRecord& record, std::vector<Bytes>* zipForms) const;
-  void keepImage(const ProfileMaterial& m, int layer, std::span<const std::uint8_t> image, LayerRecord& record,
+  // An image's checksums as the job records them: XXH3-128 (manifest), CRC-32 (zip directory; zip jobs only).
+  struct ImageSums {
+    std::string xxh128;
+    std::uint32_t crc32 = 0;
+  };
+  static ImageSums sumsOf(std::span<const std::uint8_t> image, bool zip);
+  void keepImage(const ProfileMaterial& m, int layer, std::span<const std::uint8_t> image, ImageSums sums, LayerRecord& record,
                  std::vector<Bytes>* zipForms, Bytes* owned = nullptr) const;
-  void stageBand(int firstLayer, const std::vector<std::vector<Bytes>>& zipForms, std::vector<LayerRecord>& layers) const;
+  void stageBand(int firstLayer, const std::vector<std::vector<Bytes>>& zipForms, std::vector<LayerRecord>& layers);
   bool gcvf() const { return s_.profile.jobFormat == JobFormat::Gcvf; }
 
   BandEncoderSetup s_;
   // The band's bitmaps, kept from band to band: cleared, not reallocated (fresh pages cost a fault each).
   std::vector<LayerBitmaps> bitmaps_;
+  // Zip jobs: every band's zip forms one after another in one staged file, created with the first band.
+  std::ofstream staged_;
+  std::uint64_t stagedBytes_ = 0;
 };
 
 }  // namespace rodfab::printer_profiles

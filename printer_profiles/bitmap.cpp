@@ -100,7 +100,7 @@ Bytes encodeBmp(const Bitmap& bitmap, int xDpi, int yDpi) {
   return out;
 }
 
-void encodeBmpInto(const Bitmap& bitmap, int xDpi, int yDpi, Bytes& out) {
+void encodeBmpInto(const Bitmap& bitmap, int xDpi, int yDpi, Bytes& out, const BmpPieceSink& written) {
   const std::size_t stride = bmpStride(bitmap.width());
   const std::size_t offset = kFileHeaderSize + kInfoHeaderSize + kPaletteSize;
   const std::size_t imageSize = stride * static_cast<std::size_t>(bitmap.height());
@@ -123,10 +123,18 @@ void encodeBmpInto(const Bitmap& bitmap, int xDpi, int yDpi, Bytes& out) {
   put32(out, 50, 2);
   // Palette (blue, green, red, reserved): index 0 black, index 1 white.
   out[58] = out[59] = out[60] = 0xff;
-  for (int r = 0; r < bitmap.height(); ++r) {
-    std::uint8_t* dst = out.data() + offset + static_cast<std::size_t>(r) * stride;
-    std::memcpy(dst, bitmap.row(bitmap.height() - 1 - r), bitmap.stride());
-    std::memset(dst + bitmap.stride(), 0, stride - bitmap.stride());
+  if (written) written({out.data(), offset});
+  // Rows in runs of about 16 KiB, each handed to `written` as soon as it is complete (half of a 32 KiB
+  // L1 data cache, so the run is still there when the sink reads it).
+  const std::size_t runRows = std::max<std::size_t>(1, (std::size_t{16} << 10) / stride);
+  for (int r0 = 0; r0 < bitmap.height(); r0 += static_cast<int>(runRows)) {
+    const int r1 = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(bitmap.height()), r0 + runRows));
+    for (int r = r0; r < r1; ++r) {
+      std::uint8_t* dst = out.data() + offset + static_cast<std::size_t>(r) * stride;
+      std::memcpy(dst, bitmap.row(bitmap.height() - 1 - r), bitmap.stride());
+      std::memset(dst + bitmap.stride(), 0, stride - bitmap.stride());
+    }
+    if (written) written({out.data() + offset + static_cast<std::size_t>(r0) * stride, static_cast<std::size_t>(r1 - r0) * stride});
   }
 }
 

@@ -73,7 +73,11 @@ std::uint32_t pixelsPerMetre(int dpi);
 // BMP: BITMAPINFOHEADER, two-entry palette (0 black, 1 white), rows bottom-up as the format's default.
 Bytes encodeBmp(const Bitmap& bitmap, int xDpi, int yDpi);
 // The same into `out` (resized to the file's size), so a caller can reuse one buffer for every layer.
-void encodeBmpInto(const Bitmap& bitmap, int xDpi, int yDpi, Bytes& out);
+// `written`, when given, receives the file piece by piece as it is written, in order (the headers,
+// then runs of rows of about 16 KiB), while each piece is still in the L1 cache: the job writer
+// checksums a layer image in the same pass that makes it, instead of reading it back from memory.
+using BmpPieceSink = std::function<void(std::span<const std::uint8_t>)>;
+void encodeBmpInto(const Bitmap& bitmap, int xDpi, int yDpi, Bytes& out, const BmpPieceSink& written = {});
 // Accepts 1-bit BMPs with either row order; the pixel value is the palette index (1 = deposit).
 DecodedBitmap decodeBmp(std::span<const std::uint8_t> file);
 

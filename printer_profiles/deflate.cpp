@@ -3,6 +3,10 @@
 #include <isa-l/crc.h>
 #include <isa-l/igzip_lib.h>
 
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
+
 #include <algorithm>
 #include <new>
 #include <stdexcept>
@@ -11,6 +15,21 @@
 namespace rodfab::printer_profiles {
 
 namespace {
+
+#if defined(__x86_64__)
+__attribute__((target("avx"))) void zeroUpperVectorHalves() { _mm256_zeroupper(); }
+#endif
+
+// igzip's and the CRC's AVX-512 code return with the upper halves of the vector registers dirty (no
+// vzeroupper), and until something clears them every legacy SSE instruction on the thread runs slowly:
+// XXH3 (libxxhash, SSE2) hashed a layer image at 3.7 GB/s after an igzip call and 16 GB/s after this
+// (bench/README.md, "Emit, round 4"). Called after every call into ISA-L.
+void afterIsal() {
+#if defined(__x86_64__)
+  static const bool avx = __builtin_cpu_supports("avx");
+  if (avx) zeroUpperVectorHalves();
+#endif
+}
 
 std::size_t levelBufferSize(int level) {
   switch (level) {
@@ -51,6 +70,7 @@ std::optional<std::size_t> compressOnce(std::span<const std::uint8_t> input, int
   stream.next_out = out.data();
   stream.avail_out = static_cast<std::uint32_t>(out.size());
   const int status = isal_deflate_stateless(&stream);
+  afterIsal();
   if (status == STATELESS_OVERFLOW) return std::nullopt;
   if (status != COMP_OK) throw std::runtime_error("igzip deflate failed (status " + std::to_string(status) + ")");
   return out.size() - stream.avail_out;
@@ -104,6 +124,7 @@ void DeflateStream::add(std::span<const std::uint8_t> piece, bool last) {
     stream_->avail_out = static_cast<std::uint32_t>(std::min<std::size_t>(out_.size() - produced_, 0xffffffffu));
     const std::uint32_t room = stream_->avail_out;
     const int status = isal_deflate(stream_.get());
+    afterIsal();
     if (status != COMP_OK) throw std::runtime_error("igzip deflate failed (status " + std::to_string(status) + ")");
     produced_ += room - stream_->avail_out;
   } while (stream_->avail_in > 0 || (last && stream_->internal_state.state != ZSTATE_END));
@@ -127,6 +148,7 @@ std::optional<std::uint32_t> inflateRaw(std::span<const std::uint8_t> input, std
   state->next_out = output.data();
   state->avail_out = static_cast<std::uint32_t>(output.size());
   const int status = isal_inflate_stateless(state.get());
+  afterIsal();
   const bool whole = (status == ISAL_DECOMP_OK || status == ISAL_END_INPUT) && state->block_state == ISAL_BLOCK_FINISH;
   if (!whole || state->avail_out != 0) return std::nullopt;
   return state->crc;
@@ -158,6 +180,7 @@ InflateStream::Status InflateStream::step() {
   z.next_out = buffer_.data();
   z.avail_out = static_cast<std::uint32_t>(buffer_.size());
   const int result = isal_inflate(&z);
+  afterIsal();
   pendingBytes_ = buffer_.size() - z.avail_out;
   if (result < 0) return Status::Damaged;
   ended_ = z.block_state == ISAL_BLOCK_FINISH;
@@ -167,7 +190,9 @@ InflateStream::Status InflateStream::step() {
 std::uint32_t InflateStream::crc() const { return state_->igzip.crc; }
 
 std::uint32_t zipCrc32(std::span<const std::uint8_t> data, std::uint32_t crc) {
-  return crc32_gzip_refl(crc, data.data(), data.size());
+  const std::uint32_t result = crc32_gzip_refl(crc, data.data(), data.size());
+  afterIsal();
+  return result;
 }
 
 }  // namespace rodfab::printer_profiles

@@ -182,15 +182,38 @@ private:
 
 namespace {
 
+// The staged files, each opened once however many entries it holds (a job's layers are all in one).
+class StagedFiles {
+public:
+  StagedFiles() = default;
+  ~StagedFiles() {
+    for (const auto& [path, fd] : fds_) ::close(fd);
+  }
+  StagedFiles(const StagedFiles&) = delete;
+  StagedFiles& operator=(const StagedFiles&) = delete;
+
+  // The file's descriptor, or -1 with errno set.
+  int open(const fs::path& file) {
+    if (const auto it = fds_.find(file); it != fds_.end()) return it->second;
+    const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd >= 0) fds_.emplace(file, fd);
+    return fd;
+  }
+
+private:
+  std::map<fs::path, int> fds_;
+};
+
 // A libzip source for StagedZipData: its stat says the data is already compressed (method, sizes and
 // CRC), so zip_close copies the bytes instead of compressing them, as it does for zip_source_zip.
+// Reads through `files`, which must outlive the source.
 class StagedSource {
 public:
-  StagedSource(StagedZipData data, ZipStorage storage) : data_(std::move(data)), storage_(storage) { zip_error_init(&error_); }
-  ~StagedSource() {
-    if (fd_ >= 0) ::close(fd_);
-    zip_error_fini(&error_);
+  StagedSource(StagedZipData data, ZipStorage storage, StagedFiles& files)
+      : data_(std::move(data)), storage_(storage), files_(files) {
+    zip_error_init(&error_);
   }
+  ~StagedSource() { zip_error_fini(&error_); }
   StagedSource(const StagedSource&) = delete;
   StagedSource& operator=(const StagedSource&) = delete;
 
@@ -207,12 +230,12 @@ private:
   zip_int64_t handle(void* data, zip_uint64_t length, zip_source_cmd_t command) {
     switch (command) {
       case ZIP_SOURCE_OPEN:
-        fd_ = ::open(data_.file.c_str(), O_RDONLY | O_CLOEXEC);
+        fd_ = files_.open(data_.file);
         position_ = 0;
         return fd_ >= 0 ? 0 : failed(ZIP_ER_OPEN);
       case ZIP_SOURCE_READ: return read(static_cast<char*>(data), length);
       case ZIP_SOURCE_CLOSE:
-        ::close(std::exchange(fd_, -1));
+        fd_ = -1;  // StagedFiles closes it
         return 0;
       case ZIP_SOURCE_STAT: return stat(static_cast<zip_stat_t*>(data));
       case ZIP_SOURCE_GET_FILE_ATTRIBUTES: return attributes(static_cast<zip_file_attributes_t*>(data));
@@ -264,13 +287,14 @@ private:
 
   StagedZipData data_;
   ZipStorage storage_;
+  StagedFiles& files_;
   zip_error_t error_;
   int fd_ = -1;
   zip_uint64_t position_ = 0;
 };
 
-zip_source_t* stagedSource(zip_t* za, const StagedZipData& data, ZipStorage storage) {
-  auto* source = new StagedSource(data, storage);
+zip_source_t* stagedSource(zip_t* za, const StagedZipData& data, ZipStorage storage, StagedFiles& files) {
+  auto* source = new StagedSource(data, storage, files);
   zip_source_t* zs = zip_source_function(za, StagedSource::callback, source);
   if (!zs) delete source;
   return zs;
@@ -279,9 +303,10 @@ zip_source_t* stagedSource(zip_t* za, const StagedZipData& data, ZipStorage stor
 }  // namespace
 
 void writeZip(const fs::path& zipPath, const std::vector<ZipEntry>& entries) {
+  StagedFiles staged;  // declared first: the zip's sources, which read through it, go before it
   ZipBuilder zip(zipPath);
   for (const ZipEntry& e : entries) {
-    zip_source_t* source = e.staged ? stagedSource(zip.archive(), *e.staged, e.storage)
+    zip_source_t* source = e.staged ? stagedSource(zip.archive(), *e.staged, e.storage, staged)
                                     : zip_source_file(zip.archive(), e.source.c_str(), 0, -1);
     zip.add(e.name, source, e.storage);
   }

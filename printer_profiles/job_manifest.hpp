@@ -18,6 +18,22 @@
 
 namespace rodfab::printer_profiles {
 
+// Per byte of 8 voxels (x = 0 in bit 7): how many are set and the sum of their x. A table, because
+// the build targets CPUs without a popcount instruction and Moments::add runs for every row of every leaf.
+struct BitSums {
+  std::uint8_t count = 0, sumX = 0;
+};
+inline constexpr std::array<BitSums, 256> kBitSums = [] {
+  std::array<BitSums, 256> table{};
+  for (int bits = 0; bits < 256; ++bits)
+    for (int x = 0; x < 8; ++x)
+      if ((bits >> (7 - x)) & 1) {
+        ++table[static_cast<std::size_t>(bits)].count;
+        table[static_cast<std::size_t>(bits)].sumX = static_cast<std::uint8_t>(table[static_cast<std::size_t>(bits)].sumX + x);
+      }
+  return table;
+}();
+
 // Integer sums of voxel indices: exact, so order and thread count cannot change them.
 struct Moments {
   std::uint64_t count = 0;
@@ -27,11 +43,8 @@ struct Moments {
   // The 8 voxels (i = firstI .. firstI + 7, most significant bit first) of row j, layer k set in `bits`.
   void add(std::uint8_t bits, int firstI, int j, int k) {
     if (!bits) return;
-    const int n = std::popcount(bits);
+    const int n = kBitSums[bits].count, sumX = kBitSums[bits].sumX;
     count += static_cast<std::uint64_t>(n);
-    int sumX = 0;
-    for (int x = 0; x < 8; ++x)
-      if ((bits >> (7 - x)) & 1) sumX += x;
     sum[0] += static_cast<std::int64_t>(n) * firstI + sumX;
     sum[1] += static_cast<std::int64_t>(n) * j;
     sum[2] += static_cast<std::int64_t>(n) * k;

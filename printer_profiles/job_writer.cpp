@@ -239,13 +239,17 @@ struct JobWriter::Impl {
     // XXH3-128 taken as they were made from the image the manifest describes, its directory record by
     // method, size and CRC-32 (printer_profiles/README.md, "What the writer's own verification checks").
     options.decodeEvery = kVerifyDecodeEvery;
-    if (spec.options.archive == ArchiveFormat::Zip)
+    if (spec.options.archive == ArchiveFormat::Zip) {
+      options.storedFormsDeflated = encoder->layerStorage() == ZipStorage::Deflate;
       for (const LayerRecord& r : layers)
         for (std::size_t f = 0; f < r.files.size(); ++f) {
           const StagedZipData& z = r.zipped[f];
-          options.storedForms.emplace(r.files[f].name, StoredForm{z.xxh128, z.length, encoder->layerStorage() == ZipStorage::Deflate, z.crc32});
+          options.storedForms.emplace(r.files[f].name, StoredForm{z.xxh128, z.length, z.crc32});
         }
-    const InspectReport report = inspectJobFiles(*openJobFiles(built), options);
+    }
+    // By path: the staged job is named job.zip or job, which inspectJob takes (openJobFiles would open
+    // and list the zip once more, only for inspectJobFiles to read its path).
+    const InspectReport report = inspectJob(built, options);
     if (report.ok()) return;
     std::string list;
     for (const std::string& d : report.defects) list += "\n  " + d;

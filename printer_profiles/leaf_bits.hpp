@@ -30,6 +30,30 @@ struct LeafBytes {
   }
 };
 
+// A leaf's bits as image rows: byte z * 8 + y holds LeafBytes::row(y, z). Gathered once per leaf, so a
+// layer reads its 8 rows of the leaf as bytes instead of gathering each bit by bit, layer after layer.
+struct LeafRows {
+  std::array<std::uint8_t, 64> bytes{};
+
+  // Per y, the 8 x 8 bit matrix of columns x (bits z) transposed into rows z (bits x, x = 0 in bit 7):
+  // with column x in byte 7 - x of a word, bit 8 (7 - x) + z, the transpose (three delta swaps,
+  // Hacker's Delight 7-3) puts it at bit 8 z + 7 - x, which is byte z in image bit order.
+  explicit LeafRows(const LeafBytes& leaf) {
+    for (int y = 0; y < 8; ++y) {
+      std::uint64_t m = 0;
+      for (int x = 0; x < 8; ++x) m |= std::uint64_t{leaf.column(x, y)} << (8 * (7 - x));
+      std::uint64_t t = (m ^ (m >> 7)) & 0x00AA00AA00AA00AAull;
+      m ^= t ^ (t << 7);
+      t = (m ^ (m >> 14)) & 0x0000CCCC0000CCCCull;
+      m ^= t ^ (t << 14);
+      t = (m ^ (m >> 28)) & 0x00000000F0F0F0F0ull;
+      m ^= t ^ (t << 28);
+      for (int z = 0; z < 8; ++z) bytes[static_cast<std::size_t>(z * 8 + y)] = static_cast<std::uint8_t>(m >> (8 * z));
+    }
+  }
+  std::uint8_t row(int y, int z) const { return bytes[static_cast<std::size_t>(z * 8 + y)]; }
+};
+
 template <typename MaskT>
 LeafBytes maskBytes(const MaskT& mask) {
   LeafBytes out;

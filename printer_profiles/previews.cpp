@@ -3,6 +3,7 @@
 #include <cairo.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 #include <algorithm>
 #include <array>
@@ -473,10 +474,17 @@ std::vector<std::pair<std::string, Bytes>> Previews::render(const std::string& t
   const auto projections = [&](const ModulusScale* byModulus) {
     return renderProjections(title, geometry_, profile_, top_, front_, side_, byModulus);
   };
-  out.emplace_back("previews/projections-material.png", projections(nullptr));
-  if (modulus.known) out.emplace_back("previews/projections-modulus.png", projections(&modulus));
-  out.emplace_back("previews/contact-sheet.png",
-                   renderContactSheet(title, profile_, contactLayers_, tiles_, tileWidth_, tileHeight_));
+  // Each image on its own surface, drawn and compressed at once on the caller's arena: the PNGs'
+  // zlib compression was most of finalize()'s serial time (bench/README.md, "Emit, round 4").
+  Bytes material, byModulus, sheet;
+  tbb::parallel_invoke([&] { material = projections(nullptr); },
+                       [&] {
+                         if (modulus.known) byModulus = projections(&modulus);
+                       },
+                       [&] { sheet = renderContactSheet(title, profile_, contactLayers_, tiles_, tileWidth_, tileHeight_); });
+  out.emplace_back("previews/projections-material.png", std::move(material));
+  if (modulus.known) out.emplace_back("previews/projections-modulus.png", std::move(byModulus));
+  out.emplace_back("previews/contact-sheet.png", std::move(sheet));
   return out;
 }
 

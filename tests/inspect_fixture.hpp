@@ -19,6 +19,7 @@
 #include <functional>
 #include <map>
 #include <random>
+#include <set>
 #include <stdexcept>
 
 namespace rodfab::test {
@@ -219,6 +220,16 @@ inline void setManifest(std::vector<std::pair<std::string, Bytes>>& files, const
     if (name == "manifest.json") data = bytesOf(manifest.dump());
 }
 
+// The job's entries with the manifest changed by `edit(json&)`, every other entry as it was: a job that
+// lies about itself, for rezip() and inspect to find.
+template <class Edit>
+std::vector<std::pair<std::string, Bytes>> tampered(std::vector<std::pair<std::string, Bytes>> files, Edit&& edit) {
+  json m = manifestOf(files);
+  edit(m);
+  setManifest(files, m);
+  return files;
+}
+
 // Adds `name` to the job and lists it in the manifest with its true size and checksum.
 inline void addListed(std::vector<std::pair<std::string, Bytes>>& files, const std::string& name, const Bytes& data) {
   json m = manifestOf(files);
@@ -271,13 +282,17 @@ inline std::vector<StoredEntry> storedEntries(const fs::path& file) {
 }
 
 // The layer images' stored forms as the writer records them for its verification (InspectOptions::
-// storedForms), taken here from the archive itself.
-inline std::map<std::string, StoredForm> layerStoredForms(const fs::path& file) {
-  std::map<std::string, StoredForm> out;
+// storedForms and storedFormsDeflated), taken here from the archive itself.
+inline void useStoredForms(InspectOptions& options, const fs::path& file) {
+  options.storedForms.clear();
+  std::set<bool> deflated;
   for (const StoredEntry& e : storedEntries(file))
-    if (e.name.find('/') == std::string::npos && (e.name.ends_with(".bmp") || e.name.ends_with(".png")))
-      out[e.name] = {xxh128Hex(e.stored), e.stored.size(), e.deflated, e.crc};
-  return out;
+    if (e.name.find('/') == std::string::npos && (e.name.ends_with(".bmp") || e.name.ends_with(".png"))) {
+      options.storedForms[e.name] = {xxh128Hex(e.stored), e.stored.size(), e.crc};
+      deflated.insert(e.deflated);
+    }
+  REQUIRE(deflated.size() == 1);  // one method for every layer image of a job
+  options.storedFormsDeflated = *deflated.begin();
 }
 
 // Flips one bit in the middle of an entry's stored bytes, in place: its headers and directory record

@@ -37,7 +37,7 @@ TEST_CASE("The writer's own check: a sample of layers decoded, the others compar
   writeSmallJob(job, {.layers = 40});
   InspectOptions writerCheck{connex3()};
   writerCheck.decodeEvery = 32;  // layers 0, 32 and 39 decoded
-  writerCheck.storedForms = layerStoredForms(job);
+  useStoredForms(writerCheck, job);
   REQUIRE(writerCheck.storedForms.size() == 80);  // Vero and Tango, 40 layers
   REQUIRE(inspectJob(job, writerCheck).ok());
   const ProfileMaterial& rigid = connex3().material(MaterialRole::Rigid);
@@ -48,14 +48,9 @@ TEST_CASE("The writer's own check: a sample of layers decoded, the others compar
     auto out = files;
     for (auto& [n, data] : out)
       if (n == name) data[static_cast<std::size_t>(data[10])] ^= 0x80;  // the first pixel byte (bfOffBits < 256)
-    if (relist)
-      for (const auto& [n, data] : out)
-        if (n == name) {
-          json m = manifestOf(out);
-          m["files"][name]["xxh128"] = xxh128Hex(data);
-          setManifest(out, m);
-        }
-    return out;
+    if (!relist) return out;
+    const std::string digest = xxh128Hex(entryBytes(out, name));
+    return tampered(std::move(out), [&](json& m) { m["files"][name]["xxh128"] = digest; });
   };
 
   SECTION("a bit flipped in the stored bytes of a layer that is not decoded") {
@@ -77,9 +72,13 @@ TEST_CASE("The writer's own check: a sample of layers decoded, the others compar
     CHECK(hasDefect(inspectJob(job, writerCheck), skipped + ": the zip's directory records another method, CRC-32 or size"));
     CHECK(hasDefect(inspectJob(job), skipped + ": is damaged (CRC error)"));
   }
+  SECTION("the writer's method for its images is not the one the zip's directory records") {
+    writerCheck.storedFormsDeflated = false;  // as for PNG layers, stored as they are
+    CHECK(hasDefect(inspectJob(job, writerCheck), skipped + ": the zip's directory records another method, CRC-32 or size"));
+  }
   SECTION("a decoded layer's image is checked against the manifest's counts") {
     rezip(job, damaged(decoded, true));
-    writerCheck.storedForms = layerStoredForms(job);  // libzip deflated every image again
+    useStoredForms(writerCheck, job);  // libzip deflated every image again
     CHECK(hasDefect(inspectJob(job, writerCheck), "the manifest says"));
     CHECK(hasDefect(inspectJob(job), "the manifest says"));
   }
@@ -130,13 +129,10 @@ TEST_CASE("The profile comes from the bundled ones by name or from the caller, n
           "[inspect][hostile]") {
   const fs::path dir = scratch("profile-name");
   writeSmallJob(dir / "job.zip");
-  auto files = unzip(dir / "job.zip");
+  const auto files = unzip(dir / "job.zip");
   const HangGuard guard(60);
   for (const std::string name : {"/dev/stdin", "/dev/zero", "../../../../dev/zero", "stratasys-objet500-connex3.json", ""}) {
-    json m = manifestOf(files);
-    m["profile"]["name"] = name;
-    setManifest(files, m);
-    rezip(dir / "hostile.zip", files);
+    rezip(dir / "hostile.zip", tampered(files, [&](json& m) { m["profile"]["name"] = name; }));
     const InspectReport report = inspectJob(dir / "hostile.zip");
     CHECK_FALSE(report.ok());
     CHECK(hasDefect(report, "hostile.zip: manifest.json: profile.name: \"" + name + "\" is not a bundled profile"));
@@ -167,11 +163,7 @@ TEST_CASE("File checksums: XXH3-128, or SHA-256 in older jobs, one per file, eac
   const std::string layer = written["layers"][1]["files"].begin().value().get<std::string>();
   REQUIRE(xxh128Hex(entryBytes(original, layer)) == written["files"][layer]["xxh128"]);
   const auto inspectWith = [&](const std::function<void(json&)>& edit) {
-    auto files = original;
-    json m = written;
-    edit(m);
-    setManifest(files, m);
-    rezip(dir / "t.zip", files);
+    rezip(dir / "t.zip", tampered(original, edit));
     return inspectJob(dir / "t.zip");
   };
   SECTION("an older job, every file listed by SHA-256, passes; a wrong SHA-256 does not") {
@@ -213,17 +205,15 @@ TEST_CASE("Write the seeds of the inspect fuzz target", "[.make-seeds]") {
   const auto shrink = [](std::vector<std::pair<std::string, Bytes>> files) {
     for (auto& [name, data] : files)
       if (name.starts_with("previews/")) data = encodePngRgb(RgbImage(2, 2, 90, 90, 90));
-    json m = manifestOf(files);
-    for (const auto& [name, data] : files)
-      if (name.starts_with("previews/")) m["files"][name] = {{"bytes", data.size()}, {"xxh128", xxh128Hex(data)}};
-    for (const char* key : {"statistics", "metadata", "calibration"}) m.erase(key);
-    for (const char* key : {"origin_note", "pixel_to_design_mm", "part_voxels"}) m["frame"].erase(key);
-    for (const char* key : {"row_order", "origin", "x_pixels_per_metre", "y_pixels_per_metre"}) m["image"].erase(key);
-    for (const char* key : {"printer", "tray_mm", "layer_thickness_mm"}) m["profile"].erase(key);
-    m["support"].erase("note");
-    for (auto& [name, data] : files)
-      if (name == "manifest.json") data = bytesOf(m.dump());
-    return files;
+    return tampered(files, [&](json& m) {
+      for (const auto& [name, data] : files)
+        if (name.starts_with("previews/")) m["files"][name] = {{"bytes", data.size()}, {"xxh128", xxh128Hex(data)}};
+      for (const char* key : {"statistics", "metadata", "calibration"}) m.erase(key);
+      for (const char* key : {"origin_note", "pixel_to_design_mm", "part_voxels"}) m["frame"].erase(key);
+      for (const char* key : {"row_order", "origin", "x_pixels_per_metre", "y_pixels_per_metre"}) m["image"].erase(key);
+      for (const char* key : {"printer", "tray_mm", "layer_thickness_mm"}) m["profile"].erase(key);
+      m["support"].erase("note");
+    });
   };
   writeSmallJob(dir / "bmp.zip", {.layers = 2});
   writeSmallJob(dir / "bmp-1.zip", {.layers = 1});

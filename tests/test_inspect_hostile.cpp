@@ -55,8 +55,6 @@ TEST_CASE("Entries declaring or expanding to more than their image can hold are 
   }
   SECTION("a deflate bomb listed in the manifest with its true checksum") {
     const std::uint64_t size = 256ull << 20;  // tests/cli/printer_profiles.sh measures a 1.2 GB one
-    auto withBomb = files;
-    json m = manifestOf(withBomb);
     unsigned char digest[32];
     {
       const Bytes zeros(1 << 20, 0);
@@ -69,9 +67,7 @@ TEST_CASE("Entries declaring or expanding to more than their image can hold are 
     }
     char hex[65];
     for (int i = 0; i < 32; ++i) std::snprintf(hex + 2 * i, 3, "%02x", digest[i]);
-    m["files"]["bomb.bin"] = {{"bytes", size}, {"sha256", std::string(hex, 64)}};
-    setManifest(withBomb, m);
-    auto raw = rawEntries(withBomb);
+    auto raw = rawEntries(tampered(files, [&](json& m) { m["files"]["bomb.bin"] = {{"bytes", size}, {"sha256", std::string(hex, 64)}}; }));
     RawEntry bomb{"bomb.bin", deflateRaw(size)};
     bomb.compressedSize = static_cast<std::uint32_t>(bomb.stored.size());
     bomb.size = static_cast<std::uint32_t>(size);
@@ -144,10 +140,7 @@ TEST_CASE("The job's complete layout is checked against the profile", "[inspect]
   SECTION("a job without its build file, also dropped from the manifest") {
     auto files = original;
     std::erase_if(files, [](const auto& f) { return f.first == "build.txt"; });
-    json m = manifestOf(files);
-    m["files"].erase("build.txt");
-    setManifest(files, m);
-    rezip(dir / "t.zip", files);
+    rezip(dir / "t.zip", tampered(files, [](json& m) { m["files"].erase("build.txt"); }));
     const InspectReport report = inspectJob(dir / "t.zip");
     CHECK(hasDefect(report, "t.zip: build.txt: missing"));
     CHECK(hasDefect(report, "manifest.json: files: lacks build.txt"));
@@ -155,27 +148,22 @@ TEST_CASE("The job's complete layout is checked against the profile", "[inspect]
   SECTION("every image of one material removed, with every mention of it in the manifest") {
     auto files = original;
     std::erase_if(files, [](const auto& f) { return f.first.starts_with("TangoBlackPlus_"); });
-    json m = manifestOf(files);
-    for (auto it = m["files"].begin(); it != m["files"].end();)
-      it = it.key().starts_with("TangoBlackPlus_") ? m["files"].erase(it) : std::next(it);
-    m["materials"].erase(1);
-    for (json& l : m["layers"]) {
-      l["files"].erase("TangoBlackPlus");
-      l["voxels"].erase("TangoBlackPlus");
-    }
-    m["orientation_check"].erase("TangoBlackPlus");
-    setManifest(files, m);
-    rezip(dir / "t.zip", files);
+    rezip(dir / "t.zip", tampered(files, [](json& m) {
+            for (auto it = m["files"].begin(); it != m["files"].end();)
+              it = it.key().starts_with("TangoBlackPlus_") ? m["files"].erase(it) : std::next(it);
+            m["materials"].erase(1);
+            for (json& l : m["layers"]) {
+              l["files"].erase("TangoBlackPlus");
+              l["voxels"].erase("TangoBlackPlus");
+            }
+            m["orientation_check"].erase("TangoBlackPlus");
+          }));
     const InspectReport report = inspectJob(dir / "t.zip");
     CHECK(hasDefect(report, "every TangoBlackPlus image is missing (4 layers)"));
     CHECK(hasDefect(report, "manifest.json: materials: lists 1 materials"));
   }
   SECTION("a layer more in the manifest than in the images") {
-    auto files = original;
-    json m = manifestOf(files);
-    m["layer_count"] = 5;
-    setManifest(files, m);
-    rezip(dir / "t.zip", files);
+    rezip(dir / "t.zip", tampered(original, [](json& m) { m["layer_count"] = 5; }));
     const InspectReport report = inspectJob(dir / "t.zip");
     CHECK(hasDefect(report, "VeroWhitePlus_0004.bmp: missing"));
     CHECK(hasDefect(report, "manifest.json: layers: lists 4 layers; layer_count is 5"));
@@ -197,11 +185,7 @@ TEST_CASE("The manifest's image size, nesting and value types are checked", "[in
   const auto original = unzip(dir / "job.zip");
 
   SECTION("images larger than the tray") {
-    auto files = original;
-    json m = manifestOf(files);
-    m["image"]["width"] = 1 << 20;
-    setManifest(files, m);
-    rezip(dir / "t.zip", files);
+    rezip(dir / "t.zip", tampered(original, [](json& m) { m["image"]["width"] = 1 << 20; }));
     CHECK(hasDefect(inspectJob(dir / "t.zip"), "manifest.json: image.width: expected an integer in [32, 11552]"));
   }
   SECTION("a manifest nested 60,000 levels deep, or holding millions of values") {
@@ -220,20 +204,20 @@ TEST_CASE("The manifest's image size, nesting and value types are checked", "[in
     CHECK(hasDefect(inspectJob(dir / "t.zip"), "manifest.json: cannot be read: the document holds more than"));
   }
   SECTION("manifest values of the wrong type are described, not serialized") {
-    auto files = original;
-    json m = manifestOf(files);
     json deep = json::array();
     for (int n = 0; n < 50; ++n) deep = json::array({deep});
-    m["frame"]["origin_mm"] = deep;
-    m["dithering"]["seed"] = "\x1b[31mred";
-    setManifest(files, m);
-    rezip(dir / "t.zip", files);
+    const auto wrongTypes = [&](json& m) {
+      m["frame"]["origin_mm"] = deep;
+      m["dithering"]["seed"] = "\x1b[31mred";
+    };
+    rezip(dir / "t.zip", tampered(original, wrongTypes));
     InspectReport report = inspectJob(dir / "t.zip");
     CHECK(hasDefect(report, "manifest.json: frame.origin_mm: expected an array of three finite numbers, got an array"));
     CHECK(hasDefect(report, "manifest.json: dithering.seed: expected a whole number >= 0, got \"\\x1b[31mred\""));
-    m["image"]["format"] = deep;
-    setManifest(files, m);
-    rezip(dir / "t.zip", files);
+    rezip(dir / "t.zip", tampered(original, [&](json& m) {
+            wrongTypes(m);
+            m["image"]["format"] = deep;
+          }));
     report = inspectJob(dir / "t.zip");
     CHECK(hasDefect(report, "manifest.json: image.format: expected a string, got an array"));
   }

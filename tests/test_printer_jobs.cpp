@@ -2,6 +2,7 @@
 // voxel for voxel; support, thread and band independence, tampering, grids the writer refuses, tiles
 // and previews. Replacing, atomicity, interrupts and staging folders: test_printer_jobs_commit.cpp.
 // Profiles, bitmaps and the layout: tests/test_printer_profiles.cpp.
+#include "printer_profiles/leaf_bits.hpp"  // internal: a leaf's bits as image rows
 #include "printer_profiles/previews.hpp"  // internal: the views' memory
 #include "common/xxh128.hpp"
 #include "tests/printer_jobs_fixture.hpp"
@@ -317,5 +318,23 @@ TEST_CASE("Preview views keep only the cells their pixels show", "[job][previews
     const std::size_t fullResolution = 9 * (std::size_t{9456} * 473 + std::size_t{9456} * 5000 + std::size_t{473} * 5000);
     CHECK(fullResolution > 400'000'000);
     CHECK(previews.memoryBytes() < 8'000'000);
+  }
+}
+
+TEST_CASE("A leaf's image rows hold the voxels OpenVDB says are on", "[job][leaf]") {
+  // The truth is OpenVDB's own isValueOn, not the bit layout the writer assumes.
+  std::mt19937 random(7);
+  for (int trial = 0; trial < 200; ++trial) {
+    openvdb::BoolTree::LeafNodeType leaf(openvdb::Coord(0), false);
+    const int density = trial % 4;  // sparse to full
+    for (openvdb::Index n = 0; n < openvdb::BoolTree::LeafNodeType::SIZE; ++n)
+      if (static_cast<int>(random() % 4) < density || trial == 0) leaf.setValueOn(n, true);
+    const LeafRows rows(maskBytes(leaf.getValueMask()));
+    for (int z = 0; z < 8; ++z)
+      for (int y = 0; y < 8; ++y)
+        for (int x = 0; x < 8; ++x) {
+          const bool bit = (rows.row(y, z) >> (7 - x)) & 1;
+          REQUIRE(bit == leaf.isValueOn(openvdb::Coord(x, y, z)));
+        }
   }
 }
