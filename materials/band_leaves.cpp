@@ -1,6 +1,7 @@
 #include "materials/band_leaves.hpp"
 
 #include "materials/ditherer.hpp"
+#include "voxel/tree_assembly.hpp"
 
 #include <algorithm>
 #include <stdexcept>
@@ -151,32 +152,11 @@ SpareNodes OutputTreeRecycler::takeSpares() {
 
 openvdb::BoolTree::Ptr OutputTreeRecycler::assemble(const LeafGroups& groups, std::vector<std::unique_ptr<BoolLeaf>>& leaves,
                                                     SpareNodes& spares) const {
-  // The parents in parallel (each takes its own leaves), then the few upper nodes and the root.
-  std::vector<std::unique_ptr<BoolLeafParent>> parents(groups.parentCount());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, parents.size()), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t p = r.begin(); p != r.end(); ++p) {
-      const std::size_t first = groups.begin[p], last = groups.begin[p + 1];
-      if (std::none_of(leaves.begin() + first, leaves.begin() + last, [](const auto& leaf) { return bool(leaf); })) continue;
-      const openvdb::Coord origin = groups.leaves[first]->origin() & ~(BoolLeafParent::DIM - 1);
-      parents[p] = spares.parent(p, origin);
-      for (std::size_t l = first; l != last; ++l)
-        if (leaves[l]) parents[p]->addChild(leaves[l].release());
-    }
-  });
   std::unique_ptr<openvdb::BoolTree> tree = std::make_unique<openvdb::BoolTree>(false);
-  std::vector<BoolUpperNode*> uppers;  // owned by the tree
-  for (auto& parent : parents) {
-    if (!parent) continue;
-    const openvdb::Coord origin = parent->origin() & ~(BoolUpperNode::DIM - 1);
-    auto upper = std::find_if(uppers.begin(), uppers.end(), [&](const BoolUpperNode* u) { return u->origin() == origin; });
-    if (upper == uppers.end()) {
-      std::unique_ptr<BoolUpperNode> node = spares.upper(uppers.size(), origin);
-      upper = uppers.insert(uppers.end(), node.get());
-      tree->root().addChild(node.get());
-      node.release();  // the tree's now
-    }
-    (*upper)->addChild(parent.release());
-  }
+  const auto forEachLeaf = [&](std::size_t p, const auto& visit) {
+    for (std::size_t l = groups.begin[p]; l != groups.begin[p + 1]; ++l) visit(leaves[l]);
+  };
+  voxel::assembleTree(*tree, groups.parentCount(), forEachLeaf, spares);
   // The tree comes back to `returned_` when its last owner lets it go (if the recycler is still there).
   return openvdb::BoolTree::Ptr(tree.release(), [weak = std::weak_ptr<Returned>(returned_)](openvdb::BoolTree* t) {
     if (const std::shared_ptr<Returned> returned = weak.lock()) {

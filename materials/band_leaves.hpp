@@ -2,6 +2,8 @@
 // the band, fraction checks and the assembly of the output grid. Internal to materials/.
 #pragma once
 
+#include "voxel/tree_assembly.hpp"
+
 #include <openvdb/openvdb.h>
 
 #include <tbb/blocked_range.h>
@@ -70,11 +72,12 @@ openvdb::BoolGrid::Ptr materialGrid(openvdb::BoolTree::Ptr tree, const openvdb::
 openvdb::BoolGrid::Ptr assembleMaterialGrid(std::vector<std::unique_ptr<BoolLeaf>>& leaves,
                                             const openvdb::FloatGrid& like);
 
-using BoolLeafParent = openvdb::BoolTree::RootNodeType::ChildNodeType::ChildNodeType;  // 128^3 voxels
-using BoolUpperNode = openvdb::BoolTree::RootNodeType::ChildNodeType;                    // 4096^3 voxels
+using BoolLeafParent = voxel::LeafParentOf<openvdb::BoolTree>;  // 128^3 voxels
+using BoolUpperNode = voxel::UpperNodeOf<openvdb::BoolTree>;     // 4096^3 voxels
 
 // Nodes taken from an output tree its owners let go of, to build the next one from. Each spare is
-// handed out by index (so threads can take them without a lock); the ones not taken are deleted.
+// handed out by index (so threads can take them without a lock); the ones not taken are deleted. A
+// node source of voxel::assembleTree (voxel/tree_assembly.hpp).
 class SpareNodes {
 public:
   SpareNodes() = default;

@@ -6,6 +6,7 @@
 
 #include "materials/band_leaves.hpp"
 #include "materials/ditherer.hpp"
+#include "voxel/tree_assembly.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -145,38 +146,15 @@ FractionMap::FractionMap(const calibration::Calibration& calibration, std::size_
 namespace {
 
 using detail::FloatLeaf;
-using FloatLeafParent = openvdb::FloatTree::RootNodeType::ChildNodeType::ChildNodeType;  // 128^3 voxels
-using FloatUpperNode = openvdb::FloatTree::RootNodeType::ChildNodeType;                    // 4096^3 voxels
-
-// A tree (background 0) of `leaves` (null entries skipped), grouped by parent as in `groups`: the
-// parents in parallel, each taking its own leaves, then the few upper nodes and the root. The same tree
-// as adding the leaves one by one (every node created with the background, inactive), without a
-// serial walk from the root per leaf.
+// A tree (background 0) of `leaves` (null entries skipped), grouped by parent as in `groups`, assembled
+// parent by parent (voxel/tree_assembly.hpp).
 openvdb::FloatTree::Ptr assembleTree(const detail::LeafGroups& groups, std::vector<std::unique_ptr<FloatLeaf>>& leaves) {
-  std::vector<std::unique_ptr<FloatLeafParent>> parents(groups.parentCount());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, parents.size()), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t p = r.begin(); p != r.end(); ++p) {
-      const std::size_t first = groups.begin[p], last = groups.begin[p + 1];
-      for (std::size_t l = first; l != last; ++l) {
-        if (!leaves[l]) continue;
-        if (!parents[p]) parents[p] = std::make_unique<FloatLeafParent>(leaves[l]->origin() & ~(FloatLeafParent::DIM - 1), 0.0f, false);
-        parents[p]->addChild(leaves[l].release());
-      }
-    }
-  });
   auto tree = std::make_shared<openvdb::FloatTree>(0.0f);
-  std::vector<FloatUpperNode*> uppers;  // owned by the tree
-  for (auto& parent : parents) {
-    if (!parent) continue;
-    const openvdb::Coord origin = parent->origin() & ~(FloatUpperNode::DIM - 1);
-    auto upper = std::find_if(uppers.begin(), uppers.end(), [&](const FloatUpperNode* u) { return u->origin() == origin; });
-    if (upper == uppers.end()) {
-      auto node = std::make_unique<FloatUpperNode>(origin, 0.0f, false);
-      upper = uppers.insert(uppers.end(), node.get());
-      tree->root().addChild(node.release());
-    }
-    (*upper)->addChild(parent.release());
-  }
+  voxel::FreshNodes<openvdb::FloatTree> nodes{0.0f};
+  const auto forEachLeaf = [&](std::size_t p, const auto& visit) {
+    for (std::size_t l = groups.begin[p]; l != groups.begin[p + 1]; ++l) visit(leaves[l]);
+  };
+  voxel::assembleTree(*tree, groups.parentCount(), forEachLeaf, nodes);
   return tree;
 }
 

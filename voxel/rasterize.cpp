@@ -2,6 +2,7 @@
 
 #include "voxel/leaf_builder.hpp"
 #include "voxel/rod_pieces.hpp"
+#include "voxel/tree_assembly.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
@@ -109,15 +110,10 @@ void buildBlock(LeafBuilder& builder, const std::vector<RodPieces>& rods, const 
   builder.emit(origin, leaves);
 }
 
-using LeafParent = openvdb::FloatTree::RootNodeType::ChildNodeType::ChildNodeType;  // 128^3 voxels
-using UpperNode = openvdb::FloatTree::RootNodeType::ChildNodeType;                    // 4096^3 voxels
-
-// The blocks' leaves into `tree` (empty, background 0): the leaf parents in parallel, each taking the
-// leaves of its blocks (a block, 64 voxels along x from a multiple of 64, lies in one parent), then
-// the few upper nodes and the root. The same tree as adding the leaves one by one (every node made
-// with the background, inactive), without a serial walk from the root per leaf.
-void assembleTree(const BlockList& list, std::vector<BlockLeaves>& leaves, openvdb::FloatTree& tree) {
-  constexpr int kParentLog2 = LeafParent::TOTAL;
+// The blocks' leaves into `tree` (empty, background 0), grouped by leaf parent (a block, 64 voxels
+// along x from a multiple of 64, lies in one parent): see tree_assembly.hpp.
+void assembleBlocks(const BlockList& list, std::vector<BlockLeaves>& leaves, openvdb::FloatTree& tree) {
+  constexpr int kParentLog2 = LeafParentOf<openvdb::FloatTree>::TOTAL;
   std::vector<std::pair<std::uint64_t, std::size_t>> byParent;  // (parent's packed key, block), sorted
   byParent.reserve(list.count());
   for (std::size_t g = 0; g < list.count(); ++g) {
@@ -129,28 +125,12 @@ void assembleTree(const BlockList& list, std::vector<BlockLeaves>& leaves, openv
   for (std::size_t b = 0; b < byParent.size(); ++b)
     if (b == 0 || byParent[b].first != byParent[b - 1].first) groupStart.push_back(b);
   groupStart.push_back(byParent.size());
-  std::vector<std::unique_ptr<LeafParent>> parents(groupStart.size() - 1);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, parents.size()), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t p = r.begin(); p != r.end(); ++p)
-      for (std::size_t b = groupStart[p]; b != groupStart[p + 1]; ++b)
-        for (std::unique_ptr<LeafT>& leaf : leaves[byParent[b].second]) {
-          if (!leaf) continue;
-          if (!parents[p]) parents[p] = std::make_unique<LeafParent>(leaf->origin() & ~(LeafParent::DIM - 1), 0.0f, false);
-          parents[p]->addChild(leaf.release());
-        }
-  });
-  std::vector<UpperNode*> uppers;  // owned by the tree
-  for (std::unique_ptr<LeafParent>& parent : parents) {
-    if (!parent) continue;
-    const openvdb::Coord origin = parent->origin() & ~(UpperNode::DIM - 1);
-    auto upper = std::find_if(uppers.begin(), uppers.end(), [&](const UpperNode* u) { return u->origin() == origin; });
-    if (upper == uppers.end()) {
-      auto node = std::make_unique<UpperNode>(origin, 0.0f, false);
-      upper = uppers.insert(uppers.end(), node.get());
-      tree.root().addChild(node.release());
-    }
-    (*upper)->addChild(parent.release());
-  }
+  FreshNodes<openvdb::FloatTree> nodes{0.0f};
+  const auto forEachLeaf = [&](std::size_t p, const auto& visit) {
+    for (std::size_t b = groupStart[p]; b != groupStart[p + 1]; ++b)
+      for (std::unique_ptr<LeafT>& leaf : leaves[byParent[b].second]) visit(leaf);
+  };
+  assembleTree(tree, groupStart.size() - 1, forEachLeaf, nodes);
 }
 
 }  // namespace
@@ -230,7 +210,7 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
     out.exactEvaluations += s.builder->exactEvaluations;
     for (std::size_t r = 0; r < rods_.size(); ++r) out.voxelsPerRod[r] += s.builder->voxelsPerRod[r];
   }
-  assembleTree(blocks, leaves, out.grid->tree());
+  assembleBlocks(blocks, leaves, out.grid->tree());
   return out;
 }
 
