@@ -79,95 +79,12 @@ void throwFirstInvalid(const openvdb::FloatGrid& fraction, int k0, int k1) {
   check.throwIfFailed(fraction, leaves);
 }
 
-namespace {
-
-// Spare node `index` (taken out of the list) moved to `origin`, or a new node there if there is none.
-template <typename Node>
-std::unique_ptr<Node> spareOrNew(std::vector<Node*>& spares, std::size_t index, const openvdb::Coord& origin) {
-  if (index < spares.size() && spares[index]) {
-    std::unique_ptr<Node> node(std::exchange(spares[index], nullptr));
-    node->setOrigin(origin);
-    return node;
-  }
-  return std::make_unique<Node>(origin, false, false);
-}
-
-template <typename Node>
-void deleteAll(std::vector<Node*>& nodes) {
-  for (Node*& node : nodes) delete std::exchange(node, nullptr);
-}
-
-// Keeps the internal nodes that came out of a tree empty (no child, every tile false and off), deleting
-// the others: an owner may have changed the tree before letting it go.
-template <typename Node>
-void keepEmpty(std::vector<Node*>& nodes) {
-  for (Node*& node : nodes) {
-    bool value = true, active = true;
-    if (!node->isConstant(value, active) || value || active) delete std::exchange(node, nullptr);
-  }
-}
-
-}  // namespace
-
-SpareNodes::~SpareNodes() {
-  deleteAll(leaves_);
-  deleteAll(parents_);
-  deleteAll(uppers_);
-}
-
-std::unique_ptr<BoolLeaf> SpareNodes::leaf(std::size_t index, const openvdb::Coord& origin) {
-  return spareOrNew(leaves_, index, origin);
-}
-
-std::unique_ptr<BoolLeafParent> SpareNodes::parent(std::size_t index, const openvdb::Coord& origin) {
-  return spareOrNew(parents_, index, origin);
-}
-
-std::unique_ptr<BoolUpperNode> SpareNodes::upper(std::size_t index, const openvdb::Coord& origin) {
-  return spareOrNew(uppers_, index, origin);
-}
-
-OutputTreeRecycler::OutputTreeRecycler() : returned_(std::make_shared<Returned>()) {
-  returned_->trees.reserve(kKeptTrees);  // so that giving a tree back never allocates
-}
-
-SpareNodes OutputTreeRecycler::takeSpares() {
-  std::unique_ptr<openvdb::BoolTree> tree;
-  {
-    const std::lock_guard<std::mutex> lock(returned_->mutex);
-    if (returned_->trees.empty()) return {};
-    tree = std::move(returned_->trees.front());
-    returned_->trees.erase(returned_->trees.begin());
-  }
-  SpareNodes spares;
-  // Leaves first, then their emptied parents, then the emptied upper nodes.
-  spares.leaves_.reserve(tree->leafCount());
-  tree->stealNodes(spares.leaves_);
-  tree->stealNodes(spares.parents_);
-  tree->stealNodes(spares.uppers_);
-  keepEmpty(spares.parents_);
-  keepEmpty(spares.uppers_);
-  return spares;
-}
-
 openvdb::BoolTree::Ptr OutputTreeRecycler::assemble(const LeafGroups& groups, std::vector<std::unique_ptr<BoolLeaf>>& leaves,
                                                     SpareNodes& spares) const {
-  std::unique_ptr<openvdb::BoolTree> tree = std::make_unique<openvdb::BoolTree>(false);
   const auto forEachLeaf = [&](std::size_t p, const auto& visit) {
     for (std::size_t l = groups.begin[p]; l != groups.begin[p + 1]; ++l) visit(leaves[l]);
   };
-  voxel::assembleTree(*tree, groups.parentCount(), forEachLeaf, spares);
-  // The tree comes back to `returned_` when its last owner lets it go (if the recycler is still there).
-  return openvdb::BoolTree::Ptr(tree.release(), [weak = std::weak_ptr<Returned>(returned_)](openvdb::BoolTree* t) {
-    if (const std::shared_ptr<Returned> returned = weak.lock()) {
-      const std::lock_guard<std::mutex> lock(returned->mutex);
-      if (returned->trees.size() < kKeptTrees) {
-        returned->trees.emplace_back(t);
-        return;
-      }
-    }
-    delete t;
-  });
+  return voxel::TreeRecycler<openvdb::BoolTree>::assemble(groups.parentCount(), forEachLeaf, spares);
 }
 
 openvdb::BoolGrid::Ptr materialGrid(openvdb::BoolTree::Ptr tree, const openvdb::FloatGrid& like) {

@@ -11,6 +11,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <atomic>
 #include <limits>
 #include <memory>
 #include <utility>
@@ -140,10 +141,11 @@ BlockList listBlocks(const std::vector<RodPieces>& rods, int zBegin, int zEnd, c
 }
 
 // Block g of the list, its pieces added in sorted order within the band, into `leaves` (none where
-// no piece reaches a voxel of the band).
+// no piece reaches a voxel of the band; see LeafBuilder::emit for the spares).
 template <typename Poll>
 void buildBlock(LeafBuilder& builder, const std::vector<RodPieces>& rods, const BlockList& list, std::size_t g, int zBegin,
-                int zEnd, const Poll& poll, BlockLeaves& leaves) {
+                int zEnd, const Poll& poll, SpareNodes<openvdb::FloatTree>& spares, std::atomic<std::size_t>& nextSpare,
+                BlockLeaves& leaves) {
   const openvdb::Coord origin = blockOrigin(list.entries[list.start[g]].block);
   openvdb::CoordBBox blockBox(origin, origin + openvdb::Coord((kLeafDim << kBlockLeavesLog2) - 1, kLeafDim - 1, kLeafDim - 1));
   blockBox.min().z() = std::max(blockBox.min().z(), zBegin);
@@ -160,12 +162,14 @@ void buildBlock(LeafBuilder& builder, const std::vector<RodPieces>& rods, const 
     touched = true;
   }
   if (!touched) return;
-  builder.emit(origin, leaves);
+  builder.emit(origin, spares, nextSpare, leaves);
 }
 
-// The blocks' leaves into `tree` (empty, background 0), grouped by leaf parent (a block, 64 voxels
-// along x from a multiple of 64, lies in one parent): see tree_assembly.hpp.
-void assembleBlocks(const BlockList& list, std::vector<BlockLeaves>& leaves, openvdb::FloatTree& tree) {
+// The blocks' leaves in a tree (background 0) from `recycler` with internal nodes from `spares`,
+// grouped by leaf parent (a block, 64 voxels along x from a multiple of 64, lies in one parent): see
+// tree_assembly.hpp.
+openvdb::FloatTree::Ptr assembleBlocks(const BlockList& list, std::vector<BlockLeaves>& leaves,
+                                       const TreeRecycler<openvdb::FloatTree>& recycler, SpareNodes<openvdb::FloatTree>& spares) {
   constexpr int kParentLog2 = LeafParentOf<openvdb::FloatTree>::TOTAL;
   std::vector<std::pair<std::uint64_t, std::size_t>> byParent;  // (parent's packed key, block), sorted
   byParent.reserve(list.count());
@@ -178,18 +182,26 @@ void assembleBlocks(const BlockList& list, std::vector<BlockLeaves>& leaves, ope
   for (std::size_t b = 0; b < byParent.size(); ++b)
     if (b == 0 || byParent[b].first != byParent[b - 1].first) groupStart.push_back(b);
   groupStart.push_back(byParent.size());
-  FreshNodes<openvdb::FloatTree> nodes{0.0f};
   const auto forEachLeaf = [&](std::size_t p, const auto& visit) {
     for (std::size_t b = groupStart[p]; b != groupStart[p + 1]; ++b)
       for (std::unique_ptr<LeafT>& leaf : leaves[byParent[b].second]) visit(leaf);
   };
-  assembleTree(tree, groupStart.size() - 1, forEachLeaf, nodes);
+  return recycler.assemble(groupStart.size() - 1, forEachLeaf, spares);
+}
+
+// A modulus grid (kModulusGridName) of `tree` on the printer's grid.
+openvdb::FloatGrid::Ptr modulusGrid(openvdb::FloatTree::Ptr tree, const PrinterGrid& grid) {
+  openvdb::FloatGrid::Ptr out = openvdb::FloatGrid::create(std::move(tree));
+  out->setName(kModulusGridName);
+  out->setTransform(grid.transform());
+  out->setGridClass(openvdb::GRID_UNKNOWN);
+  return out;
 }
 
 }  // namespace
 
 Rasterizer::Rasterizer(const geometry::RodStructure& structure, const PrinterGrid& grid, RasterOptions options)
-    : structure_(&structure), grid_(grid), options_(std::move(options)) {
+    : structure_(&structure), grid_(grid), options_(std::move(options)), trees_(std::make_unique<TreeRecycler<openvdb::FloatTree>>(0.0f)) {
   rods_.resize(structure.rods.size());
   // Voxels are only ever emitted inside the design's bounding box (geometry::Rod::bounds holds every
   // rod's solid), the part bounds the job writer checks.
@@ -232,14 +244,13 @@ Rasterization Rasterizer::rasterizeLayers(int zBegin, int zEnd) const {
 
 Rasterization Rasterizer::run(int zBegin, int zEnd) const {
   Rasterization out;
-  out.grid = openvdb::FloatGrid::create(0.0f);
-  out.grid->setName(kModulusGridName);
-  out.grid->setTransform(grid_.transform());
-  out.grid->setGridClass(openvdb::GRID_UNKNOWN);
   out.voxelsPerRod.assign(rods_.size(), 0);
   zBegin = std::max(zBegin, 0);
   zEnd = std::min(zEnd, grid_.dims.z());
-  if (zBegin >= zEnd) return out;
+  if (zBegin >= zEnd) {
+    out.grid = modulusGrid(std::make_shared<openvdb::FloatTree>(0.0f), grid_);
+    return out;
+  }
 
   const auto poll = [this] { checkInterrupt(); };
   const BlockList blocks = listBlocks(rods_, zBegin, zEnd, poll);
@@ -249,12 +260,14 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
   };
   tbb::enumerable_thread_specific<ThreadState> states;
   std::vector<BlockLeaves> leaves(blocks.count());
+  SpareNodes<openvdb::FloatTree> spares = trees_->takeSpares();
+  std::atomic<std::size_t> nextSpare{0};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks.count()), [&](const tbb::blocked_range<std::size_t>& range) {
     ThreadState& state = states.local();
     if (!state.builder) state.builder.reset(new LeafBuilder(*structure_, rods_, grid_, options_.wasInterrupted));  // slots mostly uninitialized
     for (std::size_t g = range.begin(); g != range.end(); ++g) {
       poll();
-      buildBlock(*state.builder, rods_, blocks, g, zBegin, zEnd, poll, leaves[g]);
+      buildBlock(*state.builder, rods_, blocks, g, zBegin, zEnd, poll, spares, nextSpare, leaves[g]);
     }
   });
 
@@ -263,7 +276,7 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
     out.exactEvaluations += s.builder->exactEvaluations;
     for (std::size_t r = 0; r < rods_.size(); ++r) out.voxelsPerRod[r] += s.builder->voxelsPerRod[r];
   }
-  assembleBlocks(blocks, leaves, out.grid->tree());
+  out.grid = modulusGrid(assembleBlocks(blocks, leaves, *trees_, spares), grid_);
   return out;
 }
 

@@ -28,6 +28,11 @@
 //
 // Threads: runs in the caller's TBB arena (tbb::parallel_for over the groups). The tree's shape and
 // contents do not depend on the thread count, and neither do the indices passed to `nodes`.
+//
+// Streaming band after band, the nodes of the trees already let go of can be reused (TreeRecycler,
+// below): a band's leaves and internal nodes are then allocated for the first bands only, instead of
+// once per band (malloc, filling and page-faulting fresh nodes cost as much as the arithmetic on some
+// classes). SpareNodes is the node source of a recycled tree.
 #pragma once
 
 #include <openvdb/openvdb.h>
@@ -38,6 +43,8 @@
 #include <algorithm>
 #include <cstddef>
 #include <memory>
+#include <mutex>
+#include <utility>
 #include <vector>
 
 namespace rodfab::voxel {
@@ -88,5 +95,131 @@ void assembleTree(TreeT& tree, std::size_t groupCount, const ForEachLeaf& forEac
     (*upper)->addChild(parent.release());
   }
 }
+
+template <typename TreeT>
+class TreeRecycler;
+
+// Nodes taken from a tree its owners let go of (TreeRecycler::takeSpares), to build the next one from.
+// Each spare is handed out by index, so threads can take different ones without a lock; the ones not
+// taken are deleted with the SpareNodes. A node source of assembleTree.
+template <typename TreeT>
+class SpareNodes {
+public:
+  using LeafT = typename TreeT::LeafNodeType;
+  using ParentT = LeafParentOf<TreeT>;
+  using UpperT = UpperNodeOf<TreeT>;
+  SpareNodes() = default;
+  SpareNodes(SpareNodes&&) = default;
+  SpareNodes& operator=(SpareNodes&&) = delete;
+  ~SpareNodes() {
+    deleteAll(leaves_);
+    deleteAll(parents_);
+    deleteAll(uppers_);
+  }
+  // Spare node `index` moved to `origin`, or a new node there (holding `background_`, inactive) if
+  // there is no such spare. A reused leaf keeps its old values and value mask: the caller sets both.
+  // Internal nodes are handed out empty (see TreeRecycler::takeSpares).
+  std::unique_ptr<LeafT> leaf(std::size_t index, const openvdb::Coord& origin) { return spareOrNew(leaves_, index, origin); }
+  std::unique_ptr<ParentT> parent(std::size_t index, const openvdb::Coord& origin) { return spareOrNew(parents_, index, origin); }
+  std::unique_ptr<UpperT> upper(std::size_t index, const openvdb::Coord& origin) { return spareOrNew(uppers_, index, origin); }
+  // Whether leaf(index, ...) would hand out a reused leaf (whose values the caller must then clear).
+  bool hasLeaf(std::size_t index) const { return index < leaves_.size() && leaves_[index]; }
+
+private:
+  friend class TreeRecycler<TreeT>;
+  template <typename Node>
+  std::unique_ptr<Node> spareOrNew(std::vector<Node*>& spares, std::size_t index, const openvdb::Coord& origin) {
+    if (index < spares.size() && spares[index]) {
+      std::unique_ptr<Node> node(std::exchange(spares[index], nullptr));
+      node->setOrigin(origin);
+      if constexpr (requires { node->setTransientData(0); }) node->setTransientData(0);  // as a new node's
+      return node;
+    }
+    return std::make_unique<Node>(origin, background_, false);
+  }
+  template <typename Node>
+  static void deleteAll(std::vector<Node*>& nodes) {
+    for (Node*& node : nodes) delete std::exchange(node, nullptr);
+  }
+  typename TreeT::ValueType background_ = openvdb::zeroVal<typename TreeT::ValueType>();
+  std::vector<LeafT*> leaves_;
+  std::vector<ParentT*> parents_;
+  std::vector<UpperT*> uppers_;
+};
+
+// The trees a producer made come back here when their last owner lets them go, and the next one is
+// built from their nodes. At most kKeptTrees trees wait; further ones, and every one let go after the
+// recycler is gone, are deleted. Thread-safe: trees come back from any thread, and takeSpares and
+// assemble may be called from several threads at once.
+template <typename TreeT>
+class TreeRecycler {
+public:
+  static constexpr std::size_t kKeptTrees = 2;
+  using LeafT = typename TreeT::LeafNodeType;
+  using ValueT = typename TreeT::ValueType;
+
+  // Trees with background `background`.
+  explicit TreeRecycler(ValueT background = openvdb::zeroVal<ValueT>()) : background_(background), returned_(std::make_shared<Returned>()) {
+    returned_->trees.reserve(kKeptTrees);  // so that giving a tree back never allocates
+  }
+
+  // The nodes of the tree that came back first (none if no tree came back yet): every leaf, and the
+  // internal nodes left empty (an owner may have changed the tree before letting it go; internal nodes
+  // that still hold a tile other than the inactive background are deleted, not reused).
+  SpareNodes<TreeT> takeSpares() {
+    SpareNodes<TreeT> spares;
+    spares.background_ = background_;
+    std::unique_ptr<TreeT> tree;
+    {
+      const std::lock_guard<std::mutex> lock(returned_->mutex);
+      if (returned_->trees.empty()) return spares;
+      tree = std::move(returned_->trees.front());
+      returned_->trees.erase(returned_->trees.begin());
+    }
+    // Leaves first (each replaced by an inactive background tile), then the emptied parents and uppers.
+    spares.leaves_.reserve(tree->leafCount());
+    tree->stealNodes(spares.leaves_, background_, false);
+    tree->stealNodes(spares.parents_, background_, false);
+    tree->stealNodes(spares.uppers_, background_, false);
+    keepEmpty(spares.parents_);
+    keepEmpty(spares.uppers_);
+    return spares;
+  }
+
+  // assembleTree (see above) into a new tree (background as given to the constructor) with internal
+  // nodes from `spares`, that comes back here when its owners let it go.
+  template <typename ForEachLeaf>
+  typename TreeT::Ptr assemble(std::size_t groupCount, const ForEachLeaf& forEachLeaf, SpareNodes<TreeT>& spares) const {
+    auto tree = std::make_unique<TreeT>(background_);
+    assembleTree(*tree, groupCount, forEachLeaf, spares);
+    return typename TreeT::Ptr(tree.release(), [weak = std::weak_ptr<Returned>(returned_)](TreeT* t) {
+      if (const std::shared_ptr<Returned> returned = weak.lock()) {
+        const std::lock_guard<std::mutex> lock(returned->mutex);
+        if (returned->trees.size() < kKeptTrees) {
+          returned->trees.emplace_back(t);
+          return;
+        }
+      }
+      delete t;
+    });
+  }
+
+private:
+  struct Returned {
+    std::mutex mutex;
+    std::vector<std::unique_ptr<TreeT>> trees;
+  };
+  template <typename Node>
+  void keepEmpty(std::vector<Node*>& nodes) const {
+    for (Node*& node : nodes) {
+      ValueT value;
+      bool active = true;
+      if (!node->isConstant(value, active) || active || !openvdb::math::isExactlyEqual(value, background_))
+        delete std::exchange(node, nullptr);
+    }
+  }
+  ValueT background_;
+  std::shared_ptr<Returned> returned_;
+};
 
 }  // namespace rodfab::voxel
