@@ -42,6 +42,7 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <utility>
@@ -179,6 +180,11 @@ public:
     // Leaves first (each replaced by an inactive background tile), then the emptied parents and uppers.
     spares.leaves_.reserve(tree->leafCount());
     tree->stealNodes(spares.leaves_, background_, false);
+    // In address order: the k-th leaf a producer asks for gets the k-th lowest address, so a band's
+    // leaves lie in memory in the order they were made, as fresh allocations from one heap would (in the
+    // old tree's order, the layout got more scattered band after band, and every pass over the leaves
+    // in order paid for it).
+    std::sort(spares.leaves_.begin(), spares.leaves_.end(), std::less<>());
     tree->stealNodes(spares.parents_, background_, false);
     tree->stealNodes(spares.uppers_, background_, false);
     keepEmpty(spares.parents_);
