@@ -181,6 +181,7 @@ void rasterizeClass(benchmark::State& state, const std::string& name, bool map) 
   const voxel::Rasterizer rasterizer(w.structure, w.grid, {static_cast<int>(state.range(0))});
   const materials::FractionMap fractionMap(calibration::loadDefaultCalibration());
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(state.range(0)));
+  voxel::TreeRecycler<openvdb::FloatTree> fractionTrees(0.0f);  // as `rodfab slice` streams its bands
   std::uint64_t active = 0, exact = 0;
   bool first = true;
   const double cpu0 = processCpuSeconds();
@@ -194,7 +195,7 @@ void rasterizeClass(benchmark::State& state, const std::string& name, bool map) 
       if (first) verify(state, r, n);
       if (map) {
         materials::MappingStats stats;
-        const openvdb::FloatGrid::Ptr fractions = materials::mapToFractions(*r.grid, fractionMap, z, z + kSliceBandLayers, stats);
+        const openvdb::FloatGrid::Ptr fractions = materials::mapToFractions(*r.grid, fractionMap, z, z + kSliceBandLayers, stats, fractionTrees);
         benchmark::DoNotOptimize(fractions.get());
         if (first && stats.voxels != n) state.SkipWithError("mapping lost voxels");
       }

@@ -1,6 +1,7 @@
 #include "materials/band_leaves.hpp"
 
 #include "materials/ditherer.hpp"
+#include "voxel/tree_assembly.hpp"
 
 #include <algorithm>
 #include <stdexcept>
@@ -78,116 +79,12 @@ void throwFirstInvalid(const openvdb::FloatGrid& fraction, int k0, int k1) {
   check.throwIfFailed(fraction, leaves);
 }
 
-namespace {
-
-// Spare node `index` (taken out of the list) moved to `origin`, or a new node there if there is none.
-template <typename Node>
-std::unique_ptr<Node> spareOrNew(std::vector<Node*>& spares, std::size_t index, const openvdb::Coord& origin) {
-  if (index < spares.size() && spares[index]) {
-    std::unique_ptr<Node> node(std::exchange(spares[index], nullptr));
-    node->setOrigin(origin);
-    return node;
-  }
-  return std::make_unique<Node>(origin, false, false);
-}
-
-template <typename Node>
-void deleteAll(std::vector<Node*>& nodes) {
-  for (Node*& node : nodes) delete std::exchange(node, nullptr);
-}
-
-// Keeps the internal nodes that came out of a tree empty (no child, every tile false and off), deleting
-// the others: an owner may have changed the tree before letting it go.
-template <typename Node>
-void keepEmpty(std::vector<Node*>& nodes) {
-  for (Node*& node : nodes) {
-    bool value = true, active = true;
-    if (!node->isConstant(value, active) || value || active) delete std::exchange(node, nullptr);
-  }
-}
-
-}  // namespace
-
-SpareNodes::~SpareNodes() {
-  deleteAll(leaves_);
-  deleteAll(parents_);
-  deleteAll(uppers_);
-}
-
-std::unique_ptr<BoolLeaf> SpareNodes::leaf(std::size_t index, const openvdb::Coord& origin) {
-  return spareOrNew(leaves_, index, origin);
-}
-
-std::unique_ptr<BoolLeafParent> SpareNodes::parent(std::size_t index, const openvdb::Coord& origin) {
-  return spareOrNew(parents_, index, origin);
-}
-
-std::unique_ptr<BoolUpperNode> SpareNodes::upper(std::size_t index, const openvdb::Coord& origin) {
-  return spareOrNew(uppers_, index, origin);
-}
-
-OutputTreeRecycler::OutputTreeRecycler() : returned_(std::make_shared<Returned>()) {
-  returned_->trees.reserve(kKeptTrees);  // so that giving a tree back never allocates
-}
-
-SpareNodes OutputTreeRecycler::takeSpares() {
-  std::unique_ptr<openvdb::BoolTree> tree;
-  {
-    const std::lock_guard<std::mutex> lock(returned_->mutex);
-    if (returned_->trees.empty()) return {};
-    tree = std::move(returned_->trees.front());
-    returned_->trees.erase(returned_->trees.begin());
-  }
-  SpareNodes spares;
-  // Leaves first, then their emptied parents, then the emptied upper nodes.
-  spares.leaves_.reserve(tree->leafCount());
-  tree->stealNodes(spares.leaves_);
-  tree->stealNodes(spares.parents_);
-  tree->stealNodes(spares.uppers_);
-  keepEmpty(spares.parents_);
-  keepEmpty(spares.uppers_);
-  return spares;
-}
-
 openvdb::BoolTree::Ptr OutputTreeRecycler::assemble(const LeafGroups& groups, std::vector<std::unique_ptr<BoolLeaf>>& leaves,
                                                     SpareNodes& spares) const {
-  // The parents in parallel (each takes its own leaves), then the few upper nodes and the root.
-  std::vector<std::unique_ptr<BoolLeafParent>> parents(groups.parentCount());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, parents.size()), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t p = r.begin(); p != r.end(); ++p) {
-      const std::size_t first = groups.begin[p], last = groups.begin[p + 1];
-      if (std::none_of(leaves.begin() + first, leaves.begin() + last, [](const auto& leaf) { return bool(leaf); })) continue;
-      const openvdb::Coord origin = groups.leaves[first]->origin() & ~(BoolLeafParent::DIM - 1);
-      parents[p] = spares.parent(p, origin);
-      for (std::size_t l = first; l != last; ++l)
-        if (leaves[l]) parents[p]->addChild(leaves[l].release());
-    }
-  });
-  std::unique_ptr<openvdb::BoolTree> tree = std::make_unique<openvdb::BoolTree>(false);
-  std::vector<BoolUpperNode*> uppers;  // owned by the tree
-  for (auto& parent : parents) {
-    if (!parent) continue;
-    const openvdb::Coord origin = parent->origin() & ~(BoolUpperNode::DIM - 1);
-    auto upper = std::find_if(uppers.begin(), uppers.end(), [&](const BoolUpperNode* u) { return u->origin() == origin; });
-    if (upper == uppers.end()) {
-      std::unique_ptr<BoolUpperNode> node = spares.upper(uppers.size(), origin);
-      upper = uppers.insert(uppers.end(), node.get());
-      tree->root().addChild(node.get());
-      node.release();  // the tree's now
-    }
-    (*upper)->addChild(parent.release());
-  }
-  // The tree comes back to `returned_` when its last owner lets it go (if the recycler is still there).
-  return openvdb::BoolTree::Ptr(tree.release(), [weak = std::weak_ptr<Returned>(returned_)](openvdb::BoolTree* t) {
-    if (const std::shared_ptr<Returned> returned = weak.lock()) {
-      const std::lock_guard<std::mutex> lock(returned->mutex);
-      if (returned->trees.size() < kKeptTrees) {
-        returned->trees.emplace_back(t);
-        return;
-      }
-    }
-    delete t;
-  });
+  const auto forEachLeaf = [&](std::size_t p, const auto& visit) {
+    for (std::size_t l = groups.begin[p]; l != groups.begin[p + 1]; ++l) visit(leaves[l]);
+  };
+  return voxel::TreeRecycler<openvdb::BoolTree>::assemble(groups.parentCount(), forEachLeaf, spares);
 }
 
 openvdb::BoolGrid::Ptr materialGrid(openvdb::BoolTree::Ptr tree, const openvdb::FloatGrid& like) {

@@ -2,6 +2,8 @@
 // the band, fraction checks and the assembly of the output grid. Internal to materials/.
 #pragma once
 
+#include "voxel/tree_assembly.hpp"
+
 #include <openvdb/openvdb.h>
 
 #include <tbb/blocked_range.h>
@@ -70,54 +72,25 @@ openvdb::BoolGrid::Ptr materialGrid(openvdb::BoolTree::Ptr tree, const openvdb::
 openvdb::BoolGrid::Ptr assembleMaterialGrid(std::vector<std::unique_ptr<BoolLeaf>>& leaves,
                                             const openvdb::FloatGrid& like);
 
-using BoolLeafParent = openvdb::BoolTree::RootNodeType::ChildNodeType::ChildNodeType;  // 128^3 voxels
-using BoolUpperNode = openvdb::BoolTree::RootNodeType::ChildNodeType;                    // 4096^3 voxels
+using BoolLeafParent = voxel::LeafParentOf<openvdb::BoolTree>;  // 128^3 voxels
+using BoolUpperNode = voxel::UpperNodeOf<openvdb::BoolTree>;     // 4096^3 voxels
 
-// Nodes taken from an output tree its owners let go of, to build the next one from. Each spare is
-// handed out by index (so threads can take them without a lock); the ones not taken are deleted.
-class SpareNodes {
-public:
-  SpareNodes() = default;
-  SpareNodes(SpareNodes&&) = default;
-  SpareNodes& operator=(SpareNodes&&) = delete;
-  ~SpareNodes();
-  // Spare leaf or parent `index` moved to `origin`, or a new node there if there is no such spare.
-  // A reused leaf keeps its old values and value mask: the caller sets both.
-  std::unique_ptr<BoolLeaf> leaf(std::size_t index, const openvdb::Coord& origin);
-  std::unique_ptr<BoolLeafParent> parent(std::size_t index, const openvdb::Coord& origin);
-  std::unique_ptr<BoolUpperNode> upper(std::size_t index, const openvdb::Coord& origin);
-
-private:
-  friend class OutputTreeRecycler;
-  std::vector<BoolLeaf*> leaves_;
-  std::vector<BoolLeafParent*> parents_;
-  std::vector<BoolUpperNode*> uppers_;
-};
+// Nodes taken from an output tree its owners let go of, to build the next one from
+// (voxel/tree_assembly.hpp).
+using SpareNodes = voxel::SpareNodes<openvdb::BoolTree>;
 
 // The output trees of earlier bands come back here when their last owner (the slicer's writer) lets
-// them go, and the next band's tree is built from their nodes: a slicer streaming thousands of bands
-// then allocates its output leaves and internal nodes for the first bands only, instead of once per
-// band (malloc, zeroing the 32 KB node tables and page faults on fresh memory cost as much as the
-// dithering arithmetic on the lattice class). At most kKeptTrees trees wait here; further ones, and
-// every one returned after the recycler is gone, are deleted. Thread-safe: trees come back from any
-// thread.
-class OutputTreeRecycler {
+// them go, and the next band's tree is built from their nodes (voxel::TreeRecycler): a slicer streaming
+// thousands of bands then allocates its output leaves and internal nodes for the first bands only,
+// instead of once per band (malloc, zeroing the 32 KB node tables and page faults on fresh memory cost
+// as much as the dithering arithmetic on the lattice class).
+class OutputTreeRecycler : public voxel::TreeRecycler<openvdb::BoolTree> {
 public:
-  static constexpr std::size_t kKeptTrees = 2;
-  OutputTreeRecycler();
-  // The nodes of the tree that came back first (none if no tree came back yet).
-  SpareNodes takeSpares();
+  OutputTreeRecycler() : voxel::TreeRecycler<openvdb::BoolTree>(false) {}
   // A tree with the leaves `leaves` (null entries skipped; grouped by parent as in `groups`), its
   // internal nodes taken from `spares` where there are any, that returns here when its owners let go.
   openvdb::BoolTree::Ptr assemble(const LeafGroups& groups, std::vector<std::unique_ptr<BoolLeaf>>& leaves,
                                   SpareNodes& spares) const;
-
-private:
-  struct Returned {
-    std::mutex mutex;
-    std::vector<std::unique_ptr<openvdb::BoolTree>> trees;
-  };
-  std::shared_ptr<Returned> returned_;
 };
 
 // Bit b of the result is flags[b] (each 0 or 1): eight flags at a time, by the multiply that gathers

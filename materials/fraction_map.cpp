@@ -6,6 +6,7 @@
 
 #include "materials/band_leaves.hpp"
 #include "materials/ditherer.hpp"
+#include "voxel/tree_assembly.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -145,89 +146,69 @@ FractionMap::FractionMap(const calibration::Calibration& calibration, std::size_
 namespace {
 
 using detail::FloatLeaf;
-using FloatLeafParent = openvdb::FloatTree::RootNodeType::ChildNodeType::ChildNodeType;  // 128^3 voxels
-using FloatUpperNode = openvdb::FloatTree::RootNodeType::ChildNodeType;                    // 4096^3 voxels
-
-// A tree (background 0) of `leaves` (null entries skipped), grouped by parent as in `groups`: the
-// parents in parallel, each taking its own leaves, then the few upper nodes and the root. The same tree
-// as adding the leaves one by one (every node created with the background, inactive), without a
-// serial walk from the root per leaf.
-openvdb::FloatTree::Ptr assembleTree(const detail::LeafGroups& groups, std::vector<std::unique_ptr<FloatLeaf>>& leaves) {
-  std::vector<std::unique_ptr<FloatLeafParent>> parents(groups.parentCount());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, parents.size()), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t p = r.begin(); p != r.end(); ++p) {
-      const std::size_t first = groups.begin[p], last = groups.begin[p + 1];
-      for (std::size_t l = first; l != last; ++l) {
-        if (!leaves[l]) continue;
-        if (!parents[p]) parents[p] = std::make_unique<FloatLeafParent>(leaves[l]->origin() & ~(FloatLeafParent::DIM - 1), 0.0f, false);
-        parents[p]->addChild(leaves[l].release());
-      }
-    }
-  });
-  auto tree = std::make_shared<openvdb::FloatTree>(0.0f);
-  std::vector<FloatUpperNode*> uppers;  // owned by the tree
-  for (auto& parent : parents) {
-    if (!parent) continue;
-    const openvdb::Coord origin = parent->origin() & ~(FloatUpperNode::DIM - 1);
-    auto upper = std::find_if(uppers.begin(), uppers.end(), [&](const FloatUpperNode* u) { return u->origin() == origin; });
-    if (upper == uppers.end()) {
-      auto node = std::make_unique<FloatUpperNode>(origin, 0.0f, false);
-      upper = uppers.insert(uppers.end(), node.get());
-      tree->root().addChild(node.release());
-    }
-    (*upper)->addChild(parent.release());
-  }
-  return tree;
-}
-
-// The fractions of leaf `in`'s voxels in `mask`, word by word (FractionMap::mapWord); counts into `s`.
-std::unique_ptr<FloatLeaf> mapLeaf(const FloatLeaf& in, const detail::LeafMask& mask, const FractionMap& map, MappingStats& s) {
-  auto leaf = std::make_unique<FloatLeaf>(in.origin(), 0.0f, false);
-  leaf->setValueMask(mask);
+// The fractions of leaf `in`'s voxels in `mask`, word by word (FractionMap::mapWord), into `leaf`
+// (a spare, origin set; its values and mask are overwritten); counts into `s`.
+void mapLeaf(const FloatLeaf& in, const detail::LeafMask& mask, const FractionMap& map, MappingStats& s, FloatLeaf& leaf) {
+  leaf.setValueMask(mask);
   const float* moduli = in.buffer().data();
-  float* fractions = leaf->buffer().data();
+  float* fractions = leaf.buffer().data();
   for (openvdb::Index w = 0; w < detail::LeafMask::WORD_COUNT; ++w) {
     const std::uint64_t active = mask.getWord<std::uint64_t>(w);
-    if (!active) continue;  // the leaf's values are 0 already
+    if (!active) {  // inactive voxels hold the background, 0
+      std::fill_n(fractions + 64 * w, 64, 0.0f);
+      continue;
+    }
     const FractionMap::WordClamps clamps = map.mapWord(moduli + 64 * w, active, fractions + 64 * w);
     s.voxels += static_cast<std::uint64_t>(std::popcount(active));
     s.clamps.belowFloor += clamps.belowFloor;
     s.clamps.aboveMax += clamps.aboveMax;
   }
-  return leaf;
 }
 
 }  // namespace
 
 openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
-                                       MappingStats& stats, const std::function<void()>& checkInterrupt) {
+                                       MappingStats& stats, voxel::TreeRecycler<openvdb::FloatTree>& recycler,
+                                       const std::function<void()>& checkInterrupt) {
   if (k0 > k1)
     throw std::invalid_argument("modulus to fraction: band of layers [" + std::to_string(k0) + ", " +
                                 std::to_string(k1) + ") is reversed, expected k0 <= k1");
   if (modulus.tree().hasActiveTiles()) {
     const openvdb::FloatGrid::Ptr voxels = modulus.deepCopy();
     voxels->tree().voxelizeActiveTiles();
-    return mapToFractions(*voxels, map, k0, k1, stats, checkInterrupt);
+    return mapToFractions(*voxels, map, k0, k1, stats, recycler, checkInterrupt);
   }
   // The leaves in the tree's order, grouped by parent (the counts are sums, the same in any order).
   const detail::LeafGroups groups = detail::leafGroupsInLayers(modulus.tree(), k0, k1);
+  voxel::SpareNodes<openvdb::FloatTree> spares = recycler.takeSpares();
   std::vector<std::unique_ptr<FloatLeaf>> out(groups.leaves.size());
   std::vector<MappingStats> perLeaf(groups.leaves.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, groups.leaves.size()), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t l = r.begin(); l != r.end(); ++l) {
       if (checkInterrupt) checkInterrupt();
       const detail::LeafMask mask = detail::activeInLayers(*groups.leaves[l], k0, k1);
-      if (!mask.isOff()) out[l] = mapLeaf(*groups.leaves[l], mask, map, perLeaf[l]);
+      if (mask.isOff()) continue;
+      out[l] = spares.leaf(l, groups.leaves[l]->origin());
+      mapLeaf(*groups.leaves[l], mask, map, perLeaf[l], *out[l]);
     }
   });
   for (const MappingStats& s : perLeaf) {
     stats.voxels += s.voxels;
     stats.clamps += s.clamps;
   }
-  auto grid = openvdb::FloatGrid::create(assembleTree(groups, out));
+  const auto forEachLeaf = [&](std::size_t p, const auto& visit) {
+    for (std::size_t l = groups.begin[p]; l != groups.begin[p + 1]; ++l) visit(out[l]);
+  };
+  auto grid = openvdb::FloatGrid::create(recycler.assemble(groups.parentCount(), forEachLeaf, spares));
   grid->setTransform(modulus.transform().copy());
   grid->setName(kFractionGridName);
   return grid;
+}
+
+openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
+                                       MappingStats& stats, const std::function<void()>& checkInterrupt) {
+  voxel::TreeRecycler<openvdb::FloatTree> fresh(0.0f);  // nothing to reuse; the tree is deleted when let go
+  return mapToFractions(modulus, map, k0, k1, stats, fresh, checkInterrupt);
 }
 
 openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const FractionMap& map, MappingStats& stats) {

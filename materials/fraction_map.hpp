@@ -5,6 +5,7 @@
 #pragma once
 
 #include "calibration/calibration.hpp"
+#include "voxel/tree_assembly.hpp"
 
 #include <openvdb/openvdb.h>
 
@@ -103,6 +104,12 @@ struct MappingStats {
 // leaves this function, with `stats` unchanged.
 openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
                                        MappingStats& stats, const std::function<void()>& checkInterrupt = {});
+// The same, the output's leaves and internal nodes taken from earlier outputs that came back to
+// `recycler` (voxel/tree_assembly.hpp; background 0), and the output's tree returned to it when its
+// owners let go: a slicer streaming bands allocates them for the first bands only.
+openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
+                                       MappingStats& stats, voxel::TreeRecycler<openvdb::FloatTree>& recycler,
+                                       const std::function<void()>& checkInterrupt = {});
 // The whole grid.
 openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const FractionMap& map, MappingStats& stats);
 

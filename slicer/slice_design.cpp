@@ -4,6 +4,7 @@
 #include "common/stopwatch.hpp"
 #include "slicer/job_report.hpp"
 #include "voxel/diagnostics.hpp"
+#include "voxel/tree_assembly.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -97,11 +98,15 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   report.voxelsPerRod.assign(design.rods.size(), 0);
   ClampMap clampMap(spec.partBounds, profile.voxelSizeMm, fractionMap.floorMpa(), fractionMap.maxModulusMpa());
   spec.options.report = reportHook(report, calibration, clampMap, spec.options.verify);
+  // The bands' fraction trees come back here once the pipeline is done with them, and later bands are
+  // built from their nodes (the rasterizer recycles its own trees the same way).
+  voxel::TreeRecycler<openvdb::FloatTree> fractionTrees(0.0f);
   const BandSource source = [&](int k0, int k1, bool withNextLayer) {
     const voxel::Rasterization ras = rasterizer.rasterizeLayers(k0, k1 + (withNextLayer ? 1 : 0));
     const std::uint64_t clampedBefore = report.mapping.clamps.total();
     for (std::size_t r = 0; r < report.voxelsPerRod.size(); ++r) report.voxelsPerRod[r] += ras.voxelsPerRod[r];
-    BandGrids band{materials::mapToFractions(*ras.grid, fractionMap, k0, k1, report.mapping, common::throwIfInterrupted), ras.grid};
+    BandGrids band{materials::mapToFractions(*ras.grid, fractionMap, k0, k1, report.mapping, fractionTrees, common::throwIfInterrupted),
+                   ras.grid};
     if (withNextLayer) {
       // Error diffusion reads the next layer's voxels; they are counted with their own band.
       materials::MappingStats ignored;

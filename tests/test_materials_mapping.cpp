@@ -262,3 +262,54 @@ TEST_CASE("materials: voxels far apart, negative coordinates included, map into 
     CHECK(fractions->tree().getValue(c) == static_cast<float>(map.fraction(e).fraction));
   }
 }
+
+TEST_CASE("materials: streamed bands reuse earlier fraction grids' nodes and stay exact, whatever the owners did to them", "[materials][mapping]") {
+  const FractionMap map(logPowerCalibration());
+  // The clamp block with whole words and single voxels switched off, so reused leaves meet inactive
+  // words and inactive voxels that their earlier band had active.
+  const auto modulus = modulusBlock();
+  for (auto it = modulus->beginValueOn(); it; ++it) {
+    const openvdb::Coord c = it.getCoord();
+    if ((c.x() % 8 == 3) || (c.x() * 7 + c.y() * 3 + c.z()) % 5 == 0) it.setValueOff();
+  }
+  tbb::global_control two(tbb::global_control::max_allowed_parallelism, 2);
+  for (int bandLayers : {4, 3}) {
+    INFO("bands of " << bandLayers << " layers");
+    rodfab::voxel::TreeRecycler<openvdb::FloatTree> recycler(0.0f);
+    openvdb::FloatGrid::Ptr kept;  // one band alive while the next is made, as in the slicer
+    MappingStats streamedStats, freshStats;
+    std::size_t wrong = 0, dirty = 0;
+    for (int k0 = -2; k0 < 21; k0 += bandLayers) {
+      const auto band = mapToFractions(*modulus, map, k0, k0 + bandLayers, streamedStats, recycler);
+      const auto fresh = mapToFractions(*modulus, map, k0, k0 + bandLayers, freshStats);
+      CHECK(band->tree().hasSameTopology(fresh->tree()));
+      CHECK(band->tree().nodeCount() == fresh->tree().nodeCount());
+      CHECK(band->getName() == kFractionGridName);
+      const auto truth = fresh->getConstAccessor();
+      for (auto leaf = band->tree().cbeginLeaf(); leaf; ++leaf) {
+        dirty += leaf->transientData() != 0;
+        for (openvdb::Index n = 0; n < openvdb::FloatTree::LeafNodeType::SIZE; ++n) {
+          const openvdb::Coord c = leaf->offsetToGlobalCoord(n);
+          wrong += leaf->isValueOn(n) != truth.isValueOn(c) || std::bit_cast<std::uint32_t>(leaf->getValue(n)) !=
+                                                                    std::bit_cast<std::uint32_t>(truth.getValue(c));
+        }
+      }
+      if (kept) {  // the owner changes the previous band's grid, then lets it go
+        for (auto leaf = kept->tree().beginLeaf(); leaf; ++leaf) {
+          leaf->setValueOff(0, 7.0f);
+          leaf->setValueOn(511, -3.0f);
+          leaf->setTransientData(99);
+        }
+        kept->tree().addTile(1, openvdb::Coord(300, 0, 0), 0.5f, true);
+        kept->tree().addTile(2, openvdb::Coord(9000, 0, 0), 0.25f, false);
+      }
+      kept = band;
+    }
+    CHECK(wrong == 0);
+    CHECK(dirty == 0);
+    CHECK(streamedStats.voxels == freshStats.voxels);
+    CHECK(streamedStats.voxels == modulus->activeVoxelCount());
+    CHECK(streamedStats.clamps.belowFloor == freshStats.clamps.belowFloor);
+    CHECK(streamedStats.clamps.aboveMax == freshStats.clamps.aboveMax);
+  }
+}

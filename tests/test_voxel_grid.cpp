@@ -2,6 +2,8 @@
 // rasterizing), grid statistics and .vdb files.
 #include "voxel/voxel.hpp"
 
+#include "examples/example_designs.hpp"
+
 #include "tests/voxel_fixture.hpp"
 
 #include <catch2/catch.hpp>
@@ -163,4 +165,63 @@ TEST_CASE("Rods in different upper nodes: every voxel as the exact test says, th
   for (auto it = r.grid->tree().cbeginLeaf(); it; ++it) byLeaf.addLeaf(new openvdb::FloatTree::LeafNodeType(*it));
   REQUIRE(byLeaf.hasSameTopology(r.grid->tree()));
   REQUIRE(byLeaf.nodeCount() == r.grid->tree().nodeCount());
+}
+
+namespace {
+
+// What an owner may do to a band's grid before letting it go: values and states of voxels changed, an
+// active tile in a leaf parent, a tile in an upper node, a leaf's transient data set.
+void vandalize(openvdb::FloatGrid& grid) {
+  openvdb::FloatTree& tree = grid.tree();
+  for (auto leaf = tree.beginLeaf(); leaf; ++leaf) {
+    leaf->setValueOff(0, 7.0f);
+    leaf->setValueOn(511, -3.0f);
+    leaf->setTransientData(99);
+  }
+  const openvdb::CoordBBox box = grid.evalActiveVoxelBoundingBox();
+  if (!box.empty()) {
+    tree.addTile(1, box.max().offsetBy(200, 0, 0), 5.0f, true);   // an 8^3 tile in a leaf parent beside the part
+    tree.addTile(2, box.max().offsetBy(9000, 0, 0), 2.0f, false);  // a 128^3 tile in an upper node further away
+  }
+}
+
+// The tree as a fresh one is built: inactive voxels hold the background 0, leaves carry no transient
+// data, and there are no tiles.
+void requireClean(const openvdb::FloatTree& tree) {
+  REQUIRE(!tree.hasActiveTiles());
+  std::size_t dirty = 0;
+  for (auto leaf = tree.cbeginLeaf(); leaf; ++leaf) {
+    dirty += leaf->transientData() != 0;
+    for (auto v = leaf->cbeginValueOff(); v; ++v) dirty += *v != 0.0f;
+  }
+  REQUIRE(dirty == 0);
+}
+
+}  // namespace
+
+TEST_CASE("Streamed bands reuse earlier grids' nodes and stay exact, whatever the owners did to them", "[voxel][grid][tree]") {
+  // The bundled spring in bands, one band's grid alive while the next is made (as in the slicer), each
+  // grid changed by its owner before it is let go: every band as a fresh rasterizer makes it.
+  const RodStructure s = examples::bucklingSpring();
+  const PrinterGrid g = voxel::makePrinterGrid(s, {0.08, 0.1, 0.06});
+  for (int bandLayers : {16, 13}) {
+    INFO("bands of " << bandLayers << " layers");
+    const voxel::Rasterizer streaming(s, g, {2});
+    openvdb::FloatGrid::Ptr kept;
+    std::uint64_t total = 0;
+    for (int z0 = 0; z0 < g.dims.z(); z0 += bandLayers) {
+      const voxel::Rasterization band = streaming.rasterizeLayers(z0, z0 + bandLayers);
+      const voxel::Rasterization fresh = voxel::Rasterizer(s, g, {2}).rasterizeLayers(z0, z0 + bandLayers);
+      requireIdentical(*band.grid, *fresh.grid);
+      REQUIRE(band.grid->tree().hasSameTopology(fresh.grid->tree()));
+      REQUIRE(band.grid->tree().nodeCount() == fresh.grid->tree().nodeCount());
+      REQUIRE(band.voxelsPerRod == fresh.voxelsPerRod);
+      REQUIRE(band.grid->getName() == voxel::kModulusGridName);
+      requireClean(band.grid->tree());
+      total += band.grid->activeVoxelCount();
+      if (kept) vandalize(*kept);
+      kept = band.grid;  // the previous band's grid goes back to the rasterizer here
+    }
+    REQUIRE(total == voxel::rasterize(s, g).grid->activeVoxelCount());
+  }
 }

@@ -6,13 +6,17 @@
 
 namespace rodfab::voxel::detail {
 
-void LeafBuilder::emit(const openvdb::Coord& origin, BlockLeaves& leaves) const {
+void LeafBuilder::emit(const openvdb::Coord& origin, SpareNodes<openvdb::FloatTree>& spares, std::atomic<std::size_t>& nextSpare,
+                       BlockLeaves& leaves) const {
   std::uint64_t anyRow = 0;
   for (std::uint64_t w : filled_) anyRow |= w;
   for (int l = 0; l < kBlockLeaves; ++l) {
     if (((anyRow >> (l * kLeafDim)) & 0xffu) == 0) continue;
-    leaves[static_cast<std::size_t>(l)] = std::make_unique<LeafT>(origin.offsetBy(l * kLeafDim, 0, 0), 0.0f, false);
+    const std::size_t spare = nextSpare.fetch_add(1, std::memory_order_relaxed);
+    const bool reused = spares.hasLeaf(spare);  // a new leaf holds 0 already; a reused one its old values
+    leaves[static_cast<std::size_t>(l)] = spares.leaf(spare, origin.offsetBy(l * kLeafDim, 0, 0));
     LeafT& node = *leaves[static_cast<std::size_t>(l)];
+    if (reused) node.buffer().fill(0.0f);
     float* values = node.buffer().data();
     alignas(16) std::array<std::uint8_t, kRows> bytes;
     for (int r = 0; r < kRows; ++r) {

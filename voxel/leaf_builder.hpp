@@ -6,10 +6,12 @@
 #pragma once
 
 #include "voxel/raster_clips.hpp"
+#include "voxel/tree_assembly.hpp"
 
 #include <openvdb/openvdb.h>
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <cstring>
 #include <functional>
@@ -57,7 +59,10 @@ public:
   // once (the slot's value where the bit is set, else the leaf's 0: the slots of an empty voxel hold
   // some earlier block's value, never an indeterminate one, see value_), and the mask words come
   // from the 64 row bytes by movemask, eight bits a row at a time.
-  void emit(const openvdb::Coord& origin, BlockLeaves& leaves) const;
+  // The leaves come from `spares` (tree_assembly.hpp) while there are any, each taking the spare index
+  // `nextSpare` counts out (shared by the threads, so the reused leaves are the first ones).
+  void emit(const openvdb::Coord& origin, SpareNodes<openvdb::FloatTree>& spares, std::atomic<std::size_t>& nextSpare,
+            BlockLeaves& leaves) const;
 
   // Fills the slots the piece reaches within `box`; throws Interrupted once the exact test saw the interrupt.
   void addPiece(int rod, int pieceIndex, const openvdb::CoordBBox& box);

@@ -2,6 +2,7 @@
 
 #include "voxel/leaf_builder.hpp"
 #include "voxel/rod_pieces.hpp"
+#include "voxel/tree_assembly.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
@@ -10,6 +11,8 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <atomic>
+#include <limits>
 #include <memory>
 #include <utility>
 
@@ -49,10 +52,68 @@ struct BlockList {
   std::size_t count() const { return start.size() - 1; }
 };
 
+// The block coordinates (i, j, k) of the entries of a band, as ranges: a block's dense index in them
+// orders blocks as their packed keys do (z-major).
+struct BlockRange {
+  int lo[3] = {std::numeric_limits<int>::max(), std::numeric_limits<int>::max(), std::numeric_limits<int>::max()};
+  int hi[3] = {-1, -1, -1};
+  void include(int i, int j, int k) {
+    const int c[3] = {i, j, k};
+    for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], c[a]), hi[a] = std::max(hi[a], c[a]);
+  }
+  void include(const BlockRange& o) {
+    for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], o.lo[a]), hi[a] = std::max(hi[a], o.hi[a]);
+  }
+  std::uint64_t extent(int a) const { return hi[a] >= lo[a] ? std::uint64_t(hi[a] - lo[a] + 1) : 0; }
+  std::uint64_t size() const { return extent(0) * extent(1) * extent(2); }
+  std::uint64_t dense(std::uint64_t packed) const {
+    const std::uint64_t mask = (std::uint64_t(1) << kPackedAxisBits) - 1;
+    const std::uint64_t i = (packed & mask) - std::uint64_t(lo[0]), j = ((packed >> kPackedAxisBits) & mask) - std::uint64_t(lo[1]);
+    const std::uint64_t k = (packed >> (2 * kPackedAxisBits)) - std::uint64_t(lo[2]);
+    return (k * extent(1) + j) * extent(0) + i;
+  }
+};
+
+// The per-rod entries (each in (rod, piece) order, rods in order) sorted into `list`. Stably by block
+// alone, which gives the (block, rod, piece) order: a counting sort over the band's blocks (two linear
+// passes; the comparison sort of the same entries cost 5 % of the curved lattice's rasterization),
+// or the comparison sort where the blocks' range is far larger than the entries (a sparse band).
+void sortEntries(std::vector<std::vector<Entry>>& perRod, const BlockRange& range, BlockList& list) {
+  std::size_t total = 0;
+  for (const auto& v : perRod) total += v.size();
+  list.entries.resize(total);
+  if (range.size() > 4 * std::uint64_t(total) + 4096) {
+    std::size_t at = 0;
+    for (auto& v : perRod) {
+      std::copy(v.begin(), v.end(), list.entries.begin() + std::ptrdiff_t(at));
+      at += v.size();
+      std::vector<Entry>().swap(v);
+    }
+    tbb::parallel_sort(list.entries.begin(), list.entries.end());
+    for (std::size_t e = 0; e < list.entries.size(); ++e)
+      if (e == 0 || list.entries[e].block != list.entries[e - 1].block) list.start.push_back(e);
+    list.start.push_back(list.entries.size());
+    return;
+  }
+  std::vector<std::size_t> next(range.size() + 1, 0);  // entries per block, then where the next one goes
+  for (const auto& v : perRod)
+    for (const Entry& e : v) ++next[range.dense(e.block) + 1];
+  for (std::size_t d = 0; d + 1 < next.size(); ++d) {
+    if (next[d + 1] > 0) list.start.push_back(next[d]);
+    next[d + 1] += next[d];
+  }
+  list.start.push_back(total);
+  for (auto& v : perRod) {
+    for (const Entry& e : v) list.entries[next[range.dense(e.block)]++] = e;
+    std::vector<Entry>().swap(v);
+  }
+}
+
 // Which pieces reach which blocks within layers zBegin <= k < zEnd; `poll` throws on an interrupt.
 template <typename Poll>
 BlockList listBlocks(const std::vector<RodPieces>& rods, int zBegin, int zEnd, const Poll& poll) {
   std::vector<std::vector<Entry>> perRod(rods.size());
+  std::vector<BlockRange> ranges(rods.size());
   tbb::parallel_for(std::size_t(0), rods.size(), [&](std::size_t r) {
     const RodPieces& rod = rods[r];
     if (rod.box.empty() || rod.box.max().z() < zBegin || rod.box.min().z() >= zEnd) return;
@@ -62,34 +123,29 @@ BlockList listBlocks(const std::vector<RodPieces>& rods, int zBegin, int zEnd, c
       b.min().z() = std::max(b.min().z(), zBegin);
       b.max().z() = std::min(b.max().z(), zEnd - 1);
       if (b.empty()) continue;
+      ranges[r].include(b.min().x() >> kBlockXLog2, b.min().y() >> kLeafLog2, b.min().z() >> kLeafLog2);
+      ranges[r].include(b.max().x() >> kBlockXLog2, b.max().y() >> kLeafLog2, b.max().z() >> kLeafLog2);
       for (int k = b.min().z() >> kLeafLog2; k <= b.max().z() >> kLeafLog2; ++k)
         for (int j = b.min().y() >> kLeafLog2; j <= b.max().y() >> kLeafLog2; ++j)
           for (int i = b.min().x() >> kBlockXLog2; i <= b.max().x() >> kBlockXLog2; ++i)
             perRod[r].push_back({packBlock(i, j, k), std::uint32_t(r), std::uint32_t(p)});
     }
   });
+  BlockRange range;
+  for (const BlockRange& r : ranges) range.include(r);
+  poll();
   BlockList list;
-  std::size_t total = 0;
-  for (const auto& v : perRod) total += v.size();
-  list.entries.reserve(total);
-  for (auto& v : perRod) {
-    list.entries.insert(list.entries.end(), v.begin(), v.end());
-    std::vector<Entry>().swap(v);
-  }
+  sortEntries(perRod, range, list);
   poll();
-  tbb::parallel_sort(list.entries.begin(), list.entries.end());
-  poll();
-  for (std::size_t e = 0; e < list.entries.size(); ++e)
-    if (e == 0 || list.entries[e].block != list.entries[e - 1].block) list.start.push_back(e);
-  list.start.push_back(list.entries.size());
   return list;
 }
 
 // Block g of the list, its pieces added in sorted order within the band, into `leaves` (none where
-// no piece reaches a voxel of the band).
+// no piece reaches a voxel of the band; see LeafBuilder::emit for the spares).
 template <typename Poll>
 void buildBlock(LeafBuilder& builder, const std::vector<RodPieces>& rods, const BlockList& list, std::size_t g, int zBegin,
-                int zEnd, const Poll& poll, BlockLeaves& leaves) {
+                int zEnd, const Poll& poll, SpareNodes<openvdb::FloatTree>& spares, std::atomic<std::size_t>& nextSpare,
+                BlockLeaves& leaves) {
   const openvdb::Coord origin = blockOrigin(list.entries[list.start[g]].block);
   openvdb::CoordBBox blockBox(origin, origin + openvdb::Coord((kLeafDim << kBlockLeavesLog2) - 1, kLeafDim - 1, kLeafDim - 1));
   blockBox.min().z() = std::max(blockBox.min().z(), zBegin);
@@ -106,18 +162,15 @@ void buildBlock(LeafBuilder& builder, const std::vector<RodPieces>& rods, const 
     touched = true;
   }
   if (!touched) return;
-  builder.emit(origin, leaves);
+  builder.emit(origin, spares, nextSpare, leaves);
 }
 
-using LeafParent = openvdb::FloatTree::RootNodeType::ChildNodeType::ChildNodeType;  // 128^3 voxels
-using UpperNode = openvdb::FloatTree::RootNodeType::ChildNodeType;                    // 4096^3 voxels
-
-// The blocks' leaves into `tree` (empty, background 0): the leaf parents in parallel, each taking the
-// leaves of its blocks (a block, 64 voxels along x from a multiple of 64, lies in one parent), then
-// the few upper nodes and the root. The same tree as adding the leaves one by one (every node made
-// with the background, inactive), without a serial walk from the root per leaf.
-void assembleTree(const BlockList& list, std::vector<BlockLeaves>& leaves, openvdb::FloatTree& tree) {
-  constexpr int kParentLog2 = LeafParent::TOTAL;
+// The blocks' leaves in a tree (background 0) from `recycler` with internal nodes from `spares`,
+// grouped by leaf parent (a block, 64 voxels along x from a multiple of 64, lies in one parent): see
+// tree_assembly.hpp.
+openvdb::FloatTree::Ptr assembleBlocks(const BlockList& list, std::vector<BlockLeaves>& leaves,
+                                       const TreeRecycler<openvdb::FloatTree>& recycler, SpareNodes<openvdb::FloatTree>& spares) {
+  constexpr int kParentLog2 = LeafParentOf<openvdb::FloatTree>::TOTAL;
   std::vector<std::pair<std::uint64_t, std::size_t>> byParent;  // (parent's packed key, block), sorted
   byParent.reserve(list.count());
   for (std::size_t g = 0; g < list.count(); ++g) {
@@ -129,34 +182,26 @@ void assembleTree(const BlockList& list, std::vector<BlockLeaves>& leaves, openv
   for (std::size_t b = 0; b < byParent.size(); ++b)
     if (b == 0 || byParent[b].first != byParent[b - 1].first) groupStart.push_back(b);
   groupStart.push_back(byParent.size());
-  std::vector<std::unique_ptr<LeafParent>> parents(groupStart.size() - 1);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, parents.size()), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t p = r.begin(); p != r.end(); ++p)
-      for (std::size_t b = groupStart[p]; b != groupStart[p + 1]; ++b)
-        for (std::unique_ptr<LeafT>& leaf : leaves[byParent[b].second]) {
-          if (!leaf) continue;
-          if (!parents[p]) parents[p] = std::make_unique<LeafParent>(leaf->origin() & ~(LeafParent::DIM - 1), 0.0f, false);
-          parents[p]->addChild(leaf.release());
-        }
-  });
-  std::vector<UpperNode*> uppers;  // owned by the tree
-  for (std::unique_ptr<LeafParent>& parent : parents) {
-    if (!parent) continue;
-    const openvdb::Coord origin = parent->origin() & ~(UpperNode::DIM - 1);
-    auto upper = std::find_if(uppers.begin(), uppers.end(), [&](const UpperNode* u) { return u->origin() == origin; });
-    if (upper == uppers.end()) {
-      auto node = std::make_unique<UpperNode>(origin, 0.0f, false);
-      upper = uppers.insert(uppers.end(), node.get());
-      tree.root().addChild(node.release());
-    }
-    (*upper)->addChild(parent.release());
-  }
+  const auto forEachLeaf = [&](std::size_t p, const auto& visit) {
+    for (std::size_t b = groupStart[p]; b != groupStart[p + 1]; ++b)
+      for (std::unique_ptr<LeafT>& leaf : leaves[byParent[b].second]) visit(leaf);
+  };
+  return recycler.assemble(groupStart.size() - 1, forEachLeaf, spares);
+}
+
+// A modulus grid (kModulusGridName) of `tree` on the printer's grid.
+openvdb::FloatGrid::Ptr modulusGrid(openvdb::FloatTree::Ptr tree, const PrinterGrid& grid) {
+  openvdb::FloatGrid::Ptr out = openvdb::FloatGrid::create(std::move(tree));
+  out->setName(kModulusGridName);
+  out->setTransform(grid.transform());
+  out->setGridClass(openvdb::GRID_UNKNOWN);
+  return out;
 }
 
 }  // namespace
 
 Rasterizer::Rasterizer(const geometry::RodStructure& structure, const PrinterGrid& grid, RasterOptions options)
-    : structure_(&structure), grid_(grid), options_(std::move(options)) {
+    : structure_(&structure), grid_(grid), options_(std::move(options)), trees_(std::make_unique<TreeRecycler<openvdb::FloatTree>>(0.0f)) {
   rods_.resize(structure.rods.size());
   // Voxels are only ever emitted inside the design's bounding box (geometry::Rod::bounds holds every
   // rod's solid), the part bounds the job writer checks.
@@ -199,14 +244,13 @@ Rasterization Rasterizer::rasterizeLayers(int zBegin, int zEnd) const {
 
 Rasterization Rasterizer::run(int zBegin, int zEnd) const {
   Rasterization out;
-  out.grid = openvdb::FloatGrid::create(0.0f);
-  out.grid->setName(kModulusGridName);
-  out.grid->setTransform(grid_.transform());
-  out.grid->setGridClass(openvdb::GRID_UNKNOWN);
   out.voxelsPerRod.assign(rods_.size(), 0);
   zBegin = std::max(zBegin, 0);
   zEnd = std::min(zEnd, grid_.dims.z());
-  if (zBegin >= zEnd) return out;
+  if (zBegin >= zEnd) {
+    out.grid = modulusGrid(std::make_shared<openvdb::FloatTree>(0.0f), grid_);
+    return out;
+  }
 
   const auto poll = [this] { checkInterrupt(); };
   const BlockList blocks = listBlocks(rods_, zBegin, zEnd, poll);
@@ -216,12 +260,14 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
   };
   tbb::enumerable_thread_specific<ThreadState> states;
   std::vector<BlockLeaves> leaves(blocks.count());
+  SpareNodes<openvdb::FloatTree> spares = trees_->takeSpares();
+  std::atomic<std::size_t> nextSpare{0};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks.count()), [&](const tbb::blocked_range<std::size_t>& range) {
     ThreadState& state = states.local();
     if (!state.builder) state.builder.reset(new LeafBuilder(*structure_, rods_, grid_, options_.wasInterrupted));  // slots mostly uninitialized
     for (std::size_t g = range.begin(); g != range.end(); ++g) {
       poll();
-      buildBlock(*state.builder, rods_, blocks, g, zBegin, zEnd, poll, leaves[g]);
+      buildBlock(*state.builder, rods_, blocks, g, zBegin, zEnd, poll, spares, nextSpare, leaves[g]);
     }
   });
 
@@ -230,7 +276,7 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
     out.exactEvaluations += s.builder->exactEvaluations;
     for (std::size_t r = 0; r < rods_.size(); ++r) out.voxelsPerRod[r] += s.builder->voxelsPerRod[r];
   }
-  assembleTree(blocks, leaves, out.grid->tree());
+  out.grid = modulusGrid(assembleBlocks(blocks, leaves, *trees_, spares), grid_);
   return out;
 }
 

@@ -36,6 +36,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <stdexcept>
 #include <vector>
 
@@ -50,6 +51,8 @@ inline constexpr double kDepthTieTolerance = 1e-9;
 namespace detail {
 struct RodPieces;
 }
+template <typename TreeT>
+class TreeRecycler;
 
 struct RasterOptions {
   RasterOptions() = default;
@@ -101,6 +104,9 @@ private:
   RasterOptions options_;
   std::vector<detail::RodPieces> rods_;
   openvdb::CoordBBox partBounds_;
+  // The grids' trees come back here when their owners let them go, and later bands are built from
+  // their nodes (tree_assembly.hpp): streamed bands allocate leaves for the first bands only.
+  std::unique_ptr<TreeRecycler<openvdb::FloatTree>> trees_;
 };
 
 // The whole design in one call.

@@ -6,4 +6,5 @@
 #include "voxel/memory_estimate.hpp"
 #include "voxel/printer_grid.hpp"
 #include "voxel/rasterize.hpp"
+#include "voxel/tree_assembly.hpp"
 #include "voxel/vdb_file.hpp"

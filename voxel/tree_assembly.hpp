@@ -1,0 +1,231 @@
+// Assembly of an OpenVDB tree from leaves built elsewhere (in parallel), parent by parent.
+//
+// The rasterizer, the modulus-to-fraction mapping and the ditherers each build a band's leaves in
+// parallel and then need them in a tree. Adding them one by one (Tree::addLeaf) walks from the root for
+// every leaf on one thread; assembleTree instead fills the leaf parents (internal nodes of 128^3
+// voxels) in parallel, each from its own leaves, then hangs the few upper nodes (4096^3) and the
+// parents under the root on the calling thread. The result is the same tree as adding the leaves one
+// by one to an empty tree: every internal node it creates holds the tree's background, inactive.
+//
+// For the standard 5-4-3 trees (openvdb::FloatTree, openvdb::BoolTree, ...), as in OpenVDB's tools:
+//
+//   template <typename TreeT, typename ForEachLeaf, typename NodeSource>
+//   void assembleTree(TreeT& tree, std::size_t groupCount, const ForEachLeaf& forEachLeaf, NodeSource& nodes);
+//
+//   tree         an empty tree (no child of the root); receives every leaf handed over.
+//   groupCount   how many groups the leaves come in; all the leaves of a group share one leaf parent
+//                (a group may be empty, and several groups must not share a parent).
+//   forEachLeaf  forEachLeaf(g, visit) calls visit(std::unique_ptr<LeafT>&) for each leaf slot of group
+//                g, in a fixed order; null slots are skipped, the others are released into the tree.
+//                Called once per group, concurrently for different groups.
+//   nodes        where the internal nodes come from: FreshNodes below (new nodes), or any type with
+//                  std::unique_ptr<ParentT> parent(std::size_t g, const openvdb::Coord& origin);
+//                  std::unique_ptr<UpperT> upper(std::size_t u, const openvdb::Coord& origin);
+//                returning an empty node at `origin` (no child, every tile the tree's background and
+//                inactive), e.g. one kept from an earlier tree. parent() is called at most once per
+//                group g, concurrently for different g; upper() on the calling thread, for u = 0, 1, ...
+//                in the order the upper nodes are first needed.
+//
+// Threads: runs in the caller's TBB arena (tbb::parallel_for over the groups). The tree's shape and
+// contents do not depend on the thread count, and neither do the indices passed to `nodes`.
+//
+// Streaming band after band, the nodes of the trees already let go of can be reused (TreeRecycler,
+// below): a band's leaves and internal nodes are then allocated for the first bands only, instead of
+// once per band (malloc, filling and page-faulting fresh nodes cost as much as the arithmetic on some
+// classes). SpareNodes is the node source of a recycled tree.
+#pragma once
+
+#include <openvdb/openvdb.h>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cstddef>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <utility>
+#include <vector>
+
+namespace rodfab::voxel {
+
+// The internal node that holds a tree's leaves (128^3 voxels in a 5-4-3 tree) and the one above it.
+template <typename TreeT>
+using LeafParentOf = typename TreeT::RootNodeType::ChildNodeType::ChildNodeType;
+template <typename TreeT>
+using UpperNodeOf = typename TreeT::RootNodeType::ChildNodeType;
+
+// A node source that makes every node anew, holding `background`, inactive.
+template <typename TreeT>
+struct FreshNodes {
+  typename TreeT::ValueType background;
+  std::unique_ptr<LeafParentOf<TreeT>> parent(std::size_t, const openvdb::Coord& origin) const {
+    return std::make_unique<LeafParentOf<TreeT>>(origin, background, false);
+  }
+  std::unique_ptr<UpperNodeOf<TreeT>> upper(std::size_t, const openvdb::Coord& origin) const {
+    return std::make_unique<UpperNodeOf<TreeT>>(origin, background, false);
+  }
+};
+
+template <typename TreeT, typename ForEachLeaf, typename NodeSource>
+void assembleTree(TreeT& tree, std::size_t groupCount, const ForEachLeaf& forEachLeaf, NodeSource& nodes) {
+  using LeafT = typename TreeT::LeafNodeType;
+  using ParentT = LeafParentOf<TreeT>;
+  using UpperT = UpperNodeOf<TreeT>;
+  std::vector<std::unique_ptr<ParentT>> parents(groupCount);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, groupCount), [&](const tbb::blocked_range<std::size_t>& range) {
+    for (std::size_t g = range.begin(); g != range.end(); ++g)
+      forEachLeaf(g, [&](std::unique_ptr<LeafT>& leaf) {
+        if (!leaf) return;
+        if (!parents[g]) parents[g] = nodes.parent(g, leaf->origin() & ~(ParentT::DIM - 1));
+        parents[g]->addChild(leaf.release());
+      });
+  });
+  std::vector<UpperT*> uppers;  // owned by the tree; a job has a handful
+  for (std::unique_ptr<ParentT>& parent : parents) {
+    if (!parent) continue;
+    const openvdb::Coord origin = parent->origin() & ~(UpperT::DIM - 1);
+    auto upper = std::find_if(uppers.begin(), uppers.end(), [&](const UpperT* u) { return u->origin() == origin; });
+    if (upper == uppers.end()) {
+      std::unique_ptr<UpperT> node = nodes.upper(uppers.size(), origin);
+      upper = uppers.insert(uppers.end(), node.get());
+      tree.root().addChild(node.get());
+      node.release();  // the tree's now
+    }
+    (*upper)->addChild(parent.release());
+  }
+}
+
+template <typename TreeT>
+class TreeRecycler;
+
+// Nodes taken from a tree its owners let go of (TreeRecycler::takeSpares), to build the next one from.
+// Each spare is handed out by index, so threads can take different ones without a lock; the ones not
+// taken are deleted with the SpareNodes. A node source of assembleTree.
+template <typename TreeT>
+class SpareNodes {
+public:
+  using LeafT = typename TreeT::LeafNodeType;
+  using ParentT = LeafParentOf<TreeT>;
+  using UpperT = UpperNodeOf<TreeT>;
+  SpareNodes() = default;
+  SpareNodes(SpareNodes&&) = default;
+  SpareNodes& operator=(SpareNodes&&) = delete;
+  ~SpareNodes() {
+    deleteAll(leaves_);
+    deleteAll(parents_);
+    deleteAll(uppers_);
+  }
+  // Spare node `index` moved to `origin`, or a new node there (holding `background_`, inactive) if
+  // there is no such spare. A reused leaf keeps its old values and value mask: the caller sets both.
+  // Internal nodes are handed out empty (see TreeRecycler::takeSpares).
+  std::unique_ptr<LeafT> leaf(std::size_t index, const openvdb::Coord& origin) { return spareOrNew(leaves_, index, origin); }
+  std::unique_ptr<ParentT> parent(std::size_t index, const openvdb::Coord& origin) { return spareOrNew(parents_, index, origin); }
+  std::unique_ptr<UpperT> upper(std::size_t index, const openvdb::Coord& origin) { return spareOrNew(uppers_, index, origin); }
+  // Whether leaf(index, ...) would hand out a reused leaf (whose values the caller must then clear).
+  bool hasLeaf(std::size_t index) const { return index < leaves_.size() && leaves_[index]; }
+
+private:
+  friend class TreeRecycler<TreeT>;
+  template <typename Node>
+  std::unique_ptr<Node> spareOrNew(std::vector<Node*>& spares, std::size_t index, const openvdb::Coord& origin) {
+    if (index < spares.size() && spares[index]) {
+      std::unique_ptr<Node> node(std::exchange(spares[index], nullptr));
+      node->setOrigin(origin);
+      if constexpr (requires { node->setTransientData(0); }) node->setTransientData(0);  // as a new node's
+      return node;
+    }
+    return std::make_unique<Node>(origin, background_, false);
+  }
+  template <typename Node>
+  static void deleteAll(std::vector<Node*>& nodes) {
+    for (Node*& node : nodes) delete std::exchange(node, nullptr);
+  }
+  typename TreeT::ValueType background_ = openvdb::zeroVal<typename TreeT::ValueType>();
+  std::vector<LeafT*> leaves_;
+  std::vector<ParentT*> parents_;
+  std::vector<UpperT*> uppers_;
+};
+
+// The trees a producer made come back here when their last owner lets them go, and the next one is
+// built from their nodes. At most kKeptTrees trees wait; further ones, and every one let go after the
+// recycler is gone, are deleted. Thread-safe: trees come back from any thread, and takeSpares and
+// assemble may be called from several threads at once.
+template <typename TreeT>
+class TreeRecycler {
+public:
+  static constexpr std::size_t kKeptTrees = 2;
+  using LeafT = typename TreeT::LeafNodeType;
+  using ValueT = typename TreeT::ValueType;
+
+  // Trees with background `background`.
+  explicit TreeRecycler(ValueT background = openvdb::zeroVal<ValueT>()) : background_(background), returned_(std::make_shared<Returned>()) {
+    returned_->trees.reserve(kKeptTrees);  // so that giving a tree back never allocates
+  }
+
+  // The nodes of the tree that came back first (none if no tree came back yet): every leaf, and the
+  // internal nodes left empty (an owner may have changed the tree before letting it go; internal nodes
+  // that still hold a tile other than the inactive background are deleted, not reused).
+  SpareNodes<TreeT> takeSpares() {
+    SpareNodes<TreeT> spares;
+    spares.background_ = background_;
+    std::unique_ptr<TreeT> tree;
+    {
+      const std::lock_guard<std::mutex> lock(returned_->mutex);
+      if (returned_->trees.empty()) return spares;
+      tree = std::move(returned_->trees.front());
+      returned_->trees.erase(returned_->trees.begin());
+    }
+    // Leaves first (each replaced by an inactive background tile), then the emptied parents and uppers.
+    spares.leaves_.reserve(tree->leafCount());
+    tree->stealNodes(spares.leaves_, background_, false);
+    // In address order: the k-th leaf a producer asks for gets the k-th lowest address, so a band's
+    // leaves lie in memory in the order they were made, as fresh allocations from one heap would (in the
+    // old tree's order, the layout got more scattered band after band, and every pass over the leaves
+    // in order paid for it).
+    std::sort(spares.leaves_.begin(), spares.leaves_.end(), std::less<>());
+    tree->stealNodes(spares.parents_, background_, false);
+    tree->stealNodes(spares.uppers_, background_, false);
+    keepEmpty(spares.parents_);
+    keepEmpty(spares.uppers_);
+    return spares;
+  }
+
+  // assembleTree (see above) into a new tree (background as given to the constructor) with internal
+  // nodes from `spares`, that comes back here when its owners let it go.
+  template <typename ForEachLeaf>
+  typename TreeT::Ptr assemble(std::size_t groupCount, const ForEachLeaf& forEachLeaf, SpareNodes<TreeT>& spares) const {
+    auto tree = std::make_unique<TreeT>(background_);
+    assembleTree(*tree, groupCount, forEachLeaf, spares);
+    return typename TreeT::Ptr(tree.release(), [weak = std::weak_ptr<Returned>(returned_)](TreeT* t) {
+      if (const std::shared_ptr<Returned> returned = weak.lock()) {
+        const std::lock_guard<std::mutex> lock(returned->mutex);
+        if (returned->trees.size() < kKeptTrees) {
+          returned->trees.emplace_back(t);
+          return;
+        }
+      }
+      delete t;
+    });
+  }
+
+private:
+  struct Returned {
+    std::mutex mutex;
+    std::vector<std::unique_ptr<TreeT>> trees;
+  };
+  template <typename Node>
+  void keepEmpty(std::vector<Node*>& nodes) const {
+    for (Node*& node : nodes) {
+      ValueT value;
+      bool active = true;
+      if (!node->isConstant(value, active) || active || !openvdb::math::isExactlyEqual(value, background_))
+        delete std::exchange(node, nullptr);
+    }
+  }
+  ValueT background_;
+  std::shared_ptr<Returned> returned_;
+};
+
+}  // namespace rodfab::voxel
