@@ -74,7 +74,7 @@ BENCHMARK(BM_Xxh128)->Unit(benchmark::kMicrosecond);
 openvdb::BoolGrid::Ptr rodLattice() {
   openvdb::initialize();
   auto grid = openvdb::BoolGrid::create(false);
-  grid->setTransform(rodfab::voxel::printerTransform({profile().voxelSizeMm[0], profile().voxelSizeMm[1], profile().voxelSizeMm[2]}, openvdb::Vec3d(0, 0, 0)));
+  grid->setTransform(rodfab::voxel::printerTransform(profile().voxelSize(), openvdb::Vec3d(0, 0, 0)));
   auto acc = grid->getAccessor();
   std::mt19937 rng(5);
   std::bernoulli_distribution vero(0.45);

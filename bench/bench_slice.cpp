@@ -67,7 +67,7 @@ void slice(benchmark::State& state, const char* designClass, const char* method)
   state.counters["cpu_s"] = toSeconds(after.ru_utime) - toSeconds(before.ru_utime) + toSeconds(after.ru_stime) - toSeconds(before.ru_stime);
 
   const voxel::PrinterGrid grid = voxel::makePrinterGrid(
-      design, openvdb::Vec3d(profile.voxelSizeMm[0], profile.voxelSizeMm[1], profile.voxelSizeMm[2]));
+      design, profile.voxelSize());
   const double seconds = report.prepareSeconds + report.seconds.wall;
   state.counters["envelope_Gvox"] = static_cast<double>(grid.voxelCount()) * 1e-9;
   state.counters["active_Mvox"] = static_cast<double>(report.mapping.voxels) * 1e-6;

@@ -20,7 +20,7 @@ namespace rodfab::test {
 // The transform of a grid in `profile`'s voxels with voxel (0,0,0) centred at `originMm` (voxel's
 // printerTransform, the one place rodfab builds it).
 inline openvdb::math::Transform::Ptr profileTransform(const printer_profiles::Profile& profile, const openvdb::Vec3d& originMm) {
-  return voxel::printerTransform({profile.voxelSizeMm[0], profile.voxelSizeMm[1], profile.voxelSizeMm[2]}, originMm);
+  return voxel::printerTransform(profile.voxelSize(), originMm);
 }
 
 inline const printer_profiles::Profile& connex3() {

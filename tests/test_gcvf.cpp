@@ -67,7 +67,7 @@ const openvdb::Vec3d kOrigin(1.0, -2.0, 0.5);
 openvdb::BoolGrid::Ptr part(const Profile& profile, unsigned seed) {
   openvdb::initialize();
   auto grid = openvdb::BoolGrid::create(false);
-  grid->setTransform(rodfab::voxel::printerTransform({profile.voxelSizeMm[0], profile.voxelSizeMm[1], profile.voxelSizeMm[2]}, kOrigin));
+  grid->setTransform(rodfab::voxel::printerTransform(profile.voxelSize(), kOrigin));
   auto acc = grid->getAccessor();
   std::mt19937 rng(seed);
   std::bernoulli_distribution rigid(0.6);

@@ -64,7 +64,7 @@ slicer::BandSource twoBoxes(const openvdb::CoordBBox& rigid, const openvdb::Coor
   return [=](int k0, int k1, bool withNext) {
     auto grid = openvdb::FloatGrid::create(0.0f);
     grid->setName(materials::kFractionGridName);
-    grid->setTransform(voxel::printerTransform({connex3().voxelSizeMm[0], connex3().voxelSizeMm[1], connex3().voxelSizeMm[2]}, originMm));
+    grid->setTransform(voxel::printerTransform(connex3().voxelSize(), originMm));
     for (auto [box, value] : {std::pair{rigid, 1.0f}, std::pair{rubbery, 0.0f}}) {
       box.min().z() = std::max(box.min().z(), k0);
       box.max().z() = std::min(box.max().z(), k1 - 1 + (withNext ? 1 : 0));
