@@ -26,6 +26,11 @@
 //                group g, concurrently for different g; upper() on the calling thread, for u = 0, 1, ...
 //                in the order the upper nodes are first needed.
 //
+// Errors: std::logic_error if a leaf lies outside its group's parent, if two leaves of a group share an
+// origin, or if two groups share a parent (each would silently drop voxels); the tree then holds what
+// was added before, and the leaves not yet handed over stay with their slots. std::bad_alloc and
+// whatever forEachLeaf or `nodes` throw pass through the same way.
+//
 // Threads: runs in the caller's TBB arena (tbb::parallel_for over the groups). The tree's shape and
 // contents do not depend on the thread count, and neither do the indices passed to `nodes`.
 //
@@ -45,6 +50,8 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <stdexcept>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -68,6 +75,23 @@ struct FreshNodes {
   }
 };
 
+namespace detail {
+inline std::string coordText(const openvdb::Coord& c) {
+  return "(" + std::to_string(c.x()) + ", " + std::to_string(c.y()) + ", " + std::to_string(c.z()) + ")";
+}
+// Hands `child` over to `node`, which must cover its origin and hold no child there yet: InternalNode::
+// addChild would leak a child outside the node and delete one already in place (voxels lost unseen).
+template <typename NodeT, typename ChildT>
+void addOnce(NodeT& node, std::unique_ptr<ChildT>& child) {
+  const openvdb::Coord origin = child->origin();
+  const bool inside = (origin & ~(NodeT::DIM - 1)) == node.origin();
+  if (!inside || node.isChildMaskOn(NodeT::coordToOffset(origin)))
+    throw std::logic_error("assembleTree: a node at " + coordText(origin) +
+                           (inside ? " was handed over twice" : " lies outside its parent at " + coordText(node.origin())));
+  node.addChild(child.release());
+}
+}  // namespace detail
+
 template <typename TreeT, typename ForEachLeaf, typename NodeSource>
 void assembleTree(TreeT& tree, std::size_t groupCount, const ForEachLeaf& forEachLeaf, NodeSource& nodes) {
   using LeafT = typename TreeT::LeafNodeType;
@@ -79,7 +103,7 @@ void assembleTree(TreeT& tree, std::size_t groupCount, const ForEachLeaf& forEac
       forEachLeaf(g, [&](std::unique_ptr<LeafT>& leaf) {
         if (!leaf) return;
         if (!parents[g]) parents[g] = nodes.parent(g, leaf->origin() & ~(ParentT::DIM - 1));
-        parents[g]->addChild(leaf.release());
+        detail::addOnce(*parents[g], leaf);
       });
   });
   std::vector<UpperT*> uppers;  // owned by the tree; a job has a handful
@@ -93,7 +117,7 @@ void assembleTree(TreeT& tree, std::size_t groupCount, const ForEachLeaf& forEac
       tree.root().addChild(node.get());
       node.release();  // the tree's now
     }
-    (*upper)->addChild(parent.release());
+    detail::addOnce(**upper, parent);
   }
 }
 

@@ -1,0 +1,152 @@
+// voxel/tree_assembly.hpp: trees assembled parent by parent against OpenVDB's own Tree::addLeaf, the
+// rules it enforces (errors instead of voxels silently lost) and the recycler's reuse of nodes.
+#include "voxel/tree_assembly.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <tbb/global_control.h>
+
+#include <map>
+#include <memory>
+#include <random>
+#include <set>
+#include <vector>
+
+namespace {
+
+using rodfab::voxel::assembleTree;
+using rodfab::voxel::FreshNodes;
+using rodfab::voxel::LeafParentOf;
+using rodfab::voxel::TreeRecycler;
+using FloatLeaf = openvdb::FloatTree::LeafNodeType;
+using Groups = std::vector<std::vector<std::unique_ptr<FloatLeaf>>>;
+
+// Leaves at random places (some far apart, some negative), each with a few values set from its origin;
+// grouped by their leaf parent, in a fixed order.
+Groups randomLeafGroups(unsigned seed, int count) {
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> coordinate(-700, 700);
+  std::map<openvdb::Coord, std::vector<std::unique_ptr<FloatLeaf>>> byParent;
+  std::set<openvdb::Coord> used;
+  const int parentDim = LeafParentOf<openvdb::FloatTree>::DIM;
+  while (int(used.size()) < count) {
+    const openvdb::Coord origin = openvdb::Coord(coordinate(rng), coordinate(rng), coordinate(rng)) & ~(FloatLeaf::DIM - 1);
+    if (!used.insert(origin).second) continue;
+    auto leaf = std::make_unique<FloatLeaf>(origin, 0.0f, false);
+    for (int i = 0; i < 5; ++i) leaf->setValueOn(openvdb::Index(rng() % FloatLeaf::SIZE), float(origin.x() + 3 * origin.y() + 7 * origin.z() + i));
+    byParent[origin & ~(parentDim - 1)].push_back(std::move(leaf));
+  }
+  Groups groups;
+  for (auto& [parent, leaves] : byParent) groups.push_back(std::move(leaves));
+  return groups;
+}
+
+Groups copyOf(const Groups& groups) {
+  Groups copy(groups.size());
+  for (std::size_t g = 0; g < groups.size(); ++g)
+    for (const auto& leaf : groups[g]) copy[g].push_back(std::make_unique<FloatLeaf>(*leaf));
+  return copy;
+}
+
+auto visitorOf(Groups& groups) {
+  return [&groups](std::size_t g, const auto& visit) {
+    for (auto& leaf : groups[g]) visit(leaf);
+  };
+}
+
+// The truth: the same leaves added one by one by OpenVDB.
+openvdb::FloatTree addedOneByOne(const Groups& groups) {
+  openvdb::FloatTree tree(0.0f);
+  for (const auto& group : groups)
+    for (const auto& leaf : group) tree.addLeaf(new FloatLeaf(*leaf));
+  return tree;
+}
+
+void requireSameTree(const openvdb::FloatTree& a, const openvdb::FloatTree& b) {
+  REQUIRE(a.leafCount() == b.leafCount());
+  REQUIRE(a.activeVoxelCount() == b.activeVoxelCount());
+  REQUIRE(a.nonLeafCount() == b.nonLeafCount());
+  for (auto leaf = a.cbeginLeaf(); leaf; ++leaf) {
+    const FloatLeaf* other = b.probeConstLeaf(leaf->origin());
+    REQUIRE(other != nullptr);
+    REQUIRE(other->getValueMask() == leaf->getValueMask());
+    for (auto v = leaf->cbeginValueOn(); v; ++v) REQUIRE(other->getValue(v.pos()) == *v);
+  }
+}
+
+}  // namespace
+
+TEST_CASE("assembleTree builds the tree Tree::addLeaf builds, whatever the thread count", "[voxel][tree_assembly]") {
+  for (const int threads : {1, 2}) {
+    const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    Groups groups = randomLeafGroups(17u + unsigned(threads), 600);
+    const openvdb::FloatTree truth = addedOneByOne(groups);
+    openvdb::FloatTree tree(0.0f);
+    FreshNodes<openvdb::FloatTree> fresh{0.0f};
+    assembleTree(tree, groups.size(), visitorOf(groups), fresh);
+    requireSameTree(tree, truth);
+    requireSameTree(truth, tree);
+    for (const auto& group : groups)
+      for (const auto& leaf : group) CHECK(leaf == nullptr);  // all handed over
+  }
+}
+
+TEST_CASE("assembleTree refuses what would lose voxels silently", "[voxel][tree_assembly][errors]") {
+  FreshNodes<openvdb::FloatTree> fresh{0.0f};
+  const int parentDim = LeafParentOf<openvdb::FloatTree>::DIM;
+  const auto leafAt = [](int x, int y, int z) { return std::make_unique<FloatLeaf>(openvdb::Coord(x, y, z), 0.0f, true); };
+  SECTION("two leaves of a group at one origin") {
+    Groups groups(1);
+    groups[0].push_back(leafAt(8, 0, 0));
+    groups[0].push_back(leafAt(8, 0, 0));
+    openvdb::FloatTree tree(0.0f);
+    CHECK_THROWS_WITH(assembleTree(tree, groups.size(), visitorOf(groups), fresh), Catch::Contains("handed over twice"));
+    CHECK(groups[0][1] != nullptr);  // the refused leaf stays with its slot
+  }
+  SECTION("a leaf outside its group's parent") {
+    Groups groups(1);
+    groups[0].push_back(leafAt(0, 0, 0));
+    groups[0].push_back(leafAt(parentDim, 0, 0));
+    openvdb::FloatTree tree(0.0f);
+    CHECK_THROWS_WITH(assembleTree(tree, groups.size(), visitorOf(groups), fresh), Catch::Contains("outside its parent"));
+  }
+  SECTION("two groups sharing a parent") {
+    Groups groups(2);
+    groups[0].push_back(leafAt(0, 0, 0));
+    groups[1].push_back(leafAt(8, 0, 0));
+    openvdb::FloatTree tree(0.0f);
+    CHECK_THROWS_WITH(assembleTree(tree, groups.size(), visitorOf(groups), fresh), Catch::Contains("handed over twice"));
+    CHECK(tree.leafCount() == 1);  // the first group's leaf is in the tree, the second group's parent was not added
+  }
+}
+
+TEST_CASE("TreeRecycler builds the next tree from the nodes of the ones let go, and the trees stay exact", "[voxel][tree_assembly]") {
+  TreeRecycler<openvdb::FloatTree> recycler(0.0f);
+  std::set<const FloatLeaf*> earlier;
+  std::size_t reused = 0, leaves = 0;
+  for (unsigned band = 0; band < 4; ++band) {
+    const Groups source = randomLeafGroups(100u + band, 300);
+    auto spares = recycler.takeSpares();
+    // Leaves made the way the producers make them: spare k for the k-th leaf, values set in full.
+    Groups groups(source.size());
+    std::size_t k = 0;
+    for (std::size_t g = 0; g < source.size(); ++g)
+      for (const auto& leaf : source[g]) {
+        const bool spare = spares.hasLeaf(k);
+        auto made = spares.leaf(k++, leaf->origin());
+        made->setValuesOff();
+        made->fill(0.0f, false);
+        for (auto v = leaf->cbeginValueOn(); v; ++v) made->setValueOn(v.pos(), *v);
+        reused += spare && earlier.count(made.get());  // the recycler's word and the address agree
+        groups[g].push_back(std::move(made));
+      }
+    leaves += k;
+    openvdb::FloatTree::Ptr tree = recycler.assemble(groups.size(), visitorOf(groups), spares);
+    requireSameTree(*tree, addedOneByOne(copyOf(source)));
+    for (auto leaf = tree->cbeginLeaf(); leaf; ++leaf) earlier.insert(leaf.getLeaf());
+    tree.reset();  // let go: back to the recycler
+  }
+  // Bands 1-3 each find band n-1's 300 leaves waiting.
+  CAPTURE(reused, leaves);
+  CHECK(reused >= 3 * 300);
+}
