@@ -121,6 +121,9 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   pipeline.bandLayers = bandLayers;
   pipeline.onBand = settings.onBand;
   pipeline.beforeFinalize = [&](printer_profiles::JobMetadata& metadata) {
+    // Every band is written: the trees kept for reuse would only sit through the zip and its check.
+    rasterizer.releaseSpareTrees();
+    fractionTrees.releaseKept();
     metadata.clamping = printer_profiles::ModulusClamping{fractionMap.floorMpa(), fractionMap.maxModulusMpa(),
                                                           report.mapping.clamps.belowFloor, report.mapping.clamps.aboveMax};
   };

@@ -150,3 +150,22 @@ TEST_CASE("TreeRecycler builds the next tree from the nodes of the ones let go, 
   CAPTURE(reused, leaves);
   CHECK(reused >= 3 * 300);
 }
+
+TEST_CASE("TreeRecycler::releaseKept frees the waiting trees and keeps none let go later", "[voxel][tree_assembly]") {
+  TreeRecycler<openvdb::FloatTree> recycler(0.0f);
+  const auto make = [&] {
+    Groups groups = randomLeafGroups(7u, 50);
+    auto spares = recycler.takeSpares();
+    return recycler.assemble(groups.size(), visitorOf(groups), spares);
+  };
+  openvdb::FloatTree::Ptr first = make(), second = make();
+  first.reset();
+  REQUIRE(recycler.takeSpares().hasLeaf(0));  // a let-go tree waits (and is taken: the queue is empty again)
+  second.reset();
+  recycler.releaseKept();
+  CHECK_FALSE(recycler.takeSpares().hasLeaf(0));
+  openvdb::FloatTree::Ptr third = make();
+  CHECK(third->leafCount() == 50);  // still assembles, from fresh nodes
+  third.reset();
+  CHECK_FALSE(recycler.takeSpares().hasLeaf(0));
+}

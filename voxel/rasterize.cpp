@@ -231,6 +231,8 @@ Rasterizer::~Rasterizer() = default;
 Rasterizer::Rasterizer(Rasterizer&&) noexcept = default;
 Rasterizer& Rasterizer::operator=(Rasterizer&&) noexcept = default;
 
+void Rasterizer::releaseSpareTrees() const { trees_->releaseKept(); }
+
 std::size_t Rasterizer::pieceCount() const {
   std::size_t n = 0;
   for (const RodPieces& r : rods_) n += r.pieces.size();

@@ -88,8 +88,15 @@ public:
   Rasterizer& operator=(Rasterizer&&) noexcept;
 
   // Voxel layers zBegin <= k < zEnd only (clipped to the grid); rods whose bounds miss the band cost
-  // next to nothing. A voxel gets the same value whichever band computes it.
+  // next to nothing. A voxel gets the same value whichever band computes it. The returned grid's tree
+  // comes back to this rasterizer when its last owner lets it go (while the rasterizer lives), and up
+  // to TreeRecycler::kKeptTrees such trees wait to be reused by the next calls (releaseSpareTrees
+  // frees them). Calls may run concurrently (the recycler locks); a moved-from Rasterizer may only be
+  // destroyed or assigned to.
   Rasterization rasterizeLayers(int zBegin, int zEnd) const;
+  // Deletes the let-go trees waiting to be reused, and those let go later: call once streaming is
+  // over (later calls still work, allocating afresh). Thread-safe.
+  void releaseSpareTrees() const;
   Rasterization rasterize() const { return rasterizeLayers(0, grid_.dims.z()); }
 
   const PrinterGrid& grid() const { return grid_; }

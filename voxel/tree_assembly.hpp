@@ -225,7 +225,7 @@ public:
     return typename TreeT::Ptr(tree.release(), [weak = std::weak_ptr<Returned>(returned_)](TreeT* t) {
       if (const std::shared_ptr<Returned> returned = weak.lock()) {
         const std::lock_guard<std::mutex> lock(returned->mutex);
-        if (returned->trees.size() < kKeptTrees) {
+        if (returned->keeping && returned->trees.size() < kKeptTrees) {
           returned->trees.emplace_back(t);
           return;
         }
@@ -234,10 +234,20 @@ public:
     });
   }
 
+  // Deletes the trees waiting to be reused and every tree let go from now on (a producer done
+  // streaming gives their memory back before the next, unrelated work); takeSpares then finds none.
+  void releaseKept() {
+    std::vector<std::unique_ptr<TreeT>> kept;  // deleted after the lock is released
+    const std::lock_guard<std::mutex> lock(returned_->mutex);
+    kept.swap(returned_->trees);
+    returned_->keeping = false;
+  }
+
 private:
   struct Returned {
     std::mutex mutex;
     std::vector<std::unique_ptr<TreeT>> trees;
+    bool keeping = true;
   };
   template <typename Node>
   void keepEmpty(std::vector<Node*>& nodes) const {
