@@ -1,5 +1,7 @@
 #include "printer_profiles/zip_writer.hpp"
 
+#include "printer_profiles/zip_output.hpp"
+
 #include <zip.h>
 
 #include <fcntl.h>
@@ -7,9 +9,11 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstring>
 #include <map>
 #include <stdexcept>
 #include <utility>
+#include <vector>
 
 namespace rodfab::printer_profiles {
 
@@ -21,15 +25,18 @@ namespace {
 class ZipBuilder {
 public:
   explicit ZipBuilder(const fs::path& path) : path_(path) {
-    int error = 0;
-    za_ = zip_open(path.c_str(), ZIP_CREATE | ZIP_EXCL, &error);
+    zip_error_t ze;
+    zip_error_init(&ze);
+    if (zip_source_t* output = newArchiveSource(path, &ze)) {
+      za_ = zip_open_from_source(output, ZIP_CREATE | ZIP_EXCL, &ze);
+      if (!za_) zip_source_free(output);
+    }
     if (!za_) {
-      zip_error_t ze;
-      zip_error_init_with_code(&ze, error);
       const std::string why = zip_error_strerror(&ze);
       zip_error_fini(&ze);
       throw std::runtime_error(path.string() + ": cannot create the zip archive (" + why + ")");
     }
+    zip_error_fini(&ze);
   }
   ~ZipBuilder() {
     if (za_) zip_discard(za_);
@@ -87,8 +94,48 @@ public:
     return fd;
   }
 
+  // `length` bytes at `offset` of `fd` (one open() gave), through a read-ahead buffer: libzip asks for
+  // 8 KiB at a time and the entries lie one after another in the staged file. False with errno set,
+  // or 0 when the file ends first.
+  bool read(int fd, std::uint64_t offset, char* out, std::size_t length) {
+    while (length > 0) {
+      if (fd != aheadFd_ || offset < aheadStart_ || offset >= aheadStart_ + ahead_.size())
+        if (!fill(fd, offset)) return false;
+      const auto at = static_cast<std::size_t>(offset - aheadStart_);
+      const std::size_t n = std::min(length, ahead_.size() - at);
+      std::memcpy(out, ahead_.data() + at, n);
+      out += n;
+      offset += n;
+      length -= n;
+    }
+    return true;
+  }
+
 private:
+  static constexpr std::size_t kReadAhead = std::size_t{1} << 20;
+
+  bool fill(int fd, std::uint64_t offset) {
+    ahead_.resize(kReadAhead);
+    aheadFd_ = -1;
+    std::size_t got = 0;
+    while (got < kReadAhead) {
+      const ssize_t n = ::pread(fd, ahead_.data() + got, kReadAhead - got, static_cast<off_t>(offset + got));
+      if (n < 0 && errno == EINTR) continue;
+      if (n < 0) return false;
+      if (n == 0) break;
+      got += static_cast<std::size_t>(n);
+    }
+    ahead_.resize(got);
+    aheadFd_ = fd;
+    aheadStart_ = offset;
+    if (got == 0) errno = 0;
+    return got > 0;
+  }
+
   std::map<fs::path, int> fds_;
+  std::vector<char> ahead_;
+  int aheadFd_ = -1;
+  std::uint64_t aheadStart_ = 0;
 };
 
 // A libzip source for StagedZipData: its stat says the data is already compressed (method, sizes and
@@ -141,15 +188,10 @@ private:
 
   zip_int64_t read(char* out, zip_uint64_t length) {
     const zip_uint64_t want = std::min<zip_uint64_t>(length, data_.length - position_);
-    zip_uint64_t got = 0;
-    while (got < want) {
-      const ssize_t n = ::pread(fd_, out + got, want - got, static_cast<off_t>(data_.offset + position_ + got));
-      if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) return failed(n < 0 ? ZIP_ER_READ : ZIP_ER_EOF);  // the staged file is shorter than recorded
-      got += static_cast<zip_uint64_t>(n);
-    }
-    position_ += got;
-    return static_cast<zip_int64_t>(got);
+    if (!files_.read(fd_, data_.offset + position_, out, want))
+      return failed(errno ? ZIP_ER_READ : ZIP_ER_EOF);  // the staged file is shorter than recorded
+    position_ += want;
+    return static_cast<zip_int64_t>(want);
   }
 
   zip_int64_t stat(zip_stat_t* st) const {
