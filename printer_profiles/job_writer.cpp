@@ -97,7 +97,7 @@ struct JobWriter::Impl {
     filesDir = staging->files();
     encoder = std::make_unique<BandEncoder>(BandEncoderSetup{spec.profile, {geometry, imageFormat, support, emitted},
                                                              spec.supportTops.get(), spec.options.archive == ArchiveFormat::Zip,
-                                                             filesDir, staging->root()});
+                                                             filesDir, staging->root(), spec.options.zipFormsInMemory});
   }
 
   bool gcvf() const { return spec.profile.jobFormat == JobFormat::Gcvf; }

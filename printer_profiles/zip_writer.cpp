@@ -164,9 +164,9 @@ private:
   zip_int64_t handle(void* data, zip_uint64_t length, zip_source_cmd_t command) {
     switch (command) {
       case ZIP_SOURCE_OPEN:
-        fd_ = files_.open(data_.file);
+        fd_ = data_.memory.empty() ? files_.open(data_.file) : -1;
         position_ = 0;
-        return fd_ >= 0 ? 0 : failed(ZIP_ER_OPEN);
+        return fd_ >= 0 || !data_.memory.empty() ? 0 : failed(ZIP_ER_OPEN);
       case ZIP_SOURCE_READ: return read(static_cast<char*>(data), length);
       case ZIP_SOURCE_CLOSE:
         fd_ = -1;  // StagedFiles closes it
@@ -188,7 +188,10 @@ private:
 
   zip_int64_t read(char* out, zip_uint64_t length) {
     const zip_uint64_t want = std::min<zip_uint64_t>(length, data_.length - position_);
-    if (!files_.read(fd_, data_.offset + position_, out, want))
+    if (!data_.memory.empty()) {
+      if (data_.memory.size() != data_.length) return failed(ZIP_ER_INCONS);
+      std::memcpy(out, data_.memory.data() + position_, want);
+    } else if (!files_.read(fd_, data_.offset + position_, out, want))
       return failed(errno ? ZIP_ER_READ : ZIP_ER_EOF);  // the staged file is shorter than recorded
     position_ += want;
     return static_cast<zip_int64_t>(want);

@@ -17,11 +17,14 @@ enum class ZipStorage { Deflate, Store };
 // An entry's data already in its zip form, at [offset, offset + length) of a staged file: raw deflate
 // (RFC 1951) for ZipStorage::Deflate, the contents themselves for Store. libzip copies it as it is.
 struct StagedZipData {
-  std::filesystem::path file;
+  std::filesystem::path file;  // unused when `memory` holds the bytes
   std::uint64_t offset = 0, length = 0;
   std::uint64_t size = 0;    // of the contents, uncompressed
   std::uint32_t crc32 = 0;   // of the contents (zipCrc32, deflate.hpp)
   std::string xxh128{};      // of the staged bytes, for the writer's verification (InspectOptions::storedForms)
+  // The bytes themselves when they were kept in memory rather than written to `file` (whoever staged
+  // them keeps them alive until writeZip returns); empty: they are in `file`.
+  std::span<const std::uint8_t> memory{};
 };
 
 struct ZipEntry {
