@@ -25,13 +25,19 @@ namespace {
 constexpr int kEntries = 6000;
 constexpr std::size_t kEntryBytes = 6700;
 
-fs::path benchDir() {
-  static const fs::path dir = [] {
-    const fs::path d = fs::temp_directory_path() / ("rodfab-bench-emit-" + std::to_string(::getpid()));
-    fs::create_directories(d);
-    return d;
-  }();
-  return dir;
+// A scratch folder of this process's, removed when the program exits.
+struct ScratchDir {
+  fs::path path = fs::temp_directory_path() / ("rodfab-bench-emit-" + std::to_string(::getpid()));
+  ScratchDir() { fs::create_directories(path); }
+  ~ScratchDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
+const fs::path& benchDir() {
+  static const ScratchDir dir;
+  return dir.path;
 }
 
 // The entries' bytes, as stored (zip "store": the bytes are their own zip form).
