@@ -1,7 +1,8 @@
 // Internal to printer_profiles/: a band of layers from the material grid to the job's layer images.
 // Per layer: the material bitmaps (from the grid's leaf masks), support, voxel counts and moments,
 // the previews' share, and the images encoded (BMP, 1-bit PNG or GrabCAD RGBA), hashed for the
-// manifest and, for zip jobs, deflated with their zip CRC-32 and appended to the job's one staged file.
+// manifest and, for zip jobs, deflated with their zip CRC-32 and kept for the zip: in memory up to a
+// budget, then in the job's one staged file.
 #pragma once
 
 #include "printer_profiles/job_manifest.hpp"
@@ -9,6 +10,7 @@
 #include "printer_profiles/previews.hpp"
 
 #include <cstdint>
+#include <deque>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -23,6 +25,7 @@ struct BandEncoderSetup {
   const ColumnTops* supportTops;                        // SupportPolicy::Explicit only
   bool zip;                                             // stage zip forms (else write the files)
   std::filesystem::path filesDir, stagingRoot;          // where files, and zip jobs' staged layers, go
+  std::uint64_t zipFormsInMemory = 0;                   // JobOptions::zipFormsInMemory
 };
 
 class BandEncoder {
@@ -51,13 +54,17 @@ private:
   static ImageSums sumsOf(std::span<const std::uint8_t> image, bool zip);
   void keepImage(const ProfileMaterial& m, int layer, std::span<const std::uint8_t> image, ImageSums sums, LayerRecord& record,
                  std::vector<Bytes>* zipForms, Bytes* owned = nullptr) const;
-  void stageBand(int firstLayer, const std::vector<std::vector<Bytes>>& zipForms, std::vector<LayerRecord>& layers);
+  void stageBand(int firstLayer, std::vector<std::vector<Bytes>>& zipForms, std::vector<LayerRecord>& layers);
   bool gcvf() const { return s_.profile.jobFormat == JobFormat::Gcvf; }
 
   BandEncoderSetup s_;
   // The band's bitmaps, kept from band to band: cleared, not reallocated (fresh pages cost a fault each).
   std::vector<LayerBitmaps> bitmaps_;
-  // Zip jobs: every band's zip forms one after another in one staged file, created with the first band.
+  // Zip jobs: the zip forms kept in memory (up to s_.zipFormsInMemory bytes), then every further one
+  // after another in one staged file, created when the first one goes there. The records'
+  // StagedZipData point into kept_ until the job is written.
+  std::deque<Bytes> kept_;
+  std::uint64_t keptBytes_ = 0;
   std::ofstream staged_;
   std::uint64_t stagedBytes_ = 0;
 };

@@ -1,6 +1,7 @@
 #include "printer_profiles/job_reader.hpp"
 
 #include "printer_profiles/deflate.hpp"
+#include "printer_profiles/zip_input.hpp"
 #include "printer_profiles/zip_pool.hpp"
 
 #include <zip.h>
@@ -218,11 +219,16 @@ public:
   }
 
 private:
+  // Through a read-ahead source (zip_input.hpp), which owns fd from here.
   zip_t* adopt(int fd) const {
-    int error = 0;
-    zip_t* za = zip_fdopen(fd, ZIP_CHECKCONS, &error);  // closes fd on success only
+    zip_error_t ze;
+    zip_error_init(&ze);
+    zip_source_t* source = newFileReadSource(fd, &ze);
+    zip_t* za = source ? zip_open_from_source(source, ZIP_RDONLY | ZIP_CHECKCONS, &ze) : nullptr;
+    const int error = zip_error_code_zip(&ze);
+    zip_error_fini(&ze);
     if (!za) {
-      ::close(fd);
+      if (source) zip_source_free(source);
       if (error == ZIP_ER_EXISTS)  // libzip refuses a central directory naming one entry twice
         throw JobReadError(path().string() + ": holds two entries of the same name (unpacking would keep only one)");
       throw JobReadError(path().string() + ": not a readable zip archive (" + zipErrorText(error) +

@@ -97,7 +97,7 @@ struct JobWriter::Impl {
     filesDir = staging->files();
     encoder = std::make_unique<BandEncoder>(BandEncoderSetup{spec.profile, {geometry, imageFormat, support, emitted},
                                                              spec.supportTops.get(), spec.options.archive == ArchiveFormat::Zip,
-                                                             filesDir, staging->root()});
+                                                             filesDir, staging->root(), spec.options.zipFormsInMemory});
   }
 
   bool gcvf() const { return spec.profile.jobFormat == JobFormat::Gcvf; }
@@ -114,7 +114,7 @@ struct JobWriter::Impl {
     // The grid's transform must say the same voxel size as the profile: this catches a 600/300 dpi swap.
     const auto& xform = band.material->transform();
     const openvdb::Vec3d size = xform.voxelSize();
-    const openvdb::Vec3d want(spec.profile.voxelSizeMm[0], spec.profile.voxelSizeMm[1], spec.profile.voxelSizeMm[2]);
+    const openvdb::Vec3d want = spec.profile.voxelSize();
     const auto close = [](double a, double b) { return std::abs(a - b) <= 0.005 * b; };
     if (!xform.isLinear() || !close(size.x(), want.x()) || !close(size.y(), want.y()) || !close(size.z(), want.z())) {
       std::string hint;

@@ -59,6 +59,10 @@ struct JobOptions {
   // there (a user's file or folder, a link, a job with files added) is never replaced.
   bool force = false;
   int contactSheetLayers = 16;                   // layers shown in previews/contact-sheet.png
+  // Zip jobs: bytes of layer images in their zip form kept in memory until the zip is built; the rest
+  // go to a file in the staging folder. Memory against two copies through the page cache; the job's
+  // bytes are the same either way.
+  std::uint64_t zipFormsInMemory = std::uint64_t{256} << 20;
   // Re-open and inspect before the rename: the layout, manifest, build file and previews as `inspect`
   // does; one layer in 32 (and the last) decoded and checked against the manifest; every other layer
   // image's bytes as the zip stores them against the XXH3-128 the writer took when it staged them, and

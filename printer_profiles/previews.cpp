@@ -379,21 +379,26 @@ void Previews::addContactTile(int layer, const LayerBitmaps& b) {
 void Previews::addTopLayers(int first, const std::vector<LayerBitmaps>& layers, const openvdb::FloatGrid* modulus) {
   if (modulus) haveModulus_ = true;
   if (layers.empty()) return;
-  tbb::parallel_for(tbb::blocked_range<int>(0, geometry_.height), [&](const tbb::blocked_range<int>& rows) {
+  // By blocks of rows, each block read layer by layer: consecutive rows of one bitmap at a time. Row by
+  // row through every layer's bitmap in turn (the band's no longer in cache) cost a cache and TLB miss
+  // per row and layer.
+  constexpr int kRowBlock = 32;
+  const std::vector<std::uint8_t>& hidden = top_.u.hiddenMask();
+  tbb::parallel_for(tbb::blocked_range<int>(0, geometry_.height, kRowBlock), [&](const tbb::blocked_range<int>& rows) {
     std::optional<openvdb::FloatGrid::ConstAccessor> acc;
     if (modulus) acc.emplace(modulus->getConstAccessor());
+    // Layers from the band's top down: the first one seen in a column is its top within the band, and
+    // replaces what earlier bands left (their layers are below `first`). `claimed` marks, row by row,
+    // the columns a higher layer of this band already took, and those no pixel shows.
     std::vector<std::uint8_t> claimed;
-    for (int r = rows.begin(); r != rows.end(); ++r) {
-      if (top_.v.slot(r) < 0) continue;
-      // Layers from the band's top down: the first one seen in a column is its top within the band,
-      // and replaces what earlier bands left (their layers are below `first`). `claimed` marks the
-      // columns a higher layer of this band already took, and those no pixel shows.
-      claimed = top_.u.hiddenMask();
-      for (std::size_t n = layers.size(); n-- > 0;) {
-        const int layer = first + static_cast<int>(n);
+    for (int r = rows.begin(); r != rows.end(); ++r) claimed.insert(claimed.end(), hidden.begin(), hidden.end());
+    for (std::size_t n = layers.size(); n-- > 0;) {
+      const int layer = first + static_cast<int>(n);
+      for (int r = rows.begin(); r != rows.end(); ++r) {
         const RowSpan span = layers[n].span(r);
-        if (span.empty()) continue;
-        forEachFresh(layers[n].rigid.row(r), layers[n].rubbery.row(r), claimed.data(), span, [&](int c, bool isRigid) {
+        if (top_.v.slot(r) < 0 || span.empty()) continue;
+        std::uint8_t* rowClaimed = claimed.data() + static_cast<std::size_t>(r - rows.begin()) * hidden.size();
+        forEachFresh(layers[n].rigid.row(r), layers[n].rubbery.row(r), rowClaimed, span, [&](int c, bool isRigid) {
           const float e = modulus ? modulusAt(modulus, &*acc, {geometry_.i(c), geometry_.j(r), geometry_.k(layer)}) : kNoModulus;
           top_.set(top_.at(c, r), isRigid, layer, e);
         });

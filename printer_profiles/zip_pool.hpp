@@ -1,6 +1,6 @@
 // libzip archive handles are not thread-safe: readers that serve several threads borrow one handle
 // each from a ZipPool, which opens another when none is free. Internal to printer_profiles/ (the job
-// readers of job_archive.cpp and job_reader.cpp).
+// readers of job_files.cpp and job_reader.cpp).
 #pragma once
 
 #include <zip.h>

@@ -85,6 +85,17 @@ TEST_CASE("Job bytes do not depend on the thread count or the band size", "[job]
   const Bytes a = readAll(dir / "one-thread" / "job.zip"), b = readAll(dir / "many-threads" / "job.zip");
   CHECK(a.size() > 1000);
   CHECK((a == b));
+
+  // Nor on where the layers' zip forms wait for the zip: all in memory (above), all in the staging
+  // folder's file, or the first few kB in memory and the rest in the file.
+  for (const std::uint64_t inMemory : {std::uint64_t{0}, std::uint64_t{5000}}) {
+    const fs::path folder = dir / ("in-memory-" + std::to_string(inMemory));
+    fs::create_directories(folder);
+    JobSpec spec = specFor(*grid, folder / "job.zip");
+    spec.options.zipFormsInMemory = inMemory;
+    writeJob(*grid, spec, 3);
+    CHECK((readAll(folder / "job.zip") == a));
+  }
 }
 
 TEST_CASE("Explicit support fills under the overhang down to the tray and never touches the model", "[job][support]") {

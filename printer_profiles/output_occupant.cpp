@@ -1,0 +1,211 @@
+#include "printer_profiles/output_occupant.hpp"
+
+#include "printer_profiles/job_archive.hpp"
+
+#include <nlohmann/json.hpp>
+#include <zip.h>
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <optional>
+#include <set>
+#include <string_view>
+#include <utility>
+
+namespace rodfab::printer_profiles {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// Only what tells a rodfab job, read as SAX events (no document is built): the top-level "format" and
+// the names in the top-level "files" table. Stops at nesting deeper than a manifest has.
+class ManifestSummary final : public nlohmann::json_sax<nlohmann::json> {
+public:
+  std::string format;
+  std::set<std::string> files;
+
+  bool null() override { return true; }
+  bool boolean(bool) override { return true; }
+  bool number_integer(number_integer_t) override { return true; }
+  bool number_unsigned(number_unsigned_t) override { return true; }
+  bool number_float(number_float_t, const string_t&) override { return true; }
+  bool binary(binary_t&) override { return true; }
+  bool string(string_t& value) override {
+    if (depth_ == 1 && topKey_ == "format") format = value;
+    return true;
+  }
+  bool start_object(std::size_t) override { return enter(); }
+  bool start_array(std::size_t) override { return enter(); }
+  bool key(string_t& name) override {
+    if (depth_ == 1) topKey_ = name;
+    else if (depth_ == 2 && inFiles_) files.insert(name);
+    return true;
+  }
+  bool end_object() override { return leave(); }
+  bool end_array() override { return leave(); }
+  bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception&) override { return false; }
+
+private:
+  static constexpr int kMaxDepth = 16;  // a manifest nests 5 deep
+  bool enter() {
+    ++depth_;
+    if (depth_ == 2) inFiles_ = topKey_ == "files";
+    return depth_ <= kMaxDepth;
+  }
+  bool leave() {
+    if (depth_ == 2) inFiles_ = false;
+    --depth_;
+    return true;
+  }
+  int depth_ = 0;
+  std::string topKey_;
+  bool inFiles_ = false;
+};
+
+std::optional<ManifestSummary> summarizeManifest(const std::string& text) {
+  ManifestSummary summary;
+  if (!nlohmann::json::sax_parse(text, &summary) || summary.format != kJobFormat) return std::nullopt;
+  return summary;
+}
+
+// An open file descriptor, closed on scope exit unless released.
+struct Descriptor {
+  int fd = -1;
+  ~Descriptor() {
+    if (fd >= 0) ::close(fd);
+  }
+  int release() { return std::exchange(fd, -1); }
+};
+
+// Up to `limit` bytes from `fd` (fewer at its end); nullopt when reading fails or more are there.
+std::optional<std::string> readAtMost(int fd, std::size_t limit) {
+  std::string text(std::min<std::size_t>(limit, 1 << 16) + 1, '\0');
+  std::size_t got = 0;
+  for (;;) {
+    if (got == text.size()) {
+      if (text.size() > limit) return std::nullopt;
+      text.resize(std::min(limit + 1, text.size() * 2));
+    }
+    const ssize_t n = ::read(fd, text.data() + got, text.size() - got);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) return std::nullopt;
+    if (n == 0) break;
+    got += static_cast<std::size_t>(n);
+  }
+  text.resize(got);
+  return text;
+}
+
+// Opens a regular file that must be the entry `st` describes: no link is followed, no pipe waited on.
+int openSameFile(const fs::path& path, const struct stat& st) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
+  struct stat opened {};
+  if (fd >= 0 && (::fstat(fd, &opened) != 0 || !S_ISREG(opened.st_mode) || opened.st_dev != st.st_dev || opened.st_ino != st.st_ino)) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+std::string inQuotes(const std::string& name) { return "'" + name + "'"; }
+
+// The first entry of `folder` (below `prefix` in the job) that is not a regular file the manifest
+// lists; previews/ is looked into. Stops at the first one, so a huge folder is not listed.
+std::optional<std::string> firstStranger(const fs::path& folder, const std::string& prefix, const ManifestSummary& manifest) {
+  std::error_code ec;
+  for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = prefix + it->path().filename().string();
+    const fs::file_status status = it->symlink_status(ec);
+    if (ec) return name;
+    if (name == kManifestName) continue;
+    if (name == "previews" && prefix.empty() && fs::is_directory(status)) {
+      if (auto inner = firstStranger(it->path(), "previews/", manifest)) return inner;
+      continue;
+    }
+    if (!fs::is_regular_file(status) || !manifest.files.contains(name)) return name;
+  }
+  if (ec) return "an entry it cannot list (" + ec.message() + ")";
+  return std::nullopt;
+}
+
+// A folder is a rodfab job when it holds a rodfab manifest and only regular files that manifest lists.
+std::string examineFolder(const fs::path& path) {
+  struct stat st {};
+  const fs::path manifestPath = path / kManifestName;
+  if (::lstat(manifestPath.c_str(), &st) != 0 || !S_ISREG(st.st_mode))
+    return "a folder without a rodfab job manifest (" + std::string(kManifestName) + ")";
+  Descriptor file{openSameFile(manifestPath, st)};
+  const std::optional<std::string> text = file.fd >= 0 ? readAtMost(file.fd, kMaxManifestBytes) : std::nullopt;
+  const std::optional<ManifestSummary> manifest = text ? summarizeManifest(*text) : std::nullopt;
+  if (!manifest) return std::string("a folder whose ") + kManifestName + " is not a rodfab job manifest (" + kJobFormat + ")";
+  if (auto name = firstStranger(path, "", *manifest))
+    return "a folder holding a rodfab job and also " + inQuotes(*name) + ", which is not part of that job";
+  return "";
+}
+
+// A zip is a rodfab job when its first entry is manifest.json (the writer's fixed order) of the job
+// format. The local header is looked at first (46 bytes), so a large foreign zip is not read at all.
+std::string examineZip(const fs::path& path, const struct stat& st) {
+  Descriptor file{openSameFile(path, st)};
+  if (file.fd < 0) return std::string("a file that cannot be opened (") + std::strerror(errno) + ")";
+  constexpr std::size_t kHeader = 30;
+  const std::string_view wanted = kManifestName;
+  unsigned char head[kHeader + 13] = {};
+  const ssize_t got = ::pread(file.fd, head, sizeof head, 0);
+  if (got < 4 || std::memcmp(head, "PK\x03\x04", 4) != 0)
+    return got == 0 ? "an empty file" : "a file that is not a zip archive";
+  const unsigned nameLength = head[26] | (head[27] << 8);
+  if (got != static_cast<ssize_t>(sizeof head) || nameLength != wanted.size() ||
+      std::string_view(reinterpret_cast<const char*>(head + kHeader), wanted.size()) != wanted)
+    return "a zip archive whose first entry is not a rodfab job manifest";
+  int error = 0;
+  zip_t* za = zip_fdopen(file.fd, 0, &error);
+  if (!za) return "a zip archive that cannot be read";
+  file.release();  // libzip owns it now
+  std::string text;
+  const zip_int64_t index = zip_name_locate(za, kManifestName, 0);
+  zip_stat_t zs;
+  zip_file_t* zf = nullptr;
+  if (index >= 0 && zip_stat_index(za, static_cast<zip_uint64_t>(index), 0, &zs) == 0 && (zs.valid & ZIP_STAT_SIZE) &&
+      zs.size <= kMaxManifestBytes && (zf = zip_fopen_index(za, static_cast<zip_uint64_t>(index), 0))) {
+    text.resize(zs.size);
+    if (zip_fread(zf, text.data(), zs.size) != static_cast<zip_int64_t>(zs.size)) text.clear();
+    zip_fclose(zf);
+  }
+  zip_discard(za);
+  if (!summarizeManifest(text)) return std::string("a zip archive whose ") + kManifestName + " is not a rodfab job manifest (" + kJobFormat + ")";
+  return "";
+}
+
+}  // namespace
+
+OutputOccupant examineOutput(const fs::path& path) {
+  OutputOccupant out;
+  struct stat st {};
+  if (::lstat(path.c_str(), &st) != 0) {
+    if (errno == ENOENT) return out;
+    out.kind = OutputOccupant::Kind::Other;
+    out.description = std::string("an entry that cannot be examined (") + std::strerror(errno) + ")";
+    return out;
+  }
+  out.device = static_cast<std::uint64_t>(st.st_dev);
+  out.inode = static_cast<std::uint64_t>(st.st_ino);
+  if (S_ISDIR(st.st_mode)) out.description = examineFolder(path);
+  else if (S_ISREG(st.st_mode)) out.description = examineZip(path, st);
+  else if (S_ISLNK(st.st_mode)) out.description = "a symbolic link (never followed or replaced)";
+  else if (S_ISFIFO(st.st_mode)) out.description = "a named pipe";
+  else if (S_ISSOCK(st.st_mode)) out.description = "a socket";
+  else out.description = "a device file";
+  out.kind = out.description.empty() ? OutputOccupant::Kind::RodfabJob : OutputOccupant::Kind::Other;
+  if (out.kind == OutputOccupant::Kind::RodfabJob)
+    out.description = S_ISDIR(st.st_mode) ? "a rodfab job folder" : "a rodfab job archive";
+  return out;
+}
+
+}  // namespace rodfab::printer_profiles

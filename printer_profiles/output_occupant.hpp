@@ -1,0 +1,27 @@
+// What lies at a job's output path: nothing, a rodfab job (which `--force` may replace) or anything
+// else (never replaced), told apart without following links or trusting the entry's contents.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+
+namespace rodfab::printer_profiles {
+
+// What lies at a job's output path, found without following a symbolic link, without waiting on a
+// pipe or device, and reading at most kMaxManifestBytes (job_archive.hpp) plus a zip's directory.
+struct OutputOccupant {
+  enum class Kind {
+    Nothing,    // no entry of that name
+    RodfabJob,  // a zip whose first entry is a manifest.json of format kJobFormat, or a folder holding
+                // such a manifest and nothing but regular files its "files" table lists (previews/ too)
+    Other,      // anything else: a user's file or folder, a link, a foreign zip, a job with added files
+  };
+  Kind kind = Kind::Nothing;
+  std::string description;              // what it is, for messages: "a folder holding notes.txt, which ..."
+  std::uint64_t device = 0, inode = 0;  // of the entry itself (not a link's target)
+};
+// Never throws for what it finds (an unreadable entry is Other, described with the error).
+OutputOccupant examineOutput(const std::filesystem::path& path);
+
+}  // namespace rodfab::printer_profiles

@@ -1,0 +1,255 @@
+#include "printer_profiles/zip_writer.hpp"
+
+#include "printer_profiles/zip_output.hpp"
+
+#include <zip.h>
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <map>
+#include <stdexcept>
+#include <utility>
+#include <vector>
+
+namespace rodfab::printer_profiles {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// A zip under construction with fixed timestamps and attributes; throws naming the archive.
+class ZipBuilder {
+public:
+  explicit ZipBuilder(const fs::path& path) : path_(path) {
+    zip_error_t ze;
+    zip_error_init(&ze);
+    if (zip_source_t* output = newArchiveSource(path, &ze)) {
+      za_ = zip_open_from_source(output, ZIP_CREATE | ZIP_EXCL, &ze);
+      if (!za_) zip_source_free(output);
+    }
+    if (!za_) {
+      const std::string why = zip_error_strerror(&ze);
+      zip_error_fini(&ze);
+      throw std::runtime_error(path.string() + ": cannot create the zip archive (" + why + ")");
+    }
+    zip_error_fini(&ze);
+  }
+  ~ZipBuilder() {
+    if (za_) zip_discard(za_);
+  }
+  ZipBuilder(const ZipBuilder&) = delete;
+  ZipBuilder& operator=(const ZipBuilder&) = delete;
+
+  zip_t* archive() const { return za_; }
+
+  void add(const std::string& name, zip_source_t* source, ZipStorage storage) {
+    if (!source) fail("cannot read the data of " + name);
+    const zip_int64_t index = zip_file_add(za_, name.c_str(), source, ZIP_FL_ENC_UTF_8);
+    if (index < 0) {
+      zip_source_free(source);
+      fail("cannot add " + name);
+    }
+    const auto i = static_cast<zip_uint64_t>(index);
+    const bool deflate = storage == ZipStorage::Deflate;
+    if (zip_set_file_compression(za_, i, deflate ? ZIP_CM_DEFLATE : ZIP_CM_STORE, deflate ? 1 : 0) != 0 ||
+        zip_file_set_mtime(za_, i, static_cast<time_t>(kZipEntryTime), 0) != 0 ||
+        zip_file_set_external_attributes(za_, i, 0, ZIP_OPSYS_UNIX, 0100644u << 16) != 0)
+      fail("cannot set the attributes of " + name);
+  }
+
+  void close() {
+    if (zip_close(za_) != 0) fail("cannot write the archive");
+    za_ = nullptr;
+  }
+
+  [[noreturn]] void fail(const std::string& what) {
+    const std::string why = za_ ? zip_strerror(za_) : "";
+    throw std::runtime_error(path_.string() + ": " + what + (why.empty() ? "" : " (" + why + ")"));
+  }
+
+private:
+  fs::path path_;
+  zip_t* za_ = nullptr;
+};
+
+// The staged files, each opened once however many entries it holds (a job's layers are all in one).
+class StagedFiles {
+public:
+  StagedFiles() = default;
+  ~StagedFiles() {
+    for (const auto& [path, fd] : fds_) ::close(fd);
+  }
+  StagedFiles(const StagedFiles&) = delete;
+  StagedFiles& operator=(const StagedFiles&) = delete;
+
+  // The file's descriptor, or -1 with errno set.
+  int open(const fs::path& file) {
+    if (const auto it = fds_.find(file); it != fds_.end()) return it->second;
+    const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd >= 0) fds_.emplace(file, fd);
+    return fd;
+  }
+
+  // `length` bytes at `offset` of `fd` (one open() gave), through a read-ahead buffer: libzip asks for
+  // 8 KiB at a time and the entries lie one after another in the staged file. False with errno set,
+  // or 0 when the file ends first.
+  bool read(int fd, std::uint64_t offset, char* out, std::size_t length) {
+    while (length > 0) {
+      if (fd != aheadFd_ || offset < aheadStart_ || offset >= aheadStart_ + ahead_.size())
+        if (!fill(fd, offset)) return false;
+      const auto at = static_cast<std::size_t>(offset - aheadStart_);
+      const std::size_t n = std::min(length, ahead_.size() - at);
+      std::memcpy(out, ahead_.data() + at, n);
+      out += n;
+      offset += n;
+      length -= n;
+    }
+    return true;
+  }
+
+private:
+  static constexpr std::size_t kReadAhead = std::size_t{1} << 20;
+
+  bool fill(int fd, std::uint64_t offset) {
+    ahead_.resize(kReadAhead);
+    aheadFd_ = -1;
+    std::size_t got = 0;
+    while (got < kReadAhead) {
+      const ssize_t n = ::pread(fd, ahead_.data() + got, kReadAhead - got, static_cast<off_t>(offset + got));
+      if (n < 0 && errno == EINTR) continue;
+      if (n < 0) return false;
+      if (n == 0) break;
+      got += static_cast<std::size_t>(n);
+    }
+    ahead_.resize(got);
+    aheadFd_ = fd;
+    aheadStart_ = offset;
+    if (got == 0) errno = 0;
+    return got > 0;
+  }
+
+  std::map<fs::path, int> fds_;
+  std::vector<char> ahead_;
+  int aheadFd_ = -1;
+  std::uint64_t aheadStart_ = 0;
+};
+
+// A libzip source for StagedZipData: its stat says the data is already compressed (method, sizes and
+// CRC), so zip_close copies the bytes instead of compressing them, as it does for zip_source_zip.
+// Reads through `files`, which must outlive the source.
+class StagedSource {
+public:
+  StagedSource(StagedZipData data, ZipStorage storage, StagedFiles& files)
+      : data_(std::move(data)), storage_(storage), files_(files) {
+    zip_error_init(&error_);
+  }
+  ~StagedSource() { zip_error_fini(&error_); }
+  StagedSource(const StagedSource&) = delete;
+  StagedSource& operator=(const StagedSource&) = delete;
+
+  static zip_int64_t callback(void* self, void* data, zip_uint64_t length, zip_source_cmd_t command) {
+    auto* source = static_cast<StagedSource*>(self);
+    if (command == ZIP_SOURCE_FREE) {
+      delete source;
+      return 0;
+    }
+    return source->handle(data, length, command);
+  }
+
+private:
+  zip_int64_t handle(void* data, zip_uint64_t length, zip_source_cmd_t command) {
+    switch (command) {
+      case ZIP_SOURCE_OPEN:
+        fd_ = data_.memory.empty() ? files_.open(data_.file) : -1;
+        position_ = 0;
+        return fd_ >= 0 || !data_.memory.empty() ? 0 : failed(ZIP_ER_OPEN);
+      case ZIP_SOURCE_READ: return read(static_cast<char*>(data), length);
+      case ZIP_SOURCE_CLOSE:
+        fd_ = -1;  // StagedFiles closes it
+        return 0;
+      case ZIP_SOURCE_STAT: return stat(static_cast<zip_stat_t*>(data));
+      case ZIP_SOURCE_GET_FILE_ATTRIBUTES: return attributes(static_cast<zip_file_attributes_t*>(data));
+      case ZIP_SOURCE_ERROR: return zip_error_to_data(&error_, data, length);
+      case ZIP_SOURCE_SUPPORTS:
+        return zip_source_make_command_bitmap(ZIP_SOURCE_OPEN, ZIP_SOURCE_READ, ZIP_SOURCE_CLOSE, ZIP_SOURCE_STAT,
+                                              ZIP_SOURCE_ERROR, ZIP_SOURCE_FREE, ZIP_SOURCE_GET_FILE_ATTRIBUTES, -1);
+      default: return failed(ZIP_ER_OPNOTSUPP);
+    }
+  }
+
+  zip_int64_t failed(int code) {
+    zip_error_set(&error_, code, code == ZIP_ER_OPEN || code == ZIP_ER_READ ? errno : 0);
+    return -1;
+  }
+
+  zip_int64_t read(char* out, zip_uint64_t length) {
+    const zip_uint64_t want = std::min<zip_uint64_t>(length, data_.length - position_);
+    if (!data_.memory.empty()) {
+      if (data_.memory.size() != data_.length) return failed(ZIP_ER_INCONS);
+      std::memcpy(out, data_.memory.data() + position_, want);
+    } else if (!files_.read(fd_, data_.offset + position_, out, want))
+      return failed(errno ? ZIP_ER_READ : ZIP_ER_EOF);  // the staged file is shorter than recorded
+    position_ += want;
+    return static_cast<zip_int64_t>(want);
+  }
+
+  zip_int64_t stat(zip_stat_t* st) const {
+    zip_stat_init(st);
+    st->size = data_.size;
+    st->comp_size = data_.length;
+    st->comp_method = storage_ == ZipStorage::Deflate ? ZIP_CM_DEFLATE : ZIP_CM_STORE;
+    st->crc = data_.crc32;
+    st->encryption_method = ZIP_EM_NONE;
+    st->valid = ZIP_STAT_SIZE | ZIP_STAT_COMP_SIZE | ZIP_STAT_COMP_METHOD | ZIP_STAT_CRC | ZIP_STAT_ENCRYPTION_METHOD;
+    return 0;
+  }
+
+  // Deflated entries say "fast" in general purpose bits 1-2, as libzip's own level-1 deflate does.
+  zip_int64_t attributes(zip_file_attributes_t* a) const {
+    if (storage_ != ZipStorage::Deflate) return 0;
+    a->valid |= ZIP_FILE_ATTRIBUTES_GENERAL_PURPOSE_BIT_FLAGS;
+    a->general_purpose_bit_flags = 2 << 1;
+    a->general_purpose_bit_mask = 0x0006;
+    return 0;
+  }
+
+  StagedZipData data_;
+  ZipStorage storage_;
+  StagedFiles& files_;
+  zip_error_t error_;
+  int fd_ = -1;
+  zip_uint64_t position_ = 0;
+};
+
+zip_source_t* stagedSource(zip_t* za, const StagedZipData& data, ZipStorage storage, StagedFiles& files) {
+  auto* source = new StagedSource(data, storage, files);
+  zip_source_t* zs = zip_source_function(za, StagedSource::callback, source);
+  if (!zs) delete source;
+  return zs;
+}
+
+}  // namespace
+
+void writeZip(const fs::path& zipPath, const std::vector<ZipEntry>& entries) {
+  StagedFiles staged;  // declared first: the zip's sources, which read through it, go before it
+  ZipBuilder zip(zipPath);
+  for (const ZipEntry& e : entries) {
+    zip_source_t* source = e.staged ? stagedSource(zip.archive(), *e.staged, e.storage, staged)
+                                    : zip_source_file(zip.archive(), e.source.c_str(), 0, -1);
+    zip.add(e.name, source, e.storage);
+  }
+  zip.close();
+}
+
+void writeZipFromMemory(const fs::path& zipPath, const std::vector<ZipMemoryEntry>& entries) {
+  ZipBuilder zip(zipPath);
+  for (const ZipMemoryEntry& e : entries)
+    zip.add(e.name, zip_source_buffer(zip.archive(), e.data.data(), e.data.size(), 0), e.storage);
+  zip.close();
+}
+
+}  // namespace rodfab::printer_profiles

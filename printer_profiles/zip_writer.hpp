@@ -1,0 +1,55 @@
+// Writing a job's zip archive (libzip): entries in a fixed order with fixed timestamps and attributes,
+// from files, from memory, or copied as staged in their compressed form.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace rodfab::printer_profiles {
+
+// When a file's contents go into the zip deflated (fast level) or as they are.
+enum class ZipStorage { Deflate, Store };
+
+// An entry's data already in its zip form, at [offset, offset + length) of a staged file: raw deflate
+// (RFC 1951) for ZipStorage::Deflate, the contents themselves for Store. libzip copies it as it is.
+struct StagedZipData {
+  std::filesystem::path file;  // unused when `memory` holds the bytes
+  std::uint64_t offset = 0, length = 0;
+  std::uint64_t size = 0;    // of the contents, uncompressed
+  std::uint32_t crc32 = 0;   // of the contents (zipCrc32, deflate.hpp)
+  std::string xxh128{};      // of the staged bytes, for the writer's verification (InspectOptions::storedForms)
+  // The bytes themselves when they were kept in memory rather than written to `file` (whoever staged
+  // them keeps them alive until writeZip returns); empty: they are in `file`.
+  std::span<const std::uint8_t> memory{};
+};
+
+struct ZipEntry {
+  std::string name;                  // inside the archive
+  std::filesystem::path source;      // file on disk, read by libzip when the archive is closed
+  ZipStorage storage = ZipStorage::Deflate;
+  // Instead of `source`: data compressed beforehand (in parallel, band by band), copied into the
+  // archive without recompressing; `storage` says what it is.
+  std::optional<StagedZipData> staged;
+};
+
+struct ZipMemoryEntry {
+  std::string name;
+  std::span<const std::uint8_t> data;  // must stay alive until writeZipFromMemory returns
+  ZipStorage storage = ZipStorage::Deflate;
+};
+
+// The DOS timestamp of every entry (zip stores local time; this is noon, 1 January 2020 UTC).
+inline constexpr long long kZipEntryTime = 1577880000;
+
+// Writes a new zip holding `entries` in the given order; the bytes depend on nothing but the
+// entries' contents, names and storage, and for staged entries their compressed bytes (fixed
+// timestamps and attributes).
+void writeZip(const std::filesystem::path& zipPath, const std::vector<ZipEntry>& entries);
+// The same from memory (deflated by libzip with zlib).
+void writeZipFromMemory(const std::filesystem::path& zipPath, const std::vector<ZipMemoryEntry>& entries);
+
+}  // namespace rodfab::printer_profiles
