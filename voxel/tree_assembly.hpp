@@ -152,6 +152,8 @@ private:
 // built from their nodes. At most kKeptTrees trees wait; further ones, and every one let go after the
 // recycler is gone, are deleted. Thread-safe: trees come back from any thread, and takeSpares and
 // assemble may be called from several threads at once.
+// Memory: the kept trees stay allocated while the recycler lives. A slicer's memory estimate counts
+// them (voxel::RasterEstimate::peakBytes, diagnostics.hpp: kKeptTrees band trees per recycler).
 template <typename TreeT>
 class TreeRecycler {
 public:
