@@ -1,6 +1,8 @@
 // materials/: the modulus-to-fraction table and the mapping of modulus grids to fraction grids.
+#include "geometry/geometry.hpp"
 #include "materials/materials.hpp"
 #include "tests/materials_fixture.hpp"
+#include "voxel/voxel.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -10,7 +12,9 @@
 #include <atomic>
 #include <bit>
 #include <cmath>
+#include <deque>
 #include <limits>
+#include <malloc.h>
 #include <numeric>
 #include <random>
 #include <vector>
@@ -312,4 +316,71 @@ TEST_CASE("materials: streamed bands reuse earlier fraction grids' nodes and sta
     CHECK(streamedStats.clamps.belowFloor == freshStats.clamps.belowFloor);
     CHECK(streamedStats.clamps.aboveMax == freshStats.clamps.aboveMax);
   }
+}
+
+// Bytes the allocator holds for the program now (every arena, plus the blocks it mapped directly).
+std::uint64_t heapBytesInUse() {
+  const struct mallinfo2 m = mallinfo2();
+  return std::uint64_t(m.uordblks) + std::uint64_t(m.hblkhd);
+}
+
+TEST_CASE("materials: the slice's memory estimate bounds the heap of streamed bands, recyclers included", "[materials][mapping][memory]") {
+#if defined(__SANITIZE_ADDRESS__)
+  WARN("AddressSanitizer keeps its own heap: mallinfo2 does not see it, nothing to measure");
+  return;
+#endif
+  // The truth is glibc's count of the bytes in use, sampled as bands stream the way the slicer streams
+  // them (slicer/job_pipeline.cpp: two bands in flight; a band's fractions are let go once dithered,
+  // its moduli once written) with the rasterizer's and the mapping's TreeRecyclers in use, and then
+  // with both recyclers full (kKeptTrees let-go trees each) while two bands are alive.
+  using namespace rodfab;
+  const geometry::NurbsCurve post(1, {0, 0, 1, 1}, {geometry::Vec3(0, 0, 0), geometry::Vec3(0, 0, 7)});
+  const geometry::NurbsCurve strut(1, {0, 0, 1, 1}, {geometry::Vec3(-2, -1, 0.5), geometry::Vec3(3, 2, 6.5)});
+  const geometry::RodStructure design{
+      "memory", {geometry::Rod("post", post, geometry::Section::circle(4.0), std::nullopt, std::nullopt, geometry::CapStyle::Round,
+                               geometry::BSplineField::constant(20, 0, 1)),
+                 geometry::Rod("strut", strut, geometry::Section::circle(1.5), std::nullopt, std::nullopt, geometry::CapStyle::Flat,
+                               geometry::BSplineField(1, {0, 0, 1, 1}, {2.0, 150.0}))}};
+  const voxel::PrinterGrid grid = voxel::makePrinterGrid(design, kTestVoxel);
+  constexpr int kBandLayers = 16;
+  constexpr std::size_t kBandsInFlight = 2;
+  const voxel::RasterEstimate estimate = voxel::estimateRaster(design, grid, kBandLayers);
+  const FractionMap map(logPowerCalibration());
+  tbb::global_control two(tbb::global_control::max_allowed_parallelism, 2);
+
+  const std::uint64_t before = heapBytesInUse();
+  std::uint64_t streamedPeak = 0, fullRecyclers = 0, aliveGrids = 0;
+  const auto heap = [&] { return heapBytesInUse() - std::min(before, heapBytesInUse()); };
+  {
+    const voxel::Rasterizer rasterizer(design, grid, {2});
+    voxel::TreeRecycler<openvdb::FloatTree> fractionTrees(0.0f);
+    MappingStats stats;
+    struct Band {
+      openvdb::FloatGrid::Ptr moduli, fractions;
+    };
+    const auto make = [&](int k0) {
+      Band band{rasterizer.rasterizeLayers(k0, k0 + kBandLayers).grid, nullptr};
+      streamedPeak = std::max(streamedPeak, heap());
+      band.fractions = mapToFractions(*band.moduli, map, k0, k0 + kBandLayers, stats, fractionTrees);
+      streamedPeak = std::max(streamedPeak, heap());
+      return band;
+    };
+    std::deque<Band> alive;
+    int k0 = 0;
+    for (; k0 + 3 * kBandLayers < grid.dims.z(); k0 += kBandLayers) {
+      if (alive.size() == kBandsInFlight) alive.pop_front();  // written: its moduli go back to the rasterizer
+      alive.push_back(make(k0));
+      alive.back().fractions.reset();  // dithered: the fractions go back to the mapping's recycler
+    }
+    // Two more bands made while two are alive and let go at once: both recyclers now hold kKeptTrees.
+    Band extra[2] = {make(k0), make(k0 + kBandLayers)};
+    for (Band& b : extra) b = Band{};
+    fullRecyclers = heap();
+    for (Band& b : alive) aliveGrids += b.moduli->memUsage();
+  }
+  const double bound = estimate.peakBytes(int(kBandsInFlight));
+  CAPTURE(before, streamedPeak, fullRecyclers, aliveGrids, estimate.pieceBytes, estimate.bandBytes, bound);
+  REQUIRE(fullRecyclers > aliveGrids + 2 * voxel::TreeRecycler<openvdb::FloatTree>::kKeptTrees * 100'000);  // the kept trees are there
+  REQUIRE(bound >= double(streamedPeak));
+  REQUIRE(bound >= double(fullRecyclers));
 }

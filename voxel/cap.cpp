@@ -69,7 +69,9 @@ namespace {
       const double wyz = wy * wy + wz * wz;
       RowBounds bounds;
       int lo = box.min().x(), hi = box.max().x();
-      if (!slope.bound(sign * aRow, bounds.lo, bounds.hi) || !cylinder.row(j, bounds) ||
+      // Rows behind the plane within the box are skipped before the two square roots (rounding
+      // twice gives the range rounding once does: ceil and floor are monotone).
+      if (!slope.bound(sign * aRow, bounds.lo, bounds.hi) || !bounds.round(lo, hi) || !cylinder.row(j, bounds) ||
           !capRow(round, aRow, nearPlane, rising, falling, wxRow, ballRadiusSquared - wyz, alongX, againstX, bounds) ||
           !bounds.round(lo, hi))
         continue;

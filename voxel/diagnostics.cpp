@@ -1,6 +1,7 @@
 #include "voxel/diagnostics.hpp"
 
 #include "voxel/rod_pieces.hpp"
+#include "voxel/tree_assembly.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -43,6 +44,16 @@ std::string format(const char* pattern, double a, double b = 0.0) {
 }
 
 }  // namespace
+
+int RasterEstimate::bandTreesHeld(int bandsInFlight) {
+  constexpr int kGridsPerBand = 2;  // moduli and fractions
+  constexpr int kRecyclers = 2;     // the rasterizer's modulus trees, the slicer's fraction trees
+  return kGridsPerBand * bandsInFlight + kRecyclers * int(TreeRecycler<openvdb::FloatTree>::kKeptTrees);
+}
+
+double RasterEstimate::peakBytes(int bandsInFlight) const {
+  return pieceBytes + (bandsInFlight > 0 ? bandTreesHeld(bandsInFlight) * bandBytes : gridBytes);
+}
 
 RasterEstimate estimateRaster(const geometry::RodStructure& structure, const PrinterGrid& grid, int bandLayers) {
   RasterEstimate e;

@@ -31,11 +31,13 @@ struct RasterEstimate {
   // With bandLayers > 0: bytes of the grid of the fullest band of that many layers
   // (Rasterizer::rasterizeLayers); an upper estimate (each rod's leaves spread evenly over its layers).
   double bandBytes = 0.0;
-  // Peak while slicing with `bandsInFlight` band grids alive (the slicer keeps two), or while
-  // voxelizing the whole design (bandsInFlight = 0).
-  double peakBytes(int bandsInFlight) const {
-    return pieceBytes + (bandsInFlight > 0 ? bandsInFlight * bandBytes : gridBytes);
-  }
+  // Peak while slicing with `bandsInFlight` bands alive (the slicer keeps two), or while voxelizing
+  // the whole design (bandsInFlight = 0). A band holds two grids of bandBytes each, its moduli and
+  // its fractions (materials::mapToFractions: the same leaves), and two voxel::TreeRecyclers
+  // (tree_assembly.hpp), the rasterizer's and the slicer's for the fractions, each keep up to
+  // kKeptTrees let-go band trees whose nodes the next bands are built from: bandTreesHeld of them.
+  double peakBytes(int bandsInFlight) const;
+  static int bandTreesHeld(int bandsInFlight);
 };
 RasterEstimate estimateRaster(const geometry::RodStructure& structure, const PrinterGrid& grid, int bandLayers = 0);
 

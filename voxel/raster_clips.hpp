@@ -85,7 +85,7 @@ inline constexpr double kTieTolerance = kDepthTieTolerance;
 
 // Restricts [lo, hi] to the i with base + slope * i >= 0 (conservatively). Returns false when
 // nothing is left.
-inline bool clipHalfLine(double base, double slope, int& lo, int& hi) {
+[[gnu::always_inline]] inline bool clipHalfLine(double base, double slope, int& lo, int& hi) {
   if (slope > 0.0) {
     lo = std::max(lo, clampToInt(std::ceil(-base / slope - kClipMargin)));
   } else if (slope < 0.0) {
@@ -147,7 +147,7 @@ public:
   // discriminant of the row's quadratic, a quadratic in j whose leading coefficient works out to
   // -(vx vy e_z)^2, is >= 0 on one interval). With the axis along x every row is kept and `row`
   // clips nothing, as with the axis (nearly) in the layer.
-  bool layer(int k, int j0, int& lo, int& hi) {
+  [[gnu::always_inline]] bool layer(int k, int j0, int& lo, int& hi) {
     j0_ = j0;
     if (alongX_) return lo <= hi;
     const geometry::Vec3 w(grid_.origin.x() - piece_.axisPoint.x(), grid_.origin.y() + j0 * vy_ - piece_.axisPoint.y(),
