@@ -94,14 +94,4 @@ openvdb::BoolGrid::Ptr materialGrid(openvdb::BoolTree::Ptr tree, const openvdb::
   return grid;
 }
 
-openvdb::BoolGrid::Ptr assembleMaterialGrid(std::vector<std::unique_ptr<BoolLeaf>>& leaves,
-                                            const openvdb::FloatGrid& like) {
-  auto grid = openvdb::BoolGrid::create(false);
-  grid->setTransform(like.transform().copy());
-  grid->setName(kMaterialGridName);
-  for (auto& leaf : leaves)
-    if (leaf) grid->tree().addLeaf(leaf.release());
-  return grid;
-}
-
 }  // namespace rodfab::materials::detail

@@ -68,13 +68,6 @@ void throwFirstInvalid(const openvdb::FloatGrid& fraction, int k0, int k1);
 // A "material" grid with `like`'s transform holding `tree`.
 openvdb::BoolGrid::Ptr materialGrid(openvdb::BoolTree::Ptr tree, const openvdb::FloatGrid& like);
 
-// A "material" grid with `like`'s transform made of `leaves` (null entries skipped).
-openvdb::BoolGrid::Ptr assembleMaterialGrid(std::vector<std::unique_ptr<BoolLeaf>>& leaves,
-                                            const openvdb::FloatGrid& like);
-
-using BoolLeafParent = voxel::LeafParentOf<openvdb::BoolTree>;  // 128^3 voxels
-using BoolUpperNode = voxel::UpperNodeOf<openvdb::BoolTree>;     // 4096^3 voxels
-
 // Nodes taken from an output tree its owners let go of, to build the next one from
 // (voxel/tree_assembly.hpp).
 using SpareNodes = voxel::SpareNodes<openvdb::BoolTree>;

@@ -374,13 +374,6 @@ void Inspector::checkReport() {
 
 }  // namespace detail
 
-InspectReport inspectJobFiles(const JobFiles& files, const InspectOptions& options) {
-  InspectReport report;
-  report.job = files.path();
-  detail::Inspector(files.path(), options, report).run();
-  return report;
-}
-
 InspectReport inspectJob(const fs::path& job, const InspectOptions& options) {
   InspectReport report;
   report.job = job;

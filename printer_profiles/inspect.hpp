@@ -89,8 +89,5 @@ struct InspectReport {
 // folder nor a regular file (FIFO, device) is refused without reading it. Thread-safe for distinct calls;
 // uses TBB workers internally.
 InspectReport inspectJob(const std::filesystem::path& job, const InspectOptions& options = {});
-// The same checks on the job at files.path() (the emitter verifies its temporary before renaming it),
-// which is re-read through the same hostile-input reader (files' own read() is not used).
-InspectReport inspectJobFiles(const JobFiles& files, const InspectOptions& options = {});
 
 }  // namespace rodfab::printer_profiles

@@ -247,8 +247,8 @@ struct JobWriter::Impl {
           options.storedForms.emplace(r.files[f].name, StoredForm{z.xxh128, z.length, z.crc32});
         }
     }
-    // By path: the staged job is named job.zip or job, which inspectJob takes (openJobFiles would open
-    // and list the zip once more, only for inspectJobFiles to read its path).
+    // The staged job is named job.zip or job (never the temporary tag inspectJob refuses), inside the
+    // writer's temporary folder.
     const InspectReport report = inspectJob(built, options);
     if (report.ok()) return;
     std::string list;
