@@ -106,7 +106,9 @@ openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const 
                                        MappingStats& stats, const std::function<void()>& checkInterrupt = {});
 // The same, the output's leaves and internal nodes taken from earlier outputs that came back to
 // `recycler` (voxel/tree_assembly.hpp; background 0), and the output's tree returned to it when its
-// owners let go: a slicer streaming bands allocates them for the first bands only.
+// owners let go: a slicer streaming bands allocates them for the first bands only. Several calls may
+// run at once with the same recycler (TreeRecycler is thread-safe; each call takes its own spares), and
+// the output's values do not depend on which spare leaves it was built from (every value is set).
 openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
                                        MappingStats& stats, voxel::TreeRecycler<openvdb::FloatTree>& recycler,
                                        const std::function<void()>& checkInterrupt = {});

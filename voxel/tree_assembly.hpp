@@ -144,8 +144,13 @@ public:
     deleteAll(uppers_);
   }
   // Spare node `index` moved to `origin`, or a new node there (holding `background_`, inactive) if
-  // there is no such spare. A reused leaf keeps its old values and value mask: the caller sets both.
-  // Internal nodes are handed out empty (see TreeRecycler::takeSpares).
+  // there is no such spare. A reused leaf keeps its old values and value mask: the caller sets both
+  // (the mapping and the ditherers write every value anyway, and the rasterizer clears only the leaves
+  // hasLeaf says are reused, so clearing here would write those leaves twice).
+  // Internal nodes are handed out empty (see TreeRecycler::takeSpares). Callers index spares by the
+  // output leaf's position in the band, so a band's leaves get spares in address order (see
+  // takeSpares); a position the caller skips leaves its spare to be deleted, which is rare (a band
+  // leaf with no active voxel in the band's layers) and costs one allocation, not a value.
   std::unique_ptr<LeafT> leaf(std::size_t index, const openvdb::Coord& origin) { return spareOrNew(leaves_, index, origin); }
   std::unique_ptr<ParentT> parent(std::size_t index, const openvdb::Coord& origin) { return spareOrNew(parents_, index, origin); }
   std::unique_ptr<UpperT> upper(std::size_t index, const openvdb::Coord& origin) { return spareOrNew(uppers_, index, origin); }
