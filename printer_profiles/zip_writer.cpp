@@ -1,6 +1,7 @@
 #include "printer_profiles/zip_writer.hpp"
 
 #include "printer_profiles/zip_output.hpp"
+#include "printer_profiles/zip_source_adapter.hpp"
 
 #include <zip.h>
 
@@ -8,9 +9,11 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cstring>
 #include <map>
+#include <memory>
 #include <stdexcept>
 #include <utility>
 #include <vector>
@@ -141,58 +144,34 @@ private:
 // A libzip source for StagedZipData: its stat says the data is already compressed (method, sizes and
 // CRC), so zip_close copies the bytes instead of compressing them, as it does for zip_source_zip.
 // Reads through `files`, which must outlive the source.
-class StagedSource {
+class StagedSource : public ZipSourceState {
 public:
+  static constexpr std::array kCommands{ZIP_SOURCE_OPEN, ZIP_SOURCE_READ, ZIP_SOURCE_CLOSE,
+                                        ZIP_SOURCE_STAT, ZIP_SOURCE_ERROR, ZIP_SOURCE_FREE,
+                                        ZIP_SOURCE_GET_FILE_ATTRIBUTES};
+
   StagedSource(StagedZipData data, ZipStorage storage, StagedFiles& files)
-      : data_(std::move(data)), storage_(storage), files_(files) {
-    zip_error_init(&error_);
-  }
-  ~StagedSource() { zip_error_fini(&error_); }
-  StagedSource(const StagedSource&) = delete;
-  StagedSource& operator=(const StagedSource&) = delete;
+      : data_(std::move(data)), storage_(storage), files_(files) {}
 
-  static zip_int64_t callback(void* self, void* data, zip_uint64_t length, zip_source_cmd_t command) {
-    auto* source = static_cast<StagedSource*>(self);
-    if (command == ZIP_SOURCE_FREE) {
-      delete source;
-      return 0;
-    }
-    return source->handle(data, length, command);
+  zip_int64_t open() {
+    fd_ = data_.memory.empty() ? files_.open(data_.file) : -1;
+    position_ = 0;
+    return fd_ >= 0 || !data_.memory.empty() ? 0 : failed(ZIP_ER_OPEN, errno);
   }
 
-private:
-  zip_int64_t handle(void* data, zip_uint64_t length, zip_source_cmd_t command) {
-    switch (command) {
-      case ZIP_SOURCE_OPEN:
-        fd_ = data_.memory.empty() ? files_.open(data_.file) : -1;
-        position_ = 0;
-        return fd_ >= 0 || !data_.memory.empty() ? 0 : failed(ZIP_ER_OPEN);
-      case ZIP_SOURCE_READ: return read(static_cast<char*>(data), length);
-      case ZIP_SOURCE_CLOSE:
-        fd_ = -1;  // StagedFiles closes it
-        return 0;
-      case ZIP_SOURCE_STAT: return stat(static_cast<zip_stat_t*>(data));
-      case ZIP_SOURCE_GET_FILE_ATTRIBUTES: return attributes(static_cast<zip_file_attributes_t*>(data));
-      case ZIP_SOURCE_ERROR: return zip_error_to_data(&error_, data, length);
-      case ZIP_SOURCE_SUPPORTS:
-        return zip_source_make_command_bitmap(ZIP_SOURCE_OPEN, ZIP_SOURCE_READ, ZIP_SOURCE_CLOSE, ZIP_SOURCE_STAT,
-                                              ZIP_SOURCE_ERROR, ZIP_SOURCE_FREE, ZIP_SOURCE_GET_FILE_ATTRIBUTES, -1);
-      default: return failed(ZIP_ER_OPNOTSUPP);
-    }
+  zip_int64_t close() {
+    fd_ = -1;  // StagedFiles closes it
+    return 0;
   }
 
-  zip_int64_t failed(int code) {
-    zip_error_set(&error_, code, code == ZIP_ER_OPEN || code == ZIP_ER_READ ? errno : 0);
-    return -1;
-  }
-
-  zip_int64_t read(char* out, zip_uint64_t length) {
+  zip_int64_t read(void* data, zip_uint64_t length) {
+    auto* out = static_cast<char*>(data);
     const zip_uint64_t want = std::min<zip_uint64_t>(length, data_.length - position_);
     if (!data_.memory.empty()) {
-      if (data_.memory.size() != data_.length) return failed(ZIP_ER_INCONS);
+      if (data_.memory.size() != data_.length) return failed(ZIP_ER_INCONS, 0);
       std::memcpy(out, data_.memory.data() + position_, want);
     } else if (!files_.read(fd_, data_.offset + position_, out, want))
-      return failed(errno ? ZIP_ER_READ : ZIP_ER_EOF);  // the staged file is shorter than recorded
+      return errno ? failed(ZIP_ER_READ, errno) : failed(ZIP_ER_EOF, 0);  // the staged file is shorter than recorded
     position_ += want;
     return static_cast<zip_int64_t>(want);
   }
@@ -217,19 +196,16 @@ private:
     return 0;
   }
 
+private:
   StagedZipData data_;
   ZipStorage storage_;
   StagedFiles& files_;
-  zip_error_t error_;
   int fd_ = -1;
   zip_uint64_t position_ = 0;
 };
 
 zip_source_t* stagedSource(zip_t* za, const StagedZipData& data, ZipStorage storage, StagedFiles& files) {
-  auto* source = new StagedSource(data, storage, files);
-  zip_source_t* zs = zip_source_function(za, StagedSource::callback, source);
-  if (!zs) delete source;
-  return zs;
+  return makeZipSource(za, std::make_unique<StagedSource>(data, storage, files));
 }
 
 }  // namespace
