@@ -114,7 +114,6 @@ void BandEncoder::encode(const LayerBand& band, std::vector<LayerRecord>& layers
 // spring's samples), and the zip's builder opened it once an entry. Each entry's bytes depend on its
 // image alone, so neither the band size nor where it was kept shows in the job.
 void BandEncoder::stageBand(int firstLayer, std::vector<std::vector<Bytes>>& zipForms, std::vector<LayerRecord>& layers) {
-  const fs::path file = s_.stagingRoot / "layers.bin";
   bool wrote = false;
   for (std::size_t n = 0; n < zipForms.size(); ++n) {
     LayerRecord& record = layers[static_cast<std::size_t>(firstLayer) + n];
@@ -126,9 +125,8 @@ void BandEncoder::stageBand(int firstLayer, std::vector<std::vector<Bytes>>& zip
         z.memory = kept_.emplace_back(std::move(data));
         continue;
       }
-      if (!staged_.is_open()) staged_.open(file, std::ios::binary | std::ios::trunc);
+      if (!staged_.is_open()) staged_.open(stagedFile_, std::ios::binary | std::ios::trunc);
       staged_.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size()));
-      z.file = file;
       z.offset = stagedBytes_;
       stagedBytes_ += data.size();
       wrote = true;
@@ -136,7 +134,13 @@ void BandEncoder::stageBand(int firstLayer, std::vector<std::vector<Bytes>>& zip
   }
   if (!wrote) return;
   staged_.flush();  // the zip is built from the file through other handles
-  if (!staged_) throw std::runtime_error(file.string() + ": cannot write (disk full or no permission?)");
+  if (!staged_) throw std::runtime_error(stagedFile_.string() + ": cannot write (disk full or no permission?)");
+}
+
+void BandEncoder::finishStaging() {
+  if (!staged_.is_open()) return;
+  staged_.close();  // a failed close (the last bytes not written) sets failbit
+  if (!staged_) throw std::runtime_error(stagedFile_.string() + ": cannot write (disk full or no permission?)");
 }
 
 void BandEncoder::rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, LayerRecord& record) const {

@@ -30,11 +30,17 @@ struct BandEncoderSetup {
 
 class BandEncoder {
 public:
-  explicit BandEncoder(const BandEncoderSetup& setup) : s_(setup) {}
+  explicit BandEncoder(const BandEncoderSetup& setup) : s_(setup), stagedFile_(setup.stagingRoot / "layers.bin") {}
 
   // Layers [band.kBegin, band.kEnd) on the caller's TBB arena: fills their records in `layers`
   // (indexed by layer) and adds them to `previews`. The bytes depend on each layer alone.
   void encode(const LayerBand& band, std::vector<LayerRecord>& layers, Previews& previews);
+
+  // Zip jobs: the file the zip forms not kept in memory are staged in (writeZip's `stagedFile`), and
+  // closing it, checked, once every band is encoded and before the zip is built from it; throws naming
+  // the file when its last bytes cannot be written.
+  const std::filesystem::path& stagedFile() const { return stagedFile_; }
+  void finishStaging();
 
   // How the layer images go into the zip: PNG as it is (already compressed), BMP deflated.
   ZipStorage layerStorage() const { return s_.form.imageFormat == ImageFormat::Png ? ZipStorage::Store : ZipStorage::Deflate; }
@@ -65,6 +71,7 @@ private:
   // StagedZipData point into kept_ until the job is written.
   std::deque<Bytes> kept_;
   std::uint64_t keptBytes_ = 0;
+  std::filesystem::path stagedFile_;
   std::ofstream staged_;
   std::uint64_t stagedBytes_ = 0;
 };

@@ -228,7 +228,8 @@ struct JobWriter::Impl {
     }
     for (const LayerRecord& r : layers)
       for (std::size_t f = 0; f < r.files.size(); ++f) entries.push_back({r.files[f].name, {}, encoder->layerStorage(), r.zipped[f]});
-    writeZip(staging->zip(), entries);
+    encoder->finishStaging();
+    writeZip(staging->zip(), entries, encoder->stagedFile());
   }
 
   void verify(const fs::path& built) const {

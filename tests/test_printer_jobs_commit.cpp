@@ -5,6 +5,7 @@
 
 #include <catch2/catch.hpp>
 
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -54,6 +55,31 @@ TEST_CASE("A failed or interrupted write leaves nothing that looks like a job", 
       writer.addBand({band(*grid, 3, 10), nullptr, 3, 10});
       CHECK_THROWS_WITH(writer.finalize(), Catch::Contains("never added"));
     }
+    CHECK(leftovers() == 0);
+  }
+  SECTION("writing the staged layers (layers.bin) fails: the error names the file") {
+    // In a child with no file may grow (RLIMIT_FSIZE 0, SIGXFSZ ignored: write() fails with EFBIG),
+    // every zip form staged in the file rather than kept in memory. The child reports by its exit code.
+    const pid_t child = ::fork();
+    REQUIRE(child >= 0);
+    if (child == 0) {
+      std::signal(SIGXFSZ, SIG_IGN);
+      const rlimit none{0, 0};
+      if (::setrlimit(RLIMIT_FSIZE, &none) != 0) ::_exit(3);
+      JobSpec spec = specFor(*grid, dir / "job.zip");
+      spec.options.zipFormsInMemory = 0;
+      try {
+        writeJob(*grid, spec, 8);
+      } catch (const std::runtime_error& e) {
+        const std::string why = e.what();
+        ::_exit(why.find("layers.bin: cannot write") != std::string::npos ? 0 : 2);
+      }
+      ::_exit(1);  // the job was written: the limit did not bite
+    }
+    int status = 0;
+    ::waitpid(child, &status, 0);
+    REQUIRE(WIFEXITED(status));
+    CHECK(WEXITSTATUS(status) == 0);
     CHECK(leftovers() == 0);
   }
   SECTION("the process is killed mid-job") {
