@@ -57,6 +57,10 @@ fs::path checkJobOutput(const JobOptions& options) {
   return t;
 }
 
+std::uint64_t previewMemoryBytes(const JobGeometry& geometry, const Profile& profile, int contactSheetLayers) {
+  return Previews::heldBytesAtMost(geometry, profile, contactSheetLayers);
+}
+
 struct JobWriter::Impl {
   JobSpec spec;
   JobGeometry geometry;

@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <limits>
 #include <optional>
+#include <tuple>
 
 namespace rodfab::printer_profiles {
 
@@ -250,6 +251,30 @@ void Previews::View::set(std::size_t at, bool rigid, int depthValue, float modul
   modulus[at] = modulusValue;
 }
 
+namespace {
+
+// The layers on the contact sheet: `wanted` (at least 1) evenly spaced, first and last included.
+std::vector<int> contactLayersOf(int layers, int wanted) {
+  std::vector<int> out;
+  const int n = std::clamp(wanted, 1, layers);
+  for (int s = 0; s < n; ++s)
+    out.push_back(n == 1 ? layers / 2 : static_cast<int>(std::lround(static_cast<double>(s) * (layers - 1) / (n - 1))));
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
+// A contact tile's pixels (width, height): the layer's aspect in millimetres, fitting a 300-pixel box.
+std::pair<int, int> contactTileSize(const JobGeometry& g, const std::array<double, 3>& vx) {
+  const double wMm = g.width * vx[0], hMm = g.height * vx[1];
+  const double scale = 300.0 / std::max(wMm, hMm);
+  return {std::max(1, static_cast<int>(std::lround(wMm * scale))), std::max(1, static_cast<int>(std::lround(hMm * scale)))};
+}
+
+// Bytes a view's cell holds: material, depth, modulus (Previews::View).
+constexpr std::size_t kViewCellBytes = sizeof(std::uint8_t) + sizeof(std::int32_t) + sizeof(float);
+
+}  // namespace
+
 Previews::Previews(const JobGeometry& geometry, const Profile& profile, int contactSheetLayers)
     : geometry_(geometry), profile_(profile) {
   const ProjectionLayout l = projectionLayout(geometry, profile.voxelSizeMm);
@@ -257,22 +282,28 @@ Previews::Previews(const JobGeometry& geometry, const Profile& profile, int cont
   top_ = View(columns, AxisSamples(geometry.height, l.topH));
   front_ = View(columns, layers);
   side_ = View(AxisSamples(geometry.height, l.sideW), layers);
-  const int n = std::clamp(contactSheetLayers, 1, geometry.layers);
-  for (int s = 0; s < n; ++s)
-    contactLayers_.push_back(n == 1 ? geometry.layers / 2
-                                    : static_cast<int>(std::lround(static_cast<double>(s) * (geometry.layers - 1) / (n - 1))));
-  contactLayers_.erase(std::unique(contactLayers_.begin(), contactLayers_.end()), contactLayers_.end());
-  // Tiles keep the layer's aspect in millimetres and fit a 300-pixel box.
-  const double wMm = geometry.width * profile.voxelSizeMm[0], hMm = geometry.height * profile.voxelSizeMm[1];
-  const double scale = 300.0 / std::max(wMm, hMm);
-  tileWidth_ = std::max(1, static_cast<int>(std::lround(wMm * scale)));
-  tileHeight_ = std::max(1, static_cast<int>(std::lround(hMm * scale)));
+  contactLayers_ = contactLayersOf(geometry.layers, contactSheetLayers);
+  std::tie(tileWidth_, tileHeight_) = contactTileSize(geometry, profile.voxelSizeMm);
   tiles_.resize(contactLayers_.size());
+}
+
+std::size_t Previews::heldBytesAtMost(const JobGeometry& geometry, const Profile& profile, int contactSheetLayers) {
+  const ProjectionLayout l = projectionLayout(geometry, profile.voxelSizeMm);
+  // An axis of `cells` drawn in `pixels` keeps min(cells, pixels) cells (AxisSamples: each pixel shows
+  // one cell, neighbouring pixels never skip a cell when there are more pixels than cells).
+  const auto kept = [](int cells, int pixels) { return static_cast<std::size_t>(std::min(cells, pixels)); };
+  const std::size_t columns = kept(geometry.width, l.topW), layers = kept(geometry.layers, l.frontH);
+  const std::size_t cells =
+      columns * kept(geometry.height, l.topH) + columns * layers + kept(geometry.height, l.sideW) * layers;
+  const auto [tileWidth, tileHeight] = contactTileSize(geometry, profile.voxelSizeMm);
+  const std::size_t tiles = contactLayersOf(geometry.layers, contactSheetLayers).size();
+  return kViewCellBytes * cells + tiles * static_cast<std::size_t>(tileWidth) * static_cast<std::size_t>(tileHeight);
 }
 
 std::size_t Previews::memoryBytes() const {
   std::size_t bytes = 0;
-  for (const View* v : {&top_, &front_, &side_}) bytes += v->material.size() + 4 * v->depth.size() + 4 * v->modulus.size();
+  for (const View* v : {&top_, &front_, &side_})
+    bytes += v->material.size() * sizeof(v->material[0]) + v->depth.size() * sizeof(v->depth[0]) + v->modulus.size() * sizeof(v->modulus[0]);
   for (const auto& t : tiles_) bytes += t.size();
   return bytes;
 }
