@@ -69,21 +69,30 @@ std::uint64_t countInSpans(const Bitmap& bitmap, const std::vector<RowSpan>& spa
 
 }  // namespace
 
-BandEncoder::BandVoxels BandEncoder::collect(const LayerBand& band) const {
-  BandVoxels v;
+BandEncoder::BandEncoder(const BandEncoderSetup& setup)
+    : s_(setup), voxels_(std::make_unique<BandVoxels>()), stagedFile_(setup.stagingRoot / "layers.bin") {}
+
+BandEncoder::~BandEncoder() = default;
+
+// Into voxels_, whose vectors keep their capacity from band to band (slabs past this band's stay empty).
+void BandEncoder::collect(const LayerBand& band) {
+  BandVoxels& v = *voxels_;
   v.zBase = band.kBegin & ~7;
-  v.slabs.resize(static_cast<std::size_t>((band.kEnd - 1 - v.zBase) / 8 + 1));
+  const auto slabs = static_cast<std::size_t>((band.kEnd - 1 - v.zBase) / 8 + 1);
+  if (v.slabs.size() < slabs) v.slabs.resize(slabs);
+  for (std::vector<BandLeaf>& slab : v.slabs) slab.clear();
   for (auto leaf = band.material->tree().cbeginLeaf(); leaf; ++leaf)
     v.slabs[static_cast<std::size_t>((leaf->origin().z() - v.zBase) / 8)].push_back(
         {leaf->origin(), LeafRows(maskBytes(leaf->getValueMask())), LeafRows(boolValueBytes(*leaf))});
+  v.tiles.clear();
   forEachActiveTile(band.material->tree(), [&](const openvdb::CoordBBox& box, bool value) { v.tiles.emplace_back(box, value); });
-  return v;
 }
 
 void BandEncoder::encode(const LayerBand& band, std::vector<LayerRecord>& layers, Previews& previews) {
   const int firstLayer = s_.form.geometry.layer(band.kBegin);
   const int count = band.kEnd - band.kBegin;
-  const BandVoxels voxels = collect(band);
+  collect(band);
+  const BandVoxels& voxels = *voxels_;
   bitmaps_.resize(static_cast<std::size_t>(count));
   // Zip jobs keep each image's zip form (deflated BMP, or the PNG as it is) in memory until the band
   // is staged in one file: staging thousands of files costs more in the file system than compressing.
