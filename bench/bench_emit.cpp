@@ -64,7 +64,7 @@ const std::vector<pp::ZipEntry>& stagedEntries() {
     for (int n = 0; n < kEntries; ++n) {
       const pp::Bytes& b = images()[static_cast<std::size_t>(n)];
       out.write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
-      v.push_back({layerName(n), {}, pp::ZipStorage::Store, pp::StagedZipData{staged, offset, b.size(), b.size(), pp::zipCrc32(b)}});
+      v.push_back({layerName(n), {}, pp::ZipStorage::Store, pp::StagedZipData{offset, b.size(), b.size(), pp::zipCrc32(b)}});
       offset += b.size();
     }
     return v;
@@ -80,7 +80,7 @@ void BM_WriteStagedZip(benchmark::State& state) {
   const auto& entries = stagedEntries();
   for (auto _ : state) {
     fs::remove(benchDir() / "job.zip");
-    pp::writeZip(benchDir() / "job.zip", entries);
+    pp::writeZip(benchDir() / "job.zip", entries, benchDir() / "layers.bin");
   }
   setBytes(state);
 }
@@ -115,7 +115,7 @@ void BM_WriteZipFromMemory(benchmark::State& state) {
 
 // Opening (ZIP_CHECKCONS) and reading every entry's stored bytes, as the verification does.
 void BM_ReadBackStored(benchmark::State& state) {
-  if (!fs::exists(benchDir() / "job.zip")) pp::writeZip(benchDir() / "job.zip", stagedEntries());
+  if (!fs::exists(benchDir() / "job.zip")) pp::writeZip(benchDir() / "job.zip", stagedEntries(), benchDir() / "layers.bin");
   for (auto _ : state) {
     const auto reader = pp::openJobReader(benchDir() / "job.zip", 100'000, 4);
     std::uint64_t bytes = 0;
@@ -127,7 +127,7 @@ void BM_ReadBackStored(benchmark::State& state) {
 }
 
 void BM_ReadBackStored_libzip(benchmark::State& state) {
-  if (!fs::exists(benchDir() / "job.zip")) pp::writeZip(benchDir() / "job.zip", stagedEntries());
+  if (!fs::exists(benchDir() / "job.zip")) pp::writeZip(benchDir() / "job.zip", stagedEntries(), benchDir() / "layers.bin");
   std::vector<std::uint8_t> buffer(64 * 1024);
   for (auto _ : state) {
     int error = 0;

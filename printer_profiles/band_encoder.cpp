@@ -69,21 +69,30 @@ std::uint64_t countInSpans(const Bitmap& bitmap, const std::vector<RowSpan>& spa
 
 }  // namespace
 
-BandEncoder::BandVoxels BandEncoder::collect(const LayerBand& band) const {
-  BandVoxels v;
+BandEncoder::BandEncoder(const BandEncoderSetup& setup)
+    : s_(setup), voxels_(std::make_unique<BandVoxels>()), stagedFile_(setup.stagingRoot / "layers.bin") {}
+
+BandEncoder::~BandEncoder() = default;
+
+// Into voxels_, whose vectors keep their capacity from band to band (slabs past this band's stay empty).
+void BandEncoder::collect(const LayerBand& band) {
+  BandVoxels& v = *voxels_;
   v.zBase = band.kBegin & ~7;
-  v.slabs.resize(static_cast<std::size_t>((band.kEnd - 1 - v.zBase) / 8 + 1));
+  const auto slabs = static_cast<std::size_t>((band.kEnd - 1 - v.zBase) / 8 + 1);
+  if (v.slabs.size() < slabs) v.slabs.resize(slabs);
+  for (std::vector<BandLeaf>& slab : v.slabs) slab.clear();
   for (auto leaf = band.material->tree().cbeginLeaf(); leaf; ++leaf)
     v.slabs[static_cast<std::size_t>((leaf->origin().z() - v.zBase) / 8)].push_back(
         {leaf->origin(), LeafRows(maskBytes(leaf->getValueMask())), LeafRows(boolValueBytes(*leaf))});
+  v.tiles.clear();
   forEachActiveTile(band.material->tree(), [&](const openvdb::CoordBBox& box, bool value) { v.tiles.emplace_back(box, value); });
-  return v;
 }
 
 void BandEncoder::encode(const LayerBand& band, std::vector<LayerRecord>& layers, Previews& previews) {
   const int firstLayer = s_.form.geometry.layer(band.kBegin);
   const int count = band.kEnd - band.kBegin;
-  const BandVoxels voxels = collect(band);
+  collect(band);
+  const BandVoxels& voxels = *voxels_;
   bitmaps_.resize(static_cast<std::size_t>(count));
   // Zip jobs keep each image's zip form (deflated BMP, or the PNG as it is) in memory until the band
   // is staged in one file: staging thousands of files costs more in the file system than compressing.
@@ -114,7 +123,6 @@ void BandEncoder::encode(const LayerBand& band, std::vector<LayerRecord>& layers
 // spring's samples), and the zip's builder opened it once an entry. Each entry's bytes depend on its
 // image alone, so neither the band size nor where it was kept shows in the job.
 void BandEncoder::stageBand(int firstLayer, std::vector<std::vector<Bytes>>& zipForms, std::vector<LayerRecord>& layers) {
-  const fs::path file = s_.stagingRoot / "layers.bin";
   bool wrote = false;
   for (std::size_t n = 0; n < zipForms.size(); ++n) {
     LayerRecord& record = layers[static_cast<std::size_t>(firstLayer) + n];
@@ -126,9 +134,8 @@ void BandEncoder::stageBand(int firstLayer, std::vector<std::vector<Bytes>>& zip
         z.memory = kept_.emplace_back(std::move(data));
         continue;
       }
-      if (!staged_.is_open()) staged_.open(file, std::ios::binary | std::ios::trunc);
+      if (!staged_.is_open()) staged_.open(stagedFile_, std::ios::binary | std::ios::trunc);
       staged_.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size()));
-      z.file = file;
       z.offset = stagedBytes_;
       stagedBytes_ += data.size();
       wrote = true;
@@ -136,7 +143,13 @@ void BandEncoder::stageBand(int firstLayer, std::vector<std::vector<Bytes>>& zip
   }
   if (!wrote) return;
   staged_.flush();  // the zip is built from the file through other handles
-  if (!staged_) throw std::runtime_error(file.string() + ": cannot write (disk full or no permission?)");
+  if (!staged_) throw std::runtime_error(stagedFile_.string() + ": cannot write (disk full or no permission?)");
+}
+
+void BandEncoder::finishStaging() {
+  if (!staged_.is_open()) return;
+  staged_.close();  // a failed close (the last bytes not written) sets failbit
+  if (!staged_) throw std::runtime_error(stagedFile_.string() + ": cannot write (disk full or no permission?)");
 }
 
 void BandEncoder::rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, LayerRecord& record) const {

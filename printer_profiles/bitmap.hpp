@@ -76,6 +76,8 @@ Bytes encodeBmp(const Bitmap& bitmap, int xDpi, int yDpi);
 // `written`, when given, receives the file piece by piece as it is written, in order (the headers,
 // then runs of rows of about 16 KiB), while each piece is still in the L1 cache: the job writer
 // checksums a layer image in the same pass that makes it, instead of reading it back from memory.
+// The pieces tile the file: one after another, no gap and no overlap, together they are every byte of
+// `out`, so a checksum of the pieces in order is the file's checksum.
 using BmpPieceSink = std::function<void(std::span<const std::uint8_t>)>;
 void encodeBmpInto(const Bitmap& bitmap, int xDpi, int yDpi, Bytes& out, const BmpPieceSink& written = {});
 // Accepts 1-bit BMPs with either row order; the pixel value is the palette index (1 = deposit).

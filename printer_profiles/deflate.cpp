@@ -20,10 +20,12 @@ namespace {
 __attribute__((target("avx"))) void zeroUpperVectorHalves() { _mm256_zeroupper(); }
 #endif
 
-// igzip's and the CRC's AVX-512 code return with the upper halves of the vector registers dirty (no
-// vzeroupper), and until something clears them every legacy SSE instruction on the thread runs slowly:
-// XXH3 (libxxhash, SSE2) hashed a layer image at 3.7 GB/s after an igzip call and 16 GB/s after this
-// (bench/README.md, "Emit, round 4"). Called after every call into ISA-L.
+// igzip's and the CRC's vector code return with the upper halves of the vector registers dirty, and
+// until something clears them every legacy SSE instruction on the thread runs slowly: XXH3 (libxxhash,
+// SSE2) hashed a layer image at 3.7 GB/s after an igzip call and 16 GB/s after this (bench/README.md,
+// "Emit, round 4"). Not only the AVX-512 paths: ISA-L 2.30's AVX2 ones need it too, and Debian's build
+// of libisal2 (2.30.0) has no vzeroupper anywhere (objdump: 0 of them, 1,322 ymm and 1,380 zmm
+// instructions). Called after every call into ISA-L.
 void afterIsal() {
 #if defined(__x86_64__)
   static const bool avx = __builtin_cpu_supports("avx");

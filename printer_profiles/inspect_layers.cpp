@@ -24,7 +24,9 @@ namespace {
 // Layers are checked in parallel, but never more at once than their capped images fit in this budget.
 constexpr std::uint64_t kLayerMemoryBudget = 512ull << 20;
 
-// Per byte value: pixels set, and the sum of their positions (0 = most significant bit).
+// Per byte value: pixels set, and the sum of their positions (0 = most significant bit). The writer has
+// the same figures in job_manifest.hpp's kBitSums; these are built apart on purpose: the inspector is
+// the writer's independent check, and a table shared with the writer could not catch the writer's error.
 constexpr std::array<std::uint8_t, 256> kBitCounts = [] {
   std::array<std::uint8_t, 256> t{};
   for (int v = 0; v < 256; ++v) t[static_cast<std::size_t>(v)] = static_cast<std::uint8_t>(std::popcount(static_cast<unsigned>(v)));

@@ -20,6 +20,8 @@ namespace rodfab::printer_profiles {
 
 // Per byte of 8 voxels (x = 0 in bit 7): how many are set and the sum of their x. A table, because
 // the build targets CPUs without a popcount instruction and Moments::add runs for every row of every leaf.
+// inspect_layers.cpp builds its own tables (kBitCounts, kBitPositionSums) on purpose: the inspector is
+// the writer's independent check, so it shares none of the writer's arithmetic with what it checks.
 struct BitSums {
   std::uint8_t count = 0, sumX = 0;
 };

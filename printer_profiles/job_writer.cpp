@@ -57,6 +57,10 @@ fs::path checkJobOutput(const JobOptions& options) {
   return t;
 }
 
+std::uint64_t previewMemoryBytes(const JobGeometry& geometry, const Profile& profile, int contactSheetLayers) {
+  return Previews::heldBytesAtMost(geometry, profile, contactSheetLayers);
+}
+
 struct JobWriter::Impl {
   JobSpec spec;
   JobGeometry geometry;
@@ -228,7 +232,8 @@ struct JobWriter::Impl {
     }
     for (const LayerRecord& r : layers)
       for (std::size_t f = 0; f < r.files.size(); ++f) entries.push_back({r.files[f].name, {}, encoder->layerStorage(), r.zipped[f]});
-    writeZip(staging->zip(), entries);
+    encoder->finishStaging();
+    writeZip(staging->zip(), entries, encoder->stagedFile());
   }
 
   void verify(const fs::path& built) const {

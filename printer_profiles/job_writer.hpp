@@ -118,6 +118,10 @@ struct JobResult {
 // again when it starts and when it commits; commands call it early to refuse before any work.
 std::filesystem::path checkJobOutput(const JobOptions& options);
 
+// Bytes a job's previews hold at the most while it is written (views and contact tiles), for a job
+// of `geometry` with `contactSheetLayers` (JobOptions): for memory estimates made before a job starts.
+std::uint64_t previewMemoryBytes(const JobGeometry& geometry, const Profile& profile, int contactSheetLayers);
+
 // Writes one job. Usage: construct, addBand() for consecutive bands covering every layer of the
 // part in increasing k, finalize(). addBand encodes the band (bitmaps, PNG/BMP, checksums, previews,
 // compression) on TBB workers of the caller's task arena and returns when it is staged; a caller

@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <limits>
 #include <optional>
+#include <tuple>
 
 namespace rodfab::printer_profiles {
 
@@ -250,6 +251,30 @@ void Previews::View::set(std::size_t at, bool rigid, int depthValue, float modul
   modulus[at] = modulusValue;
 }
 
+namespace {
+
+// The layers on the contact sheet: `wanted` (at least 1) evenly spaced, first and last included.
+std::vector<int> contactLayersOf(int layers, int wanted) {
+  std::vector<int> out;
+  const int n = std::clamp(wanted, 1, layers);
+  for (int s = 0; s < n; ++s)
+    out.push_back(n == 1 ? layers / 2 : static_cast<int>(std::lround(static_cast<double>(s) * (layers - 1) / (n - 1))));
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
+// A contact tile's pixels (width, height): the layer's aspect in millimetres, fitting a 300-pixel box.
+std::pair<int, int> contactTileSize(const JobGeometry& g, const std::array<double, 3>& vx) {
+  const double wMm = g.width * vx[0], hMm = g.height * vx[1];
+  const double scale = 300.0 / std::max(wMm, hMm);
+  return {std::max(1, static_cast<int>(std::lround(wMm * scale))), std::max(1, static_cast<int>(std::lround(hMm * scale)))};
+}
+
+// Bytes a view's cell holds: material, depth, modulus (Previews::View).
+constexpr std::size_t kViewCellBytes = sizeof(std::uint8_t) + sizeof(std::int32_t) + sizeof(float);
+
+}  // namespace
+
 Previews::Previews(const JobGeometry& geometry, const Profile& profile, int contactSheetLayers)
     : geometry_(geometry), profile_(profile) {
   const ProjectionLayout l = projectionLayout(geometry, profile.voxelSizeMm);
@@ -257,22 +282,28 @@ Previews::Previews(const JobGeometry& geometry, const Profile& profile, int cont
   top_ = View(columns, AxisSamples(geometry.height, l.topH));
   front_ = View(columns, layers);
   side_ = View(AxisSamples(geometry.height, l.sideW), layers);
-  const int n = std::clamp(contactSheetLayers, 1, geometry.layers);
-  for (int s = 0; s < n; ++s)
-    contactLayers_.push_back(n == 1 ? geometry.layers / 2
-                                    : static_cast<int>(std::lround(static_cast<double>(s) * (geometry.layers - 1) / (n - 1))));
-  contactLayers_.erase(std::unique(contactLayers_.begin(), contactLayers_.end()), contactLayers_.end());
-  // Tiles keep the layer's aspect in millimetres and fit a 300-pixel box.
-  const double wMm = geometry.width * profile.voxelSizeMm[0], hMm = geometry.height * profile.voxelSizeMm[1];
-  const double scale = 300.0 / std::max(wMm, hMm);
-  tileWidth_ = std::max(1, static_cast<int>(std::lround(wMm * scale)));
-  tileHeight_ = std::max(1, static_cast<int>(std::lround(hMm * scale)));
+  contactLayers_ = contactLayersOf(geometry.layers, contactSheetLayers);
+  std::tie(tileWidth_, tileHeight_) = contactTileSize(geometry, profile.voxelSizeMm);
   tiles_.resize(contactLayers_.size());
+}
+
+std::size_t Previews::heldBytesAtMost(const JobGeometry& geometry, const Profile& profile, int contactSheetLayers) {
+  const ProjectionLayout l = projectionLayout(geometry, profile.voxelSizeMm);
+  // An axis of `cells` drawn in `pixels` keeps min(cells, pixels) cells (AxisSamples: each pixel shows
+  // one cell, neighbouring pixels never skip a cell when there are more pixels than cells).
+  const auto kept = [](int cells, int pixels) { return static_cast<std::size_t>(std::min(cells, pixels)); };
+  const std::size_t columns = kept(geometry.width, l.topW), layers = kept(geometry.layers, l.frontH);
+  const std::size_t cells =
+      columns * kept(geometry.height, l.topH) + columns * layers + kept(geometry.height, l.sideW) * layers;
+  const auto [tileWidth, tileHeight] = contactTileSize(geometry, profile.voxelSizeMm);
+  const std::size_t tiles = contactLayersOf(geometry.layers, contactSheetLayers).size();
+  return kViewCellBytes * cells + tiles * static_cast<std::size_t>(tileWidth) * static_cast<std::size_t>(tileHeight);
 }
 
 std::size_t Previews::memoryBytes() const {
   std::size_t bytes = 0;
-  for (const View* v : {&top_, &front_, &side_}) bytes += v->material.size() + 4 * v->depth.size() + 4 * v->modulus.size();
+  for (const View* v : {&top_, &front_, &side_})
+    bytes += v->material.size() * sizeof(v->material[0]) + v->depth.size() * sizeof(v->depth[0]) + v->modulus.size() * sizeof(v->modulus[0]);
   for (const auto& t : tiles_) bytes += t.size();
   return bytes;
 }
@@ -376,6 +407,39 @@ void Previews::addContactTile(int layer, const LayerBitmaps& b) {
   }
 }
 
+namespace {
+
+// A top-view pixel a layer claims, and the modulus of its voxel (kNoModulus until looked up).
+struct TopPixel {
+  int column = 0;
+  bool rigid = false;
+  float modulus = kNoModulus;
+  const openvdb::FloatTree::LeafNodeType* leaf = nullptr;
+  openvdb::Index offset = 0;
+};
+
+// The moduli of `row`'s `pixels` in `layer`, as modulusAt gives them, in two passes: every pixel's leaf
+// first, prefetching its value, then the values. The band's modulus grid is far out of cache, and a
+// solid part's every band claims every top pixel again: one look-up after another, each waited for its
+// cache miss (72 % of addTopLayers' samples on the dense block); side by side, the misses overlap.
+void lookUpModuli(const openvdb::FloatGrid* grid, openvdb::FloatGrid::ConstAccessor& acc, std::vector<TopPixel>& pixels,
+                  const JobGeometry& g, int row, int layer) {
+  using Leaf = openvdb::FloatTree::LeafNodeType;
+  for (TopPixel& p : pixels) {
+    const openvdb::Coord ijk(g.i(p.column), g.j(row), g.k(layer));
+    p.leaf = acc.probeConstLeaf(ijk);
+    if (!p.leaf) continue;
+    p.offset = Leaf::coordToOffset(ijk);
+    __builtin_prefetch(p.leaf->buffer().data() + p.offset);
+  }
+  for (TopPixel& p : pixels) {
+    if (!p.leaf) p.modulus = modulusAt(grid, &acc, {g.i(p.column), g.j(row), g.k(layer)});  // a tile or background
+    else p.modulus = p.leaf->isValueOn(p.offset) ? p.leaf->getValue(p.offset) : kNoModulus;
+  }
+}
+
+}  // namespace
+
 void Previews::addTopLayers(int first, const std::vector<LayerBitmaps>& layers, const openvdb::FloatGrid* modulus) {
   if (modulus) haveModulus_ = true;
   if (layers.empty()) return;
@@ -392,16 +456,18 @@ void Previews::addTopLayers(int first, const std::vector<LayerBitmaps>& layers, 
     // the columns a higher layer of this band already took, and those no pixel shows.
     std::vector<std::uint8_t> claimed;
     for (int r = rows.begin(); r != rows.end(); ++r) claimed.insert(claimed.end(), hidden.begin(), hidden.end());
+    std::vector<TopPixel> fresh;
     for (std::size_t n = layers.size(); n-- > 0;) {
       const int layer = first + static_cast<int>(n);
       for (int r = rows.begin(); r != rows.end(); ++r) {
         const RowSpan span = layers[n].span(r);
         if (top_.v.slot(r) < 0 || span.empty()) continue;
         std::uint8_t* rowClaimed = claimed.data() + static_cast<std::size_t>(r - rows.begin()) * hidden.size();
-        forEachFresh(layers[n].rigid.row(r), layers[n].rubbery.row(r), rowClaimed, span, [&](int c, bool isRigid) {
-          const float e = modulus ? modulusAt(modulus, &*acc, {geometry_.i(c), geometry_.j(r), geometry_.k(layer)}) : kNoModulus;
-          top_.set(top_.at(c, r), isRigid, layer, e);
-        });
+        fresh.clear();
+        forEachFresh(layers[n].rigid.row(r), layers[n].rubbery.row(r), rowClaimed, span,
+                     [&](int c, bool isRigid) { fresh.push_back({c, isRigid}); });
+        if (modulus) lookUpModuli(modulus, *acc, fresh, geometry_, r, layer);
+        for (const TopPixel& p : fresh) top_.set(top_.at(p.column, r), p.rigid, layer, p.modulus);
       }
     }
   });

@@ -72,6 +72,9 @@ public:
 
   // Bytes the views and tiles hold (for tests and memory estimates).
   std::size_t memoryBytes() const;
+  // What memoryBytes() reaches for a job of `geometry` once every contact tile is filled, worked out
+  // without allocating anything: for memory estimates made before a job starts.
+  static std::size_t heldBytesAtMost(const JobGeometry& geometry, const Profile& profile, int contactSheetLayers);
 
   // One projection at the resolution it is drawn: the cells its pixels show along u (its columns) and
   // v (its rows), each keeping the voxel seen there.

@@ -1,14 +1,18 @@
 #include "printer_profiles/zip_output.hpp"
 
+#include "printer_profiles/zip_source_adapter.hpp"
+
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -22,52 +26,18 @@ namespace {
 // Written out when the buffered tail reaches this size.
 constexpr std::size_t kTailBytes = std::size_t{8} << 20;
 
-class ArchiveOutput {
+class ArchiveOutput : public ZipSourceState {
 public:
-  explicit ArchiveOutput(fs::path path) : path_(std::move(path)), part_(path_.string() + ".part") { zip_error_init(&error_); }
-  ~ArchiveOutput() {
-    rollback();
-    zip_error_fini(&error_);
-  }
-  ArchiveOutput(const ArchiveOutput&) = delete;
-  ArchiveOutput& operator=(const ArchiveOutput&) = delete;
+  // The reading commands are listed because zip_open_from_source requires them of any source; a new
+  // archive is never read, so they fail (there is no operation for them).
+  static constexpr std::array kCommands{ZIP_SOURCE_OPEN,         ZIP_SOURCE_READ,         ZIP_SOURCE_CLOSE,
+                                        ZIP_SOURCE_SEEK,         ZIP_SOURCE_TELL,         ZIP_SOURCE_STAT,
+                                        ZIP_SOURCE_ERROR,        ZIP_SOURCE_FREE,         ZIP_SOURCE_BEGIN_WRITE,
+                                        ZIP_SOURCE_WRITE,        ZIP_SOURCE_SEEK_WRITE,   ZIP_SOURCE_TELL_WRITE,
+                                        ZIP_SOURCE_COMMIT_WRITE, ZIP_SOURCE_ROLLBACK_WRITE, ZIP_SOURCE_REMOVE};
 
-  static zip_int64_t callback(void* self, void* data, zip_uint64_t length, zip_source_cmd_t command) {
-    auto* output = static_cast<ArchiveOutput*>(self);
-    if (command == ZIP_SOURCE_FREE) {
-      delete output;
-      return 0;
-    }
-    return output->handle(data, length, command);
-  }
-
-private:
-  zip_int64_t handle(void* data, zip_uint64_t length, zip_source_cmd_t command) {
-    switch (command) {
-      case ZIP_SOURCE_STAT: return stat(static_cast<zip_stat_t*>(data));
-      case ZIP_SOURCE_BEGIN_WRITE: return begin();
-      case ZIP_SOURCE_WRITE: return write(static_cast<const std::uint8_t*>(data), length);
-      case ZIP_SOURCE_SEEK_WRITE: return seek(data, length);
-      case ZIP_SOURCE_TELL_WRITE: return static_cast<zip_int64_t>(position_);
-      case ZIP_SOURCE_COMMIT_WRITE: return commit();
-      case ZIP_SOURCE_ROLLBACK_WRITE: rollback(); return 0;
-      case ZIP_SOURCE_REMOVE: return ::unlink(path_.c_str()) == 0 || errno == ENOENT ? 0 : failed(ZIP_ER_REMOVE, errno);
-      case ZIP_SOURCE_ERROR: return zip_error_to_data(&error_, data, length);
-      case ZIP_SOURCE_SUPPORTS:
-        // The reading commands are listed because zip_open_from_source requires them of any source;
-        // a new archive is never read, so they fail.
-        return zip_source_make_command_bitmap(ZIP_SOURCE_OPEN, ZIP_SOURCE_READ, ZIP_SOURCE_CLOSE, ZIP_SOURCE_SEEK, ZIP_SOURCE_TELL,
-                                              ZIP_SOURCE_STAT, ZIP_SOURCE_ERROR, ZIP_SOURCE_FREE, ZIP_SOURCE_BEGIN_WRITE,
-                                              ZIP_SOURCE_WRITE, ZIP_SOURCE_SEEK_WRITE, ZIP_SOURCE_TELL_WRITE,
-                                              ZIP_SOURCE_COMMIT_WRITE, ZIP_SOURCE_ROLLBACK_WRITE, ZIP_SOURCE_REMOVE, -1);
-      default: return failed(ZIP_ER_OPNOTSUPP, 0);
-    }
-  }
-
-  zip_int64_t failed(int code, int systemError) {
-    zip_error_set(&error_, code, systemError);
-    return -1;
-  }
+  explicit ArchiveOutput(fs::path path) : path_(std::move(path)), part_(path_.string() + ".part") {}
+  ~ArchiveOutput() { rollbackWrite(); }
 
   // "Does not exist" is ZIP_ER_READ with ENOENT, as libzip's file source says it.
   zip_int64_t stat(zip_stat_t* st) {
@@ -79,7 +49,7 @@ private:
     return 0;
   }
 
-  zip_int64_t begin() {
+  zip_int64_t beginWrite() {
     // 0666 less the umask, as libzip's file source creates archives.
     fd_ = ::open(part_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
     if (fd_ < 0) return failed(ZIP_ER_TMPOPEN, errno);
@@ -91,7 +61,8 @@ private:
 
   // Into the buffered tail when the write starts inside it or right after it (local headers are
   // rewritten there once their entry's data is known); anywhere else, the tail is written out first.
-  zip_int64_t write(const std::uint8_t* data, zip_uint64_t length) {
+  zip_int64_t write(const void* bytes, zip_uint64_t length) {
+    const auto* data = static_cast<const std::uint8_t*>(bytes);
     if (position_ < tailStart_ || position_ > tailStart_ + tail_.size()) {
       if (!flush()) return -1;
       tailStart_ = position_;
@@ -106,6 +77,35 @@ private:
     return static_cast<zip_int64_t>(length);
   }
 
+  zip_int64_t seekWrite(void* data, zip_uint64_t length) { return seekWithin(position_, end_, data, length); }
+  zip_int64_t tellWrite() const { return static_cast<zip_int64_t>(position_); }
+
+  zip_int64_t commitWrite() {
+    if (!flush()) return -1;
+    const int fd = std::exchange(fd_, -1);
+    if (::close(fd) != 0) {
+      const int why = errno;
+      ::unlink(part_.c_str());
+      return failed(ZIP_ER_WRITE, why);
+    }
+    if (::rename(part_.c_str(), path_.c_str()) != 0) {
+      const int why = errno;
+      ::unlink(part_.c_str());
+      return failed(ZIP_ER_RENAME, why);
+    }
+    return 0;
+  }
+
+  zip_int64_t rollbackWrite() {
+    if (fd_ < 0) return 0;
+    ::close(std::exchange(fd_, -1));
+    ::unlink(part_.c_str());
+    return 0;
+  }
+
+  zip_int64_t remove() { return ::unlink(path_.c_str()) == 0 || errno == ENOENT ? 0 : failed(ZIP_ER_REMOVE, errno); }
+
+private:
   bool flush() {
     std::size_t done = 0;
     while (done < tail_.size()) {
@@ -122,37 +122,7 @@ private:
     return true;
   }
 
-  zip_int64_t seek(void* data, zip_uint64_t length) {
-    const zip_int64_t to = zip_source_seek_compute_offset(position_, end_, data, length, &error_);
-    if (to < 0) return -1;
-    position_ = static_cast<zip_uint64_t>(to);
-    return 0;
-  }
-
-  zip_int64_t commit() {
-    if (!flush()) return -1;
-    const int fd = std::exchange(fd_, -1);
-    if (::close(fd) != 0) {
-      const int why = errno;
-      ::unlink(part_.c_str());
-      return failed(ZIP_ER_WRITE, why);
-    }
-    if (::rename(part_.c_str(), path_.c_str()) != 0) {
-      const int why = errno;
-      ::unlink(part_.c_str());
-      return failed(ZIP_ER_RENAME, why);
-    }
-    return 0;
-  }
-
-  void rollback() {
-    if (fd_ < 0) return;
-    ::close(std::exchange(fd_, -1));
-    ::unlink(part_.c_str());
-  }
-
   fs::path path_, part_;
-  zip_error_t error_;
   int fd_ = -1;
   zip_uint64_t position_ = 0, end_ = 0;
   zip_uint64_t tailStart_ = 0;  // where tail_ goes in the file
@@ -162,10 +132,7 @@ private:
 }  // namespace
 
 zip_source_t* newArchiveSource(const fs::path& path, zip_error_t* error) {
-  auto* output = new ArchiveOutput(path);
-  zip_source_t* source = zip_source_function_create(ArchiveOutput::callback, output, error);
-  if (!source) delete output;
-  return source;
+  return makeZipSource(std::make_unique<ArchiveOutput>(path), error);
 }
 
 }  // namespace rodfab::printer_profiles

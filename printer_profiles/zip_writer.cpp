@@ -1,6 +1,7 @@
 #include "printer_profiles/zip_writer.hpp"
 
 #include "printer_profiles/zip_output.hpp"
+#include "printer_profiles/zip_source_adapter.hpp"
 
 #include <zip.h>
 
@@ -8,9 +9,10 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cstring>
-#include <map>
+#include <memory>
 #include <stdexcept>
 #include <utility>
 #include <vector>
@@ -76,31 +78,28 @@ private:
   zip_t* za_ = nullptr;
 };
 
-// The staged files, each opened once however many entries it holds (a job's layers are all in one).
-class StagedFiles {
+// The staged file, opened once however many entries lie in it (a job's layers all do), and read through
+// a read-ahead buffer: libzip asks for 8 KiB at a time and the entries lie one after another in it.
+class StagedFile {
 public:
-  StagedFiles() = default;
-  ~StagedFiles() {
-    for (const auto& [path, fd] : fds_) ::close(fd);
+  explicit StagedFile(fs::path path) : path_(std::move(path)) {}
+  ~StagedFile() {
+    if (fd_ >= 0) ::close(fd_);
   }
-  StagedFiles(const StagedFiles&) = delete;
-  StagedFiles& operator=(const StagedFiles&) = delete;
+  StagedFile(const StagedFile&) = delete;
+  StagedFile& operator=(const StagedFile&) = delete;
 
-  // The file's descriptor, or -1 with errno set.
-  int open(const fs::path& file) {
-    if (const auto it = fds_.find(file); it != fds_.end()) return it->second;
-    const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd >= 0) fds_.emplace(file, fd);
-    return fd;
+  // Opens the file unless it is open; false with errno set when it cannot be (also when none was given).
+  bool open() {
+    if (fd_ < 0) fd_ = ::open(path_.c_str(), O_RDONLY | O_CLOEXEC);
+    return fd_ >= 0;
   }
 
-  // `length` bytes at `offset` of `fd` (one open() gave), through a read-ahead buffer: libzip asks for
-  // 8 KiB at a time and the entries lie one after another in the staged file. False with errno set,
-  // or 0 when the file ends first.
-  bool read(int fd, std::uint64_t offset, char* out, std::size_t length) {
+  // `length` bytes at `offset` of the opened file. False with errno set, or 0 when the file ends first.
+  bool read(std::uint64_t offset, char* out, std::size_t length) {
     while (length > 0) {
-      if (fd != aheadFd_ || offset < aheadStart_ || offset >= aheadStart_ + ahead_.size())
-        if (!fill(fd, offset)) return false;
+      if (offset < aheadStart_ || offset >= aheadStart_ + ahead_.size())
+        if (!fill(offset)) return false;
       const auto at = static_cast<std::size_t>(offset - aheadStart_);
       const std::size_t n = std::min(length, ahead_.size() - at);
       std::memcpy(out, ahead_.data() + at, n);
@@ -114,85 +113,57 @@ public:
 private:
   static constexpr std::size_t kReadAhead = std::size_t{1} << 20;
 
-  bool fill(int fd, std::uint64_t offset) {
+  bool fill(std::uint64_t offset) {
     ahead_.resize(kReadAhead);
-    aheadFd_ = -1;
     std::size_t got = 0;
     while (got < kReadAhead) {
-      const ssize_t n = ::pread(fd, ahead_.data() + got, kReadAhead - got, static_cast<off_t>(offset + got));
+      const ssize_t n = ::pread(fd_, ahead_.data() + got, kReadAhead - got, static_cast<off_t>(offset + got));
       if (n < 0 && errno == EINTR) continue;
-      if (n < 0) return false;
+      if (n < 0) {
+        ahead_.clear();
+        return false;
+      }
       if (n == 0) break;
       got += static_cast<std::size_t>(n);
     }
     ahead_.resize(got);
-    aheadFd_ = fd;
     aheadStart_ = offset;
     if (got == 0) errno = 0;
     return got > 0;
   }
 
-  std::map<fs::path, int> fds_;
+  fs::path path_;
+  int fd_ = -1;
   std::vector<char> ahead_;
-  int aheadFd_ = -1;
   std::uint64_t aheadStart_ = 0;
 };
 
 // A libzip source for StagedZipData: its stat says the data is already compressed (method, sizes and
 // CRC), so zip_close copies the bytes instead of compressing them, as it does for zip_source_zip.
-// Reads through `files`, which must outlive the source.
-class StagedSource {
+// Reads through `file`, which must outlive the source.
+class StagedSource : public ZipSourceState {
 public:
-  StagedSource(StagedZipData data, ZipStorage storage, StagedFiles& files)
-      : data_(std::move(data)), storage_(storage), files_(files) {
-    zip_error_init(&error_);
-  }
-  ~StagedSource() { zip_error_fini(&error_); }
-  StagedSource(const StagedSource&) = delete;
-  StagedSource& operator=(const StagedSource&) = delete;
+  static constexpr std::array kCommands{ZIP_SOURCE_OPEN, ZIP_SOURCE_READ, ZIP_SOURCE_CLOSE,
+                                        ZIP_SOURCE_STAT, ZIP_SOURCE_ERROR, ZIP_SOURCE_FREE,
+                                        ZIP_SOURCE_GET_FILE_ATTRIBUTES};
 
-  static zip_int64_t callback(void* self, void* data, zip_uint64_t length, zip_source_cmd_t command) {
-    auto* source = static_cast<StagedSource*>(self);
-    if (command == ZIP_SOURCE_FREE) {
-      delete source;
-      return 0;
-    }
-    return source->handle(data, length, command);
+  StagedSource(StagedZipData data, ZipStorage storage, StagedFile& file) : data_(std::move(data)), storage_(storage), file_(file) {}
+
+  zip_int64_t open() {
+    position_ = 0;
+    return !data_.memory.empty() || file_.open() ? 0 : failed(ZIP_ER_OPEN, errno);
   }
 
-private:
-  zip_int64_t handle(void* data, zip_uint64_t length, zip_source_cmd_t command) {
-    switch (command) {
-      case ZIP_SOURCE_OPEN:
-        fd_ = data_.memory.empty() ? files_.open(data_.file) : -1;
-        position_ = 0;
-        return fd_ >= 0 || !data_.memory.empty() ? 0 : failed(ZIP_ER_OPEN);
-      case ZIP_SOURCE_READ: return read(static_cast<char*>(data), length);
-      case ZIP_SOURCE_CLOSE:
-        fd_ = -1;  // StagedFiles closes it
-        return 0;
-      case ZIP_SOURCE_STAT: return stat(static_cast<zip_stat_t*>(data));
-      case ZIP_SOURCE_GET_FILE_ATTRIBUTES: return attributes(static_cast<zip_file_attributes_t*>(data));
-      case ZIP_SOURCE_ERROR: return zip_error_to_data(&error_, data, length);
-      case ZIP_SOURCE_SUPPORTS:
-        return zip_source_make_command_bitmap(ZIP_SOURCE_OPEN, ZIP_SOURCE_READ, ZIP_SOURCE_CLOSE, ZIP_SOURCE_STAT,
-                                              ZIP_SOURCE_ERROR, ZIP_SOURCE_FREE, ZIP_SOURCE_GET_FILE_ATTRIBUTES, -1);
-      default: return failed(ZIP_ER_OPNOTSUPP);
-    }
-  }
+  zip_int64_t close() { return 0; }  // StagedFile closes the file
 
-  zip_int64_t failed(int code) {
-    zip_error_set(&error_, code, code == ZIP_ER_OPEN || code == ZIP_ER_READ ? errno : 0);
-    return -1;
-  }
-
-  zip_int64_t read(char* out, zip_uint64_t length) {
+  zip_int64_t read(void* data, zip_uint64_t length) {
+    auto* out = static_cast<char*>(data);
     const zip_uint64_t want = std::min<zip_uint64_t>(length, data_.length - position_);
     if (!data_.memory.empty()) {
-      if (data_.memory.size() != data_.length) return failed(ZIP_ER_INCONS);
+      if (data_.memory.size() != data_.length) return failed(ZIP_ER_INCONS, 0);
       std::memcpy(out, data_.memory.data() + position_, want);
-    } else if (!files_.read(fd_, data_.offset + position_, out, want))
-      return failed(errno ? ZIP_ER_READ : ZIP_ER_EOF);  // the staged file is shorter than recorded
+    } else if (!file_.read(data_.offset + position_, out, want))
+      return errno ? failed(ZIP_ER_READ, errno) : failed(ZIP_ER_EOF, 0);  // the staged file is shorter than recorded
     position_ += want;
     return static_cast<zip_int64_t>(want);
   }
@@ -217,25 +188,21 @@ private:
     return 0;
   }
 
+private:
   StagedZipData data_;
   ZipStorage storage_;
-  StagedFiles& files_;
-  zip_error_t error_;
-  int fd_ = -1;
+  StagedFile& file_;
   zip_uint64_t position_ = 0;
 };
 
-zip_source_t* stagedSource(zip_t* za, const StagedZipData& data, ZipStorage storage, StagedFiles& files) {
-  auto* source = new StagedSource(data, storage, files);
-  zip_source_t* zs = zip_source_function(za, StagedSource::callback, source);
-  if (!zs) delete source;
-  return zs;
+zip_source_t* stagedSource(zip_t* za, const StagedZipData& data, ZipStorage storage, StagedFile& file) {
+  return makeZipSource(za, std::make_unique<StagedSource>(data, storage, file));
 }
 
 }  // namespace
 
-void writeZip(const fs::path& zipPath, const std::vector<ZipEntry>& entries) {
-  StagedFiles staged;  // declared first: the zip's sources, which read through it, go before it
+void writeZip(const fs::path& zipPath, const std::vector<ZipEntry>& entries, const fs::path& stagedFile) {
+  StagedFile staged(stagedFile);  // declared first: the zip's sources, which read through it, go before it
   ZipBuilder zip(zipPath);
   for (const ZipEntry& e : entries) {
     zip_source_t* source = e.staged ? stagedSource(zip.archive(), *e.staged, e.storage, staged)

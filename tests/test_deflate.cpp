@@ -153,12 +153,12 @@ TEST_CASE("writeZip copies staged deflate data as it is; libzip reads it back", 
   const fs::path staged = dir / "band.bin";
   std::ofstream(staged, std::ios::binary).write(reinterpret_cast<const char*>(blob.data()), static_cast<std::streamsize>(blob.size()));
   const auto entry = [&](const char* name, std::uint64_t offset, const Data& packed, const Data& plain, ZipStorage storage) {
-    return ZipEntry{name, {}, storage, StagedZipData{staged, offset, packed.size(), plain.size(), zipCrc32(plain)}};
+    return ZipEntry{name, {}, storage, StagedZipData{offset, packed.size(), plain.size(), zipCrc32(plain)}};
   };
   const std::vector<ZipEntry> entries{entry("a.bmp", 0, da, a, ZipStorage::Deflate),
                                       entry("b.bmp", da.size(), db, b, ZipStorage::Deflate),
                                       entry("c.png", da.size() + db.size(), stored, stored, ZipStorage::Store)};
-  writeZip(dir / "job.zip", entries);
+  writeZip(dir / "job.zip", entries, staged);
 
   int error = 0;
   zip_t* za = zip_open((dir / "job.zip").c_str(), ZIP_RDONLY | ZIP_CHECKCONS, &error);
@@ -182,6 +182,6 @@ TEST_CASE("writeZip copies staged deflate data as it is; libzip reads it back", 
 
   // A staged file shorter than recorded: the archive is not written.
   fs::resize_file(staged, blob.size() - 10);
-  CHECK_THROWS_AS(writeZip(dir / "short.zip", entries), std::runtime_error);
+  CHECK_THROWS_AS(writeZip(dir / "short.zip", entries, staged), std::runtime_error);
   fs::remove_all(dir);
 }

@@ -330,6 +330,19 @@ TEST_CASE("Preview views keep only the cells their pixels show", "[job][previews
     CHECK(fullResolution > 400'000'000);
     CHECK(previews.memoryBytes() < 8'000'000);
   }
+  SECTION("previewMemoryBytes says, before the job, what the views and tiles come to hold") {
+    // Axes with fewer cells than pixels and more; contact sheets of one layer, several, more than the job has.
+    for (const auto& [w, h, layers, sheet] : {std::tuple{40, 30, 20, 6}, std::tuple{3000, 200, 900, 16}, std::tuple{9456, 473, 60, 100},
+                                             std::tuple{8, 8, 1, 1}}) {
+      JobGeometry g;
+      g.width = w, g.height = h, g.layers = layers;
+      Previews previews(g, connex3(), sheet);
+      LayerBitmaps empty;
+      empty.rigid = Bitmap(w, h), empty.rubbery = Bitmap(w, h);
+      for (const int layer : previews.contactLayers()) previews.addLayer(layer, empty, nullptr);  // fills the tiles
+      CHECK(previewMemoryBytes(g, connex3(), sheet) == previews.memoryBytes());
+    }
+  }
 }
 
 TEST_CASE("A leaf's image rows hold the voxels OpenVDB says are on", "[job][leaf]") {

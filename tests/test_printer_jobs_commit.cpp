@@ -5,6 +5,7 @@
 
 #include <catch2/catch.hpp>
 
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -54,6 +55,29 @@ TEST_CASE("A failed or interrupted write leaves nothing that looks like a job", 
       writer.addBand({band(*grid, 3, 10), nullptr, 3, 10});
       CHECK_THROWS_WITH(writer.finalize(), Catch::Contains("never added"));
     }
+    CHECK(leftovers() == 0);
+  }
+  SECTION("writing the staged layers (layers.bin) fails: the error names the file") {
+    // No file may grow while the job is written (soft RLIMIT_FSIZE 0, SIGXFSZ ignored: write() fails
+    // with EFBIG), and every zip form is staged in the file rather than kept in memory. In this process,
+    // not a forked child: a child of a process whose TBB workers are running can wait for them forever.
+    JobSpec spec = specFor(*grid, dir / "job.zip");
+    spec.options.zipFormsInMemory = 0;
+    rlimit saved{};
+    REQUIRE(::getrlimit(RLIMIT_FSIZE, &saved) == 0);
+    const auto oldHandler = std::signal(SIGXFSZ, SIG_IGN);
+    rlimit none = saved;
+    none.rlim_cur = 0;
+    REQUIRE(::setrlimit(RLIMIT_FSIZE, &none) == 0);
+    std::string why = "no error";
+    try {
+      writeJob(*grid, spec, 8);
+    } catch (const std::exception& e) {  // any, so that the limit is lifted before a check fails
+      why = e.what();
+    }
+    ::setrlimit(RLIMIT_FSIZE, &saved);
+    std::signal(SIGXFSZ, oldHandler);
+    CHECK_THAT(why, Catch::Contains("layers.bin: cannot write"));
     CHECK(leftovers() == 0);
   }
   SECTION("the process is killed mid-job") {

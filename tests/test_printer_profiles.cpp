@@ -134,6 +134,28 @@ TEST_CASE("1-bit BMP and PNG round-trip with their resolution", "[bitmap]") {
   CHECK_THROWS_AS(decodePng1(png), ImageError);
 }
 
+TEST_CASE("The BMP encoder's pieces tile the file: in order they are encodeBmp's bytes", "[bitmap]") {
+  // Widths whose rows make runs of many rows, a few, and one row a run (a row over 16 KiB).
+  for (const auto& [width, height] : {std::pair{1, 1}, std::pair{96, 5}, std::pair{1000, 300}, std::pair{140'000, 3}}) {
+    Bitmap b(width, height);
+    std::mt19937 rng(static_cast<unsigned>(width));
+    for (int r = 0; r < height; ++r)
+      for (int c = 0; c < width; c += 1 + static_cast<int>(rng() % 5)) b.set(c, r);
+    Bytes pieces, out;
+    std::size_t calls = 0;
+    encodeBmpInto(b, 600, 300, out, [&](std::span<const std::uint8_t> piece) {
+      CHECK(piece.data() == out.data() + pieces.size());  // each piece starts where the last one ended
+      pieces.insert(pieces.end(), piece.begin(), piece.end());
+      ++calls;
+    });
+    const Bytes whole = encodeBmp(b, 600, 300);
+    CHECK(pieces == whole);
+    CHECK(out == whole);
+    CHECK(calls >= 2);  // the headers, then at least one run of rows
+    CHECK(decodeBmp(pieces).bitmap == b);
+  }
+}
+
 // ------------------------------------------------------------------------------------------ layout
 
 TEST_CASE("The image frame covers the padded part, aligned, with row 0 the largest y", "[layout]") {
