@@ -82,6 +82,7 @@ void slice(benchmark::State& state, const char* designClass, const char* method)
   state.counters["layers"] = report.job.geometry.layers;
   state.counters["job_MB"] = static_cast<double>(report.job.bytes) * 1e-6;
   state.counters["peak_rss_MB"] = peakRssMb();
+  state.counters["estimate_MB"] = static_cast<double>(report.memoryEstimateBytes) * 1e-6;  // slicer::sliceMemoryBytes
 }
 
 }  // namespace

@@ -102,20 +102,13 @@ CouponLayout planCouponLayout(const printer_profiles::Profile& profile, std::siz
 }
 
 std::uint64_t couponJobBytes(const CouponLayout& layout, int bandLayers) {
-  // The preview views keep only the cells their pixels show, 9 bytes each (material, depth, modulus;
-  // printer_profiles/previews), and the three views share a canvas of about 1400 x 1000 pixels.
-  // Both figures are the previews' (Previews::View, previews.cpp's projectionLayout): no public estimate exists.
-  constexpr double kPreviewBytes = 9.0 * 1400.0 * 1000.0;
-  // Per pixel of a layer: the writer's images and encoders, measured (~30 B).
-  constexpr double kLayerImageBytes = 30.0;
   // Per voxel of a band, both bands in flight: fractions (float leaves), material (bool leaves). The
   // leaves hold whole 8-layer slabs, whatever the band's layers.
   constexpr double kBandBytes = 5.0;
   const int heldLayers = (bandLayers + kLeafLayers - 1) / kLeafLayers * kLeafLayers;
   const openvdb::Coord d = layout.bounds.dim();
-  const double w = d.x(), h = d.y();
-  const double bytes = 64.0 * (1 << 20) + kPreviewBytes + kLayerImageBytes * w * h +
-                       kBandBytes * (heldLayers + 1.0) * w * h;
+  const double bands = kBandBytes * (heldLayers + 1.0) * double(d.x()) * double(d.y());
+  const double bytes = double(jobWriterBytes(layout.bounds)) + bands;
   return bytes > 1.8e19 ? std::uint64_t(1.8e19) : static_cast<std::uint64_t>(bytes);
 }
 

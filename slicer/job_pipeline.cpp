@@ -71,6 +71,13 @@ int bandEnd(int k0, int bandLayers) {
 
 }  // namespace
 
+std::uint64_t jobWriterBytes(const openvdb::CoordBBox& partBounds) {
+  constexpr double kRuntimeBytes = 96.0 * (1 << 20), kPreviewBytes = 9.0 * 1400.0 * 1000.0, kLayerImageBytes = 30.0;
+  const double pixels = double(partBounds.dim().x()) * double(partBounds.dim().y());
+  const double bytes = kRuntimeBytes + kPreviewBytes + kLayerImageBytes * pixels;
+  return bytes > 1.8e19 ? std::uint64_t(1.8e19) : static_cast<std::uint64_t>(bytes);
+}
+
 printer_profiles::JobResult streamJob(printer_profiles::JobSpec spec, const BandSource& source,
                                       materials::Ditherer& ditherer, const PipelineOptions& options,
                                       StageSeconds& seconds) {
@@ -93,7 +100,7 @@ printer_profiles::JobResult streamJob(printer_profiles::JobSpec spec, const Band
     emitArena.run(seconds.emit, [&] { writer.emplace(std::move(spec)); });
     ditherer.reset();
     int nextK0 = kFirst;
-    // Serial stages, two bands in flight: while the writer encodes band n, band n + 1 is made or
+    // Serial stages, kBandsInFlight (two) bands in flight: while the writer encodes band n, band n + 1 is made or
     // dithered. Three in flight (n + 2 made as well) held 2.6 GB where two hold 1.8 GB on a
     // 400 x 40 x 150 mm coupon block, and the torture suite's memory budget is 1.6 GiB. Each stage checks for an interrupt before it starts a band.
     const auto make = [&](tbb::flow_control& fc) -> BandPtr {
@@ -123,7 +130,7 @@ printer_profiles::JobResult streamJob(printer_profiles::JobSpec spec, const Band
       band.reset();
       if (options.onBand) options.onBand(done, layers);
     };
-    tbb::parallel_pipeline(2, tbb::make_filter<void, BandPtr>(tbb::filter_mode::serial_in_order, make) &
+    tbb::parallel_pipeline(kBandsInFlight, tbb::make_filter<void, BandPtr>(tbb::filter_mode::serial_in_order, make) &
                                   tbb::make_filter<BandPtr, BandPtr>(tbb::filter_mode::serial_in_order, dither) &
                                   tbb::make_filter<BandPtr, void>(tbb::filter_mode::serial_in_order, emit));
     if (options.beforeFinalize) options.beforeFinalize(writer->metadata());

@@ -43,6 +43,17 @@ struct StageSeconds {
 // leaves, so a band of 1 layer costs as much memory as a band of 8.
 inline constexpr int kLeafLayers = 8;
 
+// Bands alive at once in streamJob: while the writer encodes one, the next is made or dithered. Memory
+// estimates of the jobs it writes count this many (sliceMemoryBytes, couponJobBytes).
+inline constexpr int kBandsInFlight = 2;
+
+// Bytes the job writer holds for a part of `partBounds` besides the bands' grids: its layer images and
+// encoders (~30 bytes per pixel of a layer, measured) and the previews' views (9 bytes a cell on a
+// canvas of about 1400 x 1000 pixels: printer_profiles/previews' View and projectionLayout), plus 96 MiB
+// for the process itself (libraries, thread stacks, the allocator's arenas: `rodfab slice` of a 2,448-voxel
+// design peaks at 85 MB resident).
+std::uint64_t jobWriterBytes(const openvdb::CoordBBox& partBounds);
+
 struct PipelineOptions {
   // Layers per band. A multiple of kLeafLayers makes the bands end on slab boundaries (the first band
   // is shorter when the part does not start on one), so no band's leaves are shared with the next.

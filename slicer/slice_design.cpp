@@ -1,6 +1,7 @@
 #include "slicer/slice_design.hpp"
 
 #include "common/interrupt.hpp"
+#include "common/memory_budget.hpp"
 #include "common/stopwatch.hpp"
 #include "slicer/job_report.hpp"
 #include "voxel/diagnostics.hpp"
@@ -10,6 +11,7 @@
 #include <chrono>
 #include <cmath>
 #include <memory>
+#include <thread>
 
 namespace rodfab::slicer {
 
@@ -36,7 +38,50 @@ printer_profiles::JobReportHook reportHook(const SliceReport& report, const cali
   };
 }
 
+// Refuses a slice whose estimate exceeds the memory budget, naming the design and what to change.
+// Returns the estimate.
+std::uint64_t requireSliceMemory(const geometry::RodStructure& design, const voxel::PrinterGrid& grid, int bandLayers,
+                                 std::string_view ditherer, std::size_t pieces, const SliceSettings& settings) {
+  const std::string name = settings.designFile.empty() ? "the design" : settings.designFile;
+  const std::uint64_t bytes = sliceMemoryBytes(design, grid, bandLayers, ditherer, settings.threads, pieces);
+  common::requireMemory(bytes,
+                        "slicing " + name + " (" + std::to_string(design.rods.size()) + " rod(s)) in bands of " +
+                            std::to_string(bandLayers) + " layers",
+                        bandLayers > kLeafLayers ? "use fewer --band-layers (" + std::to_string(kLeafLayers) +
+                                                       " at least), or raise --max-memory if the machine has more"
+                                                 : "slice a smaller design, or raise --max-memory if the machine has more");
+  return bytes;
+}
+
+// Error diffusion's buffers (materials/error_diffusion.cpp): a slot per layer in progress, min(threads, 4)
+// + 3 of them but no more than the band's layers and the next, each ~36 bytes per active voxel of the
+// layer (coordinates, fraction, threshold, links, neighbours, error) with vector growth's slack up to
+// twice that. Measured: 360 bytes per voxel of a full 2000 x 1000 layer at 2 threads in 8-layer bands.
+double errorDiffusionBytes(const voxel::RasterEstimate& raster, int bandLayers, int threads) {
+  constexpr double kSlotBytesPerVoxel = 80.0;
+  const int workers = std::clamp(threads > 0 ? threads : int(std::thread::hardware_concurrency()), 1, 4);
+  const int slots = std::min(workers + 3, bandLayers + 1);
+  return slots * kSlotBytesPerVoxel * raster.layerVoxels;
+}
+
 }  // namespace
+
+std::uint64_t sliceMemoryBytes(const geometry::RodStructure& design, const voxel::PrinterGrid& grid, int bandLayers,
+                               std::string_view ditherer, int threads, std::optional<std::size_t> pieces) {
+  voxel::RasterEstimate raster = voxel::estimateRaster(design, grid, bandLayers);
+  if (pieces) raster.pieceBytes = double(*pieces) * voxel::RasterEstimate::bytesPerPiece();
+  // The dithered bands' material (bool) trees: the bands in flight and the ditherer's recycler's kept
+  // ones, on the band's leaves (a bool leaf: two 64-byte masks and its origin, plus the allocator's header).
+  constexpr double kMaterialTrees = kBandsInFlight + double(voxel::TreeRecycler<openvdb::BoolTree>::kKeptTrees);
+  const double materialBytes = kMaterialTrees * raster.bandLeaves * (double(sizeof(openvdb::BoolTree::LeafNodeType)) + 16.0);
+  // Explicit support's column tops: an int per column of the part.
+  const openvdb::Coord part = designVoxelBounds(design, grid).dim();
+  const double supportBytes = 4.0 * double(part.x()) * double(part.y());
+  const double ditherBytes = ditherer == "error-diffusion" ? errorDiffusionBytes(raster, bandLayers, threads) : 0.0;
+  const double bytes = raster.peakBytes(kBandsInFlight) + materialBytes + supportBytes + ditherBytes +
+                       double(jobWriterBytes(designVoxelBounds(design, grid)));
+  return bytes >= 1.8e19 || !std::isfinite(bytes) ? UINT64_MAX : static_cast<std::uint64_t>(bytes);
+}
 
 openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const voxel::PrinterGrid& grid) {
   const geometry::Box3 box = design.bounds();
@@ -64,7 +109,11 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   const openvdb::CoordBBox partBounds = designVoxelBounds(design, grid);
   const int bandLayers = settings.bandLayers > 0 ? settings.bandLayers : automaticBandLayers(partBounds);
   for (const voxel::ThinRod& thin : voxel::findThinRods(design, grid)) report.warnings.push_back(thin.reason);
+  // The pieces are bounded by the rods' budgets (rod_pieces.hpp); the bands are checked against the
+  // budget with the pieces' real count, which is often a tenth of the budgets' bound.
   const voxel::Rasterizer rasterizer(design, grid, {settings.threads, common::interruptRequested});
+  report.bandLayers = bandLayers;
+  report.memoryEstimateBytes = requireSliceMemory(design, grid, bandLayers, ditherer.name(), rasterizer.pieceCount(), settings);
   const materials::FractionMap fractionMap(calibration);
   report.floorMpa = fractionMap.floorMpa();
   report.floorFraction = fractionMap.floorFraction();

@@ -12,7 +12,9 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace rodfab::slicer {
@@ -37,6 +39,8 @@ struct SliceReport {
   printer_profiles::JobResult job;
   materials::MappingStats mapping;          // model voxels and clamped moduli
   std::vector<std::uint64_t> voxelsPerRod;  // voxels each rod won
+  int bandLayers = 0;                       // layers per band, as chosen
+  std::uint64_t memoryEstimateBytes = 0;    // sliceMemoryBytes, checked against the memory budget
   double prepareSeconds = 0.0;              // printer grid, rod pieces, fraction table
   double supportSeconds = 0.0;              // the column-top pre-pass of explicit support
   StageSeconds seconds;                     // bands: voxelize + map, dither, emit
@@ -53,7 +57,18 @@ openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const
 // whole 8-layer leaf slabs (kLeafLayers), so at least 8.
 int automaticBandLayers(const openvdb::CoordBBox& partBounds);
 
-// Throws TrayFitError for a design the tray cannot hold, std::runtime_error for an output that
+// Resident bytes `sliceDesign` needs at most for `design` on `grid` in bands of `bandLayers` layers,
+// from the design alone (no band allocated): the rasterizer's pieces (`pieces` of them once built; the
+// rods' piece budgets before) and band trees with kBandsInFlight bands in flight
+// (voxel::RasterEstimate::peakBytes), the dithered material trees of those bands and of their recycler,
+// `ditherer`'s own buffers (error diffusion's layer slots, by `threads`, 0: all), explicit support's
+// column tops and the job writer (jobWriterBytes). An upper estimate: resident peaks measured on the
+// benchmark classes and bundled examples are 1.4 to 7 times below it (bench/README.md, "Memory of slice").
+std::uint64_t sliceMemoryBytes(const geometry::RodStructure& design, const voxel::PrinterGrid& grid, int bandLayers,
+                               std::string_view ditherer, int threads, std::optional<std::size_t> pieces = std::nullopt);
+
+// Throws common::OutOfMemory, once the rods' pieces are built and before any band is, when
+// sliceMemoryBytes exceeds the memory budget (common/memory_budget.hpp); TrayFitError for a design the tray cannot hold, std::runtime_error for an output that
 // exists (without force) or cannot be written; whatever `onBand` throws passes through.
 SliceReport sliceDesign(const geometry::RodStructure& design, const printer_profiles::Profile& profile,
                         const calibration::Calibration& calibration, materials::Ditherer& ditherer,

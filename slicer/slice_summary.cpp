@@ -29,6 +29,8 @@ void printSliceJson(const SliceSummary& s, const slicer::SliceReport& report) {
   j["clamped_moduli"] = {{"below_floor", mapping.clamps.belowFloor}, {"above_max", mapping.clamps.aboveMax},
                          {"floor_mpa", report.floorMpa}, {"max_mpa", report.maxModulusMpa}};
   j["rods_without_voxels"] = rodsWithoutVoxels(report);
+  // What the memory check compared with the budget (--max-memory), for the band size chosen.
+  j["memory"] = {{"estimate_bytes", report.memoryEstimateBytes}, {"band_layers", report.bandLayers}};
   // Wall times; the stages' busy times overlap inside "bands" (job_pipeline.hpp); CPU of the whole
   // process over the bands.
   j["seconds"] = {{"inputs", s.inputSeconds},

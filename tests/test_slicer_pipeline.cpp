@@ -3,6 +3,8 @@
 // decoder, not the writer's), the same bytes for any band size and thread count, and the coupon
 // layout's bars and counts.
 #include "calibration/calibration_file.hpp"
+#include "common/memory_budget.hpp"
+#include "geometry/design_file.hpp"
 #include "geometry/rod.hpp"
 #include "materials/materials.hpp"
 #include "printer_profiles/inspect.hpp"
@@ -22,6 +24,7 @@
 #include <iterator>
 #include <numbers>
 #include <thread>
+#include <sys/resource.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -83,6 +86,19 @@ printer_profiles::JobSpec boxJob(const openvdb::CoordBBox& box, const fs::path& 
   spec.options.output = output;
   return spec;
 }
+
+// Lowers the soft data limit for the scope: the default memory budget follows it (80 %,
+// common/memory_budget.hpp) as under `ulimit -d`. The hard limit stays, so the soft one comes back.
+struct SoftDataLimit {
+  rlimit saved{};
+  explicit SoftDataLimit(std::uint64_t bytes) {
+    ::getrlimit(RLIMIT_DATA, &saved);
+    rlimit lowered = saved;
+    lowered.rlim_cur = saved.rlim_max == RLIM_INFINITY ? rlim_t(bytes) : std::min(rlim_t(bytes), saved.rlim_max);
+    ::setrlimit(RLIMIT_DATA, &lowered);
+  }
+  ~SoftDataLimit() { ::setrlimit(RLIMIT_DATA, &saved); }
+};
 
 }  // namespace
 
@@ -332,4 +348,53 @@ TEST_CASE("the coupon layout: bars of whole voxels, balanced rows, each voxel co
   const nlohmann::json bars = slicer::couponBarsJson(two, fractions, counting, 0, p.voxelSizeMm);
   CHECK(bars[1]["vero_share"].get<double>() == 1.0);
   CHECK(bars[0]["specimen"] == "coupon-00");
+}
+
+TEST_CASE("sliceDesign refuses a slice over the memory budget before any band, writing nothing; the message says what to change") {
+  openvdb::initialize();
+  TempDir tmp;
+  // A 200 x 200 x 3 mm plate: 11 M voxels a layer, 100 layers, several GB in bands of 64 layers.
+  const geometry::NurbsCurve axis(1, {0, 0, 1, 1}, {{0, 100, 1.5}, {200, 100, 1.5}});
+  const geometry::RodStructure design{"plate", {geometry::Rod("plate", axis, geometry::Section::rectangle(200.0, 3.0), geometry::Vec3(0, 1, 0),
+                                                              std::nullopt, geometry::CapStyle::Flat, geometry::BSplineField::constant(20, 0, 1))}};
+  const voxel::PrinterGrid grid = voxel::makePrinterGrid(design, connex3().voxelSize());
+  const SoftDataLimit limit(std::uint64_t{2} << 30);  // the torture suite's address-space cap
+  REQUIRE(common::memoryBudget() <= (std::uint64_t{2} << 30));
+  REQUIRE(slicer::sliceMemoryBytes(design, grid, 64, "white", 0) > common::memoryBudget());
+  const calibration::Calibration cal = calibration::loadDefaultCalibration();
+  slicer::SliceSettings settings;
+  settings.designFile = "plate.json";
+  settings.bandLayers = 64;
+  settings.job.output = tmp.path / "plate.zip";
+  const auto ditherer = materials::makeDitherer("white", {});
+  try {
+    slicer::sliceDesign(design, connex3(), cal, *ditherer, settings);
+    FAIL("expected OutOfMemory");
+  } catch (const common::OutOfMemory& e) {
+    const std::string message = e.what();
+    CHECK_THAT(message, Catch::Contains("plate.json") && Catch::Contains("bands of 64 layers") &&
+                            Catch::Contains("--band-layers") && Catch::Contains("--max-memory"));
+  }
+  CHECK(fs::is_empty(tmp.path));  // no job, nothing staged
+}
+
+TEST_CASE("the memory check passes the bundled examples under a 2 GiB cap, with the estimate above their real needs") {
+  // Resident peaks of `rodfab slice EXAMPLE --threads 2` (automatic bands, /usr/bin/time, 2026-12-03; the
+  // larger of white and error diffusion): the estimate must stay above them.
+  const std::vector<std::pair<const char*, double>> measuredPeakMb{{"arm-cast", 197.5}, {"buckling-spring", 156.2},
+                                                                   {"unfolding-box", 223.7}};
+  openvdb::initialize();
+  const SoftDataLimit limit(std::uint64_t{2} << 30);
+  for (const auto& [name, peakMb] : measuredPeakMb) {
+    INFO(name);
+    const geometry::RodStructure design = geometry::readDesign(fs::path("examples") / (std::string(name) + ".json"));
+    const voxel::PrinterGrid grid = voxel::makePrinterGrid(design, connex3().voxelSize());
+    const voxel::Rasterizer rasterizer(design, grid);
+    const int automatic = slicer::automaticBandLayers(slicer::designVoxelBounds(design, grid));
+    for (const char* ditherer : {"white", "error-diffusion"}) {
+      for (int bandLayers : {1, 8, 64})
+        CHECK(slicer::sliceMemoryBytes(design, grid, bandLayers, ditherer, 2, rasterizer.pieceCount()) <= common::memoryBudget());
+      CHECK(double(slicer::sliceMemoryBytes(design, grid, automatic, ditherer, 2, rasterizer.pieceCount())) >= peakMb * 1e6);
+    }
+  }
 }

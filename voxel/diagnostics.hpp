@@ -19,23 +19,35 @@ struct RasterEstimate {
   // budget, rod_pieces.hpp) and on the bytes it holds for them from construction to destruction.
   std::uint64_t maxPieces = 0;
   double pieceBytes = 0.0;
+  // Bytes the Rasterizer holds per piece (pieceBytes = maxPieces of them): with the pieces built, their
+  // real count (Rasterizer::pieceCount) times this replaces the budget's bound, often 10 times lower.
+  static double bytesPerPiece();
   // Expected active voxels: the rods' volumes (sections times lengths plus caps) over the voxel
   // volume. Within a few percent for rods bent less tightly than their radius; overlaps at joints are
   // counted in full, and sections folding over in bends tighter than the radius add up to ~30 %.
   double activeVoxels = 0.0;
   // Expected OpenVDB leaves (8^3 voxels) holding them (each rod as a tube of its bounding radius
-  // widened by half a leaf: an upper estimate, typically 1.5-2x), and the bytes of the grid holding the
-  // whole design with its internal nodes (Rasterizer::rasterize, `rodfab voxelize`).
+  // widened by half a leaf's diagonal: an upper estimate, typically 1.5-2x), and the bytes of the grid
+  // holding the whole design (Rasterizer::rasterize, `rodfab voxelize`): its leaves with their value
+  // buffers, and its internal nodes, at most those the envelope spans.
   double leaves = 0.0;
   double gridBytes = 0.0;
-  // With bandLayers > 0: bytes of the grid of the fullest band of that many layers
-  // (Rasterizer::rasterizeLayers); an upper estimate (each rod's leaves spread evenly over its layers).
+  // With bandLayers > 0: the leaves and bytes of the grid of the fullest band of that many layers
+  // (Rasterizer::rasterizeLayers): each rod's leaves spread evenly over its layers, a band holding whole
+  // 8-layer slabs plus one at each end; its internal nodes at most those a band of the envelope spans.
+  double bandLeaves = 0.0;
   double bandBytes = 0.0;
-  // Peak while slicing with `bandsInFlight` bands alive (the slicer keeps two), or while voxelizing
-  // the whole design (bandsInFlight = 0). A band holds two grids of bandBytes each, its moduli and
-  // its fractions (materials::mapToFractions: the same leaves), and two voxel::TreeRecyclers
-  // (tree_assembly.hpp), the rasterizer's and the slicer's for the fractions, each keep up to
-  // kKeptTrees let-go band trees whose nodes the next bands are built from: bandTreesHeld of them.
+  // With bandLayers > 0: expected active voxels of the fullest layer (each rod's volume spread the same
+  // way; a level round rod's middle layers hold up to 4/pi of its mean): what a ditherer working layer
+  // by layer holds.
+  double layerVoxels = 0.0;
+  // Peak while slicing with `bandsInFlight` bands alive (the caller's pipeline says how many: the
+  // slicer's kBandsInFlight, slicer/job_pipeline.hpp), or while voxelizing the whole design
+  // (bandsInFlight = 0). A band holds two grids of bandBytes each, its moduli and its fractions
+  // (materials::mapToFractions: the same leaves), and two voxel::TreeRecyclers (tree_assembly.hpp),
+  // the rasterizer's and the slicer's for the fractions, each keep up to kKeptTrees let-go band trees
+  // whose nodes the next bands are built from: bandTreesHeld of them. Measured against the heap
+  // (tests/test_materials_mapping.cpp) and the resident memory of `rodfab slice` (bench/README.md).
   double peakBytes(int bandsInFlight) const;
   static int bandTreesHeld(int bandsInFlight);
 };

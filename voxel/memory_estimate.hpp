@@ -17,4 +17,10 @@ namespace rodfab::voxel {
 // meeting at joints) 1.9 GiB against 3.6 GiB. Thread-safe; never throws; UINT64_MAX when beyond range.
 std::uint64_t estimateRasterizationBytes(const geometry::RodStructure& structure, const PrinterGrid& grid);
 
+// Volume (mm^3) of the rod's solid widened by `margin` mm on every side: the Steiner formula for the
+// section (exact for the convex sections rods have) times the centerline length, with each cap and the
+// margin as extra length. The tree nodes of size s a rod touches fit in its solid widened by half a
+// node's diagonal. Thread-safe.
+double widenedRodVolume(const geometry::Rod& rod, double margin);
+
 }  // namespace rodfab::voxel
