@@ -56,15 +56,20 @@ inline Double4 squareRoot(Double4 v) {
   return Double4{low[0], low[1], high[0], high[1]};
 }
 
-// A swept piece's coefficients for the voxel loop, copied out of the piece (see sweep): the same
-// values, so estimateSwept and estimateModulus give the same bits.
+// A value in all four lanes.
+inline Double4 broadcast(double v) { return Double4{v, v, v, v}; }
+
+// A swept piece's coefficients for the voxel loop, copied out of the piece (see sweep) into all four
+// lanes once per piece: held as scalars, they were broadcast (and spilled) again for every row, some
+// 35 instructions a row. The same values, so estimateSwept and estimateModulus give the same bits.
 struct SweptLanes {
   SweptLanes(const detail::RodPiece& p, double planeAgx, double planeBgx)
-      : gxA(planeAgx), gxB(planeBgx), gx1Begin(p.x1Begin.gx), gx2Begin(p.x2Begin.gx), gx1End(p.x1End.gx), gx2End(p.x2End.gx),
-        x1Quadratic(p.x1Quadratic), x2Quadratic(p.x2Quadratic), modulusBegin(p.modulusBegin), modulusEnd(p.modulusEnd),
-        modulusQuadratic(p.modulusQuadratic), modulusLow(p.modulusLow), modulusHigh(p.modulusHigh) {}
-  double gxA, gxB, gx1Begin, gx2Begin, gx1End, gx2End;
-  double x1Quadratic, x2Quadratic, modulusBegin, modulusEnd, modulusQuadratic, modulusLow, modulusHigh;  // as in RodPiece
+      : gxA(broadcast(planeAgx)), gxB(broadcast(planeBgx)), gx1Begin(broadcast(p.x1Begin.gx)), gx2Begin(broadcast(p.x2Begin.gx)),
+        gx1End(broadcast(p.x1End.gx)), gx2End(broadcast(p.x2End.gx)), x1Quadratic(broadcast(p.x1Quadratic)),
+        x2Quadratic(broadcast(p.x2Quadratic)), modulusBegin(broadcast(p.modulusBegin)), modulusEnd(broadcast(p.modulusEnd)),
+        modulusQuadratic(broadcast(p.modulusQuadratic)), modulusLow(broadcast(p.modulusLow)), modulusHigh(broadcast(p.modulusHigh)) {}
+  Double4 gxA, gxB, gx1Begin, gx2Begin, gx1End, gx2End;
+  Double4 x1Quadratic, x2Quadratic, modulusBegin, modulusEnd, modulusQuadratic, modulusLow, modulusHigh;  // as in RodPiece
 };
 
 // A double error bound as a float that is not smaller.

@@ -41,6 +41,13 @@ namespace rodfab::voxel::detail {
   AxisCylinder cylinder(grid_, piece);
   const Slope slopeA(planeA.gx), slopeB(-planeB.gx), slopeAy(planeA.gy), slopeBy(-planeB.gy);
   const SweptLanes lanes(piece, planeA.gx, planeB.gx);
+  struct {
+    Double4 iA, iB, sureInsideBelow;
+  } const gauges{broadcast(iA), broadcast(iB), broadcast(sureInsideBelow)};
+  // Their addresses made known: the lanes then stay in memory, read by the vector instructions as
+  // operands. Kept as values, GCC split them into registers, then spilled, copied or broadcast
+  // them again at every row (some 40 instructions a row, 1.3 quads a row on the curved lattice).
+  asm volatile("" : : "r"(&lanes), "r"(&gauges) : "memory");
   for (int k = kLo; k <= kHi; ++k) {
     int jLo = bmin.y(), jHi = bmax.y();
     if (!slopeAy.clip(planeA.c + planeA.gz * k + aMaxI, jLo, jHi) || !slopeBy.clip(-(planeB.c + planeB.gz * k + bMinI), jLo, jHi) ||
@@ -69,16 +76,16 @@ namespace rodfab::voxel::detail {
                                   x1bRow + lanes.gx1End * iv, x2bRow + lanes.gx2End * iv);
         Double4 test, encodedDepth;
         if (rectangle) {
-          const Double4 g1 = absolute(e.x1) * iA, g2 = absolute(e.x2) * iB;
+          const Double4 g1 = absolute(e.x1) * gauges.iA, g2 = absolute(e.x2) * gauges.iB;
           test = g1 < g2 ? g2 : g1;  // std::max(g1, g2), lane by lane
           encodedDepth = 1.0 - test;
         } else {
-          test = (e.x1 * iA) * (e.x1 * iA) + (e.x2 * iB) * (e.x2 * iB);
+          test = (e.x1 * gauges.iA) * (e.x1 * gauges.iA) + (e.x2 * gauges.iB) * (e.x2 * gauges.iB);
           encodedDepth = test;
         }
         const Double4 modulus = detail::estimateModulus(lanes, e.lambda);
         const Mask4 inSlab = (av >= 0.0) & (bv < 0.0);
-        const Mask4 sure = inSlab & (test < sureInsideBelow);
+        const Mask4 sure = inSlab & (test < gauges.sureInsideBelow);
         if (i + 3 <= hi && (sure[0] & sure[1] & sure[2] & sure[3])) {
           // The common case: four neighbours inside for sure; into empty slots with one store each.
           const int n = (row << kBlockXLog2) | (i & (kBlockX - 1));
@@ -89,9 +96,8 @@ namespace rodfab::voxel::detail {
             fresh += 4;
             continue;
           }
-          for (int l = 0; l < 4; ++l)
-            fresh += addSurelyInside(n + l, encodedDepth[l], floatErrorBound, static_cast<float>(modulus[l]), rod, pieceIndex,
-                                     i + l, j, k);
+          fresh += addFourSurelyInside(n, encodedDepth, __builtin_convertvector(modulus, Float4), floatErrorBound, rod, pieceIndex,
+                                       i, j, k);
           continue;
         }
         for (int l = 0; l < 4 && i + l <= hi; ++l) {
