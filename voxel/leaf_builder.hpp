@@ -122,21 +122,15 @@ private:
     if (!overlapWithoutExactTest(n, c, encodedDepth)) resolveOverlap(n, c, encodedDepth, i, j, k);
     return 0;
   }
-  // Four neighbouring candidates of one row (slots n .. n + 3), inside for sure, as addSurelyInside
-  // would take them one by one. Into four empty slots with one store each (the common case). Where
-  // some are filled (at rods' crossings and nodes) and every filled slot's outcome is clear
-  // (clearOverlap's expressions lane by lane, so the same bits and the same stores), the four are
-  // settled at once: empty slots and clearly shallower holders take the candidate, the rest stay.
-  // Otherwise voxel by voxel. Returns the slots newly filled.
+  // Four neighbouring candidates of one row (slots n .. n + 3), inside for sure, some of whose slots
+  // are filled (at rods' crossings and nodes): as addSurelyInside would take them one by one. When
+  // every filled slot's outcome is clear (clearOverlap's expressions lane by lane, so the same bits and
+  // the same stores) the four are settled at once: empty slots and clearly shallower holders take the
+  // candidate, the rest stay. Otherwise voxel by voxel. Returns the slots newly filled.
   [[gnu::always_inline]] int addFourSurelyInside(int n, Double4 encodedDepth, Float4 value, float errorBound, int rod, int piece,
                                                  int i, int j, int k) {
     std::uint64_t& word = filled_[static_cast<std::size_t>(n >> 6)];
     const unsigned filled = static_cast<unsigned>(word >> (n & 63)) & 0xfu;
-    if (filled == 0) {
-      storeFour(n, encodedDepth, value, errorBound, owner(rod, piece));
-      word |= std::uint64_t(0xf) << (n & 63);
-      return 4;
-    }
     // Only filled slots are read (the others hold no candidate yet).
     Double4 slotEncoded{}, slotBound{};
     Mask4 isFilled{}, roundSlot{};

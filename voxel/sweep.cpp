@@ -81,9 +81,17 @@ namespace rodfab::voxel::detail {
           const Mask4 inSlab = (av >= 0.0) & (bv < 0.0);
           const Mask4 sure = inSlab & (test < gauges.sureInsideBelow);
           if (i + 3 <= hi && (sure[0] & sure[1] & sure[2] & sure[3])) {
-            // The common case: four neighbours inside for sure.
-            fresh += addFourSurelyInside((row << kBlockXLog2) | (i & (kBlockX - 1)), encodedDepth,
-                                         __builtin_convertvector(modulus, Float4), floatErrorBound, rod, pieceIndex, i, j, k);
+            // The common case: four neighbours inside for sure; into empty slots with one store each.
+            const int n = (row << kBlockXLog2) | (i & (kBlockX - 1));
+            std::uint64_t& word = filled_[static_cast<std::size_t>(row)];
+            if (((word >> (i & (kBlockX - 1))) & 0xfu) == 0) {
+              storeFour(n, encodedDepth, __builtin_convertvector(modulus, Float4), floatErrorBound, owner(rod, pieceIndex));
+              word |= std::uint64_t(0xf) << (i & (kBlockX - 1));
+              fresh += 4;
+            } else {
+              fresh += addFourSurelyInside(n, encodedDepth, __builtin_convertvector(modulus, Float4), floatErrorBound, rod,
+                                           pieceIndex, i, j, k);
+            }
             continue;
           }
           for (int l = 0; l < 4 && i + l <= hi; ++l) {
