@@ -343,6 +343,28 @@ TEST_CASE("Overlapping rods: the deepest wins, ties go to the lower rod index", 
     REQUIRE(acc.getValue(onAxis0) == 10.0f);  // 0.05 off rod 1's axis, 0 off rod 0's: relatively deeper in 0
     REQUIRE(acc.getValue(onAxis1) == 90.0f);
   }
+  SECTION("round, elliptic and rectangular rods crossing at angles: four neighbours at a time meet filled slots") {
+    // The later rods' sure-inside quads land on slots the earlier ones filled: of round rods (the outcome
+    // settled four at a time where clear), of a rectangle (whose gauge is not at hand: voxel by voxel),
+    // empty and filled slots in one quad at the crossings' edges.
+    std::vector<Rod> rods;
+    rods.push_back(circularRod(line({-1, 0, 0}, {1, 0, 0}), 0.35, CapStyle::Round, BSplineField::constant(10, 0, 1)));
+    rods.emplace_back("bar", line({0.1, -1, 0.05}, {0.1, 1, 0.05}), Section::rectangle(0.5, 0.4), std::nullopt, std::nullopt,
+                      CapStyle::Flat, BSplineField::constant(90, 0, 1));
+    rods.emplace_back("oval", line({-0.8, -0.7, -0.2}, {0.8, 0.7, 0.25}), Section::ellipse(0.4, 0.25), Vec3(0, 0, 1), std::nullopt,
+                      CapStyle::Round, BSplineField::constant(50, 0, 1));
+    rods.push_back(circularRod(helix(0.5, 0.6, 1.0), 0.2, CapStyle::Round, BSplineField(1, {0, 0, 1, 1}, {20, 70})));
+    const RodStructure s = design(std::move(rods));
+    const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
+    const voxel::Rasterization ras = voxel::rasterize(s, g);
+    REQUIRE(requireMatchesExactTest(s, g, ras) > 50000);
+    std::uint64_t won = 0;
+    for (std::uint64_t v : ras.voxelsPerRod) {
+      REQUIRE(v > 0);
+      won += v;
+    }
+    REQUIRE(won == ras.grid->activeVoxelCount());
+  }
   SECTION("identical rods: the first one takes every voxel") {
     const Rod a = circularRod(helix(1.0, 0.8, 0.5), 0.3, CapStyle::Round, BSplineField::constant(33, 0, 1));
     const Rod b = circularRod(helix(1.0, 0.8, 0.5), 0.3, CapStyle::Round, BSplineField::constant(77, 0, 1));

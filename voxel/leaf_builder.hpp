@@ -122,6 +122,54 @@ private:
     if (!overlapWithoutExactTest(n, c, encodedDepth)) resolveOverlap(n, c, encodedDepth, i, j, k);
     return 0;
   }
+  // Four neighbouring candidates of one row (slots n .. n + 3), inside for sure, some of whose slots
+  // are filled (at rods' crossings and nodes): as addSurelyInside would take them one by one. When
+  // every filled slot's outcome is clear (clearOverlap's expressions lane by lane, so the same bits and
+  // the same stores) the four are settled at once: empty slots and clearly shallower holders take the
+  // candidate, the rest stay. Otherwise voxel by voxel. Returns the slots newly filled.
+  [[gnu::always_inline]] int addFourSurelyInside(int n, Double4 encodedDepth, Float4 value, float errorBound, int rod, int piece,
+                                                 int i, int j, int k) {
+    std::uint64_t& word = filled_[static_cast<std::size_t>(n >> 6)];
+    const unsigned filled = static_cast<unsigned>(word >> (n & 63)) & 0xfu;
+    // Only filled slots are read (the others hold no candidate yet).
+    Double4 slotEncoded{}, slotBound{};
+    Mask4 isFilled{}, roundSlot{};
+    std::array<int, 4> slotRod{};
+    for (int l = 0; l < 4; ++l) {
+      if (!((filled >> l) & 1u)) continue;
+      const auto s = static_cast<std::size_t>(n + l);
+      slotRod[static_cast<std::size_t>(l)] = static_cast<int>(owner_[s] >> 32);
+      slotEncoded[l] = encodedDepth_[s];
+      slotBound[l] = errorBound_[s];
+      isFilled[l] = -1;
+      roundSlot[l] = deferredDepth_[static_cast<std::size_t>(slotRod[static_cast<std::size_t>(l)])] ? -1 : 0;
+    }
+    const Mask4 approximate = slotBound > 0.0;
+    const Mask4 atHand = (approximate & roundSlot) | (~approximate & (slotEncoded >= 0.0) & (slotEncoded <= 1.0));
+    const Double4 slotGaugeSquared = approximate ? slotEncoded : (1.0 - slotEncoded) * (1.0 - slotEncoded);
+    const Double4 gaugeSquared =
+        deferredDepth_[static_cast<std::size_t>(rod)] ? encodedDepth : (1.0 - encodedDepth) * (1.0 - encodedDepth);
+    const Double4 clear = 2.0 * (slotBound + double(errorBound) + kTieTolerance) + 1e-12;
+    const Mask4 stays = gaugeSquared - slotGaugeSquared > clear, takes = slotGaugeSquared - gaugeSquared > clear;
+    const Mask4 settled = ~isFilled | (atHand & (stays | takes));
+    int fresh = 0;
+    if (!(settled[0] & settled[1] & settled[2] & settled[3])) {
+      for (int l = 0; l < 4; ++l)
+        fresh += addSurelyInside(n + l, encodedDepth[l], errorBound, value[l], rod, piece, i + l, j, k);
+      return fresh;
+    }
+    const std::uint64_t who = owner(rod, piece);
+    for (int l = 0; l < 4; ++l) {
+      if (!isFilled[l]) {
+        store(n + l, encodedDepth[l], errorBound, value[l], who);
+        ++fresh;
+      } else if (!stays[l]) {
+        replaceSlot(n + l, encodedDepth[l], errorBound, value[l], rod, piece, slotRod[static_cast<std::size_t>(l)]);
+      }
+    }
+    word |= std::uint64_t(~filled & 0xfu) << (n & 63);
+    return fresh;
+  }
   // The overlap rule's outcome without square roots, where it is clear. Both sides are ranked by their
   // gauge squared, g^2 = (1 - depth)^2 with g in [0, 1]: an approximate round-section slot stores it
   // (encoded depth), an exact or cap slot with a depth in [0, 1] gives it as (1 - depth)^2, and the

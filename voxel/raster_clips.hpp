@@ -56,16 +56,28 @@ inline Double4 squareRoot(Double4 v) {
   return Double4{low[0], low[1], high[0], high[1]};
 }
 
-// A swept piece's coefficients for the voxel loop, copied out of the piece (see sweep): the same
-// values, so estimateSwept and estimateModulus give the same bits.
+// A value in all four lanes.
+inline Double4 broadcast(double v) { return Double4{v, v, v, v}; }
+
+// A swept piece's coefficients for the voxel loop, copied out of the piece (see sweep) into all four
+// lanes once per piece: held as scalars, they were broadcast (and spilled) again for every row, some
+// 35 instructions a row. The same values, so estimateSwept and estimateModulus give the same bits.
 struct SweptLanes {
   SweptLanes(const detail::RodPiece& p, double planeAgx, double planeBgx)
-      : gxA(planeAgx), gxB(planeBgx), gx1Begin(p.x1Begin.gx), gx2Begin(p.x2Begin.gx), gx1End(p.x1End.gx), gx2End(p.x2End.gx),
-        x1Quadratic(p.x1Quadratic), x2Quadratic(p.x2Quadratic), modulusBegin(p.modulusBegin), modulusEnd(p.modulusEnd),
-        modulusQuadratic(p.modulusQuadratic), modulusLow(p.modulusLow), modulusHigh(p.modulusHigh) {}
-  double gxA, gxB, gx1Begin, gx2Begin, gx1End, gx2End;
-  double x1Quadratic, x2Quadratic, modulusBegin, modulusEnd, modulusQuadratic, modulusLow, modulusHigh;  // as in RodPiece
+      : gxA(broadcast(planeAgx)), gxB(broadcast(planeBgx)), gx1Begin(broadcast(p.x1Begin.gx)), gx2Begin(broadcast(p.x2Begin.gx)),
+        gx1End(broadcast(p.x1End.gx)), gx2End(broadcast(p.x2End.gx)), x1Quadratic(broadcast(p.x1Quadratic)),
+        x2Quadratic(broadcast(p.x2Quadratic)), modulusBegin(broadcast(p.modulusBegin)), modulusEnd(broadcast(p.modulusEnd)),
+        modulusQuadratic(broadcast(p.modulusQuadratic)), modulusLow(broadcast(p.modulusLow)), modulusHigh(broadcast(p.modulusHigh)) {}
+  Double4 gxA, gxB, gx1Begin, gx2Begin, gx1End, gx2End;
+  Double4 x1Quadratic, x2Quadratic, modulusBegin, modulusEnd, modulusQuadratic, modulusLow, modulusHigh;  // as in RodPiece
 };
+
+// std::max and std::min lane by lane: (a < b) ? b : a and (b < a) ? b : a.
+inline Double4 largerOf(Double4 a, Double4 b) { return a < b ? b : a; }
+inline Double4 smallerOf(Double4 a, Double4 b) { return b < a ? b : a; }
+
+// AffineInIndex::row for rows j[0..3] of layer k, lane by lane the same expression.
+inline Double4 rowsOf(const AffineInIndex& f, Double4 j, int k) { return (f.c + f.gy * j) + f.gz * k; }
 
 // A double error bound as a float that is not smaller.
 inline float roundedUpToFloat(double bound) {
@@ -74,6 +86,21 @@ inline float roundedUpToFloat(double bound) {
 }
 
 inline int clampToInt(double v) { return static_cast<int>(std::clamp(v, -2.0e9, 2.0e9)); }
+
+// The swept loop's thresholds on `test` (see sweep): gauges below 1 - bound are inside for sure, above
+// 1 + bound outside for sure; between them (the tolerance shell around the section boundary) the exact
+// test decides. Squared for round sections, whose test is the gauge squared.
+struct ShellThresholds {
+  ShellThresholds(double errorBound, bool rectangle) {
+    const bool bounded = std::isfinite(errorBound) && errorBound < 1.0;
+    const double inner = bounded ? 1.0 - errorBound : -1.0,
+                 outer = bounded ? 1.0 + errorBound : std::numeric_limits<double>::infinity();
+    const double innerSq = inner > 0.0 ? inner * inner : -1.0, outerSq = outer * outer;
+    sureInsideBelow = rectangle ? inner : innerSq;
+    sureOutsideAbove = rectangle ? outer : outerSq;
+  }
+  double sureInsideBelow, sureOutsideAbove;
+};
 
 // Voxel indices are below 2^24, so a root computed in double is off by far less than this; the
 // clips keep that margin and the callers still test every voxel they are left with.
@@ -114,6 +141,13 @@ struct Slope {
     else if (slope < 0.0) hi = std::min(hi, -base * inverse);
     else if (base < 0.0) return false;
     return true;
+  }
+  // `bound` for four rows at once, lane by lane the same expressions (the same bits); `missed` marks
+  // the rows where no i qualifies.
+  [[gnu::always_inline]] void bound(Double4 base, Double4& lo, Double4& hi, Mask4& missed) const {
+    if (slope > 0.0) lo = largerOf(lo, -base * inverse);
+    else if (slope < 0.0) hi = smallerOf(hi, -base * inverse);
+    else missed |= base < 0.0;
   }
 };
 
@@ -180,6 +214,19 @@ public:
     return true;
   }
 
+  // Rows j .. j + 3 of the current layer at once: lane by lane the expressions of `row` (the same
+  // bits, one vector square root for four rows); `missed` marks the rows that miss the cylinder.
+  [[gnu::always_inline]] void rows(int j, Double4& lo, Double4& hi, Mask4& missed) const {
+    if (alongX_) return;
+    const Double4 dj = double(j - j0_) + Double4{0.0, 1.0, 2.0, 3.0};
+    const Double4 beta = b0_ + b1_ * dj, gamma = g0_ + (g1_ + g2_ * dj) * dj;
+    const Double4 disc = beta * beta - alpha_ * gamma;
+    missed |= disc < 0.0;
+    const Double4 root = squareRoot(disc);  // not a number where missed; those lanes go unused
+    lo = largerOf(lo, (-beta - root) * inverseAlpha_);
+    hi = smallerOf(hi, (-beta + root) * inverseAlpha_);
+  }
+
 private:
   const PrinterGrid& grid_;
   const RodPiece& piece_;
@@ -192,6 +239,24 @@ private:
   double inverse2A_;
   int j0_ = 0;
   double b0_ = 0.0, g0_ = 0.0, g1_ = 0.0;
+};
+
+// Four rows j .. j + 3 of layer k set up at once for a swept piece between planes a and b: the planes'
+// rows, and the row bounds of the slab (slopes) and the axis cylinder with one vector square root,
+// lane by lane the scalar clips' expressions (so the same bits). `missed` marks rows with no voxel.
+struct FourRows {
+  [[gnu::always_inline]] FourRows(const AffineInIndex& planeA, const AffineInIndex& planeB, const Slope& slopeA, const Slope& slopeB,
+                                  const AxisCylinder& cylinder, int j, int k) {
+    const Double4 jv = double(j) + Double4{0.0, 1.0, 2.0, 3.0};
+    a = rowsOf(planeA, jv, k);
+    b = rowsOf(planeB, jv, k);
+    slopeA.bound(a, lo, hi, missed);
+    slopeB.bound(-b, lo, hi, missed);
+    cylinder.rows(j, lo, hi, missed);
+  }
+  Double4 a, b;
+  Double4 lo = broadcast(-std::numeric_limits<double>::infinity()), hi = broadcast(std::numeric_limits<double>::infinity());
+  Mask4 missed{};
 };
 
 }  // namespace rodfab::voxel::detail
