@@ -13,6 +13,7 @@
 
 #include <array>
 #include <memory>
+#include <new>
 
 namespace rodfab::printer_profiles {
 
@@ -96,9 +97,12 @@ zip_int64_t writeCommand(Source& s, void* data, zip_uint64_t length, zip_source_
   return kNoOperation;
 }
 
-// The zip_source_callback libzip calls with a Source*; ZIP_SOURCE_FREE deletes it.
+// The zip_source_callback libzip calls with a Source*; ZIP_SOURCE_FREE deletes it. Nothing is thrown
+// through libzip's C frames (it would skip libzip's own clean-up): an allocation that fails inside an
+// operation (read-ahead and tail buffers grow under the memory budget) becomes ZIP_ER_MEMORY, anything
+// else ZIP_ER_INTERNAL, and libzip reports the failure to its caller as any other.
 template <class Source>
-zip_int64_t callback(void* self, void* data, zip_uint64_t length, zip_source_cmd_t command) {
+zip_int64_t callback(void* self, void* data, zip_uint64_t length, zip_source_cmd_t command) noexcept {
   auto* source = static_cast<Source*>(self);
   if (command == ZIP_SOURCE_FREE) {
     delete source;
@@ -107,9 +111,15 @@ zip_int64_t callback(void* self, void* data, zip_uint64_t length, zip_source_cmd
   if (command == ZIP_SOURCE_SUPPORTS) return commandBitmap<Source>();
   if (!lists<Source>(command)) return source->failed(ZIP_ER_OPNOTSUPP, 0);
   if (command == ZIP_SOURCE_ERROR) return source->reportError(data, length);
-  zip_int64_t answer = readCommand(*source, data, length, command);
-  if (answer == kNoOperation) answer = writeCommand(*source, data, length, command);
-  return answer == kNoOperation ? source->failed(ZIP_ER_OPNOTSUPP, 0) : answer;
+  try {
+    zip_int64_t answer = readCommand(*source, data, length, command);
+    if (answer == kNoOperation) answer = writeCommand(*source, data, length, command);
+    return answer == kNoOperation ? source->failed(ZIP_ER_OPNOTSUPP, 0) : answer;
+  } catch (const std::bad_alloc&) {
+    return source->failed(ZIP_ER_MEMORY, 0);
+  } catch (...) {
+    return source->failed(ZIP_ER_INTERNAL, 0);
+  }
 }
 
 }  // namespace zip_source_detail
