@@ -40,6 +40,14 @@ double leafBytes() {
 // reads, and one more when the band is not whole slabs (its ends need not fall on slab boundaries).
 double heldLayers(int bandLayers) { return std::ceil(bandLayers / 8.0) * 8.0 + (bandLayers % 8 == 0 ? 8.0 : 16.0); }
 
+// Leaves (8^3 voxels, aligned to multiples of 8 in index space) a box of the envelope [0, dims)
+// reaching `layers` layers can hold: however much the rods' widened tubes overlap (thin rods close
+// together count the same leaves many times over), a tree holds no more.
+double leavesSpanned(const PrinterGrid& grid, double layers) {
+  const double up = std::min(std::ceil(grid.dims.z() / 8.0), std::ceil(std::max(0.0, layers - 1.0) / 8.0) + 1.0);
+  return std::ceil(grid.dims.x() / 8.0) * std::ceil(grid.dims.y() / 8.0) * up;
+}
+
 // Bytes of the internal nodes (128^3 and 4096^3 voxels, aligned to multiples of their size in index
 // space) that a box of the envelope [0, dims) reaching `layers` layers can touch: whatever the rods, a
 // tree holds no internal node outside the box.
@@ -133,10 +141,12 @@ RasterEstimate estimateRaster(const geometry::RodStructure& structure, const Pri
     }
   }
   // Rods close together share internal nodes: no more than the envelope (or a band of it) spans.
+  e.leaves = std::min(e.leaves, leavesSpanned(grid, grid.dims.z()));
   e.gridBytes = e.leaves * leafBytes() + std::min(internalBytes, internalBytesSpanned(grid, grid.dims.z()));
   if (bandLayers > 0) {
-    e.bandLeaves = std::min(fullestWindow(leavesPerLayer, heldLayers(bandLayers)), e.leaves);
-    e.layerVoxels = fullestWindow(voxelsPerLayer, 1.0);
+    e.bandLeaves = std::min({fullestWindow(leavesPerLayer, heldLayers(bandLayers)), e.leaves,
+                             leavesSpanned(grid, heldLayers(bandLayers))});
+    e.layerVoxels = std::min(fullestWindow(voxelsPerLayer, 1.0), double(grid.dims.x()) * double(grid.dims.y()));
     e.bandBytes = std::min(e.bandLeaves * leafBytes() + std::min(internalBytes, internalBytesSpanned(grid, heldLayers(bandLayers))),
                            e.gridBytes);
   }

@@ -27,9 +27,10 @@ struct RasterEstimate {
   // counted in full, and sections folding over in bends tighter than the radius add up to ~30 %.
   double activeVoxels = 0.0;
   // Expected OpenVDB leaves (8^3 voxels) holding them (each rod as a tube of its bounding radius
-  // widened by half a leaf's diagonal: an upper estimate, typically 1.5-2x), and the bytes of the grid
-  // holding the whole design (Rasterizer::rasterize, `rodfab voxelize`): its leaves with their value
-  // buffers, and its internal nodes, at most those the envelope spans.
+  // widened by half a leaf's diagonal: an upper estimate, typically 1.5-2x, and never more leaves than
+  // the envelope holds), and the bytes of the grid holding the whole design (Rasterizer::rasterize,
+  // `rodfab voxelize`): its leaves with their value buffers, and its internal nodes, at most those the
+  // envelope spans. The band figures below are capped the same way (a layer by the envelope's area).
   double leaves = 0.0;
   double gridBytes = 0.0;
   // With bandLayers > 0: the leaves and bytes of the grid of the fullest band of that many layers
