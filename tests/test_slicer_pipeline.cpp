@@ -88,14 +88,15 @@ printer_profiles::JobSpec boxJob(const openvdb::CoordBBox& box, const fs::path& 
 }
 
 // Lowers the soft data limit for the scope: the default memory budget follows it (80 %,
-// common/memory_budget.hpp) as under `ulimit -d`. The hard limit stays, so the soft one comes back.
+// common/memory_budget.hpp) as under `ulimit -d`. The hard limit stays, so the soft one comes back;
+// a lower limit the test runs under is kept (never raised past it).
 struct SoftDataLimit {
   rlimit saved{};
   explicit SoftDataLimit(std::uint64_t bytes) {
-    ::getrlimit(RLIMIT_DATA, &saved);
+    REQUIRE(::getrlimit(RLIMIT_DATA, &saved) == 0);
     rlimit lowered = saved;
-    lowered.rlim_cur = saved.rlim_max == RLIM_INFINITY ? rlim_t(bytes) : std::min(rlim_t(bytes), saved.rlim_max);
-    ::setrlimit(RLIMIT_DATA, &lowered);
+    lowered.rlim_cur = std::min(rlim_t(bytes), saved.rlim_cur);  // rlim_cur <= rlim_max; RLIM_INFINITY is the largest
+    REQUIRE(::setrlimit(RLIMIT_DATA, &lowered) == 0);
   }
   ~SoftDataLimit() { ::setrlimit(RLIMIT_DATA, &saved); }
 };
