@@ -1,8 +1,8 @@
 #include "printer_profiles/previews.hpp"
 
+#include "printer_profiles/preview_scan.hpp"
+
 #include <cairo.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
 
 #include <algorithm>
@@ -20,15 +20,11 @@ namespace rodfab::printer_profiles {
 
 namespace {
 
-constexpr float kNoModulus = std::numeric_limits<float>::quiet_NaN();
+using preview_scan::kNoModulus;
+using preview_scan::modulusAt;
+
 constexpr std::uint8_t kBackground[3] = {196, 204, 216};
 constexpr std::uint8_t kEmptyTile[3] = {230, 233, 238};
-
-float modulusAt(const openvdb::FloatGrid* grid, openvdb::FloatGrid::ConstAccessor* acc, const openvdb::Coord& ijk) {
-  if (!grid || !acc) return kNoModulus;
-  float v = 0.0f;
-  return acc->probeValue(ijk, v) ? v : kNoModulus;
-}
 
 // Moduli the colour scale spans: finite and positive. Anything else a grid may hold (0, negative,
 // infinite, NaN) is drawn grey as unknown, and never enters the scale's logarithms.
@@ -318,30 +314,6 @@ bool emptyWord(const std::uint8_t* a, const std::uint8_t* b, std::size_t at) {
   return !(x | y);
 }
 
-// Calls visit(column, isRigid) for the pixels of a row's `span` (rigid or rubbery) not yet in `claimed`, left
-// to right, and adds them to `claimed`: a view decides each of its pixels once. Skips a word at a
-// time where there is nothing new (layers are mostly empty, columns soon claimed).
-template <class Visit>
-void forEachFresh(const std::uint8_t* rigid, const std::uint8_t* rubbery, std::uint8_t* claimed, RowSpan span, Visit&& visit) {
-  for (std::size_t at = span.begin; at < span.end; at += 8) {
-    const std::size_t n = std::min<std::size_t>(8, span.end - at);
-    std::uint64_t a = 0, b = 0, c = 0;
-    std::memcpy(&a, rigid + at, n);
-    std::memcpy(&b, rubbery + at, n);
-    std::memcpy(&c, claimed + at, n);
-    if (!((a | b) & ~c)) continue;
-    for (std::size_t byte = at; byte < at + n; ++byte) {
-      const auto fresh = static_cast<unsigned>((rigid[byte] | rubbery[byte]) & ~claimed[byte] & 0xffu);
-      if (!fresh) continue;
-      claimed[byte] = static_cast<std::uint8_t>(claimed[byte] | fresh);
-      for (unsigned bits = fresh; bits; bits &= bits - 1) {
-        const int bit = 7 - std::countr_zero(bits);
-        visit(static_cast<int>(byte) * 8 + bit, ((rigid[byte] >> (7 - bit)) & 1) != 0);
-      }
-    }
-  }
-}
-
 }  // namespace
 
 void Previews::addLayer(int layer, const LayerBitmaps& b, const openvdb::FloatGrid* modulus) {
@@ -350,6 +322,7 @@ void Previews::addLayer(int layer, const LayerBitmaps& b, const openvdb::FloatGr
 }
 
 void Previews::addFrontAndSide(int layer, const LayerBitmaps& b, const openvdb::FloatGrid* modulus) {
+  using preview_scan::forEachFresh;
   std::optional<openvdb::FloatGrid::ConstAccessor> acc;
   if (modulus) acc.emplace(modulus->getConstAccessor());
   const int h = geometry_.height, k = geometry_.k(layer);
@@ -405,72 +378,6 @@ void Previews::addContactTile(int layer, const LayerBitmaps& b) {
       tile[static_cast<std::size_t>(y) * tileWidth_ + x] = code;
     }
   }
-}
-
-namespace {
-
-// A top-view pixel a layer claims, and the modulus of its voxel (kNoModulus until looked up).
-struct TopPixel {
-  int column = 0;
-  bool rigid = false;
-  float modulus = kNoModulus;
-  const openvdb::FloatTree::LeafNodeType* leaf = nullptr;
-  openvdb::Index offset = 0;
-};
-
-// The moduli of `row`'s `pixels` in `layer`, as modulusAt gives them, in two passes: every pixel's leaf
-// first, prefetching its value, then the values. The band's modulus grid is far out of cache, and a
-// solid part's every band claims every top pixel again: one look-up after another, each waited for its
-// cache miss (72 % of addTopLayers' samples on the dense block); side by side, the misses overlap.
-void lookUpModuli(const openvdb::FloatGrid* grid, openvdb::FloatGrid::ConstAccessor& acc, std::vector<TopPixel>& pixels,
-                  const JobGeometry& g, int row, int layer) {
-  using Leaf = openvdb::FloatTree::LeafNodeType;
-  for (TopPixel& p : pixels) {
-    const openvdb::Coord ijk(g.i(p.column), g.j(row), g.k(layer));
-    p.leaf = acc.probeConstLeaf(ijk);
-    if (!p.leaf) continue;
-    p.offset = Leaf::coordToOffset(ijk);
-    __builtin_prefetch(p.leaf->buffer().data() + p.offset);
-  }
-  for (TopPixel& p : pixels) {
-    if (!p.leaf) p.modulus = modulusAt(grid, &acc, {g.i(p.column), g.j(row), g.k(layer)});  // a tile or background
-    else p.modulus = p.leaf->isValueOn(p.offset) ? p.leaf->getValue(p.offset) : kNoModulus;
-  }
-}
-
-}  // namespace
-
-void Previews::addTopLayers(int first, const std::vector<LayerBitmaps>& layers, const openvdb::FloatGrid* modulus) {
-  if (modulus) haveModulus_ = true;
-  if (layers.empty()) return;
-  // By blocks of rows, each block read layer by layer: consecutive rows of one bitmap at a time. Row by
-  // row through every layer's bitmap in turn (the band's no longer in cache) cost a cache and TLB miss
-  // per row and layer.
-  constexpr int kRowBlock = 32;
-  const std::vector<std::uint8_t>& hidden = top_.u.hiddenMask();
-  tbb::parallel_for(tbb::blocked_range<int>(0, geometry_.height, kRowBlock), [&](const tbb::blocked_range<int>& rows) {
-    std::optional<openvdb::FloatGrid::ConstAccessor> acc;
-    if (modulus) acc.emplace(modulus->getConstAccessor());
-    // Layers from the band's top down: the first one seen in a column is its top within the band, and
-    // replaces what earlier bands left (their layers are below `first`). `claimed` marks, row by row,
-    // the columns a higher layer of this band already took, and those no pixel shows.
-    std::vector<std::uint8_t> claimed;
-    for (int r = rows.begin(); r != rows.end(); ++r) claimed.insert(claimed.end(), hidden.begin(), hidden.end());
-    std::vector<TopPixel> fresh;
-    for (std::size_t n = layers.size(); n-- > 0;) {
-      const int layer = first + static_cast<int>(n);
-      for (int r = rows.begin(); r != rows.end(); ++r) {
-        const RowSpan span = layers[n].span(r);
-        if (top_.v.slot(r) < 0 || span.empty()) continue;
-        std::uint8_t* rowClaimed = claimed.data() + static_cast<std::size_t>(r - rows.begin()) * hidden.size();
-        fresh.clear();
-        forEachFresh(layers[n].rigid.row(r), layers[n].rubbery.row(r), rowClaimed, span,
-                     [&](int c, bool isRigid) { fresh.push_back({c, isRigid}); });
-        if (modulus) lookUpModuli(modulus, *acc, fresh, geometry_, r, layer);
-        for (const TopPixel& p : fresh) top_.set(top_.at(p.column, r), p.rigid, layer, p.modulus);
-      }
-    }
-  });
 }
 
 namespace {
