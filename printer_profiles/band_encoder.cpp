@@ -129,9 +129,10 @@ void BandEncoder::stageBand(int firstLayer, std::vector<std::vector<Bytes>>& zip
     for (std::size_t f = 0; f < zipForms[n].size(); ++f) {
       Bytes& data = zipForms[n][f];
       StagedZipData& z = record.zipped[f];
-      if (!data.empty() && keptBytes_ + data.size() <= s_.zipFormsInMemory) {
+      if (keptBytes_ + data.size() <= s_.zipFormsInMemory) {
         keptBytes_ += data.size();
         z.memory = kept_.emplace_back(std::move(data));
+        z.inMemory = true;
         continue;
       }
       if (!staged_.is_open()) staged_.open(stagedFile_, std::ios::binary | std::ios::trunc);

@@ -21,8 +21,8 @@ constexpr std::size_t kReadAhead = std::size_t{1} << 20;
 
 class FileInput : public ZipSourceState {
 public:
-  static constexpr std::array kCommands{ZIP_SOURCE_OPEN, ZIP_SOURCE_READ, ZIP_SOURCE_CLOSE, ZIP_SOURCE_SEEK,
-                                        ZIP_SOURCE_TELL, ZIP_SOURCE_STAT, ZIP_SOURCE_ERROR, ZIP_SOURCE_FREE};
+  static constexpr std::array kCommands{ZIP_SOURCE_OPEN, ZIP_SOURCE_READ, ZIP_SOURCE_CLOSE,
+                                        ZIP_SOURCE_SEEK, ZIP_SOURCE_TELL, ZIP_SOURCE_STAT};
 
   explicit FileInput(int fd) : fd_(fd) {
     struct stat info {};

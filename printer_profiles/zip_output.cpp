@@ -28,16 +28,22 @@ constexpr std::size_t kTailBytes = std::size_t{8} << 20;
 
 class ArchiveOutput : public ZipSourceState {
 public:
-  // The reading commands are listed because zip_open_from_source requires them of any source; a new
-  // archive is never read, so they fail (there is no operation for them).
-  static constexpr std::array kCommands{ZIP_SOURCE_OPEN,         ZIP_SOURCE_READ,         ZIP_SOURCE_CLOSE,
-                                        ZIP_SOURCE_SEEK,         ZIP_SOURCE_TELL,         ZIP_SOURCE_STAT,
-                                        ZIP_SOURCE_ERROR,        ZIP_SOURCE_FREE,         ZIP_SOURCE_BEGIN_WRITE,
-                                        ZIP_SOURCE_WRITE,        ZIP_SOURCE_SEEK_WRITE,   ZIP_SOURCE_TELL_WRITE,
-                                        ZIP_SOURCE_COMMIT_WRITE, ZIP_SOURCE_ROLLBACK_WRITE, ZIP_SOURCE_REMOVE};
+  static constexpr std::array kCommands{ZIP_SOURCE_OPEN,         ZIP_SOURCE_READ,          ZIP_SOURCE_CLOSE,
+                                        ZIP_SOURCE_SEEK,         ZIP_SOURCE_TELL,          ZIP_SOURCE_STAT,
+                                        ZIP_SOURCE_BEGIN_WRITE,  ZIP_SOURCE_WRITE,         ZIP_SOURCE_SEEK_WRITE,
+                                        ZIP_SOURCE_TELL_WRITE,   ZIP_SOURCE_COMMIT_WRITE,  ZIP_SOURCE_ROLLBACK_WRITE,
+                                        ZIP_SOURCE_REMOVE};
 
   explicit ArchiveOutput(fs::path path) : path_(std::move(path)), part_(path_.string() + ".part") {}
   ~ArchiveOutput() { rollbackWrite(); }
+
+  // zip_open_from_source requires the reading commands of any archive's source; a new archive
+  // (ZIP_CREATE | ZIP_EXCL) is never read, so they fail.
+  zip_int64_t open() { return neverRead(); }
+  zip_int64_t read(void*, zip_uint64_t) { return neverRead(); }
+  zip_int64_t close() { return neverRead(); }
+  zip_int64_t seek(void*, zip_uint64_t) { return neverRead(); }
+  zip_int64_t tell() { return neverRead(); }
 
   // "Does not exist" is ZIP_ER_READ with ENOENT, as libzip's file source says it.
   zip_int64_t stat(zip_stat_t* st) {
@@ -106,6 +112,8 @@ public:
   zip_int64_t remove() { return ::unlink(path_.c_str()) == 0 || errno == ENOENT ? 0 : failed(ZIP_ER_REMOVE, errno); }
 
 private:
+  zip_int64_t neverRead() { return failed(ZIP_ER_OPNOTSUPP, 0); }
+
   bool flush() {
     std::size_t done = 0;
     while (done < tail_.size()) {

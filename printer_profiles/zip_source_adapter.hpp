@@ -5,12 +5,15 @@
 //   attributes(zip_file_attributes_t*) beginWrite() write(const void*, zip_uint64_t)
 //   seekWrite(void*, zip_uint64_t) tellWrite() commitWrite() rollbackWrite() remove()
 // each returning what libzip expects of that command (-1 after failed()). The class lists the
-// commands it answers in `static constexpr std::array kCommands` (libzip is told exactly these); a
-// listed command it has no operation for fails with ZIP_ER_OPNOTSUPP, as does anything unlisted.
+// commands it has operations for in `static constexpr std::array kCommands`, exactly those (checked
+// when the callback is compiled: a misspelt or missing operation does not compile); libzip is told
+// these and ZIP_SOURCE_ERROR and ZIP_SOURCE_FREE, which the adapter answers, as it answers
+// ZIP_SOURCE_SUPPORTS.
 #pragma once
 
 #include <zip.h>
 
+#include <algorithm>
 #include <array>
 #include <memory>
 #include <new>
@@ -49,72 +52,89 @@ private:
 namespace zip_source_detail {
 
 template <class Source>
+using Operation = zip_int64_t (*)(Source&, void* data, zip_uint64_t length);
+
+// The source's operation for `command`, or nullptr when it has none: the one table of which member
+// answers which command, read both by the compile-time checks below and by the callback.
+template <class Source>
+constexpr Operation<Source> operationFor(zip_source_cmd_t command) {
+  using S = Source;
+  using Stat = zip_stat_t*;
+  using Attributes = zip_file_attributes_t*;
+  switch (command) {
+#define RODFAB_ZIP_OPERATION(COMMAND, CALL)                                                     \
+  case COMMAND:                                                                                 \
+    if constexpr (requires(S & s, void* data, zip_uint64_t length) { CALL; })                   \
+      return [](S& s, [[maybe_unused]] void* data, [[maybe_unused]] zip_uint64_t length) -> zip_int64_t { return CALL; }; \
+    return nullptr;
+    RODFAB_ZIP_OPERATION(ZIP_SOURCE_OPEN, s.open())
+    RODFAB_ZIP_OPERATION(ZIP_SOURCE_READ, s.read(data, length))
+    RODFAB_ZIP_OPERATION(ZIP_SOURCE_CLOSE, s.close())
+    RODFAB_ZIP_OPERATION(ZIP_SOURCE_SEEK, s.seek(data, length))
+    RODFAB_ZIP_OPERATION(ZIP_SOURCE_TELL, s.tell())
+    RODFAB_ZIP_OPERATION(ZIP_SOURCE_STAT, s.stat(static_cast<Stat>(data)))
+    RODFAB_ZIP_OPERATION(ZIP_SOURCE_GET_FILE_ATTRIBUTES, s.attributes(static_cast<Attributes>(data)))
+    RODFAB_ZIP_OPERATION(ZIP_SOURCE_BEGIN_WRITE, s.beginWrite())
+    RODFAB_ZIP_OPERATION(ZIP_SOURCE_WRITE, s.write(data, length))
+    RODFAB_ZIP_OPERATION(ZIP_SOURCE_SEEK_WRITE, s.seekWrite(data, length))
+    RODFAB_ZIP_OPERATION(ZIP_SOURCE_TELL_WRITE, s.tellWrite())
+    RODFAB_ZIP_OPERATION(ZIP_SOURCE_COMMIT_WRITE, s.commitWrite())
+    RODFAB_ZIP_OPERATION(ZIP_SOURCE_ROLLBACK_WRITE, s.rollbackWrite())
+    RODFAB_ZIP_OPERATION(ZIP_SOURCE_REMOVE, s.remove())
+#undef RODFAB_ZIP_OPERATION
+    default: return nullptr;  // the adapter's own (ERROR, FREE, SUPPORTS) and commands we never answer
+  }
+}
+
+// Every command a source may have an operation for (operationFor's cases).
+inline constexpr std::array kOperationCommands{
+    ZIP_SOURCE_OPEN,        ZIP_SOURCE_READ,        ZIP_SOURCE_CLOSE,       ZIP_SOURCE_SEEK,        ZIP_SOURCE_TELL,
+    ZIP_SOURCE_STAT,        ZIP_SOURCE_GET_FILE_ATTRIBUTES, ZIP_SOURCE_BEGIN_WRITE, ZIP_SOURCE_WRITE, ZIP_SOURCE_SEEK_WRITE,
+    ZIP_SOURCE_TELL_WRITE,  ZIP_SOURCE_COMMIT_WRITE, ZIP_SOURCE_ROLLBACK_WRITE, ZIP_SOURCE_REMOVE};
+
+template <class Source>
+constexpr bool lists(zip_source_cmd_t command) {
+  return std::ranges::find(Source::kCommands, command) != std::ranges::end(Source::kCommands);
+}
+
+// Whether the source lists exactly the commands it has operations for: a listed command without one (a
+// misspelt or missing member) and an operation libzip is never told of are both compile errors.
+template <class Source>
+constexpr bool listsExactlyItsOperations() {
+  return std::ranges::all_of(kOperationCommands, [](zip_source_cmd_t c) { return lists<Source>(c) == (operationFor<Source>(c) != nullptr); }) &&
+         std::ranges::all_of(Source::kCommands, [](zip_source_cmd_t c) { return operationFor<Source>(c) != nullptr; });
+}
+
+// What libzip is told the source supports: its operations, and ERROR and FREE, which the adapter answers.
+template <class Source>
 constexpr zip_int64_t commandBitmap() {
-  zip_int64_t bits = 0;
+  zip_int64_t bits = ZIP_SOURCE_MAKE_COMMAND_BITMASK(ZIP_SOURCE_ERROR) | ZIP_SOURCE_MAKE_COMMAND_BITMASK(ZIP_SOURCE_FREE);
   for (const zip_source_cmd_t command : Source::kCommands) bits |= ZIP_SOURCE_MAKE_COMMAND_BITMASK(command);
   return bits;
 }
 
-template <class Source>
-constexpr bool lists(zip_source_cmd_t command) {
-  return (commandBitmap<Source>() & ZIP_SOURCE_MAKE_COMMAND_BITMASK(command)) != 0;
-}
-
-// What readCommand and writeCommand return when the source has no operation for the command (libzip's
-// answers are -1 or more).
-constexpr zip_int64_t kNoOperation = -2;
-
-template <class Source>
-zip_int64_t readCommand(Source& s, void* data, zip_uint64_t length, zip_source_cmd_t command) {
-  switch (command) {
-    case ZIP_SOURCE_OPEN: if constexpr (requires { s.open(); }) return s.open(); break;
-    case ZIP_SOURCE_READ: if constexpr (requires { s.read(data, length); }) return s.read(data, length); break;
-    case ZIP_SOURCE_CLOSE: if constexpr (requires { s.close(); }) return s.close(); break;
-    case ZIP_SOURCE_SEEK: if constexpr (requires { s.seek(data, length); }) return s.seek(data, length); break;
-    case ZIP_SOURCE_TELL: if constexpr (requires { s.tell(); }) return s.tell(); break;
-    case ZIP_SOURCE_STAT: if constexpr (requires { s.stat(static_cast<zip_stat_t*>(data)); }) return s.stat(static_cast<zip_stat_t*>(data)); break;
-    case ZIP_SOURCE_GET_FILE_ATTRIBUTES:
-      if constexpr (requires { s.attributes(static_cast<zip_file_attributes_t*>(data)); })
-        return s.attributes(static_cast<zip_file_attributes_t*>(data));
-      break;
-    default: break;
-  }
-  return kNoOperation;
-}
-
-template <class Source>
-zip_int64_t writeCommand(Source& s, void* data, zip_uint64_t length, zip_source_cmd_t command) {
-  switch (command) {
-    case ZIP_SOURCE_BEGIN_WRITE: if constexpr (requires { s.beginWrite(); }) return s.beginWrite(); break;
-    case ZIP_SOURCE_WRITE: if constexpr (requires { s.write(data, length); }) return s.write(data, length); break;
-    case ZIP_SOURCE_SEEK_WRITE: if constexpr (requires { s.seekWrite(data, length); }) return s.seekWrite(data, length); break;
-    case ZIP_SOURCE_TELL_WRITE: if constexpr (requires { s.tellWrite(); }) return s.tellWrite(); break;
-    case ZIP_SOURCE_COMMIT_WRITE: if constexpr (requires { s.commitWrite(); }) return s.commitWrite(); break;
-    case ZIP_SOURCE_ROLLBACK_WRITE: if constexpr (requires { s.rollbackWrite(); }) return s.rollbackWrite(); break;
-    case ZIP_SOURCE_REMOVE: if constexpr (requires { s.remove(); }) return s.remove(); break;
-    default: break;
-  }
-  return kNoOperation;
-}
-
-// The zip_source_callback libzip calls with a Source*; ZIP_SOURCE_FREE deletes it. Nothing is thrown
-// through libzip's C frames (it would skip libzip's own clean-up): an allocation that fails inside an
-// operation (read-ahead and tail buffers grow under the memory budget) becomes ZIP_ER_MEMORY, anything
-// else ZIP_ER_INTERNAL, and libzip reports the failure to its caller as any other.
+// The zip_source_callback libzip calls with a Source*. The adapter answers ZIP_SOURCE_ERROR (the
+// source's error), ZIP_SOURCE_FREE (deletes it) and ZIP_SOURCE_SUPPORTS (commandBitmap) itself; every
+// other command goes to the source's operation, and a command it has none for (libzip was not told
+// of it) fails with ZIP_ER_OPNOTSUPP. Nothing is thrown through libzip's C frames (it would skip
+// libzip's own clean-up): an allocation that fails inside an operation (read-ahead and tail buffers grow
+// under the memory budget) becomes ZIP_ER_MEMORY, anything else ZIP_ER_INTERNAL, and libzip reports
+// the failure to its caller as any other.
 template <class Source>
 zip_int64_t callback(void* self, void* data, zip_uint64_t length, zip_source_cmd_t command) noexcept {
+  static_assert(listsExactlyItsOperations<Source>(),
+                "Source::kCommands must list exactly the ZIP_SOURCE_* commands the source has operations for");
   auto* source = static_cast<Source*>(self);
-  if (command == ZIP_SOURCE_FREE) {
-    delete source;
-    return 0;
+  switch (command) {
+    case ZIP_SOURCE_FREE: delete source; return 0;
+    case ZIP_SOURCE_SUPPORTS: return commandBitmap<Source>();
+    case ZIP_SOURCE_ERROR: return source->reportError(data, length);
+    default: break;
   }
-  if (command == ZIP_SOURCE_SUPPORTS) return commandBitmap<Source>();
-  if (!lists<Source>(command)) return source->failed(ZIP_ER_OPNOTSUPP, 0);
-  if (command == ZIP_SOURCE_ERROR) return source->reportError(data, length);
+  const Operation<Source> operation = operationFor<Source>(command);
+  if (!operation) return source->failed(ZIP_ER_OPNOTSUPP, 0);
   try {
-    zip_int64_t answer = readCommand(*source, data, length, command);
-    if (answer == kNoOperation) answer = writeCommand(*source, data, length, command);
-    return answer == kNoOperation ? source->failed(ZIP_ER_OPNOTSUPP, 0) : answer;
+    return operation(*source, data, length);
   } catch (const std::bad_alloc&) {
     return source->failed(ZIP_ER_MEMORY, 0);
   } catch (...) {

@@ -89,7 +89,7 @@ public:
   StagedFile(const StagedFile&) = delete;
   StagedFile& operator=(const StagedFile&) = delete;
 
-  // Opens the file unless it is open; false with errno set when it cannot be (also when none was given).
+  // Opens the file unless it is open; false with errno set when it cannot be.
   bool open() {
     if (fd_ < 0) fd_ = ::open(path_.c_str(), O_RDONLY | O_CLOEXEC);
     return fd_ >= 0;
@@ -143,15 +143,15 @@ private:
 // Reads through `file`, which must outlive the source.
 class StagedSource : public ZipSourceState {
 public:
-  static constexpr std::array kCommands{ZIP_SOURCE_OPEN, ZIP_SOURCE_READ, ZIP_SOURCE_CLOSE,
-                                        ZIP_SOURCE_STAT, ZIP_SOURCE_ERROR, ZIP_SOURCE_FREE,
+  static constexpr std::array kCommands{ZIP_SOURCE_OPEN, ZIP_SOURCE_READ, ZIP_SOURCE_CLOSE, ZIP_SOURCE_STAT,
                                         ZIP_SOURCE_GET_FILE_ATTRIBUTES};
 
   StagedSource(StagedZipData data, ZipStorage storage, StagedFile& file) : data_(std::move(data)), storage_(storage), file_(file) {}
 
   zip_int64_t open() {
     position_ = 0;
-    return !data_.memory.empty() || file_.open() ? 0 : failed(ZIP_ER_OPEN, errno);
+    if (data_.inMemory) return data_.memory.size() == data_.length ? 0 : failed(ZIP_ER_INCONS, 0);
+    return file_.open() ? 0 : failed(ZIP_ER_OPEN, errno);
   }
 
   zip_int64_t close() { return 0; }  // StagedFile closes the file
@@ -159,9 +159,8 @@ public:
   zip_int64_t read(void* data, zip_uint64_t length) {
     auto* out = static_cast<char*>(data);
     const zip_uint64_t want = std::min<zip_uint64_t>(length, data_.length - position_);
-    if (!data_.memory.empty()) {
-      if (data_.memory.size() != data_.length) return failed(ZIP_ER_INCONS, 0);
-      std::memcpy(out, data_.memory.data() + position_, want);
+    if (data_.inMemory) {
+      if (want > 0) std::memcpy(out, data_.memory.data() + position_, want);  // checked against `length` by open()
     } else if (!file_.read(data_.offset + position_, out, want))
       return errno ? failed(ZIP_ER_READ, errno) : failed(ZIP_ER_EOF, 0);  // the staged file is shorter than recorded
     position_ += want;

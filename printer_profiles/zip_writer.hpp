@@ -14,17 +14,17 @@ namespace rodfab::printer_profiles {
 // When a file's contents go into the zip deflated (fast level) or as they are.
 enum class ZipStorage { Deflate, Store };
 
-// An entry's data already in its zip form, at [offset, offset + length) of the staged file writeZip is
-// given: raw deflate (RFC 1951) for ZipStorage::Deflate, the contents themselves for Store. libzip
-// copies it as it is.
+// An entry's data already in its zip form: raw deflate (RFC 1951) for ZipStorage::Deflate, the contents
+// themselves for Store. libzip copies it as it is. The bytes are either in memory (`inMemory`: `memory`,
+// which whoever staged them keeps alive until writeZip returns) or at [offset, offset + length) of the
+// staged file writeZip is given.
 struct StagedZipData {
-  std::uint64_t offset = 0, length = 0;  // in the staged file; `offset` is unused when `memory` holds the bytes
+  std::uint64_t offset = 0, length = 0;  // in the staged file; `offset` is unused when `inMemory`
   std::uint64_t size = 0;    // of the contents, uncompressed
   std::uint32_t crc32 = 0;   // of the contents (zipCrc32, deflate.hpp)
   std::string xxh128{};      // of the staged bytes, for the writer's verification (InspectOptions::storedForms)
-  // The bytes themselves when they were kept in memory rather than written to `file` (whoever staged
-  // them keeps them alive until writeZip returns); empty: they are in the staged file.
-  std::span<const std::uint8_t> memory{};
+  bool inMemory = false;     // said, not inferred from `memory`: an empty entry may be kept in memory too
+  std::span<const std::uint8_t> memory{};  // the bytes when `inMemory` (`length` of them)
 };
 
 struct ZipEntry {
@@ -48,9 +48,10 @@ inline constexpr long long kZipEntryTime = 1577880000;
 // Writes a new zip holding `entries` in the given order; the bytes depend on nothing but the
 // entries' contents, names and storage, and for staged entries their compressed bytes (fixed
 // timestamps and attributes). Staged entries not in memory are read from `stagedFile` (one file, held
-// once here rather than by every entry; opened once, when the first of them is read).
-void writeZip(const std::filesystem::path& zipPath, const std::vector<ZipEntry>& entries,
-              const std::filesystem::path& stagedFile = {});
+// once here rather than by every entry; opened when the first of them is read, never when none is).
+// Throws std::runtime_error naming the archive when it cannot be written (the file cannot be created,
+// an entry's data cannot be read or is shorter than recorded); nothing is left at `zipPath` then.
+void writeZip(const std::filesystem::path& zipPath, const std::vector<ZipEntry>& entries, const std::filesystem::path& stagedFile);
 // The same from memory (deflated by libzip with zlib).
 void writeZipFromMemory(const std::filesystem::path& zipPath, const std::vector<ZipMemoryEntry>& entries);
 

@@ -1,6 +1,9 @@
 // printer_profiles/ zip files: the archive writer's own output file (zip_output.hpp) against libzip's
-// file output, byte for byte, and the read-ahead reader (zip_input.hpp) against the contents written.
+// file output, byte for byte, the read-ahead reader (zip_input.hpp) against the contents written, the
+// libzip source adapter (zip_source_adapter.hpp) and staged entries in memory or in the staged file.
+#include "printer_profiles/deflate.hpp"
 #include "printer_profiles/job_reader.hpp"  // internal: the hostile-input reader `inspect` uses
+#include "printer_profiles/zip_source_adapter.hpp"  // internal: the libzip callback every source of ours goes through
 #include "printer_profiles/zip_writer.hpp"
 
 #include <catch2/catch.hpp>
@@ -8,11 +11,16 @@
 
 #include <unistd.h>
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <memory>
+#include <new>
 #include <random>
+#include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace fs = std::filesystem;
@@ -75,7 +83,121 @@ Bytes fileBytes(const fs::path& path) {
   return Bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
 }
 
+// An empty source through the adapter, whose read throws when told to; counts its deletions.
+class ProbeSource : public ZipSourceState {
+public:
+  static constexpr std::array kCommands{ZIP_SOURCE_OPEN, ZIP_SOURCE_READ, ZIP_SOURCE_CLOSE, ZIP_SOURCE_STAT};
+  enum class Read { Empty, BadAlloc, Throws };
+  ProbeSource(Read how, int& deleted) : how_(how), deleted_(deleted) {}
+  ~ProbeSource() { ++deleted_; }
+  zip_int64_t open() { return 0; }
+  zip_int64_t read(void*, zip_uint64_t) {
+    if (how_ == Read::BadAlloc) throw std::bad_alloc();
+    if (how_ == Read::Throws) throw std::runtime_error("not for libzip's C frames");
+    return 0;
+  }
+  zip_int64_t close() { return 0; }
+  zip_int64_t stat(zip_stat_t* st) {
+    zip_stat_init(st);
+    st->size = 0;
+    st->valid = ZIP_STAT_SIZE;
+    return 0;
+  }
+
+private:
+  Read how_;
+  int& deleted_;
+};
+
+// Sources the adapter's check refuses: an operation misspelt (it lists STAT, has `stats`), and an
+// operation libzip would never be told of (it has `tell` and does not list it).
+struct MisspeltSource : ZipSourceState {
+  static constexpr std::array kCommands{ZIP_SOURCE_OPEN, ZIP_SOURCE_STAT};
+  zip_int64_t open() { return 0; }
+  zip_int64_t stats(zip_stat_t*) { return 0; }
+};
+struct UnlistedSource : ZipSourceState {
+  static constexpr std::array kCommands{ZIP_SOURCE_OPEN};
+  zip_int64_t open() { return 0; }
+  zip_int64_t tell() { return 0; }
+};
+static_assert(zip_source_detail::listsExactlyItsOperations<ProbeSource>());
+static_assert(!zip_source_detail::listsExactlyItsOperations<MisspeltSource>());
+static_assert(!zip_source_detail::listsExactlyItsOperations<UnlistedSource>());
+
+// The libzip error code a source reports through ZIP_SOURCE_ERROR (zip_error_to_data's two ints).
+int reportedError(ProbeSource& source) {
+  int codes[2] = {};
+  REQUIRE(zip_source_detail::callback<ProbeSource>(&source, codes, sizeof codes, ZIP_SOURCE_ERROR) == sizeof codes);
+  return codes[0];
+}
+
 }  // namespace
+
+TEST_CASE("The libzip source adapter answers ERROR, FREE and SUPPORTS itself and throws nothing into libzip", "[job][zip]") {
+  int deleted = 0;
+  // Told exactly libzip's readable set: the source's four operations, ERROR and FREE.
+  CHECK(zip_source_detail::callback<ProbeSource>(nullptr, nullptr, 0, ZIP_SOURCE_SUPPORTS) == ZIP_SOURCE_SUPPORTS_READABLE);
+  auto* source = new ProbeSource(ProbeSource::Read::Empty, deleted);
+  CHECK(zip_source_detail::callback<ProbeSource>(source, nullptr, 0, ZIP_SOURCE_TELL) == -1);  // no operation
+  CHECK(reportedError(*source) == ZIP_ER_OPNOTSUPP);
+  CHECK(zip_source_detail::callback<ProbeSource>(source, nullptr, 0, ZIP_SOURCE_OPEN) == 0);
+  CHECK(zip_source_detail::callback<ProbeSource>(source, nullptr, 0, ZIP_SOURCE_FREE) == 0);
+  CHECK(deleted == 1);
+
+  // Through libzip: what an operation throws becomes a libzip error, and libzip's free deletes the source.
+  for (const auto [how, code] : {std::pair{ProbeSource::Read::BadAlloc, ZIP_ER_MEMORY}, std::pair{ProbeSource::Read::Throws, ZIP_ER_INTERNAL}}) {
+    zip_error_t error;
+    zip_error_init(&error);
+    zip_source_t* made = makeZipSource(std::make_unique<ProbeSource>(how, deleted), &error);
+    REQUIRE(made);
+    REQUIRE(zip_source_open(made) == 0);
+    char byte = 0;
+    CHECK(zip_source_read(made, &byte, 1) == -1);
+    CHECK(zip_error_code_zip(zip_source_error(made)) == code);
+    zip_source_close(made);
+    zip_source_free(made);
+    zip_error_fini(&error);
+  }
+  CHECK(deleted == 3);
+}
+
+TEST_CASE("Staged entries kept in memory are read from memory, even empty ones; the staged file only for the others", "[job][zip]") {
+  const fs::path dir = scratchDir("staged-memory");
+  const Bytes kept{'k', 'e', 'p', 't'}, none;
+  {
+    std::ofstream(dir / "staged.bin", std::ios::binary) << "filed";
+  }
+  const auto inMemory = [](const Bytes& data) {
+    StagedZipData z{0, data.size(), data.size(), zipCrc32(data)};
+    z.inMemory = true;
+    z.memory = data;
+    return z;
+  };
+  std::vector<ZipEntry> entries{{"empty.bin", {}, ZipStorage::Store, inMemory(none)},
+                                {"kept.bin", {}, ZipStorage::Store, inMemory(kept)}};
+  // Only in-memory entries: the staged file is never opened (here it does not exist). Before the flag, an
+  // empty entry counted as "in the staged file" and failed to open it.
+  writeZip(dir / "memory.zip", entries, dir / "absent.bin");
+  const Bytes filed{'f', 'i', 'l', 'e', 'd'};
+  entries.push_back({"filed.bin", {}, ZipStorage::Store, StagedZipData{0, 5, 5, zipCrc32(filed)}});
+  writeZip(dir / "both.zip", entries, dir / "staged.bin");
+  const std::unique_ptr<JobReader> reader = openJobReader(dir / "both.zip", 10, 4);
+  REQUIRE(reader->entries().size() == 3);
+  CHECK(reader->read(reader->entries()[0], 10).empty());
+  CHECK((reader->read(reader->entries()[1], 10) == kept));
+  CHECK((reader->read(reader->entries()[2], 10) == filed));
+  CHECK(openJobReader(dir / "memory.zip", 10, 4)->entries().size() == 2);
+
+  // An entry in the staged file when that file cannot be opened, and an in-memory entry whose bytes are
+  // not as long as recorded: the archive is not written.
+  CHECK_THROWS_AS(writeZip(dir / "absent.zip", entries, dir / "absent.bin"), std::runtime_error);
+  CHECK_FALSE(fs::exists(dir / "absent.zip"));
+  entries[1].staged->length = 3;
+  CHECK_THROWS_AS(writeZip(dir / "inconsistent.zip", {entries[1]}, dir / "staged.bin"), std::runtime_error);
+  CHECK_FALSE(fs::exists(dir / "inconsistent.zip"));
+  fs::remove_all(dir);
+}
 
 TEST_CASE("The archive writer's output file holds the bytes libzip's own file output writes", "[job][zip]") {
   const fs::path dir = scratchDir("output");
