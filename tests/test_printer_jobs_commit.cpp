@@ -13,8 +13,81 @@
 #include <csignal>
 #include <fstream>
 #include <map>
+#include <stdexcept>
+#include <string>
+#include <utility>
 
 using namespace rodfab::test;
+
+namespace {
+
+// Sets `signal`'s disposition (sigaction) for the scope and restores the one before, whatever leaves it.
+class SignalDisposition {
+public:
+  SignalDisposition(int signal, void (*handler)(int)) : signal_(signal) {
+    struct sigaction wanted {};
+    wanted.sa_handler = handler;
+    sigemptyset(&wanted.sa_mask);
+    REQUIRE(::sigaction(signal_, &wanted, &saved_) == 0);
+  }
+  ~SignalDisposition() { ::sigaction(signal_, &saved_, nullptr); }
+  SignalDisposition(const SignalDisposition&) = delete;
+  SignalDisposition& operator=(const SignalDisposition&) = delete;
+
+private:
+  int signal_;
+  struct sigaction saved_ {};
+};
+
+// Sets the soft limit of `resource` for the scope (the hard one stays) and restores the one before.
+class SoftLimit {
+public:
+  SoftLimit(int resource, rlim_t soft) : resource_(resource) {
+    REQUIRE(::getrlimit(resource_, &saved_) == 0);
+    rlimit lowered = saved_;
+    lowered.rlim_cur = soft;
+    REQUIRE(::setrlimit(resource_, &lowered) == 0);
+  }
+  ~SoftLimit() { ::setrlimit(resource_, &saved_); }
+  SoftLimit(const SoftLimit&) = delete;
+  SoftLimit& operator=(const SoftLimit&) = delete;
+
+private:
+  int resource_;
+  rlimit saved_{};
+};
+
+// No file of the process may grow in the scope: soft RLIMIT_FSIZE 0 with SIGXFSZ ignored, so write()
+// fails with EFBIG instead of the signal killing the process. Both are restored when the scope ends,
+// also by an exception (a failed REQUIRE); the disposition is set first and restored last, so the limit
+// never holds while SIGXFSZ would kill.
+struct NoFileGrowth {
+  SignalDisposition ignoreXfsz{SIGXFSZ, SIG_IGN};
+  SoftLimit noBytes{RLIMIT_FSIZE, 0};
+};
+
+// The soft RLIMIT_FSIZE and SIGXFSZ's handler as they are.
+std::pair<rlim_t, void (*)(int)> fileGrowthState() {
+  rlimit limit{};
+  REQUIRE(::getrlimit(RLIMIT_FSIZE, &limit) == 0);
+  struct sigaction current {};
+  REQUIRE(::sigaction(SIGXFSZ, nullptr, &current) == 0);
+  return {limit.rlim_cur, current.sa_handler};
+}
+
+}  // namespace
+
+TEST_CASE("NoFileGrowth holds while its scope runs and restores the limit and SIGXFSZ, also on an exception", "[job]") {
+  const SignalDisposition knownStart{SIGXFSZ, SIG_DFL};  // whatever the runner set, so that the restoration is seen
+  const auto before = fileGrowthState();
+  try {
+    const NoFileGrowth guard;
+    CHECK(fileGrowthState() == std::pair<rlim_t, void (*)(int)>{0, SIG_IGN});
+    throw std::runtime_error("a failed check inside the scope");
+  } catch (const std::runtime_error&) {
+  }
+  CHECK(fileGrowthState() == before);
+}
 
 TEST_CASE("An existing job is not overwritten without force", "[job]") {
   const fs::path dir = scratch("force");
@@ -58,25 +131,20 @@ TEST_CASE("A failed or interrupted write leaves nothing that looks like a job", 
     CHECK(leftovers() == 0);
   }
   SECTION("writing the staged layers (layers.bin) fails: the error names the file") {
-    // No file may grow while the job is written (soft RLIMIT_FSIZE 0, SIGXFSZ ignored: write() fails
-    // with EFBIG), and every zip form is staged in the file rather than kept in memory. In this process,
-    // not a forked child: a child of a process whose TBB workers are running can wait for them forever.
+    // No file may grow while the job is written (NoFileGrowth), and every zip form is staged in the file
+    // rather than kept in memory. In this process, not a forked child: a child of a process whose TBB
+    // workers are running can wait for them forever.
     JobSpec spec = specFor(*grid, dir / "job.zip");
     spec.options.zipFormsInMemory = 0;
-    rlimit saved{};
-    REQUIRE(::getrlimit(RLIMIT_FSIZE, &saved) == 0);
-    const auto oldHandler = std::signal(SIGXFSZ, SIG_IGN);
-    rlimit none = saved;
-    none.rlim_cur = 0;
-    REQUIRE(::setrlimit(RLIMIT_FSIZE, &none) == 0);
     std::string why = "no error";
-    try {
-      writeJob(*grid, spec, 8);
-    } catch (const std::exception& e) {  // any, so that the limit is lifted before a check fails
-      why = e.what();
+    {
+      const NoFileGrowth guard;
+      try {
+        writeJob(*grid, spec, 8);
+      } catch (const std::exception& e) {  // any, and checked once the limit is lifted (a report may be a file)
+        why = e.what();
+      }
     }
-    ::setrlimit(RLIMIT_FSIZE, &saved);
-    std::signal(SIGXFSZ, oldHandler);
     CHECK_THAT(why, Catch::Contains("layers.bin: cannot write"));
     CHECK(leftovers() == 0);
   }
