@@ -17,6 +17,8 @@
 #include <atomic>
 #include <cstdio>
 #include <sstream>
+#include <stdexcept>
+#include <string>
 
 namespace rodfab::printer_profiles {
 
@@ -58,6 +60,10 @@ fs::path checkJobOutput(const JobOptions& options) {
 }
 
 std::uint64_t previewMemoryBytes(const JobGeometry& geometry, const Profile& profile, int contactSheetLayers) {
+  if (geometry.width < 1 || geometry.height < 1 || geometry.layers < 1)
+    throw std::invalid_argument("previewMemoryBytes: a job geometry of " + std::to_string(geometry.width) + " x " +
+                                std::to_string(geometry.height) + " pixels x " + std::to_string(geometry.layers) +
+                                " layers has nothing to preview");
   return Previews::heldBytesAtMost(geometry, profile, contactSheetLayers);
 }
 

@@ -13,6 +13,8 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <stdexcept>
+#include <tuple>
 
 using namespace rodfab::test;
 
@@ -341,6 +343,15 @@ TEST_CASE("Preview views keep only the cells their pixels show", "[job][previews
       empty.rigid = Bitmap(w, h), empty.rubbery = Bitmap(w, h);
       for (const int layer : previews.contactLayers()) previews.addLayer(layer, empty, nullptr);  // fills the tiles
       CHECK(previewMemoryBytes(g, connex3(), sheet) == previews.memoryBytes());
+    }
+    // A sheet of no layers is a sheet of one, as the writer draws it.
+    JobGeometry g;
+    g.width = 40, g.height = 30, g.layers = 20;
+    CHECK(previewMemoryBytes(g, connex3(), 0) == previewMemoryBytes(g, connex3(), 1));
+    // Nothing to preview: refused, not a figure from undefined arithmetic.
+    for (const auto& [w, h, layers] : {std::tuple{0, 30, 20}, std::tuple{40, 0, 20}, std::tuple{40, 30, 0}, std::tuple{-8, 30, 20}}) {
+      g.width = w, g.height = h, g.layers = layers;
+      CHECK_THROWS_AS(previewMemoryBytes(g, connex3(), 16), std::invalid_argument);
     }
   }
 }
