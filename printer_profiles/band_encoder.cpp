@@ -13,8 +13,12 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cstring>
 #include <fstream>
+#include <span>
+#include <stdexcept>
 #include <string>
 #include <utility>
 
@@ -38,18 +42,34 @@ struct BandEncoder::BandVoxels {
 
 namespace {
 
-// Clears what the layer's bitmaps hold from their last layer: only the spans it wrote, when they
-// have the job's size (mostly empty layers then cost next to nothing to clear).
-void clearModel(LayerBitmaps& b, const JobGeometry& g) {
+// A layer bitmap of the job: held in the memory of its BMP file, so that a BMP job's image is the
+// bitmap itself (no row copied: Bitmap::inBmpFile); PNG and RGBA images read its rows like any other's.
+Bitmap layerBitmap(const JobGeometry& g, const Profile& profile) { return Bitmap::inBmpFile(g.width, g.height, profile.xDpi, profile.yDpi); }
+
+// Clears what the layer's bitmaps hold from their last layer: only the words it wrote, when they have
+// the job's size (mostly empty layers then cost next to nothing to clear). `written` is then empty.
+void clearModel(LayerBitmaps& b, const JobGeometry& g, const Profile& profile, WrittenWords& written) {
   if (b.rigid.width() != g.width || b.rigid.height() != g.height || b.spans.size() != static_cast<std::size_t>(g.height)) {
-    b.rigid = Bitmap(g.width, g.height);
-    b.rubbery = Bitmap(g.width, g.height);
+    b.rigid = layerBitmap(g, profile);
+    b.rubbery = layerBitmap(g, profile);
+    written.reset(g.height, b.rigid.stride());
   } else {
-    for (int r = 0; r < g.height; ++r)
-      if (const RowSpan s = b.spans[static_cast<std::size_t>(r)]; !s.empty()) {
-        std::memset(b.rigid.row(r) + s.begin, 0, s.end - s.begin);
-        std::memset(b.rubbery.row(r) + s.begin, 0, s.end - s.begin);
-      }
+    const std::size_t stride = b.rigid.stride();
+    for (int r = 0; r < g.height; ++r) {
+      std::uint8_t* rigid = b.rigid.row(r);
+      std::uint8_t* rubbery = b.rubbery.row(r);
+      written.takeRow(r, [&](std::size_t word) {
+        const std::size_t at = word * 8;
+        if (at + 8 <= stride) {  // a store each, not a memset call
+          constexpr std::uint64_t kZero = 0;
+          std::memcpy(rigid + at, &kZero, 8);
+          std::memcpy(rubbery + at, &kZero, 8);
+        } else {  // a row's last word may be short
+          std::memset(rigid + at, 0, stride - at);
+          std::memset(rubbery + at, 0, stride - at);
+        }
+      });
+    }
   }
   b.spans.assign(static_cast<std::size_t>(g.height), RowSpan{static_cast<std::uint32_t>(b.rigid.stride()), 0});
 }
@@ -59,11 +79,16 @@ void widen(RowSpan& span, std::size_t byte) {
   span.end = std::max(span.end, static_cast<std::uint32_t>(byte + 1));
 }
 
-// Pixels set in `bitmap` within the rows' spans.
-std::uint64_t countInSpans(const Bitmap& bitmap, const std::vector<RowSpan>& spans) {
-  std::uint64_t n = 0;
-  for (int r = 0; r < bitmap.height(); ++r)
-    if (const RowSpan s = spans[static_cast<std::size_t>(r)]; !s.empty()) n += countSetBits({bitmap.row(r) + s.begin, s.end - s.begin});
+// Pixels set in the layer's rigid and rubbery bitmaps: only their written words can hold any.
+std::array<std::uint64_t, 2> countModel(const LayerBitmaps& b, const WrittenWords& written) {
+  std::array<std::uint64_t, 2> n{};
+  const std::size_t stride = b.rigid.stride();
+  for (int r = 0; r < b.rigid.height(); ++r) {
+    const std::span<const std::uint64_t> words = written.row(r);
+    if (std::all_of(words.begin(), words.end(), [](std::uint64_t m) { return m == 0; })) continue;
+    n[0] += countSetBitsInWords({b.rigid.row(r), stride}, words);
+    n[1] += countSetBitsInWords({b.rubbery.row(r), stride}, words);
+  }
   return n;
 }
 
@@ -94,6 +119,7 @@ void BandEncoder::encode(const LayerBand& band, std::vector<LayerRecord>& layers
   collect(band);
   const BandVoxels& voxels = *voxels_;
   bitmaps_.resize(static_cast<std::size_t>(count));
+  written_.resize(static_cast<std::size_t>(count));
   // Zip jobs keep each image's zip form (deflated BMP, or the PNG as it is) in memory until the band
   // is staged in one file: staging thousands of files costs more in the file system than compressing.
   std::vector<std::vector<Bytes>> zipForms(s_.zip ? static_cast<std::size_t>(count) : 0);
@@ -103,10 +129,12 @@ void BandEncoder::encode(const LayerBand& band, std::vector<LayerRecord>& layers
       common::throwIfInterrupted();  // a band of large layers takes seconds
       const int k = band.kBegin + n, layer = firstLayer + n;
       LayerBitmaps& b = bitmaps_[static_cast<std::size_t>(n)];
+      WrittenWords& written = written_[static_cast<std::size_t>(n)];
       LayerRecord& record = layers[static_cast<std::size_t>(layer)];
-      rasterize(k, voxels, b, record);
+      rasterize(k, voxels, b, written, record);
       if (s_.form.support == SupportPolicy::Explicit) addSupport(layer, b);
-      record.voxels = {countInSpans(b.rigid, b.spans), countInSpans(b.rubbery, b.spans), b.hasSupport ? b.support.count() : 0};
+      const auto [rigid, rubbery] = countModel(b, written);
+      record.voxels = {rigid, rubbery, b.hasSupport ? b.support.count() : 0};
       previews.addLayer(layer, b, modulus);
       encodeImages(layer, b, record, s_.zip ? &zipForms[static_cast<std::size_t>(n)] : nullptr);
     }
@@ -153,9 +181,9 @@ void BandEncoder::finishStaging() {
   if (!staged_) throw std::runtime_error(stagedFile_.string() + ": cannot write (disk full or no permission?)");
 }
 
-void BandEncoder::rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, LayerRecord& record) const {
+void BandEncoder::rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, WrittenWords& written, LayerRecord& record) const {
   const JobGeometry& g = s_.form.geometry;
-  clearModel(b, g);
+  clearModel(b, g, s_.profile, written);
   record.moments = {};
   for (const BandLeaf& leaf : voxels.slab(k)) {
     const int z = k - leaf.origin.z();
@@ -169,6 +197,7 @@ void BandEncoder::rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, La
       b.rigid.row(row)[byte] |= rigid;
       b.rubbery.row(row)[byte] |= rubbery;
       widen(b.spans[static_cast<std::size_t>(row)], byte);
+      written.mark(row, byte);
       record.moments[0].add(rigid, leaf.origin.x(), j, k);
       record.moments[1].add(rubbery, leaf.origin.x(), j, k);
     }
@@ -181,6 +210,7 @@ void BandEncoder::rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, La
         const auto byte = static_cast<std::size_t>(g.column(i) / 8);
         target.row(g.row(j))[byte] = 0xff;  // tiles are 8-aligned in x
         widen(b.spans[static_cast<std::size_t>(g.row(j))], byte);
+        written.mark(g.row(j), byte);
         record.moments[value ? 0 : 1].add(0xff, i, j, k);
       }
   }
@@ -190,7 +220,7 @@ void BandEncoder::rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, La
 void BandEncoder::addSupport(int layer, LayerBitmaps& b) const {
   const ColumnTops& tops = *s_.supportTops;
   if (b.support.width() == s_.form.geometry.width && b.support.height() == s_.form.geometry.height) b.support.clear();
-  else b.support = Bitmap(s_.form.geometry.width, s_.form.geometry.height);
+  else b.support = layerBitmap(s_.form.geometry, s_.profile);
   b.hasSupport = true;
   for (int r = 0; r < s_.form.geometry.height; ++r) {
     if (tops.rowMaximum()[static_cast<std::size_t>(r)] <= layer) continue;
@@ -216,9 +246,6 @@ void BandEncoder::encodeImages(int layer, const LayerBitmaps& b, LayerRecord& re
     keepImage(*s_.form.emitted[0], layer, rgba, sumsOf(rgba, zipForms != nullptr), record, zipForms, &rgba);
     return;
   }
-  // A BMP is as large as its bitmap: encoded into one buffer per thread, reused. Nothing below waits on
-  // TBB, so this thread cannot pick up another layer's encodeImages while the buffer is in use.
-  thread_local Bytes bmp;
   for (const ProfileMaterial* m : s_.form.emitted) {
     const Bitmap& bitmap = m->role == MaterialRole::Rigid ? b.rigid : m->role == MaterialRole::Rubbery ? b.rubbery : b.support;
     if (s_.form.imageFormat == ImageFormat::Png) {
@@ -226,20 +253,26 @@ void BandEncoder::encodeImages(int layer, const LayerBitmaps& b, LayerRecord& re
       keepImage(*m, layer, png, sumsOf(png, zipForms != nullptr), record, zipForms, &png);
       continue;
     }
-    // Checksummed piece by piece as it is written, while each piece is in the L1 cache, instead of two
-    // more passes over the whole image (bench/README.md, "Emit, round 4").
-    common::FileHasher hasher(common::HashAlgorithm::Xxh128);
-    std::uint32_t crc = 0;
-    encodeBmpInto(bitmap, s_.profile.xDpi, s_.profile.yDpi, bmp, [&](std::span<const std::uint8_t> piece) {
-      hasher.update(piece);
-      if (zipForms) crc = zipCrc32(piece, crc);
-    });
-    keepImage(*m, layer, bmp, {hasher.hex(), crc}, record, zipForms);
+    // The bitmap's memory is its BMP file (layerBitmap): checksummed and deflated as it lies.
+    const std::span<const std::uint8_t> bmp = bitmap.bmpFile();
+    if (bmp.empty()) throw std::logic_error("encodeImages: a layer bitmap not made by layerBitmap");
+    keepImage(*m, layer, bmp, sumsOf(bmp, zipForms != nullptr), record, zipForms);
   }
 }
 
+// In pieces of 16 KiB (a third of the L1 data cache): XXH3 brings each piece in, the CRC reads it there,
+// instead of two passes over the whole image (bench/README.md, "Emit, round 4"). The same digest as
+// the one-shot XXH3-128 (common::FileHasher).
 BandEncoder::ImageSums BandEncoder::sumsOf(std::span<const std::uint8_t> image, bool zip) {
-  return {common::xxh128Hex(image), zip ? zipCrc32(image) : 0};
+  constexpr std::size_t kPiece = std::size_t{16} << 10;
+  common::FileHasher hasher(common::HashAlgorithm::Xxh128);
+  std::uint32_t crc = 0;
+  for (std::size_t at = 0; at < image.size(); at += kPiece) {
+    const std::span<const std::uint8_t> piece = image.subspan(at, std::min(kPiece, image.size() - at));
+    hasher.update(piece);
+    if (zip) crc = zipCrc32(piece, crc);
+  }
+  return {hasher.hex(), crc};
 }
 
 // One image of the layer with its checksums: its manifest record (size, XXH3-128), and the file

@@ -17,6 +17,7 @@ namespace rodfab::printer_profiles {
 Bitmap::Bitmap(int width, int height) : width_(width), height_(height) {
   if (width <= 0 || height <= 0) throw std::invalid_argument("bitmap size must be positive");
   stride_ = (static_cast<std::size_t>(width) + 7) / 8;
+  pitch_ = static_cast<std::ptrdiff_t>(stride_);
   bits_.assign(stride_ * static_cast<std::size_t>(height), 0);
 }
 
@@ -42,7 +43,24 @@ RODFAB_POPCNT_CLONES std::size_t countWords(const std::uint8_t* a, const std::ui
   return n;
 }
 
+RODFAB_POPCNT_CLONES std::size_t countMarkedWords(const std::uint8_t* row, std::size_t size, const std::uint64_t* words, std::size_t masks) {
+  std::size_t n = 0;
+  for (std::size_t m = 0; m < masks; ++m)
+    for (std::uint64_t bits = words[m]; bits; bits &= bits - 1) {
+      const std::size_t at = (m * 64 + static_cast<std::size_t>(std::countr_zero(bits))) * 8;
+      if (at >= size) throw std::invalid_argument("countSetBitsInWords: a word past the row's " + std::to_string(size) + " bytes");
+      std::uint64_t x = 0;
+      std::memcpy(&x, row + at, std::min<std::size_t>(8, size - at));
+      n += static_cast<std::size_t>(std::popcount(x));
+    }
+  return n;
+}
+
 }  // namespace
+
+std::size_t countSetBitsInWords(std::span<const std::uint8_t> row, std::span<const std::uint64_t> words) {
+  return countMarkedWords(row.data(), row.size(), words.data(), words.size());
+}
 
 std::size_t countSetBits(std::span<const std::uint8_t> bytes) { return countWords(bytes.data(), nullptr, bytes.size()); }
 
@@ -51,9 +69,17 @@ std::size_t countCommonBits(std::span<const std::uint8_t> a, std::span<const std
   return countWords(a.data(), b.data(), a.size());
 }
 
-void Bitmap::clear() { std::fill(bits_.begin(), bits_.end(), std::uint8_t{0}); }
+// The rows (and a BMP file's row padding, which is never written and stays 0) lie in bits_[pixelsAt_, end).
+void Bitmap::clear() { std::fill(bits_.begin() + static_cast<std::ptrdiff_t>(pixelsAt_), bits_.end(), std::uint8_t{0}); }
 
-std::size_t Bitmap::count() const { return countSetBits(bits_); }
+std::size_t Bitmap::count() const { return countSetBits(pixelBytes()); }
+
+bool Bitmap::operator==(const Bitmap& other) const {
+  if (width_ != other.width_ || height_ != other.height_) return false;
+  for (int r = 0; r < height_; ++r)
+    if (std::memcmp(row(r), other.row(r), stride_) != 0) return false;
+  return true;
+}
 
 RgbImage::RgbImage(int w, int h, std::uint8_t r, std::uint8_t g, std::uint8_t b) : width(w), height(h) {
   pixels.resize(static_cast<std::size_t>(w) * h * 3);
@@ -92,30 +118,22 @@ std::uint32_t get32(std::span<const std::uint8_t> in, std::size_t at) {
 // BMP rows are padded to whole 32-bit words.
 std::size_t bmpStride(int width) { return (static_cast<std::size_t>(width) + 31) / 32 * 4; }
 
-}  // namespace
+constexpr std::size_t kBmpHeaders = kFileHeaderSize + kInfoHeaderSize + kPaletteSize;  // where the rows begin
 
-Bytes encodeBmp(const Bitmap& bitmap, int xDpi, int yDpi) {
-  Bytes out;
-  encodeBmpInto(bitmap, xDpi, yDpi, out);
-  return out;
-}
-
-void encodeBmpInto(const Bitmap& bitmap, int xDpi, int yDpi, Bytes& out, const BmpPieceSink& written) {
-  const std::size_t stride = bmpStride(bitmap.width());
-  const std::size_t offset = kFileHeaderSize + kInfoHeaderSize + kPaletteSize;
-  const std::size_t imageSize = stride * static_cast<std::size_t>(bitmap.height());
-  out.resize(offset + imageSize);  // every byte is written below: rows, their padding and the headers
-  std::fill(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(offset), std::uint8_t{0});
+// A 1-bit BMP file's headers and palette for a `width` x `height` image into out[0, kBmpHeaders).
+void writeBmpHeaders(Bytes& out, int width, int height, int xDpi, int yDpi) {
+  const std::size_t imageSize = bmpStride(width) * static_cast<std::size_t>(height);
+  std::fill(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(kBmpHeaders), std::uint8_t{0});
   out[0] = 'B';
   out[1] = 'M';
-  put32(out, 2, static_cast<std::uint32_t>(out.size()));
-  put32(out, 10, static_cast<std::uint32_t>(offset));
+  put32(out, 2, static_cast<std::uint32_t>(kBmpHeaders + imageSize));
+  put32(out, 10, static_cast<std::uint32_t>(kBmpHeaders));
   put32(out, 14, kInfoHeaderSize);
-  put32(out, 18, static_cast<std::uint32_t>(bitmap.width()));
-  put32(out, 22, static_cast<std::uint32_t>(bitmap.height()));  // positive: bottom-up, the form every reader takes
-  put16(out, 26, 1);                                              // planes
-  put16(out, 28, 1);                                              // bits per pixel
-  put32(out, 30, 0);                                              // BI_RGB, uncompressed
+  put32(out, 18, static_cast<std::uint32_t>(width));
+  put32(out, 22, static_cast<std::uint32_t>(height));  // positive: bottom-up, the form every reader takes
+  put16(out, 26, 1);                                    // planes
+  put16(out, 28, 1);                                    // bits per pixel
+  put32(out, 30, 0);                                    // BI_RGB, uncompressed
   put32(out, 34, static_cast<std::uint32_t>(imageSize));
   put32(out, 38, pixelsPerMetre(xDpi));
   put32(out, 42, pixelsPerMetre(yDpi));
@@ -123,19 +141,28 @@ void encodeBmpInto(const Bitmap& bitmap, int xDpi, int yDpi, Bytes& out, const B
   put32(out, 50, 2);
   // Palette (blue, green, red, reserved): index 0 black, index 1 white.
   out[58] = out[59] = out[60] = 0xff;
-  if (written) written({out.data(), offset});
-  // Rows in runs of about 16 KiB, each handed to `written` as soon as it is complete (half of a 32 KiB
-  // L1 data cache, so the run is still there when the sink reads it).
-  const std::size_t runRows = std::max<std::size_t>(1, (std::size_t{16} << 10) / stride);
-  for (int r0 = 0; r0 < bitmap.height(); r0 += static_cast<int>(runRows)) {
-    const int r1 = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(bitmap.height()), r0 + runRows));
-    for (int r = r0; r < r1; ++r) {
-      std::uint8_t* dst = out.data() + offset + static_cast<std::size_t>(r) * stride;
-      std::memcpy(dst, bitmap.row(bitmap.height() - 1 - r), bitmap.stride());
-      std::memset(dst + bitmap.stride(), 0, stride - bitmap.stride());
-    }
-    if (written) written({out.data() + offset + static_cast<std::size_t>(r0) * stride, static_cast<std::size_t>(r1 - r0) * stride});
-  }
+}
+
+}  // namespace
+
+Bitmap Bitmap::inBmpFile(int width, int height, int xDpi, int yDpi) {
+  Bitmap b(width, height);  // checks the size
+  const std::size_t stride = bmpStride(width);
+  b.bits_.assign(kBmpHeaders + stride * static_cast<std::size_t>(height), 0);
+  writeBmpHeaders(b.bits_, width, height, xDpi, yDpi);
+  b.pixelsAt_ = kBmpHeaders;
+  b.pitch_ = -static_cast<std::ptrdiff_t>(stride);
+  b.first_ = static_cast<std::ptrdiff_t>(kBmpHeaders + stride * static_cast<std::size_t>(height - 1));  // row 0 is stored last
+  return b;
+}
+
+Bytes encodeBmp(const Bitmap& bitmap, int xDpi, int yDpi) {
+  const std::size_t stride = bmpStride(bitmap.width());
+  Bytes out(kBmpHeaders + stride * static_cast<std::size_t>(bitmap.height()), 0);  // the rows' padding stays 0
+  writeBmpHeaders(out, bitmap.width(), bitmap.height(), xDpi, yDpi);
+  for (int r = 0; r < bitmap.height(); ++r)
+    std::memcpy(out.data() + kBmpHeaders + static_cast<std::size_t>(bitmap.height() - 1 - r) * stride, bitmap.row(r), bitmap.stride());
+  return out;
 }
 
 DecodedBitmap decodeBmp(std::span<const std::uint8_t> in) {

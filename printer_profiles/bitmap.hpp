@@ -15,36 +15,49 @@ namespace rodfab::printer_profiles {
 using Bytes = std::vector<std::uint8_t>;
 
 // A 1-bit image, row 0 at the top, bits packed most significant first (pixel 0 in bit 7 of byte 0),
-// as both BMP and PNG store them. 1 = deposit the material.
+// as both BMP and PNG store them. 1 = deposit the material. Its rows lie one after another top-down,
+// or, made by inBmpFile, bottom-up inside the memory of a BMP file of the image.
 class Bitmap {
 public:
   Bitmap() = default;
-  Bitmap(int width, int height);
+  Bitmap(int width, int height);  // every pixel 0; std::invalid_argument unless both are positive
+  // A bitmap whose memory is a 1-bit BMP file of it, headers (for xDpi x yDpi) and all: rows bottom-up,
+  // padded to whole 32-bit words, as encodeBmp writes them. bmpFile() is then the file, with no row
+  // copied: the job writer's layer bitmaps are made so (printer_profiles/README.md, "Emit, round 7").
+  static Bitmap inBmpFile(int width, int height, int xDpi, int yDpi);
 
   int width() const { return width_; }
   int height() const { return height_; }
   std::size_t stride() const { return stride_; }  // bytes per row, ceil(width / 8)
 
-  bool get(int column, int row) const {
-    return (bits_[row * stride_ + (column >> 3)] >> (7 - (column & 7))) & 1u;
-  }
+  bool get(int column, int row) const { return (this->row(row)[column >> 3] >> (7 - (column & 7))) & 1u; }
   void set(int column, int row, bool value = true) {
-    std::uint8_t& b = bits_[row * stride_ + (column >> 3)];
+    std::uint8_t& b = this->row(row)[column >> 3];
     const std::uint8_t mask = static_cast<std::uint8_t>(0x80u >> (column & 7));
     b = value ? static_cast<std::uint8_t>(b | mask) : static_cast<std::uint8_t>(b & ~mask);
   }
-  std::uint8_t* row(int r) { return bits_.data() + r * stride_; }
-  const std::uint8_t* row(int r) const { return bits_.data() + r * stride_; }
-  std::span<std::uint8_t> bytes() { return bits_; }
-  std::span<const std::uint8_t> bytes() const { return bits_; }
+  // Row r's stride() bytes (only those: a BMP file's row padding is not the caller's to write).
+  std::uint8_t* row(int r) { return bits_.data() + rowOffset(r); }
+  const std::uint8_t* row(int r) const { return bits_.data() + rowOffset(r); }
+  // Every row's bytes as held (top-down, or bottom-up with a BMP file's padding, which is 0), nothing
+  // else: for scans of the whole image that need not know where a row lies. Two bitmaps' pixelBytes()
+  // line up byte for byte when they were made the same way (both by the constructor, or both by inBmpFile).
+  std::span<const std::uint8_t> pixelBytes() const { return std::span<const std::uint8_t>(bits_).subspan(pixelsAt_); }
+  // The BMP file holding the image, for a bitmap made by inBmpFile; empty for any other.
+  std::span<const std::uint8_t> bmpFile() const { return pixelsAt_ > 0 ? std::span<const std::uint8_t>(bits_) : std::span<const std::uint8_t>(); }
 
-  void clear();                // every pixel 0, keeping the memory
+  void clear();                // every pixel 0, keeping the memory (and a BMP file's headers)
   std::size_t count() const;  // pixels set
-  bool operator==(const Bitmap& other) const = default;
+  // The same size and the same pixels, however each holds its rows.
+  bool operator==(const Bitmap& other) const;
 
 private:
+  std::ptrdiff_t rowOffset(int r) const { return first_ + static_cast<std::ptrdiff_t>(r) * pitch_; }
+
   int width_ = 0, height_ = 0;
   std::size_t stride_ = 0;
+  std::ptrdiff_t first_ = 0, pitch_ = 0;  // row r at bits_[first_ + r * pitch_]; pitch_ < 0: bottom-up
+  std::size_t pixelsAt_ = 0;              // where the rows begin (a BMP file's header size, or 0)
   std::vector<std::uint8_t> bits_;
 };
 
@@ -52,6 +65,9 @@ private:
 // (layer bitmaps are mostly empty), with the CPU's popcount instruction where it has one.
 std::size_t countSetBits(std::span<const std::uint8_t> bytes);
 std::size_t countCommonBits(std::span<const std::uint8_t> a, std::span<const std::uint8_t> b);
+// Bits set in the 8-byte words of `row` that `words` marks (word w: bit w % 64 of words[w / 64]; the
+// row's last word may be shorter than 8 bytes). std::invalid_argument when `words` marks a word past the row.
+std::size_t countSetBitsInWords(std::span<const std::uint8_t> row, std::span<const std::uint64_t> words);
 
 // A decoded 1-bit image with the resolution its file declared.
 struct DecodedBitmap {
@@ -72,14 +88,6 @@ std::uint32_t pixelsPerMetre(int dpi);
 
 // BMP: BITMAPINFOHEADER, two-entry palette (0 black, 1 white), rows bottom-up as the format's default.
 Bytes encodeBmp(const Bitmap& bitmap, int xDpi, int yDpi);
-// The same into `out` (resized to the file's size), so a caller can reuse one buffer for every layer.
-// `written`, when given, receives the file piece by piece as it is written, in order (the headers,
-// then runs of rows of about 16 KiB), while each piece is still in the L1 cache: the job writer
-// checksums a layer image in the same pass that makes it, instead of reading it back from memory.
-// The pieces tile the file: one after another, no gap and no overlap, together they are every byte of
-// `out`, so a checksum of the pieces in order is the file's checksum.
-using BmpPieceSink = std::function<void(std::span<const std::uint8_t>)>;
-void encodeBmpInto(const Bitmap& bitmap, int xDpi, int yDpi, Bytes& out, const BmpPieceSink& written = {});
 // Accepts 1-bit BMPs with either row order; the pixel value is the palette index (1 = deposit).
 DecodedBitmap decodeBmp(std::span<const std::uint8_t> file);
 

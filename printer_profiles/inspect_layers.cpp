@@ -153,7 +153,7 @@ void Inspector::checkLayer(int l, LayerResult& out) const {
   for (std::size_t a = 0; a < materials; ++a)
     for (std::size_t b = a + 1; b < materials; ++b) {
       if (!bitmaps[a] || !bitmaps[b]) continue;
-      if (const std::uint64_t both = countCommonBits(bitmaps[a]->bytes(), bitmaps[b]->bytes()))
+      if (const std::uint64_t both = countCommonBits(bitmaps[a]->pixelBytes(), bitmaps[b]->pixelBytes()))  // both decoded: one layout
         out.findings.at(profile_.layerFileName(*layout_.materials[a], l, layout_.imageFormat),
                         std::to_string(both) + " voxels hold both " + layout_.materials[a]->name + " and " + layout_.materials[b]->name);
     }

@@ -146,7 +146,7 @@ TEST_CASE("The libzip source adapter answers ERROR, FREE and SUPPORTS itself and
   CHECK(deleted == 1);
 
   // Through libzip: what an operation throws becomes a libzip error, and libzip's free deletes the source.
-  for (const auto [how, code] : {std::pair{ProbeSource::Read::BadAlloc, ZIP_ER_MEMORY}, std::pair{ProbeSource::Read::Throws, ZIP_ER_INTERNAL}}) {
+  for (const auto& [how, code] : {std::pair{ProbeSource::Read::BadAlloc, ZIP_ER_MEMORY}, std::pair{ProbeSource::Read::Throws, ZIP_ER_INTERNAL}}) {
     zip_error_t error;
     zip_error_init(&error);
     zip_source_t* made = makeZipSource(std::make_unique<ProbeSource>(how, deleted), &error);

@@ -14,6 +14,8 @@
 #include <fstream>
 #include <functional>
 #include <random>
+#include <stdexcept>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -134,25 +136,59 @@ TEST_CASE("1-bit BMP and PNG round-trip with their resolution", "[bitmap]") {
   CHECK_THROWS_AS(decodePng1(png), ImageError);
 }
 
-TEST_CASE("The BMP encoder's pieces tile the file: in order they are encodeBmp's bytes", "[bitmap]") {
-  // Widths whose rows make runs of many rows, a few, and one row a run (a row over 16 KiB).
-  for (const auto& [width, height] : {std::pair{1, 1}, std::pair{96, 5}, std::pair{1000, 300}, std::pair{140'000, 3}}) {
-    Bitmap b(width, height);
+TEST_CASE("A bitmap held in its BMP file reads and writes as any bitmap, and its memory is encodeBmp's file", "[bitmap]") {
+  // Rows padded to 32-bit words and not (widths 1, 96 and 1000 pad, 2080 does not), one row and many.
+  for (const auto& [width, height] : {std::pair{1, 1}, std::pair{96, 5}, std::pair{1000, 300}, std::pair{2080, 7}}) {
+    Bitmap plain(width, height);
+    Bitmap inFile = Bitmap::inBmpFile(width, height, 600, 300);
+    CHECK(inFile == plain);
+    CHECK(inFile.bmpFile().size() == encodeBmp(plain, 600, 300).size());
+    CHECK(plain.bmpFile().empty());
     std::mt19937 rng(static_cast<unsigned>(width));
     for (int r = 0; r < height; ++r)
-      for (int c = 0; c < width; c += 1 + static_cast<int>(rng() % 5)) b.set(c, r);
-    Bytes pieces, out;
-    std::size_t calls = 0;
-    encodeBmpInto(b, 600, 300, out, [&](std::span<const std::uint8_t> piece) {
-      CHECK(piece.data() == out.data() + pieces.size());  // each piece starts where the last one ended
-      pieces.insert(pieces.end(), piece.begin(), piece.end());
-      ++calls;
-    });
-    const Bytes whole = encodeBmp(b, 600, 300);
-    CHECK(pieces == whole);
-    CHECK(out == whole);
-    CHECK(calls >= 2);  // the headers, then at least one run of rows
-    CHECK(decodeBmp(pieces).bitmap == b);
+      for (int c = 0; c < width; c += 1 + static_cast<int>(rng() % 5)) {
+        plain.set(c, r);
+        inFile.row(r)[c / 8] = static_cast<std::uint8_t>(inFile.row(r)[c / 8] | (0x80u >> (c % 8)));  // as the rasterizer writes
+      }
+    CHECK(inFile == plain);
+    CHECK(inFile.count() == plain.count());
+    const Bytes file(inFile.bmpFile().begin(), inFile.bmpFile().end());
+    CHECK(file == encodeBmp(plain, 600, 300));                // the same file, headers and padding included
+    CHECK(decodeBmp(inFile.bmpFile()).bitmap == plain);       // read back by the decoder, independently of the layout
+    CHECK(encodeBmp(inFile, 600, 300) == file);               // encodeBmp reads either layout
+    CHECK(encodePng1(inFile, 600, 300) == encodePng1(plain, 600, 300));
+    plain.set(0, height - 1, false);
+    CHECK((inFile == plain) == !inFile.get(0, height - 1));  // a pixel apart: unequal (unless it was clear)
+    inFile.clear();
+    CHECK(inFile.count() == 0);
+    CHECK(inFile == Bitmap(width, height));
+    CHECK((Bytes(inFile.bmpFile().begin(), inFile.bmpFile().end()) == encodeBmp(Bitmap(width, height), 600, 300)));  // headers kept
+  }
+  CHECK_THROWS_AS(Bitmap::inBmpFile(0, 4, 600, 300), std::invalid_argument);
+  CHECK_THROWS_AS(Bitmap::inBmpFile(4, -1, 600, 300), std::invalid_argument);
+}
+
+TEST_CASE("countSetBitsInWords counts the marked 8-byte words of a row, a short last word too", "[bitmap]") {
+  std::mt19937 rng(11);
+  for (const std::size_t size : {std::size_t{1}, std::size_t{8}, std::size_t{260}, std::size_t{1375}}) {
+    std::vector<std::uint8_t> row(size);
+    for (auto& b : row) b = static_cast<std::uint8_t>(rng());
+    const std::size_t words = (size + 7) / 8;
+    std::vector<std::uint64_t> marks((words + 63) / 64, 0);
+    std::size_t want = 0;
+    for (std::size_t w = 0; w < words; ++w) {
+      if (rng() % 3 != 0 && w + 1 != words) continue;  // about a third of them, and always the last
+      marks[w / 64] |= std::uint64_t{1} << (w % 64);
+      for (std::size_t at = w * 8; at < std::min(size, w * 8 + 8); ++at)
+        for (int bit = 0; bit < 8; ++bit) want += (row[at] >> bit) & 1u;
+    }
+    CHECK(countSetBitsInWords(row, marks) == want);
+    std::vector<std::uint64_t> none(marks.size(), 0);
+    CHECK(countSetBitsInWords(row, none) == 0);
+    if (words % 64 != 0) {
+      marks.back() |= std::uint64_t{1} << (words % 64);  // the word after the row's last
+      CHECK_THROWS_AS(countSetBitsInWords(row, marks), std::invalid_argument);
+    }
   }
 }
 
