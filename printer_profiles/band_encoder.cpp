@@ -48,7 +48,8 @@ Bitmap layerBitmap(const JobGeometry& g, const Profile& profile) { return Bitmap
 
 // Clears what the layer's bitmaps hold from their last layer: only the words it wrote, when they have
 // the job's size (mostly empty layers then cost next to nothing to clear). `written` is then empty.
-void clearModel(LayerBitmaps& b, const JobGeometry& g, const Profile& profile, WrittenWords& written) {
+void clearModel(LayerBitmaps& b, const JobGeometry& g, const Profile& profile) {
+  WrittenWords& written = b.written;
   if (b.rigid.width() != g.width || b.rigid.height() != g.height || b.spans.size() != static_cast<std::size_t>(g.height)) {
     b.rigid = layerBitmap(g, profile);
     b.rubbery = layerBitmap(g, profile);
@@ -80,7 +81,8 @@ void widen(RowSpan& span, std::size_t byte) {
 }
 
 // Pixels set in the layer's rigid and rubbery bitmaps: only their written words can hold any.
-std::array<std::uint64_t, 2> countModel(const LayerBitmaps& b, const WrittenWords& written) {
+std::array<std::uint64_t, 2> countModel(const LayerBitmaps& b) {
+  const WrittenWords& written = b.written;
   std::array<std::uint64_t, 2> n{};
   const std::size_t stride = b.rigid.stride();
   for (int r = 0; r < b.rigid.height(); ++r) {
@@ -119,7 +121,6 @@ void BandEncoder::encode(const LayerBand& band, std::vector<LayerRecord>& layers
   collect(band);
   const BandVoxels& voxels = *voxels_;
   bitmaps_.resize(static_cast<std::size_t>(count));
-  written_.resize(static_cast<std::size_t>(count));
   // Zip jobs keep each image's zip form (deflated BMP, or the PNG as it is) in memory until the band
   // is staged in one file: staging thousands of files costs more in the file system than compressing.
   std::vector<std::vector<Bytes>> zipForms(s_.zip ? static_cast<std::size_t>(count) : 0);
@@ -129,11 +130,10 @@ void BandEncoder::encode(const LayerBand& band, std::vector<LayerRecord>& layers
       common::throwIfInterrupted();  // a band of large layers takes seconds
       const int k = band.kBegin + n, layer = firstLayer + n;
       LayerBitmaps& b = bitmaps_[static_cast<std::size_t>(n)];
-      WrittenWords& written = written_[static_cast<std::size_t>(n)];
       LayerRecord& record = layers[static_cast<std::size_t>(layer)];
-      rasterize(k, voxels, b, written, record);
+      rasterize(k, voxels, b, record);
       if (s_.form.support == SupportPolicy::Explicit) addSupport(layer, b);
-      const auto [rigid, rubbery] = countModel(b, written);
+      const auto [rigid, rubbery] = countModel(b);
       record.voxels = {rigid, rubbery, b.hasSupport ? b.support.count() : 0};
       previews.addLayer(layer, b, modulus);
       encodeImages(layer, b, record, s_.zip ? &zipForms[static_cast<std::size_t>(n)] : nullptr);
@@ -181,9 +181,10 @@ void BandEncoder::finishStaging() {
   if (!staged_) throw std::runtime_error(stagedFile_.string() + ": cannot write (disk full or no permission?)");
 }
 
-void BandEncoder::rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, WrittenWords& written, LayerRecord& record) const {
+void BandEncoder::rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, LayerRecord& record) const {
   const JobGeometry& g = s_.form.geometry;
-  clearModel(b, g, s_.profile, written);
+  clearModel(b, g, s_.profile);
+  WrittenWords& written = b.written;
   record.moments = {};
   for (const BandLeaf& leaf : voxels.slab(k)) {
     const int z = k - leaf.origin.z();

@@ -9,13 +9,11 @@
 #include "printer_profiles/job_writer.hpp"
 #include "printer_profiles/previews.hpp"
 
-#include <bit>
 #include <cstdint>
 #include <deque>
 #include <filesystem>
 #include <fstream>
 #include <memory>
-#include <span>
 #include <string>
 #include <vector>
 
@@ -29,29 +27,6 @@ struct BandEncoderSetup {
   bool zip;                                             // stage zip forms (else write the files)
   std::filesystem::path filesDir, stagingRoot;          // where files, and zip jobs' staged layers, go
   std::uint64_t zipFormsInMemory = 0;                   // JobOptions::zipFormsInMemory
-};
-
-// The 8-byte words of a layer's rows its rigid and rubbery bitmaps were written in, a bit a word: what
-// clearing and counting the layer read, exactly. Rods cross a row in a few places; the row spans
-// between them (LayerBitmaps::spans), which were cleared and counted before, covered most of the
-// spring's rows.
-struct WrittenWords {
-  std::size_t perRow = 0;            // masks a row: ceil(words / 64)
-  std::vector<std::uint64_t> masks;  // row r's at [r * perRow, (r + 1) * perRow); word w at bit w % 64 of the w / 64-th
-
-  void reset(int height, std::size_t stride) {
-    perRow = (stride + 511) / 512;
-    masks.assign(perRow * static_cast<std::size_t>(height), 0);
-  }
-  void mark(int row, std::size_t byte) { masks[static_cast<std::size_t>(row) * perRow + byte / 512] |= std::uint64_t{1} << (byte / 8 % 64); }
-  std::span<const std::uint64_t> row(int r) const { return {masks.data() + static_cast<std::size_t>(r) * perRow, perRow}; }
-  // Calls f(word) for every word of row r written, and forgets them.
-  template <class F>
-  void takeRow(int r, F&& f) {
-    for (std::size_t m = 0; m < perRow; ++m)
-      for (std::uint64_t& bits = masks[static_cast<std::size_t>(r) * perRow + m]; bits; bits &= bits - 1)
-        f(m * 64 + static_cast<std::size_t>(std::countr_zero(bits)));
-  }
 };
 
 class BandEncoder {
@@ -78,7 +53,7 @@ private:
   struct BandLeaf;
   struct BandVoxels;
   void collect(const LayerBand& band);  // into voxels_
-  void rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, WrittenWords& written, LayerRecord& record) const;
+  void rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, LayerRecord& record) const;
   void addSupport(int layer, LayerBitmaps& b) const;
   void encodeImages(int layer, const LayerBitmaps& b, LayerRecord& record, std::vector<Bytes>* zipForms) const;
   // An image's checksums as the job records them: XXH3-128 (manifest), CRC-32 (zip directory; zip jobs only).
@@ -95,7 +70,6 @@ private:
   BandEncoderSetup s_;
   // The band's bitmaps, kept from band to band: cleared, not reallocated (fresh pages cost a fault each).
   std::vector<LayerBitmaps> bitmaps_;
-  std::vector<WrittenWords> written_;  // bitmaps_[n]'s
   // The band's leaves and tiles as rasterize reads them, likewise kept: collected into fresh vectors,
   // a band of the dense block cost 9 to 13 MB of new pages (page faults and clearing: 6 % of the
   // dense block's CPU samples, as much as deflate).

@@ -322,7 +322,6 @@ void Previews::addLayer(int layer, const LayerBitmaps& b, const openvdb::FloatGr
 }
 
 void Previews::addFrontAndSide(int layer, const LayerBitmaps& b, const openvdb::FloatGrid* modulus) {
-  using preview_scan::forEachFresh;
   std::optional<openvdb::FloatGrid::ConstAccessor> acc;
   if (modulus) acc.emplace(modulus->getConstAccessor());
   const int h = geometry_.height, k = geometry_.k(layer);
@@ -335,7 +334,7 @@ void Previews::addFrontAndSide(int layer, const LayerBitmaps& b, const openvdb::
   for (int r = h - 1; r >= 0 && undecided > 0; --r) {
     const RowSpan span = b.span(r);
     if (span.empty()) continue;
-    forEachFresh(b.rigid.row(r), b.rubbery.row(r), claimed.data(), span, [&](int c, bool isRigid) {
+    preview_scan::forEachFreshInRow(b, r, claimed.data(), [&](int c, bool isRigid) {
       --undecided;
       front_.set(front_.at(c, layer), isRigid, r, modulusOf(c, r));
     });

@@ -72,8 +72,7 @@ void Previews::addTopLayers(int first, const std::vector<LayerBitmaps>& layers, 
         if (top_.v.slot(r) < 0 || span.empty()) continue;
         std::uint8_t* rowClaimed = claimed.data() + static_cast<std::size_t>(r - rows.begin()) * hidden.size();
         fresh.clear();
-        preview_scan::forEachFresh(layers[n].rigid.row(r), layers[n].rubbery.row(r), rowClaimed, span,
-                     [&](int c, bool isRigid) { fresh.push_back({c, isRigid}); });
+        preview_scan::forEachFreshInRow(layers[n], r, rowClaimed, [&](int c, bool isRigid) { fresh.push_back({c, isRigid}); });
         if (modulus) lookUpModuli(modulus, *acc, fresh, geometry_, r, layer);
         for (const TopPixel& p : fresh) top_.set(top_.at(p.column, r), p.rigid, layer, p.modulus);
       }
