@@ -4,6 +4,7 @@
 #include "printer_profiles/job_writer.hpp"
 #include "materials/fraction_map.hpp"
 #include "common/interrupt.hpp"
+#include "common/memory_budget.hpp"
 #include "voxel/printer_grid.hpp"
 
 #include <algorithm>
@@ -109,7 +110,7 @@ std::uint64_t couponJobBytes(const CouponLayout& layout, int bandLayers) {
   const openvdb::Coord d = layout.bounds.dim();
   const double bands = kBandBytes * (heldLayers + 1.0) * double(d.x()) * double(d.y());
   const double bytes = double(jobWriterBytes(layout.bounds)) + bands;
-  return bytes > 1.8e19 ? std::uint64_t(1.8e19) : static_cast<std::uint64_t>(bytes);
+  return common::saturatedBytes(bytes);
 }
 
 BandSource couponBands(const CouponLayout& layout, const std::vector<double>& fractions,

@@ -1,6 +1,7 @@
 #include "slicer/job_pipeline.hpp"
 
 #include "common/interrupt.hpp"
+#include "common/memory_budget.hpp"
 #include "common/stopwatch.hpp"
 
 #include <tbb/parallel_pipeline.h>
@@ -75,7 +76,7 @@ std::uint64_t jobWriterBytes(const openvdb::CoordBBox& partBounds) {
   constexpr double kRuntimeBytes = 96.0 * (1 << 20), kPreviewBytes = 9.0 * 1400.0 * 1000.0, kLayerImageBytes = 30.0;
   const double pixels = double(partBounds.dim().x()) * double(partBounds.dim().y());
   const double bytes = kRuntimeBytes + kPreviewBytes + kLayerImageBytes * pixels;
-  return bytes > 1.8e19 ? std::uint64_t(1.8e19) : static_cast<std::uint64_t>(bytes);
+  return common::saturatedBytes(bytes);
 }
 
 printer_profiles::JobResult streamJob(printer_profiles::JobSpec spec, const BandSource& source,

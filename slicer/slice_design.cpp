@@ -80,7 +80,7 @@ std::uint64_t sliceMemoryBytes(const geometry::RodStructure& design, const voxel
   const double ditherBytes = ditherer == "error-diffusion" ? errorDiffusionBytes(raster, bandLayers, threads) : 0.0;
   const double bytes = raster.peakBytes(kBandsInFlight) + materialBytes + supportBytes + ditherBytes +
                        double(jobWriterBytes(designVoxelBounds(design, grid)));
-  return bytes >= 1.8e19 || !std::isfinite(bytes) ? UINT64_MAX : static_cast<std::uint64_t>(bytes);
+  return common::saturatedBytes(bytes);
 }
 
 openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const voxel::PrinterGrid& grid) {
