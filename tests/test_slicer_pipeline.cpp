@@ -13,11 +13,14 @@
 #include "slicer/coupon_layout.hpp"
 #include "slicer/job_pipeline.hpp"
 #include "slicer/slice_design.hpp"
+#include "voxel/diagnostics.hpp"
 #include "voxel/printer_grid.hpp"
+#include "voxel/rasterize.hpp"
 
 #include <catch2/catch.hpp>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -397,5 +400,39 @@ TEST_CASE("the memory check passes the bundled examples under a 2 GiB cap, with 
         CHECK(slicer::sliceMemoryBytes(design, grid, bandLayers, ditherer, 2, rasterizer.pieceCount()) <= common::memoryBudget());
       CHECK(double(slicer::sliceMemoryBytes(design, grid, automatic, ditherer, 2, rasterizer.pieceCount())) >= peakMb * 1e6);
     }
+  }
+}
+
+TEST_CASE("the raster estimate of a level flat rod and a level round rod: layer voxels and band leaves above the grid's, within 3 times",
+          "[voxel][estimate][memory]") {
+  openvdb::initialize();
+  // Independent truth: the grids the rasterizer builds, counted. Bands of 8 layers as streamJob cuts
+  // them (slab-aligned, one layer past the band for error diffusion).
+  const geometry::NurbsCurve axis(1, {0, 0, 1, 1}, {{0, 2, 1}, {10, 2, 1}});
+  const auto level = [&](const char* name, geometry::Section section) {
+    return geometry::RodStructure{name, {geometry::Rod(name, axis, section, geometry::Vec3(0, 1, 0), std::nullopt,
+                                                       geometry::CapStyle::Flat, geometry::BSplineField::constant(20, 0, 1))}};
+  };
+  constexpr int kBandLayers = 8;
+  // 4 mm wide, 5 layers tall (its bounding radius would spread it over 130 layers); 10 layers round.
+  for (const geometry::RodStructure& design : {level("flat", geometry::Section::rectangle(4.0, 0.15)),
+                                               level("round", geometry::Section::circle(0.3))}) {
+    INFO(design.source);
+    const voxel::PrinterGrid grid = voxel::makePrinterGrid(design, connex3().voxelSize());
+    const voxel::Rasterizer rasterizer(design, grid);
+    const openvdb::FloatGrid::Ptr whole = rasterizer.rasterize().grid;
+    std::vector<double> perLayer(std::size_t(grid.dims.z()), 0.0);
+    for (auto v = whole->cbeginValueOn(); v; ++v) perLayer[std::size_t(v.getCoord().z())] += 1.0;
+    const double layerVoxels = *std::max_element(perLayer.begin(), perLayer.end());
+    double bandLeaves = 0.0;
+    for (int k0 = 0; k0 < grid.dims.z(); k0 += kBandLayers)
+      bandLeaves = std::max(bandLeaves, double(rasterizer.rasterizeLayers(k0, std::min(grid.dims.z(), k0 + kBandLayers + 1)).grid->tree().leafCount()));
+    const voxel::RasterEstimate e = voxel::estimateRaster(design, grid, kBandLayers);
+    CAPTURE(layerVoxels, e.layerVoxels, bandLeaves, e.bandLeaves);
+    REQUIRE(layerVoxels > 500);
+    CHECK(e.layerVoxels >= layerVoxels);
+    CHECK(e.layerVoxels <= 3.0 * layerVoxels);
+    CHECK(e.bandLeaves >= bandLeaves);
+    CHECK(e.bandLeaves <= 3.0 * bandLeaves);
   }
 }
