@@ -109,6 +109,10 @@ std::uint64_t sliceMemoryBytes(const geometry::RodStructure& design, const voxel
   // The dithered bands' material (bool) trees: the bands in flight and the ditherer's recycler's kept
   // ones, on the band's leaves (a bool leaf: two 64-byte masks and its origin, plus the allocator's header).
   constexpr double kMaterialTrees = kBandsInFlight + double(voxel::TreeRecycler<openvdb::BoolTree>::kKeptTrees);
+  // The recyclers' kept trees are counted at their default (RasterEstimate::bandTreesHeld); the
+  // fractions' recycler keeps kBandsInFlight, the rasterizer's and the ditherer's the default.
+  static_assert(std::size_t{kBandsInFlight} == voxel::TreeRecycler<openvdb::FloatTree>::kKeptTrees,
+                "the recyclers keep as many trees as there are bands in flight: the estimate counts them so");
   const double materialBytes = kMaterialTrees * raster.bandLeaves * (double(sizeof(openvdb::BoolTree::LeafNodeType)) + 16.0);
   // Explicit support's column tops: an int per column of the part.
   const openvdb::Coord part = designVoxelBounds(design, grid).dim();
@@ -185,7 +189,7 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   spec.options.report = reportHook(report, calibration, clampMap, spec.options.verify);
   // The bands' fraction trees come back here once the pipeline is done with them, and later bands are
   // built from their nodes (the rasterizer recycles its own trees the same way).
-  voxel::TreeRecycler<openvdb::FloatTree> fractionTrees(0.0f);
+  voxel::TreeRecycler<openvdb::FloatTree> fractionTrees(0.0f, std::size_t{kBandsInFlight});
   const BandSource source = [&](int k0, int k1, bool withNextLayer) {
     const voxel::Rasterization ras = rasterizer.rasterizeLayers(k0, k1 + (withNextLayer ? 1 : 0));
     const std::uint64_t clampedBefore = report.mapping.clamps.total();
