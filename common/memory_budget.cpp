@@ -83,6 +83,13 @@ void requireMemory(std::uint64_t bytes, const std::string& what, const std::stri
                     formatBytes(memoryBudget()) + " (--max-memory); " + remedy);
 }
 
+std::uint64_t saturatedBytes(double bytes) {
+  constexpr double kTwoTo64 = 18446744073709551616.0;  // 2^64, exact in a double
+  if (std::isnan(bytes) || bytes >= kTwoTo64) return UINT64_MAX;
+  if (bytes <= 0.0) return 0;
+  return static_cast<std::uint64_t>(bytes);
+}
+
 std::string formatBytes(std::uint64_t bytes) {
   char text[32];
   if (bytes >= (std::uint64_t{1} << 30)) std::snprintf(text, sizeof text, "%.1f GiB", static_cast<double>(bytes) / (1 << 30));

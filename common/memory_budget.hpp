@@ -34,6 +34,12 @@ std::uint64_t memoryBudget();
 // change ("use a coarser voxel size", ...).
 void requireMemory(std::uint64_t bytes, const std::string& what, const std::string& remedy);
 
+// An estimate in bytes worked out in double, as the unsigned count requireMemory takes: UINT64_MAX for
+// NaN, +infinity and anything at or above 2^64 (an estimate too large to count is over any budget),
+// 0 for negative values (and -infinity), the value rounded down otherwise. The one conversion every
+// memory estimate uses, so an overflowing estimate always refuses the same way. Thread-safe (pure).
+std::uint64_t saturatedBytes(double bytes);
+
 // "1.5 GiB", "640 MiB".
 std::string formatBytes(std::uint64_t bytes);
 

@@ -47,6 +47,12 @@ void blueNoiseLeafBits(const ThresholdColumns& column, const float* values, unsi
   }
 }
 
+// What the pointwise ditherers hold while dithering a band (detail::ditherPointwise): the band's leaves
+// (LeafGroups: a pointer a leaf, and a start index per parent node, fewer) and the output leaves'
+// pointers, 8 bytes a leaf each. No buffer per worker or per layer, nothing kept between bands but the
+// recycler's spare output nodes (the caller counts those with the material trees).
+double pointwiseBytes(const DitherBand& band) { return 2.0 * 8.0 * band.leaves; }
+
 // Mezzotint as in the published pipeline: Vero where a uniform number drawn for the voxel is below its
 // fraction. The number is a hash of (seed, leaf origin) and the voxel's offset, never a sequential
 // stream (counter_hash.hpp).
@@ -55,6 +61,8 @@ public:
   WhiteNoiseDitherer(std::uint64_t seed, std::function<void()> checkInterrupt)
       : seed_(seed), checkInterrupt_(std::move(checkInterrupt)) {}
   std::string_view name() const override { return "white"; }
+  bool readsNextLayer() const override { return false; }
+  double workingBytes(const DitherBand& band, int) const override { return pointwiseBytes(band); }
 
 protected:
   openvdb::BoolGrid::Ptr ditherLeafVoxels(const openvdb::FloatGrid& fraction, int k0, int k1) override {
@@ -81,6 +89,11 @@ public:
     buildColumns();
   }
   std::string_view name() const override { return "blue"; }
+  bool readsNextLayer() const override { return false; }
+  // The leaf lists, and the rearranged thresholds it keeps for good (about 0.8 MB for the bundled mask).
+  double workingBytes(const DitherBand& band, int) const override {
+    return pointwiseBytes(band) + double(columns_.size() * sizeof(float));
+  }
 
 protected:
   openvdb::BoolGrid::Ptr ditherLeafVoxels(const openvdb::FloatGrid& fraction, int k0, int k1) override {

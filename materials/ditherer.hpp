@@ -43,10 +43,31 @@ struct DitherOptions {
   std::function<void()> checkInterrupt;
 };
 
+// The size of the bands a ditherer will be given, for memory estimates made before a slice starts
+// (slicer::sliceMemoryBytes takes them from voxel::RasterEstimate).
+struct DitherBand {
+  double layerVoxels = 0.0;  // active voxels of the fullest layer
+  double leaves = 0.0;       // leaves (8^3 voxels) of the fullest band's fraction grid, next layer included
+  int layers = 0;            // layers per band
+};
+
 class Ditherer {
 public:
   virtual ~Ditherer() = default;
   virtual std::string_view name() const = 0;
+
+  // Whether ditherLayers reads layer k1 past the band as well (error diffusion: see ditherLayers), so a
+  // caller that builds one fraction grid per band includes that layer. Pure, so that a ditherer wrapping
+  // another (slicer::BarCountingDitherer) must pass it on.
+  virtual bool readsNextLayer() const = 0;
+
+  // Bytes the ditherer holds at most while it dithers bands of `band`'s size, called from a task arena
+  // of `concurrency` threads (tbb::this_task_arena::max_concurrency() where ditherLayers will be
+  // called), besides its input (the band's fraction grid) and its output (the material grid, its
+  // leaves and nodes): its lists of the band's leaves, buffers per layer and per worker, and what it
+  // keeps from band to band. An upper estimate (each implementation says what it counts and how it was
+  // measured); 0 or more, no throw. Thread-safe: reads nothing that dithering changes.
+  virtual double workingBytes(const DitherBand& band, int concurrency) const = 0;
 
   // Dithers the active voxels of layers [k0, k1) of `fraction`; the result holds exactly those voxels.
   // Throws std::invalid_argument for k0 > k1 or a fraction outside [0, 1] (naming the voxel).

@@ -146,7 +146,7 @@ public:
   BandDiffusion(const std::vector<const FloatLeaf*>& leaves, const std::vector<BoolLeaf*>& out, int k0, int k1,
                 std::uint64_t seed, const std::function<void()>& checkInterrupt, int workers, SlotBuffers& buffers)
       : leaves_(leaves), out_(out), k0_(k0), k1_(k1), seed_(seed), checkInterrupt_(checkInterrupt),
-        slots_(static_cast<std::size_t>(workers) + 3), buffers_(buffers.lend(slots_)),
+        slots_(static_cast<std::size_t>(workers + ErrorDiffusionDitherer::kSpareSlots)), buffers_(buffers.lend(slots_)),
         nextLayer_(k0), veroByWorker_(static_cast<std::size_t>(workers)) {
     prepare(k0);
     prepare(k0 + 1);
@@ -366,6 +366,29 @@ BandLeaves bandLeaves(const LeafGroups& groups, int k0, int k1, SpareNodes& spar
 
 struct ErrorDiffusionDitherer::LayerBuffers : SlotBuffers {};
 
+namespace {
+
+// A slot's bytes per voxel of its layer: Layer's arrays (sized by resize(), so up to twice their size
+// after vector growth), its rows (at most one per voxel, grown the same way) and the error (assign():
+// exactly its size).
+constexpr double kSlotBytesPerVoxel =
+    2.0 * double(sizeof(int) + 2 * sizeof(float) + 3 * sizeof(std::uint32_t) + sizeof(std::uint16_t) + sizeof(std::uint8_t)) +
+    2.0 * double(sizeof(LayerRow)) + double(sizeof(float));
+static_assert(kSlotBytesPerVoxel == 82.0);
+// The band's leaf lists: the groups' leaves, the sort order, the output leaves (by group), the sorted
+// leaves and their output pointers (BandLeaves), 8 bytes a leaf each.
+constexpr double kListBytesPerLeaf = 5.0 * 8.0;
+
+}  // namespace
+
+double ErrorDiffusionDitherer::workingBytes(const DitherBand& band, int concurrency) const {
+  const int workers = workersFor(concurrency);
+  const double slots = std::min(workers + kSpareSlots, std::max(band.layers, 1) + 1);
+  const double carryBytes = 2.0 * double(sizeof(Carry)) * band.layerVoxels;
+  const double maskBytes = double(workers) * double(sizeof(LeafMask)) * band.leaves;
+  return slots * kSlotBytesPerVoxel * band.layerVoxels + carryBytes + maskBytes + kListBytesPerLeaf * band.leaves;
+}
+
 openvdb::BoolGrid::Ptr ErrorDiffusionDitherer::ditherLeafVoxels(const openvdb::FloatGrid& fraction, int k0, int k1) {
   if (started_ && k0 != nextLayer_)
     throw std::logic_error("error-diffusion: bands must follow each other: expected a band starting at layer " +
@@ -378,8 +401,7 @@ openvdb::BoolGrid::Ptr ErrorDiffusionDitherer::ditherLeafVoxels(const openvdb::F
   if (k0 == k1) return detail::materialGrid(recycler_.assemble(groups, out, spares), fraction);
   const std::vector<const FloatLeaf*>& leaves = band.leaves;
 
-  // Layers form a chain; more than a few workers would only wait on each other.
-  const int workers = std::clamp(tbb::this_task_arena::max_concurrency(), 1, 4);
+  const int workers = workersFor(tbb::this_task_arena::max_concurrency());
   if (!buffers_) buffers_ = std::make_shared<LayerBuffers>();
   BandDiffusion diffusion(leaves, band.out, k0, k1, seed_, checkInterrupt_, workers, *buffers_);
   if (started_) takeCarry(carry_, diffusion.firstLayer(), k0);

@@ -44,6 +44,26 @@ public:
   ErrorDiffusionDitherer(const ErrorDiffusionDitherer&) = delete;
   ErrorDiffusionDitherer& operator=(const ErrorDiffusionDitherer&) = delete;
   std::string_view name() const override { return "error-diffusion"; }
+  bool readsNextLayer() const override { return true; }  // its last layer's error goes to layer k1
+
+  // Workers of the wavefront in an arena of `concurrency` threads: layers form a chain, and more than
+  // kMaxWorkers would only wait on each other.
+  static constexpr int kMaxWorkers = 4;
+  static int workersFor(int concurrency) { return concurrency < 1 ? 1 : concurrency > kMaxWorkers ? kMaxWorkers : concurrency; }
+  // Layer slots of the wavefront: one per worker and kSpareSlots more (see BandDiffusion::prepare).
+  static constexpr int kSpareSlots = 3;
+
+  // What a band holds besides its grids, all of it counted from the types (error_diffusion.cpp):
+  //  - the layer slots in use, min(workers + kSpareSlots, band layers + 1), each kSlotBytesPerVoxel a
+  //    voxel of the fullest layer; kept from band to band (their capacity is the point);
+  //  - the error carried to the next band, a Carry (12 bytes) per voxel of the last layer, up to twice
+  //    that after vector growth; kept;
+  //  - each worker's Vero masks, one LeafMask (64 bytes) per leaf of the band, and the band's leaf lists
+  //    (kListBytesPerLeaf), freed after the band.
+  // Measured against the heap it keeps between bands (tests/test_materials_error_diffusion.cpp) and
+  // against resident memory: 360 bytes a voxel of a full 2000 x 1000 layer at 2 workers in 8-layer bands
+  // (5 slots: this count gives 434).
+  double workingBytes(const DitherBand& band, int concurrency) const override;
   void reset() override {
     started_ = false;
     carry_.clear();

@@ -4,6 +4,7 @@
 #include "printer_profiles/job_writer.hpp"
 #include "materials/fraction_map.hpp"
 #include "common/interrupt.hpp"
+#include "common/memory_budget.hpp"
 #include "voxel/printer_grid.hpp"
 
 #include <algorithm>
@@ -101,15 +102,16 @@ CouponLayout planCouponLayout(const printer_profiles::Profile& profile, std::siz
   return l;
 }
 
-std::uint64_t couponJobBytes(const CouponLayout& layout, int bandLayers) {
+std::uint64_t couponJobBytes(const CouponLayout& layout, const printer_profiles::Profile& profile, int contactSheetLayers,
+                             int bandLayers) {
   // Per voxel of a band, both bands in flight: fractions (float leaves), material (bool leaves). The
   // leaves hold whole 8-layer slabs, whatever the band's layers.
   constexpr double kBandBytes = 5.0;
   const int heldLayers = (bandLayers + kLeafLayers - 1) / kLeafLayers * kLeafLayers;
   const openvdb::Coord d = layout.bounds.dim();
   const double bands = kBandBytes * (heldLayers + 1.0) * double(d.x()) * double(d.y());
-  const double bytes = double(jobWriterBytes(layout.bounds)) + bands;
-  return bytes > 1.8e19 ? std::uint64_t(1.8e19) : static_cast<std::uint64_t>(bytes);
+  const double bytes = double(jobWriterBytes(profile, layout.bounds, contactSheetLayers)) + bands;
+  return common::saturatedBytes(bytes);
 }
 
 BandSource couponBands(const CouponLayout& layout, const std::vector<double>& fractions,

@@ -48,11 +48,14 @@ CouponVoxels couponVoxels(const printer_profiles::Profile& profile, const std::a
 // row; planJob(profile, layout.bounds) then names the overhang.
 CouponLayout planCouponLayout(const printer_profiles::Profile& profile, std::size_t count, const CouponVoxels& sizes);
 
-// Bytes a coupon job of `layout` needs with `bandLayers` per band: the writer's previews (front, side
-// and top views of the whole part), its per-layer images, and two bands of fractions and material in
-// flight, each holding whole 8-layer slabs of leaves. Measured on three 400 x 40 mm bars at 8 layers a
-// band (peak resident: 1.28 GB at 1.5 mm tall, 1.8 GB at 150 mm; the estimate: 1.29 and 1.85 GB).
-std::uint64_t couponJobBytes(const CouponLayout& layout, int bandLayers);
+// Bytes a coupon job of `layout` on `profile` needs with `bandLayers` per band: the writer's share
+// (jobWriterBytes: its previews, per-layer images and the process) and two bands of fractions and
+// material in flight, each holding whole 8-layer slabs of leaves. Measured on three 400 x 40 mm bars at
+// 8 layers a band (peak resident: 1.28 GB at 1.5 mm tall, 1.8 GB at 150 mm; the estimate, with the
+// writer's previews then a fixed 12.6 MB: 1.29 and 1.85 GB). Throws as jobWriterBytes does (a layout
+// that planJob refuses). Thread-safe (pure).
+std::uint64_t couponJobBytes(const CouponLayout& layout, const printer_profiles::Profile& profile, int contactSheetLayers,
+                             int bandLayers);
 
 // Layers [k0, k1) of every bar (and layer k1 when asked), each voxel at its bar's fraction
 // (`fractions[n]` for bar n), in the printer grid of `profile` with voxel (0,0,0) centred at `originMm`.
@@ -66,6 +69,10 @@ class BarCountingDitherer final : public materials::Ditherer {
 public:
   BarCountingDitherer(materials::Ditherer& inner, const CouponLayout& layout);
   std::string_view name() const override { return inner_.name(); }
+  bool readsNextLayer() const override { return inner_.readsNextLayer(); }
+  double workingBytes(const materials::DitherBand& band, int concurrency) const override {
+    return inner_.workingBytes(band, concurrency);
+  }
   void reset() override;
   const std::vector<std::uint64_t>& vero() const { return vero_; }
   const std::vector<std::uint64_t>& voxels() const { return voxels_; }

@@ -1,5 +1,6 @@
 #include "slicer/dither_report.hpp"
 
+#include "common/memory_budget.hpp"
 #include "common/stopwatch.hpp"
 #include "materials/materials.hpp"
 
@@ -60,7 +61,7 @@ std::uint64_t ditherReportBytes(const DitherReportRequest& r, const openvdb::Vec
   const double blockVoxels = double(r.block.x()) * r.block.y() * r.block.z();
   const double rodBox = (r.diameterMm / v.x() + 2) * (r.diameterMm / v.y() + 2) * (r.lengthMm / v.z() + 2);
   const double bytes = 4.2 * (blockVoxels * double(r.fractions.size()) + rodBox) + 56.0 * std::max(blockVoxels, rodBox);
-  return bytes > 1.8e19 ? std::uint64_t(1.8e19) : static_cast<std::uint64_t>(bytes);
+  return common::saturatedBytes(bytes);
 }
 
 void printDitherReport(const DitherReportRequest& r, const openvdb::Vec3d& voxelMm, const materials::DitherOptions& ditherOptions) {

@@ -30,7 +30,7 @@ struct DitherReportRequest {
 
 // Memory (bytes) for the report at voxel size `voxelMm`: the regions (sparse float grids, ~4.2 bytes a
 // voxel, all held at once) and the measurement of the largest of them (dense arrays over its box, ~56
-// bytes a voxel: materials/dither_quality.cpp), saturated at 1.8e19.
+// bytes a voxel: materials/dither_quality.cpp), saturated (common::saturatedBytes).
 std::uint64_t ditherReportBytes(const DitherReportRequest& request, const openvdb::Vec3d& voxelMm);
 
 // Makes the blocks and the rod at `voxelMm`, dithers each with every method (`options` give the seed

@@ -1,6 +1,7 @@
 #include "slicer/job_pipeline.hpp"
 
 #include "common/interrupt.hpp"
+#include "common/memory_budget.hpp"
 #include "common/stopwatch.hpp"
 
 #include <tbb/parallel_pipeline.h>
@@ -71,11 +72,13 @@ int bandEnd(int k0, int bandLayers) {
 
 }  // namespace
 
-std::uint64_t jobWriterBytes(const openvdb::CoordBBox& partBounds) {
-  constexpr double kRuntimeBytes = 96.0 * (1 << 20), kPreviewBytes = 9.0 * 1400.0 * 1000.0, kLayerImageBytes = 30.0;
-  const double pixels = double(partBounds.dim().x()) * double(partBounds.dim().y());
-  const double bytes = kRuntimeBytes + kPreviewBytes + kLayerImageBytes * pixels;
-  return bytes > 1.8e19 ? std::uint64_t(1.8e19) : static_cast<std::uint64_t>(bytes);
+std::uint64_t jobWriterBytes(const printer_profiles::Profile& profile, const openvdb::CoordBBox& partBounds,
+                             int contactSheetLayers) {
+  constexpr double kRuntimeBytes = 96.0 * (1 << 20), kLayerImageBytes = 30.0;
+  const printer_profiles::JobGeometry geometry = printer_profiles::planJob(profile, partBounds);
+  const double pixels = double(geometry.width) * double(geometry.height);
+  return common::saturatedBytes(kRuntimeBytes + kLayerImageBytes * pixels +
+                                double(printer_profiles::previewMemoryBytes(geometry, profile, contactSheetLayers)));
 }
 
 printer_profiles::JobResult streamJob(printer_profiles::JobSpec spec, const BandSource& source,
@@ -84,7 +87,7 @@ printer_profiles::JobResult streamJob(printer_profiles::JobSpec spec, const Band
   if (options.bandLayers < 1) throw std::invalid_argument("band size must be at least one layer");
   const openvdb::CoordBBox part = spec.partBounds;
   if (part.empty()) throw std::invalid_argument("the part has no layers to print");
-  const bool readsNextLayer = ditherer.name() == "error-diffusion";
+  const bool readsNextLayer = ditherer.readsNextLayer();
   const int kFirst = part.min().z(), kLast = part.max().z(), layers = kLast - kFirst + 1;
 
   const auto start = Clock::now();

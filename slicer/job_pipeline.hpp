@@ -47,12 +47,16 @@ inline constexpr int kLeafLayers = 8;
 // estimates of the jobs it writes count this many (sliceMemoryBytes, couponJobBytes).
 inline constexpr int kBandsInFlight = 2;
 
-// Bytes the job writer holds for a part of `partBounds` besides the bands' grids: its layer images and
-// encoders (~30 bytes per pixel of a layer, measured) and the previews' views (9 bytes a cell on a
-// canvas of about 1400 x 1000 pixels: printer_profiles/previews' View and projectionLayout), plus 96 MiB
-// for the process itself (libraries, thread stacks, the allocator's arenas: `rodfab slice` of a 2,448-voxel
-// design peaks at 85 MB resident).
-std::uint64_t jobWriterBytes(const openvdb::CoordBBox& partBounds);
+// Bytes the job writer holds for a job of `profile` and `partBounds` with `contactSheetLayers`
+// (JobOptions) besides the bands' grids: its layer images and encoders (~30 bytes per pixel of a layer
+// image, measured), the previews' views and contact tiles (printer_profiles::previewMemoryBytes, worked
+// out from the job's geometry), plus 96 MiB for the process itself (libraries, thread stacks, the
+// allocator's arenas: `rodfab slice` of a 2,448-voxel design peaks at 85 MB resident). The fixed share a
+// job needs however small its part: ~102 MB on the Connex3. Throws printer_profiles::TrayFitError for
+// a part the tray cannot hold and std::invalid_argument for an empty one (printer_profiles::planJob).
+// Thread-safe (pure).
+std::uint64_t jobWriterBytes(const printer_profiles::Profile& profile, const openvdb::CoordBBox& partBounds,
+                             int contactSheetLayers);
 
 struct PipelineOptions {
   // Layers per band. A multiple of kLeafLayers makes the bands end on slab boundaries (the first band

@@ -7,11 +7,13 @@
 #include "voxel/diagnostics.hpp"
 #include "voxel/tree_assembly.hpp"
 
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <memory>
-#include <thread>
+#include <vector>
 
 namespace rodfab::slicer {
 
@@ -38,49 +40,86 @@ printer_profiles::JobReportHook reportHook(const SliceReport& report, const cali
   };
 }
 
-// Refuses a slice whose estimate exceeds the memory budget, naming the design and what to change.
-// Returns the estimate.
-std::uint64_t requireSliceMemory(const geometry::RodStructure& design, const voxel::PrinterGrid& grid, int bandLayers,
-                                 std::string_view ditherer, std::size_t pieces, const SliceSettings& settings) {
-  const std::string name = settings.designFile.empty() ? "the design" : settings.designFile;
-  const std::uint64_t bytes = sliceMemoryBytes(design, grid, bandLayers, ditherer, settings.threads, pieces);
-  common::requireMemory(bytes,
-                        "slicing " + name + " (" + std::to_string(design.rods.size()) + " rod(s)) in bands of " +
-                            std::to_string(bandLayers) + " layers",
-                        bandLayers > kLeafLayers ? "use fewer --band-layers (" + std::to_string(kLeafLayers) +
-                                                       " at least), or raise --max-memory if the machine has more"
-                                                 : "slice a smaller design, or raise --max-memory if the machine has more");
-  return bytes;
+// The band sizes an automatic choice of `automatic` layers falls back to when its estimate exceeds the
+// budget, largest first: whole leaf slabs down to one (a band's grids hold whole slabs, so these shrink
+// the bands' trees), then 4, 2 and 1 layers (as many slabs of leaves as a band of 8, but fewer of error
+// diffusion's layer slots: on a full 2000 x 1000 layer, 2 slots instead of 5 are 490 MB less).
+std::vector<int> smallerBands(int automatic) {
+  std::vector<int> bands;
+  for (int layers = (automatic - 1) / kLeafLayers * kLeafLayers; layers >= kLeafLayers; layers -= kLeafLayers) bands.push_back(layers);
+  for (int layers : {4, 2, 1})
+    if (layers < automatic) bands.push_back(layers);
+  return bands;
 }
 
-// Error diffusion's buffers (materials/error_diffusion.cpp): a slot per layer in progress, min(threads, 4)
-// + 3 of them but no more than the band's layers and the next, each ~36 bytes per active voxel of the
-// layer (coordinates, fraction, threshold, links, neighbours, error) with vector growth's slack up to
-// twice that. Measured: 360 bytes per voxel of a full 2000 x 1000 layer at 2 threads in 8-layer bands.
-double errorDiffusionBytes(const voxel::RasterEstimate& raster, int bandLayers, int threads) {
-  constexpr double kSlotBytesPerVoxel = 80.0;
-  const int workers = std::clamp(threads > 0 ? threads : int(std::thread::hardware_concurrency()), 1, 4);
-  const int slots = std::min(workers + 3, bandLayers + 1);
-  return slots * kSlotBytesPerVoxel * raster.layerVoxels;
+struct SliceMemoryPlan {
+  int bandLayers = 0;
+  std::uint64_t bytes = 0;
+};
+
+// The band size and its estimate (sliceMemoryBytes) for a slice within the memory budget: the
+// caller's band size, or the automatic one, or with an automatic choice over the budget, the largest
+// of smallerBands that fits. Refuses (common::OutOfMemory) with what to change: more memory when the
+// writer's fixed share alone is over the budget, fewer --band-layers for a band size given, a smaller
+// design when no band size fits.
+SliceMemoryPlan planSliceMemory(const geometry::RodStructure& design, const printer_profiles::Profile& profile,
+                                const voxel::PrinterGrid& grid, const materials::Ditherer& ditherer, std::size_t pieces,
+                                const SliceSettings& settings) {
+  const std::string name = settings.designFile.empty() ? "the design" : settings.designFile;
+  const openvdb::CoordBBox part = designVoxelBounds(design, grid);
+  const std::uint64_t writer = jobWriterBytes(profile, part, settings.job.contactSheetLayers);
+  common::requireMemory(writer,
+                        "writing any job for the " + profile.printer +
+                            " (layer images, previews and the process itself, however small the part)",
+                        "no band size or design makes that smaller: raise --max-memory to at least " +
+                            common::formatBytes(((writer >> 20) + 1) << 20));
+  // The stages run in arenas of the calling thread's concurrency (streamJob), the ditherer's included.
+  const int concurrency = tbb::this_task_arena::max_concurrency();
+  const auto estimate = [&](int bandLayers) {
+    return SliceMemoryPlan{bandLayers, sliceMemoryBytes(design, grid, bandLayers, ditherer, concurrency, writer, pieces)};
+  };
+  SliceMemoryPlan plan = estimate(settings.bandLayers > 0 ? settings.bandLayers : automaticBandLayers(part));
+  const std::string what = "slicing " + name + " (" + std::to_string(design.rods.size()) + " rod(s)) in bands of ";
+  if (settings.bandLayers > 0) {
+    common::requireMemory(plan.bytes, what + std::to_string(plan.bandLayers) + " layers",
+                          plan.bandLayers > kLeafLayers ? "use fewer --band-layers (" + std::to_string(kLeafLayers) +
+                                                              " at least), or raise --max-memory if the machine has more"
+                                                        : "slice a smaller design, or raise --max-memory if the machine has more");
+    return plan;
+  }
+  const std::vector<int> fallbacks = smallerBands(plan.bandLayers);
+  SliceMemoryPlan least = plan;
+  for (std::size_t n = 0; plan.bytes > common::memoryBudget() && n < fallbacks.size(); ++n) {
+    plan = estimate(fallbacks[n]);
+    if (plan.bytes < least.bytes) least = plan;
+  }
+  if (plan.bytes <= common::memoryBudget()) return plan;
+  common::requireMemory(least.bytes, what + std::to_string(least.bandLayers) + " layers (the least of the band sizes tried)",
+                        "slice a smaller design, or raise --max-memory if the machine has more");
+  return least;
 }
 
 }  // namespace
 
 std::uint64_t sliceMemoryBytes(const geometry::RodStructure& design, const voxel::PrinterGrid& grid, int bandLayers,
-                               std::string_view ditherer, int threads, std::optional<std::size_t> pieces) {
+                               const materials::Ditherer& ditherer, int concurrency, std::uint64_t writerBytes,
+                               std::optional<std::size_t> pieces) {
   voxel::RasterEstimate raster = voxel::estimateRaster(design, grid, bandLayers);
   if (pieces) raster.pieceBytes = double(*pieces) * voxel::RasterEstimate::bytesPerPiece();
   // The dithered bands' material (bool) trees: the bands in flight and the ditherer's recycler's kept
   // ones, on the band's leaves (a bool leaf: two 64-byte masks and its origin, plus the allocator's header).
   constexpr double kMaterialTrees = kBandsInFlight + double(voxel::TreeRecycler<openvdb::BoolTree>::kKeptTrees);
+  // The recyclers' kept trees are counted at their default (RasterEstimate::bandTreesHeld); the
+  // fractions' recycler keeps kBandsInFlight, the rasterizer's and the ditherer's the default.
+  static_assert(std::size_t{kBandsInFlight} == voxel::TreeRecycler<openvdb::FloatTree>::kKeptTrees,
+                "the recyclers keep as many trees as there are bands in flight: the estimate counts them so");
   const double materialBytes = kMaterialTrees * raster.bandLeaves * (double(sizeof(openvdb::BoolTree::LeafNodeType)) + 16.0);
   // Explicit support's column tops: an int per column of the part.
   const openvdb::Coord part = designVoxelBounds(design, grid).dim();
   const double supportBytes = 4.0 * double(part.x()) * double(part.y());
-  const double ditherBytes = ditherer == "error-diffusion" ? errorDiffusionBytes(raster, bandLayers, threads) : 0.0;
-  const double bytes = raster.peakBytes(kBandsInFlight) + materialBytes + supportBytes + ditherBytes +
-                       double(jobWriterBytes(designVoxelBounds(design, grid)));
-  return bytes >= 1.8e19 || !std::isfinite(bytes) ? UINT64_MAX : static_cast<std::uint64_t>(bytes);
+  const double ditherBytes = ditherer.workingBytes({raster.layerVoxels, raster.bandLeaves, bandLayers}, concurrency);
+  return common::saturatedBytes(raster.peakBytes(kBandsInFlight) + materialBytes + supportBytes + ditherBytes +
+                                double(writerBytes));
 }
 
 openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const voxel::PrinterGrid& grid) {
@@ -107,13 +146,14 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   const voxel::PrinterGrid grid =
       voxel::makePrinterGrid(design, profile.voxelSize());
   const openvdb::CoordBBox partBounds = designVoxelBounds(design, grid);
-  const int bandLayers = settings.bandLayers > 0 ? settings.bandLayers : automaticBandLayers(partBounds);
   for (const voxel::ThinRod& thin : voxel::findThinRods(design, grid)) report.warnings.push_back(thin.reason);
   // The pieces are bounded by the rods' budgets (rod_pieces.hpp); the bands are checked against the
   // budget with the pieces' real count, which is often a tenth of the budgets' bound.
   const voxel::Rasterizer rasterizer(design, grid, {settings.threads, common::interruptRequested});
+  const SliceMemoryPlan memory = planSliceMemory(design, profile, grid, ditherer, rasterizer.pieceCount(), settings);
+  const int bandLayers = memory.bandLayers;
   report.bandLayers = bandLayers;
-  report.memoryEstimateBytes = requireSliceMemory(design, grid, bandLayers, ditherer.name(), rasterizer.pieceCount(), settings);
+  report.memoryEstimateBytes = memory.bytes;
   const materials::FractionMap fractionMap(calibration);
   report.floorMpa = fractionMap.floorMpa();
   report.floorFraction = fractionMap.floorFraction();
@@ -149,7 +189,7 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   spec.options.report = reportHook(report, calibration, clampMap, spec.options.verify);
   // The bands' fraction trees come back here once the pipeline is done with them, and later bands are
   // built from their nodes (the rasterizer recycles its own trees the same way).
-  voxel::TreeRecycler<openvdb::FloatTree> fractionTrees(0.0f);
+  voxel::TreeRecycler<openvdb::FloatTree> fractionTrees(0.0f, std::size_t{kBandsInFlight});
   const BandSource source = [&](int k0, int k1, bool withNextLayer) {
     const voxel::Rasterization ras = rasterizer.rasterizeLayers(k0, k1 + (withNextLayer ? 1 : 0));
     const std::uint64_t clampedBefore = report.mapping.clamps.total();

@@ -29,7 +29,7 @@ struct SliceSettings {
   std::string calibrationWarning;
   std::uint64_t seed = 0;  // the ditherer's, recorded in the manifest
   int threads = 0;         // rasterizer workers (0 = all); callers limit TBB as a whole with global_control
-  int bandLayers = 0;       // layers per band; 0: automatic (see automaticBandLayers)
+  int bandLayers = 0;       // layers per band; 0: automatic (automaticBandLayers, fewer to fit the budget)
   printer_profiles::JobOptions job;
   // After every band: (layers done, layers in the part). May throw to abort; nothing is left behind.
   std::function<void(int, int)> onBand;
@@ -39,7 +39,8 @@ struct SliceReport {
   printer_profiles::JobResult job;
   materials::MappingStats mapping;          // model voxels and clamped moduli
   std::vector<std::uint64_t> voxelsPerRod;  // voxels each rod won
-  int bandLayers = 0;                       // layers per band, as chosen
+  int bandLayers = 0;                       // layers per band, as chosen (fewer than asked for when the
+                                            // automatic size did not fit the memory budget)
   std::uint64_t memoryEstimateBytes = 0;    // sliceMemoryBytes, checked against the memory budget
   double prepareSeconds = 0.0;              // printer grid, rod pieces, fraction table
   double supportSeconds = 0.0;              // the column-top pre-pass of explicit support
@@ -61,15 +62,25 @@ int automaticBandLayers(const openvdb::CoordBBox& partBounds);
 // from the design alone (no band allocated): the rasterizer's pieces (`pieces` of them once built; the
 // rods' piece budgets before) and band trees with kBandsInFlight bands in flight
 // (voxel::RasterEstimate::peakBytes), the dithered material trees of those bands and of their recycler,
-// `ditherer`'s own buffers (error diffusion's layer slots, by `threads`, 0: all), explicit support's
-// column tops and the job writer (jobWriterBytes). An upper estimate: resident peaks measured on the
-// benchmark classes and bundled examples are 1.4 to 7 times below it (bench/README.md, "Memory of slice").
+// `ditherer`'s own buffers (materials::Ditherer::workingBytes in an arena of `concurrency` threads: the
+// tbb::this_task_arena::max_concurrency() streamJob will run in, which a tbb::global_control
+// (--threads) does not lower: the figure follows the machine's cores), explicit support's column tops
+// and `writerBytes` (the job writer's share, jobWriterBytes). An upper estimate: resident peaks measured on the benchmark
+// classes and bundled examples are 1.4 to 7 times below it (bench/README.md, "Memory of slice").
+// Saturates (common::saturatedBytes) rather than overflows; throws nothing else. Thread-safe (reads
+// its arguments only; `ditherer` through its const workingBytes).
 std::uint64_t sliceMemoryBytes(const geometry::RodStructure& design, const voxel::PrinterGrid& grid, int bandLayers,
-                               std::string_view ditherer, int threads, std::optional<std::size_t> pieces = std::nullopt);
+                               const materials::Ditherer& ditherer, int concurrency, std::uint64_t writerBytes,
+                               std::optional<std::size_t> pieces = std::nullopt);
 
-// Throws common::OutOfMemory, once the rods' pieces are built and before any band is, when
-// sliceMemoryBytes exceeds the memory budget (common/memory_budget.hpp); TrayFitError for a design the tray cannot hold, std::runtime_error for an output that
-// exists (without force) or cannot be written; whatever `onBand` throws passes through.
+// Throws common::OutOfMemory, once the rods' pieces are built and before any band is, when the slice
+// does not fit the memory budget (common/memory_budget.hpp): when the job writer's fixed share
+// (jobWriterBytes) alone exceeds it (the message asks for more memory, as no band size helps), or when
+// sliceMemoryBytes does for the band size given (settings.bandLayers), or, with an automatic band size,
+// for every band size tried: the automatic one, then fewer whole 8-layer slabs, then 4, 2 and 1 layers;
+// the first that fits is used (SliceReport::bandLayers). TrayFitError for a design the tray cannot
+// hold, std::runtime_error for an output that exists (without force) or cannot be written; whatever
+// `onBand` throws passes through.
 SliceReport sliceDesign(const geometry::RodStructure& design, const printer_profiles::Profile& profile,
                         const calibration::Calibration& calibration, materials::Ditherer& ditherer,
                         const SliceSettings& settings);

@@ -1,7 +1,8 @@
-// common/: SHA-256 against the FIPS 180-2 test vectors, XXH3-128 against xxhsum -H2 (in one piece and through FileHasher), the data folder's search order and errors.
+// common/: saturatedBytes at the ends of the range, SHA-256 against the FIPS 180-2 test vectors, XXH3-128 against xxhsum -H2 (in one piece and through FileHasher), the data folder's search order and errors.
 #include "common/data_dir.hpp"
 #include "common/file_hasher.hpp"
 #include "common/located_issues.hpp"
+#include "common/memory_budget.hpp"
 #include "common/sha256.hpp"
 #include "common/xxh128.hpp"
 
@@ -9,9 +10,12 @@
 
 #include <unistd.h>
 
+#include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <span>
 #include <string>
 #include <vector>
@@ -116,4 +120,23 @@ TEST_CASE("located issues: one line each, FILE: PATH: MESSAGE, the path left out
   CHECK(rodfab::common::formatLocatedIssues("d.json", std::vector<Issue>{{"", "cannot open"}}) == "d.json: cannot open");
   CHECK(rodfab::common::formatLocatedIssues("d.json", std::vector<Issue>{{"rods[0].name", "missing"}, {"units", "expected \"mm\""}}) ==
         "d.json: rods[0].name: missing\nd.json: units: expected \"mm\"");
+}
+
+TEST_CASE("memory budget: saturatedBytes: NaN, infinity and 2^64 or more are UINT64_MAX, negatives 0, the rest rounded down") {
+  constexpr double kTwoTo64 = 18446744073709551616.0;
+  const double inf = std::numeric_limits<double>::infinity();
+  CHECK(saturatedBytes(std::nan("")) == UINT64_MAX);
+  CHECK(saturatedBytes(inf) == UINT64_MAX);
+  CHECK(saturatedBytes(kTwoTo64) == UINT64_MAX);
+  CHECK(saturatedBytes(1e300) == UINT64_MAX);
+  CHECK(saturatedBytes(-inf) == 0);
+  CHECK(saturatedBytes(-1.0) == 0);
+  CHECK(saturatedBytes(-0.0) == 0);
+  CHECK(saturatedBytes(0.0) == 0);
+  CHECK(saturatedBytes(0.999) == 0);
+  CHECK(saturatedBytes(1536.7) == 1536);
+  // The largest double below 2^64 is 2^64 - 2048: it still counts, exactly.
+  const double below = std::nextafter(kTwoTo64, 0.0);
+  CHECK(saturatedBytes(below) == UINT64_MAX - 2047);
+  CHECK(saturatedBytes(1.8e19) == std::uint64_t{18000000000000000000u});  // the old, lower, cap is an ordinary value now
 }

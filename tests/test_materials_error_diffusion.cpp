@@ -1,5 +1,6 @@
 // materials/: the "error-diffusion" ditherer against a plain single sweep written from its definition
-// (error_diffusion.hpp), voxel for voxel, on irregular parts, for 1, 2 and 4 workers and in bands.
+// (error_diffusion.hpp), voxel for voxel, on irregular parts, for 1, 2 and 4 workers and in bands; its
+// workingBytes against the heap it holds while dithering and keeps between bands.
 #include "materials/counter_hash.hpp"
 #include "materials/error_diffusion.hpp"
 #include "materials/materials.hpp"
@@ -8,8 +9,13 @@
 
 #include <tbb/task_arena.h>
 
+#include <malloc.h>
+
+#include <algorithm>
 #include <array>
+#include <atomic>
 #include <cstdint>
+#include <memory>
 #include <random>
 #include <vector>
 
@@ -154,4 +160,83 @@ TEST_CASE("materials: error diffusion of a single row and of isolated voxels", "
   CHECK(material.getValue(openvdb::Coord(10, 10, 3)));   // 0.7 alone: above any threshold
   CHECK_FALSE(material.getValue(openvdb::Coord(-30, 4, 9)));  // 0.2 alone: below any
   CHECK(material.getValue(openvdb::Coord(12, 10, 3)));
+}
+
+namespace {
+
+// Bytes the allocator holds for the program now (every arena, plus the blocks it mapped directly).
+std::uint64_t heapBytesInUse() {
+  const struct mallinfo2 m = mallinfo2();
+  return std::uint64_t(m.uordblks) + std::uint64_t(m.hblkhd);
+}
+
+}  // namespace
+
+TEST_CASE("materials: error diffusion's workingBytes bounds the heap it holds while dithering and keeps between bands",
+          "[materials][dither][memory]") {
+#if defined(__SANITIZE_ADDRESS__)
+  WARN("AddressSanitizer keeps its own heap: mallinfo2 does not see it, nothing to measure");
+  return;
+#endif
+  // The truth is glibc's count of the bytes in use: sampled from the workers before every layer (the
+  // ditherer's interrupt hook) against the heap before the band, less the band's output grid; and what
+  // is left once the ditherer is gone (its slots and carried error), every output still held.
+  const openvdb::CoordBBox box(openvdb::Coord(0), openvdb::Coord(383, 191, 39));  // 384 x 192 voxels a layer
+  auto fraction = openvdb::FloatGrid::create(0.0f);
+  fraction->setName(kFractionGridName);
+  fraction->tree().denseFill(box, 0.37f, true);
+  fraction->tree().voxelizeActiveTiles();
+  constexpr int kBandLayers = 8;
+  const double layerVoxels = 384.0 * 192.0;
+  const double bandLeaves = 48.0 * 24.0 * 2.0;  // a band's leaves and the next layer's: two slabs
+  for (const int concurrency : {1, 2, 4}) {
+    INFO("arena of " << concurrency);
+    tbb::task_arena arena(concurrency);
+    arena.execute([&] {
+      std::atomic<std::uint64_t> peak{0};
+      const auto sample = [&] {
+        const std::uint64_t now = heapBytesInUse();
+        for (std::uint64_t seen = peak.load(); now > seen && !peak.compare_exchange_weak(seen, now);) {
+        }
+      };
+      std::vector<openvdb::BoolGrid::Ptr> outputs;  // held: no output tree goes back to the recycler
+      const std::uint64_t before = heapBytesInUse();
+      auto ditherer = std::make_unique<ErrorDiffusionDitherer>(7, sample);
+      const double bound = ditherer->workingBytes({layerVoxels, bandLeaves, kBandLayers}, tbb::this_task_arena::max_concurrency());
+      double mostDuring = 0.0;
+      for (int k0 = 0; k0 < 40; k0 += kBandLayers) {
+        const std::uint64_t start = heapBytesInUse();
+        peak = start;
+        outputs.push_back(ditherer->ditherLayers(*fraction, k0, k0 + kBandLayers));
+        const double output = 1.2 * double(outputs.back()->memUsage());  // its leaves, nodes and their headers
+        mostDuring = std::max(mostDuring, double(peak.load()) - double(start) - output);
+      }
+      const std::uint64_t withDitherer = heapBytesInUse();
+      ditherer.reset();
+      const double kept = double(withDitherer) - double(heapBytesInUse());
+      CAPTURE(before, bound, mostDuring, kept);
+      REQUIRE(kept > 0.3 * bound);  // the slots are there, and make up most of the bound
+      REQUIRE(bound >= kept);
+      REQUIRE(bound >= mostDuring);
+    });
+  }
+}
+
+TEST_CASE("materials: what each ditherer says of itself: the next layer, and working bytes from its buffers", "[materials][dither][memory]") {
+  const DitherBand band{1e6, 5e4, 8};
+  const auto ed = makeDitherer("error-diffusion");
+  CHECK(ed->readsNextLayer());
+  // 5 slots (2 workers + 3) of 82 bytes a voxel, the carried error, two workers' masks and the lists.
+  CHECK(ed->workingBytes(band, 2) == Approx(5 * 82e6 + 24e6 + 5e4 * (2 * 64 + 40)));
+  CHECK(ed->workingBytes(band, 64) == ed->workingBytes(band, 4));  // at most 4 workers
+  CHECK(ed->workingBytes(band, 0) == ed->workingBytes(band, 1));
+  CHECK(ed->workingBytes({1e6, 5e4, 1}, 4) == Approx(2 * 82e6 + 24e6 + 5e4 * (4 * 64 + 40)));  // a 1-layer band: 2 slots
+  for (const char* pointwise : {"white", "blue"}) {
+    INFO(pointwise);
+    const auto d = makeDitherer(pointwise);
+    CHECK_FALSE(d->readsNextLayer());
+    CHECK(d->workingBytes(band, 4) == d->workingBytes(band, 1));  // nothing per worker
+    CHECK(d->workingBytes(band, 4) >= 16 * 5e4);
+    CHECK(d->workingBytes(band, 4) < 2e6);
+  }
 }

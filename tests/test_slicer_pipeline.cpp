@@ -13,11 +13,15 @@
 #include "slicer/coupon_layout.hpp"
 #include "slicer/job_pipeline.hpp"
 #include "slicer/slice_design.hpp"
+#include "voxel/diagnostics.hpp"
 #include "voxel/printer_grid.hpp"
+#include "voxel/rasterize.hpp"
 
 #include <catch2/catch.hpp>
 #include <tbb/global_control.h>
+#include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -100,6 +104,18 @@ struct SoftDataLimit {
   }
   ~SoftDataLimit() { ::setrlimit(RLIMIT_DATA, &saved); }
 };
+
+// The message of the common::OutOfMemory sliceDesign refuses `design` with (the test fails if it does not).
+std::string memoryRefusal(const geometry::RodStructure& design, const calibration::Calibration& cal, materials::Ditherer& ditherer,
+                          const slicer::SliceSettings& settings) {
+  try {
+    slicer::sliceDesign(design, connex3(), cal, ditherer, settings);
+  } catch (const common::OutOfMemory& e) {
+    return e.what();
+  }
+  FAIL("expected OutOfMemory");
+  return {};
+}
 
 }  // namespace
 
@@ -361,21 +377,16 @@ TEST_CASE("sliceDesign refuses a slice over the memory budget before any band, w
   const voxel::PrinterGrid grid = voxel::makePrinterGrid(design, connex3().voxelSize());
   const SoftDataLimit limit(std::uint64_t{2} << 30);  // the torture suite's address-space cap
   REQUIRE(common::memoryBudget() <= (std::uint64_t{2} << 30));
-  REQUIRE(slicer::sliceMemoryBytes(design, grid, 64, "white", 0) > common::memoryBudget());
+  const auto ditherer = materials::makeDitherer("white", {});
+  const std::uint64_t writer = slicer::jobWriterBytes(connex3(), slicer::designVoxelBounds(design, grid), 16);
+  REQUIRE(slicer::sliceMemoryBytes(design, grid, 64, *ditherer, 1, writer) > common::memoryBudget());
   const calibration::Calibration cal = calibration::loadDefaultCalibration();
   slicer::SliceSettings settings;
   settings.designFile = "plate.json";
   settings.bandLayers = 64;
   settings.job.output = tmp.path / "plate.zip";
-  const auto ditherer = materials::makeDitherer("white", {});
-  try {
-    slicer::sliceDesign(design, connex3(), cal, *ditherer, settings);
-    FAIL("expected OutOfMemory");
-  } catch (const common::OutOfMemory& e) {
-    const std::string message = e.what();
-    CHECK_THAT(message, Catch::Contains("plate.json") && Catch::Contains("bands of 64 layers") &&
-                            Catch::Contains("--band-layers") && Catch::Contains("--max-memory"));
-  }
+  CHECK_THAT(memoryRefusal(design, cal, *ditherer, settings), Catch::Contains("plate.json") && Catch::Contains("bands of 64 layers") &&
+                                                                 Catch::Contains("--band-layers") && Catch::Contains("--max-memory"));
   CHECK(fs::is_empty(tmp.path));  // no job, nothing staged
 }
 
@@ -392,10 +403,145 @@ TEST_CASE("the memory check passes the bundled examples under a 2 GiB cap, with 
     const voxel::PrinterGrid grid = voxel::makePrinterGrid(design, connex3().voxelSize());
     const voxel::Rasterizer rasterizer(design, grid);
     const int automatic = slicer::automaticBandLayers(slicer::designVoxelBounds(design, grid));
-    for (const char* ditherer : {"white", "error-diffusion"}) {
+    const std::uint64_t writer = slicer::jobWriterBytes(connex3(), slicer::designVoxelBounds(design, grid), 16);
+    for (const char* name : {"white", "error-diffusion"}) {
+      const auto ditherer = materials::makeDitherer(name, {});
       for (int bandLayers : {1, 8, 64})
-        CHECK(slicer::sliceMemoryBytes(design, grid, bandLayers, ditherer, 2, rasterizer.pieceCount()) <= common::memoryBudget());
-      CHECK(double(slicer::sliceMemoryBytes(design, grid, automatic, ditherer, 2, rasterizer.pieceCount())) >= peakMb * 1e6);
+        CHECK(slicer::sliceMemoryBytes(design, grid, bandLayers, *ditherer, 2, writer, rasterizer.pieceCount()) <= common::memoryBudget());
+      CHECK(double(slicer::sliceMemoryBytes(design, grid, automatic, *ditherer, 2, writer, rasterizer.pieceCount())) >= peakMb * 1e6);
     }
+  }
+}
+
+namespace {
+
+// A box of `sizeMm` (x, y, z) from the origin, as one straight rod of rectangular section along x.
+geometry::RodStructure blockDesign(const std::string& name, double x, double y, double z) {
+  const geometry::NurbsCurve axis(1, {0, 0, 1, 1}, {{0, y / 2, z / 2}, {x, y / 2, z / 2}});
+  return {name, {geometry::Rod(name, axis, geometry::Section::rectangle(y, z), geometry::Vec3(0, 1, 0), std::nullopt,
+                               geometry::CapStyle::Flat, geometry::BSplineField::constant(20, 0, 1))}};
+}
+
+}  // namespace
+
+TEST_CASE("sliceDesign with an automatic band size over the memory budget slices in the largest smaller band that fits, the same bytes",
+          "[memory]") {
+  openvdb::initialize();
+  TempDir tmp;
+  // A 10 x 10 x 10 mm block: 28 k voxels a layer, so 64 layers a band automatically.
+  const geometry::RodStructure design = blockDesign("block", 10.0, 10.0, 10.0);
+  const voxel::PrinterGrid grid = voxel::makePrinterGrid(design, connex3().voxelSize());
+  const openvdb::CoordBBox part = slicer::designVoxelBounds(design, grid);
+  const int automatic = slicer::automaticBandLayers(part);
+  REQUIRE(automatic == 64);
+  const auto ditherer = materials::makeDitherer("error-diffusion", {});
+  const calibration::Calibration cal = calibration::loadDefaultCalibration();
+  const voxel::Rasterizer rasterizer(design, grid);
+  const int concurrency = tbb::this_task_arena::max_concurrency();
+  const std::uint64_t writer = slicer::jobWriterBytes(connex3(), part, 16);
+  const auto estimate = [&](int bandLayers) {
+    return slicer::sliceMemoryBytes(design, grid, bandLayers, *ditherer, concurrency, writer, rasterizer.pieceCount());
+  };
+  REQUIRE(estimate(64) > estimate(32));
+  REQUIRE(estimate(32) > estimate(8));
+  // A budget between bands of 32 and of 40 layers: 40 and above are refused, 32 is the largest that fits.
+  const std::uint64_t budget = (estimate(32) + estimate(40)) / 2;
+  REQUIRE(estimate(40) > budget);
+  slicer::SliceSettings settings;
+  settings.designFile = "block.json";
+  fs::create_directories(tmp.path / "small");
+  fs::create_directories(tmp.path / "large");
+  settings.job.output = tmp.path / "small" / "block.zip";  // the same name: the manifest records it
+  slicer::SliceReport small;
+  {
+    const SoftDataLimit limit(budget / 4 * 5);  // the default budget is 80 % of it
+    REQUIRE(common::memoryBudget() < estimate(40));
+    REQUIRE(common::memoryBudget() >= estimate(32));
+    small = slicer::sliceDesign(design, connex3(), cal, *ditherer, settings);
+  }
+  CHECK(small.bandLayers == 32);
+  CHECK(small.memoryEstimateBytes == estimate(32));
+  REQUIRE(printer_profiles::inspectJob(small.job.path).ok());
+  // Without the limit: bands of 64, the same job.
+  settings.job.output = tmp.path / "large" / "block.zip";
+  const slicer::SliceReport large = slicer::sliceDesign(design, connex3(), cal, *ditherer, settings);
+  CHECK(large.bandLayers == 64);
+  CHECK(fileBytes(small.job.path) == fileBytes(large.job.path));
+}
+
+TEST_CASE("sliceDesign refuses when no band size fits the memory budget, naming the least estimate tried and not --band-layers", "[memory]") {
+  openvdb::initialize();
+  TempDir tmp;
+  // A 200 x 200 x 3 mm plate: 11 M voxels a layer; even a band of 1 layer holds a slab of its leaves.
+  const geometry::RodStructure design = blockDesign("plate", 200.0, 200.0, 3.0);
+  const SoftDataLimit limit(std::uint64_t{2} << 30);
+  const calibration::Calibration cal = calibration::loadDefaultCalibration();
+  slicer::SliceSettings settings;
+  settings.designFile = "plate.json";
+  settings.job.output = tmp.path / "plate.zip";
+  const auto ditherer = materials::makeDitherer("error-diffusion", {});
+  CHECK_THAT(memoryRefusal(design, cal, *ditherer, settings), Catch::Contains("plate.json") &&
+                                                                 Catch::Contains("the least of the band sizes tried") &&
+                                                                 Catch::Contains("--max-memory") && !Catch::Contains("--band-layers"));
+  CHECK(fs::is_empty(tmp.path));  // no job, nothing staged
+}
+
+TEST_CASE("sliceDesign refuses a memory budget below the job writer's fixed share, saying so, whatever the band size", "[memory]") {
+  openvdb::initialize();
+  TempDir tmp;
+  const geometry::RodStructure design = blockDesign("cube", 1.0, 1.0, 1.0);  // about 8,000 voxels
+  const voxel::PrinterGrid grid = voxel::makePrinterGrid(design, connex3().voxelSize());
+  const std::uint64_t writer = slicer::jobWriterBytes(connex3(), slicer::designVoxelBounds(design, grid), 16);
+  CHECK(writer > std::uint64_t{96} << 20);  // the process, the previews, however small the part
+  CHECK(writer < std::uint64_t{120} << 20);
+  const calibration::Calibration cal = calibration::loadDefaultCalibration();
+  const auto ditherer = materials::makeDitherer("white", {});
+  for (const int bandLayers : {0, 1}) {
+    INFO("band layers " << bandLayers);
+    slicer::SliceSettings settings;
+    settings.designFile = "cube.json";
+    settings.bandLayers = bandLayers;
+    settings.job.output = tmp.path / "cube.zip";
+    const SoftDataLimit limit(writer / 10 * 9 / 4 * 5);  // a budget of 90 % of the writer's share
+    REQUIRE(common::memoryBudget() < writer);
+    CHECK_THAT(memoryRefusal(design, cal, *ditherer, settings),
+               Catch::Contains("writing any job") && Catch::Contains("however small the part") &&
+                   Catch::Contains("raise --max-memory to at least " + common::formatBytes(((writer >> 20) + 1) << 20)) &&
+                   !Catch::Contains("--band-layers"));
+    CHECK(fs::is_empty(tmp.path));
+  }
+}
+
+TEST_CASE("the memory estimate of a level flat rod and a level round rod: layer voxels and band leaves above the grid's, within 3 times",
+          "[voxel][estimate][memory]") {
+  openvdb::initialize();
+  // Independent truth: the grids the rasterizer builds, counted. Bands of 8 layers as streamJob cuts
+  // them (slab-aligned, one layer past the band for error diffusion).
+  const geometry::NurbsCurve axis(1, {0, 0, 1, 1}, {{0, 2, 1}, {10, 2, 1}});
+  const auto level = [&](const char* name, geometry::Section section) {
+    return geometry::RodStructure{name, {geometry::Rod(name, axis, section, geometry::Vec3(0, 1, 0), std::nullopt,
+                                                       geometry::CapStyle::Flat, geometry::BSplineField::constant(20, 0, 1))}};
+  };
+  constexpr int kBandLayers = 8;
+  // 4 mm wide, 5 layers tall (its bounding radius would spread it over 130 layers); 10 layers round.
+  for (const geometry::RodStructure& design : {level("flat", geometry::Section::rectangle(4.0, 0.15)),
+                                               level("round", geometry::Section::circle(0.3))}) {
+    INFO(design.source);
+    const voxel::PrinterGrid grid = voxel::makePrinterGrid(design, connex3().voxelSize());
+    const voxel::Rasterizer rasterizer(design, grid);
+    const openvdb::FloatGrid::Ptr whole = rasterizer.rasterize().grid;
+    std::vector<double> perLayer(std::size_t(grid.dims.z()), 0.0);
+    for (auto v = whole->cbeginValueOn(); v; ++v) perLayer[std::size_t(v.getCoord().z())] += 1.0;
+    const double layerVoxels = *std::max_element(perLayer.begin(), perLayer.end());
+    double bandLeaves = 0.0;
+    for (int k0 = 0; k0 < grid.dims.z(); k0 += kBandLayers)
+      bandLeaves = std::max(bandLeaves, double(rasterizer.rasterizeLayers(k0, std::min(grid.dims.z(), k0 + kBandLayers + 1)).grid->tree().leafCount()));
+    const voxel::RasterEstimate e = voxel::estimateRaster(design, grid, kBandLayers);
+    CAPTURE(layerVoxels, e.layerVoxels, bandLeaves, e.bandLeaves);
+    REQUIRE(layerVoxels > 500);
+    CHECK(e.layerVoxels >= layerVoxels);
+    CHECK(e.layerVoxels <= 3.0 * layerVoxels);
+    CHECK(e.bandLeaves >= bandLeaves);
+    CHECK(e.bandLeaves <= 3.0 * bandLeaves);
   }
 }

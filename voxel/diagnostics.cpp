@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 #include <utility>
@@ -36,9 +37,10 @@ double leafBytes() {
   return double(sizeof(Leaf)) + double(Leaf::SIZE * sizeof(Leaf::ValueType)) + 2.0 * 16.0;
 }
 
-// Layers a band's grids may hold: whole 8-layer leaf slabs, one more for the next layer error diffusion
-// reads, and one more when the band is not whole slabs (its ends need not fall on slab boundaries).
-double heldLayers(int bandLayers) { return std::ceil(bandLayers / 8.0) * 8.0 + (bandLayers % 8 == 0 ? 8.0 : 16.0); }
+// Layers a band's grids may hold: the whole 8-layer leaf slabs its layers and the next one (error
+// diffusion reads it) touch. Any bandLayers + 1 consecutive layers touch at most ceil(bandLayers / 8) + 1
+// slabs, wherever the band starts (whole-slab bands start on a slab boundary and touch exactly that many).
+double heldLayers(int bandLayers) { return (std::ceil(bandLayers / 8.0) + 1.0) * 8.0; }
 
 // Leaves (8^3 voxels, aligned to multiples of 8 in index space) a box of the envelope [0, dims)
 // reaching `layers` layers can hold: however much the rods' widened tubes overlap (thin rods close
@@ -68,27 +70,114 @@ double nodesTouched(const PrinterGrid& grid, int dim, const geometry::Rod& rod) 
   return widenedRodVolume(rod, 0.5 * node.length()) / (node.x() * node.y() * node.z()) + 1.0;
 }
 
-// Adds `leaves` of the rod to `perLayer` (the envelope's layers): spread over the layers its polyline
-// segments reach, in proportion to their lengths, each over its z range widened by what its section,
-// caps and half a leaf reach in z (so the leaves of a level stretch land in its few layers).
-void spreadOverLayers(const geometry::Rod& rod, double leaves, const PrinterGrid& grid, std::vector<double>& perLayer) {
-  const std::vector<double>& u = rod.sampleParameters();
-  const double caps = rod.caps() == geometry::CapStyle::Round ? rod.section().capRadius() : 0.0;
-  const double halfLeaf = 4.0 * grid.voxelSize.z(), last = double(perLayer.size() - 1);
-  const auto layer = [&](double z) { return std::clamp((z - grid.origin.z()) / grid.voxelSize.z(), 0.0, last); };
-  std::vector<double> added(perLayer.size() + 1, 0.0);  // differences: perLayer[k] += sum of added[0..k]
-  for (std::size_t i = 0; i + 1 < u.size(); ++i) {
-    const geometry::Vec3 a = rod.centerline().point(u[i]), b = rod.centerline().point(u[i + 1]);
-    const double length = (b - a).norm(), share = leaves * length / std::max(rod.length(), 1e-12);
-    const double upness = length > 0.0 ? std::abs(b.z() - a.z()) / length : 1.0;
-    const double reach = rod.section().boundingRadius() * std::sqrt(std::max(0.0, 1.0 - upness * upness)) + caps + halfLeaf;
-    const auto k0 = std::size_t(std::floor(layer(std::min(a.z(), b.z()) - reach)));
-    const auto k1 = std::size_t(std::ceil(layer(std::max(a.z(), b.z()) + reach)));
-    added[k0] += share / double(k1 - k0 + 1);
-    added[k1 + 1] -= share / double(k1 - k0 + 1);
+// Sums over the envelope's layers of values added over ranges of z, as differences and one prefix sum
+// at the end (two vectors for the whole design, whatever the number of rods). Ranges are in layer units
+// (layer k spans [k - 1/2, k + 1/2)), clipped to the envelope; a layer partly in a range gets that part
+// of the value, so ranges that meet (consecutive segments of a rod) add up to one value, not two.
+class LayerProfile {
+public:
+  explicit LayerProfile(std::size_t layers) : differences_(layers + 1, 0.0) {}
+
+  // Adds `perLayer` to the layers of [lo, hi].
+  void add(double lo, double hi, double perLayer) {
+    const std::size_t count = differences_.size() - 1;
+    const double top = double(count) - 0.5;
+    lo = std::clamp(lo, -0.5, top);
+    hi = std::clamp(hi, lo, top);
+    const std::size_t first = std::min(std::size_t(std::floor(lo + 0.5)), count - 1);
+    const std::size_t last = std::min(std::size_t(std::floor(hi + 0.5)), count - 1);
+    if (first == last) {
+      addTo(first, first, perLayer * (hi - lo));
+      return;
+    }
+    addTo(first, first, perLayer * (double(first) + 0.5 - lo));
+    if (first + 1 < last) addTo(first + 1, last - 1, perLayer);
+    addTo(last, last, perLayer * (hi - (double(last) - 0.5)));
   }
-  double running = 0.0;
-  for (std::size_t k = 0; k < perLayer.size(); ++k) perLayer[k] += running += added[k];
+  // Spreads `total` evenly over [lo, hi] (a range under one layer counts as one layer).
+  void spread(double lo, double hi, double total) { add(lo, hi, total / std::max(hi - lo, 1.0)); }
+  // The value of every layer.
+  std::vector<double> layers() const {
+    std::vector<double> out(differences_.size() - 1);
+    double running = 0.0;
+    for (std::size_t k = 0; k < out.size(); ++k) out[k] = running += differences_[k];
+    return out;
+  }
+
+private:
+  void addTo(std::size_t first, std::size_t last, double value) {
+    differences_[first] += value;
+    differences_[last + 1] -= value;
+  }
+  std::vector<double> differences_;
+};
+
+// How a rod's section lies across z at one sample: the z components a, b of its frame's d1 and d2 (the
+// section's width and height directions) give its half-extent in z, and a layer through it (a plane of
+// constant z) cuts the section along lines perpendicular to (a, b) in the section's plane, the longest
+// of them through its centre (the sections are convex and centrally symmetric).
+struct SectionAcrossZ {
+  double halfHeight = 0.0;  // mm above and below the centre line
+  double tilt = 0.0;        // |(a, b)|: 1 for a level rod, 0 where the rod runs straight up
+  // The most section a layer through a straight piece of rod holds per mm of its length: the longest
+  // such line, widened by `margin` at both ends, over the tilt (infinite for an upright section).
+  double layerWidth = std::numeric_limits<double>::infinity();
+};
+
+SectionAcrossZ sectionAcrossZ(const geometry::Rod& rod, double u, double margin) {
+  const geometry::Section& s = rod.section();
+  const geometry::Frame frame = rod.frame().at(rod.centerline(), u);
+  const double a = frame.d1.z(), b = frame.d2.z();
+  SectionAcrossZ out;
+  out.tilt = std::hypot(a, b);
+  const bool rectangle = s.shape == geometry::SectionShape::Rectangle;
+  out.halfHeight = rectangle ? 0.5 * (std::abs(a) * s.width + std::abs(b) * s.height) : 0.5 * std::hypot(a * s.width, b * s.height);
+  if (out.tilt < 1e-12) return out;
+  const double m1 = -b / out.tilt, m2 = a / out.tilt;  // the line's direction in the section's plane
+  const double inf = std::numeric_limits<double>::infinity();
+  const double chord = rectangle ? std::min(m1 != 0.0 ? s.width / std::abs(m1) : inf, m2 != 0.0 ? s.height / std::abs(m2) : inf)
+                                 : 1.0 / std::hypot(m1 / s.width, m2 / s.height);
+  out.layerWidth = (chord + 2.0 * margin) / out.tilt;
+  return out;
+}
+
+// Adds the rod to the layers, segment by segment of its polyline (each straight, its section as the
+// frame holds it at the segment's ends). `leaves` (the rod's, nodesTouched) in proportion to the
+// segments' lengths, each share spread evenly over the layers the segment's section, caps and half a
+// leaf reach. Voxels: the most a layer through the segment can hold, in every layer it reaches: its
+// length times the section a layer cuts (both widened by half a voxel's diagonal for the lattice's
+// rounding), and no more than its length times the section's area over its rise (a steep
+// segment's layers share its volume): a level round rod's middle layers get their 4/pi of the mean, a
+// flat one lying level its full width in its few layers.
+void addRodToLayers(const geometry::Rod& rod, double leaves, const PrinterGrid& grid, LayerProfile& leavesPerLayer,
+                    LayerProfile& voxelsPerLayer) {
+  const std::vector<double>& u = rod.sampleParameters();
+  if (u.size() < 2) return;
+  const geometry::Section& section = rod.section();
+  const double caps = rod.caps() == geometry::CapStyle::Round ? section.capRadius() : 0.0;
+  const double vz = grid.voxelSize.z(), halfLeaf = 4.0 * vz;
+  const double margin = 0.5 * std::hypot(grid.voxelSize.x(), grid.voxelSize.y());
+  const double widenedArea = section.area() + section.perimeter() * margin + std::numbers::pi * margin * margin;
+  const double voxelArea = grid.voxelSize.x() * grid.voxelSize.y();
+  // The rod's length widened by the margin at both ends, shared by its segments (a row of voxel centres
+  // along it holds up to one more than its length in voxels).
+  const double lengthScale = (rod.length() + 2.0 * margin) / std::max(rod.length(), 1e-12);
+  const auto layer = [&](double z) { return (z - grid.origin.z()) / vz; };
+  SectionAcrossZ before = sectionAcrossZ(rod, u[0], margin);
+  geometry::Vec3 a = rod.centerline().point(u[0]);
+  for (std::size_t i = 1; i < u.size(); ++i) {
+    const geometry::Vec3 b = rod.centerline().point(u[i]);
+    const SectionAcrossZ after = sectionAcrossZ(rod, u[i], margin);
+    const double length = (b - a).norm(), rise = std::abs(b.z() - a.z());
+    const double zLow = std::min(a.z(), b.z()), zHigh = std::max(a.z(), b.z());
+    // Half a voxel more where the section spans layers (not along an upright one: consecutive segments meet there).
+    const double reach = std::max({before.halfHeight, after.halfHeight, caps}) + 0.5 * vz * std::max(before.tilt, after.tilt);
+    leavesPerLayer.spread(layer(zLow - reach - halfLeaf), layer(zHigh + reach + halfLeaf), leaves * length / std::max(rod.length(), 1e-12));
+    const double width = std::min(std::max(before.layerWidth, after.layerWidth), widenedArea / std::max(rise, 1e-12));
+    voxelsPerLayer.add(layer(zLow - reach), layer(zHigh + reach), lengthScale * length * width / voxelArea);
+    before = after;
+    a = b;
+  }
 }
 
 // The most of `perLayer` any `window` consecutive layers hold.
@@ -125,8 +214,8 @@ double RasterEstimate::peakBytes(int bandsInFlight) const {
 RasterEstimate estimateRaster(const geometry::RodStructure& structure, const PrinterGrid& grid, int bandLayers) {
   RasterEstimate e;
   double internalBytes = 0.0;
-  std::vector<double> leavesPerLayer(bandLayers > 0 ? std::size_t(std::max(1, grid.dims.z())) : 0, 0.0);
-  std::vector<double> voxelsPerLayer(leavesPerLayer.size(), 0.0);
+  const std::size_t layers = bandLayers > 0 ? std::size_t(std::max(1, grid.dims.z())) : 0;
+  LayerProfile leavesPerLayer(layers), voxelsPerLayer(layers);
   for (const geometry::Rod& rod : structure.rods) {
     const std::uint64_t pieces = detail::pieceBudget(rod, grid);
     e.maxPieces += pieces;
@@ -135,18 +224,15 @@ RasterEstimate estimateRaster(const geometry::RodStructure& structure, const Pri
     const double leaves = nodesTouched(grid, 8, rod);
     e.leaves += leaves;
     internalBytes += nodesTouched(grid, 128, rod) * double(sizeof(Internal1)) + nodesTouched(grid, 4096, rod) * double(sizeof(Internal2));
-    if (bandLayers > 0) {
-      spreadOverLayers(rod, leaves, grid, leavesPerLayer);
-      spreadOverLayers(rod, rodVolume(rod) / grid.voxelVolume(), grid, voxelsPerLayer);
-    }
+    if (bandLayers > 0) addRodToLayers(rod, leaves, grid, leavesPerLayer, voxelsPerLayer);
   }
   // Rods close together share internal nodes: no more than the envelope (or a band of it) spans.
   e.leaves = std::min(e.leaves, leavesSpanned(grid, grid.dims.z()));
   e.gridBytes = e.leaves * leafBytes() + std::min(internalBytes, internalBytesSpanned(grid, grid.dims.z()));
   if (bandLayers > 0) {
-    e.bandLeaves = std::min({fullestWindow(leavesPerLayer, heldLayers(bandLayers)), e.leaves,
+    e.bandLeaves = std::min({fullestWindow(leavesPerLayer.layers(), heldLayers(bandLayers)), e.leaves,
                              leavesSpanned(grid, heldLayers(bandLayers))});
-    e.layerVoxels = std::min(fullestWindow(voxelsPerLayer, 1.0), double(grid.dims.x()) * double(grid.dims.y()));
+    e.layerVoxels = std::min(fullestWindow(voxelsPerLayer.layers(), 1.0), double(grid.dims.x()) * double(grid.dims.y()));
     e.bandBytes = std::min(e.bandLeaves * leafBytes() + std::min(internalBytes, internalBytesSpanned(grid, heldLayers(bandLayers))),
                            e.gridBytes);
   }

@@ -34,13 +34,16 @@ struct RasterEstimate {
   double leaves = 0.0;
   double gridBytes = 0.0;
   // With bandLayers > 0: the leaves and bytes of the grid of the fullest band of that many layers
-  // (Rasterizer::rasterizeLayers): each rod's leaves spread evenly over its layers, a band holding whole
-  // 8-layer slabs plus one at each end; its internal nodes at most those a band of the envelope spans.
+  // (Rasterizer::rasterizeLayers): each rod's leaves spread evenly over the layers each piece of it
+  // reaches (its section's real extent in z in the rod's frame, its caps and half a leaf), a band holding
+  // the whole 8-layer slabs its layers and the next one touch; its internal nodes at most those a band
+  // of the envelope spans.
   double bandLeaves = 0.0;
   double bandBytes = 0.0;
-  // With bandLayers > 0: expected active voxels of the fullest layer (each rod's volume spread the same
-  // way; a level round rod's middle layers hold up to 4/pi of its mean): what a ditherer working layer
-  // by layer holds.
+  // With bandLayers > 0: active voxels of the fullest layer, an upper estimate: each piece of each rod
+  // adds the most a layer through it can hold (its length times the section a layer cuts, or its volume
+  // over its rise when steep) to every layer it reaches, so a level round rod's middle layers get 4/pi
+  // of their mean and a flat rod lying level its full width. What a ditherer working layer by layer holds.
   double layerVoxels = 0.0;
   // Peak while slicing with `bandsInFlight` bands alive (the caller's pipeline says how many: the
   // slicer's kBandsInFlight, slicer/job_pipeline.hpp), or while voxelizing the whole design

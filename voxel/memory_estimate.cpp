@@ -1,5 +1,7 @@
 #include "voxel/memory_estimate.hpp"
 
+#include "common/memory_budget.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -42,7 +44,7 @@ std::uint64_t estimateRasterizationBytes(const geometry::RodStructure& structure
   const double bytes = nodesReached(structure, grid, kLeafVoxels) * kBytesPerLeaf +
                        nodesReached(structure, grid, kLowerVoxels) * kBytesPerLower +
                        nodesReached(structure, grid, kUpperVoxels) * kBytesPerUpper;
-  return bytes >= 1.8e19 || !std::isfinite(bytes) ? UINT64_MAX : std::uint64_t(bytes);
+  return common::saturatedBytes(bytes);
 }
 
 }  // namespace rodfab::voxel

@@ -180,7 +180,7 @@ private:
 };
 
 // The trees a producer made come back here when their last owner lets them go, and the next one is
-// built from their nodes. At most kKeptTrees trees wait; further ones, and every one let go after the
+// built from their nodes. At most keptTrees() trees wait; further ones, and every one let go after the
 // recycler is gone, are deleted. Thread-safe: trees come back from any thread, and takeSpares and
 // assemble may be called from several threads at once.
 // Memory: the kept trees stay allocated while the recycler lives. A slicer's memory estimate counts
@@ -188,14 +188,19 @@ private:
 template <typename TreeT>
 class TreeRecycler {
 public:
+  // Trees kept by default: as many as the slicer's pipeline has bands in flight (slicer::kBandsInFlight),
+  // the trees let go while the next bands are made.
   static constexpr std::size_t kKeptTrees = 2;
   using LeafT = typename TreeT::LeafNodeType;
   using ValueT = typename TreeT::ValueType;
 
-  // Trees with background `background`.
-  explicit TreeRecycler(ValueT background = openvdb::zeroVal<ValueT>()) : background_(background), returned_(std::make_shared<Returned>()) {
-    returned_->trees.reserve(kKeptTrees);  // so that giving a tree back never allocates
+  // Trees with background `background`; up to `keptTrees` of them wait to be reused.
+  explicit TreeRecycler(ValueT background = openvdb::zeroVal<ValueT>(), std::size_t keptTrees = kKeptTrees)
+      : background_(background), returned_(std::make_shared<Returned>()) {
+    returned_->kept = keptTrees;
+    returned_->trees.reserve(keptTrees);  // so that giving a tree back never allocates
   }
+  std::size_t keptTrees() const { return returned_->kept; }
 
   // The nodes of the tree that came back first (none if no tree came back yet): every leaf, and the
   // internal nodes left empty (an owner may have changed the tree before letting it go; internal nodes
@@ -234,7 +239,7 @@ public:
     return typename TreeT::Ptr(tree.release(), [weak = std::weak_ptr<Returned>(returned_)](TreeT* t) {
       if (const std::shared_ptr<Returned> returned = weak.lock()) {
         const std::lock_guard<std::mutex> lock(returned->mutex);
-        if (returned->keeping && returned->trees.size() < kKeptTrees) {
+        if (returned->keeping && returned->trees.size() < returned->kept) {
           returned->trees.emplace_back(t);
           return;
         }
@@ -256,6 +261,7 @@ private:
   struct Returned {
     std::mutex mutex;
     std::vector<std::unique_ptr<TreeT>> trees;
+    std::size_t kept = kKeptTrees;  // set once, before any tree comes back
     bool keeping = true;
   };
   template <typename Node>
