@@ -80,12 +80,8 @@ public:
 
   // Adds `perLayer` to the layers of [lo, hi].
   void add(double lo, double hi, double perLayer) {
-    const std::size_t count = differences_.size() - 1;
-    const double top = double(count) - 0.5;
-    lo = std::clamp(lo, -0.5, top);
-    hi = std::clamp(hi, lo, top);
-    const std::size_t first = std::min(std::size_t(std::floor(lo + 0.5)), count - 1);
-    const std::size_t last = std::min(std::size_t(std::floor(hi + 0.5)), count - 1);
+    clip(lo, hi);
+    const std::size_t first = layerAt(lo), last = layerAt(hi);
     if (first == last) {
       addTo(first, first, perLayer * (hi - lo));
       return;
@@ -94,8 +90,14 @@ public:
     if (first + 1 < last) addTo(first + 1, last - 1, perLayer);
     addTo(last, last, perLayer * (hi - (double(last) - 0.5)));
   }
-  // Spreads `total` evenly over [lo, hi] (a range under one layer counts as one layer).
-  void spread(double lo, double hi, double total) { add(lo, hi, total / std::max(hi - lo, 1.0)); }
+  // Spreads `total` evenly over the part of [lo, hi] inside the envelope (all of it on one layer when
+  // that part is under a layer thick): the layers always get the whole total.
+  void spread(double lo, double hi, double total) {
+    clip(lo, hi);
+    if (hi - lo >= 1.0) return add(lo, hi, total / (hi - lo));
+    const std::size_t middle = layerAt(0.5 * (lo + hi));
+    addTo(middle, middle, total);
+  }
   // The value of every layer.
   std::vector<double> layers() const {
     std::vector<double> out(differences_.size() - 1);
@@ -105,6 +107,12 @@ public:
   }
 
 private:
+  void clip(double& lo, double& hi) const {
+    const double top = double(differences_.size() - 1) - 0.5;
+    lo = std::clamp(lo, -0.5, top);
+    hi = std::clamp(hi, lo, top);
+  }
+  std::size_t layerAt(double z) const { return std::min(std::size_t(std::floor(z + 0.5)), differences_.size() - 2); }
   void addTo(std::size_t first, std::size_t last, double value) {
     differences_[first] += value;
     differences_[last + 1] -= value;
@@ -141,6 +149,24 @@ SectionAcrossZ sectionAcrossZ(const geometry::Rod& rod, double u, double margin)
   return out;
 }
 
+// The most section a layer through a straight segment holds per mm of its length, from the frames at
+// its ends. At a corner the frame is the next segment's (the tangent after the knot), so an end whose
+// tilt is not the segment's own (sqrt(1 - (rise / length)^2): d1, d2 and the tangent are orthonormal)
+// is not used: a level segment ending where the rod turns upright would otherwise take the upright
+// frame's infinite width. With neither end usable, the section's widest chord, `fallbackWidth`.
+double segmentLayerWidth(const SectionAcrossZ& before, const SectionAcrossZ& after, double length, double rise, double fallbackWidth) {
+  const double slope = length > 0.0 ? std::min(1.0, rise / length) : 0.0;
+  const double tilt = std::sqrt(1.0 - slope * slope);
+  // Smooth rods change tilt far less between samples; a corner that changes it by more (from level: 41
+  // degrees) is seen, a smaller one overstates the width by at most 1 / 0.75.
+  constexpr double kOwnTilt = 0.25;
+  double width = 0.0;
+  for (const SectionAcrossZ* end : {&before, &after})
+    if (std::abs(end->tilt - tilt) <= kOwnTilt) width = std::max(width, end->layerWidth);
+  if (width > 0.0) return width;
+  return tilt > 1e-12 ? fallbackWidth / tilt : std::numeric_limits<double>::infinity();
+}
+
 // Adds the rod to the layers, segment by segment of its polyline (each straight, its section as the
 // frame holds it at the segment's ends). `leaves` (the rod's, nodesTouched) in proportion to the
 // segments' lengths, each share spread evenly over the layers the segment's section, caps and half a
@@ -163,6 +189,13 @@ void addRodToLayers(const geometry::Rod& rod, double leaves, const PrinterGrid& 
   // along it holds up to one more than its length in voxels).
   const double lengthScale = (rod.length() + 2.0 * margin) / std::max(rod.length(), 1e-12);
   const auto layer = [&](double z) { return (z - grid.origin.z()) / vz; };
+  const double fallbackWidth = 2.0 * (section.boundingRadius() + margin);
+  // Round caps: a half disc beyond each end, in the layers the cap reaches.
+  for (const double end : {u.front(), u.back()})
+    if (caps > 0.0) {
+      const double z = rod.centerline().point(end).z();
+      voxelsPerLayer.add(layer(z - caps - 0.5 * vz), layer(z + caps + 0.5 * vz), 0.5 * std::numbers::pi * (caps + margin) * (caps + margin) / voxelArea);
+    }
   SectionAcrossZ before = sectionAcrossZ(rod, u[0], margin);
   geometry::Vec3 a = rod.centerline().point(u[0]);
   for (std::size_t i = 1; i < u.size(); ++i) {
@@ -173,7 +206,7 @@ void addRodToLayers(const geometry::Rod& rod, double leaves, const PrinterGrid& 
     // Half a voxel more where the section spans layers (not along an upright one: consecutive segments meet there).
     const double reach = std::max({before.halfHeight, after.halfHeight, caps}) + 0.5 * vz * std::max(before.tilt, after.tilt);
     leavesPerLayer.spread(layer(zLow - reach - halfLeaf), layer(zHigh + reach + halfLeaf), leaves * length / std::max(rod.length(), 1e-12));
-    const double width = std::min(std::max(before.layerWidth, after.layerWidth), widenedArea / std::max(rise, 1e-12));
+    const double width = std::min(segmentLayerWidth(before, after, length, rise, fallbackWidth), widenedArea / std::max(rise, 1e-12));
     voxelsPerLayer.add(layer(zLow - reach), layer(zHigh + reach), lengthScale * length * width / voxelArea);
     before = after;
     a = b;
