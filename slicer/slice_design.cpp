@@ -68,16 +68,20 @@ SliceMemoryPlan planSliceMemory(const geometry::RodStructure& design, const prin
   const std::string name = settings.designFile.empty() ? "the design" : settings.designFile;
   const openvdb::CoordBBox part = designVoxelBounds(design, grid);
   const std::uint64_t writer = jobWriterBytes(profile, part, settings.job.contactSheetLayers);
-  common::requireMemory(writer,
-                        "writing any job for the " + profile.printer +
-                            " (layer images, previews and the process itself, however small the part)",
-                        "no band size or design makes that smaller: raise --max-memory to at least " +
-                            common::formatBytes(((writer >> 20) + 1) << 20));
   // The stages run in arenas of the calling thread's concurrency (streamJob), the ditherer's included.
   const int concurrency = tbb::this_task_arena::max_concurrency();
   const auto estimate = [&](int bandLayers) {
     return SliceMemoryPlan{bandLayers, sliceMemoryBytes(design, grid, bandLayers, ditherer, concurrency, writer, pieces)};
   };
+  if (writer > common::memoryBudget()) {
+    const std::uint64_t least = estimate(1).bytes;  // what the smallest band would need in all
+    common::requireMemory(writer,
+                          "writing the job of " + name + " for the " + profile.printer + " (its layer images of " +
+                              std::to_string(part.dim().x()) + " x " + std::to_string(part.dim().y()) +
+                              " pixels, previews and the process itself)",
+                          "no band size makes that smaller: raise --max-memory to at least " +
+                              common::formatBytes(((std::max(least, writer) >> 20) + 1) << 20));
+  }
   SliceMemoryPlan plan = estimate(settings.bandLayers > 0 ? settings.bandLayers : automaticBandLayers(part));
   const std::string what = "slicing " + name + " (" + std::to_string(design.rods.size()) + " rod(s)) in bands of ";
   if (settings.bandLayers > 0) {
@@ -94,7 +98,8 @@ SliceMemoryPlan planSliceMemory(const geometry::RodStructure& design, const prin
     if (plan.bytes < least.bytes) least = plan;
   }
   if (plan.bytes <= common::memoryBudget()) return plan;
-  common::requireMemory(least.bytes, what + std::to_string(least.bandLayers) + " layers (the least of the band sizes tried)",
+  common::requireMemory(least.bytes, what + std::to_string(least.bandLayers) + (least.bandLayers == 1 ? " layer" : " layers") +
+                                        ", the smallest of the band sizes tried",
                         "slice a smaller design, or raise --max-memory if the machine has more");
   return least;
 }
@@ -217,6 +222,11 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
                                                           report.mapping.clamps.belowFloor, report.mapping.clamps.aboveMax};
   };
   report.job = streamJob(std::move(spec), source, ditherer, pipeline, report.seconds);
+  // For the technician on stderr, not in the job's report: the band size changes the time, not the job.
+  if (settings.bandLayers <= 0 && bandLayers < automaticBandLayers(partBounds))
+    report.warnings.push_back("sliced in bands of " + std::to_string(bandLayers) + " layer(s) instead of " +
+                              std::to_string(automaticBandLayers(partBounds)) + " to stay within the memory budget of " +
+                              common::formatBytes(common::memoryBudget()) + ", which is slower: raise --max-memory if the machine has more");
   return report;
 }
 

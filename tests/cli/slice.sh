@@ -218,7 +218,7 @@ JSON
 expect 1 "mm along x" "$tmp/long.json" -o "$tmp/out/x.zip"
 # A budget below the job writer's fixed share (images, previews, the process: ~100 MB, more for a larger part):
 # refused as such, without suggesting --band-layers, which cannot help.
-expect 1 "writing any job for the .* raise --max-memory to at least" "$src/examples/buckling-spring.json" -o "$tmp/out/x.zip" --max-memory 100M
+expect 1 "writing the job of .* no band size makes that smaller: raise --max-memory to at least" "$src/examples/buckling-spring.json" -o "$tmp/out/x.zip" --max-memory 100M
 grep -q -- "--band-layers" "$tmp/err" && fail "a budget under the writer's share suggested --band-layers: $(cat "$tmp/err")"
 # A profile whose build file would escape the job folder on Windows.
 sed 's/"name": "build.txt"/"name": "..\\\\evil.txt"/' "$src/printer_profiles/stratasys-objet500-connex3.json" > "$tmp/evil-profile.json"
