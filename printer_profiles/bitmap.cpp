@@ -14,9 +14,18 @@
 
 namespace rodfab::printer_profiles {
 
-Bitmap::Bitmap(int width, int height) : width_(width), height_(height) {
+namespace {
+
+// Bytes of a row of `width` pixels, one bit each; std::invalid_argument unless both sizes are positive.
+std::size_t checkedStride(int width, int height) {
   if (width <= 0 || height <= 0) throw std::invalid_argument("bitmap size must be positive");
-  stride_ = (static_cast<std::size_t>(width) + 7) / 8;
+  return (static_cast<std::size_t>(width) + 7) / 8;
+}
+
+}  // namespace
+
+Bitmap::Bitmap(int width, int height) : width_(width), height_(height) {
+  stride_ = checkedStride(width, height);
   pitch_ = static_cast<std::ptrdiff_t>(stride_);
   bits_.assign(stride_ * static_cast<std::size_t>(height), 0);
 }
@@ -146,7 +155,10 @@ void writeBmpHeaders(Bytes& out, int width, int height, int xDpi, int yDpi) {
 }  // namespace
 
 Bitmap Bitmap::inBmpFile(int width, int height, int xDpi, int yDpi) {
-  Bitmap b(width, height);  // checks the size
+  Bitmap b;  // its bytes allocated once, as the BMP file's
+  b.width_ = width;
+  b.height_ = height;
+  b.stride_ = checkedStride(width, height);
   const std::size_t stride = bmpStride(width);
   b.bits_.assign(kBmpHeaders + stride * static_cast<std::size_t>(height), 0);
   writeBmpHeaders(b.bits_, width, height, xDpi, yDpi);

@@ -120,8 +120,8 @@ std::filesystem::path checkJobOutput(const JobOptions& options);
 
 // Bytes a job's previews hold at the most while it is written (views and contact tiles), for a job
 // of `geometry` (as planJob gives it) with `contactSheetLayers` (JobOptions; below 1 counts as 1): for
-// memory estimates made before a job starts. Allocates nothing that grows with the job and reads only
-// its arguments: safe to call from any number of threads at once. Throws std::invalid_argument when the
+// memory estimates made before a job starts. Allocates at most one int per contact-sheet layer and reads
+// only its arguments: safe to call from any number of threads at once. Throws std::invalid_argument when the
 // geometry has no pixels or no layers (width, height or layers below 1), and std::bad_alloc when not
 // even the few bytes it needs can be had.
 std::uint64_t previewMemoryBytes(const JobGeometry& geometry, const Profile& profile, int contactSheetLayers);

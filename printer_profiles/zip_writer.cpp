@@ -151,6 +151,7 @@ public:
   zip_int64_t open() {
     position_ = 0;
     if (data_.inMemory) return data_.memory.size() == data_.length ? 0 : failed(ZIP_ER_INCONS, 0);
+    if (!data_.memory.empty()) return failed(ZIP_ER_INCONS, 0);  // bytes in memory but said to be in the file
     return file_.open() ? 0 : failed(ZIP_ER_OPEN, errno);
   }
 
