@@ -44,6 +44,7 @@ public:
   }
 
   std::uint64_t exactEvaluations = 0;
+  std::uint64_t quadsSettledAtOnce = 0;  // addFourSurelyInside's four-lane outcomes (Rasterization::quadsSettledAtOnce)
   std::vector<std::uint64_t> voxelsPerRod;  // filled slots won, per rod, over every block built
 
   // Slots hold a candidate of a rod the voxel lies in exactly where their bit in `filled_` is set:
@@ -158,6 +159,7 @@ private:
         fresh += addSurelyInside(n + l, encodedDepth[l], errorBound, value[l], rod, piece, i + l, j, k);
       return fresh;
     }
+    ++quadsSettledAtOnce;
     const std::uint64_t who = owner(rod, piece);
     for (int l = 0; l < 4; ++l) {
       if (!isFilled[l]) {
