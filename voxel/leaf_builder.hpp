@@ -294,8 +294,17 @@ private:
   // the exact test where round caps of rods meeting at a node coincide.
   [[gnu::noinline]] void resolveOverlap(int n, Candidate c, double cEncodedDepth, int i, int j, int k);
 
-  // The swept piece's voxels (sweep.cpp).
+  // The swept piece's voxels (sweep.cpp), in named steps (inlined into sweep's clones): the layers
+  // and rows of the slab, four rows set up at once (sweepLayer), each row four voxels a step
+  // (sweepRow: sweptQuad evaluates, settleQuad stores or decides voxel by voxel).
   void sweep(int rod, int pieceIndex, const RodPiece& piece, const openvdb::CoordBBox& box);
+  struct SweptPiece;  // what the steps share about the piece (sweep.cpp)
+  struct SweptQuad;
+  struct SweptRowStart;
+  void sweepLayer(const SweptPiece& s, const openvdb::CoordBBox& box, const AxisCylinder& cylinder, int k, int jLo, int jHi);
+  int sweepRow(const SweptPiece& s, const SweptRowStart& r, int lo, int hi, int j, int k);
+  SweptQuad sweptQuad(bool rectangle, const SweptRowStart& r, Double4 iv) const;
+  int settleQuad(const SweptPiece& s, const SweptQuad& q, int row, int i, int hi, int j, int k);
   // Every voxel of the piece's box within its reach of the chord, decided by the exact test; once per
   // voxel and rod in a block (exact pieces of a tight bend overlap, and the test already decides the
   // whole rod).
@@ -322,6 +331,12 @@ private:
   std::array<std::uint64_t, kWords> filled_{};
   std::array<std::uint64_t, kWords> memo_{};  // voxels of the block exactly tested for rod memoRod_
   int memoRod_ = -1;
+  // The coefficients of the piece sweep() is on, in four lanes (set once per piece). A member rather
+  // than sweep's local: GCC kept a local's 16 lanes in registers it then spilled, copied between stack
+  // slots or broadcast again at every row (some 40 instructions a row, with 1.3 quads a row on the
+  // curved lattice); the builder's memory, which the out-of-line calls in the loop (the exact test,
+  // resolveOverlap) may change, stays where it is, read by the vector instructions as operands.
+  SweptLanes swept_;
 };
 
 }  // namespace rodfab::voxel::detail
