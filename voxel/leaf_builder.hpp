@@ -91,12 +91,13 @@ private:
   }
   // Four neighbouring slots n .. n + 3 of one row (see offset), as four stores would fill them.
   void storeFour(int n, Double4 encodedDepth, Float4 value, float errorBound, std::uint64_t who) {
+    typedef std::uint64_t Owner4 __attribute__((vector_size(32)));
+    const Float4 bounds = Float4{} + errorBound;
+    const Owner4 owners = Owner4{} + who;
     std::memcpy(&encodedDepth_[static_cast<std::size_t>(n)], &encodedDepth, sizeof encodedDepth);
     std::memcpy(&value_[static_cast<std::size_t>(n)], &value, sizeof value);
-    for (int l = 0; l < 4; ++l) {
-      errorBound_[static_cast<std::size_t>(n + l)] = errorBound;
-      owner_[static_cast<std::size_t>(n + l)] = who;
-    }
+    std::memcpy(&errorBound_[static_cast<std::size_t>(n)], &bounds, sizeof bounds);
+    std::memcpy(&owner_[static_cast<std::size_t>(n)], &owners, sizeof owners);
   }
   void store(int n, double encodedDepth, float errorBound, float value, std::uint64_t who) {
     encodedDepth_[n] = encodedDepth;
