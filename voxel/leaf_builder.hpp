@@ -56,10 +56,10 @@ public:
   // Writes the block's filled slots into leaves: leaves[l], the block's l-th leaf along x, is created
   // (values 0) where any of its voxels is filled. Slots are row by row (see offset) and leaves column by column, so a leaf's value mask
   // is the transpose of `filled_`: word x of leaf l holds bit r = (y, z) for column i = 8 l + x, where
-  // filled_ holds bit i of row r. Per leaf, each row's byte of `filled_` writes its eight values at
-  // once (the slot's value where the bit is set, else the leaf's 0: the slots of an empty voxel hold
-  // some earlier block's value, never an indeterminate one, see value_), and the mask words come
-  // from the 64 row bytes by movemask, eight bits a row at a time.
+  // filled_ holds bit i of row r. Per leaf, the values go in by 4 x 4 transposes of the slots (the
+  // slot's value where the bit is set, else the leaf's 0: the slots of an empty voxel hold some
+  // earlier block's value, never an indeterminate one, see value_), and the mask words come from the
+  // 64 row bytes by movemask, eight bits a row at a time.
   // The leaves come from `spares` (tree_assembly.hpp) while there are any, each taking the spare index
   // `nextSpare` counts out (shared by the threads, so the reused leaves are the first ones).
   void emit(const openvdb::Coord& origin, SpareNodes<openvdb::FloatTree>& spares, std::atomic<std::size_t>& nextSpare,
