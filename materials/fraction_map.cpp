@@ -8,6 +8,8 @@
 #include "materials/ditherer.hpp"
 #include "voxel/tree_assembly.hpp"
 
+#include <immintrin.h>
+
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -33,22 +35,47 @@ double lineAt(double x0, double y0, double x1, double y1, double x) {
   return x1 > x0 ? y0 + (x - x0) * (y1 - y0) / (x1 - x0) : y1;
 }
 
-// Four lanes (GCC vector extensions; one AVX register in the AVX2 clone of mapWord, two SSE2 ones
+// Four lanes (GCC vector extensions; one AVX register in mapWord's AVX2 version, two SSE2 ones
 // otherwise): lane by lane the same IEEE operations as the scalar expressions.
 typedef double Double4 __attribute__((vector_size(32)));
 typedef float Float4 __attribute__((vector_size(16)));
 typedef std::int32_t Int4 __attribute__((vector_size(16)));
 typedef std::uint32_t UInt4 __attribute__((vector_size(16)));
 
+// The start and rise of the table's intervals of four lanes: the same doubles either way. Scalar loads
+// (the baseline), or two AVX2 gathers (called, inlined, from mapWord's AVX2 version only).
+struct LoadSegments {
+  template <typename Segment>
+  [[gnu::always_inline]] static void load(const Segment* segments, Int4 interval, Double4& start, Double4& rise) {
+    for (int l = 0; l < 4; ++l) {
+      const Segment& s = segments[interval[l]];
+      start[l] = s.start;
+      rise[l] = s.rise;
+    }
+  }
+};
+struct GatherSegments {
+  template <typename Segment>
+  [[gnu::target("avx2")]] static void load(const Segment* segments, Int4 interval, Double4& start, Double4& rise) {
+    static_assert(sizeof(Segment) == 2 * sizeof(double), "a segment is two doubles: start, rise");
+    const __m128i twice = reinterpret_cast<__m128i>(interval + interval);  // in doubles
+    // The masked form with every lane on (the unmasked one leaves GCC 12 warning of its undefined source).
+    const __m256d all = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+    start = reinterpret_cast<Double4>(_mm256_mask_i32gather_pd(_mm256_setzero_pd(), &segments->start, twice, all, 8));
+    rise = reinterpret_cast<Double4>(_mm256_mask_i32gather_pd(_mm256_setzero_pd(), &segments->rise, twice, all, 8));
+  }
+};
+
 }  // namespace
 
-// Cloned for AVX2 (chosen at load time); AVX2 brings no FMA, so no multiply-add is fused and both
-// clones give interpolate's bits. Integers in 32 bits: a positive float's bits are below 2^31, so the
-// interval and the offset in it (interpolate's 64-bit expressions) are the same numbers; lanes that
-// are clamped (negative, NaN, out of range) compute garbage within the table's bounds, then take the
-// clamp's value.
-[[gnu::target_clones("avx2", "default")]] FractionMap::WordClamps FractionMap::mapWord(const float* moduli, std::uint64_t active,
-                                                                                      float* fractions) const {
+// mapWord's body, compiled twice: for the baseline and for AVX2 (chosen at load time, see mapWord).
+// AVX2 brings no FMA, so no multiply-add is fused and both give interpolate's bits. Integers in 32
+// bits: a positive float's bits are below 2^31, so the interval and the offset in it (interpolate's
+// 64-bit expressions) are the same numbers; lanes that are clamped (negative, NaN, out of range)
+// compute garbage within the table's bounds, then take the clamp's value.
+template <typename Load>
+inline FractionMap::WordClamps FractionMap::mapWordWith(const float* moduli, std::uint64_t active,
+                                                                             float* fractions) const {
   // The members in locals: the stores through `fractions` (memcpy) could alias them otherwise.
   const Segment* segments = segments_.data();
   const int shift = shift_;
@@ -73,11 +100,7 @@ typedef std::uint32_t UInt4 __attribute__((vector_size(16)));
     const Int4 offset = reinterpret_cast<Int4>(bits - (reinterpret_cast<UInt4>(first + interval) << shift));
     const Double4 t = __builtin_convertvector(offset, Double4) * inverseWidth;
     Double4 start, rise;
-    for (int l = 0; l < 4; ++l) {
-      const Segment& s = segments[interval[l]];
-      start[l] = s.start;
-      rise[l] = s.rise;
-    }
+    Load::load(segments, interval, start, rise);
     Double4 v = start + t * rise;
     v = v < lowest ? lowest : v;  // std::clamp(v, floorFraction_, 1.0)
     v = highest < v ? highest : v;
@@ -92,6 +115,17 @@ typedef std::uint32_t UInt4 __attribute__((vector_size(16)));
   }
   return {static_cast<std::uint64_t>(-(belowCount[0] + belowCount[1] + belowCount[2] + belowCount[3])),
           static_cast<std::uint64_t>(-(aboveCount[0] + aboveCount[1] + aboveCount[2] + aboveCount[3]))};
+}
+
+// Everything inlined into it (flatten), so compiled for AVX2.
+[[gnu::target("avx2"), gnu::flatten]] FractionMap::WordClamps FractionMap::mapWordAvx2(const float* moduli, std::uint64_t active,
+                                                                       float* fractions) const {
+  return mapWordWith<GatherSegments>(moduli, active, fractions);
+}
+
+FractionMap::WordClamps FractionMap::mapWord(const float* moduli, std::uint64_t active, float* fractions) const {
+  static const bool avx2 = __builtin_cpu_supports("avx2");
+  return avx2 ? mapWordAvx2(moduli, active, fractions) : mapWordWith<LoadSegments>(moduli, active, fractions);
 }
 
 FractionMap::FractionMap(const calibration::Calibration& calibration, std::size_t nodes)

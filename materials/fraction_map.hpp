@@ -78,6 +78,12 @@ public:
   int intervalsPerOctaveLog2() const { return 23 - shift_; }
 
 private:
+  // mapWord's body for a way of loading the table's segments (fraction_map.cpp), and its AVX2 version
+  // (gathers), which mapWord calls where the processor has AVX2.
+  template <typename Load>
+  WordClamps mapWordWith(const float* moduli, std::uint64_t active, float* fractions) const;
+  [[gnu::target("avx2")]] WordClamps mapWordAvx2(const float* moduli, std::uint64_t active, float* fractions) const;
+
   std::vector<double> table_;  // node values; interval n spans float bits [(first + n) << shift, (first + n + 1) << shift)
   // Interval n as interpolate uses it: its first node's value and the rise to the next, table_[n + 1] -
   // table_[n] (computed once; the same double the subtraction gives per voxel).

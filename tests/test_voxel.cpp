@@ -358,6 +358,8 @@ TEST_CASE("Overlapping rods: the deepest wins, ties go to the lower rod index", 
     const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
     const voxel::Rasterization ras = voxel::rasterize(s, g);
     REQUIRE(requireMatchesExactTest(s, g, ras) > 50000);
+    // The four-lane outcomes were taken (else only the voxel-by-voxel rule would have been checked).
+    REQUIRE(ras.quadsSettledAtOnce > 0);
     std::uint64_t won = 0;
     for (std::uint64_t v : ras.voxelsPerRod) {
       REQUIRE(v > 0);
@@ -384,6 +386,7 @@ TEST_CASE("The grid is identical for 1 and 2 threads and for any band of layers"
   requireIdentical(*one.grid, *two.grid);
   REQUIRE(one.voxelsPerRod == two.voxelsPerRod);
   REQUIRE(one.exactEvaluations == two.exactEvaluations);
+  REQUIRE(one.quadsSettledAtOnce == two.quadsSettledAtOnce);
 
   // Bands of odd sizes, not aligned with leaves: their union is the whole grid, voxel for voxel.
   const voxel::Rasterizer rasterizer(s, g, {2});

@@ -1,13 +1,46 @@
 #include "voxel/leaf_builder.hpp"
 
 #include <emmintrin.h>
+#include <xmmintrin.h>
 
 #include <cmath>
 
 namespace rodfab::voxel::detail {
 
+namespace {
+
+// Leaf values from the slots of one leaf of a block (see LeafBuilder::emit): values[(x << 6) | r] =
+// slots[(r << kBlockXLog2) | x] where bit x of bytes[r] is set, else 0, for x < 8 and the 64 rows r.
+// Four rows by four columns at a time: the slots' rows loaded, the empty ones' lanes cleared (and with
+// a lane mask, so a kept value keeps its bits), then transposed (SSE2) into four runs of four values of
+// the leaf's columns. Groups whose bits are all clear are not written: the leaf holds 0 there already.
+void transposeIntoLeaf(const std::array<std::uint8_t, 64>& bytes, const float* slots, float* values) {
+  for (int r0 = 0; r0 < 64; r0 += 4) {
+    unsigned any = 0;
+    __m128i byteOf[4];
+    for (int m = 0; m < 4; ++m) {
+      any |= bytes[static_cast<std::size_t>(r0 + m)];
+      byteOf[m] = _mm_set1_epi32(bytes[static_cast<std::size_t>(r0 + m)]);
+    }
+    for (int h = 0; h < 2; ++h) {
+      if (((any >> (4 * h)) & 0xfu) == 0) continue;
+      const __m128i bit = _mm_setr_epi32(1 << (4 * h), 2 << (4 * h), 4 << (4 * h), 8 << (4 * h));
+      __m128 row[4];
+      for (int m = 0; m < 4; ++m) {
+        const __m128 kept = _mm_castsi128_ps(_mm_cmpeq_epi32(_mm_and_si128(byteOf[m], bit), bit));
+        row[m] = _mm_and_ps(_mm_loadu_ps(slots + ((r0 + m) << kBlockXLog2) + 4 * h), kept);
+      }
+      _MM_TRANSPOSE4_PS(row[0], row[1], row[2], row[3]);
+      for (int x = 0; x < 4; ++x) _mm_storeu_ps(values + ((4 * h + x) << (2 * kLeafLog2)) + r0, row[x]);
+    }
+  }
+}
+
+}  // namespace
+
 void LeafBuilder::emit(const openvdb::Coord& origin, SpareNodes<openvdb::FloatTree>& spares, std::atomic<std::size_t>& nextSpare,
                        BlockLeaves& leaves) const {
+  static_assert(kRows == 64 && kLeafDim == 8, "transposeIntoLeaf's layout");
   std::uint64_t anyRow = 0;
   for (std::uint64_t w : filled_) anyRow |= w;
   for (int l = 0; l < kBlockLeaves; ++l) {
@@ -17,15 +50,10 @@ void LeafBuilder::emit(const openvdb::Coord& origin, SpareNodes<openvdb::FloatTr
     leaves[static_cast<std::size_t>(l)] = spares.leaf(spare, origin.offsetBy(l * kLeafDim, 0, 0));
     LeafT& node = *leaves[static_cast<std::size_t>(l)];
     if (reused) node.buffer().fill(0.0f);
-    float* values = node.buffer().data();
     alignas(16) std::array<std::uint8_t, kRows> bytes;
-    for (int r = 0; r < kRows; ++r) {
-      const unsigned byte = static_cast<unsigned>(filled_[static_cast<std::size_t>(r)] >> (l * kLeafDim)) & 0xffu;
-      bytes[static_cast<std::size_t>(r)] = static_cast<std::uint8_t>(byte);
-      if (byte == 0) continue;
-      const float* slots = &value_[static_cast<std::size_t>((r << kBlockXLog2) | (l * kLeafDim))];
-      for (int x = 0; x < kLeafDim; ++x) values[(x << (2 * kLeafLog2)) | r] = (byte >> x) & 1u ? slots[x] : 0.0f;
-    }
+    for (int r = 0; r < kRows; ++r)
+      bytes[static_cast<std::size_t>(r)] = static_cast<std::uint8_t>(filled_[static_cast<std::size_t>(r)] >> (l * kLeafDim));
+    transposeIntoLeaf(bytes, &value_[static_cast<std::size_t>(l * kLeafDim)], node.buffer().data());
     for (int x = 0; x < kLeafDim; ++x) {
       // Bit x of every row byte to its top bit (a 64-bit shift moves no bit across a byte's top).
       const __m128i shift = _mm_cvtsi32_si128(kLeafDim - 1 - x);

@@ -44,6 +44,7 @@ public:
   }
 
   std::uint64_t exactEvaluations = 0;
+  std::uint64_t quadsSettledAtOnce = 0;  // addFourSurelyInside's four-lane outcomes (Rasterization::quadsSettledAtOnce)
   std::vector<std::uint64_t> voxelsPerRod;  // filled slots won, per rod, over every block built
 
   // Slots hold a candidate of a rod the voxel lies in exactly where their bit in `filled_` is set:
@@ -55,10 +56,10 @@ public:
   // Writes the block's filled slots into leaves: leaves[l], the block's l-th leaf along x, is created
   // (values 0) where any of its voxels is filled. Slots are row by row (see offset) and leaves column by column, so a leaf's value mask
   // is the transpose of `filled_`: word x of leaf l holds bit r = (y, z) for column i = 8 l + x, where
-  // filled_ holds bit i of row r. Per leaf, each row's byte of `filled_` writes its eight values at
-  // once (the slot's value where the bit is set, else the leaf's 0: the slots of an empty voxel hold
-  // some earlier block's value, never an indeterminate one, see value_), and the mask words come
-  // from the 64 row bytes by movemask, eight bits a row at a time.
+  // filled_ holds bit i of row r. Per leaf, the values go in by 4 x 4 transposes of the slots (the
+  // slot's value where the bit is set, else the leaf's 0: the slots of an empty voxel hold some
+  // earlier block's value, never an indeterminate one, see value_), and the mask words come from the
+  // 64 row bytes by movemask, eight bits a row at a time.
   // The leaves come from `spares` (tree_assembly.hpp) while there are any, each taking the spare index
   // `nextSpare` counts out (shared by the threads, so the reused leaves are the first ones).
   void emit(const openvdb::Coord& origin, SpareNodes<openvdb::FloatTree>& spares, std::atomic<std::size_t>& nextSpare,
@@ -90,12 +91,13 @@ private:
   }
   // Four neighbouring slots n .. n + 3 of one row (see offset), as four stores would fill them.
   void storeFour(int n, Double4 encodedDepth, Float4 value, float errorBound, std::uint64_t who) {
+    typedef std::uint64_t Owner4 __attribute__((vector_size(32)));
+    const Float4 bounds = Float4{} + errorBound;
+    const Owner4 owners = Owner4{} + who;
     std::memcpy(&encodedDepth_[static_cast<std::size_t>(n)], &encodedDepth, sizeof encodedDepth);
     std::memcpy(&value_[static_cast<std::size_t>(n)], &value, sizeof value);
-    for (int l = 0; l < 4; ++l) {
-      errorBound_[static_cast<std::size_t>(n + l)] = errorBound;
-      owner_[static_cast<std::size_t>(n + l)] = who;
-    }
+    std::memcpy(&errorBound_[static_cast<std::size_t>(n)], &bounds, sizeof bounds);
+    std::memcpy(&owner_[static_cast<std::size_t>(n)], &owners, sizeof owners);
   }
   void store(int n, double encodedDepth, float errorBound, float value, std::uint64_t who) {
     encodedDepth_[n] = encodedDepth;
@@ -158,6 +160,7 @@ private:
         fresh += addSurelyInside(n + l, encodedDepth[l], errorBound, value[l], rod, piece, i + l, j, k);
       return fresh;
     }
+    ++quadsSettledAtOnce;
     const std::uint64_t who = owner(rod, piece);
     for (int l = 0; l < 4; ++l) {
       if (!isFilled[l]) {
@@ -292,8 +295,17 @@ private:
   // the exact test where round caps of rods meeting at a node coincide.
   [[gnu::noinline]] void resolveOverlap(int n, Candidate c, double cEncodedDepth, int i, int j, int k);
 
-  // The swept piece's voxels (sweep.cpp).
+  // The swept piece's voxels (sweep.cpp), in named steps (inlined into sweep's clones): the layers
+  // and rows of the slab, four rows set up at once (sweepLayer), each row four voxels a step
+  // (sweepRow: sweptQuad evaluates, settleQuad stores or decides voxel by voxel).
   void sweep(int rod, int pieceIndex, const RodPiece& piece, const openvdb::CoordBBox& box);
+  struct SweptPiece;  // what the steps share about the piece (sweep.cpp)
+  struct SweptQuad;
+  struct SweptRowStart;
+  void sweepLayer(const SweptPiece& s, const openvdb::CoordBBox& box, const AxisCylinder& cylinder, int k, int jLo, int jHi);
+  int sweepRow(const SweptPiece& s, const SweptRowStart& r, int lo, int hi, int j, int k);
+  SweptQuad sweptQuad(bool rectangle, const SweptRowStart& r, Double4 iv) const;
+  int settleQuad(const SweptPiece& s, const SweptQuad& q, int row, int i, int hi, int j, int k);
   // Every voxel of the piece's box within its reach of the chord, decided by the exact test; once per
   // voxel and rod in a block (exact pieces of a tight bend overlap, and the test already decides the
   // whole rod).
@@ -320,6 +332,12 @@ private:
   std::array<std::uint64_t, kWords> filled_{};
   std::array<std::uint64_t, kWords> memo_{};  // voxels of the block exactly tested for rod memoRod_
   int memoRod_ = -1;
+  // The coefficients of the piece sweep() is on, in four lanes (set once per piece). A member rather
+  // than sweep's local: GCC kept a local's 16 lanes in registers it then spilled, copied between stack
+  // slots or broadcast again at every row (some 40 instructions a row, with 1.3 quads a row on the
+  // curved lattice); the builder's memory, which the out-of-line calls in the loop (the exact test,
+  // resolveOverlap) may change, stays where it is, read by the vector instructions as operands.
+  SweptLanes swept_;
 };
 
 }  // namespace rodfab::voxel::detail

@@ -59,17 +59,23 @@ inline Double4 squareRoot(Double4 v) {
 // A value in all four lanes.
 inline Double4 broadcast(double v) { return Double4{v, v, v, v}; }
 
-// A swept piece's coefficients for the voxel loop, copied out of the piece (see sweep) into all four
-// lanes once per piece: held as scalars, they were broadcast (and spilled) again for every row, some
-// 35 instructions a row. The same values, so estimateSwept and estimateModulus give the same bits.
+// A swept piece's coefficients for the voxel loop, copied out of the piece into all four lanes once
+// per piece (the builder holds them, see LeafBuilder::swept_): held as scalars, they were broadcast
+// (and spilled) again for every row, some 35 instructions a row. The same values, so estimateSwept and
+// estimateModulus give the same bits. With them the section's inverse half-sizes and the sure-inside
+// threshold on the gauge (ShellThresholds::sureInsideBelow).
 struct SweptLanes {
-  SweptLanes(const detail::RodPiece& p, double planeAgx, double planeBgx)
+  SweptLanes() = default;
+  SweptLanes(const detail::RodPiece& p, double planeAgx, double planeBgx, double inverseHalfWidth, double inverseHalfHeight,
+             double sureInside)
       : gxA(broadcast(planeAgx)), gxB(broadcast(planeBgx)), gx1Begin(broadcast(p.x1Begin.gx)), gx2Begin(broadcast(p.x2Begin.gx)),
         gx1End(broadcast(p.x1End.gx)), gx2End(broadcast(p.x2End.gx)), x1Quadratic(broadcast(p.x1Quadratic)),
         x2Quadratic(broadcast(p.x2Quadratic)), modulusBegin(broadcast(p.modulusBegin)), modulusEnd(broadcast(p.modulusEnd)),
-        modulusQuadratic(broadcast(p.modulusQuadratic)), modulusLow(broadcast(p.modulusLow)), modulusHigh(broadcast(p.modulusHigh)) {}
+        modulusQuadratic(broadcast(p.modulusQuadratic)), modulusLow(broadcast(p.modulusLow)), modulusHigh(broadcast(p.modulusHigh)),
+        iA(broadcast(inverseHalfWidth)), iB(broadcast(inverseHalfHeight)), sureInsideBelow(broadcast(sureInside)) {}
   Double4 gxA, gxB, gx1Begin, gx2Begin, gx1End, gx2End;
   Double4 x1Quadratic, x2Quadratic, modulusBegin, modulusEnd, modulusQuadratic, modulusLow, modulusHigh;  // as in RodPiece
+  Double4 iA, iB, sureInsideBelow;  // RodPieces::inverseHalfWidth, inverseHalfHeight; ShellThresholds::sureInsideBelow
 };
 
 // std::max and std::min lane by lane: (a < b) ? b : a and (b < a) ? b : a.

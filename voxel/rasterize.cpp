@@ -276,6 +276,7 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
   checkInterrupt();  // a builder that saw the interrupt while settling a block left it incomplete
   for (ThreadState& s : states) {
     out.exactEvaluations += s.builder->exactEvaluations;
+    out.quadsSettledAtOnce += s.builder->quadsSettledAtOnce;
     for (std::size_t r = 0; r < rods_.size(); ++r) out.voxelsPerRod[r] += s.builder->voxelsPerRod[r];
   }
   out.grid = modulusGrid(assembleBlocks(blocks, leaves, *trees_, spares), grid_);

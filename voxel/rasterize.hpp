@@ -77,6 +77,10 @@ struct Rasterization {
   openvdb::FloatGrid::Ptr grid;            // named kModulusGridName, with the printer transform
   std::vector<std::uint64_t> voxelsPerRod; // active voxels each rod won, indexed like the rods
   std::uint64_t exactEvaluations = 0;      // voxels sent to the exact test (borderline cases)
+  // Groups of four neighbouring voxels inside a swept piece for sure, some already held by other
+  // candidates (crossings, joints), whose overlaps were all settled at once on four lanes rather than
+  // voxel by voxel (a count for tests and profiles; it does not depend on the thread count or bands).
+  std::uint64_t quadsSettledAtOnce = 0;
 };
 
 class Rasterizer {

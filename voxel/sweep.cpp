@@ -8,6 +8,141 @@
 
 namespace rodfab::voxel::detail {
 
+namespace {
+
+// The slab a >= 0 > b between a piece's planes within a box: the layers, then each layer's rows, that
+// can hold a voxel of it, bounded by the planes' extremes over the box's i (and j) before any row is
+// set up.
+class SlabClip {
+public:
+  SlabClip(const AffineInIndex& a, const AffineInIndex& b, const openvdb::CoordBBox& box)
+      : a_(a), b_(b), box_(box), aMaxI_(extreme(a.gx, box.min().x(), box.max().x(), true)),
+        bMinI_(extreme(b.gx, box.min().x(), box.max().x(), false)), slopeAy_(a.gy), slopeBy_(-b.gy) {}
+  // The box's layers that can hold a voxel of the slab; false when none.
+  [[gnu::always_inline]] bool layers(int& kLo, int& kHi) const {
+    const openvdb::Coord &bmin = box_.min(), &bmax = box_.max();
+    kLo = bmin.z();
+    kHi = bmax.z();
+    return clipHalfLine(a_.c + aMaxI_ + extreme(a_.gy, bmin.y(), bmax.y(), true), a_.gz, kLo, kHi) &&
+           clipHalfLine(-(b_.c + bMinI_ + extreme(b_.gy, bmin.y(), bmax.y(), false)), -b_.gz, kLo, kHi);
+  }
+  // Narrows [jLo, jHi] to layer k's rows that can hold a voxel of the slab; false when none.
+  [[gnu::always_inline]] bool rows(int k, int& jLo, int& jHi) const {
+    return slopeAy_.clip(a_.c + a_.gz * k + aMaxI_, jLo, jHi) && slopeBy_.clip(-(b_.c + b_.gz * k + bMinI_), jLo, jHi);
+  }
+
+private:
+  static double extreme(double g, int from, int to, bool largest) {
+    return largest ? std::max(g * from, g * to) : std::min(g * from, g * to);
+  }
+  const AffineInIndex &a_, &b_;
+  const openvdb::CoordBBox& box_;
+  double aMaxI_, bMinI_;
+  Slope slopeAy_, slopeBy_;
+};
+
+}  // namespace
+
+// What sweep's steps share about the piece.
+struct LeafBuilder::SweptPiece {
+  int rod, index;
+  const RodPiece& piece;
+  const AffineInIndex &planeA, &planeB;
+  Slope slopeA, slopeB;  // of the planes along i, for the rows' bounds
+  bool rectangle;
+  float floatErrorBound;
+  ShellThresholds shell;
+};
+
+// A row's values at i = 0 of the planes and of the frame coordinates measured in them.
+struct LeafBuilder::SweptRowStart {
+  double a, b, x1a, x2a, x1b, x2b;
+};
+
+// Four neighbours' swept estimate (see estimateSwept) and what the decisions per voxel need: `test` is
+// what the tolerance shell is tested on, the gauge squared for round sections (the encoded depth as it
+// is), the max-norm gauge for rectangles (encoded depth 1 - gauge).
+struct LeafBuilder::SweptQuad {
+  Double4 test, encodedDepth, modulus;
+  Mask4 inSlab, sure;
+};
+
+[[gnu::always_inline]] inline LeafBuilder::SweptQuad LeafBuilder::sweptQuad(bool rectangle, const SweptRowStart& r, Double4 iv) const {
+  const SweptLanes& lanes = swept_;
+  const Double4 av = r.a + lanes.gxA * iv, bv = r.b + lanes.gxB * iv;
+  const SweptEstimateOf<Double4> e = estimateSwept(lanes, av, bv, r.x1a + lanes.gx1Begin * iv, r.x2a + lanes.gx2Begin * iv,
+                                                   r.x1b + lanes.gx1End * iv, r.x2b + lanes.gx2End * iv);
+  SweptQuad q;
+  if (rectangle) {
+    const Double4 g1 = absolute(e.x1) * lanes.iA, g2 = absolute(e.x2) * lanes.iB;
+    q.test = g1 < g2 ? g2 : g1;  // std::max(g1, g2), lane by lane
+    q.encodedDepth = 1.0 - q.test;
+  } else {
+    q.test = (e.x1 * lanes.iA) * (e.x1 * lanes.iA) + (e.x2 * lanes.iB) * (e.x2 * lanes.iB);
+    q.encodedDepth = q.test;
+  }
+  q.modulus = estimateModulus(lanes, e.lambda);
+  q.inSlab = (av >= 0.0) & (bv < 0.0);
+  q.sure = q.inSlab & (q.test < lanes.sureInsideBelow);
+  return q;
+}
+
+// Voxels i .. min(i + 3, hi) of a row: four inside for sure go into empty slots with one store each
+// (the common case) or through addFourSurelyInside; otherwise voxel by voxel, the borderline ones to
+// the exact test. Returns the slots newly filled.
+[[gnu::always_inline]] inline int LeafBuilder::settleQuad(const SweptPiece& s, const SweptQuad& q, int row, int i, int hi, int j,
+                                                          int k) {
+  if (i + 3 <= hi && (q.sure[0] & q.sure[1] & q.sure[2] & q.sure[3])) {
+    const int n = (row << kBlockXLog2) | (i & (kBlockX - 1));
+    std::uint64_t& word = filled_[static_cast<std::size_t>(row)];
+    const Float4 value = __builtin_convertvector(q.modulus, Float4);
+    if (((word >> (i & (kBlockX - 1))) & 0xfu) == 0) {
+      storeFour(n, q.encodedDepth, value, s.floatErrorBound, owner(s.rod, s.index));
+      word |= std::uint64_t(0xf) << (i & (kBlockX - 1));
+      return 4;
+    }
+    return addFourSurelyInside(n, q.encodedDepth, value, s.floatErrorBound, s.rod, s.index, i, j, k);
+  }
+  int fresh = 0;
+  for (int l = 0; l < 4 && i + l <= hi; ++l) {
+    if (!q.inSlab[l] || q.test[l] > s.shell.sureOutsideAbove) continue;
+    const int n = offset(i + l, j, k);
+    if (q.sure[l])
+      fresh += addSurelyInside(n, q.encodedDepth[l], s.floatErrorBound, static_cast<float>(q.modulus[l]), s.rod, s.index, i + l, j, k);
+    else
+      addCandidate(exact(s.rod, s.index, i + l, j, k), n, i + l, j, k);
+  }
+  return fresh;
+}
+
+// Row (j, k) from voxel lo to hi, four voxels a step (see estimateSwept); the decisions per voxel.
+// Returns the slots newly filled.
+[[gnu::always_inline]] inline int LeafBuilder::sweepRow(const SweptPiece& s, const SweptRowStart& r, int lo, int hi, int j, int k) {
+  const int row = rowOf(j, k);
+  int fresh = 0;
+  Double4 iv = double(lo) + Double4{0.0, 1.0, 2.0, 3.0};
+  for (int i = lo; i <= hi; i += 4, iv += 4.0) fresh += settleQuad(s, sweptQuad(s.rectangle, r, iv), row, i, hi, j, k);
+  return fresh;
+}
+
+// Layer k's rows jLo .. jHi, set up four at a time (the planes' rows and bounds, the cylinder's square
+// root), each lane as the scalar clips compute it; then row by row.
+[[gnu::always_inline]] inline void LeafBuilder::sweepLayer(const SweptPiece& s, const openvdb::CoordBBox& box, const AxisCylinder& cylinder,
+                                                           int k, int jLo, int jHi) {
+  for (int j4 = jLo; j4 <= jHi; j4 += 4) {
+    const FourRows rows(s.planeA, s.planeB, s.slopeA, s.slopeB, cylinder, j4, k);
+    for (int l = 0; l < 4 && j4 + l <= jHi; ++l) {
+      const int j = j4 + l;
+      RowBounds bounds{rows.lo[l], rows.hi[l]};
+      int lo = box.min().x(), hi = box.max().x();
+      if (rows.missed[l] || !bounds.round(lo, hi)) continue;
+      const SweptRowStart start{rows.a[l], rows.b[l], s.piece.x1Begin.row(j, k), s.piece.x2Begin.row(j, k), s.piece.x1End.row(j, k),
+                                s.piece.x2End.row(j, k)};
+      voxelsPerRod[static_cast<std::size_t>(s.rod)] += static_cast<std::uint64_t>(sweepRow(s, start, lo, hi, j, k));
+    }
+  }
+}
+
 // Cloned for AVX2 (four lanes in one register; AVX2 brings no FMA, so no multiply-add is fused and
 // the clone computes the bits the baseline does), chosen at load time.
 [[gnu::target_clones("avx2", "default")]] void LeafBuilder::sweep(int rod, int pieceIndex, const RodPiece& piece,
@@ -15,98 +150,25 @@ namespace rodfab::voxel::detail {
   const RodPieces& rp = rods_[rod];
   const AffineInIndex& planeA = rp.planes[piece.plane];
   const AffineInIndex& planeB = rp.planes[piece.plane + 1];
-  const double iA = rp.inverseHalfWidth, iB = rp.inverseHalfHeight;
+  const SlabClip slab(planeA, planeB, box);
+  int kLo, kHi;
+  if (!slab.layers(kLo, kHi)) return;
   const bool rectangle = structure_.rods[rod].section().shape == geometry::SectionShape::Rectangle;
-  const float floatErrorBound = roundedUpToFloat(piece.normalizedRadiusErrorBound);
-  const ShellThresholds shell(piece.normalizedRadiusErrorBound, rectangle);
-  // Layers, then rows, that can hold a voxel of the slab a >= 0 > b within the box: the extremes of
-  // the planes over the box's i (and j) bound them before any row is set up.
-  const auto extreme = [](double g, int from, int to, bool largest) {
-    return largest ? std::max(g * from, g * to) : std::min(g * from, g * to);
-  };
-  const openvdb::Coord &bmin = box.min(), &bmax = box.max();
-  const double aMaxI = extreme(planeA.gx, bmin.x(), bmax.x(), true), bMinI = extreme(planeB.gx, bmin.x(), bmax.x(), false);
-  int kLo = bmin.z(), kHi = bmax.z();
-  if (!clipHalfLine(planeA.c + aMaxI + extreme(planeA.gy, bmin.y(), bmax.y(), true), planeA.gz, kLo, kHi) ||
-      !clipHalfLine(-(planeB.c + bMinI + extreme(planeB.gy, bmin.y(), bmax.y(), false)), -planeB.gz, kLo, kHi))
-    return;
+  const SweptPiece s{rod,
+                     pieceIndex,
+                     piece,
+                     planeA,
+                     planeB,
+                     Slope(planeA.gx),
+                     Slope(-planeB.gx),
+                     rectangle,
+                     roundedUpToFloat(piece.normalizedRadiusErrorBound),
+                     ShellThresholds(piece.normalizedRadiusErrorBound, rectangle)};
+  swept_ = SweptLanes(piece, planeA.gx, planeB.gx, rp.inverseHalfWidth, rp.inverseHalfHeight, s.shell.sureInsideBelow);
   AxisCylinder cylinder(grid_, piece);
-  const Slope slopeA(planeA.gx), slopeB(-planeB.gx), slopeAy(planeA.gy), slopeBy(-planeB.gy);
-  const SweptLanes lanes(piece, planeA.gx, planeB.gx);
-  struct {
-    Double4 iA, iB, sureInsideBelow;
-  } const gauges{broadcast(iA), broadcast(iB), broadcast(shell.sureInsideBelow)};
-  // Their addresses made known: the lanes then stay in memory, read by the vector instructions as
-  // operands. Kept as values, GCC split them into registers, then spilled, copied or broadcast
-  // them again at every row (some 40 instructions a row, 1.3 quads a row on the curved lattice).
-  asm volatile("" : : "r"(&lanes), "r"(&gauges) : "memory");
   for (int k = kLo; k <= kHi; ++k) {
-    int jLo = bmin.y(), jHi = bmax.y();
-    if (!slopeAy.clip(planeA.c + planeA.gz * k + aMaxI, jLo, jHi) || !slopeBy.clip(-(planeB.c + planeB.gz * k + bMinI), jLo, jHi) ||
-        !cylinder.layer(k, bmin.y(), jLo, jHi))
-      continue;
-    // Rows set up four at a time (the planes' rows and bounds, the cylinder's square root), each lane
-    // as the scalar clips compute it; then row by row as before.
-    for (int j4 = jLo; j4 <= jHi; j4 += 4) {
-      const FourRows rows(planeA, planeB, slopeA, slopeB, cylinder, j4, k);
-      for (int l = 0; l < 4 && j4 + l <= jHi; ++l) {
-        const int j = j4 + l;
-        const double aRow = rows.a[l], bRow = rows.b[l];
-        RowBounds bounds{rows.lo[l], rows.hi[l]};
-        int lo = bmin.x(), hi = bmax.x();
-        if (rows.missed[l] || !bounds.round(lo, hi)) continue;
-        const double x1aRow = piece.x1Begin.row(j, k), x2aRow = piece.x2Begin.row(j, k);
-        const double x1bRow = piece.x1End.row(j, k), x2bRow = piece.x2End.row(j, k);
-        const int row = rowOf(j, k);
-        std::uint64_t fresh = 0;
-        // Four voxels at a time (see estimateSwept); the decisions per voxel. `test` is what the
-        // tolerance shell is tested on: the gauge squared for round sections (encoded depth
-        // as it is), the max-norm gauge for rectangles (encoded depth 1 - gauge).
-        Double4 iv = double(lo) + Double4{0.0, 1.0, 2.0, 3.0};
-        for (int i = lo; i <= hi; i += 4, iv += 4.0) {
-          const Double4 av = aRow + lanes.gxA * iv, bv = bRow + lanes.gxB * iv;
-          const detail::SweptEstimateOf<Double4> e =
-              detail::estimateSwept(lanes, av, bv, x1aRow + lanes.gx1Begin * iv, x2aRow + lanes.gx2Begin * iv,
-                                    x1bRow + lanes.gx1End * iv, x2bRow + lanes.gx2End * iv);
-          Double4 test, encodedDepth;
-          if (rectangle) {
-            const Double4 g1 = absolute(e.x1) * gauges.iA, g2 = absolute(e.x2) * gauges.iB;
-            test = g1 < g2 ? g2 : g1;  // std::max(g1, g2), lane by lane
-            encodedDepth = 1.0 - test;
-          } else {
-            test = (e.x1 * gauges.iA) * (e.x1 * gauges.iA) + (e.x2 * gauges.iB) * (e.x2 * gauges.iB);
-            encodedDepth = test;
-          }
-          const Double4 modulus = detail::estimateModulus(lanes, e.lambda);
-          const Mask4 inSlab = (av >= 0.0) & (bv < 0.0);
-          const Mask4 sure = inSlab & (test < gauges.sureInsideBelow);
-          if (i + 3 <= hi && (sure[0] & sure[1] & sure[2] & sure[3])) {
-            // The common case: four neighbours inside for sure; into empty slots with one store each.
-            const int n = (row << kBlockXLog2) | (i & (kBlockX - 1));
-            std::uint64_t& word = filled_[static_cast<std::size_t>(row)];
-            if (((word >> (i & (kBlockX - 1))) & 0xfu) == 0) {
-              storeFour(n, encodedDepth, __builtin_convertvector(modulus, Float4), floatErrorBound, owner(rod, pieceIndex));
-              word |= std::uint64_t(0xf) << (i & (kBlockX - 1));
-              fresh += 4;
-            } else {
-              fresh += addFourSurelyInside(n, encodedDepth, __builtin_convertvector(modulus, Float4), floatErrorBound, rod,
-                                           pieceIndex, i, j, k);
-            }
-            continue;
-          }
-          for (int l = 0; l < 4 && i + l <= hi; ++l) {
-            if (!inSlab[l] || test[l] > shell.sureOutsideAbove) continue;
-            const int n = offset(i + l, j, k);
-            if (sure[l])
-              fresh += addSurelyInside(n, encodedDepth[l], floatErrorBound, static_cast<float>(modulus[l]), rod, pieceIndex,
-                                       i + l, j, k);
-            else
-              addCandidate(exact(rod, pieceIndex, i + l, j, k), n, i + l, j, k);
-          }
-        }
-        voxelsPerRod[static_cast<std::size_t>(rod)] += fresh;
-      }
-    }
+    int jLo = box.min().y(), jHi = box.max().y();
+    if (slab.rows(k, jLo, jHi) && cylinder.layer(k, box.min().y(), jLo, jHi)) sweepLayer(s, box, cylinder, k, jLo, jHi);
   }
 }
 
