@@ -72,6 +72,8 @@ int bandEnd(int k0, int bandLayers) {
 
 }  // namespace
 
+int stageConcurrency() { return tbb::this_task_arena::max_concurrency(); }
+
 std::uint64_t jobWriterBytes(const printer_profiles::Profile& profile, const openvdb::CoordBBox& partBounds,
                              int contactSheetLayers) {
   constexpr double kRuntimeBytes = 96.0 * (1 << 20), kLayerImageBytes = 30.0;
@@ -96,7 +98,7 @@ printer_profiles::JobResult streamJob(printer_profiles::JobSpec spec, const Band
     seconds.wall += secondsSince(start);
     seconds.cpu += processCpuSeconds() - cpuStart;
   };
-  const int threads = tbb::this_task_arena::max_concurrency();
+  const int threads = stageConcurrency();
   StageArena sourceArena(threads), ditherArena(threads), emitArena(threads);
   try {
     std::optional<printer_profiles::JobWriter> writer;

@@ -47,6 +47,11 @@ inline constexpr int kLeafLayers = 8;
 // estimates of the jobs it writes count this many (sliceMemoryBytes, couponJobBytes).
 inline constexpr int kBandsInFlight = 2;
 
+// Threads each of streamJob's stage arenas runs (the calling thread's arena concurrency; a
+// tbb::global_control, i.e. --threads, does not lower it). Memory estimates of the stages read this
+// too, so they size what the stages will hold (sliceMemoryBytes: error diffusion's workers).
+int stageConcurrency();
+
 // Bytes the job writer holds for a job of `profile` and `partBounds` with `contactSheetLayers`
 // (JobOptions) besides the bands' grids: its layer images and encoders (~30 bytes per pixel of a layer
 // image, measured), the previews' views and contact tiles (printer_profiles::previewMemoryBytes, worked

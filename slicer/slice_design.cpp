@@ -7,8 +7,6 @@
 #include "voxel/diagnostics.hpp"
 #include "voxel/tree_assembly.hpp"
 
-#include <tbb/task_arena.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -52,6 +50,32 @@ std::vector<int> smallerBands(int automatic) {
   return bands;
 }
 
+// The job's geometry, what it was made from (recorded in its manifest) and the settings' job options.
+printer_profiles::JobSpec jobSpec(const printer_profiles::Profile& profile, const openvdb::CoordBBox& partBounds,
+                                  const voxel::PrinterGrid& grid, const calibration::Calibration& calibration,
+                                  const materials::Ditherer& ditherer, const SliceSettings& settings) {
+  printer_profiles::JobSpec spec;
+  spec.profile = profile;
+  spec.partBounds = partBounds;
+  spec.originMm = grid.origin;
+  spec.metadata.design = settings.designFile;
+  if (!settings.designSha256.empty()) spec.metadata.extra["design_sha256"] = settings.designSha256;
+  spec.metadata.ditherer = std::string(ditherer.name());
+  spec.metadata.seed = settings.seed;
+  if (!settings.calibrationFile.empty())
+    spec.metadata.calibration = printer_profiles::CalibrationRecord{settings.calibrationFile, settings.calibrationSha256,
+                                                                    calibration.record().rigidMaterial,
+                                                                    calibration.record().rubberyMaterial, settings.calibrationWarning};
+  spec.options = settings.job;
+  return spec;
+}
+
+std::string smallerBandsNote(int bandLayers, int automatic) {
+  return "sliced in bands of " + std::to_string(bandLayers) + " layer(s) instead of " + std::to_string(automatic) +
+         " to stay within the memory budget of " + common::formatBytes(common::memoryBudget()) +
+         ", which is slower: raise --max-memory if the machine has more";
+}
+
 struct SliceMemoryPlan {
   int bandLayers = 0;
   std::uint64_t bytes = 0;
@@ -68,8 +92,7 @@ SliceMemoryPlan planSliceMemory(const geometry::RodStructure& design, const prin
   const std::string name = settings.designFile.empty() ? "the design" : settings.designFile;
   const openvdb::CoordBBox part = designVoxelBounds(design, grid);
   const std::uint64_t writer = jobWriterBytes(profile, part, settings.job.contactSheetLayers);
-  // The stages run in arenas of the calling thread's concurrency (streamJob), the ditherer's included.
-  const int concurrency = tbb::this_task_arena::max_concurrency();
+  const int concurrency = stageConcurrency();  // the ditherer's arena's too
   const auto estimate = [&](int bandLayers) {
     return SliceMemoryPlan{bandLayers, sliceMemoryBytes(design, grid, bandLayers, ditherer, concurrency, writer, pieces)};
   };
@@ -165,19 +188,7 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   report.maxModulusMpa = fractionMap.maxModulusMpa();
   report.prepareSeconds = secondsSince(start);
 
-  printer_profiles::JobSpec spec;
-  spec.profile = profile;
-  spec.partBounds = partBounds;
-  spec.originMm = grid.origin;
-  spec.metadata.design = settings.designFile;
-  if (!settings.designSha256.empty()) spec.metadata.extra["design_sha256"] = settings.designSha256;
-  spec.metadata.ditherer = std::string(ditherer.name());
-  spec.metadata.seed = settings.seed;
-  if (!settings.calibrationFile.empty())
-    spec.metadata.calibration = printer_profiles::CalibrationRecord{settings.calibrationFile, settings.calibrationSha256,
-                                                                    calibration.record().rigidMaterial,
-                                                                    calibration.record().rubberyMaterial, settings.calibrationWarning};
-  spec.options = settings.job;
+  printer_profiles::JobSpec spec = jobSpec(profile, partBounds, grid, calibration, ditherer, settings);
   if (settings.job.support.value_or(profile.supportPolicy) == printer_profiles::SupportPolicy::Explicit) {
     // Support reaches down from every overhang, so the column tops of the whole part come first: a
     // topology-only pass over the bands (each band's grid is dropped as soon as it is counted).
@@ -224,9 +235,7 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   report.job = streamJob(std::move(spec), source, ditherer, pipeline, report.seconds);
   // For the technician on stderr, not in the job's report: the band size changes the time, not the job.
   if (settings.bandLayers <= 0 && bandLayers < automaticBandLayers(partBounds))
-    report.warnings.push_back("sliced in bands of " + std::to_string(bandLayers) + " layer(s) instead of " +
-                              std::to_string(automaticBandLayers(partBounds)) + " to stay within the memory budget of " +
-                              common::formatBytes(common::memoryBudget()) + ", which is slower: raise --max-memory if the machine has more");
+    report.warnings.push_back(smallerBandsNote(bandLayers, automaticBandLayers(partBounds)));
   return report;
 }
 

@@ -62,13 +62,13 @@ int automaticBandLayers(const openvdb::CoordBBox& partBounds);
 // from the design alone (no band allocated): the rasterizer's pieces (`pieces` of them once built; the
 // rods' piece budgets before) and band trees with kBandsInFlight bands in flight
 // (voxel::RasterEstimate::peakBytes), the dithered material trees of those bands and of their recycler,
-// `ditherer`'s own buffers (materials::Ditherer::workingBytes in an arena of `concurrency` threads: the
-// tbb::this_task_arena::max_concurrency() streamJob will run in, which a tbb::global_control
-// (--threads) does not lower: the figure follows the machine's cores), explicit support's column tops
-// and `writerBytes` (the job writer's share, jobWriterBytes). An upper estimate: resident peaks measured on the benchmark
-// classes and bundled examples are 1.4 to 7 times below it (bench/README.md, "Memory of slice").
-// Saturates (common::saturatedBytes) rather than overflows; throws nothing else. Thread-safe (reads
-// its arguments only; `ditherer` through its const workingBytes).
+// `ditherer`'s own buffers (materials::Ditherer::workingBytes in an arena of `concurrency` threads:
+// stageConcurrency(), which --threads does not lower: the figure follows the machine's cores), explicit
+// support's column tops and `writerBytes` (the job writer's share, jobWriterBytes). An upper estimate:
+// resident peaks measured on the benchmark classes are 2 to 3.5 times below it (bench/README.md,
+// "Memory of `slice`, round 2"). Saturates (common::saturatedBytes) rather than overflows; throws
+// std::bad_alloc if its per-layer tables (two doubles a layer of the grid) cannot be allocated.
+// Thread-safe (reads its arguments only; `ditherer` through its const workingBytes).
 std::uint64_t sliceMemoryBytes(const geometry::RodStructure& design, const voxel::PrinterGrid& grid, int bandLayers,
                                const materials::Ditherer& ditherer, int concurrency, std::uint64_t writerBytes,
                                std::optional<std::size_t> pieces = std::nullopt);
