@@ -103,15 +103,24 @@ CouponLayout planCouponLayout(const printer_profiles::Profile& profile, std::siz
 }
 
 std::uint64_t couponJobBytes(const CouponLayout& layout, const printer_profiles::Profile& profile, int contactSheetLayers,
-                             int bandLayers) {
+                             int bandLayers, const materials::Ditherer& ditherer) {
   // Per voxel of a band, both bands in flight: fractions (float leaves), material (bool leaves). The
   // leaves hold whole 8-layer slabs, whatever the band's layers.
   constexpr double kBandBytes = 5.0;
   const int heldLayers = (bandLayers + kLeafLayers - 1) / kLeafLayers * kLeafLayers;
   const openvdb::Coord d = layout.bounds.dim();
   const double bands = kBandBytes * (heldLayers + 1.0) * double(d.x()) * double(d.y());
-  const double bytes = double(jobWriterBytes(profile, layout.bounds, contactSheetLayers)) + bands;
-  return common::saturatedBytes(bytes);
+  // The ditherer's own buffers (error diffusion's layer slots): every bar is solid, so a layer holds
+  // their footprints; a band's leaves are their leaf columns over the slabs it spans.
+  materials::DitherBand band{0.0, 0.0, bandLayers};
+  for (const openvdb::CoordBBox& bar : layout.bars) {
+    const openvdb::Coord b = bar.dim();
+    band.layerVoxels += double(b.x()) * double(b.y());
+    band.leaves += std::ceil(b.x() / double(kLeafLayers) + 1.0) * std::ceil(b.y() / double(kLeafLayers) + 1.0) *
+                   (heldLayers / kLeafLayers + 1.0);
+  }
+  const double dither = ditherer.workingBytes(band, stageConcurrency());
+  return common::saturatedBytes(double(jobWriterBytes(profile, layout.bounds, contactSheetLayers)) + bands + dither);
 }
 
 BandSource couponBands(const CouponLayout& layout, const std::vector<double>& fractions,

@@ -52,10 +52,11 @@ CouponLayout planCouponLayout(const printer_profiles::Profile& profile, std::siz
 // (jobWriterBytes: its previews, per-layer images and the process) and two bands of fractions and
 // material in flight, each holding whole 8-layer slabs of leaves. Measured on three 400 x 40 mm bars at
 // 8 layers a band (peak resident: 1.28 GB at 1.5 mm tall, 1.8 GB at 150 mm; the estimate, with the
-// writer's previews then a fixed 12.6 MB: 1.29 and 1.85 GB). Throws as jobWriterBytes does (a layout
-// that planJob refuses). Thread-safe (pure).
+// writer's previews then a fixed 12.6 MB: 1.29 and 1.85 GB), and `ditherer`'s own buffers
+// (materials::Ditherer::workingBytes at stageConcurrency(): error diffusion's layer slots over the bars'
+// footprints). Throws as jobWriterBytes does (a layout that planJob refuses). Thread-safe (pure).
 std::uint64_t couponJobBytes(const CouponLayout& layout, const printer_profiles::Profile& profile, int contactSheetLayers,
-                             int bandLayers);
+                             int bandLayers, const materials::Ditherer& ditherer);
 
 // Layers [k0, k1) of every bar (and layer k1 when asked), each voxel at its bar's fraction
 // (`fractions[n]` for bar n), in the printer grid of `profile` with voxel (0,0,0) centred at `originMm`.

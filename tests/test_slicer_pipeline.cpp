@@ -367,6 +367,25 @@ TEST_CASE("the coupon layout: bars of whole voxels, balanced rows, each voxel co
   CHECK(bars[0]["specimen"] == "coupon-00");
 }
 
+TEST_CASE("couponJobBytes counts error diffusion's layer slots over the bars' real footprints", "[memory]") {
+  openvdb::initialize();
+  const printer_profiles::Profile& p = connex3();
+  const slicer::CouponLayout layout = slicer::planCouponLayout(p, 11, slicer::couponVoxels(p, {20, 4, 0.6}, 3));
+  const std::vector<double> fractions(layout.bars.size(), 0.5);
+  // Independent truth: the active voxels of a layer of the fraction band the coupons job dithers.
+  const slicer::BandSource bands = slicer::couponBands(layout, fractions, p, openvdb::Vec3d(0.02, 0.04, 0.015));
+  const openvdb::FloatGrid::Ptr band = bands(0, 8, false).fraction;
+  double layerVoxels = 0.0;
+  for (auto v = band->cbeginValueOn(); v; ++v) layerVoxels += v.getCoord().z() == 3 ? 1.0 : 0.0;
+  REQUIRE(layerVoxels > 100'000);
+  const auto ed = materials::makeDitherer("error-diffusion", {});
+  const auto white = materials::makeDitherer("white", {});
+  const double slots = double(slicer::couponJobBytes(layout, p, 16, 8, *ed)) - double(slicer::couponJobBytes(layout, p, 16, 8, *white));
+  CAPTURE(layerVoxels, slots);
+  CHECK(slots >= 2 * 80.0 * layerVoxels);   // at least two slots of ~82 bytes a voxel (materials/README.md)
+  CHECK(slots <= 8 * 100.0 * layerVoxels);  // and not the whole tray's layer: at most 4 workers + 3 slots
+}
+
 TEST_CASE("sliceDesign refuses a slice over the memory budget before any band, writing nothing; the message says what to change") {
   openvdb::initialize();
   TempDir tmp;
