@@ -95,7 +95,7 @@ void BM_WriteZip_libzip(benchmark::State& state) {
       const pp::Bytes& b = images()[static_cast<std::size_t>(n)];
       const zip_int64_t i = zip_file_add(za, layerName(n).c_str(), zip_source_buffer(za, b.data(), b.size(), 0), ZIP_FL_ENC_UTF_8);
       zip_set_file_compression(za, static_cast<zip_uint64_t>(i), ZIP_CM_STORE, 0);
-      zip_file_set_mtime(za, static_cast<zip_uint64_t>(i), static_cast<time_t>(pp::kZipEntryTime), 0);
+      zip_file_set_dostime(za, static_cast<zip_uint64_t>(i), pp::kZipEntryTime.time, pp::kZipEntryTime.date, 0);
     }
     if (zip_close(za) != 0) state.SkipWithError("zip_close failed");
   }

@@ -58,7 +58,7 @@ public:
     const auto i = static_cast<zip_uint64_t>(index);
     const bool deflate = storage == ZipStorage::Deflate;
     if (zip_set_file_compression(za_, i, deflate ? ZIP_CM_DEFLATE : ZIP_CM_STORE, deflate ? 1 : 0) != 0 ||
-        zip_file_set_mtime(za_, i, static_cast<time_t>(kZipEntryTime), 0) != 0 ||
+        zip_file_set_dostime(za_, i, kZipEntryTime.time, kZipEntryTime.date, 0) != 0 ||
         zip_file_set_external_attributes(za_, i, 0, ZIP_OPSYS_UNIX, 0100644u << 16) != 0)
       fail("cannot set the attributes of " + name);
   }

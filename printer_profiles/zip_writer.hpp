@@ -42,8 +42,13 @@ struct ZipMemoryEntry {
   ZipStorage storage = ZipStorage::Deflate;
 };
 
-// The DOS timestamp of every entry (zip stores local time; this is noon, 1 January 2020 UTC).
-inline constexpr long long kZipEntryTime = 1577880000;
+// Every entry's DOS timestamp: noon, 1 January 2020. Zip stores a local time without its zone, so the
+// fields are set as they are (zip_file_set_dostime): converted from a time_t, they followed the
+// machine's time zone (TZ=JST-9 gave 21:00), and the same job had other bytes elsewhere.
+struct ZipDosTime {
+  std::uint16_t time, date;
+};
+inline constexpr ZipDosTime kZipEntryTime{12 << 11, ((2020 - 1980) << 9) | (1 << 5) | 1};
 
 // Writes a new zip holding `entries` in the given order; the bytes depend on nothing but the
 // entries' contents, names and storage, and for staged entries their compressed bytes (fixed

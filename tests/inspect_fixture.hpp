@@ -104,7 +104,7 @@ inline void rezip(const fs::path& file, const std::vector<std::pair<std::string,
     const zip_int64_t index = zip_file_add(za, name.c_str(), source, ZIP_FL_ENC_UTF_8);
     REQUIRE(index >= 0);
     if (store) REQUIRE(zip_set_file_compression(za, static_cast<zip_uint64_t>(index), ZIP_CM_STORE, 0) == 0);
-    REQUIRE(zip_file_set_mtime(za, static_cast<zip_uint64_t>(index), static_cast<time_t>(kZipEntryTime), 0) == 0);
+    REQUIRE(zip_file_set_dostime(za, static_cast<zip_uint64_t>(index), kZipEntryTime.time, kZipEntryTime.date, 0) == 0);
   }
   REQUIRE(zip_close(za) == 0);
 }

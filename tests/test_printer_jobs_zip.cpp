@@ -72,7 +72,7 @@ void writeWithLibzipFile(const fs::path& path, const std::vector<ZipMemoryEntry>
     const auto index = static_cast<zip_uint64_t>(i);
     const bool deflate = e.storage == ZipStorage::Deflate;
     REQUIRE(zip_set_file_compression(za, index, deflate ? ZIP_CM_DEFLATE : ZIP_CM_STORE, deflate ? 1 : 0) == 0);
-    REQUIRE(zip_file_set_mtime(za, index, static_cast<time_t>(kZipEntryTime), 0) == 0);
+    REQUIRE(zip_file_set_dostime(za, index, kZipEntryTime.time, kZipEntryTime.date, 0) == 0);
     REQUIRE(zip_file_set_external_attributes(za, index, 0, ZIP_OPSYS_UNIX, 0100644u << 16) == 0);
   }
   REQUIRE(zip_close(za) == 0);

@@ -40,6 +40,20 @@ assert m["calibration"]["sha256"] and m["calibration"]["file"].endswith("default
 PY
 rm "$tmp/out/box.zip"
 
+# The same bytes whatever the machine's time zone (zip stores its entries' local times; POSIX zone strings
+# need no tzdata), and the entries dated noon, 1 January 2020, as Python's zipfile reads them. One job
+# name in three folders: the manifest and previews record the name.
+for zone in UTC0 JST-9 PST8PDT; do
+  mkdir -p "$tmp/tz/$zone"
+  TZ=$zone "$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/tz/$zone/box.zip" --quiet > /dev/null 2> "$tmp/err" ||
+    fail "slice in TZ=$zone: $(cat "$tmp/err")"
+done
+cmp -s "$tmp/tz/UTC0/box.zip" "$tmp/tz/JST-9/box.zip" && cmp -s "$tmp/tz/UTC0/box.zip" "$tmp/tz/PST8PDT/box.zip" ||
+  fail "the job's bytes depend on the time zone"
+python3 -c "import sys, zipfile; assert {i.date_time for i in zipfile.ZipFile(sys.argv[1]).infolist()} == {(2020, 1, 1, 12, 0, 0)}" \
+  "$tmp/tz/JST-9/box.zip" || fail "entries not dated 2020-01-01 12:00"
+rm -r "$tmp/tz"
+
 # Determinism: the same bytes for 1 and 2 threads and different band sizes, per ditherer (same job
 # name in two folders: the name is printed in the previews).
 mkdir "$tmp/1" "$tmp/2" "$tmp/3"
