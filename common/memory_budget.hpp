@@ -33,6 +33,9 @@ std::uint64_t memoryBudget();
 // Throws OutOfMemory when `bytes` (an estimate for `what`) exceeds the budget; `remedy` says what to
 // change ("use a coarser voxel size", ...).
 void requireMemory(std::uint64_t bytes, const std::string& what, const std::string& remedy);
+// The same, with `condition` after the figure: "WHAT needs about N CONDITION, more than the memory
+// budget ...", e.g. "even in bands of 1 layer (the smallest band size tried)"; empty: none.
+void requireMemory(std::uint64_t bytes, const std::string& what, const std::string& condition, const std::string& remedy);
 
 // An estimate in bytes worked out in double, as the unsigned count requireMemory takes: UINT64_MAX for
 // NaN, +infinity and anything at or above 2^64 (an estimate too large to count is over any budget),

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 #include <vector>
 
@@ -76,6 +77,16 @@ std::string smallerBandsNote(int bandLayers, int automatic) {
          ", which is slower: raise --max-memory if the machine has more";
 }
 
+// A --max-memory value at or above `bytes`: whole MiB below 1 GiB ("384M"), else tenths of a GiB ("1.8G"),
+// rounded up (formatBytes rounds to nearest: "at least 1.7 GiB" for 1.74 GiB would not be enough).
+std::string maxMemoryAtLeast(std::uint64_t bytes) {
+  constexpr double kMiB = 1 << 20, kGiB = 1 << 30;
+  char text[32];
+  if (double(bytes) < kGiB) std::snprintf(text, sizeof text, "%.0fM", std::ceil(double(bytes) / kMiB));
+  else std::snprintf(text, sizeof text, "%.1fG", std::ceil(double(bytes) / (0.1 * kGiB)) * 0.1);
+  return text;
+}
+
 struct SliceMemoryPlan {
   int bandLayers = 0;
   std::uint64_t bytes = 0;
@@ -96,19 +107,18 @@ SliceMemoryPlan planSliceMemory(const geometry::RodStructure& design, const prin
   const auto estimate = [&](int bandLayers) {
     return SliceMemoryPlan{bandLayers, sliceMemoryBytes(design, grid, bandLayers, ditherer, concurrency, writer, pieces)};
   };
+  const std::string images = std::to_string(part.dim().x()) + " x " + std::to_string(part.dim().y()) + " pixels";
   if (writer > common::memoryBudget()) {
     const std::uint64_t least = estimate(1).bytes;  // what the smallest band would need in all
     common::requireMemory(writer,
-                          "writing the job of " + name + " for the " + profile.printer + " (its layer images of " +
-                              std::to_string(part.dim().x()) + " x " + std::to_string(part.dim().y()) +
-                              " pixels, previews and the process itself)",
-                          "no band size makes that smaller: raise --max-memory to at least " +
-                              common::formatBytes(((std::max(least, writer) >> 20) + 1) << 20));
+                          "writing the job of " + name + " for the " + profile.printer + " (its layer images of " + images +
+                              ", previews and the process itself)",
+                          "no band size makes that smaller: raise --max-memory to at least " + maxMemoryAtLeast(std::max(least, writer)));
   }
   SliceMemoryPlan plan = estimate(settings.bandLayers > 0 ? settings.bandLayers : automaticBandLayers(part));
-  const std::string what = "slicing " + name + " (" + std::to_string(design.rods.size()) + " rod(s)) in bands of ";
+  const std::string what = "slicing " + name + " (" + std::to_string(design.rods.size()) + " rod(s), layer images of " + images + ")";
   if (settings.bandLayers > 0) {
-    common::requireMemory(plan.bytes, what + std::to_string(plan.bandLayers) + " layers",
+    common::requireMemory(plan.bytes, what + " in bands of " + std::to_string(plan.bandLayers) + " layers",
                           plan.bandLayers > kLeafLayers ? "use fewer --band-layers (" + std::to_string(kLeafLayers) +
                                                               " at least), or raise --max-memory if the machine has more"
                                                         : "slice a smaller design, or raise --max-memory if the machine has more");
@@ -118,12 +128,14 @@ SliceMemoryPlan planSliceMemory(const geometry::RodStructure& design, const prin
   SliceMemoryPlan least = plan;
   for (std::size_t n = 0; plan.bytes > common::memoryBudget() && n < fallbacks.size(); ++n) {
     plan = estimate(fallbacks[n]);
-    if (plan.bytes < least.bytes) least = plan;
+    if (plan.bytes <= least.bytes) least = plan;  // on a tie the smaller band: the message names the smallest tried
   }
   if (plan.bytes <= common::memoryBudget()) return plan;
-  common::requireMemory(least.bytes, what + std::to_string(least.bandLayers) + (least.bandLayers == 1 ? " layer" : " layers") +
-                                        ", the smallest of the band sizes tried",
-                        "slice a smaller design, or raise --max-memory if the machine has more");
+  common::requireMemory(least.bytes, what,
+                        "even in bands of " + std::to_string(least.bandLayers) + (least.bandLayers == 1 ? " layer" : " layers") +
+                            " (the smallest band size tried)",
+                        "slice a smaller design, or raise --max-memory to at least " + maxMemoryAtLeast(least.bytes) +
+                            " if the machine has that much");
   return least;
 }
 

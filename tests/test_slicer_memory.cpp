@@ -145,9 +145,25 @@ TEST_CASE("sliceDesign refuses when no band size fits the memory budget, naming 
   settings.designFile = "plate.json";
   settings.job.output = tmp.path / "plate.zip";
   const auto ditherer = materials::makeDitherer("error-diffusion", {});
-  CHECK_THAT(memoryRefusal(design, cal, *ditherer, settings), Catch::Contains("plate.json") &&
-                                                                 Catch::Contains("the smallest of the band sizes tried") &&
-                                                                 Catch::Contains("--max-memory") && !Catch::Contains("--band-layers"));
+  const std::string message = memoryRefusal(design, cal, *ditherer, settings);
+  const voxel::PrinterGrid grid = voxel::makePrinterGrid(design, connex3().voxelSize());
+  const openvdb::CoordBBox part = slicer::designVoxelBounds(design, grid);
+  const std::string images = std::to_string(part.dim().x()) + " x " + std::to_string(part.dim().y()) + " pixels";
+  CHECK_THAT(message, Catch::Contains("slicing plate.json (1 rod(s), layer images of " + images + ") needs about ") &&
+                          Catch::Contains(" even in bands of 1 layer (the smallest band size tried), more than the memory budget") &&
+                          Catch::Contains("raise --max-memory to at least ") && !Catch::Contains("--band-layers"));
+  // The value it suggests is an option value that covers the estimate of the smallest band.
+  const std::size_t at = message.find("at least ");
+  REQUIRE(at != std::string::npos);
+  const std::string suggested = message.substr(at + 9, message.find(' ', at + 9) - (at + 9));
+  const std::optional<std::uint64_t> suggestedBytes = common::parseByteSize(suggested);
+  REQUIRE(suggestedBytes);
+  const voxel::Rasterizer rasterizer(design, grid);
+  const std::uint64_t least = slicer::sliceMemoryBytes(design, grid, 1, *ditherer, slicer::stageConcurrency(),
+                                                       slicer::jobWriterBytes(connex3(), part, 16), rasterizer.pieceCount());
+  CAPTURE(message, suggested, least);
+  CHECK(*suggestedBytes >= least);
+  CHECK(*suggestedBytes < least + (std::uint64_t{1} << 30) / 10 + 1);
   CHECK(fs::is_empty(tmp.path));  // no job, nothing staged
 }
 
