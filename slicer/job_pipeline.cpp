@@ -4,6 +4,7 @@
 #include "common/memory_budget.hpp"
 #include "common/stopwatch.hpp"
 
+#include <tbb/global_control.h>
 #include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
 
@@ -72,7 +73,11 @@ int bandEnd(int k0, int bandLayers) {
 
 }  // namespace
 
-int stageConcurrency() { return tbb::this_task_arena::max_concurrency(); }
+int stageConcurrency() {
+  const std::size_t limit = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
+  const int arena = tbb::this_task_arena::max_concurrency();
+  return std::max(1, limit < std::size_t(arena) ? int(limit) : arena);
+}
 
 std::uint64_t jobWriterBytes(const printer_profiles::Profile& profile, const openvdb::CoordBBox& partBounds,
                              int contactSheetLayers) {

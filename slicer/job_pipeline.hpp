@@ -47,9 +47,12 @@ inline constexpr int kLeafLayers = 8;
 // estimates of the jobs it writes count this many (sliceMemoryBytes, couponJobBytes).
 inline constexpr int kBandsInFlight = 2;
 
-// Threads each of streamJob's stage arenas runs (the calling thread's arena concurrency; a
-// tbb::global_control, i.e. --threads, does not lower it). Memory estimates of the stages read this
-// too, so they size what the stages will hold (sliceMemoryBytes: error diffusion's workers).
+// Threads each of streamJob's stage arenas runs: the calling thread's arena concurrency, at most the
+// thread limit in force (tbb::global_control's max_allowed_parallelism, which cli::ThreadLimit sets for
+// --threads; a task_arena's own concurrency does not follow it, so error diffusion took 2 workers' buffers
+// at --threads 1), at least 1. Memory estimates of the stages read this too, so they size what the
+// stages will hold (sliceMemoryBytes: error diffusion's workers). Call it where streamJob will be called,
+// under the same limit. Thread-safe.
 int stageConcurrency();
 
 // Bytes the job writer holds for a job of `profile` and `partBounds` with `contactSheetLayers`

@@ -63,7 +63,7 @@ int automaticBandLayers(const openvdb::CoordBBox& partBounds);
 // rods' piece budgets before) and band trees with kBandsInFlight bands in flight
 // (voxel::RasterEstimate::peakBytes), the dithered material trees of those bands and of their recycler,
 // `ditherer`'s own buffers (materials::Ditherer::workingBytes in an arena of `concurrency` threads:
-// stageConcurrency(), which --threads does not lower: the figure follows the machine's cores), explicit
+// stageConcurrency(), which follows --threads: error diffusion's workers' buffers), explicit
 // support's column tops and `writerBytes` (the job writer's share, jobWriterBytes). An upper estimate:
 // resident peaks measured on the benchmark classes are 2 to 3.5 times below it (bench/README.md,
 // "Memory of `slice`, round 2"). Saturates (common::saturatedBytes) rather than overflows; throws

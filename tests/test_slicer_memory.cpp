@@ -241,3 +241,71 @@ TEST_CASE("the memory estimate of single rods: layer voxels and band leaves at o
     CHECK(e.bandLeaves <= 3.0 * bandLeaves);
   }
 }
+
+namespace {
+
+// Passes bands to another ditherer, recording the concurrency of the task arena it was called from.
+class ArenaRecordingDitherer final : public materials::Ditherer {
+public:
+  explicit ArenaRecordingDitherer(materials::Ditherer& inner) : inner_(inner) {}
+  std::string_view name() const override { return inner_.name(); }
+  bool readsNextLayer() const override { return inner_.readsNextLayer(); }
+  double workingBytes(const materials::DitherBand& band, int concurrency) const override { return inner_.workingBytes(band, concurrency); }
+  void reset() override { inner_.reset(); }
+  std::vector<int> arenas;
+
+protected:
+  openvdb::BoolGrid::Ptr ditherLeafVoxels(const openvdb::FloatGrid& fraction, int k0, int k1) override {
+    arenas.push_back(tbb::this_task_arena::max_concurrency());
+    return inner_.ditherLayers(fraction, k0, k1);
+  }
+
+private:
+  materials::Ditherer& inner_;
+};
+
+}  // namespace
+
+TEST_CASE("a thread limit of 1 (--threads 1) sizes the stage arenas and the estimate: error diffusion plans and runs one worker, the same job",
+          "[memory]") {
+  openvdb::initialize();
+  TempDir tmp;
+  const geometry::RodStructure design = blockDesign("block", 6.0, 6.0, 2.0);
+  const voxel::PrinterGrid grid = voxel::makePrinterGrid(design, connex3().voxelSize());
+  const openvdb::CoordBBox part = slicer::designVoxelBounds(design, grid);
+  const voxel::Rasterizer rasterizer(design, grid);
+  const std::uint64_t writer = slicer::jobWriterBytes(connex3(), part, 16);
+  const calibration::Calibration cal = calibration::loadDefaultCalibration();
+  const auto errorDiffusion = materials::makeDitherer("error-diffusion", {});
+  const auto estimate = [&](int concurrency) {
+    return slicer::sliceMemoryBytes(design, grid, slicer::automaticBandLayers(part), *errorDiffusion, concurrency, writer,
+                                    rasterizer.pieceCount());
+  };
+  const auto slice = [&](const char* folder, std::vector<int>& arenas) {
+    fs::create_directories(tmp.path / folder);
+    slicer::SliceSettings settings;
+    settings.designFile = "block.json";
+    settings.job.output = tmp.path / folder / "block.zip";
+    ArenaRecordingDitherer recording(*errorDiffusion);
+    const slicer::SliceReport report = slicer::sliceDesign(design, connex3(), cal, recording, settings);
+    arenas = recording.arenas;
+    return report;
+  };
+  const int machine = tbb::this_task_arena::max_concurrency();
+  std::vector<int> limitedArenas, freeArenas;
+  slicer::SliceReport limited;
+  {
+    const tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    CHECK(slicer::stageConcurrency() == 1);
+    limited = slice("limited", limitedArenas);
+  }
+  CHECK(slicer::stageConcurrency() == machine);
+  const slicer::SliceReport free = slice("free", freeArenas);
+  REQUIRE_FALSE(limitedArenas.empty());
+  CHECK(std::all_of(limitedArenas.begin(), limitedArenas.end(), [](int n) { return n == 1; }));
+  CHECK(std::all_of(freeArenas.begin(), freeArenas.end(), [&](int n) { return n == machine; }));
+  CHECK(limited.memoryEstimateBytes == estimate(1));
+  CHECK(free.memoryEstimateBytes == estimate(machine));
+  if (machine > 1) CHECK(limited.memoryEstimateBytes < free.memoryEstimateBytes);  // one worker's masks and slots fewer
+  CHECK(fileBytes(limited.job.path) == fileBytes(free.job.path));
+}
