@@ -63,6 +63,7 @@ public:
   std::string_view name() const override { return "white"; }
   bool readsNextLayer() const override { return false; }
   double workingBytes(const DitherBand& band, int) const override { return pointwiseBytes(band); }
+  std::size_t keptTrees() const override { return recycler_.keptTrees(); }
 
 protected:
   openvdb::BoolGrid::Ptr ditherLeafVoxels(const openvdb::FloatGrid& fraction, int k0, int k1) override {
@@ -94,6 +95,7 @@ public:
   double workingBytes(const DitherBand& band, int) const override {
     return pointwiseBytes(band) + double(columns_.size() * sizeof(float));
   }
+  std::size_t keptTrees() const override { return recycler_.keptTrees(); }
 
 protected:
   openvdb::BoolGrid::Ptr ditherLeafVoxels(const openvdb::FloatGrid& fraction, int k0, int k1) override {

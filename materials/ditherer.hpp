@@ -69,6 +69,11 @@ public:
   // measured); 0 or more, no throw. Thread-safe: reads nothing that dithering changes.
   virtual double workingBytes(const DitherBand& band, int concurrency) const = 0;
 
+  // Output (material) trees let go of that the ditherer keeps, to build later bands' trees from their
+  // nodes (its voxel::TreeRecycler's keptTrees()): a memory estimate counts them at a band's material
+  // tree each, besides workingBytes. No throw; thread-safe.
+  virtual std::size_t keptTrees() const = 0;
+
   // Dithers the active voxels of layers [k0, k1) of `fraction`; the result holds exactly those voxels.
   // Throws std::invalid_argument for k0 > k1 or a fraction outside [0, 1] (naming the voxel).
   // "error-diffusion" carries error from one layer into the next, so for it:

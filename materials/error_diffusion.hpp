@@ -64,6 +64,7 @@ public:
   // against resident memory: 360 bytes a voxel of a full 2000 x 1000 layer at 2 workers in 8-layer bands
   // (5 slots: this count gives 434).
   double workingBytes(const DitherBand& band, int concurrency) const override;
+  std::size_t keptTrees() const override { return recycler_.keptTrees(); }
   void reset() override {
     started_ = false;
     carry_.clear();

@@ -74,6 +74,7 @@ public:
   double workingBytes(const materials::DitherBand& band, int concurrency) const override {
     return inner_.workingBytes(band, concurrency);
   }
+  std::size_t keptTrees() const override { return inner_.keptTrees(); }
   void reset() override;
   const std::vector<std::uint64_t>& vero() const { return vero_; }
   const std::vector<std::uint64_t>& voxels() const { return voxels_; }

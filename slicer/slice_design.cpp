@@ -87,6 +87,9 @@ std::string maxMemoryAtLeast(std::uint64_t bytes) {
   return text;
 }
 
+// Fraction trees sliceDesign's recycler keeps: those of the bands in flight, let go while the next are made.
+constexpr std::size_t kFractionTreesKept = kBandsInFlight;
+
 struct SliceMemoryPlan {
   int bandLayers = 0;
   std::uint64_t bytes = 0;
@@ -104,8 +107,9 @@ SliceMemoryPlan planSliceMemory(const geometry::RodStructure& design, const prin
   const openvdb::CoordBBox part = designVoxelBounds(design, grid);
   const std::uint64_t writer = jobWriterBytes(profile, part, settings.job.contactSheetLayers);
   const int concurrency = stageConcurrency();  // the ditherer's arena's too
+  const KeptBandTrees kept = slicingKeptTrees(ditherer);
   const auto estimate = [&](int bandLayers) {
-    return SliceMemoryPlan{bandLayers, sliceMemoryBytes(design, grid, bandLayers, ditherer, concurrency, writer, pieces)};
+    return SliceMemoryPlan{bandLayers, sliceMemoryBytes(design, grid, bandLayers, ditherer, concurrency, writer, kept, pieces)};
   };
   const std::string images = std::to_string(part.dim().x()) + " x " + std::to_string(part.dim().y()) + " pixels";
   if (writer > common::memoryBudget()) {
@@ -141,25 +145,25 @@ SliceMemoryPlan planSliceMemory(const geometry::RodStructure& design, const prin
 
 }  // namespace
 
+KeptBandTrees slicingKeptTrees(const materials::Ditherer& ditherer) {
+  return {voxel::TreeRecycler<openvdb::FloatTree>::kKeptTrees, kFractionTreesKept, ditherer.keptTrees()};
+}
+
 std::uint64_t sliceMemoryBytes(const geometry::RodStructure& design, const voxel::PrinterGrid& grid, int bandLayers,
                                const materials::Ditherer& ditherer, int concurrency, std::uint64_t writerBytes,
-                               std::optional<std::size_t> pieces) {
+                               const KeptBandTrees& kept, std::optional<std::size_t> pieces) {
   voxel::RasterEstimate raster = voxel::estimateRaster(design, grid, bandLayers);
   if (pieces) raster.pieceBytes = double(*pieces) * voxel::RasterEstimate::bytesPerPiece();
   // The dithered bands' material (bool) trees: the bands in flight and the ditherer's recycler's kept
   // ones, on the band's leaves (a bool leaf: two 64-byte masks and its origin, plus the allocator's header).
-  constexpr double kMaterialTrees = kBandsInFlight + double(voxel::TreeRecycler<openvdb::BoolTree>::kKeptTrees);
-  // The recyclers' kept trees are counted at their default (RasterEstimate::bandTreesHeld); the
-  // fractions' recycler keeps kBandsInFlight, the rasterizer's and the ditherer's the default.
-  static_assert(std::size_t{kBandsInFlight} == voxel::TreeRecycler<openvdb::FloatTree>::kKeptTrees,
-                "the recyclers keep as many trees as there are bands in flight: the estimate counts them so");
-  const double materialBytes = kMaterialTrees * raster.bandLeaves * (double(sizeof(openvdb::BoolTree::LeafNodeType)) + 16.0);
+  const double materialTrees = kBandsInFlight + double(kept.materials);
+  const double materialBytes = materialTrees * raster.bandLeaves * (double(sizeof(openvdb::BoolTree::LeafNodeType)) + 16.0);
   // Explicit support's column tops: an int per column of the part.
   const openvdb::Coord part = designVoxelBounds(design, grid).dim();
   const double supportBytes = 4.0 * double(part.x()) * double(part.y());
   const double ditherBytes = ditherer.workingBytes({raster.layerVoxels, raster.bandLeaves, bandLayers}, concurrency);
-  return common::saturatedBytes(raster.peakBytes(kBandsInFlight) + materialBytes + supportBytes + ditherBytes +
-                                double(writerBytes));
+  return common::saturatedBytes(raster.peakBytes(kBandsInFlight, kept.moduli + kept.fractions) + materialBytes + supportBytes +
+                                ditherBytes + double(writerBytes));
 }
 
 openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const voxel::PrinterGrid& grid) {
@@ -217,7 +221,7 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   spec.options.report = reportHook(report, calibration, clampMap, spec.options.verify);
   // The bands' fraction trees come back here once the pipeline is done with them, and later bands are
   // built from their nodes (the rasterizer recycles its own trees the same way).
-  voxel::TreeRecycler<openvdb::FloatTree> fractionTrees(0.0f, std::size_t{kBandsInFlight});
+  voxel::TreeRecycler<openvdb::FloatTree> fractionTrees(0.0f, kFractionTreesKept);
   const BandSource source = [&](int k0, int k1, bool withNextLayer) {
     const voxel::Rasterization ras = rasterizer.rasterizeLayers(k0, k1 + (withNextLayer ? 1 : 0));
     const std::uint64_t clampedBefore = report.mapping.clamps.total();

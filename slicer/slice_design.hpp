@@ -58,10 +58,21 @@ openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const
 // whole 8-layer leaf slabs (kLeafLayers), so at least 8.
 int automaticBandLayers(const openvdb::CoordBBox& partBounds);
 
+// Band trees let go of that the recyclers keep for the next bands while a slice streams (each
+// voxel::TreeRecycler's keptTrees()); sliceMemoryBytes counts each at a band's tree.
+struct KeptBandTrees {
+  std::size_t moduli = 0;     // the rasterizer's (voxel::Rasterizer keeps TreeRecycler's default)
+  std::size_t fractions = 0;  // sliceDesign's, for the mapped fractions
+  std::size_t materials = 0;  // the ditherer's output trees (materials::Ditherer::keptTrees)
+};
+// What sliceDesign's recyclers keep when it slices with `ditherer`. No throw.
+KeptBandTrees slicingKeptTrees(const materials::Ditherer& ditherer);
+
 // Resident bytes `sliceDesign` needs at most for `design` on `grid` in bands of `bandLayers` layers,
 // from the design alone (no band allocated): the rasterizer's pieces (`pieces` of them once built; the
 // rods' piece budgets before) and band trees with kBandsInFlight bands in flight
-// (voxel::RasterEstimate::peakBytes), the dithered material trees of those bands and of their recycler,
+// (voxel::RasterEstimate::peakBytes), the dithered material trees of those bands, the trees `kept` by the
+// recyclers (each at a band's tree: slicingKeptTrees for sliceDesign's),
 // `ditherer`'s own buffers (materials::Ditherer::workingBytes in an arena of `concurrency` threads:
 // stageConcurrency(), which follows --threads: error diffusion's workers' buffers), explicit
 // support's column tops and `writerBytes` (the job writer's share, jobWriterBytes). An upper estimate:
@@ -71,7 +82,7 @@ int automaticBandLayers(const openvdb::CoordBBox& partBounds);
 // Thread-safe (reads its arguments only; `ditherer` through its const workingBytes).
 std::uint64_t sliceMemoryBytes(const geometry::RodStructure& design, const voxel::PrinterGrid& grid, int bandLayers,
                                const materials::Ditherer& ditherer, int concurrency, std::uint64_t writerBytes,
-                               std::optional<std::size_t> pieces = std::nullopt);
+                               const KeptBandTrees& kept, std::optional<std::size_t> pieces = std::nullopt);
 
 // Throws common::OutOfMemory, once the rods' pieces are built and before any band is, when the slice
 // does not fit the memory budget (common/memory_budget.hpp): when the job writer's fixed share

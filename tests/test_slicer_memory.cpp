@@ -3,6 +3,12 @@
 
 #include "slicer_test_support.hpp"
 
+#include "voxel/tree_assembly.hpp"
+
+#include <malloc.h>
+
+#include <deque>
+
 using namespace rodfab;
 using namespace slicer_test;
 
@@ -37,7 +43,7 @@ TEST_CASE("sliceDesign refuses a slice over the memory budget before any band, w
   REQUIRE(common::memoryBudget() <= (std::uint64_t{2} << 30));
   const auto ditherer = materials::makeDitherer("white", {});
   const std::uint64_t writer = slicer::jobWriterBytes(connex3(), slicer::designVoxelBounds(design, grid), 16);
-  REQUIRE(slicer::sliceMemoryBytes(design, grid, 64, *ditherer, 1, writer) > common::memoryBudget());
+  REQUIRE(slicer::sliceMemoryBytes(design, grid, 64, *ditherer, 1, writer, slicer::slicingKeptTrees(*ditherer)) > common::memoryBudget());
   const calibration::Calibration cal = calibration::loadDefaultCalibration();
   slicer::SliceSettings settings;
   settings.designFile = "plate.json";
@@ -64,9 +70,10 @@ TEST_CASE("the memory check passes the bundled examples under a 2 GiB cap, with 
     const std::uint64_t writer = slicer::jobWriterBytes(connex3(), slicer::designVoxelBounds(design, grid), 16);
     for (const char* name : {"white", "error-diffusion"}) {
       const auto ditherer = materials::makeDitherer(name, {});
+      const slicer::KeptBandTrees kept = slicer::slicingKeptTrees(*ditherer);
       for (int bandLayers : {1, 8, 64})
-        CHECK(slicer::sliceMemoryBytes(design, grid, bandLayers, *ditherer, 2, writer, rasterizer.pieceCount()) <= common::memoryBudget());
-      CHECK(double(slicer::sliceMemoryBytes(design, grid, automatic, *ditherer, 2, writer, rasterizer.pieceCount())) >= peakMb * 1e6);
+        CHECK(slicer::sliceMemoryBytes(design, grid, bandLayers, *ditherer, 2, writer, kept, rasterizer.pieceCount()) <= common::memoryBudget());
+      CHECK(double(slicer::sliceMemoryBytes(design, grid, automatic, *ditherer, 2, writer, kept, rasterizer.pieceCount())) >= peakMb * 1e6);
     }
   }
 }
@@ -98,7 +105,8 @@ TEST_CASE("sliceDesign with an automatic band size over the memory budget slices
   const int concurrency = tbb::this_task_arena::max_concurrency();
   const std::uint64_t writer = slicer::jobWriterBytes(connex3(), part, 16);
   const auto estimate = [&](int bandLayers) {
-    return slicer::sliceMemoryBytes(design, grid, bandLayers, *ditherer, concurrency, writer, rasterizer.pieceCount());
+    return slicer::sliceMemoryBytes(design, grid, bandLayers, *ditherer, concurrency, writer, slicer::slicingKeptTrees(*ditherer),
+                                    rasterizer.pieceCount());
   };
   REQUIRE(estimate(64) > estimate(32));
   REQUIRE(estimate(32) > estimate(8));
@@ -159,8 +167,8 @@ TEST_CASE("sliceDesign refuses when no band size fits the memory budget, naming 
   const std::optional<std::uint64_t> suggestedBytes = common::parseByteSize(suggested);
   REQUIRE(suggestedBytes);
   const voxel::Rasterizer rasterizer(design, grid);
-  const std::uint64_t least = slicer::sliceMemoryBytes(design, grid, 1, *ditherer, slicer::stageConcurrency(),
-                                                       slicer::jobWriterBytes(connex3(), part, 16), rasterizer.pieceCount());
+  const std::uint64_t least = slicer::sliceMemoryBytes(design, grid, 1, *ditherer, slicer::stageConcurrency(), slicer::jobWriterBytes(connex3(), part, 16),
+                                                       slicer::slicingKeptTrees(*ditherer), rasterizer.pieceCount());
   CAPTURE(message, suggested, least);
   CHECK(*suggestedBytes >= least);
   CHECK(*suggestedBytes < least + (std::uint64_t{1} << 30) / 10 + 1);
@@ -251,6 +259,7 @@ public:
   std::string_view name() const override { return inner_.name(); }
   bool readsNextLayer() const override { return inner_.readsNextLayer(); }
   double workingBytes(const materials::DitherBand& band, int concurrency) const override { return inner_.workingBytes(band, concurrency); }
+  std::size_t keptTrees() const override { return inner_.keptTrees(); }
   void reset() override { inner_.reset(); }
   std::vector<int> arenas;
 
@@ -279,7 +288,7 @@ TEST_CASE("a thread limit of 1 (--threads 1) sizes the stage arenas and the esti
   const auto errorDiffusion = materials::makeDitherer("error-diffusion", {});
   const auto estimate = [&](int concurrency) {
     return slicer::sliceMemoryBytes(design, grid, slicer::automaticBandLayers(part), *errorDiffusion, concurrency, writer,
-                                    rasterizer.pieceCount());
+                                    slicer::slicingKeptTrees(*errorDiffusion), rasterizer.pieceCount());
   };
   const auto slice = [&](const char* folder, std::vector<int>& arenas) {
     fs::create_directories(tmp.path / folder);
@@ -308,4 +317,101 @@ TEST_CASE("a thread limit of 1 (--threads 1) sizes the stage arenas and the esti
   CHECK(free.memoryEstimateBytes == estimate(machine));
   if (machine > 1) CHECK(limited.memoryEstimateBytes < free.memoryEstimateBytes);  // one worker's masks and slots fewer
   CHECK(fileBytes(limited.job.path) == fileBytes(free.job.path));
+}
+
+namespace {
+
+// glibc's bytes in use: every arena and the mapped blocks.
+std::uint64_t heapBytesInUse() {
+  const struct mallinfo2 m = mallinfo2();
+  return std::uint64_t(m.uordblks) + std::uint64_t(m.hblkhd);
+}
+
+struct StreamedHeap {
+  std::uint64_t peak = 0;        // the most in use while bands stream (two in flight)
+  std::uint64_t full = 0;        // with both recyclers full while two bands are alive
+  std::size_t keptFractions = 0; // the fraction recycler's keptTrees()
+};
+
+// Streams `design`'s bands of `bandLayers` as sliceDesign does (two in flight; a band's fractions let go
+// once "dithered", its moduli once "written"), the fractions' recycler keeping `keptFractionTrees`, then
+// makes and lets go more bands while two are alive, so both recyclers are full. Bytes above the heap
+// in use before.
+StreamedHeap streamBands(const geometry::RodStructure& design, const voxel::PrinterGrid& grid, int bandLayers, std::size_t keptFractionTrees) {
+  const materials::FractionMap map(calibration::loadDefaultCalibration());
+  const std::uint64_t before = heapBytesInUse();
+  const auto heap = [&] { return heapBytesInUse() - std::min(before, heapBytesInUse()); };
+  StreamedHeap out;
+  const voxel::Rasterizer rasterizer(design, grid, {2});
+  voxel::TreeRecycler<openvdb::FloatTree> fractionTrees(0.0f, keptFractionTrees);
+  out.keptFractions = fractionTrees.keptTrees();
+  materials::MappingStats stats;
+  struct Band {
+    openvdb::FloatGrid::Ptr moduli, fractions;
+  };
+  const auto make = [&](int k0) {
+    Band band{rasterizer.rasterizeLayers(k0, k0 + bandLayers).grid, nullptr};
+    out.peak = std::max(out.peak, heap());
+    band.fractions = materials::mapToFractions(*band.moduli, map, k0, k0 + bandLayers, stats, fractionTrees);
+    out.peak = std::max(out.peak, heap());
+    return band;
+  };
+  std::deque<Band> alive;
+  int k0 = 0;
+  for (; k0 + 5 * bandLayers < grid.dims.z(); k0 += bandLayers) {
+    if (alive.size() == std::size_t{slicer::kBandsInFlight}) alive.pop_front();
+    alive.push_back(make(k0));
+    alive.back().fractions.reset();
+  }
+  // Enough bands made while two are alive, then let go at once, to fill both recyclers.
+  const std::size_t fill = std::max(keptFractionTrees, voxel::TreeRecycler<openvdb::FloatTree>::kKeptTrees);
+  REQUIRE(k0 + int(fill) * bandLayers < grid.dims.z());
+  std::vector<Band> extra;
+  for (std::size_t n = 0; n < fill; ++n) extra.push_back(make(k0 + int(n) * bandLayers));
+  extra.clear();
+  out.full = heap();
+  out.peak = std::max(out.peak, out.full);
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("the slice estimate counts the trees the recyclers really keep: 0, 1 and 3 kept fraction trees against the heap",
+          "[memory]") {
+#if defined(__SANITIZE_ADDRESS__)
+  WARN("AddressSanitizer keeps its own heap: mallinfo2 does not see it, nothing to measure");
+  return;
+#endif
+  openvdb::initialize();
+  // A 4 mm post with round caps and a 1.5 mm strut, streamed in bands of 16 layers.
+  const geometry::NurbsCurve post(1, {0, 0, 1, 1}, {geometry::Vec3(5, 5, 0.5), geometry::Vec3(5, 5, 7.5)});
+  const geometry::NurbsCurve strut(1, {0, 0, 1, 1}, {geometry::Vec3(3, 4, 1), geometry::Vec3(8, 7, 7)});
+  const geometry::RodStructure design{
+      "kept", {geometry::Rod("post", post, geometry::Section::circle(4.0), std::nullopt, std::nullopt, geometry::CapStyle::Round,
+                             geometry::BSplineField::constant(20, 0, 1)),
+               geometry::Rod("strut", strut, geometry::Section::circle(1.5), std::nullopt, std::nullopt, geometry::CapStyle::Flat,
+                             geometry::BSplineField(1, {0, 0, 1, 1}, {2.0, 150.0}))}};
+  const voxel::PrinterGrid grid = voxel::makePrinterGrid(design, connex3().voxelSize());
+  constexpr int kBandLayers = 16;
+  const voxel::RasterEstimate estimate = voxel::estimateRaster(design, grid, kBandLayers);
+  const tbb::global_control two(tbb::global_control::max_allowed_parallelism, 2);
+  const std::size_t keptModuli = voxel::TreeRecycler<openvdb::FloatTree>::kKeptTrees;  // the Rasterizer's recycler
+  std::vector<std::pair<double, StreamedHeap>> runs;  // (estimate, heap)
+  for (const std::size_t kept : {std::size_t{0}, std::size_t{1}, std::size_t{3}}) {
+    INFO("kept fraction trees " << kept);
+    const StreamedHeap heap = streamBands(design, grid, kBandLayers, kept);
+    REQUIRE(heap.keptFractions == kept);
+    const double bound = estimate.peakBytes(slicer::kBandsInFlight, keptModuli + kept);
+    CAPTURE(heap.peak, heap.full, estimate.bandBytes, bound);
+    CHECK(bound >= double(heap.peak));
+    runs.emplace_back(bound, heap);
+  }
+  // Three kept trees more hold three band trees more, on the heap and in the estimate; the estimate
+  // grows by at least what the heap does (an estimate blind to the count would not grow at all).
+  const double heapGrowth = double(runs[2].second.full) - double(runs[0].second.full);
+  const double estimateGrowth = runs[2].first - runs[0].first;
+  CAPTURE(heapGrowth, estimateGrowth);
+  CHECK(heapGrowth > 3 * 100'000.0);  // the kept trees are there: each band's grid holds hundreds of leaves
+  CHECK(estimateGrowth >= heapGrowth);
+  CHECK(runs[1].first > runs[0].first);
 }

@@ -2,7 +2,6 @@
 
 #include "voxel/memory_estimate.hpp"
 #include "voxel/rod_pieces.hpp"
-#include "voxel/tree_assembly.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -232,16 +231,15 @@ std::string format(const char* pattern, double a, double b = 0.0) {
 
 }  // namespace
 
-int RasterEstimate::bandTreesHeld(int bandsInFlight) {
+double RasterEstimate::bandTreesHeld(int bandsInFlight, std::size_t keptTrees) {
   constexpr int kGridsPerBand = 2;  // moduli and fractions
-  constexpr int kRecyclers = 2;     // the rasterizer's modulus trees, the slicer's fraction trees
-  return kGridsPerBand * bandsInFlight + kRecyclers * int(TreeRecycler<openvdb::FloatTree>::kKeptTrees);
+  return kGridsPerBand * bandsInFlight + double(keptTrees);
 }
 
 double RasterEstimate::bytesPerPiece() { return double(sizeof(detail::RodPiece) + sizeof(detail::AffineInIndex)); }
 
-double RasterEstimate::peakBytes(int bandsInFlight) const {
-  return pieceBytes + (bandsInFlight > 0 ? bandTreesHeld(bandsInFlight) * bandBytes : gridBytes);
+double RasterEstimate::peakBytes(int bandsInFlight, std::size_t keptTrees) const {
+  return pieceBytes + (bandsInFlight > 0 ? bandTreesHeld(bandsInFlight, keptTrees) * bandBytes : gridBytes);
 }
 
 RasterEstimate estimateRaster(const geometry::RodStructure& structure, const PrinterGrid& grid, int bandLayers) {

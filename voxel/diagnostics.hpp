@@ -48,12 +48,13 @@ struct RasterEstimate {
   // Peak while slicing with `bandsInFlight` bands alive (the caller's pipeline says how many: the
   // slicer's kBandsInFlight, slicer/job_pipeline.hpp), or while voxelizing the whole design
   // (bandsInFlight = 0). A band holds two grids of bandBytes each, its moduli and its fractions
-  // (materials::mapToFractions: the same leaves), and two voxel::TreeRecyclers (tree_assembly.hpp),
-  // the rasterizer's and the slicer's for the fractions, each keep up to kKeptTrees let-go band trees
-  // whose nodes the next bands are built from: bandTreesHeld of them. Measured against the heap
-  // (tests/test_materials_mapping.cpp) and the resident memory of `rodfab slice` (bench/README.md).
-  double peakBytes(int bandsInFlight) const;
-  static int bandTreesHeld(int bandsInFlight);
+  // (materials::mapToFractions: the same leaves), and the voxel::TreeRecyclers of the streaming
+  // (tree_assembly.hpp: the rasterizer's and the slicer's for the fractions) keep `keptTrees` let-go
+  // band trees in all (the sum of their keptTrees()), whose nodes the next bands are built from:
+  // bandTreesHeld of them. Measured against the heap (tests/test_slicer_memory.cpp, 0 to 3 kept trees)
+  // and the resident memory of `rodfab slice` (bench/README.md).
+  double peakBytes(int bandsInFlight, std::size_t keptTrees = 0) const;
+  static double bandTreesHeld(int bandsInFlight, std::size_t keptTrees);
 };
 RasterEstimate estimateRaster(const geometry::RodStructure& structure, const PrinterGrid& grid, int bandLayers = 0);
 

@@ -184,7 +184,7 @@ private:
 // recycler is gone, are deleted. Thread-safe: trees come back from any thread, and takeSpares and
 // assemble may be called from several threads at once.
 // Memory: the kept trees stay allocated while the recycler lives. A slicer's memory estimate counts
-// them (voxel::RasterEstimate::peakBytes, diagnostics.hpp: kKeptTrees band trees per recycler).
+// them (voxel::RasterEstimate::peakBytes, diagnostics.hpp: each recycler's keptTrees() band trees).
 template <typename TreeT>
 class TreeRecycler {
 public:
