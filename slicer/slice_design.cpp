@@ -90,6 +90,31 @@ std::string maxMemoryAtLeast(std::uint64_t bytes) {
 // Fraction trees sliceDesign's recycler keeps: those of the bands in flight, let go while the next are made.
 constexpr std::size_t kFractionTreesKept = kBandsInFlight;
 
+// What sliceMemoryBytes reads besides the design's raster profile and the band size.
+struct SliceMemoryInputs {
+  openvdb::Coord part;  // the part's voxels along x, y, z (designVoxelBounds)
+  const materials::Ditherer* ditherer = nullptr;
+  int concurrency = 1;
+  std::uint64_t writerBytes = 0;
+  KeptBandTrees kept;
+  std::optional<std::size_t> pieces;
+};
+
+// sliceMemoryBytes from the design's layer profile, built once for every band size tried.
+std::uint64_t sliceMemoryBytes(const voxel::RasterProfile& profile, int bandLayers, const SliceMemoryInputs& in) {
+  voxel::RasterEstimate raster = profile.estimate(bandLayers);
+  if (in.pieces) raster.pieceBytes = double(*in.pieces) * voxel::RasterEstimate::bytesPerPiece();
+  // The dithered bands' material (bool) trees: the bands in flight and the ditherer's recycler's kept
+  // ones, on the band's leaves (a bool leaf: two 64-byte masks and its origin, plus the allocator's header).
+  const double materialTrees = kBandsInFlight + double(in.kept.materials);
+  const double materialBytes = materialTrees * raster.bandLeaves * (double(sizeof(openvdb::BoolTree::LeafNodeType)) + 16.0);
+  // Explicit support's column tops: an int per column of the part.
+  const double supportBytes = 4.0 * double(in.part.x()) * double(in.part.y());
+  const double ditherBytes = in.ditherer->workingBytes({raster.layerVoxels, raster.bandLeaves, bandLayers}, in.concurrency);
+  return common::saturatedBytes(raster.peakBytes(kBandsInFlight, in.kept.moduli + in.kept.fractions) + materialBytes + supportBytes +
+                                ditherBytes + double(in.writerBytes));
+}
+
 struct SliceMemoryPlan {
   int bandLayers = 0;
   std::uint64_t bytes = 0;
@@ -106,11 +131,10 @@ SliceMemoryPlan planSliceMemory(const geometry::RodStructure& design, const prin
   const std::string name = settings.designFile.empty() ? "the design" : settings.designFile;
   const openvdb::CoordBBox part = designVoxelBounds(design, grid);
   const std::uint64_t writer = jobWriterBytes(profile, part, settings.job.contactSheetLayers);
-  const int concurrency = stageConcurrency();  // the ditherer's arena's too
-  const KeptBandTrees kept = slicingKeptTrees(ditherer);
-  const auto estimate = [&](int bandLayers) {
-    return SliceMemoryPlan{bandLayers, sliceMemoryBytes(design, grid, bandLayers, ditherer, concurrency, writer, kept, pieces)};
-  };
+  // The ditherer's arena's concurrency too; the layer profile once for every band size tried.
+  const SliceMemoryInputs inputs{part.dim(), &ditherer, stageConcurrency(), writer, slicingKeptTrees(ditherer), pieces};
+  const voxel::RasterProfile layers(design, grid);
+  const auto estimate = [&](int bandLayers) { return SliceMemoryPlan{bandLayers, sliceMemoryBytes(layers, bandLayers, inputs)}; };
   const std::string images = std::to_string(part.dim().x()) + " x " + std::to_string(part.dim().y()) + " pixels";
   if (writer > common::memoryBudget()) {
     const std::uint64_t least = estimate(1).bytes;  // what the smallest band would need in all
@@ -152,18 +176,8 @@ KeptBandTrees slicingKeptTrees(const materials::Ditherer& ditherer) {
 std::uint64_t sliceMemoryBytes(const geometry::RodStructure& design, const voxel::PrinterGrid& grid, int bandLayers,
                                const materials::Ditherer& ditherer, int concurrency, std::uint64_t writerBytes,
                                const KeptBandTrees& kept, std::optional<std::size_t> pieces) {
-  voxel::RasterEstimate raster = voxel::estimateRaster(design, grid, bandLayers);
-  if (pieces) raster.pieceBytes = double(*pieces) * voxel::RasterEstimate::bytesPerPiece();
-  // The dithered bands' material (bool) trees: the bands in flight and the ditherer's recycler's kept
-  // ones, on the band's leaves (a bool leaf: two 64-byte masks and its origin, plus the allocator's header).
-  const double materialTrees = kBandsInFlight + double(kept.materials);
-  const double materialBytes = materialTrees * raster.bandLeaves * (double(sizeof(openvdb::BoolTree::LeafNodeType)) + 16.0);
-  // Explicit support's column tops: an int per column of the part.
-  const openvdb::Coord part = designVoxelBounds(design, grid).dim();
-  const double supportBytes = 4.0 * double(part.x()) * double(part.y());
-  const double ditherBytes = ditherer.workingBytes({raster.layerVoxels, raster.bandLeaves, bandLayers}, concurrency);
-  return common::saturatedBytes(raster.peakBytes(kBandsInFlight, kept.moduli + kept.fractions) + materialBytes + supportBytes +
-                                ditherBytes + double(writerBytes));
+  const SliceMemoryInputs inputs{designVoxelBounds(design, grid).dim(), &ditherer, concurrency, writerBytes, kept, pieces};
+  return sliceMemoryBytes(voxel::RasterProfile(design, grid), bandLayers, inputs);
 }
 
 openvdb::CoordBBox designVoxelBounds(const geometry::RodStructure& design, const voxel::PrinterGrid& grid) {

@@ -415,3 +415,31 @@ TEST_CASE("the slice estimate counts the trees the recyclers really keep: 0, 1 a
   CHECK(estimateGrowth >= heapGrowth);
   CHECK(runs[1].first > runs[0].first);
 }
+
+TEST_CASE("RasterProfile: one pass over the rods gives every band size's estimate, the same as estimateRaster's own pass",
+          "[voxel][estimate][memory]") {
+  openvdb::initialize();
+  for (const char* name : {"arm-cast", "unfolding-box"}) {
+    INFO(name);
+    const geometry::RodStructure design = geometry::readDesign(fs::path("examples") / (std::string(name) + ".json"));
+    const voxel::PrinterGrid grid = voxel::makePrinterGrid(design, connex3().voxelSize());
+    const voxel::RasterProfile profile(design, grid);
+    double previousLeaves = 0.0;
+    for (const int bandLayers : {0, 1, 2, 4, 8, 16, 40, 64, 100'000}) {
+      INFO("band layers " << bandLayers);
+      const voxel::RasterEstimate once = profile.estimate(bandLayers), own = voxel::estimateRaster(design, grid, bandLayers);
+      CHECK(once.maxPieces == own.maxPieces);
+      CHECK(once.pieceBytes == own.pieceBytes);
+      CHECK(once.activeVoxels == own.activeVoxels);
+      CHECK(once.leaves == own.leaves);
+      CHECK(once.gridBytes == own.gridBytes);
+      CHECK(once.bandLeaves == own.bandLeaves);
+      CHECK(once.bandBytes == own.bandBytes);
+      CHECK(once.layerVoxels == own.layerVoxels);
+      CHECK(once.bandLeaves >= previousLeaves);  // larger bands hold no fewer leaves
+      previousLeaves = once.bandLeaves;
+      if (bandLayers > 0) CHECK(once.bandLeaves > 0.0);
+    }
+    CHECK(profile.estimate(100'000).bandLeaves == Approx(profile.estimate(0).leaves).epsilon(1e-4));  // a band of the whole part (sums of spread shares)
+  }
+}

@@ -242,11 +242,14 @@ double RasterEstimate::peakBytes(int bandsInFlight, std::size_t keptTrees) const
   return pieceBytes + (bandsInFlight > 0 ? bandTreesHeld(bandsInFlight, keptTrees) * bandBytes : gridBytes);
 }
 
-RasterEstimate estimateRaster(const geometry::RodStructure& structure, const PrinterGrid& grid, int bandLayers) {
+namespace {
+
+// The design's figures, no band (RasterEstimate's whole-design fields), and its rods' internal-node bytes
+// before the envelope's cap; with `leavesPerLayer` and `voxelsPerLayer`, each rod added to them too.
+RasterEstimate designTotals(const geometry::RodStructure& structure, const PrinterGrid& grid, double& internalBytes,
+                            LayerProfile* leavesPerLayer = nullptr, LayerProfile* voxelsPerLayer = nullptr) {
   RasterEstimate e;
-  double internalBytes = 0.0;
-  const std::size_t layers = bandLayers > 0 ? std::size_t(std::max(1, grid.dims.z())) : 0;
-  LayerProfile leavesPerLayer(layers), voxelsPerLayer(layers);
+  internalBytes = 0.0;
   for (const geometry::Rod& rod : structure.rods) {
     const std::uint64_t pieces = detail::pieceBudget(rod, grid);
     e.maxPieces += pieces;
@@ -255,19 +258,38 @@ RasterEstimate estimateRaster(const geometry::RodStructure& structure, const Pri
     const double leaves = nodesTouched(grid, 8, rod);
     e.leaves += leaves;
     internalBytes += nodesTouched(grid, 128, rod) * double(sizeof(Internal1)) + nodesTouched(grid, 4096, rod) * double(sizeof(Internal2));
-    if (bandLayers > 0) addRodToLayers(rod, leaves, grid, leavesPerLayer, voxelsPerLayer);
+    if (leavesPerLayer) addRodToLayers(rod, leaves, grid, *leavesPerLayer, *voxelsPerLayer);
   }
   // Rods close together share internal nodes: no more than the envelope (or a band of it) spans.
   e.leaves = std::min(e.leaves, leavesSpanned(grid, grid.dims.z()));
   e.gridBytes = e.leaves * leafBytes() + std::min(internalBytes, internalBytesSpanned(grid, grid.dims.z()));
-  if (bandLayers > 0) {
-    e.bandLeaves = std::min({fullestWindow(leavesPerLayer.layers(), heldLayers(bandLayers)), e.leaves,
-                             leavesSpanned(grid, heldLayers(bandLayers))});
-    e.layerVoxels = std::min(fullestWindow(voxelsPerLayer.layers(), 1.0), double(grid.dims.x()) * double(grid.dims.y()));
-    e.bandBytes = std::min(e.bandLeaves * leafBytes() + std::min(internalBytes, internalBytesSpanned(grid, heldLayers(bandLayers))),
-                           e.gridBytes);
-  }
   return e;
+}
+
+}  // namespace
+
+RasterProfile::RasterProfile(const geometry::RodStructure& structure, const PrinterGrid& grid) : grid_(grid) {
+  const std::size_t layers = std::size_t(std::max(1, grid.dims.z()));
+  LayerProfile leavesPerLayer(layers), voxelsPerLayer(layers);
+  whole_ = designTotals(structure, grid, internalBytes_, &leavesPerLayer, &voxelsPerLayer);
+  leavesPerLayer_ = leavesPerLayer.layers();
+  layerVoxels_ = std::min(fullestWindow(voxelsPerLayer.layers(), 1.0), double(grid.dims.x()) * double(grid.dims.y()));
+}
+
+RasterEstimate RasterProfile::estimate(int bandLayers) const {
+  RasterEstimate e = whole_;
+  if (bandLayers <= 0) return e;
+  e.bandLeaves = std::min({fullestWindow(leavesPerLayer_, heldLayers(bandLayers)), e.leaves, leavesSpanned(grid_, heldLayers(bandLayers))});
+  e.layerVoxels = layerVoxels_;
+  e.bandBytes = std::min(e.bandLeaves * leafBytes() + std::min(internalBytes_, internalBytesSpanned(grid_, heldLayers(bandLayers))),
+                         e.gridBytes);
+  return e;
+}
+
+RasterEstimate estimateRaster(const geometry::RodStructure& structure, const PrinterGrid& grid, int bandLayers) {
+  if (bandLayers > 0) return RasterProfile(structure, grid).estimate(bandLayers);
+  double internalBytes = 0.0;
+  return designTotals(structure, grid, internalBytes);  // no layer tables
 }
 
 std::vector<ThinRod> findThinRods(const geometry::RodStructure& structure, const PrinterGrid& grid,

@@ -58,6 +58,25 @@ struct RasterEstimate {
 };
 RasterEstimate estimateRaster(const geometry::RodStructure& structure, const PrinterGrid& grid, int bandLayers = 0);
 
+// estimateRaster for many band sizes of one design (a slicer trying smaller bands under a small budget):
+// the pass over the rods' polyline samples, the costly part (74 M instructions on the curved lattice, as
+// much for every band size before), once, into a table of leaves a layer; then each band size in time
+// linear in the layers. estimate(b) equals estimateRaster(structure, grid, b) exactly (b <= 0: the
+// design's figures, no band). Holds a double a layer of the grid (std::bad_alloc if it cannot). The
+// estimates are thread-safe (const).
+class RasterProfile {
+public:
+  RasterProfile(const geometry::RodStructure& structure, const PrinterGrid& grid);
+  RasterEstimate estimate(int bandLayers) const;
+
+private:
+  PrinterGrid grid_;
+  RasterEstimate whole_;                // the design's figures, no band
+  double internalBytes_ = 0.0;          // the rods' internal nodes, before the envelope's cap
+  std::vector<double> leavesPerLayer_;  // each rod's leaves spread over its layers (addRodToLayers)
+  double layerVoxels_ = 0.0;            // RasterEstimate::layerVoxels
+};
+
 // A rod the printer may not reproduce: its section is thinner than a voxel in some direction, or it
 // holds fewer voxels than its volume implies.
 struct ThinRod {
