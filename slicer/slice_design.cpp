@@ -102,12 +102,15 @@ struct SliceMemoryInputs {
 
 // sliceMemoryBytes from the design's layer profile, built once for every band size tried.
 std::uint64_t sliceMemoryBytes(const voxel::RasterProfile& profile, int bandLayers, const SliceMemoryInputs& in) {
-  voxel::RasterEstimate raster = profile.estimate(bandLayers);
+  // The moduli and fractions hold the layer past the band only when the ditherer reads it.
+  voxel::RasterEstimate raster = profile.estimate(bandLayers, in.ditherer->readsNextLayer());
   if (in.pieces) raster.pieceBytes = double(*in.pieces) * voxel::RasterEstimate::bytesPerPiece();
-  // The dithered bands' material (bool) trees: the bands in flight and the ditherer's recycler's kept
-  // ones, on the band's leaves (a bool leaf: two 64-byte masks and its origin, plus the allocator's header).
+  // The dithered bands' material (bool) trees, on the leaves of the band's own layers: the bands in flight
+  // and the ditherer's recycler's kept ones (a bool leaf: two 64-byte masks and its origin, plus the
+  // allocator's header).
   const double materialTrees = kBandsInFlight + double(in.kept.materials);
-  const double materialBytes = materialTrees * raster.bandLeaves * (double(sizeof(openvdb::BoolTree::LeafNodeType)) + 16.0);
+  const double materialBytes = materialTrees * profile.estimate(bandLayers, false).bandLeaves *
+                               (double(sizeof(openvdb::BoolTree::LeafNodeType)) + 16.0);
   // Explicit support's column tops: an int per column of the part.
   const double supportBytes = 4.0 * double(in.part.x()) * double(in.part.y());
   const double ditherBytes = in.ditherer->workingBytes({raster.layerVoxels, raster.bandLeaves, bandLayers}, in.concurrency);

@@ -200,7 +200,7 @@ TEST_CASE("sliceDesign refuses a memory budget below the job writer's fixed shar
   }
 }
 
-TEST_CASE("the memory estimate of single rods: layer voxels and band leaves at or above the grid's, within 3 times",
+TEST_CASE("the memory estimate of single rods: layer voxels and band leaves (with and without the next layer) at or above the grid's, within 3 times",
           "[voxel][estimate][memory]") {
   openvdb::initialize();
   // Independent truth: the grids the rasterizer builds, counted. Bands of 8 layers as streamJob cuts
@@ -237,16 +237,23 @@ TEST_CASE("the memory estimate of single rods: layer voxels and band leaves at o
     std::vector<double> perLayer(std::size_t(grid.dims.z()), 0.0);
     for (auto v = whole->cbeginValueOn(); v; ++v) perLayer[std::size_t(v.getCoord().z())] += 1.0;
     const double layerVoxels = *std::max_element(perLayer.begin(), perLayer.end());
-    double bandLeaves = 0.0;
-    for (int k0 = 0; k0 < grid.dims.z(); k0 += kBandLayers)
+    double bandLeaves = 0.0, ownLeaves = 0.0;  // the fullest band's, with the next layer and without it
+    for (int k0 = 0; k0 < grid.dims.z(); k0 += kBandLayers) {
       bandLeaves = std::max(bandLeaves, double(rasterizer.rasterizeLayers(k0, std::min(grid.dims.z(), k0 + kBandLayers + 1)).grid->tree().leafCount()));
+      ownLeaves = std::max(ownLeaves, double(rasterizer.rasterizeLayers(k0, std::min(grid.dims.z(), k0 + kBandLayers)).grid->tree().leafCount()));
+    }
     const voxel::RasterEstimate e = voxel::estimateRaster(design, grid, kBandLayers);
-    CAPTURE(layerVoxels, e.layerVoxels, bandLeaves, e.bandLeaves);
+    const voxel::RasterEstimate own = voxel::RasterProfile(design, grid).estimate(kBandLayers, false);
+    CAPTURE(layerVoxels, e.layerVoxels, bandLeaves, e.bandLeaves, ownLeaves, own.bandLeaves);
     REQUIRE(layerVoxels > 500);
     CHECK(e.layerVoxels >= layerVoxels);
     CHECK(e.layerVoxels <= 3.0 * layerVoxels);
     CHECK(e.bandLeaves >= bandLeaves);
     CHECK(e.bandLeaves <= 3.0 * bandLeaves);
+    // Without the next layer (white and blue noise), a band of whole slabs holds half the slabs.
+    CHECK(own.bandLeaves >= ownLeaves);
+    CHECK(own.bandLeaves <= 3.0 * ownLeaves);
+    CHECK(own.bandLeaves <= e.bandLeaves);
   }
 }
 

@@ -36,10 +36,16 @@ double leafBytes() {
   return double(sizeof(Leaf)) + double(Leaf::SIZE * sizeof(Leaf::ValueType)) + 2.0 * 16.0;
 }
 
-// Layers a band's grids may hold: the whole 8-layer leaf slabs its layers and the next one (error
-// diffusion reads it) touch. Any bandLayers + 1 consecutive layers touch at most ceil(bandLayers / 8) + 1
-// slabs, wherever the band starts (whole-slab bands start on a slab boundary and touch exactly that many).
-double heldLayers(int bandLayers) { return (std::ceil(bandLayers / 8.0) + 1.0) * 8.0; }
+// Layers a band's grids may hold: the whole 8-layer leaf slabs its layers, and the next one when
+// `withNextLayer` (error diffusion reads it), touch. Bands of whole slabs start on a slab boundary
+// (slicer::streamJob) and touch bandLayers / 8 slabs, one more with the next layer; n consecutive layers
+// anywhere touch at most ceil((n - 1) / 8) + 1. Without the next layer a slicer's white and blue bands
+// hold half the slabs the estimate counted before (the lattice's band grids: 10,412 leaves, not 20,800).
+double heldLayers(int bandLayers, bool withNextLayer) {
+  const int next = withNextLayer ? 1 : 0;
+  if (bandLayers % 8 == 0) return double(bandLayers + 8 * next);
+  return (std::ceil((bandLayers + next - 1) / 8.0) + 1.0) * 8.0;
+}
 
 // Leaves (8^3 voxels, aligned to multiples of 8 in index space) a box of the envelope [0, dims)
 // reaching `layers` layers can hold: however much the rods' widened tubes overlap (thin rods close
@@ -276,13 +282,13 @@ RasterProfile::RasterProfile(const geometry::RodStructure& structure, const Prin
   layerVoxels_ = std::min(fullestWindow(voxelsPerLayer.layers(), 1.0), double(grid.dims.x()) * double(grid.dims.y()));
 }
 
-RasterEstimate RasterProfile::estimate(int bandLayers) const {
+RasterEstimate RasterProfile::estimate(int bandLayers, bool withNextLayer) const {
   RasterEstimate e = whole_;
   if (bandLayers <= 0) return e;
-  e.bandLeaves = std::min({fullestWindow(leavesPerLayer_, heldLayers(bandLayers)), e.leaves, leavesSpanned(grid_, heldLayers(bandLayers))});
+  const double held = heldLayers(bandLayers, withNextLayer);
+  e.bandLeaves = std::min({fullestWindow(leavesPerLayer_, held), e.leaves, leavesSpanned(grid_, held)});
   e.layerVoxels = layerVoxels_;
-  e.bandBytes = std::min(e.bandLeaves * leafBytes() + std::min(internalBytes_, internalBytesSpanned(grid_, heldLayers(bandLayers))),
-                         e.gridBytes);
+  e.bandBytes = std::min(e.bandLeaves * leafBytes() + std::min(internalBytes_, internalBytesSpanned(grid_, held)), e.gridBytes);
   return e;
 }
 

@@ -36,8 +36,8 @@ struct RasterEstimate {
   // With bandLayers > 0: the leaves and bytes of the grid of the fullest band of that many layers
   // (Rasterizer::rasterizeLayers): each rod's leaves spread evenly over the layers each piece of it
   // reaches (its section's real extent in z in the rod's frame, its caps and half a leaf), a band holding
-  // the whole 8-layer slabs its layers and the next one touch; its internal nodes at most those a band
-  // of the envelope spans.
+  // the whole 8-layer slabs its layers and the next one touch (RasterProfile::estimate: or its layers
+  // only); its internal nodes at most those a band of the envelope spans.
   double bandLeaves = 0.0;
   double bandBytes = 0.0;
   // With bandLayers > 0: active voxels of the fullest layer, an upper estimate: each piece of each rod
@@ -67,7 +67,9 @@ RasterEstimate estimateRaster(const geometry::RodStructure& structure, const Pri
 class RasterProfile {
 public:
   RasterProfile(const geometry::RodStructure& structure, const PrinterGrid& grid);
-  RasterEstimate estimate(int bandLayers) const;
+  // `withNextLayer`: the band's grids hold the layer past it too (error diffusion's), as estimateRaster's
+  // do; false: a band of exactly its layers (the white and blue ditherers' fractions, every material grid).
+  RasterEstimate estimate(int bandLayers, bool withNextLayer = true) const;
 
 private:
   PrinterGrid grid_;
