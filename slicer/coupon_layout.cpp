@@ -104,12 +104,21 @@ CouponLayout planCouponLayout(const printer_profiles::Profile& profile, std::siz
 
 std::uint64_t couponJobBytes(const CouponLayout& layout, const printer_profiles::Profile& profile, int contactSheetLayers,
                              int bandLayers, const materials::Ditherer& ditherer) {
-  // Per voxel of a band, both bands in flight: fractions (float leaves), material (bool leaves). The
-  // leaves hold whole 8-layer slabs, whatever the band's layers.
-  constexpr double kBandBytes = 5.0;
+  // Per voxel of a band's leaves (whole 8-layer slabs, whatever the band's layers): the fractions (float
+  // leaves: the node, its 2 KiB buffer, glibc's header on each) of both bands in flight (the source makes
+  // one while the other is dithered), and the material (bool leaves) of those bands and of the trees the
+  // ditherer's recycler keeps. Counted from the types: 5 bytes a voxel before, which left the estimate
+  // under the peak (three 400 x 40 x 1.5 mm bars: 1.2 GB against 1.30 GB resident).
+  using FloatLeaf = openvdb::FloatTree::LeafNodeType;
+  using BoolLeaf = openvdb::BoolTree::LeafNodeType;
+  const double floatLeafBytes = double(sizeof(FloatLeaf)) + double(FloatLeaf::SIZE * sizeof(float)) + 2.0 * 16.0;
+  const double boolLeafBytes = double(sizeof(BoolLeaf)) + 16.0;
   const int heldLayers = (bandLayers + kLeafLayers - 1) / kLeafLayers * kLeafLayers;
+  const int fractionLayers = heldLayers + (ditherer.readsNextLayer() ? kLeafLayers : 0);  // the next layer's slab
+  const double layerBytes = (kBandsInFlight * floatLeafBytes * fractionLayers +
+                             (kBandsInFlight + double(ditherer.keptTrees())) * boolLeafBytes * heldLayers) / double(FloatLeaf::SIZE);
   const openvdb::Coord d = layout.bounds.dim();
-  const double bands = kBandBytes * (heldLayers + 1.0) * double(d.x()) * double(d.y());
+  const double bands = layerBytes * double(d.x()) * double(d.y());
   // The ditherer's own buffers (error diffusion's layer slots): every bar is solid, so a layer holds
   // their footprints; a band's leaves are their leaf columns over the slabs it spans.
   materials::DitherBand band{0.0, 0.0, bandLayers};

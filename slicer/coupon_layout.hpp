@@ -49,12 +49,14 @@ CouponVoxels couponVoxels(const printer_profiles::Profile& profile, const std::a
 CouponLayout planCouponLayout(const printer_profiles::Profile& profile, std::size_t count, const CouponVoxels& sizes);
 
 // Bytes a coupon job of `layout` on `profile` needs with `bandLayers` per band: the writer's share
-// (jobWriterBytes: its previews, per-layer images and the process) and two bands of fractions and
-// material in flight, each holding whole 8-layer slabs of leaves. Measured on three 400 x 40 mm bars at
-// 8 layers a band (peak resident: 1.28 GB at 1.5 mm tall, 1.8 GB at 150 mm; the estimate, with the
-// writer's previews then a fixed 12.6 MB: 1.29 and 1.85 GB), and `ditherer`'s own buffers
-// (materials::Ditherer::workingBytes at stageConcurrency(): error diffusion's layer slots over the bars'
-// footprints). Throws as jobWriterBytes does (a layout that planJob refuses). Thread-safe (pure).
+// (jobWriterBytes: its previews, per-layer images and the process), two bands of fractions (the next
+// layer's slab too when the ditherer reads it) and the material of those bands and of the ditherer's
+// kept trees (Ditherer::keptTrees), each holding whole 8-layer slabs of leaves, counted from the leaf
+// types, and `ditherer`'s own buffers (materials::Ditherer::workingBytes at stageConcurrency(): error
+// diffusion's layer slots over the bars' footprints). Measured on three 400 x 40 mm bars at 8 layers a
+// band, white noise, 2 threads (2026-12-03): peak resident 1.30 GB at 1.5 mm tall, 1.51 GB at 15 mm,
+// against 1.6 GiB (1.72 GB) estimated (the 5 bytes a band voxel counted before gave 1.1 GiB, under both).
+// Throws as jobWriterBytes does (a layout that planJob refuses). Thread-safe (pure).
 std::uint64_t couponJobBytes(const CouponLayout& layout, const printer_profiles::Profile& profile, int contactSheetLayers,
                              int bandLayers, const materials::Ditherer& ditherer);
 

@@ -176,6 +176,17 @@ code=$?
 grep -q "interrupted by SIGTERM; nothing was written" "$tmp/progress" || fail "SIGTERM not reported: $(cat "$tmp/progress")"
 [ -z "$(ls -A "$tmp/t")" ] || fail "SIGTERM left: $(ls -A "$tmp/t")"
 
+# A job that passes the memory check runs within that budget (it is also the data limit): three
+# 400 x 40 x 1.5 mm bars (1.30 GB resident). The estimate counted 5 bytes a band voxel for both bands'
+# fractions and material, 1.1 GiB, and the job then ran out of memory at 1.2 GiB.
+need=$("$rodfab" coupons --fractions 0,0.5,1 --size 400x40x1.5 --band-layers 8 --quiet -o "$tmp/big.zip" --max-memory 100M 2>&1 |
+       grep -o "needs about [0-9.]* [GM]iB")
+budget=$(echo "$need" | awk '{ printf "%.0fM", ($4 == "GiB" ? $3 * 1024 : $3) + 0.06 * 1024 }')  # above the rounding of the figure
+[ -n "$need" ] || fail "no estimate in the refusal at 100M"
+"$rodfab" coupons --fractions 0,0.5,1 --size 400x40x1.5 --band-layers 8 --quiet -o "$tmp/big.zip" --max-memory "$budget" \
+  > "$tmp/out" 2>&1 || fail "a coupon job within its own estimate ($need, budget $budget) failed: $(tail -2 "$tmp/out")"
+rm -f "$tmp/big.zip"
+
 "$rodfab" coupons --help | grep -q "usage: rodfab coupons" || fail "--help"
 "$rodfab" --help | grep -q "coupons" || fail "coupons missing from rodfab --help"
 echo "coupons: ok"
