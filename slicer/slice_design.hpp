@@ -76,8 +76,8 @@ KeptBandTrees slicingKeptTrees(const materials::Ditherer& ditherer);
 // `ditherer`'s own buffers (materials::Ditherer::workingBytes in an arena of `concurrency` threads:
 // stageConcurrency(), which follows --threads: error diffusion's workers' buffers), explicit
 // support's column tops and `writerBytes` (the job writer's share, jobWriterBytes). An upper estimate:
-// resident peaks measured on the benchmark classes are 2 to 3.5 times below it (bench/README.md,
-// "Memory of `slice`, round 2"). Saturates (common::saturatedBytes) rather than overflows; throws
+// resident peaks measured on the benchmark classes and the examples are 1.3 to 2.7 times below it
+// (slicer/README.md). Saturates (common::saturatedBytes) rather than overflows; throws
 // std::bad_alloc if its per-layer tables (two doubles a layer of the grid) cannot be allocated.
 // Thread-safe (reads its arguments only; `ditherer` through its const workingBytes).
 std::uint64_t sliceMemoryBytes(const geometry::RodStructure& design, const voxel::PrinterGrid& grid, int bandLayers,
