@@ -184,37 +184,45 @@ void BandEncoder::finishStaging() {
 void BandEncoder::rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, LayerRecord& record) const {
   const JobGeometry& g = s_.form.geometry;
   clearModel(b, g, s_.profile);
-  WrittenWords& written = b.written;
-  record.moments = {};
+  // What the loop writes through, in locals: a byte stored through a uint8_t pointer may alias any
+  // object, so a pointer or count read through `b`, `record` or `g` would be read again after every
+  // store (those reloads were the largest part of this function's samples on the lattice).
+  std::uint8_t* const rigid = b.rigid.row(0);
+  std::uint8_t* const rubbery = b.rubbery.row(0);
+  const std::ptrdiff_t rigidPitch = b.rigid.pitch(), rubberyPitch = b.rubbery.pitch();
+  RowSpan* const spans = b.spans.data();
+  std::uint64_t* const marks = b.written.masks.data();
+  const std::size_t marksPerRow = b.written.perRow;
+  const int topRowJ = g.topRowJ, firstColumnI = g.firstColumnI;
+  std::array<Moments, 2> moments;
+  const auto write = [&](int row, std::size_t byte, std::uint8_t rigidBits, std::uint8_t rubberyBits) {
+    rigid[row * rigidPitch + static_cast<std::ptrdiff_t>(byte)] |= rigidBits;
+    rubbery[row * rubberyPitch + static_cast<std::ptrdiff_t>(byte)] |= rubberyBits;
+    widen(spans[row], byte);
+    marks[static_cast<std::size_t>(row) * marksPerRow + byte / 512] |= std::uint64_t{1} << (byte / 8 % 64);
+  };
   for (const BandLeaf& leaf : voxels.slab(k)) {
-    const int z = k - leaf.origin.z();
-    const auto byte = static_cast<std::size_t>(g.column(leaf.origin.x()) / 8);
-    for (int y = 0; y < 8; ++y) {
-      const std::uint8_t active = leaf.active.row(y, z);
-      if (!active) continue;
-      const std::uint8_t value = leaf.value.row(y, z);
-      const int j = leaf.origin.y() + y, row = g.row(j);
-      const auto rigid = static_cast<std::uint8_t>(active & value), rubbery = static_cast<std::uint8_t>(active & ~value);
-      b.rigid.row(row)[byte] |= rigid;
-      b.rubbery.row(row)[byte] |= rubbery;
-      widen(b.spans[static_cast<std::size_t>(row)], byte);
-      written.mark(row, byte);
-      record.moments[0].add(rigid, leaf.origin.x(), j, k);
-      record.moments[1].add(rubbery, leaf.origin.x(), j, k);
-    }
+    const std::uint64_t active = leaf.active.layer(k - leaf.origin.z());
+    if (!active) continue;
+    const std::uint64_t value = leaf.value.layer(k - leaf.origin.z());
+    const std::uint64_t rigidRows = active & value, rubberyRows = active & ~value;
+    moments[0].addRows(rigidRows, leaf.origin.x(), leaf.origin.y(), k);
+    moments[1].addRows(rubberyRows, leaf.origin.x(), leaf.origin.y(), k);
+    const auto byte = static_cast<std::size_t>((leaf.origin.x() - firstColumnI) / 8);
+    const int firstRow = topRowJ - leaf.origin.y();  // row y of the leaf is image row firstRow - y
+    for (int y = 0; y < 8; ++y)
+      if ((active >> (8 * y)) & 0xffu)
+        write(firstRow - y, byte, static_cast<std::uint8_t>(rigidRows >> (8 * y)), static_cast<std::uint8_t>(rubberyRows >> (8 * y)));
   }
   for (const auto& [box, value] : voxels.tiles) {
     if (k < box.min().z() || k > box.max().z()) continue;
-    Bitmap& target = value ? b.rigid : b.rubbery;
     for (int j = box.min().y(); j <= box.max().y(); ++j)
-      for (int i = box.min().x(); i <= box.max().x(); i += 8) {
-        const auto byte = static_cast<std::size_t>(g.column(i) / 8);
-        target.row(g.row(j))[byte] = 0xff;  // tiles are 8-aligned in x
-        widen(b.spans[static_cast<std::size_t>(g.row(j))], byte);
-        written.mark(g.row(j), byte);
-        record.moments[value ? 0 : 1].add(0xff, i, j, k);
+      for (int i = box.min().x(); i <= box.max().x(); i += 8) {  // tiles are 8-aligned in x
+        write(g.row(j), static_cast<std::size_t>(g.column(i) / 8), value ? 0xff : 0, value ? 0 : 0xff);
+        moments[value ? 0 : 1].add(0xff, i, j, k);
       }
   }
+  record.moments = moments;
 }
 
 // Support fills each column from the tray up to its highest model voxel, wherever the model is not.

@@ -29,6 +29,9 @@ public:
   int width() const { return width_; }
   int height() const { return height_; }
   std::size_t stride() const { return stride_; }  // bytes per row, ceil(width / 8)
+  // Bytes from row r to row r + 1 in memory: stride() or more (a BMP file's padding), negative when the
+  // rows lie bottom-up (inBmpFile). row(r) == row(0) + r * pitch().
+  std::ptrdiff_t pitch() const { return pitch_; }
 
   bool get(int column, int row) const { return (this->row(row)[column >> 3] >> (7 - (column & 7))) & 1u; }
   void set(int column, int row, bool value = true) {
