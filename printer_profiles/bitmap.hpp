@@ -55,6 +55,8 @@ public:
   bool operator==(const Bitmap& other) const;
 
 private:
+  // Bytes of a row of `width` pixels, one bit each; std::invalid_argument unless both sizes are positive.
+  static std::size_t checkedStride(int width, int height);
   std::ptrdiff_t rowOffset(int r) const { return first_ + static_cast<std::ptrdiff_t>(r) * pitch_; }
 
   int width_ = 0, height_ = 0;
