@@ -46,50 +46,22 @@ namespace {
 // bitmap itself (no row copied: Bitmap::inBmpFile); PNG and RGBA images read its rows like any other's.
 Bitmap layerBitmap(const JobGeometry& g, const Profile& profile) { return Bitmap::inBmpFile(g.width, g.height, profile.xDpi, profile.yDpi); }
 
-// Clears what the layer's bitmaps hold from their last layer: only the words it wrote, when they have
-// the job's size (mostly empty layers then cost next to nothing to clear). `written` is then empty.
+// Empties the layer's bitmaps for this layer: only the words the last layer wrote are cleared when they
+// have the job's size (mostly empty layers then cost next to nothing to clear).
 void clearModel(LayerBitmaps& b, const JobGeometry& g, const Profile& profile) {
-  WrittenWords& written = b.written;
-  if (b.rigid.width() != g.width || b.rigid.height() != g.height || b.spans.size() != static_cast<std::size_t>(g.height)) {
-    b.rigid = layerBitmap(g, profile);
-    b.rubbery = layerBitmap(g, profile);
-    written.reset(g.height, b.rigid.stride());
-  } else {
-    const std::size_t stride = b.rigid.stride();
-    for (int r = 0; r < g.height; ++r) {
-      std::uint8_t* rigid = b.rigid.row(r);
-      std::uint8_t* rubbery = b.rubbery.row(r);
-      written.takeRow(r, [&](std::size_t word) {
-        const std::size_t at = word * 8;
-        if (at + 8 <= stride) {  // a store each, not a memset call
-          constexpr std::uint64_t kZero = 0;
-          std::memcpy(rigid + at, &kZero, 8);
-          std::memcpy(rubbery + at, &kZero, 8);
-        } else {  // a row's last word may be short
-          std::memset(rigid + at, 0, stride - at);
-          std::memset(rubbery + at, 0, stride - at);
-        }
-      });
-    }
-  }
-  b.spans.assign(static_cast<std::size_t>(g.height), RowSpan{static_cast<std::uint32_t>(b.rigid.stride()), 0});
-}
-
-void widen(RowSpan& span, std::size_t byte) {
-  span.begin = std::min(span.begin, static_cast<std::uint32_t>(byte));
-  span.end = std::max(span.end, static_cast<std::uint32_t>(byte + 1));
+  if (b.rigid().width() == g.width && b.rigid().height() == g.height) b.clear();
+  else b = LayerBitmaps(g.width, g.height, profile.xDpi, profile.yDpi);
 }
 
 // Pixels set in the layer's rigid and rubbery bitmaps: only their written words can hold any.
 std::array<std::uint64_t, 2> countModel(const LayerBitmaps& b) {
-  const WrittenWords& written = b.written;
   std::array<std::uint64_t, 2> n{};
-  const std::size_t stride = b.rigid.stride();
-  for (int r = 0; r < b.rigid.height(); ++r) {
-    const std::span<const std::uint64_t> words = written.row(r);
+  const std::size_t stride = b.rigid().stride();
+  for (int r = 0; r < b.rigid().height(); ++r) {
+    const std::span<const std::uint64_t> words = b.writtenWords(r);
     if (std::all_of(words.begin(), words.end(), [](std::uint64_t m) { return m == 0; })) continue;
-    n[0] += countSetBitsInWords({b.rigid.row(r), stride}, words);
-    n[1] += countSetBitsInWords({b.rubbery.row(r), stride}, words);
+    n[0] += countSetBitsInWords({b.rigid().row(r), stride}, words);
+    n[1] += countSetBitsInWords({b.rubbery().row(r), stride}, words);
   }
   return n;
 }
@@ -184,23 +156,10 @@ void BandEncoder::finishStaging() {
 void BandEncoder::rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, LayerRecord& record) const {
   const JobGeometry& g = s_.form.geometry;
   clearModel(b, g, s_.profile);
-  // What the loop writes through, in locals: a byte stored through a uint8_t pointer may alias any
-  // object, so a pointer or count read through `b`, `record` or `g` would be read again after every
-  // store (those reloads were the largest part of this function's samples on the lattice).
-  std::uint8_t* const rigid = b.rigid.row(0);
-  std::uint8_t* const rubbery = b.rubbery.row(0);
-  const std::ptrdiff_t rigidPitch = b.rigid.pitch(), rubberyPitch = b.rubbery.pitch();
-  RowSpan* const spans = b.spans.data();
-  std::uint64_t* const marks = b.written.masks.data();
-  const std::size_t marksPerRow = b.written.perRow;
+  LayerBitmaps::Writer out = b.writer();
+  // Read once, not through `g` in the loop (a byte stored may alias anything: LayerBitmaps::Writer).
   const int topRowJ = g.topRowJ, firstColumnI = g.firstColumnI;
   std::array<Moments, 2> moments;
-  const auto write = [&](int row, std::size_t byte, std::uint8_t rigidBits, std::uint8_t rubberyBits) {
-    rigid[row * rigidPitch + static_cast<std::ptrdiff_t>(byte)] |= rigidBits;
-    rubbery[row * rubberyPitch + static_cast<std::ptrdiff_t>(byte)] |= rubberyBits;
-    widen(spans[row], byte);
-    marks[static_cast<std::size_t>(row) * marksPerRow + byte / 512] |= std::uint64_t{1} << (byte / 8 % 64);
-  };
   for (const BandLeaf& leaf : voxels.slab(k)) {
     const std::uint64_t active = leaf.active.layer(k - leaf.origin.z());
     if (!active) continue;
@@ -212,13 +171,13 @@ void BandEncoder::rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, La
     const int firstRow = topRowJ - leaf.origin.y();  // row y of the leaf is image row firstRow - y
     for (int y = 0; y < 8; ++y)
       if ((active >> (8 * y)) & 0xffu)
-        write(firstRow - y, byte, static_cast<std::uint8_t>(rigidRows >> (8 * y)), static_cast<std::uint8_t>(rubberyRows >> (8 * y)));
+        out.orByte(firstRow - y, byte, static_cast<std::uint8_t>(rigidRows >> (8 * y)), static_cast<std::uint8_t>(rubberyRows >> (8 * y)));
   }
   for (const auto& [box, value] : voxels.tiles) {
     if (k < box.min().z() || k > box.max().z()) continue;
     for (int j = box.min().y(); j <= box.max().y(); ++j)
       for (int i = box.min().x(); i <= box.max().x(); i += 8) {  // tiles are 8-aligned in x
-        write(g.row(j), static_cast<std::size_t>(g.column(i) / 8), value ? 0xff : 0, value ? 0 : 0xff);
+        out.orByte(g.row(j), static_cast<std::size_t>(g.column(i) / 8), value ? 0xff : 0, value ? 0 : 0xff);
         moments[value ? 0 : 1].add(0xff, i, j, k);
       }
   }
@@ -234,8 +193,8 @@ void BandEncoder::addSupport(int layer, LayerBitmaps& b) const {
   for (int r = 0; r < s_.form.geometry.height; ++r) {
     if (tops.rowMaximum()[static_cast<std::size_t>(r)] <= layer) continue;
     std::uint8_t* out = b.support.row(r);
-    const std::uint8_t* rigid = b.rigid.row(r);
-    const std::uint8_t* rubbery = b.rubbery.row(r);
+    const std::uint8_t* rigid = b.rigid().row(r);
+    const std::uint8_t* rubbery = b.rubbery().row(r);
     for (std::size_t byte = 0; byte < b.support.stride(); ++byte) {
       std::uint8_t above = 0;
       for (int bit = 0; bit < 8; ++bit)
@@ -251,12 +210,12 @@ void BandEncoder::encodeImages(int layer, const LayerBitmaps& b, LayerRecord& re
   record.files.clear();
   record.zipped.clear();
   if (gcvf()) {  // one RGBA image holds every material of the layer
-    Bytes rgba = encodeGcvfLayer(b.rigid, b.rubbery, s_.profile);
+    Bytes rgba = encodeGcvfLayer(b.rigid(), b.rubbery(), s_.profile);
     keepImage(*s_.form.emitted[0], layer, rgba, sumsOf(rgba, zipForms != nullptr), record, zipForms, &rgba);
     return;
   }
   for (const ProfileMaterial* m : s_.form.emitted) {
-    const Bitmap& bitmap = m->role == MaterialRole::Rigid ? b.rigid : m->role == MaterialRole::Rubbery ? b.rubbery : b.support;
+    const Bitmap& bitmap = m->role == MaterialRole::Rigid ? b.rigid() : m->role == MaterialRole::Rubbery ? b.rubbery() : b.support;
     if (s_.form.imageFormat == ImageFormat::Png) {
       Bytes png = encodePng1(bitmap, s_.profile.xDpi, s_.profile.yDpi);
       keepImage(*m, layer, png, sumsOf(png, zipForms != nullptr), record, zipForms, &png);
