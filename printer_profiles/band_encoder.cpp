@@ -74,23 +74,38 @@ BandEncoder::BandEncoder(const BandEncoderSetup& setup)
 BandEncoder::~BandEncoder() = default;
 
 // Into voxels_, whose vectors keep their capacity from band to band (slabs past this band's stay empty).
-void BandEncoder::collect(const LayerBand& band) {
+// False as soon as an active voxel or tile lies outside `allowed`. A leaf wholly inside passes by its
+// origin alone; only leaves at the box's faces are scanned voxel by voxel. (A pass of its own over the
+// leaves, before this one, took the lattice 0.06 s a job on one core.)
+bool BandEncoder::collect(const LayerBand& band, const openvdb::CoordBBox& allowed) {
   BandVoxels& v = *voxels_;
   v.zBase = band.kBegin & ~7;
   const auto slabs = static_cast<std::size_t>((band.kEnd - 1 - v.zBase) / 8 + 1);
   if (v.slabs.size() < slabs) v.slabs.resize(slabs);
   for (std::vector<BandLeaf>& slab : v.slabs) slab.clear();
-  for (auto leaf = band.material->tree().cbeginLeaf(); leaf; ++leaf)
+  for (auto leaf = band.material->tree().cbeginLeaf(); leaf; ++leaf) {
+    if (!allowed.isInside(openvdb::CoordBBox::createCube(leaf->origin(), openvdb::BoolTree::LeafNodeType::DIM))) {
+      openvdb::CoordBBox active;
+      leaf->evalActiveBoundingBox(active);
+      if (active.empty()) continue;  // nothing to draw, and its slab may lie outside the band
+      if (!allowed.isInside(active)) return false;
+    }
     v.slabs[static_cast<std::size_t>((leaf->origin().z() - v.zBase) / 8)].push_back(
         {leaf->origin(), LeafRows(maskBytes(leaf->getValueMask())), LeafRows(boolValueBytes(*leaf))});
+  }
   v.tiles.clear();
-  forEachActiveTile(band.material->tree(), [&](const openvdb::CoordBBox& box, bool value) { v.tiles.emplace_back(box, value); });
+  bool inside = true;
+  forEachActiveTile(band.material->tree(), [&](const openvdb::CoordBBox& box, bool value) {
+    inside = inside && allowed.isInside(box);
+    v.tiles.emplace_back(box, value);
+  });
+  return inside;
 }
 
-void BandEncoder::encode(const LayerBand& band, std::vector<LayerRecord>& layers, Previews& previews) {
+bool BandEncoder::encode(const LayerBand& band, const openvdb::CoordBBox& allowed, std::vector<LayerRecord>& layers, Previews& previews) {
   const int firstLayer = s_.form.geometry.layer(band.kBegin);
   const int count = band.kEnd - band.kBegin;
-  collect(band);
+  if (!collect(band, allowed)) return false;
   const BandVoxels& voxels = *voxels_;
   bitmaps_.resize(static_cast<std::size_t>(count));
   // Zip jobs keep each image's zip form (deflated BMP, or the PNG as it is) in memory until the band
@@ -113,6 +128,7 @@ void BandEncoder::encode(const LayerBand& band, std::vector<LayerRecord>& layers
   });
   previews.addTopLayers(firstLayer, bitmaps_, modulus);
   if (s_.zip) stageBand(firstLayer, zipForms, layers);
+  return true;
 }
 
 // The band's zip forms kept in memory while the job's add up to at most s_.zipFormsInMemory, and past that
