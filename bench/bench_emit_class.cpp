@@ -6,8 +6,8 @@
 // (slicer::automaticBandLayers; bands end on 8-layer slabs as streamJob cuts them), each band's
 // dithered material grid kept in memory (a BoolGrid: the lattice's 269 M voxels in a few hundred MB).
 // The modulus grids `rodfab slice` also hands the writer (for the modulus previews: the top view looks
-// up the modulus of every pixel a layer newly claims) are kept only by classEmitModulus/spring: as
-// FloatGrids they take 1.3 GB for the spring, ~8 GB for the lattices. Not included: the job report
+// up the modulus of every pixel a layer newly claims) are kept only by classEmitModulus/CLASS: as
+// FloatGrids they take 0.4 GB for the spring, 2.1 GB for the lattice. Not included: the job report
 // (report.html, slicer/job_report.hpp), which `rodfab slice` renders inside finalize().
 // Counters: layer_bitmap_GB_per_s (the layer BMPs' bytes, counted as bench_slice's figures are: images x
 // their BMP size, over the writer's wall time), cpu_s (process user + system in the writer's calls),
@@ -163,22 +163,13 @@ double layerBitmapBytes(const pp::JobWriter& writer, const pp::Profile& profile)
   return imageBytes * g.layers * stacks;
 }
 
-// A scratch folder of this process's for the jobs, removed when the program exits.
-struct ScratchDir {
-  fs::path path = fs::temp_directory_path() / ("rodfab-bench-emit-class-" + std::to_string(::getpid()));
-  ScratchDir() { fs::create_directories(path); }
-  ~ScratchDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-};
-
 void emitClass(benchmark::State& state, const std::string& name, bool keepModulus) {
   const ClassGrids& c = classGrids(name, keepModulus);
-  static const ScratchDir dir;
+  const fs::path dir = fs::temp_directory_path() / ("rodfab-bench-emit-class-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
   const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(state.range(0)));
   pp::JobSpec spec = c.spec;
-  spec.options.output = dir.path / "job.zip";
+  spec.options.output = dir / "job.zip";
   spec.options.force = true;
   double bitmapBytes = 0.0, jobBytes = 0.0;
   // Wall and process CPU seconds of the writer's calls: [0] its start and the bands, [1] finalize().
@@ -204,6 +195,7 @@ void emitClass(benchmark::State& state, const std::string& name, bool keepModulu
     bitmapBytes = layerBitmapBytes(*writer, spec.profile);
     state.SetIterationTime(wall[0] + wall[1] - before);
   }
+  fs::remove_all(dir);
   const double iterations = double(state.iterations());
   state.counters["layer_bitmap_GB_per_s"] = benchmark::Counter(bitmapBytes * 1e-9 * iterations, benchmark::Counter::kIsRate);
   state.counters["layer_bitmap_GB"] = bitmapBytes * 1e-9;
@@ -219,15 +211,17 @@ void emitClass(benchmark::State& state, const std::string& name, bool keepModulu
   state.counters["peak_rss_MB"] = rodfab::bench::peakRssMb();
 }
 
-void classEmit(benchmark::State& state, const std::string& name) { emitClass(state, name, false); }
-void classEmitModulus(benchmark::State& state, const std::string& name) { emitClass(state, name, true); }
+// classEmit/CLASS/threads:N and classEmitModulus/CLASS/threads:N, CLASS as bench_slice spells it.
+[[maybe_unused]] const bool registered = [] {
+  for (const std::string name : {"spring", "lattice", "curved-lattice", "dense"})
+    for (const bool keepModulus : {false, true}) {
+      std::string id = name;
+      std::replace(id.begin(), id.end(), '-', '_');
+      benchmark::RegisterBenchmark(((keepModulus ? "classEmitModulus/" : "classEmit/") + id).c_str(),
+                                   [=](benchmark::State& state) { emitClass(state, name, keepModulus); })
+          ->ArgName("threads")->Arg(1)->Arg(2)->Unit(benchmark::kSecond)->UseManualTime()->Iterations(1);
+    }
+  return true;
+}();
 
 }  // namespace
-
-#define RODFAB_CLASS_EMIT(id, name)                                                                                                      \
-  BENCHMARK_CAPTURE(classEmit, id, name)->ArgName("threads")->Arg(1)->Arg(2)->Unit(benchmark::kSecond)->UseManualTime()->Iterations(1); \
-  BENCHMARK_CAPTURE(classEmitModulus, id, name)->ArgName("threads")->Arg(1)->Arg(2)->Unit(benchmark::kSecond)->UseManualTime()->Iterations(1)
-RODFAB_CLASS_EMIT(spring, "spring");
-RODFAB_CLASS_EMIT(lattice, "lattice");
-RODFAB_CLASS_EMIT(curved_lattice, "curved-lattice");
-RODFAB_CLASS_EMIT(dense, "dense");
