@@ -37,8 +37,11 @@ public:
   BandEncoder& operator=(const BandEncoder&) = delete;
 
   // Layers [band.kBegin, band.kEnd) on the caller's TBB arena: fills their records in `layers`
-  // (indexed by layer) and adds them to `previews`. The bytes depend on each layer alone.
-  void encode(const LayerBand& band, std::vector<LayerRecord>& layers, Previews& previews);
+  // (indexed by layer) and adds them to `previews`. The bytes depend on each layer alone. Returns false,
+  // having touched neither `layers` nor `previews`, when an active voxel or tile of the band's grid lies
+  // outside `allowed` (checked in the same pass over the grid's leaves that gathers them).
+  [[nodiscard]] bool encode(const LayerBand& band, const openvdb::CoordBBox& allowed, std::vector<LayerRecord>& layers,
+                            Previews& previews);
 
   // Zip jobs: the file the zip forms not kept in memory are staged in (writeZip's `stagedFile`), and
   // closing it, checked, once every band is encoded and before the zip is built from it; throws naming
@@ -52,7 +55,7 @@ public:
 private:
   struct BandLeaf;
   struct BandVoxels;
-  void collect(const LayerBand& band);  // into voxels_
+  bool collect(const LayerBand& band, const openvdb::CoordBBox& allowed);  // into voxels_; false: outside `allowed`
   void rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, LayerRecord& record) const;
   void addSupport(int layer, LayerBitmaps& b) const;
   void encodeImages(int layer, const LayerBitmaps& b, LayerRecord& record, std::vector<Bytes>* zipForms) const;

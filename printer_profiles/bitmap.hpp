@@ -29,6 +29,9 @@ public:
   int width() const { return width_; }
   int height() const { return height_; }
   std::size_t stride() const { return stride_; }  // bytes per row, ceil(width / 8)
+  // Bytes from row r to row r + 1 in memory: stride() or more (a BMP file's padding), negative when the
+  // rows lie bottom-up (inBmpFile). row(r) == row(0) + r * pitch().
+  std::ptrdiff_t pitch() const { return pitch_; }
 
   bool get(int column, int row) const { return (this->row(row)[column >> 3] >> (7 - (column & 7))) & 1u; }
   void set(int column, int row, bool value = true) {
@@ -52,6 +55,8 @@ public:
   bool operator==(const Bitmap& other) const;
 
 private:
+  // Bytes of a row of `width` pixels, one bit each; std::invalid_argument unless both sizes are positive.
+  static std::size_t checkedStride(int width, int height);
   std::ptrdiff_t rowOffset(int r) const { return first_ + static_cast<std::ptrdiff_t>(r) * pitch_; }
 
   int width_ = 0, height_ = 0;

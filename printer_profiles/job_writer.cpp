@@ -140,29 +140,19 @@ struct JobWriter::Impl {
           << " mm; the job was planned with origin " << spec.originMm << " mm";
       throw std::invalid_argument(msg.str());
     }
-    const openvdb::CoordBBox& part = geometry.partBounds;
-    const openvdb::CoordBBox allowed(openvdb::Coord(part.min().x(), part.min().y(), band.kBegin),
-                                     openvdb::Coord(part.max().x(), part.max().y(), band.kEnd - 1));
-    if (!activeWithin(band.material->tree(), allowed)) {
-      std::ostringstream msg;
-      msg << "addBand: grid '" << band.material->getName() << "' has voxels in " << band.material->evalActiveVoxelBoundingBox()
-          << ", outside the band's layers k in [" << band.kBegin << ", " << band.kEnd << ") or the part bounds " << part;
-      throw std::invalid_argument(msg.str());
-    }
   }
 
-  // Whether every active voxel and tile of `tree` lies in `allowed`. A leaf wholly inside passes by its
-  // origin alone; only leaves at the box's faces are scanned voxel by voxel.
-  static bool activeWithin(const openvdb::BoolTree& tree, const openvdb::CoordBBox& allowed) {
-    for (auto leaf = tree.cbeginLeaf(); leaf; ++leaf) {
-      if (allowed.isInside(openvdb::CoordBBox::createCube(leaf->origin(), openvdb::BoolTree::LeafNodeType::DIM))) continue;
-      openvdb::CoordBBox active;
-      leaf->evalActiveBoundingBox(active);
-      if (!active.empty() && !allowed.isInside(active)) return false;
-    }
-    bool inside = true;
-    forEachActiveTile(tree, [&](const openvdb::CoordBBox& box, bool) { inside = inside && allowed.isInside(box); });
-    return inside;
+  // Where a band's voxels may lie: its layers, within the part's columns and rows.
+  openvdb::CoordBBox allowedFor(const LayerBand& band) const {
+    const openvdb::CoordBBox& part = geometry.partBounds;
+    return {openvdb::Coord(part.min().x(), part.min().y(), band.kBegin), openvdb::Coord(part.max().x(), part.max().y(), band.kEnd - 1)};
+  }
+
+  [[noreturn]] void refuseOutside(const LayerBand& band) const {
+    std::ostringstream msg;
+    msg << "addBand: grid '" << band.material->getName() << "' has voxels in " << band.material->evalActiveVoxelBoundingBox()
+        << ", outside the band's layers k in [" << band.kBegin << ", " << band.kEnd << ") or the part bounds " << geometry.partBounds;
+    throw std::invalid_argument(msg.str());
   }
 
   FileRecord writeStaged(const std::string& name, std::span<const std::uint8_t> data) const {
@@ -340,8 +330,9 @@ SupportPolicy JobWriter::supportPolicy() const { return impl_->support; }
 void JobWriter::addBand(LayerBand band) {
   if (impl_->finished) throw std::logic_error("addBand after finalize");
   impl_->checkBand(band);
+  // The encoder checks that the voxels lie within the band as it gathers them (one pass over the leaves).
+  if (!impl_->encoder->encode(band, impl_->allowedFor(band), impl_->layers, *impl_->previews)) impl_->refuseOutside(band);
   impl_->nextK = band.kEnd;
-  impl_->encoder->encode(band, impl_->layers, *impl_->previews);
 }
 
 JobResult JobWriter::finalize() {

@@ -48,16 +48,14 @@ void forEachFresh(const std::uint8_t* rigid, const std::uint8_t* rubbery, std::u
   }
 }
 
-// forEachFresh over the row's part that can hold anything: the words `b` records as written in row r
-// (LayerBitmaps::written), else its span. Rods cross a row in a few places; the span between them
-// covered most of the spring's rows.
+// forEachFresh over the words `b` wrote in row r (LayerBitmaps::writtenWords), the only ones that can
+// hold anything. Rods cross a row in a few places; the span between them covered most of the spring's rows.
 template <class Visit>
 void forEachFreshInRow(const LayerBitmaps& b, int r, std::uint8_t* claimed, Visit&& visit) {
-  const std::uint8_t* rigid = b.rigid.row(r);
-  const std::uint8_t* rubbery = b.rubbery.row(r);
-  if (b.written.masks.empty()) return forEachFresh(rigid, rubbery, claimed, b.span(r), visit);
-  const auto stride = static_cast<std::uint32_t>(b.rigid.stride());
-  const std::span<const std::uint64_t> words = b.written.row(r);
+  const std::uint8_t* rigid = b.rigid().row(r);
+  const std::uint8_t* rubbery = b.rubbery().row(r);
+  const auto stride = static_cast<std::uint32_t>(b.rigid().stride());
+  const std::span<const std::uint64_t> words = b.writtenWords(r);
   for (std::size_t m = 0; m < words.size(); ++m)
     for (std::uint64_t bits = words[m]; bits; bits &= bits - 1) {
       const auto at = static_cast<std::uint32_t>((m * 64 + static_cast<std::size_t>(std::countr_zero(bits))) * 8);

@@ -343,8 +343,8 @@ void Previews::addFrontAndSide(int layer, const LayerBitmaps& b, const openvdb::
   for (int r = 0; r < h; ++r) {
     const RowSpan span = b.span(r);
     if (side_.u.slot(r) < 0 || span.empty()) continue;
-    const std::uint8_t* rigid = b.rigid.row(r);
-    const std::uint8_t* rubbery = b.rubbery.row(r);
+    const std::uint8_t* rigid = b.rigid().row(r);
+    const std::uint8_t* rubbery = b.rubbery().row(r);
     for (std::size_t byte = span.end; byte-- > span.begin;) {
       if (byte >= span.begin + 7 && byte % 8 == 7 && emptyWord(rigid, rubbery, byte - 7)) {
         byte -= 7;
@@ -371,8 +371,8 @@ void Previews::addContactTile(int layer, const LayerBitmaps& b) {
     for (int x = 0; x < tileWidth_; ++x) {
       const int c = std::min(w - 1, static_cast<int>((x + 0.5) * w / tileWidth_));
       std::uint8_t code = 0;
-      if (b.rigid.get(c, r)) code = 1;
-      else if (b.rubbery.get(c, r)) code = 2;
+      if (b.rigid().get(c, r)) code = 1;
+      else if (b.rubbery().get(c, r)) code = 2;
       else if (b.hasSupport && b.support.get(c, r)) code = 3;
       tile[static_cast<std::size_t>(y) * tileWidth_ + x] = code;
     }

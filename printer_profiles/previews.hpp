@@ -6,6 +6,7 @@
 
 #include "printer_profiles/bitmap.hpp"
 #include "printer_profiles/job_layout.hpp"
+#include "printer_profiles/layer_bitmaps.hpp"
 #include "printer_profiles/profile.hpp"
 
 #include <openvdb/openvdb.h>
@@ -19,49 +20,6 @@
 #include <vector>
 
 namespace rodfab::printer_profiles {
-
-// Bytes [begin, end) of a bitmap row (begin >= end: none).
-struct RowSpan {
-  std::uint32_t begin = 0, end = 0;
-  bool empty() const { return begin >= end; }
-};
-
-// The 8-byte words of a layer's rows its rigid and rubbery bitmaps were written in, a bit a word: what
-// clearing, counting and the top view read, exactly. Rods cross a row in a few places; the row spans
-// between them (LayerBitmaps::spans), which were cleared, counted and scanned before, covered most of
-// the spring's rows.
-struct WrittenWords {
-  std::size_t perRow = 0;            // masks a row: ceil(words / 64)
-  std::vector<std::uint64_t> masks;  // row r's at [r * perRow, (r + 1) * perRow); word w at bit w % 64 of the w / 64-th
-
-  void reset(int height, std::size_t stride) {
-    perRow = (stride + 511) / 512;
-    masks.assign(perRow * static_cast<std::size_t>(height), 0);
-  }
-  void mark(int row, std::size_t byte) { masks[static_cast<std::size_t>(row) * perRow + byte / 512] |= std::uint64_t{1} << (byte / 8 % 64); }
-  std::span<const std::uint64_t> row(int r) const { return {masks.data() + static_cast<std::size_t>(r) * perRow, perRow}; }
-  // Calls f(word) for every word of row r written, and forgets them.
-  template <class F>
-  void takeRow(int r, F&& f) {
-    for (std::size_t m = 0; m < perRow; ++m)
-      for (std::uint64_t& bits = masks[static_cast<std::size_t>(r) * perRow + m]; bits; bits &= bits - 1)
-        f(m * 64 + static_cast<std::size_t>(std::countr_zero(bits)));
-  }
-};
-
-// The model bitmaps of one layer (support may be empty when the printer adds it).
-struct LayerBitmaps {
-  Bitmap rigid, rubbery, support;
-  bool hasSupport = false;
-  // Per row, the bytes outside which rigid and rubbery are clear, so scans of mostly empty layers
-  // skip the empty part; no entries: every row may hold anything.
-  std::vector<RowSpan> spans;
-  // The words of rigid and rubbery written, when whoever filled them kept that record (no masks: not kept).
-  WrittenWords written;
-  RowSpan span(int row) const {
-    return spans.empty() ? RowSpan{0, static_cast<std::uint32_t>(rigid.stride())} : spans[static_cast<std::size_t>(row)];
-  }
-};
 
 // Which cells of one axis of a view its `pixels` pixels show: pixel p shows the cell nearest its
 // centre, floor((p + 0.5) * cells / pixels). A view keeps only those cells, so its memory follows the

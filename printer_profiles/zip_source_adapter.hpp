@@ -54,43 +54,47 @@ namespace zip_source_detail {
 template <class Source>
 using Operation = zip_int64_t (*)(Source&, void* data, zip_uint64_t length);
 
-// The source's operation for `command`, or nullptr when it has none: the one table of which member
-// answers which command, read both by the compile-time checks below and by the callback.
+// The one list of which member answers which command, as X(COMMAND, CALL) with the source `s` and
+// libzip's `data` and `length` in CALL: operationFor's cases and kOperationCommands are both made from
+// it, so they cannot drift apart.
+#define RODFAB_ZIP_OPERATIONS(X)                                                       \
+  X(ZIP_SOURCE_OPEN, s.open())                                                         \
+  X(ZIP_SOURCE_READ, s.read(data, length))                                             \
+  X(ZIP_SOURCE_CLOSE, s.close())                                                       \
+  X(ZIP_SOURCE_SEEK, s.seek(data, length))                                             \
+  X(ZIP_SOURCE_TELL, s.tell())                                                         \
+  X(ZIP_SOURCE_STAT, s.stat(static_cast<zip_stat_t*>(data)))                           \
+  X(ZIP_SOURCE_GET_FILE_ATTRIBUTES, s.attributes(static_cast<zip_file_attributes_t*>(data))) \
+  X(ZIP_SOURCE_BEGIN_WRITE, s.beginWrite())                                            \
+  X(ZIP_SOURCE_WRITE, s.write(data, length))                                           \
+  X(ZIP_SOURCE_SEEK_WRITE, s.seekWrite(data, length))                                  \
+  X(ZIP_SOURCE_TELL_WRITE, s.tellWrite())                                              \
+  X(ZIP_SOURCE_COMMIT_WRITE, s.commitWrite())                                          \
+  X(ZIP_SOURCE_ROLLBACK_WRITE, s.rollbackWrite())                                      \
+  X(ZIP_SOURCE_REMOVE, s.remove())
+
+// The source's operation for `command`, or nullptr when it has none: read both by the compile-time
+// checks below and by the callback.
 template <class Source>
 constexpr Operation<Source> operationFor(zip_source_cmd_t command) {
   using S = Source;
-  using Stat = zip_stat_t*;
-  using Attributes = zip_file_attributes_t*;
   switch (command) {
-#define RODFAB_ZIP_OPERATION(COMMAND, CALL)                                                     \
+#define RODFAB_ZIP_OPERATION_CASE(COMMAND, CALL)                                                \
   case COMMAND:                                                                                 \
     if constexpr (requires(S & s, void* data, zip_uint64_t length) { CALL; })                   \
       return [](S& s, [[maybe_unused]] void* data, [[maybe_unused]] zip_uint64_t length) -> zip_int64_t { return CALL; }; \
     return nullptr;
-    RODFAB_ZIP_OPERATION(ZIP_SOURCE_OPEN, s.open())
-    RODFAB_ZIP_OPERATION(ZIP_SOURCE_READ, s.read(data, length))
-    RODFAB_ZIP_OPERATION(ZIP_SOURCE_CLOSE, s.close())
-    RODFAB_ZIP_OPERATION(ZIP_SOURCE_SEEK, s.seek(data, length))
-    RODFAB_ZIP_OPERATION(ZIP_SOURCE_TELL, s.tell())
-    RODFAB_ZIP_OPERATION(ZIP_SOURCE_STAT, s.stat(static_cast<Stat>(data)))
-    RODFAB_ZIP_OPERATION(ZIP_SOURCE_GET_FILE_ATTRIBUTES, s.attributes(static_cast<Attributes>(data)))
-    RODFAB_ZIP_OPERATION(ZIP_SOURCE_BEGIN_WRITE, s.beginWrite())
-    RODFAB_ZIP_OPERATION(ZIP_SOURCE_WRITE, s.write(data, length))
-    RODFAB_ZIP_OPERATION(ZIP_SOURCE_SEEK_WRITE, s.seekWrite(data, length))
-    RODFAB_ZIP_OPERATION(ZIP_SOURCE_TELL_WRITE, s.tellWrite())
-    RODFAB_ZIP_OPERATION(ZIP_SOURCE_COMMIT_WRITE, s.commitWrite())
-    RODFAB_ZIP_OPERATION(ZIP_SOURCE_ROLLBACK_WRITE, s.rollbackWrite())
-    RODFAB_ZIP_OPERATION(ZIP_SOURCE_REMOVE, s.remove())
-#undef RODFAB_ZIP_OPERATION
+    RODFAB_ZIP_OPERATIONS(RODFAB_ZIP_OPERATION_CASE)
+#undef RODFAB_ZIP_OPERATION_CASE
     default: return nullptr;  // the adapter's own (ERROR, FREE, SUPPORTS) and commands we never answer
   }
 }
 
 // Every command a source may have an operation for (operationFor's cases).
-inline constexpr std::array kOperationCommands{
-    ZIP_SOURCE_OPEN,        ZIP_SOURCE_READ,        ZIP_SOURCE_CLOSE,       ZIP_SOURCE_SEEK,        ZIP_SOURCE_TELL,
-    ZIP_SOURCE_STAT,        ZIP_SOURCE_GET_FILE_ATTRIBUTES, ZIP_SOURCE_BEGIN_WRITE, ZIP_SOURCE_WRITE, ZIP_SOURCE_SEEK_WRITE,
-    ZIP_SOURCE_TELL_WRITE,  ZIP_SOURCE_COMMIT_WRITE, ZIP_SOURCE_ROLLBACK_WRITE, ZIP_SOURCE_REMOVE};
+#define RODFAB_ZIP_COMMAND(COMMAND, CALL) COMMAND,
+inline constexpr std::array kOperationCommands{RODFAB_ZIP_OPERATIONS(RODFAB_ZIP_COMMAND)};
+#undef RODFAB_ZIP_COMMAND
+#undef RODFAB_ZIP_OPERATIONS
 
 template <class Source>
 constexpr bool lists(zip_source_cmd_t command) {

@@ -14,6 +14,7 @@
 #include <cstring>
 #include <memory>
 #include <stdexcept>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -63,8 +64,9 @@ public:
       fail("cannot set the attributes of " + name);
   }
 
-  void close() {
-    if (zip_close(za_) != 0) fail("cannot write the archive");
+  // `failure`: what the entries' sources said went wrong, if anything (libzip's error names no entry).
+  void close(const std::string& failure = {}) {
+    if (zip_close(za_) != 0) fail(failure.empty() ? "cannot write the archive" : "cannot write the archive: " + failure);
     za_ = nullptr;
   }
 
@@ -80,6 +82,8 @@ private:
 
 // The staged file, opened once however many entries lie in it (a job's layers all do), and read through
 // a read-ahead buffer: libzip asks for 8 KiB at a time and the entries lie one after another in it.
+// Keeps the first failure of any entry read through it, naming the entry and the file, for the error
+// writeZip throws.
 class StagedFile {
 public:
   explicit StagedFile(fs::path path) : path_(std::move(path)) {}
@@ -88,6 +92,14 @@ public:
   }
   StagedFile(const StagedFile&) = delete;
   StagedFile& operator=(const StagedFile&) = delete;
+
+  const fs::path& path() const { return path_; }
+
+  // What went wrong reading the staged entries ("" while nothing did): the first failure noted.
+  const std::string& failure() const { return failure_; }
+  void noteFailure(const std::string& what) {
+    if (failure_.empty()) failure_ = what;
+  }
 
   // Opens the file unless it is open; false with errno set when it cannot be.
   bool open() {
@@ -133,6 +145,7 @@ private:
   }
 
   fs::path path_;
+  std::string failure_;
   int fd_ = -1;
   std::vector<char> ahead_;
   std::uint64_t aheadStart_ = 0;
@@ -146,13 +159,18 @@ public:
   static constexpr std::array kCommands{ZIP_SOURCE_OPEN, ZIP_SOURCE_READ, ZIP_SOURCE_CLOSE, ZIP_SOURCE_STAT,
                                         ZIP_SOURCE_GET_FILE_ATTRIBUTES};
 
-  StagedSource(StagedZipData data, ZipStorage storage, StagedFile& file) : data_(std::move(data)), storage_(storage), file_(file) {}
+  StagedSource(std::string name, StagedZipData data, ZipStorage storage, StagedFile& file)
+      : name_(std::move(name)), data_(std::move(data)), storage_(storage), file_(file) {}
 
   zip_int64_t open() {
     position_ = 0;
-    if (data_.inMemory) return data_.memory.size() == data_.length ? 0 : failed(ZIP_ER_INCONS, 0);
-    if (!data_.memory.empty()) return failed(ZIP_ER_INCONS, 0);  // bytes in memory but said to be in the file
-    return file_.open() ? 0 : failed(ZIP_ER_OPEN, errno);
+    if (data_.inMemory) {
+      if (data_.memory.size() == data_.length) return 0;
+      return failedEntry(ZIP_ER_INCONS, 0, "its " + std::to_string(data_.memory.size()) + " bytes kept in memory, recorded as " +
+                                               std::to_string(data_.length));
+    }
+    if (!data_.memory.empty()) return failedEntry(ZIP_ER_INCONS, 0, "bytes kept in memory, recorded as in " + file_.path().string());
+    return file_.open() ? 0 : failedEntry(ZIP_ER_OPEN, errno, "cannot open " + file_.path().string());
   }
 
   zip_int64_t close() { return 0; }  // StagedFile closes the file
@@ -162,8 +180,12 @@ public:
     const zip_uint64_t want = std::min<zip_uint64_t>(length, data_.length - position_);
     if (data_.inMemory) {
       if (want > 0) std::memcpy(out, data_.memory.data() + position_, want);  // checked against `length` by open()
-    } else if (!file_.read(data_.offset + position_, out, want))
-      return errno ? failed(ZIP_ER_READ, errno) : failed(ZIP_ER_EOF, 0);  // the staged file is shorter than recorded
+    } else if (!file_.read(data_.offset + position_, out, want)) {
+      const std::string where = file_.path().string() + " at bytes " + std::to_string(data_.offset) + " to " +
+                                std::to_string(data_.offset + data_.length);
+      if (errno) return failedEntry(ZIP_ER_READ, errno, "cannot read " + where + " (" + std::strerror(errno) + ")");
+      return failedEntry(ZIP_ER_EOF, 0, where + ": the file ends first");  // shorter than recorded
+    }
     position_ += want;
     return static_cast<zip_int64_t>(want);
   }
@@ -189,14 +211,21 @@ public:
   }
 
 private:
+  // failed(), noting for writeZip's error which entry failed and why.
+  zip_int64_t failedEntry(int code, int systemError, const std::string& why) {
+    file_.noteFailure(name_ + ": " + why);
+    return failed(code, systemError);
+  }
+
+  std::string name_;  // the entry's, in the archive
   StagedZipData data_;
   ZipStorage storage_;
   StagedFile& file_;
   zip_uint64_t position_ = 0;
 };
 
-zip_source_t* stagedSource(zip_t* za, const StagedZipData& data, ZipStorage storage, StagedFile& file) {
-  return makeZipSource(za, std::make_unique<StagedSource>(data, storage, file));
+zip_source_t* stagedSource(zip_t* za, const std::string& name, const StagedZipData& data, ZipStorage storage, StagedFile& file) {
+  return makeZipSource(za, std::make_unique<StagedSource>(name, data, storage, file));
 }
 
 }  // namespace
@@ -205,11 +234,11 @@ void writeZip(const fs::path& zipPath, const std::vector<ZipEntry>& entries, con
   StagedFile staged(stagedFile);  // declared first: the zip's sources, which read through it, go before it
   ZipBuilder zip(zipPath);
   for (const ZipEntry& e : entries) {
-    zip_source_t* source = e.staged ? stagedSource(zip.archive(), *e.staged, e.storage, staged)
+    zip_source_t* source = e.staged ? stagedSource(zip.archive(), e.name, *e.staged, e.storage, staged)
                                     : zip_source_file(zip.archive(), e.source.c_str(), 0, -1);
     zip.add(e.name, source, e.storage);
   }
-  zip.close();
+  zip.close(staged.failure());
 }
 
 void writeZipFromMemory(const fs::path& zipPath, const std::vector<ZipMemoryEntry>& entries) {

@@ -55,7 +55,8 @@ inline constexpr ZipDosTime kZipEntryTime{12 << 11, ((2020 - 1980) << 9) | (1 <<
 // timestamps and attributes). Staged entries not in memory are read from `stagedFile` (one file, held
 // once here rather than by every entry; opened when the first of them is read, never when none is).
 // Throws std::runtime_error naming the archive when it cannot be written (the file cannot be created,
-// an entry's data cannot be read or is shorter than recorded); nothing is left at `zipPath` then.
+// an entry's data cannot be read or is shorter than recorded; for a staged entry the message names the
+// entry and the staged file, and where in it); nothing is left at `zipPath` then.
 void writeZip(const std::filesystem::path& zipPath, const std::vector<ZipEntry>& entries, const std::filesystem::path& stagedFile);
 // The same from memory (deflated by libzip with zlib).
 void writeZipFromMemory(const std::filesystem::path& zipPath, const std::vector<ZipMemoryEntry>& entries);

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the Google Benchmark programs (Release) and runs them, one workload per process so that each
 # reports its own peak resident memory. Results: build/bench-results/*.json (Google Benchmark JSON).
-#   scripts/bench.sh [all|slice|voxel|dither|printer|calibration]
+#   scripts/bench.sh [all|slice|voxel|dither|printer|emit|calibration]
 # The 6-gigavoxel runs (slice, voxel) take a few minutes; nothing else should load the machine.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -29,5 +29,12 @@ case $what in all|voxel)
 esac
 case $what in all|dither) run dither bench_dither '.' ;; esac
 case $what in all|printer) run printer-profiles bench_printer_profiles '.' ;; esac
+# The job writer alone on every class's dithered bands (white noise, seed 7, the slicer's bands), 1 and
+# 2 threads, without and with the modulus grids (classEmit, classEmitModulus); one workload per process.
+case $what in all|emit)
+  for t in $(./build/bench/bench_emit_class --benchmark_list_tests); do
+    run "emit-$(echo "$t" | sed 's|/manual_time||; s|/iterations:1||; s|:||; s|/|-|g')" bench_emit_class "^$t\$"
+  done ;;
+esac
 case $what in all|calibration) run calibration bench_calibration '.' ;; esac
 echo "results in $out/"

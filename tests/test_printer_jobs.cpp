@@ -13,6 +13,8 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <map>
+#include <random>
 #include <stdexcept>
 #include <tuple>
 
@@ -98,6 +100,47 @@ TEST_CASE("Job bytes do not depend on the thread count or the band size", "[job]
     writeJob(*grid, spec, 3);
     CHECK((readAll(folder / "job.zip") == a));
   }
+}
+
+TEST_CASE("A band's layer images hold only its own voxels: what the layer before in the same bitmaps wrote is cleared", "[job]") {
+  // Two bands of 8 layers whose footprints share no row and no byte: the second band's layers are
+  // written into the bitmaps the first band's used (the writer keeps them from band to band, clearing
+  // only the words the last layer wrote). Each image must be the BMP encodeBmp makes of a bitmap filled
+  // from scratch with that layer's voxels.
+  const fs::path dir = scratch("two-bands");
+  auto grid = newGrid();
+  auto acc = grid->getAccessor();
+  std::mt19937 rng(5);
+  std::bernoulli_distribution vero(0.5);
+  for (int k = 0; k < 16; ++k) {
+    const bool first = k < 8;
+    for (int j = first ? 0 : 20; j < (first ? 10 : 30); ++j)
+      for (int i = first ? 0 : 48; i < (first ? 40 : 96); ++i) acc.setValueOn({i, j, k}, vero(rng));
+  }
+  const JobResult result = writeJob(*grid, specFor(*grid, dir / "job.zip"), 8);
+  const JobGeometry& g = result.geometry;
+  REQUIRE(g.layers == 16);
+  const auto files = openJobFiles(dir / "job.zip");
+  const Bytes text = files->read("manifest.json");
+  const json manifest = json::parse(text.begin(), text.end());
+  std::map<std::string, bool> rigidFiles;  // material name -> whether it is the rigid one
+  for (const json& m : manifest["materials"]) rigidFiles[m["name"]] = m["role"] == "rigid";
+  int compared = 0;
+  for (const json& layer : manifest["layers"]) {
+    const int k = g.k(layer["layer"].get<int>());
+    for (const auto& [material, file] : layer["files"].items()) {
+      Bitmap expected(g.width, g.height);
+      for (int r = 0; r < g.height; ++r)
+        for (int c = 0; c < g.width; ++c) {
+          bool value = false;
+          if (grid->tree().probeValue({g.i(c), g.j(r), k}, value) && value == rigidFiles.at(material)) expected.set(c, r);
+        }
+      INFO("layer k = " << k << ", " << material);
+      CHECK((files->read(file.get<std::string>()) == encodeBmp(expected, connex3().xDpi, connex3().yDpi)));
+      ++compared;
+    }
+  }
+  CHECK(compared == 32);
 }
 
 TEST_CASE("Explicit support fills under the overhang down to the tray and never touches the model", "[job][support]") {
@@ -339,8 +382,7 @@ TEST_CASE("Preview views keep only the cells their pixels show", "[job][previews
       JobGeometry g;
       g.width = w, g.height = h, g.layers = layers;
       Previews previews(g, connex3(), sheet);
-      LayerBitmaps empty;
-      empty.rigid = Bitmap(w, h), empty.rubbery = Bitmap(w, h);
+      const LayerBitmaps empty(w, h, connex3().xDpi, connex3().yDpi);
       for (const int layer : previews.contactLayers()) previews.addLayer(layer, empty, nullptr);  // fills the tiles
       CHECK(previewMemoryBytes(g, connex3(), sheet) == previews.memoryBytes());
     }

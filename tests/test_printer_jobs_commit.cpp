@@ -10,6 +10,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <csignal>
 #include <fstream>
 #include <map>
@@ -103,6 +104,26 @@ TEST_CASE("An existing job is not overwritten without force", "[job]") {
   spec.options.force = true;
   writeJob(*other, spec, 24);
   CHECK((decodeJob(dir / "job.zip") == gridVoxels(*other)));
+}
+
+TEST_CASE("A refused band leaves the writer as it was: the right band is taken next, and the job is the grid's", "[job]") {
+  const fs::path dir = scratch("refused-band");
+  const auto grid = overhangPart(18);
+  const openvdb::CoordBBox part = grid->evalActiveVoxelBoundingBox();
+  {
+    JobWriter writer(specFor(*grid, dir / "job.zip"));
+    CHECK_THROWS_WITH(writer.addBand({band(*grid, 3, 12), nullptr, 3, 10}), Catch::Contains("outside the band"));
+    // A voxel beside the part's columns, in a leaf whose other voxels are all inside.
+    const auto wide = band(*grid, 3, 10);
+    wide->tree().setValueOn(openvdb::Coord(part.max().x() + 1, part.min().y(), 5), true);
+    CHECK_THROWS_WITH(writer.addBand({wide, nullptr, 3, 10}), Catch::Contains("outside the band"));
+    for (int k = part.min().z(); k <= part.max().z(); k += 7) {
+      const int end = std::min(k + 7, part.max().z() + 1);
+      writer.addBand({band(*grid, k, end), nullptr, k, end});
+    }
+    writer.finalize();
+  }
+  CHECK((decodeJob(dir / "job.zip") == gridVoxels(*grid)));
 }
 
 TEST_CASE("A failed or interrupted write leaves nothing that looks like a job", "[job][atomic]") {

@@ -191,10 +191,19 @@ TEST_CASE("Staged entries kept in memory are read from memory, even empty ones; 
 
   // An entry in the staged file when that file cannot be opened, and an in-memory entry whose bytes are
   // not as long as recorded: the archive is not written.
-  CHECK_THROWS_AS(writeZip(dir / "absent.zip", entries, dir / "absent.bin"), std::runtime_error);
+  // The error names the entry and the staged file (libzip's own names neither).
+  using Catch::Matchers::Contains;
+  CHECK_THROWS_WITH(writeZip(dir / "absent.zip", entries, dir / "absent.bin"),
+                    Contains("absent.zip: cannot write the archive: filed.bin: cannot open " + (dir / "absent.bin").string()));
   CHECK_FALSE(fs::exists(dir / "absent.zip"));
+  // A staged file that opens but cannot be read (a folder: EISDIR, as a failing disk gives EIO).
+  fs::create_directory(dir / "folder.bin");
+  CHECK_THROWS_WITH(writeZip(dir / "unreadable.zip", entries, dir / "folder.bin"),
+                    Contains("filed.bin: cannot read " + (dir / "folder.bin").string() + " at bytes 0 to 5 (Is a directory)"));
+  CHECK_FALSE(fs::exists(dir / "unreadable.zip"));
   entries[1].staged->length = 3;
-  CHECK_THROWS_AS(writeZip(dir / "inconsistent.zip", {entries[1]}, dir / "staged.bin"), std::runtime_error);
+  CHECK_THROWS_WITH(writeZip(dir / "inconsistent.zip", {entries[1]}, dir / "staged.bin"),
+                    Contains("kept.bin: its 4 bytes kept in memory, recorded as 3"));
   CHECK_FALSE(fs::exists(dir / "inconsistent.zip"));
   fs::remove_all(dir);
 }
@@ -231,7 +240,8 @@ TEST_CASE("The archive writer never replaces a file, and a failed write leaves n
   }
   const std::vector<ZipEntry> entries{{"ok.bin", {}, ZipStorage::Store, StagedZipData{0, 5, 5, 0}},
                                       {"short.bin", {}, ZipStorage::Store, StagedZipData{5, 50, 50, 0}}};
-  CHECK_THROWS_AS(writeZip(dir / "short.zip", entries, dir / "staged.bin"), std::runtime_error);
+  CHECK_THROWS_WITH(writeZip(dir / "short.zip", entries, dir / "staged.bin"),
+                    Catch::Matchers::Contains("short.bin: " + (dir / "staged.bin").string() + " at bytes 5 to 55: the file ends first"));
   CHECK_FALSE(fs::exists(dir / "short.zip"));
   CHECK_FALSE(fs::exists(dir / "short.zip.part"));
   fs::remove_all(dir);

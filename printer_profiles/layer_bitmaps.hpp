@@ -1,0 +1,76 @@
+// Internal to printer_profiles/: a layer's model bitmaps as the band encoder fills them and the
+// previews read them, with the record of where they were written.
+#pragma once
+
+#include "printer_profiles/bitmap.hpp"
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace rodfab::printer_profiles {
+
+// Bytes [begin, end) of a bitmap row (begin >= end: none).
+struct RowSpan {
+  std::uint32_t begin = 0, end = 0;
+  bool empty() const { return begin >= end; }
+};
+
+// The model bitmaps of one layer as the band encoder fills them, with the 8-byte words of their rows
+// written in (a bit a word): what clearing, counting and the views' scans read, exactly. Rods cross a
+// row in a few places far apart; the span between them covered most of the spring's rows. The rigid
+// and rubbery bitmaps are written only through a Writer, which marks every word it writes in, so no
+// set bit lies outside a marked word. Support, when the job has it, is a bitmap of its own.
+class LayerBitmaps {
+public:
+  LayerBitmaps() = default;
+  // Empty bitmaps of width x height, each held in its BMP file (Bitmap::inBmpFile, at xDpi x yDpi).
+  // std::invalid_argument unless both sizes are positive.
+  LayerBitmaps(int width, int height, int xDpi, int yDpi);
+
+  const Bitmap& rigid() const { return rigid_; }
+  const Bitmap& rubbery() const { return rubbery_; }
+  // The words written in row r: word w (bytes [8 w, 8 w + 8) of the row, the last may be short) is
+  // bit w % 64 of the (w / 64)-th.
+  std::span<const std::uint64_t> writtenWords(int r) const {
+    return {marks_.data() + static_cast<std::size_t>(r) * perRow_, perRow_};
+  }
+  // Row r's bytes from its first written word to the end of its last: empty when none was written.
+  RowSpan span(int r) const;
+  // Clears the words written (and only those) and forgets them: the bitmaps are empty again.
+  void clear();
+
+  // Writes into the bitmaps, marking every word it writes in; valid while the LayerBitmaps lives and
+  // is not assigned. It holds what it writes through itself: a byte stored through a uint8_t pointer
+  // may alias any object, so pointers read through the LayerBitmaps would be read again after every
+  // store (those reloads were the largest part of the rasterizer's samples on the lattice).
+  class Writer {
+  public:
+    // ORs the 8 pixels of byte `byte` of row `row` into the rigid and the rubbery bitmap.
+    void orByte(int row, std::size_t byte, std::uint8_t rigidBits, std::uint8_t rubberyBits) {
+      rigid_[row * rigidPitch_ + static_cast<std::ptrdiff_t>(byte)] |= rigidBits;
+      rubbery_[row * rubberyPitch_ + static_cast<std::ptrdiff_t>(byte)] |= rubberyBits;
+      marks_[static_cast<std::size_t>(row) * perRow_ + byte / 512] |= std::uint64_t{1} << (byte / 8 % 64);
+    }
+
+  private:
+    friend class LayerBitmaps;
+    std::uint8_t* rigid_ = nullptr;    // row 0
+    std::uint8_t* rubbery_ = nullptr;  // row 0
+    std::ptrdiff_t rigidPitch_ = 0, rubberyPitch_ = 0;
+    std::uint64_t* marks_ = nullptr;
+    std::size_t perRow_ = 0;
+  };
+  Writer writer();
+
+  Bitmap support;
+  bool hasSupport = false;
+
+private:
+  Bitmap rigid_, rubbery_;
+  std::size_t perRow_ = 0;             // masks a row: ceil(words / 64)
+  std::vector<std::uint64_t> marks_;   // row r's at [r * perRow_, (r + 1) * perRow_)
+};
+
+}  // namespace rodfab::printer_profiles
