@@ -89,8 +89,10 @@ std::vector<SmoothPiece> piecesBetween(const std::vector<double>& sampleU, const
     piece.endFromBelow = last + 1 < sampleU.size();
     Vec3 d[3];
     evaluate(piece.begin, false, d);
+    piece.beginPoint = d[0];
     piece.beginTangent = unitTangent(d[1], d[2]);
     evaluate(piece.end, piece.endFromBelow, d);
+    piece.endPoint = d[0];
     piece.endTangent = piece.endFromBelow ? unitTangentFromBelow(d[1], d[2]) : unitTangent(d[1], d[2]);
     pieces.push_back(piece);
     first = last;
@@ -338,13 +340,11 @@ double planeTolerance(double radius) { return 1e-9 * (1.0 + radius); }
 
 }  // namespace
 
-void Rod::classifyEnd(const Vec3& p, double u, const Vec3& outward, bool fromBelow, RodHit& best) const {
-  Vec3 d[3];
-  evaluate(u, fromBelow, d);
-  const double beyond = (p - d[0]).dot(outward);
+void Rod::classifyEnd(const Vec3& p, double u, const Vec3& point, const Vec3& outward, bool fromBelow, RodHit& best) const {
+  const double beyond = (p - point).dot(outward);
   if (beyond < 0.0) return;  // in front of the plane: the crossings decide
   if (beyond > planeTolerance(section_.boundingRadius())) {
-    if (caps_ == CapStyle::Round) consider(best, 1.0 - (d[0] - p).norm() / section_.capRadius(), u);
+    if (caps_ == CapStyle::Round) consider(best, 1.0 - (point - p).norm() / section_.capRadius(), u);
     return;
   }
   sectionHit(p, u, fromBelow, best);
@@ -399,7 +399,7 @@ void Rod::classifyPiece(const Vec3& p, const SmoothPiece& piece, bool everySegme
   const double radius = section_.boundingRadius();
   const double capReach = std::max(radius + planeTolerance(radius), section_.capRadius());
   if ((samplePoint_[piece.firstSample] - p).norm() <= capReach + sampleDeviation_[piece.firstSample])
-    classifyEnd(p, piece.begin, -piece.beginTangent, false, best);
+    classifyEnd(p, piece.begin, piece.beginPoint, -piece.beginTangent, false, best);
   // The segments in increasing order, either way: candidates of equal depth keep the first.
   if (everySegment) {
     for (std::size_t i = piece.firstSample; i < piece.lastSample; ++i) classifySegment(p, piece, i, best);
@@ -408,7 +408,7 @@ void Rod::classifyPiece(const Vec3& p, const SmoothPiece& piece, bool everySegme
                                     [&](std::size_t i) { classifySegment(p, piece, i, best); });
   }
   if ((samplePoint_[piece.lastSample] - p).norm() <= capReach + sampleDeviation_[piece.lastSample - 1])
-    classifyEnd(p, piece.end, piece.endTangent, piece.endFromBelow, best);
+    classifyEnd(p, piece.end, piece.endPoint, piece.endTangent, piece.endFromBelow, best);
 }
 
 RodHit Rod::classifyPoint(const Vec3& p, bool everySegment) const {

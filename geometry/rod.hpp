@@ -69,6 +69,7 @@ struct RodHit {
 struct SmoothPiece {
   double begin = 0.0, end = 0.0;                // its parameter interval
   std::size_t firstSample = 0, lastSample = 0;  // sampleParameters()[firstSample] == begin, [lastSample] == end
+  Vec3 beginPoint, endPoint;                    // r at its ends (from below at a C0 end)
   Vec3 beginTangent, endTangent;                // unit tangents at its ends, taken inside the piece
   bool endFromBelow = false;                    // `end` is a C0 point: evaluate there from below
 };
@@ -138,8 +139,9 @@ private:
   void sectionHit(const Vec3& p, double u, bool fromBelow, RodHit& best) const;
   // Zeros of g(u) = (r(u) - p) . r'(u) on [a, b] with g(a) = ga, g(b) = gb of opposite signs.
   double solveCrossing(const Vec3& p, double a, double b, double sign) const;
-  // The piece's end plane at u (outward normal `outward`): the cap beyond it, the section on it.
-  void classifyEnd(const Vec3& p, double u, const Vec3& outward, bool fromBelow, RodHit& best) const;
+  // The piece's end plane at u through r(u) = `point` (outward normal `outward`): the cap beyond it,
+  // the section on it.
+  void classifyEnd(const Vec3& p, double u, const Vec3& point, const Vec3& outward, bool fromBelow, RodHit& best) const;
   // The sections through p of sample segment i of `piece`, if the segment can reach p.
   void classifySegment(const Vec3& p, const SmoothPiece& piece, std::size_t i, RodHit& best) const;
   // everySegment: walk all of the piece's segments instead of those segmentBoxes_ gives.
