@@ -323,8 +323,14 @@ void consider(RodHit& best, double depth, double u) {
 }  // namespace
 
 void Rod::sectionHit(const Vec3& p, double u, bool fromBelow, RodHit& best) const {
+  // r and r' alone (NurbsCurve computes them with the same operations whatever the order asked);
+  // r'' only where r' may be too short for unitTangent, which then takes r'' (below 1e-14; any
+  // threshold above that one gives the same tangent).
   Vec3 d[3];
-  evaluate(u, fromBelow, d);
+  d[2] = Vec3::Zero();
+  if (fromBelow) centerline_.derivativesFromBelow(u, 1, d);
+  else centerline_.derivatives(u, 1, d);
+  if (!(d[1].norm() > 1e-12)) evaluate(u, fromBelow, d);
   const Vec3 t = fromBelow ? unitTangentFromBelow(d[1], d[2]) : unitTangent(d[1], d[2]);
   const Vec3 w = p - d[0];
   // A zero of (r - p) . r' where r' vanishes (a cusp) is no section through p: p must lie in the plane.
