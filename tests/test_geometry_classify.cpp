@@ -3,6 +3,7 @@
 // checking every box.
 #include "geometry/geometry.hpp"
 #include "geometry/segment_boxes.hpp"
+#include "tests/test_geometry_curves.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -15,23 +16,9 @@
 #include <random>
 
 using namespace rodfab::geometry;
+using rodfab::geometry::testing::helix;
 
 namespace {
-
-// A helix of `turns` turns as a cubic B-spline through points on it, along z from the origin.
-NurbsCurve helixCurve(double radius, double pitch, double turns) {
-  constexpr int kPointsPerTurn = 12;
-  const int n = static_cast<int>(turns * kPointsPerTurn) + 1;
-  std::vector<Vec3> pts;
-  for (int i = 0; i < n; ++i) {
-    const double a = 2 * std::numbers::pi * i / kPointsPerTurn;
-    pts.emplace_back(radius * std::cos(a), radius * std::sin(a), pitch * a / (2 * std::numbers::pi));
-  }
-  std::vector<double> knots(4, 0.0);
-  for (int i = 1; i < n - 3; ++i) knots.push_back(static_cast<double>(i) / (n - 3));
-  knots.insert(knots.end(), 4, 1.0);
-  return NurbsCurve(3, knots, pts);
-}
 
 Rod rodOf(const std::string& name, NurbsCurve c, Section section, CapStyle caps) {
   return Rod(name, std::move(c), section, std::nullopt, std::nullopt, caps, BSplineField::constant(5, 0, 1));
@@ -42,8 +29,8 @@ Rod rodOf(const std::string& name, NurbsCurve c, Section section, CapStyle caps)
 // caps and a rectangular rod with a C0 knot.
 std::vector<Rod> testRods() {
   std::vector<Rod> rods;
-  rods.push_back(rodOf("helix", helixCurve(4.0, 1.5, 20.0), Section::circle(1.2), CapStyle::Round));
-  rods.push_back(rodOf("tight helix", helixCurve(0.55, 1.2, 4.0), Section::ellipse(1.0, 0.7), CapStyle::Round));
+  rods.push_back(rodOf("helix", helix(4.0, 1.5, 20.0, 12), Section::circle(1.2), CapStyle::Round));
+  rods.push_back(rodOf("tight helix", helix(0.55, 1.2, 4.0, 12), Section::ellipse(1.0, 0.7), CapStyle::Round));
   const double w = std::sqrt(0.5);
   rods.push_back(rodOf("u-turn",
                        NurbsCurve(2, {0, 0, 0, 0.5, 0.5, 1, 1, 1}, {{0, -0.6, 0}, {0.6, -0.6, 0}, {0.6, 0, 0}, {0.6, 0.6, 0}, {0, 0.6, 0}},
@@ -98,9 +85,9 @@ TEST_CASE("classify gives the bits of the walk over every segment, near and far 
     REQUIRE(inside > tried / 20);  // the comparison covers the inside, not only far points
   }
   // A point with a non-finite coordinate is in no box: classify walks for it, as before.
-  const Rod helix = testRods().front();
+  const Rod longHelix = testRods().front();
   for (const double bad : {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()})
-    REQUIRE(sameBits(helix.classify(Vec3(bad, 0, 1)), helix.classifyWalkingEverySegment(Vec3(bad, 0, 1))));
+    REQUIRE(sameBits(longHelix.classify(Vec3(bad, 0, 1)), longHelix.classifyWalkingEverySegment(Vec3(bad, 0, 1))));
 }
 
 TEST_CASE("The tight helix's axis takes the fold path, and classify matches the walk there", "[rod][classify]") {
