@@ -3,9 +3,10 @@
 //   raster_band CLASS K0 K1 [map] [threads=N] [bands=L]
 // prints the band's active voxels, exact evaluations and a checksum (FNV-1a over every active voxel's
 // coordinate and value bits, leaves in coordinate order) of the modulus grid, and of the fraction grid
-// with `map`, at the voxel of the benchmark profile (bench_profile.hpp). With bands=L the layers go
-// through in bands of L (as the slicer streams them; the checksums then run over the bands in order,
-// so a whole class fits in memory), with threads=N on N TBB workers (default 1). Profile with
+// with `map`, at the voxel of the benchmark profile (bench_profile.hpp), then the rasterizer's piece
+// count (a line "pieces N"). With bands=L the layers go through in bands of L (as the slicer streams
+// them; the checksums then run over the bands in order, so a whole class fits in memory), with
+// threads=N on N TBB workers (default 1). Profile with
 //   valgrind --tool=callgrind --toggle-collect='rodfab::voxel::Rasterizer::rasterizeLayers(int, int) const'
 //     --toggle-collect='rodfab::materials::mapToFractions(*' build/bench/raster_band lattice 1500 1532 map
 #include "bench/bench_profile.hpp"
@@ -87,5 +88,6 @@ int main(int argc, char** argv) {
   std::printf("active %llu exact %llu modulus %016llx\n", static_cast<unsigned long long>(active),
               static_cast<unsigned long long>(exact), static_cast<unsigned long long>(modulusSum));
   if (map) std::printf("fractions %016llx\n", static_cast<unsigned long long>(fractionSum));
+  std::printf("pieces %zu\n", rasterizer.pieceCount());
   return 0;
 }

@@ -89,8 +89,10 @@ std::vector<SmoothPiece> piecesBetween(const std::vector<double>& sampleU, const
     piece.endFromBelow = last + 1 < sampleU.size();
     Vec3 d[3];
     evaluate(piece.begin, false, d);
+    piece.beginPoint = d[0];
     piece.beginTangent = unitTangent(d[1], d[2]);
     evaluate(piece.end, piece.endFromBelow, d);
+    piece.endPoint = d[0];
     piece.endTangent = piece.endFromBelow ? unitTangentFromBelow(d[1], d[2]) : unitTangent(d[1], d[2]);
     pieces.push_back(piece);
     first = last;
@@ -173,6 +175,7 @@ void Rod::sampleCenterline() {
   pieces_ = piecesBetween(sampleU_, c0Samples, [&](double u, bool fromBelow, Vec3* d) { evaluate(u, fromBelow, d); });
   estimateCurvature(unresolved);
   cacheJets();
+  buildSegmentBoxes();
 }
 
 // The inside test subdivides segment i when curvature x (gap + deviation + chord) >= 0.5 with a gap
@@ -320,8 +323,14 @@ void consider(RodHit& best, double depth, double u) {
 }  // namespace
 
 void Rod::sectionHit(const Vec3& p, double u, bool fromBelow, RodHit& best) const {
+  // r and r' alone (NurbsCurve computes them with the same operations whatever the order asked);
+  // r'' only where r' may be too short for unitTangent, which then takes r'' (below 1e-14; any
+  // threshold above that one gives the same tangent).
   Vec3 d[3];
-  evaluate(u, fromBelow, d);
+  d[2] = Vec3::Zero();
+  if (fromBelow) centerline_.derivativesFromBelow(u, 1, d);
+  else centerline_.derivatives(u, 1, d);
+  if (!(d[1].norm() > 1e-12)) evaluate(u, fromBelow, d);
   const Vec3 t = fromBelow ? unitTangentFromBelow(d[1], d[2]) : unitTangent(d[1], d[2]);
   const Vec3 w = p - d[0];
   // A zero of (r - p) . r' where r' vanishes (a cusp) is no section through p: p must lie in the plane.
@@ -330,13 +339,28 @@ void Rod::sectionHit(const Vec3& p, double u, bool fromBelow, RodHit& best) cons
   consider(best, 1.0 - section_.normalizedRadius(w.dot(f.d1), w.dot(f.d2)), u);
 }
 
-void Rod::classifyPiece(const Vec3& p, const SmoothPiece& piece, RodHit& best) const {
+namespace {
+
+// Within this distance beyond an end plane a point still counts as on the plane (section test).
+double planeTolerance(double radius) { return 1e-9 * (1.0 + radius); }
+
+}  // namespace
+
+void Rod::classifyEnd(const Vec3& p, double u, const Vec3& point, const Vec3& outward, bool fromBelow, RodHit& best) const {
+  const double beyond = (p - point).dot(outward);
+  if (beyond < 0.0) return;  // in front of the plane: the crossings decide
+  if (beyond > planeTolerance(section_.boundingRadius())) {
+    if (caps_ == CapStyle::Round) consider(best, 1.0 - (point - p).norm() / section_.capRadius(), u);
+    return;
+  }
+  sectionHit(p, u, fromBelow, best);
+}
+
+void Rod::classifySegment(const Vec3& p, const SmoothPiece& piece, std::size_t i, RodHit& best) const {
   const double radius = section_.boundingRadius();
-  // Within this distance beyond an end plane a point still counts as on the plane (section test).
-  const double planeTolerance = 1e-9 * (1.0 + radius);
-  const double reach = radius + planeTolerance;
-  const bool round = caps_ == CapStyle::Round;
-  const double capReach = std::max(reach, section_.capRadius());
+  const double reach = radius + planeTolerance(radius);
+  const double gap = distanceToSegment(p, samplePoint_[i], samplePoint_[i + 1]);
+  if (gap - sampleDeviation_[i] > reach) return;  // no section of the segment reaches p
   auto g = [&](double u, bool fromBelow) {
     Vec3 d[2];
     if (fromBelow) centerline_.derivativesFromBelow(u, 1, d);
@@ -344,22 +368,7 @@ void Rod::classifyPiece(const Vec3& p, const SmoothPiece& piece, RodHit& best) c
     return (d[0] - p).dot(d[1]);
   };
   auto gAt = [&](const Jet& j) { return (j.r - p).dot(j.d); };
-  // The end planes: beyond one, the cap; on it (within the tolerance), the section there.
-  auto end = [&](double u, const Vec3& outward, bool fromBelow) {
-    Vec3 d[3];
-    evaluate(u, fromBelow, d);
-    const double beyond = (p - d[0]).dot(outward);
-    if (beyond < 0.0) return;  // in front of the plane: the crossings decide
-    if (beyond > planeTolerance) {
-      if (round) consider(best, 1.0 - (d[0] - p).norm() / section_.capRadius(), u);
-      return;
-    }
-    sectionHit(p, u, fromBelow, best);
-  };
-  if ((samplePoint_[piece.firstSample] - p).norm() <= capReach + sampleDeviation_[piece.firstSample])
-    end(piece.begin, -piece.beginTangent, false);
-
-  // Sections through p: the zeros of g(u) = (r(u) - p) . r'(u) in the piece, segment by segment.
+  // Sections through p: the zeros of g(u) = (r(u) - p) . r'(u) on the segment.
   auto crossing = [&](double a, double b, double ga, double gb, bool belowB) {
     if (ga < 0.0 && gb > 0.0) {
       const double u = solveCrossing(p, a, b, 1.0);
@@ -371,41 +380,78 @@ void Rod::classifyPiece(const Vec3& p, const SmoothPiece& piece, RodHit& best) c
       sectionHit(p, a, false, best);
     }
   };
-  for (std::size_t i = piece.firstSample; i < piece.lastSample; ++i) {
-    const double gap = distanceToSegment(p, samplePoint_[i], samplePoint_[i + 1]);
-    if (gap - sampleDeviation_[i] > reach) continue;  // no section of the segment reaches p
-    const double a = sampleU_[i], b = sampleU_[i + 1];
-    const bool belowB = piece.endFromBelow && i + 1 == piece.lastSample;
-    const double ga = gAt(sampleJet_[i]), gb = belowB ? g(b, true) : gAt(sampleJet_[i + 1]);
-    // g has one zero at most on the segment unless the curvature times the distance nears 1 (p close
-    // to a centre of curvature): then look for every sign change on a finer sampling.
-    const double chord = (samplePoint_[i + 1] - samplePoint_[i]).norm();
-    if (!(sampleCurvature_[i] * (gap + sampleDeviation_[i] + chord) < 0.5)) {
-      const std::size_t fold = foldOffset_[i];
-      double x = a, gx = ga;
-      for (int k = 1; k <= kFoldSubdivisions; ++k) {
-        const double y = k == kFoldSubdivisions ? b : a + (b - a) * k / kFoldSubdivisions;
-        const double gy = k == kFoldSubdivisions ? gb : fold != kNoFold ? gAt(foldJets_[fold + k - 1]) : g(y, false);
-        crossing(x, y, gx, gy, belowB && k == kFoldSubdivisions);
-        x = y;
-        gx = gy;
-      }
-    } else {
-      crossing(a, b, ga, gb, belowB);
-    }
+  const double a = sampleU_[i], b = sampleU_[i + 1];
+  const bool belowB = piece.endFromBelow && i + 1 == piece.lastSample;
+  const double ga = gAt(sampleJet_[i]), gb = belowB ? g(b, true) : gAt(sampleJet_[i + 1]);
+  // g has one zero at most on the segment unless the curvature times the distance nears 1 (p close
+  // to a centre of curvature): then look for every sign change on a finer sampling.
+  const double chord = (samplePoint_[i + 1] - samplePoint_[i]).norm();
+  if (sampleCurvature_[i] * (gap + sampleDeviation_[i] + chord) < 0.5) {
+    crossing(a, b, ga, gb, belowB);
+    return;
   }
-  if ((samplePoint_[piece.lastSample] - p).norm() <= capReach + sampleDeviation_[piece.lastSample - 1])
-    end(piece.end, piece.endTangent, piece.endFromBelow);
+  const std::size_t fold = foldOffset_[i];
+  double x = a, gx = ga;
+  for (int k = 1; k <= kFoldSubdivisions; ++k) {
+    const double y = k == kFoldSubdivisions ? b : a + (b - a) * k / kFoldSubdivisions;
+    const double gy = k == kFoldSubdivisions ? gb : fold != kNoFold ? gAt(foldJets_[fold + k - 1]) : g(y, false);
+    crossing(x, y, gx, gy, belowB && k == kFoldSubdivisions);
+    x = y;
+    gx = gy;
+  }
 }
 
-RodHit Rod::classify(const Vec3& p) const {
+void Rod::classifyPiece(const Vec3& p, const SmoothPiece& piece, bool everySegment, RodHit& best) const {
+  const double radius = section_.boundingRadius();
+  const double capReach = std::max(radius + planeTolerance(radius), section_.capRadius());
+  if ((samplePoint_[piece.firstSample] - p).norm() <= capReach + sampleDeviation_[piece.firstSample])
+    classifyEnd(p, piece.begin, piece.beginPoint, -piece.beginTangent, false, best);
+  // The segments in increasing order, either way: candidates of equal depth keep the first.
+  if (everySegment) {
+    for (std::size_t i = piece.firstSample; i < piece.lastSample; ++i) classifySegment(p, piece, i, best);
+  } else {
+    segmentBoxes_.forEachContaining(p, piece.firstSample, piece.lastSample,
+                                    [&](std::size_t i) { classifySegment(p, piece, i, best); });
+  }
+  if ((samplePoint_[piece.lastSample] - p).norm() <= capReach + sampleDeviation_[piece.lastSample - 1])
+    classifyEnd(p, piece.end, piece.endPoint, piece.endTangent, piece.endFromBelow, best);
+}
+
+RodHit Rod::classifyPoint(const Vec3& p, bool everySegment) const {
   RodHit best;
   best.depth = -std::numeric_limits<double>::infinity();
   best.u = centerline_.domainBegin();
-  for (const SmoothPiece& piece : pieces_) classifyPiece(p, piece, best);
+  for (const SmoothPiece& piece : pieces_) classifyPiece(p, piece, everySegment, best);
   if (!(best.depth > -1.0)) best.depth = -1.0;
   best.inside = best.depth >= 0.0;
   return best;
+}
+
+// A non-finite coordinate is in no box, while the walk's arithmetic on it may still find a candidate
+// (a NaN gap is never "too far"): such points take the walk.
+RodHit Rod::classify(const Vec3& p) const { return classifyPoint(p, !p.allFinite()); }
+
+RodHit Rod::classifyWalkingEverySegment(const Vec3& p) const { return classifyPoint(p, true); }
+
+void Rod::buildSegmentBoxes() {
+  // A segment is examined when its computed distance to p, less its deviation, is at most the reach
+  // (classifySegment). The computed distance is that of p to a point within a few ulps of the segment,
+  // so it is below the true distance by at most ~10 eps (|p| + |sample|) <= ~10 eps (distance + 2
+  // |sample|); the margin of 1e-9 relative to the coordinates, the reach and the deviation is far
+  // above it, so a p outside the grown box (on any axis) is one the walk skips too.
+  const double radius = section_.boundingRadius();
+  const double reach = radius + planeTolerance(radius);
+  double largest = 0.0, maxDeviation = 0.0;
+  for (const Vec3& q : samplePoint_) largest = std::max(largest, q.cwiseAbs().maxCoeff());
+  for (const double dev : sampleDeviation_) maxDeviation = std::max(maxDeviation, dev);
+  const double margin = 1e-9 * (1.0 + largest + reach + maxDeviation);
+  std::vector<Box3> boxes(sampleDeviation_.size());
+  for (std::size_t i = 0; i < boxes.size(); ++i) {
+    const double grow = sampleDeviation_[i] + reach + margin;
+    boxes[i] = Box3(Vec3(samplePoint_[i].cwiseMin(samplePoint_[i + 1]).array() - grow),
+                    Vec3(samplePoint_[i].cwiseMax(samplePoint_[i + 1]).array() + grow));
+  }
+  segmentBoxes_ = SegmentBoxes(std::move(boxes));
 }
 
 void Rod::computeBounds() {

@@ -20,6 +20,7 @@
 #include "geometry/frame.hpp"
 #include "geometry/nurbs.hpp"
 #include "geometry/section.hpp"
+#include "geometry/segment_boxes.hpp"
 
 #include <Eigen/Geometry>
 
@@ -68,6 +69,7 @@ struct RodHit {
 struct SmoothPiece {
   double begin = 0.0, end = 0.0;                // its parameter interval
   std::size_t firstSample = 0, lastSample = 0;  // sampleParameters()[firstSample] == begin, [lastSample] == end
+  Vec3 beginPoint, endPoint;                    // r at its ends (from below at a C0 end)
   Vec3 beginTangent, endTangent;                // unit tangents at its ends, taken inside the piece
   bool endFromBelow = false;                    // `end` is a C0 point: evaluate there from below
 };
@@ -113,7 +115,12 @@ public:
   ClosestPoint closestPointInInterval(const Vec3& p, double a, double b) const;
 
   // The inside test of the solid defined at the top of this file. Thread-safe (const, no caches).
+  // Examines only the sample segments whose box (segment, deviation and section reach, plus a margin
+  // for rounding) holds p, in the order of the walk below, so it returns the walk's bits.
   RodHit classify(const Vec3& p) const;
+  // The same test examining every sample segment of every smooth piece: the reference `classify`
+  // equals bit for bit (tests, benchmarks). It also answers points with a non-finite coordinate.
+  RodHit classifyWalkingEverySegment(const Vec3& p) const;
 
   // Axis-aligned box containing the whole solid (sections and caps of every smooth piece).
   Box3 bounds() const { return bounds_; }
@@ -132,7 +139,15 @@ private:
   void sectionHit(const Vec3& p, double u, bool fromBelow, RodHit& best) const;
   // Zeros of g(u) = (r(u) - p) . r'(u) on [a, b] with g(a) = ga, g(b) = gb of opposite signs.
   double solveCrossing(const Vec3& p, double a, double b, double sign) const;
-  void classifyPiece(const Vec3& p, const SmoothPiece& piece, RodHit& best) const;
+  // The piece's end plane at u through r(u) = `point` (outward normal `outward`): the cap beyond it,
+  // the section on it.
+  void classifyEnd(const Vec3& p, double u, const Vec3& point, const Vec3& outward, bool fromBelow, RodHit& best) const;
+  // The sections through p of sample segment i of `piece`, if the segment can reach p.
+  void classifySegment(const Vec3& p, const SmoothPiece& piece, std::size_t i, RodHit& best) const;
+  // everySegment: walk all of the piece's segments instead of those segmentBoxes_ gives.
+  void classifyPiece(const Vec3& p, const SmoothPiece& piece, bool everySegment, RodHit& best) const;
+  RodHit classifyPoint(const Vec3& p, bool everySegment) const;
+  void buildSegmentBoxes();
 
   std::string name_;
   NurbsCurve centerline_;
@@ -158,6 +173,8 @@ private:
   std::vector<std::size_t> foldOffset_;
   std::vector<Jet> foldJets_;
   std::vector<SmoothPiece> pieces_;
+  // Segment i's box: its end points grown by its deviation, the section's reach and a rounding margin.
+  SegmentBoxes segmentBoxes_;
   Box3 bounds_;
 };
 

@@ -1,5 +1,6 @@
 // geometry/: NURBS evaluation, frames, sections and closest points against analytic truth.
 #include "geometry/geometry.hpp"
+#include "tests/test_geometry_curves.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -8,6 +9,7 @@
 #include <random>
 
 using namespace rodfab::geometry;
+using rodfab::geometry::testing::helix;
 
 namespace {
 
@@ -26,19 +28,6 @@ NurbsCurve wigglyCubic() {
                     {1, 0.7, 1.3, 1, 2, 0.8, 1});
 }
 
-// A helix as a dense interpolating-ish cubic B-spline (control points on a slightly larger helix).
-NurbsCurve helix(double radius, double pitch, double turns, int pointsPerTurn = 16) {
-  const int n = static_cast<int>(turns * pointsPerTurn) + 1;
-  std::vector<Vec3> pts;
-  for (int i = 0; i < n; ++i) {
-    const double a = 2 * std::numbers::pi * i / pointsPerTurn;
-    pts.emplace_back(radius * std::cos(a), radius * std::sin(a), pitch * a / (2 * std::numbers::pi));
-  }
-  std::vector<double> knots(4, 0.0);
-  for (int i = 1; i < n - 3; ++i) knots.push_back(static_cast<double>(i) / (n - 3));
-  knots.insert(knots.end(), 4, 1.0);
-  return NurbsCurve(3, knots, pts);
-}
 
 }  // namespace
 

@@ -1,0 +1,140 @@
+// geometry/: Rod::classify, which examines only the sample segments whose boxes hold the point, against
+// the walk over every segment (the same test before the boxes), bit for bit; SegmentBoxes against
+// checking every box.
+#include "geometry/geometry.hpp"
+#include "geometry/segment_boxes.hpp"
+#include "tests/test_geometry_curves.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numbers>
+#include <random>
+
+using namespace rodfab::geometry;
+using rodfab::geometry::testing::helix;
+
+namespace {
+
+Rod rodOf(const std::string& name, NurbsCurve c, Section section, CapStyle caps) {
+  return Rod(name, std::move(c), section, std::nullopt, std::nullopt, caps, BSplineField::constant(5, 0, 1));
+}
+
+// The rods of the test: a long helix (many samples), a tight one whose axis is near the centres of
+// curvature (the fold path), a U-turn of radius just above the section's, a kinked polyline with flat
+// caps and a rectangular rod with a C0 knot.
+std::vector<Rod> testRods() {
+  std::vector<Rod> rods;
+  rods.push_back(rodOf("helix", helix(4.0, 1.5, 20.0, 12), Section::circle(1.2), CapStyle::Round));
+  rods.push_back(rodOf("tight helix", helix(0.55, 1.2, 4.0, 12), Section::ellipse(1.0, 0.7), CapStyle::Round));
+  const double w = std::sqrt(0.5);
+  rods.push_back(rodOf("u-turn",
+                       NurbsCurve(2, {0, 0, 0, 0.5, 0.5, 1, 1, 1}, {{0, -0.6, 0}, {0.6, -0.6, 0}, {0.6, 0, 0}, {0.6, 0.6, 0}, {0, 0.6, 0}},
+                                  {1, w, 1, w, 1}),
+                       Section::circle(1.1), CapStyle::Round));
+  rods.push_back(rodOf("kinked", NurbsCurve(1, {0, 0, 0.25, 0.5, 0.75, 1, 1}, {{0, 0, 0}, {2, 0, 0}, {2.3, 1, 0.2}, {0.5, 1.5, -0.5}, {0.5, 0.2, 1}}),
+                       Section::circle(0.6), CapStyle::Flat));
+  rods.push_back(Rod("rect", NurbsCurve(2, {0, 0, 0, 0.5, 0.5, 1, 1, 1}, {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {2, 1, 0.5}, {1, 2, 1}}),
+                     Section::rectangle(0.9, 0.3), Vec3(0, 0, 1), std::nullopt, CapStyle::Round, BSplineField::constant(5, 0, 1)));
+  return rods;
+}
+
+bool sameBits(const RodHit& a, const RodHit& b) {
+  return a.inside == b.inside && std::bit_cast<std::uint64_t>(a.depth) == std::bit_cast<std::uint64_t>(b.depth) &&
+         std::bit_cast<std::uint64_t>(a.u) == std::bit_cast<std::uint64_t>(b.u);
+}
+
+}  // namespace
+
+TEST_CASE("classify gives the bits of the walk over every segment, near and far from the rod", "[rod][classify]") {
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> unit(0.0, 1.0), offset(-1.0, 1.0);
+  for (const Rod& rod : testRods()) {
+    INFO(rod.name());
+    const double reach = rod.section().boundingRadius();
+    const double u0 = rod.centerline().domainBegin(), u1 = rod.centerline().domainEnd();
+    const Box3 b = rod.bounds();
+    int inside = 0, tried = 0;
+    auto check = [&](const Vec3& p) {
+      const RodHit hit = rod.classify(p), walk = rod.classifyWalkingEverySegment(p);
+      CAPTURE(p.x(), p.y(), p.z(), hit.depth, walk.depth, hit.u, walk.u);
+      REQUIRE(sameBits(hit, walk));
+      inside += hit.inside;
+      ++tried;
+    };
+    for (int n = 0; n < 6000; ++n) {
+      // Around the centerline, up to twice the section's reach: the boundary, the inside, the caps.
+      const Vec3 c = rod.centerline().point(u0 + (u1 - u0) * std::clamp(1.1 * unit(rng) - 0.05, 0.0, 1.0));
+      check(c + 2.0 * reach * Vec3(offset(rng), offset(rng), offset(rng)));
+      // Anywhere in (and a little beyond) the bounds: far points, and the centres of curvature.
+      check(Vec3(b.min().x() - 1 + (b.sizes().x() + 2) * unit(rng), b.min().y() - 1 + (b.sizes().y() + 2) * unit(rng),
+                 b.min().z() - 1 + (b.sizes().z() + 2) * unit(rng)));
+    }
+    // The end points and just beyond them: the caps and the end planes.
+    for (const double u : {u0, u1}) {
+      Vec3 d[2];
+      rod.centerline().derivatives(u, 1, d);
+      const Vec3 t = d[1].normalized();
+      for (const double along : {-0.3, 0.0, 1e-12, 0.2, 0.5, 0.7})
+        for (int k = 0; k < 20; ++k) check(d[0] + (u == u0 ? -along : along) * t + 0.4 * reach * Vec3(offset(rng), offset(rng), offset(rng)));
+    }
+    REQUIRE(inside > tried / 20);  // the comparison covers the inside, not only far points
+  }
+  // A point with a non-finite coordinate is in no box: classify walks for it, as before.
+  const Rod longHelix = testRods().front();
+  for (const double bad : {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()})
+    REQUIRE(sameBits(longHelix.classify(Vec3(bad, 0, 1)), longHelix.classifyWalkingEverySegment(Vec3(bad, 0, 1))));
+}
+
+TEST_CASE("The tight helix's axis takes the fold path, and classify matches the walk there", "[rod][classify]") {
+  // On the axis of a helix of radius 0.55 with a section of reach 0.5 every point is within the
+  // segments' reach at a curvature radius of ~0.6: the crossing search subdivides (kFoldSubdivisions).
+  const Rod rod = testRods()[1];
+  int insideOnAxis = 0, insideNear = 0;
+  for (int k = 0; k <= 400; ++k) {
+    for (const double r : {0.0, 0.05, 0.1}) {
+      const Vec3 p(r, -r, 4.0 * 1.2 * k / 400.0);
+      const RodHit hit = rod.classify(p);
+      CAPTURE(p.z(), r);
+      REQUIRE(sameBits(hit, rod.classifyWalkingEverySegment(p)));
+      (r == 0.0 ? insideOnAxis : insideNear) += hit.inside;
+    }
+  }
+  // The axis is ~0.53 from the centerline (the spline runs inside its points' circle), beyond the
+  // ellipse's half-axes (0.5, 0.35); 0.07 to 0.14 off the axis some sections reach.
+  REQUIRE(insideOnAxis == 0);
+  REQUIRE(insideNear > 0);
+}
+
+TEST_CASE("SegmentBoxes visits exactly the boxes holding the point, in increasing order", "[rod][classify]") {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> coord(-10.0, 10.0), size(0.0, 4.0);
+  for (const std::size_t count : {0u, 1u, 3u, 4u, 5u, 16u, 17u, 63u, 200u}) {
+    std::vector<Box3> boxes(count);
+    for (std::size_t i = 0; i < count; ++i) {
+      // A walk, as a polyline's boxes are, and now and then an empty box.
+      const Vec3 lo = i == 0 ? Vec3(coord(rng), coord(rng), coord(rng)) : Vec3(boxes[i - 1].center() + 0.3 * Vec3(coord(rng), coord(rng), coord(rng)));
+      boxes[i] = Box3(lo, lo + Vec3(size(rng), size(rng), size(rng)));
+      if (i % 11 == 7) boxes[i].setEmpty();
+    }
+    const SegmentBoxes tree(boxes);
+    REQUIRE(tree.size() == count);
+    for (int n = 0; n < 400; ++n) {
+      const Vec3 p = count == 0 ? Vec3::Zero() : Vec3(boxes[n % count].center() + 0.5 * Vec3(coord(rng), coord(rng), coord(rng)));
+      const std::size_t first = count == 0 ? 0 : rng() % count, last = first + rng() % (count + 1 - first);
+      std::vector<std::size_t> visited, expected;
+      tree.forEachContaining(p, first, last, [&](std::size_t i) { visited.push_back(i); });
+      for (std::size_t i = first; i < last; ++i)
+        if (boxes[i].contains(p)) expected.push_back(i);
+      CAPTURE(count, first, last);
+      REQUIRE(visited == expected);
+    }
+    std::vector<std::size_t> none;
+    tree.forEachContaining(Vec3(std::numeric_limits<double>::quiet_NaN(), 0, 0), 0, count, [&](std::size_t i) { none.push_back(i); });
+    REQUIRE(none.empty());
+  }
+}
