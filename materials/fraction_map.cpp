@@ -1,4 +1,4 @@
-// The mapping's four-lane vectors pass between functions of this file only; GCC's note that their
+// The mapping's lane vectors pass between functions of this file only; GCC's note that their
 // by-value ABI differs without AVX concerns no interface anyone links to.
 #pragma GCC diagnostic ignored "-Wpsabi"
 
@@ -35,16 +35,34 @@ double lineAt(double x0, double y0, double x1, double y1, double x) {
   return x1 > x0 ? y0 + (x - x0) * (y1 - y0) / (x1 - x0) : y1;
 }
 
-// Four lanes (GCC vector extensions; one AVX register in mapWord's AVX2 version, two SSE2 ones
-// otherwise): lane by lane the same IEEE operations as the scalar expressions.
-typedef double Double4 __attribute__((vector_size(32)));
-typedef float Float4 __attribute__((vector_size(16)));
-typedef std::int32_t Int4 __attribute__((vector_size(16)));
-typedef std::uint32_t UInt4 __attribute__((vector_size(16)));
+// N lanes (GCC vector extensions): four in the baseline (two SSE2 registers of doubles), eight in
+// mapWord's AVX2 version (one AVX register of floats, two of doubles). Lane by lane the same IEEE
+// operations as the scalar expressions, whatever N.
+template <int N>
+struct Lanes {
+  typedef double Double __attribute__((vector_size(8 * N)));
+  typedef float Float __attribute__((vector_size(4 * N)));
+  typedef std::int32_t Int __attribute__((vector_size(4 * N)));
+  typedef std::uint32_t UInt __attribute__((vector_size(4 * N)));
+};
+using Double4 = Lanes<4>::Double;
+using Int4 = Lanes<4>::Int;
 
-// The start and rise of the table's intervals of four lanes: the same doubles either way. Scalar loads
-// (the baseline), or two AVX2 gathers (called, inlined, from mapWord's AVX2 version only).
+// interpolate's start + t rise, clamped to [lowest, highest] (std::clamp(v, floorFraction_, 1.0)), as
+// floats: four lanes.
+[[gnu::always_inline]] inline Lanes<4>::Float clampedFraction(Double4 start, Double4 rise, Double4 t, Double4 lowest,
+                                                              Double4 highest) {
+  Double4 v = start + t * rise;
+  v = v < lowest ? lowest : v;
+  v = highest < v ? highest : v;
+  return __builtin_convertvector(v, Lanes<4>::Float);
+}
+
+// The start and rise of the table's intervals of the lanes: the same doubles either way. Scalar loads
+// of four lanes (the baseline), or four AVX2 gathers of eight (called, inlined, from mapWord's AVX2
+// version only).
 struct LoadSegments {
+  static constexpr int kLanes = 4;
   template <typename Segment>
   [[gnu::always_inline]] static void load(const Segment* segments, Int4 interval, Double4& start, Double4& rise) {
     for (int l = 0; l < 4; ++l) {
@@ -55,66 +73,94 @@ struct LoadSegments {
   }
 };
 struct GatherSegments {
+  static constexpr int kLanes = 8;
   template <typename Segment>
-  [[gnu::target("avx2")]] static void load(const Segment* segments, Int4 interval, Double4& start, Double4& rise) {
+  [[gnu::target("avx2")]] static void load(const Segment* segments, Lanes<8>::Int interval, Lanes<8>::Double& start,
+                                           Lanes<8>::Double& rise) {
     static_assert(sizeof(Segment) == 2 * sizeof(double), "a segment is two doubles: start, rise");
-    const __m128i twice = reinterpret_cast<__m128i>(interval + interval);  // in doubles
+    const Lanes<8>::Int twice = interval + interval;  // in doubles
+    const __m128i low = reinterpret_cast<__m128i>(__builtin_shufflevector(twice, twice, 0, 1, 2, 3));
+    const __m128i high = reinterpret_cast<__m128i>(__builtin_shufflevector(twice, twice, 4, 5, 6, 7));
     // The masked form with every lane on (the unmasked one leaves GCC 12 warning of its undefined source).
     const __m256d all = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
-    start = reinterpret_cast<Double4>(_mm256_mask_i32gather_pd(_mm256_setzero_pd(), &segments->start, twice, all, 8));
-    rise = reinterpret_cast<Double4>(_mm256_mask_i32gather_pd(_mm256_setzero_pd(), &segments->rise, twice, all, 8));
+    const __m256d none = _mm256_setzero_pd();
+    const Double4 startLow = reinterpret_cast<Double4>(_mm256_mask_i32gather_pd(none, &segments->start, low, all, 8));
+    const Double4 startHigh = reinterpret_cast<Double4>(_mm256_mask_i32gather_pd(none, &segments->start, high, all, 8));
+    const Double4 riseLow = reinterpret_cast<Double4>(_mm256_mask_i32gather_pd(none, &segments->rise, low, all, 8));
+    const Double4 riseHigh = reinterpret_cast<Double4>(_mm256_mask_i32gather_pd(none, &segments->rise, high, all, 8));
+    start = __builtin_shufflevector(startLow, startHigh, 0, 1, 2, 3, 4, 5, 6, 7);
+    rise = __builtin_shufflevector(riseLow, riseHigh, 0, 1, 2, 3, 4, 5, 6, 7);
   }
 };
 
 }  // namespace
 
-// mapWord's body, compiled twice: for the baseline and for AVX2 (chosen at load time, see mapWord).
-// AVX2 brings no FMA, so no multiply-add is fused and both give interpolate's bits. Integers in 32
-// bits: a positive float's bits are below 2^31, so the interval and the offset in it (interpolate's
-// 64-bit expressions) are the same numbers; lanes that are clamped (negative, NaN, out of range)
-// compute garbage within the table's bounds, then take the clamp's value.
+// mapWord's body, compiled twice: for the baseline (four lanes) and for AVX2 (eight; chosen at load
+// time, see mapWord). AVX2 brings no FMA, so no multiply-add is fused and both give interpolate's
+// bits. Integers in 32 bits: a positive float's bits are below 2^31, so the interval and the offset in
+// it (interpolate's 64-bit expressions) are the same numbers; lanes that are clamped (negative, NaN,
+// out of range) compute garbage within the table's bounds, then take the clamp's value.
 template <typename Load>
 inline FractionMap::WordClamps FractionMap::mapWordWith(const float* moduli, std::uint64_t active,
                                                                              float* fractions) const {
+  constexpr int N = Load::kLanes;
+  using Double = typename Lanes<N>::Double;
+  using Float = typename Lanes<N>::Float;
+  using Int = typename Lanes<N>::Int;
+  using UInt = typename Lanes<N>::UInt;
+  constexpr std::uint64_t kLaneBits = (std::uint64_t(1) << N) - 1;
   // The members in locals: the stores through `fractions` (memcpy) could alias them otherwise.
   const Segment* segments = segments_.data();
   const int shift = shift_;
   const double inverseWidth = inverseWidth_;
-  const Float4 floor = Float4{} + static_cast<float>(floorMpa_), maximum = Float4{} + static_cast<float>(maxModulusMpa_);
-  const Float4 floorFraction = Float4{} + static_cast<float>(floorFraction_), one = Float4{} + 1.0f, zero = Float4{};
+  const Float floor = Float{} + static_cast<float>(floorMpa_), maximum = Float{} + static_cast<float>(maxModulusMpa_);
+  const Float floorFraction = Float{} + static_cast<float>(floorFraction_), one = Float{} + 1.0f, zero = Float{};
   const Double4 lowest = Double4{} + floorFraction_, highest = Double4{} + 1.0;
-  const Int4 first = Int4{} + static_cast<std::int32_t>(firstInterval_), last = Int4{} + static_cast<std::int32_t>(lastInterval_);
-  const Int4 lane = {0, 1, 2, 3};
-  Int4 belowCount = {}, aboveCount = {};  // minus the clamped active voxels, lane by lane
-  for (int q = 0; q < 64; q += 4) {
-    if (!(active >> q & 0xfu)) {  // the thin parts of a rod leave whole quads inactive
+  const Int first = Int{} + static_cast<std::int32_t>(firstInterval_), last = Int{} + static_cast<std::int32_t>(lastInterval_);
+  Int lane;
+  for (int l = 0; l < N; ++l) lane[l] = l;
+  Int belowCount = {}, aboveCount = {};  // minus the clamped active voxels, lane by lane
+  for (int q = 0; q < 64; q += N) {
+    if (!(active >> q & kLaneBits)) {  // the thin parts of a rod leave whole groups inactive
       std::memcpy(fractions + q, &zero, sizeof zero);
       continue;
     }
-    Float4 e;
+    Float e;
     std::memcpy(&e, moduli + q, sizeof e);
-    const UInt4 bits = reinterpret_cast<UInt4>(e);
-    Int4 interval = reinterpret_cast<Int4>(bits >> shift) - first;
-    interval = interval < 0 ? Int4{} : interval;
+    const UInt bits = reinterpret_cast<UInt>(e);
+    Int interval = reinterpret_cast<Int>(bits >> shift) - first;
+    interval = interval < 0 ? Int{} : interval;
     interval = interval > last ? last : interval;
-    const Int4 offset = reinterpret_cast<Int4>(bits - (reinterpret_cast<UInt4>(first + interval) << shift));
-    const Double4 t = __builtin_convertvector(offset, Double4) * inverseWidth;
-    Double4 start, rise;
+    const Int offset = reinterpret_cast<Int>(bits - (reinterpret_cast<UInt>(first + interval) << shift));
+    const Double t = __builtin_convertvector(offset, Double) * inverseWidth;
+    Double start, rise;
     Load::load(segments, interval, start, rise);
-    Double4 v = start + t * rise;
-    v = v < lowest ? lowest : v;  // std::clamp(v, floorFraction_, 1.0)
-    v = highest < v ? highest : v;
-    Float4 f = __builtin_convertvector(v, Float4);
-    const Int4 on = ((Int4{} + static_cast<std::int32_t>(active >> q & 0xfu)) >> lane & 1) == 1;
-    const Int4 below = ~(e >= floor) & on, above = (e > maximum) & ~below & on;
+    Float f;
+    if constexpr (N == 4) {
+      f = clampedFraction(start, rise, t, lowest, highest);
+    } else {  // eight doubles are two AVX registers, which GCC would clamp lane by lane: four at a time
+      const Lanes<4>::Float low = clampedFraction(__builtin_shufflevector(start, start, 0, 1, 2, 3),
+                                                  __builtin_shufflevector(rise, rise, 0, 1, 2, 3),
+                                                  __builtin_shufflevector(t, t, 0, 1, 2, 3), lowest, highest);
+      const Lanes<4>::Float high = clampedFraction(__builtin_shufflevector(start, start, 4, 5, 6, 7),
+                                                   __builtin_shufflevector(rise, rise, 4, 5, 6, 7),
+                                                   __builtin_shufflevector(t, t, 4, 5, 6, 7), lowest, highest);
+      f = __builtin_shufflevector(low, high, 0, 1, 2, 3, 4, 5, 6, 7);
+    }
+    const Int on = ((Int{} + static_cast<std::int32_t>(active >> q & kLaneBits)) >> lane & 1) == 1;
+    const Int below = ~(e >= floor) & on, above = (e > maximum) & ~below & on;
     f = below ? floorFraction : above ? one : f;
     f = on ? f : zero;
     std::memcpy(fractions + q, &f, sizeof f);
     belowCount += below;
     aboveCount += above;
   }
-  return {static_cast<std::uint64_t>(-(belowCount[0] + belowCount[1] + belowCount[2] + belowCount[3])),
-          static_cast<std::uint64_t>(-(aboveCount[0] + aboveCount[1] + aboveCount[2] + aboveCount[3]))};
+  std::int64_t belowSum = 0, aboveSum = 0;
+  for (int l = 0; l < N; ++l) {
+    belowSum -= belowCount[l];
+    aboveSum -= aboveCount[l];
+  }
+  return {static_cast<std::uint64_t>(belowSum), static_cast<std::uint64_t>(aboveSum)};
 }
 
 // Everything inlined into it (flatten), so compiled for AVX2.

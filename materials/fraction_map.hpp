@@ -63,8 +63,8 @@ public:
   // The fractions of one leaf word (offsets 64 w .. 64 w + 63 of a leaf): fractions[b] for the 64
   // moduli[b] whose bit b of `active` is set, by mapToFractions' rule (the clamps decided on the float:
   // !(E >= float(floor)), NaN too, gives the floor's fraction, E > float(max) gives 1, anything else
-  // float(interpolate(E))), and 0 where the bit is clear. Four voxels a step without branches, lane by
-  // lane the scalar expressions (same bits). Returns how many active voxels were clamped.
+  // float(interpolate(E))), and 0 where the bit is clear. Four voxels a step without branches (eight in
+  // the AVX2 version), lane by lane the scalar expressions (same bits). Returns how many active voxels were clamped.
   struct WordClamps {
     std::uint64_t belowFloor = 0, aboveMax = 0;
   };
