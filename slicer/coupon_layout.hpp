@@ -54,8 +54,9 @@ CouponLayout planCouponLayout(const printer_profiles::Profile& profile, std::siz
 // kept trees (Ditherer::keptTrees), each holding whole 8-layer slabs of leaves, counted from the leaf
 // types, and `ditherer`'s own buffers (materials::Ditherer::workingBytes at stageConcurrency(): error
 // diffusion's layer slots over the bars' footprints). Measured on three 400 x 40 mm bars at 8 layers a
-// band, white noise, 2 threads (2026-12-03): peak resident 1.30 GB at 1.5 mm tall, 1.51 GB at 15 mm,
-// against 1.6 GiB (1.72 GB) estimated (the 5 bytes a band voxel counted before gave 1.1 GiB, under both).
+// band, white noise, 2 threads (2026-12-03): peak resident 1.33 GB at 1.5 mm tall, 1.54 GB at 15 mm and
+// 1.55 GB at 150 mm (26 min), against 1.6 GiB (1.72 GB) estimated (the 5 bytes a band voxel counted
+// before gave 1.1 GiB, under all three).
 // Throws as jobWriterBytes does (a layout that planJob refuses). Thread-safe (pure).
 std::uint64_t couponJobBytes(const CouponLayout& layout, const printer_profiles::Profile& profile, int contactSheetLayers,
                              int bandLayers, const materials::Ditherer& ditherer);

@@ -177,7 +177,7 @@ grep -q "interrupted by SIGTERM; nothing was written" "$tmp/progress" || fail "S
 [ -z "$(ls -A "$tmp/t")" ] || fail "SIGTERM left: $(ls -A "$tmp/t")"
 
 # A job that passes the memory check runs within that budget (it is also the data limit): three
-# 400 x 40 x 1.5 mm bars (1.30 GB resident). The estimate counted 5 bytes a band voxel for both bands'
+# 400 x 40 x 1.5 mm bars (1.33 GB resident). The estimate counted 5 bytes a band voxel for both bands'
 # fractions and material, 1.1 GiB, and the job then ran out of memory at 1.2 GiB.
 need=$("$rodfab" coupons --fractions 0,0.5,1 --size 400x40x1.5 --band-layers 8 --quiet -o "$tmp/big.zip" --max-memory 100M 2>&1 |
        grep -o "needs about [0-9.]* [GM]iB")
