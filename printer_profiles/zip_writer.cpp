@@ -66,7 +66,11 @@ public:
 
   // `failure`: what the entries' sources said went wrong, if anything (libzip's error names no entry).
   void close(const std::string& failure = {}) {
-    if (zip_close(za_) != 0) fail(failure.empty() ? "cannot write the archive" : "cannot write the archive: " + failure);
+    if (zip_close(za_) != 0) {
+      // The sources' own account names the entry and the reason; libzip's would only repeat the reason.
+      if (!failure.empty()) throw std::runtime_error(path_.string() + ": cannot write the archive: " + failure);
+      fail("cannot write the archive");
+    }
     za_ = nullptr;
   }
 
@@ -169,8 +173,12 @@ public:
       return failedEntry(ZIP_ER_INCONS, 0, "its " + std::to_string(data_.memory.size()) + " bytes kept in memory, recorded as " +
                                                std::to_string(data_.length));
     }
-    if (!data_.memory.empty()) return failedEntry(ZIP_ER_INCONS, 0, "bytes kept in memory, recorded as in " + file_.path().string());
-    return file_.open() ? 0 : failedEntry(ZIP_ER_OPEN, errno, "cannot open " + file_.path().string());
+    if (!data_.memory.empty())
+      return failedEntry(ZIP_ER_INCONS, 0, "its " + std::to_string(data_.memory.size()) + " bytes are held in memory but its record places them in " +
+                                               file_.path().string() + " at byte " + std::to_string(data_.offset));
+    if (file_.open()) return 0;
+    const int error = errno;  // before the message's allocations can touch it
+    return failedEntry(ZIP_ER_OPEN, error, "cannot open " + file_.path().string() + " (" + std::strerror(error) + ")");
   }
 
   zip_int64_t close() { return 0; }  // StagedFile closes the file
@@ -181,9 +189,10 @@ public:
     if (data_.inMemory) {
       if (want > 0) std::memcpy(out, data_.memory.data() + position_, want);  // checked against `length` by open()
     } else if (!file_.read(data_.offset + position_, out, want)) {
+      const int error = errno;  // before the message's allocations can touch it
       const std::string where = file_.path().string() + " at bytes " + std::to_string(data_.offset) + " to " +
                                 std::to_string(data_.offset + data_.length);
-      if (errno) return failedEntry(ZIP_ER_READ, errno, "cannot read " + where + " (" + std::strerror(errno) + ")");
+      if (error) return failedEntry(ZIP_ER_READ, error, "cannot read " + where + " (" + std::strerror(error) + ")");
       return failedEntry(ZIP_ER_EOF, 0, where + ": the file ends first");  // shorter than recorded
     }
     position_ += want;

@@ -194,12 +194,14 @@ TEST_CASE("Staged entries kept in memory are read from memory, even empty ones; 
   // The error names the entry and the staged file (libzip's own names neither).
   using Catch::Matchers::Contains;
   CHECK_THROWS_WITH(writeZip(dir / "absent.zip", entries, dir / "absent.bin"),
-                    Contains("absent.zip: cannot write the archive: filed.bin: cannot open " + (dir / "absent.bin").string()));
+                    Contains("absent.zip: cannot write the archive: filed.bin: cannot open " + (dir / "absent.bin").string() +
+                             " (No such file or directory)"));
   CHECK_FALSE(fs::exists(dir / "absent.zip"));
   // A staged file that opens but cannot be read (a folder: EISDIR, as a failing disk gives EIO).
   fs::create_directory(dir / "folder.bin");
   CHECK_THROWS_WITH(writeZip(dir / "unreadable.zip", entries, dir / "folder.bin"),
-                    Contains("filed.bin: cannot read " + (dir / "folder.bin").string() + " at bytes 0 to 5 (Is a directory)"));
+                    Contains("filed.bin: cannot read " + (dir / "folder.bin").string() + " at bytes 0 to 5 (Is a directory)") &&
+                        !Contains("Read error"));  // the reason once, not libzip's repetition of it
   CHECK_FALSE(fs::exists(dir / "unreadable.zip"));
   entries[1].staged->length = 3;
   CHECK_THROWS_WITH(writeZip(dir / "inconsistent.zip", {entries[1]}, dir / "staged.bin"),
