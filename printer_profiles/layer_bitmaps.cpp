@@ -49,6 +49,8 @@ LayerBitmaps::Writer LayerBitmaps::writer() {
   w.rubberyPitch_ = rubbery_.pitch();
   w.marks_ = marks_.data();
   w.perRow_ = perRow_;
+  w.height_ = rigid_.height();
+  w.stride_ = std::min(rigid_.stride(), rubbery_.stride());
   return w;
 }
 

@@ -4,6 +4,7 @@
 
 #include "printer_profiles/bitmap.hpp"
 
+#include <cassert>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -47,8 +48,11 @@ public:
   // store (those reloads were the largest part of the rasterizer's samples on the lattice).
   class Writer {
   public:
-    // ORs the 8 pixels of byte `byte` of row `row` into the rigid and the rubbery bitmap.
+    // ORs the 8 pixels of byte `byte` of row `row` into the rigid and the rubbery bitmap. Requires a
+    // writer of bitmaps with rows (a default LayerBitmaps has none: its writer writes nowhere), row in
+    // [0, height) and byte below the row's stride (checked in debug builds).
     void orByte(int row, std::size_t byte, std::uint8_t rigidBits, std::uint8_t rubberyBits) {
+      assert(rigid_ != nullptr && row >= 0 && row < height_ && byte < stride_);
       rigid_[row * rigidPitch_ + static_cast<std::ptrdiff_t>(byte)] |= rigidBits;
       rubbery_[row * rubberyPitch_ + static_cast<std::ptrdiff_t>(byte)] |= rubberyBits;
       marks_[static_cast<std::size_t>(row) * perRow_ + byte / 512] |= std::uint64_t{1} << (byte / 8 % 64);
@@ -61,6 +65,8 @@ public:
     std::ptrdiff_t rigidPitch_ = 0, rubberyPitch_ = 0;
     std::uint64_t* marks_ = nullptr;
     std::size_t perRow_ = 0;
+    int height_ = 0;          // for the debug checks
+    std::size_t stride_ = 0;  // bytes of a row holding pixels
   };
   Writer writer();
 

@@ -52,8 +52,9 @@ struct LeafRows {
     }
   }
   std::uint8_t row(int y, int z) const { return bytes[static_cast<std::size_t>(z * 8 + y)]; }
-  // Layer z's 8 rows at once: row y in byte y (bits y * 8 .. y * 8 + 7).
+  // Layer z's 8 rows at once: row y in byte y (bits y * 8 .. y * 8 + 7), as a little-endian load gives them.
   std::uint64_t layer(int z) const {
+    static_assert(std::endian::native == std::endian::little, "layer() reads the 8 row bytes as one little-endian word");
     std::uint64_t rows = 0;
     std::memcpy(&rows, bytes.data() + z * 8, 8);
     return rows;
