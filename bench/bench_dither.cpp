@@ -1,6 +1,7 @@
 // materials/: dithering throughput per ditherer (items = voxels, on all cores TBB gives), the
 // modulus-to-fraction mapping and blue-noise mask generation. Peak resident memory as a counter.
 #include "bench/bench_profile.hpp"
+#include "common/stopwatch.hpp"
 #include "calibration/calibration.hpp"
 #include "examples/example_designs.hpp"
 #include "materials/materials.hpp"
@@ -19,6 +20,8 @@ using namespace rodfab::materials;
 
 namespace {
 
+using rodfab::common::processCpuSeconds;
+
 // The voxel of the benchmark's printer profile (bench/bench_profile.hpp).
 const openvdb::Vec3d& benchVoxel() {
   static const openvdb::Vec3d voxel = rodfab::bench::benchVoxelMm();
@@ -29,15 +32,6 @@ double peakRssMb() {
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
   return static_cast<double>(usage.ru_maxrss) / 1024.0;  // Linux reports KiB
-}
-
-// The process's CPU seconds so far (user + system, every thread): on a machine shared with other work
-// the wall time of a run depends on their load, its CPU time much less.
-double processCpuSeconds() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  const auto seconds = [](const timeval& t) { return static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_usec); };
-  return seconds(usage.ru_utime) + seconds(usage.ru_stime);
 }
 
 // Dense workload: 256 x 128 x 192 voxels (10.8 x 10.8 x 5.8 mm), fractions varying smoothly 0.3 .. 0.9.

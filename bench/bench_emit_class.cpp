@@ -16,6 +16,7 @@
 // workload per process, as scripts/bench.sh does), job_MB.
 #include "bench/bench_fixtures.hpp"
 #include "bench/bench_profile.hpp"
+#include "common/stopwatch.hpp"
 #include "calibration/calibration.hpp"
 #include "examples/example_designs.hpp"
 #include "materials/fraction_map.hpp"
@@ -46,7 +47,9 @@ using namespace rodfab;
 
 namespace {
 
-constexpr std::uint64_t kSeed = 7;  // as the byte-identity jobs (/work/notes/jobs.sh) are sliced
+using rodfab::common::processCpuSeconds;
+
+constexpr std::uint64_t kSeed = 7;  // a fixed seed, so every run emits the same bands
 
 // A class's job as the writer is given it: its spec (without the output), its dithered material grid
 // and (optionally) its modulus grid, each whole, and the bands' layers and leaves. One grid a class, not
@@ -68,15 +71,6 @@ struct ClassGrids {
   std::vector<BandLeaves> bands;
   int bandLayers = 0;
 };
-
-// The end of the band starting at k0 for bands of whole 8-layer slabs, as slicer::streamJob cuts them:
-// on the next slab boundary at or below k0 + bandLayers (the first band is shorter when the part does
-// not start on one).
-int slabBandEnd(int k0, int bandLayers) {
-  const int end = k0 + bandLayers;
-  const int aligned = end - ((end % slicer::kLeafLayers) + slicer::kLeafLayers) % slicer::kLeafLayers;
-  return aligned > k0 ? aligned : end;
-}
 
 // Adds band grid `part`'s leaves to `whole` (made on first use, with part's transform and name).
 template <typename GridT>
@@ -125,7 +119,7 @@ ClassGrids makeClassGrids(const std::string& name, bool keepModulus) {
   materials::MappingStats stats;
   const int kLast = c.spec.partBounds.max().z();
   for (int k0 = c.spec.partBounds.min().z(); k0 <= kLast;) {
-    const int k1 = std::min(kLast + 1, slabBandEnd(k0, c.bandLayers));
+    const int k1 = std::min(kLast + 1, slicer::bandEnd(k0, c.bandLayers));
     const voxel::Rasterization ras = rasterizer.rasterizeLayers(k0, k1);
     gather(c.material, *ditherer->ditherLayers(*materials::mapToFractions(*ras.grid, fractionMap, k0, k1, stats), k0, k1));
     if (keepModulus) gather(c.modulus, *ras.grid);
@@ -143,13 +137,6 @@ const ClassGrids& classGrids(const std::string& name, bool keepModulus) {
   auto& c = made[{name, keepModulus}];
   if (!c) c = std::make_unique<ClassGrids>(makeClassGrids(name, keepModulus));
   return *c;
-}
-
-double processCpuSeconds() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  const auto seconds = [](const timeval& t) { return static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_usec); };
-  return seconds(usage.ru_utime) + seconds(usage.ru_stime);
 }
 
 // The layer images' bytes: one BMP per layer and emitted material (the model materials; support too

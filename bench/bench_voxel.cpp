@@ -4,6 +4,7 @@
 // construction) on its own. Arg = TBB worker count. Peak resident memory is process-wide: run one
 // workload per invocation (--benchmark_filter) to get its own peak; see bench/README.md.
 #include "bench/bench_profile.hpp"
+#include "common/stopwatch.hpp"
 #include "examples/example_designs.hpp"
 #include "materials/fraction_map.hpp"
 #include "voxel/voxel.hpp"
@@ -27,6 +28,8 @@ namespace materials = rodfab::materials;
 namespace calibration = rodfab::calibration;
 
 namespace {
+
+using rodfab::common::processCpuSeconds;
 
 // glibc gives the freed top of a heap back to the system as soon as it exceeds M_TRIM_THRESHOLD
 // (128 KiB, raised only by frees of mmapped blocks), so band after band made and freed in turn by
@@ -75,14 +78,6 @@ const Workload& benchmarkClass(const std::string& name) {
   auto& w = made[name];
   if (!w) w = std::make_unique<Workload>(makeWorkload(examples::benchmarkDesign(name)));
   return *w;
-}
-
-// Process CPU time (user + sys, all threads) in seconds: the figure that holds on a loaded machine.
-double processCpuSeconds() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
-         1e-6 * static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
 }
 
 std::string envelopeLabel(const voxel::PrinterGrid& g) {

@@ -8,8 +8,6 @@
 #include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
 
-#include <sys/resource.h>
-
 #include <algorithm>
 #include <chrono>
 #include <memory>
@@ -23,13 +21,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using common::secondsSince;
 
-// User + system CPU seconds of the whole process so far (every thread, live or ended).
-double processCpuSeconds() {
-  rusage usage{};
-  if (::getrusage(RUSAGE_SELF, &usage) != 0) return 0.0;
-  const auto seconds = [](const timeval& t) { return static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_usec); };
-  return seconds(usage.ru_utime) + seconds(usage.ru_stime);
-}
+using common::processCpuSeconds;
 
 // One stage's own task arena: a thread waiting inside one stage (joining its parallel loops) never
 // picks up another stage's tasks, so a band is not held up by work of the stages it overlaps.
@@ -63,15 +55,18 @@ struct Band {
 
 using BandPtr = std::shared_ptr<Band>;
 
-// The end of the band starting at k0: on a slab boundary when the band size is whole slabs.
-int bandEnd(int k0, int bandLayers) {
-  const int end = k0 + bandLayers;
-  if (bandLayers % kLeafLayers != 0) return end;
-  const int aligned = end - ((end % kLeafLayers) + kLeafLayers) % kLeafLayers;  // floor, negative k too
-  return aligned > k0 ? aligned : end;
-}
 
 }  // namespace
+
+int bandEnd(int k0, int bandLayers) {
+  const auto floorTo = [](int k, int step) { return k - ((k % step) + step) % step; };  // negative k too
+  // A size dividing a slab: the next multiple of it, which never lies past k0's slab.
+  if (kLeafLayers % bandLayers == 0) return floorTo(k0, bandLayers) + bandLayers;
+  const int end = k0 + bandLayers;
+  if (bandLayers % kLeafLayers != 0) return end;
+  const int aligned = floorTo(end, kLeafLayers);
+  return aligned > k0 ? aligned : end;
+}
 
 int stageConcurrency() {
   const std::size_t limit = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);

@@ -43,6 +43,13 @@ struct StageSeconds {
 // leaves, so a band of 1 layer costs as much memory as a band of 8.
 inline constexpr int kLeafLayers = 8;
 
+// The end (exclusive) of the band streamJob cuts starting at layer k0, for bands of `bandLayers` (> 0)
+// layers: a multiple of kLeafLayers ends on a slab boundary (the first band is shorter when the part
+// does not start on one); a size dividing kLeafLayers (1, 2, 4) ends on its next multiple, so no band
+// crosses a slab boundary or holds leaves of two slabs; other sizes end at k0 + bandLayers. Thread-safe,
+// throws nothing.
+int bandEnd(int k0, int bandLayers);
+
 // Bands alive at once in streamJob: while the writer encodes one, the next is made or dithered. Memory
 // estimates of the jobs it writes count this many (sliceMemoryBytes, couponJobBytes).
 inline constexpr int kBandsInFlight = 2;
@@ -67,8 +74,8 @@ std::uint64_t jobWriterBytes(const printer_profiles::Profile& profile, const ope
                              int contactSheetLayers);
 
 struct PipelineOptions {
-  // Layers per band. A multiple of kLeafLayers makes the bands end on slab boundaries (the first band
-  // is shorter when the part does not start on one), so no band's leaves are shared with the next.
+  // Layers per band, cut as bandEnd says: a multiple of kLeafLayers, or a size dividing it, makes the
+  // bands' leaves never shared with the next band's.
   int bandLayers = 64;
   // Called after every band is written with (layers done, layers in the part), on the thread that
   // called streamJob or a TBB worker, never concurrently. May throw to abort: the pipeline stops

@@ -60,7 +60,7 @@ TEST_CASE("streamJob writes every band's material; the bytes do not depend on th
   CHECK(zips[1] == zips[5]);
 }
 
-TEST_CASE("streamJob: bands of whole slabs end on slab boundaries, the first one shorter; the same bytes") {
+TEST_CASE("streamJob: bands of whole slabs end on slab boundaries, bands of 4 within a slab, the first one shorter; the same bytes") {
   openvdb::initialize();
   TempDir tmp;
   const openvdb::CoordBBox rigid(openvdb::Coord(0, 0, 3), openvdb::Coord(39, 19, 25));
@@ -68,7 +68,8 @@ TEST_CASE("streamJob: bands of whole slabs end on slab boundaries, the first one
   const openvdb::Vec3d origin(0.5, 0.5, 0.015);
   std::vector<std::string> zips;
   for (const auto& [bandLayers, expected] : {std::pair{8, std::vector<int>{5, 13, 21, 23}}, std::pair{16, std::vector<int>{13, 23}},
-                                             std::pair{3, std::vector<int>{3, 6, 9, 12, 15, 18, 21, 23}}}) {
+                                             std::pair{3, std::vector<int>{3, 6, 9, 12, 15, 18, 21, 23}},
+                                             std::pair{4, std::vector<int>{1, 5, 9, 13, 17, 21, 23}}}) {
     INFO(bandLayers << " layers a band");
     printer_profiles::JobSpec spec;
     spec.profile = connex3();
@@ -88,6 +89,7 @@ TEST_CASE("streamJob: bands of whole slabs end on slab boundaries, the first one
   }
   CHECK(zips[0] == zips[1]);
   CHECK(zips[0] == zips[2]);
+  CHECK(zips[0] == zips[3]);
 }
 
 TEST_CASE("streamJob: an onBand that throws leaves no job and nothing staged") {
@@ -254,4 +256,22 @@ TEST_CASE("the coupon layout: bars of whole voxels, balanced rows, each voxel co
   const nlohmann::json bars = slicer::couponBarsJson(two, fractions, counting, 0, p.voxelSizeMm);
   CHECK(bars[1]["vero_share"].get<double>() == 1.0);
   CHECK(bars[0]["specimen"] == "coupon-00");
+}
+
+TEST_CASE("bandEnd: whole slabs end on slab boundaries, sizes dividing a slab on their multiples, others where they reach") {
+  CHECK(slicer::bandEnd(3, 8) == 8);
+  CHECK(slicer::bandEnd(8, 8) == 16);
+  CHECK(slicer::bandEnd(-5, 16) == 8);
+  CHECK(slicer::bandEnd(3, 4) == 4);
+  CHECK(slicer::bandEnd(4, 4) == 8);
+  CHECK(slicer::bandEnd(-3, 4) == 0);
+  CHECK(slicer::bandEnd(-8, 2) == -6);
+  CHECK(slicer::bandEnd(7, 1) == 8);
+  CHECK(slicer::bandEnd(3, 3) == 6);
+  const auto slab = [](int k) { return k >= 0 ? k / 8 : -((-k + 7) / 8); };
+  for (int k0 = -20; k0 < 20; ++k0)
+    for (const int b : {1, 2, 4}) {
+      const int end = slicer::bandEnd(k0, b);
+      CHECK((end > k0 && end <= k0 + b && slab(end - 1) == slab(k0)));  // never past k0's slab
+    }
 }

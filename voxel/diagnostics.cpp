@@ -37,13 +37,15 @@ double leafBytes() {
 }
 
 // Layers a band's grids may hold: the whole 8-layer leaf slabs its layers, and the next one when
-// `withNextLayer` (error diffusion reads it), touch. Bands of whole slabs start on a slab boundary
-// (slicer::streamJob) and touch bandLayers / 8 slabs, one more with the next layer; n consecutive layers
-// anywhere touch at most ceil((n - 1) / 8) + 1. Without the next layer a slicer's white and blue bands
-// hold half the slabs the estimate counted before (the lattice's band grids: 10,412 leaves, not 20,800).
+// `withNextLayer` (error diffusion reads it), touch, for bands cut as slicer::bandEnd cuts them: bands
+// of whole slabs start on a slab boundary and touch bandLayers / 8 slabs, bands of 1, 2 or 4 layers stay
+// within one slab, one more slab with the next layer either way; n consecutive layers anywhere touch at
+// most ceil((n - 1) / 8) + 1. Without the next layer a slicer's white and blue bands hold half the slabs
+// the estimate counted before (the lattice's band grids: 10,412 leaves, not 20,800).
 double heldLayers(int bandLayers, bool withNextLayer) {
   const int next = withNextLayer ? 1 : 0;
   if (bandLayers % 8 == 0) return double(bandLayers + 8 * next);
+  if (8 % bandLayers == 0) return double(8 + 8 * next);
   return (std::ceil((bandLayers + next - 1) / 8.0) + 1.0) * 8.0;
 }
 

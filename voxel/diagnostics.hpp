@@ -53,7 +53,7 @@ struct RasterEstimate {
   // band trees in all (the sum of their keptTrees()), whose nodes the next bands are built from:
   // bandTreesHeld of them. Measured against the heap (tests/test_slicer_memory.cpp, 0 to 3 kept trees)
   // and the resident memory of `rodfab slice` (bench/README.md).
-  double peakBytes(int bandsInFlight, std::size_t keptTrees = 0) const;
+  double peakBytes(int bandsInFlight, std::size_t keptTrees) const;
   static double bandTreesHeld(int bandsInFlight, std::size_t keptTrees);
 };
 RasterEstimate estimateRaster(const geometry::RodStructure& structure, const PrinterGrid& grid, int bandLayers = 0);
@@ -69,6 +69,8 @@ public:
   RasterProfile(const geometry::RodStructure& structure, const PrinterGrid& grid);
   // `withNextLayer`: the band's grids hold the layer past it too (error diffusion's), as estimateRaster's
   // do; false: a band of exactly its layers (the white and blue ditherers' fractions, every material grid).
+  // Bands are assumed cut as slicer::bandEnd cuts them (whole slabs from a slab boundary, or 1, 2 or 4
+  // layers within one slab): a band of 8 layers starting elsewhere touches two slabs, twice the leaves.
   RasterEstimate estimate(int bandLayers, bool withNextLayer = true) const;
 
 private:
