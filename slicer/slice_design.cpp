@@ -162,11 +162,15 @@ SliceMemoryPlan planSliceMemory(const geometry::RodStructure& design, const prin
     if (plan.bytes <= least.bytes) least = plan;  // on a tie the smaller band: the message names the smallest tried
   }
   if (plan.bytes <= common::memoryBudget()) return plan;
+  const bool smallest = least.bandLayers == fallbacks.back();
+  // Beyond what --max-memory accepts (parseByteSize: at most 1e18 bytes) no value is worth suggesting.
+  const std::string remedy = double(least.bytes) > 1e18 ? "slice a smaller design (no --max-memory value is that large)"
+                                                        : "slice a smaller design, or raise --max-memory to at least " +
+                                                              maxMemoryAtLeast(least.bytes) + " if the machine has that much";
   common::requireMemory(least.bytes, what,
                         "even in bands of " + std::to_string(least.bandLayers) + (least.bandLayers == 1 ? " layer" : " layers") +
-                            " (the smallest band size tried)",
-                        "slice a smaller design, or raise --max-memory to at least " + maxMemoryAtLeast(least.bytes) +
-                            " if the machine has that much");
+                            (smallest ? " (the smallest band size tried)" : " (the least of the band sizes tried)"),
+                        remedy);
   return least;
 }
 
@@ -178,8 +182,9 @@ KeptBandTrees slicingKeptTrees(const materials::Ditherer& ditherer) {
 
 std::uint64_t sliceMemoryBytes(const geometry::RodStructure& design, const voxel::PrinterGrid& grid, int bandLayers,
                                const materials::Ditherer& ditherer, int concurrency, std::uint64_t writerBytes,
-                               const KeptBandTrees& kept, std::optional<std::size_t> pieces) {
-  const SliceMemoryInputs inputs{designVoxelBounds(design, grid).dim(), &ditherer, concurrency, writerBytes, kept, pieces};
+                               std::optional<std::size_t> pieces) {
+  const SliceMemoryInputs inputs{designVoxelBounds(design, grid).dim(), &ditherer, concurrency, writerBytes, slicingKeptTrees(ditherer),
+                                 pieces};
   return sliceMemoryBytes(voxel::RasterProfile(design, grid), bandLayers, inputs);
 }
 

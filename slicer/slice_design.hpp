@@ -71,8 +71,8 @@ KeptBandTrees slicingKeptTrees(const materials::Ditherer& ditherer);
 // Resident bytes `sliceDesign` needs at most for `design` on `grid` in bands of `bandLayers` layers,
 // from the design alone (no band allocated): the rasterizer's pieces (`pieces` of them once built; the
 // rods' piece budgets before) and band trees with kBandsInFlight bands in flight
-// (voxel::RasterEstimate::peakBytes), the dithered material trees of those bands, the trees `kept` by the
-// recyclers (each at a band's tree: slicingKeptTrees for sliceDesign's),
+// (voxel::RasterEstimate::peakBytes), the dithered material trees of those bands, the trees sliceDesign's
+// recyclers keep (each at a band's tree: slicingKeptTrees(ditherer)),
 // `ditherer`'s own buffers (materials::Ditherer::workingBytes in an arena of `concurrency` threads:
 // stageConcurrency(), which follows --threads: error diffusion's workers' buffers), explicit
 // support's column tops and `writerBytes` (the job writer's share, jobWriterBytes). An upper estimate:
@@ -82,7 +82,7 @@ KeptBandTrees slicingKeptTrees(const materials::Ditherer& ditherer);
 // Thread-safe (reads its arguments only; `ditherer` through its const workingBytes).
 std::uint64_t sliceMemoryBytes(const geometry::RodStructure& design, const voxel::PrinterGrid& grid, int bandLayers,
                                const materials::Ditherer& ditherer, int concurrency, std::uint64_t writerBytes,
-                               const KeptBandTrees& kept, std::optional<std::size_t> pieces = std::nullopt);
+                               std::optional<std::size_t> pieces = std::nullopt);
 
 // Throws common::OutOfMemory, once the rods' pieces are built and before any band is, when the slice
 // does not fit the memory budget (common/memory_budget.hpp): when the job writer's fixed share

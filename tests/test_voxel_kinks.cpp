@@ -372,8 +372,8 @@ TEST_CASE("Estimates before allocating: voxels, leaves and pieces of straight an
   REQUIRE(rasterizer.pieceCount() <= e.maxPieces);
   REQUIRE(e.bandBytes > 0);
   REQUIRE(e.bandBytes <= e.gridBytes);
-  REQUIRE(e.peakBytes(2) > e.peakBytes(1));  // bounds the heap of a streamed slice: test_materials_mapping.cpp
-  REQUIRE(e.peakBytes(0) == e.pieceBytes + e.gridBytes);
+  REQUIRE(e.peakBytes(2, 0) > e.peakBytes(1, 0));  // bounds the heap of a streamed slice: test_materials_mapping.cpp
+  REQUIRE(e.peakBytes(0, 0) == e.pieceBytes + e.gridBytes);
 }
 
 TEST_CASE("Rods below the printer's resolution are listed for a warning", "[voxel][thin]") {
