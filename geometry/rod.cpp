@@ -179,10 +179,12 @@ void Rod::sampleCenterline() {
 }
 
 // The inside test subdivides segment i when curvature x (gap + deviation + chord) >= 0.5 with a gap
-// of at most the section's reach plus the deviation (see classifyPiece).
+// of at most the section's reach plus the deviation (see classifySegment).
 static constexpr int kFoldSubdivisions = 8;
 
 void Rod::cacheJets() {
+  // The reach of classifySegment (radius + planeTolerance), as first written: it decides which segments
+  // cache their fold jets, so it stays this expression (the same number up to the last bit).
   const double reach = section_.boundingRadius() * (1.0 + 1e-9) + 1e-9;
   sampleJet_.clear();
   foldOffset_.assign(sampleDeviation_.size(), kNoFold);
@@ -368,6 +370,22 @@ void Rod::classifySegment(const Vec3& p, const SmoothPiece& piece, std::size_t i
     return (d[0] - p).dot(d[1]);
   };
   auto gAt = [&](const Jet& j) { return (j.r - p).dot(j.d); };
+  // Where r' vanishes (a repeated control point at a rod's end), g is 0 whatever p, so a zero of g next
+  // to it has no sign change to bracket: from that end `still`, halve towards it until g takes the sign
+  // `other` (the far end's g) does not. Only where g is exactly 0 (rare): other points keep their bits.
+  auto stepOffStill = [&](double still, double far, double other, bool fromBelow, double& u, double& gu) {
+    Vec3 d[2];
+    if (fromBelow) centerline_.derivativesFromBelow(still, 1, d);
+    else centerline_.derivatives(still, 1, d);
+    if (d[1].norm() > 1e-12) return false;  // p lies on the section plane there: a zero, not a still end
+    u = far;
+    for (int k = 0; k < 64; ++k) {
+      u = still + (u - still) * 0.5;
+      gu = g(u, false);
+      if (gu != 0.0 && (gu < 0.0) != (other < 0.0)) return true;
+    }
+    return false;
+  };
   // Sections through p: the zeros of g(u) = (r(u) - p) . r'(u) on the segment.
   auto crossing = [&](double a, double b, double ga, double gb, bool belowB) {
     if (ga < 0.0 && gb > 0.0) {
@@ -380,6 +398,12 @@ void Rod::classifySegment(const Vec3& p, const SmoothPiece& piece, std::size_t i
       sectionHit(p, a, false, best);
     }
   };
+  auto crossings = [&](double a, double b, double ga, double gb, bool belowB) {
+    crossing(a, b, ga, gb, belowB);
+    double u, gu;
+    if (ga == 0.0 && gb != 0.0 && stepOffStill(a, b, gb, false, u, gu)) crossing(u, b, gu, gb, belowB);
+    if (gb == 0.0 && ga != 0.0 && stepOffStill(b, a, ga, belowB, u, gu)) crossing(a, u, ga, gu, false);
+  };
   const double a = sampleU_[i], b = sampleU_[i + 1];
   const bool belowB = piece.endFromBelow && i + 1 == piece.lastSample;
   const double ga = gAt(sampleJet_[i]), gb = belowB ? g(b, true) : gAt(sampleJet_[i + 1]);
@@ -387,7 +411,7 @@ void Rod::classifySegment(const Vec3& p, const SmoothPiece& piece, std::size_t i
   // to a centre of curvature): then look for every sign change on a finer sampling.
   const double chord = (samplePoint_[i + 1] - samplePoint_[i]).norm();
   if (sampleCurvature_[i] * (gap + sampleDeviation_[i] + chord) < 0.5) {
-    crossing(a, b, ga, gb, belowB);
+    crossings(a, b, ga, gb, belowB);
     return;
   }
   const std::size_t fold = foldOffset_[i];
@@ -395,19 +419,19 @@ void Rod::classifySegment(const Vec3& p, const SmoothPiece& piece, std::size_t i
   for (int k = 1; k <= kFoldSubdivisions; ++k) {
     const double y = k == kFoldSubdivisions ? b : a + (b - a) * k / kFoldSubdivisions;
     const double gy = k == kFoldSubdivisions ? gb : fold != kNoFold ? gAt(foldJets_[fold + k - 1]) : g(y, false);
-    crossing(x, y, gx, gy, belowB && k == kFoldSubdivisions);
+    crossings(x, y, gx, gy, belowB && k == kFoldSubdivisions);
     x = y;
     gx = gy;
   }
 }
 
-void Rod::classifyPiece(const Vec3& p, const SmoothPiece& piece, bool everySegment, RodHit& best) const {
+void Rod::classifyPiece(const Vec3& p, const SmoothPiece& piece, Walk walk, RodHit& best) const {
   const double radius = section_.boundingRadius();
   const double capReach = std::max(radius + planeTolerance(radius), section_.capRadius());
   if ((samplePoint_[piece.firstSample] - p).norm() <= capReach + sampleDeviation_[piece.firstSample])
     classifyEnd(p, piece.begin, piece.beginPoint, -piece.beginTangent, false, best);
   // The segments in increasing order, either way: candidates of equal depth keep the first.
-  if (everySegment) {
+  if (walk == Walk::EverySegment) {
     for (std::size_t i = piece.firstSample; i < piece.lastSample; ++i) classifySegment(p, piece, i, best);
   } else {
     segmentBoxes_.forEachContaining(p, piece.firstSample, piece.lastSample,
@@ -417,11 +441,11 @@ void Rod::classifyPiece(const Vec3& p, const SmoothPiece& piece, bool everySegme
     classifyEnd(p, piece.end, piece.endPoint, piece.endTangent, piece.endFromBelow, best);
 }
 
-RodHit Rod::classifyPoint(const Vec3& p, bool everySegment) const {
+RodHit Rod::classifyPoint(const Vec3& p, Walk walk) const {
   RodHit best;
   best.depth = -std::numeric_limits<double>::infinity();
   best.u = centerline_.domainBegin();
-  for (const SmoothPiece& piece : pieces_) classifyPiece(p, piece, everySegment, best);
+  for (const SmoothPiece& piece : pieces_) classifyPiece(p, piece, walk, best);
   if (!(best.depth > -1.0)) best.depth = -1.0;
   best.inside = best.depth >= 0.0;
   return best;
@@ -429,9 +453,9 @@ RodHit Rod::classifyPoint(const Vec3& p, bool everySegment) const {
 
 // A non-finite coordinate is in no box, while the walk's arithmetic on it may still find a candidate
 // (a NaN gap is never "too far"): such points take the walk.
-RodHit Rod::classify(const Vec3& p) const { return classifyPoint(p, !p.allFinite()); }
+RodHit Rod::classify(const Vec3& p) const { return classifyPoint(p, p.allFinite() ? Walk::Boxes : Walk::EverySegment); }
 
-RodHit Rod::classifyWalkingEverySegment(const Vec3& p) const { return classifyPoint(p, true); }
+RodHit Rod::classifyWalkingEverySegment(const Vec3& p) const { return classifyPoint(p, Walk::EverySegment); }
 
 void Rod::buildSegmentBoxes() {
   // A segment is examined when its computed distance to p, less its deviation, is at most the reach

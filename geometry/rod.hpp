@@ -144,9 +144,11 @@ private:
   void classifyEnd(const Vec3& p, double u, const Vec3& point, const Vec3& outward, bool fromBelow, RodHit& best) const;
   // The sections through p of sample segment i of `piece`, if the segment can reach p.
   void classifySegment(const Vec3& p, const SmoothPiece& piece, std::size_t i, RodHit& best) const;
-  // everySegment: walk all of the piece's segments instead of those segmentBoxes_ gives.
-  void classifyPiece(const Vec3& p, const SmoothPiece& piece, bool everySegment, RodHit& best) const;
-  RodHit classifyPoint(const Vec3& p, bool everySegment) const;
+  // Which of a piece's segments classifyPiece examines: those whose boxes hold the point
+  // (segmentBoxes_), or every one (the reference walk).
+  enum class Walk { Boxes, EverySegment };
+  void classifyPiece(const Vec3& p, const SmoothPiece& piece, Walk walk, RodHit& best) const;
+  RodHit classifyPoint(const Vec3& p, Walk walk) const;
   void buildSegmentBoxes();
 
   std::string name_;

@@ -138,3 +138,57 @@ TEST_CASE("SegmentBoxes visits exactly the boxes holding the point, in increasin
     REQUIRE(none.empty());
   }
 }
+
+// The section test evaluates r and r' with order 1 where it took order 2 before: the same bits only if
+// the lower order computes r and r' as the higher one does, on polynomial, rational and kinked curves,
+// from above and from below.
+TEST_CASE("NURBS derivatives of order 1 are the bits of order 2's r and r', from above and below", "[rod][classify]") {
+  const double w = std::sqrt(0.5);
+  const std::vector<NurbsCurve> curves{
+      helix(4.0, 1.5, 20.0, 12),
+      NurbsCurve(2, {0, 0, 0, 0.5, 0.5, 1, 1, 1}, {{0, -0.6, 0}, {0.6, -0.6, 0}, {0.6, 0, 0}, {0.6, 0.6, 0}, {0, 0.6, 0}}, {1, w, 1, w, 1}),
+      NurbsCurve(1, {0, 0, 0.25, 0.5, 0.75, 1, 1}, {{0, 0, 0}, {2, 0, 0}, {2.3, 1, 0.2}, {0.5, 1.5, -0.5}, {0.5, 0.2, 1}}),
+      NurbsCurve(3, {0, 0, 0, 0, 0.3, 0.3, 0.3, 1, 1, 1, 1}, {{0, 0, 0}, {0, 0, 0}, {1, 0.5, 0}, {1.5, 1, 0.3}, {2, 1, 1}, {2.5, 0, 1}, {3, 0, 0}})};
+  std::mt19937 rng(11);
+  for (const NurbsCurve& c : curves) {
+    std::uniform_real_distribution<double> at(c.domainBegin(), c.domainEnd());
+    std::vector<double> us{c.domainBegin(), c.domainEnd(), 0.25, 0.3, 0.5};
+    for (int n = 0; n < 200; ++n) us.push_back(at(rng));
+    for (const double u : us) {
+      if (u < c.domainBegin() || u > c.domainEnd()) continue;
+      Vec3 one[2], two[3], oneBelow[2], twoBelow[3];
+      c.derivatives(u, 1, one);
+      c.derivatives(u, 2, two);
+      for (int k = 0; k < 2; ++k)
+        for (int a = 0; a < 3; ++a) CHECK(std::bit_cast<std::uint64_t>(one[k][a]) == std::bit_cast<std::uint64_t>(two[k][a]));
+      if (u <= c.domainBegin()) continue;
+      c.derivativesFromBelow(u, 1, oneBelow);
+      c.derivativesFromBelow(u, 2, twoBelow);
+      for (int k = 0; k < 2; ++k)
+        for (int a = 0; a < 3; ++a) CHECK(std::bit_cast<std::uint64_t>(oneBelow[k][a]) == std::bit_cast<std::uint64_t>(twoBelow[k][a]));
+    }
+  }
+}
+
+// A centerline whose first two control points coincide has zero speed at its start: the section test
+// there takes the tangent from r''. Points on the axis just inside the start, and beside it within the
+// radius, are inside; points beyond the radius are not.
+TEST_CASE("A rod with zero speed at its end classifies points near that end by the tangent's limit", "[rod][classify]") {
+  const NurbsCurve c(2, {0, 0, 0, 1, 1, 1}, {{0, 0, 0}, {0, 0, 0}, {4, 0, 0}});  // r(u) = 4 u^2 x: r'(0) = 0, r''(0) along x
+  const Rod rod = rodOf("zero speed", c, Section::circle(1.0), CapStyle::Flat);
+  CHECK(rod.classify(Vec3(1e-3, 0, 0)).inside);
+  CHECK(rod.classify(Vec3(1e-3, 0.4, 0)).inside);
+  CHECK(rod.classify(Vec3(1e-3, 0, -0.4)).inside);
+  CHECK_FALSE(rod.classify(Vec3(1e-3, 0.6, 0)).inside);
+  CHECK_FALSE(rod.classify(Vec3(-0.1, 0, 0)).inside);  // before the flat end
+  CHECK(rod.classify(Vec3(2, 0.45, 0)).inside);
+  // Still at its other end: r(u) = (8 u - 4 u^2) x, r'(1) = 0.
+  const Rod back = rodOf("zero speed at the end", NurbsCurve(2, {0, 0, 0, 1, 1, 1}, {{0, 0, 0}, {4, 0, 0}, {4, 0, 0}}), Section::circle(1.0),
+                         CapStyle::Flat);
+  CHECK(back.classify(Vec3(4 - 1e-3, 0, 0)).inside);
+  CHECK(back.classify(Vec3(4 - 1e-3, 0.3, 0.3)).inside);
+  CHECK_FALSE(back.classify(Vec3(4 - 1e-3, 0.4, 0.4)).inside);
+  CHECK_FALSE(back.classify(Vec3(4.1, 0, 0)).inside);
+  for (const Rod* r : {&rod, &back})
+    for (const double x : {1e-4, 1e-3, 0.01, 0.1, 1.0, 3.9, 3.99, 3.999}) CHECK(r->classify(Vec3(x, 0, 0)).inside == r->classifyWalkingEverySegment(Vec3(x, 0, 0)).inside);
+}
