@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# Byte identity of print jobs across builds: slices the benchmark classes (spring, lattice, curved lattice,
+# made exactly by rodfab_generate_examples) with each ditherer (white, blue, error diffusion) on 1 and 2
+# threads, seed 7, into OUTDIR/<class>-<ditherer>-<threads>/job.zip; with --against REFDIR, compares each
+# job with REFDIR's (cmp) and exits 1 if any differs. A change that must keep the jobs' bytes is checked by
+# running this with the old build into REFDIR, then with the new one --against it (about 3 minutes a run).
+#   scripts/job-identity.sh [--rodfab BIN] OUTDIR [--against REFDIR]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+rodfab=build/slicer/rodfab
+generator=build/examples/rodfab_generate_examples
+if [ "${1:-}" = "--rodfab" ]; then rodfab=$2; shift 2; fi
+[ $# -ge 1 ] || { echo "usage: scripts/job-identity.sh [--rodfab BIN] OUTDIR [--against REFDIR]" >&2; exit 2; }
+out=$1; against=""
+if [ "${2:-}" = "--against" ]; then against=${3:?--against needs a folder}; fi
+[ -x "$rodfab" ] && [ -x "$generator" ] || { echo "build first (scripts/build.sh): $rodfab or $generator missing" >&2; exit 2; }
+mkdir -p "$out/designs"
+for design in spring lattice curved-lattice; do
+  [ -f "$out/designs/$design.json" ] || "$generator" --benchmark "$design" "$out/designs/$design.json" > /dev/null
+  for dither in white blue error-diffusion; do
+    for threads in 1 2; do
+      case=$design-$dither-$threads
+      mkdir -p "$out/$case"
+      "$rodfab" slice "$out/designs/$design.json" --dither "$dither" --threads "$threads" --seed 7 \
+        --output "$out/$case/job.zip" --force --quiet > /dev/null
+    done
+  done
+done
+echo "wrote 18 jobs in $out"
+[ -n "$against" ] || exit 0
+differ=0
+for job in "$out"/*/job.zip; do
+  case=$(basename "$(dirname "$job")")
+  if cmp -s "$job" "$against/$case/job.zip"; then echo "same    $case"; else echo "DIFFERS $case"; differ=1; fi
+done
+exit $differ
