@@ -174,23 +174,53 @@ void NurbsCurve::derivativesFromBelow(double u, int order, Vec3* out) const {
   derivativesInSpan(span, u, order, out);
 }
 
-void NurbsCurve::derivativesInSpan(int span, double u, int order, Vec3* out) const {
+namespace {
+
+// The curve's derivatives from the span's basis (see basisDerivativesUpTo, whose scheme this follows:
+// one definition, inlined with constant degree and order on the fixed paths, so the same bits).
+template <int MaxP>
+[[gnu::always_inline]] inline void curveDerivativesUpTo(const NurbsCurve& curve, int p, int span, double u, int order,
+                                                        Vec3* out) {
   BasisDerivatives ders;
-  basisFunctionDerivatives(knots_, degree_, span, u, order, ders);
+  basisDerivativesUpTo<MaxP>(curve.knots().data(), p, span, u, order, ders);
+  const std::vector<Vec3>& points = curve.points();
+  const std::vector<double>& weights = curve.weights();
   // Homogeneous form: A(u) = sum N_i w_i P_i, w(u) = sum N_i w_i, C = A / w.
   Vec3 a[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
   double w[3] = {0.0, 0.0, 0.0};
-  for (int j = 0; j <= degree_; ++j) {
-    const int i = span - degree_ + j;
-    const double wi = weights_[i];
+  for (int j = 0; j <= p; ++j) {
+    const int i = span - p + j;
+    const double wi = weights[i];
     for (int k = 0; k <= order; ++k) {
-      a[k] += (ders[k][j] * wi) * points_[i];
+      a[k] += (ders[k][j] * wi) * points[i];
       w[k] += ders[k][j] * wi;
     }
   }
   out[0] = a[0] / w[0];
   if (order >= 1) out[1] = (a[1] - w[1] * out[0]) / w[0];
   if (order >= 2) out[2] = (a[2] - 2.0 * w[1] * out[1] - w[2] * out[0]) / w[0];
+}
+
+template <int P, int Order>
+void curveDerivativesOfDegree(const NurbsCurve& curve, int span, double u, Vec3* out) {
+  curveDerivativesUpTo<P>(curve, P, span, u, Order, out);
+}
+
+using FixedCurveDerivatives = void (*)(const NurbsCurve&, int, double, Vec3*);
+
+constexpr std::array<std::array<FixedCurveDerivatives, 3>, kFixedMaxDegree> kFixedCurveDerivatives = {{
+    {curveDerivativesOfDegree<1, 0>, curveDerivativesOfDegree<1, 1>, curveDerivativesOfDegree<1, 2>},
+    {curveDerivativesOfDegree<2, 0>, curveDerivativesOfDegree<2, 1>, curveDerivativesOfDegree<2, 2>},
+    {curveDerivativesOfDegree<3, 0>, curveDerivativesOfDegree<3, 1>, curveDerivativesOfDegree<3, 2>},
+}};
+
+}  // namespace
+
+void NurbsCurve::derivativesInSpan(int span, double u, int order, Vec3* out) const {
+  if (degree_ <= kFixedMaxDegree && order >= 0 && order <= 2)
+    kFixedCurveDerivatives[degree_ - 1][order](*this, span, u, out);
+  else
+    curveDerivativesUpTo<kMaxDegree>(*this, degree_, span, u, order, out);
 }
 
 std::vector<double> NurbsCurve::breakpoints() const {
