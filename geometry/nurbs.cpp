@@ -51,11 +51,19 @@ int findKnotSpan(const std::vector<double>& knots, int degree, int controlCount,
   return static_cast<int>(std::upper_bound(first, last, u) - knots.begin()) - 1;
 }
 
-void basisFunctionDerivatives(const std::vector<double>& knots, int p, int span, double u, int order,
-                              BasisDerivatives& ders) {
-  // Piegl & Tiller, The NURBS Book, algorithm A2.3, with fixed-size arrays.
-  std::array<std::array<double, kMaxDegree + 1>, kMaxDegree + 1> ndu{};
-  std::array<double, kMaxDegree + 1> left{}, right{};
+namespace {
+
+// Piegl & Tiller, The NURBS Book, algorithm A2.3, for degrees p <= MaxP and orders <= 2. The single
+// definition of the basis: the general path instantiates it with MaxP = kMaxDegree and run-time p and
+// order; the fixed paths inline it with constant p and order, so the compiler unrolls the loops but
+// performs the same floating-point operations in the same order (no -ffast-math, no FMA contraction
+// on the baseline x86-64 target), and every result is bit-identical to the general path's.
+template <int MaxP>
+[[gnu::always_inline]] inline void basisDerivativesUpTo(const double* knots, int p, int span, double u, int order,
+                                                        BasisDerivatives& ders) {
+  // Every entry of ndu, left and right that is read is written first, so they are not zero-filled.
+  std::array<std::array<double, MaxP + 1>, MaxP + 1> ndu;
+  std::array<double, MaxP + 1> left, right;
   ndu[0][0] = 1.0;
   for (int j = 1; j <= p; ++j) {
     left[j] = u - knots[span + 1 - j];
@@ -72,7 +80,8 @@ void basisFunctionDerivatives(const std::vector<double>& knots, int p, int span,
   for (int j = 0; j <= p; ++j) ders[0][j] = ndu[j][p];
   if (order == 0) return;
 
-  std::array<std::array<double, kMaxDegree + 1>, 2> a{};
+  // The coefficient rows are indexed up to the order (j <= k <= order <= 2), not the degree.
+  std::array<std::array<double, 3>, 2> a{};
   for (int r = 0; r <= p; ++r) {
     int s1 = 0, s2 = 1;
     a[0][0] = 1.0;
@@ -102,6 +111,36 @@ void basisFunctionDerivatives(const std::vector<double>& knots, int p, int span,
     for (int j = 0; j <= p; ++j) ders[k][j] *= factor;
     factor *= (p - k);
   }
+}
+
+template <int P, int Order>
+void basisDerivativesOfDegree(const double* knots, int span, double u, BasisDerivatives& ders) {
+  basisDerivativesUpTo<P>(knots, P, span, u, Order, ders);
+}
+
+using FixedBasisDerivatives = void (*)(const double*, int, double, BasisDerivatives&);
+
+// The fixed paths by degree (1..3, the rods' and fields' usual degrees) and order (0..2).
+constexpr int kFixedMaxDegree = 3;
+constexpr std::array<std::array<FixedBasisDerivatives, 3>, kFixedMaxDegree> kFixedBasisDerivatives = {{
+    {basisDerivativesOfDegree<1, 0>, basisDerivativesOfDegree<1, 1>, basisDerivativesOfDegree<1, 2>},
+    {basisDerivativesOfDegree<2, 0>, basisDerivativesOfDegree<2, 1>, basisDerivativesOfDegree<2, 2>},
+    {basisDerivativesOfDegree<3, 0>, basisDerivativesOfDegree<3, 1>, basisDerivativesOfDegree<3, 2>},
+}};
+
+}  // namespace
+
+void basisFunctionDerivativesAnyDegree(const std::vector<double>& knots, int p, int span, double u, int order,
+                                       BasisDerivatives& ders) {
+  basisDerivativesUpTo<kMaxDegree>(knots.data(), p, span, u, order, ders);
+}
+
+void basisFunctionDerivatives(const std::vector<double>& knots, int p, int span, double u, int order,
+                              BasisDerivatives& ders) {
+  if (p >= 1 && p <= kFixedMaxDegree && order >= 0 && order <= 2)
+    kFixedBasisDerivatives[p - 1][order](knots.data(), span, u, ders);
+  else
+    basisFunctionDerivativesAnyDegree(knots, p, span, u, order, ders);
 }
 
 NurbsCurve::NurbsCurve(int degree, std::vector<double> knots, std::vector<Vec3> points, std::vector<double> weights)
@@ -135,23 +174,53 @@ void NurbsCurve::derivativesFromBelow(double u, int order, Vec3* out) const {
   derivativesInSpan(span, u, order, out);
 }
 
-void NurbsCurve::derivativesInSpan(int span, double u, int order, Vec3* out) const {
+namespace {
+
+// The curve's derivatives from the span's basis (see basisDerivativesUpTo, whose scheme this follows:
+// one definition, inlined with constant degree and order on the fixed paths, so the same bits).
+template <int MaxP>
+[[gnu::always_inline]] inline void curveDerivativesUpTo(const NurbsCurve& curve, int p, int span, double u, int order,
+                                                        Vec3* out) {
   BasisDerivatives ders;
-  basisFunctionDerivatives(knots_, degree_, span, u, order, ders);
+  basisDerivativesUpTo<MaxP>(curve.knots().data(), p, span, u, order, ders);
+  const std::vector<Vec3>& points = curve.points();
+  const std::vector<double>& weights = curve.weights();
   // Homogeneous form: A(u) = sum N_i w_i P_i, w(u) = sum N_i w_i, C = A / w.
   Vec3 a[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
   double w[3] = {0.0, 0.0, 0.0};
-  for (int j = 0; j <= degree_; ++j) {
-    const int i = span - degree_ + j;
-    const double wi = weights_[i];
+  for (int j = 0; j <= p; ++j) {
+    const int i = span - p + j;
+    const double wi = weights[i];
     for (int k = 0; k <= order; ++k) {
-      a[k] += (ders[k][j] * wi) * points_[i];
+      a[k] += (ders[k][j] * wi) * points[i];
       w[k] += ders[k][j] * wi;
     }
   }
   out[0] = a[0] / w[0];
   if (order >= 1) out[1] = (a[1] - w[1] * out[0]) / w[0];
   if (order >= 2) out[2] = (a[2] - 2.0 * w[1] * out[1] - w[2] * out[0]) / w[0];
+}
+
+template <int P, int Order>
+void curveDerivativesOfDegree(const NurbsCurve& curve, int span, double u, Vec3* out) {
+  curveDerivativesUpTo<P>(curve, P, span, u, Order, out);
+}
+
+using FixedCurveDerivatives = void (*)(const NurbsCurve&, int, double, Vec3*);
+
+constexpr std::array<std::array<FixedCurveDerivatives, 3>, kFixedMaxDegree> kFixedCurveDerivatives = {{
+    {curveDerivativesOfDegree<1, 0>, curveDerivativesOfDegree<1, 1>, curveDerivativesOfDegree<1, 2>},
+    {curveDerivativesOfDegree<2, 0>, curveDerivativesOfDegree<2, 1>, curveDerivativesOfDegree<2, 2>},
+    {curveDerivativesOfDegree<3, 0>, curveDerivativesOfDegree<3, 1>, curveDerivativesOfDegree<3, 2>},
+}};
+
+}  // namespace
+
+void NurbsCurve::derivativesInSpan(int span, double u, int order, Vec3* out) const {
+  if (degree_ <= kFixedMaxDegree && order >= 0 && order <= 2)
+    kFixedCurveDerivatives[degree_ - 1][order](*this, span, u, out);
+  else
+    curveDerivativesUpTo<kMaxDegree>(*this, degree_, span, u, order, out);
 }
 
 std::vector<double> NurbsCurve::breakpoints() const {
