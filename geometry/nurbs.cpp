@@ -1,4 +1,5 @@
 #include "geometry/nurbs.hpp"
+#include "geometry/nurbs_reference.hpp"
 
 #include <algorithm>
 #include <limits>

@@ -1,5 +1,6 @@
 // geometry/: NURBS evaluation, frames, sections and closest points against analytic truth.
 #include "geometry/geometry.hpp"
+#include "geometry/nurbs_reference.hpp"
 #include "tests/test_geometry_curves.hpp"
 
 #include <catch2/catch.hpp>
@@ -90,12 +91,6 @@ TEST_CASE("B-spline basis functions form a partition of unity", "[nurbs]") {
   }
 }
 
-namespace rodfab::geometry {
-// Defined in geometry/nurbs.cpp beside basisFunctionDerivatives: the general algorithm for every degree,
-// the reference its fixed-degree paths must equal bit for bit. No caller outside this test needs it.
-void basisFunctionDerivativesAnyDegree(const std::vector<double>& knots, int degree, int span, double u, int order,
-                                       BasisDerivatives& ders);
-}  // namespace rodfab::geometry
 
 namespace {
 
