@@ -1,4 +1,5 @@
 #include "geometry/rod.hpp"
+#include "geometry/rod_internal.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -7,14 +8,11 @@
 
 namespace rodfab::geometry {
 
-namespace {
+using detail::distanceToSegment;
+using detail::kFoldSubdivisions;
+using detail::safeguardedNewton;
 
-double distanceToSegment(const Vec3& p, const Vec3& a, const Vec3& b) {
-  const Vec3 ab = b - a;
-  const double len2 = ab.squaredNorm();
-  const double t = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-  return (a + t * ab - p).norm();
-}
+namespace {
 
 // Any unit vector not parallel to t: seeds the frame of rods whose section needs none.
 Vec3 perpendicularSeed(const Vec3& t) {
@@ -178,9 +176,6 @@ void Rod::sampleCenterline() {
   buildSegmentBoxes();
 }
 
-// The inside test subdivides segment i when curvature x (gap + deviation + chord) >= 0.5 with a gap
-// of at most the section's reach plus the deviation (see classifySegment).
-static constexpr int kFoldSubdivisions = 8;
 
 void Rod::cacheJets() {
   // The reach of classifySegment (radius + planeTolerance), as first written: it decides which segments
@@ -228,37 +223,6 @@ void Rod::estimateCurvature(const std::vector<bool>& unresolved) {
   }
 }
 
-namespace {
-
-// Safeguarded Newton (Numerical Recipes' rtsafe) for a zero of g on [a, b], where g(a) < 0 < g(b):
-// `gAndSlope(u)` returns {g(u), g'(u)}. A Newton step that would leave the bracket, or shrink it
-// slower than bisection, is a bisection instead. Returns the zero clamped to [a, b].
-template <class GAndSlope>
-double safeguardedNewton(double a, double b, GAndSlope gAndSlope) {
-  double lo = a, hi = b;
-  double u = 0.5 * (a + b);
-  double dxOld = b - a, dx = dxOld;
-  const double tol = 1e-15 * std::max(1.0, std::abs(b) + std::abs(a));
-  for (int it = 0; it < 60; ++it) {
-    const auto [g, dg] = gAndSlope(u);
-    if (g < 0.0) lo = u; else hi = u;
-    const bool newtonOutside = ((u - hi) * dg - g) * ((u - lo) * dg - g) > 0.0;
-    const bool newtonSlow = std::abs(2.0 * g) > std::abs(dxOld * dg);
-    dxOld = dx;
-    if (newtonOutside || newtonSlow || dg <= 0.0) {
-      dx = 0.5 * (hi - lo);
-      u = lo + dx;
-    } else {
-      dx = g / dg;
-      u -= dx;
-    }
-    if (std::abs(dx) < tol || g == 0.0) break;
-  }
-  return std::clamp(u, a, b);
-}
-
-}  // namespace
-
 ClosestPoint Rod::closestPointInInterval(const Vec3& p, double a, double b) const {
   auto f = [&](double u, Vec3* d) {
     centerline_.derivatives(u, 2, d);
@@ -296,186 +260,6 @@ ClosestPoint Rod::closestPoint(const Vec3& p) const {
     if (c.distance < best.distance) best = c;
   }
   return best;
-}
-
-double Rod::solveCrossing(const Vec3& p, double a, double b, double sign) const {
-  // A zero of sign * g(u), g = (r - p) . r', negative at a and positive at b; sign = -1 finds the zeros
-  // where g falls (farthest points, only on tight bends).
-  auto f = [&](double u, Vec3* d) {
-    centerline_.derivatives(u, 2, d);
-    return sign * (d[0] - p).dot(d[1]);
-  };
-  Vec3 d[3];
-  return safeguardedNewton(a, b, [&](double u) {
-    const double g = f(u, d);
-    return std::pair{g, sign * (d[1].squaredNorm() + (d[0] - p).dot(d[2]))};
-  });
-}
-
-namespace {
-
-// Keeps the deepest candidate; the first of equal ones (candidates come in increasing u).
-void consider(RodHit& best, double depth, double u) {
-  if (depth > best.depth) {
-    best.depth = depth;
-    best.u = u;
-  }
-}
-
-}  // namespace
-
-void Rod::sectionHit(const Vec3& p, double u, bool fromBelow, RodHit& best) const {
-  // r and r' alone (NurbsCurve computes them with the same operations whatever the order asked);
-  // r'' only where r' may be too short for unitTangent, which then takes r'' (below 1e-14; any
-  // threshold above that one gives the same tangent).
-  Vec3 d[3];
-  d[2] = Vec3::Zero();
-  if (fromBelow) centerline_.derivativesFromBelow(u, 1, d);
-  else centerline_.derivatives(u, 1, d);
-  if (!(d[1].norm() > 1e-12)) evaluate(u, fromBelow, d);
-  const Vec3 t = fromBelow ? unitTangentFromBelow(d[1], d[2]) : unitTangent(d[1], d[2]);
-  const Vec3 w = p - d[0];
-  // A zero of (r - p) . r' where r' vanishes (a cusp) is no section through p: p must lie in the plane.
-  if (!(std::abs(w.dot(t)) <= 1e-7 * (1.0 + section_.boundingRadius()))) return;
-  const Frame f = frame_.at(u, d[0], t);
-  consider(best, 1.0 - section_.normalizedRadius(w.dot(f.d1), w.dot(f.d2)), u);
-}
-
-namespace {
-
-// Within this distance beyond an end plane a point still counts as on the plane (section test).
-double planeTolerance(double radius) { return 1e-9 * (1.0 + radius); }
-
-}  // namespace
-
-void Rod::classifyEnd(const Vec3& p, double u, const Vec3& point, const Vec3& outward, bool fromBelow, RodHit& best) const {
-  const double beyond = (p - point).dot(outward);
-  if (beyond < 0.0) return;  // in front of the plane: the crossings decide
-  if (beyond > planeTolerance(section_.boundingRadius())) {
-    if (caps_ == CapStyle::Round) consider(best, 1.0 - (point - p).norm() / section_.capRadius(), u);
-    return;
-  }
-  sectionHit(p, u, fromBelow, best);
-}
-
-void Rod::classifySegment(const Vec3& p, const SmoothPiece& piece, std::size_t i, RodHit& best) const {
-  const double radius = section_.boundingRadius();
-  const double reach = radius + planeTolerance(radius);
-  const double gap = distanceToSegment(p, samplePoint_[i], samplePoint_[i + 1]);
-  if (gap - sampleDeviation_[i] > reach) return;  // no section of the segment reaches p
-  auto g = [&](double u, bool fromBelow) {
-    Vec3 d[2];
-    if (fromBelow) centerline_.derivativesFromBelow(u, 1, d);
-    else centerline_.derivatives(u, 1, d);
-    return (d[0] - p).dot(d[1]);
-  };
-  auto gAt = [&](const Jet& j) { return (j.r - p).dot(j.d); };
-  // Where r' vanishes (a repeated control point at a rod's end), g is 0 whatever p, so a zero of g next
-  // to it has no sign change to bracket: from that end `still`, halve towards it until g takes the sign
-  // `other` (the far end's g) does not. Only where g is exactly 0 (rare): other points keep their bits.
-  auto stepOffStill = [&](double still, double far, double other, bool fromBelow, double& u, double& gu) {
-    Vec3 d[2];
-    if (fromBelow) centerline_.derivativesFromBelow(still, 1, d);
-    else centerline_.derivatives(still, 1, d);
-    if (d[1].norm() > 1e-12) return false;  // p lies on the section plane there: a zero, not a still end
-    u = far;
-    for (int k = 0; k < 64; ++k) {
-      u = still + (u - still) * 0.5;
-      gu = g(u, false);
-      if (gu != 0.0 && (gu < 0.0) != (other < 0.0)) return true;
-    }
-    return false;
-  };
-  // Sections through p: the zeros of g(u) = (r(u) - p) . r'(u) on the segment.
-  auto crossing = [&](double a, double b, double ga, double gb, bool belowB) {
-    if (ga < 0.0 && gb > 0.0) {
-      const double u = solveCrossing(p, a, b, 1.0);
-      sectionHit(p, u, belowB && u == b, best);
-    } else if (ga > 0.0 && gb < 0.0) {
-      const double u = solveCrossing(p, a, b, -1.0);
-      sectionHit(p, u, belowB && u == b, best);
-    } else if (ga == 0.0 && a != piece.begin) {
-      sectionHit(p, a, false, best);
-    }
-  };
-  auto crossings = [&](double a, double b, double ga, double gb, bool belowB) {
-    crossing(a, b, ga, gb, belowB);
-    double u, gu;
-    if (ga == 0.0 && gb != 0.0 && stepOffStill(a, b, gb, false, u, gu)) crossing(u, b, gu, gb, belowB);
-    if (gb == 0.0 && ga != 0.0 && stepOffStill(b, a, ga, belowB, u, gu)) crossing(a, u, ga, gu, false);
-  };
-  const double a = sampleU_[i], b = sampleU_[i + 1];
-  const bool belowB = piece.endFromBelow && i + 1 == piece.lastSample;
-  const double ga = gAt(sampleJet_[i]), gb = belowB ? g(b, true) : gAt(sampleJet_[i + 1]);
-  // g has one zero at most on the segment unless the curvature times the distance nears 1 (p close
-  // to a centre of curvature): then look for every sign change on a finer sampling.
-  const double chord = (samplePoint_[i + 1] - samplePoint_[i]).norm();
-  if (sampleCurvature_[i] * (gap + sampleDeviation_[i] + chord) < 0.5) {
-    crossings(a, b, ga, gb, belowB);
-    return;
-  }
-  const std::size_t fold = foldOffset_[i];
-  double x = a, gx = ga;
-  for (int k = 1; k <= kFoldSubdivisions; ++k) {
-    const double y = k == kFoldSubdivisions ? b : a + (b - a) * k / kFoldSubdivisions;
-    const double gy = k == kFoldSubdivisions ? gb : fold != kNoFold ? gAt(foldJets_[fold + k - 1]) : g(y, false);
-    crossings(x, y, gx, gy, belowB && k == kFoldSubdivisions);
-    x = y;
-    gx = gy;
-  }
-}
-
-void Rod::classifyPiece(const Vec3& p, const SmoothPiece& piece, Walk walk, RodHit& best) const {
-  const double radius = section_.boundingRadius();
-  const double capReach = std::max(radius + planeTolerance(radius), section_.capRadius());
-  if ((samplePoint_[piece.firstSample] - p).norm() <= capReach + sampleDeviation_[piece.firstSample])
-    classifyEnd(p, piece.begin, piece.beginPoint, -piece.beginTangent, false, best);
-  // The segments in increasing order, either way: candidates of equal depth keep the first.
-  if (walk == Walk::EverySegment) {
-    for (std::size_t i = piece.firstSample; i < piece.lastSample; ++i) classifySegment(p, piece, i, best);
-  } else {
-    segmentBoxes_.forEachContaining(p, piece.firstSample, piece.lastSample,
-                                    [&](std::size_t i) { classifySegment(p, piece, i, best); });
-  }
-  if ((samplePoint_[piece.lastSample] - p).norm() <= capReach + sampleDeviation_[piece.lastSample - 1])
-    classifyEnd(p, piece.end, piece.endPoint, piece.endTangent, piece.endFromBelow, best);
-}
-
-RodHit Rod::classifyPoint(const Vec3& p, Walk walk) const {
-  RodHit best;
-  best.depth = -std::numeric_limits<double>::infinity();
-  best.u = centerline_.domainBegin();
-  for (const SmoothPiece& piece : pieces_) classifyPiece(p, piece, walk, best);
-  if (!(best.depth > -1.0)) best.depth = -1.0;
-  best.inside = best.depth >= 0.0;
-  return best;
-}
-
-// A non-finite coordinate is in no box, while the walk's arithmetic on it may still find a candidate
-// (a NaN gap is never "too far"): such points take the walk.
-RodHit Rod::classify(const Vec3& p) const { return classifyPoint(p, p.allFinite() ? Walk::Boxes : Walk::EverySegment); }
-
-RodHit Rod::classifyWalkingEverySegment(const Vec3& p) const { return classifyPoint(p, Walk::EverySegment); }
-
-void Rod::buildSegmentBoxes() {
-  // A segment is examined when its computed distance to p, less its deviation, is at most the reach
-  // (classifySegment). The computed distance is that of p to a point within a few ulps of the segment,
-  // so it is below the true distance by at most ~10 eps (|p| + |sample|) <= ~10 eps (distance + 2
-  // |sample|); the margin of 1e-9 relative to the coordinates, the reach and the deviation is far
-  // above it, so a p outside the grown box (on any axis) is one the walk skips too.
-  const double radius = section_.boundingRadius();
-  const double reach = radius + planeTolerance(radius);
-  double largest = 0.0, maxDeviation = 0.0;
-  for (const Vec3& q : samplePoint_) largest = std::max(largest, q.cwiseAbs().maxCoeff());
-  for (const double dev : sampleDeviation_) maxDeviation = std::max(maxDeviation, dev);
-  const double margin = 1e-9 * (1.0 + largest + reach + maxDeviation);
-  std::vector<Box3> boxes(sampleDeviation_.size());
-  for (std::size_t i = 0; i < boxes.size(); ++i) {
-    const double grow = sampleDeviation_[i] + reach + margin;
-    boxes[i] = Box3(Vec3(samplePoint_[i].cwiseMin(samplePoint_[i + 1]).array() - grow),
-                    Vec3(samplePoint_[i].cwiseMax(samplePoint_[i + 1]).array() + grow));
-  }
-  segmentBoxes_ = SegmentBoxes(std::move(boxes));
 }
 
 void Rod::computeBounds() {
