@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <charconv>
 #include <cmath>
 #include <cstdlib>
 #include <cstdio>
@@ -22,6 +23,8 @@
 #include <numeric>
 #include <regex>
 #include <sstream>
+#include <string_view>
+#include <utility>
 
 namespace rodfab::meshing {
 
@@ -152,6 +155,60 @@ void checkPlyHeader(const std::string& bytes, const std::string& source) {
                                     " of type '" + type + "' (expected float or double)");
     }
   }
+}
+
+// Calls f(line) for every line of `bytes`, without its line break and trailing white space.
+template <typename F>
+void forEachLine(std::string_view bytes, const F& f) {
+  while (!bytes.empty()) {
+    const std::size_t eol = std::min(bytes.find('\n'), bytes.size());
+    std::string_view line = bytes.substr(0, eol);
+    line = line.substr(0, line.find_last_not_of(" \t\r") + 1);
+    f(line);
+    bytes.remove_prefix(std::min(eol + 1, bytes.size()));
+  }
+}
+
+// A line's first word (CGAL's `iss >> s`) and what follows it.
+std::pair<std::string_view, std::string_view> keyword(std::string_view line) {
+  const std::size_t begin = std::min(line.find_first_not_of(" \t\r"), line.size());
+  const std::size_t end = std::min(line.find_first_of(" \t\r", begin), line.size());
+  return {line.substr(begin, end - begin), line.substr(end)};
+}
+
+// CGAL's OBJ reader reads a face's corners as `int`s, each up to the next space, and stops at the
+// first one it cannot read: a vertex number past 2^31 or a word silently shortens the face, and a number
+// beyond the vertices only fails the whole file. Every face line is checked the way that reader takes
+// it (tabs are spaces by then: see parseMesh), so the message names the line and the corner.
+void checkObjFaces(const std::string& bytes, const std::string& source) {
+  std::uint64_t vertices = 0, seen = 0;
+  forEachLine(bytes, [&](std::string_view line) { vertices += keyword(line).first == "v"; });
+  int number = 0;
+  forEachLine(bytes, [&](std::string_view line) {
+    ++number;
+    auto [word, rest] = keyword(line);
+    seen += word == "v";
+    if (word != "f") return;
+    const auto where = [&] { return "OBJ line " + std::to_string(number) + ": "; };
+    rest = rest.substr(0, rest.find('#'));
+    rest.remove_prefix(std::min(rest.find_first_not_of(" \t\r"), rest.size()));
+    int corners = 0;
+    for (std::size_t at = 0; (at = rest.find_first_not_of(" \r", at)) != std::string_view::npos; ++corners) {
+      std::string_view corner = rest.substr(at, rest.find(' ', at) - at);
+      at += corner.size();
+      const std::string shown = "'" + std::string(corner.substr(0, 40)) + "'";
+      if (corner.starts_with('+')) corner.remove_prefix(1);
+      long long index = 0;
+      const auto [end, error] = std::from_chars(corner.data(), corner.data() + corner.size(), index);
+      if (end == corner.data() || (error == std::errc{} && end != corner.data() + corner.size() && *end != '/'))
+        throw MeshError(source, where() + "face corner " + shown + " is not a vertex number");
+      if (error != std::errc{} || index == 0 || index > std::numeric_limits<int>::max() ||
+          (index > 0 && std::uint64_t(index) > vertices) || (index < 0 && std::uint64_t(-index) > seen))
+        throw MeshError(source, where() + "face corner " + shown + " names no vertex: expected 1 .. " + std::to_string(vertices) +
+                                    " (or -1 .. -" + std::to_string(seen) + ", counted back from this line)");
+    }
+    if (corners < 3) throw MeshError(source, where() + "a face with " + std::to_string(corners) + " corners (expected 3 or more)");
+  });
 }
 
 // CGAL's STL reader merges corners through an ordered map, which a NaN corrupts (it compares equal to
@@ -334,10 +391,20 @@ TriangleMesh parseMesh(const std::string& bytes, const std::string& format, cons
   if (bytes.find_first_not_of(" \t\r\n") == std::string::npos) throw MeshError(source, "the file is empty: it holds no faces");
   if (format == "off") checkOffText(bytes, source);
   if (format == "ply") checkPlyHeader(bytes, source);
+  // CGAL's OBJ reader skips each face corner up to the next space, so a tab-separated face would lose
+  // corners: tabs become spaces (white space alike in OBJ), in a copy only where there are any.
+  std::string spaced;
+  if (format == "obj" && bytes.find('\t') != std::string::npos) {
+    common::requireMemory(bytes.size() * (kParseBytesPerFileByte + 1), "reading the mesh " + source, "simplify the mesh first");
+    spaced = bytes;
+    std::replace(spaced.begin(), spaced.end(), '\t', ' ');
+  }
+  const std::string& text = spaced.empty() ? bytes : spaced;
+  if (format == "obj") checkObjFaces(text, source);
   std::vector<Point> points;
   std::vector<Polygon> polygons;
   try {
-    if (!readSoup(bytes, format, points, polygons, source)) throw MeshError(source, unreadableMeshMessage(bytes, format));
+    if (!readSoup(text, format, points, polygons, source)) throw MeshError(source, unreadableMeshMessage(text, format));
   } catch (const std::bad_alloc&) {
     // The readers size arrays from counts in the file (a face's corner count, an element count).
     throw MeshError(source, "the file declares more elements than the memory budget holds (a count in it is wrong?)");

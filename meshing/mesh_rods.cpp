@@ -233,7 +233,8 @@ MeshRods rodsFromMesh(const std::filesystem::path& file, const MeshRodOptions& o
   report.inputVertices = original.points.size(), report.inputFaces = original.triangles.size();
   report.weldedVertices = stats.weldedVertices;
   if (original.triangles.size() < static_cast<std::size_t>(options.faces))
-    throw MeshError(file, "the mesh has " + std::to_string(original.triangles.size()) + " triangles, fewer than the " +
+    throw MeshError(file, "the mesh has " + std::to_string(original.triangles.size()) +
+                              (original.triangles.size() == 1 ? " triangle" : " triangles") + ", fewer than the " +
                               std::to_string(options.faces) + " asked for (--faces)");
   report.readSeconds = common::secondsSince(clock);
   clock = std::chrono::steady_clock::now();

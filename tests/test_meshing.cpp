@@ -245,3 +245,40 @@ TEST_CASE("the mesh reader on bytes in memory", "[meshing]") {
   CHECK(counts.vertices == 42);
   CHECK_THROWS_AS(meshing::checkMeshBytes("solid x\nendsolid", "stl", "memory"), meshing::MeshError);
 }
+
+TEST_CASE("OBJ face corners are checked where CGAL would misread them", "[meshing]") {
+  std::ostringstream body;
+  const testing::SimpleMesh mesh = testing::ellipsoid(1, 3, 3, 3);
+  for (const auto& p : mesh.points) body << "v " << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
+  const std::string vertices = body.str();  // 12 vertices; the faces below are added line by line
+  std::string faces;
+  for (const auto& t : mesh.triangles) faces += "f " + std::to_string(t[0] + 1) + ' ' + std::to_string(t[1] + 1) + ' ' + std::to_string(t[2] + 1) + '\n';
+  const auto error = [&](const std::string& lastFace) {
+    try {
+      meshing::checkMeshBytes(vertices + faces + lastFace, "obj", "m.obj");
+    } catch (const meshing::MeshError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  const std::string line = "OBJ line " + std::to_string(12 + 20 + 1) + ": ";
+  // Past 2^31 CGAL's int read fails and the face loses a corner; past the vertices the file fails as a whole.
+  CHECK_THAT(error("f 1 2 3000000000\n"), Catch::Contains(line + "face corner '3000000000' names no vertex: expected 1 .. 12"));
+  CHECK_THAT(error("f 1 2 13\n"), Catch::Contains(line + "face corner '13' names no vertex"));
+  CHECK_THAT(error("f 1 2 0\n"), Catch::Contains(line + "face corner '0' names no vertex"));
+  CHECK_THAT(error("f 1 2 -13\n"), Catch::Contains("(or -1 .. -12, counted back from this line)"));
+  CHECK_THAT(error("f 1 2 x 3\n"), Catch::Contains(line + "face corner 'x' is not a vertex number"));
+  CHECK_THAT(error("f 1 2\n"), Catch::Contains(line + "a face with 2 corners (expected 3 or more)"));
+  // What CGAL reads right passes: relative corners, texture and normal numbers, CRLF line ends, a
+  // comment; tab-separated corners (which CGAL's reader would cut short) are read as spaces. Each
+  // repeats the first face with the other orientation, so the check gets past the reader (to the
+  // mesh checks, which refuse the repeated face) without a reader error.
+  const auto& t = mesh.triangles[0];
+  const std::string a = std::to_string(t[0] + 1), b = std::to_string(t[1] + 1), c = std::to_string(t[2] + 1);
+  for (const std::string& face : {"f " + a + "/1/1 " + c + "/2/2 " + b + "//3\r\n", "f " + a + "\t" + c + "\t" + b + " # c\n",
+                                  "f " + std::to_string(int(t[0]) - 12) + ' ' + std::to_string(int(t[2]) - 12) + ' ' + std::to_string(int(t[1]) - 12) + '\n'}) {
+    const std::string message = error(face);
+    CHECK_THAT(message, !Catch::Contains("OBJ line") && !Catch::Contains("not a readable"));
+    CHECK_THAT(message, Catch::Contains("non-manifold"));
+  }
+}
