@@ -1,7 +1,8 @@
 // CAD curve networks to rods with OpenCASCADE: every edge's curve, converted to its exact B-spline.
+// Built as the CAD module (librodfab_cad), loaded by rodsFromCad (cad_module.cpp) when first needed.
 #include "common/interrupt.hpp"
 #include "common/memory_budget.hpp"
-#include "meshing/meshing.hpp"
+#include "meshing/cad_module.hpp"
 
 #include <BRep_Tool.hxx>
 #include <GeomConvert.hxx>
@@ -142,9 +143,7 @@ Vec3 normalFor(const geometry::NurbsCurve& c) {
   return t.cross(Vec3::Unit(k)).normalized();
 }
 
-}  // namespace
-
-CadRods rodsFromCad(const std::filesystem::path& file, const CadRodOptions& options) {
+CadRods readCadRods(const std::filesystem::path& file, const CadRodOptions& options) {
   if (!(options.jointTolerance > 0) || !(options.modulusMpa > 0)) throw std::invalid_argument("rodsFromCad: options out of range");
   const TopoDS_Shape shape = readShape(file);
   TopTools_IndexedMapOfShape edges;
@@ -171,4 +170,8 @@ CadRods rodsFromCad(const std::filesystem::path& file, const CadRodOptions& opti
   return out;
 }
 
+}  // namespace
+
 }  // namespace rodfab::meshing
+
+rodfab::meshing::detail::CadReader rodfab_cad_reader() { return &rodfab::meshing::readCadRods; }

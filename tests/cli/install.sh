@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # Installed and relocated: `cmake --install` into a temporary prefix, the tree moved elsewhere, an
 # example sliced from a third folder; nothing of the build machine's paths in the installed files or in
-# the job; a clear error when the data folder is missing or RODFAB_DATA_DIR is wrong.
-#   install.sh CMAKE BUILD_DIR SOURCE_DIR
+# the job; a clear error when the data folder is missing or RODFAB_DATA_DIR is wrong; with MAKE_TEST_CAD,
+# rods-from-cad through the installed CAD module, and a clear error (the rest working) without it.
+#   install.sh CMAKE BUILD_DIR SOURCE_DIR [MAKE_TEST_CAD]
 set -u
-cmake=$1 build=$(cd "$2" && pwd -P) src=$(cd "$3" && pwd -P)
+cmake=$1 build=$(cd "$2" && pwd -P) src=$(cd "$3" && pwd -P) make_cad=${4:-}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 fail() { echo "FAIL: $*"; exit 1; }
@@ -72,6 +73,23 @@ for name in ("manifest.json", "report.html", "build.txt"):
     text = job.read(name)
     assert not any(r.encode() in text for r in roots), f"{name} names a folder of this machine"
 PY
+
+if [ -n "$make_cad" ]; then
+  "$make_cad" box "$tmp/box.step" > /dev/null 2>&1 || fail "make_test_cad box"
+  "$installed/bin/rodfab" rods-from-cad "$tmp/box.step" --diameter 1 -o box.json > "$tmp/out" 2>&1 ||
+    fail "rods-from-cad with the moved install: $(cat "$tmp/out")"
+  grep -q "12 rods" "$tmp/out" || fail "rods-from-cad summary: $(cat "$tmp/out")"
+  # rodfab itself does not load OpenCASCADE; rods-from-cad loads the module beside the stage libraries.
+  grep -q "libTK" "$tmp/ldd" && fail "rodfab links OpenCASCADE: $(grep libTK "$tmp/ldd" | head -3)"
+  module=$(find "$installed" -name 'librodfab_cad*')
+  [ -n "$module" ] || fail "the CAD module was not installed"
+  mv "$module" "$tmp/module"
+  "$installed/bin/rodfab" rods-from-cad "$tmp/box.step" --diameter 1 -o nomodule.json > /dev/null 2> "$tmp/err"
+  [ $? -eq 1 ] || fail "rods-from-cad without the CAD module should exit 1"
+  grep -q "the CAD module .*librodfab_cad.* did not load" "$tmp/err" || fail "the missing module error: $(cat "$tmp/err")"
+  [ -e nomodule.json ] && fail "a design was written without the CAD module"
+  "$installed/bin/rodfab" profiles > /dev/null 2>&1 || fail "profiles without the CAD module"
+fi
 
 # The data folder missing or misnamed: a clear error, nothing written.
 RODFAB_DATA_DIR=$tmp/nowhere "$installed/bin/rodfab" profiles > /dev/null 2> "$tmp/err" && fail "a wrong RODFAB_DATA_DIR was accepted"
