@@ -181,6 +181,9 @@ FractionMap::FractionMap(const calibration::Calibration& calibration, std::size_
         maxModulusMpa_ < double(std::numeric_limits<float>::max())))
     throw std::invalid_argument("fraction map: the calibration's floor and maximum modulus must satisfy 0 < floor < max "
                                 "within the float range, got " + std::to_string(floorMpa_) + " and " + std::to_string(maxModulusMpa_));
+  // Every value the map gives lies in [floor fraction, 1]: the fused ditherers check no fraction.
+  if (!(floorFraction_ >= 0.0 && floorFraction_ < 1.0))
+    throw std::invalid_argument("fraction map: the calibration's floor fraction must lie in [0, 1), got " + std::to_string(floorFraction_));
   // Intervals per octave: the power of two that puts at least `nodes` nodes between floor and max.
   const double octaves = std::log2(maxModulusMpa_ / floorMpa_);
   const double perOctave = std::max(1.0, static_cast<double>(nodes - 1) / octaves);

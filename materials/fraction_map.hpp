@@ -39,7 +39,8 @@ class FractionMap {
 public:
   // `nodes`: at least this many table nodes between the floor and the maximum (the intervals per
   // octave are the power of two that gives them, at most 2^20). Throws std::invalid_argument for fewer
-  // than 2 nodes.
+  // than 2 nodes, or a calibration whose floor fraction is not in [0, 1) (so every fraction the map
+  // gives is in [0, 1]: Ditherer::mapAndDitherLayers checks none).
   explicit FractionMap(const calibration::Calibration& calibration, std::size_t nodes = 4096);
 
   // Const, thread-safe, allocation-free. The clamps are decided on the double; inside the range E is
