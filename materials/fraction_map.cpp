@@ -119,14 +119,11 @@ inline FractionMap::WordClamps FractionMap::mapWordWith(const float* moduli, std
   const Int first = Int{} + static_cast<std::int32_t>(firstInterval_), last = Int{} + static_cast<std::int32_t>(lastInterval_);
   Int lane;
   for (int l = 0; l < N; ++l) lane[l] = l;
-  Int belowCount = {}, aboveCount = {};  // minus the clamped active voxels, lane by lane
-  for (int q = 0; q < 64; q += N) {
-    if (!(active >> q & kLaneBits)) {  // the thin parts of a rod leave whole groups inactive
-      std::memcpy(fractions + q, &zero, sizeof zero);
-      continue;
-    }
-    Float e;
-    std::memcpy(&e, moduli + q, sizeof e);
+  // The lanes of group q (voxels q .. q + N - 1) whose bit is set in `active`: all ones, else 0.
+  const auto onLanes = [&](int q) { return ((Int{} + static_cast<std::int32_t>(active >> q & kLaneBits)) >> lane & 1) == 1; };
+  // N lanes' fractions of the moduli `e`, every lane computed, the clamps applied (flags in `below`
+  // and `above`: all ones where clamped).
+  const auto laneFractions = [&](Float e, Int& below, Int& above) {
     const UInt bits = reinterpret_cast<UInt>(e);
     Int interval = reinterpret_cast<Int>(bits >> shift) - first;
     interval = interval < 0 ? Int{} : interval;
@@ -147,13 +144,48 @@ inline FractionMap::WordClamps FractionMap::mapWordWith(const float* moduli, std
                                                    __builtin_shufflevector(t, t, 4, 5, 6, 7), lowest, highest);
       f = __builtin_shufflevector(low, high, 0, 1, 2, 3, 4, 5, 6, 7);
     }
-    const Int on = ((Int{} + static_cast<std::int32_t>(active >> q & kLaneBits)) >> lane & 1) == 1;
-    const Int below = ~(e >= floor) & on, above = (e > maximum) & ~below & on;
-    f = below ? floorFraction : above ? one : f;
+    below = ~(e >= floor);
+    above = (e > maximum) & ~below;
+    return below ? floorFraction : above ? one : f;
+  };
+  if (const std::uint64_t voxels = static_cast<std::uint64_t>(std::popcount(active)); voxels > 1) {
+    // A word whose active voxels all hold the same modulus, bit for bit (two thirds of the lattice
+    // class's voxels, where E depends on z only; every word of the dense block), maps it once: the
+    // same lanes' arithmetic on that value, so the same fraction, stored into every active voxel.
+    const std::uint32_t value = std::bit_cast<std::uint32_t>(moduli[std::countr_zero(active)]);
+    UInt differ = {};
+    for (int q = 0; q < 64; q += N) {
+      UInt bits;
+      std::memcpy(&bits, moduli + q, sizeof bits);
+      differ |= (bits ^ value) & reinterpret_cast<UInt>(onLanes(q));
+    }
+    bool uniform = true;
+    for (int l = 0; l < N; ++l) uniform &= differ[l] == 0;
+    if (uniform) {
+      Int below, above;
+      const Float f = laneFractions(reinterpret_cast<Float>(UInt{} + value), below, above);  // every lane alike, -0 and NaN kept
+      for (int q = 0; q < 64; q += N) {
+        const Float out = onLanes(q) ? f : zero;
+        std::memcpy(fractions + q, &out, sizeof out);
+      }
+      return {below[0] ? voxels : 0, above[0] ? voxels : 0};
+    }
+  }
+  Int belowCount = {}, aboveCount = {};  // minus the clamped active voxels, lane by lane
+  for (int q = 0; q < 64; q += N) {
+    if (!(active >> q & kLaneBits)) {  // the thin parts of a rod leave whole groups inactive
+      std::memcpy(fractions + q, &zero, sizeof zero);
+      continue;
+    }
+    Float e;
+    std::memcpy(&e, moduli + q, sizeof e);
+    const Int on = onLanes(q);
+    Int below, above;
+    Float f = laneFractions(e, below, above);
     f = on ? f : zero;
     std::memcpy(fractions + q, &f, sizeof f);
-    belowCount += below;
-    aboveCount += above;
+    belowCount += below & on;
+    aboveCount += above & on;
   }
   std::int64_t belowSum = 0, aboveSum = 0;
   for (int l = 0; l < N; ++l) {
