@@ -25,14 +25,15 @@ using rodfab::test::kTestVoxel;
 namespace {
 
 
-// ln E = ln E_T + ln(E_V / E_T) f^2, so f = sqrt((ln E - ln E_T) / ln(E_V / E_T)) in closed form.
-rodfab::calibration::Calibration logPowerCalibration() {
+// ln E = ln E_T + ln(E_V / E_T) f^2, so f = sqrt((ln E - ln E_T) / ln(E_V / E_T)) in closed form; E_T =
+// 0.5 MPa, E_V = 190 MPa. A floor at E_T (0.5) makes the floor's fraction 0.
+rodfab::calibration::Calibration logPowerCalibration(double floorMpa = 8.0) {
   rodfab::calibration::ModelParameters p;
   p.model = rodfab::calibration::Model::LogPower;
   p.tangoModulusMpa = 0.5;
   p.veroModulusMpa = 190.0;
   p.exponent = 2.0;
-  return rodfab::calibration::Calibration(p, 8.0);
+  return rodfab::calibration::Calibration(p, floorMpa);
 }
 
 double logPowerFraction(double modulusMpa) { return std::sqrt(std::log(modulusMpa / 0.5) / std::log(190.0 / 0.5)); }
@@ -458,13 +459,8 @@ TEST_CASE("materials: mapping and dithering in one pass gives map-then-dither's 
           "[materials][mapping][fused]") {
   // Two calibrations: the bundled one (8 MPa floor = 30 % Vero) and one whose floor is the Tango modulus,
   // so the floor's fraction is 0; moduli at and beyond the maximum give 1.
-  rodfab::calibration::ModelParameters p;
-  p.model = rodfab::calibration::Model::LogPower;
-  p.tangoModulusMpa = 0.5;
-  p.veroModulusMpa = 190.0;
-  p.exponent = 2.0;
   const std::vector<rodfab::calibration::Calibration> calibrations{rodfab::calibration::loadDefaultCalibration(),
-                                                                    rodfab::calibration::Calibration(p, 0.5)};
+                                                                    logPowerCalibration(0.5)};
   REQUIRE(calibrations[1].floorFraction() == 0.0);
   for (std::size_t c = 0; c < calibrations.size(); ++c) {
     const FractionMap map(calibrations[c]);
@@ -505,12 +501,7 @@ TEST_CASE("materials: mapping and dithering in one pass gives map-then-dither's 
 
 TEST_CASE("materials: mapping and dithering in one pass: active tiles, reversed bands, every fraction 0 or 1 where the map says so",
           "[materials][mapping][fused]") {
-  rodfab::calibration::ModelParameters p;
-  p.model = rodfab::calibration::Model::LogPower;
-  p.tangoModulusMpa = 0.5;
-  p.veroModulusMpa = 190.0;
-  p.exponent = 2.0;
-  const FractionMap map(rodfab::calibration::Calibration(p, 0.5));  // floor fraction 0
+  const FractionMap map(logPowerCalibration(0.5));  // floor fraction 0
   auto modulus = randomModulusGrid(3, edgeModuli(map));
   // An active tile of a whole leaf at Tango's modulus (fraction 0) and one at the maximum (fraction 1).
   modulus->tree().addTile(1, openvdb::Coord(400, 0, 0), 0.5f, true);
