@@ -65,7 +65,9 @@ public:
   // moduli[b] whose bit b of `active` is set, by mapToFractions' rule (the clamps decided on the float:
   // !(E >= float(floor)), NaN too, gives the floor's fraction, E > float(max) gives 1, anything else
   // float(interpolate(E))), and 0 where the bit is clear. Four voxels a step without branches (eight in
-  // the AVX2 version), lane by lane the scalar expressions (same bits). Returns how many active voxels were clamped.
+  // the AVX2 version), lane by lane the scalar expressions (same bits); a word whose active moduli are
+  // one value, bit for bit, is mapped once (the same lanes' arithmetic, so the same bits) and stored into
+  // each active voxel. Returns how many active voxels were clamped.
   struct WordClamps {
     std::uint64_t belowFloor = 0, aboveMax = 0;
   };
