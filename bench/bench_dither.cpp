@@ -65,19 +65,30 @@ const openvdb::FloatGrid& rodBundle() {
   return *grid;
 }
 
+// The bundled calibration's table, as `rodfab slice` maps with it.
+const FractionMap& bundledMap() {
+  static const FractionMap map(rodfab::calibration::loadDefaultCalibration());
+  return map;
+}
+
 // Lattice workload: 400 layers (a 12 mm slab) from the middle of the `lattice` benchmark class
-// (examples::benchmarkDesign), rasterized and mapped to fractions as `rodfab slice` does (bundled
-// calibration): rods a few leaves across, most leaves partly filled, the class's own fractions.
-const openvdb::FloatGrid& latticeSlab() {
+// (examples::benchmarkDesign), rasterized as `rodfab slice` does: its moduli, and (latticeSlab) its
+// fractions through the bundled calibration: rods a few leaves across, most leaves partly filled.
+const openvdb::FloatGrid& latticeModulusSlab() {
   static const openvdb::FloatGrid::Ptr grid = [] {
     openvdb::initialize();
     const rodfab::geometry::RodStructure design = rodfab::examples::benchmarkDesign("lattice");
     const rodfab::voxel::PrinterGrid printerGrid = rodfab::voxel::makePrinterGrid(design, benchVoxel());
     const rodfab::voxel::Rasterizer rasterizer(design, printerGrid);
-    const int k0 = printerGrid.dims.z() / 2 / 8 * 8, k1 = k0 + 400;  // starts on a leaf slab
-    const rodfab::voxel::Rasterization band = rasterizer.rasterizeLayers(k0, k1);
+    const int k0 = printerGrid.dims.z() / 2 / 8 * 8;  // starts on a leaf slab
+    return rasterizer.rasterizeLayers(k0, k0 + 400).grid;
+  }();
+  return *grid;
+}
+const openvdb::FloatGrid& latticeSlab() {
+  static const openvdb::FloatGrid::Ptr grid = [] {
     MappingStats stats;
-    return mapToFractions(*band.grid, FractionMap(rodfab::calibration::loadDefaultCalibration()), k0, k1, stats);
+    return mapToFractions(latticeModulusSlab(), bundledMap(), stats);
   }();
   return *grid;
 }
@@ -106,22 +117,23 @@ BENCHMARK(ditherLatticeSlab)->DenseRange(0, 2)->Unit(benchmark::kMillisecond)->U
 // band's leaves only, dithered band after band with two outputs alive at a time (the pipeline's two
 // bands in flight), so that per-band costs (output trees, leaf allocation) count as in the slicer.
 constexpr int kBandLayers = 8;
+// `slab` cut into grids of kBandLayers layers (its leaves copied), named `name`.
+std::vector<openvdb::FloatGrid::Ptr> slabBands(const openvdb::FloatGrid& slab, const char* name) {
+  const openvdb::CoordBBox box = slab.evalActiveVoxelBoundingBox();
+  std::vector<openvdb::FloatGrid::Ptr> out;
+  for (int k0 = box.min().z(); k0 <= box.max().z(); k0 += kBandLayers) {
+    auto band = openvdb::FloatGrid::create(0.0f);
+    band->setTransform(slab.transform().copy());
+    band->setName(name);
+    for (auto leaf = slab.tree().cbeginLeaf(); leaf; ++leaf)
+      if (leaf->origin().z() >= k0 && leaf->origin().z() < k0 + kBandLayers)
+        band->tree().addLeaf(new openvdb::FloatTree::LeafNodeType(*leaf));
+    out.push_back(band);
+  }
+  return out;
+}
 const std::vector<openvdb::FloatGrid::Ptr>& latticeSlabBands() {
-  static const std::vector<openvdb::FloatGrid::Ptr> bands = [] {
-    const openvdb::FloatGrid& slab = latticeSlab();
-    const openvdb::CoordBBox box = slab.evalActiveVoxelBoundingBox();
-    std::vector<openvdb::FloatGrid::Ptr> out;
-    for (int k0 = box.min().z(); k0 <= box.max().z(); k0 += kBandLayers) {
-      auto band = openvdb::FloatGrid::create(0.0f);
-      band->setTransform(slab.transform().copy());
-      band->setName(kFractionGridName);
-      for (auto leaf = slab.tree().cbeginLeaf(); leaf; ++leaf)
-        if (leaf->origin().z() >= k0 && leaf->origin().z() < k0 + kBandLayers)
-          band->tree().addLeaf(new openvdb::FloatTree::LeafNodeType(*leaf));
-      out.push_back(band);
-    }
-    return out;
-  }();
+  static const std::vector<openvdb::FloatGrid::Ptr> bands = slabBands(latticeSlab(), kFractionGridName);
   return bands;
 }
 
@@ -151,6 +163,37 @@ void ditherLatticeBands(benchmark::State& state) {
   state.counters["peak_rss_MB"] = peakRssMb();
 }
 BENCHMARK(ditherLatticeBands)->DenseRange(0, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The lattice slab's moduli in 8-layer bands, mapped and dithered as `rodfab slice` does it, two
+// bands alive: Arg 0 = white, 1 = blue; Arg 1 = 0: mapped into a fraction grid (a recycler keeping 2
+// trees, as the slicer's did), then dithered; 1: in one pass (Ditherer::mapAndDitherLayers, no fraction
+// grid). cpu_ms_per_run is the process's CPU time a run (every thread).
+void mapDitherLatticeBands(benchmark::State& state) {
+  const std::string method = ditherMethodNames()[static_cast<std::size_t>(state.range(0))];
+  const bool fused = state.range(1) != 0;
+  const auto ditherer = makeDitherer(method, {1, nullptr});
+  static const std::vector<openvdb::FloatGrid::Ptr> bands = slabBands(latticeModulusSlab(), "modulus_mpa");
+  const int k0 = bands.front()->evalActiveVoxelBoundingBox().min().z();
+  rodfab::voxel::TreeRecycler<openvdb::FloatTree> fractionTrees(0.0f, 2);
+  MappingStats stats;
+  const double cpuBefore = processCpuSeconds();
+  for (auto _ : state) {
+    openvdb::BoolGrid::Ptr previous, current;
+    for (std::size_t b = 0; b < bands.size(); ++b) {
+      const int bandK0 = k0 + static_cast<int>(b) * kBandLayers, bandK1 = bandK0 + kBandLayers;
+      previous = std::move(current);
+      current = fused ? ditherer->mapAndDitherLayers(*bands[b], bundledMap(), bandK0, bandK1, stats)
+                      : ditherer->ditherLayers(*mapToFractions(*bands[b], bundledMap(), bandK0, bandK1, stats, fractionTrees), bandK0, bandK1);
+      benchmark::DoNotOptimize(current);
+    }
+  }
+  state.SetLabel(method + (fused ? " fused" : " map, then dither"));
+  state.SetItemsProcessed(static_cast<std::int64_t>(stats.voxels));
+  state.counters["cpu_ms_per_run"] = 1e3 * (processCpuSeconds() - cpuBefore) / static_cast<double>(state.iterations());
+  state.counters["voxels"] = static_cast<double>(stats.voxels) / static_cast<double>(state.iterations());
+  state.counters["peak_rss_MB"] = peakRssMb();
+}
+BENCHMARK(mapDitherLatticeBands)->ArgsProduct({{0, 1}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // Moduli spanning 2 .. 400 MPa through the bundled calibration's lookup table.
 void mapModulusToFraction(benchmark::State& state) {

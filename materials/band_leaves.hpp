@@ -2,11 +2,13 @@
 // the band, fraction checks and the assembly of the output grid. Internal to materials/.
 #pragma once
 
+#include "materials/fraction_map.hpp"
 #include "voxel/tree_assembly.hpp"
 
 #include <openvdb/openvdb.h>
 
 #include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <array>
@@ -134,35 +136,54 @@ LeafMask ditherLeaf(const FloatLeaf& in, const LeafMask& mask, const Rule& rule,
   return vero;
 }
 
-// Dithers layers [k0, k1) leaf by leaf in parallel, for rules that look at nothing but the voxel:
-// ruleForLeaf(origin) returns the leaf's rule, called once a leaf as rule(values, words, bits): for
-// each word w whose bit is set in `words` (offsets 64 w + b, i.e. x = origin.x + w, y = origin.y + b / 8,
-// z = origin.z + b % 8, holding active voxels) it sets bit b of bits[w] where values[64 w + b] makes
-// Vero, for all 64 voxels, active or not (loops without branches; inactive voxels are masked off after).
-// The output leaves and internal nodes come from `recycler`'s spares (earlier bands' outputs) where it
-// has any, and the output tree goes back to it when its owners let go. `checkInterrupt`, when set, is
+// The walk both pointwise paths share: the leaves of `tree` holding voxels of layers [k0, k1), in
+// parallel, each leaf's Vero bits from veroOf(in, mask, l) (`mask`: its active voxels in the band, not
+// empty; `l`: its index in the band's leaf list, tree order) into an output leaf with that mask; then
+// afterLeaves() on the calling thread (it may throw: nothing is assembled yet), then the output tree,
+// its leaves and internal nodes taken from `recycler`'s spares where it has any (earlier bands'
+// outputs), that goes back to the recycler when its owners let go. `checkInterrupt`, when set, is
 // called before each leaf (DitherOptions::checkInterrupt); what it throws leaves the call.
-template <typename RuleForLeaf>
-openvdb::BoolGrid::Ptr ditherPointwise(const openvdb::FloatGrid& fraction, int k0, int k1, const RuleForLeaf& ruleForLeaf,
-                                       OutputTreeRecycler& recycler, const std::function<void()>& checkInterrupt = {}) {
-  const LeafGroups groups = leafGroupsInLayers(fraction.tree(), k0, k1);
+template <typename VeroOfLeaf, typename AfterLeaves>
+openvdb::BoolTree::Ptr ditherLeavesInLayers(const openvdb::FloatTree& tree, int k0, int k1, const VeroOfLeaf& veroOf,
+                                            const AfterLeaves& afterLeaves, OutputTreeRecycler& recycler,
+                                            const std::function<void()>& checkInterrupt) {
+  const LeafGroups groups = leafGroupsInLayers(tree, k0, k1);
   SpareNodes spares = recycler.takeSpares();
   std::vector<std::unique_ptr<BoolLeaf>> out(groups.leaves.size());
-  FractionCheck check;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, groups.leaves.size()), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t l = r.begin(); l != r.end(); ++l) {
       if (checkInterrupt) checkInterrupt();
       const FloatLeaf& in = *groups.leaves[l];
       const LeafMask mask = activeInLayers(in, k0, k1);
       if (mask.isOff()) continue;
-      const LeafMask vero = ditherLeaf(in, mask, ruleForLeaf(in.origin()), check, l);
+      const LeafMask vero = veroOf(in, mask, l);
       out[l] = spares.leaf(l, in.origin());
       out[l]->setValueMask(mask);
       out[l]->buffer() = BoolLeaf::Buffer(vero);
     }
   });
-  if (check.failed()) throwFirstInvalid(fraction, k0, k1);
-  return materialGrid(recycler.assemble(groups, out, spares), fraction);
+  afterLeaves();
+  return recycler.assemble(groups, out, spares);
+}
+
+// Dithers layers [k0, k1) of a fraction grid leaf by leaf in parallel, for rules that look at nothing
+// but the voxel: ruleForLeaf(origin) returns the leaf's rule, called once a leaf as rule(values, words,
+// bits): for each word w whose bit is set in `words` (offsets 64 w + b, i.e. x = origin.x + w, y =
+// origin.y + b / 8, z = origin.z + b % 8, holding active voxels) it sets bit b of bits[w] where
+// values[64 w + b] makes Vero, for all 64 voxels, active or not (loops without branches; inactive voxels
+// are masked off after), and reads no other word of `values`. Output nodes and interrupts as
+// ditherLeavesInLayers. Throws std::invalid_argument for an active voxel that is not a fraction.
+template <typename RuleForLeaf>
+openvdb::BoolGrid::Ptr ditherPointwise(const openvdb::FloatGrid& fraction, int k0, int k1, const RuleForLeaf& ruleForLeaf,
+                                       OutputTreeRecycler& recycler, const std::function<void()>& checkInterrupt = {}) {
+  FractionCheck check;
+  const auto veroOf = [&](const FloatLeaf& in, const LeafMask& mask, std::size_t l) {
+    return ditherLeaf(in, mask, ruleForLeaf(in.origin()), check, l);
+  };
+  const auto afterLeaves = [&] {
+    if (check.failed()) throwFirstInvalid(fraction, k0, k1);
+  };
+  return materialGrid(ditherLeavesInLayers(fraction.tree(), k0, k1, veroOf, afterLeaves, recycler, checkInterrupt), fraction);
 }
 
 // The same without reuse: a fresh tree for every call.
@@ -170,6 +191,55 @@ template <typename RuleForLeaf>
 openvdb::BoolGrid::Ptr ditherPointwise(const openvdb::FloatGrid& fraction, int k0, int k1, const RuleForLeaf& ruleForLeaf) {
   OutputTreeRecycler fresh;
   return ditherPointwise(fraction, k0, k1, ruleForLeaf, fresh);
+}
+
+// The Vero bits of leaf `in`'s voxels in `mask` (moduli, MPa) by `rule` applied to their fractions,
+// which FractionMap::mapWord writes into `fractions` (the caller's 512 floats, in L1: never a leaf of
+// a tree) word by word just before; counts the leaf's voxels and clamps into `stats`. A word's
+// fractions are mapWord's, as mapToFractions stores them, so the bits are those of dithering the
+// mapped grid; no fraction check: a FractionMap gives values in [0, 1] only.
+template <typename Rule>
+LeafMask mapAndDitherLeaf(const FloatLeaf& in, const LeafMask& mask, const FractionMap& map, const Rule& rule,
+                          float* fractions, MappingStats& stats) {
+  const float* moduli = in.buffer().data();
+  unsigned words = 0;  // bit w: word w has active voxels
+  for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w) {
+    const std::uint64_t active = mask.template getWord<std::uint64_t>(w);
+    if (!active) continue;
+    const FractionMap::WordClamps clamps = map.mapWord(moduli + 64 * w, active, fractions + 64 * w);
+    stats.voxels += static_cast<std::uint64_t>(std::popcount(active));
+    stats.clamps.belowFloor += clamps.belowFloor;
+    stats.clamps.aboveMax += clamps.aboveMax;
+    words |= 1u << w;
+  }
+  LeafWords bits{};
+  if (words) rule(fractions, words, bits);
+  LeafMask vero;
+  for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w)
+    vero.template getWord<std::uint64_t>(w) = bits[w] & mask.template getWord<std::uint64_t>(w);
+  return vero;
+}
+
+// Maps and dithers layers [k0, k1) of a modulus grid (active voxels in leaves only) in one pass over
+// its leaves, for the rules of ditherPointwise: the same output as ditherPointwise on
+// mapToFractions(modulus, map, k0, k1) (the same leaves, values and bits), and the same counts added
+// to `stats`, without the fraction grid. The counts are summed per thread and added after the last
+// leaf (integer sums: the same for any thread count); `stats` is left unchanged when something throws.
+template <typename RuleForLeaf>
+openvdb::BoolGrid::Ptr mapAndDitherPointwise(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
+                                             const RuleForLeaf& ruleForLeaf, OutputTreeRecycler& recycler,
+                                             const std::function<void()>& checkInterrupt, MappingStats& stats) {
+  tbb::enumerable_thread_specific<MappingStats> counts;
+  const auto veroOf = [&](const FloatLeaf& in, const LeafMask& mask, std::size_t) {
+    alignas(64) float fractions[FloatLeaf::SIZE];
+    return mapAndDitherLeaf(in, mask, map, ruleForLeaf(in.origin()), fractions, counts.local());
+  };
+  openvdb::BoolTree::Ptr tree = ditherLeavesInLayers(modulus.tree(), k0, k1, veroOf, [] {}, recycler, checkInterrupt);
+  for (const MappingStats& s : counts) {
+    stats.voxels += s.voxels;
+    stats.clamps += s.clamps;
+  }
+  return materialGrid(std::move(tree), modulus);
 }
 
 }  // namespace rodfab::materials::detail

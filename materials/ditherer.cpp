@@ -3,6 +3,7 @@
 #include "materials/band_leaves.hpp"
 #include "materials/counter_hash.hpp"
 #include "materials/error_diffusion.hpp"
+#include "materials/fraction_map.hpp"
 
 #include <array>
 #include <stdexcept>
@@ -47,59 +48,77 @@ void blueNoiseLeafBits(const ThresholdColumns& column, const float* values, unsi
   }
 }
 
-// What the pointwise ditherers hold while dithering a band (detail::ditherPointwise): the band's leaves
-// (LeafGroups: a pointer a leaf, and a start index per parent node, fewer) and the output leaves'
-// pointers, 8 bytes a leaf each. No buffer per worker or per layer, nothing kept between bands but the
-// recycler's spare output nodes (the caller counts those with the material trees).
+// What the pointwise ditherers hold while dithering a band (detail::ditherLeavesInLayers): the band's
+// leaves (LeafGroups: a pointer a leaf, and a start index per parent node, fewer) and the output leaves'
+// pointers, 8 bytes a leaf each. No buffer per worker or per layer (the fused path's 2 KB of fractions
+// a leaf live on the worker's stack), nothing kept between bands but the recycler's spare output nodes
+// (the caller counts those with the material trees).
 double pointwiseBytes(const DitherBand& band) { return 2.0 * 8.0 * band.leaves; }
 
-// Mezzotint as in the published pipeline: Vero where a uniform number drawn for the voxel is below its
-// fraction. The number is a hash of (seed, leaf origin) and the voxel's offset, never a sequential
-// stream (counter_hash.hpp).
-class WhiteNoiseDitherer final : public Ditherer {
+// What white and blue noise share: the rule looks at nothing but the voxel, so a band is dithered leaf
+// by leaf from its fractions (ditherPointwise) or from its moduli, mapped as it goes
+// (mapAndDitherPointwise). `Rules` gives ruleForLeaf(origin) (see ditherPointwise).
+template <typename Rules>
+class PointwiseDitherer : public Ditherer {
 public:
-  WhiteNoiseDitherer(std::uint64_t seed, std::function<void()> checkInterrupt)
-      : seed_(seed), checkInterrupt_(std::move(checkInterrupt)) {}
-  std::string_view name() const override { return "white"; }
+  explicit PointwiseDitherer(std::function<void()> checkInterrupt) : checkInterrupt_(std::move(checkInterrupt)) {}
   bool readsNextLayer() const override { return false; }
-  double workingBytes(const DitherBand& band, int) const override { return pointwiseBytes(band); }
+  bool mapsWhileDithering() const override { return true; }
   std::size_t keptTrees() const override { return recycler_.keptTrees(); }
 
 protected:
   openvdb::BoolGrid::Ptr ditherLeafVoxels(const openvdb::FloatGrid& fraction, int k0, int k1) override {
-    const std::uint64_t seed = seed_;
-    return detail::ditherPointwise(fraction, k0, k1, [seed](const openvdb::Coord& origin) {
-      const std::uint64_t key = whiteNoiseLeafKey(seed, origin.x(), origin.y(), origin.z());
-      return [key](const float* values, unsigned words, detail::LeafWords& bits) { whiteNoiseLeafBits(key, values, words, bits); };
-    }, recycler_, checkInterrupt_);
+    return detail::ditherPointwise(fraction, k0, k1, rules().ruleForLeaf(), recycler_, checkInterrupt_);
+  }
+  openvdb::BoolGrid::Ptr mapAndDitherLeafVoxels(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
+                                                MappingStats& stats) override {
+    return detail::mapAndDitherPointwise(modulus, map, k0, k1, rules().ruleForLeaf(), recycler_, checkInterrupt_, stats);
   }
 
 private:
-  std::uint64_t seed_;
+  const Rules& rules() const { return static_cast<const Rules&>(*this); }
   std::function<void()> checkInterrupt_;  // DitherOptions::checkInterrupt
   detail::OutputTreeRecycler recycler_;
 };
 
+// Mezzotint as in the published pipeline: Vero where a uniform number drawn for the voxel is below its
+// fraction. The number is a hash of (seed, leaf origin) and the voxel's offset, never a sequential
+// stream (counter_hash.hpp).
+class WhiteNoiseDitherer final : public PointwiseDitherer<WhiteNoiseDitherer> {
+public:
+  WhiteNoiseDitherer(std::uint64_t seed, std::function<void()> checkInterrupt)
+      : PointwiseDitherer(std::move(checkInterrupt)), seed_(seed) {}
+  std::string_view name() const override { return "white"; }
+  double workingBytes(const DitherBand& band, int) const override { return pointwiseBytes(band); }
+
+  auto ruleForLeaf() const {
+    return [seed = seed_](const openvdb::Coord& origin) {
+      const std::uint64_t key = whiteNoiseLeafKey(seed, origin.x(), origin.y(), origin.z());
+      return [key](const float* values, unsigned words, detail::LeafWords& bits) { whiteNoiseLeafBits(key, values, words, bits); };
+    };
+  }
+
+private:
+  std::uint64_t seed_;
+};
+
 // Ordered dithering with a tiled blue-noise threshold mask; the seed picks where the tiling starts.
-class BlueNoiseDitherer final : public Ditherer {
+class BlueNoiseDitherer final : public PointwiseDitherer<BlueNoiseDitherer> {
 public:
   BlueNoiseDitherer(std::shared_ptr<const BlueNoiseMask> mask, std::uint64_t seed, std::function<void()> checkInterrupt)
-      : mask_(std::move(mask)), checkInterrupt_(std::move(checkInterrupt)) {
+      : PointwiseDitherer(std::move(checkInterrupt)), mask_(std::move(mask)) {
     const auto r = philox(seed, 0, 0, 0, HashStream::MaskOffset);
     for (int a = 0; a < 3; ++a) offset_[a] = static_cast<int>(r[a] % static_cast<std::uint32_t>(mask_->size()[a]));
     buildColumns();
   }
   std::string_view name() const override { return "blue"; }
-  bool readsNextLayer() const override { return false; }
   // The leaf lists, and the rearranged thresholds it keeps for good (about 0.8 MB for the bundled mask).
   double workingBytes(const DitherBand& band, int) const override {
     return pointwiseBytes(band) + double(columns_.size() * sizeof(float));
   }
-  std::size_t keptTrees() const override { return recycler_.keptTrees(); }
 
-protected:
-  openvdb::BoolGrid::Ptr ditherLeafVoxels(const openvdb::FloatGrid& fraction, int k0, int k1) override {
-    return detail::ditherPointwise(fraction, k0, k1, [this](const openvdb::Coord& origin) {
+  auto ruleForLeaf() const {
+    return [this](const openvdb::Coord& origin) {
       // The leaf's 8 x 8 columns of thresholds along z, each 8 consecutive floats of columns_.
       ThresholdColumns column;
       const std::array<int, 8> i = cells(origin.x(), 0), j = cells(origin.y(), 1);
@@ -107,7 +126,7 @@ protected:
       for (int x = 0; x < 8; ++x)
         for (int y = 0; y < 8; ++y) column[x][y] = columns_.data() + columnStart(i[x], j[y]) + k;
       return [column](const float* values, unsigned words, detail::LeafWords& bits) { blueNoiseLeafBits(column, values, words, bits); };
-    }, recycler_, checkInterrupt_);
+    };
   }
 
 private:
@@ -135,10 +154,8 @@ private:
   }
 
   std::shared_ptr<const BlueNoiseMask> mask_;
-  std::function<void()> checkInterrupt_;  // DitherOptions::checkInterrupt
   std::array<int, 3> offset_{};
   std::vector<float> columns_;
-  detail::OutputTreeRecycler recycler_;
 };
 
 }  // namespace
@@ -151,6 +168,31 @@ openvdb::BoolGrid::Ptr Ditherer::ditherLayers(const openvdb::FloatGrid& fraction
   const openvdb::FloatGrid::Ptr voxels = fraction.deepCopy();
   voxels->tree().voxelizeActiveTiles();
   return ditherLeafVoxels(*voxels, k0, k1);
+}
+
+openvdb::BoolGrid::Ptr Ditherer::mapAndDitherLayers(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
+                                                    MappingStats& stats) {
+  if (k0 > k1)
+    throw std::invalid_argument("dither: band of layers [" + std::to_string(k0) + ", " + std::to_string(k1) +
+                                ") is reversed, expected k0 <= k1");
+  if (!modulus.tree().hasActiveTiles()) return mapAndDitherLeafVoxels(modulus, map, k0, k1, stats);
+  const openvdb::FloatGrid::Ptr voxels = modulus.deepCopy();
+  voxels->tree().voxelizeActiveTiles();
+  return mapAndDitherLeafVoxels(*voxels, map, k0, k1, stats);
+}
+
+openvdb::BoolGrid::Ptr Ditherer::mapAndDitherLeafVoxels(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
+                                                        MappingStats& stats) {
+  MappingStats band;
+  const openvdb::FloatGrid::Ptr fraction = mapToFractions(modulus, map, k0, k1, band);
+  if (readsNextLayer()) {  // its voxels are where error goes; they are counted with their own band
+    MappingStats ignored;
+    fraction->tree().merge(mapToFractions(modulus, map, k1, k1 + 1, ignored)->tree());
+  }
+  openvdb::BoolGrid::Ptr material = ditherLeafVoxels(*fraction, k0, k1);
+  stats.voxels += band.voxels;
+  stats.clamps += band.clamps;
+  return material;
 }
 
 openvdb::BoolGrid::Ptr Ditherer::dither(const openvdb::FloatGrid& fraction) {

@@ -26,6 +26,9 @@
 
 namespace rodfab::materials {
 
+class FractionMap;     // fraction_map.hpp
+struct MappingStats;   // fraction_map.hpp
+
 inline constexpr bool kVero = true;    // VeroWhitePlus
 inline constexpr bool kTango = false;  // TangoBlackPlus
 inline constexpr const char* kFractionGridName = "vero_fraction";
@@ -85,6 +88,26 @@ public:
   // Active tiles in `fraction` are dithered voxel by voxel (on a voxelized copy: costs memory).
   openvdb::BoolGrid::Ptr ditherLayers(const openvdb::FloatGrid& fraction, int k0, int k1);
 
+  // Maps layers [k0, k1) of a "modulus_mpa" grid (E in MPa, active voxels = the part) to Vero fractions
+  // with `map` and dithers them: the same material grid as
+  //   ditherLayers(*mapToFractions(modulus, map, k0, k1, stats), k0, k1)
+  // bit for bit, and the same counts added to `stats` (left unchanged when something throws). The
+  // pointwise ditherers (white, blue; mapsWhileDithering()) map each leaf into a buffer of 512 floats
+  // and dither it at once, building no fraction grid; the others map the band into a fraction grid
+  // first (error diffusion: layer k1 as well, not counted, since it reads that layer). Throws as
+  // ditherLayers (std::invalid_argument for k0 > k1; no fraction check is needed, a FractionMap's
+  // values lie in [0, 1]); interrupts as DitherOptions::checkInterrupt says. Active tiles in `modulus`
+  // are mapped voxel by voxel (on a voxelized copy). Threads: runs in the caller's TBB arena; the
+  // result and the counts do not depend on the thread count. Not for concurrent calls on one ditherer.
+  openvdb::BoolGrid::Ptr mapAndDitherLayers(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
+                                            MappingStats& stats);
+
+  // Whether mapAndDitherLayers builds no fraction grid (white, blue), so a slicer can leave the
+  // mapping to it and a memory estimate counts no fraction trees. False unless a ditherer overrides
+  // mapAndDitherLeafVoxels to fuse: a wrapper that does not pass both on keeps the default pair, which
+  // agree. No throw; thread-safe.
+  virtual bool mapsWhileDithering() const { return false; }
+
   // Forgets streaming state, so the next band may start anywhere.
   virtual void reset() {}
 
@@ -94,6 +117,11 @@ public:
 protected:
   // ditherLayers for a grid whose active voxels all sit in leaves, with k0 <= k1.
   virtual openvdb::BoolGrid::Ptr ditherLeafVoxels(const openvdb::FloatGrid& fraction, int k0, int k1) = 0;
+  // mapAndDitherLayers for a modulus grid whose active voxels all sit in leaves, with k0 <= k1. The
+  // default maps the band (and layer k1 when readsNextLayer()) into a fraction grid and calls
+  // ditherLeafVoxels; a ditherer that overrides it to fuse says so in mapsWhileDithering().
+  virtual openvdb::BoolGrid::Ptr mapAndDitherLeafVoxels(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0,
+                                                        int k1, MappingStats& stats);
 };
 
 // "white": Vero where a counter-based uniform number of (seed, i, j, k) is below the fraction (mezzotint).

@@ -58,6 +58,41 @@ using Int4 = Lanes<4>::Int;
   return __builtin_convertvector(v, Lanes<4>::Float);
 }
 
+// The same for eight lanes: eight doubles are two AVX registers, which GCC would clamp lane by lane, so
+// four at a time.
+[[gnu::always_inline]] inline Lanes<8>::Float clampedFraction(Lanes<8>::Double start, Lanes<8>::Double rise, Lanes<8>::Double t,
+                                                              Double4 lowest, Double4 highest) {
+  const Lanes<4>::Float low = clampedFraction(__builtin_shufflevector(start, start, 0, 1, 2, 3), __builtin_shufflevector(rise, rise, 0, 1, 2, 3),
+                                              __builtin_shufflevector(t, t, 0, 1, 2, 3), lowest, highest);
+  const Lanes<4>::Float high = clampedFraction(__builtin_shufflevector(start, start, 4, 5, 6, 7), __builtin_shufflevector(rise, rise, 4, 5, 6, 7),
+                                               __builtin_shufflevector(t, t, 4, 5, 6, 7), lowest, highest);
+  return __builtin_shufflevector(low, high, 0, 1, 2, 3, 4, 5, 6, 7);
+}
+
+// The lanes of group q (voxels q .. q + N - 1 of a word) whose bit is set in `active`: all ones, else 0.
+template <int N>
+[[gnu::always_inline]] inline typename Lanes<N>::Int onLanes(std::uint64_t active, int q) {
+  using Int = typename Lanes<N>::Int;
+  Int lane;
+  for (int l = 0; l < N; ++l) lane[l] = l;
+  return ((Int{} + static_cast<std::int32_t>(active >> q & ((std::uint64_t(1) << N) - 1))) >> lane & 1) == 1;
+}
+
+// Whether the active voxels of a word (`active` not 0) all hold the modulus `value`, bit for bit.
+template <int N>
+[[gnu::always_inline]] inline bool allActiveAre(const float* moduli, std::uint64_t active, std::uint32_t value) {
+  using UInt = typename Lanes<N>::UInt;
+  UInt differ = {};
+  for (int q = 0; q < 64; q += N) {
+    UInt bits;
+    std::memcpy(&bits, moduli + q, sizeof bits);
+    differ |= (bits ^ value) & reinterpret_cast<UInt>(onLanes<N>(active, q));
+  }
+  bool none = true;
+  for (int l = 0; l < N; ++l) none &= differ[l] == 0;
+  return none;
+}
+
 // The start and rise of the table's intervals of the lanes: the same doubles either way. Scalar loads
 // of four lanes (the baseline), or four AVX2 gathers of eight (called, inlined, from mapWord's AVX2
 // version only).
@@ -117,16 +152,9 @@ inline FractionMap::WordClamps FractionMap::mapWordWith(const float* moduli, std
   const Float floorFraction = Float{} + static_cast<float>(floorFraction_), one = Float{} + 1.0f, zero = Float{};
   const Double4 lowest = Double4{} + floorFraction_, highest = Double4{} + 1.0;
   const Int first = Int{} + static_cast<std::int32_t>(firstInterval_), last = Int{} + static_cast<std::int32_t>(lastInterval_);
-  Int lane;
-  for (int l = 0; l < N; ++l) lane[l] = l;
-  Int belowCount = {}, aboveCount = {};  // minus the clamped active voxels, lane by lane
-  for (int q = 0; q < 64; q += N) {
-    if (!(active >> q & kLaneBits)) {  // the thin parts of a rod leave whole groups inactive
-      std::memcpy(fractions + q, &zero, sizeof zero);
-      continue;
-    }
-    Float e;
-    std::memcpy(&e, moduli + q, sizeof e);
+  // N lanes' fractions of the moduli `e`, every lane computed, the clamps applied (flags in `below`
+  // and `above`: all ones where clamped).
+  const auto laneFractions = [&](Float e, Int& below, Int& above) {
     const UInt bits = reinterpret_cast<UInt>(e);
     Int interval = reinterpret_cast<Int>(bits >> shift) - first;
     interval = interval < 0 ? Int{} : interval;
@@ -135,25 +163,41 @@ inline FractionMap::WordClamps FractionMap::mapWordWith(const float* moduli, std
     const Double t = __builtin_convertvector(offset, Double) * inverseWidth;
     Double start, rise;
     Load::load(segments, interval, start, rise);
-    Float f;
-    if constexpr (N == 4) {
-      f = clampedFraction(start, rise, t, lowest, highest);
-    } else {  // eight doubles are two AVX registers, which GCC would clamp lane by lane: four at a time
-      const Lanes<4>::Float low = clampedFraction(__builtin_shufflevector(start, start, 0, 1, 2, 3),
-                                                  __builtin_shufflevector(rise, rise, 0, 1, 2, 3),
-                                                  __builtin_shufflevector(t, t, 0, 1, 2, 3), lowest, highest);
-      const Lanes<4>::Float high = clampedFraction(__builtin_shufflevector(start, start, 4, 5, 6, 7),
-                                                   __builtin_shufflevector(rise, rise, 4, 5, 6, 7),
-                                                   __builtin_shufflevector(t, t, 4, 5, 6, 7), lowest, highest);
-      f = __builtin_shufflevector(low, high, 0, 1, 2, 3, 4, 5, 6, 7);
+    const Float f = clampedFraction(start, rise, t, lowest, highest);
+    below = ~(e >= floor);
+    above = (e > maximum) & ~below;
+    return below ? floorFraction : above ? one : f;
+  };
+  if (const std::uint64_t voxels = static_cast<std::uint64_t>(std::popcount(active)); voxels > 1) {
+    // A word whose active voxels all hold the same modulus, bit for bit (two thirds of the lattice
+    // class's voxels, where E depends on z only; every word of the dense block), maps it once: the
+    // same lanes' arithmetic on that value, so the same fraction, stored into every active voxel.
+    const std::uint32_t value = std::bit_cast<std::uint32_t>(moduli[std::countr_zero(active)]);
+    if (allActiveAre<N>(moduli, active, value)) {
+      Int below, above;
+      const Float f = laneFractions(reinterpret_cast<Float>(UInt{} + value), below, above);  // every lane alike, -0 and NaN kept
+      for (int q = 0; q < 64; q += N) {
+        const Float out = onLanes<N>(active, q) ? f : zero;
+        std::memcpy(fractions + q, &out, sizeof out);
+      }
+      return {below[0] ? voxels : 0, above[0] ? voxels : 0};
     }
-    const Int on = ((Int{} + static_cast<std::int32_t>(active >> q & kLaneBits)) >> lane & 1) == 1;
-    const Int below = ~(e >= floor) & on, above = (e > maximum) & ~below & on;
-    f = below ? floorFraction : above ? one : f;
+  }
+  Int belowCount = {}, aboveCount = {};  // minus the clamped active voxels, lane by lane
+  for (int q = 0; q < 64; q += N) {
+    if (!(active >> q & kLaneBits)) {  // the thin parts of a rod leave whole groups inactive
+      std::memcpy(fractions + q, &zero, sizeof zero);
+      continue;
+    }
+    Float e;
+    std::memcpy(&e, moduli + q, sizeof e);
+    const Int on = onLanes<N>(active, q);
+    Int below, above;
+    Float f = laneFractions(e, below, above);
     f = on ? f : zero;
     std::memcpy(fractions + q, &f, sizeof f);
-    belowCount += below;
-    aboveCount += above;
+    belowCount += below & on;
+    aboveCount += above & on;
   }
   std::int64_t belowSum = 0, aboveSum = 0;
   for (int l = 0; l < N; ++l) {
@@ -181,6 +225,9 @@ FractionMap::FractionMap(const calibration::Calibration& calibration, std::size_
         maxModulusMpa_ < double(std::numeric_limits<float>::max())))
     throw std::invalid_argument("fraction map: the calibration's floor and maximum modulus must satisfy 0 < floor < max "
                                 "within the float range, got " + std::to_string(floorMpa_) + " and " + std::to_string(maxModulusMpa_));
+  // Every value the map gives lies in [floor fraction, 1]: the fused ditherers check no fraction.
+  if (!(floorFraction_ >= 0.0 && floorFraction_ < 1.0))
+    throw std::invalid_argument("fraction map: the calibration's floor fraction must lie in [0, 1), got " + std::to_string(floorFraction_));
   // Intervals per octave: the power of two that puts at least `nodes` nodes between floor and max.
   const double octaves = std::log2(maxModulusMpa_ / floorMpa_);
   const double perOctave = std::max(1.0, static_cast<double>(nodes - 1) / octaves);

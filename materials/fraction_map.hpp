@@ -39,7 +39,8 @@ class FractionMap {
 public:
   // `nodes`: at least this many table nodes between the floor and the maximum (the intervals per
   // octave are the power of two that gives them, at most 2^20). Throws std::invalid_argument for fewer
-  // than 2 nodes.
+  // than 2 nodes, or a calibration whose floor fraction is not in [0, 1) (so every fraction the map
+  // gives is in [0, 1]: Ditherer::mapAndDitherLayers checks none).
   explicit FractionMap(const calibration::Calibration& calibration, std::size_t nodes = 4096);
 
   // Const, thread-safe, allocation-free. The clamps are decided on the double; inside the range E is
@@ -64,7 +65,9 @@ public:
   // moduli[b] whose bit b of `active` is set, by mapToFractions' rule (the clamps decided on the float:
   // !(E >= float(floor)), NaN too, gives the floor's fraction, E > float(max) gives 1, anything else
   // float(interpolate(E))), and 0 where the bit is clear. Four voxels a step without branches (eight in
-  // the AVX2 version), lane by lane the scalar expressions (same bits). Returns how many active voxels were clamped.
+  // the AVX2 version), lane by lane the scalar expressions (same bits); a word whose active moduli are
+  // one value, bit for bit, is mapped once (the same lanes' arithmetic, so the same bits) and stored into
+  // each active voxel. Returns how many active voxels were clamped.
   struct WordClamps {
     std::uint64_t belowFloor = 0, aboveMax = 0;
   };

@@ -124,7 +124,10 @@ printer_profiles::JobResult streamJob(printer_profiles::JobSpec spec, const Band
     };
     const auto dither = [&](BandPtr band) {
       common::throwIfInterrupted();
-      ditherArena.run(seconds.dither, [&] { band->material = ditherer.ditherLayers(*band->grids.fraction, band->k0, band->k1); });
+      ditherArena.run(seconds.dither, [&] {
+        band->material = options.ditherBand ? options.ditherBand(band->grids, band->k0, band->k1)
+                                            : ditherer.ditherLayers(*band->grids.fraction, band->k0, band->k1);
+      });
       band->grids.fraction.reset();  // the fractions are done with: free them before the band waits
       return band;
     };

@@ -17,7 +17,8 @@ namespace rodfab::slicer {
 
 // Layers [k0, k1) of the part (plus layer k1 when the pipeline asks for it: error diffusion reads it).
 struct BandGrids {
-  openvdb::FloatGrid::Ptr fraction;  // "vero_fraction", in the printer grid
+  openvdb::FloatGrid::Ptr fraction;  // "vero_fraction", in the printer grid; null when PipelineOptions::
+                                     // ditherBand makes the material from the moduli
   openvdb::FloatGrid::Ptr modulus;   // "modulus_mpa" for the modulus previews; may be null
 };
 // (k0, k1, withNextLayer) -> the band. Its voxels must lie in the part bounds given to the writer.
@@ -84,6 +85,11 @@ struct PipelineOptions {
   std::function<void(int, int)> onBand;
   // Called after the last band, before the manifest is written: fill in what the bands counted.
   std::function<void(printer_profiles::JobMetadata&)> beforeFinalize;
+  // The dither stage's work when set: (the source's band, k0, k1) -> the band's material grid, called
+  // in the dither stage's arena, one band at a time in increasing k (sliceDesign maps the moduli as it
+  // dithers: materials::Ditherer::mapAndDitherLayers, the source leaving `fraction` null). Unset:
+  // ditherer.ditherLayers(*fraction, k0, k1). What it throws stops the pipeline as a stage's error does.
+  std::function<openvdb::BoolGrid::Ptr(const BandGrids&, int k0, int k1)> ditherBand;
 };
 
 // Streams every layer of `spec.partBounds` through `source`, `ditherer` and a JobWriter, then

@@ -90,6 +90,64 @@ std::string maxMemoryAtLeast(std::uint64_t bytes) {
 // Fraction trees sliceDesign's recycler keeps: those of the bands in flight, let go while the next are made.
 constexpr std::size_t kFractionTreesKept = kBandsInFlight;
 
+// sliceDesign's bands: rasterized by the source stage, their moduli mapped to fractions there (for a
+// ditherer that reads fraction grids: error diffusion) or by the dither stage as it dithers (white and
+// blue: Ditherer::mapAndDitherLayers, no fraction grid), with the mapping's counts, the voxels each rod
+// won and the report's clamp picture added up band by band. make() is the pipeline's source,
+// mapAndDither() its dither stage when mapsWhileDithering(); each is called one band at a time.
+class SliceBands {
+public:
+  SliceBands(const voxel::Rasterizer& rasterizer, const materials::FractionMap& map, materials::Ditherer& ditherer,
+             SliceReport& report, ClampMap& clamps)
+      : rasterizer_(rasterizer), map_(map), ditherer_(ditherer), report_(report), clamps_(clamps),
+        fused_(ditherer.mapsWhileDithering()) {}
+  bool mapsWhileDithering() const { return fused_; }
+
+  BandGrids make(int k0, int k1, bool withNextLayer) {
+    const voxel::Rasterization ras = rasterizer_.rasterizeLayers(k0, k1 + (withNextLayer ? 1 : 0));
+    for (std::size_t r = 0; r < report_.voxelsPerRod.size(); ++r) report_.voxelsPerRod[r] += ras.voxelsPerRod[r];
+    if (fused_) return BandGrids{nullptr, ras.grid};  // mapped by mapAndDither
+    materials::MappingStats counts;
+    BandGrids band{materials::mapToFractions(*ras.grid, map_, k0, k1, counts, fractionTrees_, common::throwIfInterrupted), ras.grid};
+    if (withNextLayer) {
+      // Error diffusion reads the next layer's voxels; they are counted with their own band.
+      materials::MappingStats ignored;
+      band.fraction->tree().merge(materials::mapToFractions(*ras.grid, map_, k1, k1 + 1, ignored)->tree());
+    }
+    addMapped(counts, *ras.grid, k0, k1);
+    return band;
+  }
+
+  openvdb::BoolGrid::Ptr mapAndDither(const BandGrids& band, int k0, int k1) {
+    materials::MappingStats counts;
+    openvdb::BoolGrid::Ptr material = ditherer_.mapAndDitherLayers(*band.modulus, map_, k0, k1, counts);
+    addMapped(counts, *band.modulus, k0, k1);
+    return material;
+  }
+
+  // Every band is written: the fraction trees kept for reuse would only sit through the zip and its check.
+  void releaseKept() { fractionTrees_.releaseKept(); }
+
+private:
+  void addMapped(const materials::MappingStats& counts, const openvdb::FloatGrid& modulus, int k0, int k1) {
+    report_.mapping.voxels += counts.voxels;
+    report_.mapping.clamps += counts.clamps;
+    // Where the clamped voxels are, for the report's picture: voxel by voxel only in bands that have any.
+    if (counts.clamps.total() > 0) clamps_.add(modulus, k0, k1);
+    else clamps_.addOutline(modulus, k0, k1);
+  }
+
+  const voxel::Rasterizer& rasterizer_;
+  const materials::FractionMap& map_;
+  materials::Ditherer& ditherer_;
+  SliceReport& report_;
+  ClampMap& clamps_;
+  const bool fused_;
+  // The bands' fraction trees come back here once the pipeline is done with them, and later bands are
+  // built from their nodes (the rasterizer recycles its own trees the same way). Unused when fused_.
+  voxel::TreeRecycler<openvdb::FloatTree> fractionTrees_{0.0f, kFractionTreesKept};
+};
+
 // What sliceMemoryBytes reads besides the design's raster profile and the band size.
 struct SliceMemoryInputs {
   openvdb::Coord part;  // the part's voxels along x, y, z (designVoxelBounds)
@@ -114,8 +172,11 @@ std::uint64_t sliceMemoryBytes(const voxel::RasterProfile& profile, int bandLaye
   // Explicit support's column tops: an int per column of the part.
   const double supportBytes = 4.0 * double(in.part.x()) * double(in.part.y());
   const double ditherBytes = in.ditherer->workingBytes({raster.layerVoxels, raster.bandLeaves, bandLayers}, in.concurrency);
-  return common::saturatedBytes(raster.peakBytes(kBandsInFlight, in.kept.moduli + in.kept.fractions) + materialBytes + supportBytes +
-                                ditherBytes + double(in.writerBytes));
+  // peakBytes counts two float grids a band in flight, its moduli and its fractions: a ditherer that maps
+  // as it dithers (SliceBands) makes no fraction grid, and its kept fraction trees are 0 (slicingKeptTrees).
+  const double fractionGridsNotMade = in.ditherer->mapsWhileDithering() ? kBandsInFlight * raster.bandBytes : 0.0;
+  return common::saturatedBytes(raster.peakBytes(kBandsInFlight, in.kept.moduli + in.kept.fractions) - fractionGridsNotMade +
+                                materialBytes + supportBytes + ditherBytes + double(in.writerBytes));
 }
 
 struct SliceMemoryPlan {
@@ -177,7 +238,9 @@ SliceMemoryPlan planSliceMemory(const geometry::RodStructure& design, const prin
 }  // namespace
 
 KeptBandTrees slicingKeptTrees(const materials::Ditherer& ditherer) {
-  return {voxel::TreeRecycler<openvdb::FloatTree>::kKeptTrees, kFractionTreesKept, ditherer.keptTrees()};
+  // A ditherer that maps as it dithers leaves sliceDesign's fraction recycler empty.
+  return {voxel::TreeRecycler<openvdb::FloatTree>::kKeptTrees, ditherer.mapsWhileDithering() ? 0 : kFractionTreesKept,
+          ditherer.keptTrees()};
 }
 
 std::uint64_t sliceMemoryBytes(const geometry::RodStructure& design, const voxel::PrinterGrid& grid, int bandLayers,
@@ -241,32 +304,17 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   report.voxelsPerRod.assign(design.rods.size(), 0);
   ClampMap clampMap(spec.partBounds, profile.voxelSizeMm, fractionMap.floorMpa(), fractionMap.maxModulusMpa());
   spec.options.report = reportHook(report, calibration, clampMap, spec.options.verify);
-  // The bands' fraction trees come back here once the pipeline is done with them, and later bands are
-  // built from their nodes (the rasterizer recycles its own trees the same way).
-  voxel::TreeRecycler<openvdb::FloatTree> fractionTrees(0.0f, kFractionTreesKept);
-  const BandSource source = [&](int k0, int k1, bool withNextLayer) {
-    const voxel::Rasterization ras = rasterizer.rasterizeLayers(k0, k1 + (withNextLayer ? 1 : 0));
-    const std::uint64_t clampedBefore = report.mapping.clamps.total();
-    for (std::size_t r = 0; r < report.voxelsPerRod.size(); ++r) report.voxelsPerRod[r] += ras.voxelsPerRod[r];
-    BandGrids band{materials::mapToFractions(*ras.grid, fractionMap, k0, k1, report.mapping, fractionTrees, common::throwIfInterrupted),
-                   ras.grid};
-    if (withNextLayer) {
-      // Error diffusion reads the next layer's voxels; they are counted with their own band.
-      materials::MappingStats ignored;
-      band.fraction->tree().merge(materials::mapToFractions(*ras.grid, fractionMap, k1, k1 + 1, ignored)->tree());
-    }
-    // Where the clamped voxels are, for the report's picture: voxel by voxel only in bands that have any.
-    if (report.mapping.clamps.total() > clampedBefore) clampMap.add(*ras.grid, k0, k1);
-    else clampMap.addOutline(*ras.grid, k0, k1);
-    return band;
-  };
+  SliceBands bands(rasterizer, fractionMap, ditherer, report, clampMap);
+  const BandSource source = [&](int k0, int k1, bool withNextLayer) { return bands.make(k0, k1, withNextLayer); };
   PipelineOptions pipeline;
   pipeline.bandLayers = bandLayers;
   pipeline.onBand = settings.onBand;
+  if (bands.mapsWhileDithering())
+    pipeline.ditherBand = [&](const BandGrids& grids, int k0, int k1) { return bands.mapAndDither(grids, k0, k1); };
   pipeline.beforeFinalize = [&](printer_profiles::JobMetadata& metadata) {
     // Every band is written: the trees kept for reuse would only sit through the zip and its check.
     rasterizer.releaseSpareTrees();
-    fractionTrees.releaseKept();
+    bands.releaseKept();
     metadata.clamping = printer_profiles::ModulusClamping{fractionMap.floorMpa(), fractionMap.maxModulusMpa(),
                                                           report.mapping.clamps.belowFloor, report.mapping.clamps.aboveMax};
   };

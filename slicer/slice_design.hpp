@@ -62,7 +62,8 @@ int automaticBandLayers(const openvdb::CoordBBox& partBounds);
 // voxel::TreeRecycler's keptTrees()); sliceMemoryBytes counts each at a band's tree.
 struct KeptBandTrees {
   std::size_t moduli = 0;     // the rasterizer's (voxel::Rasterizer keeps TreeRecycler's default)
-  std::size_t fractions = 0;  // sliceDesign's, for the mapped fractions
+  std::size_t fractions = 0;  // sliceDesign's, for the mapped fractions (0 for a ditherer that maps as
+                              // it dithers: Ditherer::mapsWhileDithering, white and blue)
   std::size_t materials = 0;  // the ditherer's output trees (materials::Ditherer::keptTrees)
 };
 // What sliceDesign's recyclers keep when it slices with `ditherer`. No throw.
@@ -71,7 +72,8 @@ KeptBandTrees slicingKeptTrees(const materials::Ditherer& ditherer);
 // Resident bytes `sliceDesign` needs at most for `design` on `grid` in bands of `bandLayers` layers,
 // from the design alone (no band allocated): the rasterizer's pieces (`pieces` of them once built; the
 // rods' piece budgets before) and band trees with kBandsInFlight bands in flight
-// (voxel::RasterEstimate::peakBytes), the dithered material trees of those bands, the trees sliceDesign's
+// (voxel::RasterEstimate::peakBytes: moduli and fractions; the moduli only for a ditherer that maps as
+// it dithers, Ditherer::mapsWhileDithering), the dithered material trees of those bands, the trees sliceDesign's
 // recyclers keep (each at a band's tree: slicingKeptTrees(ditherer)),
 // `ditherer`'s own buffers (materials::Ditherer::workingBytes in an arena of `concurrency` threads:
 // stageConcurrency(), which follows --threads: error diffusion's workers' buffers), explicit
@@ -79,7 +81,7 @@ KeptBandTrees slicingKeptTrees(const materials::Ditherer& ditherer);
 // resident peaks measured on the benchmark classes and the examples are 1.3 to 2.7 times below it
 // (slicer/README.md). Saturates (common::saturatedBytes) rather than overflows; throws
 // std::bad_alloc if its per-layer tables (two doubles a layer of the grid) cannot be allocated.
-// Thread-safe (reads its arguments only; `ditherer` through its const workingBytes).
+// Thread-safe (reads its arguments only; `ditherer` through its const workingBytes and mapsWhileDithering).
 std::uint64_t sliceMemoryBytes(const geometry::RodStructure& design, const voxel::PrinterGrid& grid, int bandLayers,
                                const materials::Ditherer& ditherer, int concurrency, std::uint64_t writerBytes,
                                std::optional<std::size_t> pieces = std::nullopt);

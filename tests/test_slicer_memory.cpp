@@ -280,6 +280,53 @@ private:
 
 }  // namespace
 
+TEST_CASE("sliceDesign maps white and blue noise's moduli as it dithers: the job, counts and report of mapping in the source, less memory") {
+  openvdb::initialize();
+  TempDir tmp;
+  const calibration::Calibration cal = calibration::loadDefaultCalibration();
+  // E from below the floor to above the stiffest mix along each rod: clamps of both kinds, in some bands.
+  const geometry::NurbsCurve along(1, {0, 0, 1, 1}, {{0, 1, 1}, {4, 1, 1}});
+  const geometry::NurbsCurve up(1, {0, 0, 1, 1}, {{2, 1, 0.5}, {2.5, 1.5, 3.5}});
+  const geometry::RodStructure design{
+      "clamped", {geometry::Rod("along", along, geometry::Section::circle(1.2), std::nullopt, std::nullopt, geometry::CapStyle::Flat,
+                                geometry::BSplineField(1, {0, 0, 1, 1}, {0.5 * cal.floorMpa(), 1.5 * cal.maxModulusMpa()})),
+                  geometry::Rod("up", up, geometry::Section::circle(0.8), std::nullopt, std::nullopt, geometry::CapStyle::Round,
+                                geometry::BSplineField(1, {0, 0, 1, 1}, {1.2 * cal.maxModulusMpa(), 2 * cal.floorMpa()}))}};
+  for (const char* method : {"white", "blue"})
+    for (const int threads : {1, 2}) {
+      INFO(method << ", " << threads << " thread(s)");
+      const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+      const auto slice = [&](materials::Ditherer& ditherer, const char* folder) {
+        fs::create_directories(tmp.path / folder);
+        slicer::SliceSettings settings;
+        settings.designFile = "clamped.json";
+        settings.seed = 3;
+        settings.bandLayers = 8;
+        settings.job.output = tmp.path / folder / "clamped.zip";  // the same name: the previews' titles show it
+        settings.job.force = true;
+        return slicer::sliceDesign(design, connex3(), cal, ditherer, settings);
+      };
+      const auto fused = materials::makeDitherer(method, {3});
+      const auto inner = materials::makeDitherer(method, {3});
+      // Forwards ditherLeafVoxels only: the base class's map-then-dither, and mapsWhileDithering() false,
+      // so sliceDesign maps in its source stage, as before the two were fused.
+      ArenaRecordingDitherer fractionGrids(*inner);
+      REQUIRE(fused->mapsWhileDithering());
+      REQUIRE_FALSE(fractionGrids.mapsWhileDithering());
+      const slicer::SliceReport mapped = slice(*fused, "fused");
+      const slicer::SliceReport source = slice(fractionGrids, "source");
+      CHECK(mapped.mapping.voxels == source.mapping.voxels);
+      CHECK(mapped.mapping.clamps.belowFloor == source.mapping.clamps.belowFloor);
+      CHECK(mapped.mapping.clamps.aboveMax == source.mapping.clamps.aboveMax);
+      CHECK(mapped.mapping.clamps.belowFloor > 0);
+      CHECK(mapped.mapping.clamps.aboveMax > 0);
+      CHECK(mapped.voxelsPerRod == source.voxelsPerRod);
+      REQUIRE(printer_profiles::inspectJob(mapped.job.path).ok());
+      CHECK(fileBytes(mapped.job.path) == fileBytes(source.job.path));  // layers, previews, the report's clamp picture
+      CHECK(mapped.memoryEstimateBytes < source.memoryEstimateBytes);  // no fraction grids
+    }
+}
+
 TEST_CASE("a thread limit of 1 (--threads 1) sizes the stage arenas and the estimate: error diffusion plans and runs one worker, the same job",
           "[memory]") {
   openvdb::initialize();
