@@ -6,13 +6,16 @@
 // with `map`, at the voxel of the benchmark profile (bench_profile.hpp), then the rasterizer's piece
 // count (a line "pieces N"). With bands=L the layers go through in bands of L (as the slicer streams
 // them; the checksums then run over the bands in order, so a whole class fits in memory), with
-// threads=N on N TBB workers (default 1). Profile with
+// threads=N on N TBB workers (default 1). As in `rodfab slice`, the rasterizer and the mapping each
+// build a band's tree from the nodes of the trees let go before (voxel::TreeRecycler), so a run of
+// several bands also counts what the reuse costs (TreeRecycler::takeSpares). Profile with
 //   valgrind --tool=callgrind --toggle-collect='rodfab::voxel::Rasterizer::rasterizeLayers(int, int) const'
 //     --toggle-collect='rodfab::materials::mapToFractions(*' build/bench/raster_band lattice 1500 1532 map
 #include "bench/bench_profile.hpp"
 #include "calibration/calibration_file.hpp"
 #include "examples/example_designs.hpp"
 #include "materials/fraction_map.hpp"
+#include "voxel/tree_assembly.hpp"
 #include "voxel/voxel.hpp"
 
 #include <tbb/global_control.h>
@@ -73,6 +76,7 @@ int main(int argc, char** argv) {
   const int k0 = std::stoi(argv[2]), k1 = std::stoi(argv[3]);
   const rodfab::voxel::Rasterizer rasterizer(structure, grid, {threads});
   const rodfab::materials::FractionMap fractionMap(rodfab::calibration::loadDefaultCalibration());
+  rodfab::voxel::TreeRecycler<openvdb::FloatTree> fractionTrees(0.0f);
   std::uint64_t active = 0, exact = 0, modulusSum = kChecksumSeed, fractionSum = kChecksumSeed;
   const int step = bandLayers > 0 ? bandLayers : std::max(1, k1 - k0);
   for (int z = k0; z < k1; z += step) {
@@ -83,7 +87,7 @@ int main(int argc, char** argv) {
     modulusSum = checksum(*r.grid, modulusSum);
     if (!map) continue;
     rodfab::materials::MappingStats stats;
-    fractionSum = checksum(*rodfab::materials::mapToFractions(*r.grid, fractionMap, z, zEnd, stats), fractionSum);
+    fractionSum = checksum(*rodfab::materials::mapToFractions(*r.grid, fractionMap, z, zEnd, stats, fractionTrees), fractionSum);
   }
   std::printf("active %llu exact %llu modulus %016llx\n", static_cast<unsigned long long>(active),
               static_cast<unsigned long long>(exact), static_cast<unsigned long long>(modulusSum));

@@ -6,6 +6,9 @@
 
 #include <tbb/global_control.h>
 
+#include <algorithm>
+#include <bit>
+#include <cstdint>
 #include <map>
 #include <memory>
 #include <random>
@@ -168,4 +171,57 @@ TEST_CASE("TreeRecycler::releaseKept frees the waiting trees and keeps none let 
   CHECK(third->leafCount() == 50);  // still assembles, from fresh nodes
   third.reset();
   CHECK_FALSE(recycler.takeSpares().hasLeaf(0));
+}
+
+TEST_CASE("TreeRecycler reuses no internal node an owner left holding a tile other than the background", "[voxel][tree_assembly]") {
+  for (const float background : {0.0f, 2.0f})
+  for (const int threads : {1, 2}) {
+    const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    TreeRecycler<openvdb::FloatTree> recycler(background, 1);
+    const Groups source = randomLeafGroups(31u, 200);
+    const auto make = [&] {
+      auto spares = recycler.takeSpares();
+      Groups groups = copyOf(source);
+      return recycler.assemble(groups.size(), visitorOf(groups), spares);
+    };
+    // A leaf's place in group g's parent that holds no leaf of the source.
+    const int parentDim = LeafParentOf<openvdb::FloatTree>::DIM;
+    const auto freeLeafIn = [&](std::size_t g) {
+      const openvdb::Coord parent = source[g][0]->origin() & ~(parentDim - 1);
+      for (int x = 0;; x += FloatLeaf::DIM) {
+        const openvdb::Coord at = parent.offsetBy(x, 0, 0);
+        if (std::none_of(source[g].begin(), source[g].end(), [&](const auto& leaf) { return leaf->origin() == at; })) return at;
+      }
+    };
+    // Owners' changes the recycler must notice, in nodes it would otherwise reuse (the next tree has
+    // the same leaves, so it asks for every parent and upper again): an inactive tile of another value
+    // in a leaf parent, the background with its sign bit flipped in another (-0 for 0: equal as a
+    // float, not as bits), with its lowest bit flipped in a third and its bit 30 in a fourth (a bit
+    // the background 2 has: the tile 0), an active background tile in a fifth, and an inactive tile in
+    // an upper node (a parent's worth of voxels far from the leaves, which lie within 700 of the origin).
+    const auto flipped = [&](std::uint32_t bits) { return std::bit_cast<float>(std::bit_cast<std::uint32_t>(background) ^ bits); };
+    openvdb::FloatTree::Ptr first = make();
+    first->fill(openvdb::CoordBBox::createCube(freeLeafIn(0), FloatLeaf::DIM), 7.0f, false);
+    first->fill(openvdb::CoordBBox::createCube(freeLeafIn(1), FloatLeaf::DIM), flipped(0x80000000u), false);
+    first->fill(openvdb::CoordBBox::createCube(freeLeafIn(2), FloatLeaf::DIM), flipped(1u), false);
+    first->fill(openvdb::CoordBBox::createCube(freeLeafIn(3), FloatLeaf::DIM), flipped(0x40000000u), false);
+    first->fill(openvdb::CoordBBox::createCube(freeLeafIn(4), FloatLeaf::DIM), background, true);
+    const openvdb::Coord inUpper(30 * parentDim, 30 * parentDim, 30 * parentDim);
+    first->fill(openvdb::CoordBBox::createCube(inUpper, parentDim), 3.0f, false);
+    REQUIRE(first->getValue(freeLeafIn(0)) == 7.0f);
+    REQUIRE(first->getValue(inUpper) == 3.0f);
+    REQUIRE(first->leafCount() == 200);  // the tiles went into the nodes that were there
+    const openvdb::Index64 nonLeaves = first->nonLeafCount();
+    first.reset();  // let go with those tiles
+    openvdb::FloatTree::Ptr second = make();
+    requireSameTree(*second, addedOneByOne(source));
+    REQUIRE(second->nonLeafCount() == nonLeaves);
+    // Every tile of the new tree is the background's bits, inactive: no node kept an owner's tile.
+    for (auto tile = second->cbeginValueAll(); tile; ++tile) {
+      if (tile.isVoxelValue()) continue;
+      CAPTURE(tile.getCoord(), tile.getLevel(), background, threads);
+      CHECK_FALSE(tile.isValueOn());
+      CHECK(std::bit_cast<std::uint32_t>(*tile) == std::bit_cast<std::uint32_t>(background));
+    }
+  }
 }

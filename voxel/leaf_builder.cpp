@@ -13,8 +13,10 @@ namespace {
 // slots[(r << kBlockXLog2) | x] where bit x of bytes[r] is set, else 0, for x < 8 and the 64 rows r.
 // Four rows by four columns at a time: the slots' rows loaded, the empty ones' lanes cleared (and with
 // a lane mask, so a kept value keeps its bits), then transposed (SSE2) into four runs of four values of
-// the leaf's columns. Groups whose bits are all clear are not written: the leaf holds 0 there already.
-void transposeIntoLeaf(const std::array<std::uint8_t, 64>& bytes, const float* slots, float* values) {
+// the leaf's columns. Groups whose bits are all clear get four runs of 0 where `clearEmpty` (a reused
+// leaf holding its old values: each value is written once, where filling the whole leaf with 0 first
+// wrote the kept ones twice), else nothing (a new leaf holds 0 already).
+void transposeIntoLeaf(const std::array<std::uint8_t, 64>& bytes, const float* slots, float* values, bool clearEmpty) {
   for (int r0 = 0; r0 < 64; r0 += 4) {
     unsigned any = 0;
     __m128i byteOf[4];
@@ -23,7 +25,11 @@ void transposeIntoLeaf(const std::array<std::uint8_t, 64>& bytes, const float* s
       byteOf[m] = _mm_set1_epi32(bytes[static_cast<std::size_t>(r0 + m)]);
     }
     for (int h = 0; h < 2; ++h) {
-      if (((any >> (4 * h)) & 0xfu) == 0) continue;
+      if (((any >> (4 * h)) & 0xfu) == 0) {
+        if (clearEmpty)
+          for (int x = 0; x < 4; ++x) _mm_storeu_ps(values + ((4 * h + x) << (2 * kLeafLog2)) + r0, _mm_setzero_ps());
+        continue;
+      }
       const __m128i bit = _mm_setr_epi32(1 << (4 * h), 2 << (4 * h), 4 << (4 * h), 8 << (4 * h));
       __m128 row[4];
       for (int m = 0; m < 4; ++m) {
@@ -46,14 +52,13 @@ void LeafBuilder::emit(const openvdb::Coord& origin, SpareNodes<openvdb::FloatTr
   for (int l = 0; l < kBlockLeaves; ++l) {
     if (((anyRow >> (l * kLeafDim)) & 0xffu) == 0) continue;
     const std::size_t spare = nextSpare.fetch_add(1, std::memory_order_relaxed);
-    const bool reused = spares.hasLeaf(spare);  // a new leaf holds 0 already; a reused one its old values
+    const bool reused = spares.hasLeaf(spare);  // a new leaf holds 0 already; a reused one its old values (cleared below)
     leaves[static_cast<std::size_t>(l)] = spares.leaf(spare, origin.offsetBy(l * kLeafDim, 0, 0));
     LeafT& node = *leaves[static_cast<std::size_t>(l)];
-    if (reused) node.buffer().fill(0.0f);
     alignas(16) std::array<std::uint8_t, kRows> bytes;
     for (int r = 0; r < kRows; ++r)
       bytes[static_cast<std::size_t>(r)] = static_cast<std::uint8_t>(filled_[static_cast<std::size_t>(r)] >> (l * kLeafDim));
-    transposeIntoLeaf(bytes, &value_[static_cast<std::size_t>(l * kLeafDim)], node.buffer().data());
+    transposeIntoLeaf(bytes, &value_[static_cast<std::size_t>(l * kLeafDim)], node.buffer().data(), reused);
     for (int x = 0; x < kLeafDim; ++x) {
       // Bit x of every row byte to its top bit (a 64-bit shift moves no bit across a byte's top).
       const __m128i shift = _mm_cvtsi32_si128(kLeafDim - 1 - x);
