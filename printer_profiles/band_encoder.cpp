@@ -59,19 +59,6 @@ void clearModel(LayerBitmaps& b, const JobGeometry& g, const Profile& profile) {
   else b = LayerBitmaps(g.width, g.height, profile.xDpi, profile.yDpi);
 }
 
-// Pixels set in the layer's rigid and rubbery bitmaps: only their written words can hold any.
-std::array<std::uint64_t, 2> countModel(const LayerBitmaps& b) {
-  std::array<std::uint64_t, 2> n{};
-  const std::size_t stride = b.rigid().stride();
-  for (int r = 0; r < b.rigid().height(); ++r) {
-    const std::span<const std::uint64_t> words = b.writtenWords(r);
-    if (std::all_of(words.begin(), words.end(), [](std::uint64_t m) { return m == 0; })) continue;
-    n[0] += countSetBitsInWords({b.rigid().row(r), stride}, words);
-    n[1] += countSetBitsInWords({b.rubbery().row(r), stride}, words);
-  }
-  return n;
-}
-
 }  // namespace
 
 BandEncoder::BandEncoder(const BandEncoderSetup& setup)
@@ -137,8 +124,10 @@ bool BandEncoder::encode(const LayerBand& band, const openvdb::CoordBBox& allowe
       LayerRecord& record = layers[static_cast<std::size_t>(layer)];
       rasterize(k, voxels, b, record);
       if (s_.form.support == SupportPolicy::Explicit) addSupport(layer, b);
-      const auto [rigid, rubbery] = countModel(b);
-      record.voxels = {rigid, rubbery, b.hasSupport ? b.support.count() : 0};
+      // The model's pixels as rasterize counted them into the moments: each leaf and tile covers pixels
+      // no other one does (a grid's leaves and tiles are disjoint), so the sums are the bitmaps' counts
+      // without a pass over them (the verification and inspect count the decoded images independently).
+      record.voxels = {record.moments[0].count, record.moments[1].count, b.hasSupport ? b.support.count() : 0};
       previews.addLayer(layer, b, modulus);
       encodeImages(layer, b, record, s_.zip ? &zipForms[static_cast<std::size_t>(n)] : nullptr);
     }
