@@ -2,6 +2,8 @@
 
 #include "printer_profiles/zip_source_adapter.hpp"
 
+#include <tbb/task_arena.h>
+
 #include <fcntl.h>
 #include <pthread.h>
 #include <signal.h>
@@ -153,7 +155,8 @@ public:
     fd_ = ::open(part_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
     if (fd_ < 0) return failed(ZIP_ER_TMPOPEN, errno);
     try {
-      writer_ = std::make_unique<BlockWriter>(fd_);
+      // On one thread (--threads 1) the blocks are written in line: the process keeps to one core.
+      if (tbb::this_task_arena::max_concurrency() > 1) writer_ = std::make_unique<BlockWriter>(fd_);
     } catch (const std::system_error& e) {  // no thread to be had: nothing may be thrown into libzip
       rollbackWrite();
       return failed(ZIP_ER_TMPOPEN, e.code().value());
@@ -187,7 +190,7 @@ public:
 
   zip_int64_t commitWrite() {
     if (!flush()) return -1;
-    if (const int why = writer_->drain()) return failed(ZIP_ER_WRITE, why);
+    if (const int why = writer_ ? writer_->drain() : 0) return failed(ZIP_ER_WRITE, why);
     writer_.reset();
     const int fd = std::exchange(fd_, -1);
     if (::close(fd) != 0) {
@@ -216,23 +219,25 @@ public:
 private:
   zip_int64_t neverRead() { return failed(ZIP_ER_OPNOTSUPP, 0); }
 
-  // Hands the tail to the block writer and starts an empty one after it (in the buffer of the block
-  // written before); false once a block could not be written (this one or an earlier one).
+  // Hands the tail to the block writer (or writes it, on one thread) and starts an empty one after it
+  // (in the buffer of the block written before); false once a block could not be written (this one or,
+  // by the block writer, an earlier one).
   bool flush() {
     if (tail_.empty()) return true;
     const std::size_t bytes = tail_.size();
-    if (const int why = writer_->submit(tail_, tailStart_)) {
+    if (const int why = writer_ ? writer_->submit(tail_, tailStart_) : writeAt(fd_, tail_, tailStart_)) {
       failed(ZIP_ER_WRITE, why);
       return false;
     }
     tailStart_ += bytes;
+    tail_.clear();  // written in line; handed over, it is the block before's buffer, already empty
     tail_.reserve(kTailBytes);
     return true;
   }
 
   fs::path path_, part_;
   int fd_ = -1;
-  std::unique_ptr<BlockWriter> writer_;  // while fd_ is open
+  std::unique_ptr<BlockWriter> writer_;  // while fd_ is open, unless the blocks are written in line
   zip_uint64_t position_ = 0, end_ = 0;
   zip_uint64_t tailStart_ = 0;  // where tail_ goes in the file
   std::vector<std::uint8_t> tail_;

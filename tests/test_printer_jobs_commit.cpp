@@ -8,6 +8,8 @@
 
 #include <catch2/catch.hpp>
 
+#include <tbb/global_control.h>
+
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -114,20 +116,24 @@ TEST_CASE("A write that fails on the archive's writer thread fails the zip, nami
   std::vector<ZipMemoryEntry> entries;
   for (std::size_t n = 0; n < contents.size(); ++n) entries.push_back({"e" + std::to_string(n) + ".bin", contents[n], ZipStorage::Store});
   // 1 MiB: the first block fails while libzip fills the second (seen when the second is handed over);
-  // 12 MiB: the first block is written, the last fails (seen when the archive is committed).
-  for (const rlim_t limit : {rlim_t{1} << 20, rlim_t{12} << 20}) {
-    INFO("file size limit " << limit << " bytes");
-    std::string why = "no error";
-    {
-      const FileSizeLimit guard(limit);
-      try {
-        writeZipFromMemory(dir / "big.zip", entries);
-      } catch (const std::exception& e) {  // checked once the limit is lifted
-        why = e.what();
+  // 12 MiB: the first block is written, the last fails (seen when the archive is committed). On one
+  // thread the blocks are written in line, and fail the same way.
+  for (const std::size_t threads : {std::size_t{2}, std::size_t{1}}) {
+    for (const rlim_t limit : {rlim_t{1} << 20, rlim_t{12} << 20}) {
+      INFO(threads << " threads, file size limit " << limit << " bytes");
+      const tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, threads);
+      std::string why = "no error";
+      {
+        const FileSizeLimit guard(limit);
+        try {
+          writeZipFromMemory(dir / "big.zip", entries);
+        } catch (const std::exception& e) {  // checked once the limit is lifted
+          why = e.what();
+        }
       }
+      CHECK_THAT(why, Catch::Contains((dir / "big.zip").string() + ": cannot write the archive") && Catch::Contains("File too large"));
+      CHECK(fs::is_empty(dir));  // neither the archive nor its .part
     }
-    CHECK_THAT(why, Catch::Contains((dir / "big.zip").string() + ": cannot write the archive") && Catch::Contains("File too large"));
-    CHECK(fs::is_empty(dir));  // neither the archive nor its .part
   }
   // Without the limit the same entries make a whole archive, read back as written.
   writeZipFromMemory(dir / "big.zip", entries);
