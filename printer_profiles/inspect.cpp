@@ -6,9 +6,6 @@
 #include "printer_profiles/inspector.hpp"
 #include "printer_profiles/job_staging.hpp"  // kPartialTag
 
-#include <tbb/task_arena.h>
-#include <tbb/task_group.h>
-
 #include <algorithm>
 #include <cctype>
 #include <map>
@@ -106,22 +103,15 @@ void Inspector::run() {
     findings_.located(e.what());
     return finish();
   }
-  // The layers are read by several threads, each with a handle of its own (zip jobs): the others are
-  // opened now, beside the reading of the manifest, not when those threads first read.
-  tbb::task_group readers;
-  const int threads = tbb::this_task_arena::max_concurrency();
-  if (threads > 1) readers.run([&] { reader_->prepareReaders(threads); });
   indexEntries();
   if (readManifest() && resolveProfile() && readJobLayout()) {
     checkEntries();
     if (!gcvf()) checkBuildFile();
     checkPreviews();
     checkReport();
-    readers.wait();
     checkLayers();
     if (gcvf()) checkGcvfConfig();  // its VoxelCounts are checked against the decoded images
   }
-  readers.wait();  // prepareReaders throws nothing
   finish();
 }
 

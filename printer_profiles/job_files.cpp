@@ -55,7 +55,7 @@ public:
       if (name && *name && name[std::strlen(name) - 1] != '/') names_.push_back(name);
     }
     std::sort(names_.begin(), names_.end());
-    pool_.adopt(za);
+    pool_.giveBack(za);
   }
   const fs::path& path() const override { return file_; }
   ArchiveFormat format() const override { return ArchiveFormat::Zip; }

@@ -189,20 +189,13 @@ public:
       : JobReader(std::move(file), ArchiveFormat::Zip, maxEntries), dev_(st.st_dev), ino_(st.st_ino),
         pool_([this] { return reopen(); }) {
     zip_t* za = adopt(fd);
-    pool_.adopt(za);
+    pool_.giveBack(za);
     list(za);
   }
   void stream(const JobEntry& entry, std::uint64_t maxBytes,
               const std::function<void(std::span<const std::uint8_t>)>& sink) const override {
     const ZipPool::Lease za(pool_);
     streamEntry(za.get(), entry, maxBytes, sink);
-  }
-
-  void prepareReaders(int readers) const noexcept override {
-    try {
-      pool_.holdAtLeast(static_cast<std::size_t>(std::max(readers, 0)));
-    } catch (...) {  // JobReadError, bad_alloc: the read that needs the handle opens it and says why not
-    }
   }
 
   StoredEntryInfo streamStored(const JobEntry& entry, std::uint64_t maxBytes,

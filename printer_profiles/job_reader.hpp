@@ -79,12 +79,6 @@ public:
   // stream() into memory (at most maxBytes are ever held).
   Bytes read(const JobEntry& entry, std::uint64_t maxBytes) const;
 
-  // Makes ready what `readers` threads reading at once will need, so that their first reads do not wait
-  // for it (zip jobs: a libzip handle each, opened and checked as the first one was, ~0.02 s each for a
-  // job of 6,000 entries). Never throws: a handle that cannot be opened now is tried again, and its
-  // failure reported, by the read that needs it. Safe from several threads; folder jobs need nothing.
-  virtual void prepareReaders(int readers) const noexcept { (void)readers; }
-
 protected:
   JobReader(std::filesystem::path path, ArchiveFormat format, std::size_t maxEntries)
       : path_(std::move(path)), format_(format), maxEntries_(maxEntries) {}

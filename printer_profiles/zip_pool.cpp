@@ -15,31 +15,12 @@ zip_t* ZipPool::borrow() const {
       return za;
     }
   }
-  zip_t* za = open_();
-  std::lock_guard lock(mutex_);
-  ++made_;
-  return za;
+  return open_();
 }
 
 void ZipPool::giveBack(zip_t* za) const {
   std::lock_guard lock(mutex_);
   free_.push_back(za);
-}
-
-void ZipPool::adopt(zip_t* za) const {
-  std::lock_guard lock(mutex_);
-  ++made_;
-  free_.push_back(za);
-}
-
-void ZipPool::holdAtLeast(std::size_t count) const {
-  for (;;) {
-    {
-      std::lock_guard lock(mutex_);
-      if (made_ >= count) return;
-    }
-    adopt(open_());
-  }
 }
 
 }  // namespace rodfab::printer_profiles

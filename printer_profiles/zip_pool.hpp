@@ -21,13 +21,8 @@ public:
 
   // A free handle, or a new one from `open`: the caller's alone until it gives it back.
   zip_t* borrow() const;
-  // Hands back a handle borrowed from the pool, which discards it when destroyed.
+  // Hands `za` (borrowed, or opened by the owner) to the pool, which discards it when destroyed.
   void giveBack(zip_t* za) const;
-  // Hands the pool a handle its owner opened, as the borrowed ones are handed back.
-  void adopt(zip_t* za) const;
-  // Opens handles (with `open`, no lock held) until the pool has made at least `count`, the ones lent
-  // out included; throws what `open` throws.
-  void holdAtLeast(std::size_t count) const;
 
   // A handle borrowed for one scope, given back when the scope ends (exceptions included).
   class Lease {
@@ -47,7 +42,6 @@ private:
   std::function<zip_t*()> open_;
   mutable std::mutex mutex_;
   mutable std::vector<zip_t*> free_;
-  mutable std::size_t made_ = 0;  // handles opened by `open_` or given to the pool, lent out or free
 };
 
 }  // namespace rodfab::printer_profiles

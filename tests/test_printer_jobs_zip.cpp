@@ -4,7 +4,6 @@
 #include "printer_profiles/deflate.hpp"
 #include "printer_profiles/job_reader.hpp"  // internal: the hostile-input reader `inspect` uses
 #include "printer_profiles/zip_source_adapter.hpp"  // internal: the libzip callback every source of ours goes through
-#include "printer_profiles/zip_pool.hpp"  // internal: the handles the zip readers share
 #include "printer_profiles/zip_writer.hpp"
 
 #include <catch2/catch.hpp>
@@ -280,48 +279,5 @@ TEST_CASE("The job reader reads every entry back as written, stored and raw, acr
     refused = true;
   }
   CHECK(refused);
-  fs::remove_all(dir);
-}
-
-TEST_CASE("A zip pool opens handles ahead only up to the count asked for, and lends them before opening more", "[job][zip]") {
-  const fs::path dir = scratchDir("pool");
-  const Bytes data{'x', 'y'};
-  writeZipFromMemory(dir / "a.zip", {{"a.txt", data, ZipStorage::Store}});
-  int opened = 0;
-  const auto open = [&]() -> zip_t* {
-    ++opened;
-    int error = 0;
-    zip_t* za = zip_open((dir / "a.zip").c_str(), ZIP_RDONLY, &error);
-    if (!za) throw std::runtime_error("cannot open a.zip");
-    return za;
-  };
-  {
-    const ZipPool pool(open);
-    pool.adopt(open());  // the owner's handle counts
-    pool.holdAtLeast(3);
-    CHECK(opened == 3);
-    pool.holdAtLeast(2);
-    CHECK(opened == 3);
-    {
-      const ZipPool::Lease a(pool), b(pool), c(pool);  // the three made, none opened for them
-      CHECK(opened == 3);
-      CHECK((a.get() != b.get() && b.get() != c.get() && a.get() != c.get()));
-      pool.holdAtLeast(3);  // lent out, still made
-      CHECK(opened == 3);
-      const ZipPool::Lease d(pool);  // none free: one more
-      CHECK(opened == 4);
-    }
-    pool.holdAtLeast(4);
-    CHECK(opened == 4);
-  }
-  // The opener's failure comes out of holdAtLeast; the job reader's prepareReaders swallows it (the read
-  // that needs the handle reports it) and the reader goes on with the handles it has.
-  const ZipPool failing([]() -> zip_t* { throw std::runtime_error("no more handles"); });
-  CHECK_THROWS_WITH(failing.holdAtLeast(1), "no more handles");
-  writeZipFromMemory(dir / "job.zip", {{"a.txt", data, ZipStorage::Store}});
-  const std::unique_ptr<JobReader> reader = openJobReader(dir / "job.zip", 10, 1);
-  fs::rename(dir / "a.zip", dir / "job.zip");  // another file under the name: no further handle opens
-  reader->prepareReaders(4);
-  CHECK((reader->read(reader->entries().at(0), 10) == data));
   fs::remove_all(dir);
 }
