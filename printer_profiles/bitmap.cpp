@@ -41,24 +41,7 @@ RODFAB_POPCNT_CLONES std::size_t countWords(const std::uint8_t* a, const std::ui
   return n;
 }
 
-RODFAB_POPCNT_CLONES std::size_t countMarkedWords(const std::uint8_t* row, std::size_t size, const std::uint64_t* words, std::size_t masks) {
-  std::size_t n = 0;
-  for (std::size_t m = 0; m < masks; ++m)
-    for (std::uint64_t bits = words[m]; bits; bits &= bits - 1) {
-      const std::size_t at = (m * 64 + static_cast<std::size_t>(std::countr_zero(bits))) * 8;
-      if (at >= size) throw std::invalid_argument("countSetBitsInWords: a word past the row's " + std::to_string(size) + " bytes");
-      std::uint64_t x = 0;
-      std::memcpy(&x, row + at, std::min<std::size_t>(8, size - at));
-      n += static_cast<std::size_t>(std::popcount(x));
-    }
-  return n;
-}
-
 }  // namespace
-
-std::size_t countSetBitsInWords(std::span<const std::uint8_t> row, std::span<const std::uint64_t> words) {
-  return countMarkedWords(row.data(), row.size(), words.data(), words.size());
-}
 
 std::size_t countSetBits(std::span<const std::uint8_t> bytes) { return countWords(bytes.data(), nullptr, bytes.size()); }
 

@@ -70,9 +70,6 @@ private:
 // (layer bitmaps are mostly empty), with the CPU's popcount instruction where it has one.
 std::size_t countSetBits(std::span<const std::uint8_t> bytes);
 std::size_t countCommonBits(std::span<const std::uint8_t> a, std::span<const std::uint8_t> b);
-// Bits set in the 8-byte words of `row` that `words` marks (word w: bit w % 64 of words[w / 64]; the
-// row's last word may be shorter than 8 bytes). std::invalid_argument when `words` marks a word past the row.
-std::size_t countSetBitsInWords(std::span<const std::uint8_t> row, std::span<const std::uint64_t> words);
 
 // A decoded 1-bit image with the resolution its file declared.
 struct DecodedBitmap {

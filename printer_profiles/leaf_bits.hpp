@@ -35,6 +35,7 @@ struct LeafBytes {
 struct LeafRows {
   std::array<std::uint8_t, 64> bytes{};
 
+  LeafRows() = default;  // no voxel
   // Per y, the 8 x 8 bit matrix of columns x (bits z) transposed into rows z (bits x, x = 0 in bit 7):
   // with column x in byte 7 - x of a word, bit 8 (7 - x) + z, the transpose (three delta swaps,
   // Hacker's Delight 7-3) puts it at bit 8 z + 7 - x, which is byte z in image bit order.

@@ -301,6 +301,10 @@ TEST_CASE("Active tiles are written like the voxels they stand for", "[job]") {
       for (int i = 0; i < 8; ++i) expected.emplace(i, j, k, 1);
   expected.emplace(9, 2, 3, 0);
   CHECK((decodeJob(dir / "tiles.zip") == expected));
+  const InspectReport report = inspectJob(dir / "tiles.zip");  // every layer decoded: its counts against the manifest's
+  CHECK(report.ok());
+  REQUIRE(report.materials.size() == 2);
+  CHECK(report.materials[0].voxels + report.materials[1].voxels == expected.size());
 }
 
 

@@ -3,6 +3,9 @@
 // removal of dead writers' staging folders touch nothing else. Helpers: tests/printer_jobs_fixture.hpp.
 #include "tests/printer_jobs_fixture.hpp"
 
+#include "printer_profiles/job_reader.hpp"  // internal: the reader inspect uses
+#include "printer_profiles/zip_writer.hpp"  // internal: the zip writer behind every job
+
 #include <catch2/catch.hpp>
 
 #include <sys/resource.h>
@@ -14,6 +17,8 @@
 #include <csignal>
 #include <fstream>
 #include <map>
+#include <memory>
+#include <random>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -58,13 +63,19 @@ private:
   rlimit saved_{};
 };
 
-// No file of the process may grow in the scope: soft RLIMIT_FSIZE 0 with SIGXFSZ ignored, so write()
-// fails with EFBIG instead of the signal killing the process. Both are restored when the scope ends,
-// also by an exception (a failed REQUIRE); the disposition is set first and restored last, so the limit
-// never holds while SIGXFSZ would kill.
-struct NoFileGrowth {
+// No file of the process may grow past `bytes` in the scope: soft RLIMIT_FSIZE with SIGXFSZ ignored, so
+// write() fails with EFBIG (on any thread) instead of the signal killing the process. Both are restored
+// when the scope ends, also by an exception (a failed REQUIRE); the disposition is set first and
+// restored last, so the limit never holds while SIGXFSZ would kill.
+struct FileSizeLimit {
+  explicit FileSizeLimit(rlim_t bytes) : limit{RLIMIT_FSIZE, bytes} {}
   SignalDisposition ignoreXfsz{SIGXFSZ, SIG_IGN};
-  SoftLimit noBytes{RLIMIT_FSIZE, 0};
+  SoftLimit limit;
+};
+
+// No file of the process may grow at all in the scope.
+struct NoFileGrowth : FileSizeLimit {
+  NoFileGrowth() : FileSizeLimit(0) {}
 };
 
 // The soft RLIMIT_FSIZE and SIGXFSZ's handler as they are.
@@ -90,6 +101,38 @@ TEST_CASE("NoFileGrowth holds while its scope runs and restores the limit and SI
   }
   CHECK(inside == std::pair<rlim_t, void (*)(int)>{0, SIG_IGN});
   CHECK(fileGrowthState() == before);
+}
+
+TEST_CASE("A write of the zip that fails fails the archive, naming the file and the reason, and leaves nothing", "[job][zip][atomic]") {
+  const fs::path dir = scratch("zip-write");
+  // Three incompressible 5 MiB entries, stored: a 15 MiB archive, written out in 8 MiB blocks.
+  std::mt19937 rng(3);
+  std::vector<Bytes> contents(3, Bytes(5u << 20));
+  for (Bytes& c : contents)
+    for (std::uint8_t& b : c) b = static_cast<std::uint8_t>(rng());
+  std::vector<ZipMemoryEntry> entries;
+  for (std::size_t n = 0; n < contents.size(); ++n) entries.push_back({"e" + std::to_string(n) + ".bin", contents[n], ZipStorage::Store});
+  // 1 MiB: the first block fails; 12 MiB: the first block is written, the last fails (at the commit).
+  for (const rlim_t limit : {rlim_t{1} << 20, rlim_t{12} << 20}) {
+    INFO("file size limit " << limit << " bytes");
+    std::string why = "no error";
+    {
+      const FileSizeLimit guard(limit);
+      try {
+        writeZipFromMemory(dir / "big.zip", entries);
+      } catch (const std::exception& e) {  // checked once the limit is lifted
+        why = e.what();
+      }
+    }
+    CHECK_THAT(why, Catch::Contains((dir / "big.zip").string() + ": cannot write the archive") && Catch::Contains("File too large"));
+    CHECK(fs::is_empty(dir));  // neither the archive nor its .part
+  }
+  // Without the limit the same entries make a whole archive, read back as written.
+  writeZipFromMemory(dir / "big.zip", entries);
+  const std::unique_ptr<JobReader> reader = openJobReader(dir / "big.zip", 10, 1);
+  REQUIRE(reader->entries().size() == contents.size());
+  for (std::size_t n = 0; n < contents.size(); ++n) CHECK((reader->read(reader->entries()[n], 6u << 20) == contents[n]));
+  fs::remove_all(dir);
 }
 
 TEST_CASE("An existing job is not overwritten without force", "[job]") {

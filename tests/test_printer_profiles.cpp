@@ -168,30 +168,6 @@ TEST_CASE("A bitmap held in its BMP file reads and writes as any bitmap, and its
   CHECK_THROWS_AS(Bitmap::inBmpFile(4, -1, 600, 300), std::invalid_argument);
 }
 
-TEST_CASE("countSetBitsInWords counts the marked 8-byte words of a row, a short last word too", "[bitmap]") {
-  std::mt19937 rng(11);
-  for (const std::size_t size : {std::size_t{1}, std::size_t{8}, std::size_t{260}, std::size_t{1375}}) {
-    std::vector<std::uint8_t> row(size);
-    for (auto& b : row) b = static_cast<std::uint8_t>(rng());
-    const std::size_t words = (size + 7) / 8;
-    std::vector<std::uint64_t> marks((words + 63) / 64, 0);
-    std::size_t want = 0;
-    for (std::size_t w = 0; w < words; ++w) {
-      if (rng() % 3 != 0 && w + 1 != words) continue;  // about a third of them, and always the last
-      marks[w / 64] |= std::uint64_t{1} << (w % 64);
-      for (std::size_t at = w * 8; at < std::min(size, w * 8 + 8); ++at)
-        for (int bit = 0; bit < 8; ++bit) want += (row[at] >> bit) & 1u;
-    }
-    CHECK(countSetBitsInWords(row, marks) == want);
-    std::vector<std::uint64_t> none(marks.size(), 0);
-    CHECK(countSetBitsInWords(row, none) == 0);
-    if (words % 64 != 0) {
-      marks.back() |= std::uint64_t{1} << (words % 64);  // the word after the row's last
-      CHECK_THROWS_AS(countSetBitsInWords(row, marks), std::invalid_argument);
-    }
-  }
-}
-
 // ------------------------------------------------------------------------------------------ layout
 
 TEST_CASE("The image frame covers the padded part, aligned, with row 0 the largest y", "[layout]") {
