@@ -183,12 +183,9 @@ openvdb::BoolGrid::Ptr Ditherer::mapAndDitherLayers(const openvdb::FloatGrid& mo
 
 openvdb::BoolGrid::Ptr Ditherer::mapAndDitherLeafVoxels(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
                                                         MappingStats& stats) {
+  voxel::TreeRecycler<openvdb::FloatTree> fresh(0.0f);  // nothing to reuse: the grid lives for this call
   MappingStats band;
-  const openvdb::FloatGrid::Ptr fraction = mapToFractions(modulus, map, k0, k1, band);
-  if (readsNextLayer()) {  // its voxels are where error goes; they are counted with their own band
-    MappingStats ignored;
-    fraction->tree().merge(mapToFractions(modulus, map, k1, k1 + 1, ignored)->tree());
-  }
+  const openvdb::FloatGrid::Ptr fraction = mapBandToFractions(modulus, map, k0, k1, readsNextLayer(), band, fresh);
   openvdb::BoolGrid::Ptr material = ditherLeafVoxels(*fraction, k0, k1);
   stats.voxels += band.voxels;
   stats.clamps += band.clamps;

@@ -338,6 +338,21 @@ openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const 
   return mapToFractions(modulus, map, k0, k1, stats, fresh, checkInterrupt);
 }
 
+openvdb::FloatGrid::Ptr mapBandToFractions(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
+                                           bool withNextLayer, MappingStats& stats,
+                                           voxel::TreeRecycler<openvdb::FloatTree>& recycler,
+                                           const std::function<void()>& checkInterrupt) {
+  MappingStats band;
+  const openvdb::FloatGrid::Ptr fraction = mapToFractions(modulus, map, k0, k1, band, recycler, checkInterrupt);
+  if (withNextLayer) {
+    MappingStats ignored;
+    fraction->tree().merge(mapToFractions(modulus, map, k1, k1 + 1, ignored, checkInterrupt)->tree());
+  }
+  stats.voxels += band.voxels;
+  stats.clamps += band.clamps;
+  return fraction;
+}
+
 openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const FractionMap& map, MappingStats& stats) {
   const openvdb::CoordBBox box = modulus.evalActiveVoxelBoundingBox();
   if (box.empty()) return mapToFractions(modulus, map, 0, 0, stats);

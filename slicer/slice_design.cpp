@@ -108,12 +108,8 @@ public:
     for (std::size_t r = 0; r < report_.voxelsPerRod.size(); ++r) report_.voxelsPerRod[r] += ras.voxelsPerRod[r];
     if (fused_) return BandGrids{nullptr, ras.grid};  // mapped by mapAndDither
     materials::MappingStats counts;
-    BandGrids band{materials::mapToFractions(*ras.grid, map_, k0, k1, counts, fractionTrees_, common::throwIfInterrupted), ras.grid};
-    if (withNextLayer) {
-      // Error diffusion reads the next layer's voxels; they are counted with their own band.
-      materials::MappingStats ignored;
-      band.fraction->tree().merge(materials::mapToFractions(*ras.grid, map_, k1, k1 + 1, ignored)->tree());
-    }
+    BandGrids band{materials::mapBandToFractions(*ras.grid, map_, k0, k1, withNextLayer, counts, fractionTrees_, common::throwIfInterrupted),
+                   ras.grid};
     addMapped(counts, *ras.grid, k0, k1);
     return band;
   }
