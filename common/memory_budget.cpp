@@ -77,14 +77,15 @@ void setMemoryBudget(std::uint64_t bytes) {
 
 std::uint64_t memoryBudget() { return budget ? budget : defaultMemoryBudget(); }
 
-void requireMemory(std::uint64_t bytes, const std::string& what, const std::string& remedy) {
-  requireMemory(bytes, what, "", remedy);
+void requireMemory(std::uint64_t bytes, const MemoryNeed& need) {
+  if (bytes <= memoryBudget()) return;
+  throw OutOfMemory("out of memory: " + need.what + " needs about " + formatBytes(bytes) +
+                    (need.condition.empty() ? "" : " " + need.condition) + ", more than the memory budget of " +
+                    formatBytes(memoryBudget()) + " (--max-memory); " + need.remedy);
 }
 
-void requireMemory(std::uint64_t bytes, const std::string& what, const std::string& condition, const std::string& remedy) {
-  if (bytes <= memoryBudget()) return;
-  throw OutOfMemory("out of memory: " + what + " needs about " + formatBytes(bytes) + (condition.empty() ? "" : " " + condition) +
-                    ", more than the memory budget of " + formatBytes(memoryBudget()) + " (--max-memory); " + remedy);
+void requireMemory(std::uint64_t bytes, const std::string& what, const std::string& remedy) {
+  requireMemory(bytes, {.what = what, .remedy = remedy});
 }
 
 std::uint64_t saturatedBytes(double bytes) {

@@ -30,12 +30,20 @@ std::uint64_t defaultMemoryBudget();
 void setMemoryBudget(std::uint64_t bytes);
 std::uint64_t memoryBudget();
 
-// Throws OutOfMemory when `bytes` (an estimate for `what`) exceeds the budget; `remedy` says what to
-// change ("use a coarser voxel size", ...).
+// What a refusal says besides the figures: "out of memory: WHAT needs about N CONDITION, more than the
+// memory budget of B (--max-memory); REMEDY". Filled with designated initializers:
+// requireMemory(bytes, {.what = "slicing x.json", .remedy = "use fewer --band-layers"}).
+// Only `condition` may be left out (its `{}` keeps -Wmissing-field-initializers quiet for it alone).
+struct MemoryNeed {
+  std::string what;         // the work: "voxelizing x.json into one grid in memory"
+  std::string condition{};  // after the figure, e.g. "even in bands of 1 layer (the smallest band size tried)"; empty: none
+  std::string remedy;       // what to change: "use a coarser --voxel-size"
+};
+
+// Throws OutOfMemory (the message above) when `bytes`, an estimate for `need.what`, exceeds the budget.
+void requireMemory(std::uint64_t bytes, const MemoryNeed& need);
+// The same without a condition: the short form meshing/ still calls.
 void requireMemory(std::uint64_t bytes, const std::string& what, const std::string& remedy);
-// The same, with `condition` after the figure: "WHAT needs about N CONDITION, more than the memory
-// budget ...", e.g. "even in bands of 1 layer (the smallest band size tried)"; empty: none.
-void requireMemory(std::uint64_t bytes, const std::string& what, const std::string& condition, const std::string& remedy);
 
 // An estimate in bytes worked out in double, as the unsigned count requireMemory takes: UINT64_MAX for
 // NaN, +infinity and anything at or above 2^64 (an estimate too large to count is over any budget),

@@ -65,8 +65,8 @@ int makeCoupons(const po::variables_map& vm, const CouponRequest& r) {
   commandLineAccepted();
   const int bandLayers = r.job.bandLayers > 0 ? r.job.bandLayers : slicer::automaticBandLayers(layout->bounds);
   common::requireMemory(slicer::couponJobBytes(*layout, *profile, r.job.job.contactSheetLayers, bandLayers, *ditherer),
-                        "coupons' " + std::to_string(r.fractions.size()) + " bar(s) of " + barText(*layout, *profile),
-                        "use a smaller --size, fewer --fractions or fewer --band-layers");
+                        {.what = "coupons' " + std::to_string(r.fractions.size()) + " bar(s) of " + barText(*layout, *profile),
+                         .remedy = "use a smaller --size, fewer --fractions or fewer --band-layers"});
   // The output is refused now (a user's folder, a job without --force) rather than after the work.
   printer_profiles::checkJobOutput(r.job.job);
   common::installInterruptHandlers();

@@ -81,8 +81,8 @@ int runDitherReport(const std::vector<std::string>& args) {
   if (!profile) return kFailed;
   const openvdb::Vec3d voxel = profile->voxelSize();
   common::requireMemory(ditherReportBytes(*request, voxel),
-                        "dither-report's " + std::to_string(request->fractions.size()) + " blocks and rod",
-                        "use a smaller --block, fewer --fractions or a shorter --rod-length");
+                        {.what = "dither-report's " + std::to_string(request->fractions.size()) + " blocks and rod",
+                         .remedy = "use a smaller --block, fewer --fractions or a shorter --rod-length"});
   materials::DitherOptions ditherOptions;
   ditherOptions.seed = vm["seed"].as<Seed>().value;
   if (vm.count("mask")) {

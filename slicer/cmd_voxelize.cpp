@@ -74,8 +74,9 @@ int runVoxelize(const std::vector<std::string>& args) {
   const auto start = std::chrono::steady_clock::now();
   const voxel::PrinterGrid grid = voxel::makePrinterGrid(*design, *voxelSize);
   // The whole grid is held in memory (slice streams bands instead): refuse before the first voxel.
-  common::requireMemory(voxel::estimateRasterizationBytes(*design, grid), "voxelizing " + file + " into one grid in memory",
-                        "use a coarser --voxel-size, or slice the design (`rodfab slice` streams it in bands)");
+  common::requireMemory(voxel::estimateRasterizationBytes(*design, grid),
+                        {.what = "voxelizing " + file + " into one grid in memory",
+                         .remedy = "use a coarser --voxel-size, or slice the design (`rodfab slice` streams it in bands)"});
   const voxel::Rasterization ras = voxel::rasterize(*design, grid, {*threads, common::interruptRequested});
   const double seconds = common::secondsSince(start);
   const voxel::GridStatistics s = voxel::computeStatistics(*ras.grid, grid, ras.voxelsPerRod);

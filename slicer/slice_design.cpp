@@ -198,18 +198,18 @@ SliceMemoryPlan planSliceMemory(const geometry::RodStructure& design, const prin
   const std::string images = std::to_string(part.dim().x()) + " x " + std::to_string(part.dim().y()) + " pixels";
   if (writer > common::memoryBudget()) {
     const std::uint64_t least = estimate(1).bytes;  // what the smallest band would need in all
-    common::requireMemory(writer,
-                          "writing the job of " + name + " for the " + profile.printer + " (its layer images of " + images +
-                              ", previews and the process itself)",
-                          "no band size makes that smaller: raise --max-memory to at least " + maxMemoryAtLeast(std::max(least, writer)));
+    common::requireMemory(writer, {.what = "writing the job of " + name + " for the " + profile.printer + " (its layer images of " +
+                                               images + ", previews and the process itself)",
+                                   .remedy = "no band size makes that smaller: raise --max-memory to at least " +
+                                             maxMemoryAtLeast(std::max(least, writer))});
   }
   SliceMemoryPlan plan = estimate(settings.bandLayers > 0 ? settings.bandLayers : automaticBandLayers(part));
   const std::string what = "slicing " + name + " (" + std::to_string(design.rods.size()) + " rod(s), layer images of " + images + ")";
   if (settings.bandLayers > 0) {
-    common::requireMemory(plan.bytes, what + " in bands of " + std::to_string(plan.bandLayers) + " layers",
-                          plan.bandLayers > kLeafLayers ? "use fewer --band-layers (" + std::to_string(kLeafLayers) +
-                                                              " at least), or raise --max-memory if the machine has more"
-                                                        : "slice a smaller design, or raise --max-memory if the machine has more");
+    const std::string remedy = plan.bandLayers > kLeafLayers ? "use fewer --band-layers (" + std::to_string(kLeafLayers) +
+                                                                   " at least), or raise --max-memory if the machine has more"
+                                                             : "slice a smaller design, or raise --max-memory if the machine has more";
+    common::requireMemory(plan.bytes, {.what = what + " in bands of " + std::to_string(plan.bandLayers) + " layers", .remedy = remedy});
     return plan;
   }
   const std::vector<int> fallbacks = smallerBands(plan.bandLayers);
@@ -224,10 +224,11 @@ SliceMemoryPlan planSliceMemory(const geometry::RodStructure& design, const prin
   const std::string remedy = double(least.bytes) > 1e18 ? "slice a smaller design (no --max-memory value is that large)"
                                                         : "slice a smaller design, or raise --max-memory to at least " +
                                                               maxMemoryAtLeast(least.bytes) + " if the machine has that much";
-  common::requireMemory(least.bytes, what,
-                        "even in bands of " + std::to_string(least.bandLayers) + (least.bandLayers == 1 ? " layer" : " layers") +
-                            (smallest ? " (the smallest band size tried)" : " (the least of the band sizes tried)"),
-                        remedy);
+  common::requireMemory(least.bytes, {.what = what,
+                                      .condition = "even in bands of " + std::to_string(least.bandLayers) +
+                                                   (least.bandLayers == 1 ? " layer" : " layers") +
+                                                   (smallest ? " (the smallest band size tried)" : " (the least of the band sizes tried)"),
+                                      .remedy = remedy});
   return least;
 }
 

@@ -1,4 +1,4 @@
-// common/: saturatedBytes at the ends of the range, SHA-256 against the FIPS 180-2 test vectors, XXH3-128 against xxhsum -H2 (in one piece and through FileHasher), the data folder's search order and errors.
+// common/: saturatedBytes at the ends of the range, requireMemory's refusal message, SHA-256 against the FIPS 180-2 test vectors, XXH3-128 against xxhsum -H2 (in one piece and through FileHasher), the data folder's search order and errors.
 #include "common/data_dir.hpp"
 #include "common/file_hasher.hpp"
 #include "common/located_issues.hpp"
@@ -139,4 +139,23 @@ TEST_CASE("memory budget: saturatedBytes: NaN, infinity and 2^64 or more are UIN
   const double below = std::nextafter(kTwoTo64, 0.0);
   CHECK(saturatedBytes(below) == UINT64_MAX - 2047);
   CHECK(saturatedBytes(1.8e19) == std::uint64_t{18000000000000000000u});  // the old, lower, cap is an ordinary value now
+}
+
+TEST_CASE("memory budget: requireMemory passes up to the budget and beyond it names the work, the figures and the remedy") {
+  // The budget is read, never set here: setMemoryBudget would also lower the test process's data limit.
+  const std::uint64_t budget = memoryBudget();
+  const std::string of = "more than the memory budget of " + formatBytes(budget) + " (--max-memory); ";
+  CHECK_NOTHROW(requireMemory(budget, {.what = "w", .remedy = "r"}));
+  CHECK_NOTHROW(requireMemory(0, {.what = "w", .condition = "c", .remedy = "r"}));
+  const std::uint64_t over = 3 * (std::uint64_t{1} << 40);  // 3 TiB, above any budget this machine gives
+  REQUIRE(over > budget);
+  CHECK_THROWS_MATCHES(requireMemory(over, {.what = "slicing x.json", .remedy = "use fewer --band-layers"}), OutOfMemory,
+                       Catch::Message("out of memory: slicing x.json needs about 3072.0 GiB, " + of +
+                                                "use fewer --band-layers"));
+  CHECK_THROWS_MATCHES(requireMemory(over, {.what = "slicing x.json", .condition = "even in bands of 1 layer", .remedy = "r"}),
+                       OutOfMemory,
+                       Catch::Message("out of memory: slicing x.json needs about 3072.0 GiB even in bands of 1 layer, " + of + "r"));
+  // The short form (meshing/) says the same as the struct without a condition.
+  CHECK_THROWS_MATCHES(requireMemory(over, "reading m.obj", "simplify the mesh first"), OutOfMemory,
+                       Catch::Message("out of memory: reading m.obj needs about 3072.0 GiB, " + of + "simplify the mesh first"));
 }
