@@ -147,7 +147,7 @@ private:
 // What sliceMemoryBytes reads besides the design's raster profile and the band size.
 struct SliceMemoryInputs {
   openvdb::Coord part;  // the part's voxels along x, y, z (designVoxelBounds)
-  const materials::Ditherer* ditherer = nullptr;
+  const materials::Ditherer& ditherer;  // its working memory and kept trees are counted; outlives the inputs
   int concurrency = 1;
   std::uint64_t writerBytes = 0;
   KeptBandTrees kept;
@@ -157,7 +157,7 @@ struct SliceMemoryInputs {
 // sliceMemoryBytes from the design's layer profile, built once for every band size tried.
 std::uint64_t sliceMemoryBytes(const voxel::RasterProfile& profile, int bandLayers, const SliceMemoryInputs& in) {
   // The moduli and fractions hold the layer past the band only when the ditherer reads it.
-  voxel::RasterEstimate raster = profile.estimate(bandLayers, in.ditherer->readsNextLayer());
+  voxel::RasterEstimate raster = profile.estimate(bandLayers, in.ditherer.readsNextLayer());
   if (in.pieces) raster.pieceBytes = double(*in.pieces) * voxel::RasterEstimate::bytesPerPiece();
   // The dithered bands' material (bool) trees, on the leaves of the band's own layers: the bands in flight
   // and the ditherer's recycler's kept ones (a bool leaf: two 64-byte masks and its origin, plus the
@@ -167,10 +167,10 @@ std::uint64_t sliceMemoryBytes(const voxel::RasterProfile& profile, int bandLaye
                                (double(sizeof(openvdb::BoolTree::LeafNodeType)) + 16.0);
   // Explicit support's column tops: an int per column of the part.
   const double supportBytes = 4.0 * double(in.part.x()) * double(in.part.y());
-  const double ditherBytes = in.ditherer->workingBytes({raster.layerVoxels, raster.bandLeaves, bandLayers}, in.concurrency);
+  const double ditherBytes = in.ditherer.workingBytes({raster.layerVoxels, raster.bandLeaves, bandLayers}, in.concurrency);
   // peakBytes counts two float grids a band in flight, its moduli and its fractions: a ditherer that maps
   // as it dithers (SliceBands) makes no fraction grid, and its kept fraction trees are 0 (slicingKeptTrees).
-  const double fractionGridsNotMade = in.ditherer->mapsWhileDithering() ? kBandsInFlight * raster.bandBytes : 0.0;
+  const double fractionGridsNotMade = in.ditherer.mapsWhileDithering() ? kBandsInFlight * raster.bandBytes : 0.0;
   return common::saturatedBytes(raster.peakBytes(kBandsInFlight, in.kept.moduli + in.kept.fractions) - fractionGridsNotMade +
                                 materialBytes + supportBytes + ditherBytes + double(in.writerBytes));
 }
@@ -192,7 +192,7 @@ SliceMemoryPlan planSliceMemory(const geometry::RodStructure& design, const prin
   const openvdb::CoordBBox part = designVoxelBounds(design, grid);
   const std::uint64_t writer = jobWriterBytes(profile, part, settings.job.contactSheetLayers);
   // The ditherer's arena's concurrency too; the layer profile once for every band size tried.
-  const SliceMemoryInputs inputs{part.dim(), &ditherer, stageConcurrency(), writer, slicingKeptTrees(ditherer), pieces};
+  const SliceMemoryInputs inputs{part.dim(), ditherer, stageConcurrency(), writer, slicingKeptTrees(ditherer), pieces};
   const voxel::RasterProfile layers(design, grid);
   const auto estimate = [&](int bandLayers) { return SliceMemoryPlan{bandLayers, sliceMemoryBytes(layers, bandLayers, inputs)}; };
   const std::string images = std::to_string(part.dim().x()) + " x " + std::to_string(part.dim().y()) + " pixels";
@@ -243,7 +243,7 @@ KeptBandTrees slicingKeptTrees(const materials::Ditherer& ditherer) {
 std::uint64_t sliceMemoryBytes(const geometry::RodStructure& design, const voxel::PrinterGrid& grid, int bandLayers,
                                const materials::Ditherer& ditherer, int concurrency, std::uint64_t writerBytes,
                                std::optional<std::size_t> pieces) {
-  const SliceMemoryInputs inputs{designVoxelBounds(design, grid).dim(), &ditherer, concurrency, writerBytes, slicingKeptTrees(ditherer),
+  const SliceMemoryInputs inputs{designVoxelBounds(design, grid).dim(), ditherer, concurrency, writerBytes, slicingKeptTrees(ditherer),
                                  pieces};
   return sliceMemoryBytes(voxel::RasterProfile(design, grid), bandLayers, inputs);
 }
