@@ -230,6 +230,29 @@ cat > "$tmp/long.json" <<'JSON'
               "section": { "shape": "circle", "diameter": 1 }, "modulus": 50 } ] }
 JSON
 expect 1 "mm along x" "$tmp/long.json" -o "$tmp/out/x.zip"
+# Designs longer than the grid holds (16777216 voxels along an axis): refused naming the rod (index and name),
+# the field that makes it so, the extent and the limit in mm at the printer's voxel; nothing written. A
+# diameter of 1e308 mm, a control point at 1e8 mm (within the reader's +-1e9 mm), two rods far apart
+# (neither too long alone), and a control point at 1e12 mm, which the design reader refuses first.
+grid_design() {  # FILE ROD...: a design of the rods given (JSON objects), each E 50 MPa
+  local IFS=, name=$1
+  shift
+  echo "{ \"format\": \"rodfab.design/1\", \"units\": \"mm\", \"rods\": [ $* ] }" > "$tmp/$name.json"
+}
+rod() {  # NAME DIAMETER POINTS
+  echo "{ \"name\": \"$1\", \"centerline\": $3, \"section\": { \"shape\": \"circle\", \"diameter\": $2 }, \"modulus\": 50 }"
+}
+line='{ "degree": 1, "knots": [0,0,1,1], "points": [[0,0,0],[3,0,0]] }'
+bow() { echo "{ \"degree\": 2, \"knots\": [0,0,0,1,1,1], \"points\": [[0,0,0],[1,0,$1],[2,0,0]] }"; }
+grid_design fat "$(rod a 1 "$line")" "$(rod fat 1e308 "$line")"
+expect 1 'fat.json: the design spans 1e+308 mm along x: rods\[1\] ("fat") spans 1e+308 mm along x (its section.diameter of 1e+308 mm); expected at most 709676 mm along x (16777216 voxels along an axis at this printer.s voxel of 0.0423 mm)' "$tmp/fat.json" -o "$tmp/out/x.zip"
+grid_design tall "$(rod a 1 "$line")" "$(rod tall 1 "$(bow 1e8)")"
+expect 1 'tall.json: the design spans 5e+07 mm along z: rods\[1\] ("tall") spans 5e+07 mm along z (its control points centerline.points\[0\] at z = 0 mm and centerline.points\[1\] at z = 1e+08 mm); expected at most 503316 mm along z (16777216 voxels along an axis at this printer.s voxel of 0.03 mm)' "$tmp/tall.json" -o "$tmp/out/x.zip"
+grid_design apart "$(rod low 1 '{ "degree": 1, "knots": [0,0,1,1], "points": [[0,0,-4e5],[3,0,-4e5]] }')" "$(rod mid 1 "$line")" \
+  "$(rod high 1 '{ "degree": 1, "knots": [0,0,1,1], "points": [[0,0,4e5],[3,0,4e5]] }')"
+expect 1 'apart.json: the design spans 800001 mm along z: rods\[0\] ("low") reaches down to z = -4[0-9]* mm and rods\[2\] ("high") up to z = 4[0-9]* mm; expected at most 503316 mm along z' "$tmp/apart.json" -o "$tmp/out/x.zip"
+grid_design far "$(rod a 1 "$line")" "$(rod far 1 "$(bow 1e12)")"
+expect 1 'far.json: rods\[1\].centerline.points\[1\]: expected coordinates within +-1e9 mm' "$tmp/far.json" -o "$tmp/out/x.zip"
 # A budget below the job writer's fixed share (images, previews, the process: ~100 MB, more for a larger part):
 # refused as such, without suggesting --band-layers, which cannot help.
 expect 1 "writing the job of .* no band size makes that smaller: raise --max-memory to at least" "$src/examples/buckling-spring.json" -o "$tmp/out/x.zip" --max-memory 100M
