@@ -368,13 +368,16 @@ struct ErrorDiffusionDitherer::LayerBuffers : SlotBuffers {};
 
 namespace {
 
-// A slot's bytes per voxel of its layer: Layer's arrays (sized by resize(), so up to twice their size
-// after vector growth), its rows (at most one per voxel, grown the same way) and the error (assign():
-// exactly its size).
-constexpr double kSlotBytesPerVoxel =
-    2.0 * double(sizeof(int) + 2 * sizeof(float) + 3 * sizeof(std::uint32_t) + sizeof(std::uint16_t) + sizeof(std::uint8_t)) +
-    2.0 * double(sizeof(LayerRow)) + double(sizeof(float));
-static_assert(kSlotBytesPerVoxel == 82.0);
+// A slot's bytes per voxel of its layer: Layer's per-voxel arrays, at most 9/8 of the fullest layer
+// the slot held (Layer::resize's headroom, kLayerHeadroom), and the error (assign(): exactly its size).
+constexpr double kVoxelArrayBytes =
+    double(sizeof(int) + 2 * sizeof(float) + 3 * sizeof(std::uint32_t) + sizeof(std::uint16_t) + sizeof(std::uint8_t));
+static_assert(kVoxelArrayBytes == 27.0);
+constexpr double kSlotBytesPerVoxel = kVoxelArrayBytes * (1.0 + 1.0 / double(kLayerHeadroom)) + double(sizeof(float));
+// A slot's rows (push_back: up to twice their count after growth), and its scratch of a word per leaf
+// of the layer's slab (leafRows, resize: the same).
+constexpr double kSlotBytesPerRow = 2.0 * double(sizeof(LayerRow));
+constexpr double kSlotBytesPerLeaf = 2.0 * double(sizeof(std::uint64_t));
 // The band's leaf lists: the groups' leaves, the sort order, the output leaves (by group), the sorted
 // leaves and their output pointers (BandLeaves), 8 bytes a leaf each.
 constexpr double kListBytesPerLeaf = 5.0 * 8.0;
@@ -384,9 +387,13 @@ constexpr double kListBytesPerLeaf = 5.0 * 8.0;
 double ErrorDiffusionDitherer::workingBytes(const DitherBand& band, int concurrency) const {
   const int workers = workersFor(concurrency);
   const double slots = std::min(workers + kSpareSlots, std::max(band.layers, 1) + 1);
-  const double carryBytes = 2.0 * double(sizeof(Carry)) * band.layerVoxels;
+  // A layer's rows: at most one a voxel, and 8 a leaf of its slab (a leaf spans 8 rows), which the
+  // band's leaves bound (the band holds the slab of each of its layers and of the next one).
+  const double rows = std::min(band.layerVoxels, double(FloatLeaf::DIM) * band.leaves);
+  const double slotBytes = kSlotBytesPerVoxel * band.layerVoxels + kSlotBytesPerRow * rows + kSlotBytesPerLeaf * band.leaves;
+  const double carryBytes = double(sizeof(Carry)) * band.layerVoxels;  // reserved at most a layer's size
   const double maskBytes = double(workers) * double(sizeof(LeafMask)) * band.leaves;
-  return slots * kSlotBytesPerVoxel * band.layerVoxels + carryBytes + maskBytes + kListBytesPerLeaf * band.leaves;
+  return slots * slotBytes + carryBytes + maskBytes + kListBytesPerLeaf * band.leaves;
 }
 
 openvdb::BoolGrid::Ptr ErrorDiffusionDitherer::ditherLeafVoxels(const openvdb::FloatGrid& fraction, int k0, int k1) {
@@ -412,6 +419,7 @@ openvdb::BoolGrid::Ptr ErrorDiffusionDitherer::ditherLeafVoxels(const openvdb::F
 
   carry_.clear();
   const LayerSlot& last = diffusion.lastLayer();
+  carry_.reserve(last.layer.size());  // exactly, not push_back's doubling: workingBytes counts a Carry a voxel
   for (const Row& row : last.layer.rows)
     for (std::uint32_t v = row.begin; v < row.end; ++v)
       if (last.error[v] != 0.0f) carry_.push_back({last.layer.i[v], row.j, last.error[v]});

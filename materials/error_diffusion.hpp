@@ -55,14 +55,18 @@ public:
 
   // What a band holds besides its grids, all of it counted from the types (error_diffusion.cpp):
   //  - the layer slots in use, min(workers + kSpareSlots, band layers + 1), each kSlotBytesPerVoxel a
-  //    voxel of the fullest layer; kept from band to band (their capacity is the point);
-  //  - the error carried to the next band, a Carry (12 bytes) per voxel of the last layer, up to twice
-  //    that after vector growth; kept;
+  //    voxel of the fullest layer (its arrays at most 9/8 of it: Layer::resize's headroom), its rows (at
+  //    most one a voxel and 8 a leaf, twice that after vector growth) and a word a leaf; kept from band
+  //    to band (their capacity is the point);
+  //  - the error carried to the next band, a Carry (12 bytes) per voxel of the last layer (reserved at
+  //    the layer's size); kept;
   //  - each worker's Vero masks, one LeafMask (64 bytes) per leaf of the band, and the band's leaf lists
   //    (kListBytesPerLeaf), freed after the band.
   // Measured against the heap it keeps between bands (tests/test_materials_error_diffusion.cpp) and
-  // against resident memory: 360 bytes a voxel of a full 2000 x 1000 layer at 2 workers in 8-layer bands
-  // (5 slots: this count gives 434).
+  // against resident memory (slicer/README.md, "error diffusion's estimate"). Until tidy10 the arrays
+  // and the carry were counted at twice their size (vector doubling) and the rows at one a voxel:
+  // 434 bytes a voxel of a full 2000 x 1000 layer at 2 workers in 8-layer bands (5 slots), against 360
+  // measured then.
   double workingBytes(const DitherBand& band, int concurrency) const override;
   std::size_t keptTrees() const override { return recycler_.keptTrees(); }
   void reset() override {

@@ -10,15 +10,29 @@
 
 namespace rodfab::materials::detail {
 
+namespace {
+
+// Resizes `v` to n elements; past its capacity it reserves n + n / 8 (kLayerHeadroom), where resize()
+// alone may double it: a slot's arrays then stay within 9/8 of the fullest layer they held, which is what
+// ErrorDiffusionDitherer::workingBytes counts, and layers growing a little at a time still reallocate
+// only once in an eighth of growth.
+template <class T>
+void resizeWithHeadroom(std::vector<T>& v, std::size_t n) {
+  if (n > v.capacity()) v.reserve(n + n / kLayerHeadroom);
+  v.resize(n);
+}
+
+}  // namespace
+
 void Layer::resize(std::size_t n) {
-  i.resize(n);
-  fraction.resize(n);
-  threshold.resize(n);
-  leaf.resize(n);
-  offset.resize(n);
-  links.resize(n);
-  nextRow.resize(n);
-  up.resize(n);
+  resizeWithHeadroom(i, n);
+  resizeWithHeadroom(fraction, n);
+  resizeWithHeadroom(threshold, n);
+  resizeWithHeadroom(leaf, n);
+  resizeWithHeadroom(offset, n);
+  resizeWithHeadroom(links, n);
+  resizeWithHeadroom(nextRow, n);
+  resizeWithHeadroom(up, n);
 }
 
 namespace {

@@ -28,6 +28,10 @@ enum Link : std::uint8_t {
 };
 constexpr std::uint32_t kNoVoxel = std::numeric_limits<std::uint32_t>::max();
 
+// Layer::resize grows an array past its capacity to n + n / kLayerHeadroom voxels (not the doubling of
+// std::vector's growth): a slot's per-voxel arrays hold at most 9/8 of its fullest layer.
+constexpr std::size_t kLayerHeadroom = 8;
+
 // One layer's active voxels in (j, i) order, as arrays: the sweep reads them one after the other.
 struct Layer {
   int k = 0;
@@ -42,6 +46,7 @@ struct Layer {
   std::vector<std::uint32_t> up;       // the voxel above, kNoVoxel if none
   std::vector<std::uint64_t> leafRows;  // scratch of enumerateLayer: each slab leaf's voxels in layer k
   std::size_t size() const { return i.size(); }
+  // Every per-voxel array to n voxels (kLayerHeadroom past its capacity).
   void resize(std::size_t n);
 };
 

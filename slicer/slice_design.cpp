@@ -168,10 +168,18 @@ std::uint64_t sliceMemoryBytes(const voxel::RasterProfile& profile, int bandLaye
   // Explicit support's column tops: an int per column of the part.
   const double supportBytes = 4.0 * double(in.part.x()) * double(in.part.y());
   const double ditherBytes = in.ditherer.workingBytes({raster.layerVoxels, raster.bandLeaves, bandLayers}, in.concurrency);
-  // peakBytes counts two float grids a band in flight, its moduli and its fractions: a ditherer that maps
-  // as it dithers (SliceBands) makes no fraction grid, and its kept fraction trees are 0 (slicingKeptTrees).
-  const double fractionGridsNotMade = in.ditherer.mapsWhileDithering() ? kBandsInFlight * raster.bandBytes : 0.0;
-  return common::saturatedBytes(raster.peakBytes(kBandsInFlight, in.kept.moduli + in.kept.fractions) - fractionGridsNotMade +
+  // peakBytes counts two float grids a band in flight, its moduli and its fractions, and every kept tree.
+  // A ditherer that maps as it dithers (SliceBands) makes no fraction grid, and its kept fraction trees
+  // are 0 (slicingKeptTrees). For one that reads fraction grids (error diffusion) each band's fraction
+  // tree is built from the nodes of one tree the fraction recycler kept (TreeRecycler::takeSpares: the
+  // spares not used are freed, new nodes made only past them), so that tree and the one built from it
+  // are one tree's memory: at most kBandsInFlight + kept - 1 fraction trees at once. (The rasterizer's
+  // recycler builds the moduli the same way; they stay counted in full, the slack white and blue's
+  // thinner margins were measured with.)
+  const double fractionTreesNotHeld = in.ditherer.mapsWhileDithering() ? kBandsInFlight * raster.bandBytes
+                                      : in.kept.fractions > 0                ? raster.bandBytes
+                                                                             : 0.0;
+  return common::saturatedBytes(raster.peakBytes(kBandsInFlight, in.kept.moduli + in.kept.fractions) - fractionTreesNotHeld +
                                 materialBytes + supportBytes + ditherBytes + double(in.writerBytes));
 }
 

@@ -226,11 +226,16 @@ TEST_CASE("materials: what each ditherer says of itself: the next layer, and wor
   const DitherBand band{1e6, 5e4, 8};
   const auto ed = makeDitherer("error-diffusion");
   CHECK(ed->readsNextLayer());
-  // 5 slots (2 workers + 3) of 82 bytes a voxel, the carried error, two workers' masks and the lists.
-  CHECK(ed->workingBytes(band, 2) == Approx(5 * 82e6 + 24e6 + 5e4 * (2 * 64 + 40)));
+  // A slot: 27 bytes a voxel of arrays with 1/8 headroom and a float of error; rows of 12 bytes, twice
+  // over, at most 8 a leaf (4e5 here, fewer than the voxels); a 16-byte word a leaf.
+  const double slot = 27 * 1.125e6 + 4e6 + 24 * 4e5 + 16 * 5e4;
+  // 5 slots (2 workers + 3), the carried error (12 bytes a voxel), two workers' masks and the lists.
+  CHECK(ed->workingBytes(band, 2) == Approx(5 * slot + 12e6 + 5e4 * (2 * 64 + 40)));
   CHECK(ed->workingBytes(band, 64) == ed->workingBytes(band, 4));  // at most 4 workers
   CHECK(ed->workingBytes(band, 0) == ed->workingBytes(band, 1));
-  CHECK(ed->workingBytes({1e6, 5e4, 1}, 4) == Approx(2 * 82e6 + 24e6 + 5e4 * (4 * 64 + 40)));  // a 1-layer band: 2 slots
+  CHECK(ed->workingBytes({1e6, 5e4, 1}, 4) == Approx(2 * slot + 12e6 + 5e4 * (4 * 64 + 40)));  // a 1-layer band: 2 slots
+  // Rows at most one a voxel when the leaves would allow more.
+  CHECK(ed->workingBytes({1e4, 5e4, 8}, 1) == Approx(4 * (27 * 1.125e4 + 4e4 + 24 * 1e4 + 16 * 5e4) + 12e4 + 5e4 * (64 + 40)));
   for (const char* pointwise : {"white", "blue"}) {
     INFO(pointwise);
     const auto d = makeDitherer(pointwise);

@@ -68,6 +68,22 @@ for dither in white blue error-diffusion; do
   rm -f "$tmp"/[123]/job.zip
 done
 
+# Error diffusion within a budget 2 % over its estimate (as --json gives it): the same bands and bytes as
+# without one. The budget is also the process's data limit, so an estimate below what the slice really
+# allocates would end in out of memory here (tidy10 tightened it: unfolding-box 541 -> 461 MB, peak 201 MB).
+for design in unfolding-box buckling-spring; do
+  "$rodfab" slice "$src/examples/$design.json" -o "$tmp/1/job.zip" --dither error-diffusion --seed 7 --threads 2 --quiet --json > "$tmp/json" ||
+    fail "$design, error diffusion"
+  read -r estimate bands < <(python3 -c "import json, sys; m = json.load(open(sys.argv[1]))['memory']; print(m['estimate_bytes'], m['band_layers'])" "$tmp/json")
+  budget=$((estimate + estimate / 50))
+  "$rodfab" slice "$src/examples/$design.json" -o "$tmp/2/job.zip" --dither error-diffusion --seed 7 --threads 2 --quiet --json \
+    --max-memory "$budget" > "$tmp/json" 2> "$tmp/err" || fail "$design, error diffusion in $budget bytes (estimate $estimate): $(cat "$tmp/err")"
+  python3 -c "import json, sys; assert json.load(open(sys.argv[1]))['memory']['band_layers'] == int(sys.argv[2])" "$tmp/json" "$bands" ||
+    fail "$design: other bands than $bands in $budget bytes"
+  cmp -s "$tmp/1/job.zip" "$tmp/2/job.zip" || fail "$design: a budget changed the job"
+  rm -f "$tmp"/[12]/job.zip
+done
+
 # "random" (the published pipeline's word, as calibration data records it) is white, as in coupons.
 "$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/1/job.zip" --dither random --seed 3 --quiet > /dev/null || fail "--dither random"
 "$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/2/job.zip" --dither white --seed 3 --quiet > /dev/null || fail "--dither white"
