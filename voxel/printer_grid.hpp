@@ -40,7 +40,10 @@ struct PrinterGrid {
 // The grid for `structure` at `voxelSizeMm` (the printer profile's voxel: x, y, z in mm): the cell of voxel (0,0,0) lies one voxel below the minimum corner of its
 // bounding box (its centre half a voxel below), and the cells of [0, dims) reach at least one voxel
 // past the maximum, so every design voxel has an empty neighbour on each side. Throws std::invalid_argument when a voxel
-// size is not a positive finite number or the design is empty.
+// size is not a positive finite number, the design is empty, or it spans more than kMaxVoxelsPerAxis voxels along an
+// axis (the message names the axis, the extent and the limit in mm, and the rod, as rods[i] and its name, with the
+// field that makes it that long: its section or its control points; or the two rods reaching lowest and highest).
+// Thread-safe (pure).
 PrinterGrid makePrinterGrid(const geometry::RodStructure& structure, const openvdb::Vec3d& voxelSizeMm);
 
 }  // namespace rodfab::voxel
