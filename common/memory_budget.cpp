@@ -84,10 +84,6 @@ void requireMemory(std::uint64_t bytes, const MemoryNeed& need) {
                     formatBytes(memoryBudget()) + " (--max-memory); " + need.remedy);
 }
 
-void requireMemory(std::uint64_t bytes, const std::string& what, const std::string& remedy) {
-  requireMemory(bytes, {.what = what, .remedy = remedy});
-}
-
 std::uint64_t saturatedBytes(double bytes) {
   constexpr double kTwoTo64 = 18446744073709551616.0;  // 2^64, exact in a double
   if (std::isnan(bytes) || bytes >= kTwoTo64) return UINT64_MAX;

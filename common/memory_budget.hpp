@@ -42,8 +42,6 @@ struct MemoryNeed {
 
 // Throws OutOfMemory (the message above) when `bytes`, an estimate for `need.what`, exceeds the budget.
 void requireMemory(std::uint64_t bytes, const MemoryNeed& need);
-// The same without a condition: the short form meshing/ still calls.
-void requireMemory(std::uint64_t bytes, const std::string& what, const std::string& remedy);
 
 // An estimate in bytes worked out in double, as the unsigned count requireMemory takes: UINT64_MAX for
 // NaN, +infinity and anything at or above 2^64 (an estimate too large to count is over any budget),

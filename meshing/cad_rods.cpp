@@ -53,7 +53,8 @@ TopoDS_Shape readShape(const std::filesystem::path& file) {
   if (size > kMaxMeshFileBytes) throw MeshError(file, "larger than 2 GiB");
   // OpenCASCADE's readers hold the whole entity graph and then the shapes. 40 bytes per byte of text is
   // an estimate, not a measurement (see meshing/README.md, what remains).
-  common::requireMemory(std::uint64_t(size) * 40, "reading the CAD model " + file.string(), "split the model");
+  common::requireMemory(std::uint64_t(size) * 40, {.what = "reading the CAD model " + file.string(),
+                                                  .remedy = "split the model"});
   std::lock_guard<std::mutex> lock(readerMutex());
   Message::DefaultMessenger()->RemovePrinters(STANDARD_TYPE(Message_Printer));
   const bool step = ext == ".step" || ext == ".stp";

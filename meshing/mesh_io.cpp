@@ -387,7 +387,8 @@ void canonicalizeTriangles(std::vector<Triangle>& triangles) {
 }
 
 TriangleMesh parseMesh(const std::string& bytes, const std::string& format, const std::string& source, ReadStats& stats) {
-  common::requireMemory(bytes.size() * kParseBytesPerFileByte, "reading the mesh " + source, "simplify the mesh first");
+  common::requireMemory(bytes.size() * kParseBytesPerFileByte, {.what = "reading the mesh " + source,
+                                                               .remedy = "simplify the mesh first"});
   if (bytes.find_first_not_of(" \t\r\n") == std::string::npos) throw MeshError(source, "the file is empty: it holds no faces");
   if (format == "off") checkOffText(bytes, source);
   if (format == "ply") checkPlyHeader(bytes, source);
@@ -395,7 +396,8 @@ TriangleMesh parseMesh(const std::string& bytes, const std::string& format, cons
   // corners: tabs become spaces (white space alike in OBJ), in a copy only where there are any.
   std::string spaced;
   if (format == "obj" && bytes.find('\t') != std::string::npos) {
-    common::requireMemory(bytes.size() * (kParseBytesPerFileByte + 1), "reading the mesh " + source, "simplify the mesh first");
+    common::requireMemory(bytes.size() * (kParseBytesPerFileByte + 1), {.what = "reading the mesh " + source,
+                                                                       .remedy = "simplify the mesh first"});
     spaced = bytes;
     std::replace(spaced.begin(), spaced.end(), '\t', ' ');
   }
@@ -415,8 +417,8 @@ TriangleMesh parseMesh(const std::string& bytes, const std::string& format, cons
   polygons = {};
   // CGAL's STL reader already merges repeated corners: count those as welded too.
   const std::size_t stlMerged = format == "stl" ? 3 * triangles.size() - std::min(3 * triangles.size(), points.size()) : 0;
-  common::requireMemory(triangles.size() * kBytesPerTriangle, "building rods from the mesh " + source,
-                        "simplify the mesh first");
+  common::requireMemory(triangles.size() * kBytesPerTriangle, {.what = "building rods from the mesh " + source,
+                                                              .remedy = "simplify the mesh first"});
   TriangleMesh mesh = weld(points, std::move(triangles), stats);
   stats.weldedVertices += stlMerged;
   points = {};
@@ -439,7 +441,8 @@ TriangleMesh readMesh(const std::filesystem::path& file, ReadStats& stats) {
   const std::uintmax_t size = std::filesystem::file_size(file, ec);
   if (ec) throw MeshError(file, "cannot read: " + ec.message());
   if (size > kMaxMeshFileBytes) throw MeshError(file, "larger than 2 GiB: simplify the mesh first");
-  common::requireMemory(size * (kParseBytesPerFileByte + 1), "reading the mesh " + file.string(), "simplify the mesh first");
+  common::requireMemory(size * (kParseBytesPerFileByte + 1), {.what = "reading the mesh " + file.string(),
+                                                             .remedy = "simplify the mesh first"});
   std::ifstream in(file, std::ios::binary);
   std::string bytes(size, '\0');
   if (!in || !in.read(bytes.data(), static_cast<std::streamsize>(size)))

@@ -155,7 +155,4 @@ TEST_CASE("memory budget: requireMemory passes up to the budget and beyond it na
   CHECK_THROWS_MATCHES(requireMemory(over, {.what = "slicing x.json", .condition = "even in bands of 1 layer", .remedy = "r"}),
                        OutOfMemory,
                        Catch::Message("out of memory: slicing x.json needs about 3072.0 GiB even in bands of 1 layer, " + of + "r"));
-  // The short form (meshing/) says the same as the struct without a condition.
-  CHECK_THROWS_MATCHES(requireMemory(over, "reading m.obj", "simplify the mesh first"), OutOfMemory,
-                       Catch::Message("out of memory: reading m.obj needs about 3072.0 GiB, " + of + "simplify the mesh first"));
 }
