@@ -40,8 +40,8 @@ std::string describeVoxelSize(const openvdb::Vec3d& v) {
 
 // A file's deflated zip form, made by igzip at the layers' level as the layers' are: libzip then copies
 // it instead of deflating it with zlib on finalize's serial path (the manifest and report.html are
-// about a megabyte each). `staged.memory` points into `bytes`: moving the form keeps it valid (a
-// vector's buffer moves with it), copying would not, hence no copies.
+// about a megabyte each). `staged.memory` points into `bytes`, so a form is neither copied nor moved:
+// it is made in place (in the writer's map of them).
 struct ZipForm {
   Bytes bytes;
   StagedZipData staged;
@@ -176,9 +176,11 @@ struct JobWriter::Impl {
     throw std::invalid_argument(msg.str());
   }
 
+  // A file of the job beside its layers: written to the staging folder, or for a zip job, when the zip
+  // deflates it, kept only as its zip form.
   FileRecord writeStaged(const std::string& name, std::span<const std::uint8_t> data) {
-    writeFile(filesDir / name, data);
     if (spec.options.archive == ArchiveFormat::Zip && !name.ends_with(".png")) zipForms.try_emplace(name, data);
+    else writeFile(filesDir / name, data);
     return {name, data.size(), common::xxh128Hex(data)};
   }
 
