@@ -108,7 +108,11 @@ struct RgbImage {
   std::uint8_t* at(int x, int y) { return pixels.data() + (static_cast<std::size_t>(y) * width + x) * 3; }
   const std::uint8_t* at(int x, int y) const { return pixels.data() + (static_cast<std::size_t>(y) * width + x) * 3; }
 };
+// 8-bit RGB PNG without pHYs, compressed like encodePng1 (the previews; no row filter). The second form
+// takes row r (3 * width bytes) from `row(r, out)` when the encoder needs it, in batches of about 1 MB.
+// Throws ImageError when libpng fails, std::bad_alloc when memory runs out.
 Bytes encodePngRgb(const RgbImage& image);
+Bytes encodePngRgb(int width, int height, const std::function<void(int, std::uint8_t*)>& row);
 RgbImage decodePngRgb(std::span<const std::uint8_t> file);  // 8-bit RGB PNGs only
 
 // 8-bit RGBA PNG (colour type 6) with pHYs, for GrabCAD Voxel Print layers: `row(r, out)` fills row r

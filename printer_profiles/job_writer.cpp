@@ -1,6 +1,7 @@
 #include "printer_profiles/job_writer.hpp"
 
 #include "printer_profiles/band_encoder.hpp"
+#include "printer_profiles/deflate.hpp"
 #include "printer_profiles/gcvf_writer.hpp"
 #include "printer_profiles/inspect.hpp"
 #include "printer_profiles/job_manifest.hpp"
@@ -16,6 +17,7 @@
 #include <array>
 #include <atomic>
 #include <cstdio>
+#include <map>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -35,6 +37,24 @@ std::string describeVoxelSize(const openvdb::Vec3d& v) {
   s << v.x() << " x " << v.y() << " x " << v.z() << " mm";
   return s.str();
 }
+
+// A file's deflated zip form, made by igzip at the layers' level as the layers' are: libzip then copies
+// it instead of deflating it with zlib on finalize's serial path (the manifest and report.html are
+// about a megabyte each). `staged.memory` points into `bytes`, so a form is neither copied nor moved:
+// it is made in place (in the writer's map of them).
+struct ZipForm {
+  Bytes bytes;
+  StagedZipData staged;
+  explicit ZipForm(std::span<const std::uint8_t> data) : bytes(deflateBytes(data, kLayerDeflateLevel, DeflateWrapper::Raw)) {
+    staged.length = bytes.size();
+    staged.size = data.size();
+    staged.crc32 = zipCrc32(data);
+    staged.inMemory = true;
+    staged.memory = bytes;
+  }
+  ZipForm(const ZipForm&) = delete;
+  ZipForm& operator=(const ZipForm&) = delete;
+};
 
 }  // namespace
 
@@ -80,6 +100,7 @@ struct JobWriter::Impl {
   std::vector<LayerRecord> layers;
   std::unique_ptr<Previews> previews;
   std::unique_ptr<BandEncoder> encoder;
+  std::map<std::string, ZipForm> zipForms;  // by name: the deflated zip forms of writeStaged's files but the PNGs
   bool finished = false;
 
   explicit Impl(JobSpec s) : spec(std::move(s)) {
@@ -155,8 +176,11 @@ struct JobWriter::Impl {
     throw std::invalid_argument(msg.str());
   }
 
-  FileRecord writeStaged(const std::string& name, std::span<const std::uint8_t> data) const {
-    writeFile(filesDir / name, data);
+  // A file of the job beside its layers: written to the staging folder, or for a zip job, when the zip
+  // deflates it, kept only as its zip form.
+  FileRecord writeStaged(const std::string& name, std::span<const std::uint8_t> data) {
+    if (spec.options.archive == ArchiveFormat::Zip && !name.ends_with(".png")) zipForms.try_emplace(name, data);
+    else writeFile(filesDir / name, data);
     return {name, data.size(), common::xxh128Hex(data)};
   }
 
@@ -221,10 +245,11 @@ struct JobWriter::Impl {
   // Fixed order: manifest, build file, previews, report, then the layers bottom-up, materials in profile order.
   void writeArchive(const std::vector<FileRecord>& files, std::size_t firstLayerFile) const {
     std::vector<ZipEntry> entries;
-    entries.push_back({kManifestName, filesDir / kManifestName, ZipStorage::Deflate, std::nullopt});
+    entries.push_back({kManifestName, {}, ZipStorage::Deflate, zipForms.at(kManifestName).staged});
     for (std::size_t n = 0; n < firstLayerFile; ++n) {
-      const bool png = files[n].name.ends_with(".png");
-      entries.push_back({files[n].name, filesDir / files[n].name, png ? ZipStorage::Store : ZipStorage::Deflate, std::nullopt});
+      const std::string& name = files[n].name;
+      if (name.ends_with(".png")) entries.push_back({name, filesDir / name, ZipStorage::Store, std::nullopt});
+      else entries.push_back({name, {}, ZipStorage::Deflate, zipForms.at(name).staged});
     }
     for (const LayerRecord& r : layers)
       for (std::size_t f = 0; f < r.files.size(); ++f) entries.push_back({r.files[f].name, {}, encoder->layerStorage(), r.zipped[f]});

@@ -47,20 +47,20 @@ void putPixel(cairo_surface_t* s, int x, int y, const std::uint8_t rgb[3], doubl
   row[x] = 0xff000000u | (ch(0) << 16) | (ch(1) << 8) | ch(2);
 }
 
+// The surface's pixels as an RGB PNG, converted a row at a time as the encoder takes them.
 Bytes surfaceToPng(cairo_surface_t* s) {
   cairo_surface_flush(s);
   const int w = cairo_image_surface_get_width(s), h = cairo_image_surface_get_height(s);
-  RgbImage image(w, h, 0, 0, 0);
-  for (int y = 0; y < h; ++y) {
-    const auto* row = reinterpret_cast<const std::uint32_t*>(cairo_image_surface_get_data(s) + y * cairo_image_surface_get_stride(s));
-    for (int x = 0; x < w; ++x) {
-      std::uint8_t* p = image.at(x, y);
-      p[0] = static_cast<std::uint8_t>(row[x] >> 16);
-      p[1] = static_cast<std::uint8_t>(row[x] >> 8);
-      p[2] = static_cast<std::uint8_t>(row[x]);
+  const unsigned char* data = cairo_image_surface_get_data(s);
+  const int stride = cairo_image_surface_get_stride(s);
+  return encodePngRgb(w, h, [&](int y, std::uint8_t* out) {
+    const auto* row = reinterpret_cast<const std::uint32_t*>(data + static_cast<std::ptrdiff_t>(y) * stride);
+    for (int x = 0; x < w; ++x, out += 3) {
+      out[0] = static_cast<std::uint8_t>(row[x] >> 16);
+      out[1] = static_cast<std::uint8_t>(row[x] >> 8);
+      out[2] = static_cast<std::uint8_t>(row[x]);
     }
-  }
-  return encodePngRgb(image);
+  });
 }
 
 void text(cairo_t* cr, double x, double y, const std::string& s, double size = 13.0) {
@@ -451,8 +451,8 @@ std::vector<std::pair<std::string, Bytes>> Previews::render(const std::string& t
   const auto projections = [&](const ModulusScale* byModulus) {
     return renderProjections(title, geometry_, profile_, top_, front_, side_, byModulus);
   };
-  // Each image on its own surface, drawn and compressed at once on the caller's arena: the PNGs'
-  // zlib compression was most of finalize()'s serial time (bench/README.md, "Emit, round 4").
+  // Each image on its own surface, drawn and compressed at once on the caller's arena (the PNGs' zlib
+  // compression was most of finalize()'s serial time until round 10 compressed them with igzip).
   Bytes material, byModulus, sheet;
   tbb::parallel_invoke([&] { material = projections(nullptr); },
                        [&] {

@@ -136,6 +136,33 @@ TEST_CASE("1-bit BMP and PNG round-trip with their resolution", "[bitmap]") {
   CHECK_THROWS_AS(decodePng1(png), ImageError);
 }
 
+TEST_CASE("RGB PNGs (the previews) decode to the pixels given, whole or fed in row batches", "[bitmap][png]") {
+  // 1 x 1; 700 x 400 (840 kB of rows: one batch); 1500 x 900 (4 MB: the streamed batches, as a preview).
+  for (const auto& [width, height] : {std::pair{1, 1}, std::pair{700, 400}, std::pair{1500, 900}}) {
+    RgbImage image(width, height, 0, 0, 0);
+    std::mt19937 rng(static_cast<unsigned>(width * 7 + height));
+    for (int y = 0; y < height; ++y)
+      for (int x = 0; x < width; ++x) {
+        std::uint8_t* p = image.at(x, y);
+        const bool noisy = (x / 50 + y / 50) % 3 == 0;  // flat areas and noise, like captions on a view
+        for (int c = 0; c < 3; ++c) p[c] = noisy ? static_cast<std::uint8_t>(rng()) : static_cast<std::uint8_t>(40 * c + x / 100);
+      }
+    const Bytes png = encodePngRgb(image);
+    const RgbImage back = decodePngRgb(png);  // libpng, with zlib: not the encoder's igzip
+    CHECK(back.width == width);
+    CHECK(back.height == height);
+    CHECK(back.pixels == image.pixels);
+    // The row-callback form is the same file.
+    const std::size_t stride = static_cast<std::size_t>(width) * 3;
+    CHECK(encodePngRgb(width, height, [&](int r, std::uint8_t* out) {
+            std::copy_n(image.pixels.data() + static_cast<std::size_t>(r) * stride, stride, out);
+          }) == png);
+  }
+  Bytes cut = encodePngRgb(RgbImage(300, 300, 1, 2, 3));
+  cut.resize(cut.size() - 20);  // IEND and the end of the image data
+  CHECK_THROWS_AS(decodePngRgb(cut), ImageError);
+}
+
 TEST_CASE("A bitmap held in its BMP file reads and writes as any bitmap, and its memory is encodeBmp's file", "[bitmap]") {
   // Rows padded to 32-bit words and not (widths 1, 96 and 1000 pad, 2080 does not), one row and many.
   for (const auto& [width, height] : {std::pair{1, 1}, std::pair{96, 5}, std::pair{1000, 300}, std::pair{2080, 7}}) {
