@@ -131,15 +131,17 @@ struct LeafBuilder::SweptQuad {
                                                            int k, int jLo, int jHi) {
   for (int j4 = jLo; j4 <= jHi; j4 += 4) {
     const FourRows rows(s.planeA, s.planeB, s.slopeA, s.slopeB, cylinder, j4, k);
+    Int4 first, last;
+    Mask4 empty;
+    rows.round(box.min().x(), box.max().x(), first, last, empty);
     // The frame coordinates' rows for the four rows at once too (AffineInIndex::row lane by lane).
     const Double4 jv = double(j4) + Double4{0.0, 1.0, 2.0, 3.0};
     const Double4 x1a = rowsOf(s.piece.x1Begin, jv, k), x2a = rowsOf(s.piece.x2Begin, jv, k), x1b = rowsOf(s.piece.x1End, jv, k),
                   x2b = rowsOf(s.piece.x2End, jv, k);
     for (int l = 0; l < 4 && j4 + l <= jHi; ++l) {
       const int j = j4 + l;
-      RowBounds bounds{rows.lo[l], rows.hi[l]};
-      int lo = box.min().x(), hi = box.max().x();
-      if (rows.missed[l] || !bounds.round(lo, hi)) continue;
+      if (empty[l]) continue;
+      const int lo = first[l], hi = last[l];
       const SweptRowStart start{rows.a[l], rows.b[l], x1a[l], x2a[l], x1b[l], x2b[l]};
       voxelsPerRod[static_cast<std::size_t>(s.rod)] += static_cast<std::uint64_t>(sweepRow(s, start, lo, hi, j, k));
     }
