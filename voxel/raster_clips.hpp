@@ -74,10 +74,12 @@ struct SweptLanes {
       : gxA(broadcast(planeAgx)), gxB(broadcast(planeBgx)), gx1Begin(broadcast(p.x1Begin.gx)), gx2Begin(broadcast(p.x2Begin.gx)),
         gx1End(broadcast(p.x1End.gx)), gx2End(broadcast(p.x2End.gx)), x1Quadratic(broadcast(p.x1Quadratic)),
         x2Quadratic(broadcast(p.x2Quadratic)), modulusBegin(broadcast(p.modulusBegin)), modulusEnd(broadcast(p.modulusEnd)),
-        modulusQuadratic(broadcast(p.modulusQuadratic)), modulusLow(broadcast(p.modulusLow)), modulusHigh(broadcast(p.modulusHigh)),
+        modulusQuadratic(broadcast(p.modulusQuadratic)), modulusRise(modulusEnd - modulusBegin),
+        modulusFloor(Double4{} + broadcast(p.modulusLow)), modulusCeiling(Double4{} + broadcast(p.modulusHigh)),
         iA(broadcast(inverseHalfWidth)), iB(broadcast(inverseHalfHeight)), sureInsideBelow(broadcast(sureInside)) {}
   Double4 gxA, gxB, gx1Begin, gx2Begin, gx1End, gx2End;
-  Double4 x1Quadratic, x2Quadratic, modulusBegin, modulusEnd, modulusQuadratic, modulusLow, modulusHigh;  // as in RodPiece
+  Double4 x1Quadratic, x2Quadratic, modulusBegin, modulusEnd, modulusQuadratic;  // as in RodPiece
+  Double4 modulusRise, modulusFloor, modulusCeiling;  // estimateModulus's per-piece parts (see there)
   Double4 iA, iB, sureInsideBelow;  // RodPieces::inverseHalfWidth, inverseHalfHeight; ShellThresholds::sureInsideBelow
 };
 
@@ -85,8 +87,15 @@ struct SweptLanes {
 inline Double4 largerOf(Double4 a, Double4 b) { return a < b ? b : a; }
 inline Double4 smallerOf(Double4 a, Double4 b) { return b < a ? b : a; }
 
-// AffineInIndex::row for rows j[0..3] of layer k, lane by lane the same expression.
-inline Double4 rowsOf(const AffineInIndex& f, Double4 j, int k) { return (f.c + f.gy * j) + f.gz * k; }
+// AffineInIndex::row for the rows of one layer k, four rows j[0..3] at a time, lane by lane the same
+// expression (c + gy j) + gz k. The coefficients in lanes and gz k are set once per layer: read from
+// the piece for every four rows, GCC loaded them again each time (the slots the rows' voxels are
+// stored to are doubles too, so they might have changed the piece).
+struct LayerRows {
+  [[gnu::always_inline]] LayerRows(const AffineInIndex& f, int k) : c(broadcast(f.c)), gy(broadcast(f.gy)), gzk(broadcast(f.gz * k)) {}
+  [[gnu::always_inline]] Double4 at(Double4 j) const { return (c + gy * j) + gzk; }
+  Double4 c, gy, gzk;
+};
 
 // A double error bound as a float that is not smaller.
 inline float roundedUpToFloat(double bound) {
@@ -257,15 +266,14 @@ private:
   double b0_ = 0.0, g0_ = 0.0, g1_ = 0.0;
 };
 
-// Four rows j .. j + 3 of layer k set up at once for a swept piece between planes a and b: the planes'
-// rows, and the row bounds of the slab (slopes) and the axis cylinder with one vector square root,
+// Four rows j .. j + 3 (jv: j to j + 3 as doubles) of a layer set up at once for a swept piece between
+// planes a and b (their rows in the layer): the planes' rows, and the row bounds of the slab (slopes) and the axis cylinder with one vector square root,
 // lane by lane the scalar clips' expressions (so the same bits). `missed` marks rows with no voxel.
 struct FourRows {
-  [[gnu::always_inline]] FourRows(const AffineInIndex& planeA, const AffineInIndex& planeB, const Slope& slopeA, const Slope& slopeB,
-                                  const AxisCylinder& cylinder, int j, int k) {
-    const Double4 jv = double(j) + Double4{0.0, 1.0, 2.0, 3.0};
-    a = rowsOf(planeA, jv, k);
-    b = rowsOf(planeB, jv, k);
+  [[gnu::always_inline]] FourRows(const LayerRows& planeA, const LayerRows& planeB, const Slope& slopeA, const Slope& slopeB,
+                                  const AxisCylinder& cylinder, int j, Double4 jv) {
+    a = planeA.at(jv);
+    b = planeB.at(jv);
     slopeA.bound(a, lo, hi, missed);
     slopeB.bound(-b, lo, hi, missed);
     cylinder.rows(j, lo, hi, missed);

@@ -129,15 +129,16 @@ struct LeafBuilder::SweptQuad {
 // root), each lane as the scalar clips compute it; then row by row.
 [[gnu::always_inline]] inline void LeafBuilder::sweepLayer(const SweptPiece& s, const openvdb::CoordBBox& box, const AxisCylinder& cylinder,
                                                            int k, int jLo, int jHi) {
+  const LayerRows planeA(s.planeA, k), planeB(s.planeB, k);
+  const LayerRows x1Begin(s.piece.x1Begin, k), x2Begin(s.piece.x2Begin, k), x1End(s.piece.x1End, k), x2End(s.piece.x2End, k);
   for (int j4 = jLo; j4 <= jHi; j4 += 4) {
-    const FourRows rows(s.planeA, s.planeB, s.slopeA, s.slopeB, cylinder, j4, k);
+    const Double4 jv = double(j4) + Double4{0.0, 1.0, 2.0, 3.0};
+    const FourRows rows(planeA, planeB, s.slopeA, s.slopeB, cylinder, j4, jv);
     Int4 first, last;
     Mask4 empty;
     rows.round(box.min().x(), box.max().x(), first, last, empty);
-    // The frame coordinates' rows for the four rows at once too (AffineInIndex::row lane by lane).
-    const Double4 jv = double(j4) + Double4{0.0, 1.0, 2.0, 3.0};
-    const Double4 x1a = rowsOf(s.piece.x1Begin, jv, k), x2a = rowsOf(s.piece.x2Begin, jv, k), x1b = rowsOf(s.piece.x1End, jv, k),
-                  x2b = rowsOf(s.piece.x2End, jv, k);
+    // The frame coordinates' rows for the four rows at once too.
+    const Double4 x1a = x1Begin.at(jv), x2a = x2Begin.at(jv), x1b = x1End.at(jv), x2b = x2End.at(jv);
     for (int l = 0; l < 4 && j4 + l <= jHi; ++l) {
       const int j = j4 + l;
       if (empty[l]) continue;
