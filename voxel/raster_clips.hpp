@@ -57,6 +57,13 @@ inline Double4 squareRoot(Double4 v) {
   return Double4{low[0], low[1], high[0], high[1]};
 }
 
+// The lanes of a comparison as bits 0 to 3 (two SSE2 movemasks).
+inline unsigned laneBits(Mask4 m) {
+  const Double4 d = reinterpret_cast<Double4>(m);
+  const __m128d low = __builtin_shufflevector(d, d, 0, 1), high = __builtin_shufflevector(d, d, 2, 3);
+  return static_cast<unsigned>(_mm_movemask_pd(low) | (_mm_movemask_pd(high) << 2));
+}
+
 // A value in all four lanes.
 inline Double4 broadcast(double v) { return Double4{v, v, v, v}; }
 
