@@ -116,13 +116,18 @@ struct LeafBuilder::SweptQuad {
   return fresh;
 }
 
-// Row (j, k) from voxel lo to hi, four voxels a step (see estimateSwept); the decisions per voxel.
-// Returns the slots newly filled.
+// Row (j, k) from voxel lo to hi (lo <= hi), four voxels a step (see estimateSwept); the decisions per
+// voxel. Returns the slots newly filled.
 [[gnu::always_inline]] inline int LeafBuilder::sweepRow(const SweptPiece& s, const SweptRowStart& r, int lo, int hi, int j, int k) {
   const int row = rowOf(j, k);
   int fresh = 0;
   Double4 iv = double(lo) + Double4{0.0, 1.0, 2.0, 3.0};
-  for (int i = lo; i <= hi; i += 4, iv += 4.0) fresh += settleQuad(s, sweptQuad(s.rectangle, r, iv), row, i, hi, j, k);
+  int i = lo;
+  do {  // a row has a voxel (sweepLayer skips empty rows): no test before the first quad
+    fresh += settleQuad(s, sweptQuad(s.rectangle, r, iv), row, i, hi, j, k);
+    i += 4;
+    iv += 4.0;
+  } while (i <= hi);
   return fresh;
 }
 
