@@ -49,11 +49,15 @@ void LeafBuilder::emit(const openvdb::Coord& origin, SpareNodes<openvdb::FloatTr
   static_assert(kRows == 64 && kLeafDim == 8, "transposeIntoLeaf's layout");
   std::uint64_t anyRow = 0;
   for (std::uint64_t w : filled_) anyRow |= w;
+  // The block's spare indices taken at once: one atomic operation a block, not a leaf (on two threads
+  // the counter's cache line went back and forth for every leaf).
+  std::size_t count = 0;
+  for (int l = 0; l < kBlockLeaves; ++l) count += ((anyRow >> (l * kLeafDim)) & 0xffu) != 0;
+  std::size_t spare = count > 0 ? nextSpare.fetch_add(count, std::memory_order_relaxed) : 0;
   for (int l = 0; l < kBlockLeaves; ++l) {
     if (((anyRow >> (l * kLeafDim)) & 0xffu) == 0) continue;
-    const std::size_t spare = nextSpare.fetch_add(1, std::memory_order_relaxed);
     const bool reused = spares.hasLeaf(spare);  // a new leaf holds 0 already; a reused one its old values (cleared below)
-    leaves[static_cast<std::size_t>(l)] = spares.leaf(spare, origin.offsetBy(l * kLeafDim, 0, 0));
+    leaves[static_cast<std::size_t>(l)] = spares.leaf(spare++, origin.offsetBy(l * kLeafDim, 0, 0));
     LeafT& node = *leaves[static_cast<std::size_t>(l)];
     alignas(16) std::array<std::uint8_t, kRows> bytes;
     for (int r = 0; r < kRows; ++r)

@@ -61,7 +61,8 @@ public:
   // earlier block's value, never an indeterminate one, see value_), and the mask words come from the
   // 64 row bytes by movemask, eight bits a row at a time.
   // The leaves come from `spares` (tree_assembly.hpp) while there are any, each taking the spare index
-  // `nextSpare` counts out (shared by the threads, so the reused leaves are the first ones).
+  // `nextSpare` counts out (shared by the threads, so the reused leaves are the first ones; a block takes
+  // the indices of all its leaves at once).
   void emit(const openvdb::Coord& origin, SpareNodes<openvdb::FloatTree>& spares, std::atomic<std::size_t>& nextSpare,
             BlockLeaves& leaves) const;
 

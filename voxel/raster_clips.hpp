@@ -44,6 +44,7 @@ inline double capPlaneTolerance(double boundingRadius) { return 1e-7 * (1.0 + bo
 typedef double Double4 __attribute__((vector_size(32)));
 typedef float Float4 __attribute__((vector_size(16)));
 typedef std::int64_t Mask4 __attribute__((vector_size(32)));  // a comparison of Double4s: -1 true, 0 false
+typedef std::int32_t Int4 __attribute__((vector_size(16)));
 
 // |v| lane by lane, exactly as std::abs (clears the sign bit).
 inline Double4 absolute(Double4 v) {
@@ -56,6 +57,13 @@ inline Double4 squareRoot(Double4 v) {
   return Double4{low[0], low[1], high[0], high[1]};
 }
 
+// The lanes of a comparison as bits 0 to 3 (two SSE2 movemasks).
+inline unsigned laneBits(Mask4 m) {
+  const Double4 d = reinterpret_cast<Double4>(m);
+  const __m128d low = __builtin_shufflevector(d, d, 0, 1), high = __builtin_shufflevector(d, d, 2, 3);
+  return static_cast<unsigned>(_mm_movemask_pd(low) | (_mm_movemask_pd(high) << 2));
+}
+
 // A value in all four lanes.
 inline Double4 broadcast(double v) { return Double4{v, v, v, v}; }
 
@@ -66,15 +74,19 @@ inline Double4 broadcast(double v) { return Double4{v, v, v, v}; }
 // threshold on the gauge (ShellThresholds::sureInsideBelow).
 struct SweptLanes {
   SweptLanes() = default;
-  SweptLanes(const detail::RodPiece& p, double planeAgx, double planeBgx, double inverseHalfWidth, double inverseHalfHeight,
-             double sureInside)
+  // Inline, so that sweep stores the lanes straight into its member (out of line, the lanes went to a
+  // temporary and were then copied, 512 bytes by `rep movsq`, once per piece and block).
+  [[gnu::always_inline]] SweptLanes(const detail::RodPiece& p, double planeAgx, double planeBgx, double inverseHalfWidth,
+                                    double inverseHalfHeight, double sureInside)
       : gxA(broadcast(planeAgx)), gxB(broadcast(planeBgx)), gx1Begin(broadcast(p.x1Begin.gx)), gx2Begin(broadcast(p.x2Begin.gx)),
         gx1End(broadcast(p.x1End.gx)), gx2End(broadcast(p.x2End.gx)), x1Quadratic(broadcast(p.x1Quadratic)),
         x2Quadratic(broadcast(p.x2Quadratic)), modulusBegin(broadcast(p.modulusBegin)), modulusEnd(broadcast(p.modulusEnd)),
-        modulusQuadratic(broadcast(p.modulusQuadratic)), modulusLow(broadcast(p.modulusLow)), modulusHigh(broadcast(p.modulusHigh)),
+        modulusQuadratic(broadcast(p.modulusQuadratic)), modulusRise(modulusEnd - modulusBegin),
+        modulusFloor(Double4{} + broadcast(p.modulusLow)), modulusCeiling(Double4{} + broadcast(p.modulusHigh)),
         iA(broadcast(inverseHalfWidth)), iB(broadcast(inverseHalfHeight)), sureInsideBelow(broadcast(sureInside)) {}
   Double4 gxA, gxB, gx1Begin, gx2Begin, gx1End, gx2End;
-  Double4 x1Quadratic, x2Quadratic, modulusBegin, modulusEnd, modulusQuadratic, modulusLow, modulusHigh;  // as in RodPiece
+  Double4 x1Quadratic, x2Quadratic, modulusBegin, modulusEnd, modulusQuadratic;  // as in RodPiece
+  Double4 modulusRise, modulusFloor, modulusCeiling;  // estimateModulus's per-piece parts (see there)
   Double4 iA, iB, sureInsideBelow;  // RodPieces::inverseHalfWidth, inverseHalfHeight; ShellThresholds::sureInsideBelow
 };
 
@@ -82,8 +94,15 @@ struct SweptLanes {
 inline Double4 largerOf(Double4 a, Double4 b) { return a < b ? b : a; }
 inline Double4 smallerOf(Double4 a, Double4 b) { return b < a ? b : a; }
 
-// AffineInIndex::row for rows j[0..3] of layer k, lane by lane the same expression.
-inline Double4 rowsOf(const AffineInIndex& f, Double4 j, int k) { return (f.c + f.gy * j) + f.gz * k; }
+// AffineInIndex::row for the rows of one layer k, four rows j[0..3] at a time, lane by lane the same
+// expression (c + gy j) + gz k. The coefficients in lanes and gz k are set once per layer: read from
+// the piece for every four rows, GCC loaded them again each time (the slots the rows' voxels are
+// stored to are doubles too, so they might have changed the piece).
+struct LayerRows {
+  [[gnu::always_inline]] LayerRows(const AffineInIndex& f, int k) : c(broadcast(f.c)), gy(broadcast(f.gy)), gzk(broadcast(f.gz * k)) {}
+  [[gnu::always_inline]] Double4 at(Double4 j) const { return (c + gy * j) + gzk; }
+  Double4 c, gy, gzk;
+};
 
 // A double error bound as a float that is not smaller.
 inline float roundedUpToFloat(double bound) {
@@ -92,6 +111,13 @@ inline float roundedUpToFloat(double bound) {
 }
 
 inline int clampToInt(double v) { return static_cast<int>(std::clamp(v, -2.0e9, 2.0e9)); }
+// clampToInt lane by lane: std::clamp's min(max(v, lo), hi) with std::max and std::min's comparisons,
+// then the truncating conversion (cvttpd2dq, as cvttsd2si for each lane).
+inline Int4 clampToInts(Double4 v) {
+  const Double4 low = broadcast(-2.0e9), high = broadcast(2.0e9);
+  const Double4 atLeast = v < low ? low : v;
+  return __builtin_convertvector(high < atLeast ? high : atLeast, Int4);
+}
 
 // The swept loop's thresholds on `test` (see sweep): gauges below 1 - bound are inside for sure, above
 // 1 + bound outside for sure; between them (the tolerance shell around the section boundary) the exact
@@ -247,18 +273,32 @@ private:
   double b0_ = 0.0, g0_ = 0.0, g1_ = 0.0;
 };
 
-// Four rows j .. j + 3 of layer k set up at once for a swept piece between planes a and b: the planes'
-// rows, and the row bounds of the slab (slopes) and the axis cylinder with one vector square root,
+// Four rows j .. j + 3 (jv: j to j + 3 as doubles) of a layer set up at once for a swept piece between
+// planes a and b (their rows in the layer): the planes' rows, and the row bounds of the slab (slopes) and the axis cylinder with one vector square root,
 // lane by lane the scalar clips' expressions (so the same bits). `missed` marks rows with no voxel.
 struct FourRows {
-  [[gnu::always_inline]] FourRows(const AffineInIndex& planeA, const AffineInIndex& planeB, const Slope& slopeA, const Slope& slopeB,
-                                  const AxisCylinder& cylinder, int j, int k) {
-    const Double4 jv = double(j) + Double4{0.0, 1.0, 2.0, 3.0};
-    a = rowsOf(planeA, jv, k);
-    b = rowsOf(planeB, jv, k);
+  [[gnu::always_inline]] FourRows(const LayerRows& planeA, const LayerRows& planeB, const Slope& slopeA, const Slope& slopeB,
+                                  const AxisCylinder& cylinder, int j, Double4 jv) {
+    a = planeA.at(jv);
+    b = planeB.at(jv);
     slopeA.bound(a, lo, hi, missed);
     slopeB.bound(-b, lo, hi, missed);
     cylinder.rows(j, lo, hi, missed);
+  }
+  // RowBounds::round for the four rows at once, from [boxLo, boxHi]: lane by lane the same ceil,
+  // floor, clamp and conversion (one vector instruction each in the AVX2 clone, where the scalar
+  // round cost some 14 instructions a row), so each row gets the range round gives it. Rows with no
+  // voxel (missed, or first > last) are marked in `empty`.
+  [[gnu::always_inline]] void round(int boxLo, int boxHi, Int4& first, Int4& last, Mask4& empty) const {
+    Double4 up, down;
+    for (int l = 0; l < 4; ++l) {
+      up[l] = std::ceil(lo[l] - kClipMargin);
+      down[l] = std::floor(hi[l] + kClipMargin);
+    }
+    const Int4 upInt = clampToInts(up), downInt = clampToInts(down);
+    first = upInt > boxLo ? upInt : Int4{} + boxLo;  // std::max(boxLo, clampToInt(...)), lane by lane
+    last = downInt < boxHi ? downInt : Int4{} + boxHi;
+    empty = missed | __builtin_convertvector(first > last, Mask4);
   }
   Double4 a, b;
   Double4 lo = broadcast(-std::numeric_limits<double>::infinity()), hi = broadcast(std::numeric_limits<double>::infinity());

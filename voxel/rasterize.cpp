@@ -263,13 +263,17 @@ Rasterization Rasterizer::run(int zBegin, int zEnd) const {
   tbb::enumerable_thread_specific<ThreadState> states;
   std::vector<BlockLeaves> leaves(blocks.count());
   SpareNodes<openvdb::FloatTree> spares = trees_->takeSpares();
-  std::atomic<std::size_t> nextSpare{0};
+  // The spare counter on a cache line of its own: next to `spares` (whose vectors every emit reads)
+  // each count a thread took made the other thread fetch that line again.
+  struct alignas(64) SpareCounter {
+    std::atomic<std::size_t> next{0};
+  } nextSpare;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks.count()), [&](const tbb::blocked_range<std::size_t>& range) {
     ThreadState& state = states.local();
     if (!state.builder) state.builder.reset(new LeafBuilder(*structure_, rods_, grid_, options_.wasInterrupted));  // slots mostly uninitialized
     for (std::size_t g = range.begin(); g != range.end(); ++g) {
       poll();
-      buildBlock(*state.builder, rods_, blocks, g, zBegin, zEnd, poll, spares, nextSpare, leaves[g]);
+      buildBlock(*state.builder, rods_, blocks, g, zBegin, zEnd, poll, spares, nextSpare.next, leaves[g]);
     }
   });
 

@@ -101,11 +101,26 @@ inline SweptEstimateOf<T> estimateSwept(const Piece& piece, T a, T b, T x1Begin,
   return {lambda, x1Begin + lambda * (x1End - x1Begin) + quadraticWeight * piece.x1Quadratic,
           x2Begin + lambda * (x2End - x2Begin) + quadraticWeight * piece.x2Quadratic};
 }
+// A `Piece` may hold the per-piece parts of the expression ready (modulusRise = modulusEnd -
+// modulusBegin, modulusFloor = T{} + modulusLow, modulusCeiling = T{} + modulusHigh: the lanes of
+// voxel::detail::SweptLanes): the same values, so the same bits, where computing them for every quad
+// cost three vector instructions.
 template <typename T, typename Piece = RodPiece>
 inline T estimateModulus(const Piece& piece, T lambda) {
-  const T e = piece.modulusBegin + lambda * (piece.modulusEnd - piece.modulusBegin) +
-              lambda * (1.0 - lambda) * piece.modulusQuadratic;
-  const T low = T{} + piece.modulusLow, high = T{} + piece.modulusHigh;
+  constexpr bool ready = requires { piece.modulusRise; };
+  const auto rise = [&] {
+    if constexpr (ready) return piece.modulusRise;
+    else return piece.modulusEnd - piece.modulusBegin;
+  }();
+  const T e = piece.modulusBegin + lambda * rise + lambda * (1.0 - lambda) * piece.modulusQuadratic;
+  T low, high;
+  if constexpr (ready) {
+    low = piece.modulusFloor;
+    high = piece.modulusCeiling;
+  } else {
+    low = T{} + piece.modulusLow;
+    high = T{} + piece.modulusHigh;
+  }
   const T above = e < low ? low : e;
   return above > high ? high : above;
 }

@@ -3,6 +3,7 @@
 
 #include "voxel/leaf_builder.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -115,13 +116,18 @@ struct LeafBuilder::SweptQuad {
   return fresh;
 }
 
-// Row (j, k) from voxel lo to hi, four voxels a step (see estimateSwept); the decisions per voxel.
-// Returns the slots newly filled.
+// Row (j, k) from voxel lo to hi (lo <= hi), four voxels a step (see estimateSwept); the decisions per
+// voxel. Returns the slots newly filled.
 [[gnu::always_inline]] inline int LeafBuilder::sweepRow(const SweptPiece& s, const SweptRowStart& r, int lo, int hi, int j, int k) {
   const int row = rowOf(j, k);
   int fresh = 0;
   Double4 iv = double(lo) + Double4{0.0, 1.0, 2.0, 3.0};
-  for (int i = lo; i <= hi; i += 4, iv += 4.0) fresh += settleQuad(s, sweptQuad(s.rectangle, r, iv), row, i, hi, j, k);
+  int i = lo;
+  do {  // a row has a voxel (sweepLayer skips empty rows): no test before the first quad
+    fresh += settleQuad(s, sweptQuad(s.rectangle, r, iv), row, i, hi, j, k);
+    i += 4;
+    iv += 4.0;
+  } while (i <= hi);
   return fresh;
 }
 
@@ -129,17 +135,21 @@ struct LeafBuilder::SweptQuad {
 // root), each lane as the scalar clips compute it; then row by row.
 [[gnu::always_inline]] inline void LeafBuilder::sweepLayer(const SweptPiece& s, const openvdb::CoordBBox& box, const AxisCylinder& cylinder,
                                                            int k, int jLo, int jHi) {
+  const LayerRows planeA(s.planeA, k), planeB(s.planeB, k);
+  const LayerRows x1Begin(s.piece.x1Begin, k), x2Begin(s.piece.x2Begin, k), x1End(s.piece.x1End, k), x2End(s.piece.x2End, k);
   for (int j4 = jLo; j4 <= jHi; j4 += 4) {
-    const FourRows rows(s.planeA, s.planeB, s.slopeA, s.slopeB, cylinder, j4, k);
-    // The frame coordinates' rows for the four rows at once too (AffineInIndex::row lane by lane).
     const Double4 jv = double(j4) + Double4{0.0, 1.0, 2.0, 3.0};
-    const Double4 x1a = rowsOf(s.piece.x1Begin, jv, k), x2a = rowsOf(s.piece.x2Begin, jv, k), x1b = rowsOf(s.piece.x1End, jv, k),
-                  x2b = rowsOf(s.piece.x2End, jv, k);
-    for (int l = 0; l < 4 && j4 + l <= jHi; ++l) {
-      const int j = j4 + l;
-      RowBounds bounds{rows.lo[l], rows.hi[l]};
-      int lo = box.min().x(), hi = box.max().x();
-      if (rows.missed[l] || !bounds.round(lo, hi)) continue;
+    const FourRows rows(planeA, planeB, s.slopeA, s.slopeB, cylinder, j4, jv);
+    Int4 first, last;
+    Mask4 empty;
+    rows.round(box.min().x(), box.max().x(), first, last, empty);
+    // The frame coordinates' rows for the four rows at once too.
+    const Double4 x1a = x1Begin.at(jv), x2a = x2Begin.at(jv), x1b = x1End.at(jv), x2b = x2End.at(jv);
+    // The rows with voxels as bits, visited in order: one branch a row, where the loop's bound and the
+    // empty rows were two hard to predict (rows kept vary from 0 to 4 a group).
+    for (unsigned kept = ~laneBits(empty) & ((2u << std::min(3, jHi - j4)) - 1u); kept != 0; kept &= kept - 1u) {
+      const int l = __builtin_ctz(kept), j = j4 + l;
+      const int lo = first[l], hi = last[l];
       const SweptRowStart start{rows.a[l], rows.b[l], x1a[l], x2a[l], x1b[l], x2b[l]};
       voxelsPerRod[static_cast<std::size_t>(s.rod)] += static_cast<std::uint64_t>(sweepRow(s, start, lo, hi, j, k));
     }
