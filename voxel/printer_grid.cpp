@@ -13,6 +13,8 @@ namespace {
 const char* axisName(int a) { return a == 0 ? "x" : a == 1 ? "y" : "z"; }
 
 std::string mm(double value) {
+  // An extent of rods near the double's range overflows: say so rather than print "inf mm".
+  if (std::isinf(value)) return value < 0 ? "below -1.8e+308 mm" : "more than 1.8e+308 mm";
   char text[40];
   std::snprintf(text, sizeof text, "%.6g mm", value);
   return text;
