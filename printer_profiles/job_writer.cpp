@@ -247,9 +247,11 @@ struct JobWriter::Impl {
     std::vector<ZipEntry> entries;
     entries.push_back({kManifestName, {}, ZipStorage::Deflate, zipForms.at(kManifestName).staged});
     for (std::size_t n = 0; n < firstLayerFile; ++n) {
+      // writeStaged decided which files have a zip form (not the PNGs, stored as they are).
       const std::string& name = files[n].name;
-      if (name.ends_with(".png")) entries.push_back({name, filesDir / name, ZipStorage::Store, std::nullopt});
-      else entries.push_back({name, {}, ZipStorage::Deflate, zipForms.at(name).staged});
+      const auto form = zipForms.find(name);
+      if (form == zipForms.end()) entries.push_back({name, filesDir / name, ZipStorage::Store, std::nullopt});
+      else entries.push_back({name, {}, ZipStorage::Deflate, form->second.staged});
     }
     for (const LayerRecord& r : layers)
       for (std::size_t f = 0; f < r.files.size(); ++f) entries.push_back({r.files[f].name, {}, encoder->layerStorage(), r.zipped[f]});
