@@ -5,11 +5,12 @@
 #include "materials/error_diffusion.hpp"
 #include "materials/materials.hpp"
 
+#include "tests/heap_in_use.hpp"
+
 #include <catch2/catch.hpp>
 
 #include <tbb/task_arena.h>
 
-#include <malloc.h>
 
 #include <algorithm>
 #include <array>
@@ -164,11 +165,7 @@ TEST_CASE("materials: error diffusion of a single row and of isolated voxels", "
 
 namespace {
 
-// Bytes the allocator holds for the program now (every arena, plus the blocks it mapped directly).
-std::uint64_t heapBytesInUse() {
-  const struct mallinfo2 m = mallinfo2();
-  return std::uint64_t(m.uordblks) + std::uint64_t(m.hblkhd);
-}
+using rodfab::tests::heapBytesInUse;
 
 }  // namespace
 

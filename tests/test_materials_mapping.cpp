@@ -4,6 +4,8 @@
 #include "tests/materials_fixture.hpp"
 #include "voxel/voxel.hpp"
 
+#include "tests/heap_in_use.hpp"
+
 #include <catch2/catch.hpp>
 
 #include <tbb/global_control.h>
@@ -14,7 +16,6 @@
 #include <cmath>
 #include <deque>
 #include <limits>
-#include <malloc.h>
 #include <numeric>
 #include <random>
 #include <vector>
@@ -318,11 +319,7 @@ TEST_CASE("materials: streamed bands reuse earlier fraction grids' nodes and sta
   }
 }
 
-// Bytes the allocator holds for the program now (every arena, plus the blocks it mapped directly).
-std::uint64_t heapBytesInUse() {
-  const struct mallinfo2 m = mallinfo2();
-  return std::uint64_t(m.uordblks) + std::uint64_t(m.hblkhd);
-}
+using rodfab::tests::heapBytesInUse;
 
 TEST_CASE("materials: the slice's memory estimate bounds the heap of streamed bands, recyclers included", "[materials][mapping][memory]") {
 #if defined(__SANITIZE_ADDRESS__)

@@ -2,10 +2,9 @@
 // heap) and RasterProfile's one pass for every band size.
 
 #include "slicer_test_support.hpp"
+#include "tests/heap_in_use.hpp"
 
 #include "voxel/tree_assembly.hpp"
-
-#include <malloc.h>
 
 #include <deque>
 
@@ -14,11 +13,7 @@ using namespace slicer_test;
 
 namespace {
 
-// glibc's bytes in use: every arena and the mapped blocks.
-std::uint64_t heapBytesInUse() {
-  const struct mallinfo2 m = mallinfo2();
-  return std::uint64_t(m.uordblks) + std::uint64_t(m.hblkhd);
-}
+using rodfab::tests::heapBytesInUse;
 
 struct StreamedHeap {
   std::uint64_t peak = 0;        // the most in use while bands stream (two in flight)

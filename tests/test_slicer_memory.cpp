@@ -3,8 +3,6 @@
 
 #include "slicer_test_support.hpp"
 
-#include <deque>
-
 using namespace rodfab;
 using namespace slicer_test;
 
