@@ -269,19 +269,17 @@ private:
   using ParentT = LeafParentOf<TreeT>;
   using UpperT = UpperNodeOf<TreeT>;
   // The parents' leaves into spares.leaves_ (in the parents' order), and the parents and uppers that
-  // hold anything but the background deleted: parent by parent in parallel, the uppers' tables in
-  // parts of kTilesPerPart tiles alongside.
+  // hold anything but the background deleted: parent by parent in parallel, each parent's leaves
+  // straight into their place in spares.leaves_ (counted first, so taking them out cannot throw and no
+  // leaf is ever owned by anything but a parent or the spares), the uppers' tables in parts of
+  // kTilesPerPart tiles alongside.
   void takeLeavesAndCheck(SpareNodes<TreeT>& spares) const {
     static constexpr openvdb::Index kTilesPerPart = ParentT::NUM_VALUES, kPartsPerUpper = UpperT::NUM_VALUES / kTilesPerPart;
-    std::vector<std::vector<LeafT*>> leavesOf(spares.parents_.size());
-    struct LeavesInFlight {  // the leaves taken out of a parent until they are the spares' (an exception deletes them)
-      std::vector<std::vector<LeafT*>>& leaves;
-      ~LeavesInFlight() {
-        for (auto& v : leaves) SpareNodes<TreeT>::deleteAll(v);
-      }
-    } inFlight{leavesOf};
-    std::vector<unsigned char> partClear(spares.uppers_.size() * kPartsPerUpper, 0);
     const std::size_t parents = spares.parents_.size();
+    std::vector<std::size_t> firstLeafOf(parents + 1, 0);
+    for (std::size_t p = 0; p < parents; ++p) firstLeafOf[p + 1] = firstLeafOf[p] + spares.parents_[p]->getChildMask().countOn();
+    spares.leaves_.resize(firstLeafOf[parents], nullptr);
+    std::vector<unsigned char> partClear(spares.uppers_.size() * kPartsPerUpper, 0);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, parents + partClear.size()), [&](const tbb::blocked_range<std::size_t>& range) {
       for (std::size_t item = range.begin(); item != range.end(); ++item) {
         if (item >= parents) {
@@ -291,8 +289,8 @@ private:
           continue;
         }
         ParentT*& parent = spares.parents_[item];
-        leavesOf[item].reserve(parent->getChildMask().countOn());  // so that taking them out cannot throw
-        parent->stealNodes(leavesOf[item], background_, false);
+        LeafSlots slots{spares.leaves_.data() + firstLeafOf[item]};
+        parent->stealNodes(slots, background_, false);
         if (!parent->getValueMask().isOff() || !tilesHoldBackground(*parent, 0, ParentT::NUM_VALUES)) delete std::exchange(parent, nullptr);
       }
     });
@@ -303,14 +301,14 @@ private:
                                      partClear.begin() + std::ptrdiff_t((u + 1) * kPartsPerUpper), [](unsigned char c) { return c != 0; });
       if (!clear) delete std::exchange(upper, nullptr);
     }
-    std::size_t total = 0;
-    for (const auto& v : leavesOf) total += v.size();
-    spares.leaves_.reserve(total);
-    for (auto& v : leavesOf) {
-      spares.leaves_.insert(spares.leaves_.end(), v.begin(), v.end());
-      v.clear();
-    }
   }
+  // Where InternalNode::stealNodes puts a parent's leaves: consecutive slots of spares.leaves_, sized
+  // beforehand to the parent's child count.
+  struct LeafSlots {
+    using value_type = LeafT*;
+    LeafT** next;
+    void push_back(LeafT* leaf) noexcept { *next++ = leaf; }
+  };
   // Whether tiles first .. first + count - 1 of the node's table hold the background's bits (the caller
   // checks that none is active or a child). The table's entries are read as words, the value's bytes
   // masked (a union of the value and a child pointer, the value at its start): every word agrees with
