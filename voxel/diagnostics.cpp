@@ -70,8 +70,8 @@ double internalBytesSpanned(const PrinterGrid& grid, double layers) {
   return bytes;
 }
 
-// Nodes of `dim`^3 voxels the rod touches at most: its solid widened by half a node's diagonal, over
-// the node's volume, plus one.
+// Internal nodes of `dim`^3 voxels the rod touches at most: its solid widened by half a node's
+// diagonal, over the node's volume, plus one (the leaves are counted piece by piece: leafCounts).
 double nodesTouched(const PrinterGrid& grid, int dim, const geometry::Rod& rod) {
   const openvdb::Vec3d node = grid.voxelSize * double(dim);
   return widenedRodVolume(rod, 0.5 * node.length()) / (node.x() * node.y() * node.z()) + 1.0;
@@ -132,8 +132,10 @@ private:
 // constant z) cuts the section along lines perpendicular to (a, b) in the section's plane, the longest
 // of them through its centre (the sections are convex and centrally symmetric).
 struct SectionAcrossZ {
+  geometry::Frame frame;    // the rod's frame there (d1, d2: the section's width and height directions)
   double halfHeight = 0.0;  // mm above and below the centre line
   double tilt = 0.0;        // |(a, b)|: 1 for a level rod, 0 where the rod runs straight up
+  double chord = 0.0;       // the longest line a layer cuts through the section (0 for an upright one)
   // The most section a layer through a straight piece of rod holds per mm of its length: the longest
   // such line, widened by `margin` at both ends, over the tilt (infinite for an upright section).
   double layerWidth = std::numeric_limits<double>::infinity();
@@ -141,9 +143,9 @@ struct SectionAcrossZ {
 
 SectionAcrossZ sectionAcrossZ(const geometry::Rod& rod, double u, double margin) {
   const geometry::Section& s = rod.section();
-  const geometry::Frame frame = rod.frame().at(rod.centerline(), u);
-  const double a = frame.d1.z(), b = frame.d2.z();
   SectionAcrossZ out;
+  out.frame = rod.frame().at(rod.centerline(), u);
+  const double a = out.frame.d1.z(), b = out.frame.d2.z();
   out.tilt = std::hypot(a, b);
   const bool rectangle = s.shape == geometry::SectionShape::Rectangle;
   out.halfHeight = rectangle ? 0.5 * (std::abs(a) * s.width + std::abs(b) * s.height) : 0.5 * std::hypot(a * s.width, b * s.height);
@@ -152,6 +154,7 @@ SectionAcrossZ sectionAcrossZ(const geometry::Rod& rod, double u, double margin)
   const double inf = std::numeric_limits<double>::infinity();
   const double chord = rectangle ? std::min(m1 != 0.0 ? s.width / std::abs(m1) : inf, m2 != 0.0 ? s.height / std::abs(m2) : inf)
                                  : 1.0 / std::hypot(m1 / s.width, m2 / s.height);
+  out.chord = chord;
   out.layerWidth = (chord + 2.0 * margin) / out.tilt;
   return out;
 }
@@ -174,18 +177,61 @@ double segmentLayerWidth(const SectionAcrossZ& before, const SectionAcrossZ& aft
   return tilt > 1e-12 ? fallbackWidth / tilt : std::numeric_limits<double>::infinity();
 }
 
+// The section's width along v (its extent in the direction of v, times |v|) as the frame holds it.
+double sectionWidthAlong(const geometry::Section& s, const geometry::Frame& frame, const geometry::Vec3& v) {
+  const double p = v.dot(frame.d1), q = v.dot(frame.d2);
+  return s.shape == geometry::SectionShape::Rectangle ? s.width * std::abs(p) + s.height * std::abs(q) : std::hypot(s.width * p, s.height * q);
+}
+
+// Leaves (8^3 voxels) a straight piece of rod touches, expected over where the lattice of leaves falls:
+// a leaf touches the solid exactly when its centre lies in the solid widened by a leaf's box (their
+// Minkowski sum), so the count is that sum's volume over a leaf's. For a section S swept a length l
+// along the unit tangent t (S plus four segments: the sweep and the box's edges, 2 a_i along e_i):
+//   l [area(S) + sum_i 2 a_i w(t x e_i) + sum_{i<j} 4 a_i a_j |t_k|]          perLength, times l
+//   + sum_i 2 a_i area(S) |t_i| + sum_{i<j} 4 a_i a_j w(e_k) + 8 a_x a_y a_z   atEnds, once a rod
+// (w(v): the section's width along v, sectionWidthAlong). A ball of half the leaf's diagonal in place
+// of the box (nodesTouched, as the leaves were counted before) counts 1.3 to 1.5 times as many on the
+// lattices' rods (leaves of 0.34 x 0.68 x 0.24 mm on the Connex3). The larger of the counts with the
+// frames at the piece's two ends.
+struct LeafCounts {
+  double perLength = 0.0;  // leaves a mm of the piece
+  double atEnds = 0.0;     // leaves the rod's two ends add
+};
+LeafCounts leafCounts(const geometry::Section& s, const SectionAcrossZ& before, const SectionAcrossZ& after,
+                      const geometry::Vec3& tangent, const PrinterGrid& grid) {
+  const geometry::Vec3 half = 4.0 * geometry::Vec3(grid.voxelSize.x(), grid.voxelSize.y(), grid.voxelSize.z());
+  const double volume = 8.0 * half.x() * half.y() * half.z();
+  LeafCounts most;
+  for (const SectionAcrossZ* end : {&before, &after}) {
+    // The layers get these leaves spread evenly over the section's height (addRodToLayers), which the
+    // slab through a level rod's middle only gets if every layer holds as much of the section as the
+    // widest: its longest cut times its height in place of its area (4 / pi of a round section's).
+    const double area = std::max(s.area(), end->chord * 2.0 * end->halfHeight);
+    LeafCounts c{area, 8.0 * half.x() * half.y() * half.z()};
+    for (int i = 0; i < 3; ++i) {
+      const int j = (i + 1) % 3, k = (i + 2) % 3;  // the pair (j, k) and the axis i across it
+      const geometry::Vec3 axis = geometry::Vec3::Unit(i);
+      c.perLength += 2.0 * half[i] * sectionWidthAlong(s, end->frame, tangent.cross(axis)) + 4.0 * half[j] * half[k] * std::abs(tangent[i]);
+      c.atEnds += 2.0 * half[i] * area * std::abs(tangent[i]) + 4.0 * half[j] * half[k] * sectionWidthAlong(s, end->frame, axis);
+    }
+    most.perLength = std::max(most.perLength, c.perLength / volume);
+    most.atEnds = std::max(most.atEnds, c.atEnds / volume);
+  }
+  return most;
+}
+
 // Adds the rod to the layers, segment by segment of its polyline (each straight, its section as the
-// frame holds it at the segment's ends). `leaves` (the rod's, nodesTouched) in proportion to the
-// segments' lengths, each share spread evenly over the layers the segment's section, caps and half a
-// leaf reach. Voxels: the most a layer through the segment can hold, in every layer it reaches: its
-// length times the section a layer cuts (both widened by half a voxel's diagonal for the lattice's
-// rounding), and no more than its length times the section's area over its rise (a steep
-// segment's layers share its volume): a level round rod's middle layers get their 4/pi of the mean, a
-// flat one lying level its full width in its few layers.
-void addRodToLayers(const geometry::Rod& rod, double leaves, const PrinterGrid& grid, LayerProfile& leavesPerLayer,
-                    LayerProfile& voxelsPerLayer) {
+// frame holds it at the segment's ends). Leaves: each segment's (leafCounts) spread evenly over the
+// layers its section, caps and half a leaf reach, and each end's share around it; returns the rod's
+// leaves, the sum of those shares. Voxels: the most a layer through the segment can hold, in every
+// layer it reaches: its length times the section a layer cuts (both widened by half a voxel's diagonal
+// for the lattice's rounding), and no more than its length times the section's area over its rise (a
+// steep segment's layers share its volume): a level round rod's middle layers get their 4/pi of the
+// mean, a flat one lying level its full width in its few layers.
+double addRodToLayers(const geometry::Rod& rod, const PrinterGrid& grid, LayerProfile& leavesPerLayer,
+                      LayerProfile& voxelsPerLayer) {
   const std::vector<double>& u = rod.sampleParameters();
-  if (u.size() < 2) return;
+  if (u.size() < 2) return 0.0;
   const geometry::Section& section = rod.section();
   const double caps = rod.caps() == geometry::CapStyle::Round ? section.capRadius() : 0.0;
   const double vz = grid.voxelSize.z(), halfLeaf = 4.0 * vz;
@@ -205,6 +251,7 @@ void addRodToLayers(const geometry::Rod& rod, double leaves, const PrinterGrid& 
     }
   SectionAcrossZ before = sectionAcrossZ(rod, u[0], margin);
   geometry::Vec3 a = rod.centerline().point(u[0]);
+  double leaves = 0.0;
   for (std::size_t i = 1; i < u.size(); ++i) {
     const geometry::Vec3 b = rod.centerline().point(u[i]);
     const SectionAcrossZ after = sectionAcrossZ(rod, u[i], margin);
@@ -212,12 +259,27 @@ void addRodToLayers(const geometry::Rod& rod, double leaves, const PrinterGrid& 
     const double zLow = std::min(a.z(), b.z()), zHigh = std::max(a.z(), b.z());
     // Half a voxel more where the section spans layers (not along an upright one: consecutive segments meet there).
     const double reach = std::max({before.halfHeight, after.halfHeight, caps}) + 0.5 * vz * std::max(before.tilt, after.tilt);
-    leavesPerLayer.spread(layer(zLow - reach - halfLeaf), layer(zHigh + reach + halfLeaf), leaves * length / std::max(rod.length(), 1e-12));
+    const double leavesLow = layer(zLow - reach - halfLeaf), leavesHigh = layer(zHigh + reach + halfLeaf);
+    if (length > 0.0) {
+      const LeafCounts counts = leafCounts(section, before, after, (b - a) / length, grid);
+      // Each end of the rod: half the ends' leaves, its cap as more length (a round cap lies within the
+      // section swept on by its radius), and half a leaf for the rounding, in the layers around the end.
+      const double endLeaves = 0.5 * counts.atEnds + caps * counts.perLength + 0.5;
+      const auto addEnd = [&](double z) {
+        leavesPerLayer.spread(layer(z - reach - halfLeaf), layer(z + reach + halfLeaf), endLeaves);
+        leaves += endLeaves;
+      };
+      if (i == 1) addEnd(a.z());
+      if (i + 1 == u.size()) addEnd(b.z());
+      leavesPerLayer.spread(leavesLow, leavesHigh, length * counts.perLength);
+      leaves += length * counts.perLength;
+    }
     const double width = std::min(segmentLayerWidth(before, after, length, rise, fallbackWidth), widenedArea / std::max(rise, 1e-12));
     voxelsPerLayer.add(layer(zLow - reach), layer(zHigh + reach), lengthScale * length * width / voxelArea);
     before = after;
     a = b;
   }
+  return leaves;
 }
 
 // The most of `perLayer` any `window` consecutive layers hold.
@@ -253,9 +315,10 @@ double RasterEstimate::peakBytes(int bandsInFlight, std::size_t keptTrees) const
 namespace {
 
 // The design's figures, no band (RasterEstimate's whole-design fields), and its rods' internal-node bytes
-// before the envelope's cap; with `leavesPerLayer` and `voxelsPerLayer`, each rod added to them too.
+// before the envelope's cap; each rod added to `leavesPerLayer` and `voxelsPerLayer` (its leaves the sum
+// of what it adds there).
 RasterEstimate designTotals(const geometry::RodStructure& structure, const PrinterGrid& grid, double& internalBytes,
-                            LayerProfile* leavesPerLayer = nullptr, LayerProfile* voxelsPerLayer = nullptr) {
+                            LayerProfile& leavesPerLayer, LayerProfile& voxelsPerLayer) {
   RasterEstimate e;
   internalBytes = 0.0;
   for (const geometry::Rod& rod : structure.rods) {
@@ -263,10 +326,8 @@ RasterEstimate designTotals(const geometry::RodStructure& structure, const Print
     e.maxPieces += pieces;
     e.pieceBytes += double(pieces) * RasterEstimate::bytesPerPiece();
     e.activeVoxels += rodVolume(rod) / grid.voxelVolume();
-    const double leaves = nodesTouched(grid, 8, rod);
-    e.leaves += leaves;
     internalBytes += nodesTouched(grid, 128, rod) * double(sizeof(Internal1)) + nodesTouched(grid, 4096, rod) * double(sizeof(Internal2));
-    if (leavesPerLayer) addRodToLayers(rod, leaves, grid, *leavesPerLayer, *voxelsPerLayer);
+    e.leaves += addRodToLayers(rod, grid, leavesPerLayer, voxelsPerLayer);
   }
   // Rods close together share internal nodes: no more than the envelope (or a band of it) spans.
   e.leaves = std::min(e.leaves, leavesSpanned(grid, grid.dims.z()));
@@ -279,7 +340,7 @@ RasterEstimate designTotals(const geometry::RodStructure& structure, const Print
 RasterProfile::RasterProfile(const geometry::RodStructure& structure, const PrinterGrid& grid) : grid_(grid) {
   const std::size_t layers = std::size_t(std::max(1, grid.dims.z()));
   LayerProfile leavesPerLayer(layers), voxelsPerLayer(layers);
-  whole_ = designTotals(structure, grid, internalBytes_, &leavesPerLayer, &voxelsPerLayer);
+  whole_ = designTotals(structure, grid, internalBytes_, leavesPerLayer, voxelsPerLayer);
   leavesPerLayer_ = leavesPerLayer.layers();
   layerVoxels_ = std::min(fullestWindow(voxelsPerLayer.layers(), 1.0), double(grid.dims.x()) * double(grid.dims.y()));
 }
@@ -295,9 +356,7 @@ RasterEstimate RasterProfile::estimate(int bandLayers, bool withNextLayer) const
 }
 
 RasterEstimate estimateRaster(const geometry::RodStructure& structure, const PrinterGrid& grid, int bandLayers) {
-  if (bandLayers > 0) return RasterProfile(structure, grid).estimate(bandLayers);
-  double internalBytes = 0.0;
-  return designTotals(structure, grid, internalBytes);  // no layer tables
+  return RasterProfile(structure, grid).estimate(bandLayers);
 }
 
 std::vector<ThinRod> findThinRods(const geometry::RodStructure& structure, const PrinterGrid& grid,

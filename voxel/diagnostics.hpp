@@ -26,9 +26,11 @@ struct RasterEstimate {
   // volume. Within a few percent for rods bent less tightly than their radius; overlaps at joints are
   // counted in full, and sections folding over in bends tighter than the radius add up to ~30 %.
   double activeVoxels = 0.0;
-  // Expected OpenVDB leaves (8^3 voxels) holding them (each rod as a tube of its bounding radius
-  // widened by half a leaf's diagonal: an upper estimate, typically 1.5-2x, and never more leaves than
-  // the envelope holds), and the bytes of the grid holding the whole design (Rasterizer::rasterize,
+  // Expected OpenVDB leaves (8^3 voxels) holding them (each straight piece of each rod's polyline
+  // widened by a leaf's box, its section counted at its longest cut by a layer times its height, and
+  // overlaps at joints counted in full: an upper estimate, 1.0 to 1.9 times the leaves built on the
+  // benchmark classes and the bundled examples, and never more leaves than the envelope holds), and
+  // the bytes of the grid holding the whole design (Rasterizer::rasterize,
   // `rodfab voxelize`): its leaves with their value buffers, and its internal nodes, at most those the
   // envelope spans. The band figures below are capped the same way (a layer by the envelope's area).
   double leaves = 0.0;
