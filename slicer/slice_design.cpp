@@ -154,6 +154,23 @@ struct SliceMemoryInputs {
   std::optional<std::size_t> pieces;
 };
 
+// Band trees RasterEstimate::peakBytes counts for the fractions that sliceDesign never holds at once:
+// - a ditherer that maps as it dithers (SliceBands: white, blue) makes no fraction grid, so none of the
+//   kBandsInFlight bands' fraction trees exists (and it keeps none: slicingKeptTrees);
+// - one that reads fraction grids (error diffusion) builds each band's fraction tree from the nodes of a
+//   tree the fraction recycler kept (TreeRecycler::takeSpares: the spares not used are freed, new nodes
+//   made only past them), so that kept tree and the one built from it are one tree's memory: at most
+//   kBandsInFlight + kept - 1 fraction trees at once.
+// (The rasterizer's recycler builds the moduli the same way; they stay counted in full, the slack white
+// and blue's thinner margins were measured with.)
+double fractionBandTreesNotHeld(const SliceMemoryInputs& in) {
+  const bool noFractionGrids = in.ditherer.mapsWhileDithering();
+  const bool keptTreeBuildsNextBands = in.kept.fractions > 0;
+  if (noFractionGrids) return double(kBandsInFlight);
+  if (keptTreeBuildsNextBands) return 1.0;
+  return 0.0;
+}
+
 // sliceMemoryBytes from the design's layer profile, built once for every band size tried.
 std::uint64_t sliceMemoryBytes(const voxel::RasterProfile& profile, int bandLayers, const SliceMemoryInputs& in) {
   // The moduli and fractions hold the layer past the band only when the ditherer reads it.
@@ -168,17 +185,9 @@ std::uint64_t sliceMemoryBytes(const voxel::RasterProfile& profile, int bandLaye
   // Explicit support's column tops: an int per column of the part.
   const double supportBytes = 4.0 * double(in.part.x()) * double(in.part.y());
   const double ditherBytes = in.ditherer.workingBytes({raster.layerVoxels, raster.bandLeaves, bandLayers}, in.concurrency);
-  // peakBytes counts two float grids a band in flight, its moduli and its fractions, and every kept tree.
-  // A ditherer that maps as it dithers (SliceBands) makes no fraction grid, and its kept fraction trees
-  // are 0 (slicingKeptTrees). For one that reads fraction grids (error diffusion) each band's fraction
-  // tree is built from the nodes of one tree the fraction recycler kept (TreeRecycler::takeSpares: the
-  // spares not used are freed, new nodes made only past them), so that tree and the one built from it
-  // are one tree's memory: at most kBandsInFlight + kept - 1 fraction trees at once. (The rasterizer's
-  // recycler builds the moduli the same way; they stay counted in full, the slack white and blue's
-  // thinner margins were measured with.)
-  const double fractionTreesNotHeld = in.ditherer.mapsWhileDithering() ? kBandsInFlight * raster.bandBytes
-                                      : in.kept.fractions > 0                ? raster.bandBytes
-                                                                             : 0.0;
+  // peakBytes counts two float grids a band in flight, its moduli and its fractions, and every kept tree;
+  // less the fraction trees never held.
+  const double fractionTreesNotHeld = fractionBandTreesNotHeld(in) * raster.bandBytes;
   return common::saturatedBytes(raster.peakBytes(kBandsInFlight, in.kept.moduli + in.kept.fractions) - fractionTreesNotHeld +
                                 materialBytes + supportBytes + ditherBytes + double(in.writerBytes));
 }
