@@ -183,7 +183,12 @@ openvdb::BoolGrid::Ptr Ditherer::mapAndDitherLayers(const openvdb::FloatGrid& mo
 
 openvdb::BoolGrid::Ptr Ditherer::mapAndDitherLeafVoxels(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
                                                         MappingStats& stats) {
-  voxel::TreeRecycler<openvdb::FloatTree> fresh(0.0f);  // nothing to reuse: the grid lives for this call
+  // A recycler of this call's, not one kept from band to band: no slicer comes here (sliceDesign calls
+  // mapAndDitherLayers only for a ditherer that maps as it dithers, which overrides this, and maps the
+  // bands for the others into its own recycled fraction trees), so only tests and benchmarks would gain,
+  // and a recycler kept by the ditherer would hold fraction trees between calls that keptTrees() (the
+  // output trees) and the slicer's estimate do not count. It keeps none: the grid dies with the call.
+  voxel::TreeRecycler<openvdb::FloatTree> fresh(0.0f, 0);
   MappingStats band;
   const openvdb::FloatGrid::Ptr fraction = mapBandToFractions(modulus, map, k0, k1, readsNextLayer(), band, fresh);
   openvdb::BoolGrid::Ptr material = ditherLeafVoxels(*fraction, k0, k1);
