@@ -387,17 +387,17 @@ void canonicalizeTriangles(std::vector<Triangle>& triangles) {
 }
 
 TriangleMesh parseMesh(const std::string& bytes, const std::string& format, const std::string& source, ReadStats& stats) {
-  common::requireMemory(bytes.size() * kParseBytesPerFileByte, {.what = "reading the mesh " + source,
-                                                               .remedy = "simplify the mesh first"});
+  // CGAL's OBJ reader skips each face corner up to the next space, so a tab-separated face would lose
+  // corners: tabs become spaces (white space alike in OBJ), in a copy only where there are any, counted
+  // with the parse before anything is allocated.
+  const bool tabbedObj = format == "obj" && bytes.find('\t') != std::string::npos;
+  common::requireMemory(bytes.size() * (kParseBytesPerFileByte + (tabbedObj ? 1 : 0)),
+                        {.what = "reading the mesh " + source, .remedy = "simplify the mesh first"});
   if (bytes.find_first_not_of(" \t\r\n") == std::string::npos) throw MeshError(source, "the file is empty: it holds no faces");
   if (format == "off") checkOffText(bytes, source);
   if (format == "ply") checkPlyHeader(bytes, source);
-  // CGAL's OBJ reader skips each face corner up to the next space, so a tab-separated face would lose
-  // corners: tabs become spaces (white space alike in OBJ), in a copy only where there are any.
   std::string spaced;
-  if (format == "obj" && bytes.find('\t') != std::string::npos) {
-    common::requireMemory(bytes.size() * (kParseBytesPerFileByte + 1), {.what = "reading the mesh " + source,
-                                                                       .remedy = "simplify the mesh first"});
+  if (tabbedObj) {
     spaced = bytes;
     std::replace(spaced.begin(), spaced.end(), '\t', ' ');
   }
