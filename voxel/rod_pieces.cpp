@@ -58,6 +58,34 @@ WorldEstimate estimateAt(const RodPiece& piece, const Node& a, const Node& b, co
   return {true, estimateSwept(piece, pa, pb, a.d1.dot(wa), a.d2.dot(wa), b.d1.dot(wb), b.d2.dot(wb))};
 }
 
+// Fits the terms of E beyond the blend of its values at the planes (RodPiece::modulusQuadratic) to E
+// at points of the middle section: what E leaves beyond the blend, divided by lambda (1 - lambda), is
+// taken as q + k1 x1 + k2 x2: q makes it exact at the centerline, k1 and k2 are its slopes in x1 and x2
+// between points a `radius` either side (E is the same across the section, lambda is not where the
+// curvature changes along the piece). The error `measure` then finds is what these terms cannot
+// follow; with q alone lambda's drift across the sections set most of the curved rods' pieces.
+// Leaves k1 or k2 0 where a point it needs is not between the planes.
+void fitModulus(RodPiece& piece, const Node& a, const Node& b, const Node& mid, double radius) {
+  const auto residual = [&](const Vec3& p, SweptEstimate& at) {
+    const WorldEstimate e = estimateAt(piece, a, b, p);
+    at = e.estimate;
+    const double weight = at.lambda * (1.0 - at.lambda);
+    if (!e.inSlab || !(weight > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+    return (mid.modulus - modulusBlend(piece, at)) / weight;
+  };
+  SweptEstimate centre;
+  const double q = residual(mid.r, centre);
+  if (std::isnan(q)) return;
+  piece.modulusQuadratic = q;
+  for (const bool second : {false, true}) {
+    const Vec3 side = radius * (second ? mid.d2 : mid.d1);
+    SweptEstimate plus, minus;
+    const double rise = residual(mid.r + side, plus) - residual(mid.r - side, minus);
+    const double run = second ? plus.x2 - minus.x2 : plus.x1 - minus.x1;
+    if (std::isfinite(rise) && run > 0.0) (second ? piece.modulusAcross2 : piece.modulusAcross1) = rise / run;
+  }
+}
+
 struct Measurement {
   bool valid = false;         // every test point fell between the piece's planes
   double coordinateError = 0; // bound on |x_estimated - x_exact| (mm)
@@ -81,6 +109,7 @@ Measurement measure(const geometry::Rod& rod, const Node& a, const Node& b, RodP
   }
   m.chordDeviation = 2.0 * deviation + 1e-9;
   piece.x1Quadratic = piece.x2Quadratic = piece.modulusQuadratic = 0.0;
+  piece.modulusAcross1 = piece.modulusAcross2 = 0.0;
   piece.modulusBegin = a.modulus;
   piece.modulusEnd = b.modulus;
   std::tie(piece.modulusLow, piece.modulusHigh) = rod.modulus().valueBoundsOn(a.u, b.u);
@@ -94,7 +123,7 @@ Measurement measure(const geometry::Rod& rod, const Node& a, const Node& b, RodP
   if (!centre.inSlab || !(quadraticWeight > 0.0)) return m;
   piece.x1Quadratic = -centre.estimate.x1 / quadraticWeight;
   piece.x2Quadratic = -centre.estimate.x2 / quadraticWeight;
-  piece.modulusQuadratic = (mid.modulus - estimateModulus(piece, centre.estimate.lambda)) / quadraticWeight;
+  fitModulus(piece, a, b, mid, radius);
 
   constexpr int kDirections = 8;
   double coordinateError = 0.0, modulusError = 0.0;
@@ -106,7 +135,7 @@ Measurement measure(const geometry::Rod& rod, const Node& a, const Node& b, RodP
         const WorldEstimate e = estimateAt(piece, a, b, n.r + x1 * n.d1 + x2 * n.d2);
         if (!e.inSlab) return m;
         coordinateError = std::max({coordinateError, std::abs(e.estimate.x1 - x1), std::abs(e.estimate.x2 - x2)});
-        modulusError = std::max(modulusError, std::abs(estimateModulus(piece, e.estimate.lambda) - n.modulus));
+        modulusError = std::max(modulusError, std::abs(estimateModulus(piece, e.estimate) - n.modulus));
       }
     }
   }

@@ -82,7 +82,7 @@ struct LeafBuilder::SweptQuad {
     q.test = (e.x1 * lanes.iA) * (e.x1 * lanes.iA) + (e.x2 * lanes.iB) * (e.x2 * lanes.iB);
     q.encodedDepth = q.test;
   }
-  q.modulus = estimateModulus(lanes, e.lambda);
+  q.modulus = estimateModulus(lanes, e);
   q.inSlab = (av >= 0.0) & (bv < 0.0);
   q.sure = q.inSlab & (q.test < lanes.sureInsideBelow);
   return q;
