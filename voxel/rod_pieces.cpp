@@ -59,14 +59,12 @@ WorldEstimate estimateAt(const RodPiece& piece, const Node& a, const Node& b, co
   return {true, estimateSwept(piece, pa, pb, a.d1.dot(wa), a.d2.dot(wa), b.d1.dot(wb), b.d2.dot(wb))};
 }
 
-// Fits the terms of E beyond the blend of its values at the planes (RodPiece::modulusQuadratic) to E
-// at points of the middle section: what E leaves beyond the blend, divided by lambda (1 - lambda), is
-// taken as q + k1 x1 + k2 x2: q makes it exact at the centerline, k1 and k2 are its slopes in x1 and x2
-// between points a `radius` either side (E is the same across the section, lambda is not where the
-// curvature changes along the piece). The error `measure` then finds is what these terms cannot
-// follow; with q alone lambda's drift across the sections set most of the curved rods' pieces.
-// Leaves k1 or k2 0 where a point it needs is not between the planes.
-void fitModulus(RodPiece& piece, const Node& a, const Node& b, const Node& mid, double radius) {
+// Fits the terms of E in x1 and x2 (RodPiece::modulusAcross1, 2) to E across the middle section: what
+// E leaves beyond the blend with q, divided by lambda (1 - lambda), between points a `radius` either
+// side along d1 and along d2, over their difference in x1 and x2. E is the same across the section;
+// lambda is not, where the curvature changes along the piece, and with q alone that drift set most of
+// the curved rods' pieces. Leaves a term 0 where a point it needs is not between the planes.
+void fitModulusAcross(RodPiece& piece, const Node& a, const Node& b, const Node& mid, double radius) {
   const auto residual = [&](const Vec3& p, SweptEstimate& at) {
     const WorldEstimate e = estimateAt(piece, a, b, p);
     at = e.estimate;
@@ -74,10 +72,6 @@ void fitModulus(RodPiece& piece, const Node& a, const Node& b, const Node& mid, 
     if (!e.inSlab || !(weight > 0.0)) return std::numeric_limits<double>::quiet_NaN();
     return (mid.modulus - modulusBlend(piece, at)) / weight;
   };
-  SweptEstimate centre;
-  const double q = residual(mid.r, centre);
-  if (std::isnan(q)) return;
-  piece.modulusQuadratic = q;
   for (const bool second : {false, true}) {
     const Vec3 side = radius * (second ? mid.d2 : mid.d1);
     SweptEstimate plus, minus;
@@ -85,6 +79,22 @@ void fitModulus(RodPiece& piece, const Node& a, const Node& b, const Node& mid, 
     const double run = second ? plus.x2 - minus.x2 : plus.x1 - minus.x1;
     if (std::isfinite(rise) && run > 0.0) (second ? piece.modulusAcross2 : piece.modulusAcross1) = rise / run;
   }
+}
+
+// E's tolerance on a piece: 1e-6 relative (the fraction map's interpolation bound, materials/README.md).
+double modulusTolerance(const Node& a, const Node& b) {
+  return 1e-6 * std::max({std::abs(a.modulus), std::abs(b.modulus), 1e-3});
+}
+
+// A test point of `measure`: the estimate there and the exact E.
+struct ModulusSample {
+  SweptEstimate at;
+  double exact;
+};
+double largestModulusError(const RodPiece& piece, const ModulusSample* begin, const ModulusSample* end) {
+  double error = 0.0;
+  for (const ModulusSample* s = begin; s != end; ++s) error = std::max(error, std::abs(estimateModulus(piece, s->at) - s->exact));
+  return error;
 }
 
 // The directions `measure` tests in each section: cos and sin of 2 pi k / 8, computed once (they were
@@ -138,10 +148,12 @@ Measurement measure(const geometry::Rod& rod, const Node& a, const Node& b, RodP
   if (!centre.inSlab || !(quadraticWeight > 0.0)) return m;
   piece.x1Quadratic = -centre.estimate.x1 / quadraticWeight;
   piece.x2Quadratic = -centre.estimate.x2 / quadraticWeight;
-  fitModulus(piece, a, b, mid, radius);
+  piece.modulusQuadratic = (mid.modulus - estimateModulus(piece, centre.estimate)) / quadraticWeight;
 
   const auto& directions = testDirections();
-  double coordinateError = 0.0, modulusError = 0.0;
+  std::array<ModulusSample, 3 * (1 + 2 * 8)> samples;
+  std::size_t count = 0;
+  double coordinateError = 0.0;
   for (const Node& n : quarter) {
     for (const double rho : {0.0, 0.5 * radius, radius}) {
       for (std::size_t k = 0; k < (rho == 0.0 ? 1 : directions.size()); ++k) {
@@ -149,13 +161,22 @@ Measurement measure(const geometry::Rod& rod, const Node& a, const Node& b, RodP
         const WorldEstimate e = estimateAt(piece, a, b, n.r + x1 * n.d1 + x2 * n.d2);
         if (!e.inSlab) return m;
         coordinateError = std::max({coordinateError, std::abs(e.estimate.x1 - x1), std::abs(e.estimate.x2 - x2)});
-        modulusError = std::max(modulusError, std::abs(estimateModulus(piece, e.estimate) - n.modulus));
+        samples[count++] = {e.estimate, n.modulus};
       }
     }
   }
   m.valid = true;
   m.coordinateError = 2.0 * coordinateError + 1e-9;
-  m.modulusError = 2.0 * modulusError + 1e-9 * std::abs(mid.modulus);
+  const auto bound = [&](double largest) { return 2.0 * largest + 1e-9 * std::abs(mid.modulus); };
+  m.modulusError = bound(largestModulusError(piece, samples.data(), samples.data() + count));
+  // The terms across the section only where E misses its tolerance without them: elsewhere the voxel
+  // loop keeps the shorter expression (LeafBuilder::sweep) and E the bits it had.
+  if (m.modulusError > modulusTolerance(a, b)) {
+    fitModulusAcross(piece, a, b, mid, radius);
+    const double across = bound(largestModulusError(piece, samples.data(), samples.data() + count));
+    if (across < m.modulusError) m.modulusError = across;
+    else piece.modulusAcross1 = piece.modulusAcross2 = 0.0;
+  }
   return m;
 }
 
@@ -233,8 +254,7 @@ class PieceBuilder {
       throw Interrupted("rasterizer: interrupted while cutting rod '" + rod_.name() + "' into pieces");
     RodPiece piece;
     const Measurement m = measure(rod_, a, b, piece);
-    const double modulusTolerance = 1e-6 * std::max({std::abs(a.modulus), std::abs(b.modulus), 1e-3});
-    const bool modulusAccurate = m.modulusError <= modulusTolerance;
+    const bool modulusAccurate = m.modulusError <= modulusTolerance(a, b);
     const bool accurate = m.valid && m.coordinateError <= kCoordinateTolerance && modulusAccurate;
     // Splitting stops at the depth limit and when the rod's budget is spent, and for the geometry at
     // pieces shorter than the voxels can tell apart (where the sections fold over, or round-off far
