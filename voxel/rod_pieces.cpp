@@ -116,6 +116,7 @@ struct Measurement {
   double coordinateError = 0; // bound on |x_estimated - x_exact| (mm)
   double modulusError = 0;    // bound on |E_estimated - E_exact| (MPa)
   double chordDeviation = 0;  // bound on the distance from the centerline to the chord (mm)
+  Node mid;                   // the node halfway along u, where `refine` splits the piece
 };
 
 // Fits the quadratic terms (coefficients of lambda (1 - lambda)) of `piece` and measures its error
@@ -125,7 +126,8 @@ struct Measurement {
 // floor) to bound the error between test points.
 Measurement measure(const geometry::Rod& rod, const Node& a, const Node& b, RodPiece& piece) {
   Measurement m;
-  const Node mid = node(rod, 0.5 * (a.u + b.u));
+  m.mid = node(rod, 0.5 * (a.u + b.u));
+  const Node& mid = m.mid;
   const Node quarter[3] = {node(rod, a.u + 0.25 * (b.u - a.u)), mid, node(rod, a.u + 0.75 * (b.u - a.u))};
   double deviation = 0.0, curvature = std::max({a.curvature, b.curvature});
   for (const Node& n : quarter) {
@@ -264,9 +266,8 @@ class PieceBuilder {
     const double length = (b.r - a.r).norm() + m.chordDeviation;
     if (!accurate && depth < kMaxRefinement && (geometryAccurate || length >= minLength_) && planned_ < budget_ && b.u > a.u) {
       ++planned_;
-      const Node mid = node(rod_, 0.5 * (a.u + b.u));
-      refine(a, mid, depth + 1);
-      refine(mid, b, depth + 1);
+      refine(a, m.mid, depth + 1);
+      refine(m.mid, b, depth + 1);
       return;
     }
     if (m.valid && modulusAccurate) addSwept(a, b, m, piece);
