@@ -4,6 +4,7 @@
 #pragma once
 
 #include "geometry/geometry.hpp"
+#include "tests/exact_voxel.hpp"
 #include "voxel/voxel.hpp"
 
 #include <catch2/catch.hpp>
@@ -66,29 +67,6 @@ inline void requireIdentical(const openvdb::FloatGrid& a, const openvdb::FloatGr
     REQUIRE(acc.probeValue(it.getCoord(), v));
     REQUIRE(v == *it);  // bit-identical, not approximately equal
   }
-}
-
-// The exact rule, voxel by voxel: deepest rod wins, ties to the lower index.
-struct ExactVoxel {
-  bool inside = false;
-  int rod = -1;
-  double depth = -1, runnerUpDepth = -1e300;
-  double value = 0;
-};
-inline ExactVoxel exactVoxel(const RodStructure& s, const Vec3& p) {
-  ExactVoxel v;
-  for (std::size_t r = 0; r < s.rods.size(); ++r) {
-    if (!s.rods[r].bounds().contains(p)) continue;  // outside the rod's solid for sure: skip its Newton
-    const geometry::RodHit hit = s.rods[r].classify(p);
-    if (!hit.inside) continue;
-    if (!v.inside || hit.depth > v.depth + voxel::kDepthTieTolerance) {
-      v.runnerUpDepth = v.inside ? v.depth : v.runnerUpDepth;
-      v = {true, int(r), hit.depth, v.runnerUpDepth, s.rods[r].modulus().value(hit.u)};
-    } else {
-      v.runnerUpDepth = std::max(v.runnerUpDepth, hit.depth);
-    }
-  }
-  return v;
 }
 
 // Every voxel of the grid's box: active exactly where the exact test says inside, with E of the

@@ -81,11 +81,12 @@ struct SweptLanes {
       : gxA(broadcast(planeAgx)), gxB(broadcast(planeBgx)), gx1Begin(broadcast(p.x1Begin.gx)), gx2Begin(broadcast(p.x2Begin.gx)),
         gx1End(broadcast(p.x1End.gx)), gx2End(broadcast(p.x2End.gx)), x1Quadratic(broadcast(p.x1Quadratic)),
         x2Quadratic(broadcast(p.x2Quadratic)), modulusBegin(broadcast(p.modulusBegin)),
-        modulusQuadratic(broadcast(p.modulusQuadratic)), modulusRise(broadcast(p.modulusEnd) - modulusBegin),
+        modulusQuadratic(broadcast(p.modulusQuadratic)), modulusAcross1(broadcast(p.modulusAcross1)),
+        modulusAcross2(broadcast(p.modulusAcross2)), modulusRise(broadcast(p.modulusEnd) - modulusBegin),
         modulusFloor(Double4{} + broadcast(p.modulusLow)), modulusCeiling(Double4{} + broadcast(p.modulusHigh)),
         iA(broadcast(inverseHalfWidth)), iB(broadcast(inverseHalfHeight)), sureInsideBelow(broadcast(sureInside)) {}
   Double4 gxA, gxB, gx1Begin, gx2Begin, gx1End, gx2End;
-  Double4 x1Quadratic, x2Quadratic, modulusBegin, modulusQuadratic;  // as in RodPiece
+  Double4 x1Quadratic, x2Quadratic, modulusBegin, modulusQuadratic, modulusAcross1, modulusAcross2;  // as in RodPiece
   Double4 modulusRise, modulusFloor, modulusCeiling;  // estimateModulus's per-piece parts (see there)
   Double4 iA, iB, sureInsideBelow;  // RodPieces::inverseHalfWidth, inverseHalfHeight; ShellThresholds::sureInsideBelow
 };

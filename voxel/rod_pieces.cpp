@@ -3,6 +3,7 @@
 #include "voxel/rasterize.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -58,11 +59,64 @@ WorldEstimate estimateAt(const RodPiece& piece, const Node& a, const Node& b, co
   return {true, estimateSwept(piece, pa, pb, a.d1.dot(wa), a.d2.dot(wa), b.d1.dot(wb), b.d2.dot(wb))};
 }
 
+// Fits the terms of E in x1 and x2 (RodPiece::modulusAcross1, 2) to E across the middle section: what
+// E leaves beyond the blend with q, divided by lambda (1 - lambda), between points a `radius` either
+// side along d1 and along d2, over their difference in x1 and x2. E is the same across the section;
+// lambda is not, where the curvature changes along the piece, and with q alone that drift set most of
+// the curved rods' pieces. Leaves a term 0 where a point it needs is not between the planes.
+void fitModulusAcross(RodPiece& piece, const Node& a, const Node& b, const Node& mid, double radius) {
+  const auto residual = [&](const Vec3& p, SweptEstimate& at) {
+    const WorldEstimate e = estimateAt(piece, a, b, p);
+    at = e.estimate;
+    const double weight = at.lambda * (1.0 - at.lambda);
+    if (!e.inSlab || !(weight > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+    return (mid.modulus - modulusBlend(piece, at)) / weight;
+  };
+  for (const bool second : {false, true}) {
+    const Vec3 side = radius * (second ? mid.d2 : mid.d1);
+    SweptEstimate plus, minus;
+    const double rise = residual(mid.r + side, plus) - residual(mid.r - side, minus);
+    const double run = second ? plus.x2 - minus.x2 : plus.x1 - minus.x1;
+    if (std::isfinite(rise) && run > 0.0) (second ? piece.modulusAcross2 : piece.modulusAcross1) = rise / run;
+  }
+}
+
+// E's tolerance on a piece: 1e-6 relative (the fraction map's interpolation bound, materials/README.md).
+double modulusTolerance(const Node& a, const Node& b) {
+  return 1e-6 * std::max({std::abs(a.modulus), std::abs(b.modulus), 1e-3});
+}
+
+// A test point of `measure`: the estimate there and the exact E.
+struct ModulusSample {
+  SweptEstimate at;
+  double exact;
+};
+double largestModulusError(const RodPiece& piece, const ModulusSample* begin, const ModulusSample* end) {
+  double error = 0.0;
+  for (const ModulusSample* s = begin; s != end; ++s) error = std::max(error, std::abs(estimateModulus(piece, s->at) - s->exact));
+  return error;
+}
+
+// The directions `measure` tests in each section: cos and sin of 2 pi k / 8, computed once (they were
+// some 25 % of the pieces' construction on the curved lattice).
+const std::array<std::array<double, 2>, 8>& testDirections() {
+  static const std::array<std::array<double, 2>, 8> directions = [] {
+    std::array<std::array<double, 2>, 8> d;
+    for (std::size_t k = 0; k < d.size(); ++k) {
+      const double phi = 2.0 * std::numbers::pi * static_cast<double>(k) / static_cast<double>(d.size());
+      d[k] = {std::cos(phi), std::sin(phi)};
+    }
+    return d;
+  }();
+  return directions;
+}
+
 struct Measurement {
   bool valid = false;         // every test point fell between the piece's planes
   double coordinateError = 0; // bound on |x_estimated - x_exact| (mm)
   double modulusError = 0;    // bound on |E_estimated - E_exact| (MPa)
   double chordDeviation = 0;  // bound on the distance from the centerline to the chord (mm)
+  Node mid;                   // the node halfway along u, where `refine` splits the piece
 };
 
 // Fits the quadratic terms (coefficients of lambda (1 - lambda)) of `piece` and measures its error
@@ -72,7 +126,8 @@ struct Measurement {
 // floor) to bound the error between test points.
 Measurement measure(const geometry::Rod& rod, const Node& a, const Node& b, RodPiece& piece) {
   Measurement m;
-  const Node mid = node(rod, 0.5 * (a.u + b.u));
+  m.mid = node(rod, 0.5 * (a.u + b.u));
+  const Node& mid = m.mid;
   const Node quarter[3] = {node(rod, a.u + 0.25 * (b.u - a.u)), mid, node(rod, a.u + 0.75 * (b.u - a.u))};
   double deviation = 0.0, curvature = std::max({a.curvature, b.curvature});
   for (const Node& n : quarter) {
@@ -81,6 +136,7 @@ Measurement measure(const geometry::Rod& rod, const Node& a, const Node& b, RodP
   }
   m.chordDeviation = 2.0 * deviation + 1e-9;
   piece.x1Quadratic = piece.x2Quadratic = piece.modulusQuadratic = 0.0;
+  piece.modulusAcross1 = piece.modulusAcross2 = 0.0;
   piece.modulusBegin = a.modulus;
   piece.modulusEnd = b.modulus;
   std::tie(piece.modulusLow, piece.modulusHigh) = rod.modulus().valueBoundsOn(a.u, b.u);
@@ -94,25 +150,35 @@ Measurement measure(const geometry::Rod& rod, const Node& a, const Node& b, RodP
   if (!centre.inSlab || !(quadraticWeight > 0.0)) return m;
   piece.x1Quadratic = -centre.estimate.x1 / quadraticWeight;
   piece.x2Quadratic = -centre.estimate.x2 / quadraticWeight;
-  piece.modulusQuadratic = (mid.modulus - estimateModulus(piece, centre.estimate.lambda)) / quadraticWeight;
+  piece.modulusQuadratic = (mid.modulus - estimateModulus(piece, centre.estimate)) / quadraticWeight;
 
-  constexpr int kDirections = 8;
-  double coordinateError = 0.0, modulusError = 0.0;
+  const auto& directions = testDirections();
+  std::array<ModulusSample, 3 * (1 + 2 * 8)> samples;
+  std::size_t count = 0;
+  double coordinateError = 0.0;
   for (const Node& n : quarter) {
     for (const double rho : {0.0, 0.5 * radius, radius}) {
-      for (int k = 0; k < (rho == 0.0 ? 1 : kDirections); ++k) {
-        const double phi = 2.0 * std::numbers::pi * k / kDirections;
-        const double x1 = rho * std::cos(phi), x2 = rho * std::sin(phi);
+      for (std::size_t k = 0; k < (rho == 0.0 ? 1 : directions.size()); ++k) {
+        const double x1 = rho * directions[k][0], x2 = rho * directions[k][1];
         const WorldEstimate e = estimateAt(piece, a, b, n.r + x1 * n.d1 + x2 * n.d2);
         if (!e.inSlab) return m;
         coordinateError = std::max({coordinateError, std::abs(e.estimate.x1 - x1), std::abs(e.estimate.x2 - x2)});
-        modulusError = std::max(modulusError, std::abs(estimateModulus(piece, e.estimate.lambda) - n.modulus));
+        samples[count++] = {e.estimate, n.modulus};
       }
     }
   }
   m.valid = true;
   m.coordinateError = 2.0 * coordinateError + 1e-9;
-  m.modulusError = 2.0 * modulusError + 1e-9 * std::abs(mid.modulus);
+  const auto bound = [&](double largest) { return 2.0 * largest + 1e-9 * std::abs(mid.modulus); };
+  m.modulusError = bound(largestModulusError(piece, samples.data(), samples.data() + count));
+  // The terms across the section only where E misses its tolerance without them: elsewhere the voxel
+  // loop keeps the shorter expression (LeafBuilder::sweep) and E the bits it had.
+  if (m.modulusError > modulusTolerance(a, b)) {
+    fitModulusAcross(piece, a, b, mid, radius);
+    const double across = bound(largestModulusError(piece, samples.data(), samples.data() + count));
+    if (across < m.modulusError) m.modulusError = across;
+    else piece.modulusAcross1 = piece.modulusAcross2 = 0.0;
+  }
   return m;
 }
 
@@ -190,8 +256,7 @@ class PieceBuilder {
       throw Interrupted("rasterizer: interrupted while cutting rod '" + rod_.name() + "' into pieces");
     RodPiece piece;
     const Measurement m = measure(rod_, a, b, piece);
-    const double modulusTolerance = 1e-6 * std::max({std::abs(a.modulus), std::abs(b.modulus), 1e-3});
-    const bool modulusAccurate = m.modulusError <= modulusTolerance;
+    const bool modulusAccurate = m.modulusError <= modulusTolerance(a, b);
     const bool accurate = m.valid && m.coordinateError <= kCoordinateTolerance && modulusAccurate;
     // Splitting stops at the depth limit and when the rod's budget is spent, and for the geometry at
     // pieces shorter than the voxels can tell apart (where the sections fold over, or round-off far
@@ -201,9 +266,8 @@ class PieceBuilder {
     const double length = (b.r - a.r).norm() + m.chordDeviation;
     if (!accurate && depth < kMaxRefinement && (geometryAccurate || length >= minLength_) && planned_ < budget_ && b.u > a.u) {
       ++planned_;
-      const Node mid = node(rod_, 0.5 * (a.u + b.u));
-      refine(a, mid, depth + 1);
-      refine(mid, b, depth + 1);
+      refine(a, m.mid, depth + 1);
+      refine(m.mid, b, depth + 1);
       return;
     }
     if (m.valid && modulusAccurate) addSwept(a, b, m, piece);
