@@ -17,13 +17,16 @@ namespace rodfab::printer_profiles {
 
 namespace {
 
-// Reading on from where the last read-ahead ended (an entry streamed, the entries one after another,
-// the central directory) fetches this much at once; a read anywhere else fetches a page. libzip opening
-// an archive with ZIP_CHECKCONS reads every entry's local header, one after another across the whole
-// file: with the large read-ahead for those too, every handle opened read the whole archive (the
-// lattice's 132 MB, `rodfab inspect` 417 MB in all with its two handles; bench/README.md, "Emit, round 11").
-constexpr std::size_t kReadAhead = std::size_t{1} << 20;
+// A read anywhere but where the last read-ahead ended fetches a page; reading on from there fetches
+// twice as much as the last time, from 64 KiB up to 1 MiB (an entry streamed, the entries one after
+// another, the central directory). libzip opening an archive with ZIP_CHECKCONS reads every entry's
+// local header, one after another across the file, and the job reader's threads share its handles, so a
+// handle's next entry is often far from its last one: with 1 MiB for every such read, opening the
+// lattice's job read all of its 132 MB, each handle again, and `rodfab inspect` read 417 MB of it in
+// all (bench/README.md, "Emit, round 11").
 constexpr std::size_t kProbe = std::size_t{4} << 10;
+constexpr std::size_t kFirstRun = std::size_t{64} << 10;
+constexpr std::size_t kReadAhead = std::size_t{1} << 20;
 
 class FileInput : public ZipSourceState {
 public:
@@ -75,7 +78,8 @@ private:
   }
 
   bool fill() {
-    const std::size_t want = aheadBytes_ != 0 && position_ == aheadStart_ + aheadBytes_ ? kReadAhead : kProbe;
+    const bool onward = aheadBytes_ != 0 && position_ == aheadStart_ + aheadBytes_;
+    const std::size_t want = onward ? std::clamp(2 * aheadBytes_, kFirstRun, kReadAhead) : kProbe;
     if (ahead_.empty()) ahead_.resize(kReadAhead);  // once: the reads keep its bytes between them
     aheadBytes_ = 0;
     std::size_t got = 0;
