@@ -66,9 +66,9 @@ void Inspector::checkLayers() {
     });
   };
   // A smaller arena only when the budget needs one: called from the job writer (after its bands ran
-  // on the caller's arena), a fresh arena never got the worker thread, and every layer was checked on
-  // the calling thread (3,000 of 3,000 in each of 3 runs of classEmit/spring/threads:2; bench/README.md,
-  // "Emit, round 11").
+  // on the caller's arena), a fresh arena mostly got no worker thread, and every layer was checked on
+  // the calling thread (in 3 of 3 runs of classEmit/spring/threads:2, 2 of 4 on the lattice;
+  // bench/README.md, "Emit, round 11").
   if (workers >= concurrency) {
     checkAll();
   } else {
