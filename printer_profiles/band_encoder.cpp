@@ -15,8 +15,8 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <climits>
 #include <bit>
+#include <cstdint>
 #include <cstring>
 #include <fstream>
 #include <span>

@@ -269,8 +269,8 @@ TEST_CASE("The job reader reads every entry back as written, stored and raw, acr
       CHECK((raw == all[n]));
     }
   }
-  // From the last entry to the first: every read starts away from where the last one ended (a short
-  // read-ahead, then the long one as the entry goes on).
+  // From the last entry to the first: every read starts away from where the last one ended (a page,
+  // then read-aheads doubling as the entry goes on).
   const std::unique_ptr<JobReader> backwards = openJobReader(dir / "job.zip", 10'000, 4);
   for (std::size_t n = all.size(); n-- > 0;) CHECK((backwards->read(backwards->entries()[n], all[n].size()) == all[n]));
   // Cut short: the reader reports the damage instead of reading past the end.
