@@ -14,7 +14,9 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <bit>
+#include <cstdint>
 #include <cstring>
 #include <fstream>
 #include <span>
@@ -36,12 +38,11 @@ struct BandEncoder::BandLeaf {
 struct BandEncoder::BandVoxels {
   int zBase = 0;
   std::vector<std::vector<BandLeaf>> slabs;
-  // collect()'s list of the band's leaves: each one's slab and place in it.
-  struct Found {
-    const openvdb::BoolTree::LeafNodeType* leaf;
-    std::size_t slab, at;
-  };
-  std::vector<Found> found;
+  // collect()'s list of the band's leaves, and each one's slab (kSkipped: nothing to draw, or outside
+  // the band) and then its place in the slab.
+  static constexpr std::uint32_t kSkipped = UINT32_MAX;
+  std::vector<const openvdb::BoolTree::LeafNodeType*> leaves;
+  std::vector<std::uint32_t> slabOf, placeIn;
   std::vector<std::pair<openvdb::CoordBBox, bool>> tiles;
   const std::vector<BandLeaf>& slab(int k) const { return slabs[static_cast<std::size_t>((k - zBase) / 8)]; }
 };
@@ -69,32 +70,49 @@ BandEncoder::~BandEncoder() = default;
 // Into voxels_, whose vectors keep their capacity from band to band (slabs past this band's stay empty).
 // False as soon as an active voxel or tile lies outside `allowed`. A leaf wholly inside passes by its
 // origin alone; only leaves at the box's faces are scanned voxel by voxel. (A pass of its own over the
-// leaves, before this one, took the lattice 0.06 s a job on one core.) The leaves are listed in one
-// serial pass over the tree, each with its place in its slab (the tree's order, as before); their bits
-// are then transposed into rows on the band's TBB workers (serial, that was a tenth of the lattice's
-// band encoding, with the other core idle).
+// leaves, before this one, took the lattice 0.06 s a job on one core.) Only the leaves' pointers are
+// listed on the calling thread (the tree's internal nodes hold them); the leaves themselves are read on
+// the band's TBB workers: their bounds and slabs, then their bits transposed into rows. Listed by a leaf
+// iterator that read each leaf's origin, serially, that was about 60 ms of the lattice's job with the
+// other core idle (bench/README.md, "Emit, round 11"). A slab keeps the tree's order, as before (the
+// layers OR the leaves' bits and sum their moments as integers, so the order shows nowhere anyway).
 bool BandEncoder::collect(const LayerBand& band, const openvdb::CoordBBox& allowed) {
   BandVoxels& v = *voxels_;
   v.zBase = band.kBegin & ~7;
   const auto slabs = static_cast<std::size_t>((band.kEnd - 1 - v.zBase) / 8 + 1);
   if (v.slabs.size() < slabs) v.slabs.resize(slabs);
-  std::vector<std::size_t> counts(v.slabs.size(), 0);
-  v.found.clear();
-  for (auto leaf = band.material->tree().cbeginLeaf(); leaf; ++leaf) {
-    if (!allowed.isInside(openvdb::CoordBBox::createCube(leaf->origin(), openvdb::BoolTree::LeafNodeType::DIM))) {
-      openvdb::CoordBBox active;
-      leaf->evalActiveBoundingBox(active);
-      if (active.empty()) continue;  // nothing to draw, and its slab may lie outside the band
-      if (!allowed.isInside(active)) return false;
-    }
-    const auto slab = static_cast<std::size_t>((leaf->origin().z() - v.zBase) / 8);
-    v.found.push_back({leaf.getLeaf(), slab, counts[slab]++});
-  }
-  for (std::size_t s = 0; s < v.slabs.size(); ++s) v.slabs[s].resize(counts[s]);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, v.found.size(), 2048), [&](const tbb::blocked_range<std::size_t>& range) {
+  v.leaves.clear();
+  band.material->tree().getNodes(v.leaves);
+  v.slabOf.resize(v.leaves.size());
+  v.placeIn.resize(v.leaves.size());
+  std::atomic<bool> outside{false};
+  constexpr std::size_t kGrain = 2048;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, v.leaves.size(), kGrain), [&](const tbb::blocked_range<std::size_t>& range) {
     for (std::size_t n = range.begin(); n != range.end(); ++n) {
-      const BandVoxels::Found& f = v.found[n];
-      v.slabs[f.slab][f.at] = {f.leaf->origin(), LeafRows(maskBytes(f.leaf->getValueMask())), LeafRows(boolValueBytes(*f.leaf))};
+      const openvdb::BoolTree::LeafNodeType& leaf = *v.leaves[n];
+      v.slabOf[n] = BandVoxels::kSkipped;
+      if (!allowed.isInside(openvdb::CoordBBox::createCube(leaf.origin(), openvdb::BoolTree::LeafNodeType::DIM))) {
+        openvdb::CoordBBox active;
+        leaf.evalActiveBoundingBox(active);
+        if (active.empty()) continue;  // nothing to draw, and its slab may lie outside the band
+        if (!allowed.isInside(active)) {
+          outside = true;
+          continue;
+        }
+      }
+      v.slabOf[n] = static_cast<std::uint32_t>((leaf.origin().z() - v.zBase) / 8);
+    }
+  });
+  if (outside) return false;
+  std::vector<std::uint32_t> counts(v.slabs.size(), 0);
+  for (std::size_t n = 0; n < v.leaves.size(); ++n)
+    if (v.slabOf[n] != BandVoxels::kSkipped) v.placeIn[n] = counts[v.slabOf[n]]++;
+  for (std::size_t s = 0; s < v.slabs.size(); ++s) v.slabs[s].resize(counts[s]);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, v.leaves.size(), kGrain), [&](const tbb::blocked_range<std::size_t>& range) {
+    for (std::size_t n = range.begin(); n != range.end(); ++n) {
+      if (v.slabOf[n] == BandVoxels::kSkipped) continue;
+      const openvdb::BoolTree::LeafNodeType& leaf = *v.leaves[n];
+      v.slabs[v.slabOf[n]][v.placeIn[n]] = {leaf.origin(), LeafRows(maskBytes(leaf.getValueMask())), LeafRows(boolValueBytes(leaf))};
     }
   });
   v.tiles.clear();

@@ -186,12 +186,16 @@ struct PngWriteSpec {
   std::size_t stride;      // bytes a row
 };
 
-// Creates libpng's write structs on `io`, writes IHDR and pHYs from `spec` through them, runs
-// `body(png, info)` for the rest and destroys them; false when libpng failed (io.error says why).
-// libpng's longjmp lands here, so `body` must hold nothing with a destructor: buffers live in the
-// callers.
-template <class Body>
-bool writeWithLibpng(PngIo& io, const PngWriteSpec& spec, Body body) {
+// Layer images and previews: libpng writes the signature, IHDR and pHYs and frames every chunk
+// (length, CRC), but its row interface compresses with zlib, and it has no way to take image data
+// compressed elsewhere. So the rows are compressed by igzip (zlib-wrapped, deflate.hpp) and handed to
+// libpng's png_write_chunk as IDAT chunks, then IEND: a standard PNG any decoder reads, made by libpng.
+constexpr std::size_t kIdatChunkBytes = std::size_t{1} << 18;
+
+// The PNG of `spec` whose image data is `zlibData`, through libpng's write structs on `io`; false when
+// libpng failed (io.error says why). libpng's longjmp lands here, so nothing in this frame has a
+// destructor: the buffers live in the caller.
+bool writePngWithIdat(PngIo& io, const PngWriteSpec& spec, std::span<const std::uint8_t> zlibData) {
   png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &io, pngError, pngWarning);
   if (!png) return false;
   png_infop info = png_create_info_struct(png);
@@ -203,37 +207,12 @@ bool writeWithLibpng(PngIo& io, const PngWriteSpec& spec, Body body) {
   png_set_IHDR(png, info, spec.width, spec.height, spec.bitDepth, spec.colourType, PNG_INTERLACE_NONE,
                PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
   if (spec.xPpm) png_set_pHYs(png, info, spec.xPpm, spec.yPpm, PNG_RESOLUTION_METER);
-  body(png, info);
+  png_write_info(png, info);
+  for (std::size_t at = 0; at < zlibData.size(); at += kIdatChunkBytes)
+    png_write_chunk(png, reinterpret_cast<png_const_bytep>("IDAT"), zlibData.data() + at, std::min(kIdatChunkBytes, zlibData.size() - at));
+  png_write_chunk(png, reinterpret_cast<png_const_bytep>("IEND"), nullptr, 0);
   png_destroy_write_struct(&png, &info);
   return true;
-}
-
-// Layer images: libpng writes the signature, IHDR and pHYs and frames every chunk (length, CRC), but
-// its row interface compresses with zlib, and it has no way to take image data compressed elsewhere.
-// So the filtered rows are compressed by igzip (zlib-wrapped, deflate.hpp) and handed to libpng's
-// png_write_chunk as IDAT chunks, then IEND: a standard PNG any decoder reads, made by libpng.
-constexpr std::size_t kIdatChunkBytes = std::size_t{1} << 18;
-
-bool writePngWithIdat(PngIo& io, const PngWriteSpec& spec, std::span<const std::uint8_t> zlibData) {
-  return writeWithLibpng(io, spec, [&](png_structp png, png_infop info) {
-    png_write_info(png, info);
-    for (std::size_t at = 0; at < zlibData.size(); at += kIdatChunkBytes)
-      png_write_chunk(png, reinterpret_cast<png_const_bytep>("IDAT"), zlibData.data() + at,
-                      std::min(kIdatChunkBytes, zlibData.size() - at));
-    png_write_chunk(png, reinterpret_cast<png_const_bytep>("IEND"), nullptr, 0);
-  });
-}
-
-Bytes writePngWithIdatOrThrow(const PngWriteSpec& spec, std::span<const std::uint8_t> zlibData) {
-  Bytes out;
-  out.reserve(zlibData.size() + 128);
-  PngIo io;
-  io.out = &out;
-  if (!writePngWithIdat(io, spec, zlibData)) {
-    if (io.outOfMemory) throw std::bad_alloc();
-    throw ImageError(std::string("PNG encoding failed: ") + io.error);
-  }
-  return out;
 }
 
 // The image data of a PNG whose rows all use filter type 0 (None): each row prefixed by a zero byte,
@@ -254,6 +233,21 @@ Bytes compressUnfilteredRows(png_uint_32 height, std::size_t stride, const std::
     stream.add(std::span(batch.data(), (r1 - r0) * line), r1 == height);
   }
   return stream.take();
+}
+
+// Every PNG rodfab writes (1-bit and RGBA layers, RGB previews): the rows from `rowAt`, unfiltered,
+// compressed by igzip at the layer level, framed by libpng.
+Bytes encodeUnfilteredPng(const PngWriteSpec& spec, const std::function<void(int, std::uint8_t*)>& rowAt) {
+  const Bytes zlibData = compressUnfilteredRows(spec.height, spec.stride, rowAt);
+  Bytes out;
+  out.reserve(zlibData.size() + 128);
+  PngIo io;
+  io.out = &out;
+  if (!writePngWithIdat(io, spec, zlibData)) {
+    if (io.outOfMemory) throw std::bad_alloc();
+    throw ImageError(std::string("PNG encoding failed: ") + io.error);
+  }
+  return out;
 }
 
 struct PngHeader {
@@ -327,10 +321,7 @@ private:
 Bytes encodePng1(const Bitmap& bitmap, int xDpi, int yDpi) {
   const PngWriteSpec spec{static_cast<png_uint_32>(bitmap.width()), static_cast<png_uint_32>(bitmap.height()), 1,
                           PNG_COLOR_TYPE_GRAY, pixelsPerMetre(xDpi), pixelsPerMetre(yDpi), bitmap.stride()};
-  const Bytes data = compressUnfilteredRows(spec.height, spec.stride, [&](int r, std::uint8_t* out) {
-    std::memcpy(out, bitmap.row(r), bitmap.stride());
-  });
-  return writePngWithIdatOrThrow(spec, data);
+  return encodeUnfilteredPng(spec, [&](int r, std::uint8_t* out) { std::memcpy(out, bitmap.row(r), bitmap.stride()); });
 }
 
 DecodedBitmap decodePng1(std::span<const std::uint8_t> file) {
@@ -362,7 +353,7 @@ Bytes encodePngRgb(int width, int height, const std::function<void(int, std::uin
   // adaptive filters with zlib level 6, for files 1.4 to 2 times larger (a few hundred kB a job).
   const PngWriteSpec spec{static_cast<png_uint_32>(width), static_cast<png_uint_32>(height), 8, PNG_COLOR_TYPE_RGB, 0, 0,
                           static_cast<std::size_t>(width) * 3};
-  return writePngWithIdatOrThrow(spec, compressUnfilteredRows(spec.height, spec.stride, row));
+  return encodeUnfilteredPng(spec, row);
 }
 
 RgbImage decodePngRgb(std::span<const std::uint8_t> file) {
@@ -381,7 +372,7 @@ Bytes encodePngRgba(int width, int height, int xDpi, int yDpi, const std::functi
   // 25.1 s and 47.9 MB with the Sub filter. igzip compresses now (printer_profiles/README.md).
   const PngWriteSpec spec{static_cast<png_uint_32>(width), static_cast<png_uint_32>(height), 8, PNG_COLOR_TYPE_RGBA,
                           pixelsPerMetre(xDpi), pixelsPerMetre(yDpi), static_cast<std::size_t>(width) * 4};
-  return writePngWithIdatOrThrow(spec, compressUnfilteredRows(spec.height, spec.stride, row));
+  return encodeUnfilteredPng(spec, row);
 }
 
 RgbaHeader decodePngRgba(std::span<const std::uint8_t> file, std::uint64_t maxPixels,

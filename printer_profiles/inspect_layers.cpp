@@ -53,18 +53,28 @@ void Inspector::checkLayers() {
   const std::uint64_t imageBytes = (static_cast<std::uint64_t>(layout_.width) + 7) / 8 * static_cast<std::uint64_t>(layout_.height);
   const std::uint64_t fileCap = layout_.expected.at(profile_.layerFileName(*layout_.materials[0], 0, layout_.imageFormat)).maxBytes;
   const std::uint64_t perLayer = materials * (fileCap + imageBytes);
+  const int concurrency = tbb::this_task_arena::max_concurrency();
   const int workers = static_cast<int>(std::clamp<std::uint64_t>(kLayerMemoryBudget / std::max<std::uint64_t>(perLayer, 1), 1,
-                                                                 static_cast<std::uint64_t>(tbb::this_task_arena::max_concurrency())));
+                                                                 static_cast<std::uint64_t>(concurrency)));
   std::vector<LayerResult> results(static_cast<std::size_t>(layout_.layers), LayerResult(job_.string()));
-  tbb::task_arena arena(workers);
-  arena.execute([&] {
+  const auto checkAll = [&] {
     tbb::parallel_for(tbb::blocked_range<int>(0, layout_.layers, 1), [&](const tbb::blocked_range<int>& range) {
       for (int l = range.begin(); l != range.end(); ++l) {
         if (decodesLayer(l)) checkLayer(l, results[static_cast<std::size_t>(l)]);
         else readLayerThrough(l, results[static_cast<std::size_t>(l)]);
       }
     });
-  });
+  };
+  // A smaller arena only when the budget needs one: called from the job writer (after its bands ran
+  // on the caller's arena), a fresh arena mostly got no worker thread, and every layer was checked on
+  // the calling thread (in 3 of 3 runs of classEmit/spring/threads:2, 2 of 4 on the lattice;
+  // bench/README.md, "Emit, round 11").
+  if (workers >= concurrency) {
+    checkAll();
+  } else {
+    tbb::task_arena arena(workers);
+    arena.execute(checkAll);
+  }
   std::vector<DecodedMoments> moments(materials);
   std::vector<std::uint64_t> totals(materials, 0);
   for (const LayerResult& r : results) {

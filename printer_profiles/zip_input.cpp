@@ -17,6 +17,15 @@ namespace rodfab::printer_profiles {
 
 namespace {
 
+// A read anywhere but where the last read-ahead ended fetches a page; reading on from there fetches
+// twice as much as the last time, from 64 KiB up to 1 MiB (an entry streamed, the entries one after
+// another, the central directory). libzip opening an archive with ZIP_CHECKCONS reads every entry's
+// local header, one after another across the file, and the job reader's threads share its handles, so a
+// handle's next entry is often far from its last one: with 1 MiB for every such read, opening the
+// lattice's job read all of its 132 MB, each handle again, and `rodfab inspect` read 417 MB of it in
+// all (bench/README.md, "Emit, round 11").
+constexpr std::size_t kProbe = std::size_t{4} << 10;
+constexpr std::size_t kFirstRun = std::size_t{64} << 10;
 constexpr std::size_t kReadAhead = std::size_t{1} << 20;
 
 class FileInput : public ZipSourceState {
@@ -55,12 +64,12 @@ private:
   zip_int64_t readAt(std::uint8_t* out, zip_uint64_t length) {
     zip_uint64_t done = 0;
     while (done < length && position_ < size_) {
-      if (position_ < aheadStart_ || position_ >= aheadStart_ + ahead_.size()) {
+      if (position_ < aheadStart_ || position_ >= aheadStart_ + aheadBytes_) {
         if (!fill()) return failed(ZIP_ER_READ, errno);
-        if (ahead_.empty()) break;  // shorter than it was: libzip reports the entry as truncated
+        if (aheadBytes_ == 0) break;  // shorter than it was: libzip reports the entry as truncated
       }
       const auto at = static_cast<std::size_t>(position_ - aheadStart_);
-      const std::size_t n = static_cast<std::size_t>(std::min<zip_uint64_t>(length - done, ahead_.size() - at));
+      const std::size_t n = static_cast<std::size_t>(std::min<zip_uint64_t>(length - done, aheadBytes_ - at));
       std::memcpy(out + done, ahead_.data() + at, n);
       done += n;
       position_ += n;
@@ -69,19 +78,19 @@ private:
   }
 
   bool fill() {
-    ahead_.resize(kReadAhead);
+    const bool onward = aheadBytes_ != 0 && position_ == aheadStart_ + aheadBytes_;
+    const std::size_t want = onward ? std::clamp(2 * aheadBytes_, kFirstRun, kReadAhead) : kProbe;
+    if (ahead_.empty()) ahead_.resize(kReadAhead);  // once: the reads keep its bytes between them
+    aheadBytes_ = 0;
     std::size_t got = 0;
     for (;;) {
-      const ssize_t n = ::pread(fd_, ahead_.data() + got, kReadAhead - got, static_cast<off_t>(position_ + got));
+      const ssize_t n = ::pread(fd_, ahead_.data() + got, want - got, static_cast<off_t>(position_ + got));
       if (n < 0 && errno == EINTR) continue;
-      if (n < 0) {
-        ahead_.clear();
-        return false;
-      }
+      if (n < 0) return false;
       got += static_cast<std::size_t>(n);
-      if (n == 0 || got == kReadAhead) break;
+      if (n == 0 || got == want) break;
     }
-    ahead_.resize(got);
+    aheadBytes_ = got;
     aheadStart_ = position_;
     return true;
   }
@@ -91,7 +100,8 @@ private:
   zip_uint64_t size_ = 0;
   time_t mtime_ = 0;
   zip_uint64_t position_ = 0;
-  zip_uint64_t aheadStart_ = 0;  // the file's bytes [aheadStart_, aheadStart_ + ahead_.size()) are in ahead_
+  zip_uint64_t aheadStart_ = 0;  // the file's bytes [aheadStart_, aheadStart_ + aheadBytes_) are in ahead_
+  std::size_t aheadBytes_ = 0;
   std::vector<std::uint8_t> ahead_;
 };
 
