@@ -8,8 +8,6 @@
 #endif
 
 #include <algorithm>
-#include <cstddef>
-#include <cstring>
 #include <new>
 #include <stdexcept>
 #include <string>
@@ -58,13 +56,7 @@ void checkLevel(int level) {
 std::optional<std::size_t> compressOnce(std::span<const std::uint8_t> input, int level, DeflateWrapper wrapper, std::span<std::uint8_t> out) {
   thread_local std::vector<std::uint8_t> levelBuffer;
   levelBuffer.resize(std::max(levelBuffer.size(), levelBufferSize(level)));
-  // stateless_init leaves fields igzip reads unset (hist_bits, has_wrap_hdr among them): every field is
-  // cleared but, at level 0, the stream's 64 KiB history buffer and 16 KiB hash array, which the stateless
-  // level-0 path with a level buffer neither reads nor writes (it hashes in the level buffer; valgrind's
-  // memcheck finds no read of them): clearing them was 82 kB of memset an image (0.7 us of the 14 us
-  // BM_DeflateLayer/0 takes; bench/README.md, "Emit, round 11").
-  isal_zstream stream;
-  std::memset(&stream, 0, level == 0 ? offsetof(isal_zstream, internal_state) + offsetof(isal_zstate, buffer) : sizeof stream);
+  isal_zstream stream{};  // stateless_init leaves fields igzip reads (hist_bits among them) unset
   isal_deflate_stateless_init(&stream);
   stream.hist_bits = ISAL_DEF_MAX_HIST_BITS;
   stream.level = static_cast<std::uint32_t>(level);
