@@ -292,7 +292,7 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   for (const voxel::ThinRod& thin : voxel::findThinRods(design, grid)) report.warnings.push_back(thin.reason);
   // The pieces are bounded by the rods' budgets (rod_pieces.hpp); the bands are checked against the
   // budget with the pieces' real count, which is often a tenth of the budgets' bound.
-  const voxel::Rasterizer rasterizer(design, grid, {0, common::interruptRequested});
+  const voxel::Rasterizer rasterizer(design, grid, {settings.threads, common::interruptRequested});
   const SliceMemoryPlan memory = planSliceMemory(design, profile, grid, ditherer, rasterizer.pieceCount(), settings);
   const int bandLayers = memory.bandLayers;
   report.bandLayers = bandLayers;

@@ -240,8 +240,7 @@ std::size_t Rasterizer::pieceCount() const {
 }
 
 Rasterization Rasterizer::rasterizeLayers(int zBegin, int zEnd) const {
-  if (options_.threads <= 0) return run(zBegin, zEnd);
-  tbb::task_arena arena(options_.threads);
+  tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
   return arena.execute([&] { return run(zBegin, zEnd); });
 }
 
