@@ -323,6 +323,7 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
   PipelineOptions pipeline;
   pipeline.bandLayers = bandLayers;
   pipeline.onBand = settings.onBand;
+  report.mappedWhileDithering = bands.mapsWhileDithering();
   if (bands.mapsWhileDithering())
     pipeline.ditherBand = [&](const BandGrids& grids, int k0, int k1) { return bands.mapAndDither(grids, k0, k1); };
   pipeline.beforeFinalize = [&](printer_profiles::JobMetadata& metadata) {

@@ -44,7 +44,10 @@ struct SliceReport {
   std::uint64_t memoryEstimateBytes = 0;    // sliceMemoryBytes, checked against the memory budget
   double prepareSeconds = 0.0;              // printer grid, rod pieces, fraction table
   double supportSeconds = 0.0;              // the column-top pre-pass of explicit support
-  StageSeconds seconds;                     // bands: voxelize + map, dither, emit
+  StageSeconds seconds;                     // bands: source (voxelize, and map unless mappedWhileDithering),
+                                            // dither (and map), emit
+  bool mappedWhileDithering = false;        // the moduli were mapped to fractions in the dither stage
+                                            // (Ditherer::mapsWhileDithering), not in the source's
   double floorMpa = 0.0, floorFraction = 0.0, maxModulusMpa = 0.0;
   std::vector<std::string> warnings;       // for the technician: rods thinner than the printer resolves
 };

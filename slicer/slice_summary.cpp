@@ -37,7 +37,8 @@ void printSliceJson(const SliceSummary& s, const slicer::SliceReport& report) {
                   {"support", report.supportSeconds},
                   {"bands", seconds.wall},
                   {"total", s.totalSeconds},
-                  {"busy", {{"voxelize_and_map", seconds.source}, {"dither", seconds.dither}, {"emit", seconds.emit}}},
+                  {"busy", {{"voxelize", seconds.source}, {"dither", seconds.dither}, {"emit", seconds.emit},
+                            {"map_in", report.mappedWhileDithering ? "dither" : "voxelize"}}},
                   {"cpu_bands", seconds.cpu}};
   std::cout << j.dump(2) << '\n';
 }
@@ -60,8 +61,9 @@ void printSliceLines(const SliceSummary& s, const slicer::SliceReport& report, c
   const slicer::StageSeconds& t = report.seconds;
   std::printf("time:           %.2f s inputs, %.2f s support, %.2f s bands and job; %.2f s total (wall)\n", s.inputSeconds,
               report.supportSeconds, t.wall, s.totalSeconds);
-  std::printf("bands:          busy %.2f s voxelize + map, %.2f s dither, %.2f s emit (wall, overlapping); %.2f s CPU, all threads\n",
-              t.source, t.dither, t.emit, t.cpu);
+  const bool mapInDither = report.mappedWhileDithering;
+  std::printf("bands:          busy %.2f s voxelize%s, %.2f s %sdither, %.2f s emit (wall, overlapping); %.2f s CPU, all threads\n",
+              t.source, mapInDither ? "" : " + map", t.dither, mapInDither ? "map + " : "", t.emit, t.cpu);
 }
 
 }  // namespace

@@ -136,6 +136,7 @@ TEST_CASE("sliceDesign with an automatic band size over the memory budget slices
   settings.job.output = tmp.path / "large" / "block.zip";
   const slicer::SliceReport large = slicer::sliceDesign(design, connex3(), cal, *ditherer, settings);
   CHECK(large.bandLayers == 64);
+  CHECK_FALSE(large.mappedWhileDithering);  // error diffusion reads fractions: mapped by the source
   CHECK(fileBytes(small.job.path) == fileBytes(large.job.path));
   // The technician is told why it took longer; the job (its report included) does not change.
   const auto told = [](const slicer::SliceReport& report) {

@@ -200,6 +200,7 @@ TEST_CASE("sliceDesign: a straight rod's voxels are its volume, every one in the
     const slicer::SliceReport report = slicer::sliceDesign(design, connex3(), cal, *ditherer, settings);
     REQUIRE(report.voxelsPerRod.size() == 1);
     CHECK(report.voxelsPerRod[0] == report.mapping.voxels);
+    CHECK(report.mappedWhileDithering);  // white noise maps in its dither stage: the summary says so
     const std::array<double, 3>& v = connex3().voxelSizeMm;
     const double volume = std::numbers::pi * radius * radius * length;
     CHECK(double(report.mapping.voxels) * v[0] * v[1] * v[2] == Approx(volume).epsilon(0.03));
