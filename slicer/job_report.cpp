@@ -81,19 +81,29 @@ void ClampMap::add(const openvdb::FloatGrid& modulus, int k0, int k1) {
 }
 
 void ClampMap::addOutline(const openvdb::FloatGrid& modulus, int k0, int k1) {
-  for (auto leaf = modulus.tree().cbeginLeaf(); leaf; ++leaf) {
-    if (leaf->isEmpty()) continue;
-    openvdb::CoordBBox box = leaf->getNodeBoundingBox();
-    box.min().z() = std::max(box.min().z(), k0);
-    box.max().z() = std::min(box.max().z(), k1 - 1);
-    if (!clip(box)) continue;
-    // Bin by bin rather than voxel by voxel: the outline only marks the bins the leaf reaches.
-    const openvdb::Coord lo(box.min().x() / bin_, box.min().y() / bin_, box.min().z() / bin_);
-    const openvdb::Coord hi(box.max().x() / bin_, box.max().y() / bin_, box.max().z() / bin_);
-    for (int u = lo.x(); u <= hi.x(); ++u) {
-      for (int v = lo.y(); v <= hi.y(); ++v) top_.count(u, v, 0, 0);
-      for (int w = lo.z(); w <= hi.z(); ++w) front_.count(u, w, 0, 0);
+  // Each leaf's origin from its parent's child mask, without reading the leaf: a leaf iterator and a
+  // read of every leaf (a cache miss each) cost this pass 2 % of the lattice's slice, in the dither stage.
+  using LeafParent = openvdb::FloatTree::RootNodeType::ChildNodeType::ChildNodeType;
+  std::vector<const LeafParent*> parents;
+  modulus.tree().getNodes(parents);
+  for (const LeafParent* parent : parents) {
+    for (auto child = parent->cbeginChildOn(); child; ++child) {
+      openvdb::CoordBBox box = openvdb::CoordBBox::createCube(child.getCoord(), openvdb::FloatTree::LeafNodeType::DIM);
+      box.min().z() = std::max(box.min().z(), k0);
+      box.max().z() = std::min(box.max().z(), k1 - 1);
+      if (clip(box)) outline(box);
     }
+  }
+}
+
+// Marks the bins `box` (clipped, relative to the part's corner) reaches in both views.
+void ClampMap::outline(const openvdb::CoordBBox& box) {
+  // Bin by bin rather than voxel by voxel: the outline only marks the bins the leaf reaches.
+  const openvdb::Coord lo(box.min().x() / bin_, box.min().y() / bin_, box.min().z() / bin_);
+  const openvdb::Coord hi(box.max().x() / bin_, box.max().y() / bin_, box.max().z() / bin_);
+  for (int u = lo.x(); u <= hi.x(); ++u) {
+    for (int v = lo.y(); v <= hi.y(); ++v) top_.count(u, v, 0, 0);
+    for (int w = lo.z(); w <= hi.z(); ++w) front_.count(u, w, 0, 0);
   }
 }
 

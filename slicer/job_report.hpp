@@ -38,8 +38,9 @@ public:
   // Adds the active voxels and tiles of layers [k0, k1) of `modulus` (the rasterizer's "modulus_mpa"
   // grid; values outside the part box are ignored). Call once per band; not thread-safe.
   void add(const openvdb::FloatGrid& modulus, int k0, int k1);
-  // Only the part's outline, leaf by leaf (8 voxels a side): for bands without clamped voxels, at a
-  // five-hundredth of add()'s cost. Counts nothing.
+  // Only the part's outline, leaf by leaf (8 voxels a side; every leaf counts as part, as the
+  // rasterizer's leaves all hold active voxels; tiles are not drawn): for bands without clamped voxels,
+  // at a five-hundredth of add()'s cost. Counts nothing.
   void addOutline(const openvdb::FloatGrid& modulus, int k0, int k1);
 
   std::uint64_t belowFloor() const { return below_; }
@@ -60,6 +61,7 @@ private:
   };
   void addBox(const openvdb::CoordBBox& box, float value);
   bool clip(openvdb::CoordBBox& box) const;  // to the part, relative to its corner; false when empty
+  void outline(const openvdb::CoordBBox& box);  // marks the bins of a clipped box, counting nothing
 
   openvdb::CoordBBox part_;
   std::array<double, 3> voxelMm_;
