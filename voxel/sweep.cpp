@@ -90,29 +90,39 @@ template <bool Across>
 }
 
 // Voxels i .. min(i + 3, hi) of a row: four inside for sure go into empty slots with one store each
-// (the common case) or through addFourSurelyInside; otherwise voxel by voxel, the borderline ones to
-// the exact test. Returns the slots newly filled.
+// (the common case) or through addFourSurelyInside, as does a row's partial last quad into empty slots;
+// otherwise voxel by voxel, the borderline ones to the exact test. Returns the slots newly filled.
 [[gnu::always_inline]] inline int LeafBuilder::settleQuad(const SweptPiece& s, const SweptQuad& q, int row, int i, int hi, int j,
                                                           int k) {
-  if (i + 3 <= hi && (q.sure[0] & q.sure[1] & q.sure[2] & q.sure[3])) {
-    const int n = (row << kBlockXLog2) | (i & (kBlockX - 1));
-    std::uint64_t& word = filled_[static_cast<std::size_t>(row)];
-    const Float4 value = __builtin_convertvector(q.modulus, Float4);
-    if (((word >> (i & (kBlockX - 1))) & 0xfu) == 0) {
-      storeFour(n, q.encodedDepth, value, s.floatErrorBound, owner(s.rod, s.index));
-      word |= std::uint64_t(0xf) << (i & (kBlockX - 1));
-      return 4;
+  const int shift = i & (kBlockX - 1);
+  const int n = (row << kBlockXLog2) | shift;
+  std::uint64_t& word = filled_[static_cast<std::size_t>(row)];
+  if (i + 3 <= hi) {
+    if (q.sure[0] & q.sure[1] & q.sure[2] & q.sure[3]) {
+      const Float4 value = __builtin_convertvector(q.modulus, Float4);
+      if (((word >> shift) & 0xfu) == 0) {
+        storeFour(n, q.encodedDepth, value, s.floatErrorBound, owner(s.rod, s.index));
+        word |= std::uint64_t(0xf) << shift;
+        return 4;
+      }
+      return addFourSurelyInside(n, q.encodedDepth, value, s.floatErrorBound, s.rod, s.index, i, j, k);
     }
-    return addFourSurelyInside(n, q.encodedDepth, value, s.floatErrorBound, s.rod, s.index, i, j, k);
+  } else if (const unsigned inRow = (2u << (hi - i)) - 1u;
+             shift <= kBlockX - 4 && (laneBits(q.sure) & inRow) == inRow && ((word >> shift) & 0xfu) == 0) {
+    // A row's last, partial quad (most rows of short pieces end in one), its voxels inside for sure and
+    // the four slots empty: one store as for a whole quad. The lanes past the row's end go to empty
+    // slots of the same row, which nothing reads (their bits stay clear).
+    storeFour(n, q.encodedDepth, __builtin_convertvector(q.modulus, Float4), s.floatErrorBound, owner(s.rod, s.index));
+    word |= std::uint64_t(inRow) << shift;
+    return hi - i + 1;
   }
   int fresh = 0;
   for (int l = 0; l < 4 && i + l <= hi; ++l) {
     if (!q.inSlab[l] || q.test[l] > s.shell.sureOutsideAbove) continue;
-    const int n = offset(i + l, j, k);
     if (q.sure[l])
-      fresh += addSurelyInside(n, q.encodedDepth[l], s.floatErrorBound, static_cast<float>(q.modulus[l]), s.rod, s.index, i + l, j, k);
+      fresh += addSurelyInside(n + l, q.encodedDepth[l], s.floatErrorBound, static_cast<float>(q.modulus[l]), s.rod, s.index, i + l, j, k);
     else
-      addCandidate(exact(s.rod, s.index, i + l, j, k), n, i + l, j, k);
+      addCandidate(exact(s.rod, s.index, i + l, j, k), n + l, i + l, j, k);
   }
   return fresh;
 }
