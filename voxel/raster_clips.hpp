@@ -67,28 +67,40 @@ inline unsigned laneBits(Mask4 m) {
 // A value in all four lanes.
 inline Double4 broadcast(double v) { return Double4{v, v, v, v}; }
 
+// An affine function's c and gy in all four lanes (with its gz), for LayerRows: set once per piece.
+struct RowLanes {
+  RowLanes() = default;
+  [[gnu::always_inline]] explicit RowLanes(const AffineInIndex& f) : c(broadcast(f.c)), gy(broadcast(f.gy)), gz(f.gz) {}
+  Double4 c, gy;
+  double gz = 0.0;
+};
+
 // A swept piece's coefficients for the voxel loop, copied out of the piece into all four lanes once
 // per piece (the builder holds them, see LeafBuilder::swept_): held as scalars, they were broadcast
-// (and spilled) again for every row, some 35 instructions a row. The same values, so estimateSwept and
-// estimateModulus give the same bits. With them the section's inverse half-sizes and the sure-inside
-// threshold on the gauge (ShellThresholds::sureInsideBelow).
+// (and spilled) again for every row, some 35 instructions a row, and the planes' and frame
+// coordinates' rows for every layer, some 36 instructions a layer. The same values, so estimateSwept
+// and estimateModulus give the same bits. With them the section's inverse half-sizes and the
+// sure-inside threshold on the gauge (ShellThresholds::sureInsideBelow).
 struct SweptLanes {
   SweptLanes() = default;
   // Inline, so that sweep stores the lanes straight into its member (out of line, the lanes went to a
   // temporary and were then copied, 512 bytes by `rep movsq`, once per piece and block).
-  [[gnu::always_inline]] SweptLanes(const detail::RodPiece& p, double planeAgx, double planeBgx, double inverseHalfWidth,
-                                    double inverseHalfHeight, double sureInside)
-      : gxA(broadcast(planeAgx)), gxB(broadcast(planeBgx)), gx1Begin(broadcast(p.x1Begin.gx)), gx2Begin(broadcast(p.x2Begin.gx)),
+  [[gnu::always_inline]] SweptLanes(const detail::RodPiece& p, const AffineInIndex& planeA, const AffineInIndex& planeB,
+                                    double inverseHalfWidth, double inverseHalfHeight, double sureInside)
+      : gxA(broadcast(planeA.gx)), gxB(broadcast(planeB.gx)), gx1Begin(broadcast(p.x1Begin.gx)), gx2Begin(broadcast(p.x2Begin.gx)),
         gx1End(broadcast(p.x1End.gx)), gx2End(broadcast(p.x2End.gx)), x1Quadratic(broadcast(p.x1Quadratic)),
         x2Quadratic(broadcast(p.x2Quadratic)), modulusBegin(broadcast(p.modulusBegin)),
         modulusQuadratic(broadcast(p.modulusQuadratic)), modulusAcross1(broadcast(p.modulusAcross1)),
         modulusAcross2(broadcast(p.modulusAcross2)), modulusRise(broadcast(p.modulusEnd) - modulusBegin),
         modulusFloor(Double4{} + broadcast(p.modulusLow)), modulusCeiling(Double4{} + broadcast(p.modulusHigh)),
-        iA(broadcast(inverseHalfWidth)), iB(broadcast(inverseHalfHeight)), sureInsideBelow(broadcast(sureInside)) {}
+        iA(broadcast(inverseHalfWidth)), iB(broadcast(inverseHalfHeight)), sureInsideBelow(broadcast(sureInside)),
+        planeARows(planeA), planeBRows(planeB), x1BeginRows(p.x1Begin), x2BeginRows(p.x2Begin), x1EndRows(p.x1End),
+        x2EndRows(p.x2End) {}
   Double4 gxA, gxB, gx1Begin, gx2Begin, gx1End, gx2End;
   Double4 x1Quadratic, x2Quadratic, modulusBegin, modulusQuadratic, modulusAcross1, modulusAcross2;  // as in RodPiece
   Double4 modulusRise, modulusFloor, modulusCeiling;  // estimateModulus's per-piece parts (see there)
   Double4 iA, iB, sureInsideBelow;  // RodPieces::inverseHalfWidth, inverseHalfHeight; ShellThresholds::sureInsideBelow
+  RowLanes planeARows, planeBRows, x1BeginRows, x2BeginRows, x1EndRows, x2EndRows;  // for LayerRows
 };
 
 // std::max and std::min lane by lane: (a < b) ? b : a and (b < a) ? b : a.
@@ -96,13 +108,14 @@ inline Double4 largerOf(Double4 a, Double4 b) { return a < b ? b : a; }
 inline Double4 smallerOf(Double4 a, Double4 b) { return b < a ? b : a; }
 
 // AffineInIndex::row for the rows of one layer k, four rows j[0..3] at a time, lane by lane the same
-// expression (c + gy j) + gz k. The coefficients in lanes and gz k are set once per layer: read from
-// the piece for every four rows, GCC loaded them again each time (the slots the rows' voxels are
-// stored to are doubles too, so they might have changed the piece).
+// expression (c + gy j) + gz k. The coefficients in lanes come from the piece's RowLanes and gz k is set
+// once per layer: read from the piece for every four rows, GCC loaded them again each time (the slots
+// the rows' voxels are stored to are doubles too, so they might have changed the piece).
 struct LayerRows {
-  [[gnu::always_inline]] LayerRows(const AffineInIndex& f, int k) : c(broadcast(f.c)), gy(broadcast(f.gy)), gzk(broadcast(f.gz * k)) {}
-  [[gnu::always_inline]] Double4 at(Double4 j) const { return (c + gy * j) + gzk; }
-  Double4 c, gy, gzk;
+  [[gnu::always_inline]] LayerRows(const RowLanes& f, int k) : f_(f), gzk(broadcast(f.gz * k)) {}
+  [[gnu::always_inline]] Double4 at(Double4 j) const { return (f_.c + f_.gy * j) + gzk; }
+  const RowLanes& f_;
+  Double4 gzk;
 };
 
 // A double error bound as a float that is not smaller.

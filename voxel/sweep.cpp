@@ -148,8 +148,9 @@ template <bool Across>
 template <bool Across>
 [[gnu::always_inline]] inline void LeafBuilder::sweepLayer(const SweptPiece& s, const openvdb::CoordBBox& box, const AxisCylinder& cylinder,
                                                            int k, int jLo, int jHi) {
-  const LayerRows planeA(s.planeA, k), planeB(s.planeB, k);
-  const LayerRows x1Begin(s.piece.x1Begin, k), x2Begin(s.piece.x2Begin, k), x1End(s.piece.x1End, k), x2End(s.piece.x2End, k);
+  const SweptLanes& lanes = swept_;
+  const LayerRows planeA(lanes.planeARows, k), planeB(lanes.planeBRows, k);
+  const LayerRows x1Begin(lanes.x1BeginRows, k), x2Begin(lanes.x2BeginRows, k), x1End(lanes.x1EndRows, k), x2End(lanes.x2EndRows, k);
   for (int j4 = jLo; j4 <= jHi; j4 += 4) {
     const Double4 jv = double(j4) + Double4{0.0, 1.0, 2.0, 3.0};
     const FourRows rows(planeA, planeB, s.slopeA, s.slopeB, cylinder, j4, jv);
@@ -192,7 +193,7 @@ template <bool Across>
                      rectangle,
                      roundedUpToFloat(piece.normalizedRadiusErrorBound),
                      ShellThresholds(piece.normalizedRadiusErrorBound, rectangle)};
-  swept_ = SweptLanes(piece, planeA.gx, planeB.gx, rp.inverseHalfWidth, rp.inverseHalfHeight, s.shell.sureInsideBelow);
+  swept_ = SweptLanes(piece, planeA, planeB, rp.inverseHalfWidth, rp.inverseHalfHeight, s.shell.sureInsideBelow);
   AxisCylinder cylinder(grid_, piece);
   const bool across = piece.modulusAcross1 != 0.0 || piece.modulusAcross2 != 0.0;
   for (int k = kLo; k <= kHi; ++k) {
