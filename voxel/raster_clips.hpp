@@ -138,13 +138,13 @@ inline Double4 clampLanes(Double4 v) {
 }
 inline Int4 ceilToInts(Double4 v) {
   const Double4 clamped = clampLanes(v);
-  const Int4 t = __builtin_convertvector(clamped, Int4);
-  return t - __builtin_convertvector(__builtin_convertvector(t, Double4) < clamped, Int4);  // a true lane is -1
+  const Double4 t = __builtin_convertvector(__builtin_convertvector(clamped, Int4), Double4);
+  return __builtin_convertvector(t < clamped ? t + 1.0 : t, Int4);  // integers below 2^31: exact
 }
 inline Int4 floorToInts(Double4 v) {
   const Double4 clamped = clampLanes(v);
-  const Int4 t = __builtin_convertvector(clamped, Int4);
-  return t + __builtin_convertvector(__builtin_convertvector(t, Double4) > clamped, Int4);
+  const Double4 t = __builtin_convertvector(__builtin_convertvector(clamped, Int4), Double4);
+  return __builtin_convertvector(t > clamped ? t - 1.0 : t, Int4);
 }
 
 // The swept loop's thresholds on `test` (see sweep): gauges below 1 - bound are inside for sure, above
