@@ -91,10 +91,7 @@ private:
     return errorBound > 0.0f && deferredDepth_[static_cast<std::size_t>(rod)] ? 1.0 - std::sqrt(encodedDepth) : encodedDepth;
   }
   // Four neighbouring slots n .. n + 3 of one row (see offset), as four stores would fill them.
-  void storeFour(int n, Double4 encodedDepth, Float4 value, float errorBound, std::uint64_t who) {
-    typedef std::uint64_t Owner4 __attribute__((vector_size(32)));
-    const Float4 bounds = Float4{} + errorBound;
-    const Owner4 owners = Owner4{} + who;
+  void storeFour(int n, Double4 encodedDepth, Float4 value, Float4 bounds, Owner4 owners) {
     std::memcpy(&encodedDepth_[static_cast<std::size_t>(n)], &encodedDepth, sizeof encodedDepth);
     std::memcpy(&value_[static_cast<std::size_t>(n)], &value, sizeof value);
     std::memcpy(&errorBound_[static_cast<std::size_t>(n)], &bounds, sizeof bounds);

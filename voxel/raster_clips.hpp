@@ -45,6 +45,7 @@ typedef double Double4 __attribute__((vector_size(32)));
 typedef float Float4 __attribute__((vector_size(16)));
 typedef std::int64_t Mask4 __attribute__((vector_size(32)));  // a comparison of Double4s: -1 true, 0 false
 typedef std::int32_t Int4 __attribute__((vector_size(16)));
+typedef std::uint64_t Owner4 __attribute__((vector_size(32)));  // a slot's owner (rod, piece), four times
 
 // |v| lane by lane, exactly as std::abs (clears the sign bit).
 inline Double4 absolute(Double4 v) {
@@ -79,14 +80,16 @@ struct RowLanes {
 // per piece (the builder holds them, see LeafBuilder::swept_): held as scalars, they were broadcast
 // (and spilled) again for every row, some 35 instructions a row, and the planes' and frame
 // coordinates' rows for every layer, some 36 instructions a layer. The same values, so estimateSwept
-// and estimateModulus give the same bits. With them the section's inverse half-sizes and the
-// sure-inside threshold on the gauge (ShellThresholds::sureInsideBelow).
+// and estimateModulus give the same bits. With them the section's inverse half-sizes, the
+// sure-inside threshold on the gauge (ShellThresholds::sureInsideBelow) and what a quad's slots store
+// besides its values.
 struct SweptLanes {
   SweptLanes() = default;
   // Inline, so that sweep stores the lanes straight into its member (out of line, the lanes went to a
   // temporary and were then copied, 512 bytes by `rep movsq`, once per piece and block).
   [[gnu::always_inline]] SweptLanes(const detail::RodPiece& p, const AffineInIndex& planeA, const AffineInIndex& planeB,
-                                    double inverseHalfWidth, double inverseHalfHeight, double sureInside)
+                                    double inverseHalfWidth, double inverseHalfHeight, double sureInside, float errorBound,
+                                    std::uint64_t owner)
       : gxA(broadcast(planeA.gx)), gxB(broadcast(planeB.gx)), gx1Begin(broadcast(p.x1Begin.gx)), gx2Begin(broadcast(p.x2Begin.gx)),
         gx1End(broadcast(p.x1End.gx)), gx2End(broadcast(p.x2End.gx)), x1Quadratic(broadcast(p.x1Quadratic)),
         x2Quadratic(broadcast(p.x2Quadratic)), modulusBegin(broadcast(p.modulusBegin)),
@@ -95,12 +98,14 @@ struct SweptLanes {
         modulusFloor(Double4{} + broadcast(p.modulusLow)), modulusCeiling(Double4{} + broadcast(p.modulusHigh)),
         iA(broadcast(inverseHalfWidth)), iB(broadcast(inverseHalfHeight)), sureInsideBelow(broadcast(sureInside)),
         planeARows(planeA), planeBRows(planeB), x1BeginRows(p.x1Begin), x2BeginRows(p.x2Begin), x1EndRows(p.x1End),
-        x2EndRows(p.x2End) {}
+        x2EndRows(p.x2End), errorBounds(Float4{} + errorBound), owners(Owner4{} + owner) {}
   Double4 gxA, gxB, gx1Begin, gx2Begin, gx1End, gx2End;
   Double4 x1Quadratic, x2Quadratic, modulusBegin, modulusQuadratic, modulusAcross1, modulusAcross2;  // as in RodPiece
   Double4 modulusRise, modulusFloor, modulusCeiling;  // estimateModulus's per-piece parts (see there)
   Double4 iA, iB, sureInsideBelow;  // RodPieces::inverseHalfWidth, inverseHalfHeight; ShellThresholds::sureInsideBelow
   RowLanes planeARows, planeBRows, x1BeginRows, x2BeginRows, x1EndRows, x2EndRows;  // for LayerRows
+  Float4 errorBounds;  // what a quad's slots store: the piece's error bound (rounded up to float) and owner
+  Owner4 owners;
 };
 
 // std::max and std::min lane by lane: (a < b) ? b : a and (b < a) ? b : a.

@@ -101,7 +101,7 @@ template <bool Across>
     if (q.sure[0] & q.sure[1] & q.sure[2] & q.sure[3]) {
       const Float4 value = __builtin_convertvector(q.modulus, Float4);
       if (((word >> shift) & 0xfu) == 0) {
-        storeFour(n, q.encodedDepth, value, s.floatErrorBound, owner(s.rod, s.index));
+        storeFour(n, q.encodedDepth, value, swept_.errorBounds, swept_.owners);
         word |= std::uint64_t(0xf) << shift;
         return 4;
       }
@@ -112,7 +112,7 @@ template <bool Across>
     // A row's last, partial quad (most rows of short pieces end in one), its voxels inside for sure and
     // the four slots empty: one store as for a whole quad. The lanes past the row's end go to empty
     // slots of the same row, which nothing reads (their bits stay clear).
-    storeFour(n, q.encodedDepth, __builtin_convertvector(q.modulus, Float4), s.floatErrorBound, owner(s.rod, s.index));
+    storeFour(n, q.encodedDepth, __builtin_convertvector(q.modulus, Float4), swept_.errorBounds, swept_.owners);
     word |= std::uint64_t(inRow) << shift;
     return hi - i + 1;
   }
@@ -193,7 +193,8 @@ template <bool Across>
                      rectangle,
                      roundedUpToFloat(piece.normalizedRadiusErrorBound),
                      ShellThresholds(piece.normalizedRadiusErrorBound, rectangle)};
-  swept_ = SweptLanes(piece, planeA, planeB, rp.inverseHalfWidth, rp.inverseHalfHeight, s.shell.sureInsideBelow);
+  swept_ = SweptLanes(piece, planeA, planeB, rp.inverseHalfWidth, rp.inverseHalfHeight, s.shell.sureInsideBelow,
+                      s.floatErrorBound, owner(rod, pieceIndex));
   AxisCylinder cylinder(grid_, piece);
   const bool across = piece.modulusAcross1 != 0.0 || piece.modulusAcross2 != 0.0;
   for (int k = kLo; k <= kHi; ++k) {
