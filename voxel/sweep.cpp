@@ -98,7 +98,7 @@ template <bool Across>
   const int n = (row << kBlockXLog2) | shift;
   std::uint64_t& word = filled_[static_cast<std::size_t>(row)];
   if (i + 3 <= hi) {
-    if (q.sure[0] & q.sure[1] & q.sure[2] & q.sure[3]) {
+    if (laneBits(q.sure) == 0xfu) {
       const Float4 value = __builtin_convertvector(q.modulus, Float4);
       if (((word >> shift) & 0xfu) == 0) {
         storeFour(n, q.encodedDepth, value, swept_.errorBounds, swept_.owners);
