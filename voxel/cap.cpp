@@ -88,11 +88,15 @@ namespace {
         // Inside for sure; the depth's round-off (1e-9 of the radius at most) is within the tie
         // tolerance, so it counts as exact.
         const Mask4 sure = beyond & ~near & (g < kSurelyInside);
-        if (i + 3 <= hi && (sure[0] & sure[1] & sure[2] & sure[3])) {
-          const int n = offset(i, j, k);
-          addFourCapCandidates(n, g, endModulus, rod, pieceIndex, i, j, k);
+        const unsigned sureLanes = laneBits(sure);
+        if (i + 3 <= hi && sureLanes == 0xfu) {
+          addFourCapCandidates(offset(i, j, k), g, endModulus, rod, pieceIndex, i, j, k);
           continue;
         }
+        // A row's partial last quad, inside for sure, into empty slots.
+        if (const unsigned inRow = (2u << (hi - i)) - 1u; i + 3 > hi && (sureLanes & inRow) == inRow &&
+                                                          capsIntoEmptySlots(offset(i, j, k), g, inRow, endModulus, rod, pieceIndex))
+          continue;
         for (int l = 0; l < 4 && i + l <= hi; ++l) {
           if (!beyond[l] || (!near[l] && g[l] > kSurelyOutside)) continue;
           if (sure[l]) addCapCandidate(offset(i + l, j, k), g[l], endModulus, rod, pieceIndex, i + l, j, k);
