@@ -317,7 +317,7 @@ private:
   struct SweptRowStart;
   // Across: the piece's E has terms in x1, x2 (RodPiece::modulusAcross1, 2; estimateModulus).
   template <bool Across>
-  void sweepLayer(const SweptPiece& s, const openvdb::CoordBBox& box, const AxisCylinder& cylinder, int k, int jLo, int jHi);
+  int sweepLayer(const SweptPiece& s, const openvdb::CoordBBox& box, const AxisCylinder& cylinder, int k, int jLo, int jHi);
   template <bool Across>
   int sweepRow(const SweptPiece& s, const SweptRowStart& r, int lo, int hi, int j, int k);
   template <bool Across>

@@ -144,13 +144,14 @@ template <bool Across>
 }
 
 // Layer k's rows jLo .. jHi, set up four at a time (the planes' rows and bounds, the cylinder's square
-// root), each lane as the scalar clips compute it; then row by row.
+// root), each lane as the scalar clips compute it; then row by row. Returns the slots newly filled.
 template <bool Across>
-[[gnu::always_inline]] inline void LeafBuilder::sweepLayer(const SweptPiece& s, const openvdb::CoordBBox& box, const AxisCylinder& cylinder,
+[[gnu::always_inline]] inline int LeafBuilder::sweepLayer(const SweptPiece& s, const openvdb::CoordBBox& box, const AxisCylinder& cylinder,
                                                            int k, int jLo, int jHi) {
   const SweptLanes& lanes = swept_;
   const LayerRows planeA(lanes.planeARows, k), planeB(lanes.planeBRows, k);
   const LayerRows x1Begin(lanes.x1BeginRows, k), x2Begin(lanes.x2BeginRows, k), x1End(lanes.x1EndRows, k), x2End(lanes.x2EndRows, k);
+  int fresh = 0;
   for (int j4 = jLo; j4 <= jHi; j4 += 4) {
     const Double4 jv = double(j4) + Double4{0.0, 1.0, 2.0, 3.0};
     const FourRows rows(planeA, planeB, s.slopeA, s.slopeB, cylinder, j4, jv);
@@ -165,9 +166,10 @@ template <bool Across>
       const int l = __builtin_ctz(kept), j = j4 + l;
       const int lo = first[l], hi = last[l];
       const SweptRowStart start{rows.a[l], rows.b[l], x1a[l], x2a[l], x1b[l], x2b[l]};
-      voxelsPerRod[static_cast<std::size_t>(s.rod)] += static_cast<std::uint64_t>(sweepRow<Across>(s, start, lo, hi, j, k));
+      fresh += sweepRow<Across>(s, start, lo, hi, j, k);
     }
   }
+  return fresh;
 }
 
 // Cloned for AVX2 (four lanes in one register; AVX2 brings no FMA, so no multiply-add is fused and
@@ -197,12 +199,15 @@ template <bool Across>
                       s.floatErrorBound, owner(rod, pieceIndex));
   AxisCylinder cylinder(grid_, piece);
   const bool across = piece.modulusAcross1 != 0.0 || piece.modulusAcross2 != 0.0;
+  std::uint64_t fresh = 0;  // slots newly filled
   for (int k = kLo; k <= kHi; ++k) {
     int jLo = box.min().y(), jHi = box.max().y();
     if (!slab.rows(k, jLo, jHi) || !cylinder.layer(k, box.min().y(), jLo, jHi)) continue;
-    if (across) sweepLayer<true>(s, box, cylinder, k, jLo, jHi);
-    else sweepLayer<false>(s, box, cylinder, k, jLo, jHi);
+    fresh += static_cast<std::uint64_t>(across ? sweepLayer<true>(s, box, cylinder, k, jLo, jHi) : sweepLayer<false>(s, box, cylinder, k, jLo, jHi));
   }
+  // The rod's tally once per piece (the overlap rule moves voxels between tallies meanwhile; only the
+  // sums are read, after every block).
+  voxelsPerRod[static_cast<std::size_t>(rod)] += fresh;
 }
 
 }  // namespace rodfab::voxel::detail
