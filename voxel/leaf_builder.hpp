@@ -221,8 +221,8 @@ private:
   }
   // Round-cap candidates inside for sure (gauges g < 1) for the lanes set in `lanes` of slots n .. n + 3
   // of one row, where those four slots lie in the row and are all empty: one store, as addCapCandidate
-  // would fill them one by one (lanes not in `lanes`, past the row's end, go to empty slots nothing
-  // reads). False, and nothing done, otherwise.
+  // would fill them one by one (lanes not in `lanes`, past the row's end, go to empty slots whose bits
+  // stay clear, as in sweep's partial quads). False, and nothing done, otherwise.
   bool capsIntoEmptySlots(int n, Double4 g, unsigned lanes, float value, int rod, int piece) {
     std::uint64_t& word = filled_[static_cast<std::size_t>(n >> 6)];
     const int shift = n & 63;

@@ -111,7 +111,8 @@ template <bool Across>
              shift <= kBlockX - 4 && (laneBits(q.sure) & inRow) == inRow && ((word >> shift) & 0xfu) == 0) {
     // A row's last, partial quad (most rows of short pieces end in one), its voxels inside for sure and
     // the four slots empty: one store as for a whole quad. The lanes past the row's end go to empty
-    // slots of the same row, which nothing reads (their bits stay clear).
+    // slots of the same row whose bits stay clear, so no candidate is read from them (emit masks their
+    // values out, and a later piece fills them as any empty slot).
     storeFour(n, q.encodedDepth, __builtin_convertvector(q.modulus, Float4), swept_.errorBounds, swept_.owners);
     word |= std::uint64_t(inRow) << shift;
     return hi - i + 1;
