@@ -452,9 +452,10 @@ TEST_CASE("The grid is identical for 1 and 2 threads and for any band of layers"
 
 TEST_CASE("Row bounds rounded four at a time as clampToInt(ceil), (floor)", "[voxel][clips]") {
   // The swept loop's FourRows::round: ceilToInts and floorToInts against the scalar rounding, at the
-  // clamp's bounds, the int range, integers, halves, signed zeros, infinities, NaN and a spread of reals.
+  // clamp's bounds, the int range, integers, halves, signed zeros, infinities and a spread of reals
+  // (not NaN, whose conversion to int the scalar side leaves undefined: such rows are marked missed).
   const double inf = std::numeric_limits<double>::infinity();
-  std::vector<double> values = {std::nan(""), inf, -inf, 0.0, -0.0, 0.5, -0.5, 3.0, -3.0, 1e-300, -1e-300, 2e9, -2e9,
+  std::vector<double> values = {inf, -inf, 0.0, -0.0, 0.5, -0.5, 3.0, -3.0, 1e-300, -1e-300, 2e9, -2e9,
                                 2e9 + 0.5, -2e9 - 0.5, 2e9 - 0.5, -2e9 + 0.5, 2147483647.5, -2147483648.5, 1e300, -1e300};
   std::uint64_t h = 88172645463325252ull;
   for (int n = 0; n < 4000; ++n) {
