@@ -329,6 +329,8 @@ private:
   void exactRegion(int rod, int pieceIndex, const RodPiece& piece, const openvdb::CoordBBox& box);
   // A round or flat cap's voxels (cap.cpp).
   void cap(int rod, int pieceIndex, const RodPiece& piece, const openvdb::CoordBBox& box);
+  struct CapPiece;  // what a cap's rows share (cap.cpp)
+  void capRowVoxels(const CapPiece& c, double aRow, double wxRow, double wyz, int lo, int hi, int j, int k);
 
   const geometry::RodStructure& structure_;
   const std::vector<RodPieces>& rods_;

@@ -306,18 +306,8 @@ private:
   double b0_ = 0.0, g0_ = 0.0, g1_ = 0.0;
 };
 
-// Four rows j .. j + 3 (jv: j to j + 3 as doubles) of a layer set up at once for a swept piece between
-// planes a and b (their rows in the layer): the planes' rows, and the row bounds of the slab (slopes) and the axis cylinder with one vector square root,
-// lane by lane the scalar clips' expressions (so the same bits). `missed` marks rows with no voxel.
-struct FourRows {
-  [[gnu::always_inline]] FourRows(const LayerRows& planeA, const LayerRows& planeB, const Slope& slopeA, const Slope& slopeB,
-                                  const AxisCylinder& cylinder, int j, Double4 jv) {
-    a = planeA.at(jv);
-    b = planeB.at(jv);
-    slopeA.bound(a, lo, hi, missed);
-    slopeB.bound(-b, lo, hi, missed);
-    cylinder.rows(j, lo, hi, missed);
-  }
+// The row bounds of four rows at once (see RowBounds), and the rows with no voxel (`missed`).
+struct FourRowBounds {
   // RowBounds::round for the four rows at once, from [boxLo, boxHi]: lane by lane the same integers
   // (ceilToInts, floorToInts), so each row gets the range round gives it. Rows with no voxel (missed,
   // or first > last) are marked in `empty`.
@@ -327,9 +317,23 @@ struct FourRows {
     last = downInt < boxHi ? downInt : Int4{} + boxHi;
     empty = missed | __builtin_convertvector(first > last, Mask4);
   }
-  Double4 a, b;
   Double4 lo = broadcast(-std::numeric_limits<double>::infinity()), hi = broadcast(std::numeric_limits<double>::infinity());
   Mask4 missed{};
+};
+
+// Four rows j .. j + 3 (jv: j to j + 3 as doubles) of a layer set up at once for a swept piece between
+// planes a and b (their rows in the layer): the planes' rows, and the row bounds of the slab (slopes) and the axis cylinder with one vector square root,
+// lane by lane the scalar clips' expressions (so the same bits).
+struct FourRows : FourRowBounds {
+  [[gnu::always_inline]] FourRows(const LayerRows& planeA, const LayerRows& planeB, const Slope& slopeA, const Slope& slopeB,
+                                  const AxisCylinder& cylinder, int j, Double4 jv) {
+    a = planeA.at(jv);
+    b = planeB.at(jv);
+    slopeA.bound(a, lo, hi, missed);
+    slopeB.bound(-b, lo, hi, missed);
+    cylinder.rows(j, lo, hi, missed);
+  }
+  Double4 a, b;
 };
 
 }  // namespace rodfab::voxel::detail
