@@ -1,5 +1,6 @@
 // voxel/: rasterization against analytic volumes, the exact per-voxel test, and itself (threads, bands).
 #include "voxel/voxel.hpp"
+#include "voxel/raster_clips.hpp"
 
 #include "examples/example_designs.hpp"
 #include "geometry/geometry.hpp"
@@ -10,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <deque>
+#include <limits>
 #include <numbers>
 #include <unordered_set>
 #include <utility>
@@ -446,4 +448,27 @@ TEST_CASE("The grid is identical for 1 and 2 threads and for any band of layers"
   REQUIRE(total == one.grid->activeVoxelCount());
   REQUIRE(perRod == one.voxelsPerRod);
   REQUIRE(rasterizer.rasterizeLayers(g.dims.z(), g.dims.z() + 10).grid->activeVoxelCount() == 0);
+}
+
+TEST_CASE("Row bounds rounded four at a time as clampToInt(ceil), (floor)", "[voxel][clips]") {
+  // The swept loop's FourRows::round: ceilToInts and floorToInts against the scalar rounding, at the
+  // clamp's bounds, the int range, integers, halves, signed zeros, infinities and a spread of reals
+  // (not NaN, whose conversion to int the scalar side leaves undefined: such rows are marked missed).
+  const double inf = std::numeric_limits<double>::infinity();
+  std::vector<double> values = {inf, -inf, 0.0, -0.0, 0.5, -0.5, 3.0, -3.0, 1e-300, -1e-300, 2e9, -2e9,
+                                2e9 + 0.5, -2e9 - 0.5, 2e9 - 0.5, -2e9 + 0.5, 2147483647.5, -2147483648.5, 1e300, -1e300};
+  std::uint64_t h = 88172645463325252ull;
+  for (int n = 0; n < 4000; ++n) {
+    h ^= h << 13, h ^= h >> 7, h ^= h << 17;
+    const double unit = static_cast<double>(h >> 11) * 0x1p-53 - 0.5;
+    values.push_back(unit * std::pow(10.0, n % 12));
+  }
+  for (std::size_t v = 0; v + 4 <= values.size(); ++v) {
+    const voxel::detail::Double4 four{values[v], values[v + 1], values[v + 2], values[v + 3]};
+    const voxel::detail::Int4 up = voxel::detail::ceilToInts(four), down = voxel::detail::floorToInts(four);
+    for (int l = 0; l < 4; ++l) {
+      REQUIRE(up[l] == voxel::detail::clampToInt(std::ceil(four[l])));
+      REQUIRE(down[l] == voxel::detail::clampToInt(std::floor(four[l])));
+    }
+  }
 }

@@ -11,6 +11,7 @@
 #include <openvdb/openvdb.h>
 
 #include <array>
+#include <bit>
 #include <atomic>
 #include <cstdint>
 #include <cstring>
@@ -91,10 +92,7 @@ private:
     return errorBound > 0.0f && deferredDepth_[static_cast<std::size_t>(rod)] ? 1.0 - std::sqrt(encodedDepth) : encodedDepth;
   }
   // Four neighbouring slots n .. n + 3 of one row (see offset), as four stores would fill them.
-  void storeFour(int n, Double4 encodedDepth, Float4 value, float errorBound, std::uint64_t who) {
-    typedef std::uint64_t Owner4 __attribute__((vector_size(32)));
-    const Float4 bounds = Float4{} + errorBound;
-    const Owner4 owners = Owner4{} + who;
+  void storeFour(int n, Double4 encodedDepth, Float4 value, Float4 bounds, Owner4 owners) {
     std::memcpy(&encodedDepth_[static_cast<std::size_t>(n)], &encodedDepth, sizeof encodedDepth);
     std::memcpy(&value_[static_cast<std::size_t>(n)], &value, sizeof value);
     std::memcpy(&errorBound_[static_cast<std::size_t>(n)], &bounds, sizeof bounds);
@@ -221,12 +219,26 @@ private:
     const Candidate c{depth, 0.0f, value, rod, piece};
     if (!overlapWithoutExactTest(n, c, depth)) resolveOverlap(n, c, depth, i, j, k);
   }
+  // Round-cap candidates inside for sure (gauges g < 1) for the lanes set in `lanes` of slots n .. n + 3
+  // of one row, where those four slots lie in the row and are all empty: one store, as addCapCandidate
+  // would fill them one by one (lanes not in `lanes`, past the row's end, go to empty slots whose bits
+  // stay clear, as in sweep's partial quads). False, and nothing done, otherwise.
+  bool capsIntoEmptySlots(int n, Double4 g, unsigned lanes, float value, int rod, int piece) {
+    std::uint64_t& word = filled_[static_cast<std::size_t>(n >> 6)];
+    const int shift = n & 63;
+    if (shift > kBlockX - 4 || ((word >> shift) & 0xfu) != 0) return false;
+    storeFour(n, 1.0 - g, Float4{} + value, Float4{}, Owner4{} + owner(rod, piece));
+    word |= std::uint64_t(lanes) << shift;
+    voxelsPerRod[static_cast<std::size_t>(rod)] += static_cast<std::uint64_t>(std::popcount(lanes));
+    return true;
+  }
   // Four neighbouring round-cap candidates of one row (slots n .. n + 3), inside for sure (gauges g < 1),
   // as addCapCandidate would take them one by one. Their common fate at a node, four filled slots each
   // clearly deeper than the cap, is settled with one comparison of four lanes: clearOverlap's
   // expressions lane by lane (the candidate's error bound is 0, so `clear` gets the same bits). Any
   // other case goes voxel by voxel.
   void addFourCapCandidates(int n, Double4 g, float value, int rod, int piece, int i, int j, int k) {
+    if (capsIntoEmptySlots(n, g, 0xfu, value, rod, piece)) return;
     if (((filled_[static_cast<std::size_t>(n >> 6)] >> (n & 63)) & 0xfu) == 0xfu) {
       Double4 slotEncoded;
       Float4 slotBoundFloat;
@@ -305,7 +317,7 @@ private:
   struct SweptRowStart;
   // Across: the piece's E has terms in x1, x2 (RodPiece::modulusAcross1, 2; estimateModulus).
   template <bool Across>
-  void sweepLayer(const SweptPiece& s, const openvdb::CoordBBox& box, const AxisCylinder& cylinder, int k, int jLo, int jHi);
+  int sweepLayer(const SweptPiece& s, const openvdb::CoordBBox& box, const AxisCylinder& cylinder, int k, int jLo, int jHi);
   template <bool Across>
   int sweepRow(const SweptPiece& s, const SweptRowStart& r, int lo, int hi, int j, int k);
   template <bool Across>
@@ -317,6 +329,8 @@ private:
   void exactRegion(int rod, int pieceIndex, const RodPiece& piece, const openvdb::CoordBBox& box);
   // A round or flat cap's voxels (cap.cpp).
   void cap(int rod, int pieceIndex, const RodPiece& piece, const openvdb::CoordBBox& box);
+  struct CapPiece;  // what a cap's rows share (cap.cpp)
+  void capRowVoxels(const CapPiece& c, double aRow, double wxRow, double wyz, int lo, int hi, int j, int k);
 
   const geometry::RodStructure& structure_;
   const std::vector<RodPieces>& rods_;

@@ -45,6 +45,7 @@ typedef double Double4 __attribute__((vector_size(32)));
 typedef float Float4 __attribute__((vector_size(16)));
 typedef std::int64_t Mask4 __attribute__((vector_size(32)));  // a comparison of Double4s: -1 true, 0 false
 typedef std::int32_t Int4 __attribute__((vector_size(16)));
+typedef std::uint64_t Owner4 __attribute__((vector_size(32)));  // a slot's owner (rod, piece), four times
 
 // |v| lane by lane, exactly as std::abs (clears the sign bit).
 inline Double4 absolute(Double4 v) {
@@ -67,28 +68,44 @@ inline unsigned laneBits(Mask4 m) {
 // A value in all four lanes.
 inline Double4 broadcast(double v) { return Double4{v, v, v, v}; }
 
+// An affine function's c and gy in all four lanes (with its gz), for LayerRows: set once per piece.
+struct RowLanes {
+  RowLanes() = default;
+  [[gnu::always_inline]] explicit RowLanes(const AffineInIndex& f) : c(broadcast(f.c)), gy(broadcast(f.gy)), gz(f.gz) {}
+  Double4 c, gy;
+  double gz = 0.0;
+};
+
 // A swept piece's coefficients for the voxel loop, copied out of the piece into all four lanes once
 // per piece (the builder holds them, see LeafBuilder::swept_): held as scalars, they were broadcast
-// (and spilled) again for every row, some 35 instructions a row. The same values, so estimateSwept and
-// estimateModulus give the same bits. With them the section's inverse half-sizes and the sure-inside
-// threshold on the gauge (ShellThresholds::sureInsideBelow).
+// (and spilled) again for every row, some 35 instructions a row, and the planes' and frame
+// coordinates' rows for every layer, some 36 instructions a layer. The same values, so estimateSwept
+// and estimateModulus give the same bits. With them the section's inverse half-sizes, the
+// sure-inside threshold on the gauge (ShellThresholds::sureInsideBelow) and what a quad's slots store
+// besides its values.
 struct SweptLanes {
   SweptLanes() = default;
   // Inline, so that sweep stores the lanes straight into its member (out of line, the lanes went to a
   // temporary and were then copied, 512 bytes by `rep movsq`, once per piece and block).
-  [[gnu::always_inline]] SweptLanes(const detail::RodPiece& p, double planeAgx, double planeBgx, double inverseHalfWidth,
-                                    double inverseHalfHeight, double sureInside)
-      : gxA(broadcast(planeAgx)), gxB(broadcast(planeBgx)), gx1Begin(broadcast(p.x1Begin.gx)), gx2Begin(broadcast(p.x2Begin.gx)),
+  [[gnu::always_inline]] SweptLanes(const detail::RodPiece& p, const AffineInIndex& planeA, const AffineInIndex& planeB,
+                                    double inverseHalfWidth, double inverseHalfHeight, double sureInside, float errorBound,
+                                    std::uint64_t owner)
+      : gxA(broadcast(planeA.gx)), gxB(broadcast(planeB.gx)), gx1Begin(broadcast(p.x1Begin.gx)), gx2Begin(broadcast(p.x2Begin.gx)),
         gx1End(broadcast(p.x1End.gx)), gx2End(broadcast(p.x2End.gx)), x1Quadratic(broadcast(p.x1Quadratic)),
         x2Quadratic(broadcast(p.x2Quadratic)), modulusBegin(broadcast(p.modulusBegin)),
         modulusQuadratic(broadcast(p.modulusQuadratic)), modulusAcross1(broadcast(p.modulusAcross1)),
         modulusAcross2(broadcast(p.modulusAcross2)), modulusRise(broadcast(p.modulusEnd) - modulusBegin),
         modulusFloor(Double4{} + broadcast(p.modulusLow)), modulusCeiling(Double4{} + broadcast(p.modulusHigh)),
-        iA(broadcast(inverseHalfWidth)), iB(broadcast(inverseHalfHeight)), sureInsideBelow(broadcast(sureInside)) {}
+        iA(broadcast(inverseHalfWidth)), iB(broadcast(inverseHalfHeight)), sureInsideBelow(broadcast(sureInside)),
+        planeARows(planeA), planeBRows(planeB), x1BeginRows(p.x1Begin), x2BeginRows(p.x2Begin), x1EndRows(p.x1End),
+        x2EndRows(p.x2End), errorBounds(Float4{} + errorBound), owners(Owner4{} + owner) {}
   Double4 gxA, gxB, gx1Begin, gx2Begin, gx1End, gx2End;
   Double4 x1Quadratic, x2Quadratic, modulusBegin, modulusQuadratic, modulusAcross1, modulusAcross2;  // as in RodPiece
   Double4 modulusRise, modulusFloor, modulusCeiling;  // estimateModulus's per-piece parts (see there)
   Double4 iA, iB, sureInsideBelow;  // RodPieces::inverseHalfWidth, inverseHalfHeight; ShellThresholds::sureInsideBelow
+  RowLanes planeARows, planeBRows, x1BeginRows, x2BeginRows, x1EndRows, x2EndRows;  // for LayerRows
+  Float4 errorBounds;  // what a quad's slots store: the piece's error bound (rounded up to float) and owner
+  Owner4 owners;
 };
 
 // std::max and std::min lane by lane: (a < b) ? b : a and (b < a) ? b : a.
@@ -96,13 +113,14 @@ inline Double4 largerOf(Double4 a, Double4 b) { return a < b ? b : a; }
 inline Double4 smallerOf(Double4 a, Double4 b) { return b < a ? b : a; }
 
 // AffineInIndex::row for the rows of one layer k, four rows j[0..3] at a time, lane by lane the same
-// expression (c + gy j) + gz k. The coefficients in lanes and gz k are set once per layer: read from
-// the piece for every four rows, GCC loaded them again each time (the slots the rows' voxels are
-// stored to are doubles too, so they might have changed the piece).
+// expression (c + gy j) + gz k. The coefficients in lanes come from the piece's RowLanes and gz k is set
+// once per layer: read from the piece for every four rows, GCC loaded them again each time (the slots
+// the rows' voxels are stored to are doubles too, so they might have changed the piece).
 struct LayerRows {
-  [[gnu::always_inline]] LayerRows(const AffineInIndex& f, int k) : c(broadcast(f.c)), gy(broadcast(f.gy)), gzk(broadcast(f.gz * k)) {}
-  [[gnu::always_inline]] Double4 at(Double4 j) const { return (c + gy * j) + gzk; }
-  Double4 c, gy, gzk;
+  [[gnu::always_inline]] LayerRows(const RowLanes& f, int k) : f_(f), gzk(broadcast(f.gz * k)) {}
+  [[gnu::always_inline]] Double4 at(Double4 j) const { return (f_.c + f_.gy * j) + gzk; }
+  const RowLanes& f_;
+  Double4 gzk;
 };
 
 // A double error bound as a float that is not smaller.
@@ -112,12 +130,26 @@ inline float roundedUpToFloat(double bound) {
 }
 
 inline int clampToInt(double v) { return static_cast<int>(std::clamp(v, -2.0e9, 2.0e9)); }
-// clampToInt lane by lane: std::clamp's min(max(v, lo), hi) with std::max and std::min's comparisons,
-// then the truncating conversion (cvttpd2dq, as cvttsd2si for each lane).
-inline Int4 clampToInts(Double4 v) {
+// clampToInt(std::ceil(v)) and clampToInt(std::floor(v)) lane by lane, with vector instructions only
+// (SSE2 has no rounding one; lane by lane, std::ceil and std::floor cost some 40 instructions per four
+// rows). The clamp is std::clamp's min(max(v, lo), hi) with std::max and std::min's comparisons; its
+// bounds are integers, so clamping first gives the same value. The clamped value's truncation t
+// (cvttpd2dq, as cvttsd2si for each lane) is then its ceiling (floor), or one below (above) it where
+// t < v (t > v). A NaN lane gives INT_MIN either way.
+inline Double4 clampLanes(Double4 v) {
   const Double4 low = broadcast(-2.0e9), high = broadcast(2.0e9);
   const Double4 atLeast = v < low ? low : v;
-  return __builtin_convertvector(high < atLeast ? high : atLeast, Int4);
+  return high < atLeast ? high : atLeast;
+}
+inline Int4 ceilToInts(Double4 v) {
+  const Double4 clamped = clampLanes(v);
+  const Double4 t = __builtin_convertvector(__builtin_convertvector(clamped, Int4), Double4);
+  return __builtin_convertvector(t < clamped ? t + 1.0 : t, Int4);  // integers below 2^31: exact
+}
+inline Int4 floorToInts(Double4 v) {
+  const Double4 clamped = clampLanes(v);
+  const Double4 t = __builtin_convertvector(__builtin_convertvector(clamped, Int4), Double4);
+  return __builtin_convertvector(t > clamped ? t - 1.0 : t, Int4);
 }
 
 // The swept loop's thresholds on `test` (see sweep): gauges below 1 - bound are inside for sure, above
@@ -274,10 +306,25 @@ private:
   double b0_ = 0.0, g0_ = 0.0, g1_ = 0.0;
 };
 
+// The row bounds of four rows at once (see RowBounds), and the rows with no voxel (`missed`).
+struct FourRowBounds {
+  // RowBounds::round for the four rows at once, from [boxLo, boxHi]: lane by lane the same integers
+  // (ceilToInts, floorToInts), so each row gets the range round gives it. Rows with no voxel (missed,
+  // or first > last) are marked in `empty`.
+  [[gnu::always_inline]] void round(int boxLo, int boxHi, Int4& first, Int4& last, Mask4& empty) const {
+    const Int4 upInt = ceilToInts(lo - kClipMargin), downInt = floorToInts(hi + kClipMargin);
+    first = upInt > boxLo ? upInt : Int4{} + boxLo;  // std::max(boxLo, clampToInt(...)), lane by lane
+    last = downInt < boxHi ? downInt : Int4{} + boxHi;
+    empty = missed | __builtin_convertvector(first > last, Mask4);
+  }
+  Double4 lo = broadcast(-std::numeric_limits<double>::infinity()), hi = broadcast(std::numeric_limits<double>::infinity());
+  Mask4 missed{};
+};
+
 // Four rows j .. j + 3 (jv: j to j + 3 as doubles) of a layer set up at once for a swept piece between
 // planes a and b (their rows in the layer): the planes' rows, and the row bounds of the slab (slopes) and the axis cylinder with one vector square root,
-// lane by lane the scalar clips' expressions (so the same bits). `missed` marks rows with no voxel.
-struct FourRows {
+// lane by lane the scalar clips' expressions (so the same bits).
+struct FourRows : FourRowBounds {
   [[gnu::always_inline]] FourRows(const LayerRows& planeA, const LayerRows& planeB, const Slope& slopeA, const Slope& slopeB,
                                   const AxisCylinder& cylinder, int j, Double4 jv) {
     a = planeA.at(jv);
@@ -286,24 +333,7 @@ struct FourRows {
     slopeB.bound(-b, lo, hi, missed);
     cylinder.rows(j, lo, hi, missed);
   }
-  // RowBounds::round for the four rows at once, from [boxLo, boxHi]: lane by lane the same ceil,
-  // floor, clamp and conversion (one vector instruction each in the AVX2 clone, where the scalar
-  // round cost some 14 instructions a row), so each row gets the range round gives it. Rows with no
-  // voxel (missed, or first > last) are marked in `empty`.
-  [[gnu::always_inline]] void round(int boxLo, int boxHi, Int4& first, Int4& last, Mask4& empty) const {
-    Double4 up, down;
-    for (int l = 0; l < 4; ++l) {
-      up[l] = std::ceil(lo[l] - kClipMargin);
-      down[l] = std::floor(hi[l] + kClipMargin);
-    }
-    const Int4 upInt = clampToInts(up), downInt = clampToInts(down);
-    first = upInt > boxLo ? upInt : Int4{} + boxLo;  // std::max(boxLo, clampToInt(...)), lane by lane
-    last = downInt < boxHi ? downInt : Int4{} + boxHi;
-    empty = missed | __builtin_convertvector(first > last, Mask4);
-  }
   Double4 a, b;
-  Double4 lo = broadcast(-std::numeric_limits<double>::infinity()), hi = broadcast(std::numeric_limits<double>::infinity());
-  Mask4 missed{};
 };
 
 }  // namespace rodfab::voxel::detail

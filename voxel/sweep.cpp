@@ -90,29 +90,40 @@ template <bool Across>
 }
 
 // Voxels i .. min(i + 3, hi) of a row: four inside for sure go into empty slots with one store each
-// (the common case) or through addFourSurelyInside; otherwise voxel by voxel, the borderline ones to
-// the exact test. Returns the slots newly filled.
+// (the common case) or through addFourSurelyInside, as does a row's partial last quad into empty slots;
+// otherwise voxel by voxel, the borderline ones to the exact test. Returns the slots newly filled.
 [[gnu::always_inline]] inline int LeafBuilder::settleQuad(const SweptPiece& s, const SweptQuad& q, int row, int i, int hi, int j,
                                                           int k) {
-  if (i + 3 <= hi && (q.sure[0] & q.sure[1] & q.sure[2] & q.sure[3])) {
-    const int n = (row << kBlockXLog2) | (i & (kBlockX - 1));
-    std::uint64_t& word = filled_[static_cast<std::size_t>(row)];
-    const Float4 value = __builtin_convertvector(q.modulus, Float4);
-    if (((word >> (i & (kBlockX - 1))) & 0xfu) == 0) {
-      storeFour(n, q.encodedDepth, value, s.floatErrorBound, owner(s.rod, s.index));
-      word |= std::uint64_t(0xf) << (i & (kBlockX - 1));
-      return 4;
+  const int shift = i & (kBlockX - 1);
+  const int n = (row << kBlockXLog2) | shift;
+  std::uint64_t& word = filled_[static_cast<std::size_t>(row)];
+  if (i + 3 <= hi) {
+    if (laneBits(q.sure) == 0xfu) {
+      const Float4 value = __builtin_convertvector(q.modulus, Float4);
+      if (((word >> shift) & 0xfu) == 0) {
+        storeFour(n, q.encodedDepth, value, swept_.errorBounds, swept_.owners);
+        word |= std::uint64_t(0xf) << shift;
+        return 4;
+      }
+      return addFourSurelyInside(n, q.encodedDepth, value, s.floatErrorBound, s.rod, s.index, i, j, k);
     }
-    return addFourSurelyInside(n, q.encodedDepth, value, s.floatErrorBound, s.rod, s.index, i, j, k);
+  } else if (const unsigned inRow = (2u << (hi - i)) - 1u;
+             shift <= kBlockX - 4 && (laneBits(q.sure) & inRow) == inRow && ((word >> shift) & 0xfu) == 0) {
+    // A row's last, partial quad (most rows of short pieces end in one), its voxels inside for sure and
+    // the four slots empty: one store as for a whole quad. The lanes past the row's end go to empty
+    // slots of the same row whose bits stay clear, so no candidate is read from them (emit masks their
+    // values out, and a later piece fills them as any empty slot).
+    storeFour(n, q.encodedDepth, __builtin_convertvector(q.modulus, Float4), swept_.errorBounds, swept_.owners);
+    word |= std::uint64_t(inRow) << shift;
+    return hi - i + 1;
   }
   int fresh = 0;
   for (int l = 0; l < 4 && i + l <= hi; ++l) {
     if (!q.inSlab[l] || q.test[l] > s.shell.sureOutsideAbove) continue;
-    const int n = offset(i + l, j, k);
     if (q.sure[l])
-      fresh += addSurelyInside(n, q.encodedDepth[l], s.floatErrorBound, static_cast<float>(q.modulus[l]), s.rod, s.index, i + l, j, k);
+      fresh += addSurelyInside(n + l, q.encodedDepth[l], s.floatErrorBound, static_cast<float>(q.modulus[l]), s.rod, s.index, i + l, j, k);
     else
-      addCandidate(exact(s.rod, s.index, i + l, j, k), n, i + l, j, k);
+      addCandidate(exact(s.rod, s.index, i + l, j, k), n + l, i + l, j, k);
   }
   return fresh;
 }
@@ -134,12 +145,14 @@ template <bool Across>
 }
 
 // Layer k's rows jLo .. jHi, set up four at a time (the planes' rows and bounds, the cylinder's square
-// root), each lane as the scalar clips compute it; then row by row.
+// root), each lane as the scalar clips compute it; then row by row. Returns the slots newly filled.
 template <bool Across>
-[[gnu::always_inline]] inline void LeafBuilder::sweepLayer(const SweptPiece& s, const openvdb::CoordBBox& box, const AxisCylinder& cylinder,
+[[gnu::always_inline]] inline int LeafBuilder::sweepLayer(const SweptPiece& s, const openvdb::CoordBBox& box, const AxisCylinder& cylinder,
                                                            int k, int jLo, int jHi) {
-  const LayerRows planeA(s.planeA, k), planeB(s.planeB, k);
-  const LayerRows x1Begin(s.piece.x1Begin, k), x2Begin(s.piece.x2Begin, k), x1End(s.piece.x1End, k), x2End(s.piece.x2End, k);
+  const SweptLanes& lanes = swept_;
+  const LayerRows planeA(lanes.planeARows, k), planeB(lanes.planeBRows, k);
+  const LayerRows x1Begin(lanes.x1BeginRows, k), x2Begin(lanes.x2BeginRows, k), x1End(lanes.x1EndRows, k), x2End(lanes.x2EndRows, k);
+  int fresh = 0;
   for (int j4 = jLo; j4 <= jHi; j4 += 4) {
     const Double4 jv = double(j4) + Double4{0.0, 1.0, 2.0, 3.0};
     const FourRows rows(planeA, planeB, s.slopeA, s.slopeB, cylinder, j4, jv);
@@ -154,9 +167,10 @@ template <bool Across>
       const int l = __builtin_ctz(kept), j = j4 + l;
       const int lo = first[l], hi = last[l];
       const SweptRowStart start{rows.a[l], rows.b[l], x1a[l], x2a[l], x1b[l], x2b[l]};
-      voxelsPerRod[static_cast<std::size_t>(s.rod)] += static_cast<std::uint64_t>(sweepRow<Across>(s, start, lo, hi, j, k));
+      fresh += sweepRow<Across>(s, start, lo, hi, j, k);
     }
   }
+  return fresh;
 }
 
 // Cloned for AVX2 (four lanes in one register; AVX2 brings no FMA, so no multiply-add is fused and
@@ -182,15 +196,19 @@ template <bool Across>
                      rectangle,
                      roundedUpToFloat(piece.normalizedRadiusErrorBound),
                      ShellThresholds(piece.normalizedRadiusErrorBound, rectangle)};
-  swept_ = SweptLanes(piece, planeA.gx, planeB.gx, rp.inverseHalfWidth, rp.inverseHalfHeight, s.shell.sureInsideBelow);
+  swept_ = SweptLanes(piece, planeA, planeB, rp.inverseHalfWidth, rp.inverseHalfHeight, s.shell.sureInsideBelow,
+                      s.floatErrorBound, owner(rod, pieceIndex));
   AxisCylinder cylinder(grid_, piece);
   const bool across = piece.modulusAcross1 != 0.0 || piece.modulusAcross2 != 0.0;
+  std::uint64_t fresh = 0;  // slots newly filled
   for (int k = kLo; k <= kHi; ++k) {
     int jLo = box.min().y(), jHi = box.max().y();
     if (!slab.rows(k, jLo, jHi) || !cylinder.layer(k, box.min().y(), jLo, jHi)) continue;
-    if (across) sweepLayer<true>(s, box, cylinder, k, jLo, jHi);
-    else sweepLayer<false>(s, box, cylinder, k, jLo, jHi);
+    fresh += static_cast<std::uint64_t>(across ? sweepLayer<true>(s, box, cylinder, k, jLo, jHi) : sweepLayer<false>(s, box, cylinder, k, jLo, jHi));
   }
+  // The rod's tally once per piece (the overlap rule moves voxels between tallies meanwhile; only the
+  // sums are read, after every block).
+  voxelsPerRod[static_cast<std::size_t>(rod)] += fresh;
 }
 
 }  // namespace rodfab::voxel::detail
