@@ -57,6 +57,20 @@ public:
       rubbery_[row * rubberyPitch_ + static_cast<std::ptrdiff_t>(byte)] |= rubberyBits;
       marks_[static_cast<std::size_t>(row) * perRow_ + byte / 512] |= std::uint64_t{1} << (byte / 8 % 64);
     }
+    // orByte() of a leaf's 8 rows, rows firstRow - y for y = 0 .. 7 (image rows run against the leaf's
+    // y), its pixels in byte y of rigidRows and rubberyRows; rows with no pixel in either are not touched.
+    void orLeafRows(int firstRow, std::size_t byte, std::uint64_t rigidRows, std::uint64_t rubberyRows) {
+      const std::uint64_t mark = std::uint64_t{1} << (byte / 8 % 64);
+      for (int y = 0; y < 8; ++y) {
+        const auto rigid = static_cast<std::uint8_t>(rigidRows >> (8 * y)), rubbery = static_cast<std::uint8_t>(rubberyRows >> (8 * y));
+        if (!(rigid | rubbery)) continue;
+        const int row = firstRow - y;
+        assert(rigid_ != nullptr && row >= 0 && row < height_ && byte < stride_);
+        rigid_[row * rigidPitch_ + static_cast<std::ptrdiff_t>(byte)] |= rigid;
+        rubbery_[row * rubberyPitch_ + static_cast<std::ptrdiff_t>(byte)] |= rubbery;
+        marks_[static_cast<std::size_t>(row) * perRow_ + byte / 512] |= mark;
+      }
+    }
 
   private:
     friend class LayerBitmaps;
