@@ -71,9 +71,16 @@ void Previews::addTopLayers(int first, const std::vector<LayerBitmaps>& layers, 
         const RowSpan span = layers[n].span(r);
         if (top_.v.slot(r) < 0 || span.empty()) continue;
         std::uint8_t* rowClaimed = claimed.data() + static_cast<std::size_t>(r - rows.begin()) * hidden.size();
+        if (!modulus) {  // each pixel set as it is found
+          const std::size_t rowAt = top_.rowAt(r);
+          preview_scan::forEachFreshInRow(layers[n], r, rowClaimed, [&](int c, bool isRigid) {
+            top_.set(rowAt + static_cast<std::size_t>(top_.u.slot(c)), isRigid, layer, kNoModulus);
+          });
+          continue;
+        }
         fresh.clear();
         preview_scan::forEachFreshInRow(layers[n], r, rowClaimed, [&](int c, bool isRigid) { fresh.push_back({c, isRigid}); });
-        if (modulus) lookUpModuli(modulus, *acc, fresh, geometry_, r, layer);
+        lookUpModuli(modulus, *acc, fresh, geometry_, r, layer);
         for (const TopPixel& p : fresh) top_.set(top_.at(p.column, r), p.rigid, layer, p.modulus);
       }
     }
