@@ -68,8 +68,7 @@ void Previews::addTopLayers(int first, const std::vector<LayerBitmaps>& layers, 
     for (std::size_t n = layers.size(); n-- > 0;) {
       const int layer = first + static_cast<int>(n);
       for (int r = rows.begin(); r != rows.end(); ++r) {
-        const RowSpan span = layers[n].span(r);
-        if (top_.v.slot(r) < 0 || span.empty()) continue;
+        if (top_.v.slot(r) < 0) continue;  // no pixel shows the row (one nothing was written in has no marked word to scan)
         std::uint8_t* rowClaimed = claimed.data() + static_cast<std::size_t>(r - rows.begin()) * hidden.size();
         if (!modulus) {  // each pixel set as it is found
           const std::size_t rowAt = top_.rowAt(r);
