@@ -240,11 +240,12 @@ void BandEncoder::finishStaging() {
   if (!staged_) throw std::runtime_error(stagedFile_.string() + ": cannot write (disk full or no permission?)");
 }
 
-// Cloned for CPUs with a popcount instruction, which Moments::addRows counts with (nothing here throws).
-// The writer and the sums are this function's own: a byte stored through a uint8_t pointer may alias
-// anything whose address is known outside, and the caller's would be read and written back around
-// every store.
-RODFAB_POPCNT_CLONES void BandEncoder::drawLeaves(std::span<const LeafLayer> leaves, LayerBitmaps::Writer out, int topRowJ, int firstColumnI,
+// Cloned for CPUs with a popcount instruction, which Moments::addRows counts with (nothing here throws),
+// and flattened: left to itself GCC called the baseline addRows for one of the two sums, a libgcc call
+// per popcount. The writer and the sums are this function's own: a byte stored through a uint8_t
+// pointer may alias anything whose address is known outside, and the caller's would be read and
+// written back around every store.
+RODFAB_POPCNT_CLONES [[gnu::flatten]] void BandEncoder::drawLeaves(std::span<const LeafLayer> leaves, LayerBitmaps::Writer out, int topRowJ, int firstColumnI,
                                                   int k, std::array<Moments, 2>& moments) {
   Moments rigid, rubbery;
   for (const LeafLayer& leaf : leaves) {
