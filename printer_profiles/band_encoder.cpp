@@ -247,11 +247,12 @@ void BandEncoder::finishStaging() {
 // written back around every store.
 RODFAB_POPCNT_CLONES [[gnu::flatten]] void BandEncoder::drawLeaves(std::span<const LeafLayer> leaves, LayerBitmaps::Writer out, int topRowJ, int firstColumnI,
                                                   int k, std::array<Moments, 2>& moments) {
-  Moments rigid, rubbery;
+  for (const LeafLayer& leaf : leaves)
+    out.orLeafRows(topRowJ - leaf.y, static_cast<std::size_t>((leaf.x - firstColumnI) / 8), leaf.rigid, leaf.rubbery);
+  Moments rigid, rubbery;  // in a loop of their own: with the writer's, their 20 sums did not fit in registers
   for (const LeafLayer& leaf : leaves) {
     rigid.addRows(leaf.rigid, leaf.x, leaf.y, k);
     rubbery.addRows(leaf.rubbery, leaf.x, leaf.y, k);
-    out.orLeafRows(topRowJ - leaf.y, static_cast<std::size_t>((leaf.x - firstColumnI) / 8), leaf.rigid, leaf.rubbery);
   }
   moments[0].merge(rigid);
   moments[1].merge(rubbery);
