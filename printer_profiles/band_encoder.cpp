@@ -69,7 +69,7 @@ void clearModel(LayerBitmaps& b, const JobGeometry& g, const Profile& profile) {
   else b = LayerBitmaps(g.width, g.height, profile.xDpi, profile.yDpi);
 }
 
-// The layers of its 8 (bit z: the leaf's layer z) a leaf has active voxels in: the OR of its columns.
+// Which of a leaf's 8 layers (bit z: its layer z) hold active voxels: the OR of its columns' bytes.
 std::uint8_t layersWithVoxels(const openvdb::BoolTree::LeafNodeType& leaf) {
   std::uint64_t any = 0;
   for (openvdb::Index n = 0; n < 8; ++n) any |= leaf.getValueMask().template getWord<openvdb::Index64>(n);
@@ -104,10 +104,10 @@ BandEncoder::~BandEncoder() = default;
 // tree's internal nodes hold them); the leaves are read on the band's TBB workers, by fixed chunks:
 // first their bounds and the layers they have voxels in (counted per chunk and layer), then, once the
 // counts say where each chunk's records go in each layer, their bits transposed into rows, a record
-// for each layer the leaf has voxels in. Each layer's records were a slab's leaves, which all 8 layers
-// read in turn, 140 bytes a leaf (the rows of all 8 layers), skipping those with nothing in the layer
-// (bench/README.md, "Emit, round 12"). The records keep the tree's order within a layer (the layers OR
-// the leaves' bits and sum integer moments, so no order would show anyway).
+// for each layer the leaf has voxels in. (Before, every layer went through all of its slab's leaves,
+// 140 bytes each with the rows of all 8 layers, skipping those with nothing in it: README.md, "Emit,
+// round 12".) The records keep the tree's order within a layer (the layers OR the leaves' bits and sum
+// integer moments, so no order would show anyway).
 bool BandEncoder::collect(const LayerBand& band, const openvdb::CoordBBox& allowed) {
   BandVoxels& v = *voxels_;
   const auto layers = static_cast<std::size_t>(band.kEnd - band.kBegin);
@@ -245,8 +245,8 @@ void BandEncoder::finishStaging() {
 // per popcount. The writer and the sums are this function's own: a byte stored through a uint8_t
 // pointer may alias anything whose address is known outside, and the caller's would be read and
 // written back around every store.
-RODFAB_POPCNT_CLONES [[gnu::flatten]] void BandEncoder::drawLeaves(std::span<const LeafLayer> leaves, LayerBitmaps::Writer out, int topRowJ, int firstColumnI,
-                                                  int k, std::array<Moments, 2>& moments) {
+RODFAB_POPCNT_CLONES [[gnu::flatten]] void BandEncoder::drawLeaves(std::span<const LeafLayer> leaves, LayerBitmaps::Writer out,
+                                                                    int topRowJ, int firstColumnI, int k, std::array<Moments, 2>& moments) {
   for (const LeafLayer& leaf : leaves)
     out.orLeafRows(topRowJ - leaf.y, static_cast<std::size_t>((leaf.x - firstColumnI) / 8), leaf.rigid, leaf.rubbery);
   Moments rigid, rubbery;  // in a loop of their own: with the writer's, their 20 sums did not fit in registers
