@@ -8,6 +8,7 @@
 #include "printer_profiles/gcvf_writer.hpp"
 #include "printer_profiles/job_staging.hpp"
 #include "printer_profiles/leaf_bits.hpp"
+#include "printer_profiles/popcount_clones.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -28,23 +29,31 @@ namespace rodfab::printer_profiles {
 
 namespace fs = std::filesystem;
 
-struct BandEncoder::BandLeaf {
-  openvdb::Coord origin;
-  LeafRows active, value;
+// One leaf's voxels in one layer of the band, as that layer's images take them: the leaf's origin and its
+// 8 rows of rigid and of rubbery pixels (row y of the leaf in byte y, x = 0 in bit 7 of each byte).
+struct BandEncoder::LeafLayer {
+  std::int32_t x = 0, y = 0;
+  std::uint64_t rigid = 0, rubbery = 0;
 };
 
-// The band's voxels as the layers read them: leaves bucketed by their 8-layer slab (their bytes read
-// once per band), and the active tiles above leaf level.
+// The band's voxels as the layers read them: every leaf's rows per layer it has voxels in, layer by
+// layer (each layer reads its own records, one after another, and no leaf without voxels there), and
+// the active tiles above leaf level.
 struct BandEncoder::BandVoxels {
-  int zBase = 0;
-  std::vector<std::vector<BandLeaf>> slabs;
-  // collect()'s list of the band's leaves, and each one's slab (kSkipped: nothing to draw, or outside
-  // the band) and then its place in the slab.
-  static constexpr std::uint32_t kSkipped = UINT32_MAX;
+  int kBegin = 0;
+  std::vector<LeafLayer> records;         // layer n's at [layerStart[n], layerStart[n + 1])
+  std::vector<std::size_t> layerStart;    // the band's layers + 1
+  // collect()'s list of the band's leaves; per leaf, the layers of its 8 it has voxels in (bit z: layer
+  // origin.z + z; 0: nothing to draw, or outside the band); per chunk of leaves, where its records
+  // start in each layer.
   std::vector<const openvdb::BoolTree::LeafNodeType*> leaves;
-  std::vector<std::uint32_t> slabOf, placeIn;
+  std::vector<std::uint8_t> layersOf;
+  std::vector<std::size_t> chunkStart;    // chunk c, layer n at [c * layers + n]
   std::vector<std::pair<openvdb::CoordBBox, bool>> tiles;
-  const std::vector<BandLeaf>& slab(int k) const { return slabs[static_cast<std::size_t>((k - zBase) / 8)]; }
+  std::span<const LeafLayer> layer(int k) const {
+    const auto n = static_cast<std::size_t>(k - kBegin);
+    return {records.data() + layerStart[n], layerStart[n + 1] - layerStart[n]};
+  }
 };
 
 namespace {
@@ -60,6 +69,27 @@ void clearModel(LayerBitmaps& b, const JobGeometry& g, const Profile& profile) {
   else b = LayerBitmaps(g.width, g.height, profile.xDpi, profile.yDpi);
 }
 
+// Which of a leaf's 8 layers (bit z: its layer z) hold active voxels: the OR of its columns' bytes.
+std::uint8_t layersWithVoxels(const openvdb::BoolTree::LeafNodeType& leaf) {
+  std::uint64_t any = 0;
+  for (openvdb::Index n = 0; n < 8; ++n) any |= leaf.getValueMask().template getWord<openvdb::Index64>(n);
+  any |= any >> 32;
+  any |= any >> 16;
+  any |= any >> 8;
+  return static_cast<std::uint8_t>(any);
+}
+
+// Calls fn(chunk, first, end) for the chunks of kChunk leaves of `leaves` (the last may be short), on
+// the caller's TBB arena. The chunks are fixed by the count alone, so what is made per chunk is too.
+constexpr std::size_t kChunk = 512;
+template <typename Fn>
+void forEachChunk(std::size_t leaves, Fn&& fn) {
+  const std::size_t chunks = (leaves + kChunk - 1) / kChunk;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), [&](const tbb::blocked_range<std::size_t>& range) {
+    for (std::size_t c = range.begin(); c != range.end(); ++c) fn(c, c * kChunk, std::min(leaves, (c + 1) * kChunk));
+  });
+}
+
 }  // namespace
 
 BandEncoder::BandEncoder(const BandEncoderSetup& setup)
@@ -67,52 +97,69 @@ BandEncoder::BandEncoder(const BandEncoderSetup& setup)
 
 BandEncoder::~BandEncoder() = default;
 
-// Into voxels_, whose vectors keep their capacity from band to band (slabs past this band's stay empty).
-// False as soon as an active voxel or tile lies outside `allowed`. A leaf wholly inside passes by its
-// origin alone; only leaves at the box's faces are scanned voxel by voxel. (A pass of its own over the
-// leaves, before this one, took the lattice 0.06 s a job on one core.) Only the leaves' pointers are
-// listed on the calling thread (the tree's internal nodes hold them); the leaves themselves are read on
-// the band's TBB workers: their bounds and slabs, then their bits transposed into rows. Listed by a leaf
-// iterator that read each leaf's origin, serially, that was about 60 ms of the lattice's job with the
-// other core idle (bench/README.md, "Emit, round 11"). A slab keeps the tree's order, as before (the
-// layers OR the leaves' bits and sum their moments as integers, so the order shows nowhere anyway).
+// Into voxels_, whose vectors keep their capacity from band to band. False as soon as an active voxel
+// or tile lies outside `allowed`. A leaf wholly inside passes by its origin alone; only leaves at the
+// box's faces are scanned voxel by voxel. (A pass of its own over the leaves, before this one, took the
+// lattice 0.06 s a job on one core.) Only the leaves' pointers are listed on the calling thread (the
+// tree's internal nodes hold them); the leaves are read on the band's TBB workers, by fixed chunks:
+// first their bounds and the layers they have voxels in (counted per chunk and layer), then, once the
+// counts say where each chunk's records go in each layer, their bits transposed into rows, a record
+// for each layer the leaf has voxels in. (Before, every layer went through all of its slab's leaves,
+// 140 bytes each with the rows of all 8 layers, skipping those with nothing in it: README.md, "Emit,
+// round 12".) The records keep the tree's order within a layer (the layers OR the leaves' bits and sum
+// integer moments, so no order would show anyway).
 bool BandEncoder::collect(const LayerBand& band, const openvdb::CoordBBox& allowed) {
   BandVoxels& v = *voxels_;
-  v.zBase = band.kBegin & ~7;
-  const auto slabs = static_cast<std::size_t>((band.kEnd - 1 - v.zBase) / 8 + 1);
-  if (v.slabs.size() < slabs) v.slabs.resize(slabs);
+  const auto layers = static_cast<std::size_t>(band.kEnd - band.kBegin);
+  v.kBegin = band.kBegin;
   v.leaves.clear();
   band.material->tree().getNodes(v.leaves);
-  v.slabOf.resize(v.leaves.size());
-  v.placeIn.resize(v.leaves.size());
+  v.layersOf.resize(v.leaves.size());
+  std::vector<std::size_t>& start = v.chunkStart;
+  start.assign((v.leaves.size() + kChunk - 1) / kChunk * layers, 0);
+  const auto layerOf = [&](const openvdb::BoolTree::LeafNodeType& leaf, int z) {
+    return static_cast<std::size_t>(leaf.origin().z() + z - band.kBegin);
+  };
   std::atomic<bool> outside{false};
-  constexpr std::size_t kGrain = 2048;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, v.leaves.size(), kGrain), [&](const tbb::blocked_range<std::size_t>& range) {
-    for (std::size_t n = range.begin(); n != range.end(); ++n) {
+  forEachChunk(v.leaves.size(), [&](std::size_t chunk, std::size_t first, std::size_t end) {
+    std::size_t* counts = start.data() + chunk * layers;
+    for (std::size_t n = first; n != end; ++n) {
       const openvdb::BoolTree::LeafNodeType& leaf = *v.leaves[n];
-      v.slabOf[n] = BandVoxels::kSkipped;
+      v.layersOf[n] = 0;
       if (!allowed.isInside(openvdb::CoordBBox::createCube(leaf.origin(), openvdb::BoolTree::LeafNodeType::DIM))) {
         openvdb::CoordBBox active;
         leaf.evalActiveBoundingBox(active);
-        if (active.empty()) continue;  // nothing to draw, and its slab may lie outside the band
+        if (active.empty()) continue;  // nothing to draw, and its layers may lie outside the band
         if (!allowed.isInside(active)) {
           outside = true;
           continue;
         }
       }
-      v.slabOf[n] = static_cast<std::uint32_t>((leaf.origin().z() - v.zBase) / 8);
+      v.layersOf[n] = layersWithVoxels(leaf);
+      for (unsigned z = v.layersOf[n]; z; z &= z - 1) ++counts[layerOf(leaf, std::countr_zero(z))];
     }
   });
   if (outside) return false;
-  std::vector<std::uint32_t> counts(v.slabs.size(), 0);
-  for (std::size_t n = 0; n < v.leaves.size(); ++n)
-    if (v.slabOf[n] != BandVoxels::kSkipped) v.placeIn[n] = counts[v.slabOf[n]]++;
-  for (std::size_t s = 0; s < v.slabs.size(); ++s) v.slabs[s].resize(counts[s]);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, v.leaves.size(), kGrain), [&](const tbb::blocked_range<std::size_t>& range) {
-    for (std::size_t n = range.begin(); n != range.end(); ++n) {
-      if (v.slabOf[n] == BandVoxels::kSkipped) continue;
+  // Layer by layer, each chunk's records after the previous chunk's: `start` turns from counts into places.
+  v.layerStart.resize(layers + 1);
+  std::size_t total = 0;
+  for (std::size_t n = 0; n < layers; ++n) {
+    v.layerStart[n] = total;
+    for (std::size_t at = n; at < start.size(); at += layers) total += std::exchange(start[at], total);
+  }
+  v.layerStart[layers] = total;
+  v.records.resize(total);
+  forEachChunk(v.leaves.size(), [&](std::size_t chunk, std::size_t first, std::size_t end) {
+    std::size_t* next = start.data() + chunk * layers;
+    for (std::size_t n = first; n != end; ++n) {
+      if (!v.layersOf[n]) continue;
       const openvdb::BoolTree::LeafNodeType& leaf = *v.leaves[n];
-      v.slabs[v.slabOf[n]][v.placeIn[n]] = {leaf.origin(), LeafRows(maskBytes(leaf.getValueMask())), LeafRows(boolValueBytes(leaf))};
+      const LeafRows active(maskBytes(leaf.getValueMask())), value(boolValueBytes(leaf));
+      for (unsigned z = v.layersOf[n]; z; z &= z - 1) {
+        const int at = std::countr_zero(z);
+        const std::uint64_t rows = active.layer(at), rigid = value.layer(at);
+        v.records[next[layerOf(leaf, at)]++] = {leaf.origin().x(), leaf.origin().y(), rows & rigid, rows & ~rigid};
+      }
     }
   });
   v.tiles.clear();
@@ -193,6 +240,24 @@ void BandEncoder::finishStaging() {
   if (!staged_) throw std::runtime_error(stagedFile_.string() + ": cannot write (disk full or no permission?)");
 }
 
+// Cloned for CPUs with a popcount instruction, which Moments::addRows counts with (nothing here throws),
+// and flattened: left to itself GCC called the baseline addRows for one of the two sums, a libgcc call
+// per popcount. The writer and the sums are this function's own: a byte stored through a uint8_t
+// pointer may alias anything whose address is known outside, and the caller's would be read and
+// written back around every store.
+RODFAB_POPCNT_CLONES [[gnu::flatten]] void BandEncoder::drawLeaves(std::span<const LeafLayer> leaves, LayerBitmaps::Writer out,
+                                                                    int topRowJ, int firstColumnI, int k, std::array<Moments, 2>& moments) {
+  for (const LeafLayer& leaf : leaves)
+    out.orLeafRows(topRowJ - leaf.y, static_cast<std::size_t>((leaf.x - firstColumnI) / 8), leaf.rigid, leaf.rubbery);
+  Moments rigid, rubbery;  // in a loop of their own: with the writer's, their 20 sums did not fit in registers
+  for (const LeafLayer& leaf : leaves) {
+    rigid.addRows(leaf.rigid, leaf.x, leaf.y, k);
+    rubbery.addRows(leaf.rubbery, leaf.x, leaf.y, k);
+  }
+  moments[0].merge(rigid);
+  moments[1].merge(rubbery);
+}
+
 void BandEncoder::rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, LayerRecord& record) const {
   const JobGeometry& g = s_.form.geometry;
   clearModel(b, g, s_.profile);
@@ -200,19 +265,7 @@ void BandEncoder::rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, La
   // Read once, not through `g` in the loop (a byte stored may alias anything: LayerBitmaps::Writer).
   const int topRowJ = g.topRowJ, firstColumnI = g.firstColumnI;
   std::array<Moments, 2> moments;
-  for (const BandLeaf& leaf : voxels.slab(k)) {
-    const std::uint64_t active = leaf.active.layer(k - leaf.origin.z());
-    if (!active) continue;
-    const std::uint64_t value = leaf.value.layer(k - leaf.origin.z());
-    const std::uint64_t rigidRows = active & value, rubberyRows = active & ~value;
-    moments[0].addRows(rigidRows, leaf.origin.x(), leaf.origin.y(), k);
-    moments[1].addRows(rubberyRows, leaf.origin.x(), leaf.origin.y(), k);
-    const auto byte = static_cast<std::size_t>((leaf.origin.x() - firstColumnI) / 8);
-    const int firstRow = topRowJ - leaf.origin.y();  // row y of the leaf is image row firstRow - y
-    for (int y = 0; y < 8; ++y)
-      if ((active >> (8 * y)) & 0xffu)
-        out.orByte(firstRow - y, byte, static_cast<std::uint8_t>(rigidRows >> (8 * y)), static_cast<std::uint8_t>(rubberyRows >> (8 * y)));
-  }
+  drawLeaves(voxels.layer(k), out, topRowJ, firstColumnI, k, moments);
   for (const auto& [box, value] : voxels.tiles) {
     if (k < box.min().z() || k > box.max().z()) continue;
     for (int j = box.min().y(); j <= box.max().y(); ++j)

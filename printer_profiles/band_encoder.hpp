@@ -9,11 +9,13 @@
 #include "printer_profiles/job_writer.hpp"
 #include "printer_profiles/previews.hpp"
 
+#include <array>
 #include <cstdint>
 #include <deque>
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -53,10 +55,13 @@ public:
   ZipStorage layerStorage() const { return s_.form.imageFormat == ImageFormat::Png ? ZipStorage::Store : ZipStorage::Deflate; }
 
 private:
-  struct BandLeaf;
+  struct LeafLayer;
   struct BandVoxels;
   bool collect(const LayerBand& band, const openvdb::CoordBBox& allowed);  // into voxels_; false: outside `allowed`
   void rasterize(int k, const BandVoxels& voxels, LayerBitmaps& b, LayerRecord& record) const;
+  // A layer's leaf records into its bitmaps (rows from topRowJ down, columns from firstColumnI) and moments.
+  static void drawLeaves(std::span<const LeafLayer> leaves, LayerBitmaps::Writer out, int topRowJ, int firstColumnI, int k,
+                         std::array<Moments, 2>& moments);
   void addSupport(int layer, LayerBitmaps& b) const;
   void encodeImages(int layer, const LayerBitmaps& b, LayerRecord& record, std::vector<Bytes>* zipForms) const;
   // An image's checksums as the job records them: XXH3-128 (manifest), CRC-32 (zip directory; zip jobs only).

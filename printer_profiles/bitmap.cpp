@@ -1,6 +1,7 @@
 // 1-bit bitmaps in memory and counting their bits; their file encodings (BMP, PNG) are in
 // bitmap_encode.cpp.
 #include "printer_profiles/bitmap.hpp"
+#include "printer_profiles/popcount_clones.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -20,14 +21,6 @@ Bitmap::Bitmap(int width, int height) : width_(width), height_(height) {
 }
 
 namespace {
-
-// Without -mpopcnt std::popcount is a libgcc call per word; a clone for CPUs with the instruction is
-// picked at load time (x86-64 only: other targets have no such clone).
-#if defined(__x86_64__)
-#define RODFAB_POPCNT_CLONES __attribute__((target_clones("popcnt", "default")))
-#else
-#define RODFAB_POPCNT_CLONES
-#endif
 
 RODFAB_POPCNT_CLONES std::size_t countWords(const std::uint8_t* a, const std::uint8_t* b, std::size_t size) {
   std::size_t n = 0, at = 0;

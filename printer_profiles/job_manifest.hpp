@@ -55,25 +55,27 @@ struct Moments {
     max.maxComponent(hi);
   }
   // add() of the 8 rows j = firstJ .. firstJ + 7 of a leaf at once (row j's bits in byte j - firstJ of
-  // `rows`): the same sums, and the corners found once for the 8 rows.
+  // `rows`): the same sums, by counting bits under masks (the voxels whose row, or whose bit within its
+  // byte, has bit 0, 1 or 2 set) instead of a table look-up per row, and the corners found once. Fast
+  // where it is compiled for CPUs with a popcount instruction (the band encoder's rasterize is).
   void addRows(std::uint64_t rows, int firstI, int firstJ, int k) {
     if (!rows) return;
-    std::int64_t n = 0, sumX = 0, sumY = 0;
-    std::uint8_t any = 0;  // the columns set in any row
-    for (int y = 0; y < 8; ++y) {
-      const auto bits = static_cast<std::uint8_t>(rows >> (8 * y));
-      n += kBitSums[bits].count;
-      sumX += kBitSums[bits].sumX;
-      sumY += std::int64_t{kBitSums[bits].count} * y;
-      any = static_cast<std::uint8_t>(any | bits);
-    }
+    const auto bitsUnder = [rows](std::uint64_t mask) { return static_cast<std::int64_t>(std::popcount(rows & mask)); };
+    const std::int64_t n = bitsUnder(~std::uint64_t{0});
+    const std::int64_t sumY = bitsUnder(0xff00ff00ff00ff00u) + 2 * bitsUnder(0xffff0000ffff0000u) + 4 * bitsUnder(0xffffffff00000000u);
+    // x = 7 - (the bit's place in its byte)
+    const std::int64_t sumX = 7 * n - (bitsUnder(0xaaaaaaaaaaaaaaaau) + 2 * bitsUnder(0xccccccccccccccccu) + 4 * bitsUnder(0xf0f0f0f0f0f0f0f0u));
+    std::uint64_t any = rows | rows >> 32;  // the columns set in any row, in the low byte
+    any |= any >> 16;
+    any |= any >> 8;
     count += static_cast<std::uint64_t>(n);
     sum[0] += n * firstI + sumX;
     sum[1] += n * firstJ + sumY;
     sum[2] += n * k;
     const int yLow = std::countr_zero(rows) / 8, yHigh = (63 - std::countl_zero(rows)) / 8;
-    min.minComponent(openvdb::Coord(firstI + std::countl_zero(any), firstJ + yLow, k));
-    max.maxComponent(openvdb::Coord(firstI + 7 - std::countr_zero(any), firstJ + yHigh, k));
+    const auto columns = static_cast<std::uint8_t>(any);
+    min.minComponent(openvdb::Coord(firstI + std::countl_zero(columns), firstJ + yLow, k));
+    max.maxComponent(openvdb::Coord(firstI + 7 - std::countr_zero(columns), firstJ + yHigh, k));
   }
   void merge(const Moments& o) {
     count += o.count;

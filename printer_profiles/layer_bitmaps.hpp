@@ -57,6 +57,24 @@ public:
       rubbery_[row * rubberyPitch_ + static_cast<std::ptrdiff_t>(byte)] |= rubberyBits;
       marks_[static_cast<std::size_t>(row) * perRow_ + byte / 512] |= std::uint64_t{1} << (byte / 8 % 64);
     }
+    // orByte() of a leaf's 8 rows, rows firstRow - y for y = 0 .. 7 (image rows run against the leaf's
+    // y), its pixels in byte y of rigidRows and rubberyRows; rows with no pixel in either are not touched.
+    void orLeafRows(int firstRow, std::size_t byte, std::uint64_t rigidRows, std::uint64_t rubberyRows) {
+      const std::uint64_t mark = std::uint64_t{1} << (byte / 8 % 64);
+      // Row by row from firstRow down: the three places step back by a pitch each (no multiply a row).
+      std::ptrdiff_t rigidAt = firstRow * rigidPitch_ + static_cast<std::ptrdiff_t>(byte);
+      std::ptrdiff_t rubberyAt = firstRow * rubberyPitch_ + static_cast<std::ptrdiff_t>(byte);
+      auto markAt = static_cast<std::ptrdiff_t>(static_cast<std::size_t>(firstRow) * perRow_ + byte / 512);
+      const auto markPitch = static_cast<std::ptrdiff_t>(perRow_);
+      for (int y = 0; y < 8; ++y, rigidAt -= rigidPitch_, rubberyAt -= rubberyPitch_, markAt -= markPitch) {
+        const auto rigid = static_cast<std::uint8_t>(rigidRows >> (8 * y)), rubbery = static_cast<std::uint8_t>(rubberyRows >> (8 * y));
+        if (!(rigid | rubbery)) continue;
+        assert(rigid_ != nullptr && firstRow - y >= 0 && firstRow - y < height_ && byte < stride_);
+        rigid_[rigidAt] |= rigid;
+        rubbery_[rubberyAt] |= rubbery;
+        marks_[markAt] |= mark;
+      }
+    }
 
   private:
     friend class LayerBitmaps;

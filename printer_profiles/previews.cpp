@@ -241,12 +241,6 @@ Previews::View::View(AxisSamples us, AxisSamples vs) : u(std::move(us)), v(std::
   modulus.assign(n, kNoModulus);
 }
 
-void Previews::View::set(std::size_t at, bool rigid, int depthValue, float modulusValue) {
-  material[at] = rigid ? 1 : 2;
-  depth[at] = depthValue;
-  modulus[at] = modulusValue;
-}
-
 namespace {
 
 // The layers on the contact sheet: `wanted` (at least 1) evenly spaced, first and last included.

@@ -73,10 +73,19 @@ public:
     View(AxisSamples us, AxisSamples vs);
     // The kept cell at (u cell, v cell), which must be shown by some pixel (cellOfPixel's cells are).
     std::size_t at(int uCell, int vCell) const {
-      assert(u.slot(uCell) >= 0 && v.slot(vCell) >= 0);
-      return static_cast<std::size_t>(v.slot(vCell)) * static_cast<std::size_t>(width) + static_cast<std::size_t>(u.slot(uCell));
+      assert(u.slot(uCell) >= 0);
+      return rowAt(vCell) + static_cast<std::size_t>(u.slot(uCell));
     }
-    void set(std::size_t at, bool rigid, int depthValue, float modulusValue);
+    // The first kept cell of v cell vCell's row (which some pixel must show).
+    std::size_t rowAt(int vCell) const {
+      assert(v.slot(vCell) >= 0);
+      return static_cast<std::size_t>(v.slot(vCell)) * static_cast<std::size_t>(width);
+    }
+    void set(std::size_t at, bool rigid, int depthValue, float modulusValue) {
+      material[at] = rigid ? 1 : 2;
+      depth[at] = depthValue;
+      modulus[at] = modulusValue;
+    }
   };
 
 private:

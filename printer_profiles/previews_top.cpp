@@ -68,12 +68,18 @@ void Previews::addTopLayers(int first, const std::vector<LayerBitmaps>& layers, 
     for (std::size_t n = layers.size(); n-- > 0;) {
       const int layer = first + static_cast<int>(n);
       for (int r = rows.begin(); r != rows.end(); ++r) {
-        const RowSpan span = layers[n].span(r);
-        if (top_.v.slot(r) < 0 || span.empty()) continue;
+        if (top_.v.slot(r) < 0) continue;  // no pixel shows the row (one nothing was written in has no marked word to scan)
         std::uint8_t* rowClaimed = claimed.data() + static_cast<std::size_t>(r - rows.begin()) * hidden.size();
+        if (!modulus) {  // each pixel set as it is found
+          const std::size_t rowAt = top_.rowAt(r);
+          preview_scan::forEachFreshInRow(layers[n], r, rowClaimed, [&](int c, bool isRigid) {
+            top_.set(rowAt + static_cast<std::size_t>(top_.u.slot(c)), isRigid, layer, kNoModulus);
+          });
+          continue;
+        }
         fresh.clear();
         preview_scan::forEachFreshInRow(layers[n], r, rowClaimed, [&](int c, bool isRigid) { fresh.push_back({c, isRigid}); });
-        if (modulus) lookUpModuli(modulus, *acc, fresh, geometry_, r, layer);
+        lookUpModuli(modulus, *acc, fresh, geometry_, r, layer);
         for (const TopPixel& p : fresh) top_.set(top_.at(p.column, r), p.rigid, layer, p.modulus);
       }
     }

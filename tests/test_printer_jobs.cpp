@@ -3,6 +3,7 @@
 // and previews. Replacing, atomicity, interrupts and staging folders: test_printer_jobs_commit.cpp.
 // Profiles, bitmaps and the layout: tests/test_printer_profiles.cpp.
 #include "printer_profiles/leaf_bits.hpp"  // internal: a leaf's bits as image rows
+#include "printer_profiles/job_manifest.hpp"  // internal: a layer's moments
 #include "printer_profiles/previews.hpp"  // internal: the views' memory
 #include "common/xxh128.hpp"
 #include "tests/printer_jobs_fixture.hpp"
@@ -417,5 +418,30 @@ TEST_CASE("A leaf's image rows hold the voxels OpenVDB says are on", "[job][leaf
           const bool bit = (rows.row(y, z) >> (7 - x)) & 1;
           REQUIRE(bit == leaf.isValueOn(openvdb::Coord(x, y, z)));
         }
+  }
+}
+
+TEST_CASE("A leaf's 8 rows add the moments of their voxels", "[job][leaf]") {
+  // Moments::addRows counts bits under masks; the truth here is every voxel's own coordinates.
+  std::mt19937_64 random(11);
+  std::vector<std::uint64_t> cases{0, ~std::uint64_t{0}, 1, std::uint64_t{1} << 63, 0x80, 0x0100000000000000u};
+  for (int n = 0; n < 2000; ++n) cases.push_back(random() & random() & (n % 2 ? random() : ~std::uint64_t{0}));
+  for (const std::uint64_t rows : cases) {
+    const int firstI = -40 + static_cast<int>(random() % 80) * 8, firstJ = -24 + static_cast<int>(random() % 48), k = static_cast<int>(random() % 50);
+    Moments fast, truth;
+    fast.addRows(rows, firstI, firstJ, k);
+    for (int y = 0; y < 8; ++y)
+      for (int x = 0; x < 8; ++x)
+        if ((rows >> (8 * y + 7 - x)) & 1) {  // x = 0 in bit 7 of row y's byte
+          const openvdb::Coord c(firstI + x, firstJ + y, k);
+          ++truth.count;
+          for (int a = 0; a < 3; ++a) truth.sum[a] += c[a];
+          truth.min.minComponent(c);
+          truth.max.maxComponent(c);
+        }
+    REQUIRE(fast.count == truth.count);
+    for (int a = 0; a < 3; ++a) REQUIRE(fast.sum[a] == truth.sum[a]);
+    REQUIRE(fast.min == truth.min);
+    REQUIRE(fast.max == truth.max);
   }
 }
