@@ -98,6 +98,18 @@ private:
     std::memcpy(&errorBound_[static_cast<std::size_t>(n)], &bounds, sizeof bounds);
     std::memcpy(&owner_[static_cast<std::size_t>(n)], &owners, sizeof owners);
   }
+  // Slots n .. n + 3 of one row, when they lie in the row and are all empty, filled with one store and
+  // the bits of `lanes` set (lanes not in `lanes`, past the row's end, go to empty slots whose bits stay
+  // clear: no candidate is ever read from an empty slot, and emit masks their values out). False, and
+  // nothing done, otherwise.
+  bool storeFourIntoEmpty(int n, Double4 encodedDepth, Float4 value, Float4 bounds, Owner4 owners, unsigned lanes) {
+    std::uint64_t& word = filled_[static_cast<std::size_t>(n >> kBlockXLog2)];
+    const int shift = n & (kBlockX - 1);
+    if (shift > kBlockX - 4 || ((word >> shift) & 0xfu) != 0) return false;
+    storeFour(n, encodedDepth, value, bounds, owners);
+    word |= std::uint64_t(lanes) << shift;
+    return true;
+  }
   void store(int n, double encodedDepth, float errorBound, float value, std::uint64_t who) {
     encodedDepth_[n] = encodedDepth;
     errorBound_[n] = errorBound;
@@ -220,15 +232,10 @@ private:
     if (!overlapWithoutExactTest(n, c, depth)) resolveOverlap(n, c, depth, i, j, k);
   }
   // Round-cap candidates inside for sure (gauges g < 1) for the lanes set in `lanes` of slots n .. n + 3
-  // of one row, where those four slots lie in the row and are all empty: one store, as addCapCandidate
-  // would fill them one by one (lanes not in `lanes`, past the row's end, go to empty slots whose bits
-  // stay clear, as in sweep's partial quads). False, and nothing done, otherwise.
+  // of one row, where those four slots lie in the row and are all empty: one store (storeFourIntoEmpty),
+  // as addCapCandidate would fill them one by one. False, and nothing done, otherwise.
   bool capsIntoEmptySlots(int n, Double4 g, unsigned lanes, float value, int rod, int piece) {
-    std::uint64_t& word = filled_[static_cast<std::size_t>(n >> 6)];
-    const int shift = n & 63;
-    if (shift > kBlockX - 4 || ((word >> shift) & 0xfu) != 0) return false;
-    storeFour(n, 1.0 - g, Float4{} + value, Float4{}, Owner4{} + owner(rod, piece));
-    word |= std::uint64_t(lanes) << shift;
+    if (!storeFourIntoEmpty(n, 1.0 - g, Float4{} + value, Float4{}, Owner4{} + owner(rod, piece), lanes)) return false;
     voxelsPerRod[static_cast<std::size_t>(rod)] += static_cast<std::uint64_t>(std::popcount(lanes));
     return true;
   }

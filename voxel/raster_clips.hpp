@@ -141,14 +141,13 @@ inline Double4 clampLanes(Double4 v) {
   const Double4 atLeast = v < low ? low : v;
   return high < atLeast ? high : atLeast;
 }
+inline Double4 truncatedLanes(Double4 clamped) { return __builtin_convertvector(__builtin_convertvector(clamped, Int4), Double4); }
 inline Int4 ceilToInts(Double4 v) {
-  const Double4 clamped = clampLanes(v);
-  const Double4 t = __builtin_convertvector(__builtin_convertvector(clamped, Int4), Double4);
+  const Double4 clamped = clampLanes(v), t = truncatedLanes(clamped);
   return __builtin_convertvector(t < clamped ? t + 1.0 : t, Int4);  // integers below 2^31: exact
 }
 inline Int4 floorToInts(Double4 v) {
-  const Double4 clamped = clampLanes(v);
-  const Double4 t = __builtin_convertvector(__builtin_convertvector(clamped, Int4), Double4);
+  const Double4 clamped = clampLanes(v), t = truncatedLanes(clamped);
   return __builtin_convertvector(t > clamped ? t - 1.0 : t, Int4);
 }
 

@@ -94,28 +94,17 @@ template <bool Across>
 // otherwise voxel by voxel, the borderline ones to the exact test. Returns the slots newly filled.
 [[gnu::always_inline]] inline int LeafBuilder::settleQuad(const SweptPiece& s, const SweptQuad& q, int row, int i, int hi, int j,
                                                           int k) {
-  const int shift = i & (kBlockX - 1);
-  const int n = (row << kBlockXLog2) | shift;
-  std::uint64_t& word = filled_[static_cast<std::size_t>(row)];
+  const int n = (row << kBlockXLog2) | (i & (kBlockX - 1));
   if (i + 3 <= hi) {
     if (laneBits(q.sure) == 0xfu) {
       const Float4 value = __builtin_convertvector(q.modulus, Float4);
-      if (((word >> shift) & 0xfu) == 0) {
-        storeFour(n, q.encodedDepth, value, swept_.errorBounds, swept_.owners);
-        word |= std::uint64_t(0xf) << shift;
-        return 4;
-      }
+      if (storeFourIntoEmpty(n, q.encodedDepth, value, swept_.errorBounds, swept_.owners, 0xfu)) return 4;
       return addFourSurelyInside(n, q.encodedDepth, value, s.floatErrorBound, s.rod, s.index, i, j, k);
     }
   } else if (const unsigned inRow = (2u << (hi - i)) - 1u;
-             shift <= kBlockX - 4 && (laneBits(q.sure) & inRow) == inRow && ((word >> shift) & 0xfu) == 0) {
-    // A row's last, partial quad (most rows of short pieces end in one), its voxels inside for sure and
-    // the four slots empty: one store as for a whole quad. The lanes past the row's end go to empty
-    // slots of the same row whose bits stay clear, so no candidate is read from them (emit masks their
-    // values out, and a later piece fills them as any empty slot).
-    storeFour(n, q.encodedDepth, __builtin_convertvector(q.modulus, Float4), swept_.errorBounds, swept_.owners);
-    word |= std::uint64_t(inRow) << shift;
-    return hi - i + 1;
+             (laneBits(q.sure) & inRow) == inRow &&
+             storeFourIntoEmpty(n, q.encodedDepth, __builtin_convertvector(q.modulus, Float4), swept_.errorBounds, swept_.owners, inRow)) {
+    return hi - i + 1;  // a row's last, partial quad (most rows of short pieces end in one), in one store
   }
   int fresh = 0;
   for (int l = 0; l < 4 && i + l <= hi; ++l) {
