@@ -18,6 +18,7 @@
 #include "bench/bench_profile.hpp"
 #include "common/stopwatch.hpp"
 #include "calibration/calibration.hpp"
+#include "common/local_time_zone.hpp"
 #include "examples/example_designs.hpp"
 #include "materials/fraction_map.hpp"
 #include "materials/materials.hpp"
@@ -46,6 +47,9 @@ namespace pp = rodfab::printer_profiles;
 using namespace rodfab;
 
 namespace {
+
+// As rodfab's main does, before Google Benchmark's main starts a thread (common/local_time_zone.hpp).
+[[maybe_unused]] const bool kLocalTimeZoneKept = (rodfab::common::keepLocalTimeZone(), true);
 
 using rodfab::common::processCpuSeconds;
 

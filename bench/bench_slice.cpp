@@ -14,6 +14,7 @@
 // the job's size. One iteration each: a run takes seconds and writes a job.
 #include "bench/bench_profile.hpp"
 #include "calibration/calibration.hpp"
+#include "common/local_time_zone.hpp"
 #include "examples/example_designs.hpp"
 #include "materials/materials.hpp"
 #include "printer_profiles/printer_profiles.hpp"
@@ -31,6 +32,9 @@
 using namespace rodfab;
 
 namespace {
+
+// As rodfab's main does, before Google Benchmark's main starts a thread (common/local_time_zone.hpp).
+[[maybe_unused]] const bool kLocalTimeZoneKept = (rodfab::common::keepLocalTimeZone(), true);
 
 double peakRssMb() {
   rusage usage{};

@@ -1,6 +1,7 @@
 #include "slicer/command.hpp"
 
 #include "common/interrupt.hpp"
+#include "common/local_time_zone.hpp"
 #include "common/memory_budget.hpp"
 
 #include <unistd.h>
@@ -36,6 +37,7 @@ using namespace rodfab::cli;
 }  // namespace
 
 int main(int argc, char** argv) {
+  rodfab::common::keepLocalTimeZone();
   if (argc < 2) {
     printUsage(std::cerr);
     return kUsage;

@@ -1,6 +1,7 @@
 // common/: saturatedBytes at the ends of the range, requireMemory's refusal message, SHA-256 against the FIPS 180-2 test vectors, XXH3-128 against xxhsum -H2 (in one piece and through FileHasher), the data folder's search order and errors.
 #include "common/data_dir.hpp"
 #include "common/file_hasher.hpp"
+#include "common/local_time_zone.hpp"
 #include "common/located_issues.hpp"
 #include "common/memory_budget.hpp"
 #include "common/sha256.hpp"
@@ -13,6 +14,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -155,4 +157,26 @@ TEST_CASE("memory budget: requireMemory passes up to the budget and beyond it na
   CHECK_THROWS_MATCHES(requireMemory(over, {.what = "slicing x.json", .condition = "even in bands of 1 layer", .remedy = "r"}),
                        OutOfMemory,
                        Catch::Message("out of memory: slicing x.json needs about 3072.0 GiB even in bands of 1 layer, " + of + "r"));
+}
+
+TEST_CASE("keepLocalTimeZone names glibc's default zone file only when TZ is unset, and times stay as they were") {
+  const char* before = std::getenv("TZ");
+  const std::string saved = before ? before : "";
+  const auto localTimeOf = [] {
+    std::tm t{};
+    t.tm_year = 120, t.tm_mon = 6, t.tm_mday = 1, t.tm_hour = 12, t.tm_isdst = -1;  // 2020-07-01 12:00, in summer time where there is one
+    return std::mktime(&t);
+  };
+  ::unsetenv("TZ");
+  const std::time_t unset = localTimeOf();
+  rodfab::common::keepLocalTimeZone();
+  REQUIRE(std::getenv("TZ") != nullptr);
+  CHECK(std::string(std::getenv("TZ")) == ":/etc/localtime");
+  CHECK(localTimeOf() == unset);
+  ::setenv("TZ", "UTC0", 1);
+  rodfab::common::keepLocalTimeZone();
+  CHECK(std::string(std::getenv("TZ")) == "UTC0");
+  if (before) ::setenv("TZ", saved.c_str(), 1);
+  else ::unsetenv("TZ");
+  ::tzset();
 }
