@@ -11,6 +11,7 @@
 #include <immintrin.h>
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -274,8 +275,10 @@ namespace {
 
 using detail::FloatLeaf;
 // The fractions of leaf `in`'s voxels in `mask`, word by word (FractionMap::mapWord), into `leaf`
-// (a spare, origin set; its values and mask are overwritten); counts into `s`.
-void mapLeaf(const FloatLeaf& in, const detail::LeafMask& mask, const FractionMap& map, MappingStats& s, FloatLeaf& leaf) {
+// (a spare, origin set; its values and mask are overwritten); counts the voxels of `counted` (a part
+// of `mask`) into `s`.
+void mapLeaf(const FloatLeaf& in, const detail::LeafMask& mask, const detail::LeafMask& counted, const FractionMap& map,
+             MappingStats& s, FloatLeaf& leaf) {
   leaf.setValueMask(mask);
   const float* moduli = in.buffer().data();
   float* fractions = leaf.buffer().data();
@@ -285,25 +288,29 @@ void mapLeaf(const FloatLeaf& in, const detail::LeafMask& mask, const FractionMa
       std::fill_n(fractions + 64 * w, 64, 0.0f);
       continue;
     }
-    const FractionMap::WordClamps clamps = map.mapWord(moduli + 64 * w, active, fractions + 64 * w);
-    s.voxels += static_cast<std::uint64_t>(std::popcount(active));
+    FractionMap::WordClamps clamps = map.mapWord(moduli + 64 * w, active, fractions + 64 * w);
+    const std::uint64_t countedBits = counted.getWord<std::uint64_t>(w);
+    if (countedBits != active) {  // a word with voxels of the uncounted layer too: the counted ones' clamps apart
+      alignas(64) std::array<float, 64> scratch;
+      clamps = countedBits ? map.mapWord(moduli + 64 * w, countedBits, scratch.data()) : FractionMap::WordClamps{};
+    }
+    s.voxels += static_cast<std::uint64_t>(std::popcount(countedBits));
     s.clamps.belowFloor += clamps.belowFloor;
     s.clamps.aboveMax += clamps.aboveMax;
   }
 }
 
-}  // namespace
-
-openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
-                                       MappingStats& stats, voxel::TreeRecycler<openvdb::FloatTree>& recycler,
-                                       const std::function<void()>& checkInterrupt) {
+// mapToFractions over layers [k0, k1), the stats counting layers [k0, countEnd) only (countEnd <= k1).
+openvdb::FloatGrid::Ptr mapLayers(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1, int countEnd,
+                                  MappingStats& stats, voxel::TreeRecycler<openvdb::FloatTree>& recycler,
+                                  const std::function<void()>& checkInterrupt) {
   if (k0 > k1)
     throw std::invalid_argument("modulus to fraction: band of layers [" + std::to_string(k0) + ", " +
                                 std::to_string(k1) + ") is reversed, expected k0 <= k1");
   if (modulus.tree().hasActiveTiles()) {
     const openvdb::FloatGrid::Ptr voxels = modulus.deepCopy();
     voxels->tree().voxelizeActiveTiles();
-    return mapToFractions(*voxels, map, k0, k1, stats, recycler, checkInterrupt);
+    return mapLayers(*voxels, map, k0, k1, countEnd, stats, recycler, checkInterrupt);
   }
   // The leaves in the tree's order, grouped by parent (the counts are sums, the same in any order).
   const detail::LeafGroups groups = detail::leafGroupsInLayers(modulus.tree(), k0, k1);
@@ -316,7 +323,8 @@ openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const 
       const detail::LeafMask mask = detail::activeInLayers(*groups.leaves[l], k0, k1);
       if (mask.isOff()) continue;
       out[l] = spares.leaf(l, groups.leaves[l]->origin());
-      mapLeaf(*groups.leaves[l], mask, map, perLeaf[l], *out[l]);
+      const detail::LeafMask counted = countEnd >= k1 ? mask : detail::activeInLayers(*groups.leaves[l], k0, countEnd);
+      mapLeaf(*groups.leaves[l], mask, counted, map, perLeaf[l], *out[l]);
     }
   });
   for (const MappingStats& s : perLeaf) {
@@ -332,6 +340,14 @@ openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const 
   return grid;
 }
 
+}  // namespace
+
+openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
+                                       MappingStats& stats, voxel::TreeRecycler<openvdb::FloatTree>& recycler,
+                                       const std::function<void()>& checkInterrupt) {
+  return mapLayers(modulus, map, k0, k1, k1, stats, recycler, checkInterrupt);
+}
+
 openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
                                        MappingStats& stats, const std::function<void()>& checkInterrupt) {
   voxel::TreeRecycler<openvdb::FloatTree> fresh(0.0f);  // nothing to reuse; the tree is deleted when let go
@@ -342,12 +358,11 @@ openvdb::FloatGrid::Ptr mapBandToFractions(const openvdb::FloatGrid& modulus, co
                                            bool withNextLayer, MappingStats& stats,
                                            voxel::TreeRecycler<openvdb::FloatTree>& recycler,
                                            const std::function<void()>& checkInterrupt) {
+  // Layer k1 mapped with the band, into the same tree from the same spares: mapped apart into fresh
+  // leaves and merged (Tree::merge, which resets each stolen leaf's background voxel by voxel), it was
+  // a third of error diffusion's "voxelize + map" on the lattice (bench/README.md).
   MappingStats band;
-  const openvdb::FloatGrid::Ptr fraction = mapToFractions(modulus, map, k0, k1, band, recycler, checkInterrupt);
-  if (withNextLayer) {
-    MappingStats ignored;
-    fraction->tree().merge(mapToFractions(modulus, map, k1, k1 + 1, ignored, checkInterrupt)->tree());
-  }
+  const openvdb::FloatGrid::Ptr fraction = mapLayers(modulus, map, k0, withNextLayer ? k1 + 1 : k1, k1, band, recycler, checkInterrupt);
   stats.voxels += band.voxels;
   stats.clamps += band.clamps;
   return fraction;

@@ -123,8 +123,8 @@ openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const 
                                        const std::function<void()>& checkInterrupt = {});
 // A ditherer's band: mapToFractions(modulus, map, k0, k1, stats, recycler, checkInterrupt) and, when
 // `withNextLayer` (a ditherer that reads layer k1: Ditherer::readsNextLayer, error diffusion), layer k1
-// merged into it, not counted in `stats` (its voxels are counted with their own band). Throws as
-// mapToFractions.
+// mapped into the same tree, not counted in `stats` (its voxels are counted with their own band).
+// Throws as mapToFractions.
 openvdb::FloatGrid::Ptr mapBandToFractions(const openvdb::FloatGrid& modulus, const FractionMap& map, int k0, int k1,
                                            bool withNextLayer, MappingStats& stats,
                                            voxel::TreeRecycler<openvdb::FloatTree>& recycler,
