@@ -5,7 +5,7 @@
 namespace rodfab::common {
 
 void keepLocalTimeZone() {
-  if (std::getenv("TZ") == nullptr) ::setenv("TZ", ":/etc/localtime", 0);
+  ::setenv("TZ", ":/etc/localtime", 0);  // 0: a TZ already set is kept
 }
 
 }  // namespace rodfab::common

@@ -361,11 +361,7 @@ openvdb::FloatGrid::Ptr mapBandToFractions(const openvdb::FloatGrid& modulus, co
   // Layer k1 mapped with the band, into the same tree from the same spares: mapped apart into fresh
   // leaves and merged (Tree::merge, which resets each stolen leaf's background voxel by voxel), it was
   // a third of error diffusion's "voxelize + map" on the lattice (bench/README.md).
-  MappingStats band;
-  const openvdb::FloatGrid::Ptr fraction = mapLayers(modulus, map, k0, withNextLayer ? k1 + 1 : k1, k1, band, recycler, checkInterrupt);
-  stats.voxels += band.voxels;
-  stats.clamps += band.clamps;
-  return fraction;
+  return mapLayers(modulus, map, k0, withNextLayer ? k1 + 1 : k1, k1, stats, recycler, checkInterrupt);
 }
 
 openvdb::FloatGrid::Ptr mapToFractions(const openvdb::FloatGrid& modulus, const FractionMap& map, MappingStats& stats) {
