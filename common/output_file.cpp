@@ -1,6 +1,7 @@
 #include "common/output_file.hpp"
 
 #include "common/interrupt.hpp"
+#include "common/xxh128.hpp"
 
 #include <fcntl.h>
 #include <signal.h>
@@ -11,6 +12,7 @@
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
+#include <optional>
 #include <stdexcept>
 #include <system_error>
 
@@ -45,7 +47,7 @@ void checkExisting(const fs::path& output, const fs::file_status& status, const 
     throw std::runtime_error(quoted(output) + ": already exists; use " + policy.howToReplace + " to replace it");
   if (policy.isOurs && !policy.isOurs(output))
     throw std::runtime_error(quoted(output) + ": exists and is not a " + policy.what +
-                             " written by rodfab; rodfab replaces only its own files (choose another name)");
+                             " written by rodfab (or was changed since); rodfab replaces only its own files (choose another name)");
 }
 
 bool processAlive(long pid) { return pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM); }
@@ -106,6 +108,51 @@ bool fileStartsWith(const fs::path& file, std::string_view prefix, std::string_v
   ::close(fd);
   if (!std::string_view(head).starts_with(prefix)) return false;
   return marker.empty() || head.find(marker) != std::string::npos;
+}
+
+namespace {
+
+std::string sealLinePrefix() { return std::string("{\n  \"") + kWrittenByKey + "\": \"rodfab, xxh128 "; }
+constexpr std::string_view kSealLineEnd = "\",\n";
+constexpr std::size_t kDigestDigits = 32;
+
+// The whole of the regular file `file` when it is at most `maxBytes` long; no link followed, no pipe
+// waited on.
+std::optional<std::string> readSmallRegularFile(const fs::path& file, std::size_t maxBytes) {
+  const int fd = ::open(file.c_str(), O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
+  if (fd < 0) return std::nullopt;
+  struct stat st {};
+  std::optional<std::string> text;
+  if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && static_cast<std::uint64_t>(st.st_size) <= maxBytes) {
+    text.emplace(static_cast<std::size_t>(st.st_size) + 1, '\0');  // one more: a file that grew is refused
+    std::size_t got = 0;
+    for (ssize_t n; got < text->size() && (n = ::read(fd, text->data() + got, text->size() - got)) != 0;) {
+      if (n < 0 && errno == EINTR) continue;
+      if (n < 0) break;
+      got += static_cast<std::size_t>(n);
+    }
+    if (got == static_cast<std::size_t>(st.st_size)) text->resize(got);
+    else text.reset();
+  }
+  ::close(fd);
+  return text;
+}
+
+}  // namespace
+
+std::string sealJsonObject(std::string_view members) {
+  return sealLinePrefix() + common::xxh128Hex(members) + std::string(kSealLineEnd) + std::string(members);
+}
+
+bool isSealedJsonObject(const fs::path& file, std::size_t maxBytes) {
+  const std::optional<std::string> text = readSmallRegularFile(file, maxBytes);
+  const std::string prefix = sealLinePrefix();
+  const std::size_t bodyStart = prefix.size() + kDigestDigits + kSealLineEnd.size();
+  if (!text || text->size() < bodyStart || !text->starts_with(prefix)) return false;
+  const std::string_view view(*text);
+  const std::string_view digest = view.substr(prefix.size(), kDigestDigits);
+  return view.substr(prefix.size() + kDigestDigits, kSealLineEnd.size()) == kSealLineEnd && isXxh128Hex(digest) &&
+         xxh128Hex(view.substr(bodyStart)) == digest;
 }
 
 AtomicOutput::AtomicOutput(fs::path final) : final_(std::move(final)) {

@@ -39,6 +39,20 @@ void checkOutputPath(const std::filesystem::path& output, const std::vector<std:
 bool fileStartsWith(const std::filesystem::path& file, std::string_view prefix, std::string_view marker = {},
                     std::size_t scanBytes = 4096);
 
+// Files that say rodfab wrote them and that nobody has changed them since: how an `isOurs` test tells
+// a file rodfab wrote from one a person wrote or edited, even one that began as rodfab's. A JSON
+// object is sealed by its first member, "written_by": "rodfab, xxh128 HEX", where HEX is the XXH3-128
+// of every byte after that member's line; readers take the member as an ordinary string.
+inline constexpr const char* kWrittenByKey = "written_by";
+
+// "{", a newline, the seal's line, then `members`: the object's text after its opening line, its
+// closing brace included.
+std::string sealJsonObject(std::string_view members);
+
+// True when the regular file `file` (not a symlink; at most `maxBytes` long, else false) is a sealed
+// JSON object whose bytes after the seal's line are the ones sealed. False for anything unreadable.
+bool isSealedJsonObject(const std::filesystem::path& file, std::size_t maxBytes = std::size_t{256} << 20);
+
 // A temporary beside `final` that becomes `final` on commit(); removed by the destructor (or on
 // interrupt) if never committed. commit() throws Interrupted when a signal is pending (the
 // temporary is then removed), and leaves the committed file registered for interrupt cleanup until

@@ -41,13 +41,15 @@ RodStructure parseDesign(const std::string& text, const std::string& sourceName)
 
 // Keys in the order of the format description (name, centerline, section, frame, caps, modulus).
 nlohmann::ordered_json designToJson(const RodStructure& structure, const std::string& description = {});
-// One rod per line, so diffs of generated designs stay readable. Written to a temporary name beside
+// One rod per line, so diffs of generated designs stay readable; sealed as rodfab's (its first member
+// "written_by", common::sealJsonObject). Written to a temporary name beside
 // `file` and renamed (common::writeFileAtomically), so a reader never sees half a file. Writes the
 // rods only: a design with mechanics goes through mechanics::writeDesign.
 void writeDesign(const RodStructure& structure, const std::filesystem::path& file, const std::string& description = {});
 
-// True when `file` is a regular file that starts as writeDesign writes (the format tag in its first
-// line): what `--output` of a command writing designs may replace.
-bool isDesignFile(const std::filesystem::path& file);
+// True when `file` is a regular file that writeDesign (or writeDesignDocument) wrote and nobody has
+// changed since: its "written_by" seal (common::sealJsonObject) matches its bytes. What `--output` of a
+// command writing designs may replace; a design a person wrote or edited never is.
+bool isDesignRodfabWrote(const std::filesystem::path& file);
 
 }  // namespace rodfab::geometry

@@ -243,15 +243,15 @@ DesignDocument parseDesignDocument(const std::string& text, const std::string& s
   d.structure.source = sourceName;
   const json& doc = d.json;
   if (!doc.is_object()) throw DesignError(sourceName, {{"", "expected a JSON object with \"format\" and \"rods\""}});
-  v.onlyKeys(doc, "", {"format", "units", "rods", "description", "metadata", "mechanics", "optimize"});
+  v.onlyKeys(doc, "", {"written_by", "format", "units", "rods", "description", "metadata", "mechanics", "optimize"});
   if (auto f = v.require(doc, "", "format", std::string("\"") + kDesignFormat + "\"")) {
     if (!f->is_string() || *f != kDesignFormat)
       v.fail("format", "unsupported format " + describe(*f) + " (this rodfab reads \"" + kDesignFormat + "\")");
   }
   if (auto u = doc.find("units"); u != doc.end() && *u != "mm")
     v.fail("units", "expected \"mm\" (designs are in millimetres), got " + describe(*u));
-  if (auto desc = doc.find("description"); desc != doc.end() && !desc->is_string())
-    v.fail("description", "expected a string, got " + describe(*desc));
+  for (const char* text : {"description", "written_by"})  // written_by: rodfab's seal (design_file.hpp), read as text
+    if (auto t = doc.find(text); t != doc.end() && !t->is_string()) v.fail(text, "expected a string, got " + describe(*t));
   if (auto rods = v.require(doc, "", "rods", "a non-empty array of rods")) {
     if (!rods->is_array() || rods->empty()) {
       v.fail("rods", "expected a non-empty array of rods, got " + describe(*rods));

@@ -64,8 +64,7 @@ nlohmann::ordered_json designToJson(const RodStructure& structure, const std::st
 }
 
 void writeDesignDocument(const ordered& doc, const std::filesystem::path& file) {
-  std::ostringstream out;
-  out << "{\n";
+  std::ostringstream out;  // the members after the opening line: sealed below
   for (auto it = doc.begin(); it != doc.end(); ++it) {
     if (it.key() == "rods" || it.key() == "mechanics") continue;
     out << "  " << ordered(it.key()).dump() << ": " << it.value().dump() << ",\n";
@@ -76,15 +75,15 @@ void writeDesignDocument(const ordered& doc, const std::filesystem::path& file) 
   out << "  ]";
   if (auto m = doc.find("mechanics"); m != doc.end()) out << ",\n  \"mechanics\": " << m->dump(2, ' ');
   out << "\n}\n";
-  common::writeFileAtomically(file, out.str());
+  common::writeFileAtomically(file, common::sealJsonObject(out.str()));
 }
 
 void writeDesign(const RodStructure& structure, const std::filesystem::path& file, const std::string& description) {
   writeDesignDocument(designToJson(structure, description), file);
 }
 
-bool isDesignFile(const std::filesystem::path& file) {
-  return common::fileStartsWith(file, "{", std::string("\"") + kDesignFormat + "\"", 256);
+bool isDesignRodfabWrote(const std::filesystem::path& file) {
+  return common::fileStartsWith(file, "{", std::string("\"") + kDesignFormat + "\"", 256) && common::isSealedJsonObject(file);
 }
 
 }  // namespace rodfab::geometry

@@ -18,7 +18,8 @@ nlohmann::ordered_json quaternionSplineJson(const QuaternionSpline& spline);  //
 
 // Writes `doc` (a design as designToJson makes it, with any blocks of higher stages added) in the
 // file's layout: every top-level key but "rods" and "mechanics" on a line of its own, then one rod
-// per line, then the "mechanics" block indented. Atomic as writeDesign.
+// per line, then the "mechanics" block indented, all after the "written_by" seal (isDesignRodfabWrote).
+// Atomic as writeDesign.
 void writeDesignDocument(const nlohmann::ordered_json& doc, const std::filesystem::path& file);
 
 }  // namespace rodfab::geometry

@@ -32,7 +32,7 @@ int runRodsFromCad(const std::vector<std::string>& args) {
   std::string profileName;
   std::array<double, 3> trayMm{};
   if (!loadTrayProfile("rods-from-cad", vm["profile"].as<std::string>(), trayMm, profileName)) return kFailed;
-  if (!outputAllowed(output, {model}, {"design file", vm.count("force") > 0, "--force", geometry::isDesignFile})) return kFailed;
+  if (!outputAllowed(output, {model}, {"design file", vm.count("force") > 0, "--force", geometry::isDesignRodfabWrote})) return kFailed;
   meshing::CadRodOptions o;
   o.section = shape->section, o.caps = shape->caps, o.modulusMpa = shape->modulusMpa, o.jointTolerance = *tolerance;
   meshing::CadRods result;

@@ -63,7 +63,7 @@ int meshToRods(const MeshSettings& s) {
   std::string profileName;
   std::array<double, 3> trayMm{};
   if (!loadTrayProfile("rods-from-mesh", s.profile, trayMm, profileName)) return kFailed;
-  if (!outputAllowed(s.output, {s.mesh}, {"design file", s.force, "--force", geometry::isDesignFile})) return kFailed;
+  if (!outputAllowed(s.output, {s.mesh}, {"design file", s.force, "--force", geometry::isDesignRodfabWrote})) return kFailed;
   meshing::MeshRods result;
   try {
     result = meshing::rodsFromMesh(s.mesh, s.options);

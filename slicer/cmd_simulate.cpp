@@ -73,7 +73,7 @@ std::optional<mechanics::Simulation> simulate(const SimulateSettings& s, const m
 // The simulation of `design`, the deformed design written and the summary printed; the exit code.
 int simulateDesign(const SimulateSettings& s, const mechanics::Design& design) {
   // An existing design is replaced only when rodfab wrote it, and never the input.
-  if (!outputAllowed(s.output, {s.design}, {"deformed design", true, "", geometry::isDesignFile})) return kFailed;
+  if (!outputAllowed(s.output, {s.design}, {"deformed design", true, "", geometry::isDesignRodfabWrote})) return kFailed;
   if (!s.json)
     std::printf("design:    %s: %zu rods\n", s.design.c_str(), design.rods.size());
   nlohmann::json history = nlohmann::json::array();

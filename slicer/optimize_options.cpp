@@ -113,7 +113,7 @@ bool optimizeOutputsAllowed(const OptimizeCommand& c, const mechanics::Design& d
   std::vector<std::filesystem::path> inputs{c.design, c.calibration};
   for (const mechanics::LoadCase& lc : design.mechanics.loadCases)
     if (!lc.targetDesign.empty()) inputs.push_back(mechanics::targetDesignFile(lc, c.design));
-  if (!outputAllowed(c.output, inputs, {"optimized design", true, "", geometry::isDesignFile})) return false;
+  if (!outputAllowed(c.output, inputs, {"optimized design", true, "", geometry::isDesignRodfabWrote})) return false;
   inputs.push_back(c.output);
   if (!c.plot.empty() && !outputAllowed(c.plot, inputs, {"convergence plot", true, "", optimize::isHistoryPlot})) return false;
   if (!c.plot.empty()) inputs.push_back(c.plot);

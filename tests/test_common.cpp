@@ -4,11 +4,13 @@
 #include "common/local_time_zone.hpp"
 #include "common/located_issues.hpp"
 #include "common/memory_budget.hpp"
+#include "common/output_file.hpp"
 #include "common/sha256.hpp"
 #include "common/xxh128.hpp"
 
 #include <catch2/catch.hpp>
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cmath>
@@ -179,4 +181,38 @@ TEST_CASE("keepLocalTimeZone names glibc's default zone file only when TZ is uns
   if (before) ::setenv("TZ", saved.c_str(), 1);
   else ::unsetenv("TZ");
   ::tzset();
+}
+
+TEST_CASE("a sealed JSON object is told from one a person wrote or edited, and from anything that is not a plain file") {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("rodfab-seal-" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir / name, std::ios::binary) << text;
+    return dir / name;
+  };
+  const std::string members = "  \"format\": \"rodfab.design/1\",\n  \"rods\": []\n}\n";
+  const std::string sealed = rodfab::common::sealJsonObject(members);
+  // The seal is the object's first member, the XXH3-128 (as xxhsum -H2 prints it) of what follows its line.
+  REQUIRE(sealed == "{\n  \"written_by\": \"rodfab, xxh128 " + rodfab::common::xxh128Hex(members) + "\",\n" + members);
+  CHECK(rodfab::common::isSealedJsonObject(write("ours.json", sealed)));
+  CHECK_FALSE(rodfab::common::isSealedJsonObject(dir / "ours.json", sealed.size() - 1));  // longer than allowed
+  // One byte changed anywhere after the seal, or in the digest, or the seal missing: not ours.
+  std::string edited = sealed;
+  edited[edited.size() - 4] = 'X';
+  CHECK_FALSE(rodfab::common::isSealedJsonObject(write("edited.json", edited)));
+  std::string digest = sealed;
+  digest[40] = digest[40] == '0' ? '1' : '0';
+  CHECK_FALSE(rodfab::common::isSealedJsonObject(write("digest.json", digest)));
+  CHECK_FALSE(rodfab::common::isSealedJsonObject(write("mine.json", "{\n" + members)));
+  CHECK_FALSE(rodfab::common::isSealedJsonObject(write("short.json", sealed.substr(0, 30))));
+  CHECK_FALSE(rodfab::common::isSealedJsonObject(write("empty.json", "")));
+  // A link to a sealed file, a folder, a pipe and a missing file are never ours (and never block).
+  std::filesystem::create_symlink(dir / "ours.json", dir / "link.json");
+  CHECK_FALSE(rodfab::common::isSealedJsonObject(dir / "link.json"));
+  CHECK_FALSE(rodfab::common::isSealedJsonObject(dir));
+  REQUIRE(::mkfifo((dir / "pipe").c_str(), 0600) == 0);
+  CHECK_FALSE(rodfab::common::isSealedJsonObject(dir / "pipe"));
+  CHECK_FALSE(rodfab::common::isSealedJsonObject(dir / "missing.json"));
+  std::filesystem::remove_all(dir);
 }

@@ -180,6 +180,21 @@ expect_error "kinked modulus" "rods\[0\].modulus: E(s) has a kink at u = 0.5, wh
 "$rodfab" simulate "$tmp/roll.json" -o "$tmp/no/such/dir/x.json" 2> "$tmp/err"
 [ $? -eq 1 ] || fail "missing output folder: expected exit 1"
 grep -q "x.json: cannot write" "$tmp/err" || fail "missing output folder not named: $(cat "$tmp/err")"
+# Only a design rodfab wrote, unchanged since (its "written_by" seal), is replaced: never one a person
+# wrote (roll.json, in the same format) or edited (rolled.json with a rod renamed), --force or not.
+cp "$tmp/roll.json" "$tmp/mine.json"
+sed 's/"beam"/"my beam"/' "$tmp/rolled.json" > "$tmp/edited.json"
+head -c 200 "$tmp/rolled.json" | grep -q '"written_by": "rodfab, xxh128 [0-9a-f]\{32\}"' || fail "rolled.json is not sealed"
+for mine in mine edited; do
+  cp "$tmp/$mine.json" "$tmp/$mine.before"
+  "$rodfab" simulate "$tmp/roll.json" -o "$tmp/$mine.json" > /dev/null 2> "$tmp/err"
+  [ $? -eq 1 ] || fail "$mine.json at the output: expected exit 1"
+  grep -q "$mine.json: exists and is not a deformed design written by rodfab (or was changed since)" "$tmp/err" ||
+    fail "$mine.json refusal: $(cat "$tmp/err")"
+  cmp -s "$tmp/$mine.json" "$tmp/$mine.before" || fail "$mine.json was changed"
+done
+cp "$tmp/rolled.json" "$tmp/ours.json"
+"$rodfab" simulate "$tmp/roll.json" -o "$tmp/ours.json" > /dev/null 2>&1 || fail "rodfab's own design not replaced"
 "$rodfab" simulate "$tmp/roll.json" -o "$tmp/x.json" --degree 1 2> /dev/null
 [ $? -eq 2 ] || fail "--degree 1: expected exit 2"
 for bad in "--accuracy 0" "--accuracy 0.5" "--refine 2" "--degree 0 --spans 4" "--max-refinements -1" "--load-steps -3"; do
