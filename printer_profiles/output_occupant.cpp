@@ -149,8 +149,36 @@ std::string examineFolder(const fs::path& path) {
   return "";
 }
 
+// The first entry of the zip `za` that is neither its manifest nor a file that manifest lists (the
+// zip's counterpart of firstStranger): a job zip to which someone added a file is not replaced.
+std::optional<std::string> firstZipStranger(zip_t* za, const ManifestSummary& manifest) {
+  const zip_int64_t entries = zip_get_num_entries(za, 0);
+  for (zip_int64_t n = 0; n < entries; ++n) {
+    const char* name = zip_get_name(za, static_cast<zip_uint64_t>(n), ZIP_FL_ENC_RAW);
+    if (!name) return "an entry whose name cannot be read";
+    if (std::string_view(name) != kManifestName && !manifest.files.contains(name)) return std::string(name);
+  }
+  return std::nullopt;
+}
+
+// The manifest entry's text, empty when it is missing, too large or unreadable.
+std::string zipManifestText(zip_t* za) {
+  std::string text;
+  const zip_int64_t index = zip_name_locate(za, kManifestName, 0);
+  zip_stat_t zs;
+  zip_file_t* zf = nullptr;
+  if (index >= 0 && zip_stat_index(za, static_cast<zip_uint64_t>(index), 0, &zs) == 0 && (zs.valid & ZIP_STAT_SIZE) &&
+      zs.size <= kMaxManifestBytes && (zf = zip_fopen_index(za, static_cast<zip_uint64_t>(index), 0))) {
+    text.resize(zs.size);
+    if (zip_fread(zf, text.data(), zs.size) != static_cast<zip_int64_t>(zs.size)) text.clear();
+    zip_fclose(zf);
+  }
+  return text;
+}
+
 // A zip is a rodfab job when its first entry is manifest.json (the writer's fixed order) of the job
-// format. The local header is looked at first (46 bytes), so a large foreign zip is not read at all.
+// format and every other entry is a file that manifest lists. The local header is looked at first
+// (46 bytes), so a large foreign zip is not read at all.
 std::string examineZip(const fs::path& path, const struct stat& st) {
   Descriptor file{openSameFile(path, st)};
   if (file.fd < 0) return std::string("a file that cannot be opened (") + std::strerror(errno) + ")";
@@ -168,18 +196,11 @@ std::string examineZip(const fs::path& path, const struct stat& st) {
   zip_t* za = zip_fdopen(file.fd, 0, &error);
   if (!za) return "a zip archive that cannot be read";
   file.release();  // libzip owns it now
-  std::string text;
-  const zip_int64_t index = zip_name_locate(za, kManifestName, 0);
-  zip_stat_t zs;
-  zip_file_t* zf = nullptr;
-  if (index >= 0 && zip_stat_index(za, static_cast<zip_uint64_t>(index), 0, &zs) == 0 && (zs.valid & ZIP_STAT_SIZE) &&
-      zs.size <= kMaxManifestBytes && (zf = zip_fopen_index(za, static_cast<zip_uint64_t>(index), 0))) {
-    text.resize(zs.size);
-    if (zip_fread(zf, text.data(), zs.size) != static_cast<zip_int64_t>(zs.size)) text.clear();
-    zip_fclose(zf);
-  }
+  const std::optional<ManifestSummary> manifest = summarizeManifest(zipManifestText(za));
+  const std::optional<std::string> stranger = manifest ? firstZipStranger(za, *manifest) : std::nullopt;
   zip_discard(za);
-  if (!summarizeManifest(text)) return std::string("a zip archive whose ") + kManifestName + " is not a rodfab job manifest (" + kJobFormat + ")";
+  if (!manifest) return std::string("a zip archive whose ") + kManifestName + " is not a rodfab job manifest (" + kJobFormat + ")";
+  if (stranger) return "a zip archive holding a rodfab job and also " + inQuotes(*stranger) + ", which is not part of that job";
   return "";
 }
 

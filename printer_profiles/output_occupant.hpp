@@ -13,8 +13,9 @@ namespace rodfab::printer_profiles {
 struct OutputOccupant {
   enum class Kind {
     Nothing,    // no entry of that name
-    RodfabJob,  // a zip whose first entry is a manifest.json of format kJobFormat, or a folder holding
-                // such a manifest and nothing but regular files its "files" table lists (previews/ too)
+    RodfabJob,  // a zip whose first entry is a manifest.json of format kJobFormat and whose other entries
+                // are all files its "files" table lists, or a folder holding such a manifest and nothing
+                // but regular files that table lists (previews/ too)
     Other,      // anything else: a user's file or folder, a link, a foreign zip, a job with added files
   };
   Kind kind = Kind::Nothing;

@@ -7,6 +7,7 @@
 #include "printer_profiles/zip_writer.hpp"  // internal: the zip writer behind every job
 
 #include <catch2/catch.hpp>
+#include <zip.h>
 
 #include <sys/resource.h>
 #include <sys/stat.h>
@@ -266,6 +267,18 @@ void writeTestZip(const fs::path& file, const std::vector<std::pair<std::string,
   writeZipFromMemory(file, zip);
 }
 
+// A copy of the zip `from` with the entry (name, text) added at its end, by libzip itself.
+void copyZipAdding(const fs::path& from, const fs::path& to, const std::string& name, const std::string& text) {
+  fs::copy_file(from, to);
+  int error = 0;
+  zip_t* za = zip_open(to.c_str(), 0, &error);
+  REQUIRE(za);
+  zip_source_t* source = zip_source_buffer(za, text.data(), text.size(), 0);
+  REQUIRE(source);
+  REQUIRE(zip_file_add(za, name.c_str(), source, ZIP_FL_ENC_UTF_8) >= 0);
+  REQUIRE(zip_close(za) == 0);
+}
+
 }  // namespace
 
 TEST_CASE("Force replaces only rodfab jobs: anything else is refused and left byte for byte", "[job][force]") {
@@ -286,6 +299,8 @@ TEST_CASE("Force replaces only rodfab jobs: anything else is refused and left by
   writeTestZip(dir / "deep.zip", {{"manifest.json", std::string(100000, '[') + std::string(100000, ']')}});
   fs::create_symlink(dir / "real.zip", dir / "link.zip");
   fs::create_symlink(dir / "mydata", dir / "link-dir");
+  copyZipAdding(dir / "real.zip", dir / "zip-plus.zip", "thesis.txt", "years of work");
+  writeTestZip(dir / "bare-manifest.zip", {{"manifest.json", std::string("{\"format\": \"") + kJobFormat + "\"}"}, {"important.docx", "mine"}});
   fs::copy(dir / "real-dir", dir / "job-plus", fs::copy_options::recursive);
   writeAll(dir / "job-plus" / "my-notes.txt", Bytes{'!'});
   fs::copy(dir / "real-dir", dir / "job-plus-preview", fs::copy_options::recursive);
@@ -303,6 +318,8 @@ TEST_CASE("Force replaces only rodfab jobs: anything else is refused and left by
       {"deep.zip", "is not a rodfab job manifest"},
       {"link.zip", "a symbolic link"},
       {"link-dir", "a symbolic link"},
+      {"zip-plus.zip", "'thesis.txt', which is not part of that job"},
+      {"bare-manifest.zip", "'important.docx', which is not part of that job"},
       {"job-plus", "'my-notes.txt', which is not part of that job"},
       {"job-plus-preview", "'previews/mine.png', which is not part of that job"},
       {"pipe", "a named pipe"},
