@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <set>
 #include <sstream>
 
@@ -162,6 +163,8 @@ void readMaterials(const Reader& in, const json& j, FitRecord& r) {
 }
 
 void readMeasurements(const Reader& in, const json& rows, FitRecord& r) {
+  if (rows.size() > kMaxMeasurements)
+    in.fail("data.measurements", "expected at most " + std::to_string(kMaxMeasurements) + " measurements, got " + std::to_string(rows.size()));
   for (std::size_t i = 0; i < rows.size(); ++i) {
     const std::string path = indexPath("data.measurements", i);
     in.object(rows[i], path, "a measurement");
@@ -250,7 +253,9 @@ ordered_json calibrationToJson(const Calibration& c) {
 Calibration calibrationFromJson(const json& j, const std::string& sourceName) {
   const Reader in(sourceName);
   in.object(j, "", "a calibration");
-  in.onlyKeys(j, "", {"format", "model", "parameters", "floor", "max_modulus_mpa", "temperature_c", "dither", "materials", "data", "quality"});
+  in.onlyKeys(j, "", {common::kWrittenByKey, "format", "model", "parameters", "floor", "max_modulus_mpa", "temperature_c", "dither",
+                      "materials", "data", "quality"});
+  if (j.contains(common::kWrittenByKey)) in.string(j[common::kWrittenByKey], common::kWrittenByKey, "rodfab's seal");  // read as text
   const std::string format = in.string(in.get(j, "", "format", std::string("\"") + kCalibrationFormat + "\""), "format", "the format tag");
   if (format != kCalibrationFormat) in.fail("format", std::string("expected \"") + kCalibrationFormat + "\", got " + describeJson(j["format"]));
   const std::string modelText = in.string(in.get(j, "", "model", "the model name"), "model", "the model name");
@@ -273,6 +278,8 @@ Calibration calibrationFromJson(const json& j, const std::string& sourceName) {
     if (!agrees(floorFraction, c.floorFraction(), 1e-9))
       in.fail("floor.vero_fraction", "the model gives Vero fraction " + std::to_string(c.floorFraction()) + " for the floor, the file says " +
                                          describeJson(floor["vero_fraction"]));
+    if (!(c.maxModulusMpa() < double(std::numeric_limits<float>::max())))  // a job's moduli are floats
+      in.fail("max_modulus_mpa", "expected below the largest float, 3.4e38 MPa, got " + describeJson(j["max_modulus_mpa"]));
     if (!agrees(maxModulus, c.maxModulusMpa(), 1e-9))
       in.fail("max_modulus_mpa", "the model gives " + std::to_string(c.maxModulusMpa()) + " MPa at 100 % Vero, the file says " +
                                      describeJson(j["max_modulus_mpa"]));
@@ -283,11 +290,15 @@ Calibration calibrationFromJson(const json& j, const std::string& sourceName) {
 }
 
 void writeCalibration(const Calibration& calibration, const std::filesystem::path& file) {
-  common::writeFileAtomically(file, calibrationToJson(calibration).dump(2) + "\n");
+  const std::string text = calibrationToJson(calibration).dump(2) + "\n";  // "{\n" and the members
+  // Read back as slice and optimize will: a fit they would refuse (a NaN quality figure, a modulus
+  // beyond a float) is never written.
+  calibrationFromJson(json::parse(text), file.string() + " (not written)");
+  common::writeFileAtomically(file, common::sealJsonObject(std::string_view(text).substr(2)));
 }
 
 bool isCalibrationFile(const std::filesystem::path& file) {
-  return common::fileStartsWith(file, "{", std::string("\"") + kCalibrationFormat + "\"", 256);
+  return common::fileStartsWith(file, "{", std::string("\"") + kCalibrationFormat + "\"", 256) && common::isSealedJsonObject(file);
 }
 
 Calibration readCalibration(const std::filesystem::path& file, std::string* sha256) {

@@ -23,11 +23,13 @@ nlohmann::ordered_json calibrationToJson(const Calibration& calibration);
 // Checks every field, and that the stored floor fraction and maximum modulus agree with the model.
 Calibration calibrationFromJson(const nlohmann::json& json, const std::string& sourceName);
 
-// Written under a temporary name and renamed, so no reader sees half a file.
+// Written under a temporary name and renamed, so no reader sees half a file, and sealed as rodfab's
+// (common::sealJsonObject). Throws CalibrationFileError, writing nothing, for a calibration that
+// readCalibration would refuse (a fit whose quality figures are not numbers, a modulus beyond a float).
 void writeCalibration(const Calibration& calibration, const std::filesystem::path& file);
 
-// True when `file` is a regular file that starts as writeCalibration writes (the format tag near its
-// start): what `calibrate --output` may replace.
+// True when `file` is a regular file writeCalibration wrote and nobody has changed since (its seal
+// matches): what `calibrate --output` may replace.
 bool isCalibrationFile(const std::filesystem::path& file);
 // With `sha256`, also the checksum of the bytes that were parsed (what a job records as its calibration).
 Calibration readCalibration(const std::filesystem::path& file, std::string* sha256 = nullptr);

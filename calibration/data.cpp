@@ -199,6 +199,10 @@ DataSet parseData(std::string_view text, const std::string& sourceName) {
       continue;
     }
     if (std::optional<Measurement> m = readRow(*fields, *header, lineNumber, issues)) data.measurements.push_back(std::move(*m));
+    if (data.measurements.size() > kMaxMeasurements) {
+      fail(lineNumber, "more than " + std::to_string(kMaxMeasurements) + " measurements; a calibration fits at most that many");
+      break;
+    }
   }
   if (issues.empty() && !header)
     fail(0, std::string("no header line; expected a header naming the columns (") + kColumnList + ")");

@@ -44,6 +44,9 @@ public:
 
 // DMA data sets are a few thousand rows; a larger file is refused before it is read whole.
 inline constexpr std::size_t kMaxDataBytes = std::size_t{64} << 20;
+// And at most this many measurements, in a data file or a calibration's record of them: every job's
+// report plots them (a million took minutes and gigabytes to draw).
+inline constexpr std::size_t kMaxMeasurements = 10000;
 
 // Throws DataError (also for an unreadable or oversized file, with line 0).
 DataSet readData(const std::filesystem::path& file);

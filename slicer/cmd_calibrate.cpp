@@ -1,11 +1,13 @@
 // rodfab calibrate: modulus against Vero fraction fitted to DMA data, written as a calibration file
 // and a plot (calibration/ fits; slicer/fit_summary.hpp prints the fit).
 #include "calibration/calibration.hpp"
+#include "materials/ditherer.hpp"
 #include "slicer/command.hpp"
 #include "slicer/fit_summary.hpp"
 #include "slicer/options.hpp"
 #include "slicer/value_parsers.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -96,6 +98,13 @@ int runCalibrate(const std::vector<std::string>& args) {
     return kFailed;
   }
   const calibration::Calibration fit = withMaterials(calibration::fitCalibration(data, request.fit), request);
+  const std::vector<std::string>& ditherers = materials::ditherMethodNames();
+  if (const std::string& dither = fit.record().dither;
+      !dither.empty() && std::find(ditherers.begin(), ditherers.end(), materials::canonicalDitherName(dither)) == ditherers.end()) {
+    // A job's default ditherer comes from this field: a name no ditherer has would make every job fail.
+    std::cerr << file << ": dither: unknown ditherer '" << dither << "', expected white, blue or error-diffusion; nothing fitted\n";
+    return kFailed;
+  }
   printCalibrationFit(fit);
   if (vm.count("output")) {
     calibration::writeCalibration(fit, output);

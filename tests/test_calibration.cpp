@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <memory>
 #include <sstream>
@@ -113,6 +114,15 @@ TEST_CASE("CSV details: quotes, CRLF, BOM, blank lines, leading +, optional empt
   CHECK(d.measurements[0].line == 4);
   CHECK(d.measurements[1].temperatureC == 59.5);
   CHECK(d.measurements[1].line == 6);
+}
+
+TEST_CASE("a data set of more than kMaxMeasurements rows is refused at the first row past it", "[calibration][data]") {
+  std::string csv = "vero_fraction,modulus_mpa\n";
+  for (std::size_t n = 0; n < kMaxMeasurements; ++n) csv += (n % 2 ? "0.2,10\n" : "0.8,100\n");
+  CHECK(parseData(csv, "full.csv").measurements.size() == kMaxMeasurements);
+  csv += "0.5,30\n";
+  CHECK_THROWS_WITH(parseData(csv, "over.csv"), Catch::Contains("over.csv: line " + std::to_string(kMaxMeasurements + 2)) &&
+                                                   Catch::Contains("more than 10000 measurements"));
 }
 
 TEST_CASE("bad rows are all reported with their line numbers", "[calibration][data]") {
@@ -353,6 +363,7 @@ TEST_CASE("a calibration file round-trips exactly", "[calibration][file]") {
     const fs::path file = dir.path / (std::string(modelName(model)) + ".json");
     writeCalibration(original, file);
     CHECK_FALSE(fs::exists(file.string() + ".tmp"));
+    CHECK(isCalibrationFile(file));  // sealed as rodfab's: what calibrate --output may replace
     const Calibration back = readCalibration(file);
     CHECK(back.model() == model);
     CHECK(back.parameters().fractions == original.parameters().fractions);
@@ -476,4 +487,26 @@ TEST_CASE("the fit plot is a PNG that decodes and shows the curve and the floor"
   CHECK_THROWS_WITH(writeFitPlot(c, dir.path / "no-such-dir" / "fit.png"), Catch::Contains("no-such-dir/fit.png"));
   CHECK_FALSE(fs::exists(dir.path / "no-such-dir"));
   CHECK_THROWS_WITH(writeCalibration(c, dir.path / "no-such-dir" / "c.json"), Catch::Contains("no-such-dir/c.json"));
+}
+
+TEST_CASE("a calibration the readers would refuse is never written, and an edited one is no longer rodfab's", "[calibration][file]") {
+  TempDir dir;
+  const Calibration good = fitText(replicatedCsv(truthLogPower), Model::LogPower);
+  // A quality figure that is not a number (a fit of denormal fractions gave one) is written as null,
+  // which slice refuses: writeCalibration refuses it first, naming the file and the field.
+  FitRecord record = good.record();
+  record.quality.rmsLn = std::numeric_limits<double>::quiet_NaN();
+  const Calibration nan(good.parameters(), good.floorMpa(), record);
+  CHECK_THROWS_WITH(writeCalibration(nan, dir.path / "nan.json"),
+                    Catch::Contains("nan.json (not written)") && Catch::Contains("quality.rms_ln"));
+  CHECK_FALSE(fs::exists(dir.path / "nan.json"));
+  // A file rodfab wrote, then edited by hand, is not replaced by calibrate any more.
+  writeCalibration(good, dir.path / "c.json");
+  REQUIRE(isCalibrationFile(dir.path / "c.json"));
+  std::ifstream in(dir.path / "c.json");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  text.replace(text.find("\"temperature_c\""), 1, " \"");
+  std::ofstream(dir.path / "edited.json") << text;
+  CHECK_NOTHROW(readCalibration(dir.path / "edited.json"));  // still a calibration
+  CHECK_FALSE(isCalibrationFile(dir.path / "edited.json"));
 }
