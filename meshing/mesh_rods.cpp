@@ -119,6 +119,16 @@ double largestSurfaceDistance(const geometry::NurbsCurve& curve, const SurfacePr
   return largest;
 }
 
+// interpolateCubic through the rod's samples; a failure is the mesh's, named with the rod's faces.
+geometry::NurbsCurve interpolateCurve(const std::vector<Vec3>& points, const DualEdge& e, const std::filesystem::path& file) {
+  try {
+    return interpolateCubic(points);
+  } catch (const std::invalid_argument& error) {
+    throw MeshError(file, "the rod between the faces " + std::to_string(e.f) + " and " + std::to_string(e.g) +
+                              " of the simplified mesh cannot be fitted (" + error.what() + "): ask for other --faces");
+  }
+}
+
 struct FittedRod {
   geometry::NurbsCurve curve;
   double distance = 0;
@@ -135,7 +145,7 @@ FittedRod fitRod(const TriangleMesh& simplified, const SurfaceProjector& surface
     if (points.size() < 4)
       throw MeshError(file, "the surface folds onto itself between the faces " + std::to_string(e.f) + " and " +
                                 std::to_string(e.g) + " of the simplified mesh: ask for more --faces");
-    geometry::NurbsCurve curve = interpolateCubic(points);
+    geometry::NurbsCurve curve = interpolateCurve(points, e, file);
     const double distance = largestSurfaceDistance(curve, surface);
     if (factor == 1 || distance < best.distance) best = {std::move(curve), distance, factor > 1};
     if (best.distance <= options.surfaceTolerance) break;
