@@ -2,6 +2,7 @@
 // Built as the CAD module (librodfab_cad), loaded by rodsFromCad (cad_module.cpp) when first needed.
 #include "common/interrupt.hpp"
 #include "common/memory_budget.hpp"
+#include "meshing/cad_checks.hpp"
 #include "meshing/cad_module.hpp"
 
 #include <BRep_Tool.hxx>
@@ -42,7 +43,13 @@ std::mutex& readerMutex() {
   return m;
 }
 
-TopoDS_Shape readShape(const std::filesystem::path& file) {
+bool isStep(const std::filesystem::path& file) {
+  const std::string ext = lowerExtension(file);
+  return ext == ".step" || ext == ".stp";
+}
+
+// The file's format, size and memory, before any reader sees it.
+void checkCadFile(const std::filesystem::path& file) {
   const std::string ext = lowerExtension(file);
   std::error_code ec;
   if (ext != ".step" && ext != ".stp" && ext != ".iges" && ext != ".igs")
@@ -55,16 +62,21 @@ TopoDS_Shape readShape(const std::filesystem::path& file) {
   // an estimate, not a measurement (see meshing/README.md, what remains).
   common::requireMemory(std::uint64_t(size) * 40, {.what = "reading the CAD model " + file.string(),
                                                   .remedy = "split the model"});
-  std::lock_guard<std::mutex> lock(readerMutex());
-  Message::DefaultMessenger()->RemovePrinters(STANDARD_TYPE(Message_Printer));
-  const bool step = ext == ".step" || ext == ".stp";
-  STEPControl_Reader stepReader;
-  IGESControl_Reader igesReader;
-  XSControl_Reader& reader = step ? static_cast<XSControl_Reader&>(stepReader) : static_cast<XSControl_Reader&>(igesReader);
-  const std::string format = step ? "STEP" : "IGES";
+}
+
+// Loads the file, checks what OpenCASCADE would trip over (cad_checks.hpp), then transfers it.
+TopoDS_Shape readShape(XSControl_Reader& reader, const std::filesystem::path& file) {
+  const std::string format = isStep(file) ? "STEP" : "IGES";
+  if (isStep(file)) detail::prescanStepText(file);
+  else detail::prescanIgesText(file);
   if (reader.ReadFile(file.c_str()) != IFSelect_RetDone) throw MeshError(file, "not a readable " + format + " file");
   if (reader.NbRootsForTransfer() == 0) throw MeshError(file, "not a readable " + format + " file: it holds no model");
-  reader.TransferRoots();
+  detail::checkLoadedModel(reader, file);
+  try {
+    reader.TransferRoots();
+  } catch (const Standard_Failure& e) {
+    throw MeshError(file, "cannot convert the " + format + " model to shapes: " + e.GetMessageString());
+  }
   return reader.OneShape();
 }
 
@@ -146,7 +158,13 @@ Vec3 normalFor(const geometry::NurbsCurve& c) {
 
 CadRods readCadRods(const std::filesystem::path& file, const CadRodOptions& options) {
   if (!(options.jointTolerance > 0) || !(options.modulusMpa > 0)) throw std::invalid_argument("rodsFromCad: options out of range");
-  const TopoDS_Shape shape = readShape(file);
+  checkCadFile(file);
+  std::lock_guard<std::mutex> lock(readerMutex());
+  Message::DefaultMessenger()->RemovePrinters(STANDARD_TYPE(Message_Printer));
+  STEPControl_Reader stepReader;
+  IGESControl_Reader igesReader;
+  XSControl_Reader& reader = isStep(file) ? static_cast<XSControl_Reader&>(stepReader) : static_cast<XSControl_Reader&>(igesReader);
+  const TopoDS_Shape shape = readShape(reader, file);
   TopTools_IndexedMapOfShape edges;
   if (!shape.IsNull()) TopExp::MapShapes(shape, TopAbs_EDGE, edges);
   CadRods out;
