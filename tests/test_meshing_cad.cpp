@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <cstring>
 #include <map>
 #include <unistd.h>
 
@@ -156,12 +157,20 @@ std::string splineData(const std::string& points = "(#18,#19,#20,#21,#22,#23)", 
          "#24 = CARTESIAN_POINT('',(0.,0.,0.));\n#25 = CARTESIAN_POINT('',(45.,3.,0.));\n";
 }
 
+// A circle of `radius` about #19, trimmed to its full turn.
+std::string circleData(const std::string& radius) {
+  return "#15 = GEOMETRIC_CURVE_SET('',(#16));\n"
+         "#16 = TRIMMED_CURVE('',#17,(PARAMETER_VALUE(0.)),(PARAMETER_VALUE(6.28318530718)),.T.,.PARAMETER.);\n"
+         "#17 = CIRCLE('',#18," + radius + ");\n#18 = AXIS2_PLACEMENT_3D('',#19,#13,#14);\n"
+         "#19 = CARTESIAN_POINT('',(3.,-2.,7.));\n";
+}
+
 // The message of the MeshError that reading `text` as `name` gives (checked to start with the file).
-std::string cadError(const std::string& name, const std::string& text) {
+std::string cadError(const std::string& name, const std::string& text, const meshing::CadRodOptions& options = {}) {
   const fs::path file = scratch(name);
   std::ofstream(file, std::ios::binary) << text;
   try {
-    meshing::rodsFromCad(file, {});
+    meshing::rodsFromCad(file, options);
   } catch (const meshing::MeshError& e) {
     CHECK(std::string(e.what()).rfind(file.string() + ": ", 0) == 0);
     return e.what();
@@ -242,4 +251,43 @@ TEST_CASE("an IGES B-spline of an impossible degree is refused before OpenCASCAD
   }
   REQUIRE(changed);
   CHECK_THAT(cadError("degree.igs", text), Catch::Contains("malformed IGES B-spline curve (type 126): degree 1000000, expected 1 to 25"));
+}
+
+TEST_CASE("rods-from-cad never builds a design that validate refuses", "[meshing][cad][hostile]") {
+  using Catch::Contains;
+  // Coordinates beyond +-1e9 mm, each named by its edge and the entity it came from.
+  CHECK_THAT(cadError("far.step", stepModel(splineData("(#18,#19,#20,#21,#22,#23)", "3", "(#16)", "1.E12"))),
+             Contains("edge 0 (entity #16 (TRIMMED_CURVE)): a control point at (1e+12, 5, 2) mm, beyond the +-1e9 mm"));
+  CHECK_THAT(cadError("line.step", stepModel("#15 = GEOMETRIC_CURVE_SET('',(#16));\n#16 = LINE('',#12,#17);\n"
+                                             "#17 = VECTOR('',#13,1.);\n")),
+             Contains("edge 0 (entity #16 (LINE)): a control point at (0, 0, -2e+100) mm"));
+  const std::string huge = cadError("circle.step", stepModel(circleData("1.E300")));
+  CHECK_THAT(huge, Contains("beyond the +-1e9 mm"));
+  CHECK(huge.size() < 300);  // numbers in a short format, not 300 digits
+  CHECK_THAT(cadError("unit.step", stepModel(splineData(), "( CONVERSION_BASED_UNIT('BIG',#40) LENGTH_UNIT() NAMED_UNIT(#41) );\n"
+                                             "#40 = LENGTH_MEASURE_WITH_UNIT(LENGTH_MEASURE(1.E300),#42);\n"
+                                             "#41 = DIMENSIONAL_EXPONENTS(1.,0.,0.,0.,0.,0.,0.);\n"
+                                             "#42 = ( LENGTH_UNIT() NAMED_UNIT(*) SI_UNIT(.MILLI.,.METRE.) )")),
+             Contains("beyond the +-1e9 mm"));
+  // Zero-length centerlines, found by the design file's own checks.
+  const std::string zero = "degenerate centerline: its length is zero";
+  CHECK_THAT(cadError("r0.step", stepModel(circleData("0."))), Contains("edge 0 (entity #16 (TRIMMED_CURVE)): " + zero));
+  // Checked before the rod's frame is built on it (a zero tangent has no normal).
+  meshing::CadRodOptions ellipse;
+  ellipse.section = geometry::Section::ellipse(1, 2);
+  CHECK_THAT(cadError("r0e.step", stepModel(circleData("0.")), ellipse), Contains("edge 0 (entity #16 (TRIMMED_CURVE)): " + zero));
+  // A line 0.0005 mm long: both its ends merge onto one point (joint tolerance 0.001 mm).
+  CHECK_THAT(cadError("short.step", stepModel("#15 = GEOMETRIC_CURVE_SET('',(#16));\n"
+                                              "#16 = TRIMMED_CURVE('',#17,(PARAMETER_VALUE(0.)),(PARAMETER_VALUE(0.0005)),.T.,.PARAMETER.);\n"
+                                              "#17 = LINE('',#12,#18);\n#18 = VECTOR('',#14,1.);\n")),
+             Contains("edge 0 (entity #16 (TRIMMED_CURVE)): " + zero));
+  std::string same = splineData();
+  for (const char* p : {"0.,0.,0.", "10.,5.,2.", "20.,-5.,6.", "30.,8.,1.", "38.,0.,-4.", "45.,3.,0."})
+    for (std::size_t at; (at = same.find(p)) != std::string::npos;) same.replace(at, std::strlen(p), "1.,1.,1.");
+  CHECK_THAT(cadError("same.step", stepModel(same)), Contains(zero));
+  CHECK_THAT(cadError("unit0.step", stepModel(splineData(), "( CONVERSION_BASED_UNIT('ZERO',#40) LENGTH_UNIT() NAMED_UNIT(#41) );\n"
+                                              "#40 = LENGTH_MEASURE_WITH_UNIT(LENGTH_MEASURE(0.),#42);\n"
+                                              "#41 = DIMENSIONAL_EXPONENTS(1.,0.,0.,0.,0.,0.,0.);\n"
+                                              "#42 = ( LENGTH_UNIT() NAMED_UNIT(*) SI_UNIT(.MILLI.,.METRE.) )")),
+             Contains(zero));
 }
