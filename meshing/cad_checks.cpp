@@ -165,7 +165,8 @@ std::string stepCurveProblem(const Handle(StepGeom_BSplineCurve)& c) {
   if (points.IsNull()) return "no control points";
   for (int i = points->Lower(); i <= points->Upper(); ++i)
     if (points->Value(i).IsNull()) return "control point " + std::to_string(i) + " missing";
-  if (auto k = Handle(StepGeom_BSplineCurveWithKnots)::DownCast(c); !k.IsNull() && (k->Knots().IsNull() || k->KnotMultiplicities().IsNull()))
+  if (auto k = Handle(StepGeom_BSplineCurveWithKnots)::DownCast(c);
+      !k.IsNull() && (k->Knots().IsNull() || k->KnotMultiplicities().IsNull()))
     return "no knots";
   if (auto r = Handle(StepGeom_BSplineCurveWithKnotsAndRationalBSplineCurve)::DownCast(c);
       !r.IsNull() && (r->BSplineCurveWithKnots().IsNull() || r->RationalBSplineCurve().IsNull()))

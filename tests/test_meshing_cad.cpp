@@ -193,7 +193,8 @@ TEST_CASE("STEP files OpenCASCADE would crash on are refused, naming the entity 
   // Failures OpenCASCADE records while loading: the transfer would follow the null handles they leave.
   CHECK_THAT(cadError("missing.step", stepModel(splineData("(#9999,#19,#20,#21,#22,#23)"))),
              Contains("malformed: entity #17 (B_SPLINE_CURVE_WITH_KNOTS)") && Contains("unresolved"));
-  CHECK_THAT(cadError("noargs.step", stepModel(splineData() + "#31 = B_SPLINE_CURVE_WITH_KNOTS();\n#32 = GEOMETRIC_CURVE_SET('',(#31));\n")),
+  CHECK_THAT(cadError("noargs.step", stepModel(splineData() + "#31 = B_SPLINE_CURVE_WITH_KNOTS();\n"
+                                                              "#32 = GEOMETRIC_CURVE_SET('',(#31));\n")),
              Contains("entity #31 (B_SPLINE_CURVE_WITH_KNOTS)") && Contains("Count of Parameters"));
   CHECK_THAT(cadError("wrongtype.step", stepModel(splineData("(#13,#19,#20,#21,#22,#23)"))),
              Contains("entity #17 (B_SPLINE_CURVE_WITH_KNOTS)") && Contains("illegal type"));
@@ -250,7 +251,8 @@ TEST_CASE("an IGES B-spline of an impossible degree is refused before OpenCASCAD
     text += line + "\n";
   }
   REQUIRE(changed);
-  CHECK_THAT(cadError("degree.igs", text), Catch::Contains("malformed IGES B-spline curve (type 126): degree 1000000, expected 1 to 25"));
+  CHECK_THAT(cadError("degree.igs", text),
+             Catch::Contains("malformed IGES B-spline curve (type 126): degree 1000000, expected 1 to 25"));
 }
 
 TEST_CASE("rods-from-cad never builds a design that validate refuses", "[meshing][cad][hostile]") {
@@ -278,7 +280,8 @@ TEST_CASE("rods-from-cad never builds a design that validate refuses", "[meshing
   CHECK_THAT(cadError("r0e.step", stepModel(circleData("0.")), ellipse), Contains("edge 0 (entity #16 (TRIMMED_CURVE)): " + zero));
   // A line 0.0005 mm long: both its ends merge onto one point (joint tolerance 0.001 mm).
   CHECK_THAT(cadError("short.step", stepModel("#15 = GEOMETRIC_CURVE_SET('',(#16));\n"
-                                              "#16 = TRIMMED_CURVE('',#17,(PARAMETER_VALUE(0.)),(PARAMETER_VALUE(0.0005)),.T.,.PARAMETER.);\n"
+                                              "#16 = TRIMMED_CURVE('',#17,(PARAMETER_VALUE(0.)),(PARAMETER_VALUE(0.0005)),"
+                                              ".T.,.PARAMETER.);\n"
                                               "#17 = LINE('',#12,#18);\n#18 = VECTOR('',#14,1.);\n")),
              Contains("edge 0 (entity #16 (TRIMMED_CURVE)): " + zero));
   std::string same = splineData();
