@@ -2,6 +2,10 @@
 // Built as the CAD module (librodfab_cad), loaded by rodsFromCad (cad_module.cpp) when first needed.
 #include "common/interrupt.hpp"
 #include "common/memory_budget.hpp"
+#include "geometry/design_file.hpp"
+#include "geometry/design_reader.hpp"
+#include "geometry/design_writer.hpp"
+#include "meshing/cad_checks.hpp"
 #include "meshing/cad_module.hpp"
 
 #include <BRep_Tool.hxx>
@@ -18,8 +22,14 @@
 #include <TopTools_IndexedMapOfShape.hxx>
 #include <TopoDS.hxx>
 #include <TopoDS_Edge.hxx>
+#include <XSControl_TransferReader.hxx>
+#include <XSControl_WorkSession.hxx>
+
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <mutex>
 #include <numeric>
 
@@ -42,7 +52,13 @@ std::mutex& readerMutex() {
   return m;
 }
 
-TopoDS_Shape readShape(const std::filesystem::path& file) {
+bool isStep(const std::filesystem::path& file) {
+  const std::string ext = lowerExtension(file);
+  return ext == ".step" || ext == ".stp";
+}
+
+// The file's format, size and memory, before any reader sees it.
+void checkCadFile(const std::filesystem::path& file) {
   const std::string ext = lowerExtension(file);
   std::error_code ec;
   if (ext != ".step" && ext != ".stp" && ext != ".iges" && ext != ".igs")
@@ -55,23 +71,53 @@ TopoDS_Shape readShape(const std::filesystem::path& file) {
   // an estimate, not a measurement (see meshing/README.md, what remains).
   common::requireMemory(std::uint64_t(size) * 40, {.what = "reading the CAD model " + file.string(),
                                                   .remedy = "split the model"});
-  std::lock_guard<std::mutex> lock(readerMutex());
-  Message::DefaultMessenger()->RemovePrinters(STANDARD_TYPE(Message_Printer));
-  const bool step = ext == ".step" || ext == ".stp";
-  STEPControl_Reader stepReader;
-  IGESControl_Reader igesReader;
-  XSControl_Reader& reader = step ? static_cast<XSControl_Reader&>(stepReader) : static_cast<XSControl_Reader&>(igesReader);
-  const std::string format = step ? "STEP" : "IGES";
+}
+
+// Loads the file, checks what OpenCASCADE would trip over (cad_checks.hpp), then transfers it.
+TopoDS_Shape readShape(XSControl_Reader& reader, const std::filesystem::path& file) {
+  const std::string format = isStep(file) ? "STEP" : "IGES";
+  if (isStep(file)) detail::prescanStepText(file);
+  else detail::prescanIgesText(file);
   if (reader.ReadFile(file.c_str()) != IFSelect_RetDone) throw MeshError(file, "not a readable " + format + " file");
   if (reader.NbRootsForTransfer() == 0) throw MeshError(file, "not a readable " + format + " file: it holds no model");
-  reader.TransferRoots();
+  detail::checkLoadedModel(reader, file);
+  try {
+    reader.TransferRoots();
+  } catch (const Standard_Failure& e) {
+    throw MeshError(file, "cannot convert the " + format + " model to shapes: " + e.GetMessageString());
+  }
   return reader.OneShape();
 }
 
-geometry::NurbsCurve toNurbs(const Geom_BSplineCurve& bs, const std::filesystem::path& file, int edge) {
+// "edge 3", with the entity it came from when the transfer recorded one.
+std::string edgeName(const XSControl_Reader& reader, const TopoDS_Shape& edge, int index) {
+  std::string name = "edge " + std::to_string(index);
+  const Handle(XSControl_TransferReader) transfer = reader.WS()->TransferReader();
+  if (transfer.IsNull()) return name;
+  Handle(Standard_Transient) entity = transfer->EntityFromShapeResult(edge, 1);
+  if (entity.IsNull()) entity = transfer->EntityFromShapeResult(edge, 3);
+  return entity.IsNull() ? name : name + " (entity " + detail::entityName(reader.Model(), entity) + ")";
+}
+
+// An edge of the transferred shape, named in messages only when one is needed (finding its entity
+// searches the transfer's records).
+struct EdgeRef {
+  const XSControl_Reader& reader;
+  const TopoDS_Shape& edge;
+  int index;
+  std::string name() const { return edgeName(reader, edge, index); }
+};
+
+std::string formatPoint(const gp_Pnt& p) {
+  char text[96];
+  std::snprintf(text, sizeof text, "(%.6g, %.6g, %.6g)", p.X(), p.Y(), p.Z());
+  return text;
+}
+
+geometry::NurbsCurve toNurbs(const Geom_BSplineCurve& bs, const std::filesystem::path& file, const EdgeRef& edge) {
   if (bs.Degree() > geometry::kMaxDegree)
-    throw MeshError(file, "edge " + std::to_string(edge) + ": a curve of degree " + std::to_string(bs.Degree()) +
-                              ", above the " + std::to_string(geometry::kMaxDegree) + " rodfab supports");
+    throw MeshError(file, edge.name() + ": a curve of degree " + std::to_string(bs.Degree()) + ", above the " +
+                              std::to_string(geometry::kMaxDegree) + " rodfab supports");
   std::vector<double> knots;
   TColStd_Array1OfReal flat(1, bs.NbPoles() + bs.Degree() + 1);
   bs.KnotSequence(flat);
@@ -80,6 +126,11 @@ geometry::NurbsCurve toNurbs(const Geom_BSplineCurve& bs, const std::filesystem:
   std::vector<double> weights;
   for (int i = 1; i <= bs.NbPoles(); ++i) {
     const gp_Pnt p = bs.Pole(i);
+    // Checked here, not only with the whole design: an untrimmed line of a hostile file is one of
+    // thousands, and the first one found ends the work.
+    if (!(p.XYZ().Modulus() <= geometry::kMaxCoordinateMm))
+      throw MeshError(file, edge.name() + ": a control point at " + formatPoint(p) + " mm, beyond the +-1e9 mm a design allows " +
+                                "(an unbounded curve, or a wrong unit?)");
     points.emplace_back(p.X(), p.Y(), p.Z());
     weights.push_back(bs.Weight(i));
   }
@@ -89,7 +140,8 @@ geometry::NurbsCurve toNurbs(const Geom_BSplineCurve& bs, const std::filesystem:
 
 // The edge's curve over its range as a clamped, non-periodic B-spline; nullopt for an edge without a
 // 3D curve (a degenerate seam).
-std::optional<geometry::NurbsCurve> edgeCurve(const TopoDS_Edge& edge, const std::filesystem::path& file, int index) {
+std::optional<geometry::NurbsCurve> edgeCurve(const std::filesystem::path& file, const EdgeRef& ref) {
+  const TopoDS_Edge& edge = TopoDS::Edge(ref.edge);
   if (BRep_Tool::Degenerated(edge)) return std::nullopt;
   double first = 0, last = 0;
   const Handle(Geom_Curve) curve = BRep_Tool::Curve(edge, first, last);
@@ -97,9 +149,37 @@ std::optional<geometry::NurbsCurve> edgeCurve(const TopoDS_Edge& edge, const std
   try {
     Handle(Geom_BSplineCurve) bs = GeomConvert::CurveToBSplineCurve(new Geom_TrimmedCurve(curve, first, last));
     if (bs->IsPeriodic()) bs->SetNotPeriodic();
-    return toNurbs(*bs, file, index);
+    return toNurbs(*bs, file, ref);
   } catch (const Standard_Failure& e) {
-    throw MeshError(file, "edge " + std::to_string(index) + ": cannot convert its curve to a B-spline: " + e.GetMessageString());
+    throw MeshError(file, ref.name() + ": cannot convert its curve to a B-spline: " + e.GetMessageString());
+  }
+}
+
+// The centerline as the design reader checks it (a zero length from a circle of radius 0, coincident
+// points or a unit factor of 0; a length beyond double precision), before a rod and its frame are
+// built on it.
+void requireValidCenterline(const geometry::NurbsCurve& curve, const std::filesystem::path& file, const EdgeRef& edge) {
+  geometry::DesignReader reader;
+  reader.centerline(nlohmann::json(geometry::nurbsJson(curve)), "centerline");
+  if (!reader.issues.empty()) throw MeshError(file, edge.name() + ": " + reader.issues.front().message);
+}
+
+// The design as `rodfab validate` reads it (the same parser on the same JSON writeDesign writes), so
+// rods-from-cad never writes a design that validate refuses. The first problem names its edge.
+void requireValidDesign(const geometry::RodStructure& structure, const std::filesystem::path& file,
+                        const std::vector<EdgeRef>& edgeOfRod) {
+  try {
+    geometry::parseDesign(geometry::designToJson(structure).dump(), file.string());
+  } catch (const geometry::DesignError& e) {
+    const geometry::DesignIssue& issue = e.issues().front();
+    std::string where = issue.path;
+    if (issue.path.starts_with("rods[")) {
+      const std::size_t rod = std::strtoull(issue.path.c_str() + 5, nullptr, 10);
+      if (rod < edgeOfRod.size()) where = edgeOfRod[rod].name() + ", as " + issue.path;
+    }
+    const std::size_t more = e.issues().size() - 1;
+    throw MeshError(file, where + ": " + issue.message + (more ? " (and " + std::to_string(more) + " more problems)" : "") +
+                              "; the design would not be valid");
   }
 }
 
@@ -146,28 +226,43 @@ Vec3 normalFor(const geometry::NurbsCurve& c) {
 
 CadRods readCadRods(const std::filesystem::path& file, const CadRodOptions& options) {
   if (!(options.jointTolerance > 0) || !(options.modulusMpa > 0)) throw std::invalid_argument("rodsFromCad: options out of range");
-  const TopoDS_Shape shape = readShape(file);
+  checkCadFile(file);
+  std::lock_guard<std::mutex> lock(readerMutex());
+  Message::DefaultMessenger()->RemovePrinters(STANDARD_TYPE(Message_Printer));
+  STEPControl_Reader stepReader;
+  IGESControl_Reader igesReader;
+  XSControl_Reader& reader = isStep(file) ? static_cast<XSControl_Reader&>(stepReader) : static_cast<XSControl_Reader&>(igesReader);
+  const TopoDS_Shape shape = readShape(reader, file);
   TopTools_IndexedMapOfShape edges;
   if (!shape.IsNull()) TopExp::MapShapes(shape, TopAbs_EDGE, edges);
   CadRods out;
   out.report.edges = static_cast<std::size_t>(edges.Extent());
   std::vector<geometry::NurbsCurve> curves;
+  std::vector<EdgeRef> edgeOfRod;
   for (int i = 1; i <= edges.Extent(); ++i) {
     common::throwIfInterrupted();
-    if (auto c = edgeCurve(TopoDS::Edge(edges(i)), file, i - 1)) curves.push_back(std::move(*c));
+    const EdgeRef ref{reader, edges(i), i - 1};
+    if (auto c = edgeCurve(file, ref)) curves.push_back(std::move(*c)), edgeOfRod.push_back(ref);
     else ++out.report.skippedDegenerate;
   }
   if (curves.empty()) throw MeshError(file, "the model holds no edge curve");
   out.report.largestEndMove = mergeEnds(curves, options.jointTolerance, out.report.joints);
   for (std::size_t r = 0; r < curves.size(); ++r) {
     const geometry::NurbsCurve& c = curves[r];
+    // After mergeEnds: an edge shorter than the joint tolerance has both ends on one point now.
+    requireValidCenterline(c, file, edgeOfRod[r]);
     std::optional<Vec3> normal;
     if (!options.section.isRotationallySymmetric()) normal = normalFor(c);
-    out.structure.rods.emplace_back("edge-" + std::to_string(r), c, options.section, normal, std::nullopt, options.caps,
-                                    geometry::BSplineField::constant(options.modulusMpa, c.domainBegin(), c.domainEnd()));
+    try {
+      out.structure.rods.emplace_back("edge-" + std::to_string(r), c, options.section, normal, std::nullopt, options.caps,
+                                      geometry::BSplineField::constant(options.modulusMpa, c.domainBegin(), c.domainEnd()));
+    } catch (const std::invalid_argument& e) {  // e.g. a centerline too intricate to sample
+      throw MeshError(file, edgeOfRod[r].name() + ": " + e.what());
+    }
   }
   out.structure.source = file.string();
   out.report.rods = out.structure.rods.size();
+  requireValidDesign(out.structure, file, edgeOfRod);
   return out;
 }
 

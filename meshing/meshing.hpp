@@ -125,7 +125,10 @@ struct CadRods {
 // Reads a STEP (.step, .stp) or IGES (.iges, .igs) file with OpenCASCADE and turns every edge curve of
 // the model into a rod with its exact NURBS (lines, circles, conics and offset curves converted to
 // B-splines; degree <= geometry::kMaxDegree), trimmed to the edge's parameter range. Throws MeshError
-// when the file cannot be read, holds no edge curve, or a curve needs a degree above kMaxDegree.
+// when the file cannot be read, is malformed (meshing/README.md: what is checked before OpenCASCADE
+// reads and transfers it), holds no edge curve, a curve needs a degree above kMaxDegree, or a rod
+// would not pass the design file's checks (coordinates beyond +-1e9 mm, zero length): the structure
+// returned is always one `rodfab validate` accepts.
 CadRods rodsFromCad(const std::filesystem::path& cadFile, const CadRodOptions& options);
 
 }  // namespace rodfab::meshing

@@ -54,5 +54,14 @@ for bad in "--diameter 0" "--joint-tolerance 0" "--section star" "--modulus 0"; 
   "$rodfab" rods-from-cad "$tmp/box.step" -o "$tmp/x.json" --diameter 1 $bad > "$tmp/out" 2>&1; rc=$?
   [ $rc -eq 2 ] || fail "$bad: exit $rc: $(cat "$tmp/out")"
 done
+# Hostile input: an entity id OpenCASCADE's parser would overflow on; a box moved beyond +-1e9 mm,
+# which validate would refuse (tests/test_meshing_cad.cpp has the other cases).
+printf "ISO-10303-21;\nHEADER;\nENDSEC;\nDATA;\n#99999999999999999999=CARTESIAN_POINT('',(0.,0.,0.));\nENDSEC;\nEND-ISO-10303-21;\n" > "$tmp/id.step"
+"$rodfab" rods-from-cad "$tmp/id.step" --diameter 1 -o "$tmp/x.json" > "$tmp/out" 2>&1; rc=$?
+[ $rc -eq 1 ] && grep -q "id.step: line 5: an entity id above 999999999" "$tmp/out" || fail "huge id: exit $rc: $(cat "$tmp/out")"
+sed 's/(0\.,0\.,0\.)/(1.E12,0.,0.)/g' "$tmp/box.step" > "$tmp/far.step"
+"$rodfab" rods-from-cad "$tmp/far.step" --diameter 1 -o "$tmp/x.json" > "$tmp/out" 2>&1; rc=$?
+[ $rc -eq 1 ] && grep -q "far.step: edge 0: a control point at (2e+12, 0, 0) mm, beyond the +-1e9 mm" "$tmp/out" ||
+  fail "far box: exit $rc: $(cat "$tmp/out")"
 [ -e "$tmp/x.json" ] && fail "wrote after an error"
 echo "rods_from_cad: ok"

@@ -1,0 +1,326 @@
+// The CAD module's input checks (cad_checks.hpp): the STEP text before OpenCASCADE parses it, the loaded
+// entity graph before OpenCASCADE transfers it.
+#include "meshing/cad_checks.hpp"
+
+#include "common/interrupt.hpp"
+
+#include <Geom_BSplineCurve.hxx>
+#include <Geom_BSplineSurface.hxx>
+#include <IGESGeom_BSplineCurve.hxx>
+#include <IGESGeom_BSplineSurface.hxx>
+#include <Interface_Check.hxx>
+#include <Interface_CheckIterator.hxx>
+#include <Interface_EntityIterator.hxx>
+#include <Interface_Graph.hxx>
+#include <Interface_InterfaceModel.hxx>
+#include <StepGeom_BSplineCurve.hxx>
+#include <StepGeom_BSplineCurveWithKnots.hxx>
+#include <StepGeom_BSplineCurveWithKnotsAndRationalBSplineCurve.hxx>
+#include <StepGeom_BSplineSurface.hxx>
+#include <StepGeom_BSplineSurfaceWithKnots.hxx>
+#include <StepGeom_BSplineSurfaceWithKnotsAndRationalBSplineSurface.hxx>
+#include <StepGeom_HArray1OfCartesianPoint.hxx>
+#include <StepGeom_HArray2OfCartesianPoint.hxx>
+#include <StepGeom_RationalBSplineCurve.hxx>
+#include <StepGeom_RationalBSplineSurface.hxx>
+#include <TCollection_HAsciiString.hxx>
+#include <XSControl_Reader.hxx>
+#include <XSControl_WorkSession.hxx>
+
+#include <algorithm>
+#include <cctype>
+#include <cstdlib>
+#include <fstream>
+#include <vector>
+
+namespace rodfab::meshing::detail {
+
+namespace {
+
+// The scanner's state between two blocks of the file.
+struct StepScan {
+  long long line = 1;
+  int depth = 0;
+  bool inString = false, inComment = false;
+  char previous = 0;
+  bool inId = false;  // after '#', reading digits
+  long long id = 0;
+  long long commas[kMaxStepNesting + 1] = {};  // in the open list at each depth
+  double squares = 0;                          // sum of the closed lists' lengths squared
+};
+
+void scanChar(StepScan& s, char c, const std::filesystem::path& file) {
+  if (c == '\n') ++s.line;
+  if (s.inId) {
+    if (c >= '0' && c <= '9') {
+      s.id = s.id * 10 + (c - '0');
+      if (s.id > kMaxStepEntityId)
+        throw MeshError(file, "line " + std::to_string(s.line) + ": an entity id above " +
+                                  std::to_string(kMaxStepEntityId) + " (OpenCASCADE reads ids as 32-bit integers)");
+      return;
+    }
+    s.inId = false;
+  }
+  if (s.inComment) {
+    if (s.previous == '*' && c == '/') s.inComment = false, c = 0;  // "*/*" must not reopen
+  } else if (s.inString) {
+    s.inString = c != '\'';  // a doubled '' leaves and re-enters: the same for counting
+  } else if (c == '\'') {
+    s.inString = true;
+  } else if (s.previous == '/' && c == '*') {
+    s.inComment = true, c = 0;
+  } else if (c == '#') {
+    s.inId = true, s.id = 0;
+  } else if (c == '(') {
+    if (++s.depth > kMaxStepNesting)
+      throw MeshError(file, "line " + std::to_string(s.line) + ": lists nested deeper than " +
+                                std::to_string(kMaxStepNesting) + " levels");
+    s.commas[s.depth] = 0;
+  } else if (c == ',' && s.depth > 0 && ++s.commas[s.depth] >= kMaxStepListLength) {
+    throw MeshError(file, "line " + std::to_string(s.line) + ": a list of more than " + std::to_string(kMaxStepListLength) +
+                              " elements (OpenCASCADE's parser takes time growing with the square of a list's length)");
+  } else if (c == ')' && s.depth > 0) {
+    const double length = double(s.commas[s.depth--]) + 1;
+    if ((s.squares += length * length) > kMaxStepListSquares)
+      throw MeshError(file, "line " + std::to_string(s.line) + ": too many long lists for OpenCASCADE's parser (its time grows "
+                                "with the square of each list's length)");
+  }
+  s.previous = c;
+}
+
+std::string checkText(const Handle(Interface_Check)& check) {
+  std::string text;
+  for (int i = 1; i <= check->NbFails() && i <= 3; ++i) text += (i > 1 ? "; " : "") + std::string(check->CFail(i));
+  if (check->NbFails() > 3) text += "; and " + std::to_string(check->NbFails() - 3) + " more";
+  return text;
+}
+
+// Every failure OpenCASCADE recorded while loading the file (its syntactic check list): references to
+// absent entities, parameters of the wrong type or count. The transfer would dereference what they left null.
+void refuseLoadFailures(const XSControl_Reader& reader, const std::filesystem::path& file) {
+  const Handle(Interface_InterfaceModel) model = reader.Model();
+  const Interface_CheckIterator checks = reader.WS()->ModelCheckList(Standard_False);
+  int failed = 0;
+  std::string first;
+  for (checks.Start(); checks.More(); checks.Next()) {
+    const Handle(Interface_Check)& check = checks.Value();
+    if (check.IsNull() || !check->HasFailed()) continue;
+    if (failed++ == 0) {
+      const int n = checks.Number();
+      const std::string where = n > 0 && n <= model->NbEntities() ? "entity " + entityName(model, model->Value(n)) : "the file";
+      first = where + ": " + checkText(check);
+    }
+  }
+  if (failed > 0)
+    throw MeshError(file, "malformed: " + first +
+                              (failed > 1 ? " (and " + std::to_string(failed - 1) + " more entities with errors)" : ""));
+}
+
+// Entities that refer to themselves, directly or through others: OpenCASCADE's transfer follows
+// references recursively and never returns. Depth-first search with an explicit stack (a hostile
+// chain of references is as deep as the file is long).
+void refuseReferenceCycles(const XSControl_Reader& reader, const std::filesystem::path& file) {
+  const Handle(Interface_InterfaceModel) model = reader.Model();
+  const Interface_Graph& graph = reader.WS()->Graph();
+  const int n = model->NbEntities();
+  enum : char { kNew, kOpen, kDone };
+  std::vector<char> state(std::size_t(n) + 1, kNew);
+  std::vector<std::pair<int, Interface_EntityIterator>> stack;
+  for (int root = 1; root <= n; ++root) {
+    if (state[root] != kNew) continue;
+    common::throwIfInterrupted();
+    state[root] = kOpen;
+    stack.emplace_back(root, graph.Shareds(model->Value(root)));
+    while (!stack.empty()) {
+      Interface_EntityIterator& next = stack.back().second;
+      if (!next.More()) {
+        state[stack.back().first] = kDone;
+        stack.pop_back();
+        continue;
+      }
+      const int m = model->Number(next.Value());
+      next.Next();
+      if (m <= 0 || state[m] == kDone) continue;
+      if (state[m] == kOpen)
+        throw MeshError(file, "malformed: entity " + entityName(model, model->Value(m)) +
+                                  " refers to itself (directly or through other entities)");
+      state[m] = kOpen;
+      stack.emplace_back(m, graph.Shareds(model->Value(m)));
+    }
+  }
+}
+
+// What Geom_BSplineCurve/Surface accept (1 <= degree <= MaxDegree(), at least degree + 1 poles):
+// OpenCASCADE's converters index arrays by these numbers before its constructors check them.
+std::string splineProblem(int degree, int poles, int maxDegree) {
+  if (degree < 1 || degree > maxDegree)
+    return "degree " + std::to_string(degree) + ", expected 1 to " + std::to_string(maxDegree);
+  if (poles < degree + 1)
+    return std::to_string(poles) + " control points, expected at least degree + 1 = " + std::to_string(degree + 1);
+  return {};
+}
+
+std::string stepCurveProblem(const Handle(StepGeom_BSplineCurve)& c) {
+  const Handle(StepGeom_HArray1OfCartesianPoint) points = c->ControlPointsList();
+  if (points.IsNull()) return "no control points";
+  for (int i = points->Lower(); i <= points->Upper(); ++i)
+    if (points->Value(i).IsNull()) return "control point " + std::to_string(i) + " missing";
+  if (auto k = Handle(StepGeom_BSplineCurveWithKnots)::DownCast(c);
+      !k.IsNull() && (k->Knots().IsNull() || k->KnotMultiplicities().IsNull()))
+    return "no knots";
+  if (auto r = Handle(StepGeom_BSplineCurveWithKnotsAndRationalBSplineCurve)::DownCast(c);
+      !r.IsNull() && (r->BSplineCurveWithKnots().IsNull() || r->RationalBSplineCurve().IsNull()))
+    return "an incomplete rational B-spline";
+  return splineProblem(c->Degree(), points->Length(), Geom_BSplineCurve::MaxDegree());
+}
+
+std::string stepSurfaceProblem(const Handle(StepGeom_BSplineSurface)& s) {
+  const Handle(StepGeom_HArray2OfCartesianPoint) points = s->ControlPointsList();
+  if (points.IsNull()) return "no control points";
+  for (int i = points->LowerRow(); i <= points->UpperRow(); ++i)
+    for (int j = points->LowerCol(); j <= points->UpperCol(); ++j)
+      if (points->Value(i, j).IsNull()) return "control point (" + std::to_string(i) + ", " + std::to_string(j) + ") missing";
+  if (auto k = Handle(StepGeom_BSplineSurfaceWithKnots)::DownCast(s);
+      !k.IsNull() && (k->UKnots().IsNull() || k->VKnots().IsNull() || k->UMultiplicities().IsNull() || k->VMultiplicities().IsNull()))
+    return "no knots";
+  if (auto r = Handle(StepGeom_BSplineSurfaceWithKnotsAndRationalBSplineSurface)::DownCast(s);
+      !r.IsNull() && (r->BSplineSurfaceWithKnots().IsNull() || r->RationalBSplineSurface().IsNull()))
+    return "an incomplete rational B-spline";
+  const int maxDegree = Geom_BSplineSurface::MaxDegree();
+  std::string u = splineProblem(s->UDegree(), points->ColLength(), maxDegree);
+  return u.empty() ? splineProblem(s->VDegree(), points->RowLength(), maxDegree) : "in u: " + u;
+}
+
+// IGES keeps only the upper pole index N (poles 0..N), so the counts are checked before any array.
+std::string igesProblem(const Handle(Standard_Transient)& entity) {
+  if (auto c = Handle(IGESGeom_BSplineCurve)::DownCast(entity); !c.IsNull())
+    return splineProblem(c->Degree(), c->UpperIndex() + 1, Geom_BSplineCurve::MaxDegree());
+  if (auto s = Handle(IGESGeom_BSplineSurface)::DownCast(entity); !s.IsNull()) {
+    const int maxDegree = Geom_BSplineSurface::MaxDegree();
+    std::string u = splineProblem(s->DegreeU(), s->UpperIndexU() + 1, maxDegree);
+    return u.empty() ? splineProblem(s->DegreeV(), s->UpperIndexV() + 1, maxDegree) : "in u: " + u;
+  }
+  return {};
+}
+
+std::string splineEntityProblem(const Handle(Standard_Transient)& entity) {
+  if (auto c = Handle(StepGeom_BSplineCurve)::DownCast(entity); !c.IsNull()) return stepCurveProblem(c);
+  if (auto s = Handle(StepGeom_BSplineSurface)::DownCast(entity); !s.IsNull()) return stepSurfaceProblem(s);
+  return igesProblem(entity);
+}
+
+void refuseBadSplines(const XSControl_Reader& reader, const std::filesystem::path& file) {
+  const Handle(Interface_InterfaceModel) model = reader.Model();
+  for (int i = 1; i <= model->NbEntities(); ++i)
+    if (const std::string problem = splineEntityProblem(model->Value(i)); !problem.empty())
+      throw MeshError(file, "malformed: B-spline entity " + entityName(model, model->Value(i)) + ": " + problem);
+}
+
+// The leading integers of an IGES entity's parameter text ("126,5,3,..." gives 126, 5, 3).
+std::vector<long long> leadingIntegers(const std::string& text, char delimiter, std::size_t count) {
+  std::vector<long long> values;
+  std::size_t at = 0;
+  while (values.size() < count && at < text.size()) {
+    const std::size_t end = std::min(text.find(delimiter, at), text.size());
+    const std::string field = text.substr(at, end - at);
+    char* stop = nullptr;
+    const long long v = std::strtoll(field.c_str(), &stop, 10);
+    if (stop == field.c_str()) break;
+    values.push_back(v);
+    at = end + 1;
+  }
+  return values;
+}
+
+// An IGES B-spline's counts (type 126: upper index K, degree M; type 128: K1, K2, M1, M2) as
+// OpenCASCADE's parameter reader takes them: it sizes and fills arrays from them unchecked, so a
+// degree of a million writes far outside them while loading.
+void checkIgesSpline(const std::string& params, char delimiter, long long line, std::uintmax_t fileBytes,
+                     const std::filesystem::path& file) {
+  const std::vector<long long> v = leadingIntegers(params, delimiter, 5);
+  if (v.empty() || (v[0] != 126 && v[0] != 128)) return;
+  const bool curve = v[0] == 126;
+  const int maxDegree = curve ? Geom_BSplineCurve::MaxDegree() : Geom_BSplineSurface::MaxDegree();
+  const std::size_t directions = curve ? 1 : 2;
+  if (v.size() < 1 + 2 * directions) return;  // too short: OpenCASCADE's reader records the failure
+  for (std::size_t d = 0; d < directions; ++d) {
+    const long long upper = v[1 + d], degree = v[1 + directions + d];
+    std::string problem;
+    if (degree < 1 || degree > maxDegree)
+      problem = "degree " + std::to_string(degree) + ", expected 1 to " + std::to_string(maxDegree);
+    else if (upper < degree || std::uintmax_t(upper) > fileBytes)
+      problem = "upper pole index " + std::to_string(upper) + ", expected at least the degree " + std::to_string(degree) +
+                " and no more than the file holds";
+    if (!problem.empty())
+      throw MeshError(file, "line " + std::to_string(line) + ": malformed IGES B-spline " + (curve ? "curve" : "surface") +
+                                " (type " + std::to_string(v[0]) + "): " + problem);
+  }
+}
+
+}  // namespace
+
+void prescanIgesText(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw MeshError(file, "cannot open");
+  std::error_code ec;
+  const std::uintmax_t bytes = std::filesystem::file_size(file, ec);
+  // Fixed 80-column records: the section letter in column 73; a parameter record holds data in columns
+  // 1-64 and its entity's directory pointer in 65-72. The global section may declare another delimiter.
+  char delimiter = ',';
+  bool firstGlobal = true;
+  std::string line, entity, params;
+  long long number = 0, entityLine = 0;
+  const auto flush = [&] {
+    if (!params.empty()) checkIgesSpline(params, delimiter, entityLine, bytes, file);
+    params.clear();
+  };
+  while (std::getline(in, line)) {
+    ++number;
+    if (number % 4096 == 0) common::throwIfInterrupted();
+    if (line.size() < 73) continue;
+    if (line[72] == 'G' && firstGlobal) {
+      firstGlobal = false;
+      if (line.compare(0, 2, "1H") == 0 && line.size() > 2) delimiter = line[2];
+    } else if (line[72] == 'P') {
+      const std::string owner = line.substr(64, 8);
+      if (owner != entity) flush(), entity = owner, entityLine = number;
+      if (params.size() < 256) params += line.substr(0, 64);  // the counts come first
+    }
+  }
+  flush();
+}
+
+void prescanStepText(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw MeshError(file, "cannot open");
+  StepScan scan;
+  std::vector<char> block(1 << 20);
+  while (in.read(block.data(), std::streamsize(block.size())) || in.gcount() > 0) {
+    common::throwIfInterrupted();
+    for (std::streamsize i = 0; i < in.gcount(); ++i) scanChar(scan, block[std::size_t(i)], file);
+  }
+}
+
+void checkLoadedModel(const XSControl_Reader& reader, const std::filesystem::path& file) {
+  refuseLoadFailures(reader, file);
+  refuseBadSplines(reader, file);
+  refuseReferenceCycles(reader, file);
+}
+
+std::string entityName(const Handle(Interface_InterfaceModel)& model, const Handle(Standard_Transient)& entity) {
+  const Handle(TCollection_HAsciiString) label = model->StringLabel(entity);
+  std::string name;
+  if (!label.IsNull() && label->Length() > 0 && !std::isdigit(static_cast<unsigned char>(label->Value(1)))) name = label->ToCString();
+  else name.append("#").append(std::to_string(model->Number(entity)));
+  // IGES type names come padded ("126 0   BSplineCurve   "): one space between words.
+  name.append(" (");
+  char previous = '(';
+  for (const char* c = model->TypeName(entity, Standard_False); *c; previous = *c++)
+    if (*c != ' ') {
+      if (previous == ' ' && name.back() != '(') name.push_back(' ');
+      name.push_back(*c);
+    }
+  return name.append(")");
+}
+
+}  // namespace rodfab::meshing::detail

@@ -1,0 +1,50 @@
+// Internal to the CAD module: the checks that keep a hostile STEP or IGES file from crashing or hanging
+// OpenCASCADE. Its reader and its transfer trust the entity graph they are given (a null handle in a
+// point list, a degree of a million, a curve set containing itself: each a SIGSEGV), so rodfab checks
+// the text before the reader sees it and the loaded model before the transfer follows it.
+// Each check throws MeshError naming the file and, where there is one, the line or the entity.
+#pragma once
+
+#include "meshing/meshing.hpp"
+
+#include <Standard_Handle.hxx>
+
+#include <filesystem>
+#include <string>
+
+class Interface_InterfaceModel;
+class Standard_Transient;
+class XSControl_Reader;
+
+namespace rodfab::meshing::detail {
+
+// The deepest list nesting accepted in a STEP file. Real models need a handful of levels (a B-spline
+// surface's weights are a list of lists inside an entity's parameters); OpenCASCADE's parser recurses
+// per level, so 100,000 levels overflow its stack.
+inline constexpr int kMaxStepNesting = 64;
+// The largest STEP entity id accepted: OpenCASCADE reads ids into 32-bit integers without checking.
+inline constexpr long long kMaxStepEntityId = 999'999'999;
+
+// OpenCASCADE's STEP parser appends each element of a list by walking the list from its start, so a
+// list of n elements costs n * n / 2 steps: 200,000 elements took 27 s. Accepted: lists below
+// kMaxStepListLength elements whose lengths squared sum to at most kMaxStepListSquares (about 7 s of
+// that walking on this project's machine; real models have many short lists and few long ones).
+inline constexpr long long kMaxStepListLength = 100'000;
+inline constexpr double kMaxStepListSquares = 1e10;
+
+// What OpenCASCADE's STEP parser cannot take, found by one pass over the text: lists nested deeper than
+// kMaxStepNesting, lists too long (above), and entity ids (#N) above kMaxStepEntityId, named by line.
+void prescanStepText(const std::filesystem::path& file);
+// What OpenCASCADE's IGES parser cannot take: B-spline curves and surfaces (types 126 and 128) whose
+// degree or pole count is out of range, named by line.
+void prescanIgesText(const std::filesystem::path& file);
+
+// The loaded model, before any transfer: no failure recorded while loading (unresolved references,
+// parameters of the wrong type or count), no entity that refers to itself through others, and B-spline
+// degrees and pole counts OpenCASCADE's geometry accepts.
+void checkLoadedModel(const XSControl_Reader& reader, const std::filesystem::path& file);
+
+// An entity as messages name it: "#17 (BSplineCurveWithKnots)" in STEP, "D5 (BSplineCurve)" in IGES.
+std::string entityName(const Handle(Interface_InterfaceModel)& model, const Handle(Standard_Transient)& entity);
+
+}  // namespace rodfab::meshing::detail
