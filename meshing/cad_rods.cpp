@@ -3,6 +3,7 @@
 #include "common/interrupt.hpp"
 #include "common/memory_budget.hpp"
 #include "geometry/design_file.hpp"
+#include "meshing/mesh.hpp"
 #include "geometry/design_reader.hpp"
 #include "geometry/design_writer.hpp"
 #include "meshing/cad_checks.hpp"
@@ -164,25 +165,6 @@ void requireValidCenterline(const geometry::NurbsCurve& curve, const std::filesy
   if (!reader.issues.empty()) throw MeshError(file, edge.name() + ": " + reader.issues.front().message);
 }
 
-// The design as `rodfab validate` reads it (the same parser on the same JSON writeDesign writes), so
-// rods-from-cad never writes a design that validate refuses. The first problem names its edge.
-void requireValidDesign(const geometry::RodStructure& structure, const std::filesystem::path& file,
-                        const std::vector<EdgeRef>& edgeOfRod) {
-  try {
-    geometry::parseDesign(geometry::designToJson(structure).dump(), file.string());
-  } catch (const geometry::DesignError& e) {
-    const geometry::DesignIssue& issue = e.issues().front();
-    std::string where = issue.path;
-    if (issue.path.starts_with("rods[")) {
-      const std::size_t rod = std::strtoull(issue.path.c_str() + 5, nullptr, 10);
-      if (rod < edgeOfRod.size()) where = edgeOfRod[rod].name() + ", as " + issue.path;
-    }
-    const std::size_t more = e.issues().size() - 1;
-    throw MeshError(file, where + ": " + issue.message + (more ? " (and " + std::to_string(more) + " more problems)" : "") +
-                              "; the design would not be valid");
-  }
-}
-
 // Groups curve ends closer than `tolerance` (single linkage) and moves each group onto its mean.
 double mergeEnds(std::vector<geometry::NurbsCurve>& curves, double tolerance, std::size_t& joints) {
   std::vector<Vec3> ends;
@@ -262,7 +244,7 @@ CadRods readCadRods(const std::filesystem::path& file, const CadRodOptions& opti
   }
   out.structure.source = file.string();
   out.report.rods = out.structure.rods.size();
-  requireValidDesign(out.structure, file, edgeOfRod);
+  requireValidDesign(out.structure, file, [&](std::size_t rod) { return edgeOfRod[rod].name(); });
   return out;
 }
 

@@ -7,6 +7,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -59,6 +60,12 @@ private:
   struct Tree;
   std::unique_ptr<Tree> tree_;
 };
+
+// The design as `rodfab validate` reads it (the same parser on the JSON writeDesign writes), so
+// rods-from-mesh and rods-from-cad never write a design that validate refuses. Throws MeshError naming
+// `file`, the first problem and where it is (`rodName(i)` says what rod i came from).
+void requireValidDesign(const geometry::RodStructure& structure, const std::filesystem::path& file,
+                        const std::function<std::string(std::size_t)>& rodName);
 
 // Cubic B-spline interpolating `points` (at least 4, no two consecutive equal) at chord-length
 // parameters normalized to [0, 1], knots by averaging (Piegl & Tiller, The NURBS Book, A9.1). The first

@@ -255,6 +255,7 @@ MeshRods rodsFromMesh(const std::filesystem::path& file, const MeshRodOptions& o
   clock = std::chrono::steady_clock::now();
   out.structure = buildRods(file, original, simplified, options, report);
   out.structure.source = file.string();
+  requireValidDesign(out.structure, file, [](std::size_t rod) { return "rod-" + std::to_string(rod); });
   report.rodSeconds = common::secondsSince(clock);
   return out;
 }

@@ -301,3 +301,12 @@ TEST_CASE("interpolateCubic passes through its points at chord-length parameters
   std::vector<Vec3> repeated{{0, 0, 0}, {1, 0, 0}, {1, 0, 0}, {2, 1, 0}, {3, 1, 0}};
   CHECK_THROWS_WITH(meshing::interpolateCubic(repeated), Catch::Contains("two consecutive points coincide"));
 }
+
+TEST_CASE("rods-from-mesh never returns a design validate refuses: a tetrahedron of 1e-12 mm edges is refused, named", "[meshing]") {
+  const fs::path file = scratch("speck.obj");
+  writeText(file, "v 0 0 0\nv 1e-12 0 0\nv 0 1e-12 0\nv 0 0 1e-12\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n");
+  meshing::MeshRodOptions options;
+  options.faces = 4;
+  CHECK_THROWS_WITH(meshing::rodsFromMesh(file, options), Catch::StartsWith(file.string()) && Catch::Contains("rod-") &&
+                                                              Catch::Contains("the design would not be valid"));
+}

@@ -1,0 +1,28 @@
+// requireValidDesign (mesh.hpp): what rods-from-mesh and rods-from-cad check before writing.
+#include "geometry/design_file.hpp"
+#include "meshing/mesh.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdlib>
+
+namespace rodfab::meshing {
+
+void requireValidDesign(const geometry::RodStructure& structure, const std::filesystem::path& file,
+                        const std::function<std::string(std::size_t)>& rodName) {
+  try {
+    geometry::parseDesign(geometry::designToJson(structure).dump(), file.string());
+  } catch (const geometry::DesignError& e) {
+    const geometry::DesignIssue& issue = e.issues().front();
+    std::string where = issue.path;
+    if (issue.path.starts_with("rods[")) {
+      const std::size_t rod = std::strtoull(issue.path.c_str() + 5, nullptr, 10);
+      if (rod < structure.rods.size()) where = rodName(rod) + ", as " + issue.path;
+    }
+    const std::size_t more = e.issues().size() - 1;
+    throw MeshError(file, where + ": " + issue.message + (more ? " (and " + std::to_string(more) + " more problems)" : "") +
+                              "; the design would not be valid");
+  }
+}
+
+}  // namespace rodfab::meshing
