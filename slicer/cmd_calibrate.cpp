@@ -107,7 +107,12 @@ int runCalibrate(const std::vector<std::string>& args) {
   }
   printCalibrationFit(fit);
   if (vm.count("output")) {
-    calibration::writeCalibration(fit, output);
+    try {
+      calibration::writeCalibration(fit, output);
+    } catch (const calibration::CalibrationFileError& e) {  // the fit would not read back: the data's fault
+      std::cerr << file << ": this data's fit cannot be used as a calibration: " << e.what() << "\nnothing was written\n";
+      return kFailed;
+    }
     std::printf("wrote:         %s\n", output.c_str());
   }
   if (vm.count("plot")) {

@@ -223,5 +223,5 @@ TEST_CASE("The rods reader leaves the mechanics and optimize blocks to mechanics
   REQUIRE(s.rods.size() == 1);
   CHECK(designToJson(s) == designToJson(parseDesign(validDesign().dump(), "ok.json")));
   d["gravity"] = 9.81;  // the format's other keys are still checked
-  REQUIRE_ISSUE(d, "gravity", "unknown key (expected one of: description, format, mechanics, metadata, optimize, rods, units)");
+  REQUIRE_ISSUE(d, "gravity", "unknown key (expected one of: description, format, mechanics, metadata, optimize, rods, units, written_by)");
 }
