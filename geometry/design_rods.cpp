@@ -80,7 +80,11 @@ std::optional<SplineParts<T>> splineParts(DesignReader& reader, const json& j, c
   std::optional<std::vector<T>> controls;
   if (auto c = reader.require(j, path, key, what)) {
     const std::string cp = memberPath(path, key);
-    controls = readArray<T>(reader, *c, cp, what, readControl);
+    if (c->is_array() && c->size() > kMaxSplineControls)
+      reader.fail(cp, "expected at most " + std::to_string(kMaxSplineControls) + " " + key + " in one spline, got " +
+                          std::to_string(c->size()) + "; split the rod into shorter rods");
+    else
+      controls = readArray<T>(reader, *c, cp, what, readControl);
     if (controls && !enoughControls(reader, p, controls->size(), cp, key)) controls.reset();
   }
   const std::optional<std::vector<double>> k =

@@ -39,6 +39,10 @@ inline constexpr double kMaxCoordinateMm = 1e9;
 // Tangents from below and above an interior knot farther apart than this (|t- - t+|, about the angle in
 // radians) make the knot a C0 point.
 inline constexpr double kKinkTolerance = 1e-7;
+// Most control points (or control values) one spline of a design may have; the design reader refuses
+// more. A rod is sampled, framed and integrated span by span, so the work grows with its spans: a
+// degree-7 zigzag of 16,384 spans takes ~7 s to validate, of 100,000 spans minutes.
+inline constexpr std::size_t kMaxSplineControls = 16384;
 // Most polyline samples (sampleParameters) one rod may need; the constructor throws beyond. Each costs
 // about 64 bytes plus the rasterizer's pieces over it.
 inline constexpr std::size_t kMaxSamplesPerRod = std::size_t(1) << 20;

@@ -82,6 +82,16 @@ TEST_CASE("Every kind of bad format, units and centerline is reported with its p
     d["rods"][0]["centerline"]["points"] = {{0, 0, 0}, {1, 0, 0}};
     REQUIRE_ISSUE(d, "rods[0].centerline.points", "degree 3 needs at least 4 points, got 2");
   }
+  SECTION("more control points than one spline may have: refused before any of them is read") {
+    json d = validDesign();
+    const std::size_t n = kMaxSplineControls + 1;
+    json points = json::array(), knots = json::array({0, 0, 0});
+    for (std::size_t i = 0; i < n; ++i) points.push_back({double(i), double(i % 2), 0.0});
+    for (std::size_t i = 0; i + 3 <= n; ++i) knots.push_back(double(i) / double(n - 3));
+    for (int i = 0; i < 3; ++i) knots.push_back(1.0);
+    d["rods"][0]["centerline"] = {{"degree", 3}, {"knots", knots}, {"points", points}};
+    REQUIRE_ISSUE(d, "rods[0].centerline.points", "expected at most 16384 points in one spline, got 16385");
+  }
   SECTION("decreasing knots") {
     json d = validDesign();
     d["rods"][0]["centerline"]["knots"] = {0, 0, 0, 0, 1, 1, 0.5, 1};
