@@ -76,7 +76,8 @@ struct DesignDocument {
 
 // Parses `text` (named `sourceName` in messages) and checks the format, units, description and
 // rods, recording issues in `reader`. Throws DesignError at once when the text is not JSON or not
-// an object. The top-level keys allowed are those of the whole format, the higher stages' blocks
+// an object, common::OutOfMemory (naming `sourceName`) before parsing when the document would take
+// more than the memory budget (about 24 bytes per byte of text). The top-level keys allowed are those of the whole format, the higher stages' blocks
 // included.
 DesignDocument parseDesignDocument(const std::string& text, const std::string& sourceName, DesignReader& reader);
 
