@@ -28,7 +28,7 @@ std::string mm(double v) {
 }  // namespace
 
 JobGeometry planJob(const Profile& profile, const openvdb::CoordBBox& partBounds) {
-  if (partBounds.empty()) throw std::invalid_argument("the part has no voxels: there is nothing to print");
+  if (partBounds.empty()) throw EmptyPartError("the part has no voxels: there is nothing to print");
   const openvdb::Coord dim = partBounds.dim();
   const char* axis[3] = {"x", "y", "z"};
   const std::array<double, 3> partMm = {dim.x() * profile.voxelSizeMm[0], dim.y() * profile.voxelSizeMm[1],

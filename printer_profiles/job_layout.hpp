@@ -41,10 +41,16 @@ private:
   std::array<double, 3> overhangMm_;
 };
 
+// A part without a single voxel: nothing to print.
+class EmptyPartError : public std::invalid_argument {
+public:
+  using std::invalid_argument::invalid_argument;
+};
+
 // Images cover the part's bounding box plus the profile's padding, widened to the column alignment.
 // The first column sits on a multiple of 8 in i so that each 8-voxel OpenVDB leaf row fills exactly
 // one image byte. Throws TrayFitError (naming each axis and by how many mm) when the part, or its
-// padded image, does not fit the tray; std::invalid_argument for an empty box, or images beyond the
+// padded image, does not fit the tray; EmptyPartError for an empty box; std::invalid_argument for images beyond the
 // maxima a profile file is held to (kMaxTrayVoxels, kMaxTrayFacePixels: only a profile built in code
 // can get there).
 JobGeometry planJob(const Profile& profile, const openvdb::CoordBBox& partBounds);

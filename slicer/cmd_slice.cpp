@@ -4,6 +4,7 @@
 #include "common/json_input.hpp"
 #include "common/sha256.hpp"
 #include "common/stopwatch.hpp"
+#include "printer_profiles/job_layout.hpp"
 #include "slicer/calibration_option.hpp"
 #include "slicer/command.hpp"
 #include "slicer/job_options.hpp"
@@ -61,6 +62,21 @@ slicer::SliceSettings sliceSettings(const std::string& designFile, const ChosenC
   return settings;
 }
 
+// sliceDesign, with what is wrong with the design itself (too large for the tray, too thin to have a
+// voxel) said of its file.
+slicer::SliceReport sliceDesignFile(const std::string& designFile, const geometry::RodStructure& design,
+                                    const printer_profiles::Profile& profile, const ChosenCalibration& cal,
+                                    materials::Ditherer& ditherer, const slicer::SliceSettings& settings) {
+  try {
+    return slicer::sliceDesign(design, profile, cal.calibration, ditherer, settings);
+  } catch (const printer_profiles::TrayFitError& e) {
+    throw std::runtime_error(designFile + ": " + e.what() + "; no job was written");
+  } catch (const printer_profiles::EmptyPartError& e) {
+    throw std::runtime_error(designFile + ": " + e.what() + " (no voxel centre of " + profile.name +
+                             " lies inside a rod: the rods are thinner than its voxels); no job was written");
+  }
+}
+
 // The job: every input checked before anything is written, then sliced, summarized; the exit code.
 int slice(const po::variables_map& vm, const JobCommandOptions& options) {
   const auto start = std::chrono::steady_clock::now();
@@ -91,7 +107,7 @@ int slice(const po::variables_map& vm, const JobCommandOptions& options) {
     common::throwIfInterrupted();
   };
   summary.inputSeconds = common::secondsSince(start);
-  const slicer::SliceReport report = slicer::sliceDesign(*design, *profile, cal->calibration, *ditherer, settings);
+  const slicer::SliceReport report = sliceDesignFile(designFile, *design, *profile, *cal, *ditherer, settings);
   progress.finish();
   summary.totalSeconds = common::secondsSince(start);
   summary.inputSeconds += report.prepareSeconds;

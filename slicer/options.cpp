@@ -64,6 +64,24 @@ std::string bracketed(const std::string& word) {
   return out;
 }
 
+// The first option (or positional argument) given as an empty string, "" when none: every text
+// option names a file, a profile, a method or a quantity, so an empty one is a slip of the shell
+// (-o "$UNSET"), refused as a usage error before anything is read or written.
+// Switches (--quiet) hold an empty string too, so only options that take a value count.
+std::string firstEmptyValue(const po::variables_map& vm, const po::options_description& options,
+                            const po::options_description* hidden) {
+  const auto takesValue = [&](const std::string& name) {
+    const po::option_description* o = options.find_nothrow(name, false);
+    if (!o && hidden) o = hidden->find_nothrow(name, false);
+    return o && o->semantic()->max_tokens() > 0;
+  };
+  for (const auto& [name, value] : vm) {
+    const auto* text = boost::any_cast<std::string>(&value.value());
+    if (text && text->empty() && !value.defaulted() && takesValue(name)) return name;
+  }
+  return "";
+}
+
 }  // namespace
 
 std::string synopsisOf(const po::options_description& options, const po::positional_options_description& positional) {
@@ -101,6 +119,8 @@ std::optional<int> parseOptions(const std::string& command, po::options_descript
       return kOk;
     }
     po::notify(vm);
+    if (const std::string empty = firstEmptyValue(vm, options, hidden); !empty.empty())
+      return usageError(command, "--" + empty + ": expected a value, got an empty string");
     if (vm.count("max-memory")) {
       const std::string text = vm["max-memory"].as<std::string>();
       const std::optional<std::uint64_t> bytes = common::parseByteSize(text);

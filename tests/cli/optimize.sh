@@ -219,7 +219,7 @@ expect_failure 1 "is also an input of this command" "$tmp/start.json" -o "$tmp/t
 expect_failure 1 "is also an input of this command" "$tmp/start.json" -o "$tmp/optimized.json" --plot "$tmp/optimized.json"
 expect_failure 1 "convergence plot" "$tmp/start.json" -o "$tmp/optimized.json" --plot "$tmp/graded.json"
 expect_failure 2 "--render and --plot: expected two different files" "$tmp/start.json" -o "$tmp/optimized.json" --plot "$tmp/a.png" --render "$tmp/a.png"
-expect_failure 2 "--render: expected a PNG file name" "$tmp/start.json" -o "$tmp/optimized.json" --render ""
+expect_failure 2 "--render: expected a value, got an empty string" "$tmp/start.json" -o "$tmp/optimized.json" --render ""
 expect_failure 1 "is also an input of this command" "$tmp/start.json" -o "$tmp/optimized.json" --render "$tmp/target.json"
 expect_failure 1 "shape render" "$tmp/start.json" -o "$tmp/optimized.json" --render "$tmp/graded.json"
 python3 - "$tmp" <<'PY'

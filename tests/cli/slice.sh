@@ -239,13 +239,19 @@ expect 1 "missing-cal.json" "$src/examples/unfolding-box.json" -o "$tmp/out/x.zi
 expect 2 "--dither" "$src/examples/unfolding-box.json" -o "$tmp/out/x.zip" --dither ordered
 expect 2 "--format" "$src/examples/unfolding-box.json" -o "$tmp/out/x.zip" --format tar
 expect 2 "output" "$src/examples/unfolding-box.json"
+# An empty option ("$UNSET") is a usage error, not a file that cannot be written.
+expect 2 "^rodfab slice: --output: expected a value, got an empty string" "$src/examples/unfolding-box.json" -o ""
+expect 2 "^rodfab slice: --profile: expected a value" "$src/examples/unfolding-box.json" -o "$tmp/out/x.zip" --profile ""
 # A 600 mm rod does not fit the 490 mm tray: refused with the overhang in mm.
 cat > "$tmp/long.json" <<'JSON'
 { "format": "rodfab.design/1", "units": "mm",
   "rods": [ { "name": "long", "centerline": { "degree": 1, "knots": [0,0,1,1], "points": [[0,0,0],[600,0,0]] },
               "section": { "shape": "circle", "diameter": 1 }, "modulus": 50 } ] }
 JSON
-expect 1 "mm along x" "$tmp/long.json" -o "$tmp/out/x.zip"
+expect 1 "long.json: the part (.*) does not fit .* mm along x.*no job was written" "$tmp/long.json" -o "$tmp/out/x.zip"
+# Rods thinner than any voxel leave nothing to print: the design is named.
+sed 's/"diameter": 1 }/"diameter": 1e-6 }/' "$tmp/long.json" | sed 's/600,0,0/6,0,0/' > "$tmp/thin.json"
+expect 1 "thin.json: the part has no voxels.*thinner than its voxels" "$tmp/thin.json" -o "$tmp/out/x.zip"
 # Designs longer than the grid holds (16777216 voxels along an axis): refused naming the rod (index and name),
 # the field that makes it so, the extent and the limit in mm at the printer's voxel; nothing written. A
 # diameter of 1e308 mm, a control point at 1e8 mm (within the reader's +-1e9 mm), two rods far apart
