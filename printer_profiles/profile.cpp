@@ -108,14 +108,17 @@ std::vector<std::string> bundledProfileNames() {
 Profile loadProfile(const std::string& nameOrPath) {
   const bool isName = nameOrPath.find('/') == std::string::npos && !nameOrPath.ends_with(".json");
   if (!isName) return readProfile(nameOrPath);
-  const std::filesystem::path file = bundledProfileDir() / (nameOrPath + ".json");
-  if (!std::filesystem::exists(file)) {
+  // Looked up among the bundled names, not by testing the path: a name of 300 characters would make
+  // the file system's "File name too long" the message.
+  const std::vector<std::string> bundled = bundledProfileNames();
+  if (std::find(bundled.begin(), bundled.end(), nameOrPath) == bundled.end()) {
     std::string list;
-    for (const std::string& n : bundledProfileNames()) list += (list.empty() ? "" : ", ") + n;
+    for (const std::string& n : bundled) list += (list.empty() ? "" : ", ") + n;
     throw ProfileError(nameOrPath, {{"", "no bundled profile of that name in " + bundledProfileDir().string() +
                                              " (bundled: " + (list.empty() ? "none" : list) +
                                              "); give a path to use another profile file"}});
   }
+  const std::filesystem::path file = bundledProfileDir() / (nameOrPath + ".json");
   Profile p = readProfile(file);
   if (p.name != nameOrPath)
     throw ProfileError(file.string(), {{"name", "expected \"" + nameOrPath + "\" (the file name), got \"" + p.name + "\""}});

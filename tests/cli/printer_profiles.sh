@@ -18,6 +18,11 @@ grep -q "VeroWhitePlus" "$tmp/out" || fail "profile detail lacks the materials"
 "$rodfab" profiles objet-9000 2> "$tmp/err"
 [ $? -eq 1 ] || fail "unknown profile: expected exit 1"
 grep -q "objet-9000: no bundled profile of that name" "$tmp/err" || fail "unknown profile not named: $(cat "$tmp/err")"
+# A name longer than a file name may be is still just an unknown profile, not a file system error.
+long=$(printf 'p%.0s' $(seq 300))
+"$rodfab" profiles "$long" 2> "$tmp/err"
+[ $? -eq 1 ] || fail "300-character profile name: expected exit 1"
+grep -q "$long: no bundled profile of that name" "$tmp/err" || fail "long profile name: $(cat "$tmp/err")"
 sed 's/"x_dpi": 600/"x_dpi": 300/' "$src/printer_profiles/stratasys-objet500-connex3.json" > "$tmp/swapped.json"
 "$rodfab" profiles "$tmp/swapped.json" 2> "$tmp/err"
 [ $? -eq 1 ] || fail "bad profile: expected exit 1"
