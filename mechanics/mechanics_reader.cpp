@@ -158,8 +158,8 @@ void MechanicsReader::constants(const json& j, const std::string& path, Mechanic
   if (auto v = j.find("joint_tolerance"); v != j.end())
     if (auto x = positive(*v, memberPath(path, "joint_tolerance"), "a distance in mm")) spec.jointTolerance = *x;
   if (auto v = j.find("load_steps"); v != j.end()) {
-    if (!v->is_number_integer() || v->get<long long>() < 1 || v->get<long long>() > 100000)
-      fail(memberPath(path, "load_steps"), "expected an integer from 1 to 100000, got " + describe(*v));
+    if (!v->is_number_integer() || v->get<long long>() < 1 || v->get<long long>() > kMaxLoadSteps)
+      fail(memberPath(path, "load_steps"), "expected an integer from 1 to " + std::to_string(kMaxLoadSteps) + ", got " + describe(*v));
     else
       spec.loadSteps = v->get<int>();
   }

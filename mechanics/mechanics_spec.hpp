@@ -17,6 +17,11 @@
 
 namespace rodfab::mechanics {
 
+// Most load steps a design or the command line may ask for. Steps are the continuation of a
+// nonlinear solve (10 by default; buckling designs use tens), each a converged Newton solve, so a
+// bound keeps a typo (100000) from being hours of work: 1,000 steps of one rod take about a second.
+inline constexpr int kMaxLoadSteps = 1000;
+
 enum class RodEnd { Start, End };
 
 // A place on the structure that joints, loads and supports act on: one end of a named rod

@@ -35,7 +35,8 @@ bool readSolver(const std::string& command, const po::variables_map& vm, mechani
   s.tolerance = vm["tolerance"].as<double>();
   s.maxIterations = vm["max-iterations"].as<int>();
   s.followStableBranch = vm.count("follow-stable-branch") > 0;
-  if (s.loadSteps < 0 || s.loadSteps > 100000) return usageError(command, "--load-steps: expected 0 (the design's) to 100000"), false;
+  if (s.loadSteps < 0 || s.loadSteps > mechanics::kMaxLoadSteps)
+    return usageError(command, "--load-steps: expected 0 (the design's) to " + std::to_string(mechanics::kMaxLoadSteps)), false;
   if (!(s.tolerance > 0) || s.tolerance > 1e-2) return usageError(command, "--tolerance: expected a number in (0, 0.01]"), false;
   if (s.maxIterations < 1 || s.maxIterations > 1000) return usageError(command, "--max-iterations: expected 1..1000"), false;
   return true;
