@@ -5,6 +5,7 @@
 #include "materials/error_diffusion.hpp"
 #include "materials/fraction_map.hpp"
 
+#include <algorithm>
 #include <array>
 #include <stdexcept>
 
@@ -209,6 +210,17 @@ const std::vector<std::string>& ditherMethodNames() {
   return names;
 }
 
+bool isDitherMethod(const std::string& name) {
+  const std::vector<std::string>& names = ditherMethodNames();
+  return std::find(names.begin(), names.end(), canonicalDitherName(name)) != names.end();
+}
+
+std::string ditherMethodList() {
+  std::string list;
+  for (const std::string& n : ditherMethodNames()) list += (list.empty() ? "" : ", ") + n;
+  return list;
+}
+
 std::string canonicalDitherName(const std::string& name) {
   if (name == "random" || name == "white-noise") return "white";
   if (name == "blue-noise") return "blue";
@@ -220,9 +232,7 @@ std::unique_ptr<Ditherer> makeDitherer(std::string_view method, const DitherOpti
   if (method == "blue")
     return std::make_unique<BlueNoiseDitherer>(options.mask ? options.mask : BlueNoiseMask::bundled(), options.seed, options.checkInterrupt);
   if (method == "error-diffusion") return std::make_unique<ErrorDiffusionDitherer>(options.seed, options.checkInterrupt);
-  std::string valid;
-  for (const std::string& n : ditherMethodNames()) valid += (valid.empty() ? "" : ", ") + n;
-  throw std::invalid_argument("unknown ditherer '" + std::string(method) + "', expected one of: " + valid);
+  throw std::invalid_argument("unknown ditherer '" + std::string(method) + "', expected one of: " + ditherMethodList());
 }
 
 }  // namespace rodfab::materials

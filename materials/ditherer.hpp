@@ -131,6 +131,11 @@ protected:
 // Measured quality: materials/README.md and `rodfab dither-report`.
 const std::vector<std::string>& ditherMethodNames();
 
+// True when `name`, or the name canonicalDitherName gives it, is one of ditherMethodNames().
+bool isDitherMethod(const std::string& name);
+// "white, blue, error-diffusion": the names for a message saying what was expected.
+std::string ditherMethodList();
+
 // The ditherer's name as calibration data and job manifests record it: "random" (the published
 // pipeline's word) and "white-noise" mean "white", "blue-noise" means "blue"; other names are
 // returned unchanged (makeDitherer then judges them).

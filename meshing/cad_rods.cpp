@@ -2,12 +2,11 @@
 // Built as the CAD module (librodfab_cad), loaded by rodsFromCad (cad_module.cpp) when first needed.
 #include "common/interrupt.hpp"
 #include "common/memory_budget.hpp"
-#include "geometry/design_file.hpp"
-#include "meshing/mesh.hpp"
 #include "geometry/design_reader.hpp"
 #include "geometry/design_writer.hpp"
 #include "meshing/cad_checks.hpp"
 #include "meshing/cad_module.hpp"
+#include "meshing/mesh.hpp"
 
 #include <BRep_Tool.hxx>
 #include <GeomConvert.hxx>
@@ -30,7 +29,6 @@
 
 #include <algorithm>
 #include <cstdio>
-#include <cstdlib>
 #include <mutex>
 #include <numeric>
 

@@ -3,7 +3,6 @@
 #include "materials/ditherer.hpp"
 #include "slicer/calibration_materials.hpp"
 
-#include <algorithm>
 #include <filesystem>
 #include <iostream>
 
@@ -30,16 +29,13 @@ std::optional<ChosenCalibration> calibrationFromOptions(const std::string& comma
     std::cerr << "rodfab " << command << ": " << check.message << "\nno job was written\n";
     return std::nullopt;
   }
-  const std::string couponDither = materials::canonicalDitherName(cal.record().dither);
-  const std::vector<std::string>& known = materials::ditherMethodNames();
-  if (std::find(known.begin(), known.end(), couponDither) == known.end()) {
+  if (!materials::isDitherMethod(cal.record().dither)) {
     // The default ditherer comes from this field: a bad one is the file's fault, not the command line's.
-    std::string expected;
-    for (const std::string& name : known) expected += (expected.empty() ? "" : ", ") + name;
     std::cerr << "rodfab " << command << ": " << file << ": dither: unknown ditherer '" << cal.record().dither
-              << "' (the coupons' ditherer), expected one of: " << expected << "\nno job was written\n";
+              << "' (the coupons' ditherer), expected one of: " << materials::ditherMethodList() << "\nno job was written\n";
     return std::nullopt;
   }
+  const std::string couponDither = materials::canonicalDitherName(cal.record().dither);
   return ChosenCalibration{std::move(cal), file, fileName, sha256, check.message, couponDither};
 }
 

@@ -7,7 +7,6 @@
 #include "slicer/options.hpp"
 #include "slicer/value_parsers.hpp"
 
-#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -98,11 +97,10 @@ int runCalibrate(const std::vector<std::string>& args) {
     return kFailed;
   }
   const calibration::Calibration fit = withMaterials(calibration::fitCalibration(data, request.fit), request);
-  const std::vector<std::string>& ditherers = materials::ditherMethodNames();
-  if (const std::string& dither = fit.record().dither;
-      !dither.empty() && std::find(ditherers.begin(), ditherers.end(), materials::canonicalDitherName(dither)) == ditherers.end()) {
+  if (const std::string& dither = fit.record().dither; !dither.empty() && !materials::isDitherMethod(dither)) {
     // A job's default ditherer comes from this field: a name no ditherer has would make every job fail.
-    std::cerr << file << ": dither: unknown ditherer '" << dither << "', expected white, blue or error-diffusion; nothing fitted\n";
+    std::cerr << file << ": dither: unknown ditherer '" << dither << "', expected one of: " << materials::ditherMethodList()
+              << "; nothing fitted\n";
     return kFailed;
   }
   printCalibrationFit(fit);
