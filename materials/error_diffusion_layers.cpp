@@ -141,52 +141,144 @@ void computeThresholds(std::uint64_t seed, float jitter, Layer& layer) {
   for (float& t : layer.threshold) t = 0.5f + jitter * (t - 0.5f);
 }
 
-// The in-layer Link bits and nextRow of every voxel, walking each row alongside the next. Through raw
-// pointers: a byte store (links) may alias anything, and the vectors' pointers were reloaded after each.
+namespace {
+
+// A run: voxels [begin, end) of a row at consecutive x, the first at x.
+struct Run {
+  int x;
+  std::uint32_t begin, end;
+  int xEnd() const { return x + static_cast<int>(end - begin); }
+};
+
+// The runs of the row [begin, end) of `x` into `runs` (which only grows). x rises strictly along a row,
+// so x[v + 8] - x[v] == 8 says that voxels v .. v + 8 are one run: a run is crossed 8 voxels a step,
+// then its end found one voxel at a time within the last 8 (two mispredicted branches a run, where
+// galloping and a binary search took several).
+std::size_t findRuns(const int* x, std::uint32_t begin, std::uint32_t end, std::vector<Run>& runs) {
+  if (runs.size() < end - begin) runs.resize(end - begin);
+  std::size_t n = 0;
+  for (std::uint32_t v = begin; v < end;) {
+    std::uint32_t inside = v;
+    while (inside + 8 < end && x[inside + 8] - x[inside] == 8) inside += 8;
+    std::uint32_t past = inside + 1;
+    while (past < end && x[past] == x[past - 1] + 1) ++past;
+    runs[n++] = {x[v], v, past};
+    v = past;
+  }
+  return n;
+}
+
+// The next-row Link bits of voxel x (kNextLeft, kNextSame, kNextRight for x - 1, x, x + 1) given the
+// next row's runs [p, last) of which p is the first ending past x - 1.
+unsigned nextRowBits(int x, const Run* p, const Run* last) {
+  unsigned bits = 0;
+  for (int d = -1; d <= 1; ++d) {
+    while (p != last && p->xEnd() <= x + d) ++p;
+    if (p != last && p->x <= x + d) bits |= kNextLeft << (d + 1);
+  }
+  return bits;
+}
+
+// Voxels [v, v + count): links `bits`, nextRow from `first` rising by `step` (0 or 1) a voxel. One loop
+// per array: together they were not vectorized (a byte store may alias the indices).
+void fillLinks(std::uint8_t* links, std::uint32_t* nextRow, std::uint32_t v, int count, unsigned bits,
+               std::uint32_t first, std::uint32_t step) {
+  std::fill_n(links + v, count, static_cast<std::uint8_t>(bits));
+  std::uint32_t* out = nextRow + v;  // not nextRow[v + n]: a 32-bit index may wrap, which stops the vectorizer
+  for (int n = 0; n < count; ++n) out[n] = first + step * static_cast<std::uint32_t>(n);
+}
+
+// The in-layer links of run c's voxels against the next row's runs [p, last) (p advanced here; nextEnd
+// where the next row ends, 0 when there is none). The next row is piecewise constant along x: where its
+// run covers x - 1 .. x + 1, or none touches them, a whole stretch of voxels is filled at once; the
+// few voxels at a next run's edges are linked one by one.
+void linkRun(const Run& c, const Run*& p, const Run* last, std::uint32_t nextEnd, std::uint8_t* links,
+             std::uint32_t* nextRow) {
+  constexpr unsigned kSides = kLeft | kRight, kAllNext = kNextLeft | kNextSame | kNextRight;
+  for (int x = c.x; x < c.xEnd();) {
+    while (p != last && p->xEnd() <= x - 1) ++p;
+    const auto v = c.begin + static_cast<std::uint32_t>(x - c.x);
+    int count = 1;
+    if (p == last || p->x >= x + 2) {  // nothing at x - 1 .. x + 1
+      count = (p == last ? c.xEnd() : std::min(c.xEnd(), p->x - 1)) - x;
+      fillLinks(links, nextRow, v, count, kSides, p == last ? nextEnd : p->begin, 0);
+    } else if (p->x <= x - 1 && p->xEnd() >= x + 2) {  // all three in run p
+      count = std::min(c.xEnd(), p->xEnd() - 1) - x;
+      fillLinks(links, nextRow, v, count, kSides | kAllNext, p->begin + static_cast<std::uint32_t>(x - 1 - p->x), 1);
+    } else {
+      const std::uint32_t first = p->begin + static_cast<std::uint32_t>(std::max(0, x - 1 - p->x));
+      fillLinks(links, nextRow, v, 1, kSides | nextRowBits(x, p, last), first, 0);
+    }
+    x += count;
+  }
+  links[c.begin] &= static_cast<std::uint8_t>(~kLeft);
+  links[c.end - 1] &= static_cast<std::uint8_t>(~kRight);
+}
+
+}  // namespace
+
+// The in-layer Link bits and nextRow of every voxel, each row's runs merged with the next row's: the
+// voxels come in runs (47 voxels on average on the lattice), so most are filled a stretch at a time.
+// Callgrind on the lattice slab: 12 instructions a voxel, runs found included; 64 walking voxel by voxel.
 void linkWithinLayer(Layer& layer) {
   const int* x = layer.i.data();
-  std::uint8_t* links = layer.links.data();
-  std::uint32_t* nextRow = layer.nextRow.data();
   const std::vector<LayerRow>& rows = layer.rows;
+  std::vector<Run> here, next;
+  std::size_t hereCount = rows.empty() ? 0 : findRuns(x, rows[0].begin, rows[0].end, here);
   for (std::size_t r = 0; r < rows.size(); ++r) {
-    const LayerRow row = rows[r];
-    const bool hasNext = r + 1 < rows.size() && rows[r + 1].j == row.j + 1;
-    const std::uint32_t nextEnd = hasNext ? rows[r + 1].end : 0;
-    std::uint32_t n = hasNext ? rows[r + 1].begin : 0;
-    for (std::uint32_t v = row.begin; v < row.end; ++v) {
-      const int xv = x[v];
-      unsigned bits = 0;
-      if (v > row.begin && x[v - 1] == xv - 1) bits |= kLeft;
-      if (v + 1 < row.end && x[v + 1] == xv + 1) bits |= kRight;
-      while (n < nextEnd && x[n] < xv - 1) ++n;
-      std::uint32_t m = n;
-      if (m < nextEnd && x[m] == xv - 1) bits |= kNextLeft, ++m;
-      if (m < nextEnd && x[m] == xv) bits |= kNextSame, ++m;
-      if (m < nextEnd && x[m] == xv + 1) bits |= kNextRight;
-      links[v] = static_cast<std::uint8_t>(bits);
-      nextRow[v] = n;
-    }
+    const bool hasNext = r + 1 < rows.size() && rows[r + 1].j == rows[r].j + 1;
+    const std::size_t nextCount = r + 1 < rows.size() ? findRuns(x, rows[r + 1].begin, rows[r + 1].end, next) : 0;
+    const Run* p = next.data();
+    const Run* last = p + (hasNext ? nextCount : 0);
+    for (std::size_t c = 0; c < hereCount; ++c)
+      linkRun(here[c], p, last, hasNext ? rows[r + 1].end : 0, layer.links.data(), layer.nextRow.data());
+    std::swap(here, next);
+    hereCount = nextCount;
   }
 }
 
-// Layer `below`'s up links (kUp and up[]) into `above`, the layer over it, walking rows of equal j.
+namespace {
+
+// Run c's up links against the above row's runs [q, last) (q advanced here): overlaps take kUp and the
+// voxel above, x by x; gaps kNoVoxel.
+void linkRunUp(const Run& c, const Run*& q, const Run* last, std::uint8_t* links, std::uint32_t* up) {
+  for (int x = c.x; x < c.xEnd();) {
+    while (q != last && q->xEnd() <= x) ++q;
+    const auto v = c.begin + static_cast<std::uint32_t>(x - c.x);
+    const bool over = q != last && q->x <= x;
+    const int count = (q == last ? c.xEnd() : std::min(c.xEnd(), over ? q->xEnd() : q->x)) - x;
+    if (over) {
+      const std::uint32_t a = q->begin + static_cast<std::uint32_t>(x - q->x);
+      std::uint32_t* upOut = up + v;
+      std::uint8_t* linksOut = links + v;
+      for (int n = 0; n < count; ++n) upOut[n] = a + static_cast<std::uint32_t>(n);
+      for (int n = 0; n < count; ++n) linksOut[n] = static_cast<std::uint8_t>(linksOut[n] | kUp);
+    } else {
+      std::fill_n(up + v, count, kNoVoxel);
+    }
+    x += count;
+  }
+}
+
+}  // namespace
+
+// Layer `below`'s up links (kUp and up[]) into `above`, the layer over it: rows of equal j, run by run
+// (9 instructions a voxel on the lattice slab, where the walk voxel by voxel took 24).
 void linkUp(Layer& below, const Layer& above) {
-  const int* x = below.i.data();
-  const int* xAbove = above.i.data();
-  std::uint8_t* links = below.links.data();
-  std::uint32_t* up = below.up.data();
+  std::vector<Run> runs, runsAbove;
   std::size_t ra = 0;
   for (const LayerRow& row : below.rows) {
     while (ra < above.rows.size() && above.rows[ra].j < row.j) ++ra;
     const bool hasAbove = ra < above.rows.size() && above.rows[ra].j == row.j;
-    std::uint32_t a = hasAbove ? above.rows[ra].begin : 0;
-    const std::uint32_t aEnd = hasAbove ? above.rows[ra].end : 0;
-    for (std::uint32_t v = row.begin; v < row.end; ++v) {
-      while (a < aEnd && xAbove[a] < x[v]) ++a;
-      const bool found = a < aEnd && xAbove[a] == x[v];
-      up[v] = found ? a : kNoVoxel;
-      links[v] = static_cast<std::uint8_t>(links[v] | (found ? unsigned{kUp} : 0u));
+    if (!hasAbove) {
+      std::fill(below.up.begin() + row.begin, below.up.begin() + row.end, kNoVoxel);
+      continue;
     }
+    const std::size_t countAbove = findRuns(above.i.data(), above.rows[ra].begin, above.rows[ra].end, runsAbove);
+    const std::size_t count = findRuns(below.i.data(), row.begin, row.end, runs);
+    const Run* q = runsAbove.data();
+    const Run* last = q + countAbove;
+    for (std::size_t c = 0; c < count; ++c) linkRunUp(runs[c], q, last, below.links.data(), below.up.data());
   }
 }
 
