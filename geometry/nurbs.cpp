@@ -293,6 +293,56 @@ double NurbsCurve::arcLength(double u0, double u1) const {
   return length;
 }
 
+namespace {
+
+// The blossom of span `span`'s polynomial piece (homogeneous control points w P, w) at the arguments
+// x[0..p-1]: de Boor's algorithm with the r-th argument at level r. With every argument u it is C(u);
+// with p - k arguments a and k arguments b it is the k-th Bezier control point of the piece on [a, b].
+Eigen::Vector4d blossom(const NurbsCurve& curve, int span, const double* x) {
+  const int p = curve.degree();
+  const std::vector<double>& knots = curve.knots();
+  std::array<Eigen::Vector4d, kMaxDegree + 1> q;
+  for (int j = 0; j <= p; ++j) {
+    const int i = span - p + j;
+    const double w = curve.weights()[static_cast<std::size_t>(i)];
+    q[static_cast<std::size_t>(j)] << w * curve.points()[static_cast<std::size_t>(i)], w;
+  }
+  for (int r = 1; r <= p; ++r) {
+    for (int j = p; j >= r; --j) {
+      const int i = span - p + j;
+      // knots[i + p + 1 - r] >= knots[span + 1] > knots[span] >= knots[i]: never a zero denominator.
+      const double alpha = (x[r - 1] - knots[i]) / (knots[i + p + 1 - r] - knots[i]);
+      q[static_cast<std::size_t>(j)] = (1.0 - alpha) * q[static_cast<std::size_t>(j - 1)] + alpha * q[static_cast<std::size_t>(j)];
+    }
+  }
+  return q[static_cast<std::size_t>(p)];
+}
+
+}  // namespace
+
+std::pair<Vec3, Vec3> NurbsCurve::boundsOn(double a, double b) const {
+  a = std::clamp(a, domainBegin(), domainEnd());
+  b = std::clamp(b, a, domainEnd());
+  const int p = degree_, n = static_cast<int>(points_.size());
+  Vec3 low = Vec3::Constant(std::numeric_limits<double>::infinity()), high = -low;
+  // Every non-empty span meeting [a, b] (the span of a alone when a == b).
+  for (int span = findKnotSpan(knots_, p, n, a); span < n; ++span) {
+    if (knots_[span + 1] <= knots_[span]) continue;
+    if (knots_[span] > b) break;
+    const double x0 = std::max(a, knots_[span]), x1 = std::min(b, knots_[span + 1]);
+    std::array<double, kMaxDegree> x;
+    for (int k = 0; k <= p; ++k) {
+      for (int r = 0; r < p; ++r) x[static_cast<std::size_t>(r)] = r < p - k ? x0 : x1;
+      const Eigen::Vector4d h = blossom(*this, span, x.data());
+      const Vec3 point = h.head<3>() / h[3];
+      low = low.cwiseMin(point);
+      high = high.cwiseMax(point);
+    }
+    if (x1 >= b) break;
+  }
+  return {low, high};
+}
+
 NurbsCurve NurbsCurve::withKnotInserted(double u) const {
   if (!(u > domainBegin() && u < domainEnd())) throw std::invalid_argument("withKnotInserted: u must lie inside the domain");
   const int p = degree_;

@@ -29,9 +29,11 @@ double Rod::solveCrossing(const Vec3& p, double a, double b, double sign) const 
 
 namespace {
 
-// Keeps the deepest candidate; the first of equal ones (candidates come in increasing u).
+// Keeps the deepest candidate, and of equal ones the lowest u: the first, for the walk (its candidates
+// come in increasing u), and the same one in whatever order the segments are examined (classifyPiece's
+// nearest-first visit).
 void consider(RodHit& best, double depth, double u) {
-  if (depth > best.depth) {
+  if (depth > best.depth || (depth == best.depth && u < best.u)) {
     best.depth = depth;
     best.u = u;
   }
@@ -145,12 +147,18 @@ void Rod::classifyPiece(const Vec3& p, const SmoothPiece& piece, Walk walk, RodH
   const double capReach = std::max(radius + planeTolerance(radius), section_.capRadius());
   if ((samplePoint_[piece.firstSample] - p).norm() <= capReach + sampleDeviation_[piece.firstSample])
     classifyEnd(p, piece.begin, piece.beginPoint, -piece.beginTangent, false, best);
-  // The segments in increasing order, either way: candidates of equal depth keep the first.
   if (walk == Walk::EverySegment) {
     for (std::size_t i = piece.firstSample; i < piece.lastSample; ++i) classifySegment(p, piece, i, best);
   } else {
-    segmentBoxes_.forEachContaining(p, piece.firstSample, piece.lastSample,
-                                    [&](std::size_t i) { classifySegment(p, piece, i, best); });
+    // Nearest segment first, and none whose every section through p would be shallower than the best
+    // candidate so far (sectionDistanceLimit); `consider` makes the order irrelevant to the result.
+    segmentBoxes_.forEachNearestWithin(
+        p, piece.firstSample, piece.lastSample,
+        [&] {
+          const double limit = sectionDistanceLimit(best.depth);
+          return limit * limit;
+        },
+        [&](std::size_t i) { classifySegment(p, piece, i, best); });
   }
   if ((samplePoint_[piece.lastSample] - p).norm() <= capReach + sampleDeviation_[piece.lastSample - 1])
     classifyEnd(p, piece.end, piece.endPoint, piece.endTangent, piece.endFromBelow, best);
@@ -172,6 +180,16 @@ RodHit Rod::classify(const Vec3& p) const { return classifyPoint(p, p.allFinite(
 
 RodHit Rod::classifyWalkingEverySegment(const Vec3& p) const { return classifyPoint(p, Walk::EverySegment); }
 
+double Rod::sectionDistanceLimit(double depth) const {
+  // A section through p at u has p - r(u) within sectionHit's plane tolerance of its plane, so its
+  // frame coordinates have a norm of at least |p - r(u)| - tolerance, and every section's gauge is at
+  // least that norm over the bounding radius: its depth reaches `depth` only if |p - r(u)| <= radius
+  // (1 - depth) + tolerance. distanceSlack_ holds the tolerance with room for every rounding; the
+  // relative term, the rounding of the depth's own scale.
+  const double radius = section_.boundingRadius(), shortfall = 1.0 - depth;
+  return radius * shortfall + distanceSlack_ + 1e-9 * radius * std::abs(shortfall);
+}
+
 void Rod::buildSegmentBoxes() {
   // A segment is examined when its computed distance to p, less its deviation, is at most the reach
   // (classifySegment). The computed distance is that of p to a point within a few ulps of the segment,
@@ -190,7 +208,32 @@ void Rod::buildSegmentBoxes() {
     boxes[i] = Box3(Vec3(samplePoint_[i].cwiseMin(samplePoint_[i + 1]).array() - grow),
                     Vec3(samplePoint_[i].cwiseMax(samplePoint_[i + 1]).array() + grow));
   }
-  segmentBoxes_ = SegmentBoxes(std::move(boxes));
+  segmentBoxes_ = SegmentBoxes(std::move(boxes), segmentHulls(largest + reach + maxDeviation));
+  // sectionHit's plane tolerance (1e-7 (1 + radius)) doubled, and the reach boxes' margin for the
+  // rounding of the distances and frame coordinates.
+  distanceSlack_ = 2e-7 * (1.0 + radius) + margin;
+}
+
+std::vector<Box3> Rod::segmentHulls(double scale) const {
+  // Every centerline point classifySegment can take a section at, r(u) for u in the segment's [a, b]
+  // (from below or above at b), lies in the convex hull of the segment's Bezier control points
+  // (NurbsCurve::boundsOn) or is a sample point (r from above at b where the curve jumps there). The
+  // margin covers the rounding of both: a few ulps of the largest control coordinate times the weights'
+  // ratio (rational curves), far below 1e-13 of it, and the boxes' usual 1e-9 of the coordinates.
+  const std::vector<double>& w = centerline_.weights();
+  const auto [lightest, heaviest] = std::minmax_element(w.begin(), w.end());
+  double largestControl = 0.0;
+  for (const Vec3& q : centerline_.points()) largestControl = std::max(largestControl, q.cwiseAbs().maxCoeff());
+  const double margin = 1e-9 * (1.0 + scale + largestControl) + 1e-13 * (*heaviest / *lightest) * largestControl;
+  std::vector<Box3> hulls(sampleDeviation_.size());
+  for (std::size_t i = 0; i < hulls.size(); ++i) {
+    const auto [low, high] = centerline_.boundsOn(sampleU_[i], sampleU_[i + 1]);
+    hulls[i] = Box3(low, high);
+    hulls[i].extend(samplePoint_[i]);
+    hulls[i].extend(samplePoint_[i + 1]);
+    hulls[i] = Box3(Vec3(hulls[i].min().array() - margin), Vec3(hulls[i].max().array() + margin));
+  }
+  return hulls;
 }
 
 }  // namespace rodfab::geometry

@@ -110,6 +110,73 @@ TEST_CASE("The tight helix's axis takes the fold path, and classify matches the 
   REQUIRE(insideNear > 0);
 }
 
+TEST_CASE("A coil tighter than its section: classify skips the far turns and still gives the walk's bits", "[rod][classify][coil]") {
+  // Every point of such a coil is within reach of every turn nearby, so classify takes the segments
+  // nearest first and skips those whose hull is too far for a section as deep as the best so far;
+  // ties go to the lowest u in any order. Circles, ellipses and rectangles, E varying along the rod
+  // (so u decides the value), pitches below and near the section, and points on the axis.
+  const BSplineField ramp(1, {0, 0, 0.5, 1, 1}, {20, 200, 30});
+  std::vector<Rod> rods;
+  rods.push_back(Rod("coil 0.2 / 1.0", helix(0.2, 0.063, 8, 21), Section::circle(2.0), std::nullopt, std::nullopt, CapStyle::Round, ramp));
+  rods.push_back(Rod("coil 0.3 / ellipse", helix(0.3, 0.1, 6, 16), Section::ellipse(1.4, 0.9), Vec3(0, 0, 1), std::nullopt,
+                     CapStyle::Flat, ramp));
+  rods.push_back(Rod("coil 0.5 / rectangle", helix(0.5, 0.4, 5, 12), Section::rectangle(1.6, 0.8), Vec3(0, 0, 1), std::nullopt,
+                     CapStyle::Round, ramp));
+  rods.push_back(Rod("coil 0.1 / 0.4, pitch 0.02", helix(0.1, 0.02, 10, 24), Section::circle(0.8), std::nullopt, std::nullopt,
+                     CapStyle::Round, ramp));
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  for (const Rod& rod : rods) {
+    INFO(rod.name());
+    const Box3 b = rod.bounds();
+    int inside = 0;
+    auto check = [&](const Vec3& p) {
+      const RodHit hit = rod.classify(p), walk = rod.classifyWalkingEverySegment(p);
+      CAPTURE(p.x(), p.y(), p.z(), hit.depth, walk.depth, hit.u, walk.u);
+      REQUIRE(sameBits(hit, walk));
+      inside += hit.inside;
+    };
+    for (int n = 0; n < 1500; ++n) {
+      const Vec3 margin = Vec3::Constant(0.2);
+      check(Vec3(b.min() - margin) + Vec3((b.sizes() + 2 * margin).array() * Vec3(unit(rng), unit(rng), unit(rng)).array()));
+      check(Vec3(0.0, 0.0, b.min().z() + b.sizes().z() * unit(rng)));
+    }
+    REQUIRE(inside > 1000);
+  }
+}
+
+TEST_CASE("NurbsCurve::boundsOn holds the curve on the interval, and is tight on a short one", "[rod][classify]") {
+  const double w = std::sqrt(0.5);
+  const NurbsCurve curves[] = {
+      helix(0.2, 0.063, 3, 21),
+      NurbsCurve(2, {0, 0, 0, 0.5, 0.5, 1, 1, 1}, {{0, -0.6, 0}, {0.6, -0.6, 0}, {0.6, 0, 0}, {0.6, 0.6, 0}, {0, 0.6, 0}}, {1, w, 1, w, 1}),
+      NurbsCurve(3, {0, 0, 0, 0, 0.3, 0.3, 0.3, 1, 1, 1, 1}, {{0, 0, 0}, {1, 2, 0}, {2, 0, 1}, {3, 1, 0}, {2, 3, 2}, {0, 1, 1}, {1, 0, 0}},
+                 {1, 1e3, 2, 1, 5, 1e-2, 1}),
+  };
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  for (const NurbsCurve& c : curves) {
+    const double u0 = c.domainBegin(), u1 = c.domainEnd();
+    for (int n = 0; n < 300; ++n) {
+      double a = u0 + (u1 - u0) * unit(rng), b = u0 + (u1 - u0) * unit(rng);
+      if (n % 3 == 0) b = a + (b - a) * 1e-3;
+      if (a > b) std::swap(a, b);
+      const auto [low, high] = c.boundsOn(a, b);
+      const double tolerance = 1e-12 * (1.0 + std::max(low.cwiseAbs().maxCoeff(), high.cwiseAbs().maxCoeff()));
+      Box3 sampled;
+      sampled.setEmpty();
+      for (int k = 0; k <= 64; ++k) {
+        const Vec3 q = c.point(a + (b - a) * k / 64.0);
+        sampled.extend(q);
+        REQUIRE((q.array() >= low.array() - tolerance).all());
+        REQUIRE((q.array() <= high.array() + tolerance).all());
+      }
+      // Tight: not much beyond the sampled extent on a short interval (the control polygon's bulge).
+      if (n % 3 == 0) REQUIRE((Box3(low, high).sizes() - sampled.sizes()).maxCoeff() <= 1e-3 * (1.0 + sampled.sizes().norm()) + 1e-9);
+    }
+  }
+}
+
 TEST_CASE("SegmentBoxes visits exactly the boxes holding the point, in increasing order", "[rod][classify]") {
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> coord(-10.0, 10.0), size(0.0, 4.0);
@@ -132,6 +199,16 @@ TEST_CASE("SegmentBoxes visits exactly the boxes holding the point, in increasin
         if (boxes[i].contains(p)) expected.push_back(i);
       CAPTURE(count, first, last);
       REQUIRE(visited == expected);
+      // Nearest first with a fixed limit (the reach boxes serve as hulls): the boxes holding p within
+      // the limit, every one once.
+      for (const double limit : {std::numeric_limits<double>::infinity(), 0.5, 0.0}) {
+        std::vector<std::size_t> nearest, within;
+        tree.forEachNearestWithin(p, first, last, [&] { return limit * limit; }, [&](std::size_t i) { nearest.push_back(i); });
+        for (const std::size_t i : expected)
+          if (boxes[i].squaredExteriorDistance(p) <= limit * limit) within.push_back(i);
+        std::sort(nearest.begin(), nearest.end());
+        REQUIRE(nearest == within);
+      }
     }
     std::vector<std::size_t> none;
     tree.forEachContaining(Vec3(std::numeric_limits<double>::quiet_NaN(), 0, 0), 0, count, [&](std::size_t i) { none.push_back(i); });

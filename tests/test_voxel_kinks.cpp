@@ -261,6 +261,39 @@ TEST_CASE("Tight bends, extreme weights and rods thicker than their bend agree w
   }
 }
 
+TEST_CASE("A rod coiled tighter than its radius: every voxel as the walk over every segment decides", "[voxel][kink][coil]") {
+  // Coil radius 0.2, rod radius 0.6 (and an ellipse): every piece is exact and every voxel is within
+  // reach of every turn nearby. The rasterizer's exact test (Rod::classify, nearest segments first)
+  // and its once-per-voxel rows must give, voxel by voxel, what the reference walk over every segment
+  // gives: membership, and E at the deepest section (E varies along the rod, so the u matters).
+  const BSplineField ramp(1, {0, 0, 0.5, 1, 1}, {20, 200, 30});
+  const Rod rods[] = {
+      circularRod(helix(0.2, 0.063, 3, 21), 0.6, CapStyle::Round, ramp),
+      Rod("ellipse", helix(0.25, 0.1, 2, 16), Section::ellipse(1.0, 0.7), Vec3(0, 0, 1), std::nullopt, CapStyle::Flat, ramp),
+  };
+  for (const Rod& rod : rods) {
+    INFO(rod.name());
+    const RodStructure s = design({rod});
+    const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
+    const voxel::Rasterization r = voxel::rasterize(s, g);
+    REQUIRE(r.exactEvaluations > 0);
+    const auto acc = r.grid->getConstAccessor();
+    const Vec3 lo = s.bounds().min() - Vec3::Constant(0.1), hi = s.bounds().max() + Vec3::Constant(0.1);
+    const openvdb::CoordBBox box = g.voxelsWithin({lo.x(), lo.y(), lo.z()}, {hi.x(), hi.y(), hi.z()});
+    std::size_t inside = 0;
+    for (auto it = box.begin(); it; ++it) {
+      const geometry::RodHit walk = rod.classifyWalkingEverySegment(world(g, *it));
+      float value = 0;
+      CAPTURE(*it);
+      REQUIRE(acc.probeValue(*it, value) == walk.inside);
+      if (!walk.inside) continue;
+      ++inside;
+      REQUIRE(value == Approx(rod.modulus().value(walk.u)).epsilon(1e-6));
+    }
+    REQUIRE(inside == r.grid->activeVoxelCount());
+  }
+}
+
 TEST_CASE("Hostile sizes stay bounded: pieces within the estimate, work within seconds", "[voxel][bounded]") {
   struct Case {
     const char* name;

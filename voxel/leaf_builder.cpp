@@ -3,6 +3,7 @@
 #include <emmintrin.h>
 #include <xmmintrin.h>
 
+#include <bit>
 #include <cmath>
 
 namespace rodfab::voxel::detail {
@@ -152,13 +153,18 @@ void LeafBuilder::exactRegion(int rod, int pieceIndex, const RodPiece& piece, co
       RowBounds bounds;
       int lo = box.min().x(), hi = box.max().x();
       if (!cylinder.row(j, bounds) || !bounds.round(lo, hi)) continue;
-      for (int i = lo; i <= hi; ++i) {
-        const int n = offset(i, j, k);
-        std::uint64_t& word = memo_[static_cast<std::size_t>(n >> 6)];
-        const std::uint64_t bit = std::uint64_t(1) << (n & 63);
-        if (word & bit) continue;
-        word |= bit;
-        addCandidate(exact(rod, pieceIndex, i, j, k), n, i, j, k);
+      // The row's voxels [lo, hi] as bits of its memo word (the box lies in the block), so a voxel
+      // already tested costs nothing: where a rod overlaps itself (a coil tighter than its section)
+      // thousands of exact pieces reach the same rows, and a test per voxel and piece was most of the
+      // work once the exact test got cheap there. The untested ones in increasing i, as before.
+      const int row = rowOf(j, k), first = lo & (kBlockX - 1), last = hi & (kBlockX - 1);
+      const std::uint64_t span = (~std::uint64_t(0) >> (kBlockX - 1 - last)) & (~std::uint64_t(0) << first);
+      std::uint64_t& word = memo_[static_cast<std::size_t>(row)];
+      std::uint64_t fresh = span & ~word;
+      word |= span;
+      for (; fresh != 0; fresh &= fresh - 1) {
+        const int x = std::countr_zero(fresh), i = lo - first + x;
+        addCandidate(exact(rod, pieceIndex, i, j, k), (row << kBlockXLog2) | x, i, j, k);
       }
     }
   }
