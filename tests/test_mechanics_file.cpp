@@ -87,7 +87,7 @@ TEST_CASE("Bad mechanics blocks are reported with their paths", "[design][mechan
   REQUIRE_ISSUE(with(R"({"poisson_ratio": 0.5})"), "mechanics.poisson_ratio", "expected a Poisson ratio in (-1.0, 0.5)");
   REQUIRE_ISSUE(with(R"({"load_steps": 0})"), "mechanics.load_steps", "expected an integer from 1");
   REQUIRE_ISSUE(with(R"({"load_steps": 1001})"), "mechanics.load_steps", "expected an integer from 1 to 1000, got 1001");
-  CHECK_FALSE(hasIssue(issuesOf(with(R"({"load_steps": 1000})")), "mechanics.load_steps", "expected"));
+  CHECK_NOTHROW(parseDesign(with(R"({"load_steps": 1000})").dump(), "ok.json"));
   REQUIRE_ISSUE(with(R"({"gravity": 1})"), "mechanics.gravity", "unknown key");
   REQUIRE_ISSUE(with(R"({"supports": [{"at": {"rod": "nope", "end": "start"}, "type": "clamped"}]})"),
                 "mechanics.supports[0].at.rod", "no rod is named \"nope\"");
