@@ -51,11 +51,15 @@ std::unique_ptr<materials::Ditherer> ditherFromName(const std::string& command, 
                                                     const po::variables_map& vm);
 
 // The progress of a job's bands on stderr (Progress, in layers), made at the first band, when the
-// part's layer count is known; the final line is printed when it is destroyed (also on an interrupt).
+// part's layer count is known. finish() prints the final line; destroyed unfinished (an interrupt, an
+// error) it only ends the bar's line, so the message that follows starts on its own line and no
+// "done" is claimed for layers that were not sliced.
 class BandProgress {
 public:
   explicit BandProgress(bool quiet) : mode_(Progress::detect(quiet)) {}
-  ~BandProgress() { finish(); }
+  ~BandProgress() {
+    if (progress_) progress_->stop();
+  }
   BandProgress(const BandProgress&) = delete;
   BandProgress& operator=(const BandProgress&) = delete;
   void update(int done, int total);

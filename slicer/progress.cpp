@@ -39,6 +39,7 @@ void Progress::update(std::size_t done, Clock::time_point now) {
     const int filled = total_ ? static_cast<int>(static_cast<double>(kWidth) * done / total_) : kWidth;
     out_ << "\r[" << std::string(filled, '#') << std::string(kWidth - filled, '.') << "] " << status(done, now)
          << "   " << std::flush;
+    barShown_ = true;
   } else {
     // Logs: a line per tenth of the job, or every 10 s when a tenth takes longer.
     const int decile = total_ ? static_cast<int>(10.0 * done / total_) : 10;
@@ -59,6 +60,12 @@ void Progress::finish(Clock::time_point now) {
   std::snprintf(buf, sizeof buf, "done: %zu %s in %.1f s", total_, unit_.c_str(), seconds);
   if (mode_ == Mode::Bar) out_ << '\r' << std::string(100, ' ') << '\r';
   out_ << buf << '\n' << std::flush;
+}
+
+void Progress::stop() {
+  if (finished_) return;
+  finished_ = true;
+  if (mode_ == Mode::Bar && barShown_) out_ << '\n' << std::flush;
 }
 
 }  // namespace rodfab::cli

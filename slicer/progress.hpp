@@ -21,6 +21,8 @@ public:
   void update(std::size_t done, Clock::time_point now = Clock::now());
   // Final line (also in Lines mode), with the overall rate.
   void finish(Clock::time_point now = Clock::now());
+  // The work ended before it was done: the bar's line is ended where it stands, nothing else printed.
+  void stop();
 
   // "1234/3000 layers (41%), 412 layers/s, 4 s left" — exposed for tests. The rate and the time left
   // appear only after kMinRateSeconds (before that: "1234/3000 layers (41%)").
@@ -36,6 +38,7 @@ private:
   std::size_t lastDone_ = 0;
   int lastDecile_ = -1;
   bool finished_ = false;
+  bool barShown_ = false;
 };
 
 }  // namespace rodfab::cli

@@ -1,4 +1,4 @@
-// slicer/: the progress line's rate, and the job report's map of clamped moduli against a brute-force
+// slicer/: the progress line's rate and its end, and the job report's map of clamped moduli against a brute-force
 // count over the same voxels.
 #include "slicer/job_report.hpp"
 #include "slicer/progress.hpp"
@@ -17,6 +17,25 @@ TEST_CASE("progress shows no rate before a second has passed, then the true one"
   CHECK(early == "50/200 layers (25%)");
   const std::string later = progress.status(100, t0 + std::chrono::seconds(2));
   CHECK(later.find("100/200 layers (50%), 50 layers/s, 2 s left") == 0);
+}
+
+TEST_CASE("progress stopped before the end claims nothing done; finished, it says done") {
+  for (const auto mode : {cli::Progress::Mode::Lines, cli::Progress::Mode::Bar}) {
+    std::ostringstream out;
+    cli::Progress progress("layers", 3000, mode, out);
+    progress.update(7, cli::Progress::Clock::now() + std::chrono::seconds(1));  // past the bar's redraw interval
+    progress.stop();
+    progress.finish();  // after stop: nothing more
+    CHECK(out.str().find("7/3000 layers") != std::string::npos);
+    CHECK(out.str().find("done") == std::string::npos);
+    REQUIRE_FALSE(out.str().empty());
+    CHECK(out.str().back() == '\n');  // an error message that follows starts on its own line
+  }
+  std::ostringstream out;
+  cli::Progress progress("layers", 3000, cli::Progress::Mode::Lines, out);
+  progress.update(3000);
+  progress.finish();
+  CHECK(out.str().find("done: 3000 layers") != std::string::npos);
 }
 
 TEST_CASE("the clamp map counts what the fraction map clamps, voxels and tiles, within the band and part") {
