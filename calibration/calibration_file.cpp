@@ -33,10 +33,7 @@ public:
 
   void onlyKeys(const json& obj, const std::string& path, const std::set<std::string>& allowed) const {
     for (auto it = obj.begin(); it != obj.end(); ++it) {
-      if (allowed.count(it.key())) continue;
-      std::string list;
-      for (const auto& k : allowed) list += (list.empty() ? "" : ", ") + k;
-      fail(memberPath(path, it.key()), "unknown key (expected one of: " + list + ")");
+      if (!allowed.count(it.key())) fail(memberPath(path, it.key()), common::unknownKeyMessage(allowed));
     }
   }
 

@@ -1,5 +1,6 @@
 #include "calibration/fit.hpp"
 
+#include <boost/algorithm/string/join.hpp>
 #include <boost/math/tools/minima.hpp>
 
 #include <algorithm>
@@ -9,6 +10,7 @@
 #include <map>
 #include <optional>
 #include <set>
+#include <vector>
 
 namespace rodfab::calibration {
 
@@ -226,9 +228,9 @@ void recordProcess(FitRecord& record, const std::string& where) {
     record.temperatureC = temperatureSum / static_cast<double>(temperatures);
   }
   if (dithers.size() > 1) {
-    std::string list;
-    for (const auto& [name, line] : dithers) list += (list.empty() ? "" : ", ") + ("'" + name + "' at line " + std::to_string(line));
-    throw FitError(where + "the coupons come from different ditherers (" + list +
+    std::vector<std::string> each;
+    for (const auto& [name, line] : dithers) each.push_back("'" + name + "' at line " + std::to_string(line));
+    throw FitError(where + "the coupons come from different ditherers (" + boost::algorithm::join(each, ", ") +
                    "); the modulus depends on the ditherer: fit each one on its own");
   }
   if (!dithers.empty()) record.dither = dithers.begin()->first;

@@ -3,6 +3,8 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <boost/algorithm/string/join.hpp>
+
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -228,6 +230,10 @@ std::string memberPath(const std::string& path, const std::string& key) {
 }
 
 std::string indexPath(const std::string& path, std::size_t i) { return path + "[" + std::to_string(i) + "]"; }
+
+std::string unknownKeyMessage(const std::set<std::string>& allowed) {
+  return "unknown key (expected one of: " + boost::algorithm::join(allowed, ", ") + ")";
+}
 
 namespace {
 

@@ -10,6 +10,7 @@
 
 #include <cstddef>
 #include <limits>
+#include <set>
 #include <stdexcept>
 #include <string>
 
@@ -44,6 +45,9 @@ std::pair<std::size_t, std::size_t> lineAndColumn(const std::string& text, std::
 // memberPath("", "rods") is "rods", indexPath("rods", 3) is "rods[3]".
 std::string memberPath(const std::string& path, const std::string& key);
 std::string indexPath(const std::string& path, std::size_t i);
+
+// The message for a member whose key is not among `allowed`: "unknown key (expected one of: a, b)".
+std::string unknownKeyMessage(const std::set<std::string>& allowed);
 
 // A value as a message shows it: its compact JSON, cut to at most `maxChars` characters ("..." at
 // the end when cut); bytes that are not UTF-8 are shown as U+FFFD. Arrays and objects holding more

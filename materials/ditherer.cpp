@@ -5,6 +5,8 @@
 #include "materials/error_diffusion.hpp"
 #include "materials/fraction_map.hpp"
 
+#include <boost/algorithm/string/join.hpp>
+
 #include <algorithm>
 #include <array>
 #include <stdexcept>
@@ -216,9 +218,7 @@ bool isDitherMethod(const std::string& name) {
 }
 
 std::string ditherMethodList() {
-  std::string list;
-  for (const std::string& n : ditherMethodNames()) list += (list.empty() ? "" : ", ") + n;
-  return list;
+  return boost::algorithm::join(ditherMethodNames(), ", ");
 }
 
 std::string canonicalDitherName(const std::string& name) {

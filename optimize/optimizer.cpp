@@ -2,6 +2,7 @@
 // or NLopt's MMA / CCSAQ.
 #include "optimize/optimize.hpp"
 
+#include <boost/algorithm/string/join.hpp>
 #include <LBFGSB.h>
 #include <nlopt.hpp>
 
@@ -10,6 +11,7 @@
 #include <exception>
 #include <limits>
 #include <stdexcept>
+#include <vector>
 
 namespace rodfab::optimize {
 
@@ -83,9 +85,10 @@ private:
     newton_ += ev.newtonIterations;
     if (result_.evaluations == 1) {
       if (!std::isfinite(ev.objective) || !ev.gradient.allFinite()) {
-        std::string cases;
+        std::vector<std::string> notFinite;
         for (const CaseObjective& c : ev.cases)
-          if (!std::isfinite(c.total())) cases += (cases.empty() ? "" : ", ") + ("\"" + c.name + "\"");
+          if (!std::isfinite(c.total())) notFinite.push_back("\"" + c.name + "\"");
+        const std::string cases = boost::algorithm::join(notFinite, ", ");
         throw OptimizeError("the objective at the start is not finite (g = " + std::to_string(ev.objective) + ", load case" +
                             " " + (cases.empty() ? "gradient" : cases) + "): a weight or a target far out of scale");
       }

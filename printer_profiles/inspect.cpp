@@ -6,6 +6,9 @@
 #include "printer_profiles/inspector.hpp"
 #include "printer_profiles/job_staging.hpp"  // kPartialTag
 
+#include <boost/algorithm/string/join.hpp>
+#include <boost/range/adaptor/transformed.hpp>
+
 #include <algorithm>
 #include <cctype>
 #include <map>
@@ -205,8 +208,8 @@ bool Inspector::findProfile() {
       profile_ = p;
       return true;
     }
-  std::string bundled;
-  for (const Profile& p : candidates_) bundled += (bundled.empty() ? "" : ", ") + p.name;
+  const std::string bundled =
+      boost::algorithm::join(candidates_ | boost::adaptors::transformed([](const Profile& p) { return p.name; }), ", ");
   findings_.at(kManifestName, "profile.name: \"" + printableName(name->get<std::string>()) +
                                   "\" is not a bundled profile (bundled: " + (bundled.empty() ? "none" : bundled) +
                                   "); inspect --profile FILE checks a job made with another profile file");

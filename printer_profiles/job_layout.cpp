@@ -2,6 +2,7 @@
 
 #include "printer_profiles/leaf_bits.hpp"
 
+#include <boost/algorithm/string/join.hpp>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -11,6 +12,7 @@
 #include <cstdio>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace rodfab::printer_profiles {
 
@@ -34,17 +36,17 @@ JobGeometry planJob(const Profile& profile, const openvdb::CoordBBox& partBounds
   const std::array<double, 3> partMm = {dim.x() * profile.voxelSizeMm[0], dim.y() * profile.voxelSizeMm[1],
                                         dim.z() * profile.voxelSizeMm[2]};
   std::array<double, 3> overhang{};
-  std::string tooLarge;
+  std::vector<std::string> tooLarge;
   for (int a = 0; a < 3; ++a) {
     overhang[a] = std::max(0.0, partMm[a] - profile.trayMm[a]);
     if (overhang[a] > 1e-9)
-      tooLarge += std::string(tooLarge.empty() ? "" : ", ") + "by " + mm(overhang[a]) + " mm along " + axis[a] + " (" +
-                  mm(partMm[a]) + " > " + mm(profile.trayMm[a]) + ")";
+      tooLarge.push_back("by " + mm(overhang[a]) + " mm along " + axis[a] + " (" + mm(partMm[a]) + " > " +
+                         mm(profile.trayMm[a]) + ")");
   }
   if (!tooLarge.empty())
     throw TrayFitError("the part (" + mm(partMm[0]) + " x " + mm(partMm[1]) + " x " + mm(partMm[2]) +
                            " mm) does not fit the " + profile.printer + " tray (" + mm(profile.trayMm[0]) + " x " +
-                           mm(profile.trayMm[1]) + " x " + mm(profile.trayMm[2]) + " mm): too large " + tooLarge,
+                           mm(profile.trayMm[1]) + " x " + mm(profile.trayMm[2]) + " mm): too large " + boost::algorithm::join(tooLarge, ", "),
                        overhang);
 
   JobGeometry g;

@@ -4,6 +4,9 @@
 
 #include "common/data_dir.hpp"
 
+#include <boost/algorithm/string/join.hpp>
+#include <boost/range/adaptor/transformed.hpp>
+
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -112,8 +115,7 @@ Profile loadProfile(const std::string& nameOrPath) {
   // the file system's "File name too long" the message.
   const std::vector<std::string> bundled = bundledProfileNames();
   if (std::find(bundled.begin(), bundled.end(), nameOrPath) == bundled.end()) {
-    std::string list;
-    for (const std::string& n : bundled) list += (list.empty() ? "" : ", ") + n;
+    const std::string list = boost::algorithm::join(bundled, ", ");
     throw ProfileError(nameOrPath, {{"", "no bundled profile of that name in " + bundledProfileDir().string() +
                                              " (bundled: " + (list.empty() ? "none" : list) +
                                              "); give a path to use another profile file"}});
@@ -126,7 +128,6 @@ Profile loadProfile(const std::string& nameOrPath) {
 }
 
 Profile withPrintMode(const Profile& profile, const std::string& mode) {
-  std::string known;
   for (const PrintMode& m : profile.printModes) {
     if (m.name == mode) {
       Profile p = profile;
@@ -134,8 +135,9 @@ Profile withPrintMode(const Profile& profile, const std::string& mode) {
       p.printMode = m.name;
       return p;
     }
-    known += (known.empty() ? "" : ", ") + m.name;
   }
+  const std::string known = boost::algorithm::join(
+      profile.printModes | boost::adaptors::transformed([](const PrintMode& m) { return m.name; }), ", ");
   throw ProfileError(profile.source.string(),
                      {{"resolution.print_modes", "no print mode \"" + mode + "\" (" +
                                                      (known.empty() ? "the " + profile.name + " profile has no print modes"

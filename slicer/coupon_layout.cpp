@@ -7,11 +7,14 @@
 #include "common/memory_budget.hpp"
 #include "voxel/printer_grid.hpp"
 
+#include <boost/algorithm/string/join.hpp>
+
 #include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
+#include <vector>
 
 namespace rodfab::slicer {
 
@@ -53,19 +56,20 @@ int CouponLayout::barAt(int i, int j) const {
 CouponVoxels couponVoxels(const printer_profiles::Profile& profile, const std::array<double, 3>& sizeMm, double gapMm) {
   const std::array<double, 3>& voxel = profile.voxelSizeMm;
   std::array<double, 3> bar{};
-  std::string tooLarge;
+  std::vector<std::string> tooLarge;
   for (int a = 0; a < 3; ++a) {
     bar[a] = std::round(sizeMm[a] / voxel[a]);
     if (bar[a] < 1.0)
       throw std::invalid_argument("--size: " + number(sizeMm[a]) + " mm along " + kAxis[a] + " is less than one voxel (" +
                                   number(voxel[a]) + " mm)");
     if (bar[a] * voxel[a] > profile.trayMm[a] + 1e-9)
-      tooLarge += std::string(tooLarge.empty() ? "" : ", ") + "by " + mm(bar[a] * voxel[a] - profile.trayMm[a]) + " mm along " + kAxis[a];
+      tooLarge.push_back("by " + mm(bar[a] * voxel[a] - profile.trayMm[a]) + " mm along " + kAxis[a]);
   }
   if (!tooLarge.empty())
     throw std::runtime_error("a bar of " + mm(bar[0] * voxel[0]) + " x " + mm(bar[1] * voxel[1]) + " x " + mm(bar[2] * voxel[2]) +
                              " mm does not fit the " + profile.printer + " tray (" + mm(profile.trayMm[0]) + " x " +
-                             mm(profile.trayMm[1]) + " x " + mm(profile.trayMm[2]) + " mm): too large " + tooLarge);
+                             mm(profile.trayMm[1]) + " x " + mm(profile.trayMm[2]) + " mm): too large " +
+                             boost::algorithm::join(tooLarge, ", "));
   CouponVoxels out;
   out.bar = openvdb::Coord(static_cast<int>(bar[0]), static_cast<int>(bar[1]), static_cast<int>(bar[2]));
   out.gapI = static_cast<int>(std::round(gapMm / voxel[0]));
