@@ -32,7 +32,7 @@ void addDitherReportOptions(po::options_description& options) {
       ("rod-diameter", po::value<double>()->default_value(1.0)->value_name("MM"), "rod diameter in mm")
       ("rod-length", po::value<double>()->default_value(10.0)->value_name("MM"), "rod length in mm")
       ("rod-axis", po::value<char>()->default_value('x')->value_name("x|y|z"), "rod direction: x, y or z")
-      ("rod-fraction", po::value<float>()->default_value(0.3f)->value_name("F"), "Vero fraction of the rod")
+      ("rod-fraction", po::value<float>()->default_value(0.3f, "0.3")->value_name("F"), "Vero fraction of the rod")
       ("mask", po::value<std::string>()->value_name("MASK.rfbn"), "blue-noise mask file (default: the bundled one)")
       ("json", "print the report as JSON on stdout");
   addProfileOptions(options);

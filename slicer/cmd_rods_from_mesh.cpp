@@ -28,7 +28,7 @@ void addMeshOptions(po::options_description& options) {
       ("diameter", po::value<double>()->required()->value_name("D"), "rod diameter (mm); for ellipses and rectangles the thickness normal to the surface")
       ("output,o", po::value<std::string>()->required()->value_name("DESIGN.json"), "design file to write (rodfab.design/1)")
       ("subdivisions", po::value<int>()->default_value(4)->value_name("K"), "points per rod projected onto the surface and interpolated")
-      ("surface-tolerance", po::value<double>()->default_value(0.05)->value_name("T"), "largest distance of a centerline from the surface (mm)")
+      ("surface-tolerance", po::value<double>()->default_value(0.05, "0.05")->value_name("T"), "largest distance of a centerline from the surface (mm)")
       ("force", "replace an existing design file at --output")
       ("json", "print the summary as JSON on stdout");
   addThreadsOption(options, "they build the rods; the result does not depend on their number");

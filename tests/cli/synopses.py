@@ -1,6 +1,6 @@
 """Every command's synopsis as README.md shows it is the one `rodfab COMMAND --help` prints (built from
 the command's options, slicer/options.hpp synopsisOf), and every option that takes a value names it
-(no Boost "arg" placeholder).
+(no Boost "arg" placeholder), and every default is shown as written (0.05, not 0.050000000000000003).
 
     synopses.py RODFAB SOURCE_DIR
 """
@@ -47,6 +47,10 @@ for command in commands:
     synopsis = usage[len("usage: "):]
     if re.search(r"\barg\b", help_text):
         failures.append(f"{command}: an option without a value name in --help")
+    # A default shown as the binary double prints it (0.050000000000000003) instead of as written.
+    for default in re.findall(r"\(=([0-9.eE+-]+)\)", help_text):
+        if len(default.split(".")[-1]) > 6:
+            failures.append(f"{command}: --help shows the default {default}; give default_value its text")
     at = words.find(synopsis + " ")
     if at < 0 and words.endswith(synopsis):
         at = len(words) - len(synopsis)  # the last words of the README: nothing follows
