@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <thread>
 #include <vector>
 
 using namespace rodfab::printer_profiles;
@@ -91,6 +92,28 @@ TEST_CASE("igzip deflate is read back by zlib at every level, raw and zlib-wrapp
   CHECK(deflateBytes(image, 1, DeflateWrapper::Raw).size() * 8 < image.size());  // it does compress
   CHECK_THROWS_AS(deflateBytes(image, 4, DeflateWrapper::Raw), std::invalid_argument);
   CHECK_THROWS_AS(deflateBytes(image, -1, DeflateWrapper::Raw), std::invalid_argument);
+}
+
+TEST_CASE("deflateBytes gives an input the same bytes whatever the thread compressed before", "[deflate]") {
+  // The thread keeps its igzip stream and clears only its fields before the history buffer: what an
+  // earlier, different image left there must not reach the next one's bytes.
+  std::vector<Data> inputs{layerLike(268'000, 3), Data(70'000, 0xff), layerLike(5'000, 4), Data{7}, layerLike(900'000, 5)};
+  Data noise(70'000);
+  std::mt19937 random(6);
+  for (auto& b : noise) b = static_cast<std::uint8_t>(random());
+  inputs.push_back(noise);
+  for (int level = 0; level <= 3; ++level) {
+    CAPTURE(level);
+    std::vector<Data> fresh(inputs.size());  // each on a thread of its own, its stream new
+    for (std::size_t i = 0; i < inputs.size(); ++i)
+      std::thread([&, i] { fresh[i] = deflateBytes(inputs[i], level, DeflateWrapper::Zlib); }).join();
+    for (int round = 0; round < 2; ++round)
+      for (std::size_t k = 0; k < inputs.size(); ++k) {
+        const std::size_t i = round == 0 ? k : inputs.size() - 1 - k;  // after larger and after smaller ones
+        CAPTURE(i);
+        CHECK(deflateBytes(inputs[i], level, DeflateWrapper::Zlib) == fresh[i]);
+      }
+  }
 }
 
 TEST_CASE("DeflateStream in pieces makes a stream zlib reads", "[deflate]") {
