@@ -92,7 +92,7 @@ private:
     return errorBound > 0.0f && deferredDepth_[static_cast<std::size_t>(rod)] ? 1.0 - std::sqrt(encodedDepth) : encodedDepth;
   }
   // Four neighbouring slots n .. n + 3 of one row (see offset), as four stores would fill them.
-  void storeFour(int n, Double4 encodedDepth, Float4 value, Float4 bounds, Owner4 owners) {
+  [[gnu::always_inline]] void storeFour(int n, Double4 encodedDepth, Float4 value, Float4 bounds, Owner4 owners) {
     std::memcpy(&encodedDepth_[static_cast<std::size_t>(n)], &encodedDepth, sizeof encodedDepth);
     std::memcpy(&value_[static_cast<std::size_t>(n)], &value, sizeof value);
     std::memcpy(&errorBound_[static_cast<std::size_t>(n)], &bounds, sizeof bounds);
@@ -102,7 +102,7 @@ private:
   // the bits of `lanes` set (lanes not in `lanes`, past the row's end, go to empty slots whose bits stay
   // clear: no candidate is ever read from an empty slot, and emit masks their values out). False, and
   // nothing done, otherwise.
-  bool storeFourIntoEmpty(int n, Double4 encodedDepth, Float4 value, Float4 bounds, Owner4 owners, unsigned lanes) {
+  [[gnu::always_inline]] bool storeFourIntoEmpty(int n, Double4 encodedDepth, Float4 value, Float4 bounds, Owner4 owners, unsigned lanes) {
     std::uint64_t& word = filled_[static_cast<std::size_t>(n >> kBlockXLog2)];
     const int shift = n & (kBlockX - 1);
     if (shift > kBlockX - 4 || ((word >> shift) & 0xfu) != 0) return false;
@@ -234,7 +234,7 @@ private:
   // Round-cap candidates inside for sure (gauges g < 1) for the lanes set in `lanes` of slots n .. n + 3
   // of one row, where those four slots lie in the row and are all empty: one store (storeFourIntoEmpty),
   // as addCapCandidate would fill them one by one. False, and nothing done, otherwise.
-  bool capsIntoEmptySlots(int n, Double4 g, unsigned lanes, float value, int rod, int piece) {
+  [[gnu::always_inline]] bool capsIntoEmptySlots(int n, Double4 g, unsigned lanes, float value, int rod, int piece) {
     if (!storeFourIntoEmpty(n, 1.0 - g, Float4{} + value, Float4{}, Owner4{} + owner(rod, piece), lanes)) return false;
     voxelsPerRod[static_cast<std::size_t>(rod)] += static_cast<std::uint64_t>(std::popcount(lanes));
     return true;
@@ -244,7 +244,7 @@ private:
   // clearly deeper than the cap, is settled with one comparison of four lanes: clearOverlap's
   // expressions lane by lane (the candidate's error bound is 0, so `clear` gets the same bits). Any
   // other case goes voxel by voxel.
-  void addFourCapCandidates(int n, Double4 g, float value, int rod, int piece, int i, int j, int k) {
+  [[gnu::always_inline]] void addFourCapCandidates(int n, Double4 g, float value, int rod, int piece, int i, int j, int k) {
     if (capsIntoEmptySlots(n, g, 0xfu, value, rod, piece)) return;
     if (((filled_[static_cast<std::size_t>(n >> 6)] >> (n & 63)) & 0xfu) == 0xfu) {
       Double4 slotEncoded;

@@ -46,27 +46,33 @@ typedef float Float4 __attribute__((vector_size(16)));
 typedef std::int64_t Mask4 __attribute__((vector_size(32)));  // a comparison of Double4s: -1 true, 0 false
 typedef std::int32_t Int4 __attribute__((vector_size(16)));
 typedef std::uint64_t Owner4 __attribute__((vector_size(32)));  // a slot's owner (rod, piece), four times
+// Every function taking or returning a 32-byte vector (Double4, Mask4, Owner4) that the target_clones
+// loops (sweep, cap) call is always_inline: the avx2 clone passes such a vector in a ymm register, the
+// baseline ABI in memory, and an out-of-line copy (an inline function is one comdat copy, compiled for
+// the baseline) then reads the wrong place: at -O2 (RelWithDebInfo, the sanitizer build) GCC kept
+// LeafBuilder::addFourCapCandidates out of line and the avx2 cap wrote garbage moduli (0, NaN, 1e38).
+// tests/check_vector_abi.sh checks the built library for such out-of-line functions.
 
 // |v| lane by lane, exactly as std::abs (clears the sign bit).
-inline Double4 absolute(Double4 v) {
+[[gnu::always_inline]] inline Double4 absolute(Double4 v) {
   return reinterpret_cast<Double4>(reinterpret_cast<Mask4>(v) & std::numeric_limits<std::int64_t>::max());
 }
 
 // sqrt lane by lane (correctly rounded, as std::sqrt), two lanes per SSE2 instruction.
-inline Double4 squareRoot(Double4 v) {
+[[gnu::always_inline]] inline Double4 squareRoot(Double4 v) {
   const __m128d low = _mm_sqrt_pd(_mm_set_pd(v[1], v[0])), high = _mm_sqrt_pd(_mm_set_pd(v[3], v[2]));
   return Double4{low[0], low[1], high[0], high[1]};
 }
 
 // The lanes of a comparison as bits 0 to 3 (two SSE2 movemasks).
-inline unsigned laneBits(Mask4 m) {
+[[gnu::always_inline]] inline unsigned laneBits(Mask4 m) {
   const Double4 d = reinterpret_cast<Double4>(m);
   const __m128d low = __builtin_shufflevector(d, d, 0, 1), high = __builtin_shufflevector(d, d, 2, 3);
   return static_cast<unsigned>(_mm_movemask_pd(low) | (_mm_movemask_pd(high) << 2));
 }
 
 // A value in all four lanes.
-inline Double4 broadcast(double v) { return Double4{v, v, v, v}; }
+[[gnu::always_inline]] inline Double4 broadcast(double v) { return Double4{v, v, v, v}; }
 
 // An affine function's c and gy in all four lanes (with its gz), for LayerRows: set once per piece.
 struct RowLanes {
@@ -109,8 +115,8 @@ struct SweptLanes {
 };
 
 // std::max and std::min lane by lane: (a < b) ? b : a and (b < a) ? b : a.
-inline Double4 largerOf(Double4 a, Double4 b) { return a < b ? b : a; }
-inline Double4 smallerOf(Double4 a, Double4 b) { return b < a ? b : a; }
+[[gnu::always_inline]] inline Double4 largerOf(Double4 a, Double4 b) { return a < b ? b : a; }
+[[gnu::always_inline]] inline Double4 smallerOf(Double4 a, Double4 b) { return b < a ? b : a; }
 
 // AffineInIndex::row for the rows of one layer k, four rows j[0..3] at a time, lane by lane the same
 // expression (c + gy j) + gz k. The coefficients in lanes come from the piece's RowLanes and gz k is set
@@ -136,17 +142,17 @@ inline int clampToInt(double v) { return static_cast<int>(std::clamp(v, -2.0e9, 
 // bounds are integers, so clamping first gives the same value. The clamped value's truncation t
 // (cvttpd2dq, as cvttsd2si for each lane) is then its ceiling (floor), or one below (above) it where
 // t < v (t > v). A NaN lane gives INT_MIN either way.
-inline Double4 clampLanes(Double4 v) {
+[[gnu::always_inline]] inline Double4 clampLanes(Double4 v) {
   const Double4 low = broadcast(-2.0e9), high = broadcast(2.0e9);
   const Double4 atLeast = v < low ? low : v;
   return high < atLeast ? high : atLeast;
 }
-inline Double4 truncatedLanes(Double4 clamped) { return __builtin_convertvector(__builtin_convertvector(clamped, Int4), Double4); }
-inline Int4 ceilToInts(Double4 v) {
+[[gnu::always_inline]] inline Double4 truncatedLanes(Double4 clamped) { return __builtin_convertvector(__builtin_convertvector(clamped, Int4), Double4); }
+[[gnu::always_inline]] inline Int4 ceilToInts(Double4 v) {
   const Double4 clamped = clampLanes(v), t = truncatedLanes(clamped);
   return __builtin_convertvector(t < clamped ? t + 1.0 : t, Int4);  // integers below 2^31: exact
 }
-inline Int4 floorToInts(Double4 v) {
+[[gnu::always_inline]] inline Int4 floorToInts(Double4 v) {
   const Double4 clamped = clampLanes(v), t = truncatedLanes(clamped);
   return __builtin_convertvector(t > clamped ? t - 1.0 : t, Int4);
 }
