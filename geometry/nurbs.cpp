@@ -320,27 +320,43 @@ Eigen::Vector4d blossom(const NurbsCurve& curve, int span, const double* x) {
 
 }  // namespace
 
-std::pair<Vec3, Vec3> NurbsCurve::boundsOn(double a, double b) const {
-  a = std::clamp(a, domainBegin(), domainEnd());
-  b = std::clamp(b, a, domainEnd());
-  const int p = degree_, n = static_cast<int>(points_.size());
-  Vec3 low = Vec3::Constant(std::numeric_limits<double>::infinity()), high = -low;
-  // Every non-empty span meeting [a, b] (the span of a alone when a == b).
-  for (int span = findKnotSpan(knots_, p, n, a); span < n; ++span) {
-    if (knots_[span + 1] <= knots_[span]) continue;
-    if (knots_[span] > b) break;
-    const double x0 = std::max(a, knots_[span]), x1 = std::min(b, knots_[span + 1]);
+namespace {
+
+// Calls visit(point) for the Bezier control points of `curve` restricted to [a, b] in every non-empty
+// knot span meeting it (the span of a alone when a == b): with positive weights the homogeneous ones
+// are convex combinations of the curve's (every blossom argument lies in the span), so their weights
+// are positive and each piece lies in the convex hull of its points.
+template <class Visit>
+void forEachBezierPoint(const NurbsCurve& curve, double a, double b, Visit visit) {
+  const std::vector<double>& knots = curve.knots();
+  a = std::clamp(a, curve.domainBegin(), curve.domainEnd());
+  b = std::clamp(b, a, curve.domainEnd());
+  const int p = curve.degree(), n = static_cast<int>(curve.points().size());
+  for (int span = findKnotSpan(knots, p, n, a); span < n; ++span) {
+    if (knots[span + 1] <= knots[span]) continue;
+    if (knots[span] > b) break;
+    const double x0 = std::max(a, knots[span]), x1 = std::min(b, knots[span + 1]);
     std::array<double, kMaxDegree> x;
     for (int k = 0; k <= p; ++k) {
       for (int r = 0; r < p; ++r) x[static_cast<std::size_t>(r)] = r < p - k ? x0 : x1;
-      const Eigen::Vector4d h = blossom(*this, span, x.data());
-      const Vec3 point = h.head<3>() / h[3];
-      low = low.cwiseMin(point);
-      high = high.cwiseMax(point);
+      const Eigen::Vector4d h = blossom(curve, span, x.data());
+      visit(Vec3(h.head<3>() / h[3]));
     }
     if (x1 >= b) break;
   }
-  return {low, high};
+}
+
+}  // namespace
+
+double NurbsCurve::deviationOn(double a, double b, const Vec3& from, const Vec3& to) const {
+  const Vec3 chord = to - from;
+  const double length2 = chord.squaredNorm();
+  double largest = 0.0;
+  forEachBezierPoint(*this, a, b, [&](const Vec3& q) {
+    const double t = length2 > 0.0 ? std::clamp((q - from).dot(chord) / length2, 0.0, 1.0) : 0.0;
+    largest = std::max(largest, (from + t * chord - q).norm());
+  });
+  return largest;
 }
 
 NurbsCurve NurbsCurve::withKnotInserted(double u) const {

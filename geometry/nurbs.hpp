@@ -56,12 +56,13 @@ public:
   // Start of every non-empty knot span, plus the domain end.
   std::vector<double> breakpoints() const;
 
-  // Componentwise bounds {low, high} of C(u) for u in [a, b] (a <= b, inside the domain): the least
-  // and greatest coordinates of the Bezier control points of the curve restricted to [a, b] in each
+  // How far C(u) for u in [a, b] (a <= b, inside the domain) may lie from the segment [from, to]: the
+  // largest distance from it of the Bezier control points of the curve restricted to [a, b] in each
   // knot span it meets (blossoms, in homogeneous form). By the convex-hull property (the weights are
-  // positive) every C(u) there lies within them, up to the round-off of the two computations, a few
-  // ulps of (largest weight / smallest weight) times the largest control coordinate.
-  std::pair<Vec3, Vec3> boundsOn(double a, double b) const;
+  // positive) and the convexity of the distance to a segment, every C(u) there lies within it, up to
+  // the round-off of the two computations, a few ulps of (largest weight / smallest weight) times the
+  // largest control coordinate.
+  double deviationOn(double a, double b, const Vec3& from, const Vec3& to) const;
 
   // The same curve with `insertionsPerSpan` knots inserted evenly into every non-empty span
   // (Boehm's knot insertion in homogeneous coordinates): h-refinement for the rod solver.

@@ -120,11 +120,12 @@ public:
 
   // The inside test of the solid defined at the top of this file. Thread-safe (const, no caches).
   // Examines only the sample segments whose box (segment, deviation and section reach, plus a margin
-  // for rounding) holds p, nearest first, and of those only the ones whose hull (a box holding the
-  // segment's centerline, NurbsCurve::boundsOn) is close enough to p for a section there to be as deep
-  // as the best found so far: the others cannot change the answer, and ties go to the lowest u in
-  // any order, so it returns the walk's bits. A rod that comes back within its own reach (a coil
-  // tighter than its section) thus costs the few turns near p, not every turn within reach.
+  // for rounding) holds p, nearest first, and of those only the ones whose hull (a capsule around the
+  // chord holding the segment's centerline, NurbsCurve::deviationOn) is close enough to p for the
+  // segment to reach p at all and for a section there to be as deep as the best found so far: the
+  // others cannot change the answer, and ties go to the lowest u in any order, so it returns the
+  // walk's bits. A rod that comes back within its own reach (a coil tighter than its section) thus
+  // costs the few segments near p, not every turn within reach.
   RodHit classify(const Vec3& p) const;
   // The same test examining every sample segment of every smooth piece: the reference `classify`
   // equals bit for bit (tests, benchmarks). It also answers points with a non-finite coordinate.
@@ -161,9 +162,9 @@ private:
   // at least `depth` (a bound with room for rounding; infinite for -inf).
   double sectionDistanceLimit(double depth) const;
   void buildSegmentBoxes();
-  // Boxes holding every centerline point of each sample segment (the nearest-first visit's distances);
-  // `scale`: the largest coordinate, reach and deviation, for the rounding margin.
-  std::vector<Box3> segmentHulls(double scale) const;
+  // Capsules holding every centerline point of each sample segment (the nearest-first visit's
+  // distances): its chord grown by the Bezier control points' deviation from it and by `margin`.
+  std::vector<SegmentBoxes::Capsule> segmentHulls(double margin) const;
 
   std::string name_;
   NurbsCurve centerline_;
@@ -190,9 +191,10 @@ private:
   std::vector<Jet> foldJets_;
   std::vector<SmoothPiece> pieces_;
   // Segment i's box: its end points grown by its deviation, the section's reach and a rounding margin;
-  // and its hull box (segmentHulls).
+  // and its hull (segmentHulls).
   SegmentBoxes segmentBoxes_;
   double distanceSlack_ = 0.0;  // sectionDistanceLimit's allowance for the plane tolerance and rounding
+  double segmentReach_ = 0.0;   // farthest a segment's chord may lie from p for classifySegment to examine it
   Box3 bounds_;
 };
 

@@ -150,13 +150,20 @@ void Rod::classifyPiece(const Vec3& p, const SmoothPiece& piece, Walk walk, RodH
   if (walk == Walk::EverySegment) {
     for (std::size_t i = piece.firstSample; i < piece.lastSample; ++i) classifySegment(p, piece, i, best);
   } else {
-    // Nearest segment first, and none whose every section through p would be shallower than the best
-    // candidate so far (sectionDistanceLimit); `consider` makes the order irrelevant to the result.
+    // Nearest segment first, and none whose chord lies beyond the segments' reach (classifySegment
+    // skips them) or whose every section through p would be shallower than the best candidate so far
+    // (sectionDistanceLimit, asked at every node: recomputed when the best changed); `consider` makes
+    // the order irrelevant to the result. Before any candidate is found only the reach bounds the
+    // visit: without it, a point just outside the solid visited every segment whose box held it.
+    double limitDepth = best.depth, limit = std::min(sectionDistanceLimit(best.depth), segmentReach_);
     segmentBoxes_.forEachNearestWithin(
         p, piece.firstSample, piece.lastSample,
         [&] {
-          const double limit = sectionDistanceLimit(best.depth);
-          return limit * limit;
+          if (best.depth != limitDepth) {
+            limitDepth = best.depth;
+            limit = std::min(sectionDistanceLimit(best.depth), segmentReach_);
+          }
+          return limit;
         },
         [&](std::size_t i) { classifySegment(p, piece, i, best); });
   }
@@ -190,6 +197,22 @@ double Rod::sectionDistanceLimit(double depth) const {
   return radius * shortfall + distanceSlack_ + 1e-9 * radius * std::abs(shortfall);
 }
 
+namespace {
+
+// The hulls' rounding margin (`scale`: the largest coordinate, reach and deviation): their Bezier
+// points and the curve's evaluation round within a few ulps of the largest control coordinate times
+// the weights' ratio (rational curves), far below 1e-13 of it; the query's distances (p within a
+// reach box) within a few ulps of the scale, far below the usual 1e-9 of it.
+double hullMargin(const NurbsCurve& centerline, double scale) {
+  const std::vector<double>& w = centerline.weights();
+  const auto [lightest, heaviest] = std::minmax_element(w.begin(), w.end());
+  double largestControl = 0.0;
+  for (const Vec3& q : centerline.points()) largestControl = std::max(largestControl, q.cwiseAbs().maxCoeff());
+  return 1e-9 * (1.0 + scale + largestControl) + 1e-13 * (*heaviest / *lightest) * largestControl;
+}
+
+}  // namespace
+
 void Rod::buildSegmentBoxes() {
   // A segment is examined when its computed distance to p, less its deviation, is at most the reach
   // (classifySegment). The computed distance is that of p to a point within a few ulps of the segment,
@@ -208,30 +231,26 @@ void Rod::buildSegmentBoxes() {
     boxes[i] = Box3(Vec3(samplePoint_[i].cwiseMin(samplePoint_[i + 1]).array() - grow),
                     Vec3(samplePoint_[i].cwiseMax(samplePoint_[i + 1]).array() + grow));
   }
-  segmentBoxes_ = SegmentBoxes(std::move(boxes), segmentHulls(largest + reach + maxDeviation));
+  const double hullSlack = hullMargin(centerline_, largest + reach + maxDeviation);
+  segmentBoxes_ = SegmentBoxes(std::move(boxes), segmentHulls(hullSlack), hullSlack);
+  // A segment whose chord lies farther than this from p is one classifySegment skips (its computed gap
+  // less its deviation is beyond the reach); its hull holds the chord, so the hull's computed distance
+  // exceeds this too (the hulls' margin covers the two distances' rounding).
+  segmentReach_ = reach + maxDeviation + margin;
   // sectionHit's plane tolerance (1e-7 (1 + radius)) doubled, and the reach boxes' margin for the
   // rounding of the distances and frame coordinates.
   distanceSlack_ = 2e-7 * (1.0 + radius) + margin;
 }
 
-std::vector<Box3> Rod::segmentHulls(double scale) const {
+std::vector<SegmentBoxes::Capsule> Rod::segmentHulls(double margin) const {
   // Every centerline point classifySegment can take a section at, r(u) for u in the segment's [a, b]
-  // (from below or above at b), lies in the convex hull of the segment's Bezier control points
-  // (NurbsCurve::boundsOn) or is a sample point (r from above at b where the curve jumps there). The
-  // margin covers the rounding of both: a few ulps of the largest control coordinate times the weights'
-  // ratio (rational curves), far below 1e-13 of it, and the boxes' usual 1e-9 of the coordinates.
-  const std::vector<double>& w = centerline_.weights();
-  const auto [lightest, heaviest] = std::minmax_element(w.begin(), w.end());
-  double largestControl = 0.0;
-  for (const Vec3& q : centerline_.points()) largestControl = std::max(largestControl, q.cwiseAbs().maxCoeff());
-  const double margin = 1e-9 * (1.0 + scale + largestControl) + 1e-13 * (*heaviest / *lightest) * largestControl;
-  std::vector<Box3> hulls(sampleDeviation_.size());
+  // (from below or above at b), lies in the convex hull of the segment's Bezier control points, so
+  // within their largest distance from the chord (NurbsCurve::deviationOn; a rigorous bound, unlike
+  // sampleDeviation_), or is a sample point, an end of the chord.
+  std::vector<SegmentBoxes::Capsule> hulls(sampleDeviation_.size());
   for (std::size_t i = 0; i < hulls.size(); ++i) {
-    const auto [low, high] = centerline_.boundsOn(sampleU_[i], sampleU_[i + 1]);
-    hulls[i] = Box3(low, high);
-    hulls[i].extend(samplePoint_[i]);
-    hulls[i].extend(samplePoint_[i + 1]);
-    hulls[i] = Box3(Vec3(hulls[i].min().array() - margin), Vec3(hulls[i].max().array() + margin));
+    const Vec3 &a = samplePoint_[i], &b = samplePoint_[i + 1];
+    hulls[i] = {a, b, centerline_.deviationOn(sampleU_[i], sampleU_[i + 1], a, b) + margin};
   }
   return hulls;
 }

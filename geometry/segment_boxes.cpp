@@ -1,6 +1,7 @@
 #include "geometry/segment_boxes.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 namespace rodfab::geometry {
@@ -26,15 +27,65 @@ std::vector<std::vector<Eigen::AlignedBox3d>> hierarchy(std::vector<Eigen::Align
   return levels;
 }
 
+double distanceToSegment(const Vec3& p, const Vec3& a, const Vec3& b) {
+  const Vec3 ab = b - a;
+  const double length2 = ab.squaredNorm();
+  const double t = length2 > 0.0 ? std::clamp((p - a).dot(ab) / length2, 0.0, 1.0) : 0.0;
+  return (a + t * ab - p).norm();
+}
+
+// The radius around [a, b] that holds every capsule of hulls[first, last) whose segment can be
+// visited (the distance to a segment is convex: a capsule's chord is as near as its farther end).
+double radiusHolding(const Vec3& a, const Vec3& b, const std::vector<SegmentBoxes::Capsule>& hulls,
+                     const std::vector<Eigen::AlignedBox3d>& boxes, std::size_t first, std::size_t last) {
+  double radius = 0.0;
+  for (std::size_t i = first; i < last; ++i) {
+    if (boxes[i].isEmpty()) continue;
+    const double far = std::max(distanceToSegment(hulls[i].a, a, b), distanceToSegment(hulls[i].b, a, b));
+    radius = std::max(radius, far + hulls[i].radius);
+  }
+  return radius;
+}
+
+// A capsule holding the visitable hulls of segments [first, last): around their chord, or a ball
+// around the centre of their ends' box, whichever is thinner.
+SegmentBoxes::Capsule enclosing(const std::vector<SegmentBoxes::Capsule>& hulls, const std::vector<Eigen::AlignedBox3d>& boxes,
+                                std::size_t first, std::size_t last) {
+  Eigen::AlignedBox3d ends;
+  ends.setEmpty();
+  for (std::size_t i = first; i < last; ++i) {
+    if (boxes[i].isEmpty()) continue;
+    ends.extend(hulls[i].a);
+    ends.extend(hulls[i].b);
+  }
+  if (ends.isEmpty()) return {};
+  SegmentBoxes::Capsule chord{hulls[first].a, hulls[last - 1].b, 0.0};
+  chord.radius = radiusHolding(chord.a, chord.b, hulls, boxes, first, last);
+  const Vec3 centre = ends.center();
+  const double ball = radiusHolding(centre, centre, hulls, boxes, first, last);
+  return ball < chord.radius ? SegmentBoxes::Capsule{centre, centre, ball} : chord;
+}
+
 }  // namespace
 
-SegmentBoxes::SegmentBoxes(std::vector<Eigen::AlignedBox3d> segmentBoxes, std::vector<Eigen::AlignedBox3d> hullBoxes) {
-  if (!hullBoxes.empty() && hullBoxes.size() != segmentBoxes.size())
-    throw std::invalid_argument("SegmentBoxes: one hull box per segment, or none");
-  if (hullBoxes.empty()) hullBoxes = segmentBoxes;
+SegmentBoxes::SegmentBoxes(std::vector<Eigen::AlignedBox3d> segmentBoxes, const std::vector<Capsule>& hulls, double margin) {
+  if (hulls.size() != segmentBoxes.size()) throw std::invalid_argument("SegmentBoxes: one hull per segment");
+  const std::vector<Eigen::AlignedBox3d> leaves = segmentBoxes;
   levels_ = hierarchy(std::move(segmentBoxes));
-  hulls_ = hierarchy(std::move(hullBoxes));
-  for (std::size_t l = 0, span = 1; l < levels_.size(); ++l, span *= kFanout) spans_.push_back(span);
+  for (std::size_t l = 0, span = 1; l < levels_.size(); ++l, span *= kFanout) {
+    spans_.push_back(span);
+    std::vector<Hull>& level = hulls_.emplace_back(levels_[l].size());
+    for (std::size_t n = 0; n < level.size(); ++n) {
+      const std::size_t first = n * span, last = std::min(first + span, hulls.size());
+      Capsule c = l == 0 ? hulls[n] : enclosing(hulls, leaves, first, last);
+      if (l > 0) c.radius += margin;
+      const Vec3 ab = c.b - c.a;
+      const double length2 = ab.squaredNorm();
+      // A chord too short for its inverse square is taken at its end a (farther by at most its length).
+      const double inverse = length2 > 0.0 ? 1.0 / length2 : 0.0;
+      level[n] = {c.a, ab, std::isfinite(inverse) ? inverse : 0.0, c.radius + (std::isfinite(inverse) ? 0.0 : std::sqrt(length2))};
+    }
+  }
 }
 
 }  // namespace rodfab::geometry

@@ -14,6 +14,8 @@
 #include <limits>
 #include <numbers>
 #include <random>
+#include <stdexcept>
+#include <utility>
 
 using namespace rodfab::geometry;
 using rodfab::geometry::testing::helix;
@@ -145,50 +147,129 @@ TEST_CASE("A coil tighter than its section: classify skips the far turns and sti
   }
 }
 
-TEST_CASE("NurbsCurve::boundsOn holds the curve on the interval, and is tight on a short one", "[rod][classify]") {
+namespace {
+
+// A rational coil: quadratic arcs of a quarter turn (the circle's corner weights cos 45 degrees, times
+// a random factor in [0.5, 2] when `skewed`: kinks at the arcs' joints then), rising `pitch` a turn.
+NurbsCurve rationalCoil(double radius, double pitch, int quarters, bool skewed, std::mt19937& rng) {
+  std::uniform_real_distribution<double> factor(0.5, 2.0);
+  std::vector<Vec3> points;
+  std::vector<double> weights, knots{0, 0, 0};
+  for (int q = 0;; ++q) {
+    const double angle = q * std::numbers::pi / 2, corner = angle + std::numbers::pi / 4;
+    points.emplace_back(radius * std::cos(angle), radius * std::sin(angle), pitch * q / 4);
+    weights.push_back(1.0);
+    if (q == quarters) break;
+    points.emplace_back(radius * std::sqrt(2.0) * std::cos(corner), radius * std::sqrt(2.0) * std::sin(corner), pitch * (q + 0.5) / 4);
+    weights.push_back(std::sqrt(0.5) * (skewed ? factor(rng) : 1.0));
+    if (q + 1 < quarters) knots.insert(knots.end(), 2, q + 1.0);
+  }
+  knots.insert(knots.end(), 3, static_cast<double>(quarters));
+  return NurbsCurve(2, knots, points, weights);
+}
+
+}  // namespace
+
+TEST_CASE("Random coils tighter than their section, polynomial and rational: classify is the walk, bit for bit", "[rod][classify][coil]") {
+  // The hulls' capsules (chord and Bezier deviation) let classify skip most segments of such a coil:
+  // a deviation bound too small, or a node's capsule not holding its segments, skips the deepest
+  // section for some point, and its bits differ from the walk's.
+  std::mt19937 rng(29);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const BSplineField ramp(1, {0, 0, 0.5, 1, 1}, {20, 200, 30});
+  for (int trial = 0; trial < 12; ++trial) {
+    const double radius = 0.05 + 0.45 * unit(rng), pitch = radius * (0.05 + 1.2 * unit(rng));
+    const double reach = radius * (1.2 + 5.0 * unit(rng));
+    const NurbsCurve centerline = trial % 3 == 2 ? rationalCoil(radius, pitch, 8 + trial, trial % 2 == 1, rng)
+                                                 : helix(radius, pitch, 3.0 + 5.0 * unit(rng), 8 + static_cast<int>(20 * unit(rng)));
+    const Section section = trial % 4 == 0 ? Section::rectangle(1.6 * reach, 0.9 * reach)
+                            : trial % 4 == 1 ? Section::ellipse(2.0 * reach, 1.2 * reach)
+                                             : Section::circle(2.0 * reach);
+    const Rod rod("random coil", centerline, section, Vec3(0, 0, 1), std::nullopt, trial % 2 ? CapStyle::Flat : CapStyle::Round, ramp);
+    const Box3 b = rod.bounds();
+    const double u0 = centerline.domainBegin(), u1 = centerline.domainEnd();
+    int inside = 0;
+    auto check = [&](const Vec3& p) {
+      const RodHit hit = rod.classify(p), walk = rod.classifyWalkingEverySegment(p);
+      CAPTURE(trial, radius, pitch, reach, p.x(), p.y(), p.z(), hit.depth, walk.depth, hit.u, walk.u);
+      REQUIRE(sameBits(hit, walk));
+      inside += hit.inside;
+    };
+    for (int n = 0; n < 5000; ++n) {
+      check(Vec3(b.min() + Vec3(b.sizes().array() * Vec3(unit(rng), unit(rng), unit(rng)).array())));
+      check(Vec3(radius * (unit(rng) - 0.5), radius * (unit(rng) - 0.5), b.min().z() + b.sizes().z() * unit(rng)));
+      const Vec3 c = centerline.point(u0 + (u1 - u0) * unit(rng));
+      check(c + 1.2 * reach * Vec3(unit(rng) - 0.5, unit(rng) - 0.5, unit(rng) - 0.5));
+    }
+    REQUIRE(inside > 300);
+  }
+}
+
+TEST_CASE("NurbsCurve::deviationOn holds the curve on the interval within it of the chord, and is tight on a short one", "[rod][classify]") {
+  // Every C(u) of [a, b] lies within deviationOn of the chord C(a) C(b): on a helix, rational arcs, a
+  // cubic with weights 1e-2 to 1e3 and a kink, and a rational quintic with random weights (a bound
+  // from the homogeneous points, or from sampled points only, fails here).
   const double w = std::sqrt(0.5);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<Vec3> wild;
+  std::vector<double> weights;
+  for (int i = 0; i < 12; ++i) {
+    wild.emplace_back(unit(rng), unit(rng), unit(rng));
+    weights.push_back(std::exp(6.0 * unit(rng) - 3.0));
+  }
   const NurbsCurve curves[] = {
       helix(0.2, 0.063, 3, 21),
       NurbsCurve(2, {0, 0, 0, 0.5, 0.5, 1, 1, 1}, {{0, -0.6, 0}, {0.6, -0.6, 0}, {0.6, 0, 0}, {0.6, 0.6, 0}, {0, 0.6, 0}}, {1, w, 1, w, 1}),
       NurbsCurve(3, {0, 0, 0, 0, 0.3, 0.3, 0.3, 1, 1, 1, 1}, {{0, 0, 0}, {1, 2, 0}, {2, 0, 1}, {3, 1, 0}, {2, 3, 2}, {0, 1, 1}, {1, 0, 0}},
                  {1, 1e3, 2, 1, 5, 1e-2, 1}),
+      NurbsCurve(5, {0, 0, 0, 0, 0, 0, 0.2, 0.4, 0.4, 0.6, 0.8, 0.9, 1, 1, 1, 1, 1, 1}, wild, weights),
   };
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
   for (const NurbsCurve& c : curves) {
     const double u0 = c.domainBegin(), u1 = c.domainEnd();
     for (int n = 0; n < 300; ++n) {
       double a = u0 + (u1 - u0) * unit(rng), b = u0 + (u1 - u0) * unit(rng);
       if (n % 3 == 0) b = a + (b - a) * 1e-3;
       if (a > b) std::swap(a, b);
-      const auto [low, high] = c.boundsOn(a, b);
-      const double tolerance = 1e-12 * (1.0 + std::max(low.cwiseAbs().maxCoeff(), high.cwiseAbs().maxCoeff()));
-      Box3 sampled;
-      sampled.setEmpty();
-      for (int k = 0; k <= 64; ++k) {
-        const Vec3 q = c.point(a + (b - a) * k / 64.0);
-        sampled.extend(q);
-        REQUIRE((q.array() >= low.array() - tolerance).all());
-        REQUIRE((q.array() <= high.array() + tolerance).all());
+      const Vec3 from = c.point(a), to = c.point(b);
+      const double deviation = c.deviationOn(a, b, from, to);
+      const double tolerance = 1e-12 * (1.0 + std::max(from.cwiseAbs().maxCoeff(), to.cwiseAbs().maxCoeff()));
+      double sampled = 0.0;
+      for (int k = 0; k <= 256; ++k) {
+        const Vec3 q = c.point(a + (b - a) * k / 256.0);
+        const Vec3 chord = to - from;
+        const double t = chord.squaredNorm() > 0.0 ? std::clamp((q - from).dot(chord) / chord.squaredNorm(), 0.0, 1.0) : 0.0;
+        sampled = std::max(sampled, (from + t * chord - q).norm());
       }
-      // Tight: not much beyond the sampled extent on a short interval (the control polygon's bulge).
-      if (n % 3 == 0) REQUIRE((Box3(low, high).sizes() - sampled.sizes()).maxCoeff() <= 1e-3 * (1.0 + sampled.sizes().norm()) + 1e-9);
+      CAPTURE(a, b, deviation, sampled);
+      REQUIRE(sampled <= deviation + tolerance);
+      // Tight: the control polygon bulges at most a few times the curve on a short interval.
+      if (n % 3 == 0) REQUIRE(deviation <= 4.0 * sampled + 1e-9);
     }
   }
 }
 
-TEST_CASE("SegmentBoxes visits exactly the boxes holding the point, in increasing order", "[rod][classify]") {
+TEST_CASE("SegmentBoxes visits exactly the boxes holding the point, and the near hulls, whatever the nodes' capsules", "[rod][classify]") {
   std::mt19937 rng(5);
-  std::uniform_real_distribution<double> coord(-10.0, 10.0), size(0.0, 4.0);
-  for (const std::size_t count : {0u, 1u, 3u, 4u, 5u, 16u, 17u, 63u, 200u}) {
+  std::uniform_real_distribution<double> coord(-10.0, 10.0), size(0.0, 4.0), unit(0.0, 1.0);
+  // Hulls along a random walk, or along one straight line (the nodes' capsules as thin as their hulls).
+  const std::vector<std::pair<std::size_t, bool>> cases{{0, false},  {1, false},   {3, false},   {4, false},  {5, false},
+                                                        {16, false}, {17, false},  {63, false},  {200, false}, {700, false},
+                                                        {4, true},   {17, true},   {200, true}};
+  for (const auto& [count, straight] : cases) {
     std::vector<Box3> boxes(count);
+    std::vector<SegmentBoxes::Capsule> hulls(count);
     for (std::size_t i = 0; i < count; ++i) {
-      // A walk, as a polyline's boxes are, and now and then an empty box.
-      const Vec3 lo = i == 0 ? Vec3(coord(rng), coord(rng), coord(rng)) : Vec3(boxes[i - 1].center() + 0.3 * Vec3(coord(rng), coord(rng), coord(rng)));
+      // A walk, as a polyline's boxes are (along one line when `straight`), and now and then an empty
+      // box; each hull from its box's corner, some of them balls.
+      const Vec3 step = straight ? Vec3(0.3, -0.2, 0.1) : Vec3(0.3 * Vec3(coord(rng), coord(rng), coord(rng)));
+      const Vec3 lo = i == 0 ? Vec3(coord(rng), coord(rng), coord(rng)) : Vec3((straight ? hulls[i - 1].a : boxes[i - 1].center()) + step);
       boxes[i] = Box3(lo, lo + Vec3(size(rng), size(rng), size(rng)));
+      const Vec3 along = straight ? step : Vec3(0.2 * Vec3(coord(rng), coord(rng), coord(rng)));
+      hulls[i] = {lo, i % 5 == 3 ? lo : Vec3(lo + along), i % 3 == 0 ? 0.0 : size(rng) / 4};
       if (i % 11 == 7) boxes[i].setEmpty();
     }
-    const SegmentBoxes tree(boxes);
+    const SegmentBoxes tree(boxes, hulls, 1e-12);
     REQUIRE(tree.size() == count);
     for (int n = 0; n < 400; ++n) {
       const Vec3 p = count == 0 ? Vec3::Zero() : Vec3(boxes[n % count].center() + 0.5 * Vec3(coord(rng), coord(rng), coord(rng)));
@@ -199,14 +280,18 @@ TEST_CASE("SegmentBoxes visits exactly the boxes holding the point, in increasin
         if (boxes[i].contains(p)) expected.push_back(i);
       CAPTURE(count, first, last);
       REQUIRE(visited == expected);
-      // Nearest first with a fixed limit (the reach boxes serve as hulls): the boxes holding p within
-      // the limit, every one once.
-      for (const double limit : {std::numeric_limits<double>::infinity(), 0.5, 0.0}) {
+      // Nearest first with a fixed limit: the boxes holding p whose hull lies within the limit, every
+      // one once (a node's capsule that failed to hold a hull below it would skip some).
+      for (const double limit : {std::numeric_limits<double>::infinity(), 3.0 * unit(rng), 0.5, 0.0}) {
         std::vector<std::size_t> nearest, within;
-        tree.forEachNearestWithin(p, first, last, [&] { return limit * limit; }, [&](std::size_t i) { nearest.push_back(i); });
-        for (const std::size_t i : expected)
-          if (boxes[i].squaredExteriorDistance(p) <= limit * limit) within.push_back(i);
+        tree.forEachNearestWithin(p, first, last, [&] { return limit; }, [&](std::size_t i) { nearest.push_back(i); });
+        for (const std::size_t i : expected) {
+          const Vec3 ab = hulls[i].b - hulls[i].a;
+          const double t = ab.squaredNorm() > 0.0 ? std::clamp((p - hulls[i].a).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
+          if ((hulls[i].a + t * ab - p).norm() - hulls[i].radius <= limit) within.push_back(i);
+        }
         std::sort(nearest.begin(), nearest.end());
+        CAPTURE(limit);
         REQUIRE(nearest == within);
       }
     }
@@ -214,6 +299,7 @@ TEST_CASE("SegmentBoxes visits exactly the boxes holding the point, in increasin
     tree.forEachContaining(Vec3(std::numeric_limits<double>::quiet_NaN(), 0, 0), 0, count, [&](std::size_t i) { none.push_back(i); });
     REQUIRE(none.empty());
   }
+  REQUIRE_THROWS_AS(SegmentBoxes(std::vector<Box3>(3), std::vector<SegmentBoxes::Capsule>(2), 0.0), std::invalid_argument);
 }
 
 // The section test evaluates r and r' with order 1 where it took order 2 before: the same bits only if
