@@ -1,5 +1,6 @@
 #include "geometry/nurbs.hpp"
 #include "geometry/nurbs_reference.hpp"
+#include "geometry/rod_internal.hpp"  // distanceToSegment
 
 #include <algorithm>
 #include <limits>
@@ -349,13 +350,8 @@ void forEachBezierPoint(const NurbsCurve& curve, double a, double b, Visit visit
 }  // namespace
 
 double NurbsCurve::deviationOn(double a, double b, const Vec3& from, const Vec3& to) const {
-  const Vec3 chord = to - from;
-  const double length2 = chord.squaredNorm();
   double largest = 0.0;
-  forEachBezierPoint(*this, a, b, [&](const Vec3& q) {
-    const double t = length2 > 0.0 ? std::clamp((q - from).dot(chord) / length2, 0.0, 1.0) : 0.0;
-    largest = std::max(largest, (from + t * chord - q).norm());
-  });
+  forEachBezierPoint(*this, a, b, [&](const Vec3& q) { largest = std::max(largest, detail::distanceToSegment(q, from, to)); });
   return largest;
 }
 

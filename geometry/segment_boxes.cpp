@@ -1,4 +1,5 @@
 #include "geometry/segment_boxes.hpp"
+#include "geometry/rod_internal.hpp"  // distanceToSegment
 
 #include <algorithm>
 #include <cmath>
@@ -7,6 +8,8 @@
 namespace rodfab::geometry {
 
 namespace {
+
+using detail::distanceToSegment;
 
 // The levels above `boxes`: each box the union of kFanout consecutive boxes of the level below,
 // until a level has at most kFanout boxes.
@@ -25,13 +28,6 @@ std::vector<std::vector<Eigen::AlignedBox3d>> hierarchy(std::vector<Eigen::Align
     levels.push_back(std::move(level));
   }
   return levels;
-}
-
-double distanceToSegment(const Vec3& p, const Vec3& a, const Vec3& b) {
-  const Vec3 ab = b - a;
-  const double length2 = ab.squaredNorm();
-  const double t = length2 > 0.0 ? std::clamp((p - a).dot(ab) / length2, 0.0, 1.0) : 0.0;
-  return (a + t * ab - p).norm();
 }
 
 // The radius around [a, b] that holds every capsule of hulls[first, last) whose segment can be
@@ -70,14 +66,13 @@ SegmentBoxes::Capsule enclosing(const std::vector<SegmentBoxes::Capsule>& hulls,
 
 SegmentBoxes::SegmentBoxes(std::vector<Eigen::AlignedBox3d> segmentBoxes, const std::vector<Capsule>& hulls, double margin) {
   if (hulls.size() != segmentBoxes.size()) throw std::invalid_argument("SegmentBoxes: one hull per segment");
-  const std::vector<Eigen::AlignedBox3d> leaves = segmentBoxes;
   levels_ = hierarchy(std::move(segmentBoxes));
   for (std::size_t l = 0, span = 1; l < levels_.size(); ++l, span *= kFanout) {
     spans_.push_back(span);
     std::vector<Hull>& level = hulls_.emplace_back(levels_[l].size());
     for (std::size_t n = 0; n < level.size(); ++n) {
       const std::size_t first = n * span, last = std::min(first + span, hulls.size());
-      Capsule c = l == 0 ? hulls[n] : enclosing(hulls, leaves, first, last);
+      Capsule c = l == 0 ? hulls[n] : enclosing(hulls, levels_.front(), first, last);
       if (l > 0) c.radius += margin;
       const Vec3 ab = c.b - c.a;
       const double length2 = ab.squaredNorm();
