@@ -1,4 +1,4 @@
-// The CAD module's input checks (cad_checks.hpp): the STEP text before OpenCASCADE parses it, the loaded
+// The CAD reader's input checks (cad_checks.hpp): the STEP text before OpenCASCADE parses it, the loaded
 // entity graph before OpenCASCADE transfers it.
 #include "meshing/cad_checks.hpp"
 

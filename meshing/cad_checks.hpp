@@ -1,8 +1,10 @@
-// Internal to the CAD module: the checks that keep a hostile STEP or IGES file from crashing or hanging
-// OpenCASCADE. Its reader and its transfer trust the entity graph they are given (a null handle in a
-// point list, a degree of a million, a curve set containing itself: each a SIGSEGV), so rodfab checks
-// the text before the reader sees it and the loaded model before the transfer follows it.
-// Each check throws MeshError naming the file and, where there is one, the line or the entity.
+// Internal to the CAD reader process (cad_reader.hpp): the checks that keep a hostile STEP or IGES
+// file from crashing or hanging OpenCASCADE. Its reader and its transfer trust the entity graph they
+// are given (a null handle in a point list, a degree of a million, a curve set containing itself: each
+// a SIGSEGV), so rodfab checks the text before the reader sees it and the loaded model before the
+// transfer follows it, and names what it finds; a crash these checks miss still ends in the reader
+// process (rodsFromCad reports it). Each check throws MeshError naming the file and, where there is
+// one, the line or the entity.
 #pragma once
 
 #include "meshing/meshing.hpp"

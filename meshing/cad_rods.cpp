@@ -1,11 +1,11 @@
 // CAD curve networks to rods with OpenCASCADE: every edge's curve, converted to its exact B-spline.
-// Built as the CAD module (librodfab_cad), loaded by rodsFromCad (cad_module.cpp) when first needed.
+// Built into the CAD reader process (rodfab-cad-reader, cad_reader_main.cpp), which rodsFromCad
+// (cad_process.cpp) runs for each file.
 #include "common/interrupt.hpp"
-#include "common/memory_budget.hpp"
 #include "geometry/design_reader.hpp"
 #include "geometry/design_writer.hpp"
 #include "meshing/cad_checks.hpp"
-#include "meshing/cad_module.hpp"
+#include "meshing/cad_reader.hpp"
 #include "meshing/mesh.hpp"
 
 #include <BRep_Tool.hxx>
@@ -54,22 +54,6 @@ std::mutex& readerMutex() {
 bool isStep(const std::filesystem::path& file) {
   const std::string ext = lowerExtension(file);
   return ext == ".step" || ext == ".stp";
-}
-
-// The file's format, size and memory, before any reader sees it.
-void checkCadFile(const std::filesystem::path& file) {
-  const std::string ext = lowerExtension(file);
-  std::error_code ec;
-  if (ext != ".step" && ext != ".stp" && ext != ".iges" && ext != ".igs")
-    throw MeshError(file, "unknown CAD format '" + file.extension().string() + "': expected .step, .stp, .iges or .igs");
-  if (!std::filesystem::is_regular_file(file, ec)) throw MeshError(file, "no such file (or not a regular file)");
-  const std::uintmax_t size = std::filesystem::file_size(file, ec);
-  if (ec) throw MeshError(file, "cannot read: " + ec.message());
-  if (size > kMaxMeshFileBytes) throw MeshError(file, "larger than 2 GiB");
-  // OpenCASCADE's readers hold the whole entity graph and then the shapes. 40 bytes per byte of text is
-  // an estimate, not a measurement (see meshing/README.md, what remains).
-  common::requireMemory(std::uint64_t(size) * 40, {.what = "reading the CAD model " + file.string(),
-                                                  .remedy = "split the model"});
 }
 
 // Loads the file, checks what OpenCASCADE would trip over (cad_checks.hpp), then transfers it.
@@ -204,6 +188,10 @@ Vec3 normalFor(const geometry::NurbsCurve& c) {
   return t.cross(Vec3::Unit(k)).normalized();
 }
 
+}  // namespace
+
+namespace detail {
+
 CadRods readCadRods(const std::filesystem::path& file, const CadRodOptions& options) {
   if (!(options.jointTolerance > 0) || !(options.modulusMpa > 0)) throw std::invalid_argument("rodsFromCad: options out of range");
   checkCadFile(file);
@@ -246,8 +234,6 @@ CadRods readCadRods(const std::filesystem::path& file, const CadRodOptions& opti
   return out;
 }
 
-}  // namespace
+}  // namespace detail
 
 }  // namespace rodfab::meshing
-
-rodfab::meshing::detail::CadReader rodfab_cad_reader() { return &rodfab::meshing::readCadRods; }

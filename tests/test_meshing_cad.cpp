@@ -1,4 +1,5 @@
 // rods-from-cad: STEP and IGES models written by OpenCASCADE, rods checked against the exact curves.
+#include "meshing/cad_reader.hpp"
 #include "meshing/meshing.hpp"
 #include "tests/meshing/cad_fixtures.hpp"
 
@@ -293,4 +294,90 @@ TEST_CASE("rods-from-cad never builds a design that validate refuses", "[meshing
                                               "#41 = DIMENSIONAL_EXPONENTS(1.,0.,0.,0.,0.,0.,0.);\n"
                                               "#42 = ( LENGTH_UNIT() NAMED_UNIT(*) SI_UNIT(.MILLI.,.METRE.) )")),
              Contains(zero));
+}
+
+namespace {
+
+// A stand-in for rodfab-cad-reader: a shell script with `body`, made executable.
+fs::path fakeReader(const std::string& name, const std::string& body) {
+  const fs::path path = scratch(name);
+  std::ofstream(path) << "#!/bin/sh\n" << body << "\n";
+  fs::permissions(path, fs::perms::owner_all);
+  return path;
+}
+
+std::string errorThrough(const fs::path& helper, const fs::path& model) {
+  try {
+    meshing::detail::rodsFromCadThrough(helper, model, {});
+  } catch (const meshing::MeshError& e) {
+    CHECK(std::string(e.what()).rfind(model.string() + ": ", 0) == 0);
+    return e.what();
+  }
+  return "no error";
+}
+
+}  // namespace
+
+TEST_CASE("whatever becomes of the CAD reader process is an error naming the file", "[meshing][cad][hostile]") {
+  using Catch::Contains;
+  const fs::path model = scratch("stand-in.step");
+  std::ofstream(model) << "ISO-10303-21;\n";
+  CHECK_THAT(errorThrough(fakeReader("segv.sh", "kill -SEGV $$"), model),
+             Contains("the CAD reader (OpenCASCADE) crashed on this file (signal 11"));
+  CHECK_THAT(errorThrough(fakeReader("abort.sh", "echo 'terminate called' >&2; kill -ABRT $$"), model),
+             Contains("(signal 6") && Contains("(it said: terminate called)"));
+  CHECK_THAT(errorThrough(fakeReader("exit3.sh", "echo boom >&2; exit 3"), model),
+             Contains("stopped with exit code 3 and no answer (it said: boom)"));
+  CHECK(errorThrough(fakeReader("error.sh", "printf '{\"error\": \"edge 2: a curve of degree 9\"}' >&3"), model) ==
+        model.string() + ": edge 2: a curve of degree 9");
+  CHECK_THAT(errorThrough(fakeReader("garbage.sh", "echo 'not json' >&3"), model), Contains("answer is not JSON"));
+  CHECK_THAT(errorThrough(fakeReader("half.sh", "printf '{\"design\": {' >&3; kill -KILL $$"), model), Contains("(signal 9"));
+  CHECK_THAT(errorThrough(fakeReader("nodesign.sh", "echo '{\"report\": {}}' >&3"), model), Contains("has no design and report"));
+  CHECK_THAT(errorThrough(fakeReader("baddesign.sh",
+                                     "echo '{\"design\": {\"format\": \"rodfab.design/1\", \"rods\": 7}, \"report\": {}}' >&3"),
+                          model),
+             Contains("the CAD reader's design is not valid"));
+  CHECK_THAT(errorThrough(scratch("no-such-reader"), model), Contains("did not start (No such file or directory)"));
+  // A reader that never answers is waited for, not polled to death: the answer comes when it exits.
+  CHECK_THAT(errorThrough(fakeReader("slow.sh", "sleep 0.3; exit 0"), model), Contains("answer is not JSON"));
+}
+
+TEST_CASE("the CAD reader's arguments carry the options exactly", "[meshing][cad]") {
+  meshing::detail::CadReaderRequest request{"a b/c.step", {}, 123456789012345ULL};
+  request.options.section = geometry::Section::ellipse(0.1, 1.0 / 3.0);
+  request.options.caps = geometry::CapStyle::Flat;
+  request.options.modulusMpa = 2.0 / 7.0;
+  request.options.jointTolerance = 1e-9 * 3.0;
+  const meshing::detail::CadReaderRequest back = meshing::detail::fromReaderArguments(meshing::detail::readerArguments(request));
+  CHECK(back.file == request.file);
+  CHECK(back.options.section.shape == geometry::SectionShape::Ellipse);
+  CHECK(back.options.section.width == 0.1);
+  CHECK(back.options.section.height == 1.0 / 3.0);
+  CHECK(back.options.caps == geometry::CapStyle::Flat);
+  CHECK(back.options.modulusMpa == 2.0 / 7.0);
+  CHECK(back.options.jointTolerance == 1e-9 * 3.0);
+  CHECK(back.memoryBudget == request.memoryBudget);
+  std::vector<std::string> wrong = meshing::detail::readerArguments(request);
+  wrong[1] = "hexagon";
+  CHECK_THROWS_AS(meshing::detail::fromReaderArguments(wrong), std::invalid_argument);
+  wrong.pop_back();
+  CHECK_THROWS_AS(meshing::detail::fromReaderArguments(wrong), std::invalid_argument);
+}
+
+TEST_CASE("a truncated IGES file, which crashes OpenCASCADE's reader, is an error of rods-from-cad", "[meshing][cad][hostile]") {
+  const fs::path whole = scratch("whole.igs"), cut = scratch("cut.igs");
+  testing::writeIges(testing::edgeOf(testing::testSpline()), whole);
+  std::ifstream in(whole, std::ios::binary);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  // Cut inside the B-spline's parameter records (the second of them), as an interrupted copy would.
+  const std::size_t second = text.find("P0000002");
+  REQUIRE(second != std::string::npos);
+  std::ofstream(cut, std::ios::binary) << text.substr(0, second - 30);
+  try {
+    meshing::rodsFromCad(cut, {});
+    FAIL("a truncated file was read");
+  } catch (const meshing::MeshError& e) {
+    CHECK(std::string(e.what()).rfind(cut.string() + ": ", 0) == 0);
+  }
+  CHECK(meshing::rodsFromCad(whole, {}).structure.rods.size() == 1);
 }

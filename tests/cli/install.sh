@@ -2,7 +2,7 @@
 # Installed and relocated: `cmake --install` into a temporary prefix, the tree moved elsewhere, an
 # example sliced from a third folder; nothing of the build machine's paths in the installed files or in
 # the job; a clear error when the data folder is missing or RODFAB_DATA_DIR is wrong; with MAKE_TEST_CAD,
-# rods-from-cad through the installed CAD module, and a clear error (the rest working) without it.
+# rods-from-cad through the installed CAD reader process, and a clear error (the rest working) without it.
 #   install.sh CMAKE BUILD_DIR SOURCE_DIR [MAKE_TEST_CAD]
 set -u
 cmake=$1 build=$(cd "$2" && pwd -P) src=$(cd "$3" && pwd -P) make_cad=${4:-}
@@ -79,16 +79,17 @@ if [ -n "$make_cad" ]; then
   "$installed/bin/rodfab" rods-from-cad "$tmp/box.step" --diameter 1 -o box.json > "$tmp/out" 2>&1 ||
     fail "rods-from-cad with the moved install: $(cat "$tmp/out")"
   grep -q "12 rods" "$tmp/out" || fail "rods-from-cad summary: $(cat "$tmp/out")"
-  # rodfab itself does not load OpenCASCADE; rods-from-cad loads the module beside the stage libraries.
+  # rodfab itself does not load OpenCASCADE; rods-from-cad runs the reader beside the stage libraries.
   grep -q "libTK" "$tmp/ldd" && fail "rodfab links OpenCASCADE: $(grep libTK "$tmp/ldd" | head -3)"
-  module=$(find "$installed" -name 'librodfab_cad*')
-  [ -n "$module" ] || fail "the CAD module was not installed"
-  mv "$module" "$tmp/module"
-  "$installed/bin/rodfab" rods-from-cad "$tmp/box.step" --diameter 1 -o nomodule.json > /dev/null 2> "$tmp/err"
-  [ $? -eq 1 ] || fail "rods-from-cad without the CAD module should exit 1"
-  grep -q "the CAD module .*librodfab_cad.* did not load" "$tmp/err" || fail "the missing module error: $(cat "$tmp/err")"
-  [ -e nomodule.json ] && fail "a design was written without the CAD module"
-  "$installed/bin/rodfab" profiles > /dev/null 2>&1 || fail "profiles without the CAD module"
+  reader=$(find "$installed" -name 'rodfab-cad-reader')
+  [ -n "$reader" ] || fail "the CAD reader was not installed"
+  ldd "$reader" | grep -q "not found" && fail "the installed CAD reader misses libraries: $(ldd "$reader" | grep 'not found')"
+  mv "$reader" "$tmp/reader"
+  "$installed/bin/rodfab" rods-from-cad "$tmp/box.step" --diameter 1 -o noreader.json > /dev/null 2> "$tmp/err"
+  [ $? -eq 1 ] || fail "rods-from-cad without the CAD reader should exit 1"
+  grep -q "the CAD reader .*rodfab-cad-reader did not start" "$tmp/err" || fail "the missing reader error: $(cat "$tmp/err")"
+  [ -e noreader.json ] && fail "a design was written without the CAD reader"
+  "$installed/bin/rodfab" profiles > /dev/null 2>&1 || fail "profiles without the CAD reader"
 fi
 
 # The data folder missing or misnamed: a clear error, nothing written.

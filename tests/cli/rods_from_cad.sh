@@ -64,4 +64,45 @@ sed 's/(0\.,0\.,0\.)/(1.E12,0.,0.)/g' "$tmp/box.step" > "$tmp/far.step"
 [ $rc -eq 1 ] && grep -q "far.step: edge 0: a control point at (2e+12, 0, 0) mm, beyond the +-1e9 mm" "$tmp/out" ||
   fail "far box: exit $rc: $(cat "$tmp/out")"
 [ -e "$tmp/x.json" ] && fail "wrote after an error"
+# A truncated IGES file crashes OpenCASCADE's reader (SIGSEGV); it runs in the CAD reader process, so
+# rods-from-cad reports it: exit 1, the file named, nothing written.
+"$make_cad" spline "$tmp/spline.iges" > /dev/null 2>&1 || fail "make_test_cad spline"
+head -c 700 "$tmp/spline.iges" > "$tmp/cut.iges"
+"$rodfab" rods-from-cad "$tmp/cut.iges" --diameter 1 -o "$tmp/x.json" > "$tmp/out" 2>&1; rc=$?
+[ $rc -eq 1 ] && grep -q "^$tmp/cut.iges: " "$tmp/out" || fail "truncated IGES: exit $rc: $(cat "$tmp/out")"
+[ -e "$tmp/x.json" ] && fail "wrote after a truncated file"
+# SIGTERM while OpenCASCADE reads a large model (10 curve sets of 20,000 lines, ~7 s to read): exit 143
+# without waiting for the read (within 3 s even on a loaded machine; ~0.02 s here), the reader process
+# gone, nothing written.
+python3 - "$tmp/large.step" <<'PY'
+import sys
+out = ["ISO-10303-21;", "HEADER;", "FILE_DESCRIPTION(('x'),'2;1');", "FILE_NAME('x','',(''),(''),'','','');",
+       "FILE_SCHEMA(('CONFIG_CONTROL_DESIGN'));", "ENDSEC;", "DATA;"]
+n = 1
+for s in range(10):
+    items = []
+    for i in range(20000):
+        out += [f"#{n}=CARTESIAN_POINT('',({i}.,{s}.,0.));", f"#{n+1}=DIRECTION('',(1.,0.,0.));",
+                f"#{n+2}=VECTOR('',#{n+1},1.);", f"#{n+3}=LINE('',#{n},#{n+2});"]
+        items.append(n + 3)
+        n += 4
+    out.append(f"#{n}=GEOMETRIC_CURVE_SET('',(" + ",".join(f"#{x}" for x in items) + "));")
+    n += 1
+out += ["ENDSEC;", "END-ISO-10303-21;"]
+open(sys.argv[1], "w").write("\n".join(out) + "\n")
+PY
+"$rodfab" rods-from-cad "$tmp/large.step" --diameter 1 -o "$tmp/x.json" > "$tmp/out" 2>&1 &
+pid=$!
+for _ in $(seq 50); do pgrep -P $pid > /dev/null && break; sleep 0.1; done
+reader=$(pgrep -P $pid) || fail "no CAD reader process under rods-from-cad"
+sleep 0.5
+start=$(date +%s%N)
+kill -TERM $pid
+wait $pid; rc=$?
+elapsed_ms=$(( ($(date +%s%N) - start) / 1000000 ))
+[ $rc -eq 143 ] || fail "SIGTERM during the CAD reader: exit $rc: $(cat "$tmp/out")"
+[ $elapsed_ms -le 3000 ] || fail "SIGTERM took $elapsed_ms ms"
+sleep 0.2
+kill -0 "$reader" 2> /dev/null && fail "the CAD reader $reader outlived rods-from-cad"
+[ -e "$tmp/x.json" ] && fail "wrote after SIGTERM"
 echo "rods_from_cad: ok"

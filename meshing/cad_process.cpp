@@ -1,0 +1,282 @@
+// rodsFromCad: the reading runs in a child process, the helper rodfab-cad-reader (cad_reader.hpp says
+// why). This side starts it, waits for its answer while honouring SIGINT / SIGTERM, and turns whatever
+// became of it (an answer, an error, a crash, a lie) into CadRods or a MeshError naming the file.
+#include "common/interrupt.hpp"
+#include "common/memory_budget.hpp"
+#include "geometry/design_file.hpp"
+#include "meshing/cad_reader.hpp"
+
+#include <dlfcn.h>
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+
+extern char** environ;
+
+namespace rodfab::meshing {
+
+namespace {
+
+// Where this library was loaded from: the helper lies beside it, in the build tree and when installed.
+const char kAnchor = 0;
+
+std::filesystem::path helperBesideThisLibrary() {
+  Dl_info self{};
+  if (::dladdr(&kAnchor, &self) == 0 || self.dli_fname == nullptr) return RODFAB_CAD_READER;
+  return std::filesystem::path(self.dli_fname).parent_path() / RODFAB_CAD_READER;
+}
+
+std::string hexDouble(double value) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%a", value);
+  return text;
+}
+
+double parseDouble(const std::string& text) {
+  char* end = nullptr;
+  const double value = std::strtod(text.c_str(), &end);
+  if (text.empty() || *end != '\0') throw std::invalid_argument("not a number: '" + text + "'");
+  return value;
+}
+
+// A pipe whose ends are closed in every child but the one they are handed to.
+struct Pipe {
+  int read = -1, write = -1;
+  Pipe() {
+    int fds[2];
+    if (::pipe2(fds, O_CLOEXEC) != 0) throw std::runtime_error(std::string("cannot make a pipe: ") + std::strerror(errno));
+    read = fds[0], write = fds[1];
+  }
+  ~Pipe() {
+    closeRead();
+    closeWrite();
+  }
+  void closeRead() {
+    if (read >= 0) ::close(read), read = -1;
+  }
+  void closeWrite() {
+    if (write >= 0) ::close(write), write = -1;
+  }
+};
+
+// The helper's process: killed and reaped if it is still running when this goes out of scope.
+class Child {
+public:
+  Child(const std::filesystem::path& helper, const std::vector<std::string>& arguments, Pipe& result, Pipe& messages) {
+    std::vector<std::string> argv{helper.string()};
+    argv.insert(argv.end(), arguments.begin(), arguments.end());
+    std::vector<char*> pointers;
+    for (std::string& a : argv) pointers.push_back(a.data());
+    pointers.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
+    posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
+    posix_spawn_file_actions_adddup2(&actions, messages.write, 2);
+    posix_spawn_file_actions_adddup2(&actions, result.write, detail::kResultDescriptor);
+    // No signal blocked, and SIGINT, SIGTERM and SIGPIPE at their defaults, whatever the calling
+    // thread has: a Ctrl-C ends the reader with rodfab.
+    posix_spawnattr_t attributes;
+    posix_spawnattr_init(&attributes);
+    sigset_t none, defaults;
+    sigemptyset(&none);
+    sigemptyset(&defaults);
+    for (int signal : {SIGINT, SIGTERM, SIGPIPE}) sigaddset(&defaults, signal);
+    posix_spawnattr_setsigmask(&attributes, &none);
+    posix_spawnattr_setsigdefault(&attributes, &defaults);
+    posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
+    const int error = ::posix_spawn(&pid_, argv[0].c_str(), &actions, &attributes, pointers.data(), environ);
+    posix_spawnattr_destroy(&attributes);
+    posix_spawn_file_actions_destroy(&actions);
+    if (error != 0) pid_ = -1, spawnError_ = error;
+    result.closeWrite();
+    messages.closeWrite();
+  }
+  ~Child() {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGKILL);
+      reap();
+    }
+  }
+  int spawnError() const { return spawnError_; }
+  void kill() { ::kill(pid_, SIGKILL); }
+  // The wait status once the child has ended.
+  int reap() {
+    int status = 0;
+    while (::waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
+    }
+    pid_ = -1;
+    return status;
+  }
+
+private:
+  pid_t pid_ = -1;
+  int spawnError_ = 0;
+};
+
+// Reads both pipes to their ends, polling for SIGINT / SIGTERM every 0.1 s (the child is killed
+// then). The answer is bounded by the memory budget, the helper's messages by their last 4 kB.
+void readAnswer(Child& child, Pipe& result, Pipe& messages, std::string& answer, std::string& stderrTail,
+                const std::filesystem::path& file) {
+  const std::uint64_t limit = common::memoryBudget() / 4;
+  char buffer[65536];
+  while (result.read >= 0 || messages.read >= 0) {
+    pollfd fds[2] = {{result.read, POLLIN, 0}, {messages.read, POLLIN, 0}};
+    if (::poll(fds, 2, 100) < 0 && errno != EINTR) throw MeshError(file, std::string("waiting for the CAD reader: ") + std::strerror(errno));
+    if (common::interruptRequested()) {
+      child.kill();
+      common::throwIfInterrupted();
+    }
+    for (int i = 0; i < 2; ++i) {
+      if (fds[i].fd < 0 || !(fds[i].revents & (POLLIN | POLLHUP | POLLERR))) continue;
+      const ssize_t n = ::read(fds[i].fd, buffer, sizeof buffer);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) {
+        (i == 0 ? result : messages).closeRead();
+        continue;
+      }
+      std::string& into = i == 0 ? answer : stderrTail;
+      into.append(buffer, static_cast<std::size_t>(n));
+      if (i == 1 && stderrTail.size() > 4096) stderrTail.erase(0, stderrTail.size() - 4096);
+      if (i == 0 && answer.size() > limit) {
+        child.kill();
+        throw MeshError(file, "the CAD reader's answer grew beyond a quarter of the memory budget (--max-memory)");
+      }
+    }
+  }
+}
+
+std::string describeEnd(int status, const std::string& stderrTail) {
+  std::string what;
+  if (WIFSIGNALED(status)) {
+    const int signal = WTERMSIG(status);
+    const char* name = ::strsignal(signal);
+    what = "the CAD reader (OpenCASCADE) crashed on this file (signal " + std::to_string(signal) + ", " + (name ? name : "?") +
+           "): the file is malformed in a way rodfab's checks do not recognise; re-export it, or check it in the "
+           "program that wrote it";
+  } else {
+    what = "the CAD reader stopped with exit code " + std::to_string(WEXITSTATUS(status)) + " and no answer";
+  }
+  std::string tail = stderrTail;
+  while (!tail.empty() && (tail.back() == '\n' || tail.back() == ' ')) tail.pop_back();
+  if (!tail.empty()) what += " (it said: " + tail.substr(tail.size() > 300 ? tail.size() - 300 : 0) + ")";
+  return what;
+}
+
+CadRods parseAnswer(const std::string& answer, const std::filesystem::path& file) {
+  const nlohmann::json doc = nlohmann::json::parse(answer, nullptr, false);
+  if (doc.is_discarded() || !doc.is_object()) throw MeshError(file, "the CAD reader's answer is not JSON");
+  if (doc.contains("error") && doc["error"].is_string()) throw MeshError(file, doc["error"].get<std::string>());
+  if (!doc.contains("design") || !doc.contains("report") || !doc["report"].is_object())
+    throw MeshError(file, "the CAD reader's answer has no design and report");
+  CadRods out;
+  try {
+    out.structure = geometry::parseDesign(doc["design"].dump(), file.string());
+    const nlohmann::json& r = doc["report"];
+    out.report.edges = r.at("edges").get<std::size_t>();
+    out.report.rods = r.at("rods").get<std::size_t>();
+    out.report.joints = r.at("joints").get<std::size_t>();
+    out.report.skippedDegenerate = r.at("skipped_degenerate").get<std::size_t>();
+    out.report.largestEndMove = r.at("largest_end_move_mm").get<double>();
+  } catch (const geometry::DesignError& e) {
+    throw MeshError(file, std::string("the CAD reader's design is not valid: ") + e.what());
+  } catch (const nlohmann::json::exception& e) {
+    throw MeshError(file, std::string("the CAD reader's report is malformed: ") + e.what());
+  }
+  if (out.report.rods != out.structure.rods.size()) throw MeshError(file, "the CAD reader's report does not match its design");
+  out.structure.source = file.string();
+  return out;
+}
+
+}  // namespace
+
+namespace detail {
+
+std::vector<std::string> readerArguments(const CadReaderRequest& r) {
+  const geometry::Section& s = r.options.section;
+  return {r.file.string(), std::string(geometry::toString(s.shape)), hexDouble(s.width), hexDouble(s.height), r.options.caps == geometry::CapStyle::Round ? "round" : "flat",
+          hexDouble(r.options.modulusMpa), hexDouble(r.options.jointTolerance), std::to_string(r.memoryBudget)};
+}
+
+CadReaderRequest fromReaderArguments(const std::vector<std::string>& a) {
+  if (a.size() != 8) throw std::invalid_argument("expected 8 arguments, got " + std::to_string(a.size()));
+  CadReaderRequest r;
+  r.file = a[0];
+  const double width = parseDouble(a[2]), height = parseDouble(a[3]);
+  if (a[1] == "circle") r.options.section = geometry::Section::circle(width);
+  else if (a[1] == "ellipse") r.options.section = geometry::Section::ellipse(width, height);
+  else if (a[1] == "rectangle") r.options.section = geometry::Section::rectangle(width, height);
+  else throw std::invalid_argument("unknown section '" + a[1] + "'");
+  if (a[4] != "round" && a[4] != "flat") throw std::invalid_argument("unknown caps '" + a[4] + "'");
+  r.options.caps = a[4] == "round" ? geometry::CapStyle::Round : geometry::CapStyle::Flat;
+  r.options.modulusMpa = parseDouble(a[5]);
+  r.options.jointTolerance = parseDouble(a[6]);
+  r.memoryBudget = std::stoull(a[7]);
+  return r;
+}
+
+std::string resultJson(const CadRods& rods) {
+  const CadRodReport& r = rods.report;
+  return nlohmann::json{{"design", geometry::designToJson(rods.structure)},
+                        {"report", {{"edges", r.edges}, {"rods", r.rods}, {"joints", r.joints},
+                                    {"skipped_degenerate", r.skippedDegenerate}, {"largest_end_move_mm", r.largestEndMove}}}}
+      .dump();
+}
+
+std::string errorJson(const std::string& message) { return nlohmann::json{{"error", message}}.dump(); }
+
+void checkCadFile(const std::filesystem::path& file) {
+  std::string ext = file.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::error_code ec;
+  if (ext != ".step" && ext != ".stp" && ext != ".iges" && ext != ".igs")
+    throw MeshError(file, "unknown CAD format '" + file.extension().string() + "': expected .step, .stp, .iges or .igs");
+  if (!std::filesystem::is_regular_file(file, ec)) throw MeshError(file, "no such file (or not a regular file)");
+  const std::uintmax_t size = std::filesystem::file_size(file, ec);
+  if (ec) throw MeshError(file, "cannot read: " + ec.message());
+  if (size > kMaxMeshFileBytes) throw MeshError(file, "larger than 2 GiB");
+  // OpenCASCADE's readers hold the whole entity graph and then the shapes. 40 bytes per byte of text is
+  // an estimate, not a measurement (see meshing/README.md, what remains).
+  common::requireMemory(std::uint64_t(size) * 40, {.what = "reading the CAD model " + file.string(),
+                                                  .remedy = "split the model"});
+}
+
+CadRods rodsFromCadThrough(const std::filesystem::path& helper, const std::filesystem::path& cadFile,
+                           const CadRodOptions& options) {
+  if (!(options.jointTolerance > 0) || !(options.modulusMpa > 0)) throw std::invalid_argument("rodsFromCad: options out of range");
+  checkCadFile(cadFile);
+  Pipe result, messages;
+  Child child(helper, readerArguments({cadFile, options, common::memoryBudget()}), result, messages);
+  if (child.spawnError())
+    throw MeshError(cadFile, "cannot read CAD files: the CAD reader " + helper.string() + " did not start (" +
+                                 std::strerror(child.spawnError()) + "); rodfab's installation is incomplete");
+  std::string answer, stderrTail;
+  readAnswer(child, result, messages, answer, stderrTail, cadFile);
+  const int status = child.reap();
+  if (common::interruptRequested()) common::throwIfInterrupted();
+  if (!(WIFEXITED(status) && WEXITSTATUS(status) == 0)) {
+    // An error answered before a non-zero exit is still the reader's own message.
+    if (!answer.empty() && WIFEXITED(status)) return parseAnswer(answer, cadFile);
+    throw MeshError(cadFile, describeEnd(status, stderrTail));
+  }
+  return parseAnswer(answer, cadFile);
+}
+
+}  // namespace detail
+
+CadRods rodsFromCad(const std::filesystem::path& cadFile, const CadRodOptions& options) {
+  return detail::rodsFromCadThrough(helperBesideThisLibrary(), cadFile, options);
+}
+
+}  // namespace rodfab::meshing
