@@ -8,7 +8,10 @@
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -309,4 +312,68 @@ TEST_CASE("rods-from-mesh never returns a design validate refuses: a tetrahedron
   options.faces = 4;
   CHECK_THROWS_WITH(meshing::rodsFromMesh(file, options), Catch::StartsWith(file.string()) && Catch::Contains("rod-") &&
                                                               Catch::Contains("the design would not be valid"));
+}
+
+namespace {
+
+// A tetrahedron as PLY: `format` ascii, binary_little_endian or binary_big_endian; the faces' corner
+// lists of `countType`, the first face's count replaced by `firstCount`, and a texture-coordinate list
+// (ushort count, two floats) after each face's corners, so a list follows a list.
+std::string tetrahedronPly(const std::string& format, const std::string& countType, std::uint32_t firstCount) {
+  const double points[4][3] = {{0, 0, 0}, {10, 0, 0}, {0, 10, 0}, {0, 0, 10}};
+  const int faces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+  std::string out = "ply\nformat " + format + " 1.0\nelement vertex 4\nproperty double x\nproperty double y\nproperty double z\n" +
+                    "element face 4\nproperty list " + countType + " int vertex_indices\nproperty list ushort float texcoord\nend_header\n";
+  const bool big = format == "binary_big_endian";
+  const auto put = [&](const auto value) {
+    char raw[sizeof value];
+    std::memcpy(raw, &value, sizeof value);
+    if (big) std::reverse(raw, raw + sizeof value);
+    out.append(raw, sizeof value);
+  };
+  const auto count = [&](std::uint32_t n) {
+    if (countType == "uchar") put(static_cast<std::uint8_t>(n));
+    else put(n);
+  };
+  for (const auto& p : points)
+    if (format == "ascii") out += std::to_string(p[0]) + " " + std::to_string(p[1]) + " " + std::to_string(p[2]) + "\n";
+    else put(p[0]), put(p[1]), put(p[2]);
+  for (int f = 0; f < 4; ++f) {
+    const std::uint32_t n = f == 0 ? firstCount : 3;
+    if (format == "ascii") {
+      out += std::to_string(n) + " " + std::to_string(faces[f][0]) + " " + std::to_string(faces[f][1]) + " " +
+             std::to_string(faces[f][2]) + " 2 0.5 0.5\n";
+      continue;
+    }
+    count(n), put(faces[f][0]), put(faces[f][1]), put(faces[f][2]);
+    put(std::uint16_t{2}), put(0.5f), put(0.5f);
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("a PLY list longer than the file is refused before CGAL sizes it", "[meshing][hostile]") {
+  // CGAL's reader allocated a lying list's length first: 2,000,000,000 corners in a file of a few
+  // hundred bytes grew rods-from-mesh to the memory budget (7.9 GB) before it failed.
+  for (const std::string format : {"ascii", "binary_little_endian", "binary_big_endian"})
+    for (const std::string countType : {"uchar", "uint"}) {
+      INFO(format << ", " << countType);
+      const meshing::MeshCounts counts = meshing::checkMeshBytes(tetrahedronPly(format, countType, 3), "ply", "t.ply");
+      CHECK(counts.vertices == 4);
+      CHECK(counts.faces == 4);
+      const std::uint32_t lie = countType == "uchar" ? 250 : 2'000'000'000;
+      CHECK_THROWS_WITH(meshing::checkMeshBytes(tetrahedronPly(format, countType, lie), "ply", "t.ply"),
+                        Catch::StartsWith("t.ply: PLY face 0: a list of " + std::to_string(lie) + " entries, more than the "));
+    }
+  // The second list of a face (texture coordinates) is checked too.
+  std::string texture = tetrahedronPly("ascii", "uchar", 3);
+  texture.replace(texture.rfind(" 2 0.5 0.5"), 10, " 99 0.5 0.5");
+  CHECK_THROWS_WITH(meshing::checkMeshBytes(texture, "ply", "t.ply"), Catch::Contains("PLY face 3: a list of 99 entries"));
+  // A negative or fractional length is no length.
+  for (const std::string length : {"-3", "2.5"}) {
+    std::string lying = tetrahedronPly("ascii", "uchar", 3);
+    lying.replace(lying.find("\n3 0 2 1 ") + 1, 1, length);
+    CHECK_THROWS_WITH(meshing::checkMeshBytes(lying, "ply", "t.ply"), Catch::Contains("PLY face 0: a list of " + length + " entries"));
+  }
 }
