@@ -1,6 +1,6 @@
 #include "geometry/nurbs.hpp"
 #include "geometry/nurbs_reference.hpp"
-#include "geometry/rod_internal.hpp"  // distanceToSegment
+#include "geometry/segment.hpp"
 
 #include <algorithm>
 #include <limits>
@@ -351,7 +351,7 @@ void forEachBezierPoint(const NurbsCurve& curve, double a, double b, Visit visit
 
 double NurbsCurve::deviationOn(double a, double b, const Vec3& from, const Vec3& to) const {
   double largest = 0.0;
-  forEachBezierPoint(*this, a, b, [&](const Vec3& q) { largest = std::max(largest, detail::distanceToSegment(q, from, to)); });
+  forEachBezierPoint(*this, a, b, [&](const Vec3& q) { largest = std::max(largest, distanceToSegment(q, from, to)); });
   return largest;
 }
 

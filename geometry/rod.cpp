@@ -8,7 +8,6 @@
 
 namespace rodfab::geometry {
 
-using detail::distanceToSegment;
 using detail::kFoldSubdivisions;
 using detail::safeguardedNewton;
 

@@ -9,7 +9,6 @@
 
 namespace rodfab::geometry {
 
-using detail::distanceToSegment;
 using detail::kFoldSubdivisions;
 using detail::safeguardedNewton;
 

@@ -3,18 +3,12 @@
 #pragma once
 
 #include "geometry/nurbs.hpp"
+#include "geometry/segment.hpp"
 
 #include <algorithm>
 #include <cmath>
 
 namespace rodfab::geometry::detail {
-
-inline double distanceToSegment(const Vec3& p, const Vec3& a, const Vec3& b) {
-  const Vec3 ab = b - a;
-  const double len2 = ab.squaredNorm();
-  const double t = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-  return (a + t * ab - p).norm();
-}
 
 // Safeguarded Newton (Numerical Recipes' rtsafe) for a zero of g on [a, b], where g(a) < 0 < g(b):
 // `gAndSlope(u)` returns {g(u), g'(u)}. A Newton step that would leave the bracket, or shrink it

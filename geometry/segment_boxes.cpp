@@ -1,5 +1,5 @@
 #include "geometry/segment_boxes.hpp"
-#include "geometry/rod_internal.hpp"  // distanceToSegment
+#include "geometry/segment.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +9,6 @@ namespace rodfab::geometry {
 
 namespace {
 
-using detail::distanceToSegment;
 
 // The levels above `boxes`: each box the union of kFanout consecutive boxes of the level below,
 // until a level has at most kFanout boxes.

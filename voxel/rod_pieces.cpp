@@ -1,5 +1,6 @@
 #include "voxel/rod_pieces.hpp"
 
+#include "geometry/segment.hpp"
 #include "voxel/rasterize.hpp"
 
 #include <algorithm>
@@ -11,6 +12,7 @@
 
 namespace rodfab::voxel::detail {
 
+using geometry::distanceToSegment;
 using geometry::Vec3;
 
 AffineInIndex affineInIndex(const PrinterGrid& grid, const Vec3& n, const Vec3& q) {
@@ -37,13 +39,6 @@ Node node(const geometry::Rod& rod, double u, bool fromBelow = false) {
   const double speed = d[1].norm();
   const double curvature = speed > 1e-14 ? d[1].cross(d[2]).norm() / (speed * speed * speed) : 0.0;
   return {u, d[0], t, f.d1, f.d2, rod.modulus().value(u), std::isfinite(curvature) ? curvature : 0.0};
-}
-
-double distanceToSegment(const Vec3& p, const Vec3& a, const Vec3& b) {
-  const Vec3 ab = b - a;
-  const double len2 = ab.squaredNorm();
-  const double s = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-  return (a + s * ab - p).norm();
 }
 
 // The swept approximation evaluated at a world point (the rasterizer evaluates the same expressions
