@@ -19,10 +19,12 @@
 #include <StepGeom_BSplineSurface.hxx>
 #include <StepGeom_BSplineSurfaceWithKnots.hxx>
 #include <StepGeom_BSplineSurfaceWithKnotsAndRationalBSplineSurface.hxx>
+#include <StepGeom_CartesianPoint.hxx>
 #include <StepGeom_HArray1OfCartesianPoint.hxx>
 #include <StepGeom_HArray2OfCartesianPoint.hxx>
 #include <StepGeom_RationalBSplineCurve.hxx>
 #include <StepGeom_RationalBSplineSurface.hxx>
+#include <StepShape_VertexPoint.hxx>
 #include <TCollection_HAsciiString.hxx>
 #include <XSControl_Reader.hxx>
 #include <XSControl_WorkSession.hxx>
@@ -216,6 +218,25 @@ void refuseBadSplines(const XSControl_Reader& reader, const std::filesystem::pat
       throw MeshError(file, "malformed: B-spline entity " + entityName(model, model->Value(i)) + ": " + problem);
 }
 
+// A vertex at a point that is not 3D (a 2D point, or an empty coordinate list, which OpenCASCADE reads
+// as 2D): a SIGSEGV in the transfer, found by scripts/mutate_cad.py. The reader process contains such
+// crashes; this says what is wrong. (An empty DIRECTION crashes OpenCASCADE's own load check, before
+// any check of ours can run: the reader process reports that one.)
+std::string pointProblem(const Handle(Standard_Transient)& entity) {
+  const Handle(StepShape_VertexPoint) vertex = Handle(StepShape_VertexPoint)::DownCast(entity);
+  if (vertex.IsNull()) return {};
+  const Handle(StepGeom_CartesianPoint) p = Handle(StepGeom_CartesianPoint)::DownCast(vertex->VertexGeometry());
+  if (p.IsNull() || p->NbCoordinates() == 3) return {};
+  return "a vertex whose point is not 3D (" + std::to_string(p->NbCoordinates()) + " coordinates read, expected 3)";
+}
+
+void refuseBadPoints(const XSControl_Reader& reader, const std::filesystem::path& file) {
+  const Handle(Interface_InterfaceModel) model = reader.Model();
+  for (int i = 1; i <= model->NbEntities(); ++i)
+    if (const std::string problem = pointProblem(model->Value(i)); !problem.empty())
+      throw MeshError(file, "malformed: entity " + entityName(model, model->Value(i)) + ": " + problem);
+}
+
 // The leading integers of an IGES entity's parameter text ("126,5,3,..." gives 126, 5, 3).
 std::vector<long long> leadingIntegers(const std::string& text, char delimiter, std::size_t count) {
   std::vector<long long> values;
@@ -304,6 +325,7 @@ void prescanStepText(const std::filesystem::path& file) {
 void checkLoadedModel(const XSControl_Reader& reader, const std::filesystem::path& file) {
   refuseLoadFailures(reader, file);
   refuseBadSplines(reader, file);
+  refuseBadPoints(reader, file);
   refuseReferenceCycles(reader, file);
 }
 

@@ -42,8 +42,8 @@ void prescanStepText(const std::filesystem::path& file);
 void prescanIgesText(const std::filesystem::path& file);
 
 // The loaded model, before any transfer: no failure recorded while loading (unresolved references,
-// parameters of the wrong type or count), no entity that refers to itself through others, and B-spline
-// degrees and pole counts OpenCASCADE's geometry accepts.
+// parameters of the wrong type or count), no entity that refers to itself through others, B-spline
+// degrees and pole counts OpenCASCADE's geometry accepts, and vertices at 3D points.
 void checkLoadedModel(const XSControl_Reader& reader, const std::filesystem::path& file);
 
 // An entity as messages name it: "#17 (BSplineCurveWithKnots)" in STEP, "D5 (BSplineCurve)" in IGES.

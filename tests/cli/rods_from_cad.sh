@@ -78,6 +78,10 @@ for model in "$src"/tests/data/cad-crashers/*; do
   [ $rc -eq 1 ] && grep -q "^$model: " "$tmp/out" || fail "$(basename "$model"): exit $rc: $(cat "$tmp/out")"
   [ -e "$tmp/x.json" ] && fail "wrote from $(basename "$model")"
 done
+# One of them is now named before the transfer (cad_checks.cpp, pointProblem).
+"$rodfab" rods-from-cad "$src/tests/data/cad-crashers/box-2d-vertex-point.step" --diameter 1 -o "$tmp/x.json" > "$tmp/out" 2>&1
+grep -q "box-2d-vertex-point.step: malformed: entity #22 (VERTEX_POINT): a vertex whose point is not 3D" "$tmp/out" ||
+  fail "2D vertex point: $(cat "$tmp/out")"
 # SIGTERM while OpenCASCADE reads a large model (10 curve sets of 20,000 lines, ~7 s to read): exit 143
 # without waiting for the read (within 3 s even on a loaded machine; ~0.02 s here), the reader process
 # gone, nothing written.
