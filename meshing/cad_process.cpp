@@ -110,7 +110,9 @@ public:
     }
   }
   int spawnError() const { return spawnError_; }
-  void kill() { ::kill(pid_, SIGKILL); }
+  void kill() {
+    if (pid_ > 0) ::kill(pid_, SIGKILL);  // never kill(-1): that would signal every process we may
+  }
   // The wait status once the child has ended.
   int reap() {
     int status = 0;
@@ -126,10 +128,11 @@ private:
 };
 
 // Reads both pipes to their ends, polling for SIGINT / SIGTERM every 0.1 s (the child is killed
-// then). The answer is bounded by the memory budget, the helper's messages by their last 4 kB.
+// then). The helper's messages are kept to their last 4 kB; the answer to 1/48 of the memory budget:
+// parsing it takes ~24 bytes a byte of text, once as a document and once more in parseDesign.
 void readAnswer(Child& child, Pipe& result, Pipe& messages, std::string& answer, std::string& stderrTail,
                 const std::filesystem::path& file) {
-  const std::uint64_t limit = common::memoryBudget() / 4;
+  const std::uint64_t limit = common::memoryBudget() / 48;
   char buffer[65536];
   while (result.read >= 0 || messages.read >= 0) {
     pollfd fds[2] = {{result.read, POLLIN, 0}, {messages.read, POLLIN, 0}};
@@ -151,7 +154,9 @@ void readAnswer(Child& child, Pipe& result, Pipe& messages, std::string& answer,
       if (i == 1 && stderrTail.size() > 4096) stderrTail.erase(0, stderrTail.size() - 4096);
       if (i == 0 && answer.size() > limit) {
         child.kill();
-        throw MeshError(file, "the CAD reader's answer grew beyond a quarter of the memory budget (--max-memory)");
+        throw MeshError(file, "the CAD reader's design is larger than the memory budget can parse (" +
+                                  std::to_string(limit >> 20) + " MiB of text at --max-memory " +
+                                  std::to_string(common::memoryBudget() >> 20) + " MiB); split the model");
       }
     }
   }
