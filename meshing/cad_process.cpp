@@ -211,11 +211,12 @@ namespace detail {
 std::vector<std::string> readerArguments(const CadReaderRequest& r) {
   const geometry::Section& s = r.options.section;
   return {r.file.string(), std::string(geometry::toString(s.shape)), hexDouble(s.width), hexDouble(s.height), r.options.caps == geometry::CapStyle::Round ? "round" : "flat",
-          hexDouble(r.options.modulusMpa), hexDouble(r.options.jointTolerance), std::to_string(r.memoryBudget)};
+          hexDouble(r.options.modulusMpa), hexDouble(r.options.jointTolerance), std::to_string(r.memoryBudget),
+          std::to_string(r.parentProcess)};
 }
 
 CadReaderRequest fromReaderArguments(const std::vector<std::string>& a) {
-  if (a.size() != 8) throw std::invalid_argument("expected 8 arguments, got " + std::to_string(a.size()));
+  if (a.size() != 9) throw std::invalid_argument("expected 9 arguments, got " + std::to_string(a.size()));
   CadReaderRequest r;
   r.file = a[0];
   const double width = parseDouble(a[2]), height = parseDouble(a[3]);
@@ -228,6 +229,7 @@ CadReaderRequest fromReaderArguments(const std::vector<std::string>& a) {
   r.options.modulusMpa = parseDouble(a[5]);
   r.options.jointTolerance = parseDouble(a[6]);
   r.memoryBudget = std::stoull(a[7]);
+  r.parentProcess = std::stol(a[8]);
   return r;
 }
 
@@ -262,7 +264,7 @@ CadRods rodsFromCadThrough(const std::filesystem::path& helper, const std::files
   if (!(options.jointTolerance > 0) || !(options.modulusMpa > 0)) throw std::invalid_argument("rodsFromCad: options out of range");
   checkCadFile(cadFile);
   Pipe result, messages;
-  Child child(helper, readerArguments({cadFile, options, common::memoryBudget()}), result, messages);
+  Child child(helper, readerArguments({cadFile, options, common::memoryBudget(), static_cast<long>(::getpid())}), result, messages);
   if (child.spawnError())
     throw MeshError(cadFile, "cannot read CAD files: the CAD reader " + helper.string() + " did not start (" +
                                  std::strerror(child.spawnError()) + "); rodfab's installation is incomplete");

@@ -14,11 +14,13 @@
 
 namespace rodfab::meshing::detail {
 
-// What the helper is asked: the file, the options and the memory budget (bytes) it works under.
+// What the helper is asked: the file, the options and the memory budget (bytes) it works under; and
+// the process that asks (the helper stops at once when its parent is another: rodfab already gone).
 struct CadReaderRequest {
   std::filesystem::path file;
   CadRodOptions options;
   std::uint64_t memoryBudget = 0;
+  long parentProcess = 0;
 };
 
 // The helper's command line after its name, and back (exact: doubles as hexadecimal floats).

@@ -56,10 +56,12 @@ std::string answer(const detail::CadReaderRequest& request) {
 int main(int argc, char** argv) {
   // Ends with rodfab, whatever ends rodfab (the watchdog's _exit, a SIGKILL).
   ::prctl(PR_SET_PDEATHSIG, SIGKILL);
-  if (::getppid() == 1) return 2;
   detail::CadReaderRequest request;
   try {
     request = detail::fromReaderArguments(std::vector<std::string>(argv + 1, argv + argc));
+    // rodfab ended before the request above took effect (compared by pid, not with 1: rodfab may be a
+    // container's first process).
+    if (request.parentProcess != static_cast<long>(::getppid())) return 2;
     // The caller's budget, and with it the data limit: OpenCASCADE's allocations beyond it fail here.
     rodfab::common::setMemoryBudget(request.memoryBudget);
   } catch (const std::exception& e) {

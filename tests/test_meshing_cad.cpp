@@ -343,7 +343,7 @@ TEST_CASE("whatever becomes of the CAD reader process is an error naming the fil
 }
 
 TEST_CASE("the CAD reader's arguments carry the options exactly", "[meshing][cad]") {
-  meshing::detail::CadReaderRequest request{"a b/c.step", {}, 123456789012345ULL};
+  meshing::detail::CadReaderRequest request{"a b/c.step", {}, 123456789012345ULL, 4194304};
   request.options.section = geometry::Section::ellipse(0.1, 1.0 / 3.0);
   request.options.caps = geometry::CapStyle::Flat;
   request.options.modulusMpa = 2.0 / 7.0;
@@ -357,6 +357,7 @@ TEST_CASE("the CAD reader's arguments carry the options exactly", "[meshing][cad
   CHECK(back.options.modulusMpa == 2.0 / 7.0);
   CHECK(back.options.jointTolerance == 1e-9 * 3.0);
   CHECK(back.memoryBudget == request.memoryBudget);
+  CHECK(back.parentProcess == 4194304);
   std::vector<std::string> wrong = meshing::detail::readerArguments(request);
   wrong[1] = "hexagon";
   CHECK_THROWS_AS(meshing::detail::fromReaderArguments(wrong), std::invalid_argument);
