@@ -166,10 +166,12 @@ std::string describeEnd(int status, const std::string& stderrTail) {
   std::string what;
   if (WIFSIGNALED(status)) {
     const int signal = WTERMSIG(status);
-    const char* name = ::strsignal(signal);
-    what = "the CAD reader (OpenCASCADE) crashed on this file (signal " + std::to_string(signal) + ", " + (name ? name : "?") +
-           "): the file is malformed in a way rodfab's checks do not recognise; re-export it, or check it in the "
-           "program that wrote it";
+    const char* name = ::sigdescr_np(signal);  // thread-safe, unlike strsignal
+    const std::string which = "(signal " + std::to_string(signal) + ", " + (name ? name : "?") + ")";
+    what = signal == SIGKILL ? "the CAD reader was killed " + which + ", not by rodfab: the system may have run out of "
+                                   "memory (lower --max-memory, or free memory)"
+                             : "the CAD reader (OpenCASCADE) crashed on this file " + which + ": the file is malformed in a "
+                                   "way rodfab's checks do not recognise; re-export it, or check it in the program that wrote it";
   } else {
     what = "the CAD reader stopped with exit code " + std::to_string(WEXITSTATUS(status)) + " and no answer";
   }

@@ -331,7 +331,8 @@ TEST_CASE("whatever becomes of the CAD reader process is an error naming the fil
   CHECK(errorThrough(fakeReader("error.sh", "printf '{\"error\": \"edge 2: a curve of degree 9\"}' >&3"), model) ==
         model.string() + ": edge 2: a curve of degree 9");
   CHECK_THAT(errorThrough(fakeReader("garbage.sh", "echo 'not json' >&3"), model), Contains("answer is not JSON"));
-  CHECK_THAT(errorThrough(fakeReader("half.sh", "printf '{\"design\": {' >&3; kill -KILL $$"), model), Contains("(signal 9"));
+  CHECK_THAT(errorThrough(fakeReader("half.sh", "printf '{\"design\": {' >&3; kill -KILL $$"), model),
+             Contains("the CAD reader was killed (signal 9, Killed), not by rodfab: the system may have run out of memory"));
   CHECK_THAT(errorThrough(fakeReader("nodesign.sh", "echo '{\"report\": {}}' >&3"), model), Contains("has no design and report"));
   CHECK_THAT(errorThrough(fakeReader("baddesign.sh",
                                      "echo '{\"design\": {\"format\": \"rodfab.design/1\", \"rods\": 7}, \"report\": {}}' >&3"),
