@@ -104,8 +104,17 @@ open(sys.argv[1], "w").write("\n".join(out) + "\n")
 PY
 "$rodfab" rods-from-cad "$tmp/large.step" --diameter 1 -o "$tmp/x.json" > "$tmp/out" 2>&1 &
 pid=$!
-for _ in $(seq 50); do pgrep -P $pid > /dev/null && break; sleep 0.1; done
-reader=$(pgrep -P $pid) || fail "no CAD reader process under rods-from-cad"
+# The child of $1, from /proc (no procps on a minimal machine).
+child_of() {
+  local stat cpid comm state ppid
+  for stat in /proc/[0-9]*/stat; do
+    read -r cpid comm state ppid _ < "$stat" 2> /dev/null && [ "$ppid" = "$1" ] && echo "$cpid"
+  done
+  return 0
+}
+reader=
+for _ in $(seq 50); do reader=$(child_of $pid); [ -n "$reader" ] && break; sleep 0.1; done
+[ -n "$reader" ] && grep -aq rodfab-cad-reader "/proc/$reader/cmdline" || fail "no CAD reader process under rods-from-cad"
 sleep 0.5
 start=$(date +%s%N)
 kill -TERM $pid
