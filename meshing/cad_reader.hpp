@@ -35,7 +35,8 @@ inline constexpr int kResultDescriptor = 3;
 std::string resultJson(const CadRods& rods);
 std::string errorJson(const std::string& message);
 
-// The reading itself (cad_rods.cpp, in the helper): rodsFromCad's contract (meshing.hpp), in-process.
+// The reading itself (cad_rods.cpp, in the helper): rodsFromCad's contract (meshing.hpp), in-process,
+// after rodsFromCadThrough's checks of the options and the file (checkCadFile).
 CadRods readCadRods(const std::filesystem::path& cadFile, const CadRodOptions& options);
 
 // Format, size and memory of the file, before any reader sees it (in the calling process).

@@ -193,8 +193,7 @@ Vec3 normalFor(const geometry::NurbsCurve& c) {
 namespace detail {
 
 CadRods readCadRods(const std::filesystem::path& file, const CadRodOptions& options) {
-  if (!(options.jointTolerance > 0) || !(options.modulusMpa > 0)) throw std::invalid_argument("rodsFromCad: options out of range");
-  checkCadFile(file);
+  // The options and checkCadFile (format, size, memory) were checked by rodsFromCad, which runs this.
   std::lock_guard<std::mutex> lock(readerMutex());
   Message::DefaultMessenger()->RemovePrinters(STANDARD_TYPE(Message_Printer));
   STEPControl_Reader stepReader;
