@@ -5,9 +5,14 @@
 #include <catch2/catch.hpp>
 
 #include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
+
+#include <malloc.h>
 
 #include <algorithm>
 #include <bit>
+#include <cstddef>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -225,3 +230,55 @@ TEST_CASE("TreeRecycler reuses no internal node an owner left holding a tile oth
     }
   }
 }
+
+// Bytes the allocator has handed out and not had back: glibc's every arena and its mmapped blocks.
+// AddressSanitizer's allocator does not report through mallinfo2; there its leak check finds a leak.
+#if !defined(__SANITIZE_ADDRESS__)
+static std::size_t heapBytesInUse() {
+  const struct mallinfo2 info = ::mallinfo2();
+  return info.uordblks + info.hblkhd;
+}
+
+// Lets go of `tree` in a body of a parallel loop whose context is being cancelled (as a pipeline stage is
+// after another stage threw), through outsideCancellation or not; the heap bytes it leaves in use.
+template <typename Ptr>
+static std::ptrdiff_t heapLeftAfterLettingGoWhileCancelled(Ptr& tree, bool outside) {
+  tbb::task_group_context cancelling;
+  const std::size_t before = heapBytesInUse();
+  tbb::parallel_for(0, 1, [&](int) {
+    cancelling.cancel_group_execution();
+    if (outside) rodfab::voxel::outsideCancellation([&] { tree.reset(); });
+    else tree.reset();
+  }, cancelling);
+  REQUIRE(cancelling.is_group_execution_cancelled());
+  return std::ptrdiff_t(heapBytesInUse()) - std::ptrdiff_t(before);
+}
+
+TEST_CASE("outsideCancellation: a tree let go in a cancelled TBB context frees its nodes, as OpenVDB alone does not", "[voxel][tree_assembly]") {
+  constexpr std::ptrdiff_t kTreeBytes = 128 * 128 * 128 * sizeof(float);  // 8 MiB of leaf values
+  const auto denseTree = [] {
+    auto tree = std::make_unique<openvdb::FloatTree>(0.0f);
+    tree->denseFill(openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(127)), 1.0f, true);
+    return tree;
+  };
+  {
+    auto tree = denseTree();
+    const std::size_t held = heapBytesInUse();
+    tree.reset();
+    REQUIRE(held - heapBytesInUse() >= std::size_t(kTreeBytes));  // what the allocator figures can see
+  }
+  auto tree = denseTree();
+  CHECK(heapLeftAfterLettingGoWhileCancelled(tree, true) < -kTreeBytes);
+  // The hazard itself: OpenVDB's ~Tree frees the nodes in a tbb::parallel_for, which a cancelled
+  // context skips (the nodes leak: deliberately, once, in this process).
+  tree = denseTree();
+  CHECK(heapLeftAfterLettingGoWhileCancelled(tree, false) > -kTreeBytes / 8);
+  // A recycler that keeps no tree deletes the ones let go, wherever that happens.
+  TreeRecycler<openvdb::FloatTree> recycler(0.0f, 0);
+  Groups groups = randomLeafGroups(11u, 4000);  // 4000 leaves of 2 kB values each
+  auto spares = recycler.takeSpares();
+  openvdb::FloatTree::Ptr recycled = recycler.assemble(groups.size(), visitorOf(groups), spares);
+  REQUIRE(recycled->leafCount() == 4000);
+  CHECK(heapLeftAfterLettingGoWhileCancelled(recycled, true) < -4000 * std::ptrdiff_t(sizeof(float) * FloatLeaf::SIZE));
+}
+#endif
