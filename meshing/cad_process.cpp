@@ -5,6 +5,7 @@
 #include "common/memory_budget.hpp"
 #include "geometry/design_file.hpp"
 #include "meshing/cad_reader.hpp"
+#include "meshing/input_file.hpp"
 
 #include <dlfcn.h>
 #include <fcntl.h>
@@ -246,15 +247,8 @@ std::string resultJson(const CadRods& rods) {
 std::string errorJson(const std::string& message) { return nlohmann::json{{"error", message}}.dump(); }
 
 void checkCadFile(const std::filesystem::path& file) {
-  std::string ext = file.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  std::error_code ec;
-  if (ext != ".step" && ext != ".stp" && ext != ".iges" && ext != ".igs")
-    throw MeshError(file, "unknown CAD format '" + file.extension().string() + "': expected .step, .stp, .iges or .igs");
-  if (!std::filesystem::is_regular_file(file, ec)) throw MeshError(file, "no such file (or not a regular file)");
-  const std::uintmax_t size = std::filesystem::file_size(file, ec);
-  if (ec) throw MeshError(file, "cannot read: " + ec.message());
-  if (size > kMaxMeshFileBytes) throw MeshError(file, "larger than 2 GiB");
+  detail::requireExtension(file, "CAD", {".step", ".stp", ".iges", ".igs"});
+  const std::uintmax_t size = detail::checkedFileSize(file, "");
   // OpenCASCADE's readers hold the whole entity graph and then the shapes. 40 bytes per byte of text is
   // an estimate, not a measurement (see meshing/README.md, what remains).
   common::requireMemory(std::uint64_t(size) * 40, {.what = "reading the CAD model " + file.string(),

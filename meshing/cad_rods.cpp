@@ -6,6 +6,7 @@
 #include "geometry/design_writer.hpp"
 #include "meshing/cad_checks.hpp"
 #include "meshing/cad_reader.hpp"
+#include "meshing/input_file.hpp"
 #include "meshing/mesh.hpp"
 
 #include <BRep_Tool.hxx>
@@ -38,12 +39,6 @@ namespace {
 
 using geometry::Vec3;
 
-std::string lowerExtension(const std::filesystem::path& file) {
-  std::string ext = file.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  return ext;
-}
-
 // OpenCASCADE's readers report to a process-wide messenger (stdout by default): keep it quiet, and
 // read one file at a time (the readers share static tables).
 std::mutex& readerMutex() {
@@ -52,7 +47,7 @@ std::mutex& readerMutex() {
 }
 
 bool isStep(const std::filesystem::path& file) {
-  const std::string ext = lowerExtension(file);
+  const std::string ext = detail::lowerCaseExtension(file);
   return ext == ".step" || ext == ".stp";
 }
 

@@ -3,6 +3,7 @@
 #include "common/interrupt.hpp"
 #include "common/memory_budget.hpp"
 #include "geometry/rod.hpp"
+#include "meshing/input_file.hpp"
 #include "meshing/mesh.hpp"
 #include "meshing/ply_checks.hpp"
 
@@ -398,16 +399,9 @@ TriangleMesh parseMesh(const std::string& bytes, const std::string& format, cons
 }
 
 TriangleMesh readMesh(const std::filesystem::path& file, ReadStats& stats) {
-  std::string format = file.extension().string();
-  std::transform(format.begin(), format.end(), format.begin(), [](unsigned char c) { return std::tolower(c); });
-  if (!format.empty()) format.erase(0, 1);
-  if (format != "stl" && format != "obj" && format != "ply" && format != "off")
-    throw MeshError(file, "unknown mesh format '" + file.extension().string() + "': expected .stl, .obj, .ply or .off");
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(file, ec)) throw MeshError(file, "no such file (or not a regular file)");
-  const std::uintmax_t size = std::filesystem::file_size(file, ec);
-  if (ec) throw MeshError(file, "cannot read: " + ec.message());
-  if (size > kMaxMeshFileBytes) throw MeshError(file, "larger than 2 GiB: simplify the mesh first");
+  detail::requireExtension(file, "mesh", {".stl", ".obj", ".ply", ".off"});
+  const std::string format = detail::lowerCaseExtension(file).substr(1);
+  const std::uintmax_t size = detail::checkedFileSize(file, ": simplify the mesh first");
   common::requireMemory(size * (kParseBytesPerFileByte + 1), {.what = "reading the mesh " + file.string(),
                                                              .remedy = "simplify the mesh first"});
   std::ifstream in(file, std::ios::binary);
