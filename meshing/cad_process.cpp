@@ -247,12 +247,16 @@ std::string resultJson(const CadRods& rods) {
 std::string errorJson(const std::string& message) { return nlohmann::json{{"error", message}}.dump(); }
 
 void checkCadFile(const std::filesystem::path& file) {
+  constexpr std::uint64_t kCadReaderBytesPerFileByte = 128;
   detail::requireExtension(file, "CAD", {".step", ".stp", ".iges", ".igs"});
   const std::uintmax_t size = detail::checkedFileSize(file, "");
-  // OpenCASCADE's readers hold the whole entity graph and then the shapes. 40 bytes per byte of text is
-  // an estimate, not a measurement (see meshing/README.md, what remains).
-  common::requireMemory(std::uint64_t(size) * 40, {.what = "reading the CAD model " + file.string(),
-                                                  .remedy = "split the model"});
+  // The reader process holds OpenCASCADE's entity graph and shapes, then the rods and their design text:
+  // 134-143 bytes per byte of a STEP file of straight lines (2,000 and 20,000 of them, the least a
+  // byte of CAD text needs of the kinds measured), 536-560 for winding B-splines (meshing/README.md). A
+  // file refused here would need more than the budget at the least rate measured; one let through may still run out, and the
+  // reader says so (its data limit is the budget).
+  common::requireMemory(std::uint64_t(size) * kCadReaderBytesPerFileByte,
+                        {.what = "reading the CAD model " + file.string(), .remedy = "split the model"});
 }
 
 CadRods rodsFromCadThrough(const std::filesystem::path& helper, const std::filesystem::path& cadFile,

@@ -43,7 +43,8 @@ std::string answer(const detail::CadReaderRequest& request) {
     return detail::errorJson(e.what());
   } catch (const std::bad_alloc&) {
     return detail::errorJson("reading the model ran out of memory (the memory budget, --max-memory, is " +
-                             std::to_string(request.memoryBudget >> 20) + " MiB)");
+                             std::to_string(request.memoryBudget >> 20) +
+                             " MiB): raise --max-memory, or split the model");
   } catch (const Standard_Failure& e) {
     return detail::errorJson(std::string("OpenCASCADE failed: ") + e.GetMessageString());
   } catch (const std::exception& e) {

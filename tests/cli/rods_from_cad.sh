@@ -85,14 +85,16 @@ grep -q "box-2d-vertex-point.step: malformed: entity #22 (VERTEX_POINT): a verte
 # SIGTERM while OpenCASCADE reads a large model (10 curve sets of 20,000 lines, ~7 s to read): exit 143
 # without waiting for the read (within 3 s even on a loaded machine; ~0.02 s here), the reader process
 # gone, nothing written.
-python3 - "$tmp/large.step" <<'PY'
+# $1: the file, $2 curve sets of $3 lines each.
+write_lines_step() {
+python3 - "$@" <<'PY'
 import sys
 out = ["ISO-10303-21;", "HEADER;", "FILE_DESCRIPTION(('x'),'2;1');", "FILE_NAME('x','',(''),(''),'','','');",
        "FILE_SCHEMA(('CONFIG_CONTROL_DESIGN'));", "ENDSEC;", "DATA;"]
 n = 1
-for s in range(10):
+for s in range(int(sys.argv[2])):
     items = []
-    for i in range(20000):
+    for i in range(int(sys.argv[3])):
         out += [f"#{n}=CARTESIAN_POINT('',({i}.,{s}.,0.));", f"#{n+1}=DIRECTION('',(1.,0.,0.));",
                 f"#{n+2}=VECTOR('',#{n+1},1.);", f"#{n+3}=LINE('',#{n},#{n+2});"]
         items.append(n + 3)
@@ -102,7 +104,17 @@ for s in range(10):
 out += ["ENDSEC;", "END-ISO-10303-21;"]
 open(sys.argv[1], "w").write("\n".join(out) + "\n")
 PY
-"$rodfab" rods-from-cad "$tmp/large.step" --diameter 1 -o "$tmp/x.json" > "$tmp/out" 2>&1 &
+}
+# A file whose reading needs more than the budget at the least rate measured (128 bytes a byte: 1.2 MB
+# of lines, 150 MB) is refused before the reader starts, naming the file and the figures.
+write_lines_step "$tmp/lines.step" 1 10000
+"$rodfab" rods-from-cad "$tmp/lines.step" --diameter 1 -o "$tmp/x.json" --max-memory 64M > "$tmp/out" 2>&1
+rc=$?
+[ $rc -eq 1 ] && grep -q "out of memory: reading the CAD model $tmp/lines.step needs about" "$tmp/out" && grep -q "split the model" "$tmp/out" ||
+  fail "CAD model over the budget: exit $rc: $(cat "$tmp/out")"
+[ -e "$tmp/x.json" ] && fail "wrote a design over the budget"
+write_lines_step "$tmp/large.step" 10 20000
+"$rodfab" rods-from-cad "$tmp/large.step" --diameter 1 -o "$tmp/x.json" --max-memory 8G > "$tmp/out" 2>&1 &
 pid=$!
 # The child of $1, from /proc (no procps on a minimal machine).
 child_of() {
