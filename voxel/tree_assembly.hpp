@@ -130,8 +130,9 @@ void assembleTree(TreeT& tree, std::size_t groupCount, const ForEachLeaf& forEac
 // in a stage of a tbb::parallel_pipeline, or a body of a parallel loop, after another one threw. There
 // every parallel algorithm is cancelled before it starts, and OpenVDB frees a tree's nodes in one
 // (Tree::clear, from ~Tree): the tree would come back empty with all its nodes leaked, silently
-// (0.3-0.6 MB a failed slice of a small test job; found by the sanitizer build). The same holds for any
-// OpenVDB call that works in parallel: its work would be skipped, so only letting go belongs here.
+// (0.3-0.6 MB a failed slice of a small test job; found by the sanitizer build). Other OpenVDB calls
+// that work in parallel skip their work there too, but a failing pipeline throws their results away:
+// letting go is what needs this.
 template <typename F>
 void outsideCancellation(const F& f) {
   tbb::task_group_context own(tbb::task_group_context::isolated);
