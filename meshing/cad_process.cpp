@@ -253,8 +253,8 @@ void checkCadFile(const std::filesystem::path& file) {
   // The reader process holds OpenCASCADE's entity graph and shapes, then the rods and their design text:
   // 134-143 bytes per byte of a STEP file of straight lines (2,000 and 20,000 of them, the least a
   // byte of CAD text needs of the kinds measured), 536-560 for winding B-splines (meshing/README.md). A
-  // file refused here would need more than the budget at the least rate measured; one let through may still run out, and the
-  // reader says so (its data limit is the budget).
+  // file refused here would need more than the budget at the least rate measured; one let through may
+  // still run out, and the reader says so (its data limit is the budget).
   common::requireMemory(std::uint64_t(size) * kCadReaderBytesPerFileByte,
                         {.what = "reading the CAD model " + file.string(), .remedy = "split the model"});
 }
