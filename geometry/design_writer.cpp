@@ -34,29 +34,33 @@ ordered quaternionSplineJson(const QuaternionSpline& q) {
   return o;
 }
 
+ordered rodJson(const std::string& name, const NurbsCurve& centerline, const Section& section,
+                const std::optional<Vec3>& referenceNormal, const std::optional<QuaternionSpline>& orientation, CapStyle caps,
+                const BSplineField& modulus) {
+  ordered r{{"name", name}, {"centerline", nurbsJson(centerline)}};
+  if (section.shape == SectionShape::Circle) r["section"] = {{"shape", "circle"}, {"diameter", section.width}};
+  else r["section"] = {{"shape", std::string(toString(section.shape))}, {"width", section.width}, {"height", section.height}};
+  if (referenceNormal) r["normal"] = vec3Json(*referenceNormal);
+  if (orientation) r["orientation"] = quaternionSplineJson(*orientation);
+  if (caps == CapStyle::Flat) r["caps"] = "flat";
+  if (modulus.isConstant()) {
+    r["modulus"] = modulus.values().front();
+  } else {
+    ordered m = curveJson(modulus.degree(), modulus.knots());
+    m["values"] = modulus.values();
+    r["modulus"] = m;
+  }
+  return r;
+}
+
 nlohmann::ordered_json designToJson(const RodStructure& structure, const std::string& description) {
   ordered rods = ordered::array();
-  for (const Rod& rod : structure.rods) {
-    ordered r{{"name", rod.name()}, {"centerline", nurbsJson(rod.centerline())}};
-    const Section& s = rod.section();
-    if (s.shape == SectionShape::Circle) r["section"] = {{"shape", "circle"}, {"diameter", s.width}};
-    else r["section"] = {{"shape", std::string(toString(s.shape))}, {"width", s.width}, {"height", s.height}};
-    if (rod.referenceNormal()) {
-      const Vec3& n = *rod.referenceNormal();
-      r["normal"] = {n.x(), n.y(), n.z()};
-    }
-    if (rod.orientation()) r["orientation"] = quaternionSplineJson(*rod.orientation());
-    if (rod.caps() == CapStyle::Flat) r["caps"] = "flat";
-    const BSplineField& e = rod.modulus();
-    if (e.isConstant()) {
-      r["modulus"] = e.values().front();
-    } else {
-      ordered m = curveJson(e.degree(), e.knots());
-      m["values"] = e.values();
-      r["modulus"] = m;
-    }
-    rods.push_back(std::move(r));
-  }
+  for (const Rod& rod : structure.rods)
+    rods.push_back(rodJson(rod.name(), rod.centerline(), rod.section(), rod.referenceNormal(), rod.orientation(), rod.caps(), rod.modulus()));
+  return designJson(std::move(rods), description);
+}
+
+nlohmann::ordered_json designJson(nlohmann::ordered_json rods, const std::string& description) {
   ordered doc{{"format", kDesignFormat}, {"units", "mm"}};
   if (!description.empty()) doc["description"] = description;
   doc["rods"] = std::move(rods);

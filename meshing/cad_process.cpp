@@ -22,6 +22,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <new>
 
 extern char** environ;
 
@@ -201,6 +202,9 @@ CadRods parseAnswer(const std::string& answer, const std::filesystem::path& file
     throw MeshError(file, std::string("the CAD reader's design is not valid: ") + e.what());
   } catch (const nlohmann::json::exception& e) {
     throw MeshError(file, std::string("the CAD reader's report is malformed: ") + e.what());
+  } catch (const std::bad_alloc&) {  // the rods' samples: ~0.1-1 MB a winding rod
+    throw MeshError(file, "building the model's rods ran out of memory (the memory budget, --max-memory, is " +
+                              std::to_string(common::memoryBudget() >> 20) + " MiB): raise --max-memory, or split the model");
   }
   if (out.report.rods != out.structure.rods.size()) throw MeshError(file, "the CAD reader's report does not match its design");
   out.structure.source = file.string();
@@ -236,26 +240,27 @@ CadReaderRequest fromReaderArguments(const std::vector<std::string>& a) {
   return r;
 }
 
-std::string resultJson(const CadRods& rods) {
-  const CadRodReport& r = rods.report;
-  return nlohmann::json{{"design", geometry::designToJson(rods.structure)},
-                        {"report", {{"edges", r.edges}, {"rods", r.rods}, {"joints", r.joints},
-                                    {"skipped_degenerate", r.skippedDegenerate}, {"largest_end_move_mm", r.largestEndMove}}}}
-      .dump();
+std::string resultJson(CadDesign design) {
+  const CadRodReport& r = design.report;
+  nlohmann::ordered_json answer;
+  answer["design"] = std::move(design.design);  // moved, not copied: it is most of the helper's memory
+  answer["report"] = {{"edges", r.edges}, {"rods", r.rods}, {"joints", r.joints}, {"skipped_degenerate", r.skippedDegenerate},
+                      {"largest_end_move_mm", r.largestEndMove}};
+  return answer.dump();
 }
 
 std::string errorJson(const std::string& message) { return nlohmann::json{{"error", message}}.dump(); }
 
 void checkCadFile(const std::filesystem::path& file) {
-  constexpr std::uint64_t kCadReaderBytesPerFileByte = 128;
+  constexpr std::uint64_t kCadBytesPerFileByte = 64;
   detail::requireExtension(file, "CAD", {".step", ".stp", ".iges", ".igs"});
   const std::uintmax_t size = detail::checkedFileSize(file, "");
-  // The reader process holds OpenCASCADE's entity graph and shapes, then the rods and their design text:
-  // 134-143 bytes per byte of a STEP file of straight lines (2,000 and 20,000 of them, the least a
-  // byte of CAD text needs of the kinds measured), 536-560 for winding B-splines (meshing/README.md). A
-  // file refused here would need more than the budget at the least rate measured; one let through may
-  // still run out, and the reader says so (its data limit is the budget).
-  common::requireMemory(std::uint64_t(size) * kCadReaderBytesPerFileByte,
+  // rodfab builds the rods from the reader's design: 67-70 bytes per byte of a STEP file of straight
+  // lines (2,000 and 20,000 of them, the least a byte of CAD text needs of the kinds measured),
+  // 274-276 for winding B-splines (meshing/README.md); the reader itself needs 10-23, before. A file
+  // refused here would need more than the budget at the least rate measured; one let through may still
+  // run out, and the message says so (the data limit is the budget).
+  common::requireMemory(std::uint64_t(size) * kCadBytesPerFileByte,
                         {.what = "reading the CAD model " + file.string(), .remedy = "split the model"});
 }
 

@@ -8,6 +8,8 @@
 
 #include "meshing/meshing.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -28,16 +30,24 @@ struct CadReaderRequest {
 std::vector<std::string> readerArguments(const CadReaderRequest& request);
 CadReaderRequest fromReaderArguments(const std::vector<std::string>& arguments);
 
+// What the helper found: the design (a document as geometry::designToJson makes one) and the report.
+// Its rods are checked but not kept: the caller builds them once, parsing the design.
+struct CadDesign {
+  nlohmann::ordered_json design;
+  CadRodReport report;
+};
+
 // The helper's answer, written to file descriptor kResultDescriptor: one JSON document, either
-// {"design": designToJson(rods), "report": {...}} or {"error": MESSAGE} (MESSAGE without the file's
-// name). Parsed back by rodsFromCad through geometry::parseDesign, as `rodfab validate` reads designs.
+// {"design": DESIGN, "report": {...}} or {"error": MESSAGE} (MESSAGE without the file's name). Parsed
+// back by rodsFromCad through geometry::parseDesign, as `rodfab validate` reads designs.
 inline constexpr int kResultDescriptor = 3;
-std::string resultJson(const CadRods& rods);
+std::string resultJson(CadDesign design);
 std::string errorJson(const std::string& message);
 
 // The reading itself (cad_rods.cpp, in the helper): rodsFromCad's contract (meshing.hpp), in-process,
-// after rodsFromCadThrough's checks of the options and the file (checkCadFile).
-CadRods readCadRods(const std::filesystem::path& cadFile, const CadRodOptions& options);
+// after rodsFromCadThrough's checks of the options and the file (checkCadFile). Every rod is built
+// once to check it (both cores, one rod a thread at a time) and let go.
+CadDesign readCadDesign(const std::filesystem::path& cadFile, const CadRodOptions& options);
 
 // Format, size and memory of the file, before any reader sees it (in the calling process).
 void checkCadFile(const std::filesystem::path& file);

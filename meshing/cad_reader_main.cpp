@@ -36,7 +36,7 @@ std::string withoutFile(const MeshError& e) {
 
 std::string answer(const detail::CadReaderRequest& request) {
   try {
-    return detail::resultJson(detail::readCadRods(request.file, request.options));
+    return detail::resultJson(detail::readCadDesign(request.file, request.options));
   } catch (const MeshError& e) {
     return detail::errorJson(withoutFile(e));
   } catch (const rodfab::common::OutOfMemory& e) {

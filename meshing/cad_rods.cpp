@@ -7,7 +7,6 @@
 #include "meshing/cad_checks.hpp"
 #include "meshing/cad_reader.hpp"
 #include "meshing/input_file.hpp"
-#include "meshing/mesh.hpp"
 
 #include <BRep_Tool.hxx>
 #include <GeomConvert.hxx>
@@ -27,6 +26,8 @@
 #include <XSControl_WorkSession.hxx>
 
 #include <nlohmann/json.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -183,11 +184,33 @@ Vec3 normalFor(const geometry::NurbsCurve& c) {
   return t.cross(Vec3::Unit(k)).normalized();
 }
 
+// Builds every rod once, as the design reader will, and lets it go: a centerline too intricate to
+// sample is named by its edge here, where the edge is known. Both cores, a rod a thread at a time (a
+// winding one takes ~1 MB); the first failing rod in the model's order is reported whatever the
+// thread count.
+void requireRodsBuild(const std::vector<geometry::NurbsCurve>& curves, const std::vector<std::optional<Vec3>>& normals,
+                      const CadRodOptions& options, const std::filesystem::path& file, const std::vector<EdgeRef>& edgeOfRod) {
+  std::vector<std::string> failures(curves.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, curves.size(), 1), [&](const tbb::blocked_range<std::size_t>& range) {
+    for (std::size_t r = range.begin(); r != range.end(); ++r) {
+      const geometry::NurbsCurve& c = curves[r];
+      try {
+        const geometry::Rod rod("edge-" + std::to_string(r), c, options.section, normals[r], std::nullopt, options.caps,
+                                geometry::BSplineField::constant(options.modulusMpa, c.domainBegin(), c.domainEnd()));
+      } catch (const std::invalid_argument& e) {  // e.g. a centerline too intricate to sample
+        failures[r] = e.what();
+      }
+    }
+  });
+  for (std::size_t r = 0; r < curves.size(); ++r)
+    if (!failures[r].empty()) throw MeshError(file, edgeOfRod[r].name() + ": " + failures[r]);
+}
+
 }  // namespace
 
 namespace detail {
 
-CadRods readCadRods(const std::filesystem::path& file, const CadRodOptions& options) {
+CadDesign readCadDesign(const std::filesystem::path& file, const CadRodOptions& options) {
   // The options and checkCadFile (format, size, memory) were checked by rodsFromCad, which runs this.
   std::lock_guard<std::mutex> lock(readerMutex());
   Message::DefaultMessenger()->RemovePrinters(STANDARD_TYPE(Message_Printer));
@@ -197,7 +220,7 @@ CadRods readCadRods(const std::filesystem::path& file, const CadRodOptions& opti
   const TopoDS_Shape shape = readShape(reader, file);
   TopTools_IndexedMapOfShape edges;
   if (!shape.IsNull()) TopExp::MapShapes(shape, TopAbs_EDGE, edges);
-  CadRods out;
+  CadDesign out;
   out.report.edges = static_cast<std::size_t>(edges.Extent());
   std::vector<geometry::NurbsCurve> curves;
   std::vector<EdgeRef> edgeOfRod;
@@ -209,22 +232,21 @@ CadRods readCadRods(const std::filesystem::path& file, const CadRodOptions& opti
   }
   if (curves.empty()) throw MeshError(file, "the model holds no edge curve");
   out.report.largestEndMove = mergeEnds(curves, options.jointTolerance, out.report.joints);
+  std::vector<std::optional<Vec3>> normals(curves.size());
+  for (std::size_t r = 0; r < curves.size(); ++r) {
+    // After mergeEnds: an edge shorter than the joint tolerance has both ends on one point now.
+    requireValidCenterline(curves[r], file, edgeOfRod[r]);
+    if (!options.section.isRotationallySymmetric()) normals[r] = normalFor(curves[r]);
+  }
+  requireRodsBuild(curves, normals, options, file, edgeOfRod);
+  nlohmann::ordered_json rods = nlohmann::ordered_json::array();
   for (std::size_t r = 0; r < curves.size(); ++r) {
     const geometry::NurbsCurve& c = curves[r];
-    // After mergeEnds: an edge shorter than the joint tolerance has both ends on one point now.
-    requireValidCenterline(c, file, edgeOfRod[r]);
-    std::optional<Vec3> normal;
-    if (!options.section.isRotationallySymmetric()) normal = normalFor(c);
-    try {
-      out.structure.rods.emplace_back("edge-" + std::to_string(r), c, options.section, normal, std::nullopt, options.caps,
-                                      geometry::BSplineField::constant(options.modulusMpa, c.domainBegin(), c.domainEnd()));
-    } catch (const std::invalid_argument& e) {  // e.g. a centerline too intricate to sample
-      throw MeshError(file, edgeOfRod[r].name() + ": " + e.what());
-    }
+    rods.push_back(geometry::rodJson("edge-" + std::to_string(r), c, options.section, normals[r], std::nullopt, options.caps,
+                                     geometry::BSplineField::constant(options.modulusMpa, c.domainBegin(), c.domainEnd())));
   }
-  out.structure.source = file.string();
-  out.report.rods = out.structure.rods.size();
-  requireValidDesign(out.structure, file, [&](std::size_t rod) { return edgeOfRod[rod].name(); });
+  out.design = geometry::designJson(std::move(rods));
+  out.report.rods = curves.size();
   return out;
 }
 

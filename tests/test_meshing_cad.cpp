@@ -3,6 +3,11 @@
 #include "meshing/meshing.hpp"
 #include "tests/meshing/cad_fixtures.hpp"
 
+#include <BRep_Builder.hxx>
+#include <GeomConvert.hxx>
+#include <Geom_TrimmedCurve.hxx>
+#include <TopoDS_Compound.hxx>
+
 #include <catch2/catch.hpp>
 
 #include <filesystem>
@@ -112,6 +117,39 @@ TEST_CASE("a circle becomes an exact rational B-spline whose ends meet", "[meshi
   CHECK(c.points().front() == c.points().back());  // one joint: the ends merged bit for bit
   CHECK(result.report.joints == 1);
   CHECK(largestDeviation(result.structure.rods[0], circle, 0, 2 * M_PI) < 1e-9);
+}
+
+namespace {
+
+// An arc of radius 5e8 mm over 6 radians as a B-spline of 100 knot spans.
+Handle(Geom_BSplineCurve) hugeArc(double z) {
+  const Handle(Geom_Circle) circle = new Geom_Circle(gp_Ax2(gp_Pnt(0, 0, z), gp_Dir(0, 0, 1)), 5e8);
+  Handle(Geom_BSplineCurve) arc = GeomConvert::CurveToBSplineCurve(new Geom_TrimmedCurve(circle, 0.0, 6.0));
+  const double a = arc->FirstParameter(), b = arc->LastParameter();
+  for (int i = 1; i < 100; ++i) arc->InsertKnot(a + (b - a) * i / 100);
+  return arc;
+}
+
+}  // namespace
+
+TEST_CASE("a curve too intricate to sample at its section's tolerance is refused, naming the first such edge", "[meshing][cad]") {
+  // A chord of an arc of radius R strays by R theta^2 / 8: followed within a 0.01 mm rod's 1e-4 mm, a
+  // 5e8 mm arc needs a sample every 4e-6 rad, 1.5 million over 6 rad, above geometry::kMaxSamplesPerRod.
+  // Two of them after a small circle: the rods are checked on both cores, the first in the model's
+  // order is the one named.
+  TopoDS_Compound model;
+  BRep_Builder builder;
+  builder.MakeCompound(model);
+  builder.Add(model, testing::edgeOf(testing::testCircle()));
+  for (double z : {0.0, 1.0}) builder.Add(model, testing::edgeOf(hugeArc(z)));
+  testing::writeStep(model, scratch("huge-arcs.step"));
+  meshing::CadRodOptions options;
+  options.section = geometry::Section::circle(0.01);
+  const std::string message = meshErrorOf(scratch("huge-arcs.step"), [&] { meshing::rodsFromCad(scratch("huge-arcs.step"), options); });
+  CHECK_THAT(message, Catch::Contains("huge-arcs.step: edge 1") && Catch::Contains("polyline samples"));
+  CHECK_THAT(message, !Catch::Contains("edge 2"));
+  options.section = geometry::Section::circle(1.0);  // within 0.01 mm: 150,000 samples each
+  CHECK(meshing::rodsFromCad(scratch("huge-arcs.step"), options).structure.rods.size() == 3);
 }
 
 TEST_CASE("CAD errors name the file and the problem", "[meshing][cad]") {

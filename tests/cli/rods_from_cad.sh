@@ -105,8 +105,8 @@ out += ["ENDSEC;", "END-ISO-10303-21;"]
 open(sys.argv[1], "w").write("\n".join(out) + "\n")
 PY
 }
-# A file whose reading needs more than the budget at the least rate measured (128 bytes a byte: 1.2 MB
-# of lines, 150 MB) is refused before the reader starts, naming the file and the figures.
+# A file whose reading needs more than the budget at the least rate measured (64 bytes a byte: 1.2 MB
+# of lines, 77 MB) is refused before the reader starts, naming the file and the figures.
 write_lines_step "$tmp/lines.step" 1 10000
 "$rodfab" rods-from-cad "$tmp/lines.step" --diameter 1 -o "$tmp/x.json" --max-memory 64M > "$tmp/out" 2>&1
 rc=$?
