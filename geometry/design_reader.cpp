@@ -3,9 +3,13 @@
 // blocks of higher stages by their stages, with the same DesignReader.
 #include "geometry/design_reader.hpp"
 
+#include "common/interrupt.hpp"
 #include "common/json_input.hpp"
 #include "common/located_issues.hpp"
 #include "common/memory_budget.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -240,6 +244,46 @@ json parseDocument(const std::string& text, const std::string& sourceName) {
   }
 }
 
+struct ReadRod {
+  std::size_t index;  // in "rods"
+  RodParts parts;
+};
+
+// Builds the rods that read without issue, on as many threads as TBB may use (building is most of
+// the reading: a winding rod takes milliseconds and up to ~1 MB). A rod's own failure (a centerline
+// too intricate to sample) is recorded right after that rod's issues (`issuesAfter[index]` of them
+// came before it), so the list is in the file's order whatever the thread count.
+void buildRods(std::vector<ReadRod>& read, const std::vector<std::size_t>& issuesAfter, DesignReader& v, RodStructure& structure) {
+  std::vector<std::optional<Rod>> built(read.size());
+  std::vector<std::string> failures(read.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, read.size(), 1), [&](const tbb::blocked_range<std::size_t>& range) {
+    for (std::size_t k = range.begin(); k != range.end(); ++k) {
+      common::throwIfInterrupted();
+      RodParts& p = read[k].parts;
+      try {
+        built[k].emplace(std::move(p.name), std::move(p.centerline), p.section, std::move(p.referenceNormal), std::move(p.orientation),
+                         p.caps, std::move(p.modulus));
+      } catch (const std::invalid_argument& error) {
+        failures[k] = error.what();
+      }
+    }
+  });
+  std::vector<DesignIssue> issues;
+  std::size_t next = 0;
+  const auto takeIssuesUpTo = [&](std::size_t end) {
+    issues.insert(issues.end(), std::make_move_iterator(v.issues.begin() + next), std::make_move_iterator(v.issues.begin() + end));
+    next = end;
+  };
+  structure.rods.reserve(read.size());
+  for (std::size_t k = 0; k < read.size(); ++k) {
+    takeIssuesUpTo(issuesAfter[read[k].index]);
+    if (failures[k].empty()) structure.rods.push_back(std::move(*built[k]));
+    else issues.push_back({indexPath("rods", read[k].index), failures[k]});
+  }
+  takeIssuesUpTo(v.issues.size());
+  v.issues = std::move(issues);
+}
+
 }  // namespace
 
 DesignDocument parseDesignDocument(const std::string& text, const std::string& sourceName, DesignReader& v) {
@@ -262,8 +306,13 @@ DesignDocument parseDesignDocument(const std::string& text, const std::string& s
       v.fail("rods", "expected a non-empty array of rods, got " + describe(*rods));
     } else {
       d.rodsListed = true;
-      for (std::size_t i = 0; i < rods->size(); ++i)
-        if (auto r = v.rod((*rods)[i], indexPath("rods", i), d.rodNames)) d.structure.rods.push_back(std::move(*r));
+      std::vector<ReadRod> read;
+      std::vector<std::size_t> issuesAfter(rods->size());
+      for (std::size_t i = 0; i < rods->size(); ++i) {
+        if (auto r = v.rod((*rods)[i], indexPath("rods", i), d.rodNames)) read.push_back({i, std::move(*r)});
+        issuesAfter[i] = v.issues.size();
+      }
+      buildRods(read, issuesAfter, v, d.structure);
     }
   }
   return d;

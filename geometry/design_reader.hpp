@@ -26,6 +26,18 @@ using common::memberPath;
 // The rod names of a design, each with the JSON path of the rod that carries it.
 using RodNames = std::map<std::string, std::string>;
 
+// A rod as the design file gives it, checked, before its centerline is sampled: Rod's constructor's
+// arguments (building the Rod is most of the work of reading a design).
+struct RodParts {
+  std::string name;
+  NurbsCurve centerline;
+  Section section;
+  std::optional<Vec3> referenceNormal;
+  std::optional<QuaternionSpline> orientation;
+  CapStyle caps = CapStyle::Round;
+  BSplineField modulus;
+};
+
 // Collects every violation of one file. Each check returns what it could read (std::nullopt after
 // recording an issue), so later checks go on and one read reports everything. Not thread-safe.
 class DesignReader {
@@ -60,8 +72,8 @@ public:
   std::optional<QuaternionSpline> orientation(const nlohmann::json& j, const std::string& path, const NurbsCurve* curve);
   // A constant (MPa) or a B-spline {degree, knots, values} over `curve`'s domain (nullopt without a curve).
   std::optional<BSplineField> modulus(const nlohmann::json& j, const std::string& path, const NurbsCurve* curve);
-  // One rod of "rods"; its name joins `names` (a repeated name is an issue).
-  std::optional<Rod> rod(const nlohmann::json& j, const std::string& path, RodNames& names);
+  // One rod of "rods", checked but not built; its name joins `names` (a repeated name is an issue).
+  std::optional<RodParts> rod(const nlohmann::json& j, const std::string& path, RodNames& names);
 };
 
 // A design file as geometry reads it: the document, the rods that read without issue, and the

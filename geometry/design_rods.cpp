@@ -208,7 +208,7 @@ std::optional<BSplineField> DesignReader::modulus(const json& j, const std::stri
   return curve ? std::optional<BSplineField>(field) : std::nullopt;
 }
 
-std::optional<Rod> DesignReader::rod(const json& j, const std::string& path, RodNames& names) {
+std::optional<RodParts> DesignReader::rod(const json& j, const std::string& path, RodNames& names) {
   if (!j.is_object()) {
     fail(path, "expected a rod object, got " + describe(j));
     return std::nullopt;
@@ -268,12 +268,7 @@ std::optional<Rod> DesignReader::rod(const json& j, const std::string& path, Rod
     e = modulus(*m, memberPath(path, "modulus"), curve ? &*curve : nullptr);
 
   if (issues.size() != before || !curve || !sec || !e) return std::nullopt;
-  try {
-    return Rod(name, *curve, *sec, normal, orient, caps, *e);
-  } catch (const std::invalid_argument& error) {  // e.g. a centerline too intricate to sample
-    fail(path, error.what());
-    return std::nullopt;
-  }
+  return RodParts{name, std::move(*curve), *sec, normal, std::move(orient), caps, std::move(*e)};
 }
 
 }  // namespace rodfab::geometry

@@ -1,10 +1,12 @@
 // geometry/design_file: every bad-input case names the file, the JSON path and what was expected.
+#include "geometry/design_writer.hpp"
 #include "geometry/geometry.hpp"
 #include "tests/design_file_fixture.hpp"
 
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <filesystem>
 #include <functional>
 #include <fstream>
@@ -214,6 +216,43 @@ TEST_CASE("All errors of a file are collected, not only the first", "[design][er
   REQUIRE(hasIssue(issues, "rods[1].modulus", "expected a modulus"));
   const std::string all = DesignError("bad.json", issues).what();
   REQUIRE(all.find("bad.json: rods[1].modulus: ") != std::string::npos);
+}
+
+namespace {
+
+// A 0.01 mm rod along a cubic B-spline of 100 spans whose control points lie on a circle of radius 5e8
+// mm: followed within the rod's 1e-4 mm, a chord may span 4e-6 rad, so its 6 rad need 1.5 million
+// samples, above kMaxSamplesPerRod.
+json tooIntricateRod(const std::string& name) {
+  std::vector<Vec3> points;
+  for (int k = 0; k < 103; ++k) points.emplace_back(5e8 * std::cos(0.06 * k), 5e8 * std::sin(0.06 * k), 0.0);
+  std::vector<double> knots(4, 0.0);
+  for (int k = 1; k < 100; ++k) knots.push_back(k);
+  knots.insert(knots.end(), 4, 100.0);
+  const NurbsCurve curve(3, knots, points);
+  return json::parse(rodJson(name, curve, Section::circle(0.01), std::nullopt, std::nullopt, CapStyle::Round,
+                             BSplineField::constant(100.0, curve.domainBegin(), curve.domainEnd()))
+                         .dump());
+}
+
+}  // namespace
+
+TEST_CASE("A rod too intricate to sample is reported in the file's order, its rods built on both cores", "[design][errors]") {
+  json d = validDesign();
+  d["rods"].push_back(tooIntricateRod("huge-1"));
+  d["rods"].push_back(validDesign()["rods"][0]);
+  d["rods"][2]["name"] = "edge-2";
+  d["rods"][2]["modulus"] = "stiff";
+  d["rods"].push_back(tooIntricateRod("huge-3"));
+  const auto issues = issuesOf(d);
+  REQUIRE(issues.size() == 3);
+  CHECK(issues[0].path == "rods[1]");
+  CHECK_THAT(issues[0].message, Catch::Contains("rod 'huge-1'") && Catch::Contains("polyline samples"));
+  CHECK(issues[1].path == "rods[2].modulus");
+  CHECK(issues[2].path == "rods[3]");
+  d["rods"].erase(3), d["rods"].erase(1);
+  d["rods"][1]["modulus"] = 100;  // what is left builds
+  CHECK(parseDesign(d.dump(), "ok.json").rods.size() == 2);
 }
 
 TEST_CASE("A missing file is reported with its name", "[design][errors]") {
