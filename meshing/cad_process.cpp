@@ -198,6 +198,8 @@ CadRods parseAnswer(const std::string& answer, const std::filesystem::path& file
     out.report.joints = r.at("joints").get<std::size_t>();
     out.report.skippedDegenerate = r.at("skipped_degenerate").get<std::size_t>();
     out.report.largestEndMove = r.at("largest_end_move_mm").get<double>();
+    out.report.approximated = r.at("approximated").get<std::size_t>();
+    out.report.largestApproximationError = r.at("largest_approximation_error_mm").get<double>();
   } catch (const geometry::DesignError& e) {
     throw MeshError(file, std::string("the CAD reader's design is not valid: ") + e.what());
   } catch (const nlohmann::json::exception& e) {
@@ -245,7 +247,8 @@ std::string resultJson(CadDesign design) {
   nlohmann::ordered_json answer;
   answer["design"] = std::move(design.design);  // moved, not copied: it is most of the helper's memory
   answer["report"] = {{"edges", r.edges}, {"rods", r.rods}, {"joints", r.joints}, {"skipped_degenerate", r.skippedDegenerate},
-                      {"largest_end_move_mm", r.largestEndMove}};
+                      {"largest_end_move_mm", r.largestEndMove}, {"approximated", r.approximated},
+                      {"largest_approximation_error_mm", r.largestApproximationError}};
   return answer.dump();
 }
 

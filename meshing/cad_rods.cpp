@@ -10,6 +10,7 @@
 
 #include <BRep_Tool.hxx>
 #include <GeomConvert.hxx>
+#include <GeomConvert_ApproxCurve.hxx>
 #include <Geom_BSplineCurve.hxx>
 #include <Geom_TrimmedCurve.hxx>
 #include <IFSelect_ReturnStatus.hxx>
@@ -117,16 +118,41 @@ geometry::NurbsCurve toNurbs(const Geom_BSplineCurve& bs, const std::filesystem:
   return geometry::NurbsCurve(bs.Degree(), std::move(knots), std::move(points), std::move(weights));
 }
 
-// The edge's curve over its range as a clamped, non-periodic B-spline; nullopt for an edge without a
-// 3D curve (a degenerate seam).
-std::optional<geometry::NurbsCurve> edgeCurve(const std::filesystem::path& file, const EdgeRef& ref) {
+// `curve`, whose exact B-spline is of degree `degree` > kMaxDegree, approximated by a B-spline of degree
+// kMaxDegree within kCadApproximationToleranceMm, as smooth as the curve (up to C2: a rod's frame needs
+// its curvature). At most one segment per kMaxDegree of the design's control point limit.
+Handle(Geom_BSplineCurve) approximated(const Handle(Geom_Curve)& curve, int degree, const std::filesystem::path& file,
+                                       const EdgeRef& ref, CadRodReport& report) {
+  constexpr int kMaxSegments = static_cast<int>(geometry::kMaxSplineControls) / geometry::kMaxDegree;
+  const GeomAbs_Shape smoothness = curve->Continuity();
+  const GeomAbs_Shape order = smoothness >= GeomAbs_C2 ? GeomAbs_C2 : smoothness >= GeomAbs_C1 ? GeomAbs_C1 : GeomAbs_C0;
+  const GeomConvert_ApproxCurve approximation(curve, kCadApproximationToleranceMm, order, kMaxSegments, geometry::kMaxDegree);
+  if (!approximation.IsDone() || !(approximation.MaxError() <= kCadApproximationToleranceMm)) {
+    char tolerance[32], best[32] = "none";
+    std::snprintf(tolerance, sizeof tolerance, "%g mm", kCadApproximationToleranceMm);
+    if (approximation.HasResult()) std::snprintf(best, sizeof best, "%.3g mm", approximation.MaxError());
+    throw MeshError(file, ref.name() + ": a curve of degree " + std::to_string(degree) + ", above the " + std::to_string(geometry::kMaxDegree) +
+                              " rodfab supports, that cannot be approximated within " + tolerance +
+                              " by " + std::to_string(kMaxSegments) + " pieces of degree " + std::to_string(geometry::kMaxDegree) +
+                              " (the closest: " + best + "); split the curve or lower its degree in the CAD program");
+  }
+  ++report.approximated;
+  report.largestApproximationError = std::max(report.largestApproximationError, approximation.MaxError());
+  return approximation.Curve();
+}
+
+// The edge's curve over its range as a clamped, non-periodic B-spline (approximated when its exact
+// one would be of too high a degree); nullopt for an edge without a 3D curve (a degenerate seam).
+std::optional<geometry::NurbsCurve> edgeCurve(const std::filesystem::path& file, const EdgeRef& ref, CadRodReport& report) {
   const TopoDS_Edge& edge = TopoDS::Edge(ref.edge);
   if (BRep_Tool::Degenerated(edge)) return std::nullopt;
   double first = 0, last = 0;
   const Handle(Geom_Curve) curve = BRep_Tool::Curve(edge, first, last);
   if (curve.IsNull() || !(last > first)) return std::nullopt;
   try {
-    Handle(Geom_BSplineCurve) bs = GeomConvert::CurveToBSplineCurve(new Geom_TrimmedCurve(curve, first, last));
+    const Handle(Geom_Curve) trimmed = new Geom_TrimmedCurve(curve, first, last);
+    Handle(Geom_BSplineCurve) bs = GeomConvert::CurveToBSplineCurve(trimmed);
+    if (bs->Degree() > geometry::kMaxDegree) bs = approximated(trimmed, bs->Degree(), file, ref, report);
     if (bs->IsPeriodic()) bs->SetNotPeriodic();
     return toNurbs(*bs, file, ref);
   } catch (const Standard_Failure& e) {
@@ -227,7 +253,7 @@ CadDesign readCadDesign(const std::filesystem::path& file, const CadRodOptions& 
   for (int i = 1; i <= edges.Extent(); ++i) {
     common::throwIfInterrupted();
     const EdgeRef ref{reader, edges(i), i - 1};
-    if (auto c = edgeCurve(file, ref)) curves.push_back(std::move(*c)), edgeOfRod.push_back(ref);
+    if (auto c = edgeCurve(file, ref, out.report)) curves.push_back(std::move(*c)), edgeOfRod.push_back(ref);
     else ++out.report.skippedDegenerate;
   }
   if (curves.empty()) throw MeshError(file, "the model holds no edge curve");

@@ -109,12 +109,18 @@ struct CadRodOptions {
   double jointTolerance = 1e-3;
 };
 
+// How closely a curve whose exact B-spline needs a degree above geometry::kMaxDegree is approximated
+// (mm): far below any printer's voxel (0.03 mm and more), and below rodfab's finest sampling (1e-4 mm).
+inline constexpr double kCadApproximationToleranceMm = 1e-5;
+
 struct CadRodReport {
   std::size_t edges = 0;          // distinct edges in the model (an edge shared by faces counts once)
   std::size_t rods = 0;
   std::size_t joints = 0;         // points where two or more rod ends meet
   std::size_t skippedDegenerate = 0;  // edges without a curve (seams of degenerate faces, zero length)
   double largestEndMove = 0.0;    // mm: how far merging moved a curve end
+  std::size_t approximated = 0;   // curves of a degree above kMaxDegree (offset curves, high-degree splines)
+  double largestApproximationError = 0.0;  // mm: the farthest such a curve's rod strays from it (OpenCASCADE's measure)
 };
 
 struct CadRods {
@@ -123,12 +129,15 @@ struct CadRods {
 };
 
 // Reads a STEP (.step, .stp) or IGES (.iges, .igs) file with OpenCASCADE and turns every edge curve of
-// the model into a rod with its exact NURBS (lines, circles, conics and offset curves converted to
-// B-splines; degree <= geometry::kMaxDegree), trimmed to the edge's parameter range. Throws MeshError
-// when the file cannot be read, is malformed (meshing/README.md: what is checked before OpenCASCADE
-// reads and transfers it), holds no edge curve, a curve needs a degree above kMaxDegree, or a rod
-// would not pass the design file's checks (coordinates beyond +-1e9 mm, zero length): the structure
-// returned is always one `rodfab validate` accepts.
+// the model into a rod with its exact NURBS (lines, circles and conics converted to B-splines),
+// trimmed to the edge's parameter range. A curve whose B-spline would need a degree above
+// geometry::kMaxDegree (an offset curve, a spline of degree 8 to 25 from some CAD systems) is
+// approximated by one of degree kMaxDegree, as smooth as the curve up to C2, within
+// kCadApproximationToleranceMm (the report counts them). Throws MeshError when the file cannot be
+// read, is malformed (meshing/README.md: what is checked before OpenCASCADE reads and transfers it),
+// holds no edge curve, a curve cannot be approximated so closely, or a rod would not pass the design
+// file's checks (coordinates beyond +-1e9 mm, zero length, a centerline too intricate to sample): the
+// structure returned is always one `rodfab validate` accepts.
 CadRods rodsFromCad(const std::filesystem::path& cadFile, const CadRodOptions& options);
 
 }  // namespace rodfab::meshing

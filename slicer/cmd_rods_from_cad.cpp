@@ -47,13 +47,19 @@ int runRodsFromCad(const std::vector<std::string>& args) {
   const meshing::CadRodReport& r = result.report;
   if (vm.count("json")) {
     std::cout << nlohmann::json{{"model", model}, {"output", output}, {"edges", r.edges}, {"rods", r.rods}, {"joints", r.joints},
-                                {"skipped_degenerate", r.skippedDegenerate}, {"largest_end_move_mm", r.largestEndMove}}.dump(2)
+                                {"skipped_degenerate", r.skippedDegenerate}, {"largest_end_move_mm", r.largestEndMove},
+                                {"approximated", r.approximated}, {"largest_approximation_error_mm", r.largestApproximationError}}
+                     .dump(2)
               << '\n';
     return kOk;
   }
   std::printf("model:      %s: %zu edges (%zu without a curve skipped)\n", model.c_str(), r.edges, r.skippedDegenerate);
   std::printf("rods:       %zu rods, %zu joints (ends merged within %g mm, moved by at most %.3g mm)\n", r.rods, r.joints,
               *tolerance, r.largestEndMove);
+  if (r.approximated > 0)
+    std::printf("curves:     %zu of a degree above %d approximated by degree %d within %.2g mm (the farthest %.2g mm)\n",
+                r.approximated, geometry::kMaxDegree, geometry::kMaxDegree, meshing::kCadApproximationToleranceMm,
+                r.largestApproximationError);
   std::printf("wrote:      %s\n", output.c_str());
   return kOk;
 }

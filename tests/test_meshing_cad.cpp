@@ -4,7 +4,9 @@
 #include "tests/meshing/cad_fixtures.hpp"
 
 #include <BRep_Builder.hxx>
+#include <GeomAPI_ProjectPointOnCurve.hxx>
 #include <GeomConvert.hxx>
+#include <Geom_OffsetCurve.hxx>
 #include <Geom_TrimmedCurve.hxx>
 #include <TopoDS_Compound.hxx>
 
@@ -12,6 +14,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <cmath>
 #include <cstring>
 #include <map>
 #include <unistd.h>
@@ -152,6 +155,32 @@ TEST_CASE("a curve too intricate to sample at its section's tolerance is refused
   CHECK(meshing::rodsFromCad(scratch("huge-arcs.step"), options).structure.rods.size() == 3);
 }
 
+namespace {
+
+// Largest distance from 401 points of the rod's centerline to the exact curve (OpenCASCADE's projection).
+double largestDeviationFromRod(const geometry::Rod& rod, const Handle(Geom_Curve)& exact) {
+  const geometry::NurbsCurve& c = rod.centerline();
+  double largest = 0;
+  for (int i = 0; i <= 400; ++i) {
+    const Vec3 p = c.point(c.domainBegin() + (c.domainEnd() - c.domainBegin()) * i / 400);
+    GeomAPI_ProjectPointOnCurve projection(gp_Pnt(p.x(), p.y(), p.z()), exact);
+    largest = std::max(largest, projection.LowerDistance());
+  }
+  return largest;
+}
+
+Handle(Geom_BSplineCurve) bezier(const std::vector<gp_Pnt>& points) {
+  TColgp_Array1OfPnt poles(1, static_cast<int>(points.size()));
+  for (std::size_t i = 0; i < points.size(); ++i) poles(static_cast<int>(i) + 1) = points[i];
+  TColStd_Array1OfReal knots(1, 2);
+  knots(1) = 0, knots(2) = 1;
+  TColStd_Array1OfInteger mults(1, 2);
+  mults(1) = mults(2) = static_cast<int>(points.size());
+  return new Geom_BSplineCurve(poles, knots, mults, static_cast<int>(points.size()) - 1);
+}
+
+}  // namespace
+
 TEST_CASE("CAD errors name the file and the problem", "[meshing][cad]") {
   const auto error = [](const fs::path& file) { return meshErrorOf(file, [&] { meshing::rodsFromCad(file, {}); }); };
   std::ofstream(scratch("junk.step")) << "this is not ISO-10303-21\n";
@@ -216,6 +245,71 @@ std::string cadError(const std::string& name, const std::string& text, const mes
 }
 
 }  // namespace
+
+TEST_CASE("an offset curve and a degree-9 spline become degree-7 rods within the approximation tolerance", "[meshing][cad]") {
+  // OpenCASCADE's exact B-splines of these are of degree 14 (the 2 mm offset, in its plane, of a planar
+  // cubic; its STEP writer does not write offset curves, so the model is text) and 9 (a Bezier of 10
+  // control points, as some CAD systems write).
+  const std::vector<gp_Pnt> cubic = {{0, 0, 0}, {10, 5, 0}, {20, -5, 0}, {30, 0, 0}};
+  std::vector<gp_Pnt> wavy;
+  for (int i = 0; i <= 9; ++i) wavy.emplace_back(3.0 * i, 4.0 * std::sin(i), 2.0 * std::cos(i));
+  std::string data = "#15 = GEOMETRIC_CURVE_SET('',(#16,#40));\n#16 = OFFSET_CURVE_3D('',#17,2.,.F.,#13);\n"
+                     "#17 = B_SPLINE_CURVE_WITH_KNOTS('',3,(#18,#19,#20,#21),.UNSPECIFIED.,.F.,.F.,(4,4),(0.,1.),.UNSPECIFIED.);\n"
+                     "#40 = B_SPLINE_CURVE_WITH_KNOTS('',9,(#41,#42,#43,#44,#45,#46,#47,#48,#49,#50),.UNSPECIFIED.,.F.,.F.,"
+                     "(10,10),(0.,1.),.UNSPECIFIED.);\n";
+  const auto point = [](int id, const gp_Pnt& p) {
+    char text[160];
+    std::snprintf(text, sizeof text, "#%d = CARTESIAN_POINT('',(%.17g,%.17g,%.17g));\n", id, p.X(), p.Y(), p.Z());
+    return std::string(text);
+  };
+  for (int i = 0; i < 4; ++i) data += point(18 + i, cubic[i]);
+  for (int i = 0; i < 10; ++i) data += point(41 + i, wavy[i]);
+  const fs::path file = scratch("high-degree.step");
+  std::ofstream(file) << stepModel(data);
+  const meshing::CadRods result = meshing::rodsFromCad(file, {});
+  REQUIRE(result.structure.rods.size() == 2);
+  CHECK(result.report.approximated == 2);
+  CHECK(result.report.largestApproximationError > 0);
+  CHECK(result.report.largestApproximationError <= meshing::kCadApproximationToleranceMm);
+  // The rod is checked against the exact offset: OpenCASCADE reads the STEP offset as -2 mm along
+  // tangent x ref_direction (Geom_OffsetCurve's side), i.e. 2 mm along ref_direction x tangent.
+  const Handle(Geom_Curve) exact[] = {new Geom_OffsetCurve(bezier(cubic), -2.0, gp_Dir(0, 0, 1)), bezier(wavy)};
+  for (int r = 0; r < 2; ++r) {
+    const geometry::Rod& rod = result.structure.rods[r];
+    CHECK(rod.centerline().degree() <= geometry::kMaxDegree);
+    CHECK(largestDeviation(rod, exact[r], 0, 1) <= meshing::kCadApproximationToleranceMm);
+    CHECK(largestDeviationFromRod(rod, exact[r]) <= meshing::kCadApproximationToleranceMm);
+    const geometry::NurbsCurve& c = rod.centerline();
+    CHECK((c.point(c.domainBegin()) - toVec(exact[r]->Value(0))).norm() <= meshing::kCadApproximationToleranceMm);
+    CHECK((c.point(c.domainEnd()) - toVec(exact[r]->Value(1))).norm() <= meshing::kCadApproximationToleranceMm);
+  }
+}
+
+TEST_CASE("a high-degree curve with more kinks than the approximation may have pieces is refused, naming it", "[meshing][cad]") {
+  // Degree 8, a kink at each of 2,400 knots: a piece of the approximation cannot straddle a kink, and
+  // at most kMaxSplineControls / kMaxDegree = 2,340 pieces are allowed.
+  constexpr int kSpans = 2400, kDegree = 8;
+  std::string points, mults = "(9", knots = "(0.";
+  std::string entities;
+  for (int k = 0; k <= kDegree * kSpans; ++k) {
+    char line[96];
+    std::snprintf(line, sizeof line, "#%d = CARTESIAN_POINT('',(%.2f,%s,0.));\n", 1000 + k, 0.01 * k, k % 2 ? "0.5" : "0.");
+    entities += line;
+    std::snprintf(line, sizeof line, "%s#%d", k ? "," : "(", 1000 + k);
+    points += line;
+  }
+  for (int s = 1; s <= kSpans; ++s) {
+    char knot[24];
+    std::snprintf(knot, sizeof knot, ",%d.", s);
+    mults += s < kSpans ? ",8" : ",9";
+    knots += knot;
+  }
+  const std::string data = "#15 = GEOMETRIC_CURVE_SET('',(#16));\n#16 = B_SPLINE_CURVE_WITH_KNOTS('',8," + points +
+                           "),.UNSPECIFIED.,.F.,.F.," + mults + ")," + knots + "),.UNSPECIFIED.);\n" + entities;
+  CHECK_THAT(cadError("kinks.step", stepModel(data)),
+             Catch::Contains("kinks.step: edge 0 (entity #16 (B_SPLINE_CURVE_WITH_KNOTS)): a curve of degree 8, above the 7") &&
+                 Catch::Contains("cannot be approximated within 1e-05 mm by 2340 pieces"));
+}
 
 TEST_CASE("the hostile-file fixture reads as a valid spline", "[meshing][cad][hostile]") {
   const fs::path file = scratch("fixture.step");

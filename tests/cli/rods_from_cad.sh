@@ -42,6 +42,17 @@ assert abs(math.dist(p, (3, -2, 7)) - 5) < 1e-9, p
 assert d["rods"][0]["section"]["shape"] == "ellipse" and "normal" in d["rods"][0]
 PY
 
+# An offset curve (OpenCASCADE's exact B-spline of it is of degree 14): approximated, said in the summary
+# and the JSON, and the design validates.
+sed "s/^#15 = GEOMETRIC_CURVE_SET(.*/#15 = GEOMETRIC_CURVE_SET('',(#108));/" "$src/tests/fuzz/seeds/cad/wireframe.step" > "$tmp/offset.step"
+grep -q "^#108 = OFFSET_CURVE_3D" "$tmp/offset.step" || fail "the wireframe seed has no offset curve #108"
+"$rodfab" rods-from-cad "$tmp/offset.step" --diameter 1 -o "$tmp/offset.json" > "$tmp/out" 2>&1 || fail "offset curve: $(cat "$tmp/out")"
+grep -q "^curves:     1 of a degree above 7 approximated by degree 7 within 1e-05 mm" "$tmp/out" || fail "offset summary: $(cat "$tmp/out")"
+"$rodfab" validate "$tmp/offset.json" > /dev/null 2>&1 || fail "the offset curve's design does not validate"
+"$rodfab" rods-from-cad "$tmp/offset.step" --diameter 1 -o "$tmp/offset.json" --force --json > "$tmp/j" 2>&1 || fail "offset --json: $(cat "$tmp/j")"
+python3 -c 'import json,sys; r=json.load(open(sys.argv[1])); assert r["approximated"] == 1 and 0 < r["largest_approximation_error_mm"] <= 1e-5, r' "$tmp/j" ||
+  fail "offset JSON: $(cat "$tmp/j")"
+
 # Bad input: exit 1, the file named, nothing written.
 echo "not a step file" > "$tmp/junk.step"
 "$rodfab" rods-from-cad "$tmp/junk.step" --diameter 1 -o "$tmp/x.json" > "$tmp/out" 2>&1; rc=$?
