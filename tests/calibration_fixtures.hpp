@@ -3,6 +3,7 @@
 #pragma once
 
 #include "calibration/calibration.hpp"
+#include "tests/temp_dir.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -44,14 +45,8 @@ inline Calibration fitText(const std::string& csv, Model model = Model::Pchip, d
   return fitCalibration(parseData(csv, "test.csv"), {model, floorMpa});
 }
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    path = fs::temp_directory_path() / ("rodfab-calibration-test-" + std::to_string(::getpid()));
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() { fs::remove_all(path); }
+struct TempDir : rodfab::test::TempDir {
+  TempDir() : rodfab::test::TempDir("calibration") {}
 };
 
 }  // namespace rodfab::calibration::testing

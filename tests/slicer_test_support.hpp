@@ -16,6 +16,7 @@
 #include "voxel/diagnostics.hpp"
 #include "voxel/printer_grid.hpp"
 #include "voxel/rasterize.hpp"
+#include "tests/temp_dir.hpp"
 
 #include <catch2/catch.hpp>
 #include <tbb/global_control.h>
@@ -38,17 +39,8 @@ using namespace rodfab;
 namespace fs = std::filesystem;
 
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    path = fs::temp_directory_path() / ("rodfab-test-slicer-" + std::to_string(::getpid()) + "-" + std::to_string(counter()++));
-    fs::create_directories(path);
-  }
-  ~TempDir() { fs::remove_all(path); }
-  static int& counter() {
-    static int n = 0;
-    return n;
-  }
+struct TempDir : rodfab::test::TempDir {
+  TempDir() : rodfab::test::TempDir("slicer") {}
 };
 
 inline std::string fileBytes(const fs::path& p) {

@@ -9,6 +9,7 @@
 #include "printer_profiles/profile.hpp"
 #include "voxel/printer_grid.hpp"
 #include "slicer/calibration_materials.hpp"
+#include "tests/temp_dir.hpp"
 
 #include <catch2/catch.hpp>
 #include <libxml/parser.h>
@@ -55,7 +56,7 @@ std::vector<std::string> refusedPaths(const std::function<void(json&)>& edit) {
 }
 
 fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("rodfab-test-gcvf-" + std::to_string(::getpid())) / name;
+  const fs::path dir = rodfab::test::processScratch("gcvf", name);
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;

@@ -4,6 +4,7 @@
 #include "meshing/mesh.hpp"  // internal: interpolateCubic
 #include "meshing/meshing.hpp"
 #include "tests/meshing/mesh_fixtures.hpp"
+#include "tests/temp_dir.hpp"
 
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
@@ -24,11 +25,7 @@ using geometry::Vec3;
 
 namespace {
 
-fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("rodfab-test-meshing-" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  return dir / name;
-}
+fs::path scratch(const std::string& name) { return rodfab::test::processScratch("meshing", name); }
 
 void writeText(const fs::path& file, const std::string& text) { std::ofstream(file, std::ios::binary) << text; }
 

@@ -2,6 +2,7 @@
 #include "meshing/cad_reader.hpp"
 #include "meshing/meshing.hpp"
 #include "tests/meshing/cad_fixtures.hpp"
+#include "tests/temp_dir.hpp"
 
 #include <BRep_Builder.hxx>
 #include <GeomAPI_ProjectPointOnCurve.hxx>
@@ -25,11 +26,7 @@ using geometry::Vec3;
 
 namespace {
 
-fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("rodfab-test-cad-" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  return dir / name;
-}
+fs::path scratch(const std::string& name) { return rodfab::test::processScratch("cad", name); }
 
 // What `read` throws as a MeshError (which must start with "FILE: "), or "no error".
 template <class Read>
