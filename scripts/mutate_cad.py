@@ -4,7 +4,8 @@
 usage: scripts/mutate_cad.py BUILD_DIR OUTDIR [COUNT=2000] [SEED=1] [JOBS=2]
 
 Seeds: make_test_cad's box, circle and spline in STEP and IGES (written into OUTDIR/seeds) and
-tests/fuzz/seeds/cad/*.step (a wireframe of conics, polylines, composite, offset and rational curves).
+tests/fuzz/seeds/cad/*.step (a wireframe of conics, polylines, composite, offset and rational curves;
+an offset curve and a degree-9 Bezier, which rods-from-cad approximates).
 Each case applies 1-4 token mutations to a seed (numbers to extremes, references re-pointed, entity
 types swapped, list items dropped or doubled, entities deleted or copied, IGES fields changed, lines
 dropped or doubled, truncation, byte flips) and runs rods-from-cad on it under a 6 GB address-space
