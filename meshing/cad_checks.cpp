@@ -33,11 +33,30 @@
 #include <cctype>
 #include <cstdlib>
 #include <fstream>
+#include <iterator>
+#include <string>
+#include <string_view>
 #include <vector>
 
 namespace rodfab::meshing::detail {
 
 namespace {
+
+// Entities on whose empty lists OpenCASCADE's reader crashes (an empty knot, coordinate, trim or edge
+// list is a SIGSEGV in its load check or its transfer: found emptying each list of the seed models in
+// turn, 2026-12-05), with the other kinds of B-spline and surface curve. The STEP schema (ISO 10303-42)
+// gives each of their lists at least one element, so no valid file has one.
+constexpr std::string_view kNoEmptyLists[] = {
+    "B_SPLINE_CURVE", "B_SPLINE_CURVE_WITH_KNOTS", "BEZIER_CURVE", "UNIFORM_CURVE", "QUASI_UNIFORM_CURVE",
+    "RATIONAL_B_SPLINE_CURVE", "B_SPLINE_SURFACE", "B_SPLINE_SURFACE_WITH_KNOTS", "BEZIER_SURFACE", "UNIFORM_SURFACE",
+    "QUASI_UNIFORM_SURFACE", "RATIONAL_B_SPLINE_SURFACE", "DIRECTION", "TRIMMED_CURVE", "SURFACE_CURVE", "SEAM_CURVE",
+    "INTERSECTION_CURVE", "EDGE_LOOP"};
+
+// The index of `word` in kNoEmptyLists, or -1.
+int noEmptyListsIndex(std::string_view word) {
+  const auto* found = std::find(std::begin(kNoEmptyLists), std::end(kNoEmptyLists), word);
+  return found == std::end(kNoEmptyLists) ? -1 : static_cast<int>(found - std::begin(kNoEmptyLists));
+}
 
 // The scanner's state between two blocks of the file.
 struct StepScan {
@@ -49,7 +68,36 @@ struct StepScan {
   long long id = 0;
   long long commas[kMaxStepNesting + 1] = {};  // in the open list at each depth
   double squares = 0;                          // sum of the closed lists' lengths squared
+  std::string word;                            // the keyword being read (the entity type before its '(')
+  // Of the open list at each depth: the kNoEmptyLists entity whose parameters hold it (-1: none), whether
+  // it is a list value (not an entity's parameter list) and whether it is still empty.
+  int owner[kMaxStepNesting + 1] = {-1};
+  bool listValue[kMaxStepNesting + 1] = {};
+  bool empty[kMaxStepNesting + 1] = {};
 };
+
+void openList(StepScan& s) {
+  s.empty[s.depth - 1] = false;
+  s.listValue[s.depth] = s.word.empty();
+  s.owner[s.depth] = s.word.empty() ? s.owner[s.depth - 1] : noEmptyListsIndex(s.word);
+  s.empty[s.depth] = true;
+}
+
+void closeList(StepScan& s, const std::filesystem::path& file) {
+  if (s.listValue[s.depth] && s.empty[s.depth] && s.owner[s.depth] >= 0)
+    throw MeshError(file, "line " + std::to_string(s.line) + ": an empty list in a " +
+                              std::string(kNoEmptyLists[s.owner[s.depth]]) +
+                              ", where STEP requires at least one element (OpenCASCADE's reader crashes on it)");
+}
+
+// Keywords: letters, digits and '_' (whitespace may follow before the '('); anything else ends one.
+void trackWord(StepScan& s, char c) {
+  if ((c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_') {
+    if (s.word.size() < 64) s.word.push_back(c);
+  } else if (c != ' ' && c != '\n' && c != '\r' && c != '\t' && c != '(') {
+    s.word.clear();
+  }
+}
 
 void scanChar(StepScan& s, char c, const std::filesystem::path& file) {
   if (c == '\n') ++s.line;
@@ -67,25 +115,32 @@ void scanChar(StepScan& s, char c, const std::filesystem::path& file) {
     if (s.previous == '*' && c == '/') s.inComment = false, c = 0;  // "*/*" must not reopen
   } else if (s.inString) {
     s.inString = c != '\'';  // a doubled '' leaves and re-enters: the same for counting
-  } else if (c == '\'') {
-    s.inString = true;
-  } else if (s.previous == '/' && c == '*') {
-    s.inComment = true, c = 0;
-  } else if (c == '#') {
-    s.inId = true, s.id = 0;
-  } else if (c == '(') {
-    if (++s.depth > kMaxStepNesting)
-      throw MeshError(file, "line " + std::to_string(s.line) + ": lists nested deeper than " +
-                                std::to_string(kMaxStepNesting) + " levels");
-    s.commas[s.depth] = 0;
-  } else if (c == ',' && s.depth > 0 && ++s.commas[s.depth] >= kMaxStepListLength) {
-    throw MeshError(file, "line " + std::to_string(s.line) + ": a list of more than " + std::to_string(kMaxStepListLength) +
-                              " elements (OpenCASCADE's parser takes time growing with the square of a list's length)");
-  } else if (c == ')' && s.depth > 0) {
-    const double length = double(s.commas[s.depth--]) + 1;
-    if ((s.squares += length * length) > kMaxStepListSquares)
-      throw MeshError(file, "line " + std::to_string(s.line) + ": too many long lists for OpenCASCADE's parser (its time grows "
-                                "with the square of each list's length)");
+  } else {
+    if (c != ' ' && c != '\n' && c != '\r' && c != '\t' && c != ')' && c != '(') s.empty[s.depth] = false;
+    trackWord(s, c);
+    if (c == '\'') {
+      s.inString = true;
+    } else if (s.previous == '/' && c == '*') {
+      s.inComment = true, c = 0;
+    } else if (c == '#') {
+      s.inId = true, s.id = 0;
+    } else if (c == '(') {
+      if (++s.depth > kMaxStepNesting)
+        throw MeshError(file, "line " + std::to_string(s.line) + ": lists nested deeper than " +
+                                  std::to_string(kMaxStepNesting) + " levels");
+      s.commas[s.depth] = 0;
+      openList(s);
+      s.word.clear();
+    } else if (c == ',' && s.depth > 0 && ++s.commas[s.depth] >= kMaxStepListLength) {
+      throw MeshError(file, "line " + std::to_string(s.line) + ": a list of more than " + std::to_string(kMaxStepListLength) +
+                                " elements (OpenCASCADE's parser takes time growing with the square of a list's length)");
+    } else if (c == ')' && s.depth > 0) {
+      closeList(s, file);
+      const double length = double(s.commas[s.depth--]) + 1;
+      if ((s.squares += length * length) > kMaxStepListSquares)
+        throw MeshError(file, "line " + std::to_string(s.line) + ": too many long lists for OpenCASCADE's parser (its time grows "
+                                  "with the square of each list's length)");
+    }
   }
   s.previous = c;
 }
@@ -162,14 +217,23 @@ std::string splineProblem(int degree, int poles, int maxDegree) {
   return {};
 }
 
+// A STEP knot list and its multiplicities: both present, not empty (OpenCASCADE's converter reads the
+// first of each unchecked: an empty list is a SIGSEGV, found by scripts/mutate_cad.py) and as long as
+// each other. Other inconsistencies OpenCASCADE's constructors refuse themselves.
+std::string knotsProblem(const Handle(TColStd_HArray1OfReal)& knots, const Handle(TColStd_HArray1OfInteger)& multiplicities) {
+  if (knots.IsNull() || multiplicities.IsNull() || knots->Length() == 0 || multiplicities->Length() == 0) return "no knots";
+  if (knots->Length() != multiplicities->Length())
+    return std::to_string(knots->Length()) + " knots but " + std::to_string(multiplicities->Length()) + " multiplicities";
+  return {};
+}
+
 std::string stepCurveProblem(const Handle(StepGeom_BSplineCurve)& c) {
   const Handle(StepGeom_HArray1OfCartesianPoint) points = c->ControlPointsList();
   if (points.IsNull()) return "no control points";
   for (int i = points->Lower(); i <= points->Upper(); ++i)
     if (points->Value(i).IsNull()) return "control point " + std::to_string(i) + " missing";
-  if (auto k = Handle(StepGeom_BSplineCurveWithKnots)::DownCast(c);
-      !k.IsNull() && (k->Knots().IsNull() || k->KnotMultiplicities().IsNull()))
-    return "no knots";
+  if (auto k = Handle(StepGeom_BSplineCurveWithKnots)::DownCast(c); !k.IsNull())
+    if (std::string problem = knotsProblem(k->Knots(), k->KnotMultiplicities()); !problem.empty()) return problem;
   if (auto r = Handle(StepGeom_BSplineCurveWithKnotsAndRationalBSplineCurve)::DownCast(c);
       !r.IsNull() && (r->BSplineCurveWithKnots().IsNull() || r->RationalBSplineCurve().IsNull()))
     return "an incomplete rational B-spline";
@@ -182,9 +246,10 @@ std::string stepSurfaceProblem(const Handle(StepGeom_BSplineSurface)& s) {
   for (int i = points->LowerRow(); i <= points->UpperRow(); ++i)
     for (int j = points->LowerCol(); j <= points->UpperCol(); ++j)
       if (points->Value(i, j).IsNull()) return "control point (" + std::to_string(i) + ", " + std::to_string(j) + ") missing";
-  if (auto k = Handle(StepGeom_BSplineSurfaceWithKnots)::DownCast(s);
-      !k.IsNull() && (k->UKnots().IsNull() || k->VKnots().IsNull() || k->UMultiplicities().IsNull() || k->VMultiplicities().IsNull()))
-    return "no knots";
+  if (auto k = Handle(StepGeom_BSplineSurfaceWithKnots)::DownCast(s); !k.IsNull()) {
+    if (std::string problem = knotsProblem(k->UKnots(), k->UMultiplicities()); !problem.empty()) return "in u: " + problem;
+    if (std::string problem = knotsProblem(k->VKnots(), k->VMultiplicities()); !problem.empty()) return "in v: " + problem;
+  }
   if (auto r = Handle(StepGeom_BSplineSurfaceWithKnotsAndRationalBSplineSurface)::DownCast(s);
       !r.IsNull() && (r->BSplineSurfaceWithKnots().IsNull() || r->RationalBSplineSurface().IsNull()))
     return "an incomplete rational B-spline";

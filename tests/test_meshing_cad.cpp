@@ -348,6 +348,14 @@ TEST_CASE("STEP files OpenCASCADE would crash on are refused, naming the entity 
   for (int i = 0; i < 100'000; ++i) longList += ",#16";
   CHECK_THAT(cadError("longlist.step", stepModel(splineData("(#18,#19,#20,#21,#22,#23)", "3", longList + ")"))),
              Contains("line 22: a list of more than 100000 elements"));
+  // Empty lists where STEP requires elements: OpenCASCADE's load check and transfer crash on them. An
+  // entity without parameters (every file's LENGTH_UNIT()) is not such a list.
+  std::string noKnots = splineData();
+  noKnots.replace(noKnots.find("(0.,0.3,0.45,1.)"), 16, "( )");
+  CHECK_THAT(cadError("noknots.step", stepModel(noKnots)), Contains("line 24: an empty list in a B_SPLINE_CURVE_WITH_KNOTS"));
+  std::string noDirection = stepModel(splineData());
+  noDirection.replace(noDirection.find("DIRECTION('',(0.,0.,1.))"), 24, "DIRECTION('',())");
+  CHECK_THAT(cadError("nodirection.step", noDirection), Contains("an empty list in a DIRECTION, where STEP requires at least one"));
   // Text in strings and comments is not counted.
   const std::string hostile = "#99999999999999999999 " + std::string(100, '(');
   std::string named = splineData();
