@@ -356,6 +356,7 @@ void prescanIgesText(const std::filesystem::path& file) {
   bool firstGlobal = true;
   std::string line, entity, params;
   long long number = 0, entityLine = 0;
+  char lastSection = 0;
   const auto flush = [&] {
     if (!params.empty()) checkIgesSpline(params, delimiter, entityLine, bytes, file);
     params.clear();
@@ -364,6 +365,7 @@ void prescanIgesText(const std::filesystem::path& file) {
     ++number;
     if (number % 4096 == 0) common::throwIfInterrupted();
     if (line.size() < 73) continue;
+    lastSection = line[72];
     if (line[72] == 'G' && firstGlobal) {
       firstGlobal = false;
       if (line.compare(0, 2, "1H") == 0 && line.size() > 2) delimiter = line[2];
@@ -374,6 +376,12 @@ void prescanIgesText(const std::filesystem::path& file) {
     }
   }
   flush();
+  // Every IGES file ends with its Terminate record; OpenCASCADE's reader crashes on some files cut
+  // short (an interrupted copy), inside their parameter records (scripts/mutate_cad.py). A file without
+  // any record is not IGES at all, which the reader says.
+  if (lastSection != 0 && lastSection != 'T')
+    throw MeshError(file, "the file ends without IGES's Terminate record (a 'T' in column 73 of its last line): it was cut "
+                          "short, perhaps by an interrupted copy; copy or export it again");
 }
 
 void prescanStepText(const std::filesystem::path& file) {
