@@ -8,6 +8,9 @@
 #include <Geom_BSplineSurface.hxx>
 #include <IGESGeom_BSplineCurve.hxx>
 #include <IGESGeom_BSplineSurface.hxx>
+#include <IGESSolid_EdgeList.hxx>
+#include <IGESSolid_Loop.hxx>
+#include <IGESSolid_VertexList.hxx>
 #include <Interface_Check.hxx>
 #include <Interface_CheckIterator.hxx>
 #include <Interface_EntityIterator.hxx>
@@ -283,6 +286,40 @@ void refuseBadSplines(const XSControl_Reader& reader, const std::filesystem::pat
       throw MeshError(file, "malformed: B-spline entity " + entityName(model, model->Value(i)) + ": " + problem);
 }
 
+// IGES topology refers into lists by index: a loop's edges into edge lists (or vertex lists), an edge
+// list's ends into vertex lists. OpenCASCADE's transfer reads the indices unchecked: an index past its
+// list was a SIGSEGV (scripts/mutate_cad.py, a loop of a box's STEP-converted IGES).
+std::string listIndexProblem(const Handle(Standard_Transient)& list, int index) {
+  int count = -1;
+  if (auto edges = Handle(IGESSolid_EdgeList)::DownCast(list); !edges.IsNull()) count = edges->NbEdges();
+  else if (auto vertices = Handle(IGESSolid_VertexList)::DownCast(list); !vertices.IsNull()) count = vertices->NbVertices();
+  else return list.IsNull() ? "a missing list" : "";
+  if (index >= 1 && index <= count) return {};
+  return "item " + std::to_string(index) + " of a list of " + std::to_string(count);
+}
+
+std::string igesTopologyProblem(const Handle(Standard_Transient)& entity) {
+  if (auto loop = Handle(IGESSolid_Loop)::DownCast(entity); !loop.IsNull()) {
+    for (int i = 1; i <= loop->NbEdges(); ++i)
+      if (std::string problem = listIndexProblem(loop->Edge(i), loop->ListIndex(i)); !problem.empty())
+        return "edge " + std::to_string(i) + " refers to " + problem;
+  } else if (auto edges = Handle(IGESSolid_EdgeList)::DownCast(entity); !edges.IsNull()) {
+    for (int i = 1; i <= edges->NbEdges(); ++i) {
+      std::string problem = listIndexProblem(edges->StartVertexList(i), edges->StartVertexIndex(i));
+      if (problem.empty()) problem = listIndexProblem(edges->EndVertexList(i), edges->EndVertexIndex(i));
+      if (!problem.empty()) return "edge " + std::to_string(i) + "'s vertex is " + problem;
+    }
+  }
+  return {};
+}
+
+void refuseBadIgesTopology(const XSControl_Reader& reader, const std::filesystem::path& file) {
+  const Handle(Interface_InterfaceModel) model = reader.Model();
+  for (int i = 1; i <= model->NbEntities(); ++i)
+    if (const std::string problem = igesTopologyProblem(model->Value(i)); !problem.empty())
+      throw MeshError(file, "malformed: entity " + entityName(model, model->Value(i)) + ": " + problem);
+}
+
 // A vertex at a point that is not 3D (a 2D point, or an empty coordinate list, which OpenCASCADE reads
 // as 2D): a SIGSEGV in the transfer, found by scripts/mutate_cad.py. The reader process contains such
 // crashes; this says what is wrong. (An empty DIRECTION crashes OpenCASCADE's own load check, before
@@ -399,6 +436,7 @@ void checkLoadedModel(const XSControl_Reader& reader, const std::filesystem::pat
   refuseLoadFailures(reader, file);
   refuseBadSplines(reader, file);
   refuseBadPoints(reader, file);
+  refuseBadIgesTopology(reader, file);
   refuseReferenceCycles(reader, file);
 }
 

@@ -495,6 +495,34 @@ TEST_CASE("the CAD reader's arguments carry the options exactly", "[meshing][cad
   CHECK_THROWS_AS(meshing::detail::fromReaderArguments(wrong), std::invalid_argument);
 }
 
+TEST_CASE("an IGES loop whose edge index is past its edge list is refused, naming the loop", "[meshing][cad][hostile]") {
+  // A box in IGES's B-rep form: its loops (type 508) refer to the edge list (504) by index, read
+  // unchecked by OpenCASCADE's transfer (a SIGSEGV for an index past the list, found by mutate_cad.py).
+  const fs::path valid = scratch("box.igs"), bad = scratch("badloop.igs");
+  testing::writeIges(testing::box(10, 20, 30), valid);
+  std::ifstream in(valid);
+  std::string text, line;
+  bool changed = false;
+  while (std::getline(in, line)) {
+    if (!changed && line.rfind("508,", 0) == 0) {  // 508,N,TYPE,EDGE LIST,INDEX,...: the first edge's index becomes 99
+      std::string data = line.substr(0, 64);
+      const std::size_t at = data.find(',', data.find(',', data.find(',', data.find(',') + 1) + 1) + 1) + 1;
+      const std::size_t end = data.find(',', at);
+      data.replace(at, end - at, "99");
+      while (data.size() > 64 && data.back() == ' ') data.pop_back();
+      REQUIRE(data.size() <= 64);
+      line = data + std::string(64 - data.size(), ' ') + line.substr(64);
+      changed = true;
+    }
+    text += line + "\n";
+  }
+  REQUIRE(changed);
+  std::ofstream(bad) << text;
+  CHECK_THAT(meshErrorOf(bad, [&] { meshing::rodsFromCad(bad, {}); }),
+             Catch::Contains("malformed: entity D") && Catch::Contains("Loop): edge 1 refers to item 99 of a list of 12"));
+  CHECK(meshing::rodsFromCad(valid, {}).structure.rods.size() == 12);
+}
+
 TEST_CASE("a truncated IGES file, on which OpenCASCADE's reader crashes, is refused as cut short", "[meshing][cad][hostile]") {
   const fs::path whole = scratch("whole.igs"), cut = scratch("cut.igs");
   testing::writeIges(testing::edgeOf(testing::testSpline()), whole);
