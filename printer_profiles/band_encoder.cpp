@@ -245,7 +245,7 @@ void BandEncoder::finishStaging() {
 // per popcount. The writer and the sums are this function's own: a byte stored through a uint8_t
 // pointer may alias anything whose address is known outside, and the caller's would be read and
 // written back around every store.
-RODFAB_POPCNT_CLONES [[gnu::flatten]] void BandEncoder::drawLeaves(std::span<const LeafLayer> leaves, LayerBitmaps::Writer out,
+[[gnu::flatten]] RODFAB_POPCNT_CLONES void BandEncoder::drawLeaves(std::span<const LeafLayer> leaves, LayerBitmaps::Writer out,
                                                                     int topRowJ, int firstColumnI, int k, std::array<Moments, 2>& moments) {
   for (const LeafLayer& leaf : leaves)
     out.orLeafRows(topRowJ - leaf.y, static_cast<std::size_t>((leaf.x - firstColumnI) / 8), leaf.rigid, leaf.rubbery);
