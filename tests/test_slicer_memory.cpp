@@ -95,6 +95,8 @@ geometry::RodStructure blockDesign(const std::string& name, double x, double y, 
 
 TEST_CASE("sliceDesign with an automatic band size over the memory budget slices in the largest smaller band that fits, the same bytes",
           "[memory]") {
+  if (ranInFreshProcess("sliceDesign with an automatic band size over the memory budget slices in the largest smaller band that fits*"))
+    return;
   openvdb::initialize();
   TempDir tmp;
   // A 10 x 10 x 10 mm block: 28 k voxels a layer, so 64 layers a band automatically.
