@@ -1,5 +1,6 @@
 #include "materials/ditherer.hpp"
 
+#include "common/cpu_clones.hpp"
 #include "materials/band_leaves.hpp"
 #include "materials/counter_hash.hpp"
 #include "materials/error_diffusion.hpp"
@@ -16,13 +17,9 @@ namespace rodfab::materials {
 namespace {
 
 // The rules' leaf kernels are compiled for AVX-512 and AVX2 as well as the baseline, and the loader
-// picks by CPU (GCC's target_clones). Every path gives the same bits: integer arithmetic and float
+// picks by CPU (common/cpu_clones.hpp). Every path gives the same bits: integer arithmetic and float
 // comparisons of exactly converted values.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-#define RODFAB_CPU_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
-#else
-#define RODFAB_CPU_CLONES
-#endif
+#define RODFAB_CPU_CLONES RODFAB_CLONES("arch=x86-64-v4", "arch=x86-64-v3", "default")
 
 // The white-noise rule for a whole leaf (see detail::ditherPointwise). SplitMix64's 64-bit multiplies
 // vectorize only with AVX-512's vpmullq (8 lanes) or, emulated, with AVX2: 0.3 ns a voxel with AVX-512

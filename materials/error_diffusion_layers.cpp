@@ -2,6 +2,7 @@
 // band's leaves, their thresholds drawn, their neighbours linked. The sweep is error_diffusion.cpp.
 #include "materials/error_diffusion_layers.hpp"
 
+#include "common/cpu_clones.hpp"
 #include "materials/counter_hash.hpp"
 
 #include <algorithm>
@@ -77,8 +78,8 @@ void prefetchLayer(const FloatLeaf& leaf, std::uint64_t rows, unsigned dz) {
 // The Philox draw of each voxel of a row as a uniform number (voxelUniform), in one loop the compiler
 // vectorizes: the draws were a third of the sweep's time. Integer arithmetic and an exact conversion,
 // so every clone gives the same numbers; no throw in a target_clones function (GCC 12 assumes none).
-[[gnu::target_clones("avx512f", "avx2", "default")]] void drawUniforms(std::uint64_t seed, const int* i, int j, int k, float* out,
-                                                          std::uint32_t count) noexcept {
+RODFAB_CLONES("avx512f", "avx2", "default") void drawUniforms(std::uint64_t seed, const int* i, int j, int k, float* out,
+                                                              std::uint32_t count) noexcept {
   for (std::uint32_t v = 0; v < count; ++v) out[v] = voxelUniform(seed, i[v], j, k);
 }
 

@@ -2,6 +2,7 @@
 // plane, four voxels a step.
 #pragma GCC diagnostic ignored "-Wpsabi"  // see raster_clips.hpp
 
+#include "common/cpu_clones.hpp"
 #include "voxel/leaf_builder.hpp"
 
 #include <cmath>
@@ -91,8 +92,8 @@ struct LeafBuilder::CapPiece {
 // Cloned for AVX2 like sweep (no FMA there either, so the clones compute the same bits). A layer's
 // rows four at a time: their plane and offset values and their voxel ranges (the clips lane by lane);
 // then row by row (capRowVoxels).
-[[gnu::target_clones("avx2", "default")]] void LeafBuilder::cap(int rod, int pieceIndex, const RodPiece& piece,
-                                                                const openvdb::CoordBBox& box) {
+RODFAB_CLONES("avx2", "default") void LeafBuilder::cap(int rod, int pieceIndex, const RodPiece& piece,
+                                                       const openvdb::CoordBBox& box) {
   const RodPieces& rp = rods_[rod];
   const geometry::Rod& r = structure_.rods[rod];
   const AffineInIndex& plane = rp.planes[piece.plane];

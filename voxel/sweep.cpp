@@ -1,6 +1,7 @@
 // The swept pieces' voxel loop: rows of the slab between a piece's two normal planes, four voxels a step.
 #pragma GCC diagnostic ignored "-Wpsabi"  // see raster_clips.hpp
 
+#include "common/cpu_clones.hpp"
 #include "voxel/leaf_builder.hpp"
 
 #include <algorithm>
@@ -166,8 +167,8 @@ template <bool Across>
 // the clone computes the bits the baseline does), chosen at load time. Flattened: with the loop there
 // twice (with and without E's terms across the section) GCC stopped inlining clearOverlap and
 // addCandidate into it, which cost more than the terms saved (spring +1 % of instructions).
-[[gnu::target_clones("avx2", "default"), gnu::flatten]] void LeafBuilder::sweep(int rod, int pieceIndex, const RodPiece& piece,
-                                                                                const openvdb::CoordBBox& box) {
+[[gnu::flatten]] RODFAB_CLONES("avx2", "default") void LeafBuilder::sweep(int rod, int pieceIndex, const RodPiece& piece,
+                                                                          const openvdb::CoordBBox& box) {
   const RodPieces& rp = rods_[rod];
   const AffineInIndex& planeA = rp.planes[piece.plane];
   const AffineInIndex& planeB = rp.planes[piece.plane + 1];
