@@ -5,6 +5,7 @@
 // Counters: the simplified mesh's faces; its distance from the original (largest and RMS over the
 // original's vertices, mm); its smallest triangle angle and the share of triangles with an angle
 // below 20 degrees (slivers make crooked rods).
+#include "geometry/design_file.hpp"
 #include "meshing/mesh.hpp"
 #include "meshing/meshing.hpp"
 #include "tests/meshing/mesh_fixtures.hpp"
@@ -20,9 +21,14 @@
 #include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
 #include <OpenMesh/Tools/Decimater/ModQuadricT.hh>
 #include <benchmark/benchmark.h>
+#include <nlohmann/json.hpp>
+#include <tbb/global_control.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <string>
 
 namespace {
 
@@ -145,5 +151,83 @@ void BM_rods_from_mesh_350k(benchmark::State& state) {
   state.counters["surface_dist_mm"] = result.report.largestSurfaceDistance;
 }
 BENCHMARK(BM_rods_from_mesh_350k)->Unit(benchmark::kMillisecond)->Iterations(1)->UseRealTime();
+
+// A STEP curve set of `count` cubic B-splines of 40 control points winding 0.3 mm to and fro every
+// 0.05 mm along x while they rise (3 mm apart on a grid): ~0.7 MB of rod samples each at a 0.4 mm
+// diameter, the costliest kind of rod to build measured (meshing/README.md).
+std::string windingSplinesStep(int count) {
+  std::string data, set;
+  int id = 100;
+  char line[160];
+  for (int i = 0; i < count; ++i) {
+    std::string poles, multiplicities = "4", parameters = "0.";
+    for (int k = 0; k < 40; ++k, ++id) {
+      std::snprintf(line, sizeof line, "#%d=CARTESIAN_POINT('',(%.4f,%.4f,%.4f));\n", id, (i % 200) * 3 + k * 0.05,
+                    (i / 200) * 3 + 0.3 * ((k * 7) % 5), k * 0.1);
+      data += line;
+      std::snprintf(line, sizeof line, "%s#%d", k ? "," : "", id);
+      poles += line;
+    }
+    for (int p = 1; p < 38; ++p) {
+      std::snprintf(line, sizeof line, ",%d.", p);
+      parameters += line;
+      multiplicities += p < 37 ? ",1" : ",4";
+    }
+    std::snprintf(line, sizeof line, "#%d=B_SPLINE_CURVE_WITH_KNOTS('',3,(", id);
+    data += line + poles + "),.UNSPECIFIED.,.F.,.F.,(" + multiplicities + "),(" + parameters + "),.UNSPECIFIED.);\n";
+    std::snprintf(line, sizeof line, "%s#%d", i ? "," : "", id++);
+    set += line;
+  }
+  return "ISO-10303-21;\nHEADER;\nFILE_DESCRIPTION((''),'2;1');\nFILE_NAME('','',(''),(''),'','','');\n"
+         "FILE_SCHEMA(('AUTOMOTIVE_DESIGN { 1 0 10303 214 1 1 1 1 }'));\nENDSEC;\nDATA;\n"
+         "#1=APPLICATION_PROTOCOL_DEFINITION('international standard','automotive_design',2000,#2);\n"
+         "#2=APPLICATION_CONTEXT('core data for automotive mechanical design processes');\n"
+         "#3=SHAPE_DEFINITION_REPRESENTATION(#4,#10);\n#4=PRODUCT_DEFINITION_SHAPE('','',#5);\n"
+         "#5=PRODUCT_DEFINITION('design','',#6,#9);\n#6=PRODUCT_DEFINITION_FORMATION('','',#7);\n"
+         "#7=PRODUCT('p','p','',(#8));\n#8=PRODUCT_CONTEXT('',#2,'mechanical');\n"
+         "#9=PRODUCT_DEFINITION_CONTEXT('part definition',#2,'design');\n"
+         "#10=GEOMETRICALLY_BOUNDED_WIREFRAME_SHAPE_REPRESENTATION('',(#99),#24);\n"
+         "#24=( GEOMETRIC_REPRESENTATION_CONTEXT(3) GLOBAL_UNCERTAINTY_ASSIGNED_CONTEXT((#28)) "
+         "GLOBAL_UNIT_ASSIGNED_CONTEXT((#25,#26,#27)) REPRESENTATION_CONTEXT('','') );\n"
+         "#25=( LENGTH_UNIT() NAMED_UNIT(*) SI_UNIT(.MILLI.,.METRE.) );\n#26=( NAMED_UNIT(*) PLANE_ANGLE_UNIT() SI_UNIT($,.RADIAN.) );\n"
+         "#27=( NAMED_UNIT(*) SI_UNIT($,.STERADIAN.) SOLID_ANGLE_UNIT() );\n"
+         "#28=UNCERTAINTY_MEASURE_WITH_UNIT(LENGTH_MEASURE(1.E-07),#25,'distance_accuracy_value','');\n" +
+         data + "#99=GEOMETRIC_CURVE_SET('',(" + set + "));\nENDSEC;\nEND-ISO-10303-21;\n";
+}
+
+// rods-from-cad's work on 200 winding splines: the reader process (OpenCASCADE, each rod built once to
+// check it, on both cores) and rodfab's parse of its design (every rod built again, on both cores).
+void BM_rods_from_cad_winding_200(benchmark::State& state) {
+  const std::filesystem::path file = std::filesystem::temp_directory_path() / "rodfab-bench-winding-200.step";
+  std::ofstream(file) << windingSplinesStep(200);
+  meshing::CadRodOptions options;
+  options.section = geometry::Section::circle(0.4);
+  meshing::CadRods result;
+  for (auto _ : state) result = meshing::rodsFromCad(file, options);
+  state.counters["rods"] = static_cast<double>(result.report.rods);
+  state.counters["file_MB"] = static_cast<double>(std::filesystem::file_size(file)) / 1e6;
+  std::filesystem::remove(file);
+}
+BENCHMARK(BM_rods_from_cad_winding_200)->Unit(benchmark::kMillisecond)->Iterations(1)->UseRealTime();
+
+// Reading the design rods-from-cad wrote of them (geometry::parseDesign: the rods checked in order,
+// then built on `threads` threads).
+void BM_parse_design_winding_200(benchmark::State& state) {
+  static const std::string text = [] {
+    const std::filesystem::path file = std::filesystem::temp_directory_path() / "rodfab-bench-winding-200-parse.step";
+    std::ofstream(file) << windingSplinesStep(200);
+    meshing::CadRodOptions options;
+    options.section = geometry::Section::circle(0.4);
+    const meshing::CadRods cad = meshing::rodsFromCad(file, options);
+    std::filesystem::remove(file);
+    return geometry::designToJson(cad.structure).dump();
+  }();
+  const tbb::global_control threads(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(state.range(0)));
+  std::size_t rods = 0;
+  for (auto _ : state) rods = geometry::parseDesign(text, "winding.json").rods.size();
+  state.counters["rods"] = static_cast<double>(rods);
+  state.counters["design_MB"] = static_cast<double>(text.size()) / 1e6;
+}
+BENCHMARK(BM_parse_design_winding_200)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the Google Benchmark programs (Release) and runs them, one workload per process so that each
 # reports its own peak resident memory. Results: build/bench-results/*.json (Google Benchmark JSON).
-#   scripts/bench.sh [all|slice|voxel|dither|printer|emit|calibration]
+#   scripts/bench.sh [all|slice|voxel|dither|printer|emit|calibration|meshing]
 # The 6-gigavoxel runs (slice, voxel) take a few minutes; nothing else should load the machine.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -37,4 +37,11 @@ case $what in all|emit)
   done ;;
 esac
 case $what in all|calibration) run calibration bench_calibration '.' ;; esac
+# Rods from a 350,000-triangle mesh and the simplifiers compared; rods from CAD (200 winding splines)
+# and reading their design on 1 and 2 threads; one workload per process.
+case $what in all|meshing)
+  for t in $(./build/bench/bench_meshing --benchmark_list_tests | sed 's|/iterations.*||; s|/real_time||' | sort -u); do
+    run "meshing-$(echo "$t" | sed 's|^BM_||; s|/|-|g')" bench_meshing "^$t(/|\$)"
+  done ;;
+esac
 echo "results in $out/"
