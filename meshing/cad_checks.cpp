@@ -220,9 +220,10 @@ std::string splineProblem(int degree, int poles, int maxDegree) {
   return {};
 }
 
-// A STEP knot list and its multiplicities: both present, not empty (OpenCASCADE's converter reads the
-// first of each unchecked: an empty list is a SIGSEGV, found by scripts/mutate_cad.py) and as long as
-// each other. Other inconsistencies OpenCASCADE's constructors refuse themselves.
+// A STEP knot list and its multiplicities: both present and not empty (the converter reads the first
+// of each unchecked; an empty one written in the file already crashes the loader, so the text scan
+// refuses it) and as long as each other (the transfer dropped such a curve without a word). Other
+// inconsistencies OpenCASCADE's constructors refuse themselves.
 std::string knotsProblem(const Handle(TColStd_HArray1OfReal)& knots, const Handle(TColStd_HArray1OfInteger)& multiplicities) {
   if (knots.IsNull() || multiplicities.IsNull() || knots->Length() == 0 || multiplicities->Length() == 0) return "no knots";
   if (knots->Length() != multiplicities->Length())
@@ -288,7 +289,7 @@ void refuseBadSplines(const XSControl_Reader& reader, const std::filesystem::pat
 
 // IGES topology refers into lists by index: a loop's edges into edge lists (or vertex lists), an edge
 // list's ends into vertex lists. OpenCASCADE's transfer reads the indices unchecked: an index past its
-// list was a SIGSEGV (scripts/mutate_cad.py, a loop of a box's STEP-converted IGES).
+// list was a SIGSEGV (scripts/mutate_cad.py, a loop of make_test_cad's box in IGES).
 std::string listIndexProblem(const Handle(Standard_Transient)& list, int index) {
   int count = -1;
   if (auto edges = Handle(IGESSolid_EdgeList)::DownCast(list); !edges.IsNull()) count = edges->NbEdges();
