@@ -77,10 +77,12 @@ struct LeafBuilder::CapPiece {
       addFourCapCandidates(offset(i, j, k), g, c.endModulus, c.rod, c.index, i, j, k);
       continue;
     }
-    // A row's partial last quad, inside for sure, into empty slots.
-    if (const unsigned inRow = (2u << (hi - i)) - 1u;
-        i + 3 > hi && (sureLanes & inRow) == inRow && capsIntoEmptySlots(offset(i, j, k), g, inRow, c.endModulus, c.rod, c.index))
-      continue;
+    // A row's partial last quad, inside for sure, into empty slots (its lanes' bits: hi - i is 0 to 2
+    // there; before a row's last quad the shift would pass the word, undefined behaviour).
+    if (i + 3 > hi) {
+      const unsigned inRow = (2u << (hi - i)) - 1u;
+      if ((sureLanes & inRow) == inRow && capsIntoEmptySlots(offset(i, j, k), g, inRow, c.endModulus, c.rod, c.index)) continue;
+    }
     for (int l = 0; l < 4 && i + l <= hi; ++l) {
       if (!beyond[l] || (!near[l] && g[l] > kSurelyOutside)) continue;
       if (sure[l]) addCapCandidate(offset(i + l, j, k), g[l], c.endModulus, c.rod, c.index, i + l, j, k);
