@@ -42,7 +42,6 @@ namespace slicer_test {
 using namespace rodfab;
 namespace fs = std::filesystem;
 
-
 struct TempDir : rodfab::test::TempDir {
   TempDir() : rodfab::test::TempDir("slicer") {}
 };

@@ -1,8 +1,8 @@
 // rods-from-cad: STEP and IGES models written by OpenCASCADE, rods checked against the exact curves.
+// The hostile files and the reader process's failures: test_meshing_cad_hostile.cpp.
 #include "meshing/cad_reader.hpp"
 #include "meshing/meshing.hpp"
-#include "tests/meshing/cad_fixtures.hpp"
-#include "tests/temp_dir.hpp"
+#include "tests/meshing/cad_test_support.hpp"
 
 #include <BRep_Builder.hxx>
 #include <GeomAPI_ProjectPointOnCurve.hxx>
@@ -13,47 +13,14 @@
 
 #include <catch2/catch.hpp>
 
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <cmath>
-#include <cstring>
 #include <map>
-#include <unistd.h>
 
-namespace fs = std::filesystem;
 using namespace rodfab;
-using geometry::Vec3;
-
-namespace {
-
-fs::path scratch(const std::string& name) { return rodfab::test::processScratch("cad", name); }
-
-// What `read` throws as a MeshError (which must start with "FILE: "), or "no error".
-template <class Read>
-std::string meshErrorOf(const fs::path& file, Read read) {
-  try {
-    read();
-  } catch (const meshing::MeshError& e) {
-    CHECK(std::string(e.what()).rfind(file.string() + ": ", 0) == 0);
-    return e.what();
-  }
-  return "no error";
-}
-
-Vec3 toVec(const gp_Pnt& p) { return {p.X(), p.Y(), p.Z()}; }
-
-// Largest distance from the rod's centerline (sampled) to the exact curve over [first, last], found
-// by sampling the exact curve densely and refining with the rod's own closest-point search the other way.
-double largestDeviation(const geometry::Rod& rod, const Handle(Geom_Curve)& exact, double first, double last) {
-  double largest = 0;
-  for (int i = 0; i <= 400; ++i) {
-    const Vec3 p = toVec(exact->Value(first + (last - first) * i / 400));
-    largest = std::max(largest, rod.closestPoint(p).distance);
-  }
-  return largest;
-}
-
-}  // namespace
+using namespace rodfab::cad_test;
 
 TEST_CASE("a box's STEP model: 12 straight rods meeting 3 by 3 at 8 joints", "[meshing][cad]") {
   testing::writeStep(testing::box(10, 20, 30), scratch("box.step"));
@@ -188,60 +155,6 @@ TEST_CASE("CAD errors name the file and the problem", "[meshing][cad]") {
   CHECK_THAT(error(scratch("missing.step")), Catch::Contains("no such file"));
 }
 
-namespace {
-
-// A STEP model written as OpenCASCADE writes a wireframe: the product and context entities, a curve
-// set #15 of the curve #16, the entities `data` gives (#15 onwards) and the length unit #27.
-std::string stepModel(const std::string& data, const std::string& unit = "( LENGTH_UNIT() NAMED_UNIT(*) SI_UNIT(.MILLI.,.METRE.) )") {
-  return "ISO-10303-21;\nHEADER;\nFILE_DESCRIPTION(('test'),'2;1');\nFILE_NAME('t','2026-12-04T00:00:00',(''),(''),'','','');\n"
-         "FILE_SCHEMA(('AUTOMOTIVE_DESIGN { 1 0 10303 214 1 1 1 1 }'));\nENDSEC;\nDATA;\n"
-         "#1 = APPLICATION_PROTOCOL_DEFINITION('international standard','automotive_design',2000,#2);\n"
-         "#2 = APPLICATION_CONTEXT('core data for automotive mechanical design processes');\n"
-         "#3 = SHAPE_DEFINITION_REPRESENTATION(#4,#10);\n#4 = PRODUCT_DEFINITION_SHAPE('','',#5);\n"
-         "#5 = PRODUCT_DEFINITION('design','',#6,#9);\n#6 = PRODUCT_DEFINITION_FORMATION('','',#7);\n"
-         "#7 = PRODUCT('p','p','',(#8));\n#8 = PRODUCT_CONTEXT('',#2,'mechanical');\n"
-         "#9 = PRODUCT_DEFINITION_CONTEXT('part definition',#2,'design');\n"
-         "#10 = GEOMETRICALLY_BOUNDED_WIREFRAME_SHAPE_REPRESENTATION('',(#11,#15),#26);\n"
-         "#11 = AXIS2_PLACEMENT_3D('',#12,#13,#14);\n#12 = CARTESIAN_POINT('',(0.,0.,0.));\n"
-         "#13 = DIRECTION('',(0.,0.,1.));\n#14 = DIRECTION('',(1.,0.,0.));\n" + data +
-         "#26 = ( GEOMETRIC_REPRESENTATION_CONTEXT(3) GLOBAL_UNCERTAINTY_ASSIGNED_CONTEXT((#30)) "
-         "GLOBAL_UNIT_ASSIGNED_CONTEXT((#27,#28,#29)) REPRESENTATION_CONTEXT('c','3D') );\n"
-         "#27 = " + unit + ";\n#28 = ( NAMED_UNIT(*) PLANE_ANGLE_UNIT() SI_UNIT($,.RADIAN.) );\n"
-         "#29 = ( NAMED_UNIT(*) SI_UNIT($,.STERADIAN.) SOLID_ANGLE_UNIT() );\n"
-         "#30 = UNCERTAINTY_MEASURE_WITH_UNIT(LENGTH_MEASURE(1.E-07),#27,'distance_accuracy_value','');\n"
-         "ENDSEC;\nEND-ISO-10303-21;\n";
-}
-
-// The curve set #15 holding a cubic B-spline #17 (trimmed by #16) through control points #18 to #23;
-// `points` replaces the list of the spline's control points, `degree` its degree.
-std::string splineData(const std::string& points = "(#18,#19,#20,#21,#22,#23)", const std::string& degree = "3",
-                       const std::string& set = "(#16)", const std::string& x19 = "10.") {
-  return "#15 = GEOMETRIC_CURVE_SET(''," + set + ");\n"
-         "#16 = TRIMMED_CURVE('',#17,(#24,PARAMETER_VALUE(0.)),(#25,PARAMETER_VALUE(1.)),.T.,.PARAMETER.);\n"
-         "#17 = B_SPLINE_CURVE_WITH_KNOTS(''," + degree + "," + points +
-         ",.UNSPECIFIED.,.F.,.F.,(4,1,1,4),(0.,0.3,0.45,1.),.UNSPECIFIED.);\n"
-         "#18 = CARTESIAN_POINT('',(0.,0.,0.));\n#19 = CARTESIAN_POINT('',(" + x19 + ",5.,2.));\n"
-         "#20 = CARTESIAN_POINT('',(20.,-5.,6.));\n#21 = CARTESIAN_POINT('',(30.,8.,1.));\n"
-         "#22 = CARTESIAN_POINT('',(38.,0.,-4.));\n#23 = CARTESIAN_POINT('',(45.,3.,0.));\n"
-         "#24 = CARTESIAN_POINT('',(0.,0.,0.));\n#25 = CARTESIAN_POINT('',(45.,3.,0.));\n";
-}
-
-// A circle of `radius` about #19, trimmed to its full turn.
-std::string circleData(const std::string& radius) {
-  return "#15 = GEOMETRIC_CURVE_SET('',(#16));\n"
-         "#16 = TRIMMED_CURVE('',#17,(PARAMETER_VALUE(0.)),(PARAMETER_VALUE(6.28318530718)),.T.,.PARAMETER.);\n"
-         "#17 = CIRCLE('',#18," + radius + ");\n#18 = AXIS2_PLACEMENT_3D('',#19,#13,#14);\n"
-         "#19 = CARTESIAN_POINT('',(3.,-2.,7.));\n";
-}
-
-// The message of the MeshError that reading `text` as `name` gives (checked to start with the file).
-std::string cadError(const std::string& name, const std::string& text, const meshing::CadRodOptions& options = {}) {
-  const fs::path file = scratch(name);
-  std::ofstream(file, std::ios::binary) << text;
-  return meshErrorOf(file, [&] { meshing::rodsFromCad(file, options); });
-}
-
-}  // namespace
 
 TEST_CASE("an offset curve and a degree-9 spline become degree-7 rods within the approximation tolerance", "[meshing][cad]") {
   // OpenCASCADE's exact B-splines of these are of degree 14 (the 2 mm offset, in its plane, of a planar
@@ -306,233 +219,4 @@ TEST_CASE("a high-degree curve with more kinks than the approximation may have p
   CHECK_THAT(cadError("kinks.step", stepModel(data)),
              Catch::Contains("kinks.step: edge 0 (entity #16 (B_SPLINE_CURVE_WITH_KNOTS)): a curve of degree 8, above the 7") &&
                  Catch::Contains("cannot be approximated within 1e-05 mm by 2340 pieces"));
-}
-
-TEST_CASE("the hostile-file fixture reads as a valid spline", "[meshing][cad][hostile]") {
-  const fs::path file = scratch("fixture.step");
-  std::ofstream(file) << stepModel(splineData());
-  const meshing::CadRods result = meshing::rodsFromCad(file, {});
-  REQUIRE(result.structure.rods.size() == 1);
-  CHECK(result.structure.rods[0].centerline().degree() == 3);
-}
-
-TEST_CASE("STEP files OpenCASCADE would crash on are refused, naming the entity or line", "[meshing][cad][hostile]") {
-  using Catch::Contains;
-  // Failures OpenCASCADE records while loading: the transfer would follow the null handles they leave.
-  CHECK_THAT(cadError("missing.step", stepModel(splineData("(#9999,#19,#20,#21,#22,#23)"))),
-             Contains("malformed: entity #17 (B_SPLINE_CURVE_WITH_KNOTS)") && Contains("unresolved"));
-  CHECK_THAT(cadError("noargs.step", stepModel(splineData() + "#31 = B_SPLINE_CURVE_WITH_KNOTS();\n"
-                                                              "#32 = GEOMETRIC_CURVE_SET('',(#31));\n")),
-             Contains("entity #31 (B_SPLINE_CURVE_WITH_KNOTS)") && Contains("Count of Parameters"));
-  CHECK_THAT(cadError("wrongtype.step", stepModel(splineData("(#13,#19,#20,#21,#22,#23)"))),
-             Contains("entity #17 (B_SPLINE_CURVE_WITH_KNOTS)") && Contains("illegal type"));
-  CHECK_THAT(cadError("selfref.step", stepModel(splineData("(#17,#19,#20,#21,#22,#23)"))), Contains("entity #17"));
-  // A reference cycle: the transfer recursed until the stack ran out.
-  CHECK_THAT(cadError("cycle.step", stepModel(splineData("(#18,#19,#20,#21,#22,#23)", "3", "(#15)"))),
-             Contains("entity #15 (GEOMETRIC_CURVE_SET) refers to itself"));
-  CHECK_THAT(cadError("cycle2.step", stepModel(splineData() + "#31 = GEOMETRIC_CURVE_SET('',(#16,#32));\n"
-                                                              "#32 = GEOMETRIC_CURVE_SET('',(#31));\n")),
-             Contains("refers to itself"));
-  // Degrees and pole counts Geom_BSplineCurve refuses, checked before the converters index by them.
-  CHECK_THAT(cadError("degree.step", stepModel(splineData("(#18,#19,#20,#21,#22,#23)", "30"))),
-             Contains("B-spline entity #17 (B_SPLINE_CURVE_WITH_KNOTS): degree 30, expected 1 to 25"));
-  CHECK_THAT(cadError("poles.step", stepModel(splineData("(#18,#19,#20,#21,#22,#23)", "9"))),
-             Contains("6 control points, expected at least degree + 1 = 10"));
-  // What the parser itself cannot take, found in the text.
-  const std::string deep = std::string(100'000, '(') + std::string(100'000, ')');
-  CHECK_THAT(cadError("deep.step", stepModel(splineData("(#18,#19,#20,#21,#22,#23)", "3", "(#16," + deep + ")"))),
-             Contains("line 22: lists nested deeper than 64 levels"));
-  CHECK_THAT(cadError("hugeid.step", stepModel(splineData("(#18,#99999999999999999999,#20,#21,#22,#23)"))),
-             Contains("line 24: an entity id above 999999999"));
-  std::string longList = "(#16";
-  for (int i = 0; i < 100'000; ++i) longList += ",#16";
-  CHECK_THAT(cadError("longlist.step", stepModel(splineData("(#18,#19,#20,#21,#22,#23)", "3", longList + ")"))),
-             Contains("line 22: a list of more than 100000 elements"));
-  // Empty lists where STEP requires elements: OpenCASCADE's load check and transfer crash on them. An
-  // entity without parameters (every file's LENGTH_UNIT()) is not such a list.
-  std::string noKnots = splineData();
-  noKnots.replace(noKnots.find("(0.,0.3,0.45,1.)"), 16, "( )");
-  CHECK_THAT(cadError("noknots.step", stepModel(noKnots)), Contains("line 24: an empty list in a B_SPLINE_CURVE_WITH_KNOTS"));
-  std::string noDirection = stepModel(splineData());
-  noDirection.replace(noDirection.find("DIRECTION('',(0.,0.,1.))"), 24, "DIRECTION('',())");
-  CHECK_THAT(cadError("nodirection.step", noDirection), Contains("an empty list in a DIRECTION, where STEP requires at least one"));
-  // Text in strings and comments is not counted.
-  const std::string hostile = "#99999999999999999999 " + std::string(100, '(');
-  std::string named = splineData();
-  named.replace(named.find("''"), 2, "'" + hostile + "'");
-  const fs::path quoted = scratch("quoted.step");
-  std::ofstream(quoted) << stepModel("/* " + hostile + " */\n" + named);
-  CHECK(meshing::rodsFromCad(quoted, {}).structure.rods.size() == 1);
-}
-
-TEST_CASE("an IGES B-spline of an impossible degree is refused before OpenCASCADE loads it", "[meshing][cad][hostile]") {
-  const fs::path valid = scratch("valid.igs");
-  testing::writeIges(testing::edgeOf(testing::testSpline()), valid);
-  std::ifstream in(valid);
-  std::string text, line;
-  bool changed = false;
-  while (std::getline(in, line)) {
-    // The parameter record "126,5,3,..." (upper index 5, degree 3): the degree becomes 1000000; six
-    // weights written as integers make room for it in the record's 64 data columns.
-    if (!changed && line.rfind("126,5,3,", 0) == 0) {
-      std::string data = line.substr(0, 64);
-      const std::size_t weights = data.find("1.,1.,1.,1.,1.,1.,");
-      REQUIRE(weights != std::string::npos);
-      data.replace(weights, 18, "1,1,1,1,1,1,");
-      data.replace(0, 8, "126,5,1000000,");
-      REQUIRE(data.size() == 64);
-      line = data + line.substr(64);
-      changed = true;
-    }
-    text += line + "\n";
-  }
-  REQUIRE(changed);
-  CHECK_THAT(cadError("degree.igs", text),
-             Catch::Contains("malformed IGES B-spline curve (type 126): degree 1000000, expected 1 to 25"));
-}
-
-TEST_CASE("rods-from-cad never builds a design that validate refuses", "[meshing][cad][hostile]") {
-  using Catch::Contains;
-  // Coordinates beyond +-1e9 mm, each named by its edge and the entity it came from.
-  CHECK_THAT(cadError("far.step", stepModel(splineData("(#18,#19,#20,#21,#22,#23)", "3", "(#16)", "1.E12"))),
-             Contains("edge 0 (entity #16 (TRIMMED_CURVE)): a control point at (1e+12, 5, 2) mm, beyond the +-1e9 mm"));
-  CHECK_THAT(cadError("line.step", stepModel("#15 = GEOMETRIC_CURVE_SET('',(#16));\n#16 = LINE('',#12,#17);\n"
-                                             "#17 = VECTOR('',#13,1.);\n")),
-             Contains("edge 0 (entity #16 (LINE)): a control point at (0, 0, -2e+100) mm"));
-  const std::string huge = cadError("circle.step", stepModel(circleData("1.E300")));
-  CHECK_THAT(huge, Contains("beyond the +-1e9 mm"));
-  CHECK(huge.size() < 300);  // numbers in a short format, not 300 digits
-  CHECK_THAT(cadError("unit.step", stepModel(splineData(), "( CONVERSION_BASED_UNIT('BIG',#40) LENGTH_UNIT() NAMED_UNIT(#41) );\n"
-                                             "#40 = LENGTH_MEASURE_WITH_UNIT(LENGTH_MEASURE(1.E300),#42);\n"
-                                             "#41 = DIMENSIONAL_EXPONENTS(1.,0.,0.,0.,0.,0.,0.);\n"
-                                             "#42 = ( LENGTH_UNIT() NAMED_UNIT(*) SI_UNIT(.MILLI.,.METRE.) )")),
-             Contains("beyond the +-1e9 mm"));
-  // Zero-length centerlines, found by the design file's own checks.
-  const std::string zero = "degenerate centerline: its length is zero";
-  CHECK_THAT(cadError("r0.step", stepModel(circleData("0."))), Contains("edge 0 (entity #16 (TRIMMED_CURVE)): " + zero));
-  // Checked before the rod's frame is built on it (a zero tangent has no normal).
-  meshing::CadRodOptions ellipse;
-  ellipse.section = geometry::Section::ellipse(1, 2);
-  CHECK_THAT(cadError("r0e.step", stepModel(circleData("0.")), ellipse), Contains("edge 0 (entity #16 (TRIMMED_CURVE)): " + zero));
-  // A line 0.0005 mm long: both its ends merge onto one point (joint tolerance 0.001 mm).
-  CHECK_THAT(cadError("short.step", stepModel("#15 = GEOMETRIC_CURVE_SET('',(#16));\n"
-                                              "#16 = TRIMMED_CURVE('',#17,(PARAMETER_VALUE(0.)),(PARAMETER_VALUE(0.0005)),"
-                                              ".T.,.PARAMETER.);\n"
-                                              "#17 = LINE('',#12,#18);\n#18 = VECTOR('',#14,1.);\n")),
-             Contains("edge 0 (entity #16 (TRIMMED_CURVE)): " + zero));
-  std::string same = splineData();
-  for (const char* p : {"0.,0.,0.", "10.,5.,2.", "20.,-5.,6.", "30.,8.,1.", "38.,0.,-4.", "45.,3.,0."})
-    for (std::size_t at; (at = same.find(p)) != std::string::npos;) same.replace(at, std::strlen(p), "1.,1.,1.");
-  CHECK_THAT(cadError("same.step", stepModel(same)), Contains(zero));
-  CHECK_THAT(cadError("unit0.step", stepModel(splineData(), "( CONVERSION_BASED_UNIT('ZERO',#40) LENGTH_UNIT() NAMED_UNIT(#41) );\n"
-                                              "#40 = LENGTH_MEASURE_WITH_UNIT(LENGTH_MEASURE(0.),#42);\n"
-                                              "#41 = DIMENSIONAL_EXPONENTS(1.,0.,0.,0.,0.,0.,0.);\n"
-                                              "#42 = ( LENGTH_UNIT() NAMED_UNIT(*) SI_UNIT(.MILLI.,.METRE.) )")),
-             Contains(zero));
-}
-
-namespace {
-
-// A stand-in for rodfab-cad-reader: a shell script with `body`, made executable.
-fs::path fakeReader(const std::string& name, const std::string& body) {
-  const fs::path path = scratch(name);
-  std::ofstream(path) << "#!/bin/sh\n" << body << "\n";
-  fs::permissions(path, fs::perms::owner_all);
-  return path;
-}
-
-std::string errorThrough(const fs::path& helper, const fs::path& model) {
-  return meshErrorOf(model, [&] { meshing::detail::rodsFromCadThrough(helper, model, {}); });
-}
-
-}  // namespace
-
-TEST_CASE("whatever becomes of the CAD reader process is an error naming the file", "[meshing][cad][hostile]") {
-  using Catch::Contains;
-  const fs::path model = scratch("stand-in.step");
-  std::ofstream(model) << "ISO-10303-21;\n";
-  CHECK_THAT(errorThrough(fakeReader("segv.sh", "kill -SEGV $$"), model),
-             Contains("the CAD reader (OpenCASCADE) crashed on this file (signal 11"));
-  CHECK_THAT(errorThrough(fakeReader("abort.sh", "echo 'terminate called' >&2; kill -ABRT $$"), model),
-             Contains("(signal 6") && Contains("(it said: terminate called)"));
-  CHECK_THAT(errorThrough(fakeReader("exit3.sh", "echo boom >&2; exit 3"), model),
-             Contains("stopped with exit code 3 and no answer (it said: boom)"));
-  CHECK(errorThrough(fakeReader("error.sh", "printf '{\"error\": \"edge 2: a curve of degree 9\"}' >&3"), model) ==
-        model.string() + ": edge 2: a curve of degree 9");
-  CHECK_THAT(errorThrough(fakeReader("garbage.sh", "echo 'not json' >&3"), model), Contains("answer is not JSON"));
-  CHECK_THAT(errorThrough(fakeReader("half.sh", "printf '{\"design\": {' >&3; kill -KILL $$"), model),
-             Contains("the CAD reader was killed (signal 9, Killed), not by rodfab: the system may have run out of memory"));
-  CHECK_THAT(errorThrough(fakeReader("nodesign.sh", "echo '{\"report\": {}}' >&3"), model), Contains("has no design and report"));
-  CHECK_THAT(errorThrough(fakeReader("baddesign.sh",
-                                     "echo '{\"design\": {\"format\": \"rodfab.design/1\", \"rods\": 7}, \"report\": {}}' >&3"),
-                          model),
-             Contains("the CAD reader's design is not valid"));
-  CHECK_THAT(errorThrough(scratch("no-such-reader"), model), Contains("did not start (No such file or directory)"));
-  // A reader that never answers is waited for, not polled to death: the answer comes when it exits.
-  CHECK_THAT(errorThrough(fakeReader("slow.sh", "sleep 0.3; exit 0"), model), Contains("answer is not JSON"));
-}
-
-TEST_CASE("the CAD reader's arguments carry the options exactly", "[meshing][cad]") {
-  meshing::detail::CadReaderRequest request{"a b/c.step", {}, 123456789012345ULL, 4194304};
-  request.options.section = geometry::Section::ellipse(0.1, 1.0 / 3.0);
-  request.options.caps = geometry::CapStyle::Flat;
-  request.options.modulusMpa = 2.0 / 7.0;
-  request.options.jointTolerance = 1e-9 * 3.0;
-  const meshing::detail::CadReaderRequest back = meshing::detail::fromReaderArguments(meshing::detail::readerArguments(request));
-  CHECK(back.file == request.file);
-  CHECK(back.options.section.shape == geometry::SectionShape::Ellipse);
-  CHECK(back.options.section.width == 0.1);
-  CHECK(back.options.section.height == 1.0 / 3.0);
-  CHECK(back.options.caps == geometry::CapStyle::Flat);
-  CHECK(back.options.modulusMpa == 2.0 / 7.0);
-  CHECK(back.options.jointTolerance == 1e-9 * 3.0);
-  CHECK(back.memoryBudget == request.memoryBudget);
-  CHECK(back.parentProcess == 4194304);
-  std::vector<std::string> wrong = meshing::detail::readerArguments(request);
-  wrong[1] = "hexagon";
-  CHECK_THROWS_AS(meshing::detail::fromReaderArguments(wrong), std::invalid_argument);
-  wrong.pop_back();
-  CHECK_THROWS_AS(meshing::detail::fromReaderArguments(wrong), std::invalid_argument);
-}
-
-TEST_CASE("an IGES loop whose edge index is past its edge list is refused, naming the loop", "[meshing][cad][hostile]") {
-  // A box in IGES's B-rep form: its loops (type 508) refer to the edge list (504) by index, read
-  // unchecked by OpenCASCADE's transfer (a SIGSEGV for an index past the list, found by mutate_cad.py).
-  const fs::path valid = scratch("box.igs"), bad = scratch("badloop.igs");
-  testing::writeIges(testing::box(10, 20, 30), valid);
-  std::ifstream in(valid);
-  std::string text, line;
-  bool changed = false;
-  while (std::getline(in, line)) {
-    if (!changed && line.rfind("508,", 0) == 0) {  // 508,N,TYPE,EDGE LIST,INDEX,...: the first edge's index becomes 99
-      std::string data = line.substr(0, 64);
-      const std::size_t at = data.find(',', data.find(',', data.find(',', data.find(',') + 1) + 1) + 1) + 1;
-      const std::size_t end = data.find(',', at);
-      data.replace(at, end - at, "99");
-      while (data.size() > 64 && data.back() == ' ') data.pop_back();
-      REQUIRE(data.size() <= 64);
-      line = data + std::string(64 - data.size(), ' ') + line.substr(64);
-      changed = true;
-    }
-    text += line + "\n";
-  }
-  REQUIRE(changed);
-  std::ofstream(bad) << text;
-  CHECK_THAT(meshErrorOf(bad, [&] { meshing::rodsFromCad(bad, {}); }),
-             Catch::Contains("malformed: entity D") && Catch::Contains("Loop): edge 1 refers to item 99 of a list of 12"));
-  CHECK(meshing::rodsFromCad(valid, {}).structure.rods.size() == 12);
-}
-
-TEST_CASE("a truncated IGES file, on which OpenCASCADE's reader crashes, is refused as cut short", "[meshing][cad][hostile]") {
-  const fs::path whole = scratch("whole.igs"), cut = scratch("cut.igs");
-  testing::writeIges(testing::edgeOf(testing::testSpline()), whole);
-  std::ifstream in(whole, std::ios::binary);
-  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  // Cut inside the B-spline's parameter records (the second of them), as an interrupted copy would.
-  const std::size_t second = text.find("P0000002");
-  REQUIRE(second != std::string::npos);
-  std::ofstream(cut, std::ios::binary) << text.substr(0, second - 30);
-  CHECK_THAT(meshErrorOf(cut, [&] { meshing::rodsFromCad(cut, {}); }), Catch::Contains("without IGES's Terminate record") &&
-                                                                         Catch::Contains("cut short"));
-  CHECK(meshing::rodsFromCad(whole, {}).structure.rods.size() == 1);
 }
