@@ -39,6 +39,10 @@ RodStructure readDesign(const std::filesystem::path& file);
 // `sourceName` names the text in messages.
 RodStructure parseDesign(const std::string& text, const std::string& sourceName);
 
+// Checks `text` as parseDesign does, building every rod, but keeps only what summarize would say of
+// the rods: the memory of the rods being built (one a thread) rather than of all of them. For callers
+// that check a design they write or pass on (`rodfab rods-from-cad`). Throws as parseDesign.
+DesignSummary summarizeDesign(const std::string& text, const std::string& sourceName);
 // Keys in the order of the format description (name, centerline, section, frame, caps, modulus).
 nlohmann::ordered_json designToJson(const RodStructure& structure, const std::string& description = {});
 // One rod per line, so diffs of generated designs stay readable; sealed as rodfab's (its first member

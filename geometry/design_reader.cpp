@@ -250,19 +250,24 @@ struct ReadRod {
 };
 
 // Builds the rods that read without issue, on as many threads as TBB may use (building is most of
-// the reading: a winding rod takes milliseconds and up to ~1 MB). A rod's own failure (a centerline
-// too intricate to sample) is recorded right after that rod's issues (`issuesAfter[index]` of them
-// came before it), so the list is in the file's order whatever the thread count.
-void buildRods(std::vector<ReadRod>& read, const std::vector<std::size_t>& issuesAfter, DesignReader& v, RodStructure& structure) {
-  std::vector<std::optional<Rod>> built(read.size());
+// the reading: a winding rod takes milliseconds and up to ~1 MB), keeps them or only their summary. A
+// rod's own failure (a centerline too intricate to sample) is recorded right after that rod's issues
+// (`issuesAfter[index]` of them came before it), so the list is in the file's order whatever the
+// thread count, as are the summary's sums.
+void buildRods(std::vector<ReadRod>& read, const std::vector<std::size_t>& issuesAfter, RodsKept kept, DesignReader& v,
+               DesignDocument& d) {
+  std::vector<std::optional<Rod>> built(kept == RodsKept::All ? read.size() : 0);
+  std::vector<DesignSummary> summaries(read.size());
   std::vector<std::string> failures(read.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, read.size(), 1), [&](const tbb::blocked_range<std::size_t>& range) {
     for (std::size_t k = range.begin(); k != range.end(); ++k) {
       common::throwIfInterrupted();
       RodParts& p = read[k].parts;
       try {
-        built[k].emplace(std::move(p.name), std::move(p.centerline), p.section, std::move(p.referenceNormal), std::move(p.orientation),
-                         p.caps, std::move(p.modulus));
+        Rod rod(std::move(p.name), std::move(p.centerline), p.section, std::move(p.referenceNormal), std::move(p.orientation), p.caps,
+                std::move(p.modulus));
+        summaries[k].add(rod);
+        if (kept == RodsKept::All) built[k].emplace(std::move(rod));
       } catch (const std::invalid_argument& error) {
         failures[k] = error.what();
       }
@@ -274,11 +279,15 @@ void buildRods(std::vector<ReadRod>& read, const std::vector<std::size_t>& issue
     issues.insert(issues.end(), std::make_move_iterator(v.issues.begin() + next), std::make_move_iterator(v.issues.begin() + end));
     next = end;
   };
-  structure.rods.reserve(read.size());
+  if (kept == RodsKept::All) d.structure.rods.reserve(read.size());
   for (std::size_t k = 0; k < read.size(); ++k) {
     takeIssuesUpTo(issuesAfter[read[k].index]);
-    if (failures[k].empty()) structure.rods.push_back(std::move(*built[k]));
-    else issues.push_back({indexPath("rods", read[k].index), failures[k]});
+    if (!failures[k].empty()) {
+      issues.push_back({indexPath("rods", read[k].index), failures[k]});
+      continue;
+    }
+    d.summary.add(summaries[k]);
+    if (kept == RodsKept::All) d.structure.rods.push_back(std::move(*built[k]));
   }
   takeIssuesUpTo(v.issues.size());
   v.issues = std::move(issues);
@@ -286,7 +295,7 @@ void buildRods(std::vector<ReadRod>& read, const std::vector<std::size_t>& issue
 
 }  // namespace
 
-DesignDocument parseDesignDocument(const std::string& text, const std::string& sourceName, DesignReader& v) {
+DesignDocument parseDesignDocument(const std::string& text, const std::string& sourceName, DesignReader& v, RodsKept kept) {
   DesignDocument d;
   d.json = parseDocument(text, sourceName);
   d.structure.source = sourceName;
@@ -312,7 +321,7 @@ DesignDocument parseDesignDocument(const std::string& text, const std::string& s
         if (auto r = v.rod((*rods)[i], indexPath("rods", i), d.rodNames)) read.push_back({i, std::move(*r)});
         issuesAfter[i] = v.issues.size();
       }
-      buildRods(read, issuesAfter, v, d.structure);
+      buildRods(read, issuesAfter, kept, v, d);
     }
   }
   return d;
@@ -323,6 +332,13 @@ RodStructure parseDesign(const std::string& text, const std::string& sourceName)
   DesignDocument d = parseDesignDocument(text, sourceName, reader);
   if (!reader.issues.empty()) throw DesignError(sourceName, std::move(reader.issues));
   return std::move(d.structure);
+}
+
+DesignSummary summarizeDesign(const std::string& text, const std::string& sourceName) {
+  DesignReader reader;
+  DesignDocument d = parseDesignDocument(text, sourceName, reader, RodsKept::SummaryOnly);
+  if (!reader.issues.empty()) throw DesignError(sourceName, std::move(reader.issues));
+  return d.summary;
 }
 
 std::string readDesignText(const std::filesystem::path& file) {

@@ -76,12 +76,17 @@ public:
   std::optional<RodParts> rod(const nlohmann::json& j, const std::string& path, RodNames& names);
 };
 
-// A design file as geometry reads it: the document, the rods that read without issue, and the
-// names of all rods. The blocks of higher stages ("mechanics", "optimize") are left in `json`,
-// unread, for their readers.
+// What reading keeps of the rods it builds: the rods themselves, or only their summary (a reader that
+// checks a design without using its rods needs the memory of the rods being built, not of all).
+enum class RodsKept { All, SummaryOnly };
+
+// A design file as geometry reads it: the document, the rods that read without issue (none kept with
+// RodsKept::SummaryOnly) and their summary, and the names of all rods. The blocks of higher stages
+// ("mechanics", "optimize") are left in `json`, unread, for their readers.
 struct DesignDocument {
   nlohmann::json json;
   RodStructure structure;
+  DesignSummary summary;  // of the rods that read without issue, in the file's order
   RodNames rodNames;
   bool rodsListed = false;  // "rods" is a non-empty array (blocks that name rods are read only then)
 };
@@ -91,7 +96,8 @@ struct DesignDocument {
 // an object, common::OutOfMemory (naming `sourceName`) before parsing when the document would take
 // more than the memory budget (about 24 bytes per byte of text). The top-level keys allowed are those of the whole format, the higher stages' blocks
 // included.
-DesignDocument parseDesignDocument(const std::string& text, const std::string& sourceName, DesignReader& reader);
+DesignDocument parseDesignDocument(const std::string& text, const std::string& sourceName, DesignReader& reader,
+                                   RodsKept kept = RodsKept::All);
 
 // The bytes of a design file (bounded by common::kMaxJsonBytes); throws DesignError(file, path "")
 // when it cannot be read.

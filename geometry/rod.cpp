@@ -323,28 +323,38 @@ Box3 RodStructure::bounds() const {
   return box;
 }
 
+void DesignSummary::add(const Rod& rod) {
+  ++rodCount;
+  totalLength += rod.length();
+  bounds.extend(rod.bounds());
+  switch (rod.section().shape) {
+    case SectionShape::Circle: ++circles; break;
+    case SectionShape::Ellipse: ++ellipses; break;
+    case SectionShape::Rectangle: ++rectangles; break;
+  }
+  (rod.caps() == CapStyle::Round ? roundCaps : flatCaps) += 1;
+  const BSplineField& e = rod.modulus();
+  constexpr int kSamples = 256;
+  for (int k = 0; k <= kSamples; ++k) {
+    const double v = e.value(e.domainBegin() + (e.domainEnd() - e.domainBegin()) * k / kSamples);
+    modulusMin = std::min(modulusMin, v);
+    modulusMax = std::max(modulusMax, v);
+  }
+}
+
+void DesignSummary::add(const DesignSummary& later) {
+  rodCount += later.rodCount;
+  totalLength += later.totalLength;
+  bounds.extend(later.bounds);
+  modulusMin = std::min(modulusMin, later.modulusMin);
+  modulusMax = std::max(modulusMax, later.modulusMax);
+  circles += later.circles, ellipses += later.ellipses, rectangles += later.rectangles;
+  roundCaps += later.roundCaps, flatCaps += later.flatCaps;
+}
+
 DesignSummary summarize(const RodStructure& structure) {
   DesignSummary s;
-  s.rodCount = structure.rods.size();
-  s.bounds = structure.bounds();
-  s.modulusMin = std::numeric_limits<double>::infinity();
-  s.modulusMax = -std::numeric_limits<double>::infinity();
-  for (const Rod& rod : structure.rods) {
-    s.totalLength += rod.length();
-    switch (rod.section().shape) {
-      case SectionShape::Circle: ++s.circles; break;
-      case SectionShape::Ellipse: ++s.ellipses; break;
-      case SectionShape::Rectangle: ++s.rectangles; break;
-    }
-    (rod.caps() == CapStyle::Round ? s.roundCaps : s.flatCaps) += 1;
-    const BSplineField& e = rod.modulus();
-    constexpr int kSamples = 256;
-    for (int k = 0; k <= kSamples; ++k) {
-      const double v = e.value(e.domainBegin() + (e.domainEnd() - e.domainBegin()) * k / kSamples);
-      s.modulusMin = std::min(s.modulusMin, v);
-      s.modulusMax = std::max(s.modulusMax, v);
-    }
-  }
+  for (const Rod& rod : structure.rods) s.add(rod);
   return s;
 }
 

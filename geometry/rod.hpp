@@ -215,15 +215,20 @@ struct RodStructure {
   Box3 bounds() const;
 };
 
-// What `rodfab validate` prints.
+// What `rodfab validate` prints. Empty: no rods, an empty box, modulusMin +inf and modulusMax -inf.
 struct DesignSummary {
   std::size_t rodCount = 0;
   double totalLength = 0.0;  // mm, centerline arc length
-  Box3 bounds;               // mm, including sections and caps
-  double modulusMin = 0.0, modulusMax = 0.0;  // MPa, sampled along every rod
+  Box3 bounds = Box3();      // mm, including sections and caps
+  double modulusMin = std::numeric_limits<double>::infinity(), modulusMax = -std::numeric_limits<double>::infinity();  // MPa, sampled along every rod
   std::size_t circles = 0, ellipses = 0, rectangles = 0;
   std::size_t roundCaps = 0, flatCaps = 0;
+
+  void add(const Rod& rod);              // counts one more rod
+  void add(const DesignSummary& later);  // counts the rods `later` counted, after these (lengths summed in that order)
 };
+// The rods counted in order: the same figures whether the rods are kept (here) or summarized as they
+// are read and let go (summarizeDesign, design_file.hpp).
 DesignSummary summarize(const RodStructure& structure);
 
 }  // namespace rodfab::geometry

@@ -255,6 +255,39 @@ TEST_CASE("A rod too intricate to sample is reported in the file's order, its ro
   CHECK(parseDesign(d.dump(), "ok.json").rods.size() == 2);
 }
 
+TEST_CASE("summarizeDesign checks as parseDesign does and says what summarize says of the rods", "[design]") {
+  json d = validDesign();
+  for (int k = 1; k < 40; ++k) {  // rods of every section and cap, moved apart, on both cores
+    json rod = d["rods"][0];
+    rod["name"] = "rod-" + std::to_string(k);
+    for (json& p : rod["centerline"]["points"]) p[0] = p[0].get<double>() + 3.5 * k, p[2] = p[2].get<double>() - 0.25 * k;
+    if (k % 3 == 1) rod["section"] = {{"shape", "rectangle"}, {"width", 2.0}, {"height", 0.5}};
+    if (k % 3 == 2) rod["section"] = {{"shape", "ellipse"}, {"width", 1.0 + 0.01 * k}, {"height", 0.5}};
+    if (k % 2 == 1) rod["caps"] = "flat";
+    if (k % 5 == 0) rod["modulus"] = 10.0 * k;
+    d["rods"].push_back(rod);
+  }
+  const DesignSummary kept = summarize(parseDesign(d.dump(), "a.json")), summarized = summarizeDesign(d.dump(), "a.json");
+  CHECK(summarized.rodCount == 40);
+  CHECK(summarized.totalLength == kept.totalLength);  // summed in the same order: the same bits
+  CHECK(summarized.bounds.min() == kept.bounds.min());
+  CHECK(summarized.bounds.max() == kept.bounds.max());
+  CHECK(summarized.modulusMin == kept.modulusMin);
+  CHECK(summarized.modulusMax == kept.modulusMax);
+  CHECK(summarized.modulusMax == 350.0);
+  CHECK((summarized.circles == kept.circles && summarized.ellipses == kept.ellipses && summarized.rectangles == kept.rectangles));
+  CHECK((summarized.circles == 14 && summarized.ellipses == 13 && summarized.rectangles == 13));
+  CHECK((summarized.roundCaps == kept.roundCaps && summarized.flatCaps == kept.flatCaps && summarized.flatCaps == 20));
+
+  d["rods"][7]["modulus"] = "stiff";
+  d["rods"].push_back(tooIntricateRod("huge"));
+  const auto parsed = issuesOf(d), checked = rodfab::test::designIssues(summarizeDesign, d.dump());
+  REQUIRE(parsed.size() == 2);
+  REQUIRE(checked.size() == parsed.size());
+  for (std::size_t i = 0; i < parsed.size(); ++i) CHECK((checked[i].path == parsed[i].path && checked[i].message == parsed[i].message));
+  CHECK(summarize(RodStructure{}).rodCount == 0);
+}
+
 TEST_CASE("A missing file is reported with its name", "[design][errors]") {
   try {
     readDesign("/nonexistent/design.json");
