@@ -9,6 +9,7 @@
 #include "meshing/mesh.hpp"
 #include "meshing/meshing.hpp"
 #include "tests/meshing/mesh_fixtures.hpp"
+#include "tests/meshing/step_text.hpp"
 
 #include <CGAL/Simple_cartesian.h>
 #include <CGAL/Surface_mesh.h>
@@ -178,21 +179,7 @@ std::string windingSplinesStep(int count) {
     std::snprintf(line, sizeof line, "%s#%d", i ? "," : "", id++);
     set += line;
   }
-  return "ISO-10303-21;\nHEADER;\nFILE_DESCRIPTION((''),'2;1');\nFILE_NAME('','',(''),(''),'','','');\n"
-         "FILE_SCHEMA(('AUTOMOTIVE_DESIGN { 1 0 10303 214 1 1 1 1 }'));\nENDSEC;\nDATA;\n"
-         "#1=APPLICATION_PROTOCOL_DEFINITION('international standard','automotive_design',2000,#2);\n"
-         "#2=APPLICATION_CONTEXT('core data for automotive mechanical design processes');\n"
-         "#3=SHAPE_DEFINITION_REPRESENTATION(#4,#10);\n#4=PRODUCT_DEFINITION_SHAPE('','',#5);\n"
-         "#5=PRODUCT_DEFINITION('design','',#6,#9);\n#6=PRODUCT_DEFINITION_FORMATION('','',#7);\n"
-         "#7=PRODUCT('p','p','',(#8));\n#8=PRODUCT_CONTEXT('',#2,'mechanical');\n"
-         "#9=PRODUCT_DEFINITION_CONTEXT('part definition',#2,'design');\n"
-         "#10=GEOMETRICALLY_BOUNDED_WIREFRAME_SHAPE_REPRESENTATION('',(#99),#24);\n"
-         "#24=( GEOMETRIC_REPRESENTATION_CONTEXT(3) GLOBAL_UNCERTAINTY_ASSIGNED_CONTEXT((#28)) "
-         "GLOBAL_UNIT_ASSIGNED_CONTEXT((#25,#26,#27)) REPRESENTATION_CONTEXT('','') );\n"
-         "#25=( LENGTH_UNIT() NAMED_UNIT(*) SI_UNIT(.MILLI.,.METRE.) );\n#26=( NAMED_UNIT(*) PLANE_ANGLE_UNIT() SI_UNIT($,.RADIAN.) );\n"
-         "#27=( NAMED_UNIT(*) SI_UNIT($,.STERADIAN.) SOLID_ANGLE_UNIT() );\n"
-         "#28=UNCERTAINTY_MEASURE_WITH_UNIT(LENGTH_MEASURE(1.E-07),#25,'distance_accuracy_value','');\n" +
-         data + "#99=GEOMETRIC_CURVE_SET('',(" + set + "));\nENDSEC;\nEND-ISO-10303-21;\n";
+  return cad_test::stepModel("#15=GEOMETRIC_CURVE_SET('',(" + set + "));\n" + data);
 }
 
 // rods-from-cad's work on 200 winding splines: the reader process (OpenCASCADE, each rod built once to
