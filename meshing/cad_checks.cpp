@@ -29,7 +29,9 @@
 #include <StepGeom_RationalBSplineSurface.hxx>
 #include <StepShape_VertexPoint.hxx>
 #include <TCollection_HAsciiString.hxx>
+#include <Transfer_TransientProcess.hxx>
 #include <XSControl_Reader.hxx>
+#include <XSControl_TransferReader.hxx>
 #include <XSControl_WorkSession.hxx>
 
 #include <algorithm>
@@ -382,6 +384,21 @@ void checkIgesSpline(const std::string& params, char delimiter, long long line, 
 }
 
 }  // namespace
+
+TransferFailures transferFailures(const XSControl_Reader& reader) {
+  TransferFailures out;
+  const Handle(XSControl_TransferReader) transfer = reader.WS()->TransferReader();
+  if (transfer.IsNull() || transfer->TransientProcess().IsNull()) return out;
+  const Handle(Interface_InterfaceModel) model = reader.Model();
+  const Interface_CheckIterator checks = transfer->TransientProcess()->CheckList(Standard_True);
+  for (checks.Start(); checks.More(); checks.Next()) {
+    const Handle(Interface_Check)& check = checks.Value();
+    if (check.IsNull() || !check->HasFailed()) continue;
+    if (out.entities++ == 0)
+      out.first = (check->HasEntity() ? "entity " + entityName(model, check->Entity()) : std::string("the model")) + ": " + checkText(check);
+  }
+  return out;
+}
 
 void prescanIgesText(const std::filesystem::path& file) {
   std::ifstream in(file, std::ios::binary);

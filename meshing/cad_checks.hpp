@@ -46,6 +46,15 @@ void prescanIgesText(const std::filesystem::path& file);
 // degrees and pole counts OpenCASCADE's geometry accepts, and vertices at 3D points.
 void checkLoadedModel(const XSControl_Reader& reader, const std::filesystem::path& file);
 
+// What OpenCASCADE's transfer could not convert (its transfer check list's failures, after
+// TransferRoots): an entity that fails is left out of the shape with all it holds (a curve set with one
+// unconvertible curve loses every curve in it), silently unless the caller says so.
+struct TransferFailures {
+  std::size_t entities = 0;  // entities whose transfer failed
+  std::string first;         // "entity #15 (GEOMETRIC_CURVE_SET): Exception is raised. Entity was not translated."
+};
+TransferFailures transferFailures(const XSControl_Reader& reader);
+
 // An entity as messages name it: "#17 (BSplineCurveWithKnots)" in STEP, "D5 (BSplineCurve)" in IGES.
 std::string entityName(const Handle(Interface_InterfaceModel)& model, const Handle(Standard_Transient)& entity);
 

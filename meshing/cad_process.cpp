@@ -4,6 +4,7 @@
 #include "common/interrupt.hpp"
 #include "common/memory_budget.hpp"
 #include "geometry/design_file.hpp"
+#include "geometry/design_writer.hpp"
 #include "meshing/cad_reader.hpp"
 #include "meshing/input_file.hpp"
 
@@ -23,6 +24,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <new>
+#include <type_traits>
 
 extern char** environ;
 
@@ -183,16 +185,21 @@ std::string describeEnd(int status, const std::string& stderrTail) {
   return what;
 }
 
-CadRods parseAnswer(const std::string& answer, const std::filesystem::path& file) {
-  const nlohmann::json doc = nlohmann::json::parse(answer, nullptr, false);
+// The reader's answer, its design not yet checked.
+struct ReaderAnswer {
+  nlohmann::ordered_json design;  // ordered: a design written from it keeps the format's key order
+  CadRodReport report;
+};
+
+ReaderAnswer parseAnswer(const std::string& answer, const std::filesystem::path& file) {
+  nlohmann::ordered_json doc = nlohmann::ordered_json::parse(answer, nullptr, false);
   if (doc.is_discarded() || !doc.is_object()) throw MeshError(file, "the CAD reader's answer is not JSON");
   if (doc.contains("error") && doc["error"].is_string()) throw MeshError(file, doc["error"].get<std::string>());
   if (!doc.contains("design") || !doc.contains("report") || !doc["report"].is_object())
     throw MeshError(file, "the CAD reader's answer has no design and report");
-  CadRods out;
+  ReaderAnswer out;
   try {
-    out.structure = geometry::parseDesign(doc["design"].dump(), file.string());
-    const nlohmann::json& r = doc["report"];
+    const nlohmann::ordered_json& r = doc["report"];
     out.report.edges = r.at("edges").get<std::size_t>();
     out.report.rods = r.at("rods").get<std::size_t>();
     out.report.joints = r.at("joints").get<std::size_t>();
@@ -200,17 +207,32 @@ CadRods parseAnswer(const std::string& answer, const std::filesystem::path& file
     out.report.largestEndMove = r.at("largest_end_move_mm").get<double>();
     out.report.approximated = r.at("approximated").get<std::size_t>();
     out.report.largestApproximationError = r.at("largest_approximation_error_mm").get<double>();
-  } catch (const geometry::DesignError& e) {
-    throw MeshError(file, std::string("the CAD reader's design is not valid: ") + e.what());
+    out.report.untranslated = r.at("untranslated").get<std::size_t>();
+    out.report.firstUntranslated = r.at("first_untranslated").get<std::string>();
   } catch (const nlohmann::json::exception& e) {
     throw MeshError(file, std::string("the CAD reader's report is malformed: ") + e.what());
+  }
+  out.design = std::move(doc["design"]);
+  return out;
+}
+
+// check(text, sourceName) on the answer's design, as `rodfab validate` reads designs (the parent
+// trusts nothing the process running OpenCASCADE on a hostile file says); returns what it returns.
+template <class Check>
+auto checkedDesign(const ReaderAnswer& answer, const std::filesystem::path& file, Check check) {
+  try {
+    auto checked = check(answer.design.dump(), file.string());
+    std::size_t rods = 0;
+    if constexpr (std::is_same_v<decltype(checked), geometry::RodStructure>) rods = checked.rods.size();
+    else rods = checked.rodCount;
+    if (answer.report.rods != rods) throw MeshError(file, "the CAD reader's report does not match its design");
+    return checked;
+  } catch (const geometry::DesignError& e) {
+    throw MeshError(file, std::string("the CAD reader's design is not valid: ") + e.what());
   } catch (const std::bad_alloc&) {  // the rods' samples: ~0.1-1 MB a winding rod
     throw MeshError(file, "building the model's rods ran out of memory (the memory budget, --max-memory, is " +
                               std::to_string(common::memoryBudget() >> 20) + " MiB): raise --max-memory, or split the model");
   }
-  if (out.report.rods != out.structure.rods.size()) throw MeshError(file, "the CAD reader's report does not match its design");
-  out.structure.source = file.string();
-  return out;
 }
 
 }  // namespace
@@ -248,29 +270,35 @@ std::string resultJson(CadDesign design) {
   answer["design"] = std::move(design.design);  // moved, not copied: it is most of the helper's memory
   answer["report"] = {{"edges", r.edges}, {"rods", r.rods}, {"joints", r.joints}, {"skipped_degenerate", r.skippedDegenerate},
                       {"largest_end_move_mm", r.largestEndMove}, {"approximated", r.approximated},
-                      {"largest_approximation_error_mm", r.largestApproximationError}};
+                      {"largest_approximation_error_mm", r.largestApproximationError}, {"untranslated", r.untranslated},
+                      {"first_untranslated", r.firstUntranslated}};
   return answer.dump();
 }
 
 std::string errorJson(const std::string& message) { return nlohmann::json{{"error", message}}.dump(); }
 
-void checkCadFile(const std::filesystem::path& file) {
-  constexpr std::uint64_t kCadBytesPerFileByte = 64;
+void checkCadFile(const std::filesystem::path& file, geometry::RodsKept kept) {
+  // The least memory a byte of CAD text was measured to need (peak RSS less the process's at rest,
+  // STEP curve sets of straight lines and of winding B-splines, meshing/README.md): rodfab keeping the
+  // rods, 67-70 bytes a byte for lines, 274-276 for the splines (their samples); rodfab writing the
+  // design without them, 17 and 8.6; the reader itself 10-23. A file refused here would need more than
+  // the budget at the least rate measured; one let through may still run out, and the message says so
+  // (each process's data limit is the budget).
+  const std::uint64_t bytesPerFileByte = kept == geometry::RodsKept::All ? 64 : 8;
   detail::requireExtension(file, "CAD", {".step", ".stp", ".iges", ".igs"});
   const std::uintmax_t size = detail::checkedFileSize(file, "");
-  // rodfab builds the rods from the reader's design: 67-70 bytes per byte of a STEP file of straight
-  // lines (2,000 and 20,000 of them, the least a byte of CAD text needs of the kinds measured),
-  // 274-276 for winding B-splines (meshing/README.md); the reader itself needs 10-23, before. A file
-  // refused here would need more than the budget at the least rate measured; one let through may still
-  // run out, and the message says so (the data limit is the budget).
-  common::requireMemory(std::uint64_t(size) * kCadBytesPerFileByte,
+  common::requireMemory(std::uint64_t(size) * bytesPerFileByte,
                         {.what = "reading the CAD model " + file.string(), .remedy = "split the model"});
 }
 
-CadRods rodsFromCadThrough(const std::filesystem::path& helper, const std::filesystem::path& cadFile,
-                           const CadRodOptions& options) {
+namespace {
+
+// The reader's answer for `cadFile`: run at `helper`, waited for (SIGINT / SIGTERM honoured), its end
+// turned into a MeshError unless it answered.
+ReaderAnswer readerAnswer(const std::filesystem::path& helper, const std::filesystem::path& cadFile, const CadRodOptions& options,
+                          geometry::RodsKept kept) {
   if (!(options.jointTolerance > 0) || !(options.modulusMpa > 0)) throw std::invalid_argument("rodsFromCad: options out of range");
-  checkCadFile(cadFile);
+  checkCadFile(cadFile, kept);
   Pipe result, messages;
   Child child(helper, readerArguments({cadFile, options, common::memoryBudget(), static_cast<long>(::getpid())}), result, messages);
   if (child.spawnError())
@@ -280,18 +308,39 @@ CadRods rodsFromCadThrough(const std::filesystem::path& helper, const std::files
   readAnswer(child, result, messages, answer, stderrTail, cadFile);
   const int status = child.reap();
   if (common::interruptRequested()) common::throwIfInterrupted();
-  if (!(WIFEXITED(status) && WEXITSTATUS(status) == 0)) {
-    // An error answered before a non-zero exit is still the reader's own message.
-    if (!answer.empty() && WIFEXITED(status)) return parseAnswer(answer, cadFile);
-    throw MeshError(cadFile, describeEnd(status, stderrTail));
-  }
+  // An error answered before a non-zero exit is still the reader's own message.
+  if (!(WIFEXITED(status) && (WEXITSTATUS(status) == 0 || !answer.empty()))) throw MeshError(cadFile, describeEnd(status, stderrTail));
   return parseAnswer(answer, cadFile);
+}
+
+}  // namespace
+
+CadRods rodsFromCadThrough(const std::filesystem::path& helper, const std::filesystem::path& cadFile,
+                           const CadRodOptions& options) {
+  const ReaderAnswer answer = readerAnswer(helper, cadFile, options, geometry::RodsKept::All);
+  CadRods out{checkedDesign(answer, cadFile, geometry::parseDesign), answer.report};
+  out.structure.source = cadFile.string();
+  return out;
+}
+
+CadDesignWritten writeDesignFromCadThrough(const std::filesystem::path& helper, const std::filesystem::path& cadFile,
+                                           const CadRodOptions& options, const std::filesystem::path& designFile,
+                                           const std::string& description) {
+  ReaderAnswer answer = readerAnswer(helper, cadFile, options, geometry::RodsKept::SummaryOnly);
+  const geometry::DesignSummary summary = checkedDesign(answer, cadFile, geometry::summarizeDesign);
+  geometry::writeDesignDocument(geometry::designJson(std::move(answer.design["rods"]), description), designFile);
+  return {answer.report, summary};
 }
 
 }  // namespace detail
 
 CadRods rodsFromCad(const std::filesystem::path& cadFile, const CadRodOptions& options) {
   return detail::rodsFromCadThrough(helperBesideThisLibrary(), cadFile, options);
+}
+
+CadDesignWritten writeDesignFromCad(const std::filesystem::path& cadFile, const CadRodOptions& options,
+                                    const std::filesystem::path& designFile, const std::string& description) {
+  return detail::writeDesignFromCadThrough(helperBesideThisLibrary(), cadFile, options, designFile, description);
 }
 
 }  // namespace rodfab::meshing

@@ -6,6 +6,7 @@
 // only that command loads OpenCASCADE's 18 libraries.
 #pragma once
 
+#include "geometry/design_reader.hpp"
 #include "meshing/meshing.hpp"
 
 #include <nlohmann/json.hpp>
@@ -49,11 +50,15 @@ std::string errorJson(const std::string& message);
 // once to check it (both cores, one rod a thread at a time) and let go.
 CadDesign readCadDesign(const std::filesystem::path& cadFile, const CadRodOptions& options);
 
-// Format, size and memory of the file, before any reader sees it (in the calling process).
-void checkCadFile(const std::filesystem::path& file);
+// Format, size and memory of the file, before any reader sees it (in the calling process); the memory
+// needed depends on whether the caller keeps the rods (rodsFromCad) or writes the design (writeDesignFromCad).
+void checkCadFile(const std::filesystem::path& file, geometry::RodsKept kept);
 
-// rodsFromCad with the helper at `helper` (tests give stand-ins that crash, hang or lie).
+// rodsFromCad and writeDesignFromCad with the helper at `helper` (tests give stand-ins that crash, hang or lie).
 CadRods rodsFromCadThrough(const std::filesystem::path& helper, const std::filesystem::path& cadFile,
                            const CadRodOptions& options);
+CadDesignWritten writeDesignFromCadThrough(const std::filesystem::path& helper, const std::filesystem::path& cadFile,
+                                           const CadRodOptions& options, const std::filesystem::path& designFile,
+                                           const std::string& description);
 
 }  // namespace rodfab::meshing::detail

@@ -256,7 +256,13 @@ CadDesign readCadDesign(const std::filesystem::path& file, const CadRodOptions& 
     if (auto c = edgeCurve(file, ref, out.report)) curves.push_back(std::move(*c)), edgeOfRod.push_back(ref);
     else ++out.report.skippedDegenerate;
   }
-  if (curves.empty()) throw MeshError(file, "the model holds no edge curve");
+  const TransferFailures failures = transferFailures(reader);
+  out.report.untranslated = failures.entities, out.report.firstUntranslated = failures.first;
+  if (curves.empty())
+    throw MeshError(file, "the model holds no edge curve" +
+                              (failures.entities ? "; OpenCASCADE could not convert " + failures.first +
+                                                       (failures.entities > 1 ? " (and " + std::to_string(failures.entities - 1) + " more entities)" : "")
+                                                 : std::string()));
   out.report.largestEndMove = mergeEnds(curves, options.jointTolerance, out.report.joints);
   std::vector<std::optional<Vec3>> normals(curves.size());
   for (std::size_t r = 0; r < curves.size(); ++r) {

@@ -121,6 +121,11 @@ struct CadRodReport {
   double largestEndMove = 0.0;    // mm: how far merging moved a curve end
   std::size_t approximated = 0;   // curves of a degree above kMaxDegree (offset curves, high-degree splines)
   double largestApproximationError = 0.0;  // mm: the farthest such a curve's rod strays from it (OpenCASCADE's measure)
+  // Entities OpenCASCADE could not convert to shapes, left out of the design with every curve they
+  // hold (a curve set with one unconvertible curve loses all of its curves), and the first of them
+  // named ("entity #15 (GEOMETRIC_CURVE_SET): ..."). rods-from-cad warns of them.
+  std::size_t untranslated = 0;
+  std::string firstUntranslated;
 };
 
 struct CadRods {
@@ -135,9 +140,22 @@ struct CadRods {
 // approximated by one of degree kMaxDegree, as smooth as the curve up to C2, within
 // kCadApproximationToleranceMm (the report counts them). Throws MeshError when the file cannot be
 // read, is malformed (meshing/README.md: what is checked before OpenCASCADE reads and transfers it),
-// holds no edge curve, a curve cannot be approximated so closely, or a rod would not pass the design
+// holds no edge curve (naming the first entity OpenCASCADE could not convert, if any), a curve cannot be approximated so closely, or a rod would not pass the design
 // file's checks (coordinates beyond +-1e9 mm, zero length, a centerline too intricate to sample): the
 // structure returned is always one `rodfab validate` accepts.
 CadRods rodsFromCad(const std::filesystem::path& cadFile, const CadRodOptions& options);
+
+// rodsFromCad's design written to `designFile` (geometry::writeDesignDocument, atomic; `description`
+// its "description", empty for none) instead of kept: the file writeDesign(rodsFromCad(...).structure,
+// designFile, description) writes, checked the same way, but every rod is built once and let go, so
+// the memory peaks at the design's document rather than at its rods (meshing/README.md, "Memory").
+// Returns the report and what geometry::summarize says of the rods. Throws as rodsFromCad and as
+// writeDesignDocument; nothing is written when it throws.
+struct CadDesignWritten {
+  CadRodReport report;
+  geometry::DesignSummary summary;
+};
+CadDesignWritten writeDesignFromCad(const std::filesystem::path& cadFile, const CadRodOptions& options,
+                                    const std::filesystem::path& designFile, const std::string& description);
 
 }  // namespace rodfab::meshing

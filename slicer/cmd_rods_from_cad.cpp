@@ -35,20 +35,24 @@ int runRodsFromCad(const std::vector<std::string>& args) {
   if (!outputAllowed(output, {model}, {"design file", vm.count("force") > 0, "--force", geometry::isDesignRodfabWrote})) return kFailed;
   meshing::CadRodOptions o;
   o.section = shape->section, o.caps = shape->caps, o.modulusMpa = shape->modulusMpa, o.jointTolerance = *tolerance;
-  meshing::CadRods result;
+  meshing::CadDesignWritten result;
   try {
-    result = meshing::rodsFromCad(model, o);
+    result = meshing::writeDesignFromCad(model, o, output, "rods from " + model + " by rodfab rods-from-cad");
   } catch (const meshing::MeshError& e) {
     std::cerr << e.what() << "\n" << model << ": nothing was written\n";
     return kFailed;
   }
-  geometry::writeDesign(result.structure, output, "rods from " + model + " by rodfab rods-from-cad");
-  warnTrayOverhang(result.structure, trayMm, profileName);
+  warnTrayOverhang(result.summary.bounds, trayMm, profileName);
   const meshing::CadRodReport& r = result.report;
+  if (r.untranslated > 0)
+    std::fprintf(stderr, "warning: OpenCASCADE could not convert %zu %s of the model, left out of the design with every curve %s: %s%s; "
+                 "check the model in the program that wrote it\n", r.untranslated, r.untranslated == 1 ? "entity" : "entities",
+                 r.untranslated == 1 ? "it holds" : "they hold", r.firstUntranslated.c_str(), r.untranslated > 1 ? " (the first)" : "");
   if (vm.count("json")) {
     std::cout << nlohmann::json{{"model", model}, {"output", output}, {"edges", r.edges}, {"rods", r.rods}, {"joints", r.joints},
                                 {"skipped_degenerate", r.skippedDegenerate}, {"largest_end_move_mm", r.largestEndMove},
-                                {"approximated", r.approximated}, {"largest_approximation_error_mm", r.largestApproximationError}}
+                                {"approximated", r.approximated}, {"largest_approximation_error_mm", r.largestApproximationError},
+                                {"untranslated", r.untranslated}, {"first_untranslated", r.firstUntranslated}}
                      .dump(2)
               << '\n';
     return kOk;

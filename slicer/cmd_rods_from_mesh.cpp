@@ -76,7 +76,7 @@ int meshToRods(const MeshSettings& s) {
   geometry::writeDesign(result.structure, s.output, description);
   const MeshRodsSummary summary{s.mesh, s.output, s.options.surfaceTolerance, result.report, result.structure};
   warnMeshRods(summary);
-  warnTrayOverhang(result.structure, trayMm, profileName);
+  warnTrayOverhang(result.structure.bounds(), trayMm, profileName);
   if (s.json) std::cout << meshRodsJson(summary).dump(2) << '\n';
   else printMeshRodsLines(summary);
   return kOk;

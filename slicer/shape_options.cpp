@@ -57,8 +57,8 @@ bool loadTrayProfile(const std::string& command, const std::string& nameOrPath, 
   }
 }
 
-void warnTrayOverhang(const geometry::RodStructure& rods, const std::array<double, 3>& trayMm, const std::string& profile) {
-  const geometry::Vec3 size = rods.bounds().sizes();
+void warnTrayOverhang(const geometry::Box3& rodBounds, const std::array<double, 3>& trayMm, const std::string& profile) {
+  const geometry::Vec3 size = rodBounds.sizes();
   const char* axis = "xyz";
   for (int a = 0; a < 3; ++a)
     if (size[a] > trayMm[a])

@@ -27,6 +27,6 @@ std::optional<RodShape> parseRodShape(const std::string& command, const po::vari
 // the error when it cannot be loaded. warnTrayOverhang prints a warning on stderr for every axis where
 // the rods' bounding box is larger than the tray.
 bool loadTrayProfile(const std::string& command, const std::string& nameOrPath, std::array<double, 3>& trayMm, std::string& name);
-void warnTrayOverhang(const geometry::RodStructure& rods, const std::array<double, 3>& trayMm, const std::string& profile);
+void warnTrayOverhang(const geometry::Box3& rodBounds, const std::array<double, 3>& trayMm, const std::string& profile);
 
 }  // namespace rodfab::cli

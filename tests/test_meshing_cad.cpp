@@ -1,5 +1,6 @@
 // rods-from-cad: STEP and IGES models written by OpenCASCADE, rods checked against the exact curves.
 // The hostile files and the reader process's failures: test_meshing_cad_hostile.cpp.
+#include "geometry/design_file.hpp"
 #include "meshing/cad_reader.hpp"
 #include "meshing/meshing.hpp"
 #include "tests/meshing/cad_test_support.hpp"
@@ -219,4 +220,59 @@ TEST_CASE("a high-degree curve with more kinks than the approximation may have p
   CHECK_THAT(cadError("kinks.step", stepModel(data)),
              Catch::Contains("kinks.step: edge 0 (entity #16 (B_SPLINE_CURVE_WITH_KNOTS)): a curve of degree 8, above the 7") &&
                  Catch::Contains("cannot be approximated within 1e-05 mm by 2340 pieces"));
+}
+
+TEST_CASE("writeDesignFromCad writes the file writeDesign writes of rodsFromCad's rods, and says what summarize says", "[meshing][cad]") {
+  testing::writeStep(testing::box(10, 20, 30), scratch("box-written.step"));
+  const auto bytesOf = [](const fs::path& file) {
+    std::ifstream in(file, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  meshing::CadRodOptions ellipses;
+  ellipses.section = geometry::Section::ellipse(1.0, 0.6), ellipses.caps = geometry::CapStyle::Flat, ellipses.modulusMpa = 42.5;
+  // The box with other options, the seeds' wireframe (lines, conics, splines, an offset curve) and
+  // their high-degree curves (approximated).
+  for (const auto& [model, options] : std::vector<std::pair<fs::path, meshing::CadRodOptions>>{
+           {scratch("box-written.step"), ellipses}, {"tests/fuzz/seeds/cad/wireframe.step", {}}, {"tests/fuzz/seeds/cad/high-degree.step", {}}}) {
+    INFO(model);
+    const meshing::CadRods kept = meshing::rodsFromCad(model, options);
+    geometry::writeDesign(kept.structure, scratch("kept.json"), "rods from the model");
+    const meshing::CadDesignWritten written = meshing::writeDesignFromCad(model, options, scratch("written.json"), "rods from the model");
+    CHECK(bytesOf(scratch("written.json")) == bytesOf(scratch("kept.json")));
+    CHECK(geometry::isDesignRodfabWrote(scratch("written.json")));
+    const geometry::DesignSummary s = geometry::summarize(kept.structure);
+    CHECK(written.summary.rodCount == s.rodCount);
+    CHECK(written.summary.totalLength == s.totalLength);
+    CHECK((written.summary.bounds.min() == s.bounds.min() && written.summary.bounds.max() == s.bounds.max()));
+    CHECK((written.report.rods == kept.report.rods && written.report.joints == kept.report.joints &&
+           written.report.approximated == kept.report.approximated));
+  }
+  // A model the reader refuses: nothing written.
+  std::ofstream(scratch("not-cad.step")) << "ISO-10303-21;\nnonsense\n";
+  CHECK_THROWS_AS(meshing::writeDesignFromCad(scratch("not-cad.step"), {}, scratch("refused.json"), ""), meshing::MeshError);
+  CHECK_FALSE(fs::exists(scratch("refused.json")));
+}
+
+TEST_CASE("entities OpenCASCADE cannot convert are counted and named, not dropped silently", "[meshing][cad]") {
+  // Curve set #15 holds the 2 mm offset of a cubic whose end derivatives vanish (OpenCASCADE's transfer
+  // throws converting it and drops the whole set); set #50 holds a plain cubic.
+  const std::string data = "#15 = GEOMETRIC_CURVE_SET('',(#16));\n#16 = OFFSET_CURVE_3D('',#17,2.,.F.,#13);\n"
+                           "#17 = B_SPLINE_CURVE_WITH_KNOTS('',3,(#18,#19,#20,#21),.UNSPECIFIED.,.F.,.F.,(4,4),(0.,1.),.UNSPECIFIED.);\n"
+                           "#18 = CARTESIAN_POINT('',(0.,0.,0.));\n#19 = CARTESIAN_POINT('',(0.,0.,0.));\n"
+                           "#20 = CARTESIAN_POINT('',(30.,0.,0.));\n#21 = CARTESIAN_POINT('',(30.,0.,0.));\n";
+  const std::string plain = "#50 = GEOMETRIC_CURVE_SET('',(#40));\n"
+                            "#40 = B_SPLINE_CURVE_WITH_KNOTS('',3,(#41,#42,#43,#44),.UNSPECIFIED.,.F.,.F.,(4,4),(0.,1.),.UNSPECIFIED.);\n"
+                            "#41 = CARTESIAN_POINT('',(0.,10.,0.));\n#42 = CARTESIAN_POINT('',(10.,15.,0.));\n"
+                            "#43 = CARTESIAN_POINT('',(20.,5.,0.));\n#44 = CARTESIAN_POINT('',(30.,10.,0.));\n";
+  std::string both = stepModel(data + plain);
+  both.replace(both.find("(#11,#15),#26"), 13, "(#11,#15,#50),#26");
+  std::ofstream(scratch("part-dropped.step"), std::ios::binary) << both;
+  const meshing::CadRods result = meshing::rodsFromCad(scratch("part-dropped.step"), {});
+  CHECK(result.structure.rods.size() == 1);
+  CHECK(result.report.untranslated == 1);
+  CHECK_THAT(result.report.firstUntranslated, Catch::StartsWith("entity #15 (") && Catch::Contains("not translated"));
+  CHECK_THAT(cadError("all-dropped.step", stepModel(data)),
+             Catch::Contains("the model holds no edge curve; OpenCASCADE could not convert entity #15 ("));
+  // A model OpenCASCADE converts whole (the seed's wireframe has a warning, not a failure).
+  CHECK(meshing::rodsFromCad("tests/fuzz/seeds/cad/wireframe.step", {}).report.untranslated == 0);
 }

@@ -148,14 +148,25 @@ fs::path fakeReader(const std::string& name, const std::string& body) {
   return path;
 }
 
+// The error of rodsFromCadThrough, checked to be writeDesignFromCadThrough's too, which writes nothing.
 std::string errorThrough(const fs::path& helper, const fs::path& model) {
-  return meshErrorOf(model, [&] { meshing::detail::rodsFromCadThrough(helper, model, {}); });
+  const std::string kept = meshErrorOf(model, [&] { meshing::detail::rodsFromCadThrough(helper, model, {}); });
+  const fs::path design = scratch("never-written.json");
+  CHECK(meshErrorOf(model, [&] { meshing::detail::writeDesignFromCadThrough(helper, model, {}, design, "d"); }) == kept);
+  CHECK_FALSE(fs::exists(design));
+  return kept;
 }
 
 }  // namespace
 
 TEST_CASE("whatever becomes of the CAD reader process is an error naming the file", "[meshing][cad][hostile]") {
   using Catch::Contains;
+  // A report of 2 rods, and a design of one.
+  const std::string kReport = R"({"edges": 2, "rods": 2, "joints": 0, "skipped_degenerate": 0, "largest_end_move_mm": 0,)"
+                              R"( "approximated": 0, "largest_approximation_error_mm": 0, "untranslated": 0, "first_untranslated": ""})";
+  const std::string kDesign = R"({"format": "rodfab.design/1", "rods": [{"name": "edge-0", "centerline": {"degree": 1,)"
+                              R"( "knots": [0, 0, 1, 1], "points": [[0, 0, 0], [5, 0, 0]]}, "section": {"shape": "circle",)"
+                              R"( "diameter": 1}, "modulus": 100}]})";
   const fs::path model = scratch("stand-in.step");
   std::ofstream(model) << "ISO-10303-21;\n";
   CHECK_THAT(errorThrough(fakeReader("segv.sh", "kill -SEGV $$"), model),
@@ -171,9 +182,13 @@ TEST_CASE("whatever becomes of the CAD reader process is an error naming the fil
              Contains("the CAD reader was killed (signal 9, Killed), not by rodfab: the system may have run out of memory"));
   CHECK_THAT(errorThrough(fakeReader("nodesign.sh", "echo '{\"report\": {}}' >&3"), model), Contains("has no design and report"));
   CHECK_THAT(errorThrough(fakeReader("baddesign.sh",
-                                     "echo '{\"design\": {\"format\": \"rodfab.design/1\", \"rods\": 7}, \"report\": {}}' >&3"),
+                                     "echo '{\"design\": {\"format\": \"rodfab.design/1\", \"rods\": 7}, \"report\": " + kReport + "}' >&3"),
                           model),
              Contains("the CAD reader's design is not valid"));
+  CHECK_THAT(errorThrough(fakeReader("badreport.sh", "echo '{\"design\": {}, \"report\": {\"edges\": -1}}' >&3"), model),
+             Contains("the CAD reader's report is malformed"));
+  CHECK_THAT(errorThrough(fakeReader("liar.sh", "echo '{\"design\": " + kDesign + ", \"report\": " + kReport + "}' >&3"), model),
+             Contains("the CAD reader's report does not match its design"));
   CHECK_THAT(errorThrough(scratch("no-such-reader"), model), Contains("did not start (No such file or directory)"));
   // A reader that never answers is waited for, not polled to death: the answer comes when it exits.
   CHECK_THAT(errorThrough(fakeReader("slow.sh", "sleep 0.3; exit 0"), model), Contains("answer is not JSON"));
