@@ -7,6 +7,7 @@
 #include <Geom_BSplineCurve.hxx>
 #include <Geom_BSplineSurface.hxx>
 #include <IGESGeom_BSplineCurve.hxx>
+#include <IGESGeom_Line.hxx>
 #include <IGESGeom_BSplineSurface.hxx>
 #include <IGESSolid_EdgeList.hxx>
 #include <IGESSolid_Loop.hxx>
@@ -291,7 +292,8 @@ void refuseBadSplines(const XSControl_Reader& reader, const std::filesystem::pat
 
 // IGES topology refers into lists by index: a loop's edges into edge lists (or vertex lists), an edge
 // list's ends into vertex lists. OpenCASCADE's transfer reads the indices unchecked: an index past its
-// list was a SIGSEGV (scripts/mutate_cad.py, a loop of make_test_cad's box in IGES).
+// list was a SIGSEGV (scripts/mutate_cad.py, a loop of make_test_cad's box in IGES); so was an edge
+// on a line of zero length.
 std::string listIndexProblem(const Handle(Standard_Transient)& list, int index) {
   int count = -1;
   if (auto edges = Handle(IGESSolid_EdgeList)::DownCast(list); !edges.IsNull()) count = edges->NbEdges();
@@ -311,6 +313,11 @@ std::string igesTopologyProblem(const Handle(Standard_Transient)& entity) {
       std::string problem = listIndexProblem(edges->StartVertexList(i), edges->StartVertexIndex(i));
       if (problem.empty()) problem = listIndexProblem(edges->EndVertexList(i), edges->EndVertexIndex(i));
       if (!problem.empty()) return "edge " + std::to_string(i) + "'s vertex is " + problem;
+      // A line of zero length as an edge: its wire comes back null and the loop's transfer dereferences
+      // it (a SIGSEGV in ShapeExtend_WireData::NbEdges; scripts/mutate_cad.py, make_test_cad's box).
+      const Handle(IGESGeom_Line) line = Handle(IGESGeom_Line)::DownCast(edges->Curve(i));
+      if (!line.IsNull() && line->StartPoint().Distance(line->EndPoint()) == 0.0)
+        return "edge " + std::to_string(i) + "'s curve is a line of zero length (it starts and ends at the same point)";
     }
   }
   return {};

@@ -245,6 +245,34 @@ TEST_CASE("an IGES loop whose edge index is past its edge list is refused, namin
   CHECK(meshing::rodsFromCad(valid, {}).structure.rods.size() == 12);
 }
 
+TEST_CASE("an IGES edge on a line of zero length is refused, naming the edge list", "[meshing][cad][hostile]") {
+  // The box in IGES's B-rep form with its first line (type 110) ending where it starts: OpenCASCADE's
+  // loop transfer dereferences the null wire it makes of that edge (a SIGSEGV, found by mutate_cad.py).
+  const fs::path valid = scratch("box-lines.igs"), bad = scratch("zero-line.igs");
+  testing::writeIges(testing::box(10, 20, 30), valid);
+  std::ifstream in(valid);
+  std::string text, line;
+  bool changed = false;
+  while (std::getline(in, line)) {
+    if (!changed && line.rfind("110,", 0) == 0) {  // 110,X1,Y1,Z1,X2,Y2,Z2;: the end becomes the start
+      const std::string data = line.substr(0, 64);
+      std::size_t at = 4;
+      for (int k = 0; k < 3; ++k) at = data.find(',', at) + 1;
+      std::string zero = data.substr(0, at) + data.substr(4, at - 5) + ";";
+      REQUIRE(zero.size() <= 64);
+      line = zero + std::string(64 - zero.size(), ' ') + line.substr(64);
+      changed = true;
+    }
+    text += line + "\n";
+  }
+  REQUIRE(changed);
+  std::ofstream(bad) << text;
+  CHECK_THAT(meshErrorOf(bad, [&] { meshing::rodsFromCad(bad, {}); }),
+             Catch::Contains("malformed: entity D") && Catch::Contains("EdgeList): edge ") &&
+                 Catch::Contains("'s curve is a line of zero length"));
+  CHECK(meshing::rodsFromCad(valid, {}).structure.rods.size() == 12);
+}
+
 TEST_CASE("a truncated IGES file, on which OpenCASCADE's reader crashes, is refused as cut short", "[meshing][cad][hostile]") {
   const fs::path whole = scratch("whole.igs"), cut = scratch("cut.igs");
   testing::writeIges(testing::edgeOf(testing::testSpline()), whole);
