@@ -40,6 +40,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -365,10 +366,22 @@ std::vector<long long> leadingIntegers(const std::string& text, char delimiter, 
   return values;
 }
 
+// The values an IGES B-spline's parameter record needs for its counts, up to its parameter range
+// (the trailing normal of a planar curve is left out: writers may omit it). Type 126: the type, K, M
+// and 4 flags, K + M + 2 knots, K + 1 weights, 3 (K + 1) coordinates, V(0) and V(1); type 128: the
+// type, K1, K2, M1, M2 and 5 flags, both knot vectors, the weights and coordinates of the
+// (K1 + 1)(K2 + 1) poles, U(0), U(1), V(0), V(1).
+double igesSplineValues(bool curve, const std::vector<long long>& v) {
+  if (curve) return 7.0 + double(v[1] + v[2] + 2) + 4.0 * double(v[1] + 1) + 2.0;
+  return 10.0 + double(v[1] + v[3] + 2) + double(v[2] + v[4] + 2) + 4.0 * double(v[1] + 1) * double(v[2] + 1) + 4.0;
+}
+
 // An IGES B-spline's counts (type 126: upper index K, degree M; type 128: K1, K2, M1, M2) as
 // OpenCASCADE's parameter reader takes them: it sizes and fills arrays from them unchecked, so a
-// degree of a million writes far outside them while loading.
-void checkIgesSpline(const std::string& params, char delimiter, long long line, std::uintmax_t fileBytes,
+// degree of a million writes far outside them while loading, and a record with fewer values than the
+// counts need leaves arrays null that its Init then reads (both SIGSEGVs). `values`: the values the
+// entity's parameter record holds.
+void checkIgesSpline(const std::string& params, long long values, char delimiter, long long line, std::uintmax_t fileBytes,
                      const std::filesystem::path& file) {
   const std::vector<long long> v = leadingIntegers(params, delimiter, 5);
   if (v.empty() || (v[0] != 126 && v[0] != 128)) return;
@@ -387,6 +400,12 @@ void checkIgesSpline(const std::string& params, char delimiter, long long line, 
     if (!problem.empty())
       throw MeshError(file, "line " + std::to_string(line) + ": malformed IGES B-spline " + (curve ? "curve" : "surface") +
                                 " (type " + std::to_string(v[0]) + "): " + problem);
+  }
+  if (const double needed = igesSplineValues(curve, v); double(values) < needed) {
+    char text[160];
+    std::snprintf(text, sizeof text, "%lld values where its counts need at least %.0f", values, needed);
+    throw MeshError(file, "line " + std::to_string(line) + ": malformed IGES B-spline " + (curve ? "curve" : "surface") +
+                              " (type " + std::to_string(v[0]) + "): " + text);
   }
 }
 
@@ -414,14 +433,27 @@ void prescanIgesText(const std::filesystem::path& file) {
   const std::uintmax_t bytes = std::filesystem::file_size(file, ec);
   // Fixed 80-column records: the section letter in column 73; a parameter record holds data in columns
   // 1-64 and its entity's directory pointer in 65-72. The global section may declare another delimiter.
-  char delimiter = ',';
-  bool firstGlobal = true;
+  char delimiter = ',', recordEnd = ';';
+  bool firstGlobal = true, ended = false;
   std::string line, entity, params;
-  long long number = 0, entityLine = 0;
+  long long number = 0, entityLine = 0, values = 0;
   char lastSection = 0;
+  std::optional<MeshError> firstSplineProblem;  // thrown after the Terminate check: a file cut short says so
   const auto flush = [&] {
-    if (!params.empty()) checkIgesSpline(params, delimiter, entityLine, bytes, file);
-    params.clear();
+    try {
+      if (!params.empty() && !firstSplineProblem) checkIgesSpline(params, values, delimiter, entityLine, bytes, file);
+    } catch (const MeshError& e) {
+      firstSplineProblem = e;
+    }
+    params.clear(), values = 1, ended = false;
+  };
+  // The values of an entity's record: its delimiters before the record's end, plus one.
+  const auto countValues = [&](std::string_view data) {
+    for (const char c : data) {
+      if (ended) return;
+      if (c == recordEnd) ended = true;
+      else values += c == delimiter;
+    }
   };
   while (std::getline(in, line)) {
     ++number;
@@ -430,11 +462,14 @@ void prescanIgesText(const std::filesystem::path& file) {
     lastSection = line[72];
     if (line[72] == 'G' && firstGlobal) {
       firstGlobal = false;
-      if (line.compare(0, 2, "1H") == 0 && line.size() > 2) delimiter = line[2];
+      std::size_t at = 0;  // the global section's first two values: the delimiters, "1H," and "1H;" or empty
+      if (line.compare(0, 2, "1H") == 0) delimiter = line[2], at = 3;
+      if (line[at] == delimiter && line.compare(at + 1, 2, "1H") == 0) recordEnd = line[at + 3];
     } else if (line[72] == 'P') {
       const std::string owner = line.substr(64, 8);
       if (owner != entity) flush(), entity = owner, entityLine = number;
       if (params.size() < 256) params += line.substr(0, 64);  // the counts come first
+      countValues(std::string_view(line).substr(0, 64));
     }
   }
   flush();
@@ -444,6 +479,7 @@ void prescanIgesText(const std::filesystem::path& file) {
   if (lastSection != 0 && lastSection != 'T')
     throw MeshError(file, "the file ends without IGES's Terminate record (a 'T' in column 73 of its last line): it was cut "
                           "short, perhaps by an interrupted copy; copy or export it again");
+  if (firstSplineProblem) throw *firstSplineProblem;
 }
 
 void prescanStepText(const std::filesystem::path& file) {

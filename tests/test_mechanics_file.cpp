@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
+#include <functional>
 #include <fstream>
 
 using namespace rodfab::mechanics;
@@ -229,27 +230,38 @@ TEST_CASE("Bad load cases, targets and optimize blocks are reported with their p
   REQUIRE_ISSUE(edit([](json& d) { d["optimize"]["speed"] = 1; }), "optimize.speed", "unknown key");
   REQUIRE_ISSUE(edit([](json& d) { d["optimize"]["curvature_weight"] = "high"; }), "optimize.curvature_weight", "a weight");
 
-  // A {"design": PATH} target that is missing or names rods this design does not have.
+  // A {"design": PATH} target that is missing or names rods this design does not have: the same
+  // issues from readDesign and from checkDesign (which keeps no rods).
   const auto dir = std::filesystem::temp_directory_path() / "rodfab_test_bad_targets";
   std::filesystem::create_directories(dir);
   std::ofstream(dir / "design.json") << withLoadCases().dump();
-  try {
-    readDesign(dir / "design.json");
-    FAIL("expected a DesignError");
-  } catch (const DesignError& e) {
-    REQUIRE(e.issues().size() == 1);
-    CHECK(e.issues()[0].path == "mechanics.load_cases[1].target.design");
-    CHECK(e.issues()[0].message.find("target.json") != std::string::npos);
+  const std::vector<std::function<void()>> readers{[&] { readDesign(dir / "design.json"); }, [&] { checkDesign(dir / "design.json"); }};
+  for (const auto& read : readers) {
+    try {
+      read();
+      FAIL("expected a DesignError");
+    } catch (const DesignError& e) {
+      REQUIRE(e.issues().size() == 1);
+      CHECK(e.issues()[0].path == "mechanics.load_cases[1].target.design");
+      CHECK(e.issues()[0].message.find("target.json") != std::string::npos);
+    }
   }
   json other = validDesign();
   other["rods"][0]["name"] = "stranger";
   std::ofstream(dir / "target.json") << other.dump();
-  try {
-    readDesign(dir / "design.json");
-    FAIL("expected a DesignError");
-  } catch (const DesignError& e) {
-    REQUIRE(e.issues().size() == 1);
-    CHECK(e.issues()[0].message.find("\"stranger\" is not in this design") != std::string::npos);
+  for (const auto& read : readers) {
+    try {
+      read();
+      FAIL("expected a DesignError");
+    } catch (const DesignError& e) {
+      REQUIRE(e.issues().size() == 1);
+      CHECK(e.issues()[0].message.find("\"stranger\" is not in this design") != std::string::npos);
+    }
   }
+  std::ofstream(dir / "target.json") << validDesign().dump();  // names the design's rod: both read it
+  const rodfab::geometry::DesignSummary kept = rodfab::geometry::summarize(readDesign(dir / "design.json")),
+                                        checked = checkDesign(dir / "design.json");
+  CHECK((checked.rodCount == kept.rodCount && checked.totalLength == kept.totalLength && checked.bounds.min() == kept.bounds.min() &&
+         checked.bounds.max() == kept.bounds.max() && checked.modulusMin == kept.modulusMin && checked.modulusMax == kept.modulusMax));
   std::filesystem::remove_all(dir);
 }

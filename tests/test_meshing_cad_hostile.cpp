@@ -98,6 +98,33 @@ TEST_CASE("an IGES B-spline of an impossible degree is refused before OpenCASCAD
              Catch::Contains("malformed IGES B-spline curve (type 126): degree 1000000, expected 1 to 25"));
 }
 
+TEST_CASE("an IGES B-spline whose record holds fewer values than its counts need is refused before loading", "[meshing][cad][hostile]") {
+  // The record "126,5,3,..." claims upper index 95 (96 poles: 493 values) and holds 46; OpenCASCADE's
+  // reader left arrays null that the curve's Init then read (a SIGSEGV, found by mutate_cad.py).
+  const fs::path valid = scratch("valid-count.igs");
+  testing::writeIges(testing::edgeOf(testing::testSpline()), valid);
+  std::ifstream in(valid);
+  std::string text, line;
+  bool changed = false;
+  while (std::getline(in, line)) {
+    if (!changed && line.rfind("126,5,3,", 0) == 0) {
+      std::string data = line.substr(0, 64);
+      const std::size_t weights = data.find("1.,1.,1.,1.,1.,1.,");
+      REQUIRE(weights != std::string::npos);
+      data.replace(weights, 18, "1,1,1,1,1,1,");
+      data.replace(0, 8, "126,95,3,");
+      data.resize(64, ' ');
+      line = data + line.substr(64);
+      changed = true;
+    }
+    text += line + "\n";
+  }
+  REQUIRE(changed);
+  CHECK_THAT(cadError("short-record.igs", text),
+             Catch::Contains("malformed IGES B-spline curve (type 126): 46 values where its counts need at least 493"));
+  CHECK(meshing::rodsFromCad(valid, {}).structure.rods.size() == 1);
+}
+
 TEST_CASE("rods-from-cad never builds a design that validate refuses", "[meshing][cad][hostile]") {
   using Catch::Contains;
   // Coordinates beyond +-1e9 mm, each named by its edge and the entity it came from.
