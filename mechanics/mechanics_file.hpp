@@ -16,6 +16,10 @@ namespace rodfab::mechanics {
 // Reads `file` and every load case's {"design": PATH} target (relative to `file`; its rods must
 // carry names of this design). Throws geometry::DesignError (also for an unreadable file, path "").
 Design readDesign(const std::filesystem::path& file);
+// readDesign's checks (the rods, both blocks, every target design) without keeping the rods: what
+// geometry::summarize says of them, in the memory of the rods being built (one a thread) rather than
+// of all of them (`rodfab validate`). Throws as readDesign.
+geometry::DesignSummary checkDesign(const std::filesystem::path& file);
 // `sourceName` names the text in messages. Targets given as {"design": PATH} are not read (their
 // LoadCase::target stays empty): readDesign reads them.
 Design parseDesign(const std::string& text, const std::string& sourceName);

@@ -435,7 +435,7 @@ OptimizeSpec MechanicsReader::optimize(const json& j, const std::string& path) {
 }
 // The rods of a load case's {"design": PATH} target: the rods of that design (its own targets are
 // not followed) that carry names of this one.
-void resolveTargetDesigns(Design& design, const std::filesystem::path& file) {
+void resolveTargetDesigns(Design& design, const geometry::RodNames& names, const std::filesystem::path& file) {
   std::vector<DesignIssue> issues;
   for (LoadCase& lc : design.mechanics.loadCases) {
     if (lc.targetDesign.empty()) continue;
@@ -454,8 +454,7 @@ void resolveTargetDesigns(Design& design, const std::filesystem::path& file) {
     lc.target.clear();
     for (std::size_t i = 0; i < target.rods.size(); ++i) {
       const geometry::Rod& r = target.rods[i];
-      const bool known = std::any_of(design.rods.begin(), design.rods.end(), [&](const geometry::Rod& d) { return d.name() == r.name(); });
-      if (!known) {
+      if (!names.contains(r.name())) {
         issues.push_back({where, targetFile.string() + ": rods[" + std::to_string(i) + "]: the target's rod \"" + r.name() +
                                      "\" is not in this design (targets match rods by name)"});
         continue;
@@ -469,22 +468,43 @@ void resolveTargetDesigns(Design& design, const std::filesystem::path& file) {
 
 }  // namespace
 
-Design parseDesign(const std::string& text, const std::string& sourceName) {
+namespace {
+
+// A design read with its blocks (its rods kept or only summarized), and the names of its rods.
+struct ReadDesign {
+  Design design;
+  geometry::DesignSummary summary;
+  geometry::RodNames names;
+};
+
+ReadDesign parseWithBlocks(const std::string& text, const std::string& sourceName, geometry::RodsKept kept) {
   MechanicsReader reader;
-  geometry::DesignDocument document = geometry::parseDesignDocument(text, sourceName, reader);
-  Design design(std::move(document.structure));
+  geometry::DesignDocument document = geometry::parseDesignDocument(text, sourceName, reader, kept);
+  ReadDesign out{Design(std::move(document.structure)), document.summary, std::move(document.rodNames)};
   const json& doc = document.json;
   if (auto m = doc.find("mechanics"); m != doc.end() && document.rodsListed)
-    design.mechanics = reader.mechanics(*m, "mechanics", document.rodNames);
-  if (auto o = doc.find("optimize"); o != doc.end()) design.optimize = reader.optimize(*o, "optimize");
+    out.design.mechanics = reader.mechanics(*m, "mechanics", out.names);
+  if (auto o = doc.find("optimize"); o != doc.end()) out.design.optimize = reader.optimize(*o, "optimize");
   if (!reader.issues.empty()) throw geometry::DesignError(sourceName, std::move(reader.issues));
-  return design;
+  return out;
 }
 
-Design readDesign(const std::filesystem::path& file) {
-  Design design = parseDesign(geometry::readDesignText(file), file.string());
-  resolveTargetDesigns(design, file);
-  return design;
+ReadDesign readWithTargets(const std::filesystem::path& file, geometry::RodsKept kept) {
+  ReadDesign read = parseWithBlocks(geometry::readDesignText(file), file.string(), kept);
+  resolveTargetDesigns(read.design, read.names, file);
+  return read;
+}
+
+}  // namespace
+
+Design parseDesign(const std::string& text, const std::string& sourceName) {
+  return parseWithBlocks(text, sourceName, geometry::RodsKept::All).design;
+}
+
+Design readDesign(const std::filesystem::path& file) { return readWithTargets(file, geometry::RodsKept::All).design; }
+
+geometry::DesignSummary checkDesign(const std::filesystem::path& file) {
+  return readWithTargets(file, geometry::RodsKept::SummaryOnly).summary;
 }
 
 }  // namespace rodfab::mechanics

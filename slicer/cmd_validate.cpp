@@ -30,16 +30,15 @@ int runValidate(const std::vector<std::string>& args) {
 
   commandLineAccepted();
   const std::string file = vm["design"].as<std::string>();
-  geometry::RodStructure design;
+  geometry::DesignSummary s;
   try {
-    design = mechanics::readDesign(file);
+    s = mechanics::checkDesign(file);
   } catch (const geometry::DesignError& e) {
     std::cerr << e.what() << '\n'
               << file << ": " << e.issues().size() << (e.issues().size() == 1 ? " error" : " errors")
               << "; the design is not valid\n";
     return kFailed;
   }
-  const geometry::DesignSummary s = geometry::summarize(design);
   if (vm.count("json")) {
     nlohmann::json j{{"design", file},
                      {"valid", true},
