@@ -7,6 +7,7 @@
 #include <catch2/catch.hpp>
 
 #include <cstring>
+#include <functional>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -72,55 +73,53 @@ TEST_CASE("STEP files OpenCASCADE would crash on are refused, naming the entity 
   CHECK(meshing::rodsFromCad(quoted, {}).structure.rods.size() == 1);
 }
 
-TEST_CASE("an IGES B-spline of an impossible degree is refused before OpenCASCADE loads it", "[meshing][cad][hostile]") {
-  const fs::path valid = scratch("valid.igs");
-  testing::writeIges(testing::edgeOf(testing::testSpline()), valid);
-  std::ifstream in(valid);
+namespace {
+
+// The text of the IGES file `file` with the data columns (1-64) of its first parameter record that
+// starts with `prefix` replaced by what `edit` makes of them (padded back to 64 columns).
+std::string withRecordEdited(const fs::path& file, const std::string& prefix, const std::function<std::string(std::string)>& edit) {
+  std::ifstream in(file);
   std::string text, line;
   bool changed = false;
   while (std::getline(in, line)) {
-    // The parameter record "126,5,3,..." (upper index 5, degree 3): the degree becomes 1000000; six
-    // weights written as integers make room for it in the record's 64 data columns.
-    if (!changed && line.rfind("126,5,3,", 0) == 0) {
-      std::string data = line.substr(0, 64);
-      const std::size_t weights = data.find("1.,1.,1.,1.,1.,1.,");
-      REQUIRE(weights != std::string::npos);
-      data.replace(weights, 18, "1,1,1,1,1,1,");
-      data.replace(0, 8, "126,5,1000000,");
-      REQUIRE(data.size() == 64);
-      line = data + line.substr(64);
+    if (!changed && line.rfind(prefix, 0) == 0) {
+      std::string data = edit(line.substr(0, 64));
+      REQUIRE(data.size() <= 64);
+      line = data + std::string(64 - data.size(), ' ') + line.substr(64);
       changed = true;
     }
     text += line + "\n";
   }
   REQUIRE(changed);
-  CHECK_THAT(cadError("degree.igs", text),
+  return text;
+}
+
+// The test spline's record "126,5,3,..." (upper index 5, degree 3) with its counts replaced by
+// `counts` ("126,5,1000000,"); six weights written as integers make room in its 64 data columns.
+std::string splineRecordWithCounts(const fs::path& valid, const std::string& counts) {
+  return withRecordEdited(valid, "126,5,3,", [&](std::string data) {
+    const std::size_t weights = data.find("1.,1.,1.,1.,1.,1.,");
+    REQUIRE(weights != std::string::npos);
+    data.replace(weights, 18, "1,1,1,1,1,1,");
+    return data.replace(0, 8, counts);
+  });
+}
+
+}  // namespace
+
+TEST_CASE("an IGES B-spline of an impossible degree is refused before OpenCASCADE loads it", "[meshing][cad][hostile]") {
+  const fs::path valid = scratch("valid.igs");
+  testing::writeIges(testing::edgeOf(testing::testSpline()), valid);
+  CHECK_THAT(cadError("degree.igs", splineRecordWithCounts(valid, "126,5,1000000,")),
              Catch::Contains("malformed IGES B-spline curve (type 126): degree 1000000, expected 1 to 25"));
 }
 
 TEST_CASE("an IGES B-spline whose record holds fewer values than its counts need is refused before loading", "[meshing][cad][hostile]") {
-  // The record "126,5,3,..." claims upper index 95 (96 poles: 493 values) and holds 46; OpenCASCADE's
-  // reader left arrays null that the curve's Init then read (a SIGSEGV, found by mutate_cad.py).
+  // The record claims upper index 95 (96 poles: 493 values) and holds 46; OpenCASCADE's reader left
+  // arrays null that the curve's Init then read (a SIGSEGV, found by mutate_cad.py).
   const fs::path valid = scratch("valid-count.igs");
   testing::writeIges(testing::edgeOf(testing::testSpline()), valid);
-  std::ifstream in(valid);
-  std::string text, line;
-  bool changed = false;
-  while (std::getline(in, line)) {
-    if (!changed && line.rfind("126,5,3,", 0) == 0) {
-      std::string data = line.substr(0, 64);
-      const std::size_t weights = data.find("1.,1.,1.,1.,1.,1.,");
-      REQUIRE(weights != std::string::npos);
-      data.replace(weights, 18, "1,1,1,1,1,1,");
-      data.replace(0, 8, "126,95,3,");
-      data.resize(64, ' ');
-      line = data + line.substr(64);
-      changed = true;
-    }
-    text += line + "\n";
-  }
-  REQUIRE(changed);
-  CHECK_THAT(cadError("short-record.igs", text),
+  CHECK_THAT(cadError("short-record.igs", splineRecordWithCounts(valid, "126,95,3,")),
              Catch::Contains("malformed IGES B-spline curve (type 126): 46 values where its counts need at least 493"));
   CHECK(meshing::rodsFromCad(valid, {}).structure.rods.size() == 1);
 }
@@ -247,56 +246,32 @@ TEST_CASE("the CAD reader's arguments carry the options exactly", "[meshing][cad
 TEST_CASE("an IGES loop whose edge index is past its edge list is refused, naming the loop", "[meshing][cad][hostile]") {
   // A box in IGES's B-rep form: its loops (type 508) refer to the edge list (504) by index, read
   // unchecked by OpenCASCADE's transfer (a SIGSEGV for an index past the list, found by mutate_cad.py).
-  const fs::path valid = scratch("box.igs"), bad = scratch("badloop.igs");
+  const fs::path valid = scratch("box.igs");
   testing::writeIges(testing::box(10, 20, 30), valid);
-  std::ifstream in(valid);
-  std::string text, line;
-  bool changed = false;
-  while (std::getline(in, line)) {
-    if (!changed && line.rfind("508,", 0) == 0) {  // 508,N,TYPE,EDGE LIST,INDEX,...: the first edge's index becomes 99
-      std::string data = line.substr(0, 64);
-      const std::size_t at = data.find(',', data.find(',', data.find(',', data.find(',') + 1) + 1) + 1) + 1;
-      const std::size_t end = data.find(',', at);
-      data.replace(at, end - at, "99");
-      while (data.size() > 64 && data.back() == ' ') data.pop_back();
-      REQUIRE(data.size() <= 64);
-      line = data + std::string(64 - data.size(), ' ') + line.substr(64);
-      changed = true;
-    }
-    text += line + "\n";
-  }
-  REQUIRE(changed);
-  std::ofstream(bad) << text;
-  CHECK_THAT(meshErrorOf(bad, [&] { meshing::rodsFromCad(bad, {}); }),
+  // 508,N,TYPE,EDGE LIST,INDEX,...: the first edge's index becomes 99.
+  const std::string text = withRecordEdited(valid, "508,", [](std::string data) {
+    const std::size_t at = data.find(',', data.find(',', data.find(',', data.find(',') + 1) + 1) + 1) + 1;
+    data.replace(at, data.find(',', at) - at, "99");
+    while (data.size() > 64 && data.back() == ' ') data.pop_back();
+    return data;
+  });
+  CHECK_THAT(cadError("badloop.igs", text),
              Catch::Contains("malformed: entity D") && Catch::Contains("Loop): edge 1 refers to item 99 of a list of 12"));
   CHECK(meshing::rodsFromCad(valid, {}).structure.rods.size() == 12);
 }
 
 TEST_CASE("an IGES edge on a line of zero length is refused, naming the edge list", "[meshing][cad][hostile]") {
-  // The box in IGES's B-rep form with its first line (type 110) ending where it starts: OpenCASCADE's
+  // The box with its first line (type 110: 110,X1,Y1,Z1,X2,Y2,Z2;) ending where it starts: OpenCASCADE's
   // loop transfer dereferences the null wire it makes of that edge (a SIGSEGV, found by mutate_cad.py).
-  const fs::path valid = scratch("box-lines.igs"), bad = scratch("zero-line.igs");
+  const fs::path valid = scratch("box-lines.igs");
   testing::writeIges(testing::box(10, 20, 30), valid);
-  std::ifstream in(valid);
-  std::string text, line;
-  bool changed = false;
-  while (std::getline(in, line)) {
-    if (!changed && line.rfind("110,", 0) == 0) {  // 110,X1,Y1,Z1,X2,Y2,Z2;: the end becomes the start
-      const std::string data = line.substr(0, 64);
-      std::size_t at = 4;
-      for (int k = 0; k < 3; ++k) at = data.find(',', at) + 1;
-      std::string zero = data.substr(0, at) + data.substr(4, at - 5) + ";";
-      REQUIRE(zero.size() <= 64);
-      line = zero + std::string(64 - zero.size(), ' ') + line.substr(64);
-      changed = true;
-    }
-    text += line + "\n";
-  }
-  REQUIRE(changed);
-  std::ofstream(bad) << text;
-  CHECK_THAT(meshErrorOf(bad, [&] { meshing::rodsFromCad(bad, {}); }),
-             Catch::Contains("malformed: entity D") && Catch::Contains("EdgeList): edge ") &&
-                 Catch::Contains("'s curve is a line of zero length"));
+  const std::string text = withRecordEdited(valid, "110,", [](const std::string& data) {
+    std::size_t at = 4;
+    for (int k = 0; k < 3; ++k) at = data.find(',', at) + 1;
+    return data.substr(0, at) + data.substr(4, at - 5) + ";";
+  });
+  CHECK_THAT(cadError("zero-line.igs", text), Catch::Contains("malformed: entity D") && Catch::Contains("EdgeList): edge ") &&
+                                                  Catch::Contains("'s curve is a line of zero length"));
   CHECK(meshing::rodsFromCad(valid, {}).structure.rods.size() == 12);
 }
 
