@@ -426,6 +426,56 @@ TransferFailures transferFailures(const XSControl_Reader& reader) {
   return out;
 }
 
+// IGES B-rep entities whose record holds a count and then that many items: OpenCASCADE's reader fills
+// its arrays for the count from whatever follows, and a count beyond the values there (or one that is
+// not an integer: "E5") leaves items null that the transfer dereferences (a face of 100,000 loops in a
+// record of 5 values, a SIGSEGV found by scripts/mutate_cad.py).
+struct IgesListEntity {
+  long long type;
+  const char* name;
+  std::size_t countField;  // which value of the record (0: the type) is the count
+  long long fixed;         // values that are not items (the type and the count included)
+  long long perItem;       // the fewest values an item takes
+  const char* items;
+};
+constexpr IgesListEntity kIgesListEntities[] = {
+    {186, "Manifold Solid", 3, 4, 2, "void shells"}, {502, "Vertex List", 1, 2, 3, "vertices"},
+    {504, "Edge List", 1, 2, 5, "edges"},            {508, "Loop", 1, 2, 5, "edges"},
+    {510, "Face", 2, 4, 1, "loops"},                 {514, "Shell", 1, 2, 2, "faces"}};
+
+// The first `count` values of an IGES record, as written (spaces trimmed).
+std::vector<std::string> leadingFields(const std::string& text, char delimiter, std::size_t count) {
+  std::vector<std::string> fields;
+  for (std::size_t at = 0; fields.size() < count && at <= text.size();) {
+    const std::size_t end = std::min(text.find(delimiter, at), text.size());
+    std::string field = text.substr(at, end - at);
+    field.erase(0, field.find_first_not_of(' '));
+    field.erase(field.find_last_not_of(' ') + 1);
+    fields.push_back(field);
+    at = end + 1;
+  }
+  return fields;
+}
+
+void checkIgesListCounts(const std::string& params, long long values, char delimiter, char recordEnd, long long line,
+                         const std::filesystem::path& file) {
+  const std::vector<std::string> fields = leadingFields(params.substr(0, params.find(recordEnd)), delimiter, 4);
+  if (fields.empty()) return;
+  for (const IgesListEntity& e : kIgesListEntities) {
+    if (fields[0] != std::to_string(e.type)) continue;
+    if (fields.size() <= e.countField) return;  // too short: OpenCASCADE's reader records the failure
+    const std::string& count = fields[e.countField];
+    const std::string where = "line " + std::to_string(line) + ": malformed IGES " + e.name + " (type " + std::to_string(e.type) + "): ";
+    if (count.empty() || count.size() > 18 || count.find_first_not_of("0123456789") != std::string::npos)
+      throw MeshError(file, where + "its count of " + e.items + " '" + count + "' is not a whole number");
+    const long long n = std::stoll(count);
+    if (values < e.fixed + e.perItem * n)
+      throw MeshError(file, where + std::to_string(n) + " " + e.items + " need at least " + std::to_string(e.fixed + e.perItem * n) +
+                                " values; the record holds " + std::to_string(values));
+    return;
+  }
+}
+
 void prescanIgesText(const std::filesystem::path& file) {
   std::ifstream in(file, std::ios::binary);
   if (!in) throw MeshError(file, "cannot open");
@@ -438,12 +488,15 @@ void prescanIgesText(const std::filesystem::path& file) {
   std::string line, entity, params;
   long long number = 0, entityLine = 0, values = 0;
   char lastSection = 0;
-  std::optional<MeshError> firstSplineProblem;  // thrown after the Terminate check: a file cut short says so
+  std::optional<MeshError> firstRecordProblem;  // thrown after the Terminate check: a file cut short says so
   const auto flush = [&] {
     try {
-      if (!params.empty() && !firstSplineProblem) checkIgesSpline(params, values, delimiter, entityLine, bytes, file);
+      if (!params.empty() && !firstRecordProblem) {
+        checkIgesSpline(params, values, delimiter, entityLine, bytes, file);
+        checkIgesListCounts(params, values, delimiter, recordEnd, entityLine, file);
+      }
     } catch (const MeshError& e) {
-      firstSplineProblem = e;
+      firstRecordProblem = e;
     }
     params.clear(), values = 1, ended = false;
   };
@@ -460,6 +513,11 @@ void prescanIgesText(const std::filesystem::path& file) {
     if (number % 4096 == 0) common::throwIfInterrupted();
     if (line.size() < 73) continue;
     lastSection = line[72];
+    // A directory or parameter record's sequence number (columns 74-80) is a number: OpenCASCADE's
+    // reader crashed on "000;017" in a directory entry (scripts/mutate_cad.py).
+    if ((line[72] == 'D' || line[72] == 'P') && line.find_first_not_of("0123456789 \r", 73) != std::string::npos)
+      throw MeshError(file, "line " + std::to_string(number) + ": malformed IGES record: its sequence number (columns 74-80) '" +
+                                line.substr(73, 7) + "' is not a number");
     if (line[72] == 'G' && firstGlobal) {
       firstGlobal = false;
       std::size_t at = 0;  // the global section's first two values: the delimiters, "1H," and "1H;" or empty
@@ -479,7 +537,7 @@ void prescanIgesText(const std::filesystem::path& file) {
   if (lastSection != 0 && lastSection != 'T')
     throw MeshError(file, "the file ends without IGES's Terminate record (a 'T' in column 73 of its last line): it was cut "
                           "short, perhaps by an interrupted copy; copy or export it again");
-  if (firstSplineProblem) throw *firstSplineProblem;
+  if (firstRecordProblem) throw *firstRecordProblem;
 }
 
 void prescanStepText(const std::filesystem::path& file) {

@@ -76,14 +76,15 @@ TEST_CASE("STEP files OpenCASCADE would crash on are refused, naming the entity 
 namespace {
 
 // The text of the IGES file `file` with the data columns (1-64) of its first parameter record that
-// starts with `prefix` replaced by what `edit` makes of them (padded back to 64 columns).
+// starts with `prefix`, trailing spaces trimmed, replaced by what `edit` makes of them (padded back).
 std::string withRecordEdited(const fs::path& file, const std::string& prefix, const std::function<std::string(std::string)>& edit) {
   std::ifstream in(file);
   std::string text, line;
   bool changed = false;
   while (std::getline(in, line)) {
     if (!changed && line.rfind(prefix, 0) == 0) {
-      std::string data = edit(line.substr(0, 64));
+      std::string data = line.substr(0, 64);
+      data = edit(data.erase(data.find_last_not_of(' ') + 1));
       REQUIRE(data.size() <= 64);
       line = data + std::string(64 - data.size(), ' ') + line.substr(64);
       changed = true;
@@ -251,9 +252,7 @@ TEST_CASE("an IGES loop whose edge index is past its edge list is refused, namin
   // 508,N,TYPE,EDGE LIST,INDEX,...: the first edge's index becomes 99.
   const std::string text = withRecordEdited(valid, "508,", [](std::string data) {
     const std::size_t at = data.find(',', data.find(',', data.find(',', data.find(',') + 1) + 1) + 1) + 1;
-    data.replace(at, data.find(',', at) - at, "99");
-    while (data.size() > 64 && data.back() == ' ') data.pop_back();
-    return data;
+    return data.replace(at, data.find(',', at) - at, "99");
   });
   CHECK_THAT(cadError("badloop.igs", text),
              Catch::Contains("malformed: entity D") && Catch::Contains("Loop): edge 1 refers to item 99 of a list of 12"));
@@ -272,6 +271,31 @@ TEST_CASE("an IGES edge on a line of zero length is refused, naming the edge lis
   });
   CHECK_THAT(cadError("zero-line.igs", text), Catch::Contains("malformed: entity D") && Catch::Contains("EdgeList): edge ") &&
                                                   Catch::Contains("'s curve is a line of zero length"));
+  CHECK(meshing::rodsFromCad(valid, {}).structure.rods.size() == 12);
+}
+
+TEST_CASE("an IGES B-rep record whose count runs past its values, or a record numbered with garbage, is refused", "[meshing][cad][hostile]") {
+  // Found by mutate_cad.py on the box's B-rep, each a SIGSEGV in OpenCASCADE: a face (510,SURFACE,N,
+  // OUTER,LOOPS...) whose loop count N is "E5", and a directory entry's sequence number "000;017".
+  const fs::path valid = scratch("box-counts.igs");
+  testing::writeIges(testing::box(10, 20, 30), valid);
+  const auto faceWithCount = [&](const std::string& count) {
+    return withRecordEdited(valid, "510,", [&](std::string data) {
+      const std::size_t at = data.find(',', 4) + 1;
+      return data.replace(at, data.find(',', at) - at, count);
+    });
+  };
+  CHECK_THAT(cadError("face-e5.igs", faceWithCount("E5")),
+             Catch::Contains("malformed IGES Face (type 510): its count of loops 'E5' is not a whole number"));
+  CHECK_THAT(cadError("face-many.igs", faceWithCount("100000")),
+             Catch::Contains("malformed IGES Face (type 510): 100000 loops need at least 100004 values; the record holds 5"));
+  std::ifstream in(valid);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::size_t directory = text.find("D0000001\n");
+  REQUIRE(directory != std::string::npos);
+  text.replace(directory + 1, 7, "000;001");
+  CHECK_THAT(cadError("sequence.igs", text),
+             Catch::Contains("malformed IGES record: its sequence number (columns 74-80) '000;001' is not a number"));
   CHECK(meshing::rodsFromCad(valid, {}).structure.rods.size() == 12);
 }
 
