@@ -154,8 +154,8 @@ private:
 }  // namespace
 
 // CGAL's PLY reader adds a "property" to the last element without checking there is one, and reads a
-// vertex's x, y, z as float or double without checking their declared type (both undefined behaviour,
-// found by fuzzing); it reads as many elements as declared. So the header is checked first: order,
+// vertex's x, y, z as float or double without checking their declared type, nor that they are not lists
+// (each undefined behaviour, a member call on a null pointer: found by fuzzing); it reads as many elements as declared. So the header is checked first: order,
 // coordinate types, and counts (each element takes at least one byte).
 void checkPlyHeader(const std::string& bytes, const std::string& source) {
   std::istringstream in(bytes);
@@ -177,9 +177,14 @@ void checkPlyHeader(const std::string& bytes, const std::string& source) {
       element = true;
     } else if (keyword == "property") {
       if (!element) throw MeshError(source, "PLY header line " + std::to_string(number) + ": a property before any element");
-      std::string type, name;
-      words >> type >> name;
+      std::string type, name, countType;
+      words >> type;
+      if (type == "list") words >> countType >> type;  // a list's count and item types
+      words >> name;
       const bool coordinate = elementName == "vertex" && (name == "x" || name == "y" || name == "z");
+      if (coordinate && !countType.empty())
+        throw MeshError(source, "PLY header line " + std::to_string(number) + ": vertex coordinate " + name +
+                                    " is a list (expected a float or double)");
       if (coordinate && type != "float" && type != "float32" && type != "double" && type != "float64")
         throw MeshError(source, "PLY header line " + std::to_string(number) + ": vertex coordinate " + name +
                                     " of type '" + type + "' (expected float or double)");

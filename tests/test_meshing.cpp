@@ -206,6 +206,10 @@ TEST_CASE("bad meshes get an error naming the file and the problem", "[meshing]"
   CHECK_THAT(error(scratch("short.off")), Catch::Contains("a face of 4 corners needs as many"));
   writeText(scratch("prop.ply"), "ply\nformat ascii 1.0\nproperty float x\nelement vertex 1\nend_header\n0\n");
   CHECK_THAT(error(scratch("prop.ply")), Catch::Contains("PLY header line 3: a property before any element"));
+  // A vertex coordinate declared as a list: CGAL's reader called through a null pointer (found by fuzzing).
+  writeText(scratch("listy.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty list uchar float y\n"
+                                  "property float z\nend_header\n0 1 0 0\n");
+  CHECK_THAT(error(scratch("listy.ply")), Catch::Contains("PLY header line 5: vertex coordinate y is a list (expected a float or double)"));
   writeText(scratch("mesh.dxf"), "x");
   CHECK_THAT(error(scratch("mesh.dxf")), Catch::Contains("unknown mesh format"));
   // Three triangles on one edge.
