@@ -210,6 +210,9 @@ TEST_CASE("bad meshes get an error naming the file and the problem", "[meshing]"
   writeText(scratch("listy.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty list uchar float y\n"
                                   "property float z\nend_header\n0 1 0 0\n");
   CHECK_THAT(error(scratch("listy.ply")), Catch::Contains("PLY header line 5: vertex coordinate y is a list (expected a float or double)"));
+  // Two format lines: CGAL read the binary body by the first, the list check by the second (found by fuzzing).
+  writeText(scratch("formats.ply"), "ply\nformat binary_little_endian 1.0\nformat ascii 1.0\nelement vertex 1\nend_header\n");
+  CHECK_THAT(error(scratch("formats.ply")), Catch::Contains("PLY header line 3: a second format line"));
   writeText(scratch("mesh.dxf"), "x");
   CHECK_THAT(error(scratch("mesh.dxf")), Catch::Contains("unknown mesh format"));
   // Three triangles on one edge.
@@ -376,5 +379,12 @@ TEST_CASE("a PLY list longer than the file is refused before CGAL sizes it", "[m
     std::string lying = tetrahedronPly("ascii", "uchar", 3);
     lying.replace(lying.find("\n3 0 2 1 ") + 1, 1, length);
     CHECK_THROWS_WITH(meshing::checkMeshBytes(lying, "ply", "t.ply"), Catch::Contains("PLY face 0: a list of " + length + " entries"));
+  }
+  // A binary body cut short (CGAL reads past its end into uninitialised numbers: list lengths of
+  // gigabytes, found by fuzzing): refused at the item where it ends, in either byte order.
+  for (const std::string format : {"binary_little_endian", "binary_big_endian"}) {
+    const std::string whole = tetrahedronPly(format, "uint", 3);
+    CHECK_THROWS_WITH(meshing::checkMeshBytes(whole.substr(0, whole.size() - 10), "ply", "t.ply"),
+                      Catch::StartsWith("t.ply: PLY face 3: the file ends inside it") && Catch::Contains("was it cut short?"));
   }
 }
