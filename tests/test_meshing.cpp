@@ -210,9 +210,12 @@ TEST_CASE("bad meshes get an error naming the file and the problem", "[meshing]"
   writeText(scratch("listy.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty list uchar float y\n"
                                   "property float z\nend_header\n0 1 0 0\n");
   CHECK_THAT(error(scratch("listy.ply")), Catch::Contains("PLY header line 5: vertex coordinate y is a list (expected a float or double)"));
-  // Two format lines: CGAL read the binary body by the first, the list check by the second (found by fuzzing).
+  // A second format line (CGAL reads line 2's only) and no end_header (CGAL then reads the body past the
+  // end of the file: list lengths of gigabytes, found by fuzzing).
   writeText(scratch("formats.ply"), "ply\nformat binary_little_endian 1.0\nformat ascii 1.0\nelement vertex 1\nend_header\n");
-  CHECK_THAT(error(scratch("formats.ply")), Catch::Contains("PLY header line 3: a second format line"));
+  CHECK_THAT(error(scratch("formats.ply")), Catch::Contains("PLY header line 3: a format line where PLY has it on line 2 only"));
+  writeText(scratch("endless.ply"), "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nend_@header\n");
+  CHECK_THAT(error(scratch("endless.ply")), Catch::Contains("the PLY header has no end_header line"));
   writeText(scratch("mesh.dxf"), "x");
   CHECK_THAT(error(scratch("mesh.dxf")), Catch::Contains("unknown mesh format"));
   // Three triangles on one edge.
