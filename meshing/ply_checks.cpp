@@ -166,9 +166,18 @@ void checkPlyHeader(const std::string& bytes, const std::string& source) {
     std::string keyword;
     words >> keyword;
     if (keyword == "end_header") return;
-    // CGAL takes the format from line 2 only; checkPlyLists from a format line anywhere.
-    if (keyword == "format" && number != 2)
-      throw MeshError(source, "PLY header line " + std::to_string(number) + ": a format line where PLY has it on line 2 only");
+    // CGAL takes the format from line 2 whatever its first word ("*format binary_little_endian" read as
+    // binary), checkPlyLists from a line "format ...": line 2 is that line, and the only one.
+    if ((keyword == "format") != (number == 2))
+      throw MeshError(source, "PLY header line " + std::to_string(number) +
+                                  (number == 2 ? ": expected 'format ascii 1.0' (or binary_little_endian, binary_big_endian)"
+                                               : ": a format line where PLY has it on line 2 only"));
+    if (number == 2) {
+      std::string format;
+      words >> format;
+      if (format != "ascii" && format != "binary_little_endian" && format != "binary_big_endian")
+        throw MeshError(source, "PLY header line 2: unknown format '" + format + "' (expected ascii, binary_little_endian or binary_big_endian)");
+    }
     if (keyword == "element") {
       std::string name;
       double count = -1;

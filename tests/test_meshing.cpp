@@ -214,6 +214,9 @@ TEST_CASE("bad meshes get an error naming the file and the problem", "[meshing]"
   // end of the file: list lengths of gigabytes, found by fuzzing).
   writeText(scratch("formats.ply"), "ply\nformat binary_little_endian 1.0\nformat ascii 1.0\nelement vertex 1\nend_header\n");
   CHECK_THAT(error(scratch("formats.ply")), Catch::Contains("PLY header line 3: a format line where PLY has it on line 2 only"));
+  // Line 2 not a format line: CGAL reads its second word as the format anyway.
+  writeText(scratch("starformat.ply"), "ply\n*format binary_little_endian 1.0\nelement vertex 1\nproperty float x\nend_header\n");
+  CHECK_THAT(error(scratch("starformat.ply")), Catch::Contains("PLY header line 2: expected 'format ascii 1.0'"));
   // A property of a type CGAL does not know, which it skips while the list check would read nothing.
   writeText(scratch("floz.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty floz at\nend_header\n0 0\n");
   CHECK_THAT(error(scratch("floz.ply")), Catch::Contains("PLY header line 5: a property of unknown type 'floz'"));
