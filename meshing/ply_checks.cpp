@@ -99,7 +99,7 @@ public:
   PlyBody(const std::string& bytes, const PlyLayout& layout, const std::string& source)
       : bytes_(bytes), at_(layout.bodyStart), ascii_(layout.format == "ascii"),
         bigEndian_(layout.format == "binary_big_endian"), source_(source) {}
-  // False at the end of the file (CGAL's reader then says what is missing).
+  // False at the end of the file.
   bool skip(const PlyProperty& property, const std::string& element, std::uint64_t index) {
     if (property.countType.empty()) return advance(property.itemType);
     double count = 0;
@@ -216,10 +216,10 @@ void checkPlyHeader(const std::string& bytes, const std::string& source) {
 // CGAL's PLY reader sizes a list from its declared length before reading it, so one lying length (a
 // face of 2,000,000,000 corners in a 150-byte file) grew the process to the memory budget (7.9 GB, 39 s
 // on a 24 GiB machine) before it failed. Every list's length is checked against the bytes left first.
-// A binary body shorter than its header declares is refused too: CGAL reads each binary number into an
-// uninitialised buffer and keeps it when the stream has ended, so a list's length past the end is
-// whatever the stack held (a 3.4 GB allocation in fuzz_mesh_reader, 2026-12-05). An ASCII body is left
-// to CGAL, whose failed reads give 0.
+// A body shorter than its header declares is refused too: past the end CGAL's reads leave their number
+// uninitialised (a binary read keeps its buffer; an ASCII read on a stream already failed stores
+// nothing), so a list's length there is whatever the stack held (a 3.4 GB allocation and a loop of 14 s
+// in fuzz_mesh_reader, 2026-12-05).
 void checkPlyLists(const std::string& bytes, const std::string& source) {
   const std::optional<PlyLayout> layout = plyLayout(bytes);
   if (!layout) return;
@@ -228,11 +228,9 @@ void checkPlyLists(const std::string& bytes, const std::string& source) {
     for (std::uint64_t i = 0; i < element.count; ++i) {
       if (i % 65536 == 0) common::throwIfInterrupted();
       for (const PlyProperty& property : element.properties)
-        if (!body.skip(property, element.name, i)) {
-          if (layout->format == "ascii") return;
+        if (!body.skip(property, element.name, i))
           throw MeshError(source, "PLY " + element.name + " " + std::to_string(i) + ": the file ends inside it (its " +
                                       std::to_string(bytes.size()) + " bytes hold less than the header declares: was it cut short?)");
-        }
     }
 }
 
