@@ -154,9 +154,10 @@ private:
 }  // namespace
 
 // CGAL's PLY reader adds a "property" to the last element without checking there is one, and reads a
-// vertex's x, y, z as float or double without checking their declared type, nor that they are not lists
-// (each undefined behaviour, a member call on a null pointer: found by fuzzing); it reads as many elements as declared. So the header is checked first: order,
-// coordinate types, and counts (each element takes at least one byte).
+// vertex's x, y, z as float or double without checking their declared type, nor that they are not
+// lists (each undefined behaviour, a member call on a null pointer: found by fuzzing); it reads as many
+// elements as declared. So the header is checked first: order, coordinate types, counts (each element
+// takes at least one byte), and that checkPlyLists reads the layout CGAL reads (below).
 void checkPlyHeader(const std::string& bytes, const std::string& source) {
   std::istringstream in(bytes);
   std::string line, elementName;
@@ -195,9 +196,9 @@ void checkPlyHeader(const std::string& bytes, const std::string& source) {
       words >> name;
       // CGAL skips a property of a type it does not know (and reads the body as if it were not there),
       // where the list check would read nothing: a list length of 1.7 GB passed (fuzz_mesh_reader).
-      const std::string unknown = plyTypeSize(type) == 0 ? type : !countType.empty() && plyTypeSize(countType) == 0 ? countType : "";
-      if (plyTypeSize(type) == 0 || !unknown.empty())
-        throw MeshError(source, "PLY header line " + std::to_string(number) + ": a property of unknown type '" + unknown +
+      if (plyTypeSize(type) == 0 || (!countType.empty() && plyTypeSize(countType) == 0))
+        throw MeshError(source, "PLY header line " + std::to_string(number) + ": a property of unknown type '" +
+                                    (plyTypeSize(type) == 0 ? type : countType) +
                                     "' (expected char, uchar, short, ushort, int, uint, float or double, or int8 to float64)");
       const bool coordinate = elementName == "vertex" && (name == "x" || name == "y" || name == "z");
       if (coordinate && !countType.empty())
