@@ -466,9 +466,10 @@ void checkIgesListCounts(const std::string& params, long long values, char delim
     if (fields.size() <= e.countField) return;  // too short: OpenCASCADE's reader records the failure
     const std::string& count = fields[e.countField];
     const std::string where = "line " + std::to_string(line) + ": malformed IGES " + e.name + " (type " + std::to_string(e.type) + "): ";
-    if (count.empty() || count.size() > 18 || count.find_first_not_of("0123456789") != std::string::npos)
+    // An empty field is IGES's default, 0.
+    if (count.size() > 18 || count.find_first_not_of("0123456789") != std::string::npos)
       throw MeshError(file, where + "its count of " + e.items + " '" + count + "' is not a whole number");
-    const long long n = std::stoll(count);
+    const long long n = count.empty() ? 0 : std::stoll(count);
     if (values < e.fixed + e.perItem * n)
       throw MeshError(file, where + std::to_string(n) + " " + e.items + " need at least " + std::to_string(e.fixed + e.perItem * n) +
                                 " values; the record holds " + std::to_string(values));

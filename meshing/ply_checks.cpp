@@ -101,6 +101,7 @@ public:
         bigEndian_(layout.format == "binary_big_endian"), source_(source) {}
   // False at the end of the file.
   bool skip(const PlyProperty& property, const std::string& element, std::uint64_t index) {
+    element_ = &element, index_ = index;
     if (property.countType.empty()) return advance(property.itemType);
     double count = 0;
     if (!read(property.countType, count)) return false;
@@ -129,25 +130,50 @@ private:
     }
     const std::size_t begin = skipWord();
     if (begin == std::string::npos) return false;
-    value = std::strtod(std::string(bytes_, begin, std::min<std::size_t>(at_ - begin, 64)).c_str(), nullptr);
+    value = asciiNumber(begin, type);
     return true;
   }
   bool advance(const std::string& type) {
-    if (ascii_) return skipWord() != std::string::npos;
+    if (ascii_) {
+      const std::size_t begin = skipWord();
+      if (begin != std::string::npos) asciiNumber(begin, type);
+      return begin != std::string::npos;
+    }
     if (bytes_.size() - at_ < std::size_t(plyTypeSize(type))) return false;
     at_ += std::size_t(plyTypeSize(type));
     return true;
   }
-  // Moves past the next ASCII word; its start, or npos at the end of the file.
+  // Moves past the next ASCII word (separated as CGAL's stream extraction separates them); its start,
+  // or npos at the end of the file.
   std::size_t skipWord() {
-    const std::size_t begin = bytes_.find_first_not_of(" \t\r\n", at_);
-    if (begin != std::string::npos) at_ = std::min(bytes_.find_first_of(" \t\r\n", begin), bytes_.size());
+    static constexpr const char* kSpace = " \t\n\v\f\r";
+    const std::size_t begin = bytes_.find_first_not_of(kSpace, at_);
+    if (begin != std::string::npos) at_ = std::min(bytes_.find_first_of(kSpace, begin), bytes_.size());
     return begin;
+  }
+  // The ASCII word from `begin` to the cursor as a number of `type`. The whole word must be one: CGAL
+  // extracts an integer from "0-1" and reads "-1" as the next number (as 4294967295 for a list's
+  // length: a 4 GB allocation, found by fuzzing), so any other word would make its reading and this
+  // check's part ways.
+  double asciiNumber(std::size_t begin, const std::string& type) {
+    const std::string word(bytes_, begin, std::min<std::size_t>(at_ - begin, 64));
+    const bool integer = type != "float" && type != "float32" && type != "double" && type != "float64";
+    char* end = nullptr;
+    const double value = std::strtod(word.c_str(), &end);
+    const std::size_t digits = !word.empty() && (word[0] == '+' || word[0] == '-') ? 1 : 0;  // after the sign
+    const bool whole = at_ - begin <= 64 && (integer ? word.size() > digits && word.find_first_not_of("0123456789", digits) == std::string::npos
+                                                     : !word.empty() && end == word.c_str() + word.size());
+    if (!whole)
+      throw MeshError(source_, "PLY " + *element_ + " " + std::to_string(index_) + ": '" + word.substr(0, 32) + "' is not " +
+                                   (integer ? "an integer" : "a number") + " (a " + type + " property)");
+    return value;
   }
 
   const std::string& bytes_;
   std::size_t at_;
   bool ascii_, bigEndian_;
+  const std::string* element_ = nullptr;  // where the cursor is, for messages
+  std::uint64_t index_ = 0;
   const std::string& source_;
 };
 

@@ -384,11 +384,20 @@ TEST_CASE("a PLY list longer than the file is refused before CGAL sizes it", "[m
   texture.replace(texture.rfind(" 2 0.5 0.5"), 10, " 99 0.5 0.5");
   CHECK_THROWS_WITH(meshing::checkMeshBytes(texture, "ply", "t.ply"), Catch::Contains("PLY face 3: a list of 99 entries"));
   // A negative or fractional length is no length.
-  for (const std::string length : {"-3", "2.5"}) {
+  for (const auto& [length, message] : {std::pair<std::string, std::string>{"-3", "a list of -3 entries"},
+                                        {"2.5", "'2.5' is not an integer (a uchar property)"}}) {
     std::string lying = tetrahedronPly("ascii", "uchar", 3);
     lying.replace(lying.find("\n3 0 2 1 ") + 1, 1, length);
-    CHECK_THROWS_WITH(meshing::checkMeshBytes(lying, "ply", "t.ply"), Catch::Contains("PLY face 0: a list of " + length + " entries"));
+    CHECK_THROWS_WITH(meshing::checkMeshBytes(lying, "ply", "t.ply"), Catch::Contains("PLY face 0: " + message));
   }
+  // A word CGAL's stream would read as two numbers ("0-1": 0, then -1, as a list length 4294967295 in
+  // CGAL: a 4 GB allocation, found by fuzzing), or no number at all, in any property.
+  std::string twoInOne = tetrahedronPly("ascii", "uint", 3);
+  twoInOne.replace(twoInOne.find("\n3 0 2 1 ") + 3, 1, "0-1");
+  CHECK_THROWS_WITH(meshing::checkMeshBytes(twoInOne, "ply", "t.ply"), Catch::Contains("PLY face 0: '0-1' is not an integer (a int property)"));
+  std::string word = tetrahedronPly("ascii", "uchar", 3);
+  word.replace(word.find(" 0.5 0.5\n"), 4, " 0.5x");
+  CHECK_THROWS_WITH(meshing::checkMeshBytes(word, "ply", "t.ply"), Catch::Contains("PLY face 0: '0.5x' is not a number (a float property)"));
   // A body cut short (CGAL reads past its end into uninitialised numbers: list lengths of gigabytes,
   // found by fuzzing): refused at the item where it ends, ASCII or binary in either byte order.
   for (const std::string format : {"ascii", "binary_little_endian", "binary_big_endian"}) {
