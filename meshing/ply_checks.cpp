@@ -226,7 +226,8 @@ void checkPlyHeader(const std::string& bytes, const std::string& source) {
         throw MeshError(source, "PLY header line " + std::to_string(number) + ": a property of unknown type '" +
                                     (plyTypeSize(type) == 0 ? type : countType) +
                                     "' (expected char, uchar, short, ushort, int, uint, float or double, or int8 to float64)");
-      const bool coordinate = elementName == "vertex" && (name == "x" || name == "y" || name == "z");
+      // CGAL reads points from an element "vertex" or "vertices".
+      const bool coordinate = (elementName == "vertex" || elementName == "vertices") && (name == "x" || name == "y" || name == "z");
       if (coordinate && !countType.empty())
         throw MeshError(source, "PLY header line " + std::to_string(number) + ": vertex coordinate " + name +
                                     " is a list (expected a float or double)");

@@ -210,6 +210,9 @@ TEST_CASE("bad meshes get an error naming the file and the problem", "[meshing]"
   writeText(scratch("listy.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty list uchar float y\n"
                                   "property float z\nend_header\n0 1 0 0\n");
   CHECK_THAT(error(scratch("listy.ply")), Catch::Contains("PLY header line 5: vertex coordinate y is a list (expected a float or double)"));
+  // The same for an element "vertices", which CGAL reads points from too (found by fuzzing).
+  writeText(scratch("vertices.ply"), "ply\nformat ascii 1.0\nelement vertices 1\nproperty uchar x\nend_header\n0\n");
+  CHECK_THAT(error(scratch("vertices.ply")), Catch::Contains("PLY header line 4: vertex coordinate x of type 'uchar' (expected float or double)"));
   // A second format line (CGAL reads line 2's only) and no end_header (CGAL then reads the body past the
   // end of the file: list lengths of gigabytes, found by fuzzing).
   writeText(scratch("formats.ply"), "ply\nformat binary_little_endian 1.0\nformat ascii 1.0\nelement vertex 1\nend_header\n");
