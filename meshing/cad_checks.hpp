@@ -37,8 +37,11 @@ inline constexpr double kMaxStepListSquares = 1e10;
 // What OpenCASCADE's STEP parser cannot take, found by one pass over the text: lists nested deeper than
 // kMaxStepNesting, lists too long (above), and entity ids (#N) above kMaxStepEntityId, named by line.
 void prescanStepText(const std::filesystem::path& file);
-// What OpenCASCADE's IGES parser cannot take: B-spline curves and surfaces (types 126 and 128) whose
-// degree or pole count is out of range, named by line.
+// What OpenCASCADE's IGES parser cannot take (iges_text_checks.cpp), named by line: B-spline curves and
+// surfaces (types 126 and 128) whose degree or pole count is out of range or whose record holds fewer
+// values than those counts need; B-rep records (solid, shell, face, loop, edge and vertex lists) whose
+// item count is not a whole number or runs past the record; directory or parameter records whose
+// sequence number is not a number; a file without its Terminate record (cut short).
 void prescanIgesText(const std::filesystem::path& file);
 
 // The loaded model, before any transfer: no failure recorded while loading (unresolved references,
