@@ -24,7 +24,6 @@
 #include <cstdlib>
 #include <cstring>
 #include <new>
-#include <type_traits>
 
 extern char** environ;
 
@@ -217,22 +216,23 @@ ReaderAnswer parseAnswer(const std::string& answer, const std::filesystem::path&
 }
 
 // check(text, sourceName) on the answer's design, as `rodfab validate` reads designs (the parent
-// trusts nothing the process running OpenCASCADE on a hostile file says); returns what it returns.
+// trusts nothing the process running OpenCASCADE on a hostile file says); returns what it returns,
+// its errors as MeshErrors.
 template <class Check>
 auto checkedDesign(const ReaderAnswer& answer, const std::filesystem::path& file, Check check) {
   try {
-    auto checked = check(answer.design.dump(), file.string());
-    std::size_t rods = 0;
-    if constexpr (std::is_same_v<decltype(checked), geometry::RodStructure>) rods = checked.rods.size();
-    else rods = checked.rodCount;
-    if (answer.report.rods != rods) throw MeshError(file, "the CAD reader's report does not match its design");
-    return checked;
+    return check(answer.design.dump(), file.string());
   } catch (const geometry::DesignError& e) {
     throw MeshError(file, std::string("the CAD reader's design is not valid: ") + e.what());
   } catch (const std::bad_alloc&) {  // the rods' samples: ~0.1-1 MB a winding rod
     throw MeshError(file, "building the model's rods ran out of memory (the memory budget, --max-memory, is " +
                               std::to_string(common::memoryBudget() >> 20) + " MiB): raise --max-memory, or split the model");
   }
+}
+
+// The reader's report counts the rods its design holds; a process that says otherwise is not trusted.
+void requireReportMatches(const CadRodReport& report, std::size_t rodsInDesign, const std::filesystem::path& file) {
+  if (report.rods != rodsInDesign) throw MeshError(file, "the CAD reader's report does not match its design");
 }
 
 }  // namespace
@@ -319,6 +319,7 @@ CadRods rodsFromCadThrough(const std::filesystem::path& helper, const std::files
                            const CadRodOptions& options) {
   const ReaderAnswer answer = readerAnswer(helper, cadFile, options, geometry::RodsKept::All);
   CadRods out{checkedDesign(answer, cadFile, geometry::parseDesign), answer.report};
+  requireReportMatches(answer.report, out.structure.rods.size(), cadFile);
   out.structure.source = cadFile.string();
   return out;
 }
@@ -328,6 +329,7 @@ CadDesignWritten writeDesignFromCadThrough(const std::filesystem::path& helper, 
                                            const std::string& description) {
   ReaderAnswer answer = readerAnswer(helper, cadFile, options, geometry::RodsKept::SummaryOnly);
   const geometry::DesignSummary summary = checkedDesign(answer, cadFile, geometry::summarizeDesign);
+  requireReportMatches(answer.report, summary.rodCount, cadFile);
   geometry::writeDesignDocument(geometry::designJson(std::move(answer.design["rods"]), description), designFile);
   return {answer.report, summary};
 }
