@@ -1,6 +1,7 @@
 #include "calibration/data.hpp"
 
 #include "common/json_input.hpp"
+#include "common/quoted_text.hpp"
 
 #include <boost/algorithm/string/case_conv.hpp>
 #include <boost/algorithm/string/trim.hpp>
@@ -41,20 +42,15 @@ constexpr const char* kColumnList = "vero_fraction, modulus_mpa, temperature_c, 
 // A header name close to a known column but with another unit is the mistake worth naming: a modulus
 // in GPa or a fraction in percent would otherwise fit silently wrong.
 std::string unknownColumnMessage(const std::string& name) {
+  const std::string column = "column " + common::quotedFromFile(name);
   const auto startsWith = [&](const char* prefix) { return name.rfind(prefix, 0) == 0; };
   if (startsWith("modulus") || startsWith("e_") || name == "e" || startsWith("storage_modulus"))
-    return "column '" + name + "': the modulus must be given in MPa, in a column named 'modulus_mpa'";
+    return column + ": the modulus must be given in MPa, in a column named 'modulus_mpa'";
   if (startsWith("vero") || startsWith("fraction"))
-    return "column '" + name + "': the Vero share must be a fraction from 0 to 1, in a column named 'vero_fraction'";
+    return column + ": the Vero share must be a fraction from 0 to 1, in a column named 'vero_fraction'";
   if (startsWith("temp"))
-    return "column '" + name + "': the temperature must be given in degrees Celsius, in a column named 'temperature_c'";
-  return std::string("unknown column '") + name + "' (expected: " + kColumnList + ")";
-}
-
-std::string shown(std::string_view s) {
-  std::string q(s.substr(0, 40));
-  if (s.size() > 40) q += "...";
-  return "'" + q + "'";
+    return column + ": the temperature must be given in degrees Celsius, in a column named 'temperature_c'";
+  return "unknown " + column + " (expected: " + kColumnList + ")";
 }
 
 std::optional<double> parseNumber(const std::string& field) {
@@ -110,7 +106,7 @@ Header readHeader(const std::vector<std::string>& fields, int lineNumber, Issues
       header.columns.push_back(std::nullopt);
       continue;
     }
-    if (header.position.count(known->second)) fail("column '" + name + "' appears twice");
+    if (header.position.count(known->second)) fail("column " + common::quotedFromFile(name) + " appears twice");
     header.position[known->second] = i;
     header.columns.push_back(known->second);
   }
@@ -137,19 +133,19 @@ std::optional<Measurement> readRow(const std::vector<std::string>& fields, const
       return std::nullopt;
     }
     auto v = parseNumber(*f);
-    if (!v) fail(std::string(name) + ": expected " + what + ", got " + shown(*f)), ok = false;
+    if (!v) fail(std::string(name) + ": expected " + what + ", got " + common::quotedFromFile(*f)), ok = false;
     return v;
   };
   if (auto f = number(Column::VeroFraction, "vero_fraction", "a Vero fraction from 0 to 1", true)) {
     if (*f < 0.0 || *f > 1.0) {
-      fail("vero_fraction: expected a fraction from 0 to 1, got " + shown(*field(Column::VeroFraction)) +
+      fail("vero_fraction: expected a fraction from 0 to 1, got " + common::quotedFromFile(*field(Column::VeroFraction)) +
            (*f > 1.0 && *f <= 100.0 ? " (a percentage? write it as a fraction)" : ""));
       ok = false;
     }
     m.veroFraction = *f;
   }
   if (auto e = number(Column::ModulusMpa, "modulus_mpa", "a modulus in MPa", true)) {
-    if (!(*e > 0.0)) fail("modulus_mpa: expected a modulus > 0 MPa, got " + shown(*field(Column::ModulusMpa))), ok = false;
+    if (!(*e > 0.0)) fail("modulus_mpa: expected a modulus > 0 MPa, got " + common::quotedFromFile(*field(Column::ModulusMpa))), ok = false;
     m.modulusMpa = *e;
   }
   m.temperatureC = number(Column::TemperatureC, "temperature_c", "a temperature in degrees Celsius", false);
@@ -185,7 +181,7 @@ DataSet parseData(std::string_view text, const std::string& sourceName) {
     if (line.empty() || line.front() == '#') continue;
     const auto fields = splitFields(line);
     if (!fields) {
-      fail(lineNumber, "unbalanced quotes or a bad escape in " + shown(line));
+      fail(lineNumber, "unbalanced quotes or a bad escape in " + common::quotedFromFile(line));
       continue;
     }
     if (!header) {

@@ -3,6 +3,7 @@
 #include "meshing/cad_checks.hpp"
 
 #include "common/interrupt.hpp"
+#include "common/quoted_text.hpp"
 
 #include <Geom_BSplineCurve.hxx>
 #include <Geom_BSplineSurface.hxx>
@@ -118,7 +119,7 @@ void checkIgesListCounts(const std::string& params, long long values, char delim
     const std::string where = "line " + std::to_string(line) + ": malformed IGES " + e.name + " (type " + std::to_string(e.type) + "): ";
     // An empty field is IGES's default, 0.
     if (count.size() > 18 || count.find_first_not_of("0123456789") != std::string::npos)
-      throw MeshError(file, where + "its count of " + e.items + " '" + count + "' is not a whole number");
+      throw MeshError(file, where + "its count of " + e.items + " " + common::quotedFromFile(count) + " is not a whole number");
     const long long n = count.empty() ? 0 : std::stoll(count);
     if (values < e.fixed + e.perItem * n)
       throw MeshError(file, where + std::to_string(n) + " " + e.items + " need at least " + std::to_string(e.fixed + e.perItem * n) +
@@ -169,8 +170,8 @@ void prescanIgesText(const std::filesystem::path& file) {
     // A directory or parameter record's sequence number (columns 74-80) is a number: OpenCASCADE's
     // reader crashed on "000;017" in a directory entry (scripts/mutate_cad.py).
     if ((line[72] == 'D' || line[72] == 'P') && line.find_first_not_of("0123456789 \r", 73) != std::string::npos)
-      throw MeshError(file, "line " + std::to_string(number) + ": malformed IGES record: its sequence number (columns 74-80) '" +
-                                line.substr(73, 7) + "' is not a number");
+      throw MeshError(file, "line " + std::to_string(number) + ": malformed IGES record: its sequence number (columns 74-80) " +
+                                common::quotedFromFile(line.substr(73, 7)) + " is not a number");
     if (line[72] == 'G' && firstGlobal) {
       firstGlobal = false;
       std::size_t at = 0;  // the global section's first two values: the delimiters, "1H," and "1H;" or empty

@@ -2,6 +2,7 @@
 // (polygons fanned), welded vertices, no degenerate face, manifold edges and vertices, one orientation.
 #include "common/interrupt.hpp"
 #include "common/memory_budget.hpp"
+#include "common/quoted_text.hpp"
 #include "geometry/rod.hpp"
 #include "meshing/input_file.hpp"
 #include "meshing/mesh.hpp"
@@ -79,7 +80,7 @@ void checkOffText(const std::string& bytes, const std::string& source) {
   // ([ST][C][N][4][n]OFF) are let through, so this check reads the counts where CGAL does.
   if (word.find("OFF") == std::string::npos) return;
   if (!std::regex_match(word, std::regex("(ST)?C?N?4?n?OFF")))
-    throw MeshError(source, "OFF line " + std::to_string(number) + ": '" + word + "' is not an OFF keyword");
+    throw MeshError(source, "OFF line " + std::to_string(number) + ": " + common::quotedFromFile(word) + " is not an OFF keyword");
   if (!(head >> rest) && !(nextContentLine(in, line, number) && (head = std::istringstream(line), head >> rest))) return;
   if (rest == "BINARY") return;  // binary counts: CGAL reads them as integers
   // The counts as every OFF writer puts them: vertices, faces, edges on one line (CGAL reads them as
@@ -101,7 +102,7 @@ void checkOffText(const std::string& bytes, const std::string& source) {
       char* end = nullptr;
       const double d = std::strtod(token.c_str(), &end);
       if (end == token.c_str()) break;
-      if (!std::isfinite(d)) throw MeshError(source, where() + "'" + token.substr(0, 40) + "' " + kNotFinite);
+      if (!std::isfinite(d)) throw MeshError(source, where() + common::quotedFromFile(token) + " " + kNotFinite);
       out.push_back(d);
     }
     return out;

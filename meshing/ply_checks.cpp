@@ -2,6 +2,7 @@
 #include "meshing/ply_checks.hpp"
 
 #include "common/interrupt.hpp"
+#include "common/quoted_text.hpp"
 #include "meshing/meshing.hpp"
 
 #include <algorithm>
@@ -108,7 +109,7 @@ public:
     const std::size_t left = bytes_.size() - at_;
     const double room = ascii_ ? (double(left) + 1) / 2 : double(left) / plyTypeSize(property.itemType);
     if (!(count >= 0) || count != std::floor(count) || count > room)
-      throw MeshError(source_, "PLY " + element + " " + std::to_string(index) + ": a list of " + formatCount(count) +
+      throw MeshError(source_, "PLY " + common::printableFromFile(element) + " " + std::to_string(index) + ": a list of " + formatCount(count) +
                                    " entries, more than the " + std::to_string(left) + " bytes after it can hold");
     for (double i = 0; i < count; ++i)
       if (!advance(property.itemType)) return false;
@@ -164,7 +165,7 @@ private:
     const bool whole = at_ - begin <= 64 && (integer ? word.size() > digits && word.find_first_not_of("0123456789", digits) == std::string::npos
                                                      : !word.empty() && end == word.c_str() + word.size());
     if (!whole)
-      throw MeshError(source_, "PLY " + *element_ + " " + std::to_string(index_) + ": '" + word.substr(0, 32) + "' is not " +
+      throw MeshError(source_, "PLY " + common::printableFromFile(*element_) + " " + std::to_string(index_) + ": " + common::quotedFromFile(word, 32) + " is not " +
                                    (integer ? "an integer" : "a number") + " (a " + type + " property)");
     return value;
   }
@@ -203,7 +204,7 @@ void checkPlyHeader(const std::string& bytes, const std::string& source) {
       std::string format;
       words >> format;
       if (format != "ascii" && format != "binary_little_endian" && format != "binary_big_endian")
-        throw MeshError(source, "PLY header line 2: unknown format '" + format + "' (expected ascii, binary_little_endian or binary_big_endian)");
+        throw MeshError(source, "PLY header line 2: unknown format " + common::quotedFromFile(format) + " (expected ascii, binary_little_endian or binary_big_endian)");
     }
     if (keyword == "element") {
       std::string name;
@@ -223,9 +224,9 @@ void checkPlyHeader(const std::string& bytes, const std::string& source) {
       // CGAL skips a property of a type it does not know (and reads the body as if it were not there),
       // where the list check would read nothing: a list length of 1.7 GB passed (fuzz_mesh_reader).
       if (plyTypeSize(type) == 0 || (!countType.empty() && plyTypeSize(countType) == 0))
-        throw MeshError(source, "PLY header line " + std::to_string(number) + ": a property of unknown type '" +
-                                    (plyTypeSize(type) == 0 ? type : countType) +
-                                    "' (expected char, uchar, short, ushort, int, uint, float or double, or int8 to float64)");
+        throw MeshError(source, "PLY header line " + std::to_string(number) + ": a property of unknown type " +
+                                    common::quotedFromFile(plyTypeSize(type) == 0 ? type : countType) +
+                                    " (expected char, uchar, short, ushort, int, uint, float or double, or int8 to float64)");
       // CGAL reads points from an element "vertex" or "vertices".
       const bool coordinate = (elementName == "vertex" || elementName == "vertices") && (name == "x" || name == "y" || name == "z");
       if (coordinate && !countType.empty())
@@ -233,7 +234,7 @@ void checkPlyHeader(const std::string& bytes, const std::string& source) {
                                     " is a list (expected a float or double)");
       if (coordinate && type != "float" && type != "float32" && type != "double" && type != "float64")
         throw MeshError(source, "PLY header line " + std::to_string(number) + ": vertex coordinate " + name +
-                                    " of type '" + type + "' (expected float or double)");
+                                    " of type " + common::quotedFromFile(type) + " (expected float or double)");
     }
   }
   // CGAL's reader takes a header without end_header whole and then reads the body past the end of the
@@ -257,7 +258,7 @@ void checkPlyLists(const std::string& bytes, const std::string& source) {
       if (i % 65536 == 0) common::throwIfInterrupted();
       for (const PlyProperty& property : element.properties)
         if (!body.skip(property, element.name, i))
-          throw MeshError(source, "PLY " + element.name + " " + std::to_string(i) + ": the file ends inside it (its " +
+          throw MeshError(source, "PLY " + common::printableFromFile(element.name) + " " + std::to_string(i) + ": the file ends inside it (its " +
                                       std::to_string(bytes.size()) + " bytes hold less than the header declares: was it cut short?)");
     }
 }

@@ -5,6 +5,7 @@
 #include "common/located_issues.hpp"
 #include "common/memory_budget.hpp"
 #include "common/output_file.hpp"
+#include "common/quoted_text.hpp"
 #include "common/sha256.hpp"
 #include "common/xxh128.hpp"
 
@@ -215,4 +216,24 @@ TEST_CASE("a sealed JSON object is told from one a person wrote or edited, and f
   CHECK_FALSE(rodfab::common::isSealedJsonObject(dir / "pipe"));
   CHECK_FALSE(rodfab::common::isSealedJsonObject(dir / "missing.json"));
   std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("a file's text in a message: control bytes and invalid UTF-8 escaped, UTF-8 kept, long text cut") {
+  using rodfab::common::printableFromFile;
+  using rodfab::common::quotedFromFile;
+  CHECK(quotedFromFile("floz") == "'floz'");
+  CHECK(quotedFromFile("") == "''");
+  // An ANSI sequence (clear the screen), a tab, DEL, the quote and the backslash.
+  CHECK(quotedFromFile("x\x1b[2J\ty\x7f'\\") == "'x\\x1b[2J\\x09y\\x7f\\x27\\x5c'");
+  // UTF-8 kept: e acute, the euro sign, a 4-byte emoji.
+  CHECK(printableFromFile("caf\xc3\xa9 \xe2\x82\xac \xf0\x9f\x98\x80") == "caf\xc3\xa9 \xe2\x82\xac \xf0\x9f\x98\x80");
+  // The C1 control CSI (U+009B, which some terminals obey) and malformed UTF-8: a lone continuation
+  // byte, a lead byte cut short, an overlong slash, a surrogate.
+  CHECK(printableFromFile("\xc2\x9b") == "\\xc2\\x9b");
+  CHECK(printableFromFile("a\x80" "b\xe2\x82") == "a\\x80b\\xe2\\x82");
+  CHECK(printableFromFile("\xc0\xaf\xed\xa0\x80") == "\\xc0\\xaf\\xed\\xa0\\x80");
+  // Cut after maxBytes bytes of the text, marked.
+  CHECK(quotedFromFile(std::string(100, 'a'), 8) == "'aaaaaaaa...'");
+  CHECK(printableFromFile("abcdefgh", 8) == "abcdefgh");
+  CHECK(printableFromFile(std::string("a\0b", 3)) == "a\\x00b");
 }

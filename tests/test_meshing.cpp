@@ -223,6 +223,11 @@ TEST_CASE("bad meshes get an error naming the file and the problem", "[meshing]"
   // A property of a type CGAL does not know, which it skips while the list check would read nothing.
   writeText(scratch("floz.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty floz at\nend_header\n0 0\n");
   CHECK_THAT(error(scratch("floz.ply")), Catch::Contains("PLY header line 5: a property of unknown type 'floz'"));
+  // A hostile file's names reach the message escaped, never as terminal control sequences.
+  writeText(scratch("escape.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty \x1b[2J at\nend_header\n0 0\n");
+  CHECK_THAT(error(scratch("escape.ply")), Catch::Contains("PLY header line 5: a property of unknown type '\\x1b[2J'"));
+  writeText(scratch("escape2.ply"), "ply\nformat ascii 1.0\nelement f\x1b]0;x\x07 1\nproperty int n\nend_header\n1.5\n");
+  CHECK_THAT(error(scratch("escape2.ply")), Catch::Contains("PLY f\\x1b]0;x\\x07 0: '1.5' is not an integer"));
   writeText(scratch("endless.ply"), "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nend_@header\n");
   CHECK_THAT(error(scratch("endless.ply")), Catch::Contains("the PLY header has no end_header line"));
   writeText(scratch("mesh.dxf"), "x");
