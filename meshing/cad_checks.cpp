@@ -3,6 +3,7 @@
 #include "meshing/cad_checks.hpp"
 
 #include "common/interrupt.hpp"
+#include "common/quoted_text.hpp"
 
 #include <Geom_BSplineCurve.hxx>
 #include <Geom_BSplineSurface.hxx>
@@ -153,7 +154,7 @@ std::string checkText(const Handle(Interface_Check)& check) {
   std::string text;
   for (int i = 1; i <= check->NbFails() && i <= 3; ++i) text += (i > 1 ? "; " : "") + std::string(check->CFail(i));
   if (check->NbFails() > 3) text += "; and " + std::to_string(check->NbFails() - 3) + " more";
-  return text;
+  return common::printableFromFile(text, 600);  // OpenCASCADE's messages quote the file's own words
 }
 
 // Every failure OpenCASCADE recorded while loading the file (its syntactic check list): references to
@@ -396,7 +397,8 @@ std::string entityName(const Handle(Interface_InterfaceModel)& model, const Hand
       if (previous == ' ' && name.back() != '(') name.push_back(' ');
       name.push_back(*c);
     }
-  return name.append(")");
+  // A label or an unknown STEP type comes from the file as written.
+  return common::printableFromFile(name.append(")"), 200);
 }
 
 }  // namespace rodfab::meshing::detail
