@@ -81,6 +81,11 @@ void checkOffText(const std::string& bytes, const std::string& source) {
   if (word.find("OFF") == std::string::npos) return;
   if (!std::regex_match(word, std::regex("(ST)?C?N?4?n?OFF")))
     throw MeshError(source, "OFF line " + std::to_string(number) + ": " + common::quotedFromFile(word) + " is not an OFF keyword");
+  // nOFF puts a dimension before the counts, which CGAL reads as integers while this check read the
+  // counts from it (a face of 5e10 corners reached CGAL: fuzz_mesh_reader, 2026-12-05); meshes here are 3D.
+  if (word.find('n') != std::string::npos)
+    throw MeshError(source, "OFF line " + std::to_string(number) + ": " + common::quotedFromFile(word) +
+                                " (OFF of n dimensions) is not read: rods need a 3D mesh; write it as OFF");
   if (!(head >> rest) && !(nextContentLine(in, line, number) && (head = std::istringstream(line), head >> rest))) return;
   if (rest == "BINARY") return;  // binary counts: CGAL reads them as integers
   // The counts as every OFF writer puts them: vertices, faces, edges on one line (CGAL reads them as
@@ -88,7 +93,7 @@ void checkOffText(const std::string& bytes, const std::string& source) {
   double nv = -1, nf = -1, ne = -1;
   std::string extra;
   if (!(std::istringstream(rest) >> nv) || !(head >> nf >> ne) || (head >> extra) || nv != std::floor(nv) ||
-      nf != std::floor(nf))
+      nf != std::floor(nf) || ne != std::floor(ne))
     throw MeshError(source, "OFF line " + std::to_string(number) + ": expected the vertex, face and edge counts on one line");
   if (nv < 0 || nf < 0 || nv * 6 + nf * 8 > static_cast<double>(bytes.size()) + 64)
     throw MeshError(source, "the OFF header declares " + rest + " vertices and more faces than the file's " +
@@ -165,7 +170,7 @@ void checkObjFaces(const std::string& bytes, const std::string& source) {
     for (std::size_t at = 0; (at = rest.find_first_not_of(" \r", at)) != std::string_view::npos; ++corners) {
       std::string_view corner = rest.substr(at, rest.find(' ', at) - at);
       at += corner.size();
-      const std::string shown = "'" + std::string(corner.substr(0, 40)) + "'";
+      const std::string shown = common::quotedFromFile(corner);
       if (corner.starts_with('+')) corner.remove_prefix(1);
       long long index = 0;
       const auto [end, error] = std::from_chars(corner.data(), corner.data() + corner.size(), index);

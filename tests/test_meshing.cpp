@@ -202,6 +202,11 @@ TEST_CASE("bad meshes get an error naming the file and the problem", "[meshing]"
   // Lines CGAL's OFF reader would misread (unchecked casts, a colour read past the line): refused first.
   writeText(scratch("index.off"), "OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 3e31\n");
   CHECK_THAT(error(scratch("index.off")), Catch::Contains("OFF line 7: a face refers to a vertex"));
+  // nOFF's dimension before the counts, which the check read as counts (found by fuzzing).
+  writeText(scratch("dims.off"), "nOFF\n3 4 1 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n");
+  CHECK_THAT(error(scratch("dims.off")), Catch::Contains("OFF line 1: 'nOFF' (OFF of n dimensions) is not read"));
+  writeText(scratch("edges.off"), "OFF\n4 1 3.30\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n");
+  CHECK_THAT(error(scratch("edges.off")), Catch::Contains("OFF line 2: expected the vertex, face and edge counts on one line"));
   writeText(scratch("short.off"), "OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n4 0 1\n");
   CHECK_THAT(error(scratch("short.off")), Catch::Contains("a face of 4 corners needs as many"));
   writeText(scratch("prop.ply"), "ply\nformat ascii 1.0\nproperty float x\nelement vertex 1\nend_header\n0\n");
