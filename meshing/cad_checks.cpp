@@ -304,9 +304,19 @@ std::string listIndexProblem(const Handle(Standard_Transient)& list, int index) 
 
 std::string igesTopologyProblem(const Handle(Standard_Transient)& entity) {
   if (auto loop = Handle(IGESSolid_Loop)::DownCast(entity); !loop.IsNull()) {
-    for (int i = 1; i <= loop->NbEdges(); ++i)
+    for (int i = 1; i <= loop->NbEdges(); ++i) {
+      // Its type says what its list is: 0 an edge list, 1 a vertex list (IGES 5.3, entity 508). Any
+      // other type, or a list of the other kind, was a SIGSEGV in the transfer (scripts/mutate_cad.py).
+      const int type = loop->EdgeType(i);
+      const bool edgeList = !Handle(IGESSolid_EdgeList)::DownCast(loop->Edge(i)).IsNull();
+      const bool vertexList = !Handle(IGESSolid_VertexList)::DownCast(loop->Edge(i)).IsNull();
+      if (!(type == 0 && edgeList) && !(type == 1 && vertexList))
+        return "edge " + std::to_string(i) + " is of type " + std::to_string(type) + " on " +
+               (edgeList ? "an edge list" : vertexList ? "a vertex list" : "no list") +
+               " (expected type 0 on an edge list or 1 on a vertex list)";
       if (std::string problem = listIndexProblem(loop->Edge(i), loop->ListIndex(i)); !problem.empty())
         return "edge " + std::to_string(i) + " refers to " + problem;
+    }
   } else if (auto edges = Handle(IGESSolid_EdgeList)::DownCast(entity); !edges.IsNull()) {
     for (int i = 1; i <= edges->NbEdges(); ++i) {
       std::string problem = listIndexProblem(edges->StartVertexList(i), edges->StartVertexIndex(i));

@@ -259,6 +259,21 @@ TEST_CASE("an IGES loop whose edge index is past its edge list is refused, namin
   CHECK(meshing::rodsFromCad(valid, {}).structure.rods.size() == 12);
 }
 
+TEST_CASE("an IGES loop's edge of a type other than its list's is refused, naming the loop", "[meshing][cad][hostile]") {
+  // The type says what the list is (0 edges, 1 vertices); OpenCASCADE's transfer trusts it (a SIGSEGV
+  // for a type of 100 on an edge list, found by mutate_cad.py).
+  const fs::path valid = scratch("box.igs");
+  testing::writeIges(testing::box(10, 20, 30), valid);
+  for (const std::string type : {"100", "1", "-1"}) {
+    // 508,N,TYPE,...: the first edge's type.
+    const std::string text = withRecordEdited(valid, "508,", [&](std::string data) {
+      const std::size_t at = data.find(',', data.find(',') + 1) + 1;
+      return data.replace(at, data.find(',', at) - at, type);
+    });
+    CHECK_THAT(cadError("badtype.igs", text), Catch::Contains("Loop): edge 1 is of type " + type + " on an edge list (expected type 0"));
+  }
+}
+
 TEST_CASE("an IGES edge on a line of zero length is refused, naming the edge list", "[meshing][cad][hostile]") {
   // The box with its first line (type 110: 110,X1,Y1,Z1,X2,Y2,Z2;) ending where it starts: OpenCASCADE's
   // loop transfer dereferences the null wire it makes of that edge (a SIGSEGV, found by mutate_cad.py).
