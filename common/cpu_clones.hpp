@@ -9,6 +9,11 @@
 
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
 #define RODFAB_CLONES(...) __attribute__((target_clones(__VA_ARGS__)))
+// Code written for one feature level (gnu::target("avx2")) is compiled: GCC on x86-64. Clang refuses
+// such code where vectors wider than the baseline's pass between functions (each lambda is a function
+// of the baseline to it: "AVX vector argument ... changes the ABI"), so its builds keep the baseline.
+#define RODFAB_TARGET_PATHS 1
 #else
 #define RODFAB_CLONES(...)
+#define RODFAB_TARGET_PATHS 0
 #endif

@@ -59,6 +59,7 @@ using Int4 = Lanes<4>::Int;
   return __builtin_convertvector(v, Lanes<4>::Float);
 }
 
+#if RODFAB_TARGET_PATHS
 // The same for eight lanes: eight doubles are two AVX registers, which GCC would clamp lane by lane, so
 // four at a time.
 [[gnu::always_inline]] inline Lanes<8>::Float clampedFraction(Lanes<8>::Double start, Lanes<8>::Double rise, Lanes<8>::Double t,
@@ -69,6 +70,7 @@ using Int4 = Lanes<4>::Int;
                                                __builtin_shufflevector(t, t, 4, 5, 6, 7), lowest, highest);
   return __builtin_shufflevector(low, high, 0, 1, 2, 3, 4, 5, 6, 7);
 }
+#endif
 
 // The lanes of group q (voxels q .. q + N - 1 of a word) whose bit is set in `active`: all ones, else 0.
 template <int N>
@@ -108,6 +110,7 @@ struct LoadSegments {
     }
   }
 };
+#if RODFAB_TARGET_PATHS
 struct GatherSegments {
   static constexpr int kLanes = 8;
   template <typename Segment>
@@ -128,6 +131,7 @@ struct GatherSegments {
     rise = __builtin_shufflevector(riseLow, riseHigh, 0, 1, 2, 3, 4, 5, 6, 7);
   }
 };
+#endif
 
 }  // namespace
 
@@ -208,15 +212,20 @@ inline FractionMap::WordClamps FractionMap::mapWordWith(const float* moduli, std
   return {static_cast<std::uint64_t>(belowSum), static_cast<std::uint64_t>(aboveSum)};
 }
 
+#if RODFAB_TARGET_PATHS
 // Everything inlined into it (flatten), so compiled for AVX2.
 [[gnu::target("avx2"), gnu::flatten]] FractionMap::WordClamps FractionMap::mapWordAvx2(const float* moduli, std::uint64_t active,
                                                                        float* fractions) const {
   return mapWordWith<GatherSegments>(moduli, active, fractions);
 }
+#endif
 
 FractionMap::WordClamps FractionMap::mapWord(const float* moduli, std::uint64_t active, float* fractions) const {
+#if RODFAB_TARGET_PATHS
   static const bool avx2 = __builtin_cpu_supports("avx2");
-  return avx2 ? mapWordAvx2(moduli, active, fractions) : mapWordWith<LoadSegments>(moduli, active, fractions);
+  if (avx2) return mapWordAvx2(moduli, active, fractions);
+#endif
+  return mapWordWith<LoadSegments>(moduli, active, fractions);
 }
 
 FractionMap::FractionMap(const calibration::Calibration& calibration, std::size_t nodes)

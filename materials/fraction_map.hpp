@@ -5,6 +5,7 @@
 #pragma once
 
 #include "calibration/calibration.hpp"
+#include "common/cpu_clones.hpp"
 #include "voxel/tree_assembly.hpp"
 
 #include <openvdb/openvdb.h>
@@ -85,7 +86,9 @@ private:
   // (gathers), which mapWord calls where the processor has AVX2.
   template <typename Load>
   WordClamps mapWordWith(const float* moduli, std::uint64_t active, float* fractions) const;
+#if RODFAB_TARGET_PATHS
   [[gnu::target("avx2")]] WordClamps mapWordAvx2(const float* moduli, std::uint64_t active, float* fractions) const;
+#endif
 
   std::vector<double> table_;  // node values; interval n spans float bits [(first + n) << shift, (first + n + 1) << shift)
   // Interval n as interpolate uses it: its first node's value and the rise to the next, table_[n + 1] -
