@@ -32,7 +32,19 @@ void appendEscaped(std::string& out, unsigned char c) {
   out += hex;
 }
 
+bool isControl(char32_t code) { return code < 0x20 || (code >= 0x7f && code <= 0x9f); }
+
 }  // namespace
+
+bool holdsControlCharacters(std::string_view text) {
+  for (std::size_t i = 0; i < text.size();) {
+    char32_t code = 0;
+    const std::size_t length = utf8Length(text.substr(i), code);
+    if (length == 0 || isControl(code)) return true;
+    i += length;
+  }
+  return false;
+}
 
 std::string printableFromFile(std::string_view text, std::size_t maxBytes) {
   const bool cut = text.size() > maxBytes;
@@ -41,7 +53,7 @@ std::string printableFromFile(std::string_view text, std::size_t maxBytes) {
   for (std::size_t i = 0; i < text.size();) {
     char32_t code = 0;
     const std::size_t length = utf8Length(text.substr(i), code);
-    const bool control = code < 0x20 || (code >= 0x7f && code <= 0x9f) || code == '\'' || code == '\\';
+    const bool control = isControl(code) || code == '\'' || code == '\\';
     if (length == 0 || control) {
       // A character of several bytes is escaped byte by byte (a C1 control); an invalid byte alone.
       for (std::size_t b = 0; b < (length == 0 ? 1 : length); ++b) appendEscaped(out, static_cast<unsigned char>(text[i + b]));

@@ -14,6 +14,9 @@ namespace rodfab::common {
 // \x5c), other UTF-8 characters kept; cut after `maxBytes` bytes of `text`, the cut marked "...".
 // Thread-safe.
 std::string printableFromFile(std::string_view text, std::size_t maxBytes = 40);
+// Whether `text` holds a control character (C0, DEL, or C1 as UTF-8: U+0080-U+009F) or is not valid
+// UTF-8: what a name from a file (a rod's, a load case's) may not hold.
+bool holdsControlCharacters(std::string_view text);
 // The same between apostrophes, as a message shows a file's word: 'floz', 'x\x1b[2J'.
 std::string quotedFromFile(std::string_view text, std::size_t maxBytes = 40);
 

@@ -20,6 +20,9 @@ inline constexpr const char* kDesignFormat = "rodfab.design/1";
 // The largest Young's modulus a design may give (MPa): 1 TPa, above any printable material and far
 // inside the float range the voxel grids store moduli in.
 inline constexpr double kMaxModulusMpa = 1e6;
+// The longest name (of a rod, of a load case) a design may give, in bytes of UTF-8: names are shown in
+// messages, reports and file names' neighbourhood, never megabytes of them.
+inline constexpr std::size_t kMaxNameBytes = 256;
 
 // One violation: where (a JSON path such as `rods[3].centerline.knots[5]`) and what was expected.
 struct DesignIssue {

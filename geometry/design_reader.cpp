@@ -7,6 +7,7 @@
 #include "common/json_input.hpp"
 #include "common/located_issues.hpp"
 #include "common/memory_budget.hpp"
+#include "common/quoted_text.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -207,6 +208,20 @@ std::optional<std::string> DesignReader::string(const json& j, const std::string
     return std::nullopt;
   }
   return j.get<std::string>();
+}
+
+std::optional<std::string> DesignReader::name(const json& j, const std::string& path, const std::string& what) {
+  std::optional<std::string> s = string(j, path, what);
+  if (!s) return std::nullopt;
+  std::string problem;
+  if (s->empty()) problem = "expected " + what + ", not an empty string";
+  else if (s->size() > kMaxNameBytes)
+    problem = "expected " + what + " of at most " + std::to_string(kMaxNameBytes) + " bytes, got " + std::to_string(s->size());
+  else if (common::holdsControlCharacters(*s))
+    problem = "expected " + what + " without control characters, got " + common::quotedFromFile(*s);
+  if (problem.empty()) return s;
+  fail(path, problem);
+  return std::nullopt;
 }
 
 

@@ -58,6 +58,9 @@ public:
   // A rotation [w, x, y, z], not normalized but not zero.
   std::optional<Eigen::Vector4d> quaternion(const nlohmann::json& j, const std::string& path);
   std::optional<std::string> string(const nlohmann::json& j, const std::string& path, const std::string& what);
+  // A name (a rod's, a load case's; `what`: "a rod name"): a string of 1 to kMaxNameBytes bytes without
+  // control characters (names reach messages and the terminal).
+  std::optional<std::string> name(const nlohmann::json& j, const std::string& path, const std::string& what);
   // A knot vector for `count` control values of degree `p` (either may be unknown: then only the
   // entries are checked).
   std::optional<std::vector<double>> knots(const nlohmann::json& j, const std::string& path, std::optional<int> p,

@@ -218,9 +218,8 @@ std::optional<RodParts> DesignReader::rod(const json& j, const std::string& path
 
   std::string name;
   if (auto n = require(j, path, "name", "a rod name")) {
-    if (auto s = string(*n, memberPath(path, "name"), "a rod name")) {
+    if (auto s = this->name(*n, memberPath(path, "name"), "a rod name")) {
       name = *s;
-      if (name.empty()) fail(memberPath(path, "name"), "expected a non-empty rod name");
       auto [it, fresh] = names.emplace(name, path);
       if (!fresh) fail(memberPath(path, "name"), "duplicate rod name \"" + name + "\" (also " + it->second + ")");
     }

@@ -36,10 +36,9 @@ void MechanicsReader::loadCases(const json& j, const std::string& path, const Ro
     LoadCase lc;
     lc.path = cp;
     if (auto n = require(c, cp, "name", "a case name (a non-empty string)"))
-      if (auto name = string(*n, memberPath(cp, "name"), "a case name")) {
+      if (auto name = this->name(*n, memberPath(cp, "name"), "a case name")) {
         lc.name = *name;
-        if (name->empty()) fail(memberPath(cp, "name"), "expected a non-empty case name");
-        else if (auto [it, fresh] = caseNames.emplace(*name, cp); !fresh)
+        if (auto [it, fresh] = caseNames.emplace(*name, cp); !fresh)
           fail(memberPath(cp, "name"), "duplicate load case name \"" + *name + "\" (also " + it->second + ")");
       }
     json loads = json::object();

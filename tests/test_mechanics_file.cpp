@@ -209,6 +209,10 @@ TEST_CASE("Bad load cases, targets and optimize blocks are reported with their p
   };
   REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][1]["name"] = "lift"; }), "mechanics.load_cases[1].name",
                 "duplicate load case name");
+  REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][1]["name"] = "lift\x07"; }), "mechanics.load_cases[1].name",
+                "expected a case name without control characters, got 'lift\\x07'");
+  REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][1]["name"] = ""; }), "mechanics.load_cases[1].name",
+                "expected a case name, not an empty string");
   REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][0]["gravity"] = 1; }), "mechanics.load_cases[0].gravity",
                 "unknown key");
   REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][0].erase("name"); }), "mechanics.load_cases[0].name", "missing");
