@@ -1,5 +1,7 @@
 #include "common/json_input.hpp"
 
+#include "common/quoted_text.hpp"
+
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -226,7 +228,9 @@ json parseJsonStrict(const std::string& text, int maxDepth, std::size_t maxValue
 }
 
 std::string memberPath(const std::string& path, const std::string& key) {
-  return path.empty() ? key : path + "." + key;
+  // A file's unknown key is shown as a path too: escaped and cut, as a file's word in any message.
+  const std::string shown = printableFromFile(key, 64);
+  return path.empty() ? shown : path + "." + shown;
 }
 
 std::string indexPath(const std::string& path, std::size_t i) { return path + "[" + std::to_string(i) + "]"; }
@@ -247,6 +251,26 @@ bool withinValues(const nlohmann::json& j, std::size_t& budget) {
   return true;
 }
 
+// nlohmann's dump escapes C0 controls but writes DEL and the C1 controls (U+0080-U+009F, which some
+// terminals obey) as they are: those as \u escapes too, so a message shows them rather than runs them.
+std::string escapeControlsJsonLeaves(const std::string& dumped) {
+  std::string out;
+  out.reserve(dumped.size());
+  for (std::size_t i = 0; i < dumped.size(); ++i) {
+    const auto byte = static_cast<unsigned char>(dumped[i]);
+    const bool c1 = byte == 0xc2 && i + 1 < dumped.size() && static_cast<unsigned char>(dumped[i + 1]) >= 0x80 &&
+                    static_cast<unsigned char>(dumped[i + 1]) <= 0x9f;
+    if (byte != 0x7f && !c1) {
+      out += dumped[i];
+      continue;
+    }
+    char escaped[8];
+    std::snprintf(escaped, sizeof escaped, "\\u%04x", c1 ? static_cast<unsigned char>(dumped[++i]) : byte);
+    out += escaped;
+  }
+  return out;
+}
+
 }  // namespace
 
 std::string describeJson(const nlohmann::json& j, std::size_t maxChars) {
@@ -259,7 +283,7 @@ std::string describeJson(const nlohmann::json& j, std::size_t maxChars) {
   const nlohmann::json shown = j.is_string() && j.get_ref<const std::string&>().size() > maxChars
                                    ? nlohmann::json(j.get_ref<const std::string&>().substr(0, maxChars))
                                    : nlohmann::json();
-  std::string s = (shown.is_null() ? j : shown).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+  std::string s = escapeControlsJsonLeaves((shown.is_null() ? j : shown).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
   if (s.size() > maxChars) s = s.substr(0, maxChars > 3 ? maxChars - 3 : 0) + "...";
   return s;
 }
