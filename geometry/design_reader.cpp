@@ -266,14 +266,15 @@ struct ReadRod {
 
 // Builds the rods that read without issue, on as many threads as TBB may use (building is most of
 // the reading: a winding rod takes milliseconds and up to ~1 MB), keeps them or only their summary. A
-// rod's own failure (a centerline too intricate to sample) is recorded right after that rod's issues
-// (`issuesAfter[index]` of them came before it), so the list is in the file's order whatever the
-// thread count, as are the summary's sums.
+// rod's own failure (a centerline of zero length or too intricate to sample: at the rod's "centerline")
+// is recorded right after that rod's issues (`issuesAfter[index]` of them came before it), so the list
+// is in the file's order whatever the thread count, as are the summary's sums.
 void buildRods(std::vector<ReadRod>& read, const std::vector<std::size_t>& issuesAfter, RodsKept kept, DesignReader& v,
                DesignDocument& d) {
   std::vector<std::optional<Rod>> built(kept == RodsKept::All ? read.size() : 0);
   std::vector<DesignSummary> summaries(read.size());
   std::vector<std::string> failures(read.size());
+  std::vector<char> ofCenterline(read.size(), 0);  // the failure is the centerline's (CenterlineError)
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, read.size(), 1), [&](const tbb::blocked_range<std::size_t>& range) {
     for (std::size_t k = range.begin(); k != range.end(); ++k) {
       common::throwIfInterrupted();
@@ -283,6 +284,9 @@ void buildRods(std::vector<ReadRod>& read, const std::vector<std::size_t>& issue
                 std::move(p.modulus));
         summaries[k].add(rod);
         if (kept == RodsKept::All) built[k].emplace(std::move(rod));
+      } catch (const CenterlineError& error) {
+        failures[k] = error.what();
+        ofCenterline[k] = 1;
       } catch (const std::invalid_argument& error) {
         failures[k] = error.what();
       }
@@ -298,7 +302,8 @@ void buildRods(std::vector<ReadRod>& read, const std::vector<std::size_t>& issue
   for (std::size_t k = 0; k < read.size(); ++k) {
     takeIssuesUpTo(issuesAfter[read[k].index]);
     if (!failures[k].empty()) {
-      issues.push_back({indexPath("rods", read[k].index), failures[k]});
+      const std::string rod = indexPath("rods", read[k].index);
+      issues.push_back({ofCenterline[k] ? memberPath(rod, "centerline") : rod, failures[k]});
       continue;
     }
     d.summary.add(summaries[k]);

@@ -68,8 +68,12 @@ public:
   // A Young's modulus in MPa: > 0 and at most kMaxModulusMpa (grids store moduli as floats).
   std::optional<double> youngsModulus(const nlohmann::json& j, const std::string& path);
 
-  // A NURBS centerline {degree, knots, points, weights} of non-zero length, coordinates in mm.
-  std::optional<NurbsCurve> centerline(const nlohmann::json& j, const std::string& path);
+  // A NURBS centerline {degree, knots, points, weights}, coordinates in mm, of finite non-zero length
+  // unless `length` is LeftToRod: a rod's centerline, whose length the Rod computes and checks itself
+  // (CenterlineError) while it is built on the reader's threads, rather than a second time here.
+  enum class CenterlineLength { Checked, LeftToRod };
+  std::optional<NurbsCurve> centerline(const nlohmann::json& j, const std::string& path,
+                                       CenterlineLength length = CenterlineLength::Checked);
   std::optional<Section> section(const nlohmann::json& j, const std::string& path);
   // {degree, knots, quaternions}; with `curve`, its domain must equal the curve's.
   std::optional<QuaternionSpline> orientation(const nlohmann::json& j, const std::string& path, const NurbsCurve* curve);

@@ -95,7 +95,7 @@ std::optional<SplineParts<T>> splineParts(DesignReader& reader, const json& j, c
 
 }  // namespace
 
-std::optional<NurbsCurve> DesignReader::centerline(const json& j, const std::string& path) {
+std::optional<NurbsCurve> DesignReader::centerline(const json& j, const std::string& path, CenterlineLength length) {
   if (!j.is_object()) {
     fail(path, "expected an object {degree, knots, points, weights}, got " + describe(j));
     return std::nullopt;
@@ -123,15 +123,11 @@ std::optional<NurbsCurve> DesignReader::centerline(const json& j, const std::str
   if (!parts || !weights) return std::nullopt;
   const std::vector<Vec3>& points = parts->controls;
   NurbsCurve curve(parts->degree, parts->knots, points, *weights);
-  const double length = curve.arcLength();
-  Box3 box;
-  for (const Vec3& q : points) box.extend(q);
-  if (!std::isfinite(length)) {
-    fail(path, "the centerline's length is not a finite number (weights too extreme for double precision?)");
-    return std::nullopt;
-  }
-  if (!(length > 1e-9 * std::max(1.0, box.diagonal().norm()))) {
-    fail(path, "degenerate centerline: its length is zero (all control points coincide?)");
+  if (length == CenterlineLength::LeftToRod) return curve;
+  try {
+    Rod::checkedLength(curve);
+  } catch (const CenterlineError& e) {
+    fail(path, e.what());
     return std::nullopt;
   }
   return curve;
@@ -226,7 +222,7 @@ std::optional<RodParts> DesignReader::rod(const json& j, const std::string& path
   }
   std::optional<NurbsCurve> curve;
   if (auto c = require(j, path, "centerline", "a NURBS curve {degree, knots, points, weights}"))
-    curve = centerline(*c, memberPath(path, "centerline"));
+    curve = centerline(*c, memberPath(path, "centerline"), CenterlineLength::LeftToRod);
   std::optional<Section> sec;
   if (auto s = require(j, path, "section", "a cross-section {shape, ...}")) sec = section(*s, memberPath(path, "section"));
 

@@ -39,6 +39,7 @@ Rod::Rod(std::string name, NurbsCurve centerline, Section section, std::optional
       caps_(caps),
       modulus_(std::move(modulus)) {
   if (referenceNormal_ && orientation_) throw std::invalid_argument("Rod: give either a normal or an orientation");
+  length_ = checkedLength(centerline_);
   if (orientation_) {
     frame_ = RodFrame::fromOrientation(centerline_, *orientation_);
   } else {
@@ -47,9 +48,19 @@ Rod::Rod(std::string name, NurbsCurve centerline, Section section, std::optional
     const Vec3 seed = referenceNormal_ ? *referenceNormal_ : perpendicularSeed(unitTangent(d[1], d[2]));
     frame_ = RodFrame::rotationMinimizing(centerline_, seed);
   }
-  length_ = centerline_.arcLength();
   sampleCenterline();
   computeBounds();
+}
+
+double Rod::checkedLength(const NurbsCurve& centerline) {
+  const double length = centerline.arcLength();
+  if (!std::isfinite(length))
+    throw CenterlineError("the centerline's length is not a finite number (weights too extreme for double precision?)");
+  Box3 box;
+  for (const Vec3& q : centerline.points()) box.extend(q);
+  if (!(length > 1e-9 * std::max(1.0, box.diagonal().norm())))
+    throw CenterlineError("degenerate centerline: its length is zero (all control points coincide?)");
+  return length;
 }
 
 void Rod::evaluate(double u, bool fromBelow, Vec3* d) const {
@@ -135,7 +146,7 @@ void Rod::sampleCenterline() {
       return;
     }
     if (out.size() >= kMaxSamplesPerRod)
-      throw std::invalid_argument("rod '" + name_ + "': its centerline needs more than " + std::to_string(kMaxSamplesPerRod) +
+      throw CenterlineError("rod '" + name_ + "': its centerline needs more than " + std::to_string(kMaxSamplesPerRod) +
                                   " polyline samples to be followed within " + std::to_string(tolerance) +
                                   " mm; split it into shorter rods or use fewer knot spans");
     out.push_back(b);

@@ -79,13 +79,23 @@ struct SmoothPiece {
   bool endFromBelow = false;                    // `end` is a C0 point: evaluate there from below
 };
 
+// What a rod's centerline cannot be: of zero or non-finite length, or too intricate to sample.
+class CenterlineError : public std::invalid_argument {
+public:
+  using std::invalid_argument::invalid_argument;
+};
+
 class Rod {
 public:
   Rod() = default;
   // Exactly one of `referenceNormal` / `orientation` may be given; neither is fine for circles (a
   // rotation-minimizing frame with an arbitrary seed is used then). Throws std::invalid_argument on
-  // inconsistent input (the design reader validates first and reports user-facing errors), and when the
-  // centerline needs more than kMaxSamplesPerRod samples (the message names the rod).
+  // inconsistent input (the design reader validates first and reports user-facing errors), and
+  // CenterlineError when the centerline's length is not finite or is zero (below 1e-9 of its control
+  // points' extent) or when it needs more than kMaxSamplesPerRod samples (the message names the rod).
+  // The arc length of `centerline` (mm), as a Rod of it has; throws CenterlineError when it is not
+  // finite or is zero (below 1e-9 of the control points' extent, at least 1e-9 mm).
+  static double checkedLength(const NurbsCurve& centerline);
   Rod(std::string name, NurbsCurve centerline, Section section, std::optional<Vec3> referenceNormal,
       std::optional<QuaternionSpline> orientation, CapStyle caps, BSplineField modulus);
   // A rod's samples take 0.1-1 MB on a winding centerline. Its moves do not throw (Eigen's AlignedBox, the

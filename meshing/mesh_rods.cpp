@@ -213,8 +213,13 @@ geometry::RodStructure buildRods(const std::filesystem::path& file, const Triang
     report.rodsAboveTolerance += rod.distance > options.surfaceTolerance;
     isNode[e.f] = isNode[e.g] = true;
     const Vec3 normal = referenceNormal(rod.curve, nodes[e.f], faceNormal(simplified, e.f));
-    structure.rods.emplace_back("rod-" + std::to_string(i), std::move(rod.curve), options.section, normal, std::nullopt,
-                                options.caps, geometry::BSplineField::constant(options.modulusMpa, 0.0, 1.0));
+    try {
+      structure.rods.emplace_back("rod-" + std::to_string(i), std::move(rod.curve), options.section, normal, std::nullopt,
+                                  options.caps, geometry::BSplineField::constant(options.modulusMpa, 0.0, 1.0));
+    } catch (const geometry::CenterlineError& error) {  // a mesh at the scale of 1e-12 mm: as requireValidDesign says it
+      throw MeshError(file, "rod-" + std::to_string(i) + ", as rods[" + std::to_string(i) + "].centerline: " + error.what() +
+                                "; the design would not be valid");
+    }
   }
   report.rods = structure.rods.size();
   report.nodes = static_cast<std::size_t>(std::count(isNode.begin(), isNode.end(), true));

@@ -261,10 +261,10 @@ TEST_CASE("A rod too intricate to sample is reported in the file's order, its ro
   d["rods"].push_back(tooIntricateRod("huge-3"));
   const auto issues = issuesOf(d);
   REQUIRE(issues.size() == 3);
-  CHECK(issues[0].path == "rods[1]");
+  CHECK(issues[0].path == "rods[1].centerline");
   CHECK_THAT(issues[0].message, Catch::Contains("rod 'huge-1'") && Catch::Contains("polyline samples"));
   CHECK(issues[1].path == "rods[2].modulus");
-  CHECK(issues[2].path == "rods[3]");
+  CHECK(issues[2].path == "rods[3].centerline");
   d["rods"].erase(3), d["rods"].erase(1);
   d["rods"][1]["modulus"] = 100;  // what is left builds
   CHECK(parseDesign(d.dump(), "ok.json").rods.size() == 2);
