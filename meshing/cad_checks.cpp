@@ -9,6 +9,7 @@
 #include <Geom_BSplineSurface.hxx>
 #include <IGESGeom_BSplineCurve.hxx>
 #include <IGESGeom_Line.hxx>
+#include <IGESToBRep.hxx>
 #include <IGESGeom_BSplineSurface.hxx>
 #include <IGESSolid_EdgeList.hxx>
 #include <IGESSolid_Loop.hxx>
@@ -35,9 +36,12 @@
 #include <XSControl_Reader.hxx>
 #include <XSControl_TransferReader.hxx>
 #include <XSControl_WorkSession.hxx>
+#include <gp_Pnt.hxx>
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <string>
 #include <string_view>
@@ -302,6 +306,18 @@ std::string listIndexProblem(const Handle(Standard_Transient)& list, int index) 
   return "item " + std::to_string(index) + " of a list of " + std::to_string(count);
 }
 
+// OpenCASCADE takes a coordinate of 1e100 or more as infinite (Precision::Infinite() is 2e100): a
+// line ending there leaves its edge null, which the loop's transfer dereferenced (a SIGSEGV,
+// scripts/mutate_cad.py). A design holds coordinates within +-1e9 mm, at most ~4e13 of IGES's smallest
+// unit (the microinch), so nothing beyond 1e15 in the file's unit can become one.
+constexpr double kMaxIgesCoordinate = 1e15;
+
+std::string formatCoordinate(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.6g", v);
+  return text;
+}
+
 std::string igesTopologyProblem(const Handle(Standard_Transient)& entity) {
   if (auto loop = Handle(IGESSolid_Loop)::DownCast(entity); !loop.IsNull()) {
     for (int i = 1; i <= loop->NbEdges(); ++i) {
@@ -316,6 +332,14 @@ std::string igesTopologyProblem(const Handle(Standard_Transient)& entity) {
                " (expected type 0 on an edge list or 1 on a vertex list)";
       if (std::string problem = listIndexProblem(loop->Edge(i), loop->ListIndex(i)); !problem.empty())
         return "edge " + std::to_string(i) + " refers to " + problem;
+      // Its curves in the face's parameter space: a count running into the next edge's values made
+      // them an edge list and a null pointer (a SIGSEGV in the transfer, scripts/mutate_cad.py).
+      for (int j = 1; j <= loop->NbParameterCurves(i); ++j) {
+        const Handle(IGESData_IGESEntity) curve = loop->ParametricCurve(i, j);
+        if (curve.IsNull() || !(IGESToBRep::IsBasicCurve(curve) || IGESToBRep::IsTopoCurve(curve)))
+          return "edge " + std::to_string(i) + "'s parameter-space curve " + std::to_string(j) + " is " +
+                 (curve.IsNull() ? std::string("missing") : "an entity of type " + std::to_string(curve->TypeNumber()) + ", not a curve");
+      }
     }
   } else if (auto edges = Handle(IGESSolid_EdgeList)::DownCast(entity); !edges.IsNull()) {
     for (int i = 1; i <= edges->NbEdges(); ++i) {
@@ -328,6 +352,11 @@ std::string igesTopologyProblem(const Handle(Standard_Transient)& entity) {
       if (!line.IsNull() && line->StartPoint().Distance(line->EndPoint()) == 0.0)
         return "edge " + std::to_string(i) + "'s curve is a line of zero length (it starts and ends at the same point)";
     }
+  } else if (auto line = Handle(IGESGeom_Line)::DownCast(entity); !line.IsNull()) {
+    for (const gp_Pnt& end : {line->StartPoint(), line->EndPoint()})
+      if (!(std::max({std::abs(end.X()), std::abs(end.Y()), std::abs(end.Z())}) <= kMaxIgesCoordinate))
+        return "a line ending at (" + formatCoordinate(end.X()) + ", " + formatCoordinate(end.Y()) + ", " + formatCoordinate(end.Z()) +
+               "), beyond +-1e15 in the file's unit (no design holds it: a wrong unit or a corrupt file?)";
   }
   return {};
 }

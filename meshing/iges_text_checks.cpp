@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -128,6 +129,38 @@ void checkIgesListCounts(const std::string& params, long long values, char delim
   }
 }
 
+bool isLoopRecord(const std::string& params, char delimiter) {
+  const std::vector<std::string> type = leadingFields(params, delimiter, 1);
+  return !type.empty() && type[0] == "508";
+}
+
+// An IGES loop (type 508): N, then per edge its type, list, index, orientation and K, then K pairs
+// (an isoparametric flag and a curve in the face's parameter space). OpenCASCADE's reader reads each
+// edge's K pairs from whatever follows, and a K running past the record left a null curve it then
+// dereferenced while loading (a SIGSEGV in IGESSolid_ToolLoop::ReadOwnParams, scripts/mutate_cad.py).
+// The edge count itself is checkIgesListCounts'.
+void checkIgesLoopEdges(const std::string& params, char delimiter, char recordEnd, long long line,
+                        const std::filesystem::path& file) {
+  if (!isLoopRecord(params, delimiter)) return;
+  const std::vector<std::string> fields =
+      leadingFields(params.substr(0, params.find(recordEnd)), delimiter, std::numeric_limits<std::size_t>::max());
+  const auto whole = [](const std::string& f) { return f.size() <= 9 && f.find_first_not_of("0123456789") == std::string::npos; };
+  if (fields.size() < 2 || !whole(fields[1])) return;  // checkIgesListCounts says so
+  const long long edges = fields[1].empty() ? 0 : std::stoll(fields[1]);
+  const std::string where = "line " + std::to_string(line) + ": malformed IGES Loop (type 508): edge ";
+  std::size_t at = 2;
+  for (long long e = 1; e <= edges; ++e) {
+    if (at + 5 > fields.size()) throw MeshError(file, where + std::to_string(e) + " of " + std::to_string(edges) + " runs past the record");
+    const std::string& curves = fields[at + 4];
+    if (!whole(curves))
+      throw MeshError(file, where + std::to_string(e) + ": its count of parameter-space curves " + common::quotedFromFile(curves) +
+                                " is not a whole number");
+    at += 5 + 2 * std::size_t(curves.empty() ? 0 : std::stoll(curves));
+    if (at > fields.size())
+      throw MeshError(file, where + std::to_string(e) + ": its " + curves + " parameter-space curves run past the record");
+  }
+}
+
 }  // namespace
 
 void prescanIgesText(const std::filesystem::path& file) {
@@ -148,6 +181,7 @@ void prescanIgesText(const std::filesystem::path& file) {
       if (!params.empty() && !firstRecordProblem) {
         checkIgesSpline(params, values, delimiter, entityLine, bytes, file);
         checkIgesListCounts(params, values, delimiter, recordEnd, entityLine, file);
+        checkIgesLoopEdges(params, delimiter, recordEnd, entityLine, file);
       }
     } catch (const MeshError& e) {
       firstRecordProblem = e;
@@ -180,7 +214,8 @@ void prescanIgesText(const std::filesystem::path& file) {
     } else if (line[72] == 'P') {
       const std::string owner = line.substr(64, 8);
       if (owner != entity) flush(), entity = owner, entityLine = number;
-      if (params.size() < 256) params += line.substr(0, 64);  // the counts come first
+      // The counts come first; a loop's edges each hold a count of their own, so a loop is kept whole.
+      if (params.size() < 256 || isLoopRecord(params, delimiter)) params += line.substr(0, 64);
       countValues(std::string_view(line).substr(0, 64));
     }
   }

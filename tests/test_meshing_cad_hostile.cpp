@@ -289,6 +289,30 @@ TEST_CASE("an IGES edge on a line of zero length is refused, naming the edge lis
   CHECK(meshing::rodsFromCad(valid, {}).structure.rods.size() == 12);
 }
 
+TEST_CASE("an IGES line OpenCASCADE would take as infinite, and a loop edge's curves past its record, are refused", "[meshing][cad][hostile]") {
+  // Found by mutate_cad.py on the box's B-rep, each a SIGSEGV in OpenCASCADE: a line (110,X1,Y1,Z1,X2,
+  // Y2,Z2;) ending at x = -1e308 (OpenCASCADE's infinity is 2e100), and a loop edge's count K of
+  // parameter-space curves (508,N,TYPE,LIST,INDEX,ORIENT,K,...) of 3 in a record without them.
+  const fs::path valid = scratch("box-far.igs");
+  testing::writeIges(testing::box(10, 20, 30), valid);
+  const std::string far = withRecordEdited(valid, "110,", [](const std::string& data) {
+    std::size_t at = 4;
+    for (int k = 0; k < 3; ++k) at = data.find(',', at) + 1;
+    return data.substr(0, at) + "-1.E308" + data.substr(data.find(',', at));
+  });
+  CHECK_THAT(cadError("far-line.igs", far), Catch::Contains("Line): a line ending at (-1e+308, ") &&
+                                                 Catch::Contains("beyond +-1e15 in the file's unit"));
+  const std::string three = "3";
+  const std::string curves = withRecordEdited(valid, "508,", [&](std::string data) {
+    std::size_t at = 0;
+    for (int k = 0; k < 6; ++k) at = data.find(',', at) + 1;  // the first edge's K
+    return data.replace(at, data.find(',', at) - at, three);
+  });
+  CHECK_THAT(cadError("loop-curves.igs", curves),
+             Catch::Contains(": malformed IGES Loop (type 508): edge ") && Catch::Contains(" past the record"));
+  CHECK(meshing::rodsFromCad(valid, {}).structure.rods.size() == 12);
+}
+
 TEST_CASE("an IGES B-rep record whose count runs past its values, or a record numbered with garbage, is refused", "[meshing][cad][hostile]") {
   // Found by mutate_cad.py on the box's B-rep, each a SIGSEGV in OpenCASCADE: a face (510,SURFACE,N,
   // OUTER,LOOPS...) whose loop count N is "E5", and a directory entry's sequence number "000;017".
