@@ -44,6 +44,16 @@ int plyTypeSize(const std::string& type) {
   return 0;
 }
 
+// An element's count as CGAL's reader takes it: a std::size_t read from the stream ("12ex" is 12, "-1"
+// wraps to 2^64 - 1, "1e30" is 1), 0 where that read fails (then CGAL refuses the file). A count read
+// any other way let the check walk another layout than CGAL's (a double's "0010000000000ex" failed
+// to 0 in the header check while CGAL read 10^10 elements: fuzz_mesh_reader).
+std::uint64_t elementCount(const std::string& word) {
+  std::size_t count = 0;
+  std::istringstream(word) >> count;
+  return count;
+}
+
 // The layout, or nullopt where the header is one CGAL's reader refuses anyway (an unknown type or
 // format, no end_header): checkPlyLists then leaves the file to it.
 std::optional<PlyLayout> plyLayout(const std::string& bytes) {
@@ -56,7 +66,7 @@ std::optional<PlyLayout> plyLayout(const std::string& bytes) {
     std::string keyword, a, b, c, d;
     words >> keyword >> a >> b >> c >> d;
     if (keyword == "format") layout.format = a;
-    if (keyword == "element") layout.elements.push_back({a, std::strtoull(b.c_str(), nullptr, 10), {}});
+    if (keyword == "element") layout.elements.push_back({a, elementCount(b), {}});
     if (keyword == "property" && !layout.elements.empty()) {
       const PlyProperty property = a == "list" ? PlyProperty{b, c} : PlyProperty{"", a};
       if ((!property.countType.empty() && plyTypeSize(property.countType) == 0) || plyTypeSize(property.itemType) == 0)
@@ -207,11 +217,11 @@ void checkPlyHeader(const std::string& bytes, const std::string& source) {
         throw MeshError(source, "PLY header line 2: unknown format " + common::quotedFromFile(format) + " (expected ascii, binary_little_endian or binary_big_endian)");
     }
     if (keyword == "element") {
-      std::string name;
-      double count = -1;
-      words >> name >> count;
+      std::string name, countWord;
+      words >> name >> countWord;
       elementName = name;
-      if (!(count >= 0) || count > static_cast<double>(bytes.size()))
+      const std::uint64_t count = elementCount(countWord);
+      if (count > bytes.size())
         throw MeshError(source, "PLY header line " + std::to_string(number) + ": an element count the file's " +
                                     std::to_string(bytes.size()) + " bytes cannot hold");
       element = true;

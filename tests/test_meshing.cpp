@@ -236,6 +236,10 @@ TEST_CASE("bad meshes get an error naming the file and the problem", "[meshing]"
   CHECK_THAT(error(scratch("escape.ply")), Catch::Contains("PLY header line 5: a property of unknown type '\\x1b[2J'"));
   writeText(scratch("escape2.ply"), "ply\nformat ascii 1.0\nelement f\x1b]0;x\x07 1\nproperty int n\nend_header\n1.5\n");
   CHECK_THAT(error(scratch("escape2.ply")), Catch::Contains("PLY f\\x1b]0;x\\x07 0: '1.5' is not an integer"));
+  // An element count read as CGAL reads it, a std::size_t from the stream: "100000000000ex" is 10^11
+  // elements to CGAL (a double's read failed, so the check saw 0: a 10 s loop found by fuzzing).
+  writeText(scratch("count.ply"), "ply\nformat ascii 1.0\nelement vertex 100000000000ex\nproperty float x\nend_header\n0\n");
+  CHECK_THAT(error(scratch("count.ply")), Catch::Contains("PLY header line 3: an element count the file's"));
   writeText(scratch("endless.ply"), "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nend_@header\n");
   CHECK_THAT(error(scratch("endless.ply")), Catch::Contains("the PLY header has no end_header line"));
   writeText(scratch("mesh.dxf"), "x");
