@@ -95,6 +95,17 @@ std::string withRecordEdited(const fs::path& file, const std::string& prefix, co
   return text;
 }
 
+// The IGES file's first line record (110,X1,Y1,Z1,X2,Y2,Z2;) with its second end, from X2 on, replaced
+// by what `edit` makes of the first end's text ("0.,0.,30.") and the second's ("0.,20.,30.;").
+std::string withSecondEndOfLine(const fs::path& file,
+                                const std::function<std::string(const std::string& firstEnd, const std::string& secondEnd)>& edit) {
+  return withRecordEdited(file, "110,", [&](const std::string& data) {
+    std::size_t at = 4;
+    for (int k = 0; k < 3; ++k) at = data.find(',', at) + 1;
+    return data.substr(0, at) + edit(data.substr(4, at - 5), data.substr(at));
+  });
+}
+
 // The test spline's record "126,5,3,..." (upper index 5, degree 3) with its counts replaced by
 // `counts` ("126,5,1000000,"); six weights written as integers make room in its 64 data columns.
 std::string splineRecordWithCounts(const fs::path& valid, const std::string& counts) {
@@ -279,11 +290,7 @@ TEST_CASE("an IGES edge on a line of zero length is refused, naming the edge lis
   // loop transfer dereferences the null wire it makes of that edge (a SIGSEGV, found by mutate_cad.py).
   const fs::path valid = scratch("box-lines.igs");
   testing::writeIges(testing::box(10, 20, 30), valid);
-  const std::string text = withRecordEdited(valid, "110,", [](const std::string& data) {
-    std::size_t at = 4;
-    for (int k = 0; k < 3; ++k) at = data.find(',', at) + 1;
-    return data.substr(0, at) + data.substr(4, at - 5) + ";";
-  });
+  const std::string text = withSecondEndOfLine(valid, [](const std::string& firstEnd, const std::string&) { return firstEnd + ";"; });
   CHECK_THAT(cadError("zero-line.igs", text), Catch::Contains("malformed: entity D") && Catch::Contains("EdgeList): edge ") &&
                                                   Catch::Contains("'s curve is a line of zero length"));
   CHECK(meshing::rodsFromCad(valid, {}).structure.rods.size() == 12);
@@ -295,11 +302,8 @@ TEST_CASE("an IGES line OpenCASCADE would take as infinite, and a loop edge's cu
   // parameter-space curves (508,N,TYPE,LIST,INDEX,ORIENT,K,...) of 3 in a record without them.
   const fs::path valid = scratch("box-far.igs");
   testing::writeIges(testing::box(10, 20, 30), valid);
-  const std::string far = withRecordEdited(valid, "110,", [](const std::string& data) {
-    std::size_t at = 4;
-    for (int k = 0; k < 3; ++k) at = data.find(',', at) + 1;
-    return data.substr(0, at) + "-1.E308" + data.substr(data.find(',', at));
-  });
+  const std::string far = withSecondEndOfLine(
+      valid, [](const std::string&, const std::string& secondEnd) { return "-1.E308" + secondEnd.substr(secondEnd.find(',')); });
   CHECK_THAT(cadError("far-line.igs", far), Catch::Contains("Line): a line ending at (-1e+308, ") &&
                                                  Catch::Contains("beyond +-1e15 in the file's unit"));
   const std::string three = "3";
