@@ -194,27 +194,28 @@ TEST_CASE("Every kind of bad section, modulus, frame and key is reported with it
     d["rods"].push_back(d["rods"][0]);
     REQUIRE_ISSUE(d, "rods[1].name", "duplicate rod name");
   }
-  SECTION("names: not empty, at most 256 bytes, no control characters (they reach the terminal)") {
-    json d = validDesign();
-    d["rods"][0]["name"] = "";
-    REQUIRE_ISSUE(d, "rods[0].name", "expected a rod name, not an empty string");
-    d["rods"][0]["name"] = std::string(257, 'r');
-    REQUIRE_ISSUE(d, "rods[0].name", "expected a rod name of at most 256 bytes, got 257");
-    d["rods"][0]["name"] = "arm\x1b[2J";
-    REQUIRE_ISSUE(d, "rods[0].name", "expected a rod name without control characters, got 'arm\\x1b[2J'");
-    d["rods"][0]["name"] = "arm\xc2\x9b";  // U+009B, the C1 control sequence introducer
-    REQUIRE_ISSUE(d, "rods[0].name", "without control characters, got 'arm\\xc2\\x9b'");
-    d["rods"][0]["name"] = std::string(256, 'r');  // the longest allowed, and any printable UTF-8
-    CHECK(parseDesign(d.dump(), "d.json").rods.size() == 1);
-    d["rods"][0]["name"] = "Stab \xc3\xa9\xe2\x82\xac";
-    CHECK(parseDesign(d.dump(), "d.json").rods.front().name() == "Stab \xc3\xa9\xe2\x82\xac");
-  }
   SECTION("interior knot repeated past the degree") {
     json d = validDesign();
     d["rods"][0]["centerline"]["degree"] = 1;
     d["rods"][0]["centerline"]["knots"] = {0, 0, 0.5, 0.5, 1, 1};
     REQUIRE_ISSUE(d, "rods[0].centerline.knots[2]", "repeated 2 times");
   }
+}
+
+TEST_CASE("Rod names are 1 to 256 bytes without control characters (they reach the terminal)", "[design][errors]") {
+  json d = validDesign();
+  d["rods"][0]["name"] = "";
+  REQUIRE_ISSUE(d, "rods[0].name", "expected a rod name, not an empty string");
+  d["rods"][0]["name"] = std::string(257, 'r');
+  REQUIRE_ISSUE(d, "rods[0].name", "expected a rod name of at most 256 bytes, got 257");
+  d["rods"][0]["name"] = "arm\x1b[2J";
+  REQUIRE_ISSUE(d, "rods[0].name", "expected a rod name without control characters, got 'arm\\x1b[2J'");
+  d["rods"][0]["name"] = "arm\xc2\x9b";  // U+009B, the C1 control sequence introducer
+  REQUIRE_ISSUE(d, "rods[0].name", "without control characters, got 'arm\\xc2\\x9b'");
+  d["rods"][0]["name"] = std::string(256, 'r');  // the longest allowed, and any printable UTF-8
+  CHECK(parseDesign(d.dump(), "d.json").rods.size() == 1);
+  d["rods"][0]["name"] = "Stab \xc3\xa9\xe2\x82\xac";
+  CHECK(parseDesign(d.dump(), "d.json").rods.front().name() == "Stab \xc3\xa9\xe2\x82\xac");
 }
 
 TEST_CASE("All errors of a file are collected, not only the first", "[design][errors]") {

@@ -180,97 +180,105 @@ TEST_CASE("rods meeting at a node end at exactly one point, with the surface nor
   CHECK(geometry::readDesign(scratch("frame.json")).rods.size() == result.structure.rods.size());
 }
 
-TEST_CASE("bad meshes get an error naming the file and the problem", "[meshing]") {
+namespace {
+
+// rodsFromMesh's error for `file` (`faces` asked for), checked to name the file first; "no error" if it read.
+std::string meshError(const fs::path& file, std::size_t faces = 4) {
   meshing::MeshRodOptions options;
-  options.faces = 4;
-  const auto error = [&](const fs::path& file) -> std::string {
-    try {
-      meshing::rodsFromMesh(file, options);
-    } catch (const meshing::MeshError& e) {
-      CHECK(std::string(e.what()).rfind(file.string() + ": ", 0) == 0);
-      return e.what();
-    }
-    return "no error";
-  };
-  CHECK_THAT(error(scratch("missing.stl")), Catch::Contains("no such file"));
+  options.faces = faces;
+  try {
+    meshing::rodsFromMesh(file, options);
+  } catch (const meshing::MeshError& e) {
+    CHECK(std::string(e.what()).rfind(file.string() + ": ", 0) == 0);
+    return e.what();
+  }
+  return "no error";
+}
+
+}  // namespace
+
+TEST_CASE("bad meshes get an error naming the file and the problem", "[meshing]") {
+  CHECK_THAT(meshError(scratch("missing.stl")), Catch::Contains("no such file"));
   writeText(scratch("empty.obj"), "");
-  CHECK_THAT(error(scratch("empty.obj")), Catch::Contains("no faces"));
+  CHECK_THAT(meshError(scratch("empty.obj")), Catch::Contains("no faces"));
   writeText(scratch("garbage.off"), "OFF\n3 1 0\n0 0 0\n1 0 0\n");
-  CHECK_THAT(error(scratch("garbage.off")), Catch::Contains("not a readable off mesh"));
+  CHECK_THAT(meshError(scratch("garbage.off")), Catch::Contains("not a readable off mesh"));
   writeText(scratch("huge.off"), "OFF\n1000000000 1000000000 0\n");
-  CHECK_THAT(error(scratch("huge.off")), Catch::Contains("OFF header declares"));
+  CHECK_THAT(meshError(scratch("huge.off")), Catch::Contains("OFF header declares"));
   // Lines CGAL's OFF reader would misread (unchecked casts, a colour read past the line): refused first.
   writeText(scratch("index.off"), "OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 3e31\n");
-  CHECK_THAT(error(scratch("index.off")), Catch::Contains("OFF line 7: a face refers to a vertex"));
+  CHECK_THAT(meshError(scratch("index.off")), Catch::Contains("OFF line 7: a face refers to a vertex"));
   // nOFF's dimension before the counts, which the check read as counts (found by fuzzing).
   writeText(scratch("dims.off"), "nOFF\n3 4 1 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n");
-  CHECK_THAT(error(scratch("dims.off")), Catch::Contains("OFF line 1: 'nOFF' (OFF of n dimensions) is not read"));
+  CHECK_THAT(meshError(scratch("dims.off")), Catch::Contains("OFF line 1: 'nOFF' (OFF of n dimensions) is not read"));
   // A skeleton, which CGAL's OFF reader takes too, its polylines unchecked (500 M points: 18 s, 3.9 GB).
   writeText(scratch("skel.off"), "SKEL\n1 1\n0 0 0\n500000000 0\n");
-  CHECK_THAT(error(scratch("skel.off")), Catch::Contains("OFF line 1: 'SKEL' is not an OFF keyword"));
+  CHECK_THAT(meshError(scratch("skel.off")), Catch::Contains("OFF line 1: 'SKEL' is not an OFF keyword"));
   writeText(scratch("edges.off"), "OFF\n4 1 3.30\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n");
-  CHECK_THAT(error(scratch("edges.off")), Catch::Contains("OFF line 2: expected the vertex, face and edge counts on one line"));
+  CHECK_THAT(meshError(scratch("edges.off")), Catch::Contains("OFF line 2: expected the vertex, face and edge counts on one line"));
   writeText(scratch("short.off"), "OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n4 0 1\n");
-  CHECK_THAT(error(scratch("short.off")), Catch::Contains("a face of 4 corners needs as many"));
-  writeText(scratch("prop.ply"), "ply\nformat ascii 1.0\nproperty float x\nelement vertex 1\nend_header\n0\n");
-  CHECK_THAT(error(scratch("prop.ply")), Catch::Contains("PLY header line 3: a property before any element"));
-  // A vertex coordinate declared as a list: CGAL's reader called through a null pointer (found by fuzzing).
-  writeText(scratch("listy.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty list uchar float y\n"
-                                  "property float z\nend_header\n0 1 0 0\n");
-  CHECK_THAT(error(scratch("listy.ply")), Catch::Contains("PLY header line 5: vertex coordinate y is a list (expected a float or double)"));
-  // The same for an element "vertices", which CGAL reads points from too (found by fuzzing).
-  writeText(scratch("vertices.ply"), "ply\nformat ascii 1.0\nelement vertices 1\nproperty uchar x\nend_header\n0\n");
-  CHECK_THAT(error(scratch("vertices.ply")), Catch::Contains("PLY header line 4: vertex coordinate x of type 'uchar' (expected float or double)"));
-  // A second format line (CGAL reads line 2's only) and no end_header (CGAL then reads the body past the
-  // end of the file: list lengths of gigabytes, found by fuzzing).
-  writeText(scratch("formats.ply"), "ply\nformat binary_little_endian 1.0\nformat ascii 1.0\nelement vertex 1\nend_header\n");
-  CHECK_THAT(error(scratch("formats.ply")), Catch::Contains("PLY header line 3: a format line where PLY has it on line 2 only"));
-  // Line 2 not a format line: CGAL reads its second word as the format anyway.
-  writeText(scratch("starformat.ply"), "ply\n*format binary_little_endian 1.0\nelement vertex 1\nproperty float x\nend_header\n");
-  CHECK_THAT(error(scratch("starformat.ply")), Catch::Contains("PLY header line 2: expected 'format ascii 1.0'"));
-  // A property of a type CGAL does not know, which it skips while the list check would read nothing.
-  writeText(scratch("floz.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty floz at\nend_header\n0 0\n");
-  CHECK_THAT(error(scratch("floz.ply")), Catch::Contains("PLY header line 5: a property of unknown type 'floz'"));
-  // A hostile file's names reach the message escaped, never as terminal control sequences.
-  writeText(scratch("escape.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty \x1b[2J at\nend_header\n0 0\n");
-  CHECK_THAT(error(scratch("escape.ply")), Catch::Contains("PLY header line 5: a property of unknown type '\\x1b[2J'"));
-  writeText(scratch("escape2.ply"), "ply\nformat ascii 1.0\nelement f\x1b]0;x\x07 1\nproperty int n\nend_header\n1.5\n");
-  CHECK_THAT(error(scratch("escape2.ply")), Catch::Contains("PLY f\\x1b]0;x\\x07 0: '1.5' is not an integer"));
-  // An element count read as CGAL reads it, a std::size_t from the stream: "100000000000ex" is 10^11
-  // elements to CGAL (a double's read failed, so the check saw 0: a 10 s loop found by fuzzing).
-  writeText(scratch("count.ply"), "ply\nformat ascii 1.0\nelement vertex 100000000000ex\nproperty float x\nend_header\n0\n");
-  CHECK_THAT(error(scratch("count.ply")), Catch::Contains("PLY header line 3: an element count the file's"));
-  writeText(scratch("endless.ply"), "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nend_@header\n");
-  CHECK_THAT(error(scratch("endless.ply")), Catch::Contains("the PLY header has no end_header line"));
+  CHECK_THAT(meshError(scratch("short.off")), Catch::Contains("a face of 4 corners needs as many"));
   writeText(scratch("mesh.dxf"), "x");
-  CHECK_THAT(error(scratch("mesh.dxf")), Catch::Contains("unknown mesh format"));
+  CHECK_THAT(meshError(scratch("mesh.dxf")), Catch::Contains("unknown mesh format"));
   // Three triangles on one edge.
   writeText(scratch("fin.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n");
-  CHECK_THAT(error(scratch("fin.obj")), Catch::Contains("non-manifold mesh") && Catch::Contains("(0, 0, 0) to (1, 0, 0)"));
+  CHECK_THAT(meshError(scratch("fin.obj")), Catch::Contains("non-manifold mesh") && Catch::Contains("(0, 0, 0) to (1, 0, 0)"));
   // Two tetrahedra sharing one vertex only.
   writeText(scratch("bowtie.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv -1 0 0\nv 0 -1 0\nv 0 0 -1\n"
                                    "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\nf 1 5 6\nf 1 6 7\nf 1 7 5\nf 5 7 6\n");
-  CHECK_THAT(error(scratch("bowtie.obj")), Catch::Contains("non-manifold") && Catch::Contains("(0, 0, 0)"));
+  CHECK_THAT(meshError(scratch("bowtie.obj")), Catch::Contains("non-manifold") && Catch::Contains("(0, 0, 0)"));
   writeText(scratch("sliver.obj"), "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\n");
-  CHECK_THAT(error(scratch("sliver.obj")), Catch::Contains("degenerate mesh: triangle") && Catch::Contains("zero area"));
+  CHECK_THAT(meshError(scratch("sliver.obj")), Catch::Contains("degenerate mesh: triangle") && Catch::Contains("zero area"));
   writeText(scratch("repeat.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 2\n");
-  CHECK_THAT(error(scratch("repeat.obj")), Catch::Contains("two corners at the same point (1, 0, 0)"));
+  CHECK_THAT(meshError(scratch("repeat.obj")), Catch::Contains("two corners at the same point (1, 0, 0)"));
   // A binary STL (which can hold any float) with a NaN coordinate.
   testing::SimpleMesh nan = testing::ellipsoid(1, 10, 10, 10);
   nan.points[3].y() = std::nan("");
   testing::writeBinaryStl(nan, scratch("nan.stl"));
-  CHECK_THAT(error(scratch("nan.stl")), Catch::Contains("not a finite number"));
+  CHECK_THAT(meshError(scratch("nan.stl")), Catch::Contains("not a finite number"));
   // Numbers the readers' streams cannot hold stop them; the message names the line and the token.
   writeText(scratch("overflow.stl"), "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1e999 0 0\n"
                                      "vertex 0 1 0\nendloop\nendfacet\nendsolid x\n");
-  CHECK_THAT(error(scratch("overflow.stl")), Catch::Contains("line 5: '1e999' is not a finite number"));
+  CHECK_THAT(meshError(scratch("overflow.stl")), Catch::Contains("line 5: '1e999' is not a finite number"));
   writeText(scratch("inf.obj"), "v 0 0 0\nv 1 0 0\nv 0 -inf 0\nf 1 2 3\n");
-  CHECK_THAT(error(scratch("inf.obj")), Catch::Contains("line 3: '-inf'"));
+  CHECK_THAT(meshError(scratch("inf.obj")), Catch::Contains("line 3: '-inf'"));
   writeText(scratch("overflow.off"), "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1e400 0\n3 0 1 2\n");
-  CHECK_THAT(error(scratch("overflow.off")), Catch::Contains("line 5: '1e400'"));
+  CHECK_THAT(meshError(scratch("overflow.off")), Catch::Contains("line 5: '1e400'"));
   testing::writeObj(testing::ellipsoid(1, 10, 10, 10), scratch("small.obj"));
-  options.faces = 100;
-  CHECK_THAT(error(scratch("small.obj")), Catch::Contains("20 triangles, fewer than the 100 asked for"));
+  CHECK_THAT(meshError(scratch("small.obj"), 100), Catch::Contains("20 triangles, fewer than the 100 asked for"));
+}
+
+TEST_CASE("PLY headers CGAL would misread are refused first, naming the line", "[meshing]") {
+  writeText(scratch("prop.ply"), "ply\nformat ascii 1.0\nproperty float x\nelement vertex 1\nend_header\n0\n");
+  CHECK_THAT(meshError(scratch("prop.ply")), Catch::Contains("PLY header line 3: a property before any element"));
+  // A vertex coordinate declared as a list: CGAL's reader called through a null pointer (found by fuzzing).
+  writeText(scratch("listy.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty list uchar float y\n"
+                                  "property float z\nend_header\n0 1 0 0\n");
+  CHECK_THAT(meshError(scratch("listy.ply")), Catch::Contains("PLY header line 5: vertex coordinate y is a list (expected a float or double)"));
+  // The same for an element "vertices", which CGAL reads points from too (found by fuzzing).
+  writeText(scratch("vertices.ply"), "ply\nformat ascii 1.0\nelement vertices 1\nproperty uchar x\nend_header\n0\n");
+  CHECK_THAT(meshError(scratch("vertices.ply")), Catch::Contains("PLY header line 4: vertex coordinate x of type 'uchar' (expected float or double)"));
+  // A second format line (CGAL reads line 2's only) and no end_header (CGAL then reads the body past the
+  // end of the file: list lengths of gigabytes, found by fuzzing).
+  writeText(scratch("formats.ply"), "ply\nformat binary_little_endian 1.0\nformat ascii 1.0\nelement vertex 1\nend_header\n");
+  CHECK_THAT(meshError(scratch("formats.ply")), Catch::Contains("PLY header line 3: a format line where PLY has it on line 2 only"));
+  // Line 2 not a format line: CGAL reads its second word as the format anyway.
+  writeText(scratch("starformat.ply"), "ply\n*format binary_little_endian 1.0\nelement vertex 1\nproperty float x\nend_header\n");
+  CHECK_THAT(meshError(scratch("starformat.ply")), Catch::Contains("PLY header line 2: expected 'format ascii 1.0'"));
+  // A property of a type CGAL does not know, which it skips while the list check would read nothing.
+  writeText(scratch("floz.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty floz at\nend_header\n0 0\n");
+  CHECK_THAT(meshError(scratch("floz.ply")), Catch::Contains("PLY header line 5: a property of unknown type 'floz'"));
+  // A hostile file's names reach the message escaped, never as terminal control sequences.
+  writeText(scratch("escape.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty \x1b[2J at\nend_header\n0 0\n");
+  CHECK_THAT(meshError(scratch("escape.ply")), Catch::Contains("PLY header line 5: a property of unknown type '\\x1b[2J'"));
+  writeText(scratch("escape2.ply"), "ply\nformat ascii 1.0\nelement f\x1b]0;x\x07 1\nproperty int n\nend_header\n1.5\n");
+  CHECK_THAT(meshError(scratch("escape2.ply")), Catch::Contains("PLY f\\x1b]0;x\\x07 0: '1.5' is not an integer"));
+  // An element count read as CGAL reads it, a std::size_t from the stream: "100000000000ex" is 10^11
+  // elements to CGAL (a double's read failed, so the check saw 0: a 10 s loop found by fuzzing).
+  writeText(scratch("count.ply"), "ply\nformat ascii 1.0\nelement vertex 100000000000ex\nproperty float x\nend_header\n0\n");
+  CHECK_THAT(meshError(scratch("count.ply")), Catch::Contains("PLY header line 3: an element count the file's"));
+  writeText(scratch("endless.ply"), "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nend_@header\n");
+  CHECK_THAT(meshError(scratch("endless.ply")), Catch::Contains("the PLY header has no end_header line"));
 }
 
 TEST_CASE("the mesh reader on bytes in memory", "[meshing]") {
