@@ -253,7 +253,7 @@ bool withinValues(const nlohmann::json& j, std::size_t& budget) {
 
 // nlohmann's dump escapes C0 controls but writes DEL and the C1 controls (U+0080-U+009F, which some
 // terminals obey) as they are: those as \u escapes too, so a message shows them rather than runs them.
-std::string escapeControlsJsonLeaves(const std::string& dumped) {
+std::string escapeDelAndC1(const std::string& dumped) {
   std::string out;
   out.reserve(dumped.size());
   for (std::size_t i = 0; i < dumped.size(); ++i) {
@@ -283,7 +283,7 @@ std::string describeJson(const nlohmann::json& j, std::size_t maxChars) {
   const nlohmann::json shown = j.is_string() && j.get_ref<const std::string&>().size() > maxChars
                                    ? nlohmann::json(j.get_ref<const std::string&>().substr(0, maxChars))
                                    : nlohmann::json();
-  std::string s = escapeControlsJsonLeaves((shown.is_null() ? j : shown).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  std::string s = escapeDelAndC1((shown.is_null() ? j : shown).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
   if (s.size() > maxChars) s = s.substr(0, maxChars > 3 ? maxChars - 3 : 0) + "...";
   return s;
 }

@@ -312,12 +312,6 @@ std::string listIndexProblem(const Handle(Standard_Transient)& list, int index) 
 // unit (the microinch), so nothing beyond 1e15 in the file's unit can become one.
 constexpr double kMaxIgesCoordinate = 1e15;
 
-std::string formatCoordinate(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.6g", v);
-  return text;
-}
-
 std::string igesTopologyProblem(const Handle(Standard_Transient)& entity) {
   if (auto loop = Handle(IGESSolid_Loop)::DownCast(entity); !loop.IsNull()) {
     for (int i = 1; i <= loop->NbEdges(); ++i) {
@@ -355,8 +349,7 @@ std::string igesTopologyProblem(const Handle(Standard_Transient)& entity) {
   } else if (auto line = Handle(IGESGeom_Line)::DownCast(entity); !line.IsNull()) {
     for (const gp_Pnt& end : {line->StartPoint(), line->EndPoint()})
       if (!(std::max({std::abs(end.X()), std::abs(end.Y()), std::abs(end.Z())}) <= kMaxIgesCoordinate))
-        return "a line ending at (" + formatCoordinate(end.X()) + ", " + formatCoordinate(end.Y()) + ", " + formatCoordinate(end.Z()) +
-               "), beyond +-1e15 in the file's unit (no design holds it: a wrong unit or a corrupt file?)";
+        return "a line ending at " + formatPoint(end) + ", beyond +-1e15 in the file's unit (no design holds it: a wrong unit or a corrupt file?)";
   }
   return {};
 }
@@ -421,6 +414,12 @@ void checkLoadedModel(const XSControl_Reader& reader, const std::filesystem::pat
   refuseBadPoints(reader, file);
   refuseBadIgesTopology(reader, file);
   refuseReferenceCycles(reader, file);
+}
+
+std::string formatPoint(const gp_Pnt& p) {
+  char text[96];
+  std::snprintf(text, sizeof text, "(%.6g, %.6g, %.6g)", p.X(), p.Y(), p.Z());
+  return text;
 }
 
 std::string entityName(const Handle(Interface_InterfaceModel)& model, const Handle(Standard_Transient)& entity) {

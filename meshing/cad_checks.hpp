@@ -15,6 +15,7 @@
 #include <string>
 
 class Interface_InterfaceModel;
+class gp_Pnt;
 class Standard_Transient;
 class XSControl_Reader;
 
@@ -57,6 +58,9 @@ struct TransferFailures {
   std::string first;         // "entity #15 (GEOMETRIC_CURVE_SET): Exception is raised. Entity was not translated."
 };
 TransferFailures transferFailures(const XSControl_Reader& reader);
+
+// A point as messages show it: "(-1e+20, 20, 30)".
+std::string formatPoint(const gp_Pnt& p);
 
 // An entity as messages name it: "#17 (BSplineCurveWithKnots)" in STEP, "D5 (BSplineCurve)" in IGES.
 std::string entityName(const Handle(Interface_InterfaceModel)& model, const Handle(Standard_Transient)& entity);

@@ -88,12 +88,6 @@ struct EdgeRef {
   std::string name() const { return edgeName(reader, edge, index); }
 };
 
-std::string formatPoint(const gp_Pnt& p) {
-  char text[96];
-  std::snprintf(text, sizeof text, "(%.6g, %.6g, %.6g)", p.X(), p.Y(), p.Z());
-  return text;
-}
-
 geometry::NurbsCurve toNurbs(const Geom_BSplineCurve& bs, const std::filesystem::path& file, const EdgeRef& edge) {
   if (bs.Degree() > geometry::kMaxDegree)
     throw MeshError(file, edge.name() + ": a curve of degree " + std::to_string(bs.Degree()) + ", above the " +
@@ -109,7 +103,7 @@ geometry::NurbsCurve toNurbs(const Geom_BSplineCurve& bs, const std::filesystem:
     // Checked here, not only with the whole design: an untrimmed line of a hostile file is one of
     // thousands, and the first one found ends the work.
     if (!(p.XYZ().Modulus() <= geometry::kMaxCoordinateMm))
-      throw MeshError(file, edge.name() + ": a control point at " + formatPoint(p) + " mm, beyond the +-1e9 mm a design allows " +
+      throw MeshError(file, edge.name() + ": a control point at " + detail::formatPoint(p) + " mm, beyond the +-1e9 mm a design allows " +
                                 "(an unbounded curve, or a wrong unit?)");
     points.emplace_back(p.X(), p.Y(), p.Z());
     weights.push_back(bs.Weight(i));

@@ -44,6 +44,8 @@ int plyTypeSize(const std::string& type) {
   return 0;
 }
 
+bool isPlyFloatType(const std::string& type) { return type == "float" || type == "float32" || type == "double" || type == "float64"; }
+
 // An element's count as CGAL's reader takes it: a std::size_t read from the stream ("12ex" is 12, "-1"
 // wraps to 2^64 - 1, "1e30" is 1), 0 where that read fails (then CGAL refuses the file). A count read
 // any other way let the check walk another layout than CGAL's (a double's "0010000000000ex" failed
@@ -168,7 +170,7 @@ private:
   // check's part ways.
   double asciiNumber(std::size_t begin, const std::string& type) {
     const std::string word(bytes_, begin, std::min<std::size_t>(at_ - begin, 64));
-    const bool integer = type != "float" && type != "float32" && type != "double" && type != "float64";
+    const bool integer = !isPlyFloatType(type);
     char* end = nullptr;
     const double value = std::strtod(word.c_str(), &end);
     const std::size_t digits = !word.empty() && (word[0] == '+' || word[0] == '-') ? 1 : 0;  // after the sign
@@ -242,7 +244,7 @@ void checkPlyHeader(const std::string& bytes, const std::string& source) {
       if (coordinate && !countType.empty())
         throw MeshError(source, "PLY header line " + std::to_string(number) + ": vertex coordinate " + name +
                                     " is a list (expected a float or double)");
-      if (coordinate && type != "float" && type != "float32" && type != "double" && type != "float64")
+      if (coordinate && !isPlyFloatType(type))
         throw MeshError(source, "PLY header line " + std::to_string(number) + ": vertex coordinate " + name +
                                     " of type " + common::quotedFromFile(type) + " (expected float or double)");
     }
