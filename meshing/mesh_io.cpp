@@ -369,7 +369,7 @@ TriangleMesh parseMesh(const std::string& bytes, const std::string& format, cons
                         {.what = "reading the mesh " + source, .remedy = "simplify the mesh first"});
   if (bytes.find_first_not_of(" \t\r\n") == std::string::npos) throw MeshError(source, "the file is empty: it holds no faces");
   if (format == "off") checkOffText(bytes, source);
-  if (format == "ply") detail::checkPlyHeader(bytes, source), detail::checkPlyLists(bytes, source);
+  if (format == "ply") detail::checkPly(bytes, source);
   std::string spaced;
   if (tabbedObj) {
     spaced = bytes;

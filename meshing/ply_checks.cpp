@@ -12,8 +12,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <optional>
 #include <sstream>
+#include <utility>
 #include <vector>
 
 namespace rodfab::meshing::detail {
@@ -30,8 +30,8 @@ struct PlyElement {
   std::uint64_t count = 0;
   std::vector<PlyProperty> properties;
 };
-struct PlyLayout {
-  std::string format;       // ascii, binary_little_endian or binary_big_endian
+struct PlyHeader {
+  std::string format;         // ascii, binary_little_endian or binary_big_endian
   std::size_t bodyStart = 0;  // the byte after the end_header line
   std::vector<PlyElement> elements;
 };
@@ -46,42 +46,96 @@ int plyTypeSize(const std::string& type) {
 
 bool isPlyFloatType(const std::string& type) { return type == "float" || type == "float32" || type == "double" || type == "float64"; }
 
-// An element's count as CGAL's reader takes it: a std::size_t read from the stream ("12ex" is 12, "-1"
-// wraps to 2^64 - 1, "1e30" is 1), 0 where that read fails (then CGAL refuses the file). A count read
-// any other way let the check walk another layout than CGAL's (a double's "0010000000000ex" failed
-// to 0 in the header check while CGAL read 10^10 elements: fuzz_mesh_reader).
-std::uint64_t elementCount(const std::string& word) {
-  std::size_t count = 0;
-  std::istringstream(word) >> count;
-  return count;
+// One header line: its words as CGAL's reader extracts them from the line's stream, and where it is.
+struct HeaderLine {
+  std::istringstream words;
+  int number;
+  const std::string& source;
+
+  [[noreturn]] void fail(const std::string& what) const {
+    throw MeshError(source, "PLY header line " + std::to_string(number) + ": " + what);
+  }
+};
+
+// Line 2, "format ascii 1.0": CGAL takes the format from the second word of line 2 whatever the first
+// ("*format binary_little_endian" read as binary), and needs a version after it.
+std::string readFormat(HeaderLine& line, const std::string& keyword) {
+  std::string format, version;
+  line.words >> format >> version;
+  if (keyword != "format" || version.empty()) line.fail("expected 'format ascii 1.0' (or binary_little_endian, binary_big_endian)");
+  if (format != "ascii" && format != "binary_little_endian" && format != "binary_big_endian")
+    line.fail("unknown format " + common::quotedFromFile(format) + " (expected ascii, binary_little_endian or binary_big_endian)");
+  return format;
 }
 
-// The layout, or nullopt where the header is one CGAL's reader refuses anyway (an unknown type or
-// format, no end_header): checkPlyLists then leaves the file to it.
-std::optional<PlyLayout> plyLayout(const std::string& bytes) {
-  PlyLayout layout;
+// "element NAME COUNT", the count read as CGAL reads it: a std::size_t from the line's stream ("12ex" is
+// 12, "-1" wraps to 2^64 - 1). A count read any other way let the list check walk another layout than
+// CGAL's (a double's "0010000000000ex" failed to 0 while CGAL read 10^10 elements: fuzz_mesh_reader).
+// Each element takes at least one byte of the file.
+PlyElement readElement(HeaderLine& line, std::size_t fileBytes) {
+  PlyElement element;
+  std::size_t count = 0;
+  if (!(line.words >> element.name >> count)) line.fail("expected 'element NAME COUNT'");
+  if (count > fileBytes) line.fail("an element count the file's " + std::to_string(fileBytes) + " bytes cannot hold");
+  element.count = count;
+  return element;
+}
+
+// "property TYPE NAME" or "property list COUNT_TYPE ITEM_TYPE NAME". CGAL skips a property of a type it
+// does not know (and reads the body as if it were not there), where the list check would read nothing
+// (a list length of 1.7 GB passed: fuzz_mesh_reader); it reads a vertex's x, y, z as float or double
+// whatever their declared type, and as scalars (a member call on a null pointer for a list: fuzzing).
+PlyProperty readProperty(HeaderLine& line, const std::string& elementName) {
+  PlyProperty property;
+  std::string name;
+  line.words >> property.itemType >> name;
+  if (property.itemType == "list") {
+    property.countType = std::exchange(name, {});  // a failed read would leave name as it was
+    line.words >> property.itemType >> name;
+  }
+  if (plyTypeSize(property.itemType) == 0 || (!property.countType.empty() && plyTypeSize(property.countType) == 0))
+    line.fail("a property of unknown type " + common::quotedFromFile(plyTypeSize(property.itemType) == 0 ? property.itemType : property.countType) +
+              " (expected char, uchar, short, ushort, int, uint, float or double, or int8 to float64)");
+  if (name.empty()) line.fail("a property without a name");
+  const bool coordinate = (elementName == "vertex" || elementName == "vertices") && (name == "x" || name == "y" || name == "z");
+  if (coordinate && !property.countType.empty()) line.fail("vertex coordinate " + name + " is a list (expected a float or double)");
+  if (coordinate && !isPlyFloatType(property.itemType))
+    line.fail("vertex coordinate " + name + " of type " + common::quotedFromFile(property.itemType) + " (expected float or double)");
+  return property;
+}
+
+// The header read line by line as CGAL's PLY_reader::init reads it, so the list check walks the layout
+// CGAL will read; what CGAL would misread is refused on the way (each undefined behaviour or an
+// unbounded read in CGAL, found by fuzzing): a property before any element (CGAL adds it to the last
+// element without checking there is one), a format line other than line 2 (CGAL ignores it), no
+// end_header (CGAL then reads the body past the end of the file: a 3.4 GB allocation). Other lines
+// (comments, obj_info) are CGAL's to read or refuse.
+PlyHeader readPlyHeader(const std::string& bytes, const std::string& source) {
+  PlyHeader header;
   std::size_t at = 0;
-  while (at < bytes.size()) {
+  for (int number = 1; at < bytes.size(); ++number) {
     const std::size_t eol = std::min(bytes.find('\n', at), bytes.size());
-    std::istringstream words(bytes.substr(at, eol - at));
+    HeaderLine line{std::istringstream(bytes.substr(at, eol - at)), number, source};
     at = eol + 1;
-    std::string keyword, a, b, c, d;
-    words >> keyword >> a >> b >> c >> d;
-    if (keyword == "format") layout.format = a;
-    if (keyword == "element") layout.elements.push_back({a, elementCount(b), {}});
-    if (keyword == "property" && !layout.elements.empty()) {
-      const PlyProperty property = a == "list" ? PlyProperty{b, c} : PlyProperty{"", a};
-      if ((!property.countType.empty() && plyTypeSize(property.countType) == 0) || plyTypeSize(property.itemType) == 0)
-        return std::nullopt;
-      layout.elements.back().properties.push_back(property);
-    }
-    if (keyword == "end_header") {
-      layout.bodyStart = std::min(at, bytes.size());
-      const bool known = layout.format == "ascii" || layout.format == "binary_little_endian" || layout.format == "binary_big_endian";
-      return known ? std::optional<PlyLayout>(layout) : std::nullopt;
+    std::string keyword;
+    line.words >> keyword;
+    if (number == 1) {
+      if (keyword != "ply") line.fail("expected 'ply' (a PLY file's first word)");
+    } else if (number == 2) {
+      header.format = readFormat(line, keyword);
+    } else if (keyword == "end_header") {
+      header.bodyStart = std::min(at, bytes.size());
+      return header;
+    } else if (keyword == "format") {
+      line.fail("a format line where PLY has it on line 2 only");
+    } else if (keyword == "element") {
+      header.elements.push_back(readElement(line, bytes.size()));
+    } else if (keyword == "property") {
+      if (header.elements.empty()) line.fail("a property before any element");
+      header.elements.back().properties.push_back(readProperty(line, header.elements.back().name));
     }
   }
-  return std::nullopt;
+  throw MeshError(source, "the PLY header has no end_header line (was the file cut short?)");
 }
 
 // A binary number of `type` at `p` as a double.
@@ -109,9 +163,9 @@ double plyNumber(const char* p, const std::string& type, bool bigEndian) {
 // against the bytes left (an item takes its size in binary, a digit and a separator in ASCII).
 class PlyBody {
 public:
-  PlyBody(const std::string& bytes, const PlyLayout& layout, const std::string& source)
-      : bytes_(bytes), at_(layout.bodyStart), ascii_(layout.format == "ascii"),
-        bigEndian_(layout.format == "binary_big_endian"), source_(source) {}
+  PlyBody(const std::string& bytes, const PlyHeader& header, const std::string& source)
+      : bytes_(bytes), at_(header.bodyStart), ascii_(header.format == "ascii"),
+        bigEndian_(header.format == "binary_big_endian"), source_(source) {}
   // False at the end of the file.
   bool skip(const PlyProperty& property, const std::string& element, std::uint64_t index) {
     element_ = &element, index_ = index;
@@ -192,80 +246,18 @@ private:
 
 }  // namespace
 
-// CGAL's PLY reader adds a "property" to the last element without checking there is one, and reads a
-// vertex's x, y, z as float or double without checking their declared type, nor that they are not
-// lists (each undefined behaviour, a member call on a null pointer: found by fuzzing); it reads as many
-// elements as declared. So the header is checked first: order, coordinate types, counts (each element
-// takes at least one byte), and that checkPlyLists reads the layout CGAL reads (below).
-void checkPlyHeader(const std::string& bytes, const std::string& source) {
-  std::istringstream in(bytes);
-  std::string line, elementName;
-  bool element = false;
-  for (int number = 1; std::getline(in, line); ++number) {
-    std::istringstream words(line);
-    std::string keyword;
-    words >> keyword;
-    if (keyword == "end_header") return;
-    // CGAL takes the format from line 2 whatever its first word ("*format binary_little_endian" read as
-    // binary), checkPlyLists from a line "format ...": line 2 is that line, and the only one.
-    if ((keyword == "format") != (number == 2))
-      throw MeshError(source, "PLY header line " + std::to_string(number) +
-                                  (number == 2 ? ": expected 'format ascii 1.0' (or binary_little_endian, binary_big_endian)"
-                                               : ": a format line where PLY has it on line 2 only"));
-    if (number == 2) {
-      std::string format;
-      words >> format;
-      if (format != "ascii" && format != "binary_little_endian" && format != "binary_big_endian")
-        throw MeshError(source, "PLY header line 2: unknown format " + common::quotedFromFile(format) + " (expected ascii, binary_little_endian or binary_big_endian)");
-    }
-    if (keyword == "element") {
-      std::string name, countWord;
-      words >> name >> countWord;
-      elementName = name;
-      const std::uint64_t count = elementCount(countWord);
-      if (count > bytes.size())
-        throw MeshError(source, "PLY header line " + std::to_string(number) + ": an element count the file's " +
-                                    std::to_string(bytes.size()) + " bytes cannot hold");
-      element = true;
-    } else if (keyword == "property") {
-      if (!element) throw MeshError(source, "PLY header line " + std::to_string(number) + ": a property before any element");
-      std::string type, name, countType;
-      words >> type;
-      if (type == "list") words >> countType >> type;  // a list's count and item types
-      words >> name;
-      // CGAL skips a property of a type it does not know (and reads the body as if it were not there),
-      // where the list check would read nothing: a list length of 1.7 GB passed (fuzz_mesh_reader).
-      if (plyTypeSize(type) == 0 || (!countType.empty() && plyTypeSize(countType) == 0))
-        throw MeshError(source, "PLY header line " + std::to_string(number) + ": a property of unknown type " +
-                                    common::quotedFromFile(plyTypeSize(type) == 0 ? type : countType) +
-                                    " (expected char, uchar, short, ushort, int, uint, float or double, or int8 to float64)");
-      // CGAL reads points from an element "vertex" or "vertices".
-      const bool coordinate = (elementName == "vertex" || elementName == "vertices") && (name == "x" || name == "y" || name == "z");
-      if (coordinate && !countType.empty())
-        throw MeshError(source, "PLY header line " + std::to_string(number) + ": vertex coordinate " + name +
-                                    " is a list (expected a float or double)");
-      if (coordinate && !isPlyFloatType(type))
-        throw MeshError(source, "PLY header line " + std::to_string(number) + ": vertex coordinate " + name +
-                                    " of type " + common::quotedFromFile(type) + " (expected float or double)");
-    }
-  }
-  // CGAL's reader takes a header without end_header whole and then reads the body past the end of the
-  // file: list lengths from uninitialised memory (a 3.4 GB allocation in fuzz_mesh_reader).
-  throw MeshError(source, "the PLY header has no end_header line (was the file cut short?)");
-}
-
 // CGAL's PLY reader sizes a list from its declared length before reading it, so one lying length (a
 // face of 2,000,000,000 corners in a 150-byte file) grew the process to the memory budget (7.9 GB, 39 s
 // on a 24 GiB machine) before it failed. Every list's length is checked against the bytes left first.
 // A body shorter than its header declares is refused too: past the end CGAL's reads leave their number
 // uninitialised (a binary read keeps its buffer; an ASCII read on a stream already failed stores
 // nothing), so a list's length there is whatever the stack held (a 3.4 GB allocation and a loop of 14 s
-// in fuzz_mesh_reader, 2026-12-05).
-void checkPlyLists(const std::string& bytes, const std::string& source) {
-  const std::optional<PlyLayout> layout = plyLayout(bytes);
-  if (!layout) return;
-  PlyBody body(bytes, *layout, source);
-  for (const PlyElement& element : layout->elements)
+// in fuzz_mesh_reader, 2026-12-05). The header is read once, as CGAL reads it (readPlyHeader), for both
+// checks: four fuzz findings were places where two parses of it, or one of them and CGAL's, differed.
+void checkPly(const std::string& bytes, const std::string& source) {
+  const PlyHeader header = readPlyHeader(bytes, source);
+  PlyBody body(bytes, header, source);
+  for (const PlyElement& element : header.elements)
     for (std::uint64_t i = 0; i < element.count; ++i) {
       if (i % 65536 == 0) common::throwIfInterrupted();
       for (const PlyProperty& property : element.properties)

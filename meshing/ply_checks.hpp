@@ -6,9 +6,10 @@
 
 namespace rodfab::meshing::detail {
 
-// Elements before properties, vertex coordinates of float or double, element counts the file can hold.
-void checkPlyHeader(const std::string& bytes, const std::string& source);
-// Every list's declared length within the bytes left after it (ASCII and both binary byte orders).
-void checkPlyLists(const std::string& bytes, const std::string& source);
+// The header as CGAL's reader takes it (format on line 2, elements before properties, known types, vertex
+// coordinates of float or double, element counts the file can hold, an end_header line), then every
+// list's declared length within the bytes left after it and every item present (ASCII and both binary
+// byte orders).
+void checkPly(const std::string& bytes, const std::string& source);
 
 }  // namespace rodfab::meshing::detail

@@ -279,6 +279,22 @@ TEST_CASE("PLY headers CGAL would misread are refused first, naming the line", "
   CHECK_THAT(meshError(scratch("count.ply")), Catch::Contains("PLY header line 3: an element count the file's"));
   writeText(scratch("endless.ply"), "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nend_@header\n");
   CHECK_THAT(meshError(scratch("endless.ply")), Catch::Contains("the PLY header has no end_header line"));
+  // Lines CGAL's reader refuses with no word on why are named: each is read as CGAL reads it (a word
+  // from the line's stream), so "element vertex x" is a missing count, not 0 elements.
+  writeText(scratch("signature.ply"), "PLY\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n0\n");
+  CHECK_THAT(meshError(scratch("signature.ply")), Catch::Contains("PLY header line 1: expected 'ply'"));
+  writeText(scratch("version.ply"), "ply\nformat ascii\nelement vertex 1\nproperty float x\nend_header\n0\n");
+  CHECK_THAT(meshError(scratch("version.ply")), Catch::Contains("PLY header line 2: expected 'format ascii 1.0'"));
+  writeText(scratch("nocount.ply"), "ply\nformat ascii 1.0\nelement vertex x\nproperty float x\nend_header\n0\n");
+  CHECK_THAT(meshError(scratch("nocount.ply")), Catch::Contains("PLY header line 3: expected 'element NAME COUNT'"));
+  writeText(scratch("noname.ply"), "ply\nformat ascii 1.0\nelement face 1\nproperty list uchar int\nend_header\n0\n");
+  CHECK_THAT(meshError(scratch("noname.ply")), Catch::Contains("PLY header line 4: a property without a name"));
+  // A header read once for both checks: the body after a CRLF header is read from the same byte CGAL
+  // reads it from (the list of 3 corners fits, the next face's count is past the end).
+  writeText(scratch("crlf.ply"), "ply\r\nformat ascii 1.0\r\nelement vertex 3\r\nproperty float x\r\nproperty float y\r\n"
+                                 "property float z\r\nelement face 2\r\nproperty list uchar int vertex_indices\r\nend_header\r\n"
+                                 "0 0 0\r\n1 0 0\r\n0 1 0\r\n3 0 1 2\r\n");
+  CHECK_THAT(meshError(scratch("crlf.ply")), Catch::Contains("PLY face 1: the file ends inside it"));
 }
 
 TEST_CASE("the mesh reader on bytes in memory", "[meshing]") {
