@@ -189,9 +189,11 @@ Commit commitJob(const fs::path& built, const fs::path& target, bool force, cons
   c.exchanged = renameWith(built, target, RENAME_EXCHANGE);
   if (c.exchanged) {
     c.oldJob = built;
-    // The exchange took whatever was at the target a moment ago: it must be the job examined above.
-    const OutputOccupant taken = examineOutput(c.oldJob);
-    if (taken.device != occupant.device || taken.inode != occupant.inode) {
+    // The exchange took whatever was at the target a moment ago: it must be the job examined above (the
+    // same entry: its files were read there, and a second reading would double the cost).
+    struct stat taken {};
+    if (::lstat(c.oldJob.c_str(), &taken) != 0 || static_cast<std::uint64_t>(taken.st_dev) != occupant.device ||
+        static_cast<std::uint64_t>(taken.st_ino) != occupant.inode) {
       renameWith(c.oldJob, target, RENAME_EXCHANGE);
       throw std::runtime_error(target.string() + ": changed while the job was being written; nothing was replaced");
     }

@@ -15,6 +15,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <csignal>
 #include <fstream>
 #include <map>
@@ -22,6 +23,7 @@
 #include <random>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <utility>
 
 using namespace rodfab::test;
@@ -279,6 +281,47 @@ void copyZipAdding(const fs::path& from, const fs::path& to, const std::string& 
   REQUIRE(zip_close(za) == 0);
 }
 
+// A copy of the zip `from` whose last entry holds `text` instead, rewritten by libzip itself; its name.
+std::string copyZipReplacingLast(const fs::path& from, const fs::path& to, const std::string& text) {
+  fs::copy_file(from, to);
+  int error = 0;
+  zip_t* za = zip_open(to.c_str(), 0, &error);
+  REQUIRE(za);
+  const auto last = static_cast<zip_uint64_t>(zip_get_num_entries(za, 0) - 1);
+  const std::string name = zip_get_name(za, last, 0);
+  zip_source_t* source = zip_source_buffer(za, text.data(), text.size(), 0);
+  REQUIRE(source);
+  REQUIRE(zip_file_replace(za, last, source, 0) == 0);
+  REQUIRE(zip_close(za) == 0);
+  return name;
+}
+
+void appendText(const fs::path& file, const std::string& text) {
+  std::ofstream out(file, std::ios::app | std::ios::binary);
+  out << text;
+  REQUIRE(out.good());
+}
+
+// The first BMP layer image of a folder job (by name).
+fs::path firstLayerImage(const fs::path& job) {
+  std::vector<fs::path> images;
+  for (const auto& entry : fs::directory_iterator(job))
+    if (entry.path().extension() == ".bmp") images.push_back(entry.path());
+  REQUIRE(!images.empty());
+  return *std::min_element(images.begin(), images.end());
+}
+
+// Inverts the byte after a BMP's 62-byte header (its first row's first pixels): same length, new bytes.
+void flipFirstByteAfterHeader(const fs::path& file) {
+  std::fstream io(file, std::ios::in | std::ios::out | std::ios::binary);
+  io.seekg(62);
+  char byte = 0;
+  REQUIRE(io.get(byte));
+  io.seekp(62);
+  io.put(static_cast<char>(~byte));
+  REQUIRE(io.good());
+}
+
 }  // namespace
 
 TEST_CASE("Force replaces only rodfab jobs: anything else is refused and left byte for byte", "[job][force]") {
@@ -305,6 +348,16 @@ TEST_CASE("Force replaces only rodfab jobs: anything else is refused and left by
   writeAll(dir / "job-plus" / "my-notes.txt", Bytes{'!'});
   fs::copy(dir / "real-dir", dir / "job-plus-preview", fs::copy_options::recursive);
   writeAll(dir / "job-plus-preview" / "previews" / "mine.png", Bytes{'!'});
+  // Jobs in which a person changed a file: notes added to a layer image's end, one byte of one changed
+  // (the same length), an entry of the zip rewritten by libzip, a hand-made manifest listing a file
+  // without its checksum.
+  fs::copy(dir / "real-dir", dir / "job-noted", fs::copy_options::recursive);
+  appendText(firstLayerImage(dir / "job-noted"), "nozzle 3 clogged here");
+  fs::copy(dir / "real-dir", dir / "job-touched", fs::copy_options::recursive);
+  flipFirstByteAfterHeader(firstLayerImage(dir / "job-touched"));
+  const std::string rewritten = copyZipReplacingLast(dir / "real.zip", dir / "zip-noted.zip", "my notes");
+  writeTestZip(dir / "listed-manifest.zip", {{"manifest.json", std::string("{\"format\": \"") + kJobFormat + "\", \"files\": {\"thesis.txt\": {}}}"},
+                                             {"thesis.txt", "the only copy"}});
   REQUIRE(::mkfifo((dir / "pipe").c_str(), 0600) == 0);
   const auto before = snapshot(dir);
 
@@ -323,6 +376,10 @@ TEST_CASE("Force replaces only rodfab jobs: anything else is refused and left by
       {"job-plus", "'my-notes.txt', which is not part of that job"},
       {"job-plus-preview", "'previews/mine.png', which is not part of that job"},
       {"pipe", "a named pipe"},
+      {"job-noted", "'" + firstLayerImage(dir / "job-noted").filename().string() + "' was changed since rodfab wrote it"},
+      {"job-touched", "'" + firstLayerImage(dir / "job-touched").filename().string() + "' was changed since rodfab wrote it"},
+      {"zip-noted.zip", "'" + rewritten + "' was changed since rodfab wrote it"},
+      {"listed-manifest.zip", "'thesis.txt' was changed since rodfab wrote it"},
   };
   for (const auto& [name, what] : cases)
     for (const bool force : {true, false}) {
@@ -336,6 +393,32 @@ TEST_CASE("Force replaces only rodfab jobs: anything else is refused and left by
   CHECK_THROWS_WITH(JobWriter(specFor(*grid, dir / ".job.zip.rodfab-partial-1-0")), Catch::Contains("named like rodfab's hidden staging"));
   CHECK_THROWS_WITH(JobWriter(specFor(*grid, dir / ".")), Catch::Contains("give the job a name of its own"));
   CHECK((snapshot(dir) == before));
+}
+
+TEST_CASE("A job examined once is read again once anything in it changed", "[job][force]") {
+  // examineOutput remembers a job it read whole by the status of its entries (the writer examines the
+  // output up to three times a run): a change after the first look must still be seen.
+  const fs::path dir = scratch("force-reexamine");
+  const auto grid = overhangPart(24);
+  writeJob(*grid, specFor(*grid, dir / "job.zip"), 24);
+  JobSpec folder = specFor(*grid, dir / "job");
+  folder.options.archive = ArchiveFormat::Directory;
+  writeJob(*grid, folder, 24);
+  // Only a job whose last change is some seconds old is remembered (a file changed twice within one
+  // tick of the file system's clock would keep its times), so that one is tested.
+  std::this_thread::sleep_for(std::chrono::milliseconds(3100));
+  REQUIRE(examineOutput(dir / "job.zip").kind == OutputOccupant::Kind::RodfabJob);
+  REQUIRE(examineOutput(dir / "job").kind == OutputOccupant::Kind::RodfabJob);
+  fs::rename(dir / "job.zip", dir / "old.zip");
+  const std::string rewritten = copyZipReplacingLast(dir / "old.zip", dir / "job.zip", "my notes");
+  flipFirstByteAfterHeader(firstLayerImage(dir / "job"));
+  std::this_thread::sleep_for(std::chrono::milliseconds(3100));  // the change settled: found by its stamp
+  const OutputOccupant zip = examineOutput(dir / "job.zip"), changed = examineOutput(dir / "job");
+  CHECK(zip.kind == OutputOccupant::Kind::Other);
+  CHECK_THAT(zip.description, Catch::Contains("'" + rewritten + "' was changed since rodfab wrote it"));
+  CHECK(changed.kind == OutputOccupant::Kind::Other);
+  CHECK_THAT(changed.description, Catch::Contains("was changed since rodfab wrote it"));
+  CHECK(examineOutput(dir / "old.zip").kind == OutputOccupant::Kind::RodfabJob);
 }
 
 TEST_CASE("Force replaces a rodfab job, zip or folder, by one of either kind", "[job][force]") {
