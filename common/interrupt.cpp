@@ -1,5 +1,6 @@
 #include "common/interrupt.hpp"
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -7,7 +8,9 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <mutex>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -28,24 +31,65 @@ extern "C" void onSignal(int signal) {
   pendingSignal.compare_exchange_strong(none, signal, std::memory_order_relaxed);
 }
 
-// Paths to remove on interrupt. The mutex also makes commits and the watchdog's cleanup exclusive.
+// Paths to remove on interrupt, each with the hidden copy of what it replaced (empty when it replaced
+// nothing), put back in its place. The mutex also makes commits and the watchdog's cleanup exclusive.
+struct Registered {
+  fs::path path, previous;
+};
 std::mutex registryMutex;
-std::vector<fs::path>& registry() {
-  static std::vector<fs::path>* paths = new std::vector<fs::path>;  // outlives static destruction
+std::vector<Registered>& registry() {
+  static std::vector<Registered>* paths = new std::vector<Registered>;  // outlives static destruction
   return *paths;
 }
 
-void removeRegisteredLocked() {
-  for (const fs::path& p : registry()) {
-    // Other threads may still be adding files to a folder being removed: try again a few times.
-    std::error_code ec;
-    for (int attempt = 0; attempt < 5; ++attempt) {
-      fs::remove_all(p, ec);
-      if (!ec && !fs::exists(fs::symlink_status(p, ec))) break;
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
+auto findRegistered(const fs::path& path) {
+  return std::find_if(registry().begin(), registry().end(), [&](const Registered& r) { return r.path == path; });
+}
+
+void removeAndRestore(const Registered& r) {
+  // Other threads may still be adding files to a folder being removed: try again a few times.
+  std::error_code ec;
+  for (int attempt = 0; attempt < 5; ++attempt) {
+    fs::remove_all(r.path, ec);
+    if (!ec && !fs::exists(fs::symlink_status(r.path, ec))) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
+  if (!r.previous.empty()) fs::rename(r.previous, r.path, ec);
+}
+
+void removeRegisteredLocked() {
+  for (const Registered& r : registry()) removeAndRestore(r);
   registry().clear();
+}
+
+// The command is done with its outputs: the files they replaced go for good.
+void forgetRegisteredLocked() {
+  std::error_code ignored;
+  for (const Registered& r : registry())
+    if (!r.previous.empty()) fs::remove(r.previous, ignored);
+  registry().clear();
+}
+
+// A hidden name beside `file` for the file a commit replaces: `.NAME.rodfab-old-PID-N`.
+fs::path previousVersionName(const fs::path& file) {
+  static std::atomic<int> counter{0};
+  std::string hidden = ".";  // appended piecewise: GCC 12 warns falsely (-Wrestrict) on "." + string
+  hidden.append(file.filename().string()).append(".rodfab-old-").append(std::to_string(::getpid()));
+  hidden.append("-").append(std::to_string(counter++));
+  return file.parent_path() / hidden;
+}
+
+// Keeps the regular file at `file` (one a commit is about to replace) under a hidden name beside it:
+// a second hard link, so the commit's rename still replaces the name in one step. Empty when there is
+// no such file; throws when it cannot be kept (then nothing is replaced).
+fs::path keepPreviousVersion(const fs::path& file) {
+  struct stat st {};
+  if (::lstat(file.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return {};
+  const fs::path kept = previousVersionName(file);
+  if (::link(file.c_str(), kept.c_str()) != 0)
+    throw std::runtime_error(file.string() + ": cannot keep the file it replaces until the command ends (" + std::strerror(errno) +
+                             "); nothing was replaced");
+  return kept;
 }
 
 constexpr auto kGrace = std::chrono::milliseconds(600);
@@ -95,24 +139,39 @@ void throwIfInterrupted() {
 
 void registerCleanup(const fs::path& path) {
   std::lock_guard lock(registryMutex);
-  auto& r = registry();
-  if (std::find(r.begin(), r.end(), path) == r.end()) r.push_back(path);
+  if (findRegistered(path) == registry().end()) registry().push_back({path, {}});
 }
 
 void unregisterCleanup(const fs::path& path) {
   std::lock_guard lock(registryMutex);
   auto& r = registry();
-  r.erase(std::remove(r.begin(), r.end(), path), r.end());
+  r.erase(std::remove_if(r.begin(), r.end(), [&](const Registered& e) { return e.path == path; }), r.end());
 }
 
 void commitRegistered(const fs::path& temporary, const fs::path& committed,
                       void (*commit)(const fs::path&, const fs::path&)) {
   std::lock_guard lock(registryMutex);
   if (const int s = interruptRequested()) throw Interrupted(s);
-  commit(temporary, committed);
+  const bool replacesOwnOutput = findRegistered(committed) != registry().end();
+  const fs::path previous = replacesOwnOutput ? fs::path() : keepPreviousVersion(committed);
+  try {
+    commit(temporary, committed);
+  } catch (...) {
+    std::error_code ignored;
+    if (!previous.empty()) fs::remove(previous, ignored);
+    throw;
+  }
   auto& r = registry();
-  r.erase(std::remove(r.begin(), r.end(), temporary), r.end());
-  if (std::find(r.begin(), r.end(), committed) == r.end()) r.push_back(committed);
+  r.erase(std::remove_if(r.begin(), r.end(), [&](const Registered& e) { return e.path == temporary; }), r.end());
+  if (!replacesOwnOutput) r.push_back({committed, previous});
+}
+
+void withdrawCommitted(const fs::path& committed) {
+  std::lock_guard lock(registryMutex);
+  const auto found = findRegistered(committed);
+  if (found == registry().end()) return;
+  removeAndRestore(*found);
+  registry().erase(found);
 }
 
 namespace {
@@ -144,7 +203,7 @@ int finishCommand(int exitCode) {
     removeRegisteredLocked();
     return 128 + s;
   }
-  registry().clear();
+  forgetRegisteredLocked();
   return exitCode;
 }
 

@@ -33,21 +33,30 @@ struct Interrupted : std::runtime_error {
 void throwIfInterrupted();
 
 // The cleanup registry: paths this process created (temporaries, and outputs it has committed but
-// not yet reported). Removed (recursively) when the process is interrupted. Registering a path
-// that is already registered does nothing.
+// not yet reported). Removed (recursively) when the process is interrupted, and a file a commit
+// replaced put back in its place (see commitRegistered). Registering a path that is already
+// registered does nothing.
 void registerCleanup(const std::filesystem::path& path);
 void unregisterCleanup(const std::filesystem::path& path);
 
 // Runs `commit` (typically a rename of a finished temporary onto its final name) while the
 // watchdog cannot act, after checking for a pending signal (throws Interrupted without running it).
 // After a successful commit `temporary` is unregistered and `committed` registered, so a signal
-// before the command returns still removes it.
+// before the command returns still removes it. A regular file the commit replaces is kept until then
+// (a second hard link, `.NAME.rodfab-old-PID-N` beside it) and put back if the output is removed: an
+// interrupted or failed command leaves what was there before, not nothing. Throws std::runtime_error
+// (nothing replaced) when that link cannot be made.
 void commitRegistered(const std::filesystem::path& temporary, const std::filesystem::path& committed,
                       void (*commit)(const std::filesystem::path&, const std::filesystem::path&));
 
+// Takes back an output committed through commitRegistered (a command whose later outputs failed: all
+// or none): removed, and the file it replaced put back. Does nothing for a path not registered.
+void withdrawCommitted(const std::filesystem::path& committed);
+
 // Called by main with the command's exit code: blocks further signals, and if one is pending
-// removes every registered path and returns 128 + signal; otherwise forgets the registry (what is
-// registered now is the command's output) and returns `exitCode`.
+// removes every registered path (putting back what commits replaced) and returns 128 + signal;
+// otherwise removes the kept files commits replaced, forgets the registry (what is registered now is
+// the command's output) and returns `exitCode`.
 int finishCommand(int exitCode);
 
 // For a command that cannot go on (std::terminate): blocks signals, removes every registered path

@@ -11,7 +11,10 @@
 #include <atomic>
 #include <cerrno>
 #include <cstdlib>
+#include <cstdint>
 #include <cstring>
+#include <map>
+#include <mutex>
 #include <optional>
 #include <stdexcept>
 #include <system_error>
@@ -34,6 +37,42 @@ void renameInto(const fs::path& from, const fs::path& to) {
   std::error_code ec;
   fs::rename(from, to, ec);
   if (ec) throw std::runtime_error(quoted(to) + ": cannot move the finished file into place: " + ec.message());
+}
+
+// What checkOutputPath found at each output path it allowed (the entry's status, or none), so that a
+// commit can tell a file put there, replaced or changed while the command worked: a person's, which
+// the commit must not replace.
+struct FoundStatus {
+  bool exists = false;
+  std::uint64_t device = 0, inode = 0, size = 0;
+  std::int64_t changedSeconds = 0, changedNanoseconds = 0;
+  bool operator==(const FoundStatus&) const = default;
+};
+std::mutex foundMutex;
+std::map<fs::path, FoundStatus>& foundAtCheck() {
+  static auto* found = new std::map<fs::path, FoundStatus>;  // outlives static destruction
+  return *found;
+}
+fs::path outputKey(const fs::path& output) { return fs::absolute(output).lexically_normal(); }
+FoundStatus statusOf(const fs::path& path) {
+  struct stat st {};
+  if (::lstat(path.c_str(), &st) != 0) return {};
+  return {true, std::uint64_t(st.st_dev), std::uint64_t(st.st_ino), std::uint64_t(st.st_size), std::int64_t(st.st_ctim.tv_sec),
+          std::int64_t(st.st_ctim.tv_nsec)};
+}
+
+// Throws when `output` is not as checkOutputPath found it (outputs it never checked pass).
+void requireAsChecked(const fs::path& output) {
+  const std::lock_guard lock(foundMutex);
+  const auto found = foundAtCheck().find(outputKey(output));
+  if (found == foundAtCheck().end() || statusOf(output) == found->second) return;
+  throw std::runtime_error(quoted(output) + (found->second.exists ? ": was changed or replaced" : ": was created") +
+                           " while rodfab was working; it was left as it is and nothing was written there");
+}
+
+void recordAsChecked(const fs::path& output) {
+  const std::lock_guard lock(foundMutex);
+  foundAtCheck()[outputKey(output)] = statusOf(output);
 }
 
 void checkExisting(const fs::path& output, const fs::file_status& status, const OutputPolicy& policy) {
@@ -93,6 +132,7 @@ void checkOutputPath(const fs::path& output, const std::vector<fs::path>& inputs
   if (!fs::is_directory(parent, ec))
     throw std::runtime_error(quoted(output) + ": cannot write: " + quoted(parent) +
                              (fs::exists(parent, ec) ? " is not a folder" : ": the folder does not exist"));
+  recordAsChecked(output);
 }
 
 bool fileStartsWith(const fs::path& file, std::string_view prefix, std::string_view marker, std::size_t scanBytes) {
@@ -179,8 +219,10 @@ void AtomicOutput::commit() {
     ::fsync(fd);  // the data is on disk before the name points at it
     ::close(fd);
   }
+  requireAsChecked(final_);
   commitRegistered(temporary_, final_, renameInto);
   committed_ = true;
+  recordAsChecked(final_);  // a second commit of the same output replaces this one
 }
 
 void writeFileAtomically(const fs::path& file, std::string_view bytes) {

@@ -4,7 +4,9 @@
 // (`.NAME.rodfab-tmp-PID-N`), registered for removal on interrupt (common/interrupt.hpp), and is
 // renamed into place only when complete. What may be replaced is decided before any work starts
 // (`checkOutputPath`): never one of the command's inputs, never a folder, and an existing file only
-// when the caller says so (--force) and the file is one rodfab wrote (the `isOurs` test).
+// when the caller says so (--force) and the file is one rodfab wrote (the `isOurs` test). The commit
+// checks again: an output path created, replaced or changed since checkOutputPath looked at it (a
+// person's file, saved there during a long solve) is left as it is and the commit throws.
 //
 // Errors are std::runtime_error whose message starts with the path concerned. Thread safety: the
 // functions are reentrant; two writers to the same final name race as rename(2) does (last wins).
@@ -66,6 +68,8 @@ public:
 
   const std::filesystem::path& temporary() const { return temporary_; }
   const std::filesystem::path& final() const { return final_; }
+  // Throws std::runtime_error (the temporary is then removed by the destructor) when `final` was
+  // checked by checkOutputPath and is no longer as found there, and Interrupted on a pending signal.
   void commit();
 
 private:

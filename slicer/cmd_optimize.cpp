@@ -76,7 +76,7 @@ int writeOutputs(const OptimizeCommand& c, const mechanics::Design& design, cons
   } catch (const common::Interrupted&) {
     throw;  // the cleanup registry removes what was written
   } catch (const std::exception& e) {
-    for (const std::string& f : written) std::filesystem::remove(f);  // all or none
+    for (const std::string& f : written) common::withdrawCommitted(f);  // all or none: what they replaced is back
     std::cerr << writing << ": cannot write: " << e.what() << "\nnothing was written\n";
     return kFailed;
   }

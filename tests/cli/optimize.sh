@@ -247,6 +247,16 @@ expect_failure 1 'load case "loose" (mechanics.load_cases[0]): ' "$tmp/loose.jso
 grep -q "mechanism" "$tmp/out" || fail "the mechanism is not explained: $(cat "$tmp/out")"
 rm -f "$tmp/optimized.json"
 
+# Outputs all or none, and what they replace kept until then: a --plot that cannot be written (in /proc)
+# after the design was committed leaves the design the previous run wrote, byte for byte.
+"$rodfab" optimize "$tmp/start.json" -o "$tmp/kept.json" --max-iterations 2 > "$tmp/out" 2>&1 || fail "a first run: $(cat "$tmp/out")"
+cp "$tmp/kept.json" "$tmp/kept.before"
+"$rodfab" optimize "$tmp/start.json" -o "$tmp/kept.json" --max-iterations 4 --plot /proc/rodfab-history.png > "$tmp/out" 2>&1 &&
+  fail "a plot in /proc was written"
+grep -qF "nothing was written" "$tmp/out" || fail "the failed plot: $(cat "$tmp/out")"
+cmp -s "$tmp/kept.json" "$tmp/kept.before" || fail "a failed --plot lost the design the previous run wrote"
+rm -f "$tmp/kept.json" "$tmp/kept.before"
+
 # SIGINT and SIGTERM: exit 130 / 143, nothing written. A chain of 20 rods with 16 controls each
 # (320 design variables) and no tolerance runs for long enough to be interrupted mid-way.
 python3 - "$tmp" <<'PY'
@@ -275,5 +285,16 @@ for sig in INT TERM; do
   [ "$code" -eq "$want" ] || fail "SIG$sig: exit $code, expected $want: $(cat "$tmp/out")"
   { [ -e "$tmp/optimized.json" ] || [ -e "$tmp/chain.png" ]; } && fail "SIG$sig left an output"
 done
+# A file a person saves at the output path while the optimizer runs is theirs: left as it is, exit 1.
+"$rodfab" optimize "$tmp/chain-start.json" -o "$tmp/raced.json" --max-iterations 60 > "$tmp/out" 2>&1 &
+pid=$!
+for _ in $(seq 600); do grep -q "^iter    1 " "$tmp/out" && break; sleep 0.05; done
+echo '{"mine": true}' > "$tmp/raced.json"
+wait $pid
+code=$?
+[ "$code" -eq 1 ] || fail "a file saved at the output meanwhile: exit $code, expected 1: $(cat "$tmp/out")"
+grep -qF "was created while rodfab was working; it was left as it is" "$tmp/out" || fail "the race is not explained: $(cat "$tmp/out")"
+[ "$(cat "$tmp/raced.json")" = '{"mine": true}' ] || fail "the file saved at the output was replaced"
+rm -f "$tmp/raced.json"
 ls -A "$tmp" | grep -q '^\.' && fail "temporaries left behind: $(ls -A "$tmp")"
 echo "optimize: all checks passed"
