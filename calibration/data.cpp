@@ -65,7 +65,11 @@ std::optional<double> parseNumber(const std::string& field) {
 
 using Tokenizer = boost::tokenizer<boost::escaped_list_separator<char>>;
 
-// Splits one CSV line (quotes allowed around fields); nullopt when the quoting is broken.
+// A line of more fields is not read on: a header of 20 million unknown columns took 1.3 GB as fields.
+constexpr std::size_t kMaxFields = 1024;
+
+// Splits one CSV line (quotes allowed around fields); nullopt when the quoting is broken. Stops after
+// kMaxFields + 1 fields.
 std::optional<std::vector<std::string>> splitFields(const std::string& line) {
   // The tokenizer accepts an unterminated quote silently; an odd count of unescaped quotes finds it.
   std::size_t quotes = 0;
@@ -79,6 +83,7 @@ std::optional<std::vector<std::string>> splitFields(const std::string& line) {
     for (std::string field : Tokenizer(line, boost::escaped_list_separator<char>('\\', ',', '"'))) {
       boost::algorithm::trim(field);
       fields.push_back(std::move(field));
+      if (fields.size() > kMaxFields) break;
     }
     return fields;
   } catch (const boost::escaped_list_error&) {
@@ -88,6 +93,12 @@ std::optional<std::vector<std::string>> splitFields(const std::string& line) {
 
 using Issues = std::vector<DataIssue>;
 
+constexpr std::size_t kMaxTextBytes = 256;  // a specimen, dither or date field
+constexpr double kAbsoluteZeroC = -273.15, kMaxTemperatureC = 1000.0;
+
+void addIssue(Issues& issues, int line, std::string message) { common::listIssue(issues, DataIssue{line, std::move(message)}); }
+bool issuesFull(const Issues& issues) { return common::issueListCut(issues); }
+
 // The header's columns: per field position (nullopt for a rejected name) and each column's position.
 struct Header {
   std::vector<std::optional<Column>> columns;
@@ -96,9 +107,9 @@ struct Header {
 
 // The header line's columns; an issue for every unknown or repeated name and missing required column.
 Header readHeader(const std::vector<std::string>& fields, int lineNumber, Issues& issues) {
-  const auto fail = [&](std::string message) { issues.push_back({lineNumber, std::move(message)}); };
+  const auto fail = [&](std::string message) { addIssue(issues, lineNumber, std::move(message)); };
   Header header;
-  for (std::size_t i = 0; i < fields.size(); ++i) {
+  for (std::size_t i = 0; i < fields.size() && !issuesFull(issues); ++i) {
     const std::string name = boost::algorithm::to_lower_copy(fields[i]);
     const auto known = kColumns.find(name);
     if (known == kColumns.end()) {
@@ -118,7 +129,7 @@ Header readHeader(const std::vector<std::string>& fields, int lineNumber, Issues
 
 // One data row's measurement; nullopt after an issue for every field that cannot be used.
 std::optional<Measurement> readRow(const std::vector<std::string>& fields, const Header& header, int lineNumber, Issues& issues) {
-  const auto fail = [&](std::string message) { issues.push_back({lineNumber, std::move(message)}); };
+  const auto fail = [&](std::string message) { addIssue(issues, lineNumber, std::move(message)); };
   Measurement m;
   m.line = lineNumber;
   bool ok = true;
@@ -149,9 +160,22 @@ std::optional<Measurement> readRow(const std::vector<std::string>& fields, const
     m.modulusMpa = *e;
   }
   m.temperatureC = number(Column::TemperatureC, "temperature_c", "a temperature in degrees Celsius", false);
-  if (const std::string* s = field(Column::Specimen)) m.specimen = *s;
-  if (const std::string* s = field(Column::Dither)) m.dither = *s;
-  if (const std::string* s = field(Column::Date)) m.date = *s;
+  if (m.temperatureC && !(*m.temperatureC > kAbsoluteZeroC && *m.temperatureC <= kMaxTemperatureC))
+    fail("temperature_c: expected a temperature above -273.15 and at most 1000 degrees Celsius, got " +
+         common::quotedFromFile(*field(Column::TemperatureC))), ok = false;
+  // Text reaches messages, reports and the calibration file: no control characters (a dither of
+  // "\x1b[2J" cleared the terminal), and short.
+  const auto text = [&](Column c, const char* name) -> std::string {
+    const std::string* f = field(c);
+    if (!f) return {};
+    if (f->size() <= kMaxTextBytes && !common::holdsControlCharacters(*f)) return *f;
+    fail(std::string(name) + ": expected text of at most " + std::to_string(kMaxTextBytes) + " bytes without control characters, got " +
+         common::quotedFromFile(*f)), ok = false;
+    return {};
+  };
+  m.specimen = text(Column::Specimen, "specimen");
+  m.dither = text(Column::Dither, "dither");
+  m.date = text(Column::Date, "date");
   if (!ok) return std::nullopt;
   return m;
 }
@@ -166,7 +190,7 @@ DataSet parseData(std::string_view text, const std::string& sourceName) {
   data.source = sourceName;
   data.sha256 = sha256Hex(text);
   Issues issues;
-  const auto fail = [&](int line, std::string message) { issues.push_back({line, std::move(message)}); };
+  const auto fail = [&](int line, std::string message) { addIssue(issues, line, std::move(message)); };
 
   if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);  // spreadsheet exports start with a BOM
 
@@ -174,7 +198,7 @@ DataSet parseData(std::string_view text, const std::string& sourceName) {
   std::istringstream lines{std::string(text)};
   std::string raw;
   int lineNumber = 0;
-  while (std::getline(lines, raw)) {
+  while (!issuesFull(issues) && std::getline(lines, raw)) {
     ++lineNumber;
     if (!raw.empty() && raw.back() == '\r') raw.pop_back();
     std::string line = boost::algorithm::trim_copy(raw);
@@ -183,6 +207,10 @@ DataSet parseData(std::string_view text, const std::string& sourceName) {
     if (!fields) {
       fail(lineNumber, "unbalanced quotes or a bad escape in " + common::quotedFromFile(line));
       continue;
+    }
+    if (fields->size() > kMaxFields) {
+      fail(lineNumber, "more than " + std::to_string(kMaxFields) + " fields; expected the columns " + kColumnList);
+      break;
     }
     if (!header) {
       header = readHeader(*fields, lineNumber, issues);

@@ -10,6 +10,29 @@
 
 namespace rodfab::common {
 
+// The most issues a reader lists for one file. Past it the reader keeps one more saying the list was
+// cut, and lists no more: a 20 MB design of ten million bad entries, or a CSV header of twenty
+// million unknown columns, took 3 to 5 GB and hundreds of MB of messages when every issue was listed
+// (a hostile-input review, 2026-12-05).
+inline constexpr std::size_t kMaxListedIssues = 100;
+// Adds `issue` to `issues` while fewer than kMaxListedIssues are listed, then one issue of the whole
+// file saying the list was cut, then nothing. `Issue` has a `message` and is default-constructible.
+template <class Issue>
+void listIssue(std::vector<Issue>& issues, Issue issue) {
+  if (issues.size() < kMaxListedIssues) {
+    issues.push_back(std::move(issue));
+  } else if (issues.size() == kMaxListedIssues) {
+    Issue cut{};
+    cut.message = "more issues follow; only the first " + std::to_string(kMaxListedIssues) + " are listed (fix these and read the file again)";
+    issues.push_back(std::move(cut));
+  }
+}
+// True once listIssue has cut the list: a reader may stop reading.
+template <class Issue>
+bool issueListCut(const std::vector<Issue>& issues) {
+  return issues.size() > kMaxListedIssues;
+}
+
 // A bad input file: what() says what is wrong with it, file() names it as the user gave it.
 class InputFileError : public std::runtime_error {
 public:

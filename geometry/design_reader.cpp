@@ -76,7 +76,7 @@ std::string describe(const json& j) {
   return common::describeJson(j);
 }
 
-void DesignReader::fail(const std::string& path, const std::string& message) { issues.push_back({path, message}); }
+void DesignReader::fail(const std::string& path, const std::string& message) { common::listIssue(issues, DesignIssue{path, message}); }
 
 void DesignReader::onlyKeys(const json& obj, const std::string& path, const std::set<std::string>& allowed) {
   for (auto it = obj.begin(); it != obj.end(); ++it) {
@@ -295,15 +295,14 @@ void buildRods(std::vector<ReadRod>& read, const std::vector<std::size_t>& issue
   std::vector<DesignIssue> issues;
   std::size_t next = 0;
   const auto takeIssuesUpTo = [&](std::size_t end) {
-    issues.insert(issues.end(), std::make_move_iterator(v.issues.begin() + next), std::make_move_iterator(v.issues.begin() + end));
-    next = end;
+    for (; next < end; ++next) common::listIssue(issues, std::move(v.issues[next]));
   };
   if (kept == RodsKept::All) d.structure.rods.reserve(read.size());
   for (std::size_t k = 0; k < read.size(); ++k) {
     takeIssuesUpTo(issuesAfter[read[k].index]);
     if (!failures[k].empty()) {
       const std::string rod = indexPath("rods", read[k].index);
-      issues.push_back({ofCenterline[k] ? memberPath(rod, "centerline") : rod, failures[k]});
+      common::listIssue(issues, DesignIssue{ofCenterline[k] ? memberPath(rod, "centerline") : rod, failures[k]});
       continue;
     }
     d.summary.add(summaries[k]);

@@ -38,7 +38,7 @@ std::optional<RodEndRef> MechanicsReader::endRef(const json& j, const std::strin
       if (j.contains(key)) fail(memberPath(path, key), std::string("\"") + key + "\" goes with \"rod\", not with \"point\"");
     return ref.point ? std::optional<RodEndRef>(ref) : std::nullopt;
   }
-  auto name = string(j["rod"], memberPath(path, "rod"), "a rod name");
+  auto name = this->name(j["rod"], memberPath(path, "rod"), "a rod name");
   if (!name) return std::nullopt;
   if (!knownRod(*name, memberPath(path, "rod"), names)) return std::nullopt;
   ref.rod = *name;
@@ -188,7 +188,7 @@ std::optional<DistributedLoad> MechanicsReader::distributedLoad(const json& e, c
   l.path = ep;
   std::optional<std::string> rod;
   if (auto r = require(e, ep, "rod", "a rod name")) {
-    rod = string(*r, memberPath(ep, "rod"), "a rod name");
+    rod = name(*r, memberPath(ep, "rod"), "a rod name");
     if (rod && !knownRod(*rod, memberPath(ep, "rod"), names)) rod.reset();
   }
   std::optional<geometry::Vec3> f;

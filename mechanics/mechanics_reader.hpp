@@ -3,6 +3,8 @@
 // violation of the file in one issue list.
 #pragma once
 
+#include "common/quoted_text.hpp"
+
 #include "mechanics/mechanics_file.hpp"
 
 #include "geometry/design_reader.hpp"
@@ -31,7 +33,7 @@ private:
   // True when a rod is named `name`; false after an issue at `path`.
   bool knownRod(const std::string& name, const std::string& path, const RodNames& names) {
     if (names.count(name)) return true;
-    fail(path, "no rod is named \"" + name + "\"");
+    fail(path, "no rod is named " + common::quotedFromFile(name, 64));
     return false;
   }
   // {"rod", "end"}, {"rod", "parameter"} or {"point"}. The parameter's range is checked by the

@@ -4,6 +4,8 @@
 // its rod's solver basis.
 #include "mechanics/discrete_structure.hpp"
 
+#include "common/quoted_text.hpp"
+
 #include <algorithm>
 #include <limits>
 #include <map>
@@ -94,7 +96,7 @@ Place DiscreteStructure::locate(const RodEndRef& ref, const Design& structure) c
                                           "\"'s centerline domain [" + format(c.domainBegin()) + ", " + format(c.domainEnd()) + "]");
       return placeOnRod(structure, static_cast<int>(i), *ref.parameter);
     }
-    fail(ref.path + ".rod", "no rod is named \"" + ref.rod + "\"");
+    fail(ref.path + ".rod", "no rod is named " + common::quotedFromFile(ref.rod, 64));
   }
   // The nearest rod end within the tolerance, else the nearest interior point.
   Place best;

@@ -1,6 +1,7 @@
 // Reading a design's training: the load cases and their targets (in the "mechanics" block) and the
 // "optimize" block (mechanics_reader.hpp).
 #include "mechanics/mechanics_reader.hpp"
+#include "common/quoted_text.hpp"
 
 #include "common/json_input.hpp"
 
@@ -68,7 +69,8 @@ void MechanicsReader::target(const json& j, const std::string& path, const RodNa
   }
   if (auto d = j.find("design"); d != j.end()) {
     if (auto file = string(*d, memberPath(path, "design"), "a design file's path, relative to this design")) {
-      if (file->empty()) fail(memberPath(path, "design"), "expected a non-empty path");
+      if (file->empty() || common::holdsControlCharacters(*file))
+        fail(memberPath(path, "design"), "expected a non-empty path without control characters, got " + common::quotedFromFile(*file));
       else lc.targetDesign = *file;
     }
     return;
@@ -169,18 +171,18 @@ void resolveTargetDesigns(Design& design, const geometry::RodNames& names, const
     try {
       target = parseDesign(common::readBoundedFile(targetFile.string()), targetFile.string());
     } catch (const common::JsonInputError& e) {
-      issues.push_back({where, "cannot read the target design " + targetFile.string() + ": " + e.message});
+      common::listIssue(issues, DesignIssue{where, "cannot read the target design " + targetFile.string() + ": " + e.message});
       continue;
     } catch (const geometry::DesignError& e) {
-      issues.push_back({where, "the target design is not valid: " + std::string(e.what())});
+      common::listIssue(issues, DesignIssue{where, "the target design is not valid: " + std::string(e.what())});
       continue;
     }
     lc.target.clear();
     for (std::size_t i = 0; i < target.rods.size(); ++i) {
       const geometry::Rod& r = target.rods[i];
       if (!names.contains(r.name())) {
-        issues.push_back({where, targetFile.string() + ": rods[" + std::to_string(i) + "]: the target's rod \"" + r.name() +
-                                     "\" is not in this design (targets match rods by name)"});
+        common::listIssue(issues, DesignIssue{where, targetFile.string() + ": rods[" + std::to_string(i) + "]: the target's rod \"" + r.name() +
+                                                          "\" is not in this design (targets match rods by name)"});
         continue;
       }
       lc.target.push_back({r.name(), r.centerline(), r.orientation(), r.referenceNormal(),

@@ -96,8 +96,11 @@ DecodedBitmap decodeBmp(std::span<const std::uint8_t> file);
 // PNG: grayscale, bit depth 1 (1 = white = deposit), pHYs in pixels per metre, no row filter; the image
 // data compressed by igzip at kLayerDeflateLevel (deflate.hpp), the chunks written by libpng.
 Bytes encodePng1(const Bitmap& bitmap, int xDpi, int yDpi);
-// 1-bit grayscale PNGs only (anything else is reported as the wrong bit depth or colour type).
-DecodedBitmap decodePng1(std::span<const std::uint8_t> file);
+// 1-bit grayscale PNGs only (anything else is reported as the wrong bit depth or colour type). Throws
+// ImageError before allocating when the header declares more than `maxPixels` pixels, or rows more
+// than the file's bytes can hold at deflate's largest ratio (kMaxDeflateRatio).
+inline constexpr std::uint64_t kMaxDeflateRatio = 1032;
+DecodedBitmap decodePng1(std::span<const std::uint8_t> file, std::uint64_t maxPixels = UINT64_MAX);
 
 // 8-bit RGB image, row-major, 3 bytes per pixel.
 struct RgbImage {

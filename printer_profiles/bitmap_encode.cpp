@@ -324,9 +324,18 @@ Bytes encodePng1(const Bitmap& bitmap, int xDpi, int yDpi) {
   return encodeUnfilteredPng(spec, [&](int r, std::uint8_t* out) { std::memcpy(out, bitmap.row(r), bitmap.stride()); });
 }
 
-DecodedBitmap decodePng1(std::span<const std::uint8_t> file) {
+DecodedBitmap decodePng1(std::span<const std::uint8_t> file, std::uint64_t maxPixels) {
   PngReader reader(file);
   const PngHeader h = reader.header();
+  // Both bounds before the bitmap is allocated: a 700-byte PNG declaring 10^6 x 24,000 pixels took
+  // inspect to 3 GB before libpng found its data short (a hostile-input review). Deflate expands by
+  // at most 1,032 to 1, so no file holds rows of more than that many times its own size.
+  const std::uint64_t rowBytes = 1 + (std::uint64_t(h.width) + 7) / 8;
+  if (std::uint64_t(h.width) * h.height > maxPixels)
+    throw ImageError("PNG declares " + std::to_string(h.width) + " x " + std::to_string(h.height) + " pixels, more than expected");
+  if (rowBytes * h.height > kMaxDeflateRatio * file.size())
+    throw ImageError("PNG declares " + std::to_string(h.width) + " x " + std::to_string(h.height) + " pixels, more than its " +
+                     std::to_string(file.size()) + " bytes can hold");
   DecodedBitmap result;
   result.bitDepth = h.bitDepth;
   result.xPixelsPerMetre = h.xPpm;

@@ -120,7 +120,8 @@ std::optional<Bitmap> Inspector::layerImage(int l, std::size_t n, Findings& out)
   if (!data) return std::nullopt;
   DecodedBitmap decoded;
   try {
-    decoded = layout_.imageFormat == ImageFormat::Png ? decodePng1(*data) : decodeBmp(*data);
+    decoded = layout_.imageFormat == ImageFormat::Png ? decodePng1(*data, std::uint64_t(layout_.width) * std::uint64_t(layout_.height))
+                                                       : decodeBmp(*data);
   } catch (const ImageError& e) {
     out.at(name, e.what());
     return std::nullopt;

@@ -5,6 +5,7 @@
 #pragma once
 
 #include "common/json_input.hpp"
+#include "common/quoted_text.hpp"
 #include "printer_profiles/profile.hpp"
 
 #include <nlohmann/json.hpp>
@@ -43,7 +44,7 @@ class Validator {
 public:
   std::vector<ProfileIssue> issues;
 
-  void fail(const std::string& path, const std::string& message) { issues.push_back({path, message}); }
+  void fail(const std::string& path, const std::string& message) { common::listIssue(issues, ProfileIssue{path, message}); }
 
   const json* object(const json& parent, const std::string& path, const std::string& key) {
     const json* j = require(parent, path, key, "an object");
@@ -67,8 +68,12 @@ public:
                                     std::size_t maxLength = kMaxTextLength) {
     const json* j = require(parent, path, key, "a string");
     if (!j) return std::nullopt;
-    if (!j->is_string() || j->get<std::string>().empty() || j->get<std::string>().size() > maxLength) {
-      fail(memberPath(path, key), "expected a non-empty string of at most " + std::to_string(maxLength) + " bytes, got " + describeJson(*j));
+    // No control characters: a profile's strings reach messages, summaries and reports (a printer
+    // named "\x1b[2J" cleared the terminal of `rodfab profiles`).
+    if (!j->is_string() || j->get<std::string>().empty() || j->get<std::string>().size() > maxLength ||
+        common::holdsControlCharacters(j->get<std::string>())) {
+      fail(memberPath(path, key), "expected a non-empty string of at most " + std::to_string(maxLength) +
+                                      " bytes without control characters, got " + describeJson(*j));
       return std::nullopt;
     }
     return j->get<std::string>();

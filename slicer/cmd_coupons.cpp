@@ -57,8 +57,9 @@ int makeCoupons(const po::variables_map& vm, const CouponRequest& r) {
   if (!ditherer) return kUsage;
   const auto start = std::chrono::steady_clock::now();
   const ThreadLimit threadLimit(r.job.threads);
-  const std::optional<printer_profiles::Profile> profile = profileFromOptions(vm, "no job was written");
-  if (!profile) return kFailed;
+  int profileFailure = kFailed;
+  const std::optional<printer_profiles::Profile> profile = profileFromOptions(vm, "coupons", "no job was written", profileFailure);
+  if (!profile) return profileFailure;
   int exitCode = kOk;
   const std::optional<slicer::CouponLayout> layout = layOutCoupons(r, *profile, exitCode);
   if (!layout) return exitCode;

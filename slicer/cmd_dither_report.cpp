@@ -77,8 +77,9 @@ int runDitherReport(const std::vector<std::string>& args) {
   if (!request) return kUsage;
   commandLineAccepted();
   // The regions are made at the printer's voxel: the profile's, the only source of it.
-  const std::optional<printer_profiles::Profile> profile = profileFromOptions(vm, "no report was made");
-  if (!profile) return kFailed;
+  int profileFailure = kFailed;
+  const std::optional<printer_profiles::Profile> profile = profileFromOptions(vm, "dither-report", "no report was made", profileFailure);
+  if (!profile) return profileFailure;
   const openvdb::Vec3d voxel = profile->voxelSize();
   common::requireMemory(ditherReportBytes(*request, voxel),
                         {.what = "dither-report's " + std::to_string(request->fractions.size()) + " blocks and rod",

@@ -88,8 +88,9 @@ int slice(const po::variables_map& vm, const JobCommandOptions& options) {
   commandLineAccepted();
   const std::optional<geometry::RodStructure> design = readDesignOrReport(designFile, "no job was written");
   if (!design) return kFailed;
-  const std::optional<printer_profiles::Profile> profile = profileFromOptions(vm, "no job was written");
-  if (!profile) return kFailed;
+  int profileFailure = kFailed;
+  const std::optional<printer_profiles::Profile> profile = profileFromOptions(vm, "slice", "no job was written", profileFailure);
+  if (!profile) return profileFailure;
   const std::optional<ChosenCalibration> cal = calibrationFromOptions("slice", vm, *profile);
   if (!cal) return kFailed;
   const std::unique_ptr<materials::Ditherer> ditherer = chooseDitherer(vm, *cal);

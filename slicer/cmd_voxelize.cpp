@@ -61,8 +61,9 @@ int runVoxelize(const std::vector<std::string>& args) {
   const ThreadLimit limit(*threads);
   std::string profileName = "(--voxel-size)";
   if (!voxelSize) {
-    const std::optional<printer_profiles::Profile> profile = profileFromOptions(vm, "nothing was written");
-    if (!profile) return kFailed;
+    int profileFailure = kFailed;
+    const std::optional<printer_profiles::Profile> profile = profileFromOptions(vm, "voxelize", "nothing was written", profileFailure);
+    if (!profile) return profileFailure;
     voxelSize = profile->voxelSize();
     profileName = profile->name + (profile->printMode.empty() ? "" : " (" + profile->printMode + ")");
   }

@@ -1,5 +1,7 @@
 #include "slicer/profile_option.hpp"
 
+#include "common/quoted_text.hpp"
+
 #include <iostream>
 
 namespace rodfab::cli {
@@ -12,15 +14,27 @@ void addProfileOptions(po::options_description& options) {
        "the printer's print mode, for profiles that have several (e.g. high-speed | high-mix); default: the profile's first");
 }
 
-std::optional<printer_profiles::Profile> profileFromOptions(const po::variables_map& vm, const std::string& consequence) {
+std::optional<printer_profiles::Profile> profileFromOptions(const po::variables_map& vm, const std::string& command,
+                                                            const std::string& consequence, int& exitCode) {
+  printer_profiles::Profile profile;
   try {
-    printer_profiles::Profile profile = printer_profiles::loadProfile(vm["profile"].as<std::string>());
-    if (vm.count("print-mode")) profile = printer_profiles::withPrintMode(profile, vm["print-mode"].as<std::string>());
-    return profile;
+    profile = printer_profiles::loadProfile(vm["profile"].as<std::string>());
   } catch (const printer_profiles::ProfileError& e) {
     std::cerr << e.what() << '\n' << consequence << '\n';
+    exitCode = kFailed;
     return std::nullopt;
   }
+  if (!vm.count("print-mode")) return profile;
+  const std::string mode = vm["print-mode"].as<std::string>();
+  std::string known;
+  for (const printer_profiles::PrintMode& m : profile.printModes) {
+    if (m.name == mode) return printer_profiles::withPrintMode(profile, mode);
+    known += (known.empty() ? "" : ", ") + m.name;
+  }
+  exitCode = usageError(command, "--print-mode: expected " + (known.empty() ? "none (the " + profile.name + " profile has no print modes)"
+                                                                             : "one of the " + profile.name + " profile's modes: " + known) +
+                                     ", got " + common::quotedFromFile(mode));
+  return std::nullopt;
 }
 
 }  // namespace rodfab::cli

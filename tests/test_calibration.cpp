@@ -112,6 +112,27 @@ TEST_CASE("bad rows are all reported with their line numbers", "[calibration][da
   }
 }
 
+TEST_CASE("a file's issues are listed up to kMaxListedIssues, then the reading stops", "[calibration][data]") {
+  // A header of 100,000 unknown columns and a body of 100,000 bad rows: each was listed whole (a header
+  // of 20 million columns took 5.3 GB; ten million bad rows 3.1 GB and 637 MB of messages).
+  std::string header = "vero_fraction,modulus_mpa";
+  for (int i = 0; i < 1000; ++i) header += ",x" + std::to_string(i);
+  std::string rows = "vero_fraction,modulus_mpa\n";
+  for (int i = 0; i < 100000; ++i) rows += "bad,row\n";
+  for (const std::string& text : {header + "\n0,1\n", rows}) {
+    try {
+      parseData(text, "many.csv");
+      FAIL("no error");
+    } catch (const DataError& e) {
+      REQUIRE(e.issues().size() == rodfab::common::kMaxListedIssues + 1);
+      CHECK_THAT(e.issues().back().message, Catch::Contains("only the first 100 are listed"));
+      CHECK(std::string(e.what()).size() < 100 * 200);
+    }
+  }
+  // A line of more than 1,024 fields is not split further (20 million columns took 1.3 GB as fields).
+  CHECK_THAT(dataError(header + std::string(100000, ',') + "\n0,1\n"), Catch::Contains("line 1: more than 1024 fields"));
+}
+
 TEST_CASE("the header is checked for units, required and duplicate columns", "[calibration][data]") {
   CHECK_THAT(dataError("vero_fraction,modulus_gpa\n0,1\n"),
              Catch::Contains("bad.csv: line 1: column 'modulus_gpa': the modulus must be given in MPa, in a column named 'modulus_mpa'"));
@@ -123,6 +144,14 @@ TEST_CASE("the header is checked for units, required and duplicate columns", "[c
   CHECK_THAT(dataError("# only a comment\n"), Catch::Contains("bad.csv: no header line"));
   CHECK_THAT(dataError("vero_fraction,modulus_mpa\n"), Catch::Contains("bad.csv: no measurements after the header"));
   CHECK_THAT(dataError("vero_fraction,modulus_mpa,specimen\n0,1,\"open\n"), Catch::Contains("line 2: unbalanced quotes"));
+  // Text fields reach messages and the calibration file: no control characters, at most 256 bytes; a
+  // temperature a physical one.
+  const std::string escape = dataError("vero_fraction,modulus_mpa,dither\n0,1,\x1b]0;pwned\x07\x1b[2J\n");
+  CHECK_THAT(escape, Catch::Contains("line 2: dither: expected text of at most 256 bytes without control characters, got '\\x1b]0;pwned"));
+  CHECK(escape.find('\x1b') == std::string::npos);
+  CHECK_THAT(dataError("vero_fraction,modulus_mpa,specimen\n0,1," + std::string(300, 'a') + "\n"), Catch::Contains("specimen: expected text of at most 256"));
+  CHECK_THAT(dataError("vero_fraction,modulus_mpa,temperature_c\n0,1,1e308\n"),
+             Catch::Contains("temperature_c: expected a temperature above -273.15 and at most 1000 degrees Celsius, got '1e308'"));
   CHECK_THROWS_WITH(readData("/nonexistent/dma.csv"), Catch::Contains("/nonexistent/dma.csv: cannot open"));
 }
 

@@ -232,6 +232,14 @@ TEST_CASE("All errors of a file are collected, not only the first", "[design][er
   REQUIRE(hasIssue(issues, "rods[1].modulus", "expected a modulus"));
   const std::string all = DesignError("bad.json", issues).what();
   REQUIRE(all.find("bad.json: rods[1].modulus: ") != std::string::npos);
+  // Up to kMaxListedIssues of them, and one saying the list was cut: 50,000 rods of a bad diameter.
+  json many = validDesign();
+  many["rods"][0]["section"]["diameter"] = -1;
+  for (int i = 1; i < 50000; ++i) many["rods"].push_back(many["rods"][0]), many["rods"][i]["name"] = "rod-" + std::to_string(i);
+  const auto listed = issuesOf(many);
+  REQUIRE(listed.size() == rodfab::common::kMaxListedIssues + 1);
+  CHECK(listed[99].path == "rods[99].section.diameter");
+  CHECK_THAT(listed.back().message, Catch::Contains("only the first 100 are listed"));
 }
 
 namespace {

@@ -91,7 +91,7 @@ TEST_CASE("Bad mechanics blocks are reported with their paths", "[design][mechan
   CHECK_NOTHROW(parseDesign(with(R"({"load_steps": 1000})").dump(), "ok.json"));
   REQUIRE_ISSUE(with(R"({"gravity": 1})"), "mechanics.gravity", "unknown key");
   REQUIRE_ISSUE(with(R"({"supports": [{"at": {"rod": "nope", "end": "start"}, "type": "clamped"}]})"),
-                "mechanics.supports[0].at.rod", "no rod is named \"nope\"");
+                "mechanics.supports[0].at.rod", "no rod is named 'nope'");
   REQUIRE_ISSUE(with(R"({"supports": [{"at": {"rod": "edge-0", "end": "middle"}, "type": "clamped"}]})"),
                 "mechanics.supports[0].at.end", "expected \"start\" or \"end\"");
   REQUIRE_ISSUE(with(R"({"supports": [{"at": {"rod": "edge-0", "end": "end"}, "type": "glued"}]})"),

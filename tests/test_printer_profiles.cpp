@@ -4,6 +4,8 @@
 #include "printer_profiles/printer_profiles.hpp"
 #include "tests/printer_profiles_fixture.hpp"
 
+#include "printer_profiles/deflate.hpp"  // internal: zipCrc32
+
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
@@ -11,6 +13,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstring>
 #include <fstream>
 #include <functional>
 #include <random>
@@ -89,6 +92,14 @@ TEST_CASE("Bad profiles are refused naming the file, the field and what was expe
     CHECK(what.find("image.bit_depth: expected 1") != std::string::npos);
     CHECK(what.find("support.policy") != std::string::npos);
   }
+  SECTION("strings with control characters (they reach the terminal, summaries and reports)") {
+    doc["printer"] = "Objet\x1b[2J\x1b]0;pwned\x07";
+    doc["image"]["row_order"] = std::string("top\xc2\x9b" "2J");  // a C1 control (CSI) in UTF-8
+    const std::string what = issuesOf(doc);
+    CHECK_THAT(what, Catch::Contains("printer: expected a non-empty string of at most") && Catch::Contains("without control characters"));
+    CHECK_THAT(what, Catch::Contains("image.row_order: expected a non-empty string"));
+    CHECK(what.find('\x1b') == std::string::npos);
+  }
   SECTION("not JSON") { CHECK(issuesOf(json("{")).find("") != std::string::npos); }
   SECTION("unknown bundled name lists the bundled ones") {
     try {
@@ -134,6 +145,28 @@ TEST_CASE("1-bit BMP and PNG round-trip with their resolution", "[bitmap]") {
   Bytes png = encodePng1(b, 600, 300);
   png.resize(png.size() / 2);
   CHECK_THROWS_AS(decodePng1(png), ImageError);
+}
+
+TEST_CASE("A PNG's declared size is checked before its bitmap is allocated", "[bitmap][png]") {
+  // The header of a small 1-bit PNG made to declare w x h pixels (its IHDR's CRC made again): a
+  // 700-byte file declaring 10^6 x 24,000 took inspect to 3 GB before libpng found its data short.
+  const Bytes small = encodePng1(Bitmap(37, 13), 600, 300);
+  const auto declaring = [&](std::uint32_t w, std::uint32_t h) {
+    Bytes png = small;
+    for (int i = 0; i < 4; ++i) {
+      png[16 + i] = static_cast<std::uint8_t>(w >> (24 - 8 * i));
+      png[20 + i] = static_cast<std::uint8_t>(h >> (24 - 8 * i));
+    }
+    const std::uint32_t crc = zipCrc32(std::span<const std::uint8_t>(png.data() + 12, 17));  // "IHDR" and its 13 bytes
+    for (int i = 0; i < 4; ++i) png[29 + i] = static_cast<std::uint8_t>(crc >> (24 - 8 * i));
+    return png;
+  };
+  CHECK_THROWS_WITH(decodePng1(declaring(1000000, 24000)), Catch::Contains("PNG declares 1000000 x 24000 pixels, more than its") &&
+                                                                Catch::Contains("bytes can hold"));
+  CHECK_THROWS_WITH(decodePng1(declaring(38, 13), 37 * 13), Catch::Contains("PNG declares 38 x 13 pixels, more than expected"));
+  // Within both bounds the header is read as before: the rows then run short, which libpng reports.
+  CHECK_THROWS_AS(decodePng1(declaring(37, 14), 37 * 14), ImageError);
+  CHECK(decodePng1(declaring(37, 13), 37 * 13).bitmap.width() == 37);
 }
 
 TEST_CASE("RGB PNGs (the previews) decode to the pixels given, whole or fed in row batches", "[bitmap][png]") {
@@ -262,7 +295,8 @@ TEST_CASE("Profile names must be portable file names, unique without regard to c
     json doc = bundledProfileJson();
     doc["build_file"]["name"] = bad;
     INFO("build file name: " << bad);
-    refusedAt(doc, "build_file.name", bad[0] ? "portable" : "non-empty");
+    // Empty, or holding a control character (a tab), it is refused as any profile string is.
+    refusedAt(doc, "build_file.name", !bad[0] ? "non-empty" : std::strchr(bad, '\t') ? "without control characters" : "portable");
   }
   json longName = bundledProfileJson();
   longName["materials"][0]["name"] = std::string(65, 'V');

@@ -78,7 +78,8 @@ python3 -c "import json,sys; a=json.load(open('$tmp/decoded')); b=json.load(open
   fail "high-mix should have about twice the layers"
 "$rodfab" inspect "$tmp/mix.gcvf" > /dev/null 2>&1 || fail "inspect high-mix"
 "$rodfab" slice "$tmp/rod.json" -o "$tmp/x.gcvf" --profile $j7 --print-mode ultra --quiet 2> "$tmp/err"
-[ $? -eq 1 ] && grep -q 'no print mode "ultra" (modes: high-speed, high-mix)' "$tmp/err" || fail "unknown mode: $(cat "$tmp/err")"
+[ $? -eq 2 ] && grep -q "\-\-print-mode: expected one of the .* profile's modes: high-speed, high-mix, got 'ultra'" "$tmp/err" ||
+  fail "unknown mode: $(cat "$tmp/err")"
 "$rodfab" slice "$tmp/rod.json" -o "$tmp/x.gcvf" --profile $j7 --support explicit --quiet 2> "$tmp/err"
 [ $? -ne 0 ] && grep -q "GrabCAD" "$tmp/err" || fail "explicit support accepted for a gcvf job: $(cat "$tmp/err")"
 [ ! -e "$tmp/x.gcvf" ] || fail "a refused job left a file"

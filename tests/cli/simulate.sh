@@ -154,7 +154,7 @@ expect_error "no mechanics block" "nomech.json: mechanics: the design has no \"m
 edit "$tmp/nosupport.json" 'd["mechanics"]["supports"] = []'
 expect_error "no support" "nosupport.json: mechanics.supports: no support" "$tmp/nosupport.json"
 edit "$tmp/badrod.json" 'd["mechanics"]["loads"][0]["at"] = {"rod": "nope", "end": "end"}'
-expect_error "unknown rod" "badrod.json: mechanics.loads\[0\].at.rod: no rod is named \"nope\"" "$tmp/badrod.json"
+expect_error "unknown rod" "badrod.json: mechanics.loads\[0\].at.rod: no rod is named 'nope'" "$tmp/badrod.json"
 edit "$tmp/badpoint.json" 'd["mechanics"]["loads"][0]["at"] = {"point": [10, 0.5, 0]}'
 expect_error "load off the rods" "badpoint.json: mechanics.loads\[0\].at.point: no rod lies within joint_tolerance" "$tmp/badpoint.json"
 edit "$tmp/badparameter.json" 'd["mechanics"]["loads"][0]["at"] = {"rod": "beam", "parameter": 1.5}'
