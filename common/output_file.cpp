@@ -156,9 +156,9 @@ std::string sealLinePrefix() { return std::string("{\n  \"") + kWrittenByKey + "
 constexpr std::string_view kSealLineEnd = "\",\n";
 constexpr std::size_t kDigestDigits = 32;
 
-// The whole of the regular file `file` when it is at most `maxBytes` long; no link followed, no pipe
-// waited on.
-std::optional<std::string> readSmallRegularFile(const fs::path& file, std::size_t maxBytes) {
+}  // namespace
+
+std::optional<std::string> readRegularFileAtMost(const fs::path& file, std::size_t maxBytes) {
   const int fd = ::open(file.c_str(), O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
   if (fd < 0) return std::nullopt;
   struct stat st {};
@@ -178,14 +178,12 @@ std::optional<std::string> readSmallRegularFile(const fs::path& file, std::size_
   return text;
 }
 
-}  // namespace
-
 std::string sealJsonObject(std::string_view members) {
   return sealLinePrefix() + common::xxh128Hex(members) + std::string(kSealLineEnd) + std::string(members);
 }
 
 bool isSealedJsonObject(const fs::path& file, std::size_t maxBytes) {
-  const std::optional<std::string> text = readSmallRegularFile(file, maxBytes);
+  const std::optional<std::string> text = readRegularFileAtMost(file, maxBytes);
   const std::string prefix = sealLinePrefix();
   const std::size_t bodyStart = prefix.size() + kDigestDigits + kSealLineEnd.size();
   if (!text || text->size() < bodyStart || !text->starts_with(prefix)) return false;

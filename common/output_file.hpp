@@ -14,6 +14,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -50,6 +51,10 @@ inline constexpr const char* kWrittenByKey = "written_by";
 // "{", a newline, the seal's line, then `members`: the object's text after its opening line, its
 // closing brace included.
 std::string sealJsonObject(std::string_view members);
+
+// The whole of the regular file `file` when it is at most `maxBytes` long; nullopt for anything else
+// (a link is not followed, a pipe not waited on) or when reading fails.
+std::optional<std::string> readRegularFileAtMost(const std::filesystem::path& file, std::size_t maxBytes);
 
 // True when the regular file `file` (not a symlink; at most `maxBytes` long, else false) is a sealed
 // JSON object whose bytes after the seal's line are the ones sealed. False for anything unreadable.

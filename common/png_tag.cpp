@@ -1,10 +1,13 @@
 #include "common/png_tag.hpp"
 
 #include "common/output_file.hpp"
+#include "common/xxh128.hpp"
 
 #include <zlib.h>
 
 #include <cstdint>
+#include <optional>
+#include <string>
 
 namespace rodfab::common {
 
@@ -12,11 +15,16 @@ namespace {
 
 constexpr std::string_view kPngSignature("\x89PNG\r\n\x1a\n", 8);
 
-// The chunk's type and data: "tEXt", "Software", NUL, `software`.
-std::string typeAndData(std::string_view software) {
+constexpr std::size_t kAfterHeader = 8 + 4 + 4 + 13 + 4;  // signature, IHDR length, type, data, CRC
+constexpr std::string_view kSealWord = ", xxh128 ";
+constexpr std::size_t kDigestDigits = 32;
+constexpr std::size_t kMaxSealedPngBytes = std::size_t{256} << 20;
+
+// The chunk's type and data up to the digest: "tEXt", "Software", NUL, `software`, ", xxh128 ".
+std::string typeAndDataBeforeDigest(std::string_view software) {
   std::string chunk("tEXtSoftware");
   chunk += '\0';
-  chunk.append(software);
+  chunk.append(software).append(kSealWord);
   return chunk;
 }
 
@@ -27,9 +35,8 @@ void appendBigEndian(std::string& out, std::uint32_t v) {
 }  // namespace
 
 std::string withSoftwareTag(std::string_view png, std::string_view software) {
-  constexpr std::size_t kAfterHeader = 8 + 4 + 4 + 13 + 4;  // signature, IHDR length, type, data, CRC
   if (png.size() < kAfterHeader || png.compare(12, 4, "IHDR") != 0) return std::string(png);
-  const std::string body = typeAndData(software);
+  const std::string body = typeAndDataBeforeDigest(software) + xxh128Hex(png);
   std::string out(png.substr(0, kAfterHeader));
   appendBigEndian(out, static_cast<std::uint32_t>(body.size() - 4));
   out.append(body);
@@ -40,7 +47,14 @@ std::string withSoftwareTag(std::string_view png, std::string_view software) {
 }
 
 bool hasSoftwareTag(const std::filesystem::path& file, std::string_view software) {
-  return fileStartsWith(file, kPngSignature, typeAndData(software), 128);
+  if (!fileStartsWith(file, kPngSignature, typeAndDataBeforeDigest(software), 128)) return false;  // most files end here, unread
+  const std::optional<std::string> png = readRegularFileAtMost(file, kMaxSealedPngBytes);
+  const std::string prefix = typeAndDataBeforeDigest(software);
+  const std::size_t digestAt = kAfterHeader + 4 + prefix.size(), chunkEnd = digestAt + kDigestDigits + 4;
+  if (!png || png->size() < chunkEnd || png->compare(kAfterHeader + 4, prefix.size(), prefix) != 0) return false;
+  const std::string_view view(*png);
+  const std::string untagged = std::string(view.substr(0, kAfterHeader)).append(view.substr(chunkEnd));
+  return view.substr(digestAt, kDigestDigits) == xxh128Hex(untagged);
 }
 
 }  // namespace rodfab::common

@@ -42,13 +42,13 @@ PY
 # the target is drawn in one blue, the uniform start in the one colour of 60 MPa on viridis between
 # the bounds, and the optimized rods in colours of viridis within the range of its moduli.
 python3 - "$tmp/shapes.png" "$tmp/optimized.json" "$src/tests/cli" <<'PY' || fail "shape render"
-import json, sys
+import json, re, sys
 sys.path.insert(0, sys.argv[3])
 from png_pixels import pixels
 from collections import Counter
 w, h, px, text = pixels(sys.argv[1])
 assert (w, h) == (1050, 44 + 20 + 30 + 3 * 324), (w, h)
-assert text == {"Software": "rodfab optimize"}, text
+assert list(text) == ["Software"] and re.fullmatch(r"rodfab optimize, xxh128 [0-9a-f]{32}", text["Software"]), text
 STOPS = [(0.267, 0.005, 0.329), (0.278, 0.175, 0.483), (0.231, 0.322, 0.546), (0.173, 0.449, 0.558), (0.128, 0.567, 0.551),
          (0.153, 0.683, 0.503), (0.361, 0.785, 0.388), (0.680, 0.860, 0.201), (0.993, 0.906, 0.144)]  # matplotlib's viridis
 def viridis(t):
@@ -89,7 +89,7 @@ for c in optimized:
 PY
 # The plot: a 960 x 640 RGB PNG tagged as ours, its image data complete (decoded here with zlib).
 python3 - "$tmp/history.png" <<'PY' || fail "convergence plot"
-import struct, sys, zlib
+import re, struct, sys, zlib
 data = open(sys.argv[1], "rb").read()
 assert data[:8] == b"\x89PNG\r\n\x1a\n"
 chunks, at = {}, 8
@@ -101,7 +101,7 @@ while at < len(data):
     at += 12 + n
 w, h, depth, color = struct.unpack(">IIBB", chunks[b"IHDR"][:10])
 assert (w, h, depth, color) == (960, 640, 8, 2), (w, h, depth, color)
-assert chunks[b"tEXt"] == b"Software\0rodfab optimize"
+assert re.fullmatch(rb"Software\0rodfab optimize, xxh128 [0-9a-f]{32}", chunks[b"tEXt"]), chunks[b"tEXt"]
 raw = zlib.decompress(chunks[b"IDAT"])
 assert len(raw) == h * (1 + 3 * w)
 PY
@@ -256,6 +256,18 @@ cp "$tmp/kept.json" "$tmp/kept.before"
 grep -qF "nothing was written" "$tmp/out" || fail "the failed plot: $(cat "$tmp/out")"
 cmp -s "$tmp/kept.json" "$tmp/kept.before" || fail "a failed --plot lost the design the previous run wrote"
 rm -f "$tmp/kept.json" "$tmp/kept.before"
+# A plot of rodfab's edited past its mark (its first 128 bytes kept, the rest a person's) is theirs now.
+python3 - "$tmp/history.png" "$tmp/edited.png" <<'PY'
+import sys
+data = open(sys.argv[1], "rb").read()
+open(sys.argv[2], "wb").write(data[:128] + b"my annotated copy" + data[145:])
+PY
+"$rodfab" optimize "$tmp/start.json" -o "$tmp/kept.json" --max-iterations 2 --plot "$tmp/edited.png" > "$tmp/out" 2>&1 &&
+  fail "an edited plot was replaced"
+grep -qF "edited.png" "$tmp/out" || fail "the edited plot is not named: $(cat "$tmp/out")"
+cmp -s <(python3 -c 'import sys; d=open(sys.argv[1],"rb").read(); sys.stdout.buffer.write(d[:128]+b"my annotated copy"+d[145:])' "$tmp/history.png") "$tmp/edited.png" ||
+  fail "the edited plot changed"
+rm -f "$tmp/edited.png" "$tmp/kept.json"
 
 # SIGINT and SIGTERM: exit 130 / 143, nothing written. A chain of 20 rods with 16 controls each
 # (320 design variables) and no tolerance runs for long enough to be interrupted mid-way.
