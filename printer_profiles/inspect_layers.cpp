@@ -252,7 +252,14 @@ void Inspector::checkOrientation(const std::vector<DecodedMoments>& moments) {
   for (std::size_t n = 0; n < layout_.materials.size(); ++n) {
     const auto& record = layout_.orientation[n];
     const DecodedMoments& mo = moments[n];
-    if (!record || record->voxels != mo.count || !mo.count) continue;  // counts are reported layer by layer
+    if (!record) continue;
+    // The record's count must be the images' (a lie in it hid flipped images: a hostile-input review).
+    if (record->voxels != mo.count) {
+      findings_.whole(layout_.materials[n]->name + ": the manifest's orientation check counts " + std::to_string(record->voxels) +
+                      " voxels, the images hold " + std::to_string(mo.count) + "; the part's position could not be checked");
+      continue;
+    }
+    if (!mo.count) continue;
     const double c = static_cast<double>(mo.count);
     const std::array<double, 3> got[3] = {toMm({1.0 * mo.min[0], 1.0 * mo.min[1], 1.0 * mo.min[2]}),
                                           toMm({1.0 * mo.max[0], 1.0 * mo.max[1], 1.0 * mo.max[2]}),

@@ -320,8 +320,11 @@ void readLayer(const json& entry, std::size_t l, const Profile& p, JobLayout& ou
   for (std::size_t n = 0; n < out.materials.size(); ++n) {
     const ProfileMaterial& mat = *out.materials[n];
     if (files) f.same(*files, memberPath(path, "files"), mat.name, p.layerFileName(mat, static_cast<int>(l), out.imageFormat), "the profile's naming");
-    if (const json* v = voxels ? f.get(*voxels, memberPath(path, "voxels"), mat.name, "a voxel count") : nullptr)
-      if (const auto c = f.count(*v, memberPath(memberPath(path, "voxels"), mat.name)); c && *c <= pixels) out.layerVoxels[l][n] = c;
+    const json* v = voxels ? f.get(*voxels, memberPath(path, "voxels"), mat.name, "a voxel count") : nullptr;
+    const std::string where = memberPath(memberPath(path, "voxels"), mat.name);
+    const auto c = v ? f.count(*v, where) : std::nullopt;
+    if (c && *c <= pixels) out.layerVoxels[l][n] = c;
+    else if (c) f.fail(where, std::to_string(*c) + " voxels, more than a layer's " + std::to_string(pixels) + " pixels");
   }
 }
 

@@ -168,6 +168,16 @@ TEST_CASE("The job's complete layout is checked against the profile", "[inspect]
     CHECK(hasDefect(report, "VeroWhitePlus_0004.bmp: missing"));
     CHECK(hasDefect(report, "manifest.json: layers: lists 4 layers; layer_count is 5"));
   }
+  SECTION("counts the images cannot hold, and an orientation count that is not the images'") {
+    // A lie in the orientation record's count made inspect skip the check that finds flipped images.
+    rezip(dir / "t.zip", tampered(original, [](json& m) {
+            m["layers"][0]["voxels"]["VeroWhitePlus"] = std::uint64_t{1} << 40;
+            m["orientation_check"]["TangoBlackPlus"]["voxels"] = m["orientation_check"]["TangoBlackPlus"]["voxels"].get<std::uint64_t>() + 1;
+          }));
+    const InspectReport report = inspectJob(dir / "t.zip");
+    CHECK(hasDefect(report, "manifest.json: layers[0].voxels.VeroWhitePlus: 1099511627776 voxels, more than a layer's"));
+    CHECK(hasDefect(report, "TangoBlackPlus: the manifest's orientation check counts"));
+  }
   SECTION("an extra file, listed or not") {
     auto files = original;
     addListed(files, "notes.txt", bytesOf("hello"));
