@@ -96,6 +96,11 @@ PlyProperty readProperty(HeaderLine& line, const std::string& elementName) {
   if (plyTypeSize(property.itemType) == 0 || (!property.countType.empty() && plyTypeSize(property.countType) == 0))
     line.fail("a property of unknown type " + common::quotedFromFile(plyTypeSize(property.itemType) == 0 ? property.itemType : property.countType) +
               " (expected char, uchar, short, ushort, int, uint, float or double, or int8 to float64)");
+  // CGAL generates lists only for integer counts and skips one counted by a float or double, reading
+  // the body without it (a short count read from the wrong bytes went negative: a 2^64-element resize,
+  // fuzz_mesh_reader).
+  if (!property.countType.empty() && isPlyFloatType(property.countType))
+    line.fail("a list counted by a " + property.countType + " (expected an integer count type: char, uchar, short, ushort, int or uint)");
   if (name.empty()) line.fail("a property without a name");
   const bool coordinate = (elementName == "vertex" || elementName == "vertices") && (name == "x" || name == "y" || name == "z");
   if (coordinate && !property.countType.empty()) line.fail("vertex coordinate " + name + " is a list (expected a float or double)");

@@ -287,6 +287,8 @@ TEST_CASE("PLY headers CGAL would misread are refused first, naming the line", "
   CHECK_THAT(meshError(scratch("version.ply")), Catch::Contains("PLY header line 2: expected 'format ascii 1.0'"));
   writeText(scratch("nocount.ply"), "ply\nformat ascii 1.0\nelement vertex x\nproperty float x\nend_header\n0\n");
   CHECK_THAT(meshError(scratch("nocount.ply")), Catch::Contains("PLY header line 3: expected 'element NAME COUNT'"));
+  writeText(scratch("floatcount.ply"), "ply\nformat ascii 1.0\nelement face 1\nproperty list double int vertex_indices\nend_header\n3 0 1 2\n");
+  CHECK_THAT(meshError(scratch("floatcount.ply")), Catch::Contains("PLY header line 4: a list counted by a double (expected an integer count type"));
   writeText(scratch("noname.ply"), "ply\nformat ascii 1.0\nelement face 1\nproperty list uchar int\nend_header\n0\n");
   CHECK_THAT(meshError(scratch("noname.ply")), Catch::Contains("PLY header line 4: a property without a name"));
   // A header read once for both checks: the body after a CRLF header is read from the same byte CGAL
