@@ -30,6 +30,15 @@ public:
   OptimizeSpec optimize(const json& j, const std::string& path);
 
 private:
+  // An objective weight: 0, or from kMinObjectiveWeight to kMaxObjectiveWeight (relative weights: a
+  // denormal or 1e308 passed the reader and failed inside the optimizer, naming no field).
+  std::optional<double> objectiveWeight(const json& j, const std::string& path) {
+    const std::optional<double> x = number(j, path, "a weight (a number >= 0)");
+    if (x && (*x == 0 || (*x >= kMinObjectiveWeight && *x <= kMaxObjectiveWeight))) return x;
+    if (x) fail(path, "expected a weight of 0 or from 1e-06 to 1e+06, got " + describe(j));
+    return std::nullopt;
+  }
+  static constexpr double kMinObjectiveWeight = 1e-6, kMaxObjectiveWeight = 1e6;
   // True when a rod is named `name`; false after an issue at `path`.
   bool knownRod(const std::string& name, const std::string& path, const RodNames& names) {
     if (names.count(name)) return true;

@@ -51,10 +51,7 @@ void MechanicsReader::loadCases(const json& j, const std::string& path, const Ro
     lc.distributedLoads = std::move(caseSpec.distributedLoads);
     lc.loadSteps = c.contains("load_steps") ? caseSpec.loadSteps : spec.loadSteps;
     if (auto w = c.find("weight"); w != c.end())
-      if (auto x = number(*w, memberPath(cp, "weight"), "a weight (a number >= 0)")) {
-        if (*x < 0) fail(memberPath(cp, "weight"), "expected a weight >= 0, got " + describe(*w));
-        else lc.weight = *x;
-      }
+      if (auto x = objectiveWeight(*w, memberPath(cp, "weight"))) lc.weight = *x;
     if (auto t = c.find("target"); t != c.end()) target(*t, memberPath(cp, "target"), names, lc);
     spec.loadCases.push_back(std::move(lc));
   }
@@ -126,13 +123,12 @@ OptimizeSpec MechanicsReader::optimize(const json& j, const std::string& path) {
                      "max_iterations", "tolerance"});
   const auto weight = [&](const char* key, double& out) {
     if (auto v = j.find(key); v != j.end())
-      if (auto x = number(*v, memberPath(path, key), "a weight (a number >= 0)")) {
-        if (*x < 0) fail(memberPath(path, key), "expected a weight >= 0, got " + describe(*v));
-        else out = *x;
-      }
+      if (auto x = objectiveWeight(*v, memberPath(path, key))) out = *x;
   };
   weight("position_weight", spec.positionWeight);
   weight("curvature_weight", spec.curvatureWeight);
+  if (spec.positionWeight == 0 && spec.curvatureWeight == 0)
+    fail(path, "position_weight and curvature_weight are both 0: the objective would be empty (expected one of them > 0)");
   const auto integer = [&](const char* key, long long lo, long long hi, int& out) {
     if (auto v = j.find(key); v != j.end()) {
       if (!v->is_number_integer() || v->get<long long>() < lo || v->get<long long>() > hi)

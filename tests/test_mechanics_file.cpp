@@ -221,7 +221,12 @@ TEST_CASE("Bad load cases, targets and optimize blocks are reported with their p
   REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][1]["load_steps"] = 0; }), "mechanics.load_cases[1].load_steps",
                 "expected an integer from 1");
   REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][0]["weight"] = -1; }), "mechanics.load_cases[0].weight",
-                "expected a weight >= 0");
+                "expected a weight of 0 or from 1e-06 to 1e+06");
+  REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][0]["weight"] = 5e-324; }), "mechanics.load_cases[0].weight",
+                "expected a weight of 0 or from 1e-06 to 1e+06, got 5e-324");
+  REQUIRE_ISSUE(edit([](json& d) { d["optimize"]["position_weight"] = 1e308; }), "optimize.position_weight", "from 1e-06 to 1e+06");
+  REQUIRE_ISSUE(edit([](json& d) { d["optimize"]["position_weight"] = 0, d["optimize"]["curvature_weight"] = 0; }), "optimize",
+                "both 0: the objective would be empty");
   REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"] = json::array(); }), "mechanics.load_cases", "non-empty array");
   REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][0]["target"] = {{"shape", 1}}; }),
                 "mechanics.load_cases[0].target", "expected {\"design\": PATH}");

@@ -58,8 +58,8 @@ def cases(ctx) -> list[Case]:
     cs.append(run("no-target", OPT, {"d.json": no_target}, {1}, where=["load_cases"]))
     huge_weight = copy.deepcopy(ok)
     huge_weight["mechanics"]["load_cases"][0]["weight"] = 1e308
-    cs.append(run("weight-1e308", OPT, {"d.json": huge_weight}, {1}, where=["\"train\""],
-                  note="g overflows to infinity"))
+    cs.append(run("weight-1e308", OPT, {"d.json": huge_weight}, {1}, where=["mechanics.load_cases[0].weight"],
+                  note="refused by the reader (weights are 0 or 1e-6 to 1e6); g would overflow to infinity"))
     far = frame({"rods": {"arm": {"centerline": {"degree": 1, "knots": [0, 0, 1, 1], "points": [[0, 0, 30], [1e300, 0, 30]]}}}})
     cs.append(run("target-1e300", OPT, {"d.json": far}, {0, 1}, where=["d.json", "target"], note="a target 1e300 mm away"))
     tiny = frame(optimize={"bounds_mpa": [1e-300, 1e6]})
