@@ -77,6 +77,9 @@ public:
   std::optional<Section> section(const nlohmann::json& j, const std::string& path);
   // {degree, knots, quaternions}; with `curve`, its domain must equal the curve's.
   std::optional<QuaternionSpline> orientation(const nlohmann::json& j, const std::string& path, const NurbsCurve* curve);
+  // A reference normal: finite, not zero and, when the centerline is known, not parallel to its
+  // tangent at the start (the frame is built from there).
+  std::optional<Vec3> referenceNormal(const nlohmann::json& j, const std::string& path, const NurbsCurve* curve);
   // A constant (MPa) or a B-spline {degree, knots, values} over `curve`'s domain (nullopt without a curve).
   std::optional<BSplineField> modulus(const nlohmann::json& j, const std::string& path, const NurbsCurve* curve);
   // One rod of "rods", checked but not built; its name joins `names` (a repeated name is an issue).

@@ -161,6 +161,24 @@ std::optional<Section> DesignReader::section(const json& j, const std::string& p
   return std::nullopt;
 }
 
+std::optional<Vec3> DesignReader::referenceNormal(const nlohmann::json& j, const std::string& path, const NurbsCurve* curve) {
+  std::optional<Vec3> normal = vector3(j, path, "a reference normal");
+  if (normal && !(normal->cwiseAbs().maxCoeff() > 0.0)) {
+    fail(path, "the reference normal must not be zero");
+    return std::nullopt;
+  }
+  if (!normal || !curve) return normal;
+  Vec3 d[3];
+  curve->derivatives(curve->domainBegin(), 2, d);
+  const Vec3 t = unitTangent(d[1], d[2]);
+  if (scaledToUnitOrder(*normal).normalized().cross(t).norm() < 1e-6) {  // scaled: 1e300 does not overflow, 1e-320 not underflow
+    fail(path, "the reference normal " + describe(j) + " is parallel to the centerline's tangent at its start; "
+               "expected a direction across the rod");
+    return std::nullopt;
+  }
+  return normal;
+}
+
 std::optional<QuaternionSpline> DesignReader::orientation(const json& j, const std::string& path, const NurbsCurve* curve) {
   if (!j.is_object()) {
     fail(path, "expected an object {degree, knots, quaternions}, got " + describe(j));
@@ -231,23 +249,7 @@ std::optional<RodParts> DesignReader::rod(const json& j, const std::string& path
   const auto nIt = j.find("normal");
   const auto oIt = j.find("orientation");
   if (nIt != j.end() && oIt != j.end()) fail(path, "give either \"normal\" or \"orientation\", not both");
-  if (nIt != j.end()) {
-    const std::string np = memberPath(path, "normal");
-    normal = vector3(*nIt, np, "a reference normal");
-    if (normal && !(normal->cwiseAbs().maxCoeff() > 0.0)) {
-      fail(np, "the reference normal must not be zero");
-      normal.reset();
-    } else if (normal && curve) {
-      Vec3 d[3];
-      curve->derivatives(curve->domainBegin(), 2, d);
-      const Vec3 t = unitTangent(d[1], d[2]);
-      if ((*normal * powerOfTwoScale(*normal)).normalized().cross(t).norm() < 1e-6) {  // scaled: 1e300 does not overflow
-        fail(np, "the reference normal " + describe(*nIt) + " is parallel to the centerline's tangent at its start; "
-                 "expected a direction across the rod");
-        normal.reset();
-      }
-    }
-  }
+  if (nIt != j.end()) normal = referenceNormal(*nIt, memberPath(path, "normal"), curve ? &*curve : nullptr);
   if (oIt != j.end()) orient = orientation(*oIt, memberPath(path, "orientation"), curve ? &*curve : nullptr);
   if (sec && !sec->isRotationallySymmetric() && nIt == j.end() && oIt == j.end())
     fail(path, "a " + std::string(toString(sec->shape)) + " section needs a frame: give \"normal\" or \"orientation\"");

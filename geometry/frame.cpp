@@ -28,10 +28,13 @@ double stableNorm(const Eigen::Ref<const Eigen::VectorXd>& v) {
   return scale * (v / scale).norm();
 }
 
-double powerOfTwoScale(const Eigen::Ref<const Eigen::VectorXd>& v) {
+Vec3 scaledToUnitOrder(const Vec3& v) {
   const double largest = v.cwiseAbs().maxCoeff();
-  if (!(largest > 0.0) || !std::isfinite(largest)) return 1.0;
-  return std::ldexp(1.0, -std::ilogb(largest));
+  if (!(largest > 0.0) || !std::isfinite(largest)) return v;
+  // Component by component: 2^1063 (for a largest component of 1e-320) is no double, but scalbn
+  // scales a denormal exactly.
+  const int exponent = -std::ilogb(largest);
+  return v.unaryExpr([exponent](double x) { return std::scalbn(x, exponent); });
 }
 
 QuaternionSpline::QuaternionSpline(int degree, std::vector<double> knots, std::vector<Eigen::Vector4d> quaternions)
@@ -111,7 +114,7 @@ RodFrame RodFrame::rotationMinimizing(const NurbsCurve& curve, const Vec3& refer
   if (!referenceNormal.allFinite() || !(referenceNormal.cwiseAbs().maxCoeff() > 0.0))
     throw std::invalid_argument("RodFrame: reference normal must be non-zero and finite");
   // Scaled by a power of two (exact) to a largest component in [1, 2): no overflow for 1e300.
-  const Vec3 n = referenceNormal * powerOfTwoScale(referenceNormal);
+  const Vec3 n = scaledToUnitOrder(referenceNormal);
   Vec3 d1 = n - n.dot(t0) * t0;
   if (!(d1.norm() > 1e-9 * n.norm()))
     throw std::invalid_argument("RodFrame: reference normal is parallel to the centerline tangent");

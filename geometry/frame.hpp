@@ -85,8 +85,8 @@ Vec3 unitTangentFromBelow(const Vec3& firstDerivative, const Vec3& secondDerivat
 // Euclidean norm without overflow or underflow for any finite components (0 for a zero vector,
 // inf or NaN when a component is).
 double stableNorm(const Eigen::Ref<const Eigen::VectorXd>& v);
-// 2^-e with 2^e <= the largest |component| < 2^(e+1) (1 for a zero or non-finite vector): multiplying
-// by it is exact and brings the largest component into [1, 2).
-double powerOfTwoScale(const Eigen::Ref<const Eigen::VectorXd>& v);
+// `v` times 2^-e, 2^e <= the largest |component| < 2^(e+1) (`v` itself when zero or not finite): exact,
+// a direction kept, the largest component in [1, 2), for denormal and huge components alike.
+Vec3 scaledToUnitOrder(const Vec3& v);
 
 }  // namespace rodfab::geometry

@@ -102,10 +102,7 @@ std::optional<TargetRod> MechanicsReader::targetRod(const json& j, const std::st
   if (auto c = require(j, path, "centerline", "a NURBS curve {degree, knots, points, weights}")) curve = centerline(*c, memberPath(path, "centerline"));
   if (j.contains("orientation") && j.contains("normal")) fail(path, "give either \"normal\" or \"orientation\", not both");
   if (auto o = j.find("orientation"); o != j.end()) t.orientation = orientation(*o, memberPath(path, "orientation"), curve ? &*curve : nullptr);
-  if (auto n = j.find("normal"); n != j.end()) {
-    t.referenceNormal = vector3(*n, memberPath(path, "normal"), "a reference normal");
-    if (t.referenceNormal && !(t.referenceNormal->cwiseAbs().maxCoeff() > 0.0)) fail(memberPath(path, "normal"), "the reference normal must not be zero");
-  }
+  if (auto n = j.find("normal"); n != j.end()) t.referenceNormal = referenceNormal(*n, memberPath(path, "normal"), curve ? &*curve : nullptr);
   if (!curve || issues.size() != before) return std::nullopt;
   t.centerline = std::move(*curve);
   return t;

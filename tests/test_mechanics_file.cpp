@@ -234,6 +234,15 @@ TEST_CASE("Bad load cases, targets and optimize blocks are reported with their p
                 "mechanics.load_cases[0].target.rods.edge-9", "no rod is named");
   REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][0]["target"]["rods"]["edge-0"]["centerline"]["degree"] = 9; }),
                 "mechanics.load_cases[0].target.rods.edge-0.centerline.degree", "expected an integer degree");
+  // A target's normal is checked as a rod's: not along the centerline's start, any magnitude (a normal
+  // of 1e-320 failed inside the optimizer as "parallel", one along the tangent passed the reader).
+  REQUIRE_ISSUE(edit([](json& d) {
+                  auto& rod = d["mechanics"]["load_cases"][0]["target"]["rods"]["edge-0"];
+                  const auto& p = rod["centerline"]["points"];
+                  rod["normal"] = {p[1][0].get<double>() - p[0][0].get<double>(), p[1][1].get<double>() - p[0][1].get<double>(),
+                                   p[1][2].get<double>() - p[0][2].get<double>()};
+                }),
+                "mechanics.load_cases[0].target.rods.edge-0.normal", "is parallel to the centerline's tangent");
   REQUIRE_ISSUE(edit([](json& d) { d["optimize"]["bounds_mpa"] = {190, 8}; }), "optimize.bounds_mpa", "lowest modulus below");
   REQUIRE_ISSUE(edit([](json& d) { d["optimize"]["modulus_controls"] = 1; }), "optimize.modulus_controls", "from 2 to 64");
   REQUIRE_ISSUE(edit([](json& d) { d["optimize"]["speed"] = 1; }), "optimize.speed", "unknown key");
