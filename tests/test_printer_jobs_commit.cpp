@@ -322,15 +322,20 @@ void flipFirstByteAfterHeader(const fs::path& file) {
   REQUIRE(io.good());
 }
 
+// The job of `grid` written as a zip at `zip` and as a folder at `folder`.
+void writeZipAndFolderJobs(const openvdb::BoolGrid& grid, const fs::path& zip, const fs::path& folder) {
+  writeJob(grid, specFor(grid, zip), 24);
+  JobSpec spec = specFor(grid, folder);
+  spec.options.archive = ArchiveFormat::Directory;
+  writeJob(grid, spec, 24);
+}
+
 }  // namespace
 
 TEST_CASE("Force replaces only rodfab jobs: anything else is refused and left byte for byte", "[job][force]") {
   const fs::path dir = scratch("force-refusals");
   const auto grid = overhangPart(21);
-  writeJob(*grid, specFor(*grid, dir / "real.zip"), 24);
-  JobSpec realDir = specFor(*grid, dir / "real-dir");
-  realDir.options.archive = ArchiveFormat::Directory;
-  writeJob(*grid, realDir, 24);
+  writeZipAndFolderJobs(*grid, dir / "real.zip", dir / "real-dir");
   // A user's folder, an empty one, a file, foreign zips, a link to a job, a job folder with a file added.
   fs::create_directories(dir / "mydata" / "sub");
   writeAll(dir / "mydata" / "notes.txt", Bytes{'h', 'i'});
@@ -400,10 +405,7 @@ TEST_CASE("A job examined once is read again once anything in it changed", "[job
   // output up to three times a run): a change after the first look must still be seen.
   const fs::path dir = scratch("force-reexamine");
   const auto grid = overhangPart(24);
-  writeJob(*grid, specFor(*grid, dir / "job.zip"), 24);
-  JobSpec folder = specFor(*grid, dir / "job");
-  folder.options.archive = ArchiveFormat::Directory;
-  writeJob(*grid, folder, 24);
+  writeZipAndFolderJobs(*grid, dir / "job.zip", dir / "job");
   // Only a job whose last change is some seconds old is remembered (a file changed twice within one
   // tick of the file system's clock would keep its times), so that one is tested.
   std::this_thread::sleep_for(std::chrono::milliseconds(3100));
