@@ -79,17 +79,27 @@ fs::path previousVersionName(const fs::path& file) {
   return file.parent_path() / hidden;
 }
 
-// Keeps the regular file at `file` (one a commit is about to replace) under a hidden name beside it:
-// a second hard link, so the commit's rename still replaces the name in one step. Empty when there is
-// no such file; throws when it cannot be kept (then nothing is replaced).
+// Keeps the regular file at `file` (one a commit is about to replace) under a hidden name beside it: a
+// second hard link, so the commit's rename still replaces the name in one step; on a file system
+// without hard links (FAT, as on a printer's USB stick) the file itself, renamed aside. Empty when
+// there is no such file; throws when it cannot be kept (then nothing is replaced).
 fs::path keepPreviousVersion(const fs::path& file) {
   struct stat st {};
   if (::lstat(file.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return {};
   const fs::path kept = previousVersionName(file);
-  if (::link(file.c_str(), kept.c_str()) != 0)
+  if (::link(file.c_str(), kept.c_str()) != 0 && ::rename(file.c_str(), kept.c_str()) != 0)
     throw std::runtime_error(file.string() + ": cannot keep the file it replaces until the command ends (" + std::strerror(errno) +
                              "); nothing was replaced");
   return kept;
+}
+
+// After a failed commit: the kept file back under its name when the commit left none there (it was
+// renamed aside), else the hidden link removed.
+void restorePreviousVersion(const fs::path& kept, const fs::path& file) {
+  if (kept.empty()) return;
+  std::error_code ec;
+  if (!fs::exists(fs::symlink_status(file, ec))) fs::rename(kept, file, ec);
+  else fs::remove(kept, ec);
 }
 
 constexpr auto kGrace = std::chrono::milliseconds(600);
@@ -157,8 +167,7 @@ void commitRegistered(const fs::path& temporary, const fs::path& committed,
   try {
     commit(temporary, committed);
   } catch (...) {
-    std::error_code ignored;
-    if (!previous.empty()) fs::remove(previous, ignored);
+    restorePreviousVersion(previous, committed);
     throw;
   }
   auto& r = registry();
