@@ -97,7 +97,6 @@ constexpr std::size_t kMaxTextBytes = 256;  // a specimen, dither or date field
 constexpr double kAbsoluteZeroC = -273.15, kMaxTemperatureC = 1000.0;
 
 void addIssue(Issues& issues, int line, std::string message) { common::listIssue(issues, DataIssue{line, std::move(message)}); }
-bool issuesFull(const Issues& issues) { return common::issueListCut(issues); }
 
 // The header's columns: per field position (nullopt for a rejected name) and each column's position.
 struct Header {
@@ -109,7 +108,7 @@ struct Header {
 Header readHeader(const std::vector<std::string>& fields, int lineNumber, Issues& issues) {
   const auto fail = [&](std::string message) { addIssue(issues, lineNumber, std::move(message)); };
   Header header;
-  for (std::size_t i = 0; i < fields.size() && !issuesFull(issues); ++i) {
+  for (std::size_t i = 0; i < fields.size() && !common::issueListCut(issues); ++i) {
     const std::string name = boost::algorithm::to_lower_copy(fields[i]);
     const auto known = kColumns.find(name);
     if (known == kColumns.end()) {
@@ -198,7 +197,7 @@ DataSet parseData(std::string_view text, const std::string& sourceName) {
   std::istringstream lines{std::string(text)};
   std::string raw;
   int lineNumber = 0;
-  while (!issuesFull(issues) && std::getline(lines, raw)) {
+  while (!common::issueListCut(issues) && std::getline(lines, raw)) {
     ++lineNumber;
     if (!raw.empty() && raw.back() == '\r') raw.pop_back();
     std::string line = boost::algorithm::trim_copy(raw);

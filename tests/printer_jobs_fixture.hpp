@@ -9,8 +9,10 @@
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
+#include <map>
 #include <random>
 #include <set>
+#include <string>
 #include <tuple>
 
 namespace rodfab::test {
@@ -98,6 +100,24 @@ inline std::set<Voxel> decodeJob(const fs::path& job, json* manifestOut = nullpt
           if (d.bitmap.get(c, r)) voxels.emplace(i0 + c, j0 - r, k0 + layer["layer"].get<int>(), code[material]);
     }
   return voxels;
+}
+
+// Everything below `root` without following links: relative path -> kind and contents (bytes or link
+// target), so a folder can be compared byte for byte before and after.
+inline std::map<std::string, std::string> snapshot(const fs::path& root) {
+  std::map<std::string, std::string> out;
+  for (auto it = fs::recursive_directory_iterator(root); it != fs::recursive_directory_iterator(); ++it) {
+    const std::string name = fs::relative(it->path(), root).generic_string();
+    const fs::file_status status = it->symlink_status();
+    if (fs::is_symlink(status)) out[name] = "link:" + fs::read_symlink(it->path()).string();
+    else if (fs::is_directory(status)) out[name] = "dir";
+    else if (!fs::is_regular_file(status)) out[name] = "special";
+    else {
+      const Bytes data = readAll(it->path());
+      out[name] = "file:" + std::string(data.begin(), data.end());
+    }
+  }
+  return out;
 }
 
 inline std::set<Voxel> gridVoxels(const openvdb::BoolGrid& grid) {
