@@ -43,6 +43,7 @@ int runRodsFromCad(const std::vector<std::string>& args) {
     return kFailed;
   }
   warnTrayOverhang(result.summary.bounds, trayMm, profileName);
+  warnThickRods(result.summary, o.section);
   const meshing::CadRodReport& r = result.report;
   if (r.untranslated > 0)
     std::fprintf(stderr, "warning: OpenCASCADE could not convert %zu %s of the model, left out of the design with every curve %s: %s%s; "

@@ -77,6 +77,7 @@ int meshToRods(const MeshSettings& s) {
   const MeshRodsSummary summary{s.mesh, s.output, s.options.surfaceTolerance, result.report, result.structure};
   warnMeshRods(summary);
   warnTrayOverhang(result.structure.bounds(), trayMm, profileName);
+  warnThickRods(geometry::summarize(result.structure), s.options.section);
   if (s.json) std::cout << meshRodsJson(summary).dump(2) << '\n';
   else printMeshRodsLines(summary);
   return kOk;

@@ -4,6 +4,7 @@
 #include "printer_profiles/profile.hpp"
 #include "slicer/profile_option.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
 
@@ -64,6 +65,17 @@ void warnTrayOverhang(const geometry::Box3& rodBounds, const std::array<double, 
     if (size[a] > trayMm[a])
       std::fprintf(stderr, "warning: the rods are %.1f mm long in %c, %.1f mm more than the tray of %s (%.1f mm): scale the model\n",
                    size[a], axis[a], size[a] - trayMm[a], profile.c_str(), trayMm[a]);
+}
+
+void warnThickRods(const geometry::DesignSummary& rods, const geometry::Section& section) {
+  if (rods.rodCount == 0) return;
+  const double meanLength = rods.totalLength / static_cast<double>(rods.rodCount);
+  const double width = std::max(section.width, section.height);
+  if (!(meanLength < width)) return;
+  const geometry::Vec3 size = rods.bounds.sizes();
+  std::fprintf(stderr, "warning: the rods are %g mm thick but only %.3g mm long on average: they overlap each other along most "
+               "of their length, print as a lump and slice slowly; the model is %.3g x %.3g x %.3g mm (drawn in other units?): "
+               "scale it or give a smaller --diameter\n", width, meanLength, size.x(), size.y(), size.z());
 }
 
 }  // namespace rodfab::cli

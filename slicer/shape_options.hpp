@@ -29,4 +29,9 @@ std::optional<RodShape> parseRodShape(const std::string& command, const po::vari
 bool loadTrayProfile(const std::string& command, const std::string& nameOrPath, std::array<double, 3>& trayMm, std::string& name);
 void warnTrayOverhang(const geometry::Box3& rodBounds, const std::array<double, 3>& trayMm, const std::string& profile);
 
+// Warns on stderr when the rods are on average shorter than `section` is wide: then each overlaps its
+// neighbours along most of its length, the design prints as a lump and every voxel is reached by many
+// rods (slow to slice); most often the model was drawn in other units than mm.
+void warnThickRods(const geometry::DesignSummary& rods, const geometry::Section& section);
+
 }  // namespace rodfab::cli

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # rodfab rods-from-mesh from the command line: an ellipsoid mesh becomes a valid design whose rods
 # (decoded here by Python, not by rodfab) number 3F/2 with F nodes of degree 3; STL and OBJ give the
-# same file; a tray overhang is warned about; bad input and bad options are named and write nothing.
+# same file; a tray overhang and rods thicker than long are warned about; bad input and bad options are named and write nothing.
 #   rods_from_mesh.sh RODFAB SOURCE_DIR MAKE_TEST_MESH
 set -u
 rodfab=$1 src=$2 make_mesh=$3
@@ -55,6 +55,13 @@ python3 -c "import json,sys; j=json.load(open(sys.argv[1])); assert j['rods']==9
 "$make_mesh" ellipsoid 8 "$tmp/big.obj" 600 100 100 > /dev/null
 "$rodfab" rods-from-mesh "$tmp/big.obj" --faces 50 --diameter 2 -o "$tmp/big.json" > "$tmp/out" 2>&1 || fail "big mesh: $(cat "$tmp/out")"
 grep -q "^warning: the rods are 11[0-9][0-9].[0-9] mm long in x, [0-9.]* mm more than the tray of stratasys" "$tmp/out" || fail "no overhang warning: $(cat "$tmp/out")"
+
+# A mesh a few mm across (as one drawn in cm would be) with 1.2 mm rods: written, with a warning that
+# the rods are thicker than they are long (0.7 mm on average here), naming the model's size.
+"$make_mesh" ellipsoid 16 "$tmp/small.obj" 3 2 1.5 > /dev/null
+"$rodfab" rods-from-mesh "$tmp/small.obj" --faces 100 --diameter 1.2 -o "$tmp/small.json" > "$tmp/out" 2>&1 || fail "small mesh: $(cat "$tmp/out")"
+grep -q "^warning: the rods are 1.2 mm thick but only 0.[0-9]* mm long on average: .* the model is 7.[0-9]* x 5.[0-9]* x 4.[0-9]* mm" "$tmp/out" ||
+  fail "no warning of rods thicker than long: $(cat "$tmp/out")"
 
 # The bundled bunny (a real scan, closed): 200 faces -> 300 rods, 200 nodes, one part; the training
 # script adds a mechanics block that validates.
