@@ -71,6 +71,7 @@ void ClampMap::addBox(const openvdb::CoordBBox& box, float value) {
 }
 
 void ClampMap::add(const openvdb::FloatGrid& modulus, int k0, int k1) {
+  addOutline(modulus);  // the part as in bands without clamps, so the picture does not depend on the bands
   for (auto it = modulus.cbeginValueOn(); it; ++it) {
     openvdb::CoordBBox box;
     it.getBoundingBox(box);
@@ -80,7 +81,7 @@ void ClampMap::add(const openvdb::FloatGrid& modulus, int k0, int k1) {
   }
 }
 
-void ClampMap::addOutline(const openvdb::FloatGrid& modulus, int k0, int k1) {
+void ClampMap::addOutline(const openvdb::FloatGrid& modulus) {
   // Each leaf's origin from its parent's child mask, without reading the leaf: a leaf iterator and a
   // read of every leaf (a cache miss each) cost this pass 2 % of the lattice's slice, in the dither stage.
   using LeafParent = openvdb::FloatTree::RootNodeType::ChildNodeType::ChildNodeType;
@@ -89,10 +90,16 @@ void ClampMap::addOutline(const openvdb::FloatGrid& modulus, int k0, int k1) {
   for (const LeafParent* parent : parents) {
     for (auto child = parent->cbeginChildOn(); child; ++child) {
       openvdb::CoordBBox box = openvdb::CoordBBox::createCube(child.getCoord(), openvdb::FloatTree::LeafNodeType::DIM);
-      box.min().z() = std::max(box.min().z(), k0);
-      box.max().z() = std::min(box.max().z(), k1 - 1);
       if (clip(box)) outline(box);
     }
+  }
+  // Active tiles, whole (above the leaves: the iterator does not descend into them).
+  auto tile = modulus.tree().cbeginValueOn();
+  tile.setMaxDepth(openvdb::FloatTree::ValueOnCIter::LEAF_DEPTH - 1);
+  for (; tile; ++tile) {
+    openvdb::CoordBBox box;
+    tile.getBoundingBox(box);
+    if (clip(box)) outline(box);
   }
 }
 

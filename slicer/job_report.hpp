@@ -35,13 +35,15 @@ public:
   // `part`: the part's voxel index box (not empty); `voxelSizeMm`: the printer's voxel (x, y, z) in mm.
   ClampMap(const openvdb::CoordBBox& part, const std::array<double, 3>& voxelSizeMm, double floorMpa, double maxMpa);
 
-  // Adds the active voxels and tiles of layers [k0, k1) of `modulus` (the rasterizer's "modulus_mpa"
-  // grid; values outside the part box are ignored). Call once per band; not thread-safe.
+  // Counts the clamped active voxels and tiles of layers [k0, k1) of `modulus` (the rasterizer's
+  // "modulus_mpa" grid of a band; values outside the part box are ignored) and draws the part as
+  // addOutline does. Call once per band; not thread-safe.
   void add(const openvdb::FloatGrid& modulus, int k0, int k1);
-  // Only the part's outline, leaf by leaf (8 voxels a side; every leaf counts as part, as the
-  // rasterizer's leaves all hold active voxels; tiles are not drawn): for bands without clamped voxels,
-  // at a five-hundredth of add()'s cost. Counts nothing.
-  void addOutline(const openvdb::FloatGrid& modulus, int k0, int k1);
+  // Only the part: every leaf's whole 8-voxel cube (the rasterizer's leaves all hold active voxels) and
+  // every active tile, within the part box; for bands without clamped voxels, at a five-hundredth of
+  // add()'s cost. Counts nothing. Whole cubes, not clipped to the band's layers: a leaf that two bands
+  // share is drawn alike from either, so the picture is the same whatever the bands (and threads) were.
+  void addOutline(const openvdb::FloatGrid& modulus);
 
   std::uint64_t belowFloor() const { return below_; }
   std::uint64_t aboveMax() const { return above_; }

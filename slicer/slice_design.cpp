@@ -130,7 +130,7 @@ private:
     report_.mapping.clamps += counts.clamps;
     // Where the clamped voxels are, for the report's picture: voxel by voxel only in bands that have any.
     if (counts.clamps.total() > 0) clamps_.add(modulus, k0, k1);
-    else clamps_.addOutline(modulus, k0, k1);
+    else clamps_.addOutline(modulus);
   }
 
   const voxel::Rasterizer& rasterizer_;

@@ -70,7 +70,7 @@ TEST_CASE("the clamp map counts what the fraction map clamps, voxels and tiles, 
   CHECK(above > 8 * 8 * 4);  // the tile's part inside the band
   CHECK(map.belowFloor() == below);
   CHECK(map.aboveMax() == above);
-  map.addOutline(*grid, 0, 31);  // the outline counts nothing
+  map.addOutline(*grid);  // the outline counts nothing
   CHECK(map.belowFloor() == below);
   CHECK(map.aboveMax() == above);
   const printer_profiles::Bytes png = map.renderPng();
@@ -85,3 +85,46 @@ TEST_CASE("a large part is binned to at most kMaxBins a side") {
   CHECK((11583 + map.binVoxels() - 1) / map.binVoxels() <= slicer::ClampMap::kMaxBins);
   CHECK(map.binVoxels() == (11583 + slicer::ClampMap::kMaxBins - 1) / slicer::ClampMap::kMaxBins);
 }
+
+// The band's grid as the rasterizer makes it: the voxels of layers [k0, k1) only.
+openvdb::FloatGrid::Ptr bandOf(const openvdb::FloatGrid& whole, int k0, int k1) {
+  auto band = openvdb::FloatGrid::create(0.0f);
+  auto acc = band->getAccessor();
+  for (auto it = whole.cbeginValueOn(); it; ++it) {
+    openvdb::CoordBBox box;
+    it.getBoundingBox(box);
+    for (auto c = box.beginXYZ(); c; ++c)
+      if ((*c).z() >= k0 && (*c).z() < k1) acc.setValue(*c, *it);
+  }
+  return band;
+}
+
+TEST_CASE("the clamp map's picture is the same whatever the bands, with and without clamps in them") {
+  openvdb::initialize();
+  // Bins of one voxel (a small part), so every voxel a leaf lacks would show: voxels in a few layers of
+  // each leaf, clamped ones (above 190 MPa) in layers 9 and 21 only, so some bands draw through add()
+  // and others through addOutline(), as the slicer calls them.
+  const openvdb::CoordBBox part(openvdb::Coord(0, 0, 0), openvdb::Coord(30, 12, 39));
+  auto whole = openvdb::FloatGrid::create(0.0f);
+  auto acc = whole->getAccessor();
+  for (int k = 0; k < 40; k += 3)
+    for (int i = k % 5; i < 27; i += 2) acc.setValue(openvdb::Coord(i, (i * 7 + k) % 13, k), k == 9 || k == 21 ? 300.0f : 60.0f);
+  const auto picture = [&](int bandLayers) {
+    slicer::ClampMap map(part, {0.0423, 0.0846, 0.03}, 8.0, 190.0);
+    for (int k0 = 0; k0 < 40; k0 += bandLayers) {
+      const int k1 = std::min(40, k0 + bandLayers);
+      const auto band = bandOf(*whole, k0, k1);
+      const bool clamped = (k0 <= 9 && 9 < k1) || (k0 <= 21 && 21 < k1);
+      if (clamped) map.add(*band, k0, k1);
+      else map.addOutline(*band);
+    }
+    CHECK(map.aboveMax() == 12 + 13);  // layer 9: i = 4, 6, .., 26; layer 21: i = 1, 3, .., 25
+    return map.renderPng();
+  };
+  const printer_profiles::Bytes reference = picture(40);
+  for (const int bandLayers : {1, 3, 5, 8, 16}) {
+    INFO("bands of " << bandLayers << " layers");
+    CHECK(picture(bandLayers) == reference);
+  }
+}
+
