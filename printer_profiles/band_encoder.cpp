@@ -216,6 +216,7 @@ void BandEncoder::stageBand(int firstLayer, std::vector<std::vector<Bytes>>& zip
     for (std::size_t f = 0; f < zipForms[n].size(); ++f) {
       Bytes& data = zipForms[n][f];
       StagedZipData& z = record.zipped[f];
+      if (z.inMemory) continue;  // a blank image's shared form (keepBlank)
       if (keptBytes_ + data.size() <= s_.zipFormsInMemory) {
         keptBytes_ += data.size();
         z.memory = kept_.emplace_back(std::move(data));
@@ -307,8 +308,10 @@ void BandEncoder::encodeImages(int layer, const LayerBitmaps& b, LayerRecord& re
     keepImage(*s_.form.emitted[0], layer, rgba, sumsOf(rgba, zipForms != nullptr), record, zipForms, &rgba);
     return;
   }
-  for (const ProfileMaterial* m : s_.form.emitted) {
+  for (std::size_t i = 0; i < s_.form.emitted.size(); ++i) {
+    const ProfileMaterial* m = s_.form.emitted[i];
     const Bitmap& bitmap = m->role == MaterialRole::Rigid ? b.rigid() : m->role == MaterialRole::Rubbery ? b.rubbery() : b.support;
+    if (record.voxels[static_cast<std::size_t>(m->role)] == 0 && keepBlank(i, bitmap, layer, record, zipForms)) continue;
     if (s_.form.imageFormat == ImageFormat::Png) {
       Bytes png = encodePng1(bitmap, s_.profile.xDpi, s_.profile.yDpi);
       keepImage(*m, layer, png, sumsOf(png, zipForms != nullptr), record, zipForms, &png);
@@ -319,6 +322,59 @@ void BandEncoder::encodeImages(int layer, const LayerBitmaps& b, LayerRecord& re
     if (bmp.empty()) throw std::logic_error("encodeImages: a layer bitmap not made by layerBitmap");
     keepImage(*m, layer, bmp, sumsOf(bmp, zipForms != nullptr), record, zipForms);
   }
+}
+
+struct BandEncoder::BlankImage {
+  Bytes bitmap;               // the bitmap's memory (its BMP file) the image was made from
+  Bytes png;                  // PNG jobs: the image file; BMP jobs: empty (the file is `bitmap`)
+  ImageSums sums;             // of the image file
+  Bytes zipForm;              // zip jobs: the image file deflated (BMP) or as it is (PNG)
+  std::string zipFormXxh128;  // of zipForm
+  std::span<const std::uint8_t> file() const { return png.empty() ? std::span<const std::uint8_t>(bitmap) : png; }
+};
+
+// Made under the lock by the first blank layer of the material; later ones only read it.
+const BandEncoder::BlankImage& BandEncoder::blankImage(std::size_t material, const Bitmap& bitmap) const {
+  const std::lock_guard lock(blankMutex_);
+  if (blank_.size() <= material) blank_.resize(s_.form.emitted.size());
+  if (!blank_[material]) {
+    auto made = std::make_unique<BlankImage>();
+    const std::span<const std::uint8_t> bmp = bitmap.bmpFile();
+    made->bitmap.assign(bmp.begin(), bmp.end());
+    if (s_.form.imageFormat == ImageFormat::Png) made->png = encodePng1(bitmap, s_.profile.xDpi, s_.profile.yDpi);
+    made->sums = sumsOf(made->file(), s_.zip);
+    if (s_.zip) {
+      made->zipForm = layerStorage() == ZipStorage::Deflate ? deflateBytes(made->file(), kLayerDeflateLevel, DeflateWrapper::Raw)
+                                                            : Bytes(made->png.begin(), made->png.end());
+      made->zipFormXxh128 = common::xxh128Hex(made->zipForm);
+    }
+    blank_[material] = std::move(made);
+  }
+  return *blank_[material];
+}
+
+bool BandEncoder::keepBlank(std::size_t material, const Bitmap& bitmap, int layer, LayerRecord& record, std::vector<Bytes>* zipForms) const {
+  const std::span<const std::uint8_t> bmp = bitmap.bmpFile();
+  if (bmp.empty()) return false;
+  const BlankImage& blank = blankImage(material, bitmap);
+  if (blank.bitmap.size() != bmp.size() || std::memcmp(blank.bitmap.data(), bmp.data(), bmp.size()) != 0) return false;
+  const ProfileMaterial& m = *s_.form.emitted[material];
+  FileRecord f{s_.profile.layerFileName(m, layer, s_.form.imageFormat), blank.file().size(), blank.sums.xxh128};
+  if (!zipForms) {
+    writeFile(s_.filesDir / f.name, blank.file());
+  } else {
+    StagedZipData z;
+    z.size = blank.file().size();
+    z.crc32 = blank.sums.crc32;
+    z.length = blank.zipForm.size();
+    z.xxh128 = blank.zipFormXxh128;
+    z.inMemory = true;  // the blank image's own bytes: stageBand neither keeps nor stages a copy
+    z.memory = blank.zipForm;
+    record.zipped.push_back(std::move(z));
+    zipForms->emplace_back();  // keeps zipForms[f] beside record.zipped[f]
+  }
+  record.files.push_back(std::move(f));
+  return true;
 }
 
 // In pieces of 16 KiB (a third of the L1 data cache): XXH3 brings each piece in, the CRC reads it there,

@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <mutex>
 #include <span>
 #include <string>
 #include <vector>
@@ -72,6 +73,13 @@ private:
   static ImageSums sumsOf(std::span<const std::uint8_t> image, bool zip);
   void keepImage(const ProfileMaterial& m, int layer, std::span<const std::uint8_t> image, ImageSums sums, LayerRecord& record,
                  std::vector<Bytes>* zipForms, Bytes* owned = nullptr) const;
+  // A material's image of a layer without a voxel of it: the same bytes in every such layer (the
+  // profile's headers and the background), so its checksums and zip form are made once a job and
+  // shared. A tray whose parts lie far apart in z has thousands of them, each hashed and deflated at
+  // up to several MB before. False when `bitmap` is not that image (it is compared whole first).
+  struct BlankImage;
+  bool keepBlank(std::size_t material, const Bitmap& bitmap, int layer, LayerRecord& record, std::vector<Bytes>* zipForms) const;
+  const BlankImage& blankImage(std::size_t material, const Bitmap& bitmap) const;
   void stageBand(int firstLayer, std::vector<std::vector<Bytes>>& zipForms, std::vector<LayerRecord>& layers);
   bool gcvf() const { return s_.profile.jobFormat == JobFormat::Gcvf; }
 
@@ -82,6 +90,10 @@ private:
   // a band of the dense block cost 9 to 13 MB of new pages (page faults and clearing: 6 % of the
   // dense block's CPU samples, as much as deflate).
   std::unique_ptr<BandVoxels> voxels_;
+  // The emitted materials' blank images (keepBlank), made by the first blank layer of each; they
+  // outlive the records' StagedZipData that point into them, as kept_ does.
+  mutable std::mutex blankMutex_;
+  mutable std::vector<std::unique_ptr<const BlankImage>> blank_;
   // Zip jobs: the zip forms kept in memory (up to s_.zipFormsInMemory bytes), then every further one
   // after another in one staged file, created when the first one goes there. The records'
   // StagedZipData point into kept_ until the job is written.

@@ -3,7 +3,8 @@ zipfile and zlib (zip CRCs, raw deflate, PNG's zlib stream and Adler-32), the BM
 decoded here from their specifications. For BMP and 1-bit PNG Connex3 jobs and a J750 .gcvf: every
 layer decodes to the voxel counts the manifest lists, every file's XXH3-128 in the manifest is what xxhsum
 (Debian `xxhash`) computes, and the
-bytes are the same for 1 and 2 threads and other band sizes.
+bytes are the same for 1 and 2 threads and other band sizes; a sparse job's blank images (made once and
+shared by the writer) as well, and the same as a folder job's files.
 
     emit_decoders.py RODFAB SOURCE_DIR
 """
@@ -28,6 +29,16 @@ ROD = {"format": "rodfab.design/1", "units": "mm", "rods": [{"name": "edge-0",
        "centerline": {"degree": 3, "knots": [0, 0, 0, 0, 1, 1, 1, 1], "points": [[0, 0, 0], [1, 0, 0], [2, 1, 0], [3, 1, 0]]},
        "section": {"shape": "circle", "diameter": 1.5}, "normal": [0, 0, 1],
        "modulus": {"degree": 1, "knots": [0, 0, 0.5, 1, 1], "values": [8, 120, 40]}}]}
+
+
+# Two short rods 6 mm apart in z: most of the job's 200-odd layers hold no voxel, and the stiff rod's
+# layers (E above the stiffest mix: all Vero) none of the rubbery material. Such blank images are
+# hashed and deflated once a job and shared (printer_profiles' keepBlank).
+SPARSE = {"format": "rodfab.design/1", "units": "mm", "rods": [
+    {"name": name, "centerline": {"degree": 1, "knots": [0, 0, 1, 1], "points": [[0, 0, z], [3, 0, z]]},
+     "section": {"shape": "circle", "diameter": 0.8}, "normal": [0, 0, 1],
+     "modulus": {"degree": 1, "knots": [0, 0, 1, 1], "values": [e, e]}}
+    for name, z, e in (("stiff", 0.0, 400.0), ("soft", 6.0, 30.0))]}
 
 
 def fail(message):
@@ -177,6 +188,41 @@ def check_gcvf(path):
         return manifest
 
 
+def check_blank_layers(tmp):
+    """Blank images (shared by the writer) decode, checksum and CRC like the others, equal a folder job's
+    files and a one-thread job's bytes, and are the BMP of a layer with its pixels all clear."""
+    sparse = os.path.join(tmp, "sparse.json")
+    json.dump(SPARSE, open(sparse, "w"))
+    for form, extra, method in [("bmp", [], zipfile.ZIP_DEFLATED), ("png", ["--image-format", "png"], zipfile.ZIP_STORED)]:
+        one, two = os.path.join(tmp, "1", f"sparse-{form}.zip"), os.path.join(tmp, "2", f"sparse-{form}.zip")
+        folder = os.path.join(tmp, f"sparse-{form}")
+        slice_job(sparse, one, "--threads", "1", *extra)
+        slice_job(sparse, two, "--threads", "2", "--band-layers", "5", *extra)
+        slice_job(sparse, folder, "--format", "dir", *extra)
+        if open(one, "rb").read() != open(two, "rb").read():
+            fail(f"sparse {form}: the jobs differ between 1 thread and 2 threads with 5-layer bands")
+        manifest, layers = check_zip(one, method)
+        blank = [(layer, m) for layer in manifest["layers"] for m, n in layer["voxels"].items() if n == 0]
+        full = [layer for layer in manifest["layers"] if all(n > 0 for n in layer["voxels"].values())]
+        one_blank = [layer for layer in manifest["layers"] if sorted(layer["voxels"].values())[0] == 0 < sum(layer["voxels"].values())]
+        if len(blank) < layers or not full or not one_blank:
+            fail(f"sparse {form}: {len(blank)} blank images of {layers} layers, {len(full)} with both materials, "
+                 f"{len(one_blank)} with one: not the mix this test needs")
+        with zipfile.ZipFile(one) as z:
+            for layer in manifest["layers"]:
+                for material, name in layer["files"].items():
+                    data = z.read(name)
+                    if data != open(os.path.join(folder, name), "rb").read():
+                        fail(f"sparse {form}: {name} differs between the zip and the folder job")
+            for layer, material in blank:
+                data = z.read(layer["files"][material])
+                if form == "bmp":
+                    offset, = struct.unpack_from("<I", data, 10)
+                    if data[offset:] != bytes(len(data) - offset):
+                        fail(f"{layer['files'][material]}: a blank layer with pixel bytes set")
+        print(f"sparse {form}: {len(blank)} blank images of {layers} layers decoded, as the folder job's files")
+
+
 with tempfile.TemporaryDirectory() as tmp:
     # The job's name is in its manifest and report: the compared jobs have the same name in two folders.
     for folder in ("1", "2"):
@@ -192,6 +238,7 @@ with tempfile.TemporaryDirectory() as tmp:
             fail(f"{form}: the jobs differ between 1 thread and 2 threads with 7-layer bands")
         manifest, layers = check_zip(one, method)
         print(f"{form}: {layers} layers decoded by zipfile/zlib, counts and SHA-256 as listed")
+    check_blank_layers(tmp)
     one, two = os.path.join(tmp, "1", "rod.gcvf"), os.path.join(tmp, "2", "rod.gcvf")
     slice_job(rod, one, "--profile", "stratasys-j750-j850", "--threads", "1")
     slice_job(rod, two, "--profile", "stratasys-j750-j850", "--threads", "2", "--band-layers", "5")
