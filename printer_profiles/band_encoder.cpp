@@ -333,6 +333,18 @@ struct BandEncoder::BlankImage {
   std::span<const std::uint8_t> file() const { return png.empty() ? std::span<const std::uint8_t>(bitmap) : png; }
 };
 
+namespace {
+
+// Where a BMP file's pixels start (its header's bfOffBits); 0 when `bmp` is too short to say or says
+// more than its size.
+std::size_t bmpPixelOffset(std::span<const std::uint8_t> bmp) {
+  if (bmp.size() < 14) return 0;
+  const std::size_t offset = bmp[10] | std::size_t{bmp[11]} << 8 | std::size_t{bmp[12]} << 16 | std::size_t{bmp[13]} << 24;
+  return offset <= bmp.size() ? offset : 0;
+}
+
+}  // namespace
+
 // Made under the lock by the first blank layer of the material; later ones only read it.
 const BandEncoder::BlankImage& BandEncoder::blankImage(std::size_t material, const Bitmap& bitmap) const {
   const std::lock_guard lock(blankMutex_);
@@ -344,8 +356,9 @@ const BandEncoder::BlankImage& BandEncoder::blankImage(std::size_t material, con
     if (s_.form.imageFormat == ImageFormat::Png) made->png = encodePng1(bitmap, s_.profile.xDpi, s_.profile.yDpi);
     made->sums = sumsOf(made->file(), s_.zip);
     if (s_.zip) {
-      made->zipForm = layerStorage() == ZipStorage::Deflate ? deflateBytes(made->file(), kLayerDeflateLevel, DeflateWrapper::Raw)
-                                                            : Bytes(made->png.begin(), made->png.end());
+      // Compressed once and stored in every blank layer: by zlib at its smallest (a tenth of igzip's
+      // level 0 on a blank image: a sparse tray's job 768 -> 86 MB).
+      made->zipForm = layerStorage() == ZipStorage::Deflate ? deflateSmallest(made->file()) : Bytes(made->png.begin(), made->png.end());
       made->zipFormXxh128 = common::xxh128Hex(made->zipForm);
     }
     blank_[material] = std::move(made);
@@ -356,8 +369,13 @@ const BandEncoder::BlankImage& BandEncoder::blankImage(std::size_t material, con
 bool BandEncoder::keepBlank(std::size_t material, const Bitmap& bitmap, int layer, LayerRecord& record, std::vector<Bytes>* zipForms) const {
   const std::span<const std::uint8_t> bmp = bitmap.bmpFile();
   if (bmp.empty()) return false;
+  // Its pixels are clear: the layer counts none of this material (drawLeaves counts the bits it sets
+  // in bitmaps cleared before, support counts its bitmap), so the headers are what is compared. The
+  // whole image was compared at first: reading every blank image back cost the sparse tray 40 % of its
+  // CPU, as much as the hashing it saved.
   const BlankImage& blank = blankImage(material, bitmap);
-  if (blank.bitmap.size() != bmp.size() || std::memcmp(blank.bitmap.data(), bmp.data(), bmp.size()) != 0) return false;
+  const std::size_t header = bmpPixelOffset(blank.bitmap);
+  if (blank.bitmap.size() != bmp.size() || header == 0 || std::memcmp(blank.bitmap.data(), bmp.data(), header) != 0) return false;
   const ProfileMaterial& m = *s_.form.emitted[material];
   FileRecord f{s_.profile.layerFileName(m, layer, s_.form.imageFormat), blank.file().size(), blank.sums.xxh128};
   if (!zipForms) {

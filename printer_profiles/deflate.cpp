@@ -2,6 +2,7 @@
 
 #include <isa-l/crc.h>
 #include <isa-l/igzip_lib.h>
+#include <zlib.h>
 
 #if defined(__x86_64__)
 #include <immintrin.h>
@@ -206,6 +207,22 @@ InflateStream::Status InflateStream::step() {
 }
 
 std::uint32_t InflateStream::crc() const { return state_->igzip.crc; }
+
+std::vector<std::uint8_t> deflateSmallest(std::span<const std::uint8_t> input) {
+  if (input.size() > 0xffffffffu) throw std::invalid_argument("deflateSmallest: input over 4 GiB");
+  z_stream z{};
+  if (deflateInit2(&z, Z_BEST_COMPRESSION, Z_DEFLATED, -MAX_WBITS, 9, Z_DEFAULT_STRATEGY) != Z_OK) throw std::bad_alloc();
+  std::vector<std::uint8_t> out(deflateBound(&z, static_cast<uLong>(input.size())));
+  z.next_in = const_cast<Bytef*>(input.data());  // zlib's API is not const-correct; it does not write there
+  z.avail_in = static_cast<uInt>(input.size());
+  z.next_out = out.data();
+  z.avail_out = static_cast<uInt>(out.size());
+  const int result = deflate(&z, Z_FINISH);  // deflateBound's room: one call finishes
+  out.resize(z.total_out);
+  deflateEnd(&z);
+  if (result != Z_STREAM_END) throw std::logic_error("deflateSmallest: zlib did not finish within deflateBound");
+  return out;
+}
 
 std::uint32_t zipCrc32(std::span<const std::uint8_t> data, std::uint32_t crc) {
   const std::uint32_t result = crc32_gzip_refl(crc, data.data(), data.size());

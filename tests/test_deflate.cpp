@@ -11,6 +11,7 @@
 
 #include <unistd.h>
 
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -92,6 +93,22 @@ TEST_CASE("igzip deflate is read back by zlib at every level, raw and zlib-wrapp
   CHECK(deflateBytes(image, 1, DeflateWrapper::Raw).size() * 8 < image.size());  // it does compress
   CHECK_THROWS_AS(deflateBytes(image, 4, DeflateWrapper::Raw), std::invalid_argument);
   CHECK_THROWS_AS(deflateBytes(image, -1, DeflateWrapper::Raw), std::invalid_argument);
+}
+
+TEST_CASE("deflateSmallest is read back by igzip's inflate, and a blank image comes out far smaller than at igzip's level", "[deflate]") {
+  Data blank(6'461'762, 0);  // the size of a blank 11424 x 4525 layer BMP
+  std::memcpy(blank.data(), "BM", 2);
+  const Data image = layerLike(268'000, 3), empty;
+  for (const Data* input : std::initializer_list<const Data*>{&blank, &image, &empty}) {
+    CAPTURE(input->size());
+    const Data smallest = deflateSmallest(*input);
+    Data out(input->size());
+    CHECK(inflateRaw(smallest, out) == zipCrc32(*input));
+    CHECK(out == *input);
+    CHECK(deflateSmallest(*input) == smallest);  // deterministic
+    if (!input->empty()) CHECK(smallest.size() <= deflateBytes(*input, kLayerDeflateLevel, DeflateWrapper::Raw).size());
+  }
+  CHECK(deflateSmallest(blank).size() * 1000 < blank.size());  // deflate's bound is 1,032 to 1
 }
 
 TEST_CASE("deflateBytes gives an input the same bytes whatever the thread compressed before", "[deflate]") {
