@@ -247,7 +247,8 @@ RodBasisChoice chooseBasis(const DiscreteStructure& s, const geometry::Rod& rod,
     choice.spans = automaticSpans(rod, choice.degree, d.tolerance);
     if (choice.spans > kMaxSpansPerRod)
       s.fail(path, "at degree " + std::to_string(choice.degree) + " this rod would need more than " +
-                       std::to_string(kMaxSpansPerRod) + " spans for the accuracy asked; use a higher --degree (6)");
+                       std::to_string(kMaxSpansPerRod) + " spans for the accuracy asked; " +
+                       (choice.degree < 7 ? "use a higher --degree (up to 7) or a looser --accuracy" : "use a looser --accuracy"));
   }
   else if (d.refine >= 0) choice.spans = d.refine + 1;
   else {

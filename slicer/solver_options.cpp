@@ -25,7 +25,9 @@ bool readAccuracy(const std::string& command, const po::variables_map& vm, mecha
   a.tolerance = vm["accuracy"].as<double>();
   a.maxRefinements = vm["max-refinements"].as<int>();
   a.estimate = vm.count("no-estimate") == 0;
-  if (!(a.tolerance > 0) || a.tolerance > 0.1) return usageError(command, "--accuracy: expected a number in (0, 0.1]"), false;
+  // Below 1e-8 of the largest displacement the estimate is round-off (Newton stops at 1e-10 of the
+  // residual) and the spans it asks for pass kMaxSpansPerRod: refused here, not after the set-up.
+  if (!(a.tolerance >= 1e-8) || a.tolerance > 0.1) return usageError(command, "--accuracy: expected a number from 1e-8 to 0.1"), false;
   if (a.maxRefinements < 0 || a.maxRefinements > 6) return usageError(command, "--max-refinements: expected 0..6"), false;
   return true;
 }

@@ -197,7 +197,7 @@ cp "$tmp/rolled.json" "$tmp/ours.json"
 "$rodfab" simulate "$tmp/roll.json" -o "$tmp/ours.json" > /dev/null 2>&1 || fail "rodfab's own design not replaced"
 "$rodfab" simulate "$tmp/roll.json" -o "$tmp/x.json" --degree 1 2> /dev/null
 [ $? -eq 2 ] || fail "--degree 1: expected exit 2"
-for bad in "--accuracy 0" "--accuracy 0.5" "--refine 2" "--degree 0 --spans 4" "--max-refinements -1" "--load-steps -3"; do
+for bad in "--accuracy 0" "--accuracy 1e-300" "--accuracy 0.5" "--refine 2" "--degree 0 --spans 4" "--max-refinements -1" "--load-steps -3"; do
   "$rodfab" simulate "$tmp/roll.json" -o "$tmp/x.json" $bad 2> /dev/null
   [ $? -eq 2 ] || fail "$bad: expected exit 2"
 done
