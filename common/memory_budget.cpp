@@ -91,6 +91,15 @@ std::uint64_t saturatedBytes(double bytes) {
   return static_cast<std::uint64_t>(bytes);
 }
 
+std::uint64_t dataBytesInUse() {
+  std::ifstream in("/proc/self/status");
+  std::string key;
+  std::uint64_t kib = 0;
+  while (in >> key)
+    if (key == "VmData:" && in >> kib) return kib * 1024;
+  return 0;
+}
+
 std::string formatBytes(std::uint64_t bytes) {
   char text[32];
   if (bytes >= (std::uint64_t{1} << 30)) std::snprintf(text, sizeof text, "%.1f GiB", static_cast<double>(bytes) / (1 << 30));

@@ -49,6 +49,11 @@ void requireMemory(std::uint64_t bytes, const MemoryNeed& need);
 // memory estimate uses, so an overflowing estimate always refuses the same way. Thread-safe (pure).
 std::uint64_t saturatedBytes(double bytes);
 
+// The process's private data now (VmData of /proc/self/status): what the budget limits as the data
+// limit, its libraries' and threads' own included; 0 where that is not known. Estimates of work still
+// to come add to it.
+std::uint64_t dataBytesInUse();
+
 // "1.5 GiB", "640 MiB".
 std::string formatBytes(std::uint64_t bytes);
 

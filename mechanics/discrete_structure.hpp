@@ -67,9 +67,8 @@ struct SiteSides {
   const SiteSide* end() const { return sides.data() + count; }
 };
 
-// Rod sites that share a position: a free end, a support, a load point, or a joint (two or more sites).
-struct Node {
-  std::vector<Site> ends;  // the first site's slot carries the balance / support rows
+// What acts at a node besides its sites: its support or loads, and its first site's reference state.
+struct NodeConditions {
   std::optional<SupportKind> support;  // none: free (force and moment balance)
   std::string supportPath;
   Eigen::Vector3d displacement = Eigen::Vector3d::Zero(), rotation = Eigen::Vector3d::Zero();
@@ -79,14 +78,35 @@ struct Node {
   Eigen::Vector3d followerForce0 = Eigen::Vector3d::Zero(), followerMoment0 = Eigen::Vector3d::Zero();
   Eigen::Vector3d followerForce = Eigen::Vector3d::Zero(), followerMoment = Eigen::Vector3d::Zero();
   bool hasFollower = false;
-  // Reference data: the first site's position and unit quaternion; per further site its offset
-  // from the first and the relative rotation conj(q_first) q_site to keep.
+  // The first site's reference position and unit quaternion.
   Eigen::Vector3d position0;
   Eigen::Vector4d quaternion0;
+};
+
+// Rod sites that share a position: a free end, a support, a load point, or a joint (two or more sites).
+struct Node : NodeConditions {
+  std::vector<Site> ends;  // the first site's slot carries the balance / support rows
+  // Reference data per further site: its offset from the first and the relative rotation
+  // conj(q_first) q_site to keep.
   std::vector<Eigen::Vector3d> offsets0;
   std::vector<Eigen::Vector4d> relative0;
   // Per site: the control points whose columns its rows use (DiscreteStructure::siteColumns).
   std::vector<std::vector<int>> columns;
+
+  // The same node with only its first site and site i (i > 0), or the first alone (i = 0): the
+  // part of the node through which site i's own constants act (modulus_sensitivity.cpp).
+  Node pairWith(std::size_t i) const {
+    Node out;
+    static_cast<NodeConditions&>(out) = *this;
+    out.ends.push_back(ends[0]);
+    out.columns.push_back(columns[0]);
+    if (i == 0) return out;
+    out.ends.push_back(ends[i]);
+    out.columns.push_back(columns[i]);
+    out.offsets0.push_back(offsets0[i - 1]);
+    out.relative0.push_back(relative0[i - 1]);
+    return out;
+  }
 };
 
 // One rod on its solver basis.
@@ -137,12 +157,24 @@ struct WorkItem {
   int rod, point;
 };
 
-// Where one work item's dense block of derivatives sits in the Jacobian: its rows, its columns,
-// which of its entries can be non-zero (column-major), and the first of its rows.size() *
-// cols.size() value positions (column-major, -1 for entries that are always zero) in `slots`.
+// One dense tile of a work item's derivatives: 7 rows (a collocation point's, or one site's of a
+// node) by the columns of control points (7 each). An interior point has one tile; a node one per
+// pair of sites that are coupled: its first site's rows by every site's columns, and each further
+// site's rows by its own and the first site's columns (joint conditions tie each end to the first).
+struct Tile {
+  std::size_t firstRow = 0;  // rows firstRow .. firstRow + 6
+  std::vector<std::size_t> cols;
+  std::vector<char> nonzero;                // which entries can be non-zero (7 x cols, column-major)
+  std::size_t rowSite = 0, columnSite = 0;  // in a node: whose rows and whose columns
+  std::size_t column = 0;                   // its first column in the item's block
+};
+
+// Where one work item's derivatives sit in the Jacobian: its tiles side by side in one block of 7
+// rows and `width` columns, and the first of the block's 7 * width value positions (column-major,
+// -1 for entries that are always zero) in `slots`.
 struct ItemLayout {
-  std::vector<std::size_t> rows, cols;
-  std::vector<char> nonzero;
+  std::vector<Tile> tiles;
+  std::size_t width = 0;
   std::size_t firstSlot = 0;
 };
 
@@ -190,12 +222,12 @@ struct DiscreteStructure {
   void keepSpec(const Design& structure);
   // equations.cpp: the rows and columns of every work item and the Jacobian's pattern.
   void buildLayouts();
-  // The residual rows of one work item and, with `block`, their derivatives (rows by columns of
-  // the item's layout).
+  // The residual rows of one work item and, with `block`, their derivatives (the item's layout:
+  // 7 rows by its tiles' columns; a node's tiles are those of its layout).
   void interiorBlock(const DiscreteRod& rod, int j, const Eigen::VectorXd& x, double load, Eigen::VectorXd& residual,
                      Eigen::MatrixXd* block) const;
   void nodeBlock(const Node& node, const Eigen::VectorXd& x, double load, Eigen::VectorXd& residual,
-                 Eigen::MatrixXd* block) const;
+                 Eigen::MatrixXd* block, const ItemLayout* layout = nullptr) const;
 };
 
 std::string format(double v);

@@ -17,7 +17,7 @@ using Eigen::Vector4d;
 namespace {
 
 template <int N> using Dual = Eigen::AutoDiffScalar<Eigen::Matrix<double, N, 1>>;
-using EndJacobian = Eigen::Matrix<double, Eigen::Dynamic, 14>;  // rows by an end's (r, r', q, q')
+using EndJacobian = Eigen::Matrix<double, 7, 14>;  // one site's 7 rows by an end's (r, r', q, q')
 
 // Columns of the control points `functions` of a basis, 7 per point.
 void appendColumns(const DiscreteRod& rod, const Basis& b, const std::vector<int>& functions, std::vector<std::size_t>& cols) {
@@ -54,6 +54,9 @@ Eigen::Matrix3d crossMatrix(const Vector3d& v) {
 // the first (position, relative rotation, unit norm). A rod end has one side, an interior site two
 // (below and above its C0 knot), each adding its internal force and moment to the balance: the
 // jump of n and m across an interior site balances the node's load and the joined rods.
+// The derivatives are kept as the node's tiles (Tile): the first site's rows by every site's
+// columns, and each further site's rows by its own and the first site's columns. Nothing else is
+// coupled, so a joint of N rod ends costs O(N), not the O(N^2) of one dense block.
 class NodeEquations {
 public:
   NodeEquations(const DiscreteStructure& s, const Node& node, const Eigen::VectorXd& x, bool derivatives)
@@ -63,12 +66,13 @@ public:
     sides_.reserve(2 * node.ends.size());
     for (std::size_t i = 0; i < node.ends.size(); ++i) {
       firstSide_.push_back(static_cast<int>(sides_.size()));
-      siteColumn_.push_back(cols_);
-      cols_ += 7 * node.columns[i].size();
       for (const SiteSide& side : s.sides(node.ends[i])) gatherSide(i, side, x);
     }
     f_.resize(static_cast<Eigen::Index>(7 * node.ends.size()));
-    if (derivatives) dSide_.assign(sides_.size(), EndJacobian::Zero(f_.size(), 14));
+    if (!derivatives) return;
+    dFirst_.assign(sides_.size(), EndJacobian::Zero());
+    dOwn_.assign(node.ends.size(), EndJacobian::Zero());
+    dJoint_.assign(node.ends.size(), EndJacobian::Zero());
   }
 
   void evaluate(double load) {
@@ -77,11 +81,11 @@ public:
     if (node_.support == SupportKind::Clamped) rotationRows(load);
     else momentBalanceRows(load);
     f_[6] = site(0).s.q.squaredNorm() - 1.0;
-    if (derivatives_) dSite(0).block<1, 4>(6, 6) = 2.0 * site(0).s.q.transpose();
+    if (derivatives_) dFirst0().block<1, 4>(6, 6) = 2.0 * site(0).s.q.transpose();
     for (std::size_t i = 1; i < node_.ends.size(); ++i) jointRows(i);
   }
 
-  void scatter(Eigen::VectorXd& residual, Eigen::MatrixXd* block) const;
+  void scatter(Eigen::VectorXd& residual, Eigen::MatrixXd* block, const ItemLayout* layout) const;
 
 private:
   // Per side: local state, force and moment, and their derivatives with respect to (r, r', q, q').
@@ -97,7 +101,8 @@ private:
   // A site's first side: its position and rotation (the same on both sides of a C0 knot), and the
   // derivatives of the rows that depend on them only.
   const SideData& site(std::size_t i) const { return sides_[firstSide_[i]]; }
-  EndJacobian& dSite(std::size_t i) { return dSide_[firstSide_[i]]; }
+  // The first site's rows by the first site's first side.
+  EndJacobian& dFirst0() { return dFirst_[firstSide_[0]]; }
   void positionRows(double load);
   void forceBalanceRows(double load);
   void rotationRows(double load);
@@ -106,17 +111,18 @@ private:
   // Adds load R(q) local to rows [row, row + 3) (scaled by `rowScale`), with the derivative with
   // respect to the first site's q: a follower force or moment.
   void addFollower(const Vector3d& local, double load, Eigen::Index row, double rowScale, Vector3d& sum);
+  void chainTile(const Tile& tile, Eigen::Ref<Eigen::MatrixXd> out) const;
 
   const DiscreteStructure& s_;
   const Node& node_;
   bool derivatives_;
   std::vector<SideData> sides_;
   std::vector<int> firstSide_;
-  std::vector<std::size_t> siteColumn_;   // per site: its first column in the block
-  std::size_t cols_ = 0;
   double forceRow_ = 1, momentRow_ = 1, positionRow_ = 1;
   Eigen::VectorXd f_;
-  std::vector<EndJacobian> dSide_;
+  // Derivatives: per side of the first site's rows; per further site of its own rows by its first
+  // side, and by the first site's first side.
+  std::vector<EndJacobian> dFirst_, dOwn_, dJoint_;
 };
 
 void NodeEquations::gatherSide(std::size_t site, const SiteSide& side, const Eigen::VectorXd& x) {
@@ -148,7 +154,7 @@ void NodeEquations::gatherSide(std::size_t site, const SiteSide& side, const Eig
 
 void NodeEquations::positionRows(double load) {
   f_.segment<3>(0) = (site(0).s.r - node_.position0 - load * node_.displacement) * positionRow_;
-  if (derivatives_) dSite(0).block<3, 3>(0, 0) = Eigen::Matrix3d::Identity() * positionRow_;
+  if (derivatives_) dFirst0().block<3, 3>(0, 0) = Eigen::Matrix3d::Identity() * positionRow_;
 }
 
 void NodeEquations::addFollower(const Vector3d& local, double load, Eigen::Index row, double rowScale, Vector3d& sum) {
@@ -159,7 +165,7 @@ void NodeEquations::addFollower(const Vector3d& local, double load, Eigen::Index
   const V3<D> f = rotationNumerator<D>(q) * local.cast<D>() / q.squaredNorm() * D(load);
   for (int j = 0; j < 3; ++j) {
     sum[j] += f[j].value();
-    if (derivatives_) dSite(0).block<1, 4>(row + j, 6) += rowScale * f[j].derivatives().transpose();
+    if (derivatives_) dFirst0().block<1, 4>(row + j, 6) += rowScale * f[j].derivatives().transpose();
   }
 }
 
@@ -168,7 +174,7 @@ void NodeEquations::forceBalanceRows(double load) {
   if (node_.hasFollower) addFollower(node_.followerForce, load, 0, forceRow_, sum);
   for (std::size_t k = 0; k < sides_.size(); ++k) {
     sum += sides_[k].side.sign * sides_[k].n;
-    if (derivatives_) dSide_[k].block<3, 14>(0, 0) += sides_[k].side.sign * sides_[k].dn * forceRow_;
+    if (derivatives_) dFirst_[k].block<3, 14>(0, 0) += sides_[k].side.sign * sides_[k].dn * forceRow_;
   }
   f_.segment<3>(0) = sum * forceRow_;
 }
@@ -181,7 +187,7 @@ void NodeEquations::rotationRows(double load) {
   const Vector4d target = quaternionProduct<double>(turn, node_.quaternion0);
   f_.segment<3>(3) = conjugateProductVector<double>(target, site(0).s.q);
   if (!derivatives_) return;
-  for (int c = 0; c < 4; ++c) dSite(0).block<3, 1>(3, 6 + c) = conjugateProductVector<double>(target, Vector4d::Unit(c));
+  for (int c = 0; c < 4; ++c) dFirst0().block<3, 1>(3, 6 + c) = conjugateProductVector<double>(target, Vector4d::Unit(c));
 }
 
 void NodeEquations::momentBalanceRows(double load) {
@@ -194,10 +200,10 @@ void NodeEquations::momentBalanceRows(double load) {
     sum += sign * (d.m + arm.cross(d.n));
     if (!derivatives_) continue;
     const Eigen::Matrix3d nCross = crossMatrix(d.n);
-    dSide_[k].block<3, 14>(3, 0) += sign * momentRow_ * (d.dm + crossMatrix(arm) * d.dn);
+    dFirst_[k].block<3, 14>(3, 0) += sign * momentRow_ * (d.dm + crossMatrix(arm) * d.dn);
     // arm x n = -n x arm: d(arm) = dr_k - dr_0.
-    dSide_[k].block<3, 3>(3, 0) -= sign * momentRow_ * nCross;
-    dSite(0).block<3, 3>(3, 0) += sign * momentRow_ * nCross;
+    dFirst_[k].block<3, 3>(3, 0) -= sign * momentRow_ * nCross;
+    dFirst0().block<3, 3>(3, 0) += sign * momentRow_ * nCross;
   }
   f_.segment<3>(3) = sum * momentRow_;
 }
@@ -215,25 +221,37 @@ void NodeEquations::jointRows(std::size_t i) {
   const V3<D> g = conjugateProductVector<D>(quaternionProduct<D>(q0, node_.relative0[i - 1].cast<D>()), qi);
   for (int j = 0; j < 3; ++j) f_[r0 + 3 + j] = g[j].value();
   if (!derivatives_) return;
-  dSite(i).block<3, 3>(r0, 0) += Eigen::Matrix3d::Identity() * positionRow_;
-  dSite(0).block<3, 3>(r0, 0) -= Eigen::Matrix3d::Identity() * positionRow_;
+  EndJacobian& own = dOwn_[i];
+  EndJacobian& first = dJoint_[i];
+  own.block<3, 3>(0, 0) += Eigen::Matrix3d::Identity() * positionRow_;
+  first.block<3, 3>(0, 0) -= Eigen::Matrix3d::Identity() * positionRow_;
   for (int j = 0; j < 3; ++j) {
-    dSite(0).block<1, 4>(r0 + 3 + j, 6) += g[j].derivatives().head<4>().transpose();
-    dSite(i).block<1, 4>(r0 + 3 + j, 6) += g[j].derivatives().tail<4>().transpose();
+    first.block<1, 4>(3 + j, 6) += g[j].derivatives().head<4>().transpose();
+    own.block<1, 4>(3 + j, 6) += g[j].derivatives().tail<4>().transpose();
   }
-  dSite(i).block<1, 4>(r0 + 6, 6) = 2.0 * d.s.q.transpose();
+  own.block<1, 4>(6, 6) = 2.0 * d.s.q.transpose();
 }
 
-void NodeEquations::scatter(Eigen::VectorXd& residual, Eigen::MatrixXd* block) const {
+// One tile's derivatives: the first site's rows by every side of site `tile.columnSite`, a further
+// site's rows by its own first side, or by the first site's.
+void NodeEquations::chainTile(const Tile& tile, Eigen::Ref<Eigen::MatrixXd> out) const {
+  const std::vector<int>& points = node_.columns[tile.columnSite];
+  if (tile.rowSite == 0) {
+    for (std::size_t k = 0; k < sides_.size(); ++k)
+      if (sides_[k].site == tile.columnSite) chainSide(*sides_[k].side.basis, dFirst_[k], points, out);
+  } else if (tile.columnSite == tile.rowSite) {
+    chainSide(*site(tile.rowSite).side.basis, dOwn_[tile.rowSite], points, out);
+  } else {
+    chainSide(*site(0).side.basis, dJoint_[tile.rowSite], points, out);
+  }
+}
+
+void NodeEquations::scatter(Eigen::VectorXd& residual, Eigen::MatrixXd* block, const ItemLayout* layout) const {
   for (std::size_t i = 0; i < node_.ends.size(); ++i) residual.segment<7>(s_.siteRow(node_.ends[i])) = f_.segment<7>(7 * i);
   if (!block) return;
-  block->setZero(f_.size(), static_cast<Eigen::Index>(cols_));
-  for (std::size_t k = 0; k < sides_.size(); ++k) {
-    const std::size_t i = sides_[k].site;
-    const std::vector<int>& points = node_.columns[i];
-    chainSide(*sides_[k].side.basis, dSide_[k], points,
-              block->middleCols(static_cast<Eigen::Index>(siteColumn_[i]), static_cast<Eigen::Index>(7 * points.size())));
-  }
+  block->setZero(7, static_cast<Eigen::Index>(layout->width));
+  for (const Tile& tile : layout->tiles)
+    chainTile(tile, block->middleCols(static_cast<Eigen::Index>(tile.column), static_cast<Eigen::Index>(tile.cols.size())));
 }
 
 }  // namespace
@@ -271,10 +289,10 @@ void DiscreteStructure::interiorBlock(const DiscreteRod& rod, int j, const Eigen
 }
 
 void DiscreteStructure::nodeBlock(const Node& node, const Eigen::VectorXd& x, double load, Eigen::VectorXd& residual,
-                                  Eigen::MatrixXd* block) const {
+                                  Eigen::MatrixXd* block, const ItemLayout* layout) const {
   NodeEquations equations(*this, node, x, block != nullptr);
   equations.evaluate(load);
-  equations.scatter(residual, block);
+  equations.scatter(residual, block, layout);
 }
 
 std::vector<int> endFunctions(const Basis& b) {
@@ -286,32 +304,58 @@ std::vector<int> endFunctions(const Basis& b) {
 
 namespace {
 
-// Which entries of a node's block can be non-zero (column-major, rows by columns of `layout`). The
+// Which entries of a node's tile can be non-zero (column-major, 7 rows by the tile's columns). The
 // support, joint and unit-norm rows depend on the sites' positions and rotations only (the site's
 // own control point, the one with a non-zero value there); force and moment balance on every
 // site's position, tangent, rotation and its derivative.
-std::vector<char> nodeMask(const DiscreteStructure& s, const Node& node, const ItemLayout& layout) {
-  struct Column { std::size_t site; bool atSite, rotation; };
-  std::vector<Column> columns;
-  for (std::size_t i = 0; i < node.ends.size(); ++i) {
-    const int own = s.rodOf(node.ends[i]).point(node.ends[i]);
-    for (int point : node.columns[i])
-      for (int c = 0; c < 7; ++c) columns.push_back({i, point == own, c >= 3});
-  }
-  const std::size_t rows = layout.rows.size();
-  std::vector<char> mask(rows * columns.size());
-  for (std::size_t r = 0; r < rows; ++r) {
-    const std::size_t site = r / 7, local = r % 7;
-    const bool rotationRow = local >= 3;  // rows 3..6: moments, rotations, unit norm
-    const bool balance = site == 0 && ((local < 3 && !node.support) ||
-                                       (local >= 3 && local < 6 && node.support != SupportKind::Clamped));
-    for (std::size_t c = 0; c < columns.size(); ++c) {
-      const Column& col = columns[c];
-      const bool tied = local == 6 ? col.site == site : (col.site == 0 || col.site == site);
-      mask[c * rows + r] = balance || (tied && col.atSite && col.rotation == rotationRow);
+std::vector<char> tileMask(const DiscreteStructure& s, const Node& node, const Tile& tile) {
+  const Site& columnSite = node.ends[tile.columnSite];
+  const int own = s.rodOf(columnSite).point(columnSite);
+  const std::vector<int>& points = node.columns[tile.columnSite];
+  std::vector<char> mask(7 * tile.cols.size());
+  for (std::size_t c = 0; c < tile.cols.size(); ++c) {
+    const bool atSite = points[c / 7] == own, rotationColumn = c % 7 >= 3;
+    for (std::size_t local = 0; local < 7; ++local) {
+      const bool rotationRow = local >= 3;  // rows 3..6: moments, rotations, unit norm
+      const bool balance = tile.rowSite == 0 && ((local < 3 && !node.support) ||
+                                                 (local >= 3 && local < 6 && node.support != SupportKind::Clamped));
+      const bool tied = local == 6 ? tile.columnSite == tile.rowSite : (tile.columnSite == 0 || tile.columnSite == tile.rowSite);
+      mask[7 * c + local] = balance || (tied && atSite && rotationColumn == rotationRow);
     }
   }
   return mask;
+}
+
+// A node's tiles, in the order of their columns' sites (the order in which entries two tiles share,
+// as when a one-span rod's ends meet, are summed): the first site's rows by site j's columns, then
+// site j's rows by its own columns; site j's rows by the first site's columns come with the first's.
+std::vector<Tile> nodeTiles(const DiscreteStructure& s, const Node& node) {
+  std::vector<Tile> tiles;
+  auto add = [&](std::size_t rowSite, std::size_t columnSite) {
+    Tile& t = tiles.emplace_back();
+    t.rowSite = rowSite, t.columnSite = columnSite;
+    t.firstRow = s.siteRow(node.ends[rowSite]);
+    const Site& e = node.ends[columnSite];
+    for (int point : node.columns[columnSite])
+      for (int c = 0; c < 7; ++c) t.cols.push_back(s.rodOf(e).offset + 7 * static_cast<std::size_t>(point) + c);
+    t.nonzero = tileMask(s, node, t);
+  };
+  add(0, 0);
+  for (std::size_t i = 1; i < node.ends.size(); ++i) add(i, 0);
+  for (std::size_t j = 1; j < node.ends.size(); ++j) add(0, j), add(j, j);
+  return tiles;
+}
+
+ItemLayout interiorLayout(const DiscreteRod& rod, int j) {
+  Tile t;
+  t.firstRow = rod.row(j);
+  appendColumns(rod, rod.basis[j], allFunctions(rod.basis[j]), t.cols);
+  // The unit-norm row (6) does not depend on positions.
+  t.nonzero.assign(7 * t.cols.size(), 1);
+  for (std::size_t c = 0; c < t.cols.size(); ++c) t.nonzero[7 * c + 6] = c % 7 >= 3;
+  ItemLayout layout;
+  layout.tiles.push_back(std::move(t));
+  return layout;
 }
 
 }  // namespace
@@ -320,31 +364,18 @@ void DiscreteStructure::buildLayouts() {
   layouts.assign(items.size(), {});
   for (std::size_t i = 0; i < items.size(); ++i) {
     ItemLayout& layout = layouts[i];
-    if (items[i].rod >= 0) {
-      const DiscreteRod& rod = rods[items[i].rod];
-      const Basis& b = rod.basis[items[i].point];
-      for (int r = 0; r < 7; ++r) layout.rows.push_back(rod.row(items[i].point) + r);
-      appendColumns(rod, b, allFunctions(b), layout.cols);
-      // The unit-norm row (6) does not depend on positions.
-      layout.nonzero.assign(7 * layout.cols.size(), 1);
-      for (std::size_t c = 0; c < layout.cols.size(); ++c) layout.nonzero[7 * c + 6] = c % 7 >= 3;
-      continue;
-    }
-    const Node& node = nodes[items[i].point];
-    for (const Site& e : node.ends) {
-      for (int r = 0; r < 7; ++r) layout.rows.push_back(siteRow(e) + r);
-      for (int point : node.columns[&e - node.ends.data()])
-        for (int c = 0; c < 7; ++c) layout.cols.push_back(rodOf(e).offset + 7 * static_cast<std::size_t>(point) + c);
-    }
-    layout.nonzero = nodeMask(*this, node, layout);
+    if (items[i].rod >= 0) layout = interiorLayout(rods[items[i].rod], items[i].point);
+    else layout.tiles = nodeTiles(*this, nodes[items[i].point]);
+    for (Tile& t : layout.tiles) t.column = layout.width, layout.width += t.cols.size();
   }
-  // The pattern from every item's block (duplicates, as when a closed rod's two ends share a
-  // control point, merge), then each block entry's position in it (-1: structurally zero).
+  // The pattern from every tile (duplicates, as when a closed rod's two ends share a control
+  // point, merge), then each tile entry's position in it (-1: structurally zero).
   std::vector<Eigen::Triplet<double>> entries;
   for (const ItemLayout& layout : layouts)
-    for (std::size_t c = 0, k = 0; c < layout.cols.size(); ++c)
-      for (std::size_t r = 0; r < layout.rows.size(); ++r, ++k)
-        if (layout.nonzero[k]) entries.emplace_back(static_cast<int>(layout.rows[r]), static_cast<int>(layout.cols[c]), 0.0);
+    for (const Tile& t : layout.tiles)
+      for (std::size_t c = 0, k = 0; c < t.cols.size(); ++c)
+        for (std::size_t r = 0; r < 7; ++r, ++k)
+          if (t.nonzero[k]) entries.emplace_back(static_cast<int>(t.firstRow + r), static_cast<int>(t.cols[c]), 0.0);
   if (entries.size() >= static_cast<std::size_t>(std::numeric_limits<int>::max()))
     fail("", "the Jacobian would have " + std::to_string(entries.size()) + " entries, more than this solver handles (2^31)");
   pattern.resize(static_cast<Eigen::Index>(unknowns), static_cast<Eigen::Index>(unknowns));
@@ -353,14 +384,15 @@ void DiscreteStructure::buildLayouts() {
   slots.clear();
   for (ItemLayout& layout : layouts) {
     layout.firstSlot = slots.size();
-    for (std::size_t c = 0, k = 0; c < layout.cols.size(); ++c) {
-      const int* begin = pattern.innerIndexPtr() + pattern.outerIndexPtr()[layout.cols[c]];
-      const int* end = pattern.innerIndexPtr() + pattern.outerIndexPtr()[layout.cols[c] + 1];
-      for (std::size_t r = 0; r < layout.rows.size(); ++r, ++k)
-        slots.push_back(layout.nonzero[k] ? static_cast<int>(std::lower_bound(begin, end, static_cast<int>(layout.rows[r])) -
-                                                             pattern.innerIndexPtr())
-                                          : -1);
-    }
+    for (const Tile& t : layout.tiles)
+      for (std::size_t c = 0, k = 0; c < t.cols.size(); ++c) {
+        const int* begin = pattern.innerIndexPtr() + pattern.outerIndexPtr()[t.cols[c]];
+        const int* end = pattern.innerIndexPtr() + pattern.outerIndexPtr()[t.cols[c] + 1];
+        for (std::size_t r = 0; r < 7; ++r, ++k)
+          slots.push_back(t.nonzero[k] ? static_cast<int>(std::lower_bound(begin, end, static_cast<int>(t.firstRow + r)) -
+                                                          pattern.innerIndexPtr())
+                                       : -1);
+      }
   }
 }
 

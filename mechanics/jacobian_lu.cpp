@@ -11,6 +11,7 @@
 
 #include <klu.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <mutex>
@@ -55,6 +56,32 @@ std::vector<int> blockMatching(const Eigen::SparseMatrix<double>& m, int block) 
   return rowFor;
 }
 
+// KLU's settings for Jacobians: AMD on A + A^T (the Jacobian's pattern is nearly symmetric), and
+// BTF, whose maximum transversal still trims the fill a little (3 % measured).
+void configure(klu_common& common) {
+  klu_defaults(&common);
+  common.ordering = 0;
+  common.btf = 1;
+}
+
+// Rows with more entries than this are a joint's balance rows, coupled to more than some 8 rod ends
+// (an interior collocation row has at most 7 (p + 1) = 56, a rod end adds 14).
+constexpr int kDenseRow = 112;
+
+// KLU scales each row by its largest entry by default. A joint of N rod ends has balance rows with
+// entries in every end's columns; scaled so, they keep the weight of a rod's own rows, outbid its
+// diagonal as pivots after a few eliminations, and each such pivot spreads their fill: a star of
+// 800 rods had 24 off-diagonal pivots and 1.4 times the factor entries per rod of one of 200, 1,600
+// rods 2.3 times. Scaled by the sum of their magnitudes they weigh about 1 / N as much and the fill
+// per rod stays the same (mechanics/README.md, "Many rods at one joint"). Matrices without such rows
+// keep the largest-entry scaling, so their pivots, and every result, stay what they were.
+int rowScaling(const Eigen::SparseMatrix<double>& m) {
+  std::vector<int> entries(static_cast<std::size_t>(m.rows()), 0);
+  for (Eigen::Index k = 0; k < m.nonZeros(); ++k) ++entries[static_cast<std::size_t>(m.innerIndexPtr()[k])];
+  const bool dense = std::any_of(entries.begin(), entries.end(), [](int n) { return n > kDenseRow; });
+  return dense ? 1 : 2;
+}
+
 }  // namespace
 
 struct JacobianLU::Factors {
@@ -71,11 +98,7 @@ struct JacobianLU::Factors {
   bool reused = false;      // the last factorization kept the previous pivots
   std::mutex solving;       // klu_solve works in the numeric object's workspace
 
-  Factors() {
-    klu_defaults(&common);
-    common.ordering = 0;  // AMD on A + A^T: the Jacobian's pattern is nearly symmetric
-    common.btf = 1;       // BTF's maximum transversal still trims the fill a little (3 % measured)
-  }
+  Factors() { configure(common); }
   ~Factors() { release(); }
   void release() {
     if (numeric) klu_free_numeric(&numeric, &common);
@@ -96,6 +119,7 @@ void JacobianLU::Factors::analyse(const Eigen::SparseMatrix<double>& m, int bloc
   release();
   columnStarts.assign(m.outerIndexPtr(), m.outerIndexPtr() + m.cols() + 1);
   rowIndices.assign(m.innerIndexPtr(), m.innerIndexPtr() + m.nonZeros());
+  common.scale = rowScaling(m);
   rowFor = blockMatching(m, block);
   Eigen::VectorXi newRow(m.rows());
   for (int k = 0; k < static_cast<int>(rowFor.size()); ++k) newRow[rowFor[k]] = k;
@@ -189,5 +213,25 @@ Eigen::VectorXd JacobianLU::solveTransposed(const Eigen::VectorXd& b) const { re
 int JacobianLU::determinantSign() const { return factors_->sign; }
 bool JacobianLU::pivotsReused() const { return factors_->sign != 0 && factors_->reused; }
 double JacobianLU::pivotRatio() const { return factors_->sign ? factors_->common.rcond : 0.0; }
+
+std::size_t JacobianLU::factorEntries() const {
+  const Factors& f = *factors_;
+  return f.sign && f.numeric ? static_cast<std::size_t>(f.numeric->lnz) + static_cast<std::size_t>(f.numeric->unz) : 0;
+}
+
+double JacobianLU::estimatedFactorEntries(const Eigen::SparseMatrix<double>& pattern) {
+  if (pattern.rows() != pattern.cols() || pattern.rows() == 0 || !pattern.isCompressed())
+    throw std::invalid_argument("JacobianLU::estimatedFactorEntries: expected a square, non-empty, compressed matrix");
+  klu_common common{};
+  configure(common);
+  // klu_analyze takes non-const arrays.
+  std::vector<int> starts(pattern.outerIndexPtr(), pattern.outerIndexPtr() + pattern.cols() + 1);
+  std::vector<int> rows(pattern.innerIndexPtr(), pattern.innerIndexPtr() + pattern.nonZeros());
+  klu_symbolic* symbolic = klu_analyze(static_cast<int>(pattern.rows()), starts.data(), rows.data(), &common);
+  if (!symbolic) return std::numeric_limits<double>::infinity();
+  const double entries = symbolic->lnz + symbolic->unz;
+  klu_free_symbolic(&symbolic, &common);
+  return entries;
+}
 
 }  // namespace rodfab::mechanics

@@ -14,6 +14,7 @@
 #include <Eigen/SparseCore>
 
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -69,6 +70,16 @@ struct Discretization {
   // Per rod, in design order, overriding the above: rebuilt rods' spans, or on the design basis the
   // solver spans per design span (refine + 1). Rods beyond its size use the rules above.
   std::vector<int> perRod;
+};
+
+// Heap memory of a problem and of solving it, in bytes (StaticProblem::memoryEstimate).
+struct SolveMemory {
+  std::uint64_t problem = 0;  // the StaticProblem itself: rods, nodes, layouts, the Jacobian's pattern (counted)
+  // One solve's peak beyond the problem (solve, solveFrom): the Jacobian, JacobianLU's copies of it,
+  // KLU's factors from its symbolic analysis with room for pivoting, Newton's vectors, the
+  // assembly's scratch (estimated).
+  std::uint64_t solve = 0;
+  std::uint64_t kept = 0;  // what a Solution keeps once solved: its state and factorization (`tangent`)
 };
 
 // The discrete nonlinear system F(x, load) = 0. x holds, rod after rod, each control point's
@@ -161,6 +172,11 @@ public:
   // std::out_of_range for a bad rod index, std::invalid_argument for x of the wrong size.
   StateJet stateJet(const Eigen::VectorXd& x, std::size_t rod, double u) const;
 
+  // ---- Memory (mechanics/memory_estimate.cpp) -------------------------------------------------
+  // Bytes this problem holds, and estimated peak bytes of one solve of it (SolveMemory): known
+  // before the Jacobian is assembled or factorized, for checking against a memory budget.
+  SolveMemory memoryEstimate() const;
+
 private:
   const geometry::BSplineField& modulus(std::size_t rod) const;
   std::unique_ptr<detail::DiscreteStructure> structure_;
@@ -202,6 +218,12 @@ public:
   int determinantSign() const;
   // min |U_ii| / max |U_ii|: a crude reciprocal condition estimate of J.
   double pivotRatio() const;
+  // Entries of L and U in the last factorization (0 before a successful one).
+  std::size_t factorEntries() const;
+  // KLU's symbolic estimate of the entries of L and U for a matrix of this pattern (AMD's count,
+  // diagonal pivots): what a factorization will need, known before it runs. Infinity when KLU
+  // cannot analyse it (out of memory).
+  static double estimatedFactorEntries(const Eigen::SparseMatrix<double>& pattern);
   // How often the pattern was analysed, and the factorizations with fresh and with reused pivots.
   int analyses() const { return analyses_; }
   int factorizations() const { return factorizations_; }

@@ -54,16 +54,21 @@ public:
     return d;
   }
 
-  // Rows of a node with respect to the constants at its site `site`. An interior site's two sides
-  // carry the same E and dE/du (the field's value and derivative there, as setPointConstants sets them).
-  PointDerivative node(const Node& node, const Site& site) {
+  // Rows of a node with respect to the constants at its site `i`. An interior site's two sides
+  // carry the same E and dE/du (the field's value and derivative there, as setPointConstants sets
+  // them). They enter the balance rows only, through that site's own force and moment, so the node
+  // made of its first site and site i gives the same derivative (to rounding) at a cost that does
+  // not grow with the node's other sites: O(N) for a joint of N rod ends, not O(N^2).
+  PointDerivative node(const Node& node, std::size_t i) {
+    const Node pair = node.pairWith(i);
+    const Site& site = node.ends[i];
     PointDerivative d;
-    for (const Site& e : node.ends)
+    for (const Site& e : pair.ends)
       for (int r = 0; r < 7; ++r) d.rows.push_back(s_.siteRow(e) + r);
     PointConstants* below =
         site.end == Site::kInterior ? &scratch_.rods[site.rod].siteBelowConstants[site.index] : nullptr;
     differentiate(site.rod, s_.rods[site.rod].point(site), d,
-                  [&] { scratch_.nodeBlock(node, x_, load_, residual_, nullptr); }, below);
+                  [&] { scratch_.nodeBlock(pair, x_, load_, residual_, nullptr); }, below);
     return d;
   }
 
@@ -166,7 +171,8 @@ Eigen::SparseMatrix<double> StaticProblem::modulusJacobian(const Eigen::VectorXd
       continue;
     }
     const Node& node = s.nodes[item.point];
-    for (const Site& e : node.ends) add(e.rod, s.rods[e.rod].point(e), differentiator.node(node, e));
+    for (std::size_t i = 0; i < node.ends.size(); ++i)
+      add(node.ends[i].rod, s.rods[node.ends[i].rod].point(node.ends[i]), differentiator.node(node, i));
   }
   Eigen::SparseMatrix<double> m(static_cast<Eigen::Index>(s.unknowns), static_cast<Eigen::Index>(offsets.back()));
   m.setFromTriplets(entries.begin(), entries.end());

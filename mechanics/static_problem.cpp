@@ -79,14 +79,14 @@ void StaticProblem::evaluate(const Eigen::VectorXd& x, double load, Eigen::Vecto
     Eigen::MatrixXd* block = values ? &scratch.local() : nullptr;
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
       const WorkItem& item = m.items[i];
+      const ItemLayout& layout = m.layouts[i];
       if (item.rod >= 0) m.interiorBlock(m.rods[item.rod], item.point, x, load, residual, block);
-      else m.nodeBlock(m.nodes[item.point], x, load, residual, block);
+      else m.nodeBlock(m.nodes[item.point], x, load, residual, block, &layout);
       if (!block) continue;
       // Each row belongs to one item, so items write disjoint entries; an entry an item's block
       // holds twice (a closed rod) is summed.
-      const ItemLayout& layout = m.layouts[i];
       const int* slot = m.slots.data() + layout.firstSlot;
-      const std::size_t count = layout.rows.size() * layout.cols.size();
+      const std::size_t count = 7 * layout.width;
       for (std::size_t k = 0; k < count; ++k)
         if (slot[k] >= 0) values[slot[k]] = 0.0;
       for (std::size_t k = 0; k < count; ++k)

@@ -1,5 +1,6 @@
 // DesignProblem: the training cases on a fixed discretization, their solves by continuation in E,
 // and the objective's adjoint gradient.
+#include "common/memory_budget.hpp"
 #include "mechanics/mechanics_file.hpp"
 #include "optimize/objective.hpp"
 #include "optimize/optimize.hpp"
@@ -36,6 +37,24 @@ void checkSettings(const Settings& s) {
     throw std::invalid_argument("objective weights: finite, non-negative, not both zero expected");
   if (s.maxIterations < 0 || !(s.tolerance >= 0) || !(s.objectiveTolerance >= 0))
     throw std::invalid_argument("iterations and tolerances: non-negative expected");
+}
+
+// Refuses (common::OutOfMemory), once the first case's problem is built and before the others
+// are, a training that would not fit in the memory budget: on top of the process's data now (the
+// first case's problem included), every further case's problem (each case keeps its own), then
+// the larger of an evaluation's peak (one solve, and dF/dE with its copy of the rods) and of the
+// accuracy check's at the end (a case solved again beside a problem with twice the spans, taken
+// as twice the size: every rod's band of the Jacobian and factors doubles with its spans).
+void requireMemory(const std::string& source, const mechanics::StaticProblem& first, std::size_t cases) {
+  const mechanics::SolveMemory m = first.memoryEstimate();
+  const double problem = static_cast<double>(m.problem), solve = static_cast<double>(m.solve);
+  const double held = static_cast<double>(common::dataBytesInUse()) + static_cast<double>(cases - 1) * problem;
+  const double need = held + std::max(solve + problem, problem + static_cast<double>(m.kept) + 2 * (problem + solve));
+  common::requireMemory(common::saturatedBytes(need),
+                        {.what = "optimizing " + source + " (" + std::to_string(cases) + " load case" + (cases == 1 ? "" : "s") +
+                                 " of " + std::to_string(first.unknownCount()) + " unknowns)",
+                         .remedy = "train on fewer load cases, a coarser discretization or a smaller design, or raise "
+                                   "--max-memory if the machine has more"});
 }
 
 }  // namespace
@@ -138,7 +157,10 @@ DesignProblem::DesignProblem(const mechanics::Design& design, const Settings& se
   for (const geometry::Rod& rod : design.rods)
     m.knots.push_back(uniformKnots(m.degree, settings.modulusControls, rod.centerline().domainBegin(), rod.centerline().domainEnd()));
   const std::vector<geometry::Rod> rods = m.rodsWith(startingModulus());
-  for (const mechanics::LoadCase& lc : design.mechanics.loadCases) m.addCase(lc, rods);
+  for (const mechanics::LoadCase& lc : design.mechanics.loadCases) {
+    m.addCase(lc, rods);
+    if (m.cases.size() == 1) requireMemory(design.source, *m.cases.front().problem, design.mechanics.loadCases.size());
+  }
 }
 
 DesignProblem::~DesignProblem() = default;

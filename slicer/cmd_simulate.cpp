@@ -1,6 +1,7 @@
 // rodfab simulate: the mechanics block of a design solved along its load path, with an error
 // estimate, stability along the path, and the deformed design written. The solver's options are
 // slicer/solver_options.hpp; what it prints is slicer/simulation_summary.hpp.
+#include "common/memory_budget.hpp"
 #include "geometry/geometry.hpp"
 #include "mechanics/mechanics.hpp"
 #include "slicer/command.hpp"
@@ -10,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
 #include <variant>
@@ -48,15 +50,46 @@ Parsed<SimulateSettings> parseSimulate(const std::vector<std::string>& args) {
   return s;
 }
 
+// Refuses (common::OutOfMemory) a level whose solve would not fit in the memory budget, once its
+// problem is built and before its Jacobian is assembled or factorized: the solve's peak on top of
+// the process's data now (the new problem, what the level before keeps, the libraries' own). A
+// refused estimate or refinement level leaves the estimate unavailable or the refinement where it
+// was, with the reason as its note (mechanics::simulate); a refused path level ends the command.
+class MemoryCheck {
+public:
+  explicit MemoryCheck(const std::string& design) : design_(design) {}
+
+  void operator()(mechanics::Level level, const mechanics::StaticProblem& p) {
+    const std::uint64_t need = common::saturatedBytes(double(common::dataBytesInUse()) + double(p.memoryEstimate().solve));
+    peak_ = std::max(peak_, need);
+    common::requireMemory(need, {.what = "simulating " + design_ + " (" + levelName(level) + std::to_string(p.unknownCount()) +
+                                         " unknowns)",
+                                 .remedy = "use a coarser discretization (--spans, --accuracy) or a smaller design, or raise "
+                                           "--max-memory if the machine has more"});
+  }
+  std::uint64_t peak() const { return peak_; }
+
+private:
+  static std::string levelName(mechanics::Level level) {
+    if (level == mechanics::Level::Estimate) return "half the spans for the error estimate, ";
+    if (level == mechanics::Level::Refinement) return "every rod's spans doubled, ";
+    return "";
+  }
+  std::string design_;
+  std::uint64_t peak_ = 0;
+};
+
 // The simulation along the design's load path, its steps printed (or collected in `history` for
 // --json) as they converge; nullopt after printing why it failed.
-std::optional<mechanics::Simulation> simulate(const SimulateSettings& s, const mechanics::Design& design, nlohmann::json& history) {
+std::optional<mechanics::Simulation> simulate(const SimulateSettings& s, const mechanics::Design& design, nlohmann::json& history,
+                                              MemoryCheck& memory) {
   auto onStep = [&](const mechanics::LoadStepReport& r, const Eigen::VectorXd&) {
     history.push_back(loadStepJson(r));
     if (!s.json) printLoadStep(r);
   };
   auto onLevel = [&](mechanics::Level level, const mechanics::StaticProblem& p) {
     if (!s.json) printSolverLevel(level, p, s.solver.discretization);
+    memory(level, p);
   };
   const SolverSettings& o = s.solver;
   const int steps = o.solver.loadSteps > 0 ? o.solver.loadSteps : design.mechanics.loadSteps;
@@ -77,10 +110,11 @@ int simulateDesign(const SimulateSettings& s, const mechanics::Design& design) {
   if (!s.json)
     std::printf("design:    %s: %zu rods\n", s.design.c_str(), design.rods.size());
   nlohmann::json history = nlohmann::json::array();
-  const std::optional<mechanics::Simulation> sim = simulate(s, design, history);
+  MemoryCheck memory(s.design);
+  const std::optional<mechanics::Simulation> sim = simulate(s, design, history, memory);
   if (!sim) return kFailed;
   const SimulationSummary summary{s.design, s.output, s.solver, *sim, history,
-                                  largestDisplacement(design, *sim->problem, sim->solution.state)};
+                                  largestDisplacement(design, *sim->problem, sim->solution.state), memory.peak()};
   try {
     mechanics::Design deformed = sim->problem->deformedStructure(sim->solution.state);
     deformed.optimize = design.optimize;  // the design's "optimize" block too, so it can be optimized again

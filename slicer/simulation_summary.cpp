@@ -134,7 +134,8 @@ nlohmann::json simulationJson(const SimulationSummary& s) {
           {"stability", stabilityName(sol.stability)}, {"critical_points", criticalPointsJson(sol.criticalPoints)},
           {"error_estimate", estimateJson(s.simulation, s.settings.accuracy)},
           {"largest_displacement_mm", s.largest.mm}, {"largest_displacement_rod", s.largest.rod},
-          {"seconds", {{"total", s.simulation.seconds}, {"assemble", sol.assembleSeconds}, {"factorize_and_solve", sol.factorizeSeconds}}}};
+          {"seconds", {{"total", s.simulation.seconds}, {"assemble", sol.assembleSeconds}, {"factorize_and_solve", sol.factorizeSeconds}}},
+          {"memory", {{"estimate_bytes", s.memoryEstimate}}}};
 }
 
 void printSimulationSummary(const SimulationSummary& s) {

@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cstdint>
 #include <string>
 
 namespace rodfab::cli {
@@ -41,10 +42,11 @@ struct SimulationSummary {
   const mechanics::Simulation& simulation;
   const nlohmann::json& history;  // loadStepJson of every step
   LargestDisplacement largest;
+  std::uint64_t memoryEstimate = 0;  // bytes: the largest level's estimated need (cmd_simulate.cpp)
 };
 
 // The summary as JSON: files, structure, discretization, history, iterations, stability, critical
-// points, error estimate, largest displacement and times.
+// points, error estimate, largest displacement, times and the memory estimate.
 nlohmann::json simulationJson(const SimulationSummary& summary);
 
 // The summary lines on stdout; warnings on stderr when the error estimate is above --accuracy (or

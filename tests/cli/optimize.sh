@@ -308,5 +308,26 @@ code=$?
 grep -qF "was created while rodfab was working; it was left as it is" "$tmp/out" || fail "the race is not explained: $(cat "$tmp/out")"
 [ "$(cat "$tmp/raced.json")" = '{"mine": true}' ] || fail "the file saved at the output was replaced"
 rm -f "$tmp/raced.json"
+# Many load cases, each keeping its own problem: the training's memory is estimated once the first
+# case is built, and a budget below it is refused before the others are built or anything is solved.
+python3 - "$tmp/many-cases.json" <<'PY'
+import json, math, sys
+n = 100
+rods = [{"name": f"s{k}", "centerline": {"degree": 1, "knots": [0, 0, 1, 1],
+         "points": [[0, 0, 0], [math.cos(2 * math.pi * k / n), math.sin(2 * math.pi * k / n), 0]]},
+         "section": {"shape": "circle", "diameter": 0.05}, "modulus": 100.0} for k in range(n)]
+supports = [{"at": {"rod": f"s{k}", "end": "end"}, "type": "clamped"} for k in range(n)]
+target = {"rods": {"s0": {"centerline": {"degree": 1, "knots": [0, 0, 1, 1], "points": [[0, 0, 0.001], [1, 0, 0]]}}}}
+cases = [{"name": f"c{c}", "supports": supports, "loads": [{"at": {"point": [0, 0, 0]}, "force": [0, 0, 1e-6 * (c + 1)]}],
+          "target": target} for c in range(64)]
+json.dump({"format": "rodfab.design/1", "units": "mm", "rods": rods, "mechanics": {"poisson_ratio": 0.3, "load_cases": cases}},
+          open(sys.argv[1], "w"))
+PY
+"$rodfab" optimize "$tmp/many-cases.json" -o "$tmp/optimized.json" --max-memory 256M > "$tmp/out" 2> "$tmp/err"
+[ $? -eq 1 ] || fail "64 cases of a 100-rod star in 256 MiB: expected exit 1: $(cat "$tmp/out" "$tmp/err")"
+grep -q "out of memory: optimizing $tmp/many-cases.json (64 load cases of 11200 unknowns) needs about [0-9.]* [MG]iB, more than the memory budget of 256 MiB (--max-memory); train on fewer load cases" "$tmp/err" ||
+  fail "64 cases in 256 MiB: $(cat "$tmp/err")"
+grep -q "^iter" "$tmp/out" && fail "64 cases in 256 MiB: iterated before refusing"
+[ ! -e "$tmp/optimized.json" ] || fail "64 cases in 256 MiB: wrote an output"
 ls -A "$tmp" | grep -q '^\.' && fail "temporaries left behind: $(ls -A "$tmp")"
 echo "optimize: all checks passed"

@@ -2,7 +2,7 @@
 # rodfab simulate from the command line: a cantilever rolled by an end moment lands where the
 # elastica says, with an error estimate and a stability verdict; the output is a valid design that
 # keeps its mechanics block; a strip past its buckling load is reported unstable; bad input is
-# named and writes nothing.
+# named and writes nothing; a star of many rods at one joint is held to its memory estimate.
 #   simulate.sh RODFAB SOURCE_DIR
 set -u
 rodfab=$1 src=$2
@@ -204,6 +204,49 @@ done
 "$rodfab" simulate "$tmp/roll.json" 2> /dev/null
 [ $? -eq 2 ] || fail "no --output: expected exit 2"
 "$rodfab" simulate --help | grep -q "usage: rodfab simulate" || fail "--help"
+
+# Many rods at one joint (a star of N spokes clamped at a rim, loaded at the hub): the memory
+# estimate (--json "memory") is checked before the solve against --max-memory. It bounds the heap the
+# run adds to a tiny one's peak resident memory without being loose by more than 2 times; a budget
+# below it is refused before anything is solved and writes nothing; a budget 2 % above it (also the
+# process's data limit, so an estimate short of the real heap would end in out of memory) suffices.
+star() {
+  python3 - "$1" "$2" <<'PY'
+import json, math, sys
+n = int(sys.argv[1])
+rods = [{"name": f"s{k}", "centerline": {"degree": 1, "knots": [0, 0, 1, 1],
+         "points": [[0, 0, 0], [math.cos(2 * math.pi * k / n), math.sin(2 * math.pi * k / n), 0]]},
+         "section": {"shape": "circle", "diameter": 0.05}, "modulus": 1000.0} for k in range(n)]
+supports = [{"at": {"rod": f"s{k}", "end": "end"}, "type": "clamped"} for k in range(n)]
+json.dump({"format": "rodfab.design/1", "units": "mm", "rods": rods,
+           "mechanics": {"poisson_ratio": 0.3, "supports": supports, "load_steps": 1,
+                         "loads": [{"at": {"point": [0, 0, 0]}, "force": [0, 0, 1e-7 * n]}]}}, open(sys.argv[2], "w"))
+PY
+}
+# Peak resident memory (KiB) and the memory estimate (bytes) of a --json run: "KIB BYTES".
+peak_and_estimate() {
+  python3 - "$rodfab" "$@" <<'PY'
+import json, resource, subprocess, sys
+out = subprocess.run([sys.argv[1], "simulate"] + sys.argv[2:] + ["--json"], capture_output=True, text=True)
+assert out.returncode == 0, out.stderr
+print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, json.loads(out.stdout)["memory"]["estimate_bytes"])
+PY
+}
+star 400 "$tmp/star.json"
+read -r base _ < <(peak_and_estimate "$tmp/roll.json" -o "$tmp/x.json") || fail "peak of the small run"
+read -r peak estimate < <(peak_and_estimate "$tmp/star.json" -o "$tmp/x.json") || fail "peak of the star"
+heap=$(( (peak - base) * 1024 ))
+[ "$estimate" -ge "$heap" ] || fail "star of 400 rods: estimate $estimate bytes below the $heap bytes the run added"
+[ "$estimate" -le $((2 * heap)) ] || fail "star of 400 rods: estimate $estimate bytes, more than twice the $heap bytes the run added"
+rm -f "$tmp/x.json"
+"$rodfab" simulate "$tmp/star.json" -o "$tmp/x.json" --max-memory 200M > "$tmp/out" 2> "$tmp/err"
+[ $? -eq 1 ] || fail "star of 400 rods in 200 MiB: expected exit 1"
+grep -q "out of memory: simulating $tmp/star.json (44800 unknowns) needs about [0-9.]* MiB, more than the memory budget of 200 MiB (--max-memory); use a coarser discretization" "$tmp/err" ||
+  fail "star of 400 rods in 200 MiB: $(cat "$tmp/err")"
+grep -q "^step" "$tmp/out" && fail "star of 400 rods in 200 MiB: solved before refusing"
+[ ! -e "$tmp/x.json" ] || fail "star of 400 rods in 200 MiB: wrote an output"
+"$rodfab" simulate "$tmp/star.json" -o "$tmp/x.json" --max-memory $((estimate + estimate / 50)) > /dev/null 2> "$tmp/err" ||
+  fail "star of 400 rods within its estimate: $(cat "$tmp/err")"
 
 # The bundled unfolding box's training case, as examples/README.md runs it: its hinges end on the
 # squares' edges (T-joints); folded, the loads given by point are named by rod and parameter.
