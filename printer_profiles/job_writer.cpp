@@ -9,6 +9,7 @@
 #include "printer_profiles/leaf_bits.hpp"
 #include "printer_profiles/previews.hpp"
 
+#include "common/output_file.hpp"
 #include "common/xxh128.hpp"
 
 #include <sys/stat.h>
@@ -72,6 +73,7 @@ fs::path checkJobOutput(const JobOptions& options) {
     throw std::runtime_error(t.parent_path().string() + (fs::exists(t.parent_path())
                                                              ? ": is not a directory; the job needs a folder to go in"
                                                              : ": the output directory does not exist"));
+  common::checkOutputNameLength(t);  // its staging folder's name is longer: refused now, not after the work
   const OutputOccupant occupant = examineOutput(t);
   if (occupant.kind == OutputOccupant::Kind::Other) throw std::runtime_error(refusal(t, occupant));
   if (occupant.kind == OutputOccupant::Kind::RodfabJob && !options.force)
