@@ -76,8 +76,10 @@ bool isSealedJsonObject(const std::filesystem::path& file, std::size_t maxBytes 
 
 // A temporary beside `final` that becomes `final` on commit(); removed by the destructor (or on
 // interrupt) if never committed. commit() throws Interrupted when a signal is pending (the
-// temporary is then removed), and leaves the committed file registered for interrupt cleanup until
-// the command finishes.
+// temporary is then removed). While a common::CommandOutputs lives (common/interrupt.hpp: main holds
+// one; a library user holds one around its work), the committed file stays registered until it ends
+// and the file it replaced is kept beside it (`.NAME.rodfab-old-PID-N`) until then: removed on
+// success, put back on failure or interrupt. Without one, commit() replaces outright and keeps nothing.
 class AtomicOutput {
 public:
   explicit AtomicOutput(std::filesystem::path final);

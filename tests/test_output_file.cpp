@@ -55,3 +55,74 @@ TEST_CASE("an output name too long for the hidden temporary beside it is refused
   CHECK_FALSE(fs::exists(tooLong));
   CHECK_FALSE(fs::exists(farTooLong));
 }
+
+namespace {
+
+// The names in `dir`, sorted.
+std::vector<std::string> namesIn(const fs::path& dir) {
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+}  // namespace
+
+TEST_CASE("without an owner of the command's outputs, a commit replaces outright and leaves nothing beside the output") {
+  const rodfab::test::TempDir dir("output-owner");
+  const fs::path file = dir.path / "cal.json";
+  writeFileAtomically(file, "old");
+  writeFileAtomically(file, "new");  // a library user: no CommandOutputs, no finishCommand
+  CHECK(readAll(file) == "new");
+  CHECK(namesIn(dir.path) == std::vector<std::string>{"cal.json"});  // no .cal.json.rodfab-old-PID-N
+}
+
+TEST_CASE("the owner of the command's outputs keeps what a commit replaced until it ends: gone on success, back on failure") {
+  const rodfab::test::TempDir dir("output-owner");
+  const fs::path file = dir.path / "cal.json", other = dir.path / "plot.png";
+  writeFileAtomically(file, "old");
+  const auto keptName = [&] {
+    const std::vector<std::string> names = namesIn(dir.path);
+    for (const std::string& n : names)
+      if (n.starts_with(".cal.json.rodfab-old-")) return n;
+    return std::string();
+  };
+
+  SECTION("success: the output stays, the kept copy goes") {
+    CommandOutputs outputs;
+    writeFileAtomically(file, "new");
+    writeFileAtomically(other, "plot");
+    REQUIRE_FALSE(keptName().empty());  // kept while the command runs
+    CHECK(readAll(dir.path / keptName()) == "old");
+    CHECK(outputs.finish(0) == 0);
+    CHECK(readAll(file) == "new");
+    CHECK(namesIn(dir.path) == std::vector<std::string>{"cal.json", "plot.png"});
+    CHECK(outputs.finish(1) == 1);  // only the first call acts: nothing is taken back now
+    CHECK(readAll(file) == "new");
+  }
+  SECTION("failure: every output committed is taken back, the replaced file is back byte for byte") {
+    CommandOutputs outputs;
+    writeFileAtomically(file, "new");
+    writeFileAtomically(other, "plot");
+    CHECK(outputs.finish(1) == 1);
+    CHECK(readAll(file) == "old");
+    CHECK(namesIn(dir.path) == std::vector<std::string>{"cal.json"});
+  }
+  SECTION("the owner ends without finish (an exception passed through it): a failure") {
+    try {
+      CommandOutputs outputs;
+      writeFileAtomically(file, "new");
+      throw std::runtime_error("a later step failed");
+    } catch (const std::runtime_error&) {
+    }
+    CHECK(readAll(file) == "old");
+    CHECK(namesIn(dir.path) == std::vector<std::string>{"cal.json"});
+  }
+  SECTION("one owner at a time") {
+    CommandOutputs outputs;
+    CHECK_THROWS_AS(CommandOutputs(), std::logic_error);
+    CHECK(outputs.finish(0) == 0);
+    CommandOutputs next;  // the next command's
+    CHECK(next.finish(0) == 0);
+  }
+}
