@@ -67,18 +67,39 @@ std::uint64_t pngMaxBytes(std::uint64_t rawBytes) { return rawBytes + rawBytes /
 
 // ------------------------------------------------------------------------------------------ JSON
 
+namespace {
+
+// A message parseJsonStrict made printable (it escapes what it quotes: controls, bytes that are not
+// UTF-8, the backslash) in inspect's form, plain ASCII: the UTF-8 characters it kept as \xNN too.
+// Not printableName, which would escape those escapes' backslashes a second time.
+std::string asciiOnly(const std::string& printable) {
+  std::string out;
+  for (const char ch : printable) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c >= 0x20 && c < 0x7f) {
+      out += ch;
+      continue;
+    }
+    char buf[8];
+    std::snprintf(buf, sizeof buf, "\\x%02x", c);
+    out += buf;
+  }
+  return out;
+}
+
+}  // namespace
+
 json parseUntrustedJson(std::span<const std::uint8_t> text, std::size_t maxValues) {
   try {
     return common::parseJsonStrict(std::string(text.begin(), text.end()), common::kMaxJsonDepth, maxValues);
   } catch (const common::JsonInputError& e) {
-    // The message first: a path 64 levels deep would hide it. Both are printable as they come
-    // (parseJsonStrict escapes what it quotes from the text): escaping again would double it.
+    // The message first: a path 64 levels deep would hide it.
     std::size_t cut = 57;  // not inside a UTF-8 character
     while (e.path.size() > 60 && cut > 0 && (static_cast<unsigned char>(e.path[cut]) & 0xc0) == 0x80) --cut;
     const std::string where = e.path.size() > 60 ? e.path.substr(0, cut) + "..." : e.path;
-    throw std::runtime_error(e.message + (where.empty() ? "" : " (at " + where + ")"));
+    throw std::runtime_error(asciiOnly(e.message + (where.empty() ? "" : " (at " + where + ")")));
   } catch (const json::exception& e) {  // a number beyond a double
-    throw std::runtime_error("not JSON (" + common::printableJsonError(e.what()) + ")");
+    throw std::runtime_error("not JSON (" + asciiOnly(common::printableJsonError(e.what())) + ")");
   }
 }
 
@@ -353,12 +374,16 @@ std::optional<std::uint64_t> readClamped(const json& block, Fields& f) {
   const auto floor = f.number(*clamped, path, "floor_mpa"), ceiling = f.number(*clamped, path, "ceiling_mpa");
   if (floor && ceiling && !(*floor > 0 && *floor <= *ceiling))
     f.fail(path, "expected 0 < floor_mpa <= ceiling_mpa, got " + describe(json(*floor)) + " and " + describe(json(*ceiling)));
-  const json* below = f.get(*clamped, path, "below_floor_voxels", "a voxel count");
-  const json* above = f.get(*clamped, path, "above_ceiling_voxels", "a voxel count");
-  const auto b = below ? f.count(*below, path + ".below_floor_voxels") : std::nullopt;
-  const auto a = above ? f.count(*above, path + ".above_ceiling_voxels") : std::nullopt;
-  if (!b || !a || *b > UINT64_MAX - *a) return std::nullopt;
-  return *b + *a;
+  std::uint64_t total = 0;
+  bool counted = true;
+  for (const char* key : {"below_floor_voxels", "above_ceiling_voxels"}) {
+    const json* v = f.get(*clamped, path, key, "a voxel count");
+    const std::uint64_t n = v ? f.count(*v, path + "." + key).value_or(UINT64_MAX) : UINT64_MAX;  // UINT64_MAX: not a count
+    counted = counted && n != UINT64_MAX && n <= UINT64_MAX - total;
+    if (counted) total += n;
+  }
+  if (!counted) return std::nullopt;
+  return total;
 }
 
 // The materials with bitmap stacks: rigid and rubbery, and support when the job draws it; as the writer

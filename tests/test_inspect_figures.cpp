@@ -150,4 +150,12 @@ TEST_CASE("A malformed manifest's quoted bytes are escaped once: no raw byte rea
     for (const char c : d) CHECK((static_cast<unsigned char>(c) >= 0x20 && static_cast<unsigned char>(c) < 0x7f));
   CHECK(hasDefect(report, "last read: '\"format\": tru\\xc2'"));
   for (const std::string& d : report.defects) CHECK(d.find("\\x5cx") == std::string::npos);
+  // A UTF-8 letter (which parseJsonStrict's messages keep) in inspect's ASCII form, as the fuzz target requires.
+  for (auto& [name, data] : files)
+    if (name == "manifest.json") data = bytesOf("{\"format\": \"caf\xc3\xa9\" x}");
+  rezip(dir / "t.zip", files);
+  const InspectReport accented = inspectJob(dir / "t.zip");
+  CHECK(hasDefect(accented, "caf\\xc3\\xa9"));
+  for (const std::string& d : accented.defects)
+    for (const char c : d) CHECK((static_cast<unsigned char>(c) >= 0x20 && static_cast<unsigned char>(c) < 0x7f));
 }
