@@ -307,7 +307,7 @@ Calibration readCalibration(const std::filesystem::path& file, std::string* sha2
   } catch (const common::JsonInputError& e) {
     throw CalibrationFileError(file.string(), e.path, e.message);
   } catch (const json::exception& e) {  // out_of_range for a number too large (1e400)
-    throw CalibrationFileError(file.string(), "", std::string("not valid JSON: ") + e.what());
+    throw CalibrationFileError(file.string(), "", "not valid JSON: " + common::printableJsonError(e.what()));
   }
   return calibrationFromJson(j, file.string());
 }

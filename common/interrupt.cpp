@@ -62,13 +62,16 @@ void removeRegisteredLocked() {
   registry().clear();
 }
 
-// The command is done with its outputs: the files they replaced go for good.
+// The command is done with its outputs: the files (or job folders) they replaced go for good.
 void forgetRegisteredLocked() {
   std::error_code ignored;
   for (const Registered& r : registry())
-    if (!r.previous.empty()) fs::remove(r.previous, ignored);
+    if (!r.previous.empty()) fs::remove_all(r.previous, ignored);
   registry().clear();
 }
+
+// Live CommandOutputs objects (0 or 1), under registryMutex.
+int owners = 0;
 
 // A hidden name beside `file` for the file a commit replaces: `.NAME.rodfab-old-PID-N`.
 fs::path previousVersionName(const fs::path& file) {
@@ -162,6 +165,12 @@ void commitRegistered(const fs::path& temporary, const fs::path& committed,
                       void (*commit)(const fs::path&, const fs::path&)) {
   std::lock_guard lock(registryMutex);
   if (const int s = interruptRequested()) throw Interrupted(s);
+  auto& r = registry();
+  if (owners == 0) {  // nobody to keep a copy for, nor to take the output back: a plain commit
+    commit(temporary, committed);
+    r.erase(std::remove_if(r.begin(), r.end(), [&](const Registered& e) { return e.path == temporary; }), r.end());
+    return;
+  }
   const bool replacesOwnOutput = findRegistered(committed) != registry().end();
   const fs::path previous = replacesOwnOutput ? fs::path() : keepPreviousVersion(committed);
   try {
@@ -170,9 +179,24 @@ void commitRegistered(const fs::path& temporary, const fs::path& committed,
     restorePreviousVersion(previous, committed);
     throw;
   }
-  auto& r = registry();
   r.erase(std::remove_if(r.begin(), r.end(), [&](const Registered& e) { return e.path == temporary; }), r.end());
   if (!replacesOwnOutput) r.push_back({committed, previous});
+}
+
+bool keepCommitted(const fs::path& committed, const fs::path& replaced) {
+  std::lock_guard lock(registryMutex);
+  if (owners == 0) return false;
+  fs::path kept;
+  if (!replaced.empty()) {
+    kept = previousVersionName(committed);
+    // Beside the output, on its file system (the writer's staging folder is beside it too).
+    if (::rename(replaced.c_str(), kept.c_str()) != 0)
+      throw std::runtime_error(committed.string() + ": cannot keep what it replaced until the command ends (" + std::strerror(errno) + ")");
+  }
+  const auto found = findRegistered(committed);
+  if (found == registry().end()) registry().push_back({committed, kept});
+  else if (!kept.empty()) found->previous = kept;  // registered bare before (registerCleanup): now with its copy
+  return true;
 }
 
 void withdrawCommitted(const fs::path& committed) {
@@ -204,16 +228,40 @@ int abandonCommand(int exitCode) {
   return s ? 128 + s : exitCode;
 }
 
-int finishCommand(int exitCode) {
-  blockInterrupts();
+CommandOutputs::CommandOutputs() {
   std::lock_guard lock(registryMutex);
-  commandFinished.store(true);
+  if (owners > 0) throw std::logic_error("CommandOutputs: one command's outputs are owned already");
+  ++owners;
+}
+
+CommandOutputs::~CommandOutputs() {
+  std::lock_guard lock(registryMutex);
+  settleLocked(1);
+}
+
+int CommandOutputs::finish(int exitCode) {
+  std::lock_guard lock(registryMutex);
+  return settleLocked(exitCode);
+}
+
+int CommandOutputs::settleLocked(int exitCode) {
+  if (finished_) return exitCode;
+  finished_ = true;
+  --owners;
   if (const int s = interruptRequested()) {
     removeRegisteredLocked();
     return 128 + s;
   }
-  forgetRegisteredLocked();
+  if (exitCode == 0) forgetRegisteredLocked();
+  else removeRegisteredLocked();  // a failed command: all or none, and what was there before is back
   return exitCode;
+}
+
+int finishCommand(CommandOutputs& outputs, int exitCode) {
+  blockInterrupts();
+  std::lock_guard lock(registryMutex);
+  commandFinished.store(true);
+  return outputs.settleLocked(exitCode);
 }
 
 }  // namespace rodfab::common

@@ -50,7 +50,7 @@ Found scanJsonPaths(const std::string& text, Visit visit) {
     std::string p;
     for (const Level& l : levels) {
       if (l.array) p.append("[").append(std::to_string(l.index)).append("]");
-      else if (!l.key.empty()) p.append(p.empty() ? "" : ".").append(l.key);
+      else if (!l.key.empty()) p.append(p.empty() ? "" : ".").append(printableFromFile(l.key, 64));  // a file's key: shown escaped
     }
     return p;
   };
@@ -138,7 +138,7 @@ private:
     std::string p;
     for (const Level& l : levels_) {
       if (l.array) p.append("[").append(std::to_string(l.index)).append("]");
-      else if (!l.key.empty()) p.append(p.empty() ? "" : ".").append(l.key);
+      else if (!l.key.empty()) p.append(p.empty() ? "" : ".").append(printableFromFile(l.key, 64));  // a file's key: shown escaped
     }
     return p;
   }
@@ -213,7 +213,7 @@ json parseJsonStrict(const std::string& text, int maxDepth, std::size_t maxValue
     json::sax_parse(text, &check);  // stops quietly at malformed text: the parse below reports it
     return json::parse(text);
   } catch (const json::parse_error& e) {
-    std::string what = e.what();  // "[json.exception.parse_error.101] parse error at line 1, column 13: why"
+    std::string what = printableJsonError(e.what());  // "[json.exception.parse_error.101] parse error at line 1, column 13: why"
     if (auto pos = what.find("parse error"); pos != std::string::npos) {
       const auto colon = what.find(": ", pos);
       what = colon == std::string::npos ? what.substr(pos) : what.substr(colon + 2);
@@ -225,6 +225,21 @@ json parseJsonStrict(const std::string& text, int maxDepth, std::size_t maxValue
                                        lineColumnText(text, big.offset == std::string::npos ? 0 : big.offset) +
                                        "; expected a finite number");
   }
+}
+
+std::string printableJsonError(std::string_view what) {
+  // nlohmann: "...; last read: 'TOKEN'" and, for some errors, "; expected WHAT" after it.
+  static constexpr std::string_view kLastRead = "last read: '";
+  const std::size_t open = what.find(kLastRead);
+  if (open == std::string_view::npos) return holdsControlCharacters(what) ? printableFromFile(what, what.size()) : std::string(what);
+  const std::size_t from = open + kLastRead.size();
+  std::size_t close = what.rfind("'; expected ");
+  if (close == std::string_view::npos || close < from) close = what.ends_with('\'') && what.size() > from ? what.size() - 1 : what.size();
+  const std::string_view token = what.substr(from, close - from);
+  std::string out(what.substr(0, from));
+  out += printableFromFile(token, 80);
+  out += what.substr(close);
+  return out;
 }
 
 std::string memberPath(const std::string& path, const std::string& key) {

@@ -13,6 +13,7 @@
 #include <set>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 namespace rodfab::common {
 
@@ -33,6 +34,12 @@ struct JsonInputError : std::runtime_error {
 // kMaxJsonBytes, or a number literal beyond the range of a double (1e400), reported at its path.
 nlohmann::json parseJsonStrict(const std::string& text, int maxDepth = kMaxJsonDepth,
                                std::size_t maxValues = std::numeric_limits<std::size_t>::max());
+
+// An nlohmann-json exception's message as a message may show it: the text it quotes from the file
+// ("last read: '...'", which holds the file's bytes as they are, DEL, C1 controls and bytes that are
+// not UTF-8 among them) written with printableFromFile (common/quoted_text.hpp); the rest is the
+// library's own words. Every message that passes on a parse error from a file goes through this.
+std::string printableJsonError(std::string_view what);
 
 // The bytes of `file`, read in chunks and refused beyond `maxBytes` (so /dev/zero or a huge file
 // cannot exhaust memory); pipes are read like files. Throws JsonInputError("", what went wrong).

@@ -33,6 +33,20 @@ bool issueListCut(const std::vector<Issue>& issues) {
   return issues.size() > kMaxListedIssues;
 }
 
+// How many issues `issues` lists, the cut line (listIssue's) not counted.
+template <class Issue>
+std::size_t listedIssueCount(const std::vector<Issue>& issues) {
+  return issueListCut(issues) ? kMaxListedIssues : issues.size();
+}
+// The count a reader's summary line gives: "1 error", "7 errors", or for a cut list "100 errors shown,
+// more were found" (the cut line is not an error, and the readers stop counting there).
+template <class Issue>
+std::string issueCountText(const std::vector<Issue>& issues) {
+  const std::size_t listed = listedIssueCount(issues);
+  const std::string count = std::to_string(listed) + (listed == 1 ? " error" : " errors");
+  return issueListCut(issues) ? count + " shown, more were found" : count;
+}
+
 // A bad input file: what() says what is wrong with it, file() names it as the user gave it.
 class InputFileError : public std::runtime_error {
 public:

@@ -4,6 +4,7 @@
 #include "common/xxh128.hpp"
 
 #include <fcntl.h>
+#include <limits.h>
 #include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -132,7 +133,25 @@ void checkOutputPath(const fs::path& output, const std::vector<fs::path>& inputs
   if (!fs::is_directory(parent, ec))
     throw std::runtime_error(quoted(output) + ": cannot write: " + quoted(parent) +
                              (fs::exists(parent, ec) ? " is not a folder" : ": the folder does not exist"));
+  checkOutputNameLength(output);
   recordAsChecked(output);
+}
+
+void checkOutputNameLength(const fs::path& output) {
+  const fs::path absolute = fs::absolute(output);
+  const std::size_t name = absolute.filename().string().size();
+  const long limit = ::pathconf(absolute.parent_path().c_str(), _PC_NAME_MAX);
+  const std::size_t nameMax = limit > 0 ? static_cast<std::size_t>(limit) : NAME_MAX;
+  if (name + kHiddenNameExtraBytes > nameMax)
+    throw std::runtime_error(quoted(output) + ": the file name is " + std::to_string(name) + " bytes long; rodfab writes it first under a hidden name up to " +
+                             std::to_string(kHiddenNameExtraBytes) + " bytes longer, and this folder's file system allows names of at most " +
+                             std::to_string(nameMax) + " bytes: use a name of at most " +
+                             std::to_string(nameMax > kHiddenNameExtraBytes ? nameMax - kHiddenNameExtraBytes : 0) + " bytes");
+  // The hidden name is made beside the path as given (relative paths stay relative).
+  if (output.string().size() + kHiddenNameExtraBytes >= PATH_MAX)
+    throw std::runtime_error(quoted(output) + ": the path is " + std::to_string(output.string().size()) +
+                             " bytes long; with the hidden name rodfab writes first it would exceed the system's limit of " +
+                             std::to_string(PATH_MAX - 1) + " bytes: use a shorter path");
 }
 
 bool fileStartsWith(const fs::path& file, std::string_view prefix, std::string_view marker, std::size_t scanBytes) {

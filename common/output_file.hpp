@@ -12,6 +12,7 @@
 // functions are reentrant; two writers to the same final name race as rename(2) does (last wins).
 #pragma once
 
+#include <cstddef>
 #include <filesystem>
 #include <functional>
 #include <optional>
@@ -34,8 +35,21 @@ struct OutputPolicy {
 // Throws std::runtime_error naming `output` when writing there could lose data: it is (the same file
 // as) one of `inputs`, a folder, a symlink, something other than a regular file, an existing file
 // that the policy does not let us replace, or its folder does not exist.
+// Also when the name is too long for the hidden names rodfab writes beside it (checkOutputNameLength).
 void checkOutputPath(const std::filesystem::path& output, const std::vector<std::filesystem::path>& inputs,
                      const OutputPolicy& policy);
+
+// The most bytes rodfab adds to an output's name for the hidden files it keeps beside it
+// (`.NAME.rodfab-tmp-PID-N`, `.NAME.rodfab-old-PID-N`, a job's `.NAME.rodfab-partial-PID-N`): the
+// leading '.', the longest tag (".rodfab-partial-", 16 bytes), a process id (at most 7 digits: Linux's
+// pid_max is at most 4194304), '-' and a counter (at most 10 digits).
+inline constexpr std::size_t kHiddenNameExtraBytes = 1 + 16 + 7 + 1 + 10;
+
+// Throws std::runtime_error naming `output` when its file name plus kHiddenNameExtraBytes is longer
+// than its folder's file system allows (NAME_MAX, usually 255 bytes), or the path so extended longer
+// than PATH_MAX: the hidden temporary could not be made, and that would be found only when the work
+// is done. The folder must exist. Called by checkOutputPath and by the job writer's checkJobOutput.
+void checkOutputNameLength(const std::filesystem::path& output);
 
 // True when the first bytes of the regular file `file` (not a symlink) start with `prefix` and, when
 // `marker` is not empty, the first `scanBytes` bytes contain `marker`. False for anything unreadable.
@@ -62,8 +76,10 @@ bool isSealedJsonObject(const std::filesystem::path& file, std::size_t maxBytes 
 
 // A temporary beside `final` that becomes `final` on commit(); removed by the destructor (or on
 // interrupt) if never committed. commit() throws Interrupted when a signal is pending (the
-// temporary is then removed), and leaves the committed file registered for interrupt cleanup until
-// the command finishes.
+// temporary is then removed). While a common::CommandOutputs lives (common/interrupt.hpp: main holds
+// one; a library user holds one around its work), the committed file stays registered until it ends
+// and the file it replaced is kept beside it (`.NAME.rodfab-old-PID-N`) until then: removed on
+// success, put back on failure or interrupt. Without one, commit() replaces outright and keeps nothing.
 class AtomicOutput {
 public:
   explicit AtomicOutput(std::filesystem::path final);

@@ -1,4 +1,5 @@
 // requireValidDesign (mesh.hpp): what rods-from-mesh and rods-from-cad check before writing.
+#include "common/located_issues.hpp"
 #include "geometry/design_file.hpp"
 #include "meshing/mesh.hpp"
 
@@ -19,9 +20,12 @@ void requireValidDesign(const geometry::RodStructure& structure, const std::file
       const std::size_t rod = std::strtoull(issue.path.c_str() + 5, nullptr, 10);
       if (rod < structure.rods.size()) where = rodName(rod) + ", as " + issue.path;
     }
-    const std::size_t more = e.issues().size() - 1;
-    throw MeshError(file, where + ": " + issue.message + (more ? " (and " + std::to_string(more) + " more problems)" : "") +
-                              "; the design would not be valid");
+    // The cut line of a long list (common::listIssue) is not a problem of its own.
+    const std::size_t more = common::listedIssueCount(e.issues()) - 1;
+    const std::string others = common::issueListCut(e.issues()) ? " (and more than " + std::to_string(more) + " other problems)"
+                               : more ? " (and " + std::to_string(more) + " more problems)"
+                                      : "";
+    throw MeshError(file, where + ": " + issue.message + others + "; the design would not be valid");
   }
 }
 

@@ -90,7 +90,8 @@ std::uint32_t pixelsPerMetre(int dpi);
 
 // BMP: BITMAPINFOHEADER, two-entry palette (0 black, 1 white), rows bottom-up as the format's default.
 Bytes encodeBmp(const Bitmap& bitmap, int xDpi, int yDpi);
-// Accepts 1-bit BMPs with either row order; the pixel value is the palette index (1 = deposit).
+// Accepts 1-bit BMPs with either row order whose file header gives the file's true size; the pixel
+// value is the palette index (1 = deposit).
 DecodedBitmap decodeBmp(std::span<const std::uint8_t> file);
 
 // PNG: grayscale, bit depth 1 (1 = white = deposit), pHYs in pixels per metre, no row filter; the image

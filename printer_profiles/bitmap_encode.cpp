@@ -126,6 +126,10 @@ DecodedBitmap decodeBmp(std::span<const std::uint8_t> in) {
   const std::size_t need = static_cast<std::size_t>(offset) + stride * static_cast<std::size_t>(height);
   if (offset < paletteAt + 8 || in.size() < need)
     throw ImageError("BMP is truncated: " + std::to_string(in.size()) + " bytes, expected " + std::to_string(need));
+  // The file header's own size field: a reader that trusts it (to allocate, or to find the end) must
+  // get the truth, so a file that lies about its size is refused.
+  if (const std::uint32_t declared = get32(in, 2); declared != in.size())
+    throw ImageError("BMP file header says the file is " + std::to_string(declared) + " bytes; it is " + std::to_string(in.size()));
   result.bitmap = Bitmap(width, height);
   for (int r = 0; r < height; ++r) {
     const int fileRow = bottomUp ? height - 1 - r : r;

@@ -91,9 +91,11 @@ void Inspector::checkLayers() {
     const double ml = static_cast<double>(totals[n]) * v[0] * v[1] * v[2] / 1000.0;
     report_.materials.push_back({m.name, m.role, totals[n], ml, ml * m.densityGPerMl});
   }
-  for (int l = 0; l < layout_.layers; ++l)
-    if (!decodesLayer(l)) return;  // the part's position needs every layer
-  checkOrientation(moments);
+  checkStatistics();
+  bool everyLayer = true;
+  for (int l = 0; l < layout_.layers; ++l) everyLayer = everyLayer && decodesLayer(l);
+  checkPart(moments, everyLayer);
+  if (everyLayer) checkOrientation(moments);  // the part's position needs every layer
 }
 
 bool Inspector::decodesLayer(int l) const {

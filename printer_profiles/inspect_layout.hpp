@@ -82,6 +82,25 @@ struct OrientationRecord {
   std::array<double, 3> minMm{}, maxMm{}, centroidMm{};
 };
 
+// frame.part_voxels (the part's voxel box, index space) and frame.part_size_mm, as the manifest says.
+struct PartRecord {
+  std::array<std::int64_t, 3> min{}, max{};
+  std::optional<std::array<double, 3>> sizeMm;
+};
+
+// One material's row of the manifest's "statistics" block.
+struct MaterialStatistics {
+  std::string role;
+  std::uint64_t voxels = 0;
+  double volumeMl = 0.0, massG = 0.0;
+};
+
+struct StatisticsRecord {
+  std::vector<std::optional<MaterialStatistics>> materials;  // per job material (nullopt: missing or malformed)
+  std::optional<std::uint64_t> modelVoxels;
+  std::optional<std::uint64_t> clampedVoxels;  // below the floor and above the ceiling, when recorded
+};
+
 struct JobLayout {
   ImageFormat imageFormat = ImageFormat::Bmp;
   SupportPolicy support = SupportPolicy::Printer;
@@ -94,6 +113,8 @@ struct JobLayout {
   std::map<std::string, ListedFile> listed;       // the manifest's file table (well-formed rows only)
   std::vector<std::vector<std::optional<std::uint64_t>>> layerVoxels;  // [layer][material] as the manifest says
   std::vector<std::optional<OrientationRecord>> orientation;           // per material (model materials)
+  std::optional<PartRecord> part;                                      // nullopt: missing or malformed
+  std::optional<StatisticsRecord> statistics;                          // nullopt: missing or not an object
 };
 
 // Checks the manifest against `profile` (every mismatch becomes a finding at "manifest.json: PATH")

@@ -111,6 +111,13 @@ private:
   // from the grid by the writer): otherwise they are mirrored, flipped or shifted.
   void checkOrientation(const std::vector<DecodedMoments>& moments);
 
+  // inspect_statistics.cpp: the statistics block against the layers' counts and the profile; the
+  // part's box against the frame, its size in mm and (when every layer was decoded) the images.
+  std::optional<std::uint64_t> listedVoxels(std::size_t material) const;
+  void checkStatistics();
+  void checkPart(const std::vector<DecodedMoments>& moments, bool everyLayerDecoded);
+  void checkFrameOfPart(const PartRecord& part, const std::array<std::int64_t, 3>& dim);
+
   fs::path job_;
   const InspectOptions& options_;
   InspectReport& report_;

@@ -9,6 +9,8 @@
 #include "printer_profiles/leaf_bits.hpp"
 #include "printer_profiles/previews.hpp"
 
+#include "common/interrupt.hpp"
+#include "common/output_file.hpp"
 #include "common/xxh128.hpp"
 
 #include <sys/stat.h>
@@ -72,6 +74,7 @@ fs::path checkJobOutput(const JobOptions& options) {
     throw std::runtime_error(t.parent_path().string() + (fs::exists(t.parent_path())
                                                              ? ": is not a directory; the job needs a folder to go in"
                                                              : ": the output directory does not exist"));
+  common::checkOutputNameLength(t);  // its staging folder's name is longer: refused now, not after the work
   const OutputOccupant occupant = examineOutput(t);
   if (occupant.kind == OutputOccupant::Kind::Other) throw std::runtime_error(refusal(t, occupant));
   if (occupant.kind == OutputOccupant::Kind::RodfabJob && !options.force)
@@ -303,14 +306,21 @@ struct JobWriter::Impl {
 
     checkInterrupt();  // the last moment at which nothing was written
     const Commit commit = commitJob(built, target, spec.options.force, *staging);
+    // When a common::CommandOutputs owns the command's outputs, the job this one replaced is kept
+    // beside it until the command ends, and put back if the command fails or is interrupted (a signal
+    // after this function returned removed the new job and the old one was gone); without an owner it
+    // goes with the staging folder below.
+    bool kept = false;
     try {
+      kept = common::keepCommitted(target, commit.replaced ? commit.oldJob : fs::path());
       checkInterrupt();
     } catch (...) {
-      undoCommit(commit, target, *staging);
+      if (kept) common::withdrawCommitted(target);
+      else undoCommit(commit, target, *staging);
       throw;
     }
     finished = true;
-    staging->remove();  // temporaries, and the job this one replaced
+    staging->remove();  // temporaries, and the job this one replaced unless it is kept
     return result(files.size() + 1, commit);
   }
 

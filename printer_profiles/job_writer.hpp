@@ -137,7 +137,11 @@ std::uint64_t previewMemoryBytes(const JobGeometry& geometry, const Profile& pro
 // leaves only such a folder, which `inspect` refuses and which any later writer in the same output
 // folder removes, whatever its target, once its lock is free. A job replaced under `force` is
 // exchanged with the new one in one rename (renameat2 RENAME_EXCHANGE where the file system has it),
-// so the target always holds one of the two, and is removed with the staging folder.
+// so the target always holds one of the two. While a common::CommandOutputs owns the command's
+// outputs (rodfab's main does), the replaced job is then moved beside the target as
+// `.NAME.rodfab-old-PID-N` and kept until the command ends: removed when it succeeds, put back in
+// place of the new job when it fails or is interrupted (common/interrupt.hpp). Without an owner it is
+// removed with the staging folder when finalize() returns.
 class JobWriter {
 public:
   // Checks the profile and part against the tray (TrayFitError), and the target: free, or a rodfab

@@ -91,7 +91,7 @@ json parseStrictly(const std::string& text, const std::string& sourceName) {
   } catch (const StructureIssue& e) {
     throw ProfileError(sourceName, {e.issue});
   } catch (const json::exception& e) {  // parse_error, or out_of_range for a number too large (1e400)
-    throw ProfileError(sourceName, {{"", std::string("not valid JSON: ") + e.what()}});
+    throw ProfileError(sourceName, {{"", "not valid JSON: " + common::printableJsonError(e.what())}});
   }
 }
 

@@ -1,6 +1,7 @@
 // rodfab calibrate: modulus against Vero fraction fitted to DMA data, written as a calibration file
 // and a plot (calibration/ fits; slicer/fit_summary.hpp prints the fit).
 #include "calibration/calibration.hpp"
+#include "common/located_issues.hpp"
 #include "materials/ditherer.hpp"
 #include "slicer/command.hpp"
 #include "slicer/fit_summary.hpp"
@@ -93,7 +94,7 @@ int runCalibrate(const std::vector<std::string>& args) {
     data = calibration::readData(file);
   } catch (const calibration::DataError& e) {
     std::cerr << e.what() << '\n'
-              << file << ": " << e.issues().size() << (e.issues().size() == 1 ? " error" : " errors") << "; nothing fitted\n";
+              << file << ": " << common::issueCountText(e.issues()) << "; nothing fitted\n";
     return kFailed;
   }
   const calibration::Calibration fit = withMaterials(calibration::fitCalibration(data, request.fit), request);

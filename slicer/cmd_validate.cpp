@@ -1,3 +1,4 @@
+#include "common/located_issues.hpp"
 #include "geometry/geometry.hpp"
 #include "mechanics/mechanics_file.hpp"
 #include "slicer/command.hpp"
@@ -35,7 +36,7 @@ int runValidate(const std::vector<std::string>& args) {
     s = mechanics::checkDesign(file);
   } catch (const geometry::DesignError& e) {
     std::cerr << e.what() << '\n'
-              << file << ": " << e.issues().size() << (e.issues().size() == 1 ? " error" : " errors")
+              << file << ": " << common::issueCountText(e.issues())
               << "; the design is not valid\n";
     return kFailed;
   }

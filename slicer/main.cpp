@@ -60,5 +60,6 @@ int main(int argc, char** argv) {
   rodfab::common::installInterruptHandlers();
   std::set_terminate(onTerminate);
   rodfab::common::setMemoryBudget(rodfab::common::defaultMemoryBudget());
-  return rodfab::common::finishCommand(runCommand(*command, std::vector<std::string>(argv + 2, argv + argc)));
+  rodfab::common::CommandOutputs outputs;  // what the command writes, and what that replaces, until it ends
+  return rodfab::common::finishCommand(outputs, runCommand(*command, std::vector<std::string>(argv + 2, argv + argc)));
 }

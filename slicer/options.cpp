@@ -82,6 +82,19 @@ std::string firstEmptyValue(const po::variables_map& vm, const po::options_descr
   return "";
 }
 
+// The options that name a file the command writes.
+constexpr const char* kOutputOptions[] = {"output", "plot", "render"};
+
+// The first output option given as "-", "" when none. By custom "-" means standard output, which no
+// command writes to: every output goes to a temporary name, is checked, then renamed into place (a
+// job may be a folder), and replaces only a file rodfab wrote. Without this check "-o -" wrote a file
+// named "-".
+std::string firstStandardOutput(const po::variables_map& vm) {
+  for (const char* name : kOutputOptions)
+    if (vm.count(name) && vm[name].as<std::string>() == "-") return name;
+  return "";
+}
+
 }  // namespace
 
 std::string synopsisOf(const po::options_description& options, const po::positional_options_description& positional) {
@@ -121,6 +134,9 @@ std::optional<int> parseOptions(const std::string& command, po::options_descript
     po::notify(vm);
     if (const std::string empty = firstEmptyValue(vm, options, hidden); !empty.empty())
       return usageError(command, "--" + empty + ": expected a value, got an empty string");
+    if (const std::string dash = firstStandardOutput(vm); !dash.empty())
+      return usageError(command, "--" + dash + ": '-' (standard output) is not supported: rodfab writes its outputs to files only; "
+                                 "name a file (./- for a file named '-')");
     if (vm.count("max-memory")) {
       const std::string text = vm["max-memory"].as<std::string>();
       const std::optional<std::uint64_t> bytes = common::parseByteSize(text);

@@ -127,6 +127,26 @@ TEST_CASE("located issues: one line each, FILE: PATH: MESSAGE, the path left out
         "d.json: rods[0].name: missing\nd.json: units: expected \"mm\"");
 }
 
+TEST_CASE("a cut issue list counts the issues it shows, not its cut line, and says more were found") {
+  struct Issue {
+    std::string path, message;
+  };
+  std::vector<Issue> issues;
+  rodfab::common::listIssue(issues, Issue{"a", "bad"});
+  CHECK(rodfab::common::issueCountText(issues) == "1 error");
+  for (std::size_t n = 1; n < kMaxListedIssues; ++n) rodfab::common::listIssue(issues, Issue{"a", "bad"});
+  // Exactly the most listed: nothing cut, the true count.
+  REQUIRE(issues.size() == kMaxListedIssues);
+  CHECK_FALSE(rodfab::common::issueListCut(issues));
+  CHECK(rodfab::common::issueCountText(issues) == "100 errors");
+  // One more: the cut line is added, and is not an error.
+  rodfab::common::listIssue(issues, Issue{"a", "bad"});
+  rodfab::common::listIssue(issues, Issue{"a", "bad"});
+  REQUIRE(issues.size() == kMaxListedIssues + 1);
+  CHECK(rodfab::common::listedIssueCount(issues) == kMaxListedIssues);
+  CHECK(rodfab::common::issueCountText(issues) == "100 errors shown, more were found");
+}
+
 TEST_CASE("memory budget: saturatedBytes: NaN, infinity and 2^64 or more are UINT64_MAX, negatives 0, the rest rounded down") {
   constexpr double kTwoTo64 = 18446744073709551616.0;
   const double inf = std::numeric_limits<double>::infinity();

@@ -81,3 +81,44 @@ TEST_CASE("Messages name JSON paths and show values cut to a bounded size", "[co
     CHECK(describeJson(small) == R"({"k":[1,1,1]})");
   }
 }
+
+namespace {
+
+// Whether `text` holds a byte a terminal may take for a command or show as garbage: C0 controls, DEL,
+// anything from 0x80 on (this test's inputs quote no UTF-8 letters).
+bool holdsRawBytes(const std::string& text) {
+  for (const char c : text)
+    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) return true;
+  return false;
+}
+
+}  // namespace
+
+TEST_CASE("A syntax error quotes the file's bytes escaped: C1 controls, DEL, ESC and bytes that are not UTF-8", "[common]") {
+  // nlohmann quotes what it last read as it is (C0 controls as <U+001B>, everything else raw).
+  const JsonInputError c1 = errorOf("{\"a\": tru\xc2\x9b}");
+  CHECK_FALSE(holdsRawBytes(c1.message));
+  CHECK(c1.message.find("last read: '\"a\": tru\\xc2'") != std::string::npos);
+  const JsonInputError invalid = errorOf("{\"a\": \"x\xff\"}");
+  CHECK_FALSE(holdsRawBytes(invalid.message));
+  CHECK(invalid.message.find("\\xff'") != std::string::npos);
+  const JsonInputError del = errorOf("[tru\x7f]");
+  CHECK_FALSE(holdsRawBytes(del.message));
+  CHECK(del.message.find("\\x7f") != std::string::npos);
+  // A duplicate or too-deep key holding ESC is shown escaped in the path, as memberPath shows keys.
+  const JsonInputError key = errorOf("{\"k\\u001b[2J\": 1, \"k\\u001b[2J\": 2}");  // ESC, as JSON must write it
+  CHECK(key.path == "k\\x1b[2J");
+  CHECK(errorOf("{\"\xc2\x9b\": [[1]]}", 2).path == "\\xc2\\x9b[0]");
+}
+
+TEST_CASE("printableJsonError escapes only the text quoted from the file; the library's words stay", "[common]") {
+  using rodfab::common::printableJsonError;
+  CHECK(printableJsonError("[json.exception.parse_error.101] parse error at line 1, column 3: syntax error while parsing value - "
+                           "invalid literal; last read: 'x\xff'; expected end of input") ==
+        "[json.exception.parse_error.101] parse error at line 1, column 3: syntax error while parsing value - invalid literal; "
+        "last read: 'x\\xff'; expected end of input");
+  CHECK(printableJsonError("invalid string: control character U+0000 (NUL) must be escaped to \\u0000; last read: '\"a<U+0000>'") ==
+        "invalid string: control character U+0000 (NUL) must be escaped to \\u0000; last read: '\"a<U+0000>'");
+  CHECK(printableJsonError("number overflow parsing '1e400'") == "number overflow parsing '1e400'");
+  CHECK(printableJsonError("odd \x1b text") == "odd \\x1b text");
+}

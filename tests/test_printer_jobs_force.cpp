@@ -1,7 +1,9 @@
 // printer_profiles/ jobs on disk, what --force may replace: only a rodfab job (zip or folder) whose
 // every file is the one its manifest records, examined again once anything in it changed; anything
-// else is refused and left byte for byte. Helpers: tests/printer_jobs_fixture.hpp.
+// else is refused and left byte for byte. The job replaced is kept until the command ends. Helpers: tests/printer_jobs_fixture.hpp.
 #include "tests/printer_jobs_fixture.hpp"
+
+#include "common/interrupt.hpp"
 
 #include "printer_profiles/zip_writer.hpp"  // internal: the zip writer behind every job
 
@@ -9,9 +11,12 @@
 #include <zip.h>
 
 #include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
+#include <csignal>
 #include <fstream>
 #include <string>
 #include <thread>
@@ -204,4 +209,92 @@ TEST_CASE("Force replaces a rodfab job, zip or folder, by one of either kind", "
       CHECK(inspectJob(dir / "job").ok());
       CHECK(std::distance(fs::directory_iterator(dir), fs::directory_iterator()) == 1);  // no old job, no temporaries
     }
+}
+
+namespace {
+
+enum class Ending { Success, Failure, LateSignal, StopAfterCommit };
+
+// Runs `body` in a child process and returns its exit code (-1 when it died of a signal). The job
+// writer and the signal handlers run in the child only: a signal raised there, and its watchdog,
+// cannot touch this process, and the child forks before this process has started any TBB worker.
+template <class Body>
+int inChild(Body&& body) {
+  const pid_t child = ::fork();
+  REQUIRE(child >= 0);
+  if (child == 0) {
+    int code = 98;
+    try {
+      code = body();
+    } catch (...) {
+      code = 97;
+    }
+    ::_exit(code);
+  }
+  int status = 0;
+  ::waitpid(child, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+bool holdsKeptCopy(const fs::path& dir) {
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.path().filename().string().starts_with(".job.rodfab-old-")) return true;
+  return false;
+}
+
+// A command that replaces the job at dir/job under --force and ends as `ending` says, as rodfab's
+// main ends it (common::finishCommand with the owner of its outputs); its exit code, or 90 when the
+// replaced job was not kept beside the new one while the command ran.
+int forceCommand(const fs::path& dir, ArchiveFormat format, Ending ending) {
+  rodfab::common::installInterruptHandlers();
+  rodfab::common::CommandOutputs outputs;
+  const auto second = overhangPart(29);
+  JobSpec spec = specFor(*second, dir / "job");
+  spec.options.archive = format;
+  spec.options.force = true;
+  struct Stop {};
+  int calls = 0, checks = format == ArchiveFormat::Zip ? 4 : 3;
+  if (ending == Ending::StopAfterCommit) spec.options.checkInterrupt = [&] {
+      if (++calls == checks) throw Stop{};  // the check right after the commit
+    };
+  try {
+    writeJob(*second, spec, 24);
+  } catch (const Stop&) {
+    return rodfab::common::finishCommand(outputs, 130);
+  }
+  if (!holdsKeptCopy(dir)) return 90;
+  if (ending == Ending::LateSignal) ::raise(SIGINT);  // after the writer returned, before the command did
+  return rodfab::common::finishCommand(outputs, ending == Ending::Failure ? 1 : 0);
+}
+
+}  // namespace
+
+TEST_CASE("A job replaced under force is kept until the command ends: back byte for byte when it fails or is interrupted",
+          "[job][force][interrupt]") {
+  const fs::path dir = scratch("force-kept");
+  for (const ArchiveFormat oldFormat : {ArchiveFormat::Zip, ArchiveFormat::Directory})
+    for (const ArchiveFormat newFormat : {ArchiveFormat::Zip, ArchiveFormat::Directory})
+      for (const Ending ending : {Ending::LateSignal, Ending::Failure, Ending::StopAfterCommit, Ending::Success}) {
+        INFO(toString(oldFormat) << " replaced by " << toString(newFormat) << ", ending " << static_cast<int>(ending));
+        fs::remove_all(dir);
+        fs::create_directories(dir);
+        REQUIRE(inChild([&] {
+                  const auto first = overhangPart(28);
+                  JobSpec old = specFor(*first, dir / "job");
+                  old.options.archive = oldFormat;
+                  writeJob(*first, old, 24);
+                  return 0;
+                }) == 0);
+        const auto before = snapshot(dir);
+        const int code = inChild([&] { return forceCommand(dir, newFormat, ending); });
+        if (ending == Ending::Success) {
+          CHECK(code == 0);
+          CHECK(snapshot(dir) != before);
+          CHECK(std::distance(fs::directory_iterator(dir), fs::directory_iterator()) == 1);  // the new job; nothing kept
+          CHECK(fs::is_directory(dir / "job") == (newFormat == ArchiveFormat::Directory));
+        } else {
+          CHECK(code == (ending == Ending::Failure ? 1 : 130));
+          CHECK((snapshot(dir) == before));  // the old job, byte for byte, and nothing else
+        }
+      }
 }

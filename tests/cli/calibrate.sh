@@ -30,6 +30,14 @@ grep -q "bad.csv: line 4: vero_fraction: expected a fraction from 0 to 1, got '1
 grep -q "2 errors; nothing fitted" "$tmp/err" || fail "no error count"
 [ ! -e "$tmp/bad.json" ] || fail "a calibration was written from bad data"
 
+# 300 bad rows: 100 listed, then the cut line, which the count does not take for an error.
+{ echo vero_fraction,modulus_mpa; for i in $(seq 1 300); do echo "half,$i"; done; } > "$tmp/many.csv"
+"$rodfab" calibrate "$tmp/many.csv" > /dev/null 2> "$tmp/err"
+[ $? -eq 1 ] || fail "300 bad rows: expected exit 1"
+[ "$(grep -c "got 'half'" "$tmp/err")" -eq 100 ] || fail "300 bad rows: not 100 listed"
+[ "$(tail -1 "$tmp/err")" = "$tmp/many.csv: 100 errors shown, more were found; nothing fitted" ] ||
+  fail "300 bad rows, the count: $(tail -1 "$tmp/err")"
+
 # Non-monotone means: refused for pchip, naming the fractions.
 printf 'vero_fraction,modulus_mpa\n0,0.5\n0.4,12\n0.5,11\n1,190\n' > "$tmp/dip.csv"
 "$rodfab" calibrate "$tmp/dip.csv" 2> "$tmp/err" > /dev/null

@@ -28,6 +28,21 @@ grep -q "bad.json: rods\[0\].centerline.knots: expected 4 knots" "$tmp/err" || f
 grep -q "bad.json: rods\[0\].section.diameter: expected a diameter in mm > 0" "$tmp/err" || fail "diameter error not reported: $(cat "$tmp/err")"
 [ ! -s "$tmp/out" ] || fail "a failed validation printed a summary"
 
+# 150 bad rods: the first 100 listed, a line saying the list was cut, and a count that does not take
+# that line for an error.
+python3 - "$tmp/many.json" <<'PY'
+import json, sys
+rod = lambda n: {"name": "r%d" % n, "centerline": {"degree": 1, "knots": [0, 0, 1, 1], "points": [[0, n, 0], [1, n, 0]]},
+                 "section": {"shape": "circle", "diameter": -2}, "modulus": 10}
+json.dump({"format": "rodfab.design/1", "units": "mm", "rods": [rod(n) for n in range(150)]}, open(sys.argv[1], "w"))
+PY
+"$rodfab" validate "$tmp/many.json" > /dev/null 2> "$tmp/err"
+[ $? -eq 1 ] || fail "150 bad rods: expected exit 1"
+[ "$(grep -c "section.diameter: expected a diameter" "$tmp/err")" -eq 100 ] || fail "150 bad rods: not 100 listed: $(head -3 "$tmp/err")"
+grep -q "many.json: more issues follow; only the first 100 are listed" "$tmp/err" || fail "no cut line: $(tail -3 "$tmp/err")"
+[ "$(tail -1 "$tmp/err")" = "$tmp/many.json: 100 errors shown, more were found; the design is not valid" ] ||
+  fail "150 bad rods, the count: $(tail -1 "$tmp/err")"
+
 "$rodfab" validate "$tmp/missing.json" 2> "$tmp/err"
 [ $? -eq 1 ] || fail "missing file: expected exit 1"
 grep -q "missing.json: cannot open" "$tmp/err" || fail "missing file not named"

@@ -1,0 +1,128 @@
+// common/output_file.hpp: output paths checked before any work (a name too long for the hidden
+// temporary beside it), and the files a commit replaces kept until the command ends.
+#include "common/interrupt.hpp"
+#include "common/output_file.hpp"
+#include "tests/temp_dir.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <fstream>
+#include <iterator>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace fs = std::filesystem;
+using namespace rodfab::common;
+
+namespace {
+
+std::string readAll(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+std::string thrownBy(const auto& call) {
+  try {
+    call();
+  } catch (const std::runtime_error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST_CASE("an output name too long for the hidden temporary beside it is refused up front, naming the path and the limits") {
+  const rodfab::test::TempDir dir("output-file");
+  const OutputPolicy policy{"test file", false, "--force", {}};
+  // 255 bytes per name on this file system (ext4, tmpfs): 220 leaves room for the 35 bytes rodfab adds.
+  const fs::path longest = dir.path / (std::string(215, 'k') + ".json");
+  const fs::path tooLong = dir.path / (std::string(216, 'k') + ".json");
+  const fs::path farTooLong = dir.path / (std::string(250, 'n') + ".out");
+  REQUIRE_NOTHROW(checkOutputPath(longest, {}, policy));
+  writeFileAtomically(longest, "fits");  // its temporary's name fits too
+  CHECK(readAll(longest) == "fits");
+  CHECK(thrownBy([&] { checkOutputPath(tooLong, {}, policy); }) ==
+        tooLong.string() + ": the file name is 221 bytes long; rodfab writes it first under a hidden name up to 35 bytes longer, "
+                           "and this folder's file system allows names of at most 255 bytes: use a name of at most 220 bytes");
+  CHECK(thrownBy([&] { checkOutputNameLength(farTooLong); }).starts_with(farTooLong.string() + ": the file name is 254 bytes long;"));
+  // A path whose hidden sibling would pass PATH_MAX (4096): refused too (the name itself is short).
+  fs::path deep = dir.path;
+  while (deep.string().size() < 4096 - 40) deep /= std::string(100, 'd');
+  CHECK(thrownBy([&] { checkOutputNameLength(deep / "x.json"); }).find(": the path is ") != std::string::npos);
+  CHECK_FALSE(fs::exists(tooLong));
+  CHECK_FALSE(fs::exists(farTooLong));
+}
+
+namespace {
+
+// The names in `dir`, sorted.
+std::vector<std::string> namesIn(const fs::path& dir) {
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+}  // namespace
+
+TEST_CASE("without an owner of the command's outputs, a commit replaces outright and leaves nothing beside the output") {
+  const rodfab::test::TempDir dir("output-owner");
+  const fs::path file = dir.path / "cal.json";
+  writeFileAtomically(file, "old");
+  writeFileAtomically(file, "new");  // a library user: no CommandOutputs, no finishCommand
+  CHECK(readAll(file) == "new");
+  CHECK(namesIn(dir.path) == std::vector<std::string>{"cal.json"});  // no .cal.json.rodfab-old-PID-N
+}
+
+TEST_CASE("the owner of the command's outputs keeps what a commit replaced until it ends: gone on success, back on failure") {
+  const rodfab::test::TempDir dir("output-owner");
+  const fs::path file = dir.path / "cal.json", other = dir.path / "plot.png";
+  writeFileAtomically(file, "old");
+  const auto keptName = [&] {
+    const std::vector<std::string> names = namesIn(dir.path);
+    for (const std::string& n : names)
+      if (n.starts_with(".cal.json.rodfab-old-")) return n;
+    return std::string();
+  };
+
+  SECTION("success: the output stays, the kept copy goes") {
+    CommandOutputs outputs;
+    writeFileAtomically(file, "new");
+    writeFileAtomically(other, "plot");
+    REQUIRE_FALSE(keptName().empty());  // kept while the command runs
+    CHECK(readAll(dir.path / keptName()) == "old");
+    CHECK(outputs.finish(0) == 0);
+    CHECK(readAll(file) == "new");
+    CHECK(namesIn(dir.path) == std::vector<std::string>{"cal.json", "plot.png"});
+    CHECK(outputs.finish(1) == 1);  // only the first call acts: nothing is taken back now
+    CHECK(readAll(file) == "new");
+  }
+  SECTION("failure: every output committed is taken back, the replaced file is back byte for byte") {
+    CommandOutputs outputs;
+    writeFileAtomically(file, "new");
+    writeFileAtomically(other, "plot");
+    CHECK(outputs.finish(1) == 1);
+    CHECK(readAll(file) == "old");
+    CHECK(namesIn(dir.path) == std::vector<std::string>{"cal.json"});
+  }
+  SECTION("the owner ends without finish (an exception passed through it): a failure") {
+    try {
+      CommandOutputs outputs;
+      writeFileAtomically(file, "new");
+      throw std::runtime_error("a later step failed");
+    } catch (const std::runtime_error&) {
+    }
+    CHECK(readAll(file) == "old");
+    CHECK(namesIn(dir.path) == std::vector<std::string>{"cal.json"});
+  }
+  SECTION("one owner at a time") {
+    CommandOutputs outputs;
+    CHECK_THROWS_AS(CommandOutputs(), std::logic_error);
+    CHECK(outputs.finish(0) == 0);
+    CommandOutputs next;  // the next command's
+    CHECK(next.finish(0) == 0);
+  }
+}
