@@ -8,6 +8,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <exception>
+#include <optional>
+#include <limits>
 #include <numeric>
 
 namespace rodfab::meshing {
@@ -84,12 +87,28 @@ void fillGap(const SurfaceProjector& surface, const Vec3& a, const Vec3& b, doub
   fillGap(surface, m, b, spacing, depth - 1, out);
 }
 
-// The data points of one rod: node f, `count` points along centroid(f) -> edge midpoint ->
-// centroid(g) (on the simplified surface) moved to the original surface, gaps filled, node g.
+// Where the rod crosses the shared edge ab, as a fraction of ab: the shortest path from c0 over ab to
+// c1 (the two faces unfolded into one plane, the straight line c0 -> c1 meets ab where it divides the
+// centroids' feet on ab in the ratio of their distances from it). Through the edge's midpoint the path
+// turned by up to ~90 degrees there wherever the two faces were not point-symmetric about it, and the
+// interpolant bent tighter than the rod's section. Kept a quarter of the edge away from its corners so the
+// rods around one vertex stay apart (the shortest path of an obtuse pair would run through the vertex).
+double shortestCrossing(const Vec3& c0, const Vec3& c1, const Vec3& a, const Vec3& b) {
+  constexpr double kCornerMargin = 0.25;
+  const Vec3 ab = b - a;
+  const double t0 = (c0 - a).dot(ab) / ab.squaredNorm(), t1 = (c1 - a).dot(ab) / ab.squaredNorm();
+  const double d0 = (c0 - a - t0 * ab).norm(), d1 = (c1 - a - t1 * ab).norm();
+  const double t = d0 + d1 > 0 ? t0 + (t1 - t0) * d0 / (d0 + d1) : 0.5;
+  return std::clamp(t, kCornerMargin, 1.0 - kCornerMargin);
+}
+
+// The data points of one rod: node f, `count` points along centroid(f) -> shortest crossing of the
+// shared edge -> centroid(g) (on the simplified surface) moved to the original surface, gaps filled, node g.
 std::vector<Vec3> rodSamples(const TriangleMesh& simplified, const SurfaceProjector& surface, const DualEdge& e,
                              const std::vector<Node>& nodes, int count) {
   const Vec3 c0 = centroid(simplified, e.f), c1 = centroid(simplified, e.g);
-  const Vec3 mid = 0.5 * (simplified.points[e.a] + simplified.points[e.b]);
+  const Vec3 &a = simplified.points[e.a], &b = simplified.points[e.b];
+  const Vec3 mid = a + (b - a) * shortestCrossing(c0, c1, a, b);
   const double l0 = (mid - c0).norm(), l1 = (c1 - mid).norm(), length = l0 + l1;
   std::vector<Vec3> projected{nodes[e.f].point};
   for (int i = 1; i <= count; ++i) {
@@ -108,15 +127,27 @@ std::vector<Vec3> rodSamples(const TriangleMesh& simplified, const SurfaceProjec
   return points;
 }
 
-double largestSurfaceDistance(const geometry::NurbsCurve& curve, const SurfaceProjector& surface) {
+struct FitMeasures {
+  double surfaceDistance = 0;                                       // mm, largest
+  double bendRadius = std::numeric_limits<double>::infinity();      // mm, smallest radius of curvature
+};
+
+// The centerline's largest distance from the surface and its smallest radius of curvature, both at
+// kChecksPerSpan + 1 points of every knot span.
+FitMeasures measureFit(const geometry::NurbsCurve& curve, const SurfaceProjector& surface) {
   const std::vector<double> breaks = curve.breakpoints();
-  double largest = 0;
+  FitMeasures m;
+  double largestCurvature = 0;
   for (std::size_t s = 0; s + 1 < breaks.size(); ++s)
     for (int i = 0; i <= kChecksPerSpan; ++i) {
-      const double u = breaks[s] + (breaks[s + 1] - breaks[s]) * i / kChecksPerSpan;
-      largest = std::max(largest, surface.distance(curve.point(u)));
+      Vec3 d[3];
+      curve.derivatives(breaks[s] + (breaks[s + 1] - breaks[s]) * i / kChecksPerSpan, 2, d);
+      m.surfaceDistance = std::max(m.surfaceDistance, surface.distance(d[0]));
+      const double speed = d[1].norm();
+      if (speed > 0) largestCurvature = std::max(largestCurvature, d[1].cross(d[2]).norm() / (speed * speed * speed));
     }
-  return largest;
+  if (largestCurvature > 0) m.bendRadius = 1.0 / largestCurvature;
+  return m;
 }
 
 // interpolateCubic through the rod's samples; a failure is the mesh's, named with the rod's faces.
@@ -131,14 +162,26 @@ geometry::NurbsCurve interpolateCurve(const std::vector<Vec3>& points, const Dua
 
 struct FittedRod {
   geometry::NurbsCurve curve;
-  double distance = 0;
+  FitMeasures measures;
   bool refined = false;
+  bool closerFitBentTighter = false;  // a fit closer to the surface was refused: it bent tighter than the section
 };
 
+// Whether fit a is better than fit b: one that bends no tighter than the section first (a rod folding
+// over itself is a defect, a rod off a faceted surface by less than its thickness is not), then the
+// closer to the surface, or among fits that all bend tighter, the gentler.
+bool betterFit(const FitMeasures& a, const FitMeasures& b, double sectionRadius) {
+  const bool aSmooth = a.bendRadius >= sectionRadius, bSmooth = b.bendRadius >= sectionRadius;
+  if (aSmooth != bSmooth) return aSmooth;
+  return aSmooth ? a.surfaceDistance < b.surfaceDistance : a.bendRadius > b.bendRadius;
+}
+
 // Interpolates the rod with `subdivisions` samples, doubling them while the centerline leaves the
-// surface by more than the tolerance (up to kMaxRefinementFactor times).
+// surface by more than the tolerance (up to kMaxRefinementFactor times), and keeps the best fit
+// (betterFit): on a creased surface the samples that follow the facets closer bend the rod at the creases.
 FittedRod fitRod(const TriangleMesh& simplified, const SurfaceProjector& surface, const DualEdge& e,
                  const std::vector<Node>& nodes, const MeshRodOptions& options, const std::filesystem::path& file) {
+  const double sectionRadius = options.section.boundingRadius();
   FittedRod best;
   for (int factor = 1; factor <= kMaxRefinementFactor && options.subdivisions * factor <= std::max(kMaxSamples, options.subdivisions); factor *= 2) {
     const std::vector<Vec3> points = rodSamples(simplified, surface, e, nodes, options.subdivisions * factor);
@@ -146,10 +189,15 @@ FittedRod fitRod(const TriangleMesh& simplified, const SurfaceProjector& surface
       throw MeshError(file, "the surface folds onto itself between the faces " + std::to_string(e.f) + " and " +
                                 std::to_string(e.g) + " of the simplified mesh: ask for more --faces");
     geometry::NurbsCurve curve = interpolateCurve(points, e, file);
-    const double distance = largestSurfaceDistance(curve, surface);
-    if (factor == 1 || distance < best.distance) best = {std::move(curve), distance, factor > 1};
-    if (best.distance <= options.surfaceTolerance) break;
+    const FitMeasures measures = measureFit(curve, surface);
+    if (factor == 1 || betterFit(measures, best.measures, sectionRadius)) {
+      best.curve = std::move(curve), best.measures = measures, best.refined = factor > 1;
+    } else if (measures.surfaceDistance < best.measures.surfaceDistance) {
+      best.closerFitBentTighter = true;
+    }
+    if (best.measures.surfaceDistance <= options.surfaceTolerance && best.measures.bendRadius >= sectionRadius) break;
   }
+  best.closerFitBentTighter = best.closerFitBentTighter && best.measures.surfaceDistance > options.surfaceTolerance;
   return best;
 }
 
@@ -188,6 +236,35 @@ std::vector<Node> projectNodes(const TriangleMesh& simplified, const SurfaceProj
   return nodes;
 }
 
+// One rod of the dual, fitted and built on a worker. A rod that cannot be made keeps what it threw:
+// the lowest-numbered rod's failure is the one reported, whatever the thread count.
+struct BuiltRod {
+  FitMeasures measures;
+  bool refined = false, closerFitBentTighter = false;
+  std::optional<geometry::Rod> rod;
+  std::exception_ptr failure;
+};
+
+BuiltRod buildRod(std::size_t i, const TriangleMesh& simplified, const SurfaceProjector& surface, const DualEdge& e,
+                  const std::vector<Node>& nodes, const MeshRodOptions& options, const std::filesystem::path& file) {
+  BuiltRod out;
+  try {
+    FittedRod fit = fitRod(simplified, surface, e, nodes, options, file);
+    out.measures = fit.measures, out.refined = fit.refined, out.closerFitBentTighter = fit.closerFitBentTighter;
+    const Vec3 normal = referenceNormal(fit.curve, nodes[e.f], faceNormal(simplified, e.f));
+    try {
+      out.rod.emplace("rod-" + std::to_string(i), std::move(fit.curve), options.section, normal, std::nullopt, options.caps,
+                      geometry::BSplineField::constant(options.modulusMpa, 0.0, 1.0));
+    } catch (const geometry::CenterlineError& error) {  // a mesh at the scale of 1e-12 mm: as requireValidDesign says it
+      throw MeshError(file, "rod-" + std::to_string(i) + ", as rods[" + std::to_string(i) + "].centerline: " + error.what() +
+                                "; the design would not be valid");
+    }
+  } catch (...) {
+    out.failure = std::current_exception();
+  }
+  return out;
+}
+
 geometry::RodStructure buildRods(const std::filesystem::path& file, const TriangleMesh& original,
                                  const TriangleMesh& simplified, const MeshRodOptions& options, MeshRodReport& report) {
   const SurfaceProjector surface(original);
@@ -196,30 +273,29 @@ geometry::RodStructure buildRods(const std::filesystem::path& file, const Triang
   report.boundaryEdges = dual.boundaryEdges;
   if (dual.edges.empty()) throw MeshError(file, "no two faces of the simplified mesh share an edge, so there is no rod");
   const std::vector<Node> nodes = projectNodes(simplified, surface);
-  std::vector<FittedRod> fitted(dual.edges.size());
-  tbb::parallel_for(std::size_t(0), fitted.size(), [&](std::size_t i) {
+  // The rods are built on the workers too (their sampling and frames were 90 % of the serial time).
+  std::vector<BuiltRod> built(dual.edges.size());
+  tbb::parallel_for(std::size_t(0), built.size(), [&](std::size_t i) {
     if (common::interruptRequested()) return;
-    fitted[i] = fitRod(simplified, surface, dual.edges[i], nodes, options, file);
+    built[i] = buildRod(i, simplified, surface, dual.edges[i], nodes, options, file);
   });
   common::throwIfInterrupted();
+  for (const BuiltRod& b : built)
+    if (b.failure) std::rethrow_exception(b.failure);
   geometry::RodStructure structure;
-  structure.rods.reserve(fitted.size());
+  structure.rods.reserve(built.size());
   std::vector<bool> isNode(nodes.size(), false);
-  for (std::size_t i = 0; i < fitted.size(); ++i) {
+  for (std::size_t i = 0; i < built.size(); ++i) {
     const DualEdge& e = dual.edges[i];
-    FittedRod& rod = fitted[i];
-    report.largestSurfaceDistance = std::max(report.largestSurfaceDistance, rod.distance);
-    report.refinedRods += rod.refined;
-    report.rodsAboveTolerance += rod.distance > options.surfaceTolerance;
+    const BuiltRod& b = built[i];
+    report.largestSurfaceDistance = std::max(report.largestSurfaceDistance, b.measures.surfaceDistance);
+    report.refinedRods += b.refined;
+    report.rodsAboveTolerance += b.measures.surfaceDistance > options.surfaceTolerance;
+    report.rodsHeldOffCreases += b.closerFitBentTighter;
+    report.smallestBendRadius = std::min(report.smallestBendRadius, b.measures.bendRadius);
+    report.rodsBentTighterThanSection += b.measures.bendRadius < options.section.boundingRadius();
     isNode[e.f] = isNode[e.g] = true;
-    const Vec3 normal = referenceNormal(rod.curve, nodes[e.f], faceNormal(simplified, e.f));
-    try {
-      structure.rods.emplace_back("rod-" + std::to_string(i), std::move(rod.curve), options.section, normal, std::nullopt,
-                                  options.caps, geometry::BSplineField::constant(options.modulusMpa, 0.0, 1.0));
-    } catch (const geometry::CenterlineError& error) {  // a mesh at the scale of 1e-12 mm: as requireValidDesign says it
-      throw MeshError(file, "rod-" + std::to_string(i) + ", as rods[" + std::to_string(i) + "].centerline: " + error.what() +
-                                "; the design would not be valid");
-    }
+    structure.rods.push_back(std::move(*built[i].rod));
   }
   report.rods = structure.rods.size();
   report.nodes = static_cast<std::size_t>(std::count(isNode.begin(), isNode.end(), true));

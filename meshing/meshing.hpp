@@ -17,6 +17,7 @@
 
 #include <cstddef>
 #include <filesystem>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -45,7 +46,9 @@ struct MeshRodOptions {
   int faces = 200;
   // Points sampled along each dual edge between its two nodes (kMinSubdivisions..kMaxSubdivisions),
   // projected onto the original surface and interpolated. Doubled per rod (up to 16 times as many)
-  // while the centerline leaves the surface by more than surfaceTolerance.
+  // while the centerline leaves the surface by more than surfaceTolerance; of the fits tried, the
+  // closest to the surface that bends no tighter than the section's bounding radius is kept (or, if
+  // all do, the gentlest).
   int subdivisions = 4;
   // Largest distance (mm, > 0) of the centerline from the original surface, checked at 16 points per
   // knot span of every rod. The report says when a rod still exceeds it after refinement.
@@ -66,7 +69,15 @@ struct MeshRodReport {
   std::size_t components = 0;      // connected parts of the rod structure (1 for a connected mesh)
   std::size_t refinedRods = 0;     // rods that needed more samples than `subdivisions` to meet the tolerance
   std::size_t rodsAboveTolerance = 0;
+  // Of those, rods whose closer fits bent tighter than the section's bounding radius (they follow a
+  // creased surface's facets): the gentler fit is kept.
+  std::size_t rodsHeldOffCreases = 0;
   double largestSurfaceDistance = 0.0;  // mm, over the checked centerline points of every rod
+  // Smallest radius of curvature of any centerline (mm; infinite when all are straight), at the same points.
+  double smallestBendRadius = std::numeric_limits<double>::infinity();
+  // Rods bent somewhere tighter than their section's bounding radius: the section may fold over itself on
+  // the inside of the bend (thick rods on a fine mesh); the slicer also tests such voxels the slow way.
+  std::size_t rodsBentTighterThanSection = 0;
   double readSeconds = 0.0, simplifySeconds = 0.0, rodSeconds = 0.0;
 };
 
@@ -81,8 +92,9 @@ struct MeshRods {
 // original surface:
 //  - a node per simplified face: its centroid moved to the closest point of the original surface;
 //    every rod ending at a node ends exactly there, so `simulate` joins them;
-//  - a rod per interior edge, from one face's node to the other's through the edge's midpoint:
-//    `subdivisions` points along that path are moved to the original surface, and a cubic NURBS
+//  - a rod per interior edge, from one face's node to the other's along the shortest path over the two
+//    faces (crossing the edge within its middle half): `subdivisions` points along that path are moved
+//    to the original surface, and a cubic NURBS
 //    interpolates the node, the points and the other node (chord-length parameters on [0, 1]);
 //  - boundary edges of an open mesh give no rod (their faces' nodes have fewer than 3 rods);
 //  - the frame's reference normal is the original surface's normal at the rod's first node.

@@ -21,7 +21,7 @@ struct MeshRodsSummary {
   const geometry::RodStructure& rods;
 };
 
-// input, simplified, nodes, rods, components, surface, bounds_mm and seconds.
+// input, simplified, nodes, rods, components, surface, bends, bounds_mm and seconds.
 nlohmann::json meshRodsJson(const MeshRodsSummary& summary);
 
 // The summary lines on stdout.

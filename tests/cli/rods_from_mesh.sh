@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # rodfab rods-from-mesh from the command line: an ellipsoid mesh becomes a valid design whose rods
 # (decoded here by Python, not by rodfab) number 3F/2 with F nodes of degree 3; STL and OBJ give the
-# same file; a tray overhang and rods thicker than long are warned about; bad input and bad options are named and write nothing.
+# same file; a tray overhang, rods thicker than long and rods bent tighter than their section are warned about; bad input and bad options are named and write nothing.
 #   rods_from_mesh.sh RODFAB SOURCE_DIR MAKE_TEST_MESH
 set -u
 rodfab=$1 src=$2 make_mesh=$3
@@ -48,7 +48,8 @@ cmp -s "$tmp/e1.json" "$tmp/e2.json" || fail "1 and 2 threads give different des
 grep -q -- "--force" "$tmp/out" || fail "no hint at --force: $(cat "$tmp/out")"
 "$rodfab" rods-from-mesh "$tmp/e.stl" --faces 60 --diameter 1 --section ellipse --breadth 2 -o "$tmp/e.json" --force --json > "$tmp/j" 2>&1 ||
   fail "--json: $(cat "$tmp/j")"
-python3 -c "import json,sys; j=json.load(open(sys.argv[1])); assert j['rods']==90 and j['nodes']==60 and j['components']==1, j" "$tmp/j" ||
+python3 -c "import json,sys; j=json.load(open(sys.argv[1])); b=j['bends']; assert (j['rods']==90 and j['nodes']==60 and j['components']==1 and
+  b['section_radius_mm']==1 and b['smallest_radius_mm']>1 and b['rods_tighter_than_section']==0), j" "$tmp/j" ||
   fail "json summary: $(cat "$tmp/j")"
 
 # A mesh larger than the tray: written, with a warning naming the axis and the overhang.
@@ -62,6 +63,9 @@ grep -q "^warning: the rods are 11[0-9][0-9].[0-9] mm long in x, [0-9.]* mm more
 "$rodfab" rods-from-mesh "$tmp/small.obj" --faces 100 --diameter 1.2 -o "$tmp/small.json" > "$tmp/out" 2>&1 || fail "small mesh: $(cat "$tmp/out")"
 grep -q "^warning: the rods are 1.2 mm thick but only 0.[0-9]* mm long on average: .* the model is 7.[0-9]* x 5.[0-9]* x 4.[0-9]* mm" "$tmp/out" ||
   fail "no warning of rods thicker than long: $(cat "$tmp/out")"
+# ... and that some of them bend tighter than their 0.6 mm radius over the coarse mesh's folds.
+grep -q "^warning: [0-9]* of the 150 rods bend tighter than their section's radius (down to a 0.[0-9]* mm radius of curvature)" "$tmp/out" ||
+  fail "no warning of rods bent tighter than their section: $(cat "$tmp/out")"
 
 # The bundled bunny (a real scan, closed): 200 faces -> 300 rods, 200 nodes, one part; the training
 # script adds a mechanics block that validates.
