@@ -9,6 +9,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <cstdlib>
@@ -18,6 +19,7 @@
 #include <mutex>
 #include <optional>
 #include <stdexcept>
+#include <string_view>
 #include <system_error>
 
 namespace rodfab::common {
@@ -119,6 +121,35 @@ void removeStaleTemporaries(const fs::path& final) {
 }
 
 }  // namespace
+
+std::vector<fs::path> leftoverPreviousVersions(const fs::path& given) {
+  const fs::path output = given.has_filename() ? given : given.parent_path();  // a job folder given as "job/"
+  std::vector<fs::path> kept;
+  const fs::path folder = output.parent_path().empty() ? fs::path(".") : output.parent_path();
+  std::string prefix = ".";  // appended piecewise: GCC 12 warns falsely (-Wrestrict) on "." + string
+  prefix.append(output.filename().string()).append(".rodfab-old-");
+  std::error_code ec;
+  for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (!name.starts_with(prefix)) continue;
+    const std::string tail = name.substr(prefix.size());  // PID-N
+    const auto dash = tail.find('-');
+    const auto digits = [](std::string_view t) { return !t.empty() && t.size() < 12 && t.find_first_not_of("0123456789") == t.npos; };
+    if (dash == std::string::npos || !digits(std::string_view(tail).substr(0, dash)) || !digits(std::string_view(tail).substr(dash + 1)))
+      continue;
+    const long pid = std::strtol(tail.c_str(), nullptr, 10);
+    if (pid == ::getpid() || processAlive(pid)) continue;
+    std::error_code ignored;
+    // Killed between keeping the link and the commit's rename: the same file as the output, no data of its own.
+    if (fs::is_regular_file(it->symlink_status(ignored)) && fs::equivalent(it->path(), output, ignored)) {
+      fs::remove(it->path(), ignored);
+      continue;
+    }
+    kept.push_back(it->path());
+  }
+  std::sort(kept.begin(), kept.end());
+  return kept;
+}
 
 void checkOutputPath(const fs::path& output, const std::vector<fs::path>& inputs, const OutputPolicy& policy) {
   if (output.empty()) throw std::runtime_error("no output path given for the " + policy.what);

@@ -39,6 +39,13 @@ struct OutputPolicy {
 void checkOutputPath(const std::filesystem::path& output, const std::vector<std::filesystem::path>& inputs,
                      const OutputPolicy& policy);
 
+// The copies `.NAME.rodfab-old-PID-N` of `output` that a run killed outright (SIGKILL, power loss: its
+// CommandOutputs never settled them) left beside it: the files or jobs that run had replaced, the
+// user's earlier data, returned (sorted) for the caller to report and never removed. A copy that is
+// still the same file as `output` (the run was killed before its commit's rename) is only a second
+// link: it is removed. Copies of live processes are skipped. Never throws.
+std::vector<std::filesystem::path> leftoverPreviousVersions(const std::filesystem::path& output);
+
 // The most bytes rodfab adds to an output's name for the hidden files it keeps beside it
 // (`.NAME.rodfab-tmp-PID-N`, `.NAME.rodfab-old-PID-N`, a job's `.NAME.rodfab-partial-PID-N`): the
 // leading '.', the longest tag (".rodfab-partial-", 16 bytes), a process id (at most 7 digits: Linux's

@@ -69,6 +69,7 @@ int makeCoupons(const po::variables_map& vm, const CouponRequest& r) {
                         {.what = "coupons' " + std::to_string(r.fractions.size()) + " bar(s) of " + barText(*layout, *profile),
                          .remedy = "use a smaller --size, fewer --fractions or fewer --band-layers"});
   // The output is refused now (a user's folder, a job without --force) rather than after the work.
+  warnLeftoverPreviousVersions(r.job.job.output);
   printer_profiles::checkJobOutput(r.job.job);
   common::installInterruptHandlers();
 

@@ -97,6 +97,7 @@ int slice(const po::variables_map& vm, const JobCommandOptions& options) {
   if (!ditherer) return kUsage;
 
   // The output is refused now (a user's folder, a job without --force) rather than after the work.
+  warnLeftoverPreviousVersions(options.job.output);
   printer_profiles::checkJobOutput(options.job);
   common::installInterruptHandlers();
   SliceSummary summary{designFile, design->rods.size(), &*profile, &*cal, std::string(ditherer->name()),

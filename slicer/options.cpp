@@ -250,9 +250,17 @@ void commandLineAccepted() {
 
 void setCommandLineAcceptedHook(void (*hook)()) { acceptedHook = hook; }
 
+void warnLeftoverPreviousVersions(const std::filesystem::path& output) {
+  for (const std::filesystem::path& copy : common::leftoverPreviousVersions(output))
+    std::cerr << "warning: " << copy.string() << " is what " << output.string()
+              << " held before a rodfab run that was killed (it never finished) replaced it: rename it back to restore it, "
+                 "or delete it\n";
+}
+
 bool outputAllowed(const std::string& output, const std::vector<std::filesystem::path>& inputs,
                    const common::OutputPolicy& policy) {
   try {
+    warnLeftoverPreviousVersions(output);  // first: removing a stale second link changes the output's link count
     common::checkOutputPath(output, inputs, policy);
     return true;
   } catch (const std::runtime_error& e) {

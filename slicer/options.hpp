@@ -141,7 +141,12 @@ int runOnDesign(const Parsed<Settings>& parsed, Work&& work) {
 }
 
 // Checks that `output` may be written under `policy` (common::checkOutputPath); prints the reason and
-// "nothing was written" and returns false otherwise (the command exits kFailed).
+// "nothing was written" and returns false otherwise (the command exits kFailed). First warns of earlier
+// versions a killed run left beside it (warnLeftoverPreviousVersions).
+// Warns on stderr, one line each, of the copies of `output` a killed rodfab run kept and never settled
+// (common::leftoverPreviousVersions): where they are and that they are the user's to restore or delete.
+void warnLeftoverPreviousVersions(const std::filesystem::path& output);
+
 bool outputAllowed(const std::string& output, const std::vector<std::filesystem::path>& inputs,
                    const common::OutputPolicy& policy);
 

@@ -6,6 +6,9 @@
 
 #include <catch2/catch.hpp>
 
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <fstream>
 #include <iterator>
@@ -125,4 +128,45 @@ TEST_CASE("the owner of the command's outputs keeps what a commit replaced until
     CommandOutputs next;  // the next command's
     CHECK(next.finish(0) == 0);
   }
+}
+
+namespace {
+
+// A pid that ran and has ended (its child was reaped): no process has it unless the system reuses it.
+long endedProcessId() {
+  const pid_t child = ::fork();
+  if (child == 0) ::_exit(0);
+  int status = 0;
+  ::waitpid(child, &status, 0);
+  return child;
+}
+
+void writeText(const fs::path& file, const std::string& text) { std::ofstream(file, std::ios::binary) << text; }
+
+}  // namespace
+
+TEST_CASE("copies a killed run kept beside an output are reported, never removed, unless they are the output itself") {
+  const rodfab::test::TempDir dir("output-file");
+  const fs::path output = dir.path / "design.json";
+  writeText(output, "the new design");
+  const std::string dead = std::to_string(endedProcessId()), alive = std::to_string(::getpid());
+  const fs::path earlier = dir.path / (".design.json.rodfab-old-" + dead + "-0");  // the version a killed run replaced
+  const fs::path link = dir.path / (".design.json.rodfab-old-" + dead + "-1");     // killed before its commit's rename
+  const fs::path ownRun = dir.path / (".design.json.rodfab-old-" + alive + "-0");  // this process's own: still in use
+  const fs::path otherName = dir.path / (".other.json.rodfab-old-" + dead + "-0");
+  const fs::path notOurs = dir.path / (".design.json.rodfab-old-" + dead + "-0.bak");
+  writeText(earlier, "the design before");
+  fs::create_hard_link(output, link);
+  for (const fs::path& f : {ownRun, otherName, notOurs}) writeText(f, "x");
+  CHECK(leftoverPreviousVersions(output) == std::vector<fs::path>{earlier});
+  CHECK(readAll(earlier) == "the design before");
+  CHECK_FALSE(fs::exists(link));
+  CHECK(readAll(output) == "the new design");
+  for (const fs::path& f : {ownRun, otherName, notOurs}) CHECK(fs::exists(f));
+  // A job folder, given with a trailing slash, and its kept folder.
+  const fs::path job = dir.path / "job", keptJob = dir.path / (".job.rodfab-old-" + dead + "-3");
+  fs::create_directories(job);
+  fs::create_directories(keptJob / "layers");
+  CHECK(leftoverPreviousVersions(dir.path / "job/") == std::vector<fs::path>{keptJob});
+  CHECK(fs::exists(keptJob / "layers"));
 }

@@ -65,4 +65,22 @@ rm -- "$tmp/out/-"
 ok=$(printf 'k%.0s' $(seq 1 215)).json
 "$rodfab" calibrate "$csv" -o "$tmp/out/$ok" > /dev/null 2> "$tmp/err" || fail "calibrate to a 220-byte name: $(cat "$tmp/err")"
 [ "$(ls -A "$tmp/out")" = "$ok" ] || fail "a 220-byte name: found $(ls -A "$tmp/out")"
+
+# What a run killed outright (SIGKILL: no handler ran) kept of the outputs it replaced is the user's
+# earlier data: the next run writing the same output names it in a warning and leaves it; a mere second
+# link to the output itself (killed before its commit) is removed.
+rm -f -- "$tmp/out/"*
+dead=$(bash -c 'echo $$')  # a process that has ended
+echo "calibration before" > "$tmp/out/.cal.json.rodfab-old-$dead-0"
+"$rodfab" calibrate "$csv" -o cal.json > /dev/null 2> "$tmp/err" || fail "calibrate beside a kept copy: $(cat "$tmp/err")"
+grep -q "^warning: .*/\?\.cal\.json\.rodfab-old-$dead-0 is what cal.json held before a rodfab run that was killed" "$tmp/err" ||
+  fail "no warning of the kept copy: $(cat "$tmp/err")"
+[ "$(cat "$tmp/out/.cal.json.rodfab-old-$dead-0")" = "calibration before" ] || fail "the kept copy was changed"
+ln "$tmp/out/cal.json" "$tmp/out/.cal.json.rodfab-old-$dead-1"
+"$rodfab" calibrate "$csv" -o cal.json > /dev/null 2> "$tmp/err" || fail "calibrate over its own file: $(cat "$tmp/err")"
+[ -e "$tmp/out/.cal.json.rodfab-old-$dead-1" ] && fail "a second link of the output itself was left"
+mkdir -p "$tmp/out/.job.rodfab-old-$dead-0/layers"
+"$rodfab" slice "$box" -o job --format dir --quiet > /dev/null 2> "$tmp/err" || fail "slice beside a kept job: $(cat "$tmp/err")"
+grep -q "^warning: .*\.job\.rodfab-old-$dead-0 is what job held before" "$tmp/err" || fail "no warning of the kept job: $(cat "$tmp/err")"
+[ -d "$tmp/out/.job.rodfab-old-$dead-0/layers" ] || fail "the kept job was removed"
 echo "outputs: ok"
