@@ -20,6 +20,8 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
+#include <limits>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -208,6 +210,9 @@ ReaderAnswer parseAnswer(const std::string& answer, const std::filesystem::path&
     out.report.largestApproximationError = r.at("largest_approximation_error_mm").get<double>();
     out.report.untranslated = r.at("untranslated").get<std::size_t>();
     out.report.firstUntranslated = r.at("first_untranslated").get<std::string>();
+    const nlohmann::ordered_json& radius = r.at("smallest_bend_radius_mm");  // null: every rod straight
+    out.report.smallestBendRadius = radius.is_null() ? std::numeric_limits<double>::infinity() : radius.get<double>();
+    out.report.rodsBentTighterThanSection = r.at("rods_bent_tighter_than_section").get<std::size_t>();
   } catch (const nlohmann::json::exception& e) {
     throw MeshError(file, std::string("the CAD reader's report is malformed: ") + e.what());
   }
@@ -271,7 +276,10 @@ std::string resultJson(CadDesign design) {
   answer["report"] = {{"edges", r.edges}, {"rods", r.rods}, {"joints", r.joints}, {"skipped_degenerate", r.skippedDegenerate},
                       {"largest_end_move_mm", r.largestEndMove}, {"approximated", r.approximated},
                       {"largest_approximation_error_mm", r.largestApproximationError}, {"untranslated", r.untranslated},
-                      {"first_untranslated", r.firstUntranslated}};
+                      {"first_untranslated", r.firstUntranslated},
+                      {"smallest_bend_radius_mm", std::isfinite(r.smallestBendRadius) ? nlohmann::ordered_json(r.smallestBendRadius)
+                                                                                       : nlohmann::ordered_json()},
+                      {"rods_bent_tighter_than_section", r.rodsBentTighterThanSection}};
   return answer.dump();
 }
 

@@ -7,6 +7,7 @@
 #include "meshing/cad_checks.hpp"
 #include "meshing/cad_reader.hpp"
 #include "meshing/input_file.hpp"
+#include "meshing/mesh.hpp"
 
 #include <BRep_Tool.hxx>
 #include <GeomConvert.hxx>
@@ -265,6 +266,11 @@ CadDesign readCadDesign(const std::filesystem::path& file, const CadRodOptions& 
     if (!options.section.isRotationallySymmetric()) normals[r] = normalFor(curves[r]);
   }
   requireRodsBuild(curves, normals, options, file, edgeOfRod);
+  for (const geometry::NurbsCurve& c : curves) {
+    const double radius = smallestBendRadius(c);
+    out.report.smallestBendRadius = std::min(out.report.smallestBendRadius, radius);
+    out.report.rodsBentTighterThanSection += radius < options.section.boundingRadius();
+  }
   nlohmann::ordered_json rods = nlohmann::ordered_json::array();
   for (std::size_t r = 0; r < curves.size(); ++r) {
     const geometry::NurbsCurve& c = curves[r];

@@ -3,6 +3,8 @@
 
 #include <Eigen/LU>
 
+#include <algorithm>
+#include <limits>
 #include <stdexcept>
 
 namespace rodfab::meshing {
@@ -47,6 +49,21 @@ geometry::NurbsCurve interpolateCubic(const std::vector<Vec3>& points) {
   controlPoints.front() = points.front();
   controlPoints.back() = points.back();
   return geometry::NurbsCurve(p, std::move(knots), std::move(controlPoints));
+}
+
+double smallestBendRadius(const geometry::NurbsCurve& curve, int pointsPerSpan) {
+  const std::vector<double> breaks = curve.breakpoints();
+  double largestCurvature = 0;
+  for (std::size_t s = 0; s + 1 < breaks.size(); ++s)
+    for (int i = 0; i <= pointsPerSpan; ++i) {
+      Vec3 d[3];
+      const double u = breaks[s] + (breaks[s + 1] - breaks[s]) * i / pointsPerSpan;
+      if (i == pointsPerSpan && s + 2 < breaks.size()) curve.derivativesFromBelow(u, 2, d);  // the span's own end
+      else curve.derivatives(u, 2, d);
+      const double speed = d[1].norm();
+      if (speed > 0) largestCurvature = std::max(largestCurvature, d[1].cross(d[2]).norm() / (speed * speed * speed));
+    }
+  return largestCurvature > 0 ? 1.0 / largestCurvature : std::numeric_limits<double>::infinity();
 }
 
 }  // namespace rodfab::meshing

@@ -72,4 +72,9 @@ void requireValidDesign(const geometry::RodStructure& structure, const std::file
 // and last control points are exactly the first and last data points.
 geometry::NurbsCurve interpolateCubic(const std::vector<Vec3>& points);
 
+// The smallest radius of curvature of `curve` (mm; infinity where it is straight), from its first and
+// second derivatives at `pointsPerSpan` + 1 points of every knot span. Corners between spans (C0
+// points, where the rod's solid has a joint) are not bends and are not seen.
+double smallestBendRadius(const geometry::NurbsCurve& curve, int pointsPerSpan = 16);
+
 }  // namespace rodfab::meshing

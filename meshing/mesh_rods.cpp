@@ -137,16 +137,10 @@ struct FitMeasures {
 FitMeasures measureFit(const geometry::NurbsCurve& curve, const SurfaceProjector& surface) {
   const std::vector<double> breaks = curve.breakpoints();
   FitMeasures m;
-  double largestCurvature = 0;
   for (std::size_t s = 0; s + 1 < breaks.size(); ++s)
-    for (int i = 0; i <= kChecksPerSpan; ++i) {
-      Vec3 d[3];
-      curve.derivatives(breaks[s] + (breaks[s + 1] - breaks[s]) * i / kChecksPerSpan, 2, d);
-      m.surfaceDistance = std::max(m.surfaceDistance, surface.distance(d[0]));
-      const double speed = d[1].norm();
-      if (speed > 0) largestCurvature = std::max(largestCurvature, d[1].cross(d[2]).norm() / (speed * speed * speed));
-    }
-  if (largestCurvature > 0) m.bendRadius = 1.0 / largestCurvature;
+    for (int i = 0; i <= kChecksPerSpan; ++i)
+      m.surfaceDistance = std::max(m.surfaceDistance, surface.distance(curve.point(breaks[s] + (breaks[s + 1] - breaks[s]) * i / kChecksPerSpan)));
+  m.bendRadius = smallestBendRadius(curve, kChecksPerSpan);
   return m;
 }
 

@@ -133,6 +133,10 @@ struct CadRodReport {
   double largestEndMove = 0.0;    // mm: how far merging moved a curve end
   std::size_t approximated = 0;   // curves of a degree above kMaxDegree (offset curves, high-degree splines)
   double largestApproximationError = 0.0;  // mm: the farthest such a curve's rod strays from it (OpenCASCADE's measure)
+  // As MeshRodReport's: the smallest radius of curvature of any rod (mm, infinite when all are straight;
+  // corners between spans are joints, not bends) and the rods bent tighter than the section's bounding radius.
+  double smallestBendRadius = std::numeric_limits<double>::infinity();
+  std::size_t rodsBentTighterThanSection = 0;
   // Entities OpenCASCADE could not convert to shapes, left out of the design with every curve they
   // hold (a curve set with one unconvertible curve loses all of its curves), and the first of them
   // named ("entity #15 (GEOMETRIC_CURVE_SET): ..."). rods-from-cad warns of them.

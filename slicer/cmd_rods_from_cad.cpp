@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 
@@ -49,11 +50,19 @@ int runRodsFromCad(const std::vector<std::string>& args) {
     std::fprintf(stderr, "warning: OpenCASCADE could not convert %zu %s of the model, left out of the design with every curve %s: %s%s; "
                  "check the model in the program that wrote it\n", r.untranslated, r.untranslated == 1 ? "entity" : "entities",
                  r.untranslated == 1 ? "it holds" : "they hold", r.firstUntranslated.c_str(), r.untranslated > 1 ? " (the first)" : "");
+  if (r.rodsBentTighterThanSection > 0)
+    std::fprintf(stderr, "warning: %zu of the %zu rods bend tighter than their section's radius (down to a %.3g mm radius of "
+                 "curvature): the section folds over itself inside the bend; give a smaller --diameter or gentler curves\n",
+                 r.rodsBentTighterThanSection, r.rods, r.smallestBendRadius);
   if (vm.count("json")) {
     std::cout << nlohmann::json{{"model", model}, {"output", output}, {"edges", r.edges}, {"rods", r.rods}, {"joints", r.joints},
                                 {"skipped_degenerate", r.skippedDegenerate}, {"largest_end_move_mm", r.largestEndMove},
                                 {"approximated", r.approximated}, {"largest_approximation_error_mm", r.largestApproximationError},
-                                {"untranslated", r.untranslated}, {"first_untranslated", r.firstUntranslated}}
+                                {"untranslated", r.untranslated}, {"first_untranslated", r.firstUntranslated},
+                                // null when every rod is straight (JSON has no infinity)
+                                {"bends", {{"smallest_radius_mm", std::isfinite(r.smallestBendRadius) ? nlohmann::json(r.smallestBendRadius) : nlohmann::json()},
+                                           {"section_radius_mm", o.section.boundingRadius()},
+                                           {"rods_tighter_than_section", r.rodsBentTighterThanSection}}}}
                      .dump(2)
               << '\n';
     return kOk;
@@ -65,6 +74,9 @@ int runRodsFromCad(const std::vector<std::string>& args) {
     std::printf("curves:     %zu of a degree above %d approximated by degree %d within %.2g mm (the farthest %.2g mm)\n",
                 r.approximated, geometry::kMaxDegree, geometry::kMaxDegree, meshing::kCadApproximationToleranceMm,
                 r.largestApproximationError);
+  if (std::isfinite(r.smallestBendRadius))
+    std::printf("bends:      smallest radius of curvature %.3g mm (%zu rods bend tighter than their section's radius)\n",
+                r.smallestBendRadius, r.rodsBentTighterThanSection);
   std::printf("wrote:      %s\n", output.c_str());
   return kOk;
 }

@@ -85,6 +85,12 @@ TEST_CASE("a circle becomes an exact rational B-spline whose ends meet", "[meshi
   CHECK(c.points().front() == c.points().back());  // one joint: the ends merged bit for bit
   CHECK(result.report.joints == 1);
   CHECK(largestDeviation(result.structure.rods[0], circle, 0, 2 * M_PI) < 1e-9);
+  // A circle bends by its radius everywhere: the report's smallest bend radius is 5 mm.
+  CHECK(result.report.smallestBendRadius == Approx(5.0).epsilon(1e-9));
+  CHECK(result.report.rodsBentTighterThanSection == 0);
+  meshing::CadRodOptions thick;
+  thick.section = geometry::Section::circle(10.2);  // radius 5.1 > 5
+  CHECK(meshing::rodsFromCad(scratch("circle.step"), thick).report.rodsBentTighterThanSection == 1);
 }
 
 namespace {

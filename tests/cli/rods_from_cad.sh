@@ -41,6 +41,12 @@ p = c["points"][0]
 assert abs(math.dist(p, (3, -2, 7)) - 5) < 1e-9, p
 assert d["rods"][0]["section"]["shape"] == "ellipse" and "normal" in d["rods"][0]
 PY
+python3 -c "import json,sys; b=json.load(open(sys.argv[1]))['bends']; assert (abs(b['smallest_radius_mm']-5)<1e-6 and
+  b['section_radius_mm']==0.6 and b['rods_tighter_than_section']==0), b" "$tmp/j" || fail "circle bends: $(cat "$tmp/j")"
+# A rod 12 mm thick on that 5 mm circle folds over itself: written, with a warning.
+"$rodfab" rods-from-cad "$tmp/circle.iges" --diameter 12 -o "$tmp/circle.json" --force > "$tmp/out" 2>&1 || fail "thick circle: $(cat "$tmp/out")"
+grep -q "^warning: 1 of the 1 rods bend tighter than their section's radius (down to a 5 mm radius of curvature)" "$tmp/out" ||
+  fail "no warning of a rod bent tighter than its section: $(cat "$tmp/out")"
 
 # An offset curve (OpenCASCADE's exact B-spline of it is of degree 14): approximated, said in the summary
 # and the JSON, and the design validates.
