@@ -78,6 +78,9 @@ struct InspectReport {
   nlohmann::json manifest;  // null when it could not be read
   InspectSummary summary;
   std::size_t filesChecked = 0;
+  // Of those, copies of a layer image already checked and decoded blank, compared byte for byte as the
+  // zip stores them (and by their directory record) instead of inflated and decoded again.
+  std::size_t blankCopiesComparedStored = 0;
   int width = 0, height = 0, layers = 0;
   std::vector<MaterialTotals> materials;  // counted from the decoded images, in the job's material order
 

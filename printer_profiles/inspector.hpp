@@ -97,6 +97,15 @@ private:
 
   // One layer image decoded and checked against the job's size and resolution; nullopt after a finding.
   std::optional<Bitmap> layerImage(int l, std::size_t n, Findings& out) const;
+  // A zip job's layer images whose manifest digest and size repeat (a material's blank image, which
+  // the writer deflates once a job and repeats byte for byte): the first copy read is checked and
+  // decoded in full; when it was blank and clean, a later copy whose stored bytes and directory record
+  // equal it holds the same verified image, so it is read as stored, not inflated and decoded again.
+  struct RepeatedImage;
+  void findRepeatedImages();
+  // layerImage, or nullopt with `blankCopy` set for a stored copy of a checked blank image.
+  std::optional<Bitmap> layerImageOrBlankCopy(int l, std::size_t n, Findings& out, bool& blankCopy) const;
+  bool storedLike(const std::string& name, RepeatedImage& first, bool record) const;
   void checkLayer(int l, LayerResult& out) const;
   bool decodesLayer(int l) const;
   // A layer that is not decoded: its images read through (sizes and checksums, or their stored forms).
@@ -131,7 +140,9 @@ private:
   Profile profile_;
   JobLayout layout_;
   mutable std::atomic<std::size_t> filesChecked_{0};
+  mutable std::atomic<std::size_t> blankCopies_{0};
   mutable std::atomic<int> gcvfLayersDecoded_{0};  // gcvf layer images read without a defect of their own
+  std::map<std::string, std::shared_ptr<RepeatedImage>> repeated_;  // layer image name -> its group (findRepeatedImages)
 };
 
 }  // namespace rodfab::printer_profiles::detail

@@ -19,6 +19,7 @@ nlohmann::json reportJson(const pp::InspectReport& report) {
           {"defects", report.defects},
           {"profile", s.profile},
           {"files_checked", report.filesChecked},
+          {"blank_copies_compared_stored", report.blankCopiesComparedStored},
           {"image", {{"width", report.width}, {"height", report.height}, {"format", s.imageFormat}}},
           {"layers", report.layers},
           {"support", s.supportPolicy},
@@ -43,7 +44,11 @@ void printReport(const pp::InspectReport& report) {
   for (const auto& mat : report.materials)
     std::printf("material:      %-16s %-8s %12llu voxels %10.3f mL %10.3f g\n", mat.name.c_str(), pp::toString(mat.role),
                 static_cast<unsigned long long>(mat.voxels), mat.volumeMl, mat.massG);
-  std::printf("files checked: %zu\n", report.filesChecked);
+  if (report.blankCopiesComparedStored > 0)
+    std::printf("files checked: %zu (%zu of them copies of a checked blank layer image, compared as stored)\n", report.filesChecked,
+                report.blankCopiesComparedStored);
+  else
+    std::printf("files checked: %zu\n", report.filesChecked);
   for (const std::string& d : report.defects) std::fprintf(stderr, "defect: %s\n", d.c_str());
   std::printf("verdict:       %s\n", report.ok() ? "OK" : "DEFECTIVE");
 }

@@ -223,6 +223,52 @@ def check_blank_layers(tmp):
         print(f"sparse {form}: {len(blank)} blank images of {layers} layers decoded, as the folder job's files")
 
 
+
+
+
+def rewritten(job, out, odd, level, contents_of=None):
+    """`job` written again by python's zipfile (zlib level 6), entry `odd` at `level` (with the contents of
+    entry `contents_of` when given)."""
+    with zipfile.ZipFile(job) as src, zipfile.ZipFile(out, "w") as dst:
+        for info in src.infolist():
+            data = src.read(contents_of if info.filename == odd and contents_of else info.filename)
+            copy = zipfile.ZipInfo(info.filename, info.date_time)
+            copy.compress_type = info.compress_type
+            dst.writestr(copy, data, compresslevel=level if info.filename == odd else 6)
+
+
+def inspect_json(job):
+    run = subprocess.run([rodfab, "inspect", job, "--json"], capture_output=True, text=True)
+    return json.loads(run.stdout)
+
+
+def check_inspect_blank_copies(tmp):
+    """inspect reads a copy of a blank image it has checked and decoded as the zip stores it, when its stored
+    bytes are the checked one's: a sparse job's blank images (one contents for both materials) all but the
+    first; a copy deflated otherwise is decoded in full; a copy with other contents is a checksum mismatch."""
+    job = os.path.join(tmp, "1", "sparse-bmp.zip")
+    with zipfile.ZipFile(job) as z:
+        manifest = json.loads(z.read("manifest.json"))
+    blank = [layer["files"][m] for layer in manifest["layers"] for m, n in layer["voxels"].items() if n == 0]
+    full = [layer["files"][m] for layer in manifest["layers"] for m, n in layer["voxels"].items() if n > 0]
+    report = inspect_json(job)
+    if not report["ok"] or report["blank_copies_compared_stored"] != len(blank) - 1:
+        fail(f"inspect of the sparse job: ok {report['ok']}, {report['blank_copies_compared_stored']} blank copies compared "
+             f"as stored of {len(blank)} blank images: {report['defects']}")
+    odd = blank[len(blank) // 2]
+    relevel, swapped = os.path.join(tmp, "relevel.zip"), os.path.join(tmp, "swapped.zip")
+    rewritten(job, relevel, odd, 1)
+    report = inspect_json(relevel)
+    if not report["ok"] or report["blank_copies_compared_stored"] != len(blank) - 2:
+        fail(f"inspect with {odd} deflated at another level: ok {report['ok']}, {report['blank_copies_compared_stored']} "
+             f"copies compared as stored (expected {len(blank) - 2}): {report['defects']}")
+    rewritten(job, swapped, odd, 6, full[0])
+    report = inspect_json(swapped)
+    if report["ok"] or not any(odd in d and "checksum mismatch" in d for d in report["defects"]):
+        fail(f"inspect with {odd} holding {full[0]}'s image: {report['defects']}")
+    print(f"inspect: {len(blank) - 1} blank copies compared as stored; one deflated otherwise decoded; one changed found")
+
+
 with tempfile.TemporaryDirectory() as tmp:
     # The job's name is in its manifest and report: the compared jobs have the same name in two folders.
     for folder in ("1", "2"):
@@ -239,6 +285,7 @@ with tempfile.TemporaryDirectory() as tmp:
         manifest, layers = check_zip(one, method)
         print(f"{form}: {layers} layers decoded by zipfile/zlib, counts and SHA-256 as listed")
     check_blank_layers(tmp)
+    check_inspect_blank_copies(tmp)
     one, two = os.path.join(tmp, "1", "rod.gcvf"), os.path.join(tmp, "2", "rod.gcvf")
     slice_job(rod, one, "--profile", "stratasys-j750-j850", "--threads", "1")
     slice_job(rod, two, "--profile", "stratasys-j750-j850", "--threads", "2", "--band-layers", "5")
