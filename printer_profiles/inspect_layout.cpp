@@ -1,6 +1,11 @@
+// The layout a job must have, from its printer profile and the manifest's numbers the profile bounds
+// (image format and size, layer count, support, materials, layers, file table, previews, report): every
+// entry with the most bytes it may hold. The frame and statistics blocks are read in
+// inspect_manifest_figures.cpp, the manifest's fields through inspect_manifest_fields.hpp.
 #include "printer_profiles/inspect_layout.hpp"
 
 #include "printer_profiles/inspect.hpp"
+#include "printer_profiles/inspect_manifest_fields.hpp"
 #include "printer_profiles/job_reader.hpp"
 #include "printer_profiles/job_writer.hpp"
 
@@ -10,39 +15,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 
 namespace rodfab::printer_profiles {
 
 using nlohmann::json;
-
-// ------------------------------------------------------------------------------------------ findings
-
-void Findings::push(std::string text) {
-  if (list_.size() < kMaxDefects) list_.push_back(std::move(text));
-  else ++dropped_;
-}
-
-void Findings::at(const std::string& entry, const std::string& message) {
-  push(job_ + ": " + printableName(entry) + ": " + message);
-}
-
-void Findings::whole(const std::string& message) { push(job_ + ": " + message); }
-
-void Findings::located(const std::string& message) { push(message); }
-
-void Findings::merge(const Findings& other) {
-  for (const std::string& s : other.list_) push(s);
-  dropped_ += other.dropped_;
-}
-
-std::vector<std::string> Findings::take() {
-  std::vector<std::string> out = std::move(list_);
-  if (dropped_) out.push_back(job_ + ": ... and " + std::to_string(dropped_) + " more defects");
-  list_.clear();
-  dropped_ = 0;
-  return out;
-}
 
 // ------------------------------------------------------------------------------------------ limits
 
@@ -65,44 +41,6 @@ ProfileLimits limitsOf(const Profile& p) {
 
 std::uint64_t pngMaxBytes(std::uint64_t rawBytes) { return rawBytes + rawBytes / 64 + (64u << 10); }
 
-// ------------------------------------------------------------------------------------------ JSON
-
-namespace {
-
-// A message parseJsonStrict made printable (it escapes what it quotes: controls, bytes that are not
-// UTF-8, the backslash) in inspect's form, plain ASCII: the UTF-8 characters it kept as \xNN too.
-// Not printableName, which would escape those escapes' backslashes a second time.
-std::string asciiOnly(const std::string& printable) {
-  std::string out;
-  for (const char ch : printable) {
-    const auto c = static_cast<unsigned char>(ch);
-    if (c >= 0x20 && c < 0x7f) {
-      out += ch;
-      continue;
-    }
-    char buf[8];
-    std::snprintf(buf, sizeof buf, "\\x%02x", c);
-    out += buf;
-  }
-  return out;
-}
-
-}  // namespace
-
-json parseUntrustedJson(std::span<const std::uint8_t> text, std::size_t maxValues) {
-  try {
-    return common::parseJsonStrict(std::string(text.begin(), text.end()), common::kMaxJsonDepth, maxValues);
-  } catch (const common::JsonInputError& e) {
-    // The message first: a path 64 levels deep would hide it.
-    std::size_t cut = 57;  // not inside a UTF-8 character
-    while (e.path.size() > 60 && cut > 0 && (static_cast<unsigned char>(e.path[cut]) & 0xc0) == 0x80) --cut;
-    const std::string where = e.path.size() > 60 ? e.path.substr(0, cut) + "..." : e.path;
-    throw std::runtime_error(asciiOnly(e.message + (where.empty() ? "" : " (at " + where + ")")));
-  } catch (const json::exception& e) {  // a number beyond a double
-    throw std::runtime_error("not JSON (" + asciiOnly(common::printableJsonError(e.what())) + ")");
-  }
-}
-
 // ------------------------------------------------------------------------------------------ manifest
 
 namespace {
@@ -111,119 +49,13 @@ const char* kProjectionsMaterial = "previews/projections-material.png";
 const char* kProjectionsModulus = "previews/projections-modulus.png";
 const char* kContactSheet = "previews/contact-sheet.png";
 
-// A short description of an untrusted value, for messages: never serializes containers.
-std::string describe(const json& j) {
-  if (j.is_string()) {
-    const std::string& s = j.get_ref<const std::string&>();
-    return "\"" + printableName(s.size() > 60 ? s.substr(0, 57) + "..." : s) + "\"";
-  }
-  if (j.is_number_integer() || j.is_number_unsigned() || j.is_boolean()) return j.dump();  // scalars only
-  if (j.is_number_float()) {
-    char buf[40];
-    std::snprintf(buf, sizeof buf, "%.9g", j.get<double>());
-    return buf;
-  }
-  return std::string("a") + (j.is_object() || j.is_array() ? "n " : " ") + j.type_name();
-}
-
 using common::indexPath;
 using common::memberPath;
-
-// Typed access to manifest fields; each failure is a finding at "manifest.json: PATH".
-class Fields {
-public:
-  explicit Fields(Findings& findings) : findings_(findings) {}
-
-  void fail(const std::string& path, const std::string& message) { findings_.at(kManifestName, path + ": " + message); }
-
-  const json* get(const json& parent, const std::string& path, const std::string& key, const char* what) {
-    const auto it = parent.is_object() ? parent.find(key) : parent.end();
-    if (it == parent.end()) {
-      fail(memberPath(path, key), std::string("missing; expected ") + what);
-      return nullptr;
-    }
-    return &*it;
-  }
-  // parent[key] when `isKind` holds for it (`what`: "an object", ...); nullptr after an issue.
-  const json* ofKind(const json& parent, const std::string& path, const std::string& key, const char* what,
-                     bool (json::*isKind)() const noexcept) {
-    const json* j = get(parent, path, key, what);
-    if (j && !(j->*isKind)()) {
-      wrong(memberPath(path, key), what, *j);
-      return nullptr;
-    }
-    return j;
-  }
-  const json* object(const json& parent, const std::string& path, const std::string& key) {
-    return ofKind(parent, path, key, "an object", &json::is_object);
-  }
-  const json* array(const json& parent, const std::string& path, const std::string& key) {
-    return ofKind(parent, path, key, "an array", &json::is_array);
-  }
-  std::optional<std::string> string(const json& parent, const std::string& path, const std::string& key) {
-    const json* j = get(parent, path, key, "a string");
-    if (!j) return std::nullopt;
-    if (!j->is_string()) {
-      wrong(memberPath(path, key), "a string", *j);
-      return std::nullopt;
-    }
-    return j->get<std::string>();
-  }
-  std::optional<std::int64_t> integer(const json& j, const std::string& path, std::int64_t lo, std::int64_t hi) {
-    const bool inRange = (j.is_number_integer() && j.get<std::int64_t>() >= lo && j.get<std::int64_t>() <= hi) ||
-                         (j.is_number_unsigned() && j.get<std::uint64_t>() <= static_cast<std::uint64_t>(hi) && lo <= 0);
-    if (!inRange) {
-      fail(path, "expected an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " + describe(j));
-      return std::nullopt;
-    }
-    return j.get<std::int64_t>();
-  }
-  std::optional<std::int64_t> integer(const json& parent, const std::string& path, const std::string& key, std::int64_t lo,
-                                      std::int64_t hi) {
-    const json* j = get(parent, path, key, "an integer");
-    return j ? integer(*j, memberPath(path, key), lo, hi) : std::nullopt;
-  }
-  std::optional<std::uint64_t> count(const json& j, const std::string& path) {
-    if (!j.is_number_unsigned() && !(j.is_number_integer() && j.get<std::int64_t>() >= 0)) {
-      fail(path, "expected a whole number >= 0, got " + describe(j));
-      return std::nullopt;
-    }
-    return j.get<std::uint64_t>();
-  }
-  std::optional<double> number(const json& parent, const std::string& path, const std::string& key) {
-    const json* j = get(parent, path, key, "a number");
-    if (!j) return std::nullopt;
-    if (!j->is_number() || !std::isfinite(j->get<double>())) {
-      wrong(memberPath(path, key), "a finite number", *j);
-      return std::nullopt;
-    }
-    return j->get<double>();
-  }
-  std::optional<std::array<double, 3>> vec3(const json& parent, const std::string& path, const std::string& key) {
-    const json* j = get(parent, path, key, "three numbers");
-    if (!j) return std::nullopt;
-    if (!j->is_array() || j->size() != 3 || !std::all_of(j->begin(), j->end(), [](const json& v) {
-          return v.is_number() && std::isfinite(v.get<double>());
-        })) {
-      wrong(memberPath(path, key), "an array of three finite numbers", *j);
-      return std::nullopt;
-    }
-    return std::array<double, 3>{(*j)[0].get<double>(), (*j)[1].get<double>(), (*j)[2].get<double>()};
-  }
-  // `key` must hold exactly `want` (a string).
-  void same(const json& parent, const std::string& path, const std::string& key, const std::string& want, const std::string& why) {
-    if (const auto got = string(parent, path, key); got && *got != want)
-      fail(memberPath(path, key), "expected \"" + printableName(want) + "\" (" + why + "), got " + describe(json(*got)));
-  }
-
-private:
-  void wrong(const std::string& path, const char* what, const json& got) {
-    fail(path, std::string("expected ") + what + ", got " + describe(got));
-  }
-  Findings& findings_;
-};
-
-bool nearlyEqual(double a, double b) { return std::abs(a - b) <= 1e-9 * std::max({1.0, std::abs(a), std::abs(b)}); }
+using manifest_input::describe;
+using manifest_input::Fields;
+using manifest_input::nearlyEqual;
+using manifest_input::readFrame;
+using manifest_input::readStatistics;
 
 // The manifest's "profile" block must restate the profile: a mismatch means the images were made for
 // other numbers (x and y dpi swapped print the part at twice or half its size on a printer, such as
@@ -285,105 +117,6 @@ bool readShape(const json& m, const Profile& p, const ProfileLimits& limits, Job
   }
   if (support) f.same(*support, "support", "material", p.material(MaterialRole::Support).name, "the profile's support material");
   return ok;
-}
-
-void readPartVoxels(const json& frame, JobLayout& out, Fields& f);
-std::optional<MaterialStatistics> readMaterialStatistics(const json& list, const std::string& name, Fields& f);
-std::optional<std::uint64_t> readClamped(const json& block, Fields& f);
-
-void readFrame(const json& m, JobLayout& out, Fields& f, InspectSummary& s) {
-  const json* frame = f.object(m, "", "frame");
-  if (!frame) return;
-  constexpr std::int64_t kIndexRange = 1 << 28;  // far beyond any tray; keeps pixel arithmetic in int
-  if (const auto o = f.vec3(*frame, "frame", "origin_mm")) out.originMm = *o;
-  out.firstColumnI = static_cast<int>(f.integer(*frame, "frame", "first_column_i", -kIndexRange, kIndexRange).value_or(0));
-  out.topRowJ = static_cast<int>(f.integer(*frame, "frame", "top_row_j", -kIndexRange, kIndexRange).value_or(0));
-  out.firstLayerK = static_cast<int>(f.integer(*frame, "frame", "first_layer_k", -kIndexRange, kIndexRange).value_or(0));
-  s.partSizeMm = f.vec3(*frame, "frame", "part_size_mm");
-  readPartVoxels(*frame, out, f);
-  if (out.part) out.part->sizeMm = s.partSizeMm;
-}
-
-// frame.part_voxels: {"min": [i, j, k], "max": [i, j, k]}, min <= max (checked against the rest of the
-// frame and the images by Inspector::checkPart).
-void readPartVoxels(const json& frame, JobLayout& out, Fields& f) {
-  constexpr std::int64_t kIndexRange = 1 << 28;
-  const json* box = f.object(frame, "frame", "part_voxels");
-  if (!box) return;
-  PartRecord part;
-  for (const char* corner : {"min", "max"}) {
-    const std::string path = memberPath("frame.part_voxels", corner);
-    const json* v = f.array(*box, "frame.part_voxels", corner);
-    if (!v || v->size() != 3) {
-      if (v) f.fail(path, "expected three voxel indices, got " + std::to_string(v->size()) + " values");
-      return;
-    }
-    for (std::size_t a = 0; a < 3; ++a) {
-      const auto index = f.integer((*v)[a], indexPath(path, a), -kIndexRange, kIndexRange);
-      if (!index) return;
-      (corner == std::string("min") ? part.min : part.max)[a] = *index;
-    }
-  }
-  for (std::size_t a = 0; a < 3; ++a)
-    if (part.min[a] > part.max[a]) {
-      f.fail("frame.part_voxels", "min is above max along " + std::string(1, "xyz"[a]) + "; expected a box of voxels");
-      return;
-    }
-  out.part = part;
-}
-
-// The "statistics" block: per job material its role, voxels, volume and mass; the model's voxels; the
-// clamped moduli (null when the job had none to clamp). Compared with the layers and images by
-// Inspector::checkStatistics.
-void readStatistics(const json& m, JobLayout& out, Fields& f) {
-  const json* block = f.object(m, "", "statistics");
-  if (!block) return;
-  StatisticsRecord stats;
-  stats.materials.resize(out.materials.size());
-  if (const json* list = f.object(*block, "statistics", "materials")) {
-    for (const auto& [name, row] : list->items())
-      if (std::none_of(out.materials.begin(), out.materials.end(), [&](const ProfileMaterial* p) { return p->name == name; }))
-        f.fail(memberPath("statistics.materials", name), "is not one of the job's materials");
-    for (std::size_t n = 0; n < out.materials.size(); ++n) stats.materials[n] = readMaterialStatistics(*list, out.materials[n]->name, f);
-  }
-  if (const json* model = f.get(*block, "statistics", "model_voxels", "a voxel count")) stats.modelVoxels = f.count(*model, "statistics.model_voxels");
-  stats.clampedVoxels = readClamped(*block, f);
-  out.statistics = stats;
-}
-
-std::optional<MaterialStatistics> readMaterialStatistics(const json& list, const std::string& name, Fields& f) {
-  const json* row = f.object(list, "statistics.materials", name);
-  if (!row) return std::nullopt;
-  const std::string path = memberPath("statistics.materials", name);
-  const auto role = f.string(*row, path, "role");
-  const json* voxels = f.get(*row, path, "voxels", "a voxel count");
-  const auto count = voxels ? f.count(*voxels, memberPath(path, "voxels")) : std::nullopt;
-  const auto volume = f.number(*row, path, "volume_ml");
-  const auto mass = f.number(*row, path, "mass_g");
-  if (!role || !count || !volume || !mass) return std::nullopt;
-  return MaterialStatistics{*role, *count, *volume, *mass};
-}
-
-// statistics.clamped_modulus: null, or the floor and ceiling (MPa) and the voxels clamped to each.
-std::optional<std::uint64_t> readClamped(const json& block, Fields& f) {
-  const json* clamped = f.get(block, "statistics", "clamped_modulus", "null or an object");
-  if (!clamped || clamped->is_null()) return std::nullopt;
-  clamped = f.object(block, "statistics", "clamped_modulus");
-  if (!clamped) return std::nullopt;
-  const std::string path = "statistics.clamped_modulus";
-  const auto floor = f.number(*clamped, path, "floor_mpa"), ceiling = f.number(*clamped, path, "ceiling_mpa");
-  if (floor && ceiling && !(*floor > 0 && *floor <= *ceiling))
-    f.fail(path, "expected 0 < floor_mpa <= ceiling_mpa, got " + describe(json(*floor)) + " and " + describe(json(*ceiling)));
-  std::uint64_t total = 0;
-  bool counted = true;
-  for (const char* key : {"below_floor_voxels", "above_ceiling_voxels"}) {
-    const json* v = f.get(*clamped, path, key, "a voxel count");
-    const std::uint64_t n = v ? f.count(*v, path + "." + key).value_or(UINT64_MAX) : UINT64_MAX;  // UINT64_MAX: not a count
-    counted = counted && n != UINT64_MAX && n <= UINT64_MAX - total;
-    if (counted) total += n;
-  }
-  if (!counted) return std::nullopt;
-  return total;
 }
 
 // The materials with bitmap stacks: rigid and rubbery, and support when the job draws it; as the writer

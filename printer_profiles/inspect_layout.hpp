@@ -2,6 +2,8 @@
 // printer profile and the few numbers of its manifest that the profile bounds (image size, layer count,
 // image format, support policy, previews), with the most bytes each entry may hold; and the manifest read
 // as untrusted JSON (size, depth and value count limited before it is built, never re-serialized).
+// Defined in inspect_findings.cpp (Findings), inspect_manifest_fields.cpp (parseUntrustedJson) and
+// inspect_layout.cpp (the rest, with inspect_manifest_figures.cpp for the frame and statistics blocks).
 #pragma once
 
 #include "common/file_hasher.hpp"

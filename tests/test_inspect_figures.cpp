@@ -28,6 +28,20 @@ std::vector<std::pair<std::string, Bytes>> withFileEdited(std::vector<std::pair<
   return tampered(std::move(files), [&](json& m) { m["files"][name] = {{"bytes", changed.size()}, {"xxh128", xxh128Hex(changed)}}; });
 }
 
+// The job's entries with manifest.json's bytes replaced by `text`, rezipped in `dir` and inspected.
+InspectReport inspectedWithManifest(const fs::path& dir, std::vector<std::pair<std::string, Bytes>> files, const std::string& text) {
+  for (auto& [name, data] : files)
+    if (name == "manifest.json") data = bytesOf(text);
+  rezip(dir / "t.zip", files);
+  return inspectJob(dir / "t.zip");
+}
+
+// Every defect is printable ASCII: no raw byte of the job reaches the terminal.
+void checkPrintableAscii(const InspectReport& report) {
+  for (const std::string& d : report.defects)
+    for (const char c : d) CHECK((static_cast<unsigned char>(c) >= 0x20 && static_cast<unsigned char>(c) < 0x7f));
+}
+
 }  // namespace
 
 TEST_CASE("The manifest's statistics must agree with the layers' counts and the profile", "[inspect][hostile]") {
@@ -140,22 +154,14 @@ TEST_CASE("A malformed manifest's quoted bytes are escaped once: no raw byte rea
           "[inspect][hostile]") {
   const fs::path dir = scratch("manifest-bytes");
   writeSmallJob(dir / "job.zip");
-  auto files = unzip(dir / "job.zip");
-  for (auto& [name, data] : files)
-    if (name == "manifest.json") data = bytesOf("{\"format\": tru\xc2\x9b\xff}");
-  rezip(dir / "t.zip", files);
-  const InspectReport report = inspectJob(dir / "t.zip");
+  const auto files = unzip(dir / "job.zip");
+  const InspectReport report = inspectedWithManifest(dir, files, "{\"format\": tru\xc2\x9b\xff}");
   REQUIRE(hasDefect(report, "t.zip: manifest.json: cannot be read: malformed JSON at line 1, column "));
-  for (const std::string& d : report.defects)
-    for (const char c : d) CHECK((static_cast<unsigned char>(c) >= 0x20 && static_cast<unsigned char>(c) < 0x7f));
+  checkPrintableAscii(report);
   CHECK(hasDefect(report, "last read: '\"format\": tru\\xc2'"));
   for (const std::string& d : report.defects) CHECK(d.find("\\x5cx") == std::string::npos);
   // A UTF-8 letter (which parseJsonStrict's messages keep) in inspect's ASCII form, as the fuzz target requires.
-  for (auto& [name, data] : files)
-    if (name == "manifest.json") data = bytesOf("{\"format\": \"caf\xc3\xa9\" x}");
-  rezip(dir / "t.zip", files);
-  const InspectReport accented = inspectJob(dir / "t.zip");
+  const InspectReport accented = inspectedWithManifest(dir, files, "{\"format\": \"caf\xc3\xa9\" x}");
   CHECK(hasDefect(accented, "caf\\xc3\\xa9"));
-  for (const std::string& d : accented.defects)
-    for (const char c : d) CHECK((static_cast<unsigned char>(c) >= 0x20 && static_cast<unsigned char>(c) < 0x7f));
+  checkPrintableAscii(accented);
 }

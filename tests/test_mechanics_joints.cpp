@@ -14,22 +14,15 @@
 #include <random>
 #include <string>
 
-using namespace rodfab;
+#include "tests/mechanics_names.hpp"  // last: using-declarations
+
 using geometry::BSplineField;
 using geometry::CapStyle;
 using geometry::NurbsCurve;
 using geometry::Rod;
-using geometry::Section;
-using geometry::Vec3;
-using mechanics::Design;
-using mechanics::RodEnd;
-using mechanics::StaticProblem;
-using test::at;
 using test::atParameter;
-using test::atPoint;
 using test::clamp;
 using test::load;
-using test::straight;
 
 namespace {
 

@@ -14,15 +14,7 @@
 #include <iomanip>
 #include <string>
 
-using namespace rodfab;
-using geometry::Section;
-using geometry::Vec3;
-using mechanics::Design;
-using mechanics::RodEnd;
-using mechanics::StaticProblem;
-using test::at;
-using test::atPoint;
-using test::straight;
+#include "tests/mechanics_names.hpp"  // last: using-declarations
 
 namespace {
 
