@@ -105,9 +105,11 @@ void readStatistics(const json& m, JobLayout& out, Fields& f) {
   StatisticsRecord stats;
   stats.materials.resize(out.materials.size());
   if (const json* list = f.object(*block, "statistics", "materials")) {
-    for (const auto& [name, row] : list->items())
+    for (const auto& item : list->items()) {  // not a structured binding: clang 14 cannot capture one in the lambda
+      const std::string& name = item.key();
       if (std::none_of(out.materials.begin(), out.materials.end(), [&](const ProfileMaterial* p) { return p->name == name; }))
         f.fail(memberPath("statistics.materials", name), "is not one of the job's materials");
+    }
     for (std::size_t n = 0; n < out.materials.size(); ++n) stats.materials[n] = readMaterialStatistics(*list, out.materials[n]->name, f);
   }
   if (const json* model = f.get(*block, "statistics", "model_voxels", "a voxel count")) stats.modelVoxels = f.count(*model, "statistics.model_voxels");
