@@ -201,7 +201,8 @@ TEST_CASE("whatever becomes of the CAD reader process is an error naming the fil
   using Catch::Contains;
   // A report of 2 rods, and a design of one.
   const std::string kReport = R"({"edges": 2, "rods": 2, "joints": 0, "skipped_degenerate": 0, "largest_end_move_mm": 0,)"
-                              R"( "approximated": 0, "largest_approximation_error_mm": 0, "untranslated": 0, "first_untranslated": ""})";
+                              R"( "approximated": 0, "largest_approximation_error_mm": 0, "untranslated": 0, "first_untranslated": "",)"
+                              R"( "smallest_bend_radius_mm": null, "rods_bent_tighter_than_section": 0})";
   const std::string kDesign = R"({"format": "rodfab.design/1", "rods": [{"name": "edge-0", "centerline": {"degree": 1,)"
                               R"( "knots": [0, 0, 1, 1], "points": [[0, 0, 0], [5, 0, 0]]}, "section": {"shape": "circle",)"
                               R"( "diameter": 1}, "modulus": 100}]})";
