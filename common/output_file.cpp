@@ -94,9 +94,9 @@ void checkExisting(const fs::path& output, const fs::file_status& status, const 
 
 bool processAlive(long pid) { return pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM); }
 
-// The pid in a temporary's name (".NAME.rodfab-tmp-PID-N"), or 0 when the name is not one of ours.
-long temporaryOwner(const std::string& name) {
-  static const std::string tag = ".rodfab-tmp-";
+// The pid in a hidden name ".NAME<tag>PID-N" (tag ".rodfab-tmp-" or ".rodfab-old-"), or 0 when the
+// name is not one of ours.
+long hiddenOwner(const std::string& name, const std::string& tag) {
   const auto at = name.rfind(tag);
   if (name.empty() || name[0] != '.' || at == std::string::npos) return 0;
   const std::string tail = name.substr(at + tag.size());
@@ -114,7 +114,7 @@ void removeStaleTemporaries(const fs::path& final) {
   std::error_code ec;
   const fs::path folder = final.parent_path().empty() ? fs::path(".") : final.parent_path();
   for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
-    const long pid = temporaryOwner(it->path().filename().string());
+    const long pid = hiddenOwner(it->path().filename().string(), ".rodfab-tmp-");
     std::error_code ignored;
     if (pid > 0 && pid != ::getpid() && !processAlive(pid) && it->is_regular_file(ignored)) fs::remove(it->path(), ignored);
   }
@@ -132,13 +132,8 @@ std::vector<fs::path> leftoverPreviousVersions(const fs::path& given) {
   for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
     if (!name.starts_with(prefix)) continue;
-    const std::string tail = name.substr(prefix.size());  // PID-N
-    const auto dash = tail.find('-');
-    const auto digits = [](std::string_view t) { return !t.empty() && t.size() < 12 && t.find_first_not_of("0123456789") == t.npos; };
-    if (dash == std::string::npos || !digits(std::string_view(tail).substr(0, dash)) || !digits(std::string_view(tail).substr(dash + 1)))
-      continue;
-    const long pid = std::strtol(tail.c_str(), nullptr, 10);
-    if (pid == ::getpid() || processAlive(pid)) continue;
+    const long pid = hiddenOwner(name, ".rodfab-old-");
+    if (pid == 0 || pid == ::getpid() || processAlive(pid)) continue;  // the tag found last is the prefix's: PID-N has none
     std::error_code ignored;
     // Killed between keeping the link and the commit's rename: the same file as the output, no data of its own.
     if (fs::is_regular_file(it->symlink_status(ignored)) && fs::equivalent(it->path(), output, ignored)) {
