@@ -87,30 +87,75 @@ Vec3 doubleReflect(const Vec3& x0, const Vec3& t0, const Vec3& d1, const Vec3& x
   return r.normalized();
 }
 
-}  // namespace
+// A curve's points and unit tangents at `perSpan` evenly spaced parameters a knot span and the end.
+struct CurveSamples {
+  std::vector<double> u;
+  std::vector<Vec3> point, tangent;
+};
 
-RodFrame RodFrame::rotationMinimizing(const NurbsCurve& curve, const Vec3& referenceNormal) {
-  RodFrame frame;
-  frame.kind_ = Kind::RotationMinimizing;
-  // 64 samples per knot span keep the discrete RMF within ~1e-8 rad of the exact one for the
-  // curvatures of printable rods; the step error of double reflection is fourth order. Curves of
-  // more than 1024 spans (short ones) get fewer, down to 4, so memory stays a small multiple of the
-  // design file's size.
-  const std::vector<double> bp = curve.breakpoints();
-  const std::size_t spans = bp.size() - 1;
-  const int kSamplesPerSpan = static_cast<int>(std::clamp<std::size_t>(kMaxFrameSamples / spans, 4, 64));
+double sampleParameter(const std::vector<double>& bp, std::size_t span, int k, int perSpan) {
+  return bp[span] + (bp[span + 1] - bp[span]) * k / perSpan;
+}
+
+void addSample(const NurbsCurve& curve, double u, CurveSamples& out) {
+  Vec3 d[3];
+  curve.derivatives(u, 2, d);
+  out.u.push_back(u);
+  out.point.push_back(d[0]);
+  out.tangent.push_back(unitTangent(d[1], d[2]));
+}
+
+CurveSamples sampleSpans(const NurbsCurve& curve, const std::vector<double>& bp, int perSpan) {
+  CurveSamples out;
+  const std::size_t count = (bp.size() - 1) * std::size_t(perSpan) + 1;
+  out.u.reserve(count), out.point.reserve(count), out.tangent.reserve(count);
   for (std::size_t s = 0; s + 1 < bp.size(); ++s)
-    for (int k = 0; k < kSamplesPerSpan; ++k)
-      frame.sampleU_.push_back(bp[s] + (bp[s + 1] - bp[s]) * k / kSamplesPerSpan);
-  frame.sampleU_.push_back(bp.back());
+    for (int k = 0; k < perSpan; ++k) addSample(curve, sampleParameter(bp, s, k, perSpan), out);
+  addSample(curve, bp.back(), out);
+  return out;
+}
 
-  for (double u : frame.sampleU_) {
-    Vec3 d[3];
-    curve.derivatives(u, 2, d);
-    frame.samplePoint_.push_back(d[0]);
-    frame.sampleTangent_.push_back(unitTangent(d[1], d[2]));
+// The samples at twice as many a span: `coarse`'s own (their parameters are the same doubles: k / m
+// and 2k / 2m give the same quotient) with the curve evaluated between them only.
+CurveSamples refineSamples(const NurbsCurve& curve, const std::vector<double>& bp, const CurveSamples& coarse,
+                           int coarsePerSpan) {
+  CurveSamples out;
+  const std::size_t count = 2 * coarse.u.size() - 1;
+  out.u.reserve(count), out.point.reserve(count), out.tangent.reserve(count);
+  const int finePerSpan = 2 * coarsePerSpan;
+  for (std::size_t i = 0; i + 1 < coarse.u.size(); ++i) {
+    out.u.push_back(coarse.u[i]), out.point.push_back(coarse.point[i]), out.tangent.push_back(coarse.tangent[i]);
+    const std::size_t span = i / std::size_t(coarsePerSpan);
+    const int k = int(i % std::size_t(coarsePerSpan));
+    addSample(curve, sampleParameter(bp, span, 2 * k + 1, finePerSpan), out);
   }
-  const Vec3& t0 = frame.sampleTangent_.front();
+  out.u.push_back(coarse.u.back()), out.point.push_back(coarse.point.back()), out.tangent.push_back(coarse.tangent.back());
+  return out;
+}
+
+// d1 carried from the first sample along all of them by double reflection.
+std::vector<Vec3> propagate(const CurveSamples& s, const Vec3& d1) {
+  std::vector<Vec3> out;
+  out.reserve(s.u.size());
+  out.push_back(d1);
+  for (std::size_t i = 1; i < s.u.size(); ++i)
+    out.push_back(doubleReflect(s.point[i - 1], s.tangent[i - 1], out[i - 1], s.point[i], s.tangent[i]));
+  return out;
+}
+
+// The largest angle (rad) between the coarse frames and the fine ones at the coarse samples (the
+// fine samples' even indices).
+double largestDifference(const std::vector<Vec3>& coarse, const std::vector<Vec3>& fine) {
+  double largest = 0.0;
+  for (std::size_t i = 0; i < coarse.size(); ++i) {
+    const double chord = (coarse[i] - fine[2 * i]).norm();
+    largest = std::max(largest, 2.0 * std::asin(std::min(1.0, 0.5 * chord)));
+  }
+  return largest;
+}
+
+// d1 at the first sample: the reference normal projected onto the first cross-section plane.
+Vec3 seedNormal(const Vec3& referenceNormal, const Vec3& t0) {
   if (!referenceNormal.allFinite() || !(referenceNormal.cwiseAbs().maxCoeff() > 0.0))
     throw std::invalid_argument("RodFrame: reference normal must be non-zero and finite");
   // Scaled by a power of two (exact) to a largest component in [1, 2): no overflow for 1e300.
@@ -118,11 +163,46 @@ RodFrame RodFrame::rotationMinimizing(const NurbsCurve& curve, const Vec3& refer
   Vec3 d1 = n - n.dot(t0) * t0;
   if (!(d1.norm() > 1e-9 * n.norm()))
     throw std::invalid_argument("RodFrame: reference normal is parallel to the centerline tangent");
-  d1.normalize();
-  frame.sampleD1_.push_back(d1);
-  for (std::size_t i = 1; i < frame.sampleU_.size(); ++i)
-    frame.sampleD1_.push_back(doubleReflect(frame.samplePoint_[i - 1], frame.sampleTangent_[i - 1],
-                                            frame.sampleD1_[i - 1], frame.samplePoint_[i], frame.sampleTangent_[i]));
+  return d1.normalized();
+}
+
+}  // namespace
+
+RodFrame RodFrame::rotationMinimizing(const NurbsCurve& curve, const Vec3& referenceNormal) {
+  // Double reflection's error is fourth order in the step, so the frames at m samples a span differ
+  // from those at 2m by about 15/16 of the former's error: the fewest samples whose frames agree with
+  // twice as many within kFrameTolerance are kept (a short, gently bent rod needs 4 a span, a steep
+  // coil of few control points 128). Curves of many spans stop doubling earlier (kMaxFrameSamples; at
+  // least 4 a span), so memory stays a small multiple of the design file's size.
+  const std::vector<double> bp = curve.breakpoints();
+  const std::size_t spans = bp.size() - 1;
+  const int mostPerSpan = static_cast<int>(std::clamp<std::size_t>(kMaxFrameSamples / spans, 4, kMaxSamplesPerSpan));
+  int perSpan = 4;
+  CurveSamples samples = sampleSpans(curve, bp, perSpan);
+  const Vec3 d1 = seedNormal(referenceNormal, samples.tangent.front());
+  std::vector<Vec3> frames = propagate(samples, d1);
+  double estimatedError = 0.0;
+  while (true) {
+    CurveSamples fine = refineSamples(curve, bp, samples, perSpan);
+    std::vector<Vec3> fineFrames = propagate(fine, d1);
+    const double difference = largestDifference(frames, fineFrames);
+    if (difference <= kFrameTolerance || 2 * perSpan > mostPerSpan) {  // the coarse frames kept
+      estimatedError = difference * 16.0 / 15.0;
+      break;
+    }
+    samples = std::move(fine), frames = std::move(fineFrames), perSpan *= 2;
+    if (2 * perSpan > mostPerSpan) {  // the most samples allowed: an error about a 16th of the coarser one's
+      estimatedError = difference / 15.0;
+      break;
+    }
+  }
+  RodFrame frame;
+  frame.kind_ = Kind::RotationMinimizing;
+  frame.sampleU_ = std::move(samples.u);
+  frame.samplePoint_ = std::move(samples.point);
+  frame.sampleTangent_ = std::move(samples.tangent);
+  frame.sampleD1_ = std::move(frames);
+  frame.estimatedError_ = estimatedError;
   return frame;
 }
 

@@ -10,7 +10,11 @@
 
 namespace rodfab::geometry {
 
-// Rotation-minimizing frames keep 64 samples per knot span up to this many in all (then fewer per span, at least 4).
+// A rotation-minimizing frame keeps the fewest samples a knot span (4, 8, ..., kMaxSamplesPerSpan)
+// whose d1 agrees with that of twice as many within kFrameTolerance (rad) at every sample; never more
+// a span than keep it within kMaxFrameSamples in all (but at least 4 a span).
+inline constexpr double kFrameTolerance = 1e-10;
+inline constexpr int kMaxSamplesPerSpan = 256;
 inline constexpr std::size_t kMaxFrameSamples = 1 << 16;
 
 // Orthonormal, right-handed: d3 is the unit tangent, d1 and d2 span the cross-section plane.
@@ -51,8 +55,9 @@ public:
   RodFrame() = default;
   // Rotation-minimizing frame (double reflection, Wang et al. 2008) seeded with d1 = the reference
   // normal projected onto the first cross-section plane. The normal's magnitude does not matter (any
-  // finite non-zero vector). Throws std::invalid_argument if it is zero or not finite, or parallel to
-  // the initial tangent (within 1e-9 rad).
+  // finite non-zero vector). Samples a span: see kFrameTolerance; estimatedError() says how far the
+  // kept frames are from the exact RMF. Throws std::invalid_argument if the normal is zero or not
+  // finite, or parallel to the initial tangent (within 1e-9 rad).
   static RodFrame rotationMinimizing(const NurbsCurve& curve, const Vec3& referenceNormal);
   // d1, d2 from the rotation q(u); they are projected onto the plane normal to the tangent so the
   // cross-section stays perpendicular to the centerline even where the solver's frame shears.
@@ -60,6 +65,13 @@ public:
 
   Kind kind() const { return kind_; }
   const QuaternionSpline& orientation() const { return orientation_; }
+  // Rotation-minimizing: the largest angle (rad) between a sample's d1 and the exact RMF's, estimated
+  // from the frames at twice the samples (double reflection's error being fourth order in the step);
+  // 0 for the orientation kind. Frames between samples add one double-reflection step, whose error is
+  // of fifth order.
+  double estimatedError() const { return estimatedError_; }
+  // Rotation-minimizing: the number of samples kept (their memory is ~80 bytes each).
+  std::size_t sampleCount() const { return sampleU_.size(); }
 
   // Frame at parameter u, where `point` = r(u) and `unitTangent` = r'(u)/|r'(u)|.
   Frame at(double u, const Vec3& point, const Vec3& unitTangent) const;
@@ -72,6 +84,7 @@ private:
   // reflection step from the sample below, which is how the samples themselves were propagated.
   std::vector<double> sampleU_;
   std::vector<Vec3> samplePoint_, sampleTangent_, sampleD1_;
+  double estimatedError_ = 0.0;
   QuaternionSpline orientation_;
 };
 

@@ -344,6 +344,7 @@ void DesignSummary::add(const Rod& rod) {
     case SectionShape::Rectangle: ++rectangles; break;
   }
   (rod.caps() == CapStyle::Round ? roundCaps : flatCaps) += 1;
+  frameError = std::max(frameError, rod.frame().estimatedError());
   const BSplineField& e = rod.modulus();
   constexpr int kSamples = 256;
   for (int k = 0; k <= kSamples; ++k) {
@@ -361,6 +362,7 @@ void DesignSummary::add(const DesignSummary& later) {
   modulusMax = std::max(modulusMax, later.modulusMax);
   circles += later.circles, ellipses += later.ellipses, rectangles += later.rectangles;
   roundCaps += later.roundCaps, flatCaps += later.flatCaps;
+  frameError = std::max(frameError, later.frameError);
 }
 
 DesignSummary summarize(const RodStructure& structure) {

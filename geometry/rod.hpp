@@ -233,6 +233,8 @@ struct DesignSummary {
   double modulusMin = std::numeric_limits<double>::infinity(), modulusMax = -std::numeric_limits<double>::infinity();  // MPa, sampled along every rod
   std::size_t circles = 0, ellipses = 0, rectangles = 0;
   std::size_t roundCaps = 0, flatCaps = 0;
+  // rad: the largest estimated error of a rod's rotation-minimizing frame (RodFrame::estimatedError).
+  double frameError = 0.0;
 
   void add(const Rod& rod);              // counts one more rod
   void add(const DesignSummary& later);  // counts the rods `later` counted, after these (lengths summed in that order)

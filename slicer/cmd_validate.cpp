@@ -49,7 +49,8 @@ int runValidate(const std::vector<std::string>& args) {
                                     {"max", {s.bounds.max().x(), s.bounds.max().y(), s.bounds.max().z()}}}},
                      {"modulus_mpa", {{"min", s.modulusMin}, {"max", s.modulusMax}}},
                      {"sections", {{"circle", s.circles}, {"ellipse", s.ellipses}, {"rectangle", s.rectangles}}},
-                     {"caps", {{"round", s.roundCaps}, {"flat", s.flatCaps}}}};
+                     {"caps", {{"round", s.roundCaps}, {"flat", s.flatCaps}}},
+                     {"frame_error_rad", s.frameError}};
     std::cout << j.dump(2) << '\n';
     return kOk;
   }
@@ -62,6 +63,7 @@ int runValidate(const std::vector<std::string>& args) {
   std::printf("bounding box:  %s .. %s mm\n", formatPoint(s.bounds.min()).c_str(), formatPoint(s.bounds.max()).c_str());
   std::printf("size:          %.3f x %.3f x %.3f mm\n", size.x(), size.y(), size.z());
   std::printf("modulus E(s):  %.3f .. %.3f MPa\n", s.modulusMin, s.modulusMax);
+  std::printf("frames:        rotation-minimizing ones within %.1e rad of exact (estimated)\n", s.frameError);
   std::printf("valid:         yes\n");
   return kOk;
 }

@@ -14,6 +14,12 @@ done
 
 "$rodfab" validate --json "$src/examples/unfolding-box.json" > "$tmp/json" || fail "--json"
 grep -q '"rods": 34' "$tmp/json" || fail "--json lacks the rod count"
+# The frames' estimated error: a number below the tolerance (1e-10 rad) on the bundled spring.
+"$rodfab" validate --json "$src/examples/buckling-spring.json" > "$tmp/json" || fail "--json spring"
+python3 -c 'import json,sys; e=json.load(open(sys.argv[1]))["frame_error_rad"]; sys.exit(0 if 0 <= e <= 1.1e-10 else 1)' "$tmp/json" ||
+  fail "--json frame_error_rad: $(grep frame "$tmp/json")"
+"$rodfab" validate "$src/examples/buckling-spring.json" | grep -Eq "^frames: +rotation-minimizing ones within [0-9.]+e-[0-9]+ rad of exact" ||
+  fail "no frames line"
 
 # A file with two errors: both are named with their JSON path, exit code 1.
 cat > "$tmp/bad.json" <<'JSON'
