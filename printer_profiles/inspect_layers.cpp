@@ -1,6 +1,7 @@
 // The layer images of a job: decoded and checked in parallel (size, resolution, voxel counts, no voxel
 // of two materials), then the part's position recomputed from them against the manifest's.
 #include "common/file_hasher.hpp"
+#include "common/interrupt.hpp"
 #include "printer_profiles/gcvf_writer.hpp"
 #include "printer_profiles/inspect_gcvf.hpp"
 #include "printer_profiles/inspector.hpp"
@@ -139,6 +140,7 @@ void Inspector::checkLayers() {
   const auto checkAll = [&] {
     tbb::parallel_for(tbb::blocked_range<int>(0, layout_.layers, 1), [&](const tbb::blocked_range<int>& range) {
       for (int l = range.begin(); l != range.end(); ++l) {
+        common::throwIfInterrupted();  // a job of thousands of layers reads for seconds
         if (decodesLayer(l)) checkLayer(l, results[static_cast<std::size_t>(l)]);
         else readLayerThrough(l, results[static_cast<std::size_t>(l)]);
       }
