@@ -46,6 +46,10 @@ RodStructure parseDesign(const std::string& text, const std::string& sourceName)
 // the rods: the memory of the rods being built (one a thread) rather than of all of them. For callers
 // that check a design they write or pass on (`rodfab rods-from-cad`). Throws as parseDesign.
 DesignSummary summarizeDesign(const std::string& text, const std::string& sourceName);
+// The same on the document a writer would dump (designToJson's): its text reads back as this document
+// (nlohmann writes a double's shortest exact digits), so a writer checks what it writes without
+// printing and parsing it. Throws as parseDesign.
+DesignSummary summarizeDesignDocument(const nlohmann::ordered_json& document, const std::string& sourceName);
 // Keys in the order of the format description (name, centerline, section, frame, caps, modulus).
 nlohmann::ordered_json designToJson(const RodStructure& structure, const std::string& description = {});
 // One rod per line, so diffs of generated designs stay readable; sealed as rodfab's (its first member

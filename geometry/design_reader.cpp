@@ -315,8 +315,12 @@ void buildRods(std::vector<ReadRod>& read, const std::vector<std::size_t>& issue
 }  // namespace
 
 DesignDocument parseDesignDocument(const std::string& text, const std::string& sourceName, DesignReader& v, RodsKept kept) {
+  return readDesignDocument(parseDocument(text, sourceName), sourceName, v, kept);
+}
+
+DesignDocument readDesignDocument(json document, const std::string& sourceName, DesignReader& v, RodsKept kept) {
   DesignDocument d;
-  d.json = parseDocument(text, sourceName);
+  d.json = std::move(document);
   d.structure.source = sourceName;
   const json& doc = d.json;
   if (!doc.is_object()) throw DesignError(sourceName, {{"", "expected a JSON object with \"format\" and \"rods\""}});
@@ -337,6 +341,7 @@ DesignDocument parseDesignDocument(const std::string& text, const std::string& s
       std::vector<ReadRod> read;
       std::vector<std::size_t> issuesAfter(rods->size());
       for (std::size_t i = 0; i < rods->size(); ++i) {
+        if (i % 1024 == 0) common::throwIfInterrupted();  // 30,000 rods take a second to check
         if (auto r = v.rod((*rods)[i], indexPath("rods", i), d.rodNames)) read.push_back({i, std::move(*r)});
         issuesAfter[i] = v.issues.size();
       }
@@ -356,6 +361,13 @@ RodStructure parseDesign(const std::string& text, const std::string& sourceName)
 DesignSummary summarizeDesign(const std::string& text, const std::string& sourceName) {
   DesignReader reader;
   DesignDocument d = parseDesignDocument(text, sourceName, reader, RodsKept::SummaryOnly);
+  if (!reader.issues.empty()) throw DesignError(sourceName, std::move(reader.issues));
+  return d.summary;
+}
+
+DesignSummary summarizeDesignDocument(const nlohmann::ordered_json& document, const std::string& sourceName) {
+  DesignReader reader;
+  DesignDocument d = readDesignDocument(json(document), sourceName, reader, RodsKept::SummaryOnly);
   if (!reader.issues.empty()) throw DesignError(sourceName, std::move(reader.issues));
   return d.summary;
 }

@@ -108,6 +108,9 @@ struct DesignDocument {
 // included.
 DesignDocument parseDesignDocument(const std::string& text, const std::string& sourceName, DesignReader& reader,
                                    RodsKept kept = RodsKept::All);
+// The same on a document already parsed (the checks after the JSON text's own: no memory estimate).
+DesignDocument readDesignDocument(nlohmann::json document, const std::string& sourceName, DesignReader& reader,
+                                  RodsKept kept = RodsKept::All);
 
 // The bytes of a design file (bounded by common::kMaxJsonBytes); throws DesignError(file, path "")
 // when it cannot be read.

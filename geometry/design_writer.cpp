@@ -1,6 +1,7 @@
 // Writing design files: the rods as the format describes them, one per line, written atomically.
 #include "geometry/design_writer.hpp"
 
+#include "common/interrupt.hpp"
 #include "common/output_file.hpp"
 
 #include <sstream>
@@ -55,8 +56,10 @@ ordered rodJson(const std::string& name, const NurbsCurve& centerline, const Sec
 
 nlohmann::ordered_json designToJson(const RodStructure& structure, const std::string& description) {
   ordered rods = ordered::array();
-  for (const Rod& rod : structure.rods)
+  for (const Rod& rod : structure.rods) {
+    if (rods.size() % 1024 == 0) common::throwIfInterrupted();  // 30,000 mesh-made rods take a second
     rods.push_back(rodJson(rod.name(), rod.centerline(), rod.section(), rod.referenceNormal(), rod.orientation(), rod.caps(), rod.modulus()));
+  }
   return designJson(std::move(rods), description);
 }
 
@@ -75,7 +78,10 @@ void writeDesignDocument(const ordered& doc, const std::filesystem::path& file) 
   }
   out << "  \"rods\": [\n";
   const auto& rods = doc["rods"];
-  for (std::size_t i = 0; i < rods.size(); ++i) out << "    " << rods[i].dump() << (i + 1 < rods.size() ? ",\n" : "\n");
+  for (std::size_t i = 0; i < rods.size(); ++i) {
+    if (i % 1024 == 0) common::throwIfInterrupted();
+    out << "    " << rods[i].dump() << (i + 1 < rods.size() ? ",\n" : "\n");
+  }
   out << "  ]";
   if (auto m = doc.find("mechanics"); m != doc.end()) out << ",\n  \"mechanics\": " << m->dump(2, ' ');
   out << "\n}\n";

@@ -12,7 +12,7 @@ namespace rodfab::meshing {
 void requireValidDesign(const geometry::RodStructure& structure, const std::filesystem::path& file,
                         const std::function<std::string(std::size_t)>& rodName) {
   try {
-    geometry::parseDesign(geometry::designToJson(structure).dump(), file.string());
+    geometry::summarizeDesignDocument(geometry::designToJson(structure), file.string());
   } catch (const geometry::DesignError& e) {
     const geometry::DesignIssue& issue = e.issues().front();
     std::string where = issue.path;

@@ -61,8 +61,9 @@ private:
   std::unique_ptr<Tree> tree_;
 };
 
-// The design as `rodfab validate` reads it (the same parser on the JSON writeDesign writes), so
-// rods-from-mesh and rods-from-cad never write a design that validate refuses. Throws MeshError naming
+// The design as `rodfab validate` reads it (the same reader on the document writeDesign writes,
+// geometry::summarizeDesignDocument: each rod built and let go), so rods-from-mesh and rods-from-cad never
+// write a design that validate refuses. Throws MeshError naming
 // `file`, the first problem and where it is (`rodName(i)` says what rod i came from).
 void requireValidDesign(const geometry::RodStructure& structure, const std::filesystem::path& file,
                         const std::function<std::string(std::size_t)>& rodName);
