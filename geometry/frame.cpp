@@ -171,8 +171,8 @@ Vec3 seedNormal(const Vec3& referenceNormal, const Vec3& t0) {
 RodFrame RodFrame::rotationMinimizing(const NurbsCurve& curve, const Vec3& referenceNormal) {
   // Double reflection's error is fourth order in the step, so the frames at m samples a span differ
   // from those at 2m by about 15/16 of the former's error: the fewest samples whose frames agree with
-  // twice as many within kFrameTolerance are kept (a short, gently bent rod needs 4 a span, a steep
-  // coil of few control points 128). Curves of many spans stop doubling earlier (kMaxFrameSamples; at
+  // twice as many within kFrameTolerance are kept (a short, gently bent rod needs 4 a span, a coil of
+  // 16 control points a turn 64). Curves of many spans stop doubling earlier (kMaxFrameSamples; at
   // least 4 a span), so memory stays a small multiple of the design file's size.
   const std::vector<double> bp = curve.breakpoints();
   const std::size_t spans = bp.size() - 1;

@@ -12,9 +12,11 @@ namespace rodfab::geometry {
 
 // A rotation-minimizing frame keeps the fewest samples a knot span (4, 8, ..., kMaxSamplesPerSpan)
 // whose d1 agrees with that of twice as many within kFrameTolerance (rad) at every sample; never more
-// a span than keep it within kMaxFrameSamples in all (but at least 4 a span).
+// a span than keep it within kMaxFrameSamples in all (but at least 4 a span). Curves that bend and
+// twist sharply within a span stop at kMaxSamplesPerSpan short of the tolerance (their estimated error
+// says by how much): more samples would cost them 4x the memory for no voxel of a print.
 inline constexpr double kFrameTolerance = 1e-10;
-inline constexpr int kMaxSamplesPerSpan = 256;
+inline constexpr int kMaxSamplesPerSpan = 64;
 inline constexpr std::size_t kMaxFrameSamples = 1 << 16;
 
 // Orthonormal, right-handed: d3 is the unit tangent, d1 and d2 span the cross-section plane.

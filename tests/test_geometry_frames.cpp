@@ -105,10 +105,14 @@ TEST_CASE("Rotation-minimizing frames match the integrated RMF within their esti
     const double error = largestAngleToIntegrated(c.curve, frame, 1600);
     INFO("error " << error << " rad, estimated " << frame.estimatedError() << ", samples " << frame.sampleCount());
     // The estimate is the error within a few per cent (the integration's own error is ~1e-14 rad),
-    // and every curve here converges within the tolerance before the samples' limit.
+    // also where the samples' limit stopped the doubling short of the tolerance (the steep helix).
     CHECK(error <= 1.1 * frame.estimatedError() + 1e-13);
     CHECK(error >= 0.9 * frame.estimatedError() - 1e-13);
-    CHECK(frame.estimatedError() <= kFrameTolerance * 16.0 / 15.0);
+    const std::size_t spans = c.curve.breakpoints().size() - 1;
+    if (frame.sampleCount() < std::size_t(kMaxSamplesPerSpan) * spans + 1)
+      CHECK(frame.estimatedError() <= kFrameTolerance * 16.0 / 15.0);
+    else
+      CHECK(frame.estimatedError() < 1e-8);
   }
 }
 
@@ -131,11 +135,12 @@ TEST_CASE("Rotation-minimizing frames keep few samples where few suffice", "[fra
   const RodFrame straight = RodFrame::rotationMinimizing(line, Vec3(0, 0, 1));
   CHECK(straight.sampleCount() == 5);
   CHECK(straight.estimatedError() <= 1e-15);
-  // A steep helix of few control points a turn needs more, within kMaxSamplesPerSpan a span.
+  // A steep helix of few control points a turn needs more than the limit: it stops there, its estimate
+  // above the tolerance.
   const NurbsCurve steep = helix(1.0, 4.0, 2.0, 8);
   const RodFrame steepFrame = RodFrame::rotationMinimizing(steep, Vec3(0, 0, 1));
-  CHECK(steepFrame.sampleCount() > 64 * spansOf(steep) + 1);
-  CHECK(steepFrame.sampleCount() <= kMaxSamplesPerSpan * spansOf(steep) + 1);
+  CHECK(steepFrame.sampleCount() == kMaxSamplesPerSpan * spansOf(steep) + 1);
+  CHECK(steepFrame.estimatedError() > kFrameTolerance);
 }
 
 TEST_CASE("Rotation-minimizing frames of curves with very many spans stay within the sample budget", "[frame]") {
