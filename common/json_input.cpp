@@ -96,49 +96,56 @@ Found findOverflowingNumber(const std::string& text) {
   });
 }
 
-// A first, DOM-free pass over the text (nlohmann's SAX interface): tracks the path, refuses a key seen
-// twice in one object and counts the values, refusing more than `maxValues`. A separate pass, not a
-// parser callback: nlohmann 3.11's callback DOM parser rescans the parent array at every object's end,
-// quadratic in an array of objects (200,000 calibration points took 11 s).
-class DuplicateKeyCheck : public nlohmann::json_sax<json> {
+// Builds the document from nlohmann's SAX events in one pass over the text, refusing as it goes a key
+// seen twice in one object (nlohmann's own parser keeps the last), nesting deeper than `maxDepth` and
+// more than `maxValues` values, and checking for an interrupt every 65,536 values. A handler of our own,
+// not a parser callback: nlohmann 3.11's callback DOM parser rescans the parent array at every object's
+// end, quadratic in an array of objects (200,000 calibration points took 11 s). Until 2026-12-06 the
+// checks were a SAX pass of their own before nlohmann's DOM parse, which polled nothing: one pass takes
+// half the time (bench/README.md, "One pass for JSON").
+class StrictDomBuilder : public nlohmann::json_sax<json> {
 public:
-  explicit DuplicateKeyCheck(std::size_t maxValues) : maxValues_(maxValues) {}
+  struct TooDeep {};  // located afterwards by findTooDeep, which has the text
 
-  bool null() override { return value(); }
-  bool boolean(bool) override { return value(); }
-  bool number_integer(number_integer_t) override { return value(); }
-  bool number_unsigned(number_unsigned_t) override { return value(); }
-  bool number_float(number_float_t, const string_t&) override { return value(); }
-  bool string(string_t&) override { return value(); }
-  bool binary(binary_t&) override { return value(); }
-  bool start_object(std::size_t) override { return enter(false); }
-  bool start_array(std::size_t) override { return enter(true); }
-  bool end_object() override { return leave(); }
-  bool end_array() override { return leave(); }
+  StrictDomBuilder(json& root, int maxDepth, std::size_t maxValues) : root_(root), maxDepth_(maxDepth), maxValues_(maxValues) {}
+
+  bool null() override { return add(nullptr); }
+  bool boolean(bool v) override { return add(v); }
+  bool number_integer(number_integer_t v) override { return add(v); }
+  bool number_unsigned(number_unsigned_t v) override { return add(v); }
+  bool number_float(number_float_t v, const string_t&) override { return add(v); }
+  bool string(string_t& v) override { return add(std::move(v)); }
+  bool binary(binary_t& v) override { return add(json::binary(std::move(v))); }
+  bool start_object(std::size_t) override { return open(json::object()); }
+  bool start_array(std::size_t) override { return open(json::array()); }
+  bool end_object() override { return close(); }
+  bool end_array() override { return close(); }
   bool key(string_t& key) override {
     Level& l = levels_.back();
     l.key = key;
-    if (!l.keys.insert(key).second) throw JsonInputError(path(), "duplicate key (each key may appear once per object)");
+    const auto [slot, fresh] = l.node->get_ref<json::object_t&>().try_emplace(key);
+    if (!fresh) throw JsonInputError(path(), "duplicate key (each key may appear once per object)");
+    l.slot = &slot->second;
     return true;
   }
-  // Malformed text (or a number beyond a double) is reported by the parser that builds the document.
-  bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception&) override { return false; }
+  // Rethrown as the concrete exception nlohmann's DOM parser throws, for parseJsonStrict's messages.
+  bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception& e) override {
+    if (const auto* syntax = dynamic_cast<const json::parse_error*>(&e)) throw *syntax;
+    if (const auto* range = dynamic_cast<const json::out_of_range*>(&e)) throw *range;
+    throw JsonInputError("", printableJsonError(e.what()));
+  }
 
 private:
   struct Level {
-    bool array;
-    std::size_t index = 0;
+    json* node;
+    json* slot = nullptr;  // an object's member whose key came last
     std::string key;
-    std::set<std::string> keys;
   };
-  std::vector<Level> levels_;
-  std::size_t maxValues_;
-  std::size_t values_ = 0;
 
   std::string path() const {
     std::string p;
     for (const Level& l : levels_) {
-      if (l.array) p.append("[").append(std::to_string(l.index)).append("]");
+      if (l.node->is_array()) p.append("[").append(std::to_string(l.node->size() - (&l == &levels_.back() ? 0 : 1))).append("]");
       else if (!l.key.empty()) p.append(p.empty() ? "" : ".").append(printableFromFile(l.key, 64));  // a file's key: shown escaped
     }
     return p;
@@ -148,21 +155,42 @@ private:
       throw JsonInputError(path(), "the document holds more than " + std::to_string(maxValues_) + " values; expected fewer");
     if (values_ % 65536 == 0) throwIfInterrupted();  // ~1 ms of values: a 256 MiB document reads for seconds
   }
-  bool value() {
+  // Where the next value goes: the root, the end of the open array, or the member its key made.
+  json* place(json&& value) {
+    if (levels_.empty()) {
+      root_ = std::move(value);
+      return &root_;
+    }
+    Level& l = levels_.back();
+    if (l.node->is_array()) {
+      auto& items = l.node->get_ref<json::array_t&>();
+      items.push_back(std::move(value));
+      return &items.back();  // stays put: the array grows again only once this value is closed
+    }
+    *l.slot = std::move(value);
+    return l.slot;
+  }
+  bool add(json&& value) {
     count();
-    if (!levels_.empty() && levels_.back().array) ++levels_.back().index;
+    place(std::move(value));
     return true;
   }
-  bool enter(bool array) {
+  bool open(json&& container) {
     count();
-    levels_.push_back(Level{array, 0, {}, {}});
+    if (static_cast<int>(levels_.size()) >= maxDepth_) throw TooDeep{};
+    levels_.push_back({place(std::move(container)), nullptr, {}});
     return true;
   }
-  bool leave() {
+  bool close() {
     levels_.pop_back();
-    if (!levels_.empty() && levels_.back().array) ++levels_.back().index;
     return true;
   }
+
+  json& root_;
+  int maxDepth_;
+  std::size_t maxValues_;
+  std::size_t values_ = 0;
+  std::vector<Level> levels_;
 };
 
 }  // namespace
@@ -206,14 +234,16 @@ json parseJsonStrict(const std::string& text, int maxDepth, std::size_t maxValue
   if (text.size() > kMaxJsonBytes)
     throw JsonInputError("", "the file is " + std::to_string(text.size() >> 20) + " MiB; expected at most " +
                                  std::to_string(kMaxJsonBytes >> 20) + " MiB of JSON");
-  if (const Found deep = findTooDeep(text, maxDepth); deep.offset != std::string::npos)
+  try {
+    json document;
+    StrictDomBuilder builder(document, maxDepth, maxValues);
+    json::sax_parse(text, &builder);  // the builder throws at the first problem
+    return document;
+  } catch (const StrictDomBuilder::TooDeep&) {
+    const Found deep = findTooDeep(text, maxDepth);
     throw JsonInputError(deep.path, "nested deeper than " + std::to_string(maxDepth) + " arrays and objects at " +
                                         lineColumnText(text, deep.offset) + " (expected at most " +
                                         std::to_string(maxDepth) + ")");
-  try {
-    DuplicateKeyCheck check(maxValues);
-    json::sax_parse(text, &check);  // stops quietly at malformed text: the parse below reports it
-    return json::parse(text);
   } catch (const json::parse_error& e) {
     std::string what = printableJsonError(e.what());  // "[json.exception.parse_error.101] parse error at line 1, column 13: why"
     if (auto pos = what.find("parse error"); pos != std::string::npos) {

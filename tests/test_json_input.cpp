@@ -45,6 +45,36 @@ TEST_CASE("Duplicate keys, depth and the number of values are refused at a path"
   CHECK(parseJsonStrict(R"({"x": [1, 2, 3]})", 64, 5)["x"].size() == 3);
 }
 
+TEST_CASE("The document built in one pass is the one nlohmann's own parser builds", "[common]") {
+  // parseJsonStrict builds the document from SAX events itself; nlohmann's DOM parser is the truth.
+  const std::vector<std::string> texts = {
+      "null", "true", "-0", "0", "18446744073709551615", "-9223372036854775808", "1e-400", "2.5e3", R"("a\u00e9\n\"")",
+      "[]", "{}", "[[], {}, [[]], {\"\": {}}]",
+      R"({"rods": [{"name": "a", "e": [1, 2.5, -3], "open": true}, {"name": "b", "e": [], "open": null}], "z": {"y": {"x": [0]}}})",
+      R"([{"b": 1, "a": 2}, [1, [2, [3, [4]]]], "s", 1.7976931348623157e308, -4.9e-324])",
+  };
+  for (const std::string& text : texts) {
+    INFO(text);
+    const nlohmann::json ours = parseJsonStrict(text);
+    const nlohmann::json theirs = nlohmann::json::parse(text);
+    CHECK(ours == theirs);
+    CHECK(ours.dump() == theirs.dump());
+    CHECK(ours.type() == theirs.type());
+  }
+  // Every value's type as nlohmann gives it (unsigned for non-negative integers), not only equal values.
+  const nlohmann::json numbers = parseJsonStrict("[1, -1, 1.0, 18446744073709551615]");
+  CHECK(numbers[0].is_number_unsigned());
+  CHECK(numbers[1].is_number_integer());
+  CHECK_FALSE(numbers[1].is_number_unsigned());
+  CHECK(numbers[2].is_number_float());
+  CHECK(numbers[3].get<std::uint64_t>() == 18446744073709551615ull);
+  // Malformed text and trailing bytes are refused as nlohmann refuses them, with a line and column.
+  for (const std::string bad : {"[1, 2", "{\"a\" 1}", "[1] x", "", "[01]"}) {
+    INFO(bad);
+    CHECK(errorOf(bad).message.find("malformed JSON at line 1, column") != std::string::npos);
+  }
+}
+
 TEST_CASE("Messages name JSON paths and show values cut to a bounded size", "[common]") {
   using rodfab::common::describeJson;
   using rodfab::common::indexPath;
