@@ -36,7 +36,7 @@ fs::path scratchDir(const std::string& name) {
 }
 
 // Entries of every size class the writer meets: many small ones (layer images of a sparse part), and
-// ones larger than the output's 8 MiB buffer and the reader's 1 MiB read-ahead, so local headers are
+// ones larger than the output's 512 KiB buffer and the reader's 1 MiB read-ahead, so local headers are
 // rewritten both inside and outside the buffered tail. Half compressible, half random.
 std::vector<Bytes> contents() {
   std::mt19937 rng(7);
