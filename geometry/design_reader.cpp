@@ -15,7 +15,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
-#include <cstring>
 #include <string_view>
 
 namespace rodfab::geometry {
@@ -53,14 +52,23 @@ std::string tagOverflowingNumbers(const std::string& text) {
       continue;
     }
     std::size_t end = at + 1;
-    while (end < text.size() && std::strchr("0123456789.eE+-", text[end])) ++end;
-    const std::string literal = text.substr(at, end - at);
-    char* parsedEnd = nullptr;
-    const double v = std::strtod(literal.c_str(), &parsedEnd);
-    if (parsedEnd == literal.c_str() + literal.size() && !std::isfinite(v)) {
-      out.append(text, copied, at - copied);
-      out += json(std::string(kOverflowTag) + literal).dump();
-      copied = end;
+    bool exponent = false;
+    for (; end < text.size(); ++end) {
+      const char d = text[end];
+      if (d == 'e' || d == 'E') exponent = true;
+      else if (!((d >= '0' && d <= '9') || d == '.' || d == '+' || d == '-')) break;
+    }
+    // Only a literal with an exponent, or with over 300 characters, can lie beyond a double (1.8e308):
+    // the others are not converted. Converting all of them (a copy and strtod each) took 0.15-0.23 s of
+    // reading the mesh-made torus's 18.7 MB design (1.05 M numbers), this scan 0.065 s.
+    if (exponent || end - at > 300) {
+      char* parsedEnd = nullptr;
+      const double v = std::strtod(text.c_str() + at, &parsedEnd);  // the literal only if it ends at `end`
+      if (parsedEnd == text.c_str() + end && !std::isfinite(v)) {
+        out.append(text, copied, at - copied);
+        out += json(std::string(kOverflowTag) + text.substr(at, end - at)).dump();
+        copied = end;
+      }
     }
     at = end;
   }

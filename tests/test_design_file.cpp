@@ -107,6 +107,13 @@ TEST_CASE("Every kind of bad format, units and centerline is reported with its p
     text.replace(text.find("\"units\":\"mm\""), 12, "\"units\":\"in\"");
     REQUIRE_ISSUE(text, "units", "expected \"mm\"");
     REQUIRE_ISSUE(text, "rods[0].centerline.points[2][1]", "1e999");
+    // Without an exponent a literal overflows with 310 digits or more; with a capital E as well.
+    std::string longInteger = validDesign().dump();
+    longInteger.replace(longInteger.find("[2,1,0]"), 7, "[2,-" + std::string(400, '9') + ",0]");
+    REQUIRE_ISSUE(longInteger, "rods[0].centerline.points[2][1]", "beyond the range of a double");
+    std::string capital = validDesign().dump();
+    capital.replace(capital.find("[2,1,0]"), 7, "[2,1,2.5E+400]");
+    REQUIRE_ISSUE(capital, "rods[0].centerline.points[2][2]", "beyond the range of a double");
     // Numbers inside strings are left alone.
     json d = validDesign();
     d["description"] = "1e999 \\\" 2e999";
