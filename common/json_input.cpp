@@ -122,10 +122,10 @@ public:
   bool end_array() override { return close(); }
   bool key(string_t& key) override {
     Level& l = levels_.back();
-    l.key = key;
-    const auto [slot, fresh] = l.node->get_ref<json::object_t&>().try_emplace(key);
+    const auto [member, fresh] = l.node->get_ref<json::object_t&>().try_emplace(key);
+    l.key = &member->first;  // the first one's: the same text as a repeated key
     if (!fresh) throw JsonInputError(path(), "duplicate key (each key may appear once per object)");
-    l.slot = &slot->second;
+    l.slot = &member->second;
     return true;
   }
   // Rethrown as the concrete exception nlohmann's DOM parser throws, for parseJsonStrict's messages.
@@ -138,15 +138,15 @@ public:
 private:
   struct Level {
     json* node;
-    json* slot = nullptr;  // an object's member whose key came last
-    std::string key;
+    json* slot = nullptr;              // an object's member whose key came last,
+    const std::string* key = nullptr;  // and that key (both stay put: std::map's nodes do not move)
   };
 
   std::string path() const {
     std::string p;
     for (const Level& l : levels_) {
       if (l.node->is_array()) p.append("[").append(std::to_string(l.node->size() - (&l == &levels_.back() ? 0 : 1))).append("]");
-      else if (!l.key.empty()) p.append(p.empty() ? "" : ".").append(printableFromFile(l.key, 64));  // a file's key: shown escaped
+      else if (l.key && !l.key->empty()) p.append(p.empty() ? "" : ".").append(printableFromFile(*l.key, 64));  // a file's key: shown escaped
     }
     return p;
   }
@@ -178,7 +178,7 @@ private:
   bool open(json&& container) {
     count();
     if (static_cast<int>(levels_.size()) >= maxDepth_) throw TooDeep{};
-    levels_.push_back({place(std::move(container)), nullptr, {}});
+    levels_.push_back({place(std::move(container)), nullptr, nullptr});
     return true;
   }
   bool close() {
