@@ -39,7 +39,12 @@ std::optional<std::string> overflowLiteral(const json& j) {
 std::string tagOverflowingNumbers(const std::string& text) {
   std::string out;
   std::size_t copied = 0;
-  for (std::size_t at = 0; at < text.size();) {
+  constexpr std::size_t kPollBytes = std::size_t{4} << 20;  // ~15 ms of scanning between interrupt polls
+  for (std::size_t at = 0, poll = kPollBytes; at < text.size();) {
+    if (at >= poll) {  // a design of hundreds of MB scans for seconds
+      common::throwIfInterrupted();
+      poll = at + kPollBytes;
+    }
     const char c = text[at];
     if (c == '"') {  // skip the string, escapes included
       for (++at; at < text.size() && text[at] != '"'; ++at)
