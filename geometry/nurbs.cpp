@@ -251,8 +251,11 @@ double NurbsCurve::arcLength(double u0, double u1) const {
     return sum;
   };
   // Each knot span is split into 8 pieces, each integrated with 8 Gauss points: exact enough
-  // (better than 1e-10 relative) for the smooth, moderately curved spans of rod designs. Where 16
-  // pieces disagree (extreme weights race through part of a span) the span is integrated adaptively.
+  // (better than 1e-10 relative) for the smooth, moderately curved spans of rod designs. The check is
+  // the same span in 4 pieces: 8-point Gauss converges as h^16, so where 4 pieces agree with 8 within
+  // 1e-9, the 8 pieces' own error is far below it (checking 8 against 16 pieces, as before, cost twice
+  // the evaluations for the same sum). Where they disagree (extreme weights race through part of a
+  // span) the span is integrated adaptively.
   constexpr int kPiecesPerSpan = 8;
   double length = 0.0;
   const std::vector<double> bp = breakpoints();
@@ -260,7 +263,7 @@ double NurbsCurve::arcLength(double u0, double u1) const {
     const double a = std::max(bp[s], u0), b = std::min(bp[s + 1], u1);
     if (!(b > a)) continue;
     const double h = (b - a) / kPiecesPerSpan;
-    double span = 0.0, fine = 0.0;
+    double span = 0.0, coarse = 0.0;
     for (int piece = 0; piece < kPiecesPerSpan; ++piece) {
       const double mid = a + (piece + 0.5) * h;
       for (std::size_t g = 0; g < kGaussNodes.size(); ++g) {
@@ -268,9 +271,9 @@ double NurbsCurve::arcLength(double u0, double u1) const {
         derivatives(mid + 0.5 * h * kGaussNodes[g], 1, d);
         span += 0.5 * h * kGaussWeights[g] * d[1].norm();
       }
-      fine += gauss(a + piece * h, mid) + gauss(mid, a + (piece + 1) * h);
     }
-    if (!(std::abs(fine - span) > 1e-9 * fine)) {
+    for (int piece = 0; piece < kPiecesPerSpan; piece += 2) coarse += gauss(a + piece * h, a + (piece + 2) * h);
+    if (!(std::abs(span - coarse) > 1e-9 * span)) {
       length += span;
       continue;
     }
@@ -285,7 +288,7 @@ double NurbsCurve::arcLength(double u0, double u1) const {
       if (--budget <= 0 || !(m > x && y > m) || std::abs(left + right - whole) <= tolerance) return left + right;
       return self(self, x, m, left, 0.5 * tolerance) + self(self, m, y, right, 0.5 * tolerance);
     };
-    const double pieceTolerance = 1e-10 * std::max(std::abs(fine), std::abs(span)) / kPiecesPerSpan;
+    const double pieceTolerance = 1e-10 * std::max(std::abs(span), std::abs(coarse)) / kPiecesPerSpan;
     for (int piece = 0; piece < kPiecesPerSpan; ++piece) {
       const double x = a + piece * h, y = piece + 1 == kPiecesPerSpan ? b : a + (piece + 1) * h;
       length += adaptive(adaptive, x, y, gauss(x, y), pieceTolerance);

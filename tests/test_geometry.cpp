@@ -47,6 +47,24 @@ TEST_CASE("A rational quadratic NURBS circle has constant radius and the exact l
   REQUIRE(c.arcLength(0.0, 0.25) == Approx(0.5 * std::numbers::pi * R).epsilon(1e-9));
 }
 
+TEST_CASE("NURBS arc length is exact to 1e-10 on evenly and very unevenly parametrized curves", "[nurbs]") {
+  // A quarter circle as a rational quadratic with weights (1, k sqrt(2)/2, k^2): the same arc for every
+  // k (the shape depends on w1^2 / (w0 w2) only), traversed ever more unevenly as k leaves 1, so the
+  // quadrature's check fails and the spans are integrated adaptively.
+  const double R = 3.0;
+  for (double k : {1.0, 3.0, 30.0, 1000.0, 1e-3}) {
+    const NurbsCurve arc(2, {0, 0, 0, 1, 1, 1}, {{R, 0, 0}, {R, R, 0}, {0, R, 0}}, {1.0, k * std::sqrt(0.5), k * k});
+    CAPTURE(k);
+    REQUIRE((arc.point(0.37) - Vec3::Zero()).norm() == Approx(R).epsilon(1e-12));
+    CHECK(arc.arcLength() == Approx(0.5 * std::numbers::pi * R).epsilon(1e-10));
+  }
+  // The parabola y = x^2 for x in [-1, 2] as a quadratic Bezier: sum of x sqrt(1 + 4x^2) / 2 + asinh(2x) / 4.
+  const NurbsCurve parabola(2, {0, 0, 0, 1, 1, 1}, {{-1, 1, 0}, {0.5, -2, 0}, {2, 4, 0}}, {1, 1, 1});
+  const auto primitive = [](double x) { return 0.5 * x * std::sqrt(1 + 4 * x * x) + 0.25 * std::asinh(2 * x); };
+  CHECK(parabola.arcLength() == Approx(primitive(2) - primitive(-1)).epsilon(1e-12));
+  CHECK(parabola.arcLength(0.25, 0.75) == Approx(primitive(1.25) - primitive(-0.25)).epsilon(1e-12));
+}
+
 TEST_CASE("NURBS first and second derivatives match finite differences", "[nurbs]") {
   const NurbsCurve c = wigglyCubic();
   const double h = 1e-5;
