@@ -44,6 +44,14 @@ LeafGroups leafGroupsInLayers(const openvdb::FloatTree& tree, int k0, int k1);
 // The leaf's active voxels that lie in layers [k0, k1).
 LeafMask activeInLayers(const FloatLeaf& leaf, int k0, int k1);
 
+// A leaf mask's eight 64-bit words, as FractionMap::mapWords takes them.
+inline std::array<std::uint64_t, 8> maskWords(const LeafMask& mask) {
+  static_assert(LeafMask::WORD_COUNT == 8);
+  std::array<std::uint64_t, 8> words;
+  for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w) words[w] = mask.template getWord<std::uint64_t>(w);
+  return words;
+}
+
 // Records the first (in leaf order) voxel whose fraction is outside [0, 1]; safe to call from many
 // threads, and the reported voxel does not depend on which thread saw what first.
 class FractionCheck {
@@ -194,29 +202,24 @@ openvdb::BoolGrid::Ptr ditherPointwise(const openvdb::FloatGrid& fraction, int k
 }
 
 // The Vero bits of leaf `in`'s voxels in `mask` (moduli, MPa) by `rule` applied to their fractions,
-// which FractionMap::mapWord writes into `fractions` (the caller's 512 floats, in L1: never a leaf of
-// a tree) word by word just before; counts the leaf's voxels and clamps into `stats`. A word's
-// fractions are mapWord's, as mapToFractions stores them, so the bits are those of dithering the
-// mapped grid; no fraction check: a FractionMap gives values in [0, 1] only.
+// which FractionMap::mapWords writes into `fractions` (the caller's 512 floats, in L1: never a leaf of
+// a tree) just before; counts the leaf's voxels and clamps into `stats`. The fractions are mapWord's,
+// as mapToFractions stores them, so the bits are those of dithering the mapped grid; no fraction
+// check: a FractionMap gives values in [0, 1] only.
 template <typename Rule>
 LeafMask mapAndDitherLeaf(const FloatLeaf& in, const LeafMask& mask, const FractionMap& map, const Rule& rule,
                           float* fractions, MappingStats& stats) {
-  const float* moduli = in.buffer().data();
+  const std::array<std::uint64_t, 8> active = maskWords(mask);
+  const FractionMap::WordClamps clamps = map.mapWords(in.buffer().data(), active.data(), active.size(), fractions);
+  stats.voxels += mask.countOn();
+  stats.clamps.belowFloor += clamps.belowFloor;
+  stats.clamps.aboveMax += clamps.aboveMax;
   unsigned words = 0;  // bit w: word w has active voxels
-  for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w) {
-    const std::uint64_t active = mask.template getWord<std::uint64_t>(w);
-    if (!active) continue;
-    const FractionMap::WordClamps clamps = map.mapWord(moduli + 64 * w, active, fractions + 64 * w);
-    stats.voxels += static_cast<std::uint64_t>(std::popcount(active));
-    stats.clamps.belowFloor += clamps.belowFloor;
-    stats.clamps.aboveMax += clamps.aboveMax;
-    words |= 1u << w;
-  }
+  for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w) words |= (active[w] != 0 ? 1u : 0u) << w;
   LeafWords bits{};
   if (words) rule(fractions, words, bits);
   LeafMask vero;
-  for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w)
-    vero.template getWord<std::uint64_t>(w) = bits[w] & mask.template getWord<std::uint64_t>(w);
+  for (openvdb::Index w = 0; w < LeafMask::WORD_COUNT; ++w) vero.template getWord<std::uint64_t>(w) = bits[w] & active[w];
   return vero;
 }
 

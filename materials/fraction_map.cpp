@@ -135,14 +135,14 @@ struct GatherSegments {
 
 }  // namespace
 
-// mapWord's body, compiled twice: for the baseline (four lanes) and for AVX2 (eight; chosen at load
-// time, see mapWord). AVX2 brings no FMA, so no multiply-add is fused and both give interpolate's
+// mapWords' body, compiled twice: for the baseline (four lanes) and for AVX2 (eight; chosen at load
+// time, see mapWords). AVX2 brings no FMA, so no multiply-add is fused and both give interpolate's
 // bits. Integers in 32 bits: a positive float's bits are below 2^31, so the interval and the offset in
 // it (interpolate's 64-bit expressions) are the same numbers; lanes that are clamped (negative, NaN,
 // out of range) compute garbage within the table's bounds, then take the clamp's value.
 template <typename Load>
-inline FractionMap::WordClamps FractionMap::mapWordWith(const float* moduli, std::uint64_t active,
-                                                                             float* fractions) const {
+inline FractionMap::WordClamps FractionMap::mapWordsWith(const float* moduli, const std::uint64_t* activeWords, std::size_t words,
+                                                         float* fractions) const {
   constexpr int N = Load::kLanes;
   using Double = typename Lanes<N>::Double;
   using Float = typename Lanes<N>::Float;
@@ -173,59 +173,72 @@ inline FractionMap::WordClamps FractionMap::mapWordWith(const float* moduli, std
     above = (e > maximum) & ~below;
     return below ? floorFraction : above ? one : f;
   };
-  if (const std::uint64_t voxels = static_cast<std::uint64_t>(std::popcount(active)); voxels > 1) {
-    // A word whose active voxels all hold the same modulus, bit for bit (two thirds of the lattice
-    // class's voxels, where E depends on z only; every word of the dense block), maps it once: the
-    // same lanes' arithmetic on that value, so the same fraction, stored into every active voxel.
-    const std::uint32_t value = std::bit_cast<std::uint32_t>(moduli[std::countr_zero(active)]);
-    if (allActiveAre<N>(moduli, active, value)) {
-      Int below, above;
-      const Float f = laneFractions(reinterpret_cast<Float>(UInt{} + value), below, above);  // every lane alike, -0 and NaN kept
-      for (int q = 0; q < 64; q += N) {
-        const Float out = onLanes<N>(active, q) ? f : zero;
-        std::memcpy(fractions + q, &out, sizeof out);
-      }
-      return {below[0] ? voxels : 0, above[0] ? voxels : 0};
-    }
-  }
-  Int belowCount = {}, aboveCount = {};  // minus the clamped active voxels, lane by lane
-  for (int q = 0; q < 64; q += N) {
-    if (!(active >> q & kLaneBits)) {  // the thin parts of a rod leave whole groups inactive
-      std::memcpy(fractions + q, &zero, sizeof zero);
+  std::uint64_t belowTotal = 0, aboveTotal = 0;  // the uniform words' clamped voxels
+  Int belowCount = {}, aboveCount = {};           // minus the other words' clamped voxels, lane by lane (at most 512)
+  for (std::size_t w = 0; w < words; ++w, moduli += 64, fractions += 64) {
+    const std::uint64_t active = activeWords[w];
+    if (!active) {  // inactive voxels hold the background, 0
+      std::fill_n(fractions, 64, 0.0f);
       continue;
     }
-    Float e;
-    std::memcpy(&e, moduli + q, sizeof e);
-    const Int on = onLanes<N>(active, q);
-    Int below, above;
-    Float f = laneFractions(e, below, above);
-    f = on ? f : zero;
-    std::memcpy(fractions + q, &f, sizeof f);
-    belowCount += below & on;
-    aboveCount += above & on;
+    if (const std::uint64_t voxels = static_cast<std::uint64_t>(std::popcount(active)); voxels > 1) {
+      // A word whose active voxels all hold the same modulus, bit for bit (two thirds of the lattice
+      // class's voxels, where E depends on z only; every word of the dense block), maps it once: the
+      // same lanes' arithmetic on that value, so the same fraction, stored into every active voxel.
+      const std::uint32_t value = std::bit_cast<std::uint32_t>(moduli[std::countr_zero(active)]);
+      if (allActiveAre<N>(moduli, active, value)) {
+        Int below, above;
+        const Float f = laneFractions(reinterpret_cast<Float>(UInt{} + value), below, above);  // every lane alike, -0 and NaN kept
+        for (int q = 0; q < 64; q += N) {
+          const Float out = onLanes<N>(active, q) ? f : zero;
+          std::memcpy(fractions + q, &out, sizeof out);
+        }
+        belowTotal += below[0] ? voxels : 0;
+        aboveTotal += above[0] ? voxels : 0;
+        continue;
+      }
+    }
+    for (int q = 0; q < 64; q += N) {
+      if (!(active >> q & kLaneBits)) {  // the thin parts of a rod leave whole groups inactive
+        std::memcpy(fractions + q, &zero, sizeof zero);
+        continue;
+      }
+      Float e;
+      std::memcpy(&e, moduli + q, sizeof e);
+      const Int on = onLanes<N>(active, q);
+      Int below, above;
+      Float f = laneFractions(e, below, above);
+      f = on ? f : zero;
+      std::memcpy(fractions + q, &f, sizeof f);
+      belowCount += below & on;
+      aboveCount += above & on;
+    }
   }
-  std::int64_t belowSum = 0, aboveSum = 0;
   for (int l = 0; l < N; ++l) {
-    belowSum -= belowCount[l];
-    aboveSum -= aboveCount[l];
+    belowTotal += static_cast<std::uint64_t>(-static_cast<std::int64_t>(belowCount[l]));
+    aboveTotal += static_cast<std::uint64_t>(-static_cast<std::int64_t>(aboveCount[l]));
   }
-  return {static_cast<std::uint64_t>(belowSum), static_cast<std::uint64_t>(aboveSum)};
+  return {belowTotal, aboveTotal};
 }
 
 #if RODFAB_TARGET_PATHS
 // Everything inlined into it (flatten), so compiled for AVX2.
-[[gnu::target("avx2"), gnu::flatten]] FractionMap::WordClamps FractionMap::mapWordAvx2(const float* moduli, std::uint64_t active,
-                                                                       float* fractions) const {
-  return mapWordWith<GatherSegments>(moduli, active, fractions);
+[[gnu::target("avx2"), gnu::flatten]] FractionMap::WordClamps FractionMap::mapWordsAvx2(const float* moduli, const std::uint64_t* active,
+                                                                                        std::size_t words, float* fractions) const {
+  return mapWordsWith<GatherSegments>(moduli, active, words, fractions);
 }
 #endif
 
-FractionMap::WordClamps FractionMap::mapWord(const float* moduli, std::uint64_t active, float* fractions) const {
+FractionMap::WordClamps FractionMap::mapWords(const float* moduli, const std::uint64_t* active, std::size_t words, float* fractions) const {
 #if RODFAB_TARGET_PATHS
   static const bool avx2 = __builtin_cpu_supports("avx2");
-  if (avx2) return mapWordAvx2(moduli, active, fractions);
+  if (avx2) return mapWordsAvx2(moduli, active, words, fractions);
 #endif
-  return mapWordWith<LoadSegments>(moduli, active, fractions);
+  return mapWordsWith<LoadSegments>(moduli, active, words, fractions);
+}
+
+FractionMap::WordClamps FractionMap::mapWord(const float* moduli, std::uint64_t active, float* fractions) const {
+  return mapWords(moduli, &active, 1, fractions);
 }
 
 FractionMap::FractionMap(const calibration::Calibration& calibration, std::size_t nodes)
@@ -289,24 +302,16 @@ using detail::FloatLeaf;
 void mapLeaf(const FloatLeaf& in, const detail::LeafMask& mask, const detail::LeafMask& counted, const FractionMap& map,
              MappingStats& s, FloatLeaf& leaf) {
   leaf.setValueMask(mask);
-  const float* moduli = in.buffer().data();
-  float* fractions = leaf.buffer().data();
-  for (openvdb::Index w = 0; w < detail::LeafMask::WORD_COUNT; ++w) {
-    const std::uint64_t active = mask.getWord<std::uint64_t>(w);
-    if (!active) {  // inactive voxels hold the background, 0
-      std::fill_n(fractions + 64 * w, 64, 0.0f);
-      continue;
-    }
-    FractionMap::WordClamps clamps = map.mapWord(moduli + 64 * w, active, fractions + 64 * w);
-    const std::uint64_t countedBits = counted.getWord<std::uint64_t>(w);
-    if (countedBits != active) {  // a word with voxels of the uncounted layer too: the counted ones' clamps apart
-      alignas(64) std::array<float, 64> scratch;
-      clamps = countedBits ? map.mapWord(moduli + 64 * w, countedBits, scratch.data()) : FractionMap::WordClamps{};
-    }
-    s.voxels += static_cast<std::uint64_t>(std::popcount(countedBits));
-    s.clamps.belowFloor += clamps.belowFloor;
-    s.clamps.aboveMax += clamps.aboveMax;
+  const std::array<std::uint64_t, 8> active = detail::maskWords(mask);
+  FractionMap::WordClamps clamps = map.mapWords(in.buffer().data(), active.data(), active.size(), leaf.buffer().data());
+  if (counted != mask) {  // voxels of the uncounted layer too: the counted ones' clamps apart
+    alignas(64) std::array<float, FloatLeaf::SIZE> scratch;
+    const std::array<std::uint64_t, 8> countedWords = detail::maskWords(counted);
+    clamps = map.mapWords(in.buffer().data(), countedWords.data(), countedWords.size(), scratch.data());
   }
+  s.voxels += counted.countOn();
+  s.clamps.belowFloor += clamps.belowFloor;
+  s.clamps.aboveMax += clamps.aboveMax;
 }
 
 // mapToFractions over layers [k0, k1), the stats counting layers [k0, countEnd) only (countEnd <= k1).

@@ -73,6 +73,11 @@ public:
     std::uint64_t belowFloor = 0, aboveMax = 0;
   };
   WordClamps mapWord(const float* moduli, std::uint64_t active, float* fractions) const;
+  // mapWord for `words` consecutive words (a leaf's 8: moduli[64 w ..], active[w], fractions[64 w ..]),
+  // a word whose `active` is 0 set to 0; the clamps summed. The same bits as mapWord word by word, with
+  // the constants set up once a call, not once a word (the set-up and the flags' reduction were about
+  // as much of a word's work as its look-ups: bench/README.md).
+  WordClamps mapWords(const float* moduli, const std::uint64_t* active, std::size_t words, float* fractions) const;
 
   double interpolationErrorBound() const { return errorBound_; }
   double floorMpa() const { return floorMpa_; }
@@ -82,12 +87,13 @@ public:
   int intervalsPerOctaveLog2() const { return 23 - shift_; }
 
 private:
-  // mapWord's body for a way of loading the table's segments (fraction_map.cpp), and its AVX2 version
-  // (gathers), which mapWord calls where the processor has AVX2.
+  // mapWords' body for a way of loading the table's segments (fraction_map.cpp), and its AVX2 version
+  // (gathers), which mapWords calls where the processor has AVX2.
   template <typename Load>
-  WordClamps mapWordWith(const float* moduli, std::uint64_t active, float* fractions) const;
+  WordClamps mapWordsWith(const float* moduli, const std::uint64_t* active, std::size_t words, float* fractions) const;
 #if RODFAB_TARGET_PATHS
-  [[gnu::target("avx2")]] WordClamps mapWordAvx2(const float* moduli, std::uint64_t active, float* fractions) const;
+  [[gnu::target("avx2")]] WordClamps mapWordsAvx2(const float* moduli, const std::uint64_t* active, std::size_t words,
+                                                  float* fractions) const;
 #endif
 
   std::vector<double> table_;  // node values; interval n spans float bits [(first + n) << shift, (first + n + 1) << shift)

@@ -248,6 +248,38 @@ TEST_CASE("materials: a leaf word maps four voxels a step exactly as the scalar 
   }
 }
 
+TEST_CASE("materials: a leaf's words map in one call exactly as word by word, clamps summed", "[materials][mapping]") {
+  const FractionMap map(logPowerCalibration());
+  std::mt19937_64 random(11);
+  std::uniform_real_distribution<double> lnE(std::log(1.0), std::log(400.0));
+  for (int round = 0; round < 50; ++round) {
+    std::array<float, 512> moduli;
+    std::array<std::uint64_t, 8> active;
+    for (std::size_t w = 0; w < 8; ++w) {
+      // Words of every kind in one leaf: empty, full, random, one value throughout (the uniform path).
+      const int kind = static_cast<int>((round + w) % 4);
+      active[w] = kind == 0 ? 0 : kind == 1 ? ~std::uint64_t{0} : random();
+      const float shared = static_cast<float>(std::exp(lnE(random)));
+      for (std::size_t b = 0; b < 64; ++b) moduli[64 * w + b] = kind == 3 ? shared : static_cast<float>(std::exp(lnE(random)));
+    }
+    std::array<float, 512> together, apart;
+    together.fill(-1.0f);
+    apart.fill(-1.0f);
+    const FractionMap::WordClamps sum = map.mapWords(moduli.data(), active.data(), active.size(), together.data());
+    std::uint64_t below = 0, above = 0;
+    for (std::size_t w = 0; w < 8; ++w) {
+      const FractionMap::WordClamps c = map.mapWord(moduli.data() + 64 * w, active[w], apart.data() + 64 * w);
+      below += c.belowFloor;
+      above += c.aboveMax;
+    }
+    CAPTURE(round);
+    CHECK(sum.belowFloor == below);
+    CHECK(sum.aboveMax == above);
+    CHECK(below + above > 0);  // the moduli range past both clamps: the sums are exercised
+    for (std::size_t v = 0; v < 512; ++v) CHECK(std::bit_cast<std::uint32_t>(together[v]) == std::bit_cast<std::uint32_t>(apart[v]));
+  }
+}
+
 TEST_CASE("materials: voxels far apart, negative coordinates included, map into the nodes OpenVDB puts them in", "[materials][mapping]") {
   // Leaves in different leaf parents (128 voxels) and upper nodes (4096), on both sides of 0: the output
   // tree is assembled parent by parent, then upper node by upper node.
