@@ -230,11 +230,22 @@ inline FractionMap::WordClamps FractionMap::mapWordsWith(const float* moduli, co
 #endif
 
 FractionMap::WordClamps FractionMap::mapWords(const float* moduli, const std::uint64_t* active, std::size_t words, float* fractions) const {
+  // mapWordsWith counts the clamps lane by lane in 32 bits: at most 2^20 words (2^23 voxels a lane) a call.
+  constexpr std::size_t kChunk = std::size_t{1} << 20;
+  WordClamps total;
+  for (std::size_t w = 0; w < words; w += kChunk) {
+    const std::size_t n = std::min(kChunk, words - w);
 #if RODFAB_TARGET_PATHS
-  static const bool avx2 = __builtin_cpu_supports("avx2");
-  if (avx2) return mapWordsAvx2(moduli, active, words, fractions);
+    static const bool avx2 = __builtin_cpu_supports("avx2");
+    const WordClamps c = avx2 ? mapWordsAvx2(moduli + 64 * w, active + w, n, fractions + 64 * w)
+                              : mapWordsWith<LoadSegments>(moduli + 64 * w, active + w, n, fractions + 64 * w);
+#else
+    const WordClamps c = mapWordsWith<LoadSegments>(moduli + 64 * w, active + w, n, fractions + 64 * w);
 #endif
-  return mapWordsWith<LoadSegments>(moduli, active, words, fractions);
+    total.belowFloor += c.belowFloor;
+    total.aboveMax += c.aboveMax;
+  }
+  return total;
 }
 
 FractionMap::WordClamps FractionMap::mapWord(const float* moduli, std::uint64_t active, float* fractions) const {
