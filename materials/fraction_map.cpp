@@ -205,13 +205,17 @@ inline FractionMap::WordClamps FractionMap::mapWordsWith(const float* moduli, co
       }
       Float e;
       std::memcpy(&e, moduli + q, sizeof e);
-      const Int on = onLanes<N>(active, q);
       Int below, above;
       Float f = laneFractions(e, below, above);
-      f = on ? f : zero;
+      if ((active >> q & kLaneBits) != kLaneBits) {  // the inactive lanes' values and flags left out
+        const Int on = onLanes<N>(active, q);
+        f = on ? f : zero;
+        below &= on;
+        above &= on;
+      }
       std::memcpy(fractions + q, &f, sizeof f);
-      belowCount += below & on;
-      aboveCount += above & on;
+      belowCount += below;
+      aboveCount += above;
     }
   }
   for (int l = 0; l < N; ++l) {
