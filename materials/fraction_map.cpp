@@ -185,8 +185,9 @@ inline FractionMap::WordClamps FractionMap::mapWordsWith(const float* moduli, co
       // A word whose active voxels all hold the same modulus, bit for bit (two thirds of the lattice
       // class's voxels, where E depends on z only; every word of the dense block), maps it once: the
       // same lanes' arithmetic on that value, so the same fraction, stored into every active voxel.
+      // (The last active voxel first: where E varies along the rod, it differs, and the word is not read twice.)
       const std::uint32_t value = std::bit_cast<std::uint32_t>(moduli[std::countr_zero(active)]);
-      if (allActiveAre<N>(moduli, active, value)) {
+      if (std::bit_cast<std::uint32_t>(moduli[63 - std::countl_zero(active)]) == value && allActiveAre<N>(moduli, active, value)) {
         Int below, above;
         const Float f = laneFractions(reinterpret_cast<Float>(UInt{} + value), below, above);  // every lane alike, -0 and NaN kept
         for (int q = 0; q < 64; q += N) {

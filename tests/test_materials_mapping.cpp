@@ -214,8 +214,8 @@ TEST_CASE("materials: a leaf word maps four voxels a step exactly as the scalar 
   std::mt19937_64 random(7);
   std::uniform_real_distribution<double> lnE(std::log(1.0), std::log(400.0));
   // Rounds 200 on: words whose active voxels share one modulus bit for bit (each special value and
-  // random ones; mapWord maps such a word once), with other values in the inactive voxels, and every
-  // third one with one active voxel a float apart (no longer uniform).
+  // random ones; mapWord maps such a word once), with other values in the inactive voxels, and in every
+  // third one the last active voxel a float apart, in every third another one (no longer uniform).
   for (int round = 0; round < 400; ++round) {
     std::array<float, 64> moduli{};
     for (std::size_t b = 0; b < 64; ++b)
@@ -228,6 +228,8 @@ TEST_CASE("materials: a leaf word maps four voxels a step exactly as the scalar 
       for (std::size_t b = 0; b < 64; ++b)
         if (active >> b & 1) moduli[b] = shared;
       if (round % 3 == 0 && active) moduli[std::size_t(63 - std::countl_zero(active))] = std::nextafter(shared, 1e9f);
+      // A voxel between the first and the last active a float apart (mapWord looks at the ends first).
+      if (round % 3 == 1 && std::popcount(active) > 2) moduli[std::size_t(std::countr_zero(active & (active - 1)))] = std::nextafter(shared, 0.0f);
     }
     std::array<float, 64> fractions;
     fractions.fill(-1.0f);  // every value is written, the inactive ones as 0
