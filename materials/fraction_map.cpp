@@ -96,6 +96,14 @@ template <int N>
   return none;
 }
 
+// The voxels counted down lane by lane (-1 each, at most 2^23 a lane): how many.
+template <int N>
+[[gnu::always_inline]] inline std::uint64_t countedDown(typename Lanes<N>::Int lanes) {
+  std::int64_t sum = 0;
+  for (int l = 0; l < N; ++l) sum -= lanes[l];
+  return static_cast<std::uint64_t>(sum);
+}
+
 // The start and rise of the table's intervals of the lanes: the same doubles either way. Scalar loads
 // of four lanes (the baseline), or four AVX2 gathers of eight (called, inlined, from mapWord's AVX2
 // version only).
@@ -219,11 +227,7 @@ inline FractionMap::WordClamps FractionMap::mapWordsWith(const float* moduli, co
       aboveCount += above;
     }
   }
-  for (int l = 0; l < N; ++l) {
-    belowTotal += static_cast<std::uint64_t>(-static_cast<std::int64_t>(belowCount[l]));
-    aboveTotal += static_cast<std::uint64_t>(-static_cast<std::int64_t>(aboveCount[l]));
-  }
-  return {belowTotal, aboveTotal};
+  return {belowTotal + countedDown<N>(belowCount), aboveTotal + countedDown<N>(aboveCount)};
 }
 
 #if RODFAB_TARGET_PATHS
