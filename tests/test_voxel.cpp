@@ -1,6 +1,7 @@
 // voxel/: rasterization against analytic volumes, the exact per-voxel test, and itself (threads, bands).
 #include "voxel/voxel.hpp"
 #include "voxel/raster_clips.hpp"
+#include "voxel/rod_pieces.hpp"
 
 #include "examples/example_designs.hpp"
 #include "geometry/geometry.hpp"
@@ -22,15 +23,15 @@ using namespace rodfab::test;  // with the fixture's geometry and voxel names
 
 namespace {
 
-// Circular arc of radius R about c in the xy-plane from angle 0 to `angle` (<= 2 pi), exact
-// rational quadratic with one span per quarter turn (at most).
-NurbsCurve arc(double R, double angle, const Vec3& c = Vec3::Zero()) {
+// Circular arc of radius R about c in the xy-plane from angle `start` to start + `angle` (angle <= 2 pi),
+// exact rational quadratic with one span per quarter turn (at most).
+NurbsCurve arc(double R, double angle, const Vec3& c = Vec3::Zero(), double start = 0.0) {
   const int spans = std::max(1, static_cast<int>(std::ceil(angle / (0.5 * kPi) - 1e-9)));
   const double step = angle / spans, w = std::cos(0.5 * step);
   std::vector<Vec3> pts;
   std::vector<double> weights, knots = {0, 0, 0};
   for (int s = 0; s < spans; ++s) {
-    const double a0 = s * step, am = a0 + 0.5 * step;
+    const double a0 = start + s * step, am = a0 + 0.5 * step;
     if (s == 0) pts.push_back(c + R * Vec3(std::cos(a0), std::sin(a0), 0)), weights.push_back(1);
     pts.push_back(c + (R / w) * Vec3(std::cos(am), std::sin(am), 0));
     weights.push_back(w);
@@ -253,6 +254,55 @@ TEST_CASE("E within 1e-6 of the exact E along curved rods", "[voxel][values]") {
     CHECK(checked > 20000);
     CHECK(worst <= 1e-6 + std::ldexp(1.0, -24));
   }
+}
+
+TEST_CASE("On a circular arc the swept pieces follow the turning sections within their bound, pieces longer than the blend allows", "[voxel][pieces]") {
+  // Off the axis the blend of the coordinates measured in a piece's two planes misses by about
+  // rho theta^2 lambda (1 - lambda) / 2 (theta = L / R): with the quadratic term alone, which is fitted
+  // on the axis, a piece within kCoordinateTolerance (the measured error doubled) is at most
+  // R sqrt(4 tolerance / rho) long. The terms across hold that error: checked against the closed form
+  // of a torus (the gauge is the distance from the circle of radius R over r) at points spread over
+  // every piece, and the pieces are fewer than half what the blend alone would need. The arc runs
+  // along x (its tangents within 0.6 rad of it), where the voxel loop's rows are short and whole
+  // pieces with the terms cost less than halves without them (halvesCostLess, rod_pieces.cpp).
+  const double R = 8.0, r = 0.6, angle = 1.2, start = 0.5 * kPi - 0.5 * angle;
+  const RodStructure s = design({circularRod(arc(R, angle, Vec3::Zero(), start), r, CapStyle::Round)});
+  const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
+  const voxel::detail::RodPieces rp = voxel::detail::buildRodPieces(s.rods[0], g);
+  const auto at = [&](const voxel::detail::AffineInIndex& f, const Vec3& p) {
+    const Vec3 q((p.x() - g.origin.x()) / g.voxelSize.x(), (p.y() - g.origin.y()) / g.voxelSize.y(), (p.z() - g.origin.z()) / g.voxelSize.z());
+    return f.c + f.gx * q.x() + f.gy * q.y() + f.gz * q.z();
+  };
+  std::size_t swept = 0, checked = 0;
+  double worstShare = 0.0;  // the largest error over the piece's stated bound
+  std::uint64_t h = 0x9e3779b97f4a7c15ull;
+  const auto uniform = [&] {
+    h ^= h << 13, h ^= h >> 7, h ^= h << 17;
+    return static_cast<double>(h >> 11) * 0x1p-53;
+  };
+  for (const voxel::detail::RodPiece& piece : rp.pieces) swept += piece.kind == voxel::detail::RodPiece::Kind::Swept;
+  for (int n = 0; n < 40000; ++n) {
+    const double phi = start + angle * uniform(), rho = r * std::sqrt(uniform()), psi = 2.0 * kPi * uniform();
+    const double radial = R + rho * std::cos(psi), z = rho * std::sin(psi);
+    const Vec3 p(radial * std::cos(phi), radial * std::sin(phi), z);
+    for (const voxel::detail::RodPiece& piece : rp.pieces) {
+      if (piece.kind != voxel::detail::RodPiece::Kind::Swept) continue;
+      const auto& A = rp.planes[static_cast<std::size_t>(piece.plane)];
+      const auto& B = rp.planes[static_cast<std::size_t>(piece.plane) + 1];
+      const double a = at(A, p), b = at(B, p);
+      if (!(a >= 0.0 && b < 0.0)) continue;
+      const auto e = voxel::detail::estimateSwept(piece, a, b, at(piece.x1Begin, p), at(piece.x2Begin, p), at(piece.x1End, p), at(piece.x2End, p));
+      const double error = std::abs(std::hypot(e.x1, e.x2) / r - rho / r);
+      worstShare = std::max(worstShare, error / piece.normalizedRadiusErrorBound);
+      ++checked;
+    }
+  }
+  const double blendAlone = R * std::sqrt(4.0 * voxel::detail::kCoordinateTolerance / r);
+  INFO(swept << " swept pieces, " << checked << " points, worst error " << worstShare << " of the bound; the blend alone: "
+             << R * angle / blendAlone << " pieces at least");
+  CHECK(checked >= 40000);
+  CHECK(worstShare <= 1.0);
+  CHECK(double(swept) < 0.5 * R * angle / blendAlone);
 }
 
 TEST_CASE("A modulus at its bounds stays within them in every voxel", "[voxel][values]") {

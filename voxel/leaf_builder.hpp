@@ -322,12 +322,12 @@ private:
   struct SweptPiece;  // what the steps share about the piece (sweep.cpp)
   struct SweptQuad;
   struct SweptRowStart;
-  // Across: the piece's E has terms in x1, x2 (RodPiece::modulusAcross1, 2; estimateModulus).
-  template <bool Across>
+  // Full: the piece's estimate has terms beyond the blends and their quadratic terms (needsFullEstimate).
+  template <bool Full>
   int sweepLayer(const SweptPiece& s, const openvdb::CoordBBox& box, const AxisCylinder& cylinder, int k, int jLo, int jHi);
-  template <bool Across>
+  template <bool Full>
   int sweepRow(const SweptPiece& s, const SweptRowStart& r, int lo, int hi, int j, int k);
-  template <bool Across>
+  template <bool Full>
   SweptQuad sweptQuad(bool rectangle, const SweptRowStart& r, Double4 iv) const;
   int settleQuad(const SweptPiece& s, const SweptQuad& q, int row, int i, int hi, int j, int k);
   // Every voxel of the piece's box within its reach of the chord, decided by the exact test; once per

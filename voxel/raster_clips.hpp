@@ -98,15 +98,17 @@ struct SweptLanes {
                                     std::uint64_t owner)
       : gxA(broadcast(planeA.gx)), gxB(broadcast(planeB.gx)), gx1Begin(broadcast(p.x1Begin.gx)), gx2Begin(broadcast(p.x2Begin.gx)),
         gx1End(broadcast(p.x1End.gx)), gx2End(broadcast(p.x2End.gx)), x1Quadratic(broadcast(p.x1Quadratic)),
-        x2Quadratic(broadcast(p.x2Quadratic)), modulusBegin(broadcast(p.modulusBegin)),
-        modulusQuadratic(broadcast(p.modulusQuadratic)), modulusAcross1(broadcast(p.modulusAcross1)),
+        x2Quadratic(broadcast(p.x2Quadratic)), x1Across1(broadcast(p.x1Across1)), x1Across2(broadcast(p.x1Across2)),
+        x2Across1(broadcast(p.x2Across1)), x2Across2(broadcast(p.x2Across2)), modulusBegin(broadcast(p.modulusBegin)),
+        modulusQuadratic(broadcast(p.modulusQuadratic)), modulusCubic(broadcast(p.modulusCubic)), modulusAcross1(broadcast(p.modulusAcross1)),
         modulusAcross2(broadcast(p.modulusAcross2)), modulusRise(broadcast(p.modulusEnd) - modulusBegin),
         modulusFloor(Double4{} + broadcast(p.modulusLow)), modulusCeiling(Double4{} + broadcast(p.modulusHigh)),
         iA(broadcast(inverseHalfWidth)), iB(broadcast(inverseHalfHeight)), sureInsideBelow(broadcast(sureInside)),
         planeARows(planeA), planeBRows(planeB), x1BeginRows(p.x1Begin), x2BeginRows(p.x2Begin), x1EndRows(p.x1End),
         x2EndRows(p.x2End), errorBounds(Float4{} + errorBound), owners(Owner4{} + owner) {}
   Double4 gxA, gxB, gx1Begin, gx2Begin, gx1End, gx2End;
-  Double4 x1Quadratic, x2Quadratic, modulusBegin, modulusQuadratic, modulusAcross1, modulusAcross2;  // as in RodPiece
+  Double4 x1Quadratic, x2Quadratic, x1Across1, x1Across2, x2Across1, x2Across2;  // as in RodPiece
+  Double4 modulusBegin, modulusQuadratic, modulusCubic, modulusAcross1, modulusAcross2;
   Double4 modulusRise, modulusFloor, modulusCeiling;  // estimateModulus's per-piece parts (see there)
   Double4 iA, iB, sureInsideBelow;  // RodPieces::inverseHalfWidth, inverseHalfHeight; ShellThresholds::sureInsideBelow
   RowLanes planeARows, planeBRows, x1BeginRows, x2BeginRows, x1EndRows, x2EndRows;  // for LayerRows

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <tuple>
 
 namespace rodfab::voxel::detail {
@@ -76,6 +77,34 @@ void fitModulusAcross(RodPiece& piece, const Node& a, const Node& b, const Node&
   }
 }
 
+// Fits the coordinates' terms across the section (RodPiece::x1Across1 ... x2Across2) to points `radius`
+// either side of the middle section's centre along d1 and along d2: what the blend and its quadratic
+// term miss there, divided by lambda (1 - lambda), over the difference of the blended coordinate. Off
+// the axis the sections turn with the frame: on an arc turning by theta the blend misses x1 by about
+// x1 theta^2 lambda (1 - lambda) / 2, a term in x1 that the quadratic term, fitted on the axis, cannot
+// hold, and which set the curved rods' pieces (the error fell only as the square of their length).
+// Leaves a term 0 where a point it needs is not between the planes.
+void fitCoordinatesAcross(RodPiece& piece, const Node& a, const Node& b, const Node& mid, double radius) {
+  for (const bool second : {false, true}) {
+    double residual1[2], residual2[2], blend[2];
+    bool between = true;
+    for (const int s : {0, 1}) {
+      const double offset = s == 0 ? radius : -radius;
+      const WorldEstimate e = estimateAt(piece, a, b, mid.r + offset * (second ? mid.d2 : mid.d1));
+      const double weight = e.estimate.lambda * (1.0 - e.estimate.lambda);
+      between = between && e.inSlab && weight > 0.0;
+      if (!between) break;
+      residual1[s] = ((second ? 0.0 : offset) - e.estimate.x1) / weight;
+      residual2[s] = ((second ? offset : 0.0) - e.estimate.x2) / weight;
+      blend[s] = second ? e.estimate.x2 - weight * piece.x2Quadratic : e.estimate.x1 - weight * piece.x1Quadratic;
+    }
+    const double run = between ? blend[0] - blend[1] : 0.0;
+    if (!(run > 0.0)) continue;
+    (second ? piece.x1Across2 : piece.x1Across1) = (residual1[0] - residual1[1]) / run;
+    (second ? piece.x2Across2 : piece.x2Across1) = (residual2[0] - residual2[1]) / run;
+  }
+}
+
 // E's tolerance on a piece: 1e-6 relative (the fraction map's interpolation bound, materials/README.md).
 double modulusTolerance(const Node& a, const Node& b) {
   return 1e-6 * std::max({std::abs(a.modulus), std::abs(b.modulus), 1e-3});
@@ -106,6 +135,47 @@ const std::array<std::array<double, 2>, 8>& testDirections() {
   return directions;
 }
 
+// The test points of `measure`: each of three sections (quarter, middle, three quarters along u) at its
+// centre (the first of its points) and at 8 directions at half and at the whole bounding radius.
+constexpr std::size_t kTestPoints = 3 * (1 + 2 * 8);
+
+// Fits E's cubic term (RodPiece::modulusCubic) to the centerline at the quarter sections (their test
+// points on the axis): what the blend and its quadratic term leave there, by least squares on the
+// shape lambda (1 - lambda) (lambda - 1/2), which is 0 at the middle, where the quadratic term was
+// fitted. Along a curved rod lambda strays from the parameter u by a cubic part as well; with E
+// linear in u, the error that part left fell as the cube of the piece's length and set most of the
+// pieces of the curved lattice's rods along whose length E changes.
+void fitModulusCubic(RodPiece& piece, const ModulusSample& quarter, const ModulusSample& threeQuarters) {
+  double along = 0.0, norm = 0.0;
+  for (const ModulusSample* s : {&quarter, &threeQuarters}) {
+    const double lambda = s->at.lambda, shape = lambda * (1.0 - lambda) * (lambda - 0.5);
+    along += (s->exact - modulusBlend(piece, s->at)) * shape;
+    norm += shape * shape;
+  }
+  if (norm > 0.0) piece.modulusCubic = along / norm;
+}
+
+// The piece's largest coordinate error over the test points (nullopt when one of them is not between its
+// planes), with the estimates and the exact E there in `samples`.
+std::optional<double> testCoordinates(const RodPiece& piece, const Node& a, const Node& b, const Node (&sections)[3], double radius,
+                                      std::array<ModulusSample, kTestPoints>& samples) {
+  const auto& directions = testDirections();
+  std::size_t count = 0;
+  double coordinateError = 0.0;
+  for (const Node& n : sections) {
+    for (const double rho : {0.0, 0.5 * radius, radius}) {
+      for (std::size_t k = 0; k < (rho == 0.0 ? 1 : directions.size()); ++k) {
+        const double x1 = rho * directions[k][0], x2 = rho * directions[k][1];
+        const WorldEstimate e = estimateAt(piece, a, b, n.r + x1 * n.d1 + x2 * n.d2);
+        if (!e.inSlab) return std::nullopt;
+        coordinateError = std::max({coordinateError, std::abs(e.estimate.x1 - x1), std::abs(e.estimate.x2 - x2)});
+        samples[count++] = {e.estimate, n.modulus};
+      }
+    }
+  }
+  return coordinateError;
+}
+
 struct Measurement {
   bool valid = false;         // every test point fell between the piece's planes
   double coordinateError = 0; // bound on |x_estimated - x_exact| (mm)
@@ -131,7 +201,8 @@ Measurement measure(const geometry::Rod& rod, const Node& a, const Node& b, RodP
   }
   m.chordDeviation = 2.0 * deviation + 1e-9;
   piece.x1Quadratic = piece.x2Quadratic = piece.modulusQuadratic = 0.0;
-  piece.modulusAcross1 = piece.modulusAcross2 = 0.0;
+  piece.x1Across1 = piece.x1Across2 = piece.x2Across1 = piece.x2Across2 = 0.0;
+  piece.modulusCubic = piece.modulusAcross1 = piece.modulusAcross2 = 0.0;
   piece.modulusBegin = a.modulus;
   piece.modulusEnd = b.modulus;
   std::tie(piece.modulusLow, piece.modulusHigh) = rod.modulus().valueBoundsOn(a.u, b.u);
@@ -147,32 +218,35 @@ Measurement measure(const geometry::Rod& rod, const Node& a, const Node& b, RodP
   piece.x2Quadratic = -centre.estimate.x2 / quadraticWeight;
   piece.modulusQuadratic = (mid.modulus - estimateModulus(piece, centre.estimate)) / quadraticWeight;
 
-  const auto& directions = testDirections();
-  std::array<ModulusSample, 3 * (1 + 2 * 8)> samples;
-  std::size_t count = 0;
-  double coordinateError = 0.0;
-  for (const Node& n : quarter) {
-    for (const double rho : {0.0, 0.5 * radius, radius}) {
-      for (std::size_t k = 0; k < (rho == 0.0 ? 1 : directions.size()); ++k) {
-        const double x1 = rho * directions[k][0], x2 = rho * directions[k][1];
-        const WorldEstimate e = estimateAt(piece, a, b, n.r + x1 * n.d1 + x2 * n.d2);
-        if (!e.inSlab) return m;
-        coordinateError = std::max({coordinateError, std::abs(e.estimate.x1 - x1), std::abs(e.estimate.x2 - x2)});
-        samples[count++] = {e.estimate, n.modulus};
-      }
+  std::array<ModulusSample, kTestPoints> samples;
+  std::optional<double> coordinateError = testCoordinates(piece, a, b, quarter, radius, samples);
+  if (!coordinateError) return m;
+  if (2.0 * *coordinateError + 1e-9 > kCoordinateTolerance) {
+    // The terms across only where the coordinates miss their tolerance without them, as E's below.
+    const RodPiece without = piece;
+    fitCoordinatesAcross(piece, a, b, mid, radius);
+    std::array<ModulusSample, kTestPoints> across;
+    const std::optional<double> acrossError = testCoordinates(piece, a, b, quarter, radius, across);
+    if (acrossError && *acrossError < *coordinateError) {
+      coordinateError = acrossError;
+      samples = across;
+    } else {
+      piece = without;
     }
   }
   m.valid = true;
-  m.coordinateError = 2.0 * coordinateError + 1e-9;
+  m.coordinateError = 2.0 * *coordinateError + 1e-9;
   const auto bound = [&](double largest) { return 2.0 * largest + 1e-9 * std::abs(mid.modulus); };
-  m.modulusError = bound(largestModulusError(piece, samples.data(), samples.data() + count));
-  // The terms across the section only where E misses its tolerance without them: elsewhere the voxel
-  // loop keeps the shorter expression (LeafBuilder::sweep) and E the bits it had.
+  m.modulusError = bound(largestModulusError(piece, samples.data(), samples.data() + samples.size()));
+  // E's cubic term and terms across the section only where E misses its tolerance without them:
+  // elsewhere the voxel loop may keep the shorter expression (LeafBuilder::sweep).
   if (m.modulusError > modulusTolerance(a, b)) {
+    const RodPiece without = piece;
+    fitModulusCubic(piece, samples[0], samples[kTestPoints - kTestPoints / 3]);
     fitModulusAcross(piece, a, b, mid, radius);
-    const double across = bound(largestModulusError(piece, samples.data(), samples.data() + count));
-    if (across < m.modulusError) m.modulusError = across;
-    else piece.modulusAcross1 = piece.modulusAcross2 = 0.0;
+    const double refined = bound(largestModulusError(piece, samples.data(), samples.data() + samples.size()));
+    if (refined < m.modulusError) m.modulusError = refined;
+    else piece = without;
   }
   return m;
 }
@@ -253,13 +327,16 @@ class PieceBuilder {
     const Measurement m = measure(rod_, a, b, piece);
     const bool modulusAccurate = m.modulusError <= modulusTolerance(a, b);
     const bool accurate = m.valid && m.coordinateError <= kCoordinateTolerance && modulusAccurate;
+    // A piece accurate with the full estimate's terms only is split where halves cost less (even if
+    // they need the terms too).
+    const bool kept = accurate && !(needsFullEstimate(piece) && halvesCostLess(a, b));
     // Splitting stops at the depth limit and when the rod's budget is spent, and for the geometry at
     // pieces shorter than the voxels can tell apart (where the sections fold over, or round-off far
     // from the origin dominates, it would not converge); E converges away from its rare jumps, which
     // the depth limit confines. What is left inaccurate keeps its measured bound or goes exact.
     const bool geometryAccurate = m.valid && m.coordinateError <= kCoordinateTolerance;
     const double length = (b.r - a.r).norm() + m.chordDeviation;
-    if (!accurate && depth < kMaxRefinement && (geometryAccurate || length >= minLength_) && planned_ < budget_ && b.u > a.u) {
+    if (!kept && depth < kMaxRefinement && (geometryAccurate || length >= minLength_) && planned_ < budget_ && b.u > a.u) {
       ++planned_;
       refine(a, m.mid, depth + 1);
       refine(m.mid, b, depth + 1);
@@ -267,6 +344,23 @@ class PieceBuilder {
     }
     if (m.valid && modulusAccurate) addSwept(a, b, m, piece);
     else addExact(a, b, m);
+  }
+
+  // Whether two halves of the piece from a to b cost the voxel loop less than the whole piece with the
+  // full estimate (needsFullEstimate: a dozen more vector operations for each quad of four voxels, about
+  // a sixth more). The whole piece pays that on all its voxels, A L / (dx dy dz) for a section of area A
+  // and a chord of length L; a cut adds the rows its plane crosses, the section seen along x,
+  // |t_x| A / (dy dz) with t the chord's direction, each with a row's set-up and on average half a quad
+  // unused. With ~40 instructions a row's set-up and ~70 a quad, halves cost less once
+  // L / dx > kHalvesRowRatio |t_x|, where kHalvesRowRatio = 4 (40 + 70 / 2) / (70 / 6) is about 26.
+  // Measured (callgrind, bench/README.md): 30 keeps the spring's instructions (3,254.5 M against 3,418.6 M
+  // with every piece whole and 3,251.9 M before the full estimate's terms) and nearly all of the curved
+  // lattice's gain (a band: 839.3 M against 835.4 M with every piece whole, 1,013.7 M before); 15 and 60
+  // did worse.
+  bool halvesCostLess(const Node& a, const Node& b) const {
+    constexpr double kHalvesRowRatio = 30.0;
+    const Vec3 chord = b.r - a.r;
+    return chord.squaredNorm() > kHalvesRowRatio * grid_.voxelSize.x() * std::abs(chord.x());
   }
 
   void addSwept(const Node& a, const Node& b, const Measurement& m, RodPiece piece) {

@@ -39,15 +39,19 @@ struct RodPiece {
   int plane = 0;
 
   // Swept: frame coordinates measured in the two bounding planes, blended by the position
-  // lambda = a / (a - b) between them, plus a lambda (1 - lambda) curvature correction.
+  // lambda = a / (a - b) between them, plus a lambda (1 - lambda) curvature correction: a constant, and
+  // terms in the blended coordinates themselves (x1Across1 x1 + x1Across2 x2 for x1, and so on; see
+  // estimateSwept) where the coordinates miss their tolerance without them.
   AffineInIndex x1Begin, x2Begin, x1End, x2End;
   double x1Quadratic = 0.0, x2Quadratic = 0.0;
+  double x1Across1 = 0.0, x1Across2 = 0.0, x2Across1 = 0.0, x2Across2 = 0.0;
   // E: modulusBegin + lambda (modulusEnd - modulusBegin) + lambda (1 - lambda) (modulusQuadratic +
-  // modulusAcross1 x1 + modulusAcross2 x2) (modulusBlend): the terms in x1, x2 follow how lambda drifts
-  // from the section's own position across it where the curvature changes along the piece; they are 0
-  // where E meets its tolerance without them.
+  // modulusCubic (lambda - 1/2) + modulusAcross1 x1 + modulusAcross2 x2) (modulusBlend). The cubic term
+  // follows how lambda strays from the centerline's parameter along the axis, the terms in x1, x2 how it
+  // drifts across the section where the curvature changes along the piece; all three are 0 where E
+  // meets its tolerance without them.
   double modulusBegin = 0.0, modulusEnd = 0.0, modulusQuadratic = 0.0;
-  double modulusAcross1 = 0.0, modulusAcross2 = 0.0;
+  double modulusCubic = 0.0, modulusAcross1 = 0.0, modulusAcross2 = 0.0;
   // The exact E's bounds on the piece (BSplineField::valueBoundsOn): the estimate is held within them,
   // so a voxel never asks for a modulus outside what the design asks for there.
   double modulusLow = 0.0, modulusHigh = 0.0;
@@ -97,38 +101,49 @@ struct SweptEstimateOf {
   T lambda, x1, x2;
 };
 using SweptEstimate = SweptEstimateOf<double>;
-// `Piece` is RodPiece or anything with its x1Quadratic, x2Quadratic (and, for the modulus, modulusBegin, modulusEnd,
-// modulusQuadratic, modulusLow, modulusHigh).
-template <typename T, typename Piece = RodPiece>
+// `Piece` is RodPiece or anything with its x1Quadratic, x2Quadratic, x1Across1 ... x2Across2 (and, for
+// the modulus, modulusBegin, modulusEnd, modulusQuadratic, modulusCubic, modulusAcross1, 2, modulusLow,
+// modulusHigh). Full false leaves the terms beyond the blends and the constant quadratic terms out (the
+// coordinates' terms across, E's cubic term and terms across): the same bits where they are 0, some ten
+// vector operations fewer per quad in the voxel loop.
+template <bool Full = true, typename T, typename Piece = RodPiece>
 inline SweptEstimateOf<T> estimateSwept(const Piece& piece, T a, T b, T x1Begin, T x2Begin, T x1End, T x2End) {
   const T lambda = a / (a - b);
   const T quadraticWeight = lambda * (1.0 - lambda);
-  return {lambda, x1Begin + lambda * (x1End - x1Begin) + quadraticWeight * piece.x1Quadratic,
-          x2Begin + lambda * (x2End - x2Begin) + quadraticWeight * piece.x2Quadratic};
+  const T x1 = x1Begin + lambda * (x1End - x1Begin), x2 = x2Begin + lambda * (x2End - x2Begin);
+  if constexpr (Full)
+    return {lambda, x1 + quadraticWeight * (piece.x1Quadratic + (piece.x1Across1 * x1 + piece.x1Across2 * x2)),
+            x2 + quadraticWeight * (piece.x2Quadratic + (piece.x2Across1 * x1 + piece.x2Across2 * x2))};
+  else
+    return {lambda, x1 + quadraticWeight * piece.x1Quadratic, x2 + quadraticWeight * piece.x2Quadratic};
 }
-// E at a point of the piece before the clamp: the blend of E at the planes plus lambda (1 - lambda)
-// times modulusQuadratic and the terms in x1, x2 (RodPiece). Across false leaves those terms out: the
-// same bits where they are 0 (q + 0 is q), four vector operations fewer per quad in the voxel loop.
-// A `Piece` may hold modulusRise = modulusEnd - modulusBegin ready (voxel::detail::SweptLanes).
-template <bool Across = true, typename T, typename Piece>
+// Whether the piece needs the full estimate (estimateSwept, estimateModulus): the voxel loop's longer path.
+inline bool needsFullEstimate(const RodPiece& p) {
+  return p.x1Across1 != 0.0 || p.x1Across2 != 0.0 || p.x2Across1 != 0.0 || p.x2Across2 != 0.0 || p.modulusCubic != 0.0 ||
+         p.modulusAcross1 != 0.0 || p.modulusAcross2 != 0.0;
+}
+// E at a point of the piece before the clamp (RodPiece). A `Piece` may hold modulusRise = modulusEnd -
+// modulusBegin ready (voxel::detail::SweptLanes).
+template <bool Full = true, typename T, typename Piece>
 inline T modulusBlend(const Piece& piece, const SweptEstimateOf<T>& at) {
   const auto rise = [&] {
     if constexpr (requires { piece.modulusRise; }) return piece.modulusRise;
     else return piece.modulusEnd - piece.modulusBegin;
   }();
   const T lambda = at.lambda;
-  if constexpr (Across)
+  if constexpr (Full)
     return piece.modulusBegin + lambda * rise +
-           lambda * (1.0 - lambda) * (piece.modulusQuadratic + (piece.modulusAcross1 * at.x1 + piece.modulusAcross2 * at.x2));
+           lambda * (1.0 - lambda) *
+               (piece.modulusQuadratic + (piece.modulusCubic * (lambda - 0.5) + (piece.modulusAcross1 * at.x1 + piece.modulusAcross2 * at.x2)));
   else
     return piece.modulusBegin + lambda * rise + lambda * (1.0 - lambda) * piece.modulusQuadratic;
 }
 // The blend held within the piece's E bounds. A `Piece` may hold them in lanes ready (modulusFloor =
 // T{} + modulusLow, modulusCeiling = T{} + modulusHigh): the same values, so the same bits, where
 // computing them for every quad cost vector instructions.
-template <bool Across = true, typename T, typename Piece>
+template <bool Full = true, typename T, typename Piece>
 inline T estimateModulus(const Piece& piece, const SweptEstimateOf<T>& at) {
-  const T e = modulusBlend<Across>(piece, at);
+  const T e = modulusBlend<Full>(piece, at);
   T low, high;
   if constexpr (requires { piece.modulusFloor; }) {
     low = piece.modulusFloor;

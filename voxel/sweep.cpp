@@ -69,11 +69,11 @@ struct LeafBuilder::SweptQuad {
   Mask4 inSlab, sure;
 };
 
-template <bool Across>
+template <bool Full>
 [[gnu::always_inline]] inline LeafBuilder::SweptQuad LeafBuilder::sweptQuad(bool rectangle, const SweptRowStart& r, Double4 iv) const {
   const SweptLanes& lanes = swept_;
   const Double4 av = r.a + lanes.gxA * iv, bv = r.b + lanes.gxB * iv;
-  const SweptEstimateOf<Double4> e = estimateSwept(lanes, av, bv, r.x1a + lanes.gx1Begin * iv, r.x2a + lanes.gx2Begin * iv,
+  const SweptEstimateOf<Double4> e = estimateSwept<Full>(lanes, av, bv, r.x1a + lanes.gx1Begin * iv, r.x2a + lanes.gx2Begin * iv,
                                                    r.x1b + lanes.gx1End * iv, r.x2b + lanes.gx2End * iv);
   SweptQuad q;
   if (rectangle) {
@@ -84,7 +84,7 @@ template <bool Across>
     q.test = (e.x1 * lanes.iA) * (e.x1 * lanes.iA) + (e.x2 * lanes.iB) * (e.x2 * lanes.iB);
     q.encodedDepth = q.test;
   }
-  q.modulus = estimateModulus<Across>(lanes, e);
+  q.modulus = estimateModulus<Full>(lanes, e);
   q.inSlab = (av >= 0.0) & (bv < 0.0);
   q.sure = q.inSlab & (q.test < lanes.sureInsideBelow);
   return q;
@@ -120,14 +120,14 @@ template <bool Across>
 
 // Row (j, k) from voxel lo to hi (lo <= hi), four voxels a step (see estimateSwept); the decisions per
 // voxel. Returns the slots newly filled.
-template <bool Across>
+template <bool Full>
 [[gnu::always_inline]] inline int LeafBuilder::sweepRow(const SweptPiece& s, const SweptRowStart& r, int lo, int hi, int j, int k) {
   const int row = rowOf(j, k);
   int fresh = 0;
   Double4 iv = double(lo) + Double4{0.0, 1.0, 2.0, 3.0};
   int i = lo;
   do {  // a row has a voxel (sweepLayer skips empty rows): no test before the first quad
-    fresh += settleQuad(s, sweptQuad<Across>(s.rectangle, r, iv), row, i, hi, j, k);
+    fresh += settleQuad(s, sweptQuad<Full>(s.rectangle, r, iv), row, i, hi, j, k);
     i += 4;
     iv += 4.0;
   } while (i <= hi);
@@ -136,7 +136,7 @@ template <bool Across>
 
 // Layer k's rows jLo .. jHi, set up four at a time (the planes' rows and bounds, the cylinder's square
 // root), each lane as the scalar clips compute it; then row by row. Returns the slots newly filled.
-template <bool Across>
+template <bool Full>
 [[gnu::always_inline]] inline int LeafBuilder::sweepLayer(const SweptPiece& s, const openvdb::CoordBBox& box, const AxisCylinder& cylinder,
                                                            int k, int jLo, int jHi) {
   const SweptLanes& lanes = swept_;
@@ -157,7 +157,7 @@ template <bool Across>
       const int l = __builtin_ctz(kept), j = j4 + l;
       const int lo = first[l], hi = last[l];
       const SweptRowStart start{rows.a[l], rows.b[l], x1a[l], x2a[l], x1b[l], x2b[l]};
-      fresh += sweepRow<Across>(s, start, lo, hi, j, k);
+      fresh += sweepRow<Full>(s, start, lo, hi, j, k);
     }
   }
   return fresh;
@@ -165,7 +165,7 @@ template <bool Across>
 
 // Cloned for AVX2 (four lanes in one register; AVX2 brings no FMA, so no multiply-add is fused and
 // the clone computes the bits the baseline does), chosen at load time. Flattened: with the loop there
-// twice (with and without E's terms across the section) GCC stopped inlining clearOverlap and
+// twice (with and without the full estimate's terms, RodPiece) GCC stopped inlining clearOverlap and
 // addCandidate into it, which cost more than the terms saved (spring +1 % of instructions).
 [[gnu::flatten]] RODFAB_CLONES("avx2", "default") void LeafBuilder::sweep(int rod, int pieceIndex, const RodPiece& piece,
                                                                           const openvdb::CoordBBox& box) {
@@ -189,12 +189,12 @@ template <bool Across>
   swept_ = SweptLanes(piece, planeA, planeB, rp.inverseHalfWidth, rp.inverseHalfHeight, s.shell.sureInsideBelow,
                       s.floatErrorBound, owner(rod, pieceIndex));
   AxisCylinder cylinder(grid_, piece);
-  const bool across = piece.modulusAcross1 != 0.0 || piece.modulusAcross2 != 0.0;
+  const bool full = needsFullEstimate(piece);
   std::uint64_t fresh = 0;  // slots newly filled
   for (int k = kLo; k <= kHi; ++k) {
     int jLo = box.min().y(), jHi = box.max().y();
     if (!slab.rows(k, jLo, jHi) || !cylinder.layer(k, box.min().y(), jLo, jHi)) continue;
-    fresh += static_cast<std::uint64_t>(across ? sweepLayer<true>(s, box, cylinder, k, jLo, jHi) : sweepLayer<false>(s, box, cylinder, k, jLo, jHi));
+    fresh += static_cast<std::uint64_t>(full ? sweepLayer<true>(s, box, cylinder, k, jLo, jHi) : sweepLayer<false>(s, box, cylinder, k, jLo, jHi));
   }
   // The rod's tally once per piece (the overlap rule moves voxels between tallies meanwhile; only the
   // sums are read, after every block).
