@@ -84,24 +84,29 @@ void fitModulusAcross(RodPiece& piece, const Node& a, const Node& b, const Node&
 // x1 theta^2 lambda (1 - lambda) / 2, a term in x1 that the quadratic term, fitted on the axis, cannot
 // hold, and which set the curved rods' pieces (the error fell only as the square of their length).
 // Leaves a term 0 where a point it needs is not between the planes.
+// Both directions are fitted to the piece as it is without the terms (`base`); a term that comes out
+// non-finite stays 0.
 void fitCoordinatesAcross(RodPiece& piece, const Node& a, const Node& b, const Node& mid, double radius) {
+  const RodPiece base = piece;
   for (const bool second : {false, true}) {
     double residual1[2], residual2[2], blend[2];
     bool between = true;
     for (const int s : {0, 1}) {
       const double offset = s == 0 ? radius : -radius;
-      const WorldEstimate e = estimateAt(piece, a, b, mid.r + offset * (second ? mid.d2 : mid.d1));
+      const WorldEstimate e = estimateAt(base, a, b, mid.r + offset * (second ? mid.d2 : mid.d1));
       const double weight = e.estimate.lambda * (1.0 - e.estimate.lambda);
       between = between && e.inSlab && weight > 0.0;
       if (!between) break;
       residual1[s] = ((second ? 0.0 : offset) - e.estimate.x1) / weight;
       residual2[s] = ((second ? offset : 0.0) - e.estimate.x2) / weight;
-      blend[s] = second ? e.estimate.x2 - weight * piece.x2Quadratic : e.estimate.x1 - weight * piece.x1Quadratic;
+      blend[s] = second ? e.estimate.x2 - weight * base.x2Quadratic : e.estimate.x1 - weight * base.x1Quadratic;
     }
     const double run = between ? blend[0] - blend[1] : 0.0;
     if (!(run > 0.0)) continue;
-    (second ? piece.x1Across2 : piece.x1Across1) = (residual1[0] - residual1[1]) / run;
-    (second ? piece.x2Across2 : piece.x2Across1) = (residual2[0] - residual2[1]) / run;
+    const double term1 = (residual1[0] - residual1[1]) / run, term2 = (residual2[0] - residual2[1]) / run;
+    if (!std::isfinite(term1) || !std::isfinite(term2)) continue;
+    (second ? piece.x1Across2 : piece.x1Across1) = term1;
+    (second ? piece.x2Across2 : piece.x2Across1) = term2;
   }
 }
 
@@ -115,9 +120,13 @@ struct ModulusSample {
   SweptEstimate at;
   double exact;
 };
+// The larger of `largest` and `error`, NaN if either is: a term that came out non-finite must not read
+// as no error (std::max drops a NaN second argument).
+double largerError(double largest, double error) { return error <= largest ? largest : error; }
+
 double largestModulusError(const RodPiece& piece, const ModulusSample* begin, const ModulusSample* end) {
   double error = 0.0;
-  for (const ModulusSample* s = begin; s != end; ++s) error = std::max(error, std::abs(estimateModulus(piece, s->at) - s->exact));
+  for (const ModulusSample* s = begin; s != end; ++s) error = largerError(error, std::abs(estimateModulus(piece, s->at) - s->exact));
   return error;
 }
 
@@ -141,10 +150,11 @@ constexpr std::size_t kTestPoints = 3 * (1 + 2 * 8);
 
 // Fits E's cubic term (RodPiece::modulusCubic) to the centerline at the quarter sections (their test
 // points on the axis): what the blend and its quadratic term leave there, by least squares on the
-// shape lambda (1 - lambda) (lambda - 1/2), which is 0 at the middle, where the quadratic term was
-// fitted. Along a curved rod lambda strays from the parameter u by a cubic part as well; with E
+// shape lambda (1 - lambda) (lambda - 1/2), which is about 0 in the middle, where the quadratic term
+// was fitted. Along a curved rod lambda strays from the parameter u by a cubic part as well; with E
 // linear in u, the error that part left fell as the cube of the piece's length and set most of the
-// pieces of the curved lattice's rods along whose length E changes.
+// pieces of the curved lattice's rods along whose length E changes. The two points it is fitted to no
+// longer test the axis: `measure` tests it at four more (modulusErrorBetween).
 void fitModulusCubic(RodPiece& piece, const ModulusSample& quarter, const ModulusSample& threeQuarters) {
   double along = 0.0, norm = 0.0;
   for (const ModulusSample* s : {&quarter, &threeQuarters}) {
@@ -152,7 +162,24 @@ void fitModulusCubic(RodPiece& piece, const ModulusSample& quarter, const Modulu
     along += (s->exact - modulusBlend(piece, s->at)) * shape;
     norm += shape * shape;
   }
-  if (norm > 0.0) piece.modulusCubic = along / norm;
+  if (norm > 0.0 && std::isfinite(along / norm)) piece.modulusCubic = along / norm;
+}
+
+// E's largest error on the centerline at u an eighth, three, five and seven eighths along the piece,
+// between the test sections: where E's refined terms were not fitted. A knot of E's field inside the
+// piece (E only C2 there) puts its error's peak between the sections the terms were fitted to; tested
+// at those alone, a piece kept its cubic term while E missed its tolerance by 37 % in between (a
+// rectangle along an arc, E swinging between its bounds: tests/test_voxel.cpp). NaN where a point is
+// not between the planes.
+double modulusErrorBetween(const geometry::Rod& rod, const RodPiece& piece, const Node& a, const Node& b) {
+  double error = 0.0;
+  for (const double f : {0.125, 0.375, 0.625, 0.875}) {
+    const double u = a.u + f * (b.u - a.u);
+    const WorldEstimate e = estimateAt(piece, a, b, rod.centerline().point(u));
+    error = largerError(error, e.inSlab ? std::abs(estimateModulus(piece, e.estimate) - rod.modulus().value(u))
+                                        : std::numeric_limits<double>::quiet_NaN());
+  }
+  return error;
 }
 
 // The piece's largest coordinate error over the test points (nullopt when one of them is not between its
@@ -168,7 +195,7 @@ std::optional<double> testCoordinates(const RodPiece& piece, const Node& a, cons
         const double x1 = rho * directions[k][0], x2 = rho * directions[k][1];
         const WorldEstimate e = estimateAt(piece, a, b, n.r + x1 * n.d1 + x2 * n.d2);
         if (!e.inSlab) return std::nullopt;
-        coordinateError = std::max({coordinateError, std::abs(e.estimate.x1 - x1), std::abs(e.estimate.x2 - x2)});
+        coordinateError = largerError(largerError(coordinateError, std::abs(e.estimate.x1 - x1)), std::abs(e.estimate.x2 - x2));
         samples[count++] = {e.estimate, n.modulus};
       }
     }
@@ -188,7 +215,9 @@ struct Measurement {
 // against points whose exact answer is known by construction: p = r(u) + x1 d1(u) + x2 d2(u) has
 // closest point r(u) and frame coordinates (x1, x2) wherever the rod's radius is below its radius of
 // curvature. Like the geometry's polyline deviation, the largest measured error is doubled (plus a
-// floor) to bound the error between test points.
+// floor) to bound the error between test points. Where the coordinates or E miss their tolerance, the
+// terms across (and E's cubic term) are fitted and kept if they lower the measured error; E's refined
+// terms are tested on the axis between the sections too (modulusErrorBetween).
 Measurement measure(const geometry::Rod& rod, const Node& a, const Node& b, RodPiece& piece) {
   Measurement m;
   m.mid = node(rod, 0.5 * (a.u + b.u));
@@ -244,7 +273,8 @@ Measurement measure(const geometry::Rod& rod, const Node& a, const Node& b, RodP
     const RodPiece without = piece;
     fitModulusCubic(piece, samples[0], samples[kTestPoints - kTestPoints / 3]);
     fitModulusAcross(piece, a, b, mid, radius);
-    const double refined = bound(largestModulusError(piece, samples.data(), samples.data() + samples.size()));
+    const double refined = bound(largerError(largestModulusError(piece, samples.data(), samples.data() + samples.size()),
+                                             modulusErrorBetween(rod, piece, a, b)));
     if (refined < m.modulusError) m.modulusError = refined;
     else piece = without;
   }
@@ -347,12 +377,14 @@ class PieceBuilder {
   }
 
   // Whether two halves of the piece from a to b cost the voxel loop less than the whole piece with the
-  // full estimate (needsFullEstimate: a dozen more vector operations for each quad of four voxels, about
-  // a sixth more). The whole piece pays that on all its voxels, A L / (dx dy dz) for a section of area A
+  // full estimate (needsFullEstimate: fifteen more vector operations for each quad of four voxels, about
+  // a fifth more). The whole piece pays that on all its voxels, A L / (dx dy dz) for a section of area A
   // and a chord of length L; a cut adds the rows its plane crosses, the section seen along x,
   // |t_x| A / (dy dz) with t the chord's direction, each with a row's set-up and on average half a quad
   // unused. With ~40 instructions a row's set-up and ~70 a quad, halves cost less once
-  // L / dx > kHalvesRowRatio |t_x|, where kHalvesRowRatio = 4 (40 + 70 / 2) / (70 / 6) is about 26.
+  // L / dx > kHalvesRowRatio |t_x|, where kHalvesRowRatio = 4 (40 + 70 / 2) / 15 is about 20. The model
+  // leaves out what a piece costs whatever its length (its set-up in each block and layer), which favours
+  // longer pieces.
   // Measured (callgrind, bench/README.md): 30 keeps the spring's instructions (3,254.5 M against 3,418.6 M
   // with every piece whole and 3,251.9 M before the full estimate's terms) and nearly all of the curved
   // lattice's gain (a band: 839.3 M against 835.4 M with every piece whole, 1,013.7 M before); 15 and 60

@@ -86,7 +86,9 @@ double minimumPieceLength(const PrinterGrid& grid);
 std::size_t pieceBudget(const geometry::Rod& rod, const PrinterGrid& grid);
 
 // Cuts `rod` into pieces, refining each until its measured coordinate error is below
-// kCoordinateTolerance, or it is shorter than minimumPieceLength, or the rod's pieceBudget is spent.
+// kCoordinateTolerance and E's below its tolerance (1e-6 relative), or it is shorter than
+// minimumPieceLength, or the rod's pieceBudget is spent. A piece accurate only with the full estimate's
+// terms (needsFullEstimate) is split as well where two halves would cost the voxel loop less.
 // Calls `interrupted` (if set) every few milliseconds of work and throws voxel::Interrupted when it
 // returns true.
 RodPieces buildRodPieces(const geometry::Rod& rod, const PrinterGrid& grid, const std::function<bool()>& interrupted = {});
@@ -104,8 +106,8 @@ using SweptEstimate = SweptEstimateOf<double>;
 // `Piece` is RodPiece or anything with its x1Quadratic, x2Quadratic, x1Across1 ... x2Across2 (and, for
 // the modulus, modulusBegin, modulusEnd, modulusQuadratic, modulusCubic, modulusAcross1, 2, modulusLow,
 // modulusHigh). Full false leaves the terms beyond the blends and the constant quadratic terms out (the
-// coordinates' terms across, E's cubic term and terms across): the same bits where they are 0, some ten
-// vector operations fewer per quad in the voxel loop.
+// coordinates' terms across, E's cubic term and terms across): the same bits where they are 0, fifteen
+// vector operations fewer per quad in the voxel loop (eight for the coordinates, seven for E).
 template <bool Full = true, typename T, typename Piece = RodPiece>
 inline SweptEstimateOf<T> estimateSwept(const Piece& piece, T a, T b, T x1Begin, T x2Begin, T x1End, T x2End) {
   const T lambda = a / (a - b);
