@@ -1,4 +1,4 @@
-// Shared by the voxel tests (tests/test_voxel.cpp, tests/test_voxel_kinks.cpp): the test voxel, exact
+// Shared by the voxel tests (tests/test_voxel*.cpp): the test voxel, exact
 // and near-exact curves, one-rod designs, a voxel's centre in mm, a bit-for-bit grid comparison and the
 // exact per-voxel rule (Rod::classify, deepest rod wins) every rasterized voxel is checked against.
 #pragma once
@@ -46,6 +46,26 @@ inline NurbsCurve helix(double radius, double pitch, double turns, int pointsPer
   for (int i = 1; i < n - 3; ++i) knots.push_back(static_cast<double>(i) / (n - 3));
   knots.insert(knots.end(), 4, 1.0);
   return NurbsCurve(3, knots, pts);
+}
+
+// Circular arc of radius R about c in the xy-plane from angle `start` to start + `angle` (angle <= 2 pi),
+// exact rational quadratic with one span per quarter turn (at most).
+inline NurbsCurve arc(double R, double angle, const Vec3& c = Vec3::Zero(), double start = 0.0) {
+  const int spans = std::max(1, static_cast<int>(std::ceil(angle / (0.5 * kPi) - 1e-9)));
+  const double step = angle / spans, w = std::cos(0.5 * step);
+  std::vector<Vec3> pts;
+  std::vector<double> weights, knots = {0, 0, 0};
+  for (int s = 0; s < spans; ++s) {
+    const double a0 = start + s * step, am = a0 + 0.5 * step;
+    if (s == 0) pts.push_back(c + R * Vec3(std::cos(a0), std::sin(a0), 0)), weights.push_back(1);
+    pts.push_back(c + (R / w) * Vec3(std::cos(am), std::sin(am), 0));
+    weights.push_back(w);
+    pts.push_back(c + R * Vec3(std::cos(a0 + step), std::sin(a0 + step), 0));
+    weights.push_back(1);
+    if (s + 1 < spans) knots.insert(knots.end(), {double(s + 1) / spans, double(s + 1) / spans});
+  }
+  knots.insert(knots.end(), {1, 1, 1});
+  return NurbsCurve(2, knots, pts, weights);
 }
 
 inline Rod circularRod(NurbsCurve c, double radius, CapStyle caps, BSplineField e = BSplineField::constant(50, 0, 1)) {
