@@ -86,6 +86,14 @@ void slice(benchmark::State& state, const char* designClass, const char* method)
   state.counters["busy_s_dither"] = report.seconds.dither;
   state.counters["busy_s_emit"] = report.seconds.emit;
   state.counters["cpu_s_bands"] = report.seconds.cpu;  // the process, every thread
+  // CPU inside each stage's arena (StageSeconds::sourceCpu ...), and the voxelize stage's rate per CPU
+  // second of it times the threads: what it gets done on the cores it is given inside slice, comparable
+  // with the rasterizer alone (bench_voxel's classRasterize, wall on that many threads).
+  state.counters["cpu_s_voxelize"] = report.seconds.sourceCpu;
+  state.counters["cpu_s_dither"] = report.seconds.ditherCpu;
+  state.counters["cpu_s_emit"] = report.seconds.emitCpu;
+  state.counters["voxelize_Mvox_per_cpu_s_x_threads"] =
+      static_cast<double>(report.mapping.voxels) * 1e-6 / report.seconds.sourceCpu * static_cast<double>(threads);
   state.counters["layers"] = report.job.geometry.layers;
   state.counters["job_MB"] = static_cast<double>(report.job.bytes) * 1e-6;
   state.counters["peak_rss_MB"] = peakRssMb();

@@ -105,7 +105,8 @@ void printCouponSummary(const CouponRequest& r, const printer_profiles::JobResul
     j["seconds"] = {{"bands", seconds.wall},
                     {"total", total},
                     {"busy", {{"bars", seconds.source}, {"dither", seconds.dither}, {"emit", seconds.emit}}},
-                    {"cpu_bands", seconds.cpu}};
+                    {"cpu_bands", seconds.cpu},
+                    {"cpu", {{"bars", seconds.sourceCpu}, {"dither", seconds.ditherCpu}, {"emit", seconds.emitCpu}}}};
     std::cout << j.dump(2) << '\n';
     return;
   }

@@ -8,6 +8,10 @@
 #include <tbb/global_control.h>
 #include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
+#include <tbb/task_scheduler_observer.h>
+
+#include <pthread.h>
+#include <time.h>
 
 #include <algorithm>
 #include <chrono>
@@ -15,6 +19,7 @@
 #include <mutex>
 #include <optional>
 #include <stdexcept>
+#include <thread>
 #include <vector>
 
 namespace rodfab::slicer {
@@ -26,12 +31,70 @@ using common::secondsSince;
 
 using common::processCpuSeconds;
 
+// The CPU time (user + system) of the threads while they are inside one task arena: TBB calls the
+// observer on each thread as it enters and leaves, which reads that thread's own CPU clock; a thread
+// still inside when seconds() is asked (a worker waiting for more) counts up to then. Each stage's
+// arena runs only that stage's work, so this is the stage's CPU time, its threads' waiting included.
+class ArenaCpuClock final : public tbb::task_scheduler_observer {
+public:
+  explicit ArenaCpuClock(tbb::task_arena& arena) : tbb::task_scheduler_observer(arena) { observe(true); }
+  ArenaCpuClock(const ArenaCpuClock&) = delete;
+  ArenaCpuClock& operator=(const ArenaCpuClock&) = delete;
+  ~ArenaCpuClock() override { observe(false); }
+
+  void on_scheduler_entry(bool) override {
+    clockid_t clock{};
+    if (::pthread_getcpuclockid(::pthread_self(), &clock) != 0) return;  // not counted rather than wrong
+    const std::lock_guard lock(mutex_);
+    for (Inside& t : inside_)
+      if (t.thread == std::this_thread::get_id()) {
+        ++t.depth;  // entered again before it left: its time counts once
+        return;
+      }
+    inside_.push_back({std::this_thread::get_id(), clock, cpuSeconds(clock), 1});
+  }
+  void on_scheduler_exit(bool) override {
+    const std::lock_guard lock(mutex_);
+    for (auto t = inside_.begin(); t != inside_.end(); ++t)
+      if (t->thread == std::this_thread::get_id()) {
+        if (--t->depth > 0) return;
+        done_ += cpuSeconds(t->clock) - t->entered;
+        inside_.erase(t);
+        return;
+      }
+  }
+  double seconds() const {
+    const std::lock_guard lock(mutex_);
+    double total = done_;
+    for (const Inside& t : inside_) total += cpuSeconds(t.clock) - t.entered;
+    return total;
+  }
+
+private:
+  struct Inside {
+    std::thread::id thread;
+    clockid_t clock;
+    double entered;
+    int depth;
+  };
+  static double cpuSeconds(clockid_t clock) {
+    timespec t{};
+    if (::clock_gettime(clock, &t) != 0) return 0.0;
+    return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+  }
+  mutable std::mutex mutex_;
+  std::vector<Inside> inside_;
+  double done_ = 0.0;
+};
+
 // One stage's own task arena: a thread waiting inside one stage (joining its parallel loops) never
 // picks up another stage's tasks, so a band is not held up by work of the stages it overlaps.
 // `run` adds the wall time of `f` to `busy`; it is called by one thread at a time (serial filters).
+// cpuSeconds(): every thread's CPU time inside the arena so far (ArenaCpuClock).
 class StageArena {
 public:
-  explicit StageArena(int concurrency) : arena_(concurrency) {}
+  explicit StageArena(int concurrency) : arena_(concurrency), clock_(arena_) {}
+  double cpuSeconds() const { return clock_.seconds(); }
 
   template <class F>
   void run(double& busy, F&& f) {
@@ -47,6 +110,7 @@ public:
 
 private:
   tbb::task_arena arena_;
+  ArenaCpuClock clock_;  // after arena_: stops observing before the arena goes
 };
 
 // One band on its way through the stages.
@@ -131,14 +195,17 @@ printer_profiles::JobResult streamJob(printer_profiles::JobSpec spec, const Band
   const bool readsNextLayer = ditherer.readsNextLayer();
   const int kFirst = part.min().z(), kLast = part.max().z(), layers = kLast - kFirst + 1;
 
+  const int threads = stageConcurrency();
+  StageArena sourceArena(threads), ditherArena(threads), emitArena(threads);
   const auto start = Clock::now();
   const double cpuStart = processCpuSeconds();
   const auto account = [&] {
     seconds.wall += secondsSince(start);
     seconds.cpu += processCpuSeconds() - cpuStart;
+    seconds.sourceCpu += sourceArena.cpuSeconds();
+    seconds.ditherCpu += ditherArena.cpuSeconds();
+    seconds.emitCpu += emitArena.cpuSeconds();
   };
-  const int threads = stageConcurrency();
-  StageArena sourceArena(threads), ditherArena(threads), emitArena(threads);
   try {
     std::optional<printer_profiles::JobWriter> writer;
     emitArena.run(seconds.emit, [&] { writer.emplace(std::move(spec)); });

@@ -26,11 +26,11 @@ struct BandGrids {
 // thread and while the ditherer and the writer work on earlier bands.
 using BandSource = std::function<BandGrids(int k0, int k1, bool withNextLayer)>;
 
-// Where the pipeline's time went. Wall seconds, except `cpu`. The stages run at the same time, so
+// Where the pipeline's time went. Wall seconds, except the CPU times. The stages run at the same time, so
 // each stage's busy time counts only its own calls (from the start of its work on a band to the end,
 // whatever the other stages did meanwhile): each is at most `wall`, and together they exceed it by
 // as much as the stages overlapped. `cpu` is the process's user + system time over `wall`, every
-// thread included (TBB workers, the rasterizer's own arena), so no stage is missed or counted twice.
+// thread included (TBB workers, threads a stage starts itself), so no stage is missed or counted twice.
 struct StageSeconds {
   double source = 0.0;   // busy building the bands' fractions (rasterization and mapping for slice)
   double dither = 0.0;   // busy dithering
@@ -38,6 +38,12 @@ struct StageSeconds {
                          // previews) and finalize (manifest, zip, verification)
   double wall = 0.0;     // from the writer's start to the job in place
   double cpu = 0.0;      // process CPU time (user + system, all threads) over `wall`
+  // CPU time (user + system) of the threads while inside each stage's own TBB arena: the stage's work on
+  // every thread it ran on, and its threads' waiting for more (TBB's workers spin briefly before they
+  // leave an arena). Not counted: threads a stage starts outside TBB, and work it runs in a task arena of
+  // its own making (the rasterizer and the writer's verification run on the stage's arena unless told
+  // to use fewer threads than it has). Each is at most `cpu`.
+  double sourceCpu = 0.0, ditherCpu = 0.0, emitCpu = 0.0;
 };
 
 // Layers in one leaf of OpenVDB's float and bool trees: a band's grids hold whole 8-layer slabs of

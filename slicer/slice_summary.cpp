@@ -39,7 +39,8 @@ void printSliceJson(const SliceSummary& s, const slicer::SliceReport& report) {
                   {"total", s.totalSeconds},
                   {"busy", {{"voxelize", seconds.source}, {"dither", seconds.dither}, {"emit", seconds.emit},
                             {"map_in", report.mappedWhileDithering ? "dither" : "voxelize"}}},
-                  {"cpu_bands", seconds.cpu}};
+                  {"cpu_bands", seconds.cpu},
+                  {"cpu", {{"voxelize", seconds.sourceCpu}, {"dither", seconds.ditherCpu}, {"emit", seconds.emitCpu}}}};
   std::cout << j.dump(2) << '\n';
 }
 
@@ -62,8 +63,10 @@ void printSliceLines(const SliceSummary& s, const slicer::SliceReport& report, c
   std::printf("time:           %.2f s inputs, %.2f s support, %.2f s bands and job; %.2f s total (wall)\n", s.inputSeconds,
               report.supportSeconds, t.wall, s.totalSeconds);
   const bool mapInDither = report.mappedWhileDithering;
-  std::printf("bands:          busy %.2f s voxelize%s, %.2f s %sdither, %.2f s emit (wall, overlapping); %.2f s CPU, all threads\n",
-              t.source, mapInDither ? "" : " + map", t.dither, mapInDither ? "map + " : "", t.emit, t.cpu);
+  std::printf("bands:          busy %.2f s voxelize%s, %.2f s %sdither, %.2f s emit (wall, overlapping)\n", t.source,
+              mapInDither ? "" : " + map", t.dither, mapInDither ? "map + " : "", t.emit);
+  std::printf("CPU:            %.2f s voxelize%s, %.2f s %sdither, %.2f s emit; %.2f s all threads\n", t.sourceCpu,
+              mapInDither ? "" : " + map", t.ditherCpu, mapInDither ? "map + " : "", t.emitCpu, t.cpu);
 }
 
 }  // namespace

@@ -5,6 +5,8 @@
 
 #include "slicer_test_support.hpp"
 
+#include <tbb/parallel_for.h>
+
 using namespace rodfab;
 using namespace slicer_test;
 
@@ -174,6 +176,34 @@ TEST_CASE("streamJob's times: each stage's busy time within the wall time, the C
   slicer::streamJob(spec, slow, *ditherer, options, seconds);
   CHECK(seconds.source >= first.source + 5 * 0.04);
   CHECK(seconds.wall > first.wall);
+}
+
+TEST_CASE("streamJob's CPU per stage: the work in a stage's arena on every thread, not a thread of its own making") {
+  openvdb::initialize();
+  TempDir tmp;
+  const openvdb::CoordBBox box(openvdb::Coord(0), openvdb::Coord(9, 9, 9));
+  const printer_profiles::JobSpec spec = boxJob(box, tmp.path / "job.zip");
+  const auto ditherer = materials::makeDitherer("white", {});
+  slicer::PipelineOptions options;
+  options.bandLayers = 2;  // 5 bands
+  const slicer::BandSource boxes = twoBoxes(box, {}, spec.originMm);
+  // Per band: two TBB tasks of 30 ms of CPU each (in the source's arena, on whichever of its threads),
+  // and a thread of the source's own making that burns 50 ms (outside every arena).
+  const slicer::BandSource source = [&](int k0, int k1, bool next) {
+    tbb::parallel_for(0, 2, [](int) { burnCpu(0.03); });
+    std::thread outside([] { burnCpu(0.05); });
+    outside.join();
+    return boxes(k0, k1, next);
+  };
+  slicer::StageSeconds seconds;
+  slicer::streamJob(spec, source, *ditherer, options, seconds);
+  CHECK(seconds.sourceCpu >= 5 * 0.06);
+  CHECK(seconds.sourceCpu < 5 * 0.06 + 0.2);  // the outside thread's 0.25 s not in it (workers spin briefly)
+  CHECK(seconds.ditherCpu > 0.0);
+  CHECK(seconds.emitCpu > 0.0);
+  CHECK(seconds.cpu >= 5 * (0.06 + 0.05));
+  // Every thread's time inside the arenas is part of the process's (1 ms: getrusage's resolution).
+  CHECK(seconds.sourceCpu + seconds.ditherCpu + seconds.emitCpu <= seconds.cpu + 0.001);
 }
 
 TEST_CASE("sliceDesign: a straight rod's voxels are its volume, every one in the job, for any band size and thread count") {

@@ -239,8 +239,12 @@ std::size_t Rasterizer::pieceCount() const {
   return n;
 }
 
+// On the caller's arena when it runs no more threads than asked for (the slicer's voxelize stage has
+// its own): a thread inside an arena made here would leave the caller's, whose observers (the
+// pipeline's per-stage CPU time, slicer/job_pipeline.cpp) would then miss the work.
 Rasterization Rasterizer::rasterizeLayers(int zBegin, int zEnd) const {
-  tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
+  if (options_.threads <= 0 || options_.threads >= tbb::this_task_arena::max_concurrency()) return run(zBegin, zEnd);
+  tbb::task_arena arena(options_.threads);
   return arena.execute([&] { return run(zBegin, zEnd); });
 }
 

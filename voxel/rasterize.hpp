@@ -59,7 +59,7 @@ struct RasterOptions {
   RasterOptions(int threadCount, std::function<bool()> interrupted = {})
       : threads(threadCount), wasInterrupted(std::move(interrupted)) {}
 
-  int threads = 0;  // TBB worker count; 0 = all cores
+  int threads = 0;  // threads at most; 0 = as many as the calling TBB arena has (all cores from a plain thread)
   // Cancellation, in the style of OpenVDB's interrupters: when set, the rasterizer calls it from its
   // worker threads (so it must be thread-safe, e.g. a read of an atomic flag set by a signal handler)
   // between small units of work, at least every ~20 ms of work per thread on this machine (2 cores),
