@@ -7,6 +7,8 @@
 #include "tests/voxel_fixture.hpp"
 
 #include <catch2/catch.hpp>
+#include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <cmath>
@@ -333,6 +335,17 @@ TEST_CASE("The grid is identical for 1 and 2 threads and for any band of layers"
   REQUIRE(total == one.grid->activeVoxelCount());
   REQUIRE(perRod == one.voxelsPerRod);
   REQUIRE(rasterizer.rasterizeLayers(g.dims.z(), g.dims.z() + 10).grid->activeVoxelCount() == 0);
+
+  // Called in a TBB context being cancelled (a pipeline's stage after another one threw): none of its
+  // parallel loops is skipped, the grid is whole.
+  tbb::task_group_context cancelling;
+  voxel::Rasterization inCancelled;
+  tbb::parallel_for(0, 1, [&](int) {
+    cancelling.cancel_group_execution();
+    inCancelled = rasterizer.rasterizeLayers(0, g.dims.z());
+  }, cancelling);
+  REQUIRE(cancelling.is_group_execution_cancelled());
+  requireIdentical(*inCancelled.grid, *one.grid);
 }
 
 TEST_CASE("Row bounds rounded four at a time as clampToInt(ceil), (floor)", "[voxel][clips]") {

@@ -241,11 +241,19 @@ std::size_t Rasterizer::pieceCount() const {
 
 // On the caller's arena when it runs no more threads than asked for (the slicer's voxelize stage has
 // its own): a thread inside an arena made here would leave the caller's, whose observers (the
-// pipeline's per-stage CPU time, slicer/job_pipeline.cpp) would then miss the work.
+// pipeline's per-stage CPU time, slicer/job_pipeline.cpp) would then miss the work. Either way in a
+// task group context of its own, as an arena's would be: a caller's cancelled context (a pipeline
+// stopping) never skips one of the loops and returns a band short of voxels.
 Rasterization Rasterizer::rasterizeLayers(int zBegin, int zEnd) const {
-  if (options_.threads <= 0 || options_.threads >= tbb::this_task_arena::max_concurrency()) return run(zBegin, zEnd);
-  tbb::task_arena arena(options_.threads);
-  return arena.execute([&] { return run(zBegin, zEnd); });
+  Rasterization out;
+  const auto work = [&] { outsideCancellation([&] { out = run(zBegin, zEnd); }); };
+  if (options_.threads <= 0 || options_.threads >= tbb::this_task_arena::max_concurrency()) {
+    work();
+  } else {
+    tbb::task_arena arena(options_.threads);
+    arena.execute(work);
+  }
+  return out;
 }
 
 Rasterization Rasterizer::run(int zBegin, int zEnd) const {
