@@ -4,12 +4,17 @@
 
 #include "examples/example_designs.hpp"
 
+#include "tests/file_size_limit.hpp"
 #include "tests/voxel_fixture.hpp"
 
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <algorithm>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
 
 using namespace rodfab;
 using namespace rodfab::test;  // with the fixture's geometry and voxel names
@@ -141,6 +146,53 @@ TEST_CASE(".vdb files round-trip and are written atomically", "[voxel][io]") {
   REQUIRE_THROWS_WITH(voxel::readFloatGrid((dir / "missing.vdb").string(), "modulus_mpa"), Catch::Contains("missing.vdb"));
   REQUIRE_THROWS_WITH(voxel::writeGridFile((dir / "no-such-dir" / "x.vdb").string(), *ras.grid),
                       Catch::Contains("x.vdb: cannot write"));
+  std::filesystem::remove_all(dir);
+}
+
+namespace {
+
+std::string fileBytes(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+}  // namespace
+
+TEST_CASE(".vdb files: the same grid gives the same bytes (its UUID from its content), a full disk keeps the old file", "[voxel][io]") {
+  const RodStructure s = design({circularRod(helix(1.0, 1.0, 0.5), 0.3, CapStyle::Round)});
+  const PrinterGrid g = voxel::makePrinterGrid(s, kTestVoxel);
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "rodfab-test-voxel-bytes";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  voxel::writeGridFile((dir / "one.vdb").string(), *voxel::rasterize(s, g, {1}).grid);
+  voxel::writeGridFile((dir / "two.vdb").string(), *voxel::rasterize(s, g, {2}).grid);
+  const std::string one = fileBytes(dir / "one.vdb");
+  REQUIRE(one == fileBytes(dir / "two.vdb"));  // OpenVDB alone writes a random UUID into every file
+  // The header's UUID (after the magic, the versions and a flag: 21 bytes) is an RFC 9562 version 8 one,
+  // and another grid gets another.
+  const std::string uuid = one.substr(21, 36);
+  INFO(uuid);
+  REQUIRE(std::count(uuid.begin(), uuid.end(), '-') == 4);
+  REQUIRE((uuid[8] == '-' && uuid[13] == '-' && uuid[18] == '-' && uuid[23] == '-'));
+  REQUIRE(uuid[14] == '8');
+  REQUIRE(std::string("89ab").find(uuid[19]) != std::string::npos);
+  const RodStructure thicker = design({circularRod(helix(1.0, 1.0, 0.5), 0.35, CapStyle::Round)});
+  voxel::writeGridFile((dir / "other.vdb").string(), *voxel::rasterize(thicker, voxel::makePrinterGrid(thicker, kTestVoxel)).grid);
+  REQUIRE(fileBytes(dir / "other.vdb").substr(21, 36) != uuid);
+  requireIdentical(*voxel::readFloatGrid((dir / "one.vdb").string(), voxel::kModulusGridName), *voxel::rasterize(s, g).grid);
+
+  // The disk fills up while the new grid is written (no file may grow past 4 KiB): an error naming the
+  // file, and the old grid as it was, nothing else in the folder.
+  REQUIRE(one.size() > 8192);
+  {
+    const FileSizeLimit full(4096);
+    REQUIRE_THROWS_WITH(voxel::writeGridFile((dir / "one.vdb").string(), *voxel::rasterize(thicker, g).grid),
+                        Catch::Contains("one.vdb: cannot write the grid") && Catch::Contains("disk full"));
+  }
+  REQUIRE(fileBytes(dir / "one.vdb") == one);
+  std::size_t files = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) files += entry.is_regular_file();
+  REQUIRE(files == 3);
   std::filesystem::remove_all(dir);
 }
 

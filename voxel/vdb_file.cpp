@@ -1,12 +1,21 @@
 #include "voxel/vdb_file.hpp"
 
+#include "common/file_hasher.hpp"
 #include "common/output_file.hpp"
 
+#include <openvdb/io/Archive.h>
 #include <openvdb/io/File.h>
 
 #include <unistd.h>
 
+#include <array>
+#include <algorithm>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
 #include <filesystem>
+#include <fstream>
 #include <mutex>
 #include <stdexcept>
 #include <system_error>
@@ -22,18 +31,72 @@ void initializeOpenVdb() {
   std::call_once(once, [] { openvdb::initialize(); });
 }
 
+// What io::File::write does (Archive::write on a seekable stream), on a stream of ours that is checked
+// once written: io::File never looks at its stream, so a full disk left a truncated file that was then
+// put in place with exit 0.
+class GridArchive final : public openvdb::io::Archive {
+public:
+  void writeFile(const std::filesystem::path& file, const openvdb::GridCPtrVec& grids, const openvdb::MetaMap& metadata) const {
+    std::ofstream out(file, std::ios::binary | std::ios::trunc);
+    if (!out) throw std::runtime_error("cannot create " + file.string());
+    write(out, grids, /*seekable=*/true, metadata);
+    out.close();  // flushes: a failed write or flush leaves failbit set
+    if (!out) throw std::runtime_error("writing " + file.string() + " failed (disk full?)");
+  }
+};
+
+// OpenVDB's header (Archive::writeHeader): magic (8 bytes), file version (4), library version (4 + 4),
+// a grid-offsets flag (1), then the archive's UUID as 36 characters, random for every file written.
+constexpr std::size_t kUuidAt = 21;
+constexpr std::size_t kUuidLength = 36;
+
+bool looksLikeUuid(const std::array<char, kUuidLength>& text) {
+  for (std::size_t n = 0; n < kUuidLength; ++n) {
+    const bool dash = n == 8 || n == 13 || n == 18 || n == 23;
+    const char c = text[n];
+    if (dash ? c != '-' : !((c >= '0' && c <= '9') || (c >= 'a' && c <= 'f') || (c >= 'A' && c <= 'F'))) return false;
+  }
+  return true;
+}
+
+// Replaces the random UUID with one made from the file's other bytes (their XXH3-128, as an RFC 9562
+// version 8 UUID): the same grid and metadata give the same file, whatever the run or thread count,
+// and different files still get different UUIDs (what OpenVDB compares them by).
+void giveContentUuid(const std::filesystem::path& file) {
+  std::fstream io(file, std::ios::binary | std::ios::in | std::ios::out);
+  std::array<char, kUuidAt + kUuidLength> header{};
+  io.read(header.data(), static_cast<std::streamsize>(header.size()));
+  std::array<char, kUuidLength> written{};
+  std::copy(header.begin() + kUuidAt, header.end(), written.begin());
+  if (!io || !looksLikeUuid(written)) throw std::logic_error(file.string() + ": OpenVDB's header has no UUID where expected");
+  common::FileHasher hasher(common::HashAlgorithm::Xxh128);
+  const auto bytes = [](const std::vector<char>& v, std::size_t n) { return std::span(reinterpret_cast<const std::uint8_t*>(v.data()), n); };
+  std::vector<char> chunk(header.begin(), header.begin() + kUuidAt);
+  hasher.update(bytes(chunk, chunk.size()));  // the UUID's own bytes left out
+  chunk.resize(std::size_t{1} << 20);
+  while (io.read(chunk.data(), static_cast<std::streamsize>(chunk.size())) || io.gcount() > 0)
+    hasher.update(bytes(chunk, static_cast<std::size_t>(io.gcount())));
+  std::string hex = hasher.hex();
+  hex[12] = '8';                                                    // version 8: made by the writer
+  hex[16] = "89ab"[std::stoi(hex.substr(16, 1), nullptr, 16) & 3];  // variant 10
+  const std::string uuid = hex.substr(0, 8) + '-' + hex.substr(8, 4) + '-' + hex.substr(12, 4) + '-' + hex.substr(16, 4) + '-' + hex.substr(20);
+  io.clear();  // the read ended at the end of the file
+  io.seekp(static_cast<std::streamoff>(kUuidAt));
+  io.write(uuid.data(), static_cast<std::streamsize>(uuid.size()));
+  io.close();
+  if (!io) throw std::runtime_error("writing " + file.string() + " failed (disk full?)");
+}
+
 }  // namespace
 
 void writeGridFile(const std::string& path, const openvdb::GridBase& grid, const openvdb::MetaMap& fileMetadata) {
   initializeOpenVdb();
   common::AtomicOutput output(path);
   try {
-    openvdb::io::File file(output.temporary().string());
-    openvdb::GridCPtrVec grids{grid.copyGrid()};
     openvdb::MetaMap metadata(fileMetadata);
     metadata.insertMeta(kWriterKey, openvdb::StringMetadata("rodfab"));
-    file.write(grids, metadata);
-    file.close();
+    GridArchive().writeFile(output.temporary(), {grid.copyGrid()}, metadata);
+    giveContentUuid(output.temporary());
   } catch (const std::exception& e) {
     throw std::runtime_error(path + ": cannot write the grid: " + e.what());
   }

@@ -9,7 +9,9 @@ namespace rodfab::voxel {
 
 // Writes `grid` to `path` under a temporary name in the same folder and renames it into place, so
 // `path` is either the old file or the complete new one. Metadata (e.g. the design's name) goes into
-// the file header. Throws std::runtime_error naming the file when writing fails.
+// the file header. The bytes depend only on the grid and the metadata: the header's UUID, random in
+// OpenVDB's own files, is made from the file's other bytes. Throws std::runtime_error naming the file
+// when writing fails (a full disk included: the old file stays, no temporary is left).
 void writeGridFile(const std::string& path, const openvdb::GridBase& grid, const openvdb::MetaMap& fileMetadata = {});
 
 // True when `path` is a regular file that writeGridFile wrote (the writer key "rodfab_writer" in its

@@ -25,6 +25,12 @@ if command -v vdb_print > /dev/null; then
   [ "$active" = "$vdbactive" ] || fail "active voxels: rodfab says $active, vdb_print $vdbactive"
 fi
 
+# The same bytes on 1 thread as on all cores (OpenVDB alone writes a random UUID into every file).
+"$rodfab" voxelize "$src/examples/unfolding-box.json" --voxel-size 0.1,0.1,0.1 --threads 1 -o "$tmp/one.vdb" > /dev/null 2>&1 ||
+  fail "voxelize on 1 thread"
+cmp -s "$tmp/box.vdb" "$tmp/one.vdb" || fail "the grid files of 1 thread and all cores differ"
+rm -f "$tmp/one.vdb"
+
 # JSON: per-rod counts add up to the active voxels, the voxel size is the one asked for.
 "$rodfab" voxelize "$src/examples/unfolding-box.json" --voxel-size 0.1,0.1,0.1 -o "$tmp/box.vdb" --json > "$tmp/json" ||
   fail "--json"
