@@ -81,6 +81,52 @@ void checkProfileBlock(const json& m, const Profile& p, Fields& f) {
     f.fail("profile.column_alignment", "expected " + std::to_string(p.columnAlignment) + ", the profile's");
 }
 
+// The fields that restate the profile or describe the images, checked where present (the writer always
+// writes them; the fuzz target's seeds leave them out): each must say what the profile and the writer
+// say, as a reader of the manifest alone would take them (a wrong pixels-per-metre or tray, a bogus
+// printer) even though the images do not depend on them.
+void checkDescriptions(const json& m, const Profile& p, Fields& f) {
+  const auto present = [](const json& block, const char* key) { return block.is_object() && block.contains(key); };
+  if (const auto b = m.find("profile"); b != m.end() && b->is_object()) {
+    if (present(*b, "printer")) f.same(*b, "profile", "printer", p.printer, "the profile's printer");
+    if (present(*b, "tray_mm"))
+      if (const auto v = f.vec3(*b, "profile", "tray_mm"); v)
+        for (int a = 0; a < 3; ++a)
+          if (!nearlyEqual((*v)[a], p.trayMm[a])) f.fail(indexPath("profile.tray_mm", a), "expected " + describe(json(p.trayMm[a])) + " mm, the profile's");
+    if (present(*b, "layer_thickness_mm"))
+      if (const auto t = f.number(*b, "profile", "layer_thickness_mm"); t && !nearlyEqual(*t, p.layerThicknessMm()))
+        f.fail("profile.layer_thickness_mm", "expected " + describe(json(p.layerThicknessMm())) + " mm, the profile's");
+  }
+  if (const auto b = m.find("image"); b != m.end() && b->is_object()) {
+    const char* key[2] = {"x_pixels_per_metre", "y_pixels_per_metre"};
+    const int dpi[2] = {p.xDpi, p.yDpi};
+    for (int a = 0; a < 2; ++a)
+      if (present(*b, key[a]))
+        if (const auto got = f.integer(*b, "image", key[a], 1, 1000000000); got && *got != pixelsPerMetre(dpi[a]))
+          f.fail(std::string("image.") + key[a], "expected " + std::to_string(pixelsPerMetre(dpi[a])) + " (" + std::to_string(dpi[a]) + " dpi)");
+    if (present(*b, "origin")) f.same(*b, "image", "origin", "top-left", "where the writer's first row and column are");
+    if (present(*b, "row_order")) f.same(*b, "image", "row_order", p.rowOrder, "the profile's row order");
+  }
+}
+
+// The calibration the moduli were mapped with (null when none was): its file's name and SHA-256, the
+// materials it was measured on and its warning, where present.
+void readCalibration(const json& m, Fields& f) {
+  const auto c = m.find("calibration");
+  if (c == m.end() || c->is_null()) return;
+  if (!c->is_object()) return f.wrong("calibration", "an object or null", *c);
+  f.string(*c, "calibration", "file");
+  if (const auto sha = f.string(*c, "calibration", "sha256"); sha && !common::isSha256Hex(*sha))
+    f.fail("calibration.sha256", "expected 64 lowercase hexadecimal digits, got " + describe(json(*sha)));
+  if (const auto materials = c->find("materials"); materials != c->end() && !materials->is_null()) {
+    if (!materials->is_object()) return f.wrong("calibration.materials", "an object or null", *materials);
+    f.string(*materials, "calibration.materials", "rigid");
+    f.string(*materials, "calibration.materials", "rubbery");
+  }
+  if (const auto warning = c->find("warning"); warning != c->end() && !warning->is_null() && !warning->is_string())
+    f.wrong("calibration.warning", "a string or null", *warning);
+}
+
 // Image format and size, layer count, support policy: the numbers the layout is built from.
 bool readShape(const json& m, const Profile& p, const ProfileLimits& limits, JobLayout& out, Fields& f, InspectSummary& s) {
   bool ok = true;
@@ -280,7 +326,10 @@ void readOrientation(const json& m, JobLayout& out, Fields& f) {
 void readDithering(const json& m, Fields& f, InspectSummary& s) {
   const json* d = f.object(m, "", "dithering");
   if (!d) return;
-  s.ditherer = printableName(f.string(*d, "dithering", "ditherer").value_or(""));
+  const auto ditherer = f.string(*d, "dithering", "ditherer");
+  if (ditherer && !isDithererLabel(*ditherer))
+    f.fail("dithering.ditherer", "expected up to 64 lowercase letters, digits and '-', got " + describe(json(*ditherer)));
+  s.ditherer = printableName(ditherer.value_or(""));
   if (const json* seed = f.get(*d, "dithering", "seed", "a whole number")) s.seed = f.count(*seed, "dithering.seed");
 }
 
@@ -318,6 +367,7 @@ std::optional<JobLayout> readLayout(const json& m, const Profile& p, Findings& f
   }
   f.same(m, "", "format", kJobFormat, "the job format this rodfab reads");
   checkProfileBlock(m, p, f);
+  checkDescriptions(m, p, f);
   f.same(m, "", "build_file", p.buildFileName, "the profile's build file");
   JobLayout out;
   out.rgba = p.jobFormat == JobFormat::Gcvf;
@@ -330,6 +380,7 @@ std::optional<JobLayout> readLayout(const json& m, const Profile& p, Findings& f
   readOrientation(m, out, f);
   readStatistics(m, out, f);
   readDithering(m, f, s);
+  readCalibration(m, f);
   readReport(m, out, f);
 
   out.expected[kManifestName] = {EntryRole::Manifest, limitsOf(p).maxManifestBytes};

@@ -44,9 +44,10 @@ public:
   std::optional<std::array<double, 3>> vec3(const json& parent, const std::string& path, const std::string& key);
   // `key` must hold exactly `want` (a string).
   void same(const json& parent, const std::string& path, const std::string& key, const std::string& want, const std::string& why);
+  // A finding at `path`: "expected `what`, got" the value described.
+  void wrong(const std::string& path, const char* what, const json& got);
 
 private:
-  void wrong(const std::string& path, const char* what, const json& got);
   Findings& findings_;
 };
 

@@ -5,6 +5,7 @@
 #include "printer_profiles/gcvf_writer.hpp"
 #include "printer_profiles/inspect.hpp"
 #include "printer_profiles/job_manifest.hpp"
+#include "printer_profiles/job_reader.hpp"  // printableName
 #include "printer_profiles/job_staging.hpp"
 #include "printer_profiles/leaf_bits.hpp"
 #include "printer_profiles/previews.hpp"
@@ -60,6 +61,11 @@ struct ZipForm {
 
 }  // namespace
 
+bool isDithererLabel(std::string_view label) {
+  return label.size() <= 64 &&
+         std::all_of(label.begin(), label.end(), [](char c) { return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '-'; });
+}
+
 fs::path checkJobOutput(const JobOptions& options) {
   fs::path t = options.output;
   if (t.empty()) throw std::invalid_argument("no output path given for the job");
@@ -113,6 +119,9 @@ struct JobWriter::Impl {
     if (gcvf() && (imageFormat != ImageFormat::Png || support != SupportPolicy::Printer))
       throw std::invalid_argument(spec.profile.name + " jobs are GrabCAD Voxel Print files: PNG layers, support added by GrabCAD "
                                   "(no --image-format bmp, no --support explicit)");
+    if (!isDithererLabel(spec.metadata.ditherer))
+      throw std::invalid_argument("the job's ditherer \"" + printableName(spec.metadata.ditherer) +
+                                  "\" is not a label of up to 64 lowercase letters, digits and '-'");
     if (support == SupportPolicy::Explicit) {
       if (!spec.supportTops) throw std::invalid_argument("the explicit support policy needs the part's ColumnTops");
       if (spec.supportTops->width() != geometry.width || spec.supportTops->height() != geometry.height)

@@ -15,6 +15,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -35,12 +36,16 @@ struct ModulusClamping {
 
 struct JobMetadata {
   std::string design;          // design file the job was made from ("" if none)
-  std::string ditherer;        // e.g. "white-noise", "blue-noise"
+  std::string ditherer;        // e.g. "white", "error-diffusion": isDithererLabel (the writer refuses others)
   std::uint64_t seed = 0;
   std::optional<CalibrationRecord> calibration;
   std::optional<ModulusClamping> clamping;
   nlohmann::json extra = nlohmann::json::object();  // caller's own records (e.g. coupon labels)
 };
+
+// Whether `label` may name a job's ditherer (JobMetadata::ditherer): up to 64 of a-z, 0-9 and '-' (empty:
+// not said). What the writer refuses and inspect reports. Thread-safe.
+bool isDithererLabel(std::string_view label);
 
 // The job's report (report.html, see slicer/job_report.hpp), made by the caller from the manifest as it
 // will be written (without its "files" table) and the rendered previews (name in the job, PNG bytes).

@@ -173,6 +173,16 @@ TEST_CASE("Explicit support fills under the overhang down to the tray and never 
   JobSpec noTops = specFor(*grid, dir / "no-tops");
   noTops.options.support = SupportPolicy::Explicit;
   CHECK_THROWS_WITH(JobWriter(noTops), Catch::Contains("ColumnTops"));
+  // The ditherer's label is one inspect accepts: lowercase letters, digits and '-', up to 64 of them.
+  for (const std::string& label : std::vector<std::string>{"White", "white noise", "white\x1b[31m", std::string(65, 'a')}) {
+    JobSpec badLabel = specFor(*grid, dir / "bad-label");
+    badLabel.metadata.ditherer = label;
+    CHECK_THROWS_WITH(JobWriter(badLabel), Catch::Contains("is not a label of up to 64 lowercase letters, digits and '-'"));
+  }
+  CHECK(!fs::exists(dir / "bad-label"));
+  CHECK(isDithererLabel("error-diffusion"));
+  CHECK(isDithererLabel(""));  // not said
+  CHECK(isDithererLabel(std::string(64, 'a')));
 }
 
 TEST_CASE("Inspect catches tampering and truncation of a zip job", "[inspect]") {
