@@ -1,5 +1,6 @@
 // Mesh files through CGAL's readers, then the checks rodfab relies on: finite coordinates, triangles
-// (polygons fanned), welded vertices, no degenerate face, manifold edges and vertices, one orientation.
+// (polygons fanned), welded vertices, no degenerate face, manifold edges and vertices, no vertex of so
+// many triangles that simplifying stalls, one orientation.
 #include "common/interrupt.hpp"
 #include "common/memory_budget.hpp"
 #include "common/quoted_text.hpp"
@@ -331,6 +332,45 @@ void checkManifoldEdges(const TriangleMesh& mesh, const std::string& source) {
                                   std::to_string(edges[i + 2][2]) + ")");
 }
 
+// Vertices that are corners of many triangles (a polygon of many corners fanned from its first corner,
+// a cone's apex, a UV sphere's pole). CGAL's edge collapse (simplify.cpp) recomputes, after each collapse,
+// the cost of every edge at every neighbour of the kept vertex (EdgeCollapse::update_neighbors), and each
+// cost walks all triangles at both ends of the edge (Edge_profile::extract_borders on an open mesh, the
+// triangles Bounded_normal_change_placement checks): at a vertex of n triangles, n edges of O(n) work
+// after each of O(n) collapses nearby, n^3 in all. Measured, simplification alone: a fan of 510 triangles
+// 0.57 s, 1,022: 5.0 s, 1,998: 43 s; a double cone, two apexes of 512: 0.89 s, of 812: 3.5 s, of 1,024:
+// 7.4 s. 128,000 triangles as fans of 16 triangles: 1.07 s, of 32: 2.2 s, of 64: 4.9 s, where an ordinary
+// mesh of 128,000 takes 1.0 s: so vertices of more than 32 triangles count, and the sum of their counts
+// cubed may reach 1024^3 (about 5 s, what an ordinary mesh of 350,000 triangles takes): one vertex of up
+// to 1,024, or several smaller (a UV sphere of 600 segments passes, with two poles of 600). Scans and
+// ordinary meshes have 4 to 12 (the bunny: 10). Accepted meshes are not changed.
+constexpr std::uint64_t kCrowdedVertex = 32, kMaxCrowdedVertex = 1024;
+constexpr std::uint64_t kMaxCrowdedCubes = kMaxCrowdedVertex * kMaxCrowdedVertex * kMaxCrowdedVertex;
+
+void checkCrowdedVertices(const TriangleMesh& mesh, const std::string& source) {
+  std::vector<std::uint64_t> count(mesh.points.size(), 0);
+  for (const Triangle& t : mesh.triangles)
+    for (std::uint32_t v : t) ++count[v];
+  std::uint64_t cubes = 0, crowded = 0;
+  std::size_t most = 0;  // the first of the most crowded vertices, in canonical order
+  for (std::size_t v = 0; v < count.size(); ++v) {
+    if (count[v] > count[most]) most = v;
+    if (count[v] <= kCrowdedVertex) continue;
+    ++crowded;
+    // Saturates instead of overflowing (a count above 1,024 fails anyway).
+    cubes = count[v] > kMaxCrowdedVertex ? kMaxCrowdedCubes + 1 : std::min(kMaxCrowdedCubes + 1, cubes + count[v] * count[v] * count[v]);
+  }
+  if (cubes <= kMaxCrowdedCubes) return;
+  throw MeshError(source, "the vertex " + where(mesh.points[most]) + " is a corner of " + std::to_string(count[most]) + " triangles" +
+                              (crowded > 1 ? " (and " + std::to_string(crowded - 1) + (crowded == 2 ? " more vertex" : " more vertices") +
+                                                 " of more than " + std::to_string(kCrowdedVertex) + ")" : std::string()) +
+                              ": simplifying takes time growing as the cube of such counts (5 s at 1,000, 40 s at 2,000); "
+                              "rods-from-mesh accepts vertices of up to 1024 triangles, and of those of more than " +
+                              std::to_string(kCrowdedVertex) + " at most as many as one of 1024 costs (the sum of their "
+                              "counts cubed up to 1024^3). A polygon of many corners is split into a fan from its first "
+                              "corner: triangulate it first, or remesh the surface so that no vertex is that crowded");
+}
+
 // One orientation per connected part (CGAL), refusing a vertex where separate sheets meet.
 void orient(TriangleMesh& mesh, const std::string& source) {
   std::vector<Point> points;
@@ -398,6 +438,7 @@ TriangleMesh parseMesh(const std::string& bytes, const std::string& format, cons
   points = {};
   checkDegenerate(mesh, source);
   checkManifoldEdges(mesh, source);
+  checkCrowdedVertices(mesh, source);
   common::throwIfInterrupted();
   orient(mesh, source);
   canonicalizeTriangles(mesh.triangles);

@@ -311,6 +311,49 @@ TEST_CASE("the mesh reader on bytes in memory", "[meshing]") {
   CHECK_THROWS_AS(meshing::checkMeshBytes("solid x\nendsolid", "stl", "memory"), meshing::MeshError);
 }
 
+// A vertex of n triangles costs CGAL's simplifier n^3 (meshing/README.md, "Crowded vertices"): a double
+// cone of two apexes of 1,000 took 10.7 s, of 3,000 over a minute; a polygon of 2,000 corners 43 s.
+TEST_CASE("vertices of too many triangles are refused before simplification, the most crowded named", "[meshing][hostile]") {
+  const double pi = std::acos(-1.0);
+  // A closed double cone: apexes (0, 0, 0) and (0, 0, 10), each a corner of n triangles.
+  const auto doubleCone = [&](int n) {
+    std::ostringstream obj;
+    obj.precision(17);
+    obj << "v 0 0 10\nv 0 0 0\n";
+    for (int i = 0; i < n; ++i) obj << "v " << 10 * std::cos(2 * pi * i / n) << ' ' << 10 * std::sin(2 * pi * i / n) << " 5\n";
+    for (int i = 0; i < n; ++i) obj << "f 1 " << 3 + i << ' ' << 3 + (i + 1) % n << "\nf 2 " << 3 + (i + 1) % n << ' ' << 3 + i << '\n';
+    return obj.str();
+  };
+  // One flat polygon of n corners: fanned from its first corner, (10, 0, 0), a corner of n - 2 triangles.
+  const auto polygon = [&](int n) {
+    std::ostringstream obj;
+    obj.precision(17);
+    for (int i = 0; i < n; ++i) obj << "v " << 10 * std::cos(2 * pi * i / n) << ' ' << 10 * std::sin(2 * pi * i / n) << " 0\n";
+    obj << 'f';
+    for (int i = 1; i <= n; ++i) obj << ' ' << i;
+    obj << '\n';
+    return obj.str();
+  };
+  const auto error = [](const std::string& obj) {
+    try {
+      meshing::checkMeshBytes(obj, "obj", "m.obj");
+    } catch (const meshing::MeshError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  // One vertex of up to 1,024 passes; 1,025 does not.
+  CHECK(meshing::checkMeshBytes(polygon(1026), "obj", "m.obj").faces == 1024);
+  CHECK_THAT(error(polygon(1027)), Catch::Contains("m.obj: the vertex (10, 0, 0) is a corner of 1025 triangles:") &&
+                                       Catch::Contains("up to 1024 triangles") && Catch::Contains("triangulate it first"));
+  // Several: the sum of their counts cubed up to 1024^3 (2 x 812^3 passes, 2 x 813^3 does not).
+  CHECK(meshing::checkMeshBytes(doubleCone(812), "obj", "m.obj").faces == 1624);
+  CHECK_THAT(error(doubleCone(813)), Catch::Contains("the vertex (0, 0, 0) is a corner of 813 triangles (and 1 more vertex of more than 32)"));
+  CHECK_THAT(error(doubleCone(1000)), Catch::Contains("the vertex (0, 0, 0) is a corner of 1000 triangles"));
+  // Up to 32 a vertex does not count.
+  CHECK(meshing::checkMeshBytes(doubleCone(32), "obj", "m.obj").faces == 64);
+}
+
 TEST_CASE("OBJ face corners are checked where CGAL would misread them", "[meshing]") {
   std::ostringstream body;
   const testing::SimpleMesh mesh = testing::ellipsoid(1, 3, 3, 3);
