@@ -178,32 +178,6 @@ TEST_CASE("The job's complete layout is checked against the profile", "[inspect]
     CHECK(hasDefect(report, "manifest.json: layers[0].voxels.VeroWhitePlus: 1099511627776 voxels, more than a layer's"));
     CHECK(hasDefect(report, "TangoBlackPlus: the manifest's orientation check counts"));
   }
-  SECTION("the fields restating the profile and describing the images, and the calibration record") {
-    // Nothing in the images depends on them, but a reader of the manifest alone takes them at their word.
-    rezip(dir / "t.zip", tampered(original, [](json& m) {
-            m["image"]["x_pixels_per_metre"] = "abc";
-            m["image"]["y_pixels_per_metre"] = 23621;  // 600 dpi's, on the Connex3's 300 dpi axis
-            m["image"]["origin"] = "bottom-left";
-            m["image"]["row_order"] = 5;
-            m["profile"]["printer"] = "Evil Printer";
-            m["profile"]["tray_mm"] = {0, 390, 200};
-            m["profile"]["layer_thickness_mm"] = 0.1;
-            m["dithering"]["ditherer"] = "White Noise\n";
-            m["calibration"] = {{"file", "cal.json"}, {"sha256", "zz"}, {"materials", 3}, {"warning", nullptr}};
-          }));
-    const InspectReport report = inspectJob(dir / "t.zip");
-    CHECK(hasDefect(report, "manifest.json: image.x_pixels_per_metre: expected an integer in [1, 1000000000], got \"abc\""));
-    CHECK(hasDefect(report, "manifest.json: image.y_pixels_per_metre: expected 11811 (300 dpi)"));
-    CHECK(hasDefect(report, "manifest.json: image.origin: expected \"top-left\""));
-    CHECK(hasDefect(report, "manifest.json: image.row_order: expected a string, got 5"));
-    CHECK(hasDefect(report, "manifest.json: profile.printer: expected \"Stratasys Objet500 Connex3\""));
-    CHECK(hasDefect(report, "manifest.json: profile.tray_mm[0]: expected 490 mm"));
-    CHECK(hasDefect(report, "manifest.json: profile.layer_thickness_mm: expected"));
-    CHECK(hasDefect(report, "manifest.json: dithering.ditherer: expected up to 64 lowercase letters, digits and '-'"));
-    CHECK(hasDefect(report, "manifest.json: calibration.sha256: expected 64 lowercase hexadecimal digits, got \"zz\""));
-    CHECK(hasDefect(report, "manifest.json: calibration.materials: expected an object or null, got 3"));
-    CHECK(report.defects.size() == 10);  // the tray's other two axes agree; nothing else is wrong
-  }
   SECTION("an extra file, listed or not") {
     auto files = original;
     addListed(files, "notes.txt", bytesOf("hello"));
@@ -213,6 +187,36 @@ TEST_CASE("The job's complete layout is checked against the profile", "[inspect]
     CHECK(hasDefect(report, "t.zip: notes.txt: unexpected entry"));
     CHECK(hasDefect(report, "t.zip: previews/extra.png: unexpected entry"));
   }
+}
+
+TEST_CASE("The fields restating the profile, describing the images and recording the calibration are checked", "[inspect][hostile]") {
+  const fs::path dir = scratch("descriptions");
+  writeSmallJob(dir / "job.zip");
+  const auto original = unzip(dir / "job.zip");
+  // Nothing in the images depends on them, but a reader of the manifest alone takes them at their word.
+  rezip(dir / "t.zip", tampered(original, [](json& m) {
+          m["image"]["x_pixels_per_metre"] = "abc";
+          m["image"]["y_pixels_per_metre"] = 23621;  // 600 dpi's, on the Connex3's 300 dpi axis
+          m["image"]["origin"] = "bottom-left";
+          m["image"]["row_order"] = 5;
+          m["profile"]["printer"] = "Evil Printer";
+          m["profile"]["tray_mm"] = {0, 390, 200};
+          m["profile"]["layer_thickness_mm"] = 0.1;
+          m["dithering"]["ditherer"] = "White Noise\n";
+          m["calibration"] = {{"file", "cal.json"}, {"sha256", "zz"}, {"materials", 3}, {"warning", nullptr}};
+        }));
+  const InspectReport report = inspectJob(dir / "t.zip");
+  CHECK(hasDefect(report, "manifest.json: image.x_pixels_per_metre: expected an integer in [1, 1000000000], got \"abc\""));
+  CHECK(hasDefect(report, "manifest.json: image.y_pixels_per_metre: expected 11811 (300 dpi)"));
+  CHECK(hasDefect(report, "manifest.json: image.origin: expected \"top-left\""));
+  CHECK(hasDefect(report, "manifest.json: image.row_order: expected a string, got 5"));
+  CHECK(hasDefect(report, "manifest.json: profile.printer: expected \"Stratasys Objet500 Connex3\""));
+  CHECK(hasDefect(report, "manifest.json: profile.tray_mm[0]: expected 490 mm"));
+  CHECK(hasDefect(report, "manifest.json: profile.layer_thickness_mm: expected"));
+  CHECK(hasDefect(report, "manifest.json: dithering.ditherer: expected up to 64 lowercase letters, digits and '-'"));
+  CHECK(hasDefect(report, "manifest.json: calibration.sha256: expected 64 lowercase hexadecimal digits, got \"zz\""));
+  CHECK(hasDefect(report, "manifest.json: calibration.materials: expected an object or null, got 3"));
+  CHECK(report.defects.size() == 10);  // the tray's other two axes agree; nothing else is wrong
 }
 
 TEST_CASE("The manifest's image size, nesting and value types are checked", "[inspect][hostile]") {
