@@ -13,8 +13,10 @@
 #include <algorithm>
 #include <atomic>
 #include <limits>
+#include <map>
 #include <memory>
 #include <utility>
+#include <vector>
 
 namespace rodfab::voxel {
 
@@ -198,6 +200,45 @@ openvdb::FloatGrid::Ptr modulusGrid(openvdb::FloatTree::Ptr tree, const PrinterG
   return out;
 }
 
+// The numbers that define a rod's solid (rod.hpp): its centerline, section, frame (reference normal or
+// orientation spline) and caps, each list after its length; not its name or modulus.
+std::vector<double> solidKey(const geometry::Rod& rod) {
+  std::vector<double> key;
+  const auto list = [&key](const auto& values, auto&& each) {
+    key.push_back(static_cast<double>(values.size()));
+    for (const auto& v : values) each(v);
+  };
+  const auto number = [&key](double v) { key.push_back(v); };
+  const auto point = [&key](const geometry::Vec3& p) { key.insert(key.end(), {p.x(), p.y(), p.z()}); };
+  const geometry::NurbsCurve& c = rod.centerline();
+  number(c.degree());
+  list(c.knots(), number);
+  list(c.points(), point);
+  list(c.weights(), number);
+  const geometry::Section& section = rod.section();
+  key.insert(key.end(), {static_cast<double>(section.shape), section.width, section.height, static_cast<double>(rod.caps())});
+  number(rod.referenceNormal() ? 1 : 0);
+  if (rod.referenceNormal()) point(*rod.referenceNormal());
+  number(rod.orientation() ? 1 : 0);
+  if (const auto& q = rod.orientation()) {
+    number(q->degree());
+    list(q->knots(), number);
+    list(q->quaternions(), [&key](const Eigen::Vector4d& v) { key.insert(key.end(), {v[0], v[1], v[2], v[3]}); });
+  }
+  return key;
+}
+
+// For each rod, whether its solid is exactly an earlier rod's (a design listing a rod twice). Such a
+// rod owns no voxel: the deepest rod wins an overlap and the lower index a tie, and there every voxel
+// ties. Left unprepared, it costs nothing; prepared, every voxel of it went to the exact test, as a tie
+// is only settled there (49 ms a copy of a 20 mm rod; a design of 2,000 copies took 100 s).
+std::vector<bool> repeatsEarlierSolid(const geometry::RodStructure& structure) {
+  std::map<std::vector<double>, std::size_t> first;
+  std::vector<bool> repeats(structure.rods.size(), false);
+  for (std::size_t r = 0; r < structure.rods.size(); ++r) repeats[r] = !first.emplace(solidKey(structure.rods[r]), r).second;
+  return repeats;
+}
+
 }  // namespace
 
 Rasterizer::Rasterizer(const geometry::RodStructure& structure, const PrinterGrid& grid, RasterOptions options)
@@ -209,9 +250,11 @@ Rasterizer::Rasterizer(const geometry::RodStructure& structure, const PrinterGri
   partBounds_ = bounds.isEmpty() ? openvdb::CoordBBox()
                                  : grid_.voxelsWithin({bounds.min().x(), bounds.min().y(), bounds.min().z()},
                                                       {bounds.max().x(), bounds.max().y(), bounds.max().z()});
+  const std::vector<bool> repeats = repeatsEarlierSolid(structure);
   tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
   arena.execute([&] {
     tbb::parallel_for(std::size_t(0), rods_.size(), [&](std::size_t r) {
+      if (repeats[r]) return;  // no pieces: it wins no voxel anyway
       detail::RodPieces pieces = detail::buildRodPieces(structure.rods[r], grid_, options_.wasInterrupted);
       pieces.box = openvdb::CoordBBox();
       for (RodPiece& p : pieces.pieces) {
