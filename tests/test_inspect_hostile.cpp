@@ -196,7 +196,7 @@ TEST_CASE("The fields restating the profile, describing the images and recording
   // Nothing in the images depends on them, but a reader of the manifest alone takes them at their word.
   rezip(dir / "t.zip", tampered(original, [](json& m) {
           m["image"]["x_pixels_per_metre"] = "abc";
-          m["image"]["y_pixels_per_metre"] = 23621;  // 600 dpi's, on the Connex3's 300 dpi axis
+          m["image"]["y_pixels_per_metre"] = 23621;  // near 600 dpi's 23622, on the Connex3's 300 dpi axis
           m["image"]["origin"] = "bottom-left";
           m["image"]["row_order"] = 5;
           m["profile"]["printer"] = "Evil Printer";
