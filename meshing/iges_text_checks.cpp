@@ -9,6 +9,7 @@
 #include <Geom_BSplineSurface.hxx>
 
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -161,6 +162,59 @@ void checkIgesLoopEdges(const std::string& params, char delimiter, char recordEn
   }
 }
 
+// An IGES number as written in the Global section: a sign, digits with at most one point, an exponent
+// (E or D) with digits.
+bool isIgesNumber(std::string_view t) {
+  std::size_t at = t.find_first_not_of("+-") == 1 ? 1 : 0, digits = 0;
+  bool point = false;
+  for (; at < t.size() && (std::isdigit(static_cast<unsigned char>(t[at])) || (t[at] == '.' && !point)); ++at) {
+    point = point || t[at] == '.';
+    digits += t[at] != '.';
+  }
+  if (digits == 0) return false;
+  if (at == t.size()) return true;
+  if (t[at] != 'E' && t[at] != 'e' && t[at] != 'D' && t[at] != 'd') return false;
+  ++at;
+  if (at < t.size() && (t[at] == '+' || t[at] == '-')) ++at;
+  return at < t.size() && t.find_first_not_of("0123456789", at) == std::string_view::npos;
+}
+
+// The Global section (columns 1-72 of its records, `text`): every value empty, a string nHc1...cn (n >= 1
+// characters, which may hold the delimiters) or a number, up to the record's end. OpenCASCADE's reader,
+// given anything else, took the section's later values as their defaults without a word (a string of
+// length -5 before the unit: the unit became inches, the model 25.4 times its size).
+void checkIgesGlobal(std::string_view text, char delimiter, char recordEnd, long long line, const std::filesystem::path& file) {
+  const auto malformed = [&](int field, const std::string& what) {
+    return MeshError(file, "line " + std::to_string(line) + ": malformed IGES Global section, value " + std::to_string(field) + ": " + what);
+  };
+  std::size_t at = 0;
+  for (int field = 1;; ++field) {
+    at = std::min(text.find_first_not_of(' ', at), text.size());
+    const std::size_t digitsEnd = std::min(text.find_first_not_of("0123456789", at), text.size());
+    if (digitsEnd > at && digitsEnd < text.size() && text[digitsEnd] == 'H') {
+      const std::string count(text.substr(at, digitsEnd - at));
+      const unsigned long long n = count.size() > 6 ? ~0ull : std::stoull(count);
+      if (n == 0 || n > text.size() - digitsEnd - 1)
+        throw malformed(field, "a string of " + count + " characters (" + count + "H...) where the section holds " +
+                                   std::to_string(text.size() - digitsEnd - 1) + " more");
+      at = digitsEnd + 1 + n;
+    } else {
+      const std::size_t end = std::min(text.find_first_of(std::string{delimiter, recordEnd}, at), text.size());
+      std::string_view value = text.substr(at, end - at);
+      value = value.substr(0, value.find_last_not_of(' ') + 1);
+      if (!value.empty() && !isIgesNumber(value))
+        throw malformed(field, "expected a string (nH followed by n characters) or a number, got " + common::quotedFromFile(std::string(value)));
+      at = end;
+    }
+    at = std::min(text.find_first_not_of(' ', at), text.size());
+    if (at < text.size() && text[at] == recordEnd) return;
+    if (at >= text.size() || text[at] != delimiter)
+      throw malformed(field, at >= text.size() ? "the section ends without its record delimiter '" + std::string(1, recordEnd) + "'"
+                                               : "expected the delimiter '" + std::string(1, delimiter) + "' after it, got '" + text[at] + "'");
+    ++at;
+  }
+}
+
 }  // namespace
 
 void prescanIgesText(const std::filesystem::path& file) {
@@ -172,7 +226,8 @@ void prescanIgesText(const std::filesystem::path& file) {
   // 1-64 and its entity's directory pointer in 65-72. The global section may declare another delimiter.
   char delimiter = ',', recordEnd = ';';
   bool firstGlobal = true, ended = false;
-  std::string line, entity, params;
+  std::string line, entity, params, global;
+  long long globalLine = 0;
   long long number = 0, entityLine = 0, values = 0;
   char lastSection = 0;
   std::optional<MeshError> firstRecordProblem;  // thrown after the Terminate check: a file cut short says so
@@ -208,9 +263,13 @@ void prescanIgesText(const std::filesystem::path& file) {
                                 common::quotedFromFile(line.substr(73, 7)) + " is not a number");
     if (line[72] == 'G' && firstGlobal) {
       firstGlobal = false;
+      globalLine = number;
       std::size_t at = 0;  // the global section's first two values: the delimiters, "1H," and "1H;" or empty
       if (line.compare(0, 2, "1H") == 0) delimiter = line[2], at = 3;
       if (line[at] == delimiter && line.compare(at + 1, 2, "1H") == 0) recordEnd = line[at + 3];
+    }
+    if (line[72] == 'G' && global.size() < (std::size_t{1} << 20)) {
+      global += line.substr(0, 72);
     } else if (line[72] == 'P') {
       const std::string owner = line.substr(64, 8);
       if (owner != entity) flush(), entity = owner, entityLine = number;
@@ -226,6 +285,7 @@ void prescanIgesText(const std::filesystem::path& file) {
   if (lastSection != 0 && lastSection != 'T')
     throw MeshError(file, "the file ends without IGES's Terminate record (a 'T' in column 73 of its last line): it was cut "
                           "short, perhaps by an interrupted copy; copy or export it again");
+  if (globalLine > 0) checkIgesGlobal(global, delimiter, recordEnd, globalLine, file);
   if (firstRecordProblem) throw *firstRecordProblem;
 }
 

@@ -343,6 +343,36 @@ TEST_CASE("an IGES B-rep record whose count runs past its values, or a record nu
   CHECK(meshing::rodsFromCad(valid, {}).structure.rods.size() == 12);
 }
 
+TEST_CASE("an IGES Global section with a malformed value is refused, not read with its later values defaulted", "[meshing][cad][hostile]") {
+  // A string of length -5 before the unit made OpenCASCADE's reader take the unit as inches: a 10 mm line
+  // became a 254 mm rod, without a word.
+  const fs::path valid = scratch("valid-global.igs");
+  testing::writeIges(testing::edgeOf(testing::testSpline()), valid);
+  std::ifstream in(valid, std::ios::binary);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  // OpenCASCADE's Global section starts ",,31HOpen CASCADE IGES processor": the delimiters left to
+  // their defaults, then the third value, before which `insert` goes; the line's last space before
+  // column 73 is taken out so that the columns stay.
+  const std::size_t lineStart = text.find("G0000001") - 72, third = lineStart + 2;
+  INFO(text.substr(lineStart, 80));
+  REQUIRE(text.compare(lineStart, 5, ",,31H") == 0);
+  const auto withThird = [&](const std::string& name, const std::string& insert) {
+    std::string changed = text;
+    const std::size_t lastSpace = changed.find_last_not_of(' ', lineStart + 71) + 1;
+    REQUIRE(lastSpace + insert.size() <= lineStart + 72);
+    changed.erase(lastSpace, insert.size());
+    changed.insert(third, insert);
+    const fs::path file = scratch(name);
+    std::ofstream(file, std::ios::binary) << changed;
+    return meshErrorOf(file, [&] { meshing::rodsFromCad(file, {}); });
+  };
+  CHECK_THAT(withThird("negative.igs", "-"), Catch::Contains("line 2: malformed IGES Global section, value 3: expected a string (nH "
+                                                             "followed by n characters) or a number, got '-"));
+  CHECK_THAT(withThird("past.igs", "99"), Catch::Contains("malformed IGES Global section, value 3: a string of 99"));
+  CHECK_THAT(withThird("word.igs", "x,"), Catch::Contains("malformed IGES Global section, value 3: expected a string"));
+  CHECK(meshing::rodsFromCad(valid, {}).structure.rods.size() == 1);
+}
+
 TEST_CASE("a truncated IGES file, on which OpenCASCADE's reader crashes, is refused as cut short", "[meshing][cad][hostile]") {
   const fs::path whole = scratch("whole.igs"), cut = scratch("cut.igs");
   testing::writeIges(testing::edgeOf(testing::testSpline()), whole);
