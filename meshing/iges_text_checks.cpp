@@ -9,7 +9,6 @@
 #include <Geom_BSplineSurface.hxx>
 
 #include <algorithm>
-#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -162,57 +161,41 @@ void checkIgesLoopEdges(const std::string& params, char delimiter, char recordEn
   }
 }
 
-// An IGES number as written in the Global section: a sign, digits with at most one point, an exponent
-// (E or D) with digits.
-bool isIgesNumber(std::string_view t) {
-  std::size_t at = t.find_first_not_of("+-") == 1 ? 1 : 0, digits = 0;
-  bool point = false;
-  for (; at < t.size() && (std::isdigit(static_cast<unsigned char>(t[at])) || (t[at] == '.' && !point)); ++at) {
-    point = point || t[at] == '.';
-    digits += t[at] != '.';
-  }
-  if (digits == 0) return false;
-  if (at == t.size()) return true;
-  if (t[at] != 'E' && t[at] != 'e' && t[at] != 'D' && t[at] != 'd') return false;
-  ++at;
-  if (at < t.size() && (t[at] == '+' || t[at] == '-')) ++at;
-  return at < t.size() && t.find_first_not_of("0123456789", at) == std::string_view::npos;
-}
-
-// The Global section (columns 1-72 of its records, `text`): every value empty, a string nHc1...cn (n >= 1
-// characters, which may hold the delimiters) or a number, up to the record's end. OpenCASCADE's reader,
-// given anything else, took the section's later values as their defaults without a word (a string of
-// length -5 before the unit: the unit became inches, the model 25.4 times its size).
-void checkIgesGlobal(std::string_view text, char delimiter, char recordEnd, long long line, const std::filesystem::path& file) {
-  const auto malformed = [&](int field, const std::string& what) {
-    return MeshError(file, "line " + std::to_string(line) + ": malformed IGES Global section, value " + std::to_string(field) + ": " + what);
-  };
+// The Global section's unit flag (its 14th value, `text` being the section's columns 1-72): 1 to 11, the
+// unit's code. A section that does not give it means inches to IGES and to OpenCASCADE, which says
+// nothing: a file whose section was cut short or garbled before it (a string of length -5) became a
+// design 25.4 times its size. The values before it are split leniently, as a reader that recovers
+// would: a string nH... of n bytes when its end meets a delimiter, else everything up to the next one
+// (a name counted in characters rather than UTF-8 bytes still finds the unit).
+void checkIgesGlobalUnit(std::string_view text, char delimiter, char recordEnd, long long line, const std::filesystem::path& file) {
+  constexpr int kUnitFlag = 14;
+  const auto nextStop = [&](std::size_t from) { return std::min(text.find_first_of(std::string{delimiter, recordEnd}, from), text.size()); };
   std::size_t at = 0;
-  for (int field = 1;; ++field) {
+  for (int value = 1; at < text.size(); ++value) {
     at = std::min(text.find_first_not_of(' ', at), text.size());
+    std::size_t end = nextStop(at);
     const std::size_t digitsEnd = std::min(text.find_first_not_of("0123456789", at), text.size());
-    if (digitsEnd > at && digitsEnd < text.size() && text[digitsEnd] == 'H') {
-      const std::string count(text.substr(at, digitsEnd - at));
-      const unsigned long long n = count.size() > 6 ? ~0ull : std::stoull(count);
-      if (n == 0 || n > text.size() - digitsEnd - 1)
-        throw malformed(field, "a string of " + count + " characters (" + count + "H...) where the section holds " +
-                                   std::to_string(text.size() - digitsEnd - 1) + " more");
-      at = digitsEnd + 1 + n;
-    } else {
-      const std::size_t end = std::min(text.find_first_of(std::string{delimiter, recordEnd}, at), text.size());
-      std::string_view value = text.substr(at, end - at);
-      value = value.substr(0, value.find_last_not_of(' ') + 1);
-      if (!value.empty() && !isIgesNumber(value))
-        throw malformed(field, "expected a string (nH followed by n characters) or a number, got " + common::quotedFromFile(std::string(value)));
-      at = end;
+    if (digitsEnd > at && digitsEnd - at <= 6 && digitsEnd < text.size() && text[digitsEnd] == 'H') {
+      const std::size_t stringEnd = digitsEnd + 1 + std::stoul(std::string(text.substr(at, digitsEnd - at)));
+      const std::size_t after = std::min(text.find_first_not_of(' ', stringEnd), text.size());
+      if (stringEnd <= text.size() && after < text.size() && (text[after] == delimiter || text[after] == recordEnd)) end = after;
     }
-    at = std::min(text.find_first_not_of(' ', at), text.size());
-    if (at < text.size() && text[at] == recordEnd) return;
-    if (at >= text.size() || text[at] != delimiter)
-      throw malformed(field, at >= text.size() ? "the section ends without its record delimiter '" + std::string(1, recordEnd) + "'"
-                                               : "expected the delimiter '" + std::string(1, delimiter) + "' after it, got '" + text[at] + "'");
-    ++at;
+    if (value == kUnitFlag) {
+      std::string flag(text.substr(at, end - at));
+      flag.erase(flag.find_last_not_of(' ') + 1);
+      if (!flag.empty() && flag.size() <= 2 && flag.find_first_not_of("0123456789") == std::string::npos && std::stoi(flag) >= 1 &&
+          std::stoi(flag) <= 11)
+        return;
+      throw MeshError(file, "line " + std::to_string(line) + ": the IGES Global section's unit flag (its value 14) is " +
+                                (flag.empty() ? std::string("not given") : common::quotedFromFile(flag)) +
+                                ", expected 1 to 11 (2: millimetres): without it IGES means inches, and the design would be "
+                                "25.4 times the size a millimetre model has; export the file again with its unit");
+    }
+    if (end >= text.size() || text[end] == recordEnd) break;
+    at = end + 1;
   }
+  throw MeshError(file, "line " + std::to_string(line) + ": the IGES Global section ends before its unit flag (value 14), so IGES "
+                        "would mean inches and the design could be 25.4 times its size; export the file again with its unit");
 }
 
 }  // namespace
@@ -285,7 +268,7 @@ void prescanIgesText(const std::filesystem::path& file) {
   if (lastSection != 0 && lastSection != 'T')
     throw MeshError(file, "the file ends without IGES's Terminate record (a 'T' in column 73 of its last line): it was cut "
                           "short, perhaps by an interrupted copy; copy or export it again");
-  if (globalLine > 0) checkIgesGlobal(global, delimiter, recordEnd, globalLine, file);
+  if (globalLine > 0) checkIgesGlobalUnit(global, delimiter, recordEnd, globalLine, file);
   if (firstRecordProblem) throw *firstRecordProblem;
 }
 

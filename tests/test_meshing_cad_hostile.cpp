@@ -343,33 +343,35 @@ TEST_CASE("an IGES B-rep record whose count runs past its values, or a record nu
   CHECK(meshing::rodsFromCad(valid, {}).structure.rods.size() == 12);
 }
 
-TEST_CASE("an IGES Global section with a malformed value is refused, not read with its later values defaulted", "[meshing][cad][hostile]") {
-  // A string of length -5 before the unit made OpenCASCADE's reader take the unit as inches: a 10 mm line
-  // became a 254 mm rod, without a word.
+TEST_CASE("an IGES Global section that does not give its unit is refused, not read as inches", "[meshing][cad][hostile]") {
+  // A Global section cut short after a string of length -5 made OpenCASCADE take the unit as IGES's
+  // default, inches, without a word: a 10 mm line became a 254 mm rod.
   const fs::path valid = scratch("valid-global.igs");
   testing::writeIges(testing::edgeOf(testing::testSpline()), valid);
   std::ifstream in(valid, std::ios::binary);
   const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  // OpenCASCADE's Global section starts ",,31HOpen CASCADE IGES processor": the delimiters left to
-  // their defaults, then the third value, before which `insert` goes; the line's last space before
-  // column 73 is taken out so that the columns stay.
-  const std::size_t lineStart = text.find("G0000001") - 72, third = lineStart + 2;
-  INFO(text.substr(lineStart, 80));
-  REQUIRE(text.compare(lineStart, 5, ",,31H") == 0);
-  const auto withThird = [&](const std::string& name, const std::string& insert) {
-    std::string changed = text;
-    const std::size_t lastSpace = changed.find_last_not_of(' ', lineStart + 71) + 1;
-    REQUIRE(lastSpace + insert.size() <= lineStart + 72);
-    changed.erase(lastSpace, insert.size());
-    changed.insert(third, insert);
+  // `from` replaced by `to` in the file, the line's columns kept (spaces before column 73 taken out or
+  // put in).
+  const auto changed = [&](const std::string& name, const std::string& from, const std::string& to) {
+    std::string t = text;
+    const std::size_t at = t.find(from);
+    REQUIRE(at != std::string::npos);
+    t.replace(at, from.size(), to);
+    const std::size_t column73 = t.find_first_of("SGDPT", t.find('\n', at) - 8);  // the section letter
+    if (to.size() < from.size()) t.insert(column73, from.size() - to.size(), ' ');
+    else t.erase(column73 - (to.size() - from.size()), to.size() - from.size());
     const fs::path file = scratch(name);
-    std::ofstream(file, std::ios::binary) << changed;
+    std::ofstream(file, std::ios::binary) << t;
     return meshErrorOf(file, [&] { meshing::rodsFromCad(file, {}); });
   };
-  CHECK_THAT(withThird("negative.igs", "-"), Catch::Contains("line 2: malformed IGES Global section, value 3: expected a string (nH "
-                                                             "followed by n characters) or a number, got '-"));
-  CHECK_THAT(withThird("past.igs", "99"), Catch::Contains("malformed IGES Global section, value 3: a string of 99"));
-  CHECK_THAT(withThird("word.igs", "x,"), Catch::Contains("malformed IGES Global section, value 3: expected a string"));
+  // OpenCASCADE writes the scale, the unit flag and the unit's name as ",1.,2,2HMM,".
+  CHECK_THAT(changed("no-flag.igs", ",1.,2,2HMM,", ",1.,,2HMM,"),
+             Catch::Contains("line 2: the IGES Global section's unit flag (its value 14) is not given, expected 1 to 11"));
+  CHECK_THAT(changed("word-flag.igs", ",1.,2,2HMM,", ",1.,x,2HMM,"), Catch::Contains("unit flag (its value 14) is 'x'"));
+  CHECK_THAT(changed("cut.igs", ",,31HOpen CASCADE IGES processor 7.6,", ",,-5Hhunt,;"),
+             Catch::Contains("line 2: the IGES Global section ends before its unit flag (value 14)"));
+  // A name counted in characters rather than UTF-8 bytes, before the unit: the unit is still found.
+  CHECK(changed("utf8.igs", "13HFilename.iges", "13HFilen\xc3\xa4me.iges") == "no error");
   CHECK(meshing::rodsFromCad(valid, {}).structure.rods.size() == 1);
 }
 
