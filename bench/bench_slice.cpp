@@ -92,8 +92,9 @@ void slice(benchmark::State& state, const char* designClass, const char* method)
   state.counters["cpu_s_voxelize"] = report.seconds.sourceCpu;
   state.counters["cpu_s_dither"] = report.seconds.ditherCpu;
   state.counters["cpu_s_emit"] = report.seconds.emitCpu;
-  state.counters["voxelize_Mvox_per_cpu_s_x_threads"] =
-      static_cast<double>(report.mapping.voxels) * 1e-6 / report.seconds.sourceCpu * static_cast<double>(threads);
+  if (report.seconds.sourceCpu > 0)
+    state.counters["voxelize_Mvox_per_cpu_s_x_threads"] =
+        static_cast<double>(report.mapping.voxels) * 1e-6 / report.seconds.sourceCpu * static_cast<double>(threads);
   state.counters["layers"] = report.job.geometry.layers;
   state.counters["job_MB"] = static_cast<double>(report.job.bytes) * 1e-6;
   state.counters["peak_rss_MB"] = peakRssMb();

@@ -1,5 +1,7 @@
 #include "printer_profiles/job_writer.hpp"
 
+#include "common/sha256.hpp"
+
 #include "printer_profiles/band_encoder.hpp"
 #include "printer_profiles/deflate.hpp"
 #include "printer_profiles/gcvf_writer.hpp"
@@ -119,6 +121,9 @@ struct JobWriter::Impl {
     if (gcvf() && (imageFormat != ImageFormat::Png || support != SupportPolicy::Printer))
       throw std::invalid_argument(spec.profile.name + " jobs are GrabCAD Voxel Print files: PNG layers, support added by GrabCAD "
                                   "(no --image-format bmp, no --support explicit)");
+    if (spec.metadata.calibration && !common::isSha256Hex(spec.metadata.calibration->sha256))
+      throw std::invalid_argument("the job's calibration record's SHA-256 \"" + printableName(spec.metadata.calibration->sha256) +
+                                  "\" is not 64 lowercase hexadecimal digits");
     if (!isDithererLabel(spec.metadata.ditherer))
       throw std::invalid_argument("the job's ditherer \"" + printableName(spec.metadata.ditherer) +
                                   "\" is not a label of up to 64 lowercase letters, digits and '-'");

@@ -179,6 +179,9 @@ TEST_CASE("Explicit support fills under the overhang down to the tray and never 
     badLabel.metadata.ditherer = label;
     CHECK_THROWS_WITH(JobWriter(badLabel), Catch::Contains("is not a label of up to 64 lowercase letters, digits and '-'"));
   }
+  JobSpec badCalibration = specFor(*grid, dir / "bad-label");
+  badCalibration.metadata.calibration = CalibrationRecord{"cal.json", "ZZ", "", "", ""};
+  CHECK_THROWS_WITH(JobWriter(badCalibration), Catch::Contains("SHA-256 \"ZZ\" is not 64 lowercase hexadecimal digits"));
   CHECK(!fs::exists(dir / "bad-label"));
   CHECK(isDithererLabel("error-diffusion"));
   CHECK(isDithererLabel(""));  // not said

@@ -349,12 +349,14 @@ TEST_CASE("The grid is identical for 1 and 2 threads and for any band of layers"
   REQUIRE(rasterizer.rasterizeLayers(g.dims.z(), g.dims.z() + 10).grid->activeVoxelCount() == 0);
 
   // Called in a TBB context being cancelled (a pipeline's stage after another one threw): none of its
-  // parallel loops is skipped, the grid is whole.
+  // parallel loops is skipped, the grid is whole. With threads 0 (the caller's arena's, as the slicer's
+  // stage calls it) whatever the machine's core count.
+  const voxel::Rasterizer onCallersArena(s, g, {0});
   tbb::task_group_context cancelling;
   voxel::Rasterization inCancelled;
   tbb::parallel_for(0, 1, [&](int) {
     cancelling.cancel_group_execution();
-    inCancelled = rasterizer.rasterizeLayers(0, g.dims.z());
+    inCancelled = onCallersArena.rasterizeLayers(0, g.dims.z());
   }, cancelling);
   REQUIRE(cancelling.is_group_execution_cancelled());
   requireIdentical(*inCancelled.grid, *one.grid);

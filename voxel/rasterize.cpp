@@ -283,13 +283,14 @@ std::size_t Rasterizer::pieceCount() const {
 }
 
 // On the caller's arena when it runs no more threads than asked for (the slicer's voxelize stage has
-// its own): a thread inside an arena made here would leave the caller's, whose observers (the
-// pipeline's per-stage CPU time, slicer/job_pipeline.cpp) would then miss the work. Either way in a
-// task group context of its own, as an arena's would be: a caller's cancelled context (a pipeline
-// stopping) never skips one of the loops and returns a band short of voxels.
+// its own): the workers of an arena made here are not the caller's arena's, whose observers (the
+// pipeline's per-stage CPU time, slicer/job_pipeline.cpp) would miss their work. Either way isolated
+// as an arena of its own would be: in a task group context of its own (a caller's cancelled context, a
+// pipeline stopping, never skips one of the loops and returns a band short of voxels), and a thread
+// waiting in it takes none of the caller's other tasks (this_task_arena::isolate).
 Rasterization Rasterizer::rasterizeLayers(int zBegin, int zEnd) const {
   Rasterization out;
-  const auto work = [&] { outsideCancellation([&] { out = run(zBegin, zEnd); }); };
+  const auto work = [&] { outsideCancellation([&] { tbb::this_task_arena::isolate([&] { out = run(zBegin, zEnd); }); }); };
   if (options_.threads <= 0 || options_.threads >= tbb::this_task_arena::max_concurrency()) {
     work();
   } else {
