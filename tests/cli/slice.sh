@@ -37,7 +37,16 @@ assert abs(s["print_height_mm"] - 0.03 * s["layers"]) < 1e-9
 assert s["ditherer"] == "white"                      # the bundled calibration's coupons were random-dithered
 assert m["statistics"]["clamped_modulus"]["below_floor_voxels"] == s["clamped_moduli"]["below_floor"]
 assert m["calibration"]["sha256"] and m["calibration"]["file"].endswith("default-60C.json")
+# Each stage's CPU time: all three there, none negative, together within the process's over the bands.
+t = s["seconds"]
+assert set(t["cpu"]) == {"voxelize", "dither", "emit"}, t["cpu"]
+assert all(v >= 0 for v in t["cpu"].values()) and t["cpu"]["emit"] > 0, t["cpu"]
+assert sum(t["cpu"].values()) <= t["cpu_bands"] + 0.005, t
 PY
+rm "$tmp/out/box.zip"
+"$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/out/box.zip" > "$tmp/text" || fail "slice, the summary"
+grep -Eq "^CPU: +[0-9.]+ s voxelize, [0-9.]+ s map \+ dither, [0-9.]+ s emit; [0-9.]+ s all threads$" "$tmp/text" ||
+  fail "no CPU line in the summary: $(cat "$tmp/text")"
 rm "$tmp/out/box.zip"
 
 # The same bytes whatever the machine's time zone (zip stores its entries' local times; POSIX zone strings
