@@ -37,6 +37,12 @@ TriangleMesh readMesh(const std::filesystem::path& file, ReadStats& stats);
 // The same on bytes in memory; `format` is the lower-case extension, `source` names it in errors.
 TriangleMesh parseMesh(const std::string& bytes, const std::string& format, const std::string& source, ReadStats& stats);
 
+// Throws MeshError (naming `source`) when a vertex of `mesh` is a corner of so many triangles that
+// simplifyMesh would stall (its cost grows as the cube of the count: meshing/README.md, "Crowded
+// vertices"): more than 1,024 at one vertex, or vertices of more than 32 whose counts cubed sum past
+// 1024^3. rodsFromMesh calls it before simplifying; a mesh that is not simplified may have them.
+void checkCrowdedVertices(const TriangleMesh& mesh, const std::string& source);
+
 // Edge-collapse simplification to about `targetFaces` triangles (CGAL Garland-Heckbert plane quadrics
 // with its default placement). The result is manifold and oriented like the input, canonical as above.
 TriangleMesh simplifyMesh(const TriangleMesh& mesh, std::size_t targetFaces);

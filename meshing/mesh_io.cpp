@@ -1,6 +1,6 @@
 // Mesh files through CGAL's readers, then the checks rodfab relies on: finite coordinates, triangles
-// (polygons fanned), welded vertices, no degenerate face, manifold edges and vertices, no vertex of so
-// many triangles that simplifying stalls, one orientation.
+// (polygons fanned), welded vertices, no degenerate face, manifold edges and vertices, one orientation;
+// and the check rodsFromMesh makes before simplifying, of vertices of so many triangles that it stalls.
 #include "common/interrupt.hpp"
 #include "common/memory_budget.hpp"
 #include "common/quoted_text.hpp"
@@ -332,6 +332,35 @@ void checkManifoldEdges(const TriangleMesh& mesh, const std::string& source) {
                                   std::to_string(edges[i + 2][2]) + ")");
 }
 
+// One orientation per connected part (CGAL), refusing a vertex where separate sheets meet.
+void orient(TriangleMesh& mesh, const std::string& source) {
+  std::vector<Point> points;
+  points.reserve(mesh.points.size());
+  for (const Vec3& p : mesh.points) points.emplace_back(p.x(), p.y(), p.z());
+  std::vector<std::array<std::size_t, 3>> polygons;
+  polygons.reserve(mesh.triangles.size());
+  for (const Triangle& t : mesh.triangles) polygons.push_back({t[0], t[1], t[2]});
+  const std::size_t before = points.size();
+  if (!CGAL::Polygon_mesh_processing::orient_polygon_soup(points, polygons) || points.size() != before) {
+    const Vec3 p = points.size() > before ? Vec3(points[before].x(), points[before].y(), points[before].z()) : Vec3::Zero();
+    throw MeshError(source, "non-manifold or non-orientable mesh: separate sheets of triangles meet at the vertex " + where(p) +
+                                " (or the surface cannot be oriented consistently there)");
+  }
+  for (std::size_t f = 0; f < polygons.size(); ++f)
+    for (int k = 0; k < 3; ++k) mesh.triangles[f][k] = static_cast<std::uint32_t>(polygons[f][k]);
+}
+
+}  // namespace
+
+// Each triangle starts at its smallest vertex (cyclic order, so orientation, kept); triangles sorted.
+void canonicalizeTriangles(std::vector<Triangle>& triangles) {
+  for (Triangle& t : triangles) {
+    const int m = static_cast<int>(std::min_element(t.begin(), t.end()) - t.begin());
+    std::rotate(t.begin(), t.begin() + m, t.end());
+  }
+  std::sort(triangles.begin(), triangles.end());
+}
+
 // Vertices that are corners of many triangles (a polygon of many corners fanned from its first corner,
 // a cone's apex, a UV sphere's pole). CGAL's edge collapse (simplify.cpp) recomputes, after each collapse,
 // the cost of every edge at every neighbour of the kept vertex (EdgeCollapse::update_neighbors), and each
@@ -369,35 +398,6 @@ void checkCrowdedVertices(const TriangleMesh& mesh, const std::string& source) {
                               std::to_string(kCrowdedVertex) + " at most as many as one of 1024 costs (the sum of their "
                               "counts cubed up to 1024^3). A polygon of many corners is split into a fan from its first "
                               "corner: triangulate it first, or remesh the surface so that no vertex is that crowded");
-}
-
-// One orientation per connected part (CGAL), refusing a vertex where separate sheets meet.
-void orient(TriangleMesh& mesh, const std::string& source) {
-  std::vector<Point> points;
-  points.reserve(mesh.points.size());
-  for (const Vec3& p : mesh.points) points.emplace_back(p.x(), p.y(), p.z());
-  std::vector<std::array<std::size_t, 3>> polygons;
-  polygons.reserve(mesh.triangles.size());
-  for (const Triangle& t : mesh.triangles) polygons.push_back({t[0], t[1], t[2]});
-  const std::size_t before = points.size();
-  if (!CGAL::Polygon_mesh_processing::orient_polygon_soup(points, polygons) || points.size() != before) {
-    const Vec3 p = points.size() > before ? Vec3(points[before].x(), points[before].y(), points[before].z()) : Vec3::Zero();
-    throw MeshError(source, "non-manifold or non-orientable mesh: separate sheets of triangles meet at the vertex " + where(p) +
-                                " (or the surface cannot be oriented consistently there)");
-  }
-  for (std::size_t f = 0; f < polygons.size(); ++f)
-    for (int k = 0; k < 3; ++k) mesh.triangles[f][k] = static_cast<std::uint32_t>(polygons[f][k]);
-}
-
-}  // namespace
-
-// Each triangle starts at its smallest vertex (cyclic order, so orientation, kept); triangles sorted.
-void canonicalizeTriangles(std::vector<Triangle>& triangles) {
-  for (Triangle& t : triangles) {
-    const int m = static_cast<int>(std::min_element(t.begin(), t.end()) - t.begin());
-    std::rotate(t.begin(), t.begin() + m, t.end());
-  }
-  std::sort(triangles.begin(), triangles.end());
 }
 
 TriangleMesh parseMesh(const std::string& bytes, const std::string& format, const std::string& source, ReadStats& stats) {
@@ -438,7 +438,6 @@ TriangleMesh parseMesh(const std::string& bytes, const std::string& format, cons
   points = {};
   checkDegenerate(mesh, source);
   checkManifoldEdges(mesh, source);
-  checkCrowdedVertices(mesh, source);
   common::throwIfInterrupted();
   orient(mesh, source);
   canonicalizeTriangles(mesh.triangles);

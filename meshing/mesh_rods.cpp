@@ -323,8 +323,9 @@ MeshRods rodsFromMesh(const std::filesystem::path& file, const MeshRodOptions& o
                               std::to_string(options.faces) + " asked for (--faces)");
   report.readSeconds = common::secondsSince(clock);
   clock = std::chrono::steady_clock::now();
-  const TriangleMesh simplified =
-      original.triangles.size() == static_cast<std::size_t>(options.faces) ? original : simplifyMesh(original, options.faces);
+  const bool simplifies = original.triangles.size() != static_cast<std::size_t>(options.faces);
+  if (simplifies) checkCrowdedVertices(original, file.string());  // before, not minutes into, the simplification
+  const TriangleMesh simplified = simplifies ? simplifyMesh(original, options.faces) : original;
   report.simplifiedVertices = simplified.points.size(), report.simplifiedFaces = simplified.triangles.size();
   report.simplifySeconds = common::secondsSince(clock);
   clock = std::chrono::steady_clock::now();

@@ -334,24 +334,38 @@ TEST_CASE("vertices of too many triangles are refused before simplification, the
     obj << '\n';
     return obj.str();
   };
-  const auto error = [](const std::string& obj) {
+  // The mesh as read, then the check rodsFromMesh makes before simplifying it.
+  const auto read = [](const std::string& obj) {
+    meshing::ReadStats stats;
+    return meshing::parseMesh(obj, "obj", "m.obj", stats);
+  };
+  const auto error = [&](const std::string& obj) {
     try {
-      meshing::checkMeshBytes(obj, "obj", "m.obj");
+      meshing::checkCrowdedVertices(read(obj), "m.obj");
     } catch (const meshing::MeshError& e) {
       return std::string(e.what());
     }
     return std::string("no error");
   };
   // One vertex of up to 1,024 passes; 1,025 does not.
-  CHECK(meshing::checkMeshBytes(polygon(1026), "obj", "m.obj").faces == 1024);
+  CHECK(error(polygon(1026)) == "no error");
+  CHECK(read(polygon(1026)).triangles.size() == 1024);
   CHECK_THAT(error(polygon(1027)), Catch::Contains("m.obj: the vertex (10, 0, 0) is a corner of 1025 triangles:") &&
                                        Catch::Contains("up to 1024 triangles") && Catch::Contains("triangulate it first"));
   // Several: the sum of their counts cubed up to 1024^3 (2 x 812^3 passes, 2 x 813^3 does not).
-  CHECK(meshing::checkMeshBytes(doubleCone(812), "obj", "m.obj").faces == 1624);
+  CHECK(error(doubleCone(812)) == "no error");
   CHECK_THAT(error(doubleCone(813)), Catch::Contains("the vertex (0, 0, 0) is a corner of 813 triangles (and 1 more vertex of more than 32)"));
   CHECK_THAT(error(doubleCone(1000)), Catch::Contains("the vertex (0, 0, 0) is a corner of 1000 triangles"));
   // Up to 32 a vertex does not count.
-  CHECK(meshing::checkMeshBytes(doubleCone(32), "obj", "m.obj").faces == 64);
+  CHECK(error(doubleCone(32)) == "no error");
+  // A crowded mesh is a valid mesh: read and checked (rodsFromMesh makes rods of it as it is, with --faces
+  // its own count); asked to be simplified, it is refused before the simplification starts.
+  CHECK(meshing::checkMeshBytes(doubleCone(1000), "obj", "m.obj").faces == 2000);
+  const fs::path cone = scratch("crowded-cone.obj");
+  writeText(cone, doubleCone(1000));
+  meshing::MeshRodOptions fewer;
+  fewer.faces = 500;
+  CHECK_THROWS_WITH(meshing::rodsFromMesh(cone, fewer), Catch::Contains("cone.obj: the vertex (0, 0, 0) is a corner of 1000 triangles"));
 }
 
 TEST_CASE("OBJ face corners are checked where CGAL would misread them", "[meshing]") {
