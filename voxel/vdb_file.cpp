@@ -64,6 +64,7 @@ bool looksLikeUuid(const std::array<char, kUuidLength>& text) {
 // and different files still get different UUIDs (what OpenVDB compares them by).
 void giveContentUuid(const std::filesystem::path& file) {
   std::fstream io(file, std::ios::binary | std::ios::in | std::ios::out);
+  if (!io.is_open()) throw std::runtime_error("cannot reopen " + file.string() + " to give it its UUID");
   std::array<char, kUuidAt + kUuidLength> header{};
   io.read(header.data(), static_cast<std::streamsize>(header.size()));
   std::array<char, kUuidLength> written{};
