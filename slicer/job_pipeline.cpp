@@ -11,7 +11,6 @@
 #include <tbb/task_scheduler_observer.h>
 
 #include <pthread.h>
-#include <time.h>
 
 #include <algorithm>
 #include <chrono>
@@ -51,14 +50,14 @@ public:
         ++t.depth;  // entered again before it left: its time counts once
         return;
       }
-    inside_.push_back({std::this_thread::get_id(), clock, cpuSeconds(clock), 1});
+    inside_.push_back({std::this_thread::get_id(), clock, common::cpuClockSeconds(clock), 1});
   }
   void on_scheduler_exit(bool) override {
     const std::lock_guard lock(mutex_);
     for (auto t = inside_.begin(); t != inside_.end(); ++t)
       if (t->thread == std::this_thread::get_id()) {
         if (--t->depth > 0) return;
-        done_ += cpuSeconds(t->clock) - t->entered;
+        done_ += common::cpuClockSeconds(t->clock) - t->entered;
         inside_.erase(t);
         return;
       }
@@ -66,7 +65,7 @@ public:
   double seconds() const {
     const std::lock_guard lock(mutex_);
     double total = done_;
-    for (const Inside& t : inside_) total += cpuSeconds(t.clock) - t.entered;
+    for (const Inside& t : inside_) total += common::cpuClockSeconds(t.clock) - t.entered;
     return total;
   }
 
@@ -77,11 +76,6 @@ private:
     double entered;
     int depth;
   };
-  static double cpuSeconds(clockid_t clock) {
-    timespec t{};
-    if (::clock_gettime(clock, &t) != 0) return 0.0;
-    return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
-  }
   mutable std::mutex mutex_;
   std::vector<Inside> inside_;
   double done_ = 0.0;

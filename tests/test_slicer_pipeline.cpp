@@ -5,6 +5,8 @@
 
 #include "slicer_test_support.hpp"
 
+#include "common/stopwatch.hpp"
+
 #include <tbb/parallel_for.h>
 
 using namespace rodfab;
@@ -136,11 +138,7 @@ TEST_CASE("streamJob: a source that throws while later stages hold earlier bands
 
 // Busy-waits until this thread has used `seconds` of CPU time.
 static void burnCpu(double seconds) {
-  const auto cpu = [] {
-    timespec t{};
-    ::clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-    return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
-  };
+  const auto cpu = [] { return common::cpuClockSeconds(CLOCK_THREAD_CPUTIME_ID); };
   const double end = cpu() + seconds;
   volatile std::uint64_t x = 0;
   while (cpu() < end) x = x + 1;

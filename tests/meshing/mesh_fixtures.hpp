@@ -3,12 +3,15 @@
 // writers for binary STL and OBJ, so the readers under test decode files other code wrote.
 #pragma once
 
+#include "tests/temp_dir.hpp"
+
 #include <Eigen/Core>
 
 #include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <map>
@@ -16,6 +19,10 @@
 #include <vector>
 
 namespace rodfab::testing {
+
+// A file of the meshing tests' own scratch folder (tests/temp_dir.hpp), and text written to a file as it is.
+inline std::filesystem::path scratch(const std::string& name) { return rodfab::test::processScratch("meshing", name); }
+inline void writeText(const std::filesystem::path& file, const std::string& text) { std::ofstream(file, std::ios::binary) << text; }
 
 struct SimpleMesh {
   std::vector<Eigen::Vector3d> points;
