@@ -388,6 +388,7 @@ bool BandEncoder::keepBlank(std::size_t material, const Bitmap& bitmap, int laye
     z.xxh128 = blank.zipFormXxh128;
     z.inMemory = true;  // the blank image's own bytes: stageBand neither keeps nor stages a copy
     z.memory = blank.zipForm;
+    z.storage = layerStorage();
     record.zipped.push_back(std::move(z));
     zipForms->emplace_back();  // keeps zipForms[f] beside record.zipped[f]
   }
@@ -422,9 +423,17 @@ void BandEncoder::keepImage(const ProfileMaterial& m, int layer, std::span<const
     StagedZipData z;
     z.size = image.size();
     z.crc32 = sums.crc32;
-    Bytes form = layerStorage() == ZipStorage::Deflate ? deflateBytes(image, kLayerDeflateLevel, DeflateWrapper::Raw)
-                 : owned                                ? std::move(*owned)
-                                                        : Bytes(image.begin(), image.end());
+    z.storage = layerStorage();
+    Bytes form;
+    // A BMP deflated unless deflate would not shrink it (a layer filled with dithered noise), and stored
+    // when its deflated form is no smaller: the zip holds the smaller, as zip tools do.
+    if (z.storage == ZipStorage::Deflate && !deflateWouldNotShrink(image, kLayerDeflateLevel)) {
+      form = deflateBytes(image, kLayerDeflateLevel, DeflateWrapper::Raw);
+      if (form.size() >= image.size()) z.storage = ZipStorage::Store;
+    } else {
+      z.storage = ZipStorage::Store;
+    }
+    if (z.storage == ZipStorage::Store) form = owned ? std::move(*owned) : Bytes(image.begin(), image.end());
     z.length = form.size();
     z.xxh128 = common::xxh128Hex(form);  // lets the verification read the zip's bytes back without inflating them
     record.zipped.push_back(std::move(z));

@@ -52,7 +52,8 @@ public:
   const std::filesystem::path& stagedFile() const { return stagedFile_; }
   void finishStaging();
 
-  // How the layer images go into the zip: PNG as it is (already compressed), BMP deflated.
+  // How the layer images go into the zip: PNG as it is (already compressed), BMP deflated (but stored
+  // when deflate would not shrink it: LayerRecord::zipped says for each image).
   ZipStorage layerStorage() const { return s_.form.imageFormat == ImageFormat::Png ? ZipStorage::Store : ZipStorage::Deflate; }
 
 private:

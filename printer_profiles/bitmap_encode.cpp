@@ -228,6 +228,7 @@ Bytes compressUnfilteredRows(png_uint_32 height, std::size_t stride, const std::
   std::vector<std::uint8_t> batch(std::min<std::size_t>(batchRows, height) * line, 0);
   if (batchRows >= height) {  // the whole image in one piece: igzip's one-shot path
     for (png_uint_32 r = 0; r < height; ++r) rowAt(static_cast<int>(r), batch.data() + r * line + 1);
+    if (deflateWouldNotShrink(batch, kLayerDeflateLevel)) return deflateStored(batch, DeflateWrapper::Zlib);  // dithered noise
     return deflateBytes(batch, kLayerDeflateLevel, DeflateWrapper::Zlib);
   }
   DeflateStream stream(kLayerDeflateLevel, DeflateWrapper::Zlib);

@@ -119,6 +119,26 @@ std::vector<std::uint8_t> deflateBytes(std::span<const std::uint8_t> input, int 
   }
 }
 
+bool deflateWouldNotShrink(std::span<const std::uint8_t> input, int level) {
+  checkLevel(level);
+  constexpr std::size_t kSamples = 16, kMinSample = std::size_t{2} << 10;
+  if (input.size() < (std::size_t{64} << 10)) return false;
+  const std::size_t sample = std::max(kMinSample, input.size() / 128), sampled = kSamples * sample;
+  thread_local std::vector<std::uint8_t> out;
+  out.resize(std::max(out.size(), outputBound(sample)));
+  std::size_t saved = 0;
+  for (std::size_t n = 0; n < kSamples; ++n) {
+    // Centred in the n-th sixteenth: the image's first and last bytes (a margin, often) are not
+    // sampled twice as often as the rest.
+    const std::size_t centre = input.size() * (2 * n + 1) / (2 * kSamples);
+    const std::size_t at = std::min(centre - std::min(centre, sample / 2), input.size() - sample);
+    const auto produced = compressOnce(input.subspan(at, sample), level, DeflateWrapper::Raw, out);
+    if (produced && *produced < sample) saved += sample - *produced;
+    if (saved * 8 > sampled) return false;  // saves an eighth already
+  }
+  return true;
+}
+
 DeflateStream::DeflateStream(int level, DeflateWrapper wrapper)
     : stream_(std::make_unique<isal_zstream>()), levelBuffer_(levelBufferSize((checkLevel(level), level))) {
   isal_deflate_init(stream_.get());
@@ -208,10 +228,14 @@ InflateStream::Status InflateStream::step() {
 
 std::uint32_t InflateStream::crc() const { return state_->igzip.crc; }
 
-std::vector<std::uint8_t> deflateSmallest(std::span<const std::uint8_t> input) {
-  if (input.size() > 0xffffffffu) throw std::invalid_argument("deflateSmallest: input over 4 GiB");
+namespace {
+
+// `input` through zlib in one call at `level`, raw or zlib-wrapped.
+std::vector<std::uint8_t> zlibDeflate(std::span<const std::uint8_t> input, int level, DeflateWrapper wrapper, const char* who) {
+  if (input.size() > 0xffffffffu) throw std::invalid_argument(std::string(who) + ": input over 4 GiB");
   z_stream z{};
-  if (deflateInit2(&z, Z_BEST_COMPRESSION, Z_DEFLATED, -MAX_WBITS, 9, Z_DEFAULT_STRATEGY) != Z_OK) throw std::bad_alloc();
+  const int windowBits = wrapper == DeflateWrapper::Raw ? -MAX_WBITS : MAX_WBITS;
+  if (deflateInit2(&z, level, Z_DEFLATED, windowBits, 9, Z_DEFAULT_STRATEGY) != Z_OK) throw std::bad_alloc();
   std::vector<std::uint8_t> out(deflateBound(&z, static_cast<uLong>(input.size())));
   z.next_in = const_cast<Bytef*>(input.data());  // zlib's API is not const-correct; it does not write there
   z.avail_in = static_cast<uInt>(input.size());
@@ -220,8 +244,18 @@ std::vector<std::uint8_t> deflateSmallest(std::span<const std::uint8_t> input) {
   const int result = deflate(&z, Z_FINISH);  // deflateBound's room: one call finishes
   out.resize(z.total_out);
   deflateEnd(&z);
-  if (result != Z_STREAM_END) throw std::logic_error("deflateSmallest: zlib did not finish within deflateBound");
+  if (result != Z_STREAM_END) throw std::logic_error(std::string(who) + ": zlib did not finish within deflateBound");
   return out;
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> deflateSmallest(std::span<const std::uint8_t> input) {
+  return zlibDeflate(input, Z_BEST_COMPRESSION, DeflateWrapper::Raw, "deflateSmallest");
+}
+
+std::vector<std::uint8_t> deflateStored(std::span<const std::uint8_t> input, DeflateWrapper wrapper) {
+  return zlibDeflate(input, Z_NO_COMPRESSION, wrapper, "deflateStored");
 }
 
 std::uint32_t zipCrc32(std::span<const std::uint8_t> data, std::uint32_t crc) {

@@ -31,11 +31,25 @@ enum class DeflateWrapper {
 // Thread-safe: each thread keeps its own working buffers.
 std::vector<std::uint8_t> deflateBytes(std::span<const std::uint8_t> input, int level, DeflateWrapper wrapper);
 
+// Whether deflating `input` at igzip `level` would save less than an eighth of it, judged on sixteen
+// samples (each 1/128 of it, at least 2 KiB, one centred in each sixteenth) deflated alone: true for a
+// layer image filled with dithered noise, on which igzip's level 0 spends 2 ns a byte to end in stored
+// blocks or save a few per cent. Stops once the samples saved an eighth, so an image that is mostly
+// blank costs two or three samples. Always false for inputs under 64 KiB. The answer depends only on
+// the input (on a given build and CPU). Thread-safe; std::invalid_argument for a level outside 0..3.
+bool deflateWouldNotShrink(std::span<const std::uint8_t> input, int level);
+
 // Raw deflate by zlib at level 9 (Debian zlib1g): up to ten times smaller than igzip's level 0 on
 // blank images (a 6.5 MB all-zero layer: 6.5 KB against 60 KB) and twenty times slower (80 MB/s), so
 // only for bytes compressed once and stored many times, as a job's blank layer image is. zlib's output
 // depends only on the input on a given build. Throws std::bad_alloc when memory runs out.
 std::vector<std::uint8_t> deflateSmallest(std::span<const std::uint8_t> input);
+
+// `input` in deflate's stored blocks (zlib at level 0), raw or zlib-wrapped: for data that
+// deflateWouldNotShrink says is not worth compressing but must be a deflate stream (a PNG's IDAT).
+// Copies at memory speed (plus zlib's Adler-32 for the zlib wrapper). Throws std::bad_alloc when
+// memory runs out.
+std::vector<std::uint8_t> deflateStored(std::span<const std::uint8_t> input, DeflateWrapper wrapper);
 
 // The same, fed in pieces, for data too large to hold at once (a layer's RGBA rows): memory is the
 // compressed output and ~0.5 MB of igzip state. The bytes depend on the pieces' boundaries as well as

@@ -328,7 +328,7 @@ void Inspector::checkStored(const std::string& name, const StoredForm& want, Fin
   if (bytes != want.storedBytes || digest.hex() != want.xxh128)
     return out.at(name, "its stored bytes are not those the writer staged (" + std::to_string(bytes) + " bytes, staged " +
                             std::to_string(want.storedBytes) + "): the file was changed or damaged");
-  if (directory.deflated != options_.storedFormsDeflated || directory.crc32 != want.crc32 || directory.size != listed->second.bytes)
+  if (directory.deflated != want.deflated || directory.crc32 != want.crc32 || directory.size != listed->second.bytes)
     return out.at(name, "the zip's directory records another method, CRC-32 or size than the writer gave it");
   ++filesChecked_;
 }

@@ -31,6 +31,7 @@ struct StoredForm {
   std::string xxh128;            // of the entry's bytes as stored (deflated, or the file itself)
   std::uint64_t storedBytes = 0; // their length
   std::uint32_t crc32 = 0;       // of the contents, for the zip's directory
+  bool deflated = true;          // how the zip's directory must say it is stored: deflated, or as it is
 };
 
 struct InspectOptions {
@@ -51,9 +52,6 @@ struct InspectOptions {
   // (printer_profiles/README.md, "What the writer's own verification checks"); never for a job from
   // elsewhere. Images not named here are checked as usual.
   std::map<std::string, StoredForm> storedForms{};
-  // How the zip's directory must say every image named in storedForms is stored, the same for all of a
-  // job's layers: deflated (BMP) or as it is (PNG, already compressed).
-  bool storedFormsDeflated = false;
 };
 
 // What the job says about itself, filled only from values that passed their checks.

@@ -271,7 +271,7 @@ struct JobWriter::Impl {
       else entries.push_back({name, {}, ZipStorage::Deflate, form->second.staged});
     }
     for (const LayerRecord& r : layers)
-      for (std::size_t f = 0; f < r.files.size(); ++f) entries.push_back({r.files[f].name, {}, encoder->layerStorage(), r.zipped[f]});
+      for (std::size_t f = 0; f < r.files.size(); ++f) entries.push_back({r.files[f].name, {}, r.zipped[f].storage, r.zipped[f]});
     encoder->finishStaging();
     writeZip(staging->zip(), entries, encoder->stagedFile());
   }
@@ -285,11 +285,10 @@ struct JobWriter::Impl {
     // method, size and CRC-32 (printer_profiles/README.md, "What the writer's own verification checks").
     options.decodeEvery = kVerifyDecodeEvery;
     if (spec.options.archive == ArchiveFormat::Zip) {
-      options.storedFormsDeflated = encoder->layerStorage() == ZipStorage::Deflate;
       for (const LayerRecord& r : layers)
         for (std::size_t f = 0; f < r.files.size(); ++f) {
           const StagedZipData& z = r.zipped[f];
-          options.storedForms.emplace(r.files[f].name, StoredForm{z.xxh128, z.length, z.crc32});
+          options.storedForms.emplace(r.files[f].name, StoredForm{z.xxh128, z.length, z.crc32, z.storage == ZipStorage::Deflate});
         }
     }
     // The staged job is named job.zip or job (never the temporary tag inspectJob refuses), inside the

@@ -25,14 +25,15 @@ struct StagedZipData {
   std::string xxh128{};      // of the staged bytes, for the writer's verification (InspectOptions::storedForms)
   bool inMemory = false;     // said, not inferred from `memory`: an empty entry may be kept in memory too
   std::span<const std::uint8_t> memory{};  // the bytes when `inMemory` (`length` of them)
+  ZipStorage storage = ZipStorage::Deflate;  // what the bytes are: deflated, or the contents as they are
 };
 
 struct ZipEntry {
   std::string name;                  // inside the archive
   std::filesystem::path source;      // file on disk, read by libzip when the archive is closed
-  ZipStorage storage = ZipStorage::Deflate;
+  ZipStorage storage = ZipStorage::Deflate;  // how libzip stores `source`
   // Instead of `source`: data compressed beforehand (in parallel, band by band), copied into the
-  // archive without recompressing; `storage` says what it is.
+  // archive without recompressing as its own `storage` says (the entry's is not used then).
   std::optional<StagedZipData> staged;
 };
 

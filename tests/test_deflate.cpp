@@ -111,6 +111,45 @@ TEST_CASE("deflateSmallest is read back by igzip's inflate, and a blank image co
   CHECK(deflateSmallest(blank).size() * 1000 < blank.size());  // deflate's bound is 1,032 to 1
 }
 
+// Bits set with probability p, as white noise dithers a modulus of Vero fraction p.
+Data ditheredNoise(std::size_t size, double p, unsigned seed) {
+  std::mt19937 random(seed);
+  std::bernoulli_distribution bit(p);
+  Data data(size);
+  for (auto& b : data)
+    for (int n = 0; n < 8; ++n) b = static_cast<std::uint8_t>(b << 1 | (bit(random) ? 1 : 0));
+  return data;
+}
+
+TEST_CASE("deflateWouldNotShrink agrees with deflating the whole input; deflateStored is read back by zlib", "[deflate]") {
+  Data halfNoise = ditheredNoise(268'000, 0.5, 9);
+  std::fill(halfNoise.begin(), halfNoise.begin() + 134'000, 0);
+  Data framedNoise = ditheredNoise(268'000, 0.5, 10);  // noise inside a 5 % blank frame (the part in its image)
+  std::fill(framedNoise.begin(), framedNoise.begin() + 6'700, 0);
+  std::fill(framedNoise.end() - 6'700, framedNoise.end(), 0);
+  const std::vector<std::pair<Data, bool>> cases{
+      {ditheredNoise(268'000, 0.5, 1), true}, {ditheredNoise(268'000, 0.3, 2), true}, {ditheredNoise(1'000'000, 0.5, 3), true},
+      {framedNoise, true},                    {Data(268'000, 0), false},              {layerLike(268'000, 4), false},
+      {halfNoise, false},                     {ditheredNoise(268'000, 0.02, 5), false},
+      {ditheredNoise(60'000, 0.5, 6), false},  // under 64 KiB: never sampled
+  };
+  for (const auto& [input, notWorthIt] : cases) {
+    CAPTURE(input.size(), notWorthIt);
+    CHECK(deflateWouldNotShrink(input, kLayerDeflateLevel) == notWorthIt);
+    CHECK(deflateWouldNotShrink(input, kLayerDeflateLevel) == notWorthIt);  // the same answer again
+    // The truth: what deflating the whole input saves.
+    const std::size_t whole = deflateBytes(input, kLayerDeflateLevel, DeflateWrapper::Raw).size();
+    if (notWorthIt) CHECK(8 * whole > 7 * input.size());
+    else if (input.size() >= (std::size_t{64} << 10)) CHECK(8 * whole < 7 * input.size());
+    for (const DeflateWrapper wrapper : {DeflateWrapper::Raw, DeflateWrapper::Zlib}) {
+      const Data stored = deflateStored(input, wrapper);
+      CHECK(zlibInflate(stored, input.size(), wrapper == DeflateWrapper::Raw ? -15 : 15) == input);
+      CHECK(stored.size() < input.size() + input.size() / 1000 + 64);  // stored blocks: 5 bytes in 64 KiB
+    }
+  }
+  CHECK_THROWS_AS(deflateWouldNotShrink(Data(100'000), 4), std::invalid_argument);
+}
+
 TEST_CASE("deflateBytes gives an input the same bytes whatever the thread compressed before", "[deflate]") {
   // The thread keeps its igzip stream and clears only its fields before the history buffer: what an
   // earlier, different image left there must not reach the next one's bytes.
@@ -193,7 +232,9 @@ TEST_CASE("writeZip copies staged deflate data as it is; libzip reads it back", 
   const fs::path staged = dir / "band.bin";
   std::ofstream(staged, std::ios::binary).write(reinterpret_cast<const char*>(blob.data()), static_cast<std::streamsize>(blob.size()));
   const auto entry = [&](const char* name, std::uint64_t offset, const Data& packed, const Data& plain, ZipStorage storage) {
-    return ZipEntry{name, {}, storage, StagedZipData{offset, packed.size(), plain.size(), zipCrc32(plain)}};
+    StagedZipData data{offset, packed.size(), plain.size(), zipCrc32(plain)};
+    data.storage = storage;  // a staged entry's method is its data's own
+    return ZipEntry{name, {}, ZipStorage::Deflate, data};
   };
   const std::vector<ZipEntry> entries{entry("a.bmp", 0, da, a, ZipStorage::Deflate),
                                       entry("b.bmp", da.size(), db, b, ZipStorage::Deflate),

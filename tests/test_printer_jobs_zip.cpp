@@ -5,6 +5,7 @@
 #include "printer_profiles/job_reader.hpp"  // internal: the hostile-input reader `inspect` uses
 #include "printer_profiles/zip_source_adapter.hpp"  // internal: the libzip callback every source of ours goes through
 #include "printer_profiles/zip_writer.hpp"
+#include "tests/printer_jobs_fixture.hpp"
 
 #include <catch2/catch.hpp>
 #include <zip.h>
@@ -283,5 +284,94 @@ TEST_CASE("The job reader reads every entry back as written, stored and raw, acr
     refused = true;
   }
   CHECK(refused);
+  fs::remove_all(dir);
+}
+
+namespace {
+
+// Layer 0 fills a 1024 x 520 image (66 KB) with white noise, which deflate would not shrink; layer 1
+// holds two 16 x 16 patches at its corners, an image of the same size but nearly blank.
+openvdb::BoolGrid::Ptr noiseGrid() {
+  const auto grid = rodfab::test::newGrid();
+  auto acc = grid->getAccessor();
+  std::mt19937 random(11);
+  std::bernoulli_distribution vero(0.5);
+  for (int j = 0; j < 520; ++j)
+    for (int i = 0; i < 1024; ++i) {
+      acc.setValueOn({i, j, 0}, vero(random));
+      if ((i < 16 && j < 16) || (i >= 1008 && j >= 504)) acc.setValueOn({i, j, 1}, vero(random));
+    }
+  return grid;
+}
+
+// Every pixel of a decoded layer image against the grid: set where the voxel is on and of the image's
+// material (rigid or not), through the job's frame (column 0 at i0, row 0 at j0).
+void sameAsGrid(const openvdb::BoolGrid& grid, const DecodedBitmap& d, int layer, bool rigid, int i0, int j0) {
+  const auto acc = grid.getConstAccessor();
+  REQUIRE(d.bitmap.width() >= 1024);
+  REQUIRE(d.bitmap.height() >= 520);
+  std::size_t wrong = 0, set = 0;
+  for (int r = 0; r < d.bitmap.height(); ++r)
+    for (int c = 0; c < d.bitmap.width(); ++c) {
+      bool value = false;
+      const bool on = acc.probeValue({i0 + c, j0 - r, layer}, value);
+      wrong += d.bitmap.get(c, r) != (on && value == rigid) ? 1 : 0;
+      set += d.bitmap.get(c, r) ? 1 : 0;
+    }
+  CHECK(wrong == 0);
+  CHECK(set > (layer == 0 ? 200'000u : 100u));
+}
+
+}  // namespace
+
+TEST_CASE("Layer images of dithered noise are stored, mostly blank ones deflated; the job decodes back and inspects clean", "[job][zip]") {
+  const auto grid = noiseGrid();
+  const fs::path dir = scratchDir("noise");
+  rodfab::test::writeJob(*grid, rodfab::test::specFor(*grid, dir / "noise.zip"), 1);
+  CHECK(inspectJob(dir / "noise.zip").ok());
+
+  // libzip's view of the layer images: method, and contents against the grid through decodeBmp.
+  int error = 0;
+  zip_t* za = zip_open((dir / "noise.zip").c_str(), ZIP_RDONLY | ZIP_CHECKCONS, &error);
+  REQUIRE(za);
+  const auto entry = [za](zip_uint64_t n, std::uint64_t size) {
+    Bytes file(size);
+    zip_file_t* zf = zip_fopen_index(za, n, 0);
+    REQUIRE(zf);
+    CHECK(zip_fread(zf, file.data(), file.size()) == static_cast<zip_int64_t>(file.size()));  // libzip checks the CRC
+    zip_fclose(zf);
+    return file;
+  };
+  zip_stat_t manifestStat;
+  REQUIRE(zip_stat(za, "manifest.json", 0, &manifestStat) == 0);
+  const Bytes text = entry(manifestStat.index, manifestStat.size);
+  const nlohmann::json frame = nlohmann::json::parse(text.begin(), text.end())["frame"];
+  const int i0 = frame["first_column_i"], j0 = frame["top_row_j"];
+  int images = 0;
+  for (zip_int64_t n = 0; n < zip_get_num_entries(za, 0); ++n) {
+    zip_stat_t st;
+    REQUIRE(zip_stat_index(za, static_cast<zip_uint64_t>(n), 0, &st) == 0);
+    const std::string name = st.name;
+    const bool rigid = name.starts_with("VeroWhitePlus_"), rubbery = name.starts_with("TangoBlackPlus_");
+    if (!rigid && !rubbery) continue;
+    CAPTURE(name);
+    const int layer = name.ends_with("0000.bmp") ? 0 : 1;
+    CHECK(st.comp_method == (layer == 0 ? ZIP_CM_STORE : ZIP_CM_DEFLATE));
+    sameAsGrid(*grid, decodeBmp(entry(static_cast<zip_uint64_t>(n), st.size)), layer, rigid, i0, j0);
+    ++images;
+  }
+  zip_discard(za);
+  CHECK(images == 4);
+
+  // PNG layers: the noise in stored deflate blocks inside IDAT, read by libpng.
+  JobSpec png = rodfab::test::specFor(*grid, dir / "noise-png");
+  png.options.archive = ArchiveFormat::Directory;
+  png.options.imageFormat = ImageFormat::Png;
+  rodfab::test::writeJob(*grid, png, 2);
+  CHECK(inspectJob(dir / "noise-png").ok());
+  const Bytes layer0 = rodfab::test::readAll(dir / "noise-png" / "VeroWhitePlus_0000.png");
+  CHECK(layer0.size() > 66'000);  // stored: 1 bit a pixel as it is
+  sameAsGrid(*grid, decodePng1(layer0), 0, true, i0, j0);
+  sameAsGrid(*grid, decodePng1(rodfab::test::readAll(dir / "noise-png" / "TangoBlackPlus_0001.png")), 1, false, i0, j0);
   fs::remove_all(dir);
 }
