@@ -286,6 +286,7 @@ json.dump({"format": "rodfab.design/1", "units": "mm", "rods": rods,
 PY
 "$rodfab" simulate "$tmp/chain.json" -o "$tmp/chain-target.json" --no-estimate > "$tmp/out" 2>&1 || fail "simulate the chain: $(cat "$tmp/out")"
 for sig in INT TERM; do
+  rm -f "$tmp/out"  # else the loop below may read the last run's "iter 1" before this one truncates the file
   "$rodfab" optimize "$tmp/chain-start.json" -o "$tmp/optimized.json" --render "$tmp/chain.png" > "$tmp/out" 2>&1 &
   pid=$!
   for _ in $(seq 600); do grep -q "^iter    1 " "$tmp/out" && break; sleep 0.05; done
@@ -298,6 +299,7 @@ for sig in INT TERM; do
   { [ -e "$tmp/optimized.json" ] || [ -e "$tmp/chain.png" ]; } && fail "SIG$sig left an output"
 done
 # A file a person saves at the output path while the optimizer runs is theirs: left as it is, exit 1.
+rm -f "$tmp/out"
 "$rodfab" optimize "$tmp/chain-start.json" -o "$tmp/raced.json" --max-iterations 60 > "$tmp/out" 2>&1 &
 pid=$!
 for _ in $(seq 600); do grep -q "^iter    1 " "$tmp/out" && break; sleep 0.05; done
