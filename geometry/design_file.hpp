@@ -20,6 +20,12 @@ inline constexpr const char* kDesignFormat = "rodfab.design/1";
 // The largest Young's modulus a design may give (MPa): 1 TPa, above any printable material and far
 // inside the float range the voxel grids store moduli in.
 inline constexpr double kMaxModulusMpa = 1e6;
+// The largest section dimension (diameter, width, height) a design may give, in mm: a kilometre, so
+// that stiffnesses (E I grows as the fourth power) and bounding boxes stay finite.
+inline constexpr double kMaxSectionMm = 1e6;
+// The largest magnitude of a knot value: the solver's parameter arithmetic is exact to 1e15 (a
+// cantilever on knots [0, 1e15] gives the [0, 1] answer; on [0, 1e16] a displacement twice too large).
+inline constexpr double kMaxKnotMagnitude = 1e12;
 // The longest name (of a rod, of a load case) a design may give, in bytes of UTF-8: names are shown in
 // messages, reports and file names' neighbourhood, never megabytes of them.
 inline constexpr std::size_t kMaxNameBytes = 256;

@@ -165,6 +165,13 @@ std::optional<std::vector<double>> DesignReader::knots(const json& j, const std:
   for (std::size_t i = 0; i < j.size(); ++i) {
     auto v = number(j[i], indexPath(path, i), "a knot value (number)");
     if (!v) { ok = false; continue; }
+    static_assert(kMaxKnotMagnitude == 1e12, "the message below says 1e12");
+    if (!(std::abs(*v) <= kMaxKnotMagnitude)) {
+      fail(indexPath(path, i), "expected a knot value within +-1e12, got " + describe(j[i]) +
+                                   " (rescale the parameter, e.g. to [0, 1])");
+      ok = false;
+      continue;
+    }
     if (!k.empty() && *v < k.back())
       fail(indexPath(path, i), "knots must be non-decreasing: " + describe(j[i]) + " follows " + describe(j[i - 1])), ok = false;
     k.push_back(*v);

@@ -53,6 +53,8 @@ public:
 
   std::optional<double> number(const nlohmann::json& j, const std::string& path, const std::string& what);
   std::optional<double> positive(const nlohmann::json& j, const std::string& path, const std::string& what);
+  // A section's diameter, width or height in mm: > 0 and at most kMaxSectionMm.
+  std::optional<double> sectionSize(const nlohmann::json& j, const std::string& path, const std::string& what);
   std::optional<int> degree(const nlohmann::json& j, const std::string& path);  // 1..kMaxDegree
   std::optional<Vec3> vector3(const nlohmann::json& j, const std::string& path, const std::string& what);
   // A rotation [w, x, y, z], not normalized but not zero.

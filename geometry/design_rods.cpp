@@ -133,6 +133,16 @@ std::optional<NurbsCurve> DesignReader::centerline(const json& j, const std::str
   return curve;
 }
 
+std::optional<double> DesignReader::sectionSize(const json& j, const std::string& path, const std::string& what) {
+  auto v = positive(j, path, what);
+  static_assert(kMaxSectionMm == 1e6, "the message below says 1e6");
+  if (v && !(*v <= kMaxSectionMm)) {
+    fail(path, "expected " + what + " of at most 1e6 (a kilometre), got " + describe(j));
+    return std::nullopt;
+  }
+  return v;
+}
+
 std::optional<Section> DesignReader::section(const json& j, const std::string& path) {
   if (!j.is_object()) {
     fail(path, "expected an object {shape, ...}, got " + describe(j));
@@ -146,14 +156,14 @@ std::optional<Section> DesignReader::section(const json& j, const std::string& p
     onlyKeys(j, path, {"shape", "diameter"});
     const json* d = require(j, path, "diameter", "the diameter in mm");
     if (!d) return std::nullopt;
-    auto v = positive(*d, memberPath(path, "diameter"), "a diameter in mm");
+    auto v = sectionSize(*d, memberPath(path, "diameter"), "a diameter in mm");
     return v ? std::optional<Section>(Section::circle(*v)) : std::nullopt;
   }
   if (*name == "ellipse" || *name == "rectangle") {
     onlyKeys(j, path, {"shape", "width", "height"});
     std::optional<double> w, h;
-    if (auto x = require(j, path, "width", "the width along d1 in mm")) w = positive(*x, memberPath(path, "width"), "a width in mm");
-    if (auto x = require(j, path, "height", "the height along d2 in mm")) h = positive(*x, memberPath(path, "height"), "a height in mm");
+    if (auto x = require(j, path, "width", "the width along d1 in mm")) w = sectionSize(*x, memberPath(path, "width"), "a width in mm");
+    if (auto x = require(j, path, "height", "the height along d2 in mm")) h = sectionSize(*x, memberPath(path, "height"), "a height in mm");
     if (!w || !h) return std::nullopt;
     return *name == "ellipse" ? Section::ellipse(*w, *h) : Section::rectangle(*w, *h);
   }
