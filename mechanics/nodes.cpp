@@ -221,6 +221,20 @@ namespace {
 
 const Vec3& endPoint(const DiscreteRod& rod, int end) { return end == 0 ? rod.curve.points().front() : rod.curve.points().back(); }
 
+// A rod whose two ends the tolerance joins is a closed loop only if they nearly meet (within a
+// hundredth of its length); otherwise the tolerance spans the rod itself (a 1 um rod at the default
+// 1 um, or a tolerance of metres) and joining would turn it into a ring with its load lost.
+void refuseSelfJoinedRods(const DiscreteStructure& s, double tolerance, SiteSets& sets) {
+  for (int r = 0; r < static_cast<int>(s.rods.size()); ++r) {
+    const DiscreteRod& rod = s.rods[r];
+    const double gap = (endPoint(rod, 0) - endPoint(rod, 1)).norm();
+    if (sets.find(2 * r) == sets.find(2 * r + 1) && gap > 0.01 * rod.length)
+      s.fail(rod.path, "its two ends, " + format(gap) + " mm apart on a rod " + format(rod.length) +
+                           " mm long, would be joined to each other by joint_tolerance " + format(tolerance) +
+                           " mm (directly or through other rods' ends); give a joint_tolerance well below the rod's length");
+  }
+}
+
 // Joins the rod sites the design joins: all ends within the joint tolerance of each other and the
 // T-joints, or the listed groups.
 void joinSites(const DiscreteStructure& s, const Design& structure, SiteSets& sets) {
@@ -236,6 +250,7 @@ void joinSites(const DiscreteStructure& s, const Design& structure, SiteSets& se
       for (int b = a + 1; b < endCount && at(order[b]).x() - at(order[a]).x() <= spec.jointTolerance; ++b)
         if ((at(order[a]) - at(order[b])).norm() <= spec.jointTolerance) sets.unite(order[a], order[b]);
     for (const auto& [end, place] : s.tJoints) sets.unite(end, s.siteNumber(place));
+    refuseSelfJoinedRods(s, spec.jointTolerance, sets);
     return;
   }
   std::map<int, std::string> listed;

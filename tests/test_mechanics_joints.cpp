@@ -237,6 +237,39 @@ TEST_CASE("interior places: errors name the JSON path", "[mechanics][joints][err
   }
 }
 
+TEST_CASE("a rod whose two ends the joint tolerance joins is refused, unless they meet (a ring)", "[mechanics][joints][errors]") {
+  SECTION("a tolerance longer than the bar joins its clamped ends: refused, naming the rod") {
+    Design s = tFrame(false, Vec3(0, 0, -1e-3));
+    s.mechanics.jointTolerance = 10.0;
+    REQUIRE_THROWS_WITH(StaticProblem(s), Catch::Contains("rods[0]: its two ends, 2 mm apart on a rod 2 mm long, would be joined"));
+  }
+  SECTION("a rod no longer than the default tolerance") {
+    Design s;
+    s.mechanics.present = true;
+    s.rods.push_back(test::rod("speck", straight(Vec3::Zero(), Vec3(1e-3, 0, 0)), Section::circle(1e-4), kE));
+    clamp(s, test::at("speck", RodEnd::Start));
+    load(s, test::at("speck", RodEnd::End), Vec3(0, 1e-9, 0));
+    REQUIRE_THROWS_WITH(StaticProblem(s), Catch::Contains("rods[0]: its two ends") && Catch::Contains("joint_tolerance 0.001 mm"));
+  }
+  SECTION("a ring, its ends at one point, is joined to itself and solved") {
+    const double w = std::sqrt(0.5);
+    const NurbsCurve circle(2, {0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1},
+                            {Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(0, 1, 0), Vec3(-1, 1, 0), Vec3(-1, 0, 0), Vec3(-1, -1, 0),
+                             Vec3(0, -1, 0), Vec3(1, -1, 0), Vec3(1, 0, 0)},
+                            {1, w, 1, w, 1, w, 1, w, 1});
+    Design s;
+    s.mechanics.present = true;
+    s.rods.push_back(test::rod("ring", circle, Section::circle(kD), kE));
+    clamp(s, test::at("ring", RodEnd::Start));
+    load(s, atParameter("ring", 0.5, "mechanics.loads[0].at"), Vec3(-1e-4, 0, 0));
+    const StaticProblem problem(s);
+    const Eigen::VectorXd x = mechanics::solve(problem, {}, 1).state;
+    // The clamped joint holds both ends: the ring's far side moves, its ends stay.
+    CHECK(problem.position(x, 0, 0.5).x() < -1.0);
+    CHECK((problem.position(x, 0, 1.0) - Vec3(1, 0, 0)).norm() < 1e-9);
+  }
+}
+
 TEST_CASE("listed joints join interior points too", "[mechanics][joints]") {
   const Vec3 force(2e-9, 1e-9, 0);
   Design listed = tFrame(false, force);
