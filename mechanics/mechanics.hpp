@@ -362,4 +362,14 @@ Simulation simulate(const Design& design, Discretization discretization, const S
                     int designLoadSteps, const AccuracyOptions& accuracy = {}, const StepCallback& onStep = {},
                     const LevelCallback& onLevel = {});
 
+// One load case's structure: `design`'s rods and "mechanics" block with the case's supports, loads
+// and load steps in place of the block's own, and no load cases (what the optimizer solves per case).
+Design loadCaseStructure(const Design& design, const LoadCase& loadCase);
+
+// Every check a solve would make before it starts (StaticProblem's, on the default discretization),
+// for the design's own "mechanics" block or, when it lists load cases, for each case's structure;
+// nothing is solved. Throws MechanicsError as StaticProblem does, a case's message prefixed with
+// `load case "NAME" (PATH): `. For a design without a "mechanics" block there is nothing to check.
+void checkMechanics(const Design& design);
+
 }  // namespace rodfab::mechanics

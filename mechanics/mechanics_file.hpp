@@ -18,7 +18,8 @@ namespace rodfab::mechanics {
 Design readDesign(const std::filesystem::path& file);
 // readDesign's checks (the rods, both blocks, every target design) without keeping the rods: what
 // geometry::summarize says of them, in the memory of the rods being built (one a thread) rather than
-// of all of them (`rodfab validate`). Throws as readDesign.
+// of all of them (`rodfab validate`). Throws as readDesign; and for a design with a "mechanics" block,
+// checkMechanics on it (the rods read again, kept this time): MechanicsError for what a solve would refuse.
 geometry::DesignSummary checkDesign(const std::filesystem::path& file);
 // `sourceName` names the text in messages. Targets given as {"design": PATH} are not read (their
 // LoadCase::target stays empty): readDesign reads them.

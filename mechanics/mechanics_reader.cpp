@@ -2,6 +2,7 @@
 // and the entry points that read a whole design; the training (load cases, targets) and the "optimize"
 // block are read in optimize_reader.cpp (mechanics_reader.hpp).
 #include "mechanics/mechanics_reader.hpp"
+#include "mechanics/mechanics.hpp"
 
 #include "common/json_input.hpp"
 
@@ -263,7 +264,9 @@ Design parseDesign(const std::string& text, const std::string& sourceName) {
 Design readDesign(const std::filesystem::path& file) { return readWithTargets(file, geometry::RodsKept::All).design; }
 
 geometry::DesignSummary checkDesign(const std::filesystem::path& file) {
-  return readWithTargets(file, geometry::RodsKept::SummaryOnly).summary;
+  const ReadDesign read = readWithTargets(file, geometry::RodsKept::SummaryOnly);
+  if (read.design.mechanics.present) checkMechanics(readDesign(file));  // its rods are needed now
+  return read.summary;
 }
 
 }  // namespace rodfab::mechanics

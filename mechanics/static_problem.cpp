@@ -49,6 +49,34 @@ StaticProblem::StaticProblem(const Design& structure, const Discretization& disc
   m.buildLayouts();
 }
 
+Design loadCaseStructure(const Design& design, const LoadCase& loadCase) {
+  Design out;
+  out.source = design.source;
+  out.rods = design.rods;
+  out.mechanics = design.mechanics;
+  out.mechanics.supports = loadCase.supports;
+  out.mechanics.loads = loadCase.loads;
+  out.mechanics.distributedLoads = loadCase.distributedLoads;
+  out.mechanics.loadSteps = loadCase.loadSteps;
+  out.mechanics.loadCases.clear();
+  return out;
+}
+
+void checkMechanics(const Design& design) {
+  if (!design.mechanics.present) return;
+  if (design.mechanics.loadCases.empty()) {
+    StaticProblem problem(design);
+    return;
+  }
+  for (const LoadCase& lc : design.mechanics.loadCases) {
+    try {
+      StaticProblem problem(loadCaseStructure(design, lc));
+    } catch (const MechanicsError& e) {
+      throw MechanicsError("load case \"" + lc.name + "\" (" + lc.path + "): " + e.what());
+    }
+  }
+}
+
 StaticProblem::~StaticProblem() = default;
 StaticProblem::StaticProblem(StaticProblem&&) noexcept = default;
 StaticProblem& StaticProblem::operator=(StaticProblem&&) noexcept = default;

@@ -108,15 +108,8 @@ struct DesignProblem::Impl {
 void DesignProblem::Impl::addCase(const mechanics::LoadCase& lc, const std::vector<geometry::Rod>& rods) {
   Case c;
   c.name = lc.name, c.path = lc.path, c.weight = lc.weight, c.loadSteps = lc.loadSteps;
-  c.structure = std::make_unique<mechanics::Design>();
-  c.structure->source = design.source;
+  c.structure = std::make_unique<mechanics::Design>(mechanics::loadCaseStructure(design, lc));
   c.structure->rods = rods;
-  c.structure->mechanics = design.mechanics;
-  c.structure->mechanics.supports = lc.supports;
-  c.structure->mechanics.loads = lc.loads;
-  c.structure->mechanics.distributedLoads = lc.distributedLoads;
-  c.structure->mechanics.loadSteps = lc.loadSteps;
-  c.structure->mechanics.loadCases.clear();
   const mechanics::Discretization d = cases.empty() ? settings.discretization : cases.front().problem->discretization();
   try {
     c.problem = std::make_unique<mechanics::StaticProblem>(*c.structure, d);

@@ -1,5 +1,6 @@
 #include "common/located_issues.hpp"
 #include "geometry/geometry.hpp"
+#include "mechanics/mechanics.hpp"
 #include "mechanics/mechanics_file.hpp"
 #include "slicer/command.hpp"
 #include "slicer/options.hpp"
@@ -38,6 +39,9 @@ int runValidate(const std::vector<std::string>& args) {
     std::cerr << e.what() << '\n'
               << file << ": " << common::issueCountText(e.issues())
               << "; the design is not valid\n";
+    return kFailed;
+  } catch (const mechanics::MechanicsError& e) {
+    std::cerr << e.what() << '\n' << file << ": its \"mechanics\" block cannot be simulated; the design is not valid\n";
     return kFailed;
   }
   if (vm.count("json")) {

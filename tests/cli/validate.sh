@@ -49,6 +49,26 @@ grep -q "many.json: more issues follow; only the first 100 are listed" "$tmp/err
 [ "$(tail -1 "$tmp/err")" = "$tmp/many.json: 100 errors shown, more were found; the design is not valid" ] ||
   fail "150 bad rods, the count: $(tail -1 "$tmp/err")"
 
+# A mechanics block a solve would refuse: validate says so (the checks made before solving), exit 1.
+python3 - "$tmp" <<'PY'
+import json, sys
+rod = {"name": "c", "centerline": {"degree": 1, "knots": [0, 0, 1, 1], "points": [[0, 0, 0], [20, 0, 0]]},
+       "section": {"shape": "circle", "diameter": 1}, "modulus": 100}
+end = lambda e: {"rod": "c", "end": e}
+cases = {"far": {"supports": [{"at": end("start"), "type": "clamped"}], "loads": [{"at": {"point": [100, 100, 100]}, "force": [0, 1, 0]}]},
+         "unsupported": {"supports": [], "loads": [{"at": end("end"), "force": [0, 1, 0]}]},
+         "fine": {"supports": [{"at": end("start"), "type": "clamped"}], "loads": [{"at": end("end"), "force": [0, 1, 0]}]}}
+for name, m in cases.items():
+    json.dump({"format": "rodfab.design/1", "units": "mm", "rods": [rod], "mechanics": m}, open("%s/%s.json" % (sys.argv[1], name), "w"))
+PY
+"$rodfab" validate "$tmp/far.json" > "$tmp/out" 2> "$tmp/err"
+[ $? -eq 1 ] && grep -q "far.json: mechanics.loads\[0\].at.point: no rod lies within joint_tolerance" "$tmp/err" &&
+  grep -q "the design is not valid" "$tmp/err" || fail "a load point near no rod: $(cat "$tmp/err")"
+[ ! -s "$tmp/out" ] || fail "a design its solve would refuse printed a summary"
+"$rodfab" validate "$tmp/unsupported.json" > /dev/null 2> "$tmp/err"
+[ $? -eq 1 ] && grep -q "mechanics.supports: no support" "$tmp/err" || fail "no support: $(cat "$tmp/err")"
+"$rodfab" validate "$tmp/fine.json" > /dev/null 2>&1 || fail "a cantilever with its support and load does not validate"
+
 "$rodfab" validate "$tmp/missing.json" 2> "$tmp/err"
 [ $? -eq 1 ] || fail "missing file: expected exit 1"
 grep -q "missing.json: cannot open" "$tmp/err" || fail "missing file not named"
