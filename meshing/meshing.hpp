@@ -138,8 +138,10 @@ struct CadRodReport {
   double smallestBendRadius = std::numeric_limits<double>::infinity();
   std::size_t rodsBentTighterThanSection = 0;
   // Entities OpenCASCADE could not convert to shapes, left out of the design with every curve they
-  // hold (a curve set with one unconvertible curve loses all of its curves), and the first of them
-  // named ("entity #15 (GEOMETRIC_CURVE_SET): ..."). rods-from-cad warns of them.
+  // hold (a curve set with one unconvertible curve loses all of its curves; a curve of a set it made
+  // no edge of, such as a circle of negative radius, is left out alone; an IGES composite curve loses
+  // the members its reader left out), and the first of them in the model's order named ("entity #15
+  // (GEOMETRIC_CURVE_SET): ...", "entity D9 (...)"). rods-from-cad warns of them.
   std::size_t untranslated = 0;
   std::string firstUntranslated;
 };
