@@ -388,7 +388,7 @@ void refuseBadPoints(const XSControl_Reader& reader, const std::filesystem::path
 
 // A curve of a STEP curve set that the transfer made no edge of: OpenCASCADE converts a set's members
 // one by one and leaves out those it cannot convert (a circle of negative radius, a B-spline weight of
-// 0, a line of zero direction, a trim running backwards) with a warning, not a failure, so its check
+// 0, a line of zero direction, trim values written as integers) with a warning, not a failure, so its check
 // list does not hold them. A set that failed as a whole is in that list already, with its members.
 void addDroppedSetMembers(const Handle(Transfer_TransientProcess)& process, const Handle(Interface_InterfaceModel)& model,
                           int number, std::map<int, std::string>& lost) {

@@ -224,17 +224,17 @@ std::string endName(const std::vector<Vec3>& ends, const std::vector<EdgeRef>& e
   return edgeOfRod[end / 2].name() + "'s " + (end % 2 == 0 ? "start" : "end") + " at " + formatPoint(gp_Pnt(p.x(), p.y(), p.z()));
 }
 
-// A chain of ends, each within the tolerance of the next, can be far longer than the tolerance (a
-// star of lines whose tips are 5 mm apart, at a tolerance of 5 mm, chains into one lump), and moving
+// A chain of ends, each within the tolerance of the next, can be far wider than the tolerance (a star
+// of 10 mm lines whose tips are 1.3 mm apart, at a tolerance of 5 mm, chains into one lump), and moving
 // its ends onto one point would move them farther than the tolerance promises: such a chain is
 // refused, naming its two ends farthest apart. Ends of a group no wider than the tolerance move by at
-// most the tolerance (their mean lies among them).
+// most the tolerance (their mean lies in their convex hull).
 void requireCompactJoint(const std::vector<Vec3>& ends, const std::vector<std::size_t>& group, double tolerance,
                          const std::filesystem::path& file, const std::vector<EdgeRef>& edgeOfRod) {
   const Vec3 mean = meanOf(ends, group);
   double fromMean = 0;
   for (std::size_t e : group) fromMean = std::max(fromMean, (ends[e] - mean).norm());
-  if (fromMean <= tolerance / 2) return;  // no two ends farther apart than twice this
+  if (fromMean <= tolerance / 2) return;  // then no two ends are farther apart than the tolerance
   const auto [a, b] = farthestPair(ends, group);
   const double width = (ends[a] - ends[b]).norm();
   if (width <= tolerance) return;
