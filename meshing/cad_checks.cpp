@@ -8,6 +8,7 @@
 #include <Geom_BSplineCurve.hxx>
 #include <Geom_BSplineSurface.hxx>
 #include <IGESGeom_BSplineCurve.hxx>
+#include <IGESGeom_CompositeCurve.hxx>
 #include <IGESGeom_Line.hxx>
 #include <IGESToBRep.hxx>
 #include <IGESGeom_BSplineSurface.hxx>
@@ -30,8 +31,12 @@
 #include <StepGeom_HArray2OfCartesianPoint.hxx>
 #include <StepGeom_RationalBSplineCurve.hxx>
 #include <StepGeom_RationalBSplineSurface.hxx>
+#include <StepGeom_Curve.hxx>
+#include <StepShape_GeometricSet.hxx>
+#include <StepShape_GeometricSetSelect.hxx>
 #include <StepShape_VertexPoint.hxx>
 #include <TCollection_HAsciiString.hxx>
+#include <TransferBRep.hxx>
 #include <Transfer_TransientProcess.hxx>
 #include <XSControl_Reader.hxx>
 #include <XSControl_TransferReader.hxx>
@@ -43,6 +48,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -380,20 +386,58 @@ void refuseBadPoints(const XSControl_Reader& reader, const std::filesystem::path
       throw MeshError(file, "malformed: entity " + entityName(model, model->Value(i)) + ": " + problem);
 }
 
+// A curve of a STEP curve set that the transfer made no edge of: OpenCASCADE converts a set's members
+// one by one and leaves out those it cannot convert (a circle of negative radius, a B-spline weight of
+// 0, a line of zero direction, trim values written as integers) with a warning, not a failure, so its check
+// list does not hold them. A set that failed as a whole is in that list already, with its members.
+void addDroppedSetMembers(const Handle(Transfer_TransientProcess)& process, const Handle(Interface_InterfaceModel)& model,
+                          int number, std::map<int, std::string>& lost) {
+  const Handle(StepShape_GeometricSet) set = Handle(StepShape_GeometricSet)::DownCast(model->Value(number));
+  if (set.IsNull() || TransferBRep::ShapeResult(process, set).IsNull()) return;
+  for (int i = 1; i <= set->NbElements(); ++i) {
+    const Handle(Standard_Transient) member = set->ElementsValue(i).Value();
+    if (member.IsNull() || !member->IsKind(STANDARD_TYPE(StepGeom_Curve)) || !TransferBRep::ShapeResult(process, member).IsNull()) continue;
+    lost.emplace(model->Number(member), "entity " + entityName(model, member) + ", curve " + std::to_string(i) + " of " +
+                                            entityName(model, set) + ": OpenCASCADE made no edge of it (not a valid curve)");
+  }
+}
+
+// An IGES composite curve whose member list OpenCASCADE's reader shortened while loading it (a pointer to
+// a directory entry the file does not hold, or not a curve: left out with a warning, so the transfer
+// joins the members that remain and nothing fails).
+void addDroppedCompositeMembers(const Handle(Interface_InterfaceModel)& model, int number, std::map<int, std::string>& lost) {
+  if (Handle(IGESGeom_CompositeCurve)::DownCast(model->Value(number)).IsNull()) return;
+  const Handle(Interface_Check)& check = model->Check(number, Standard_True);
+  if (check.IsNull() || check->NbWarnings() == 0) return;
+  std::string text;
+  for (int i = 1; i <= check->NbWarnings() && i <= 3; ++i) text += (i > 1 ? "; " : "") + std::string(check->CWarning(i));
+  lost.emplace(number, "entity " + entityName(model, model->Value(number)) + ": members left out while reading it: " +
+                           common::printableFromFile(text, 600));
+}
+
 }  // namespace
 
 TransferFailures transferFailures(const XSControl_Reader& reader) {
   TransferFailures out;
   const Handle(XSControl_TransferReader) transfer = reader.WS()->TransferReader();
   if (transfer.IsNull() || transfer->TransientProcess().IsNull()) return out;
+  const Handle(Transfer_TransientProcess) process = transfer->TransientProcess();
   const Handle(Interface_InterfaceModel) model = reader.Model();
-  const Interface_CheckIterator checks = transfer->TransientProcess()->CheckList(Standard_True);
+  std::map<int, std::string> lost;  // by entity number: the model's order, each entity once
+  const Interface_CheckIterator checks = process->CheckList(Standard_True);
   for (checks.Start(); checks.More(); checks.Next()) {
     const Handle(Interface_Check)& check = checks.Value();
     if (check.IsNull() || !check->HasFailed()) continue;
-    if (out.entities++ == 0)
-      out.first = (check->HasEntity() ? "entity " + entityName(model, check->Entity()) : std::string("the model")) + ": " + checkText(check);
+    // A failure of no entity (the model's own) is kept too, numbered below every entity.
+    const int number = check->HasEntity() ? model->Number(check->Entity()) : -static_cast<int>(lost.size()) - 1;
+    lost.emplace(number, (number > 0 ? "entity " + entityName(model, check->Entity()) : std::string("the model")) + ": " + checkText(check));
   }
+  for (int i = 1; i <= model->NbEntities(); ++i) {
+    addDroppedSetMembers(process, model, i, lost);
+    addDroppedCompositeMembers(model, i, lost);
+  }
+  out.entities = lost.size();
+  if (!lost.empty()) out.first = lost.begin()->second;
   return out;
 }
 

@@ -50,11 +50,14 @@ void prescanIgesText(const std::filesystem::path& file);
 // degrees and pole counts OpenCASCADE's geometry accepts, and vertices at 3D points.
 void checkLoadedModel(const XSControl_Reader& reader, const std::filesystem::path& file);
 
-// What OpenCASCADE's transfer could not convert (its transfer check list's failures, after
-// TransferRoots): an entity that fails is left out of the shape with all it holds (a curve set with one
-// unconvertible curve loses every curve in it), silently unless the caller says so.
+// The entities of the model that no rod comes from, after TransferRoots: those whose transfer failed
+// (its check list's failures: an entity that fails is left out of the shape with all it holds, a curve
+// set with one unconvertible curve losing every curve in it), the curves of STEP curve sets that were
+// left out of their set's shape (OpenCASCADE only warns of those), and IGES composite curves whose
+// members were left out while loading (a pointer to no entity). Each entity counted once, the first
+// in the model's order named.
 struct TransferFailures {
-  std::size_t entities = 0;  // entities whose transfer failed
+  std::size_t entities = 0;  // entities left out
   std::string first;         // "entity #15 (GEOMETRIC_CURVE_SET): Exception is raised. Entity was not translated."
 };
 TransferFailures transferFailures(const XSControl_Reader& reader);

@@ -26,6 +26,7 @@
 #include <TopoDS_Edge.hxx>
 #include <XSControl_TransferReader.hxx>
 #include <XSControl_WorkSession.hxx>
+#include <gp_Pnt.hxx>
 
 #include <nlohmann/json.hpp>
 #include <tbb/blocked_range.h>
@@ -35,11 +36,15 @@
 #include <cstdio>
 #include <mutex>
 #include <numeric>
+#include <string>
+#include <utility>
+#include <vector>
 
 namespace rodfab::meshing {
 
 namespace {
 
+using detail::formatPoint;
 using geometry::Vec3;
 
 // OpenCASCADE's readers report to a process-wide messenger (stdout by default): keep it quiet, and
@@ -164,13 +169,20 @@ void requireValidCenterline(const geometry::NurbsCurve& curve, const std::filesy
   if (!reader.issues.empty()) throw MeshError(file, edge.name() + ": " + reader.issues.front().message);
 }
 
-// Groups curve ends closer than `tolerance` (single linkage) and moves each group onto its mean.
-double mergeEnds(std::vector<geometry::NurbsCurve>& curves, double tolerance, std::size_t& joints) {
+// The curves' ends, 2r the start and 2r + 1 the end of curve r.
+std::vector<Vec3> curveEnds(const std::vector<geometry::NurbsCurve>& curves) {
   std::vector<Vec3> ends;
   for (const auto& c : curves) ends.push_back(c.points().front()), ends.push_back(c.points().back());
+  return ends;
+}
+
+// The ends chained by distances of at most `tolerance` (single linkage), as lists of end numbers in
+// increasing order, the lists ordered by their first end; lone ends are left out.
+std::vector<std::vector<std::size_t>> chainedEnds(const std::vector<Vec3>& ends, double tolerance) {
   std::vector<std::size_t> order(ends.size()), parent(ends.size());
   std::iota(order.begin(), order.end(), 0);
   std::iota(parent.begin(), parent.end(), 0);
+  // Sorted by x, so only ends within the tolerance in x are compared.
   std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return ends[a].x() < ends[b].x(); });
   auto find = [&](std::size_t x) {
     while (parent[x] != x) x = parent[x] = parent[parent[x]];
@@ -179,20 +191,84 @@ double mergeEnds(std::vector<geometry::NurbsCurve>& curves, double tolerance, st
   for (std::size_t i = 0; i < order.size(); ++i)
     for (std::size_t j = i + 1; j < order.size() && ends[order[j]].x() - ends[order[i]].x() <= tolerance; ++j)
       if ((ends[order[i]] - ends[order[j]]).norm() <= tolerance) parent[find(order[i])] = find(order[j]);
-  std::vector<Vec3> sum(ends.size(), Vec3::Zero());
-  std::vector<int> count(ends.size(), 0);
-  for (std::size_t e = 0; e < ends.size(); ++e) sum[find(e)] += ends[e], ++count[find(e)];
-  joints = 0;
-  for (std::size_t e = 0; e < ends.size(); ++e) joints += find(e) == e && count[e] > 1;
-  double moved = 0;
+  std::vector<std::vector<std::size_t>> members(ends.size());
+  for (std::size_t e = 0; e < ends.size(); ++e) members[find(e)].push_back(e);
+  std::vector<std::vector<std::size_t>> groups;
+  for (auto& m : members)
+    if (m.size() > 1) groups.push_back(std::move(m));
+  std::sort(groups.begin(), groups.end(), [](const auto& a, const auto& b) { return a.front() < b.front(); });
+  return groups;
+}
+
+Vec3 meanOf(const std::vector<Vec3>& ends, const std::vector<std::size_t>& group) {
+  Vec3 sum = Vec3::Zero();
+  for (std::size_t e : group) sum += ends[e];
+  return sum / static_cast<double>(group.size());
+}
+
+// The two ends of `group` farthest apart (the first such pair in the group's order).
+std::pair<std::size_t, std::size_t> farthestPair(const std::vector<Vec3>& ends, const std::vector<std::size_t>& group) {
+  std::pair<std::size_t, std::size_t> pair{group[0], group[1]};
+  double farthest = -1;
+  for (std::size_t i = 0; i < group.size(); ++i) {
+    if (i % 1024 == 0) common::throwIfInterrupted();  // a hostile joint of 10^5 ends takes seconds
+    for (std::size_t j = i + 1; j < group.size(); ++j)
+      if (const double d = (ends[group[i]] - ends[group[j]]).norm(); d > farthest) farthest = d, pair = {group[i], group[j]};
+  }
+  return pair;
+}
+
+// "edge 3 (entity #18 (POLYLINE))'s start at (0, 0, 0)"
+std::string endName(const std::vector<Vec3>& ends, const std::vector<EdgeRef>& edgeOfRod, std::size_t end) {
+  const Vec3& p = ends[end];
+  return edgeOfRod[end / 2].name() + "'s " + (end % 2 == 0 ? "start" : "end") + " at " + formatPoint(gp_Pnt(p.x(), p.y(), p.z()));
+}
+
+// A chain of ends, each within the tolerance of the next, can be far wider than the tolerance (a star
+// of 10 mm lines whose tips are 1.3 mm apart, at a tolerance of 5 mm, chains into one lump), and moving
+// its ends onto one point would move them farther than the tolerance promises: such a chain is
+// refused, naming its two ends farthest apart. Ends of a group no wider than the tolerance move by at
+// most the tolerance (their mean lies in their convex hull).
+void requireCompactJoint(const std::vector<Vec3>& ends, const std::vector<std::size_t>& group, double tolerance,
+                         const std::filesystem::path& file, const std::vector<EdgeRef>& edgeOfRod) {
+  const Vec3 mean = meanOf(ends, group);
+  double fromMean = 0;
+  for (std::size_t e : group) fromMean = std::max(fromMean, (ends[e] - mean).norm());
+  if (fromMean <= tolerance / 2) return;  // then no two ends are farther apart than the tolerance
+  const auto [a, b] = farthestPair(ends, group);
+  const double width = (ends[a] - ends[b]).norm();
+  if (width <= tolerance) return;
+  char counts[160], apart[64];
+  std::snprintf(counts, sizeof counts, "%zu curve ends chain into one joint %.3g mm across, each within the joint tolerance (%g mm) of another: ",
+                group.size(), width, tolerance);
+  std::snprintf(apart, sizeof apart, " are %.3g mm apart", width);
+  throw MeshError(file, counts + endName(ends, edgeOfRod, a) + " and " + endName(ends, edgeOfRod, b) + apart +
+                            ", and one joint would move ends farther than the tolerance; give a --joint-tolerance below the "
+                            "distance between ends that are not to meet (or close the gaps in the model)");
+}
+
+// Joins the curve ends within `tolerance` of one another: each group of chained ends (refused when
+// wider than the tolerance) is moved onto its mean, so its rods end at exactly one point. Returns how
+// far the farthest end moved and counts the joints.
+double mergeEnds(std::vector<geometry::NurbsCurve>& curves, double tolerance, std::size_t& joints,
+                 const std::filesystem::path& file, const std::vector<EdgeRef>& edgeOfRod) {
+  const std::vector<Vec3> ends = curveEnds(curves);
+  const std::vector<std::vector<std::size_t>> groups = chainedEnds(ends, tolerance);
+  std::vector<Vec3> moved = ends;
+  for (const auto& group : groups) {
+    requireCompactJoint(ends, group, tolerance, file, edgeOfRod);
+    const Vec3 mean = meanOf(ends, group);
+    for (std::size_t e : group) moved[e] = mean;
+  }
+  joints = groups.size();
+  double farthest = 0;
   for (std::size_t r = 0; r < curves.size(); ++r) {
     std::vector<Vec3> points = curves[r].points();
-    const Vec3 a = sum[find(2 * r)] / count[find(2 * r)], b = sum[find(2 * r + 1)] / count[find(2 * r + 1)];
-    moved = std::max({moved, (points.front() - a).norm(), (points.back() - b).norm()});
-    points.front() = a, points.back() = b;
+    farthest = std::max({farthest, (points.front() - moved[2 * r]).norm(), (points.back() - moved[2 * r + 1]).norm()});
+    points.front() = moved[2 * r], points.back() = moved[2 * r + 1];
     curves[r] = geometry::NurbsCurve(curves[r].degree(), curves[r].knots(), std::move(points), curves[r].weights());
   }
-  return moved;
+  return farthest;
 }
 
 // A reference normal perpendicular to the curve's start tangent (for non-circular sections).
@@ -258,7 +334,7 @@ CadDesign readCadDesign(const std::filesystem::path& file, const CadRodOptions& 
                               (failures.entities ? "; OpenCASCADE could not convert " + failures.first +
                                                        (failures.entities > 1 ? " (and " + std::to_string(failures.entities - 1) + " more entities)" : "")
                                                  : std::string()));
-  out.report.largestEndMove = mergeEnds(curves, options.jointTolerance, out.report.joints);
+  out.report.largestEndMove = mergeEnds(curves, options.jointTolerance, out.report.joints, file, edgeOfRod);
   std::vector<std::optional<Vec3>> normals(curves.size());
   for (std::size_t r = 0; r < curves.size(); ++r) {
     // After mergeEnds: an edge shorter than the joint tolerance has both ends on one point now.

@@ -117,7 +117,8 @@ struct CadRodOptions {
   geometry::CapStyle caps = geometry::CapStyle::Round;
   double modulusMpa = 120.0;
   // Curve ends closer than this (mm, > 0) become one joint: they are moved to their common mean so the
-  // rods end at exactly the same point.
+  // rods end at exactly the same point. Ends chain (a within it of b, b of c), and a chain wider than
+  // this is refused: no end is moved by more than the tolerance.
   double jointTolerance = 1e-3;
 };
 
@@ -138,8 +139,10 @@ struct CadRodReport {
   double smallestBendRadius = std::numeric_limits<double>::infinity();
   std::size_t rodsBentTighterThanSection = 0;
   // Entities OpenCASCADE could not convert to shapes, left out of the design with every curve they
-  // hold (a curve set with one unconvertible curve loses all of its curves), and the first of them
-  // named ("entity #15 (GEOMETRIC_CURVE_SET): ..."). rods-from-cad warns of them.
+  // hold (a curve set with one unconvertible curve loses all of its curves; a curve of a set it made
+  // no edge of, such as a circle of negative radius, is left out alone; an IGES composite curve loses
+  // the members its reader left out), and the first of them in the model's order named ("entity #15
+  // (GEOMETRIC_CURVE_SET): ...", "entity D9 (...)"). rods-from-cad warns of them.
   std::size_t untranslated = 0;
   std::string firstUntranslated;
 };
@@ -156,7 +159,9 @@ struct CadRods {
 // approximated by one of degree kMaxDegree, as smooth as the curve up to C2, within
 // kCadApproximationToleranceMm (the report counts them). Throws MeshError when the file cannot be
 // read, is malformed (meshing/README.md: what is checked before OpenCASCADE reads and transfers it),
-// holds no edge curve (naming the first entity OpenCASCADE could not convert, if any), a curve cannot be approximated so closely, or a rod would not pass the design
+// holds no edge curve (naming the first entity OpenCASCADE could not convert, if any), a curve cannot be
+// approximated so closely, curve ends chain into a joint wider than the joint tolerance (naming its two
+// ends farthest apart), or a rod would not pass the design
 // file's checks (coordinates beyond +-1e9 mm, zero length, a centerline too intricate to sample): the
 // structure returned is always one `rodfab validate` accepts.
 CadRods rodsFromCad(const std::filesystem::path& cadFile, const CadRodOptions& options);

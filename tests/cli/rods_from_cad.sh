@@ -25,6 +25,13 @@ for r in d["rods"]:
     assert sum(abs(x - y) > 1e-9 for x, y in zip(a, b)) == 1, (a, b)   # along one axis
 assert len(ends) == 8 and set(ends.values()) == {3}, ends
 PY
+# A tolerance above the box's 30 mm edges chains all 24 ends into one joint 37 mm across (its
+# diagonal): refused (exit 1, nothing written), not collapsed onto one point.
+"$rodfab" rods-from-cad "$tmp/box.step" --diameter 1 --joint-tolerance 35 -o "$tmp/lump.json" > "$tmp/out" 2>&1 &&
+  fail "a joint wider than the tolerance was accepted: $(cat "$tmp/out")"
+[ $? -eq 1 ] || fail "a joint wider than the tolerance: exit code"
+grep -q "24 curve ends chain into one joint 37.4 mm across" "$tmp/out" || fail "wide joint message: $(cat "$tmp/out")"
+[ ! -e "$tmp/lump.json" ] || fail "a joint wider than the tolerance wrote a design"
 
 "$make_cad" circle "$tmp/circle.iges" > /dev/null 2>&1 || fail "make_test_cad circle"
 "$rodfab" rods-from-cad "$tmp/circle.iges" --diameter 0.8 --section ellipse --breadth 1.2 -o "$tmp/circle.json" --json > "$tmp/j" 2>&1 ||
