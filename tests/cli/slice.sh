@@ -313,11 +313,11 @@ rod() {  # NAME DIAMETER POINTS
 }
 line='{ "degree": 1, "knots": [0,0,1,1], "points": [[0,0,0],[3,0,0]] }'
 bow() { echo "{ \"degree\": 2, \"knots\": [0,0,0,1,1,1], \"points\": [[0,0,0],[1,0,$1],[2,0,0]] }"; }
-grid_design fat "$(rod a 1 "$line")" "$(rod fat 1e308 "$line")"
-expect 1 'fat.json: the design spans 1e+308 mm along x: rods\[1\] ("fat") spans 1e+308 mm along x (its section.diameter of 1e+308 mm); expected at most 709676 mm along x (16777216 voxels along an axis at this printer.s voxel of 0.0423 mm)' "$tmp/fat.json" -o "$tmp/out/x.zip"
-# A section so wide that the rod's bounds overflow the double's range: said as such, not as "inf mm".
+grid_design fat "$(rod a 1 "$line")" "$(rod fat 1e6 "$line")"
+expect 1 'fat.json: the design spans 1e+06 mm along x: rods\[1\] ("fat") spans 1e+06 mm along x (its section.diameter of 1e+06 mm); expected at most 709676 mm along x (16777216 voxels along an axis at this printer.s voxel of 0.0423 mm)' "$tmp/fat.json" -o "$tmp/out/x.zip"
+# A section so wide that the rod's bounds would overflow the double's range: the design reader refuses it.
 grid_design wide "$(rod a 1 "$line")" "$(rod wide 1.7e308 '{ "degree": 1, "knots": [0,0,1,1], "points": [[0,0,0],[3,3,3]] }')"
-expect 1 'wide.json: the design spans more than 1.8e+308 mm along x: rods\[1\] ("wide") spans more than 1.8e+308 mm along x (its section.diameter of 1.7e+308 mm)' "$tmp/wide.json" -o "$tmp/out/x.zip"
+expect 1 'wide.json: rods\[1\].section.diameter: expected a diameter in mm of at most 1e6 (a kilometre), got 1.7e.308' "$tmp/wide.json" -o "$tmp/out/x.zip"
 grid_design tall "$(rod a 1 "$line")" "$(rod tall 1 "$(bow 1e8)")"
 expect 1 'tall.json: the design spans 5e+07 mm along z: rods\[1\] ("tall") spans 5e+07 mm along z (its control points centerline.points\[0\] at z = 0 mm and centerline.points\[1\] at z = 1e+08 mm); expected at most 503316 mm along z (16777216 voxels along an axis at this printer.s voxel of 0.03 mm)' "$tmp/tall.json" -o "$tmp/out/x.zip"
 grid_design apart "$(rod low 1 '{ "degree": 1, "knots": [0,0,1,1], "points": [[0,0,-4e5],[3,0,-4e5]] }')" "$(rod mid 1 "$line")" \
