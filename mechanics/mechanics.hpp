@@ -109,6 +109,9 @@ public:
   const Discretization& discretization() const;
   // Lowest collocation convergence order among the rods (degree p: p if even, p - 1 if odd).
   int convergenceOrder() const;
+  // The rod of largest length over thickness (its section's smaller dimension), as `rods[i] "NAME"`,
+  // and that ratio: past about 1e4 its stiffness is singular to double precision (E A L^2 / E I over 1e8).
+  std::pair<std::string, double> mostSlenderRod() const;
 
   // The undeformed configuration (a solution at load 0).
   const Eigen::VectorXd& referenceState() const;

@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <iomanip>
 #include <limits>
 #include <optional>
 #include <sstream>
@@ -43,6 +44,7 @@ public:
 
 private:
   void factorizeReference();
+  std::string singularReferenceMessage() const;
   Outcome newton(Eigen::VectorXd& x, double load, LoadStepReport& report);
   bool converged(const Eigen::VectorXd& x) const;
   bool factorize(JacobianLU::Pivoting pivoting = JacobianLU::Pivoting::Reuse);
@@ -95,6 +97,23 @@ void PathFollower::finish() {
   solution_.refactorizations = lu_->refactorizations();
 }
 
+// Why the reference Jacobian is singular: a mechanism, or (as often) a rod so slender that its
+// stiffness matrix is singular to double precision, which no support cures.
+std::string PathFollower::singularReferenceMessage() const {
+  std::string message = problem_.source() + ": the stiffness (Jacobian) of the undeformed structure is singular to working precision: "
+                        "either the structure is a mechanism (add supports: a single pinned end leaves rotation free; or join the "
+                        "loose rods)";
+  const auto [rod, ratio] = problem_.mostSlenderRod();
+  if (ratio >= 1e3) {
+    std::ostringstream text;
+    text << std::setprecision(3) << ratio;
+    message += ", or its rods are too slender for double precision: " + rod + " is " + text.str() +
+               " times longer than thick (above about 1e4 the bending and stretching stiffnesses lie 1e8 apart); "
+               "split it, thicken it or shorten it";
+  }
+  return message;
+}
+
 // The reference state's Jacobian: its determinant's sign is the stable one (the drawn design is
 // stress-free), and a singular one means the supports leave a rigid-body motion free. Rounding may
 // turn an exactly singular matrix into tiny pivots instead of a zero one, so solving J v = J 1 must
@@ -109,10 +128,7 @@ void PathFollower::factorizeReference() {
     const Eigen::VectorXd back = lu_->solve(jacobian_ * ones);
     regular = back.allFinite() && (back - ones).lpNorm<Eigen::Infinity>() < 1e-4;
   }
-  if (!regular)
-    throw MechanicsError(problem_.source() + ": the stiffness (Jacobian) of the undeformed structure is singular: the "
-                         "structure is a mechanism; add supports (a single pinned end leaves rotation free) or join "
-                         "the loose rods");
+  if (!regular) throw MechanicsError(singularReferenceMessage());
   referenceSign_ = lu_->determinantSign();
   relativeSign_ = 1;
 }

@@ -49,6 +49,17 @@ StaticProblem::StaticProblem(const Design& structure, const Discretization& disc
   m.buildLayouts();
 }
 
+std::pair<std::string, double> StaticProblem::mostSlenderRod() const {
+  std::pair<std::string, double> most{"", 0.0};
+  for (std::size_t r = 0; r < structure_->rods.size(); ++r) {
+    const DiscreteRod& rod = structure_->rods[r];
+    const geometry::Section& section = rod.source->section();
+    const double ratio = rod.length / std::min(section.width, section.height);
+    if (ratio > most.second) most = {rod.path + " \"" + rod.name + "\"", ratio};
+  }
+  return most;
+}
+
 Design loadCaseStructure(const Design& design, const LoadCase& loadCase) {
   Design out;
   out.source = design.source;

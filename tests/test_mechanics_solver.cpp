@@ -196,5 +196,14 @@ TEST_CASE("a structure that can move freely is a mechanism", "[mechanics]") {
   s.mechanics.supports[0].kind = mechanics::SupportKind::Pinned;  // free to turn about the pin
   const StaticProblem problem(s);
   mechanics::SolverOptions options;
-  CHECK_THROWS_WITH(mechanics::solve(problem, options, 1), Catch::Contains("mechanism"));
+  CHECK_THROWS_WITH(mechanics::solve(problem, options, 1), Catch::Contains("mechanism") && !Catch::Contains("too slender"));
+}
+
+TEST_CASE("a clamped rod too slender for double precision is said to be so, not only a mechanism", "[mechanics]") {
+  // L / d = 1e5: E A L^2 / E I = 1.6e11, past what the Jacobian's pivots resolve.
+  Design s = cantilever(straight(Vec3::Zero(), Vec3(100, 0, 0), 1, 2), Section::circle(1e-3), 1000.0, Vec3(0, 1e-12, 0), Vec3::Zero());
+  const StaticProblem problem(s);
+  CHECK(problem.mostSlenderRod().second == Approx(1e5));
+  CHECK_THROWS_WITH(mechanics::solve(problem, {}, 1),
+                    Catch::Contains("too slender for double precision: rods[0]") && Catch::Contains("1e+05 times longer than thick"));
 }
