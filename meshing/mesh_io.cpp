@@ -213,8 +213,12 @@ bool looksNumeric(const std::string& token) {
 // The readers stop, without saying where, at a number the stream cannot hold (1e999, inf, nan): the
 // message names the line and the token so the user can find it. Text formats only (a binary STL's
 // floats are checked by checkBinaryStlNumbers); nothing found leaves the generic message.
-std::string unreadableMeshMessage(const std::string& bytes, const std::string& format) {
-  const std::string generic = "not a readable " + format + " mesh (the " + format + " reader stopped; is the file complete?)";
+// `verticesOnly`: the vertices read when no face was (CGAL's OBJ reader fails a file of vertices
+// alone, which is no surface), said instead of the generic message.
+std::string unreadableMeshMessage(const std::string& bytes, const std::string& format, std::size_t verticesOnly) {
+  const std::string generic =
+      verticesOnly > 0 ? "the file holds " + std::to_string(verticesOnly) + " vertices and no faces (is it complete?)"
+                       : "not a readable " + format + " mesh (the " + format + " reader stopped; is the file complete?)";
   std::uint32_t count = 0;
   if (bytes.size() >= 84) std::memcpy(&count, bytes.data() + 80, 4);
   if (bytes.size() >= 84 && 84 + 50 * std::uint64_t(count) == bytes.size()) return generic;
@@ -264,8 +268,10 @@ std::vector<Triangle> triangulate(const std::vector<Point>& points, const std::v
     if (poly.size() < 3) throw MeshError(source, "face " + std::to_string(f) + " has fewer than 3 corners");
     for (std::size_t v : poly)
       if (v >= points.size())
-        throw MeshError(source, "face " + std::to_string(f) + " refers to vertex " + std::to_string(v) + " of " +
-                                    std::to_string(points.size()));
+        // A negative index (PLY's are signed) arrives wrapped around to near 2^64: said as written.
+        throw MeshError(source, "face " + std::to_string(f) + " refers to vertex " +
+                                    (v > std::size_t(std::numeric_limits<std::int64_t>::max()) ? std::to_string(std::int64_t(v)) : std::to_string(v)) +
+                                    " of " + std::to_string(points.size()) + " (vertices count from 0)");
     for (std::size_t k = 1; k + 1 < poly.size(); ++k)
       triangles.push_back({static_cast<std::uint32_t>(poly[0]), static_cast<std::uint32_t>(poly[k]),
                            static_cast<std::uint32_t>(poly[k + 1])});
@@ -420,7 +426,8 @@ TriangleMesh parseMesh(const std::string& bytes, const std::string& format, cons
   std::vector<Point> points;
   std::vector<Polygon> polygons;
   try {
-    if (!readSoup(text, format, points, polygons, source)) throw MeshError(source, unreadableMeshMessage(text, format));
+    if (!readSoup(text, format, points, polygons, source))
+      throw MeshError(source, unreadableMeshMessage(text, format, polygons.empty() ? points.size() : 0));
   } catch (const std::bad_alloc&) {
     // The readers size arrays from counts in the file (a face's corner count, an element count).
     throw MeshError(source, "the file declares more elements than the memory budget holds (a count in it is wrong?)");

@@ -42,6 +42,11 @@ TEST_CASE("bad meshes get an error naming the file and the problem", "[meshing]"
   CHECK_THAT(meshError(scratch("missing.stl")), Catch::Contains("no such file"));
   writeText(scratch("empty.obj"), "");
   CHECK_THAT(meshError(scratch("empty.obj")), Catch::Contains("no faces"));
+  writeText(scratch("points.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\n");  // complete, but no surface
+  CHECK_THAT(meshError(scratch("points.obj")), Catch::Contains("points.obj: the file holds 3 vertices and no faces (is it complete?)"));
+  writeText(scratch("negative.ply"), "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+                                     "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 -5\n");
+  CHECK_THAT(meshError(scratch("negative.ply")), Catch::Contains("face 0 refers to vertex -5 of 4 (vertices count from 0)"));
   writeText(scratch("garbage.off"), "OFF\n3 1 0\n0 0 0\n1 0 0\n");
   CHECK_THAT(meshError(scratch("garbage.off")), Catch::Contains("not a readable off mesh"));
   writeText(scratch("huge.off"), "OFF\n1000000000 1000000000 0\n");
