@@ -5,6 +5,7 @@
 
 #include "common/json_input.hpp"
 
+#include <algorithm>
 #include <utility>
 
 namespace rodfab::mechanics::detail {
@@ -55,6 +56,9 @@ void MechanicsReader::loadCases(const json& j, const std::string& path, const Ro
     if (auto t = c.find("target"); t != c.end()) target(*t, memberPath(cp, "target"), names, lc);
     spec.loadCases.push_back(std::move(lc));
   }
+  if (spec.loadCases.size() == j.size() &&
+      std::all_of(spec.loadCases.begin(), spec.loadCases.end(), [](const LoadCase& lc) { return lc.weight == 0.0; }))
+    fail(path, "every load case's weight is 0: the objective would be empty (expected at least one weight > 0)");
 }
 
 // "target": {"design": PATH} (read by readDesign, relative to the design file) or

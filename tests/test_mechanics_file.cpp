@@ -227,6 +227,10 @@ TEST_CASE("Bad load cases, targets and optimize blocks are reported with their p
   REQUIRE_ISSUE(edit([](json& d) { d["optimize"]["position_weight"] = 1e308; }), "optimize.position_weight", "from 1e-06 to 1e+06");
   REQUIRE_ISSUE(edit([](json& d) { d["optimize"]["position_weight"] = 0, d["optimize"]["curvature_weight"] = 0; }), "optimize",
                 "both 0: the objective would be empty");
+  REQUIRE_ISSUE(edit([](json& d) {
+                  for (json& c : d["mechanics"]["load_cases"]) c["weight"] = 0;
+                }),
+                "mechanics.load_cases", "every load case's weight is 0: the objective would be empty");
   REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"] = json::array(); }), "mechanics.load_cases", "non-empty array");
   REQUIRE_ISSUE(edit([](json& d) { d["mechanics"]["load_cases"][0]["target"] = {{"shape", 1}}; }),
                 "mechanics.load_cases[0].target", "expected {\"design\": PATH}");
