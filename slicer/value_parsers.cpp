@@ -142,6 +142,8 @@ std::array<std::string, 2> parseMaterialPair(const std::string& option, const st
   if (comma != std::string::npos) pair = {text.substr(0, comma), text.substr(comma + 1)};
   if (pair[0].empty() || pair[1].empty() || pair[1].find(',') != std::string::npos)
     throw BadValue(option + ": expected RIGID,RUBBERY (two material names), got '" + text + "'");
+  if (pair[0] == pair[1])
+    throw BadValue(option + ": expected two different materials (the coupons mix a rigid and a rubbery one), got '" + text + "'");
   return pair;
 }
 

@@ -34,7 +34,7 @@ std::array<int, 3> parseSizeVoxels(const std::string& option, const std::string&
 std::array<double, 3> parseVoxelSizeMm(const std::string& option, const std::string& text);
 
 // "VeroUltraWhite,Agilus30Black" -> {"VeroUltraWhite", "Agilus30Black"}: the rigid and the rubbery
-// material, two non-empty names without a comma in them.
+// material, two different non-empty names without a comma in them.
 std::array<std::string, 2> parseMaterialPair(const std::string& option, const std::string& text);
 
 // A number as the messages print it: up to 10 significant digits, no trailing zeros ("%.10g").

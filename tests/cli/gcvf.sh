@@ -100,6 +100,9 @@ grep -q "materials:     VeroUltraWhite (rigid), Agilus30Black (rubbery)" "$tmp/o
 ! grep -q -i "warning" "$tmp/summary" "$tmp/err" || fail "a matching calibration warned"
 "$rodfab" calibrate "$src/examples/calibration/vero-tango-60C.csv" --materials VeroUltraWhite > /dev/null 2>&1
 [ $? -eq 2 ] || fail "calibrate --materials with one name: expected exit 2"
+"$rodfab" calibrate "$src/examples/calibration/vero-tango-60C.csv" --materials VeroUltraWhite,VeroUltraWhite -o "$tmp/same.json" 2> "$tmp/err"
+[ $? -eq 2 ] && grep -q "expected two different materials" "$tmp/err" && [ ! -e "$tmp/same.json" ] ||
+  fail "calibrate --materials naming one material twice: expected exit 2: $(cat "$tmp/err")"
 # The Connex3 with its own calibration: no warning.
 "$rodfab" slice "$tmp/rod.json" -o "$tmp/c3.zip" --quiet > "$tmp/summary" 2> "$tmp/err" || fail "connex3 slice"
 ! grep -q -i "warning" "$tmp/summary" "$tmp/err" || fail "connex3 with its calibration warned: $(cat "$tmp/err")"
