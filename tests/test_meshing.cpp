@@ -204,3 +204,29 @@ TEST_CASE("rods-from-mesh never returns a design validate refuses: a tetrahedron
   CHECK_THROWS_WITH(meshing::rodsFromMesh(file, options), Catch::StartsWith(file.string()) && Catch::Contains("rod-") &&
                                                               Catch::Contains("the design would not be valid"));
 }
+
+TEST_CASE("a mesh far from the origin is fitted as well as the same mesh at the origin", "[meshing]") {
+  // The same bumpy sphere (10 mm) at the origin and 1e7 mm out (written with 17 digits): worked on in
+  // place, the far one's fits bent tighter than their section (31 rods of an icosphere at 1e7 mm).
+  // Its coordinates round at 1e7 mm, so the simplification may collapse other edges: the fits are
+  // compared by their measures, and the far rods must lie where the mesh is.
+  const testing::SimpleMesh near = testing::bumpySphere(8, 10.0);
+  testing::SimpleMesh far = near;
+  const Vec3 offset(1e7, -3e7, 2e7);
+  for (auto& p : far.points) p += offset;
+  testing::writeObj(near, scratch("near.obj"));
+  testing::writeObj(far, scratch("far.obj"));
+  meshing::MeshRodOptions options;
+  options.faces = 120;
+  const meshing::MeshRods a = meshing::rodsFromMesh(scratch("near.obj"), options);
+  const meshing::MeshRods b = meshing::rodsFromMesh(scratch("far.obj"), options);
+  REQUIRE(a.structure.rods.size() == b.structure.rods.size());
+  CHECK(b.report.rodsBentTighterThanSection == a.report.rodsBentTighterThanSection);
+  CHECK(b.report.smallestBendRadius == Approx(a.report.smallestBendRadius).epsilon(0.2));
+  CHECK(b.report.largestSurfaceDistance <= options.surfaceTolerance);
+  CHECK(b.report.rodsAboveTolerance == a.report.rodsAboveTolerance);
+  for (const auto& rod : b.structure.rods) {
+    const Vec3 p = rod.centerline().point(rod.centerline().domainBegin()) - offset;
+    CHECK(p.norm() == Approx(10.0).epsilon(0.1));  // on the sphere, bumps of 8 %
+  }
+}
