@@ -228,6 +228,22 @@ TEST_CASE("the design's own basis (degree 0) is refined or refused, never used a
   CHECK(StaticProblem(quartic, designBasis(0)).discretization().perRod[0] == 1);
 }
 
+TEST_CASE("weights more than 100 apart are refused: the parameter they make runs too unevenly to collocate in", "[mechanics]") {
+  // A straight 20 mm quadratic whose middle weight w tucks its ends into hooks: at w = 0.001 the
+  // cantilever bent 15 times too little while its error estimate said a third of that.
+  const auto withWeight = [](double w) {
+    return cantilever(geometry::NurbsCurve(2, {0, 0, 0, 1, 1, 1}, {Vec3(0, 0, 0), Vec3(10, 10, 0), Vec3(20, 0, 0)}, {1, w, 1}),
+                      Section::circle(1.0), 100.0, Vec3(0, 0, -1e-3), Vec3::Zero());
+  };
+  CHECK_THROWS_WITH(StaticProblem(withWeight(1e-3)),
+                    Catch::Contains("rods[0].centerline.weights: weights from 0.001 to 1 (a ratio over 100)"));
+  CHECK_THROWS_WITH(StaticProblem(withWeight(1e6)), Catch::Contains("rods[0].centerline.weights"));
+  CHECK_NOTHROW(StaticProblem(withWeight(0.01)));
+  // A quarter circle's weights (1 and 0.71) are far inside.
+  CHECK_NOTHROW(StaticProblem(cantilever(arc(40, -kPi / 2, 0, Vec3(0, 40, 0)), Section::circle(1.0), 100.0, Vec3(0, 0, -0.05),
+                                         Vec3::Zero(), Vec3(0, 0, 1))));
+}
+
 TEST_CASE("a kink of E(s) is followed by rebuilt rods, and on the design's basis kept off collocation points", "[mechanics]") {
   // A quartic rod, E falling from 100 to 20 MPa at its middle and back: kinked at u = 0.5.
   Design s = cantilever(straight(Vec3::Zero(), Vec3(20, 0, 0), 4, 5), Section::circle(1.0), 100.0, Vec3(0, -0.05, 0),
