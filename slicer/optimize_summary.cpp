@@ -93,8 +93,9 @@ void printOptimizeSummary(const OptimizeSummary& summary) {
     std::printf("  case %-20s weight %-6g g %.6g -> %.6g\n", ("\"" + r.final.cases[i].name + "\"").c_str(),
                 r.final.cases[i].weight, r.initial.cases[i].total(), r.final.cases[i].total());
   printAccuracy(summary.accuracy);
-  std::printf("modulus:   %.4g .. %.4g MPa\ntime:      %.2f s\nwrote:     %s\n", r.modulus.minCoeff(), r.modulus.maxCoeff(),
-              r.seconds, c.output.c_str());
+  // The fields' control values, which bound E(s) (a B-spline lies in their range) but are not its extremes.
+  std::printf("modulus:   control values %.4g .. %.4g MPa (E(s) lies within them)\ntime:      %.2f s\nwrote:     %s\n",
+              r.modulus.minCoeff(), r.modulus.maxCoeff(), r.seconds, c.output.c_str());
   if (!c.plot.empty()) std::printf("plot:      %s\n", c.plot.c_str());
   if (!c.render.empty()) std::printf("render:    %s\n", c.render.c_str());
 }
