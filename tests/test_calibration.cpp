@@ -303,7 +303,7 @@ TEST_CASE("another floor gives its own fraction", "[calibration][clamp]") {
   CHECK_THAT(fitError(kPublished, Model::Pchip, 190.0), Catch::Contains("below 190 MPa (100 % Vero)"));
 }
 
-TEST_CASE("pchip refuses means that do not increase, naming the fractions; parametric models fit them", "[calibration][fit]") {
+TEST_CASE("pchip refuses means that do not increase, naming the fractions, parametric models fit them", "[calibration][fit]") {
   const std::string csv = "vero_fraction,modulus_mpa\n0,0.5\n0.4,12\n0.4,13\n0.5,11\n0.7,11\n1,190\n";
   const std::string message = fitError(csv);
   CHECK_THAT(message, Catch::Contains("test.csv: the mean modulus does not strictly increase with the Vero fraction"));

@@ -233,7 +233,7 @@ TEST_CASE("A .gcvf holds the part: every pixel is the voxel's material colour, c
   }
 }
 
-TEST_CASE("A .gcvf has the same bytes for any band size; the folder form the same layers", "[gcvf][writer]") {
+TEST_CASE("A .gcvf has the same bytes for any band size, the folder form the same layers", "[gcvf][writer]") {
   const auto grid = part(j750(), 5);
   std::string first;
   for (const int bandLayers : {1, 4, 64}) {
@@ -327,7 +327,7 @@ TEST_CASE("The XML writer escapes text", "[gcvf][writer]") {
   CHECK_THAT(xml, Catch::Contains("J750 &lt;lab &amp; &quot;co&quot;&gt;"));
 }
 
-TEST_CASE("Calibrations record their materials; another pair is refused unless forced or the bundled stand-in", "[gcvf][calibration]") {
+TEST_CASE("Calibrations record their materials, another pair is refused unless forced or the bundled stand-in", "[gcvf][calibration]") {
   using rodfab::slicer::checkCalibrationMaterials;
   const rodfab::calibration::Calibration bundled = rodfab::calibration::loadDefaultCalibration();
   CHECK(bundled.record().rigidMaterial == "VeroWhitePlus");

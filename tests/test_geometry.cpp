@@ -331,7 +331,7 @@ TEST_CASE("Derivatives from below a kink are those of the span ending there", "[
   REQUIRE((unitTangentFromBelow(Vec3::Zero(), Vec3(0, 0, 2)) - Vec3(0, 0, -1)).norm() < 1e-15);
 }
 
-TEST_CASE("C0 points split a rod into smooth pieces; the joint follows the caps", "[rod][kink]") {
+TEST_CASE("C0 points split a rod into smooth pieces, the joint follows the caps", "[rod][kink]") {
   const Rod round = rodOf(bentPolyline(), 1.0, CapStyle::Round), flat = rodOf(bentPolyline(), 1.0, CapStyle::Flat);
   REQUIRE(round.smoothPieces().size() == 2);
   const SmoothPiece& first = round.smoothPieces()[0];

@@ -141,7 +141,7 @@ TEST_CASE("A syntax error quotes the file's bytes escaped: C1 controls, DEL, ESC
   CHECK(errorOf("{\"\xc2\x9b\": [[1]]}", 2).path == "\\xc2\\x9b[0]");
 }
 
-TEST_CASE("printableJsonError escapes only the text quoted from the file; the library's words stay", "[common]") {
+TEST_CASE("printableJsonError escapes only the text quoted from the file, the library's words stay", "[common]") {
   using rodfab::common::printableJsonError;
   CHECK(printableJsonError("[json.exception.parse_error.101] parse error at line 1, column 3: syntax error while parsing value - "
                            "invalid literal; last read: 'x\xff'; expected end of input") ==

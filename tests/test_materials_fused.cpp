@@ -156,7 +156,7 @@ TEST_CASE("materials: mapping and dithering in one pass: active tiles, reversed 
   }
 }
 
-TEST_CASE("materials: mapping and dithering in one pass checks for an interrupt before each leaf; one that throws leaves the counts untouched",
+TEST_CASE("materials: mapping and dithering in one pass checks for an interrupt before each leaf, one that throws leaves the counts untouched",
           "[materials][mapping][fused]") {
   const FractionMap map(rodfab::calibration::loadDefaultCalibration());
   const auto modulus = randomModulusGrid(11, edgeModuli(map));

@@ -335,7 +335,7 @@ TEST_CASE("an optimum on both bounds prints without a clamped voxel (issue 16)",
   CHECK(stats.clamps.aboveMax == 0);
 }
 
-TEST_CASE("an optimized design resumes from its own control values; drawn shapes are the solved states", "[optimize]") {
+TEST_CASE("an optimized design resumes from its own control values, drawn shapes are the solved states", "[optimize]") {
   const optimize::Settings settings = testSettings();
   optimize::DesignProblem problem(manufactured(settings, 7), settings);
   const Eigen::VectorXd e = randomModulus(problem.variableCount(), 20, 150, 9);

@@ -236,7 +236,7 @@ TEST_CASE("withdrawJob removes nothing that is not the job it wrote", "[job][int
   CHECK(fs::exists(dir / "moved.zip"));
 }
 
-TEST_CASE("Staging folders of dead writers go, whatever their target; live ones and strangers stay", "[job][atomic]") {
+TEST_CASE("Staging folders of dead writers go, whatever their target, live ones and strangers stay", "[job][atomic]") {
   const fs::path dir = scratch("stale-staging");
   const auto grid = overhangPart(27);
   // A writer killed mid-job (SIGKILL: no cleanup at all).

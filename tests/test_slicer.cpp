@@ -19,7 +19,7 @@ TEST_CASE("progress shows no rate before a second has passed, then the true one"
   CHECK(later.find("100/200 layers (50%), 50 layers/s, 2 s left") == 0);
 }
 
-TEST_CASE("progress stopped before the end claims nothing done; finished, it says done") {
+TEST_CASE("progress stopped before the end claims nothing done, finished, it says done") {
   for (const auto mode : {cli::Progress::Mode::Lines, cli::Progress::Mode::Bar}) {
     std::ostringstream out;
     cli::Progress progress("layers", 3000, mode, out);

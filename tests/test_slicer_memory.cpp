@@ -25,7 +25,7 @@ TEST_CASE("couponJobBytes counts error diffusion's layer slots over the bars' re
   CHECK(slots <= 8 * 100.0 * layerVoxels);  // and not the whole tray's layer: at most 4 workers + 3 slots
 }
 
-TEST_CASE("sliceDesign refuses a slice over the memory budget before any band, writing nothing; the message says what to change") {
+TEST_CASE("sliceDesign refuses a slice over the memory budget before any band, writing nothing, the message says what to change") {
   openvdb::initialize();
   TempDir tmp;
   // A 200 x 200 x 3 mm plate: 11 M voxels a layer, 100 layers, several GB in bands of 64 layers.

@@ -23,7 +23,7 @@ TEST_CASE("automaticBandLayers is 21 Mi voxels over the layer's voxels in whole 
   CHECK(slicer::automaticBandLayers(part(673, 512)) == 56);    // one column more: 7.99 slabs
 }
 
-TEST_CASE("streamJob writes every band's material; the bytes do not depend on the band size") {
+TEST_CASE("streamJob writes every band's material, the bytes do not depend on the band size") {
   openvdb::initialize();
   TempDir tmp;
   const openvdb::CoordBBox rigid(openvdb::Coord(0, 0, 0), openvdb::Coord(39, 19, 22));
@@ -64,7 +64,7 @@ TEST_CASE("streamJob writes every band's material; the bytes do not depend on th
   CHECK(zips[1] == zips[5]);
 }
 
-TEST_CASE("streamJob: bands of whole slabs end on slab boundaries, bands of 4 within a slab, the first one shorter; the same bytes") {
+TEST_CASE("streamJob: bands of whole slabs end on slab boundaries, bands of 4 within a slab, the first one shorter, the same bytes") {
   openvdb::initialize();
   TempDir tmp;
   const openvdb::CoordBBox rigid(openvdb::Coord(0, 0, 3), openvdb::Coord(39, 19, 25));
