@@ -64,7 +64,8 @@ const std::vector<pp::ZipEntry>& stagedEntries() {
     for (int n = 0; n < kEntries; ++n) {
       const pp::Bytes& b = images()[static_cast<std::size_t>(n)];
       out.write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
-      v.push_back({layerName(n), {}, pp::ZipStorage::Store, pp::StagedZipData{offset, b.size(), b.size(), pp::zipCrc32(b)}});
+      v.push_back({layerName(n), {}, pp::ZipStorage::Store,
+                   pp::StagedZipData{.offset = offset, .length = b.size(), .size = b.size(), .crc32 = pp::zipCrc32(b), .storage = pp::ZipStorage::Store}});
       offset += b.size();
     }
     return v;

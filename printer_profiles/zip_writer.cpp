@@ -243,10 +243,11 @@ void writeZip(const fs::path& zipPath, const std::vector<ZipEntry>& entries, con
   StagedFile staged(stagedFile);  // declared first: the zip's sources, which read through it, go before it
   ZipBuilder zip(zipPath);
   for (const ZipEntry& e : entries) {
-    const ZipStorage storage = e.staged ? e.staged->storage : e.storage;
-    zip_source_t* source = e.staged ? stagedSource(zip.archive(), e.name, *e.staged, storage, staged)
+    if (e.staged && e.staged->storage != e.storage)
+      throw std::logic_error("writeZip: entry " + e.name + " is staged as one method and listed as the other");
+    zip_source_t* source = e.staged ? stagedSource(zip.archive(), e.name, *e.staged, e.storage, staged)
                                     : zip_source_file(zip.archive(), e.source.c_str(), 0, -1);
-    zip.add(e.name, source, storage);
+    zip.add(e.name, source, e.storage);
   }
   zip.close(staged.failure());
 }

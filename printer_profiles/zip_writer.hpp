@@ -31,9 +31,9 @@ struct StagedZipData {
 struct ZipEntry {
   std::string name;                  // inside the archive
   std::filesystem::path source;      // file on disk, read by libzip when the archive is closed
-  ZipStorage storage = ZipStorage::Deflate;  // how libzip stores `source`
+  ZipStorage storage = ZipStorage::Deflate;  // how the entry is stored (for `staged`, what its bytes are)
   // Instead of `source`: data compressed beforehand (in parallel, band by band), copied into the
-  // archive without recompressing as its own `storage` says (the entry's is not used then).
+  // archive without recompressing; its own `storage` must be the entry's (writeZip: std::logic_error).
   std::optional<StagedZipData> staged;
 };
 

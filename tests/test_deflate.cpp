@@ -121,7 +121,7 @@ Data ditheredNoise(std::size_t size, double p, unsigned seed) {
   return data;
 }
 
-TEST_CASE("deflateWouldNotShrink agrees with deflating the whole input; deflateStored is read back by zlib", "[deflate]") {
+TEST_CASE("deflateWouldNotShrink agrees with deflating the whole input, deflateStored is read back by zlib", "[deflate]") {
   Data halfNoise = ditheredNoise(268'000, 0.5, 9);
   std::fill(halfNoise.begin(), halfNoise.begin() + 134'000, 0);
   Data framedNoise = ditheredNoise(268'000, 0.5, 10);  // noise inside a 5 % blank frame (the part in its image)
@@ -189,7 +189,7 @@ TEST_CASE("DeflateStream in pieces makes a stream zlib reads", "[deflate]") {
   CHECK_THROWS_AS(ended.add({}, true), std::logic_error);
 }
 
-TEST_CASE("CRC-32 and inflate agree with zlib; damaged or short data is refused", "[deflate]") {
+TEST_CASE("CRC-32 and inflate agree with zlib, damaged or short data is refused", "[deflate]") {
   const Data image = layerLike(1'500'000, 4);  // inflates to more than one 64 KiB output buffer
   const std::uint32_t zlibCrc = static_cast<std::uint32_t>(crc32(0, image.data(), static_cast<uInt>(image.size())));
   CHECK(zipCrc32(image) == zlibCrc);
@@ -220,7 +220,7 @@ TEST_CASE("CRC-32 and inflate agree with zlib; damaged or short data is refused"
   CHECK(status == InflateStream::Status::Damaged);
 }
 
-TEST_CASE("writeZip copies staged deflate data as it is; libzip reads it back", "[deflate][zip]") {
+TEST_CASE("writeZip copies staged deflate data as it is, libzip reads it back", "[deflate][zip]") {
   const fs::path dir = fs::temp_directory_path() / ("rodfab-test-staged-" + std::to_string(::getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir);
@@ -233,8 +233,8 @@ TEST_CASE("writeZip copies staged deflate data as it is; libzip reads it back", 
   std::ofstream(staged, std::ios::binary).write(reinterpret_cast<const char*>(blob.data()), static_cast<std::streamsize>(blob.size()));
   const auto entry = [&](const char* name, std::uint64_t offset, const Data& packed, const Data& plain, ZipStorage storage) {
     StagedZipData data{offset, packed.size(), plain.size(), zipCrc32(plain)};
-    data.storage = storage;  // a staged entry's method is its data's own
-    return ZipEntry{name, {}, ZipStorage::Deflate, data};
+    data.storage = storage;  // the entry's and its data's method agree (writeZip checks)
+    return ZipEntry{name, {}, storage, data};
   };
   const std::vector<ZipEntry> entries{entry("a.bmp", 0, da, a, ZipStorage::Deflate),
                                       entry("b.bmp", da.size(), db, b, ZipStorage::Deflate),

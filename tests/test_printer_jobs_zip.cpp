@@ -163,7 +163,7 @@ TEST_CASE("The libzip source adapter answers ERROR, FREE and SUPPORTS itself and
   CHECK(deleted == 3);
 }
 
-TEST_CASE("Staged entries kept in memory are read from memory, even empty ones; the staged file only for the others", "[job][zip]") {
+TEST_CASE("Staged entries kept in memory are read from memory, even empty ones, the staged file only for the others", "[job][zip]") {
   const fs::path dir = scratchDir("staged-memory");
   const Bytes kept{'k', 'e', 'p', 't'}, none;
   {
@@ -171,6 +171,7 @@ TEST_CASE("Staged entries kept in memory are read from memory, even empty ones; 
   }
   const auto inMemory = [](const Bytes& data) {
     StagedZipData z{0, data.size(), data.size(), zipCrc32(data)};
+    z.storage = ZipStorage::Store;
     z.inMemory = true;
     z.memory = data;
     return z;
@@ -181,7 +182,7 @@ TEST_CASE("Staged entries kept in memory are read from memory, even empty ones; 
   // empty entry counted as "in the staged file" and failed to open it.
   writeZip(dir / "memory.zip", entries, dir / "absent.bin");
   const Bytes filed{'f', 'i', 'l', 'e', 'd'};
-  entries.push_back({"filed.bin", {}, ZipStorage::Store, StagedZipData{0, 5, 5, zipCrc32(filed)}});
+  entries.push_back({"filed.bin", {}, ZipStorage::Store, StagedZipData{.offset = 0, .length = 5, .size = 5, .crc32 = zipCrc32(filed), .storage = ZipStorage::Store}});
   writeZip(dir / "both.zip", entries, dir / "staged.bin");
   const std::unique_ptr<JobReader> reader = openJobReader(dir / "both.zip", 10, 4);
   REQUIRE(reader->entries().size() == 3);
@@ -241,8 +242,8 @@ TEST_CASE("The archive writer never replaces a file, and a failed write leaves n
   {
     std::ofstream(dir / "staged.bin", std::ios::binary) << "0123456789";
   }
-  const std::vector<ZipEntry> entries{{"ok.bin", {}, ZipStorage::Store, StagedZipData{0, 5, 5, 0}},
-                                      {"short.bin", {}, ZipStorage::Store, StagedZipData{5, 50, 50, 0}}};
+  const std::vector<ZipEntry> entries{{"ok.bin", {}, ZipStorage::Store, StagedZipData{.offset = 0, .length = 5, .size = 5, .storage = ZipStorage::Store}},
+                                      {"short.bin", {}, ZipStorage::Store, StagedZipData{.offset = 5, .length = 50, .size = 50, .storage = ZipStorage::Store}}};
   CHECK_THROWS_WITH(writeZip(dir / "short.zip", entries, dir / "staged.bin"),
                     Catch::Matchers::Contains("short.bin: " + (dir / "staged.bin").string() + " at bytes 5 to 55: the file ends first"));
   CHECK_FALSE(fs::exists(dir / "short.zip"));
@@ -324,7 +325,7 @@ void sameAsGrid(const openvdb::BoolGrid& grid, const DecodedBitmap& d, int layer
 
 }  // namespace
 
-TEST_CASE("Layer images of dithered noise are stored, mostly blank ones deflated; the job decodes back and inspects clean", "[job][zip]") {
+TEST_CASE("Layer images of dithered noise are stored, mostly blank ones deflated, the job decodes back and inspects clean", "[job][zip]") {
   const auto grid = noiseGrid();
   const fs::path dir = scratchDir("noise");
   rodfab::test::writeJob(*grid, rodfab::test::specFor(*grid, dir / "noise.zip"), 1);
@@ -370,7 +371,14 @@ TEST_CASE("Layer images of dithered noise are stored, mostly blank ones deflated
   rodfab::test::writeJob(*grid, png, 2);
   CHECK(inspectJob(dir / "noise-png").ok());
   const Bytes layer0 = rodfab::test::readAll(dir / "noise-png" / "VeroWhitePlus_0000.png");
-  CHECK(layer0.size() > 66'000);  // stored: 1 bit a pixel as it is
+  CHECK(layer0.size() > 66'000);  // 1 bit a pixel as it is
+  // The IDAT's zlib stream (after the 8-byte signature, IHDR's 25 bytes, pHYs's 21, IDAT's length and
+  // type) opens with a stored block: BTYPE 00 in bits 1-2 of the first byte after the 2-byte header.
+  const std::size_t idat = 8 + 25 + 21;
+  REQUIRE(std::string(layer0.begin() + idat + 4, layer0.begin() + idat + 8) == "IDAT");
+  CHECK(((layer0[idat + 8 + 2] >> 1) & 3) == 0);
+  const Bytes blank = rodfab::test::readAll(dir / "noise-png" / "VeroWhitePlus_0001.png");  // nearly blank: deflated
+  CHECK(((blank[idat + 8 + 2] >> 1) & 3) != 0);
   sameAsGrid(*grid, decodePng1(layer0), 0, true, i0, j0);
   sameAsGrid(*grid, decodePng1(rodfab::test::readAll(dir / "noise-png" / "TangoBlackPlus_0001.png")), 1, false, i0, j0);
   fs::remove_all(dir);
