@@ -369,10 +369,12 @@ Simulation simulate(const Design& design, Discretization discretization, const S
 // and load steps in place of the block's own, and no load cases (what the optimizer solves per case).
 Design loadCaseStructure(const Design& design, const LoadCase& loadCase);
 
-// Every check a solve would make before it starts (StaticProblem's, on the default discretization),
-// for the design's own "mechanics" block or, when it lists load cases, for each case's structure;
-// nothing is solved. Throws MechanicsError as StaticProblem does, a case's message prefixed with
-// `load case "NAME" (PATH): `. For a design without a "mechanics" block there is nothing to check.
+// Every check a solve would make before it starts (StaticProblem's, on the default discretization:
+// the places, supports and joints, and the solver's limits: unknowns, weights, tolerances), for the
+// design's own "mechanics" block (what simulate solves; skipped when load cases stand in for it and it
+// has no supports or loads) and for each load case's structure (what optimize solves); nothing is
+// solved. Throws MechanicsError as StaticProblem does, a case's message as `FILE: load case "NAME"
+// (PATH): JSON.PATH: what`. For a design without a "mechanics" block there is nothing to check.
 void checkMechanics(const Design& design);
 
 }  // namespace rodfab::mechanics

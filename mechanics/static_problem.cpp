@@ -75,15 +75,19 @@ Design loadCaseStructure(const Design& design, const LoadCase& loadCase) {
 
 void checkMechanics(const Design& design) {
   if (!design.mechanics.present) return;
-  if (design.mechanics.loadCases.empty()) {
-    StaticProblem problem(design);
-    return;
-  }
-  for (const LoadCase& lc : design.mechanics.loadCases) {
+  const MechanicsSpec& m = design.mechanics;
+  // The block's own supports and loads are what simulate solves, load cases or not.
+  if (m.loadCases.empty() || !m.supports.empty() || !m.loads.empty() || !m.distributedLoads.empty()) StaticProblem problem(design);
+  for (const LoadCase& lc : m.loadCases) {
+    const Design structure = loadCaseStructure(design, lc);  // outlives the problem, which points into it
     try {
-      StaticProblem problem(loadCaseStructure(design, lc));
+      StaticProblem problem(structure);
     } catch (const MechanicsError& e) {
-      throw MechanicsError("load case \"" + lc.name + "\" (" + lc.path + "): " + e.what());
+      // FILE: load case "NAME" (PATH): JSON.PATH: what
+      std::string what = e.what();
+      const std::string file = design.source + ": ", which = "load case \"" + lc.name + "\" (" + lc.path + "): ";
+      what.insert(what.starts_with(file) ? file.size() : 0, which);
+      throw MechanicsError(what);
     }
   }
 }

@@ -41,7 +41,7 @@ int runValidate(const std::vector<std::string>& args) {
               << "; the design is not valid\n";
     return kFailed;
   } catch (const mechanics::MechanicsError& e) {
-    std::cerr << e.what() << '\n' << file << ": its \"mechanics\" block cannot be simulated; the design is not valid\n";
+    std::cerr << e.what() << '\n' << file << ": its \"mechanics\" block cannot be solved (simulate, or optimize for a load case); the design is not valid\n";
     return kFailed;
   }
   if (vm.count("json")) {

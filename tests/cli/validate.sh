@@ -58,6 +58,8 @@ end = lambda e: {"rod": "c", "end": e}
 cases = {"far": {"supports": [{"at": end("start"), "type": "clamped"}], "loads": [{"at": {"point": [100, 100, 100]}, "force": [0, 1, 0]}]},
          "unsupported": {"supports": [], "loads": [{"at": end("end"), "force": [0, 1, 0]}]},
          "fine": {"supports": [{"at": end("start"), "type": "clamped"}], "loads": [{"at": end("end"), "force": [0, 1, 0]}]}}
+# Load cases for optimize beside a top-level block simulate solves: both are checked.
+cases["far_top"] = dict(cases["far"], load_cases=[dict(cases["fine"], name="ok", target={"rods": {"c": {"centerline": rod["centerline"], "normal": [0, 0, 1]}}})])
 for name, m in cases.items():
     json.dump({"format": "rodfab.design/1", "units": "mm", "rods": [rod], "mechanics": m}, open("%s/%s.json" % (sys.argv[1], name), "w"))
 PY
@@ -65,6 +67,9 @@ PY
 [ $? -eq 1 ] && grep -q "far.json: mechanics.loads\[0\].at.point: no rod lies within joint_tolerance" "$tmp/err" &&
   grep -q "the design is not valid" "$tmp/err" || fail "a load point near no rod: $(cat "$tmp/err")"
 [ ! -s "$tmp/out" ] || fail "a design its solve would refuse printed a summary"
+"$rodfab" validate "$tmp/far_top.json" > /dev/null 2> "$tmp/err"
+[ $? -eq 1 ] && grep -q "far_top.json: mechanics.loads\[0\].at.point: no rod lies within" "$tmp/err" ||
+  fail "a bad top-level load beside load cases: $(cat "$tmp/err")"
 "$rodfab" validate "$tmp/unsupported.json" > /dev/null 2> "$tmp/err"
 [ $? -eq 1 ] && grep -q "mechanics.supports: no support" "$tmp/err" || fail "no support: $(cat "$tmp/err")"
 "$rodfab" validate "$tmp/fine.json" > /dev/null 2>&1 || fail "a cantilever with its support and load does not validate"
