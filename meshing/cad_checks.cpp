@@ -408,9 +408,13 @@ void addDroppedSetMembers(const Handle(Transfer_TransientProcess)& process, cons
 void addDroppedCompositeMembers(const Handle(Interface_InterfaceModel)& model, int number, std::map<int, std::string>& lost) {
   if (Handle(IGESGeom_CompositeCurve)::DownCast(model->Value(number)).IsNull()) return;
   const Handle(Interface_Check)& check = model->Check(number, Standard_True);
-  if (check.IsNull() || check->NbWarnings() == 0) return;
+  if (check.IsNull()) return;
+  // Only the member list's warning ("Some pointers in entity list are null or negative"): a bad
+  // associativity or property pointer is warned about too, and loses no member.
   std::string text;
-  for (int i = 1; i <= check->NbWarnings() && i <= 3; ++i) text += (i > 1 ? "; " : "") + std::string(check->CWarning(i));
+  for (int i = 1; i <= check->NbWarnings(); ++i)
+    if (const std::string w = check->CWarning(i); w.find("entity list") != std::string::npos) text += (text.empty() ? "" : "; ") + w;
+  if (text.empty()) return;
   lost.emplace(number, "entity " + entityName(model, model->Value(number)) + ": members left out while reading it: " +
                            common::printableFromFile(text, 600));
 }

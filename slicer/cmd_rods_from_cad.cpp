@@ -47,9 +47,9 @@ int runRodsFromCad(const std::vector<std::string>& args) {
   warnThickRods(result.summary, o.section);
   const meshing::CadRodReport& r = result.report;
   if (r.untranslated > 0)
-    std::fprintf(stderr, "warning: OpenCASCADE could not convert %zu %s of the model, left out of the design with every curve %s: %s%s; "
-                 "check the model in the program that wrote it\n", r.untranslated, r.untranslated == 1 ? "entity" : "entities",
-                 r.untranslated == 1 ? "it holds" : "they hold", r.firstUntranslated.c_str(), r.untranslated > 1 ? " (the first)" : "");
+    std::fprintf(stderr, "warning: OpenCASCADE could not convert %zu %s of the model, wholly or in part, and the design lacks "
+                 "what it could not: %s%s; check the model in the program that wrote it\n", r.untranslated,
+                 r.untranslated == 1 ? "entity" : "entities", r.firstUntranslated.c_str(), r.untranslated > 1 ? " (the first)" : "");
   if (r.rodsBentTighterThanSection > 0)
     std::fprintf(stderr, "warning: %zu of the %zu rods bend tighter than their section's radius (down to a %.3g mm radius of "
                  "curvature): the section folds over itself inside the bend; give a smaller --diameter or gentler curves\n",

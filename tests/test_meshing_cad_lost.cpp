@@ -114,6 +114,18 @@ TEST_CASE("an IGES composite curve with a member the file does not hold is count
   CHECK_THAT(broken.report.firstUntranslated, Catch::StartsWith("entity D9 (102 0 CompositeCurve): members left out"));
 }
 
+TEST_CASE("an IGES composite warned about for a bad associativity or property pointer loses nothing and is not counted", "[meshing][cad]") {
+  std::vector<IgesEntity> entities = kIgesSquare;
+  entities.push_back({102, "2,1,3,1,999,0"});  // its members whole; one associativity pointer to nothing
+  const meshing::CadRods associativity = readIges("composite-associativity.igs", entities);
+  CHECK(associativity.structure.rods.size() == 4);
+  CHECK(associativity.report.untranslated == 0);
+  entities.back().parameters = "2,1,3,0,1,999";  // a property pointer to nothing
+  const meshing::CadRods property = readIges("composite-property.igs", entities);
+  CHECK(property.structure.rods.size() == 4);
+  CHECK(property.report.untranslated == 0);
+}
+
 TEST_CASE("an IGES B-spline of weight 0 beside a square is counted and named, as before", "[meshing][cad]") {
   std::vector<IgesEntity> entities = kIgesSquare;
   entities.push_back({126, "3,3,0,0,0,0,0.,0.,0.,0.,1.,1.,1.,1.,1.,0.,1.,1.,0.,0.,0.,5.,5.,0.,10.,-5.,0.,15.,0.,0.,0.,1.,0.,0.,1."});

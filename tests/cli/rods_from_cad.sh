@@ -70,7 +70,7 @@ python3 -c 'import json,sys; r=json.load(open(sys.argv[1])); assert r["approxima
 # set's rod written, the dropped set named in a warning and in the JSON.
 "$rodfab" rods-from-cad "$src/tests/fuzz/seeds/cad/untranslated.step" --diameter 1 -o "$tmp/part.json" > "$tmp/out" 2> "$tmp/err" ||
   fail "untranslated: $(cat "$tmp/out" "$tmp/err")"
-grep -q "^warning: OpenCASCADE could not convert 1 entity of the model, left out of the design with every curve it holds: entity #15 (" "$tmp/err" ||
+grep -q "^warning: OpenCASCADE could not convert 1 entity of the model, wholly or in part, and the design lacks what it could not: entity #15 (" "$tmp/err" ||
   fail "untranslated warning: $(cat "$tmp/err")"
 grep -q "^rods:       1 rods" "$tmp/out" || fail "untranslated summary: $(cat "$tmp/out")"
 "$rodfab" rods-from-cad "$src/tests/fuzz/seeds/cad/untranslated.step" --diameter 1 -o "$tmp/part.json" --force --json > "$tmp/j" 2> /dev/null ||
