@@ -53,6 +53,11 @@ void printAccuracy(const std::vector<optimize::CaseAccuracy>& accuracy) {
     if (!e.available) std::printf("accuracy:  case \"%s\": no estimate: %s\n", a.name.c_str(), e.note.c_str());
     else std::printf("accuracy:  case \"%s\": estimated position error %.3g mm = %.2g of the largest displacement (%.4g mm)\n",
                      a.name.c_str(), e.positionError, e.relative, e.largestDisplacement);
+    // The optimizer keeps one discretization; simulate refines until the estimate meets its default.
+    if (const double target = mechanics::AccuracyOptions{}.tolerance; e.available && e.relative > target)
+      std::fprintf(stderr, "warning: case \"%s\": the optimum's equilibrium is estimated accurate to %.2g of its displacement, "
+                           "above the %.2g simulate refines to; check the optimized design with rodfab simulate\n",
+                   a.name.c_str(), e.relative, target);
   }
 }
 
