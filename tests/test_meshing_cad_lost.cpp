@@ -97,39 +97,40 @@ meshing::CadRods readIges(const std::string& name, std::vector<IgesEntity> entit
   return meshing::rodsFromCad(scratch(name), {});
 }
 
+// The IGES square with one more entity (D9) after its four lines.
+meshing::CadRods readSquareWith(const std::string& name, const IgesEntity& fifth) {
+  std::vector<IgesEntity> entities = kIgesSquare;
+  entities.push_back(fifth);
+  return readIges(name, entities);
+}
+
 }  // namespace
 
 TEST_CASE("an IGES composite curve with a member the file does not hold is counted and named", "[meshing][cad]") {
   // D9, a composite of D1 and D3: the square's first two sides, once more.
-  std::vector<IgesEntity> entities = kIgesSquare;
-  entities.push_back({102, "2,1,3"});
-  const meshing::CadRods whole = readIges("composite.igs", entities);
+  const meshing::CadRods whole = readSquareWith("composite.igs", {102, "2,1,3"});
   CHECK(whole.structure.rods.size() == 4);
   CHECK(whole.report.untranslated == 0);
   // Its second member D999 is not in the file: OpenCASCADE's reader drops it with a warning.
-  entities.back().parameters = "2,1,999";
-  const meshing::CadRods broken = readIges("composite-missing.igs", entities);
+  const meshing::CadRods broken = readSquareWith("composite-missing.igs", {102, "2,1,999"});
   CHECK(broken.structure.rods.size() == 4);
   CHECK(broken.report.untranslated == 1);
   CHECK_THAT(broken.report.firstUntranslated, Catch::StartsWith("entity D9 (102 0 CompositeCurve): members left out"));
 }
 
 TEST_CASE("an IGES composite warned about for a bad associativity or property pointer loses nothing and is not counted", "[meshing][cad]") {
-  std::vector<IgesEntity> entities = kIgesSquare;
-  entities.push_back({102, "2,1,3,1,999,0"});  // its members whole; one associativity pointer to nothing
-  const meshing::CadRods associativity = readIges("composite-associativity.igs", entities);
+  // Its members whole; one associativity pointer to nothing, then one property pointer to nothing.
+  const meshing::CadRods associativity = readSquareWith("composite-associativity.igs", {102, "2,1,3,1,999,0"});
   CHECK(associativity.structure.rods.size() == 4);
   CHECK(associativity.report.untranslated == 0);
-  entities.back().parameters = "2,1,3,0,1,999";  // a property pointer to nothing
-  const meshing::CadRods property = readIges("composite-property.igs", entities);
+  const meshing::CadRods property = readSquareWith("composite-property.igs", {102, "2,1,3,0,1,999"});
   CHECK(property.structure.rods.size() == 4);
   CHECK(property.report.untranslated == 0);
 }
 
 TEST_CASE("an IGES B-spline of weight 0 beside a square is counted and named, as before", "[meshing][cad]") {
-  std::vector<IgesEntity> entities = kIgesSquare;
-  entities.push_back({126, "3,3,0,0,0,0,0.,0.,0.,0.,1.,1.,1.,1.,1.,0.,1.,1.,0.,0.,0.,5.,5.,0.,10.,-5.,0.,15.,0.,0.,0.,1.,0.,0.,1."});
-  const meshing::CadRods result = readIges("weight0.igs", entities);
+  const meshing::CadRods result =
+      readSquareWith("weight0.igs", {126, "3,3,0,0,0,0,0.,0.,0.,0.,1.,1.,1.,1.,1.,0.,1.,1.,0.,0.,0.,5.,5.,0.,10.,-5.,0.,15.,0.,0.,0.,1.,0.,0.,1."});
   CHECK(result.structure.rods.size() == 4);
   CHECK(result.report.untranslated == 1);
   CHECK_THAT(result.report.firstUntranslated, Catch::StartsWith("entity D9 (126 0 BSplineCurve): "));

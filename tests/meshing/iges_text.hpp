@@ -42,7 +42,8 @@ inline std::string igesModel(const std::vector<IgesEntity>& entities) {
     directory += line(type + field(first) + zero + zero + zero + zero + zero + zero + "00000000", 'D', entry);
     directory += line(type + zero + zero + field(parameterLines - first + 1) + zero + blank + blank + blank + zero, 'D', entry + 1);
   }
-  const std::string terminate = "S" + field(1).substr(1) + "G" + field(globalLines).substr(1) + "D" +
+  // std::string("S") + ..., not "S" + ...: GCC 12's -Wrestrict misfires on a literal plus a string temporary.
+  const std::string terminate = std::string("S") + field(1).substr(1) + "G" + field(globalLines).substr(1) + "D" +
                                 field(static_cast<int>(2 * entities.size())).substr(1) + "P" + field(parameterLines).substr(1);
   return text + directory + parameters + line(terminate, 'T', 1);
 }
