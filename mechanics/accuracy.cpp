@@ -70,11 +70,17 @@ public:
       if (onLevel_) onLevel_(Level::Estimate, *other);
       o = solveFrom(*other, other->transferredState(*out_.problem, out_.solution.state), solver_, steps_);
     } catch (const std::runtime_error& e) {  // ConvergenceError, MechanicsError
-      out_.estimate.note = std::string("the solve with half the spans failed: ") + e.what();
+      // Half the spans may not carry the load where the first level does (a tightly bent rod under-
+      // resolved): a solve on twice the spans is compared with the first level instead, and is the answer.
+      const std::string failed = std::string("the solve with half the spans failed: ") + e.what();
+      if (accuracy_.maxRefinements > 0 && refine())
+        out_.estimate.note = "estimated against a solve with twice the spans: the one with half the spans did not converge";
+      else out_.estimate.note = failed + (out_.estimate.note.empty() ? "" : "; " + out_.estimate.note);
       return;
     }
     last_ = compare(design_, *out_.problem, out_.solution.state, *other, o.state);
-    fill(std::max(2.0, std::ldexp(1.0, order_ - 2)), other->unknownCount());
+    compared_ = true;
+    fill(aPrioriRatio(), other->unknownCount());
   }
 
   // Doubles every rod's spans and solves again from the current solution; false if that failed.
@@ -90,9 +96,11 @@ public:
       return false;
     }
     const double previous = last_.difference;
+    const bool observed = compared_;  // a ratio needs two comparisons: the first is the a priori one
     StaticProblem& finer = *finerProblem;
     last_ = compare(design_, finer, next.state, *out_.problem, out_.solution.state);
-    out_.estimate.ratio = last_.difference > 0 ? previous / last_.difference : 0.0;
+    compared_ = true;
+    out_.estimate.ratio = observed && last_.difference > 0 ? previous / last_.difference : 0.0;
     const std::size_t compared = out_.problem->unknownCount();
     // The path's history (steps, critical points) stays the first level's.
     next.steps = std::move(out_.solution.steps);
@@ -104,7 +112,7 @@ public:
     *out_.problem = std::move(finer);
     ++out_.refinements;
     // The observed ratio, within what the order allows.
-    fill(std::clamp(out_.estimate.ratio, 2.0, std::ldexp(1.0, order_)), compared);
+    fill(observed ? std::clamp(out_.estimate.ratio, 2.0, std::ldexp(1.0, order_)) : aPrioriRatio(), compared);
     return true;
   }
 
@@ -114,6 +122,8 @@ public:
   }
 
 private:
+  // The ratio assumed before one is observed: see estimate().
+  double aPrioriRatio() const { return std::max(2.0, std::ldexp(1.0, order_ - 2)); }
   void fill(double ratio, std::size_t compared) {
     ErrorEstimate& e = out_.estimate;
     e.available = true;
@@ -134,6 +144,7 @@ private:
   int order_;
   double size_;  // bounding-box diagonal of the design, mm
   Comparison last_;
+  bool compared_ = false;  // last_ holds a comparison of two levels
 };
 
 }  // namespace

@@ -330,11 +330,11 @@ struct ErrorEstimate {
   double positionError = 0.0;        // mm: estimated largest error of a centerline point's displacement
   double largestDisplacement = 0.0;  // mm: largest displacement of a centerline point
   double relative = 0.0;             // positionError / max(largestDisplacement, 1e-6 structure size)
-  // Observed ratio of the differences between successive levels (0 before a refinement, when a
-  // ratio of 2^(order - 2) per halving of the spans is assumed).
+  // Observed ratio of the differences between successive levels (0 until two comparisons were
+  // made, when a ratio of 2^(order - 2) per halving of the spans is assumed).
   double ratio = 0.0;
   std::size_t comparedUnknowns = 0;  // size of the discretization compared with
-  std::string note;                  // why no estimate is available
+  std::string note;                  // why no estimate is available, or why it came from a finer solve
 };
 
 struct Simulation {
@@ -358,8 +358,10 @@ using LevelCallback = std::function<void(Level, const StaticProblem&)>;
 // displacements from a solve with half the spans per rod, divided by (ratio - 1) (Richardson). While the estimate
 // is above the tolerance, every rod's spans are doubled and the problem solved again from the
 // previous solution (up to maxRefinements), the ratio now observed. The path history (steps,
-// critical points) is the first level's. A coarser or finer solve that fails leaves the estimate
-// unavailable or the refinement where it was (ErrorEstimate::note says so). Throws as StaticProblem
+// critical points) is the first level's. When the solve with half the spans fails, the estimate
+// compares the first level with a solve on twice the spans instead (one of the refinements), which is
+// then the answer; a finer solve that fails leaves the refinement where it was, and no estimate if
+// there was none (ErrorEstimate::note says so). Throws as StaticProblem
 // and solve() do for the first level, and std::invalid_argument for out-of-range accuracy options.
 Simulation simulate(const Design& design, Discretization discretization, const SolverOptions& solver,
                     int designLoadSteps, const AccuracyOptions& accuracy = {}, const StepCallback& onStep = {},

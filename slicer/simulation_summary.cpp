@@ -39,10 +39,8 @@ nlohmann::json estimateJson(const mechanics::Simulation& sim, const mechanics::A
   const mechanics::ErrorEstimate& e = sim.estimate;
   if (!accuracy.estimate) return nullptr;
   nlohmann::json j{{"available", e.available}, {"tolerance", accuracy.tolerance}, {"refinements", sim.refinements}};
-  if (!e.available) {
-    j["note"] = e.note;
-    return j;
-  }
+  if (!e.note.empty()) j["note"] = e.note;
+  if (!e.available) return j;
   j.update({{"position_error_mm", e.positionError}, {"relative", e.relative}, {"within_tolerance", e.relative <= accuracy.tolerance},
             {"compared_unknowns", e.comparedUnknowns}, {"observed_ratio", e.ratio}});
   return j;
@@ -61,8 +59,8 @@ nlohmann::json criticalPointsJson(const std::vector<mechanics::CriticalPoint>& p
 void printAccuracy(const mechanics::ErrorEstimate& e, const mechanics::AccuracyOptions& accuracy) {
   if (!accuracy.estimate) std::printf("accuracy:  not estimated (--no-estimate)\n");
   else if (!e.available) std::printf("accuracy:  no estimate: %s\n", e.note.c_str());
-  else std::printf("accuracy:  estimated position error %.3g mm = %.2g of the largest displacement (--accuracy %g)\n",
-                   e.positionError, e.relative, accuracy.tolerance);
+  else std::printf("accuracy:  estimated position error %.3g mm = %.2g of the largest displacement (--accuracy %g)%s%s\n",
+                   e.positionError, e.relative, accuracy.tolerance, e.note.empty() ? "" : "; ", e.note.c_str());
   if (accuracy.estimate && (!e.available || e.relative > accuracy.tolerance))
     std::fprintf(stderr, "warning: the discretization error may exceed --accuracy %g; give more --spans (or --max-refinements)\n",
                  accuracy.tolerance);

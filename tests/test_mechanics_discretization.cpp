@@ -109,6 +109,20 @@ Vec3 reissnerTip(double P) {
   return Vec3(z[0], z[1], 0);
 }
 
+// The graded cantilever's tip under the end moment m (no force: kappa = m / (E(s) I) exactly), by
+// composite Simpson over 2e5 intervals of theta(s) = integral of m / (E I): error far below 1e-9 mm.
+Vec3 gradedTipUnderMoment(double m) {
+  const double I = kPi * std::pow(kGradedDiameter, 4) / 64;
+  const auto theta = [&](double s) { return m * kGradedLength / ((190.0 - 8.0) * I) * std::log(190.0 / gradedModulus(s)); };
+  Vec3 exact = Vec3::Zero();
+  const int n = 200000;
+  for (int i = 0; i <= n; ++i) {
+    const double s = kGradedLength * i / n, w = (i == 0 || i == n) ? 1 : (i % 2 ? 4 : 2);
+    exact += w * Vec3(std::cos(theta(s)), std::sin(theta(s)), 0);
+  }
+  return exact * (kGradedLength / n / 3);
+}
+
 mechanics::Simulation simulated(const Design& s, int steps) {
   mechanics::SolverOptions options;
   options.loadSteps = steps;
@@ -136,13 +150,7 @@ TEST_CASE("default discretization: a graded cantilever within 0.1 % of independe
     const auto theta = [&](double s) {  // integral of M / (E I) for E linear in s
       return M * kGradedLength / ((190.0 - 8.0) * I) * std::log(190.0 / gradedModulus(s));
     };
-    Vec3 exact = Vec3::Zero();  // composite Simpson, 2e5 intervals: error far below 1e-9 mm
-    const int n = 200000;
-    for (int i = 0; i <= n; ++i) {
-      const double s = kGradedLength * i / n, w = (i == 0 || i == n) ? 1 : (i % 2 ? 4 : 2);
-      exact += w * Vec3(std::cos(theta(s)), std::sin(theta(s)), 0);
-    }
-    exact *= kGradedLength / n / 3;
+    const Vec3 exact = gradedTipUnderMoment(M);
     REQUIRE(theta(kGradedLength) * 180 / kPi == Approx(71.2).epsilon(1e-3));
     const auto sim = simulated(gradedCantilever(Vec3::Zero(), Vec3(0, 0, M)), 5);
     const Vec3 t = tip(*sim.problem, sim.solution.state);
@@ -171,14 +179,7 @@ TEST_CASE("the error estimate tracks the true error of a coarse discretization",
   // The graded tip moment on fixed coarse bases without refinement: the estimate must not claim
   // much less than the true error, nor wildly more (measured: 0.5, 1.1 and 2.7 times it).
   const double I = kPi * std::pow(kGradedDiameter, 4) / 64, M = 71.4 * I / kGradedLength;
-  const auto theta = [&](double s) { return M * kGradedLength / ((190.0 - 8.0) * I) * std::log(190.0 / gradedModulus(s)); };
-  Vec3 exact = Vec3::Zero();
-  const int n = 200000;
-  for (int i = 0; i <= n; ++i) {
-    const double s = kGradedLength * i / n, w = (i == 0 || i == n) ? 1 : (i % 2 ? 4 : 2);
-    exact += w * Vec3(std::cos(theta(s)), std::sin(theta(s)), 0);
-  }
-  exact *= kGradedLength / n / 3;
+  const Vec3 exact = gradedTipUnderMoment(M);
   for (int spans : {16, 32, 64}) {
     mechanics::AccuracyOptions accuracy;
     accuracy.maxRefinements = 0;
@@ -191,6 +192,38 @@ TEST_CASE("the error estimate tracks the true error of a coarse discretization",
     CHECK(sim.estimate.positionError > 0.4 * error);
     CHECK(sim.estimate.positionError < 10 * error);
   }
+}
+
+// Where the solve on half the spans fails (here made to: the level callback throws as a solve that
+// does not converge would), the first level is compared with a solve on twice the spans, which becomes
+// the answer: an estimate is made and it is honest against the elastica; with no refinement allowed
+// there is none, and the note says why.
+TEST_CASE("when the solve on half the spans fails, the estimate compares with twice the spans", "[mechanics]") {
+  const double I = kPi * std::pow(kGradedDiameter, 4) / 64, M = 71.4 * I / kGradedLength;
+  const Vec3 exact = gradedTipUnderMoment(M);
+  const double displacement = (exact - Vec3(kGradedLength, 0, 0)).norm();
+  const mechanics::LevelCallback coarseFails = [](mechanics::Level level, const StaticProblem&) {
+    if (level == mechanics::Level::Estimate) throw mechanics::ConvergenceError("Newton did not converge (made to fail)", 0.0);
+  };
+  mechanics::SolverOptions options;
+  options.loadSteps = 5;
+  mechanics::AccuracyOptions accuracy;
+  const Design cantilever = gradedCantilever(Vec3::Zero(), Vec3(0, 0, M));
+  const auto sim = mechanics::simulate(cantilever, rebuilt(6, 16), options, 5, accuracy, {}, coarseFails);
+  const double error = (tip(*sim.problem, sim.solution.state) - exact).norm();
+  INFO("spans " << sim.problem->discretization().perRod[0] << ", refinements " << sim.refinements << ", true error " << error
+                << " mm, estimate " << sim.estimate.positionError << " mm; " << sim.estimate.note);
+  REQUIRE(sim.estimate.available);
+  CHECK(sim.refinements >= 1);
+  CHECK(sim.problem->discretization().perRod[0] >= 32);
+  CHECK(sim.estimate.note.find("twice the spans") != std::string::npos);
+  CHECK(error <= sim.estimate.positionError + 1e-9 * displacement);  // 0.0022 mm, estimated 0.0056 mm
+  accuracy.maxRefinements = 0;
+  const auto none = mechanics::simulate(cantilever, rebuilt(6, 16), options, 5, accuracy, {}, coarseFails);
+  CHECK((tip(*none.problem, none.solution.state) - exact).norm() > 4 * error);  // the 16 spans' answer, kept
+  CHECK_FALSE(none.estimate.available);
+  CHECK(none.refinements == 0);
+  CHECK(none.estimate.note.rfind("the solve with half the spans failed: Newton did not converge", 0) == 0);
 }
 
 TEST_CASE("automatic spans grow with slenderness, drawn turning and a falling modulus", "[mechanics]") {
