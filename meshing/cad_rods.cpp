@@ -34,6 +34,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <mutex>
 #include <numeric>
 #include <string>
@@ -229,6 +230,17 @@ std::string endName(const std::vector<Vec3>& ends, const std::vector<EdgeRef>& e
 // its ends onto one point would move them farther than the tolerance promises: such a chain is
 // refused, naming its two ends farthest apart. Ends of a group no wider than the tolerance move by at
 // most the tolerance (their mean lies in their convex hull).
+// `width` (mm) with the fewest significant digits, 3 at least, that still read as more than `limit`:
+// a joint 1.0004 mm across at a 1 mm tolerance is not "1 mm across".
+std::string widthAbove(double width, double limit) {
+  char text[32];
+  for (int digits = 3; digits <= 17; ++digits) {
+    std::snprintf(text, sizeof text, "%.*g", digits, width);
+    if (std::strtod(text, nullptr) > limit) break;
+  }
+  return text;
+}
+
 void requireCompactJoint(const std::vector<Vec3>& ends, const std::vector<std::size_t>& group, double tolerance,
                          const std::filesystem::path& file, const std::vector<EdgeRef>& edgeOfRod) {
   const Vec3 mean = meanOf(ends, group);
@@ -238,11 +250,11 @@ void requireCompactJoint(const std::vector<Vec3>& ends, const std::vector<std::s
   const auto [a, b] = farthestPair(ends, group);
   const double width = (ends[a] - ends[b]).norm();
   if (width <= tolerance) return;
-  char counts[160], apart[64];
-  std::snprintf(counts, sizeof counts, "%zu curve ends chain into one joint %.3g mm across, each within the joint tolerance (%g mm) of another: ",
-                group.size(), width, tolerance);
-  std::snprintf(apart, sizeof apart, " are %.3g mm apart", width);
-  throw MeshError(file, counts + endName(ends, edgeOfRod, a) + " and " + endName(ends, edgeOfRod, b) + apart +
+  const std::string across = widthAbove(width, tolerance);
+  char counts[200];
+  std::snprintf(counts, sizeof counts, "%zu curve ends chain into one joint %s mm across, each within the joint tolerance (%g mm) of another: ",
+                group.size(), across.c_str(), tolerance);
+  throw MeshError(file, counts + endName(ends, edgeOfRod, a) + " and " + endName(ends, edgeOfRod, b) + " are " + across + " mm apart" +
                             ", and one joint would move ends farther than the tolerance; give a --joint-tolerance below the "
                             "distance between ends that are not to meet (or close the gaps in the model)");
 }

@@ -79,6 +79,20 @@ TEST_CASE("line starts 0.0009 mm apart in a row are refused at the default toler
                         Catch::Contains("edge 99 (entity #1297 (POLYLINE))'s start at (0.0891, 0, 0)"));
 }
 
+TEST_CASE("a chain just wider than the joint tolerance says its width with the digits that show it", "[meshing][cad]") {
+  // Starts at x = 0, 0.6 and 1.0004 mm, each within 1 mm of the next: 1.0004 mm across, not "1 mm".
+  const std::vector<std::pair<Vec3, Vec3>> lines = {{Vec3(0, 0, 0), Vec3(0, 10, 0)},
+                                                     {Vec3(0.6, 0, 0), Vec3(0, 0, 10)},
+                                                     {Vec3(1.0004, 0, 0), Vec3(10, 10, 0)}};
+  const fs::path file = scratch("just-wide.step");
+  std::ofstream(file, std::ios::binary) << linesModel(lines);
+  meshing::CadRodOptions options;
+  options.jointTolerance = 1;
+  const std::string error = meshErrorOf(file, [&] { meshing::rodsFromCad(file, options); });
+  CHECK_THAT(error, Catch::Contains("3 curve ends chain into one joint 1.0004 mm across, each within the joint tolerance (1 mm)") &&
+                        Catch::Contains("are 1.0004 mm apart"));
+}
+
 TEST_CASE("ends within the joint tolerance become one point, each moved by at most the tolerance", "[meshing][cad]") {
   // Three line starts at most 0.0006 mm apart: one joint at their mean.
   const std::vector<std::pair<Vec3, Vec3>> lines = {{Vec3(0, 0, 0), Vec3(10, 0, 0)},
