@@ -88,6 +88,7 @@ int optimizeDesign(const OptimizeCommand& c, const mechanics::Design& design) {
   if (!optimizeOutputsAllowed(c, design)) return kFailed;
   const std::optional<optimize::Settings> settings = optimizeSettingsOrReport(c, design);
   if (!settings) return kFailed;
+  if (const std::string outside = startOutsideBounds(c, design, *settings); !outside.empty()) return usageError("optimize", outside);
   Outcome o;
   if (runOptimization(c, design, *settings, o) != kOk || writeOutputs(c, design, o) != kOk) return kFailed;
   if (c.json) std::cout << optimizeSummaryJson({c, *o.problem, o.result, o.accuracy}).dump(2) << '\n';

@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <iostream>
+#include <sstream>
 
 namespace rodfab::cli {
 
@@ -107,6 +108,14 @@ std::optional<optimize::Settings> optimizeSettingsOrReport(const OptimizeCommand
               << "] reaches beyond what " << c.calibration << " can print [" << cal->floorMpa() << ", " << cal->maxModulusMpa()
               << "]: slicing will clamp those moduli\n";
   return settings;
+}
+
+std::string startOutsideBounds(const OptimizeCommand& c, const mechanics::Design& design, const optimize::Settings& settings) {
+  if (!c.start.uniform || !(c.start.mpa > 0) || (c.start.mpa >= settings.lowerMpa && c.start.mpa <= settings.upperMpa)) return {};
+  std::ostringstream m;
+  m << "--start uniform=" << c.start.mpa << ": outside the bounds [" << settings.lowerMpa << ", " << settings.upperMpa << "] MPa ("
+    << (design.optimize.boundsMpa ? c.design + "'s optimize.bounds_mpa" : "the floor and stiffest mix of " + c.calibration) << ")";
+  return m.str();
 }
 
 bool optimizeOutputsAllowed(const OptimizeCommand& c, const mechanics::Design& design) {

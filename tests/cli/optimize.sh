@@ -211,7 +211,7 @@ expect_failure 2 "--max-iterations" "$tmp/start.json" -o "$tmp/optimized.json" -
 expect_failure 2 '--scaling: expected log or linear, got "cubic"' "$tmp/start.json" -o "$tmp/optimized.json" --scaling cubic
 expect_failure 2 '--start: expected design, uniform or uniform=MPa (a modulus > 0), got "uniform=-3"' "$tmp/start.json" -o "$tmp/optimized.json" --start uniform=-3
 expect_failure 2 '--start: expected design' "$tmp/start.json" -o "$tmp/optimized.json" --start flat
-expect_failure 1 '--start uniform=500: outside the bounds [8, 190] MPa' "$tmp/start.json" -o "$tmp/optimized.json" --start uniform=500
+expect_failure 2 '--start uniform=500: outside the bounds [8, 190] MPa (the floor and stiffest mix of' "$tmp/start.json" -o "$tmp/optimized.json" --start uniform=500
 expect_failure 2 '--method: expected lbfgsb, mma or ccsaq, got "newton"' "$tmp/start.json" -o "$tmp/optimized.json" --method newton
 expect_failure 2 "--threads: expected 0 (all cores) or a count from 1 to 256, got 999" "$tmp/start.json" -o "$tmp/optimized.json" --threads 999
 expect_failure 1 "mechanics.load_cases: missing" "$tmp/graded.json" -o "$tmp/optimized.json"
