@@ -68,16 +68,21 @@ using Tokenizer = boost::tokenizer<boost::escaped_list_separator<char>>;
 // A line of more fields is not read on: a header of 20 million unknown columns took 1.3 GB as fields.
 constexpr std::size_t kMaxFields = 1024;
 
-// Splits one CSV line (quotes allowed around fields); nullopt when the quoting is broken. Stops after
+// Whether `text` leaves a quote open: an odd count of unescaped quotes.
+bool leavesQuoteOpen(std::string_view text) {
+  std::size_t quotes = 0;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    if (text[i] == '\\') ++i;
+    else if (text[i] == '"') ++quotes;
+  }
+  return quotes % 2 != 0;
+}
+
+// Splits one CSV record (quotes allowed around fields); nullopt when the quoting is broken. Stops after
 // kMaxFields + 1 fields.
 std::optional<std::vector<std::string>> splitFields(const std::string& line) {
-  // The tokenizer accepts an unterminated quote silently; an odd count of unescaped quotes finds it.
-  std::size_t quotes = 0;
-  for (std::size_t i = 0; i < line.size(); ++i) {
-    if (line[i] == '\\') ++i;
-    else if (line[i] == '"') ++quotes;
-  }
-  if (quotes % 2) return std::nullopt;
+  // The tokenizer accepts an unterminated quote silently; the count of quotes finds it.
+  if (leavesQuoteOpen(line)) return std::nullopt;
   try {
     std::vector<std::string> fields;
     for (std::string field : Tokenizer(line, boost::escaped_list_separator<char>('\\', ',', '"'))) {
@@ -184,6 +189,22 @@ std::optional<Measurement> readRow(const std::vector<std::string>& fields, const
 DataError::DataError(std::string file, std::vector<DataIssue> issues)
     : IssueListError(formatIssues(file, issues), file, issues) {}
 
+// A field quoted across line breaks (a spreadsheet's cell holding one) continues on the next lines:
+// they are joined to `record`, each break read as a space, while a quote is left open. False when
+// the text ends or the record outgrows kMaxRecordBytes with the quote still open.
+constexpr std::size_t kMaxRecordBytes = 64 * 1024;
+bool joinQuotedLines(std::istream& lines, std::string& record, int& lineNumber) {
+  std::string raw;
+  while (leavesQuoteOpen(record)) {
+    if (record.size() > kMaxRecordBytes || !std::getline(lines, raw)) return false;
+    ++lineNumber;
+    if (!raw.empty() && raw.back() == '\r') raw.pop_back();
+    record += ' ';
+    record += raw;
+  }
+  return true;
+}
+
 DataSet parseData(std::string_view text, const std::string& sourceName) {
   DataSet data;
   data.source = sourceName;
@@ -202,28 +223,34 @@ DataSet parseData(std::string_view text, const std::string& sourceName) {
     if (!raw.empty() && raw.back() == '\r') raw.pop_back();
     std::string line = boost::algorithm::trim_copy(raw);
     if (line.empty() || line.front() == '#') continue;
+    const int recordLine = lineNumber;
+    if (const std::string first = line; !joinQuotedLines(lines, line, lineNumber)) {
+      fail(recordLine, "unbalanced quotes: the quote opened in " + common::quotedFromFile(first) + " is not closed " +
+                           (line.size() > kMaxRecordBytes ? "within 64 KiB" : "by the end of the file"));
+      break;  // the rest of the text would be read inside the quote
+    }
     const auto fields = splitFields(line);
     if (!fields) {
-      fail(lineNumber, "unbalanced quotes or a bad escape in " + common::quotedFromFile(line));
+      fail(recordLine, "unbalanced quotes or a bad escape in " + common::quotedFromFile(line));
       continue;
     }
     if (fields->size() > kMaxFields) {
-      fail(lineNumber, "more than " + std::to_string(kMaxFields) + " fields; expected the columns " + kColumnList);
+      fail(recordLine, "more than " + std::to_string(kMaxFields) + " fields; expected the columns " + kColumnList);
       break;
     }
     if (!header) {
-      header = readHeader(*fields, lineNumber, issues);
+      header = readHeader(*fields, recordLine, issues);
       if (!issues.empty()) break;  // rows cannot be read against a broken header
       continue;
     }
     if (fields->size() != header->columns.size()) {
-      fail(lineNumber, "expected " + std::to_string(header->columns.size()) + " fields (as in the header), got " +
+      fail(recordLine, "expected " + std::to_string(header->columns.size()) + " fields (as in the header), got " +
                            std::to_string(fields->size()));
       continue;
     }
-    if (std::optional<Measurement> m = readRow(*fields, *header, lineNumber, issues)) data.measurements.push_back(std::move(*m));
+    if (std::optional<Measurement> m = readRow(*fields, *header, recordLine, issues)) data.measurements.push_back(std::move(*m));
     if (data.measurements.size() > kMaxMeasurements) {
-      fail(lineNumber, "more than " + std::to_string(kMaxMeasurements) + " measurements; a calibration fits at most that many");
+      fail(recordLine, "more than " + std::to_string(kMaxMeasurements) + " measurements; a calibration fits at most that many");
       break;
     }
   }

@@ -76,6 +76,19 @@ TEST_CASE("CSV details: quotes, CRLF, BOM, blank lines, leading +, optional empt
   CHECK(d.measurements[1].line == 6);
 }
 
+TEST_CASE("CSV details: a field quoted across line breaks is one field, each break read as a space", "[calibration][data]") {
+  // A spreadsheet's cell holding a line break: RFC 4180 quotes it across the lines.
+  const DataSet d = parseData("vero_fraction,modulus_mpa,specimen\r\n0.4,12.5,\"coupon\r\nleft,\nside\"\r\n0.1,3,b\n", "x.csv");
+  REQUIRE(d.measurements.size() == 2);
+  CHECK(d.measurements[0].specimen == "coupon left, side");
+  CHECK(d.measurements[0].line == 2);
+  CHECK(d.measurements[1].specimen == "b");
+  CHECK(d.measurements[1].line == 5);
+  // A quote left open swallows the rest of the file: refused at the line that opened it.
+  const std::string open = dataError("vero_fraction,modulus_mpa,specimen\n0,1,\"open\n0.5,3,b\n0.6,4,c\n");
+  CHECK_THAT(open, Catch::Contains("line 2: unbalanced quotes: the quote opened in '0,1,\"open' is not closed by the end of the file"));
+}
+
 TEST_CASE("a data set of more than kMaxMeasurements rows is refused at the first row past it", "[calibration][data]") {
   std::string csv = "vero_fraction,modulus_mpa\n";
   for (std::size_t n = 0; n < kMaxMeasurements; ++n) csv += (n % 2 ? "0.2,10\n" : "0.8,100\n");
