@@ -9,7 +9,10 @@
 #include <CGAL/Surface_mesh_simplification/Policies/Edge_collapse/Count_stop_predicate.h>
 #include <CGAL/Surface_mesh_simplification/Policies/Edge_collapse/GarlandHeckbert_plane_policies.h>
 #include <CGAL/Surface_mesh_simplification/edge_collapse.h>
+#include <CGAL/boost/graph/Euler_operations.h>
 
+#include <cmath>
+#include <numbers>
 #include <stdexcept>
 
 namespace rodfab::meshing {
@@ -54,6 +57,55 @@ TriangleMesh fromSurfaceMesh(Mesh& mesh) {
   return out;
 }
 
+using Point = Kernel::Point_3;
+using Vector = Kernel::Vector_3;
+
+// Pairs of faces within this angle of one plane may have their shared edge flipped (see flipTowardDelaunay;
+// meshing/README.md, "Bends", for the measurements behind it).
+constexpr double kFlipDihedralDegrees = 8.0;
+constexpr int kMaxFlipPasses = 50;
+
+// The angle at `at` of the triangle (at, p, q), radians.
+double angleAt(const Point& at, const Point& p, const Point& q) {
+  const Vector u = p - at, v = q - at;
+  return std::atan2(std::sqrt(CGAL::cross_product(u, v).squared_length()), u * v);
+}
+
+// Whether the edge of halfedge h, between faces (a, b, c) and (b, a, d), is better flipped to (c, d):
+// the two faces lie within kFlipDihedralDegrees of one plane, the angles facing the edge sum to more
+// than pi (the edge is not locally Delaunay), and both faces after the flip face as both did before
+// (the quadrilateral is convex). False where (c, d) is an edge already.
+bool flipImproves(const Mesh& mesh, Mesh::Halfedge_index h) {
+  const Mesh::Halfedge_index o = mesh.opposite(h);
+  const Mesh::Vertex_index c = mesh.target(mesh.next(h)), d = mesh.target(mesh.next(o));
+  if (c == d || CGAL::halfedge(c, d, mesh).second) return false;
+  const Point &a = mesh.point(mesh.source(h)), &b = mesh.point(mesh.target(h)), &pc = mesh.point(c), &pd = mesh.point(d);
+  const Vector n1 = CGAL::cross_product(b - a, pc - a), n2 = CGAL::cross_product(a - b, pd - b);
+  const double cosLimit = std::cos(kFlipDihedralDegrees * std::numbers::pi / 180.0);
+  if (n1 * n2 < cosLimit * std::sqrt(n1.squared_length() * n2.squared_length())) return false;
+  if (angleAt(pc, a, b) + angleAt(pd, b, a) <= std::numbers::pi + 1e-9) return false;
+  const Vector m1 = CGAL::cross_product(a - pc, pd - pc), m2 = CGAL::cross_product(b - pd, pc - pd);
+  return m1 * n1 > 0 && m2 * n1 > 0 && m1 * n2 > 0 && m2 * n2 > 0;
+}
+
+// Flips edges toward a Delaunay triangulation where their faces are nearly coplanar, in passes over
+// the edges in index order until none flips (kMaxFlipPasses at most): the same mesh gives the same
+// result. Where every collapse costs nothing (a flat or gently curved region: the plane quadrics see
+// no error) the simplifier leaves thin triangles, whose dual has rods turning sharply between close
+// centroids (meshing/README.md, "Bends": a flat plate at --faces 1000 had 77 rods tighter than a 1 mm
+// section, none after). Vertices stay; faces, edges and the count of each stay.
+void flipTowardDelaunay(Mesh& mesh) {
+  for (int pass = 0; pass < kMaxFlipPasses; ++pass) {
+    bool flipped = false;
+    for (Mesh::Edge_index e : mesh.edges()) {
+      if (mesh.is_border(e) || !flipImproves(mesh, mesh.halfedge(e))) continue;
+      CGAL::Euler::flip_edge(mesh.halfedge(e), mesh);
+      flipped = true;
+    }
+    if (!flipped) return;
+  }
+}
+
 }  // namespace
 
 TriangleMesh simplifyMesh(const TriangleMesh& input, std::size_t targetFaces) {
@@ -68,6 +120,8 @@ TriangleMesh simplifyMesh(const TriangleMesh& input, std::size_t targetFaces) {
   SMS::Bounded_normal_change_placement<Policies::Get_placement> placement(policies.get_placement());
   SMS::edge_collapse(mesh, stop, CGAL::parameters::get_cost(policies.get_cost()).get_placement(placement));
   common::throwIfInterrupted();
+  mesh.collect_garbage();  // the collapsed edges gone, so the flips' passes visit live ones only
+  flipTowardDelaunay(mesh);
   return fromSurfaceMesh(mesh);
 }
 
