@@ -170,7 +170,7 @@ NurbsCurve rationalCoil(double radius, double pitch, int quarters, bool skewed, 
 
 }  // namespace
 
-TEST_CASE("Random coils tighter than their section, polynomial and rational: classify is the walk, bit for bit", "[rod][classify][coil]") {
+TEST_CASE("Random coils tighter than their section, polynomial and rational - classify is the walk, bit for bit", "[rod][classify][coil]") {
   // The hulls' capsules (chord and Bezier deviation) let classify skip most segments of such a coil:
   // a deviation bound too small, or a node's capsule not holding its segments, skips the deepest
   // section for some point, and its bits differ from the walk's.

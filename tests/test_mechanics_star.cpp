@@ -60,7 +60,7 @@ Sizes sizesOf(int count) {
 
 }  // namespace
 
-TEST_CASE("a symmetric star under a load along its axis shares it equally: frame theory", "[mechanics][joints][star]") {
+TEST_CASE("a symmetric star under a load along its axis shares it equally - frame theory", "[mechanics][joints][star]") {
   // By symmetry the hub does not turn, so every spoke is a beam clamped at the rim and guided at
   // the hub carrying F / N: the hub deflects (F / N) (L^3 / 12 EI + L / kGA) (Timoshenko). The load
   // is small enough for the geometric nonlinearity (~ (w / r_gyration)^2) to stay near 5e-6.

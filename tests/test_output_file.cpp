@@ -80,7 +80,7 @@ TEST_CASE("without an owner of the command's outputs, a commit replaces outright
   CHECK(namesIn(dir.path) == std::vector<std::string>{"cal.json"});  // no .cal.json.rodfab-old-PID-N
 }
 
-TEST_CASE("the owner of the command's outputs keeps what a commit replaced until it ends: gone on success, back on failure") {
+TEST_CASE("the owner of the command's outputs keeps what a commit replaced until it ends - gone on success, back on failure") {
   const rodfab::test::TempDir dir("output-owner");
   const fs::path file = dir.path / "cal.json", other = dir.path / "plot.png";
   writeFileAtomically(file, "old");
@@ -111,7 +111,7 @@ TEST_CASE("the owner of the command's outputs keeps what a commit replaced until
     CHECK(readAll(file) == "old");
     CHECK(namesIn(dir.path) == std::vector<std::string>{"cal.json"});
   }
-  SECTION("the owner ends without finish (an exception passed through it): a failure") {
+  SECTION("the owner ends without finish (an exception passed through it) - a failure") {
     try {
       CommandOutputs outputs;
       writeFileAtomically(file, "new");

@@ -64,7 +64,7 @@ StreamedHeap streamBands(const geometry::RodStructure& design, const voxel::Prin
 
 }  // namespace
 
-TEST_CASE("the slice estimate counts the trees the recyclers really keep: 0, 1 and 3 kept fraction trees against the heap",
+TEST_CASE("the slice estimate counts the trees the recyclers really keep - 0, 1 and 3 kept fraction trees against the heap",
           "[memory]") {
 #if defined(__SANITIZE_ADDRESS__)
   WARN("AddressSanitizer keeps its own heap: mallinfo2 does not see it, nothing to measure");

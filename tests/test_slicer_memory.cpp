@@ -288,7 +288,7 @@ private:
 
 }  // namespace
 
-TEST_CASE("sliceDesign maps white and blue noise's moduli as it dithers: the job, counts and report of mapping in the source, less memory") {
+TEST_CASE("sliceDesign maps white and blue noise's moduli as it dithers - the job, counts and report of mapping in the source, less memory") {
   openvdb::initialize();
   TempDir tmp;
   const calibration::Calibration cal = calibration::loadDefaultCalibration();
@@ -335,7 +335,7 @@ TEST_CASE("sliceDesign maps white and blue noise's moduli as it dithers: the job
     }
 }
 
-TEST_CASE("a thread limit of 1 (--threads 1) sizes the stage arenas and the estimate: error diffusion plans and runs one worker, the same job",
+TEST_CASE("a thread limit of 1 (--threads 1) sizes the stage arenas and the estimate - error diffusion plans and runs one worker, the same job",
           "[memory]") {
   openvdb::initialize();
   TempDir tmp;

@@ -198,7 +198,7 @@ TEST_CASE("The fast path decides every voxel exactly as Rod::classify", "[voxel]
     const voxel::Rasterization ras = voxel::rasterize(s, g);
     REQUIRE(requireMatchesExactTest(s, g, ras) > 50000);
   }
-  SECTION("the benchmark lattices, straight and curved, at a smaller scale: 6-rod joints with round caps") {
+  SECTION("the benchmark lattices, straight and curved, at a smaller scale - 6-rod joints with round caps") {
     for (const double bow : {0.0, 0.15}) {
       examples::LatticeParameters p;
       p.nodes = Eigen::Vector3i(3, 3, 3);
