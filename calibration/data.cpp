@@ -195,7 +195,9 @@ DataError::DataError(std::string file, std::vector<DataIssue> issues)
 constexpr std::size_t kMaxRecordBytes = 64 * 1024;
 bool joinQuotedLines(std::istream& lines, std::string& record, int& lineNumber) {
   std::string raw;
-  while (leavesQuoteOpen(record)) {
+  // The quote's state carried line by line (splitFields checks the joined record again), so a long
+  // record of short lines costs its length, not its length squared.
+  for (bool open = leavesQuoteOpen(record); open; open ^= leavesQuoteOpen(raw)) {
     if (record.size() > kMaxRecordBytes || !std::getline(lines, raw)) return false;
     ++lineNumber;
     if (!raw.empty() && raw.back() == '\r') raw.pop_back();
