@@ -1,7 +1,8 @@
 #include "common/file_hasher.hpp"
 
+#include "common/xxhash_dispatch.hpp"
+
 #include <openssl/evp.h>
-#include <xxhash.h>
 
 #include <new>
 #include <stdexcept>

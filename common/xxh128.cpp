@@ -1,6 +1,5 @@
 #include "common/xxh128.hpp"
-
-#include <xxhash.h>
+#include "common/xxhash_dispatch.hpp"
 
 namespace rodfab::common {
 
