@@ -72,9 +72,8 @@ public:
     } catch (const std::runtime_error& e) {  // ConvergenceError, MechanicsError
       // Half the spans may not carry the load where the first level does (a tightly bent rod under-
       // resolved): a solve on twice the spans is compared with the first level instead, and is the answer.
-      const std::string failed = std::string("the solve with half the spans failed: ") + e.what();
-      if (accuracy_.maxRefinements > 0 && refine())
-        out_.estimate.note = "estimated against a solve with twice the spans: the one with half the spans did not converge";
+      const std::string failed = std::string("the solve with half the spans failed (") + e.what() + ")";
+      if (accuracy_.maxRefinements > 0 && refine()) addNote(failed + "; the first level was compared with twice the spans instead");
       else out_.estimate.note = failed + (out_.estimate.note.empty() ? "" : "; " + out_.estimate.note);
       return;
     }
@@ -83,16 +82,27 @@ public:
     fill(aPrioriRatio(), other->unknownCount());
   }
 
-  // Doubles every rod's spans and solves again from the current solution; false if that failed.
+  // Doubles every rod's spans (up to kMaxSpansPerRod) and solves again from the current solution;
+  // false if that failed, or if no rod could be refined (a comparison with itself would claim no error).
   bool refine() {
+    const Discretization finerSpans = scaled(out_.problem->discretization(), true);
+    if (finerSpans.perRod == out_.problem->discretization().perRod) {
+      addNote("every rod has the most spans a rod may have (" + std::to_string(kMaxSpansPerRod) + "): not refined further");
+      return false;
+    }
+    const std::vector<int>& now = out_.problem->discretization().perRod;
+    std::size_t capped = 0;  // rods the doubling leaves as they are
+    for (std::size_t r = 0; r < now.size(); ++r) capped += finerSpans.perRod[r] == now[r];
+    if (capped > 0 && out_.estimate.note.find("at the most spans") == std::string::npos)
+      addNote(std::to_string(capped) + " rods at the most spans a rod may have are not refined: their error is not in the estimate");
     std::unique_ptr<StaticProblem> finerProblem;
     Solution next;
     try {
-      finerProblem = std::make_unique<StaticProblem>(design_, scaled(out_.problem->discretization(), true));
+      finerProblem = std::make_unique<StaticProblem>(design_, finerSpans);
       if (onLevel_) onLevel_(Level::Refinement, *finerProblem);
       next = solveFrom(*finerProblem, finerProblem->transferredState(*out_.problem, out_.solution.state), solver_, steps_);
     } catch (const std::runtime_error& e) {
-      out_.estimate.note = std::string("refining further failed: ") + e.what();
+      addNote(std::string("refining further failed: ") + e.what());
       return false;
     }
     const double previous = last_.difference;
@@ -122,6 +132,10 @@ public:
   }
 
 private:
+  void addNote(const std::string& note) {
+    std::string& n = out_.estimate.note;
+    n += (n.empty() ? "" : "; ") + note;
+  }
   // The ratio assumed before one is observed: see estimate().
   double aPrioriRatio() const { return std::max(2.0, std::ldexp(1.0, order_ - 2)); }
   void fill(double ratio, std::size_t compared) {

@@ -334,7 +334,8 @@ struct ErrorEstimate {
   // made, when a ratio of 2^(order - 2) per halving of the spans is assumed).
   double ratio = 0.0;
   std::size_t comparedUnknowns = 0;  // size of the discretization compared with
-  std::string note;                  // why no estimate is available, or why it came from a finer solve
+  std::string note;                  // why no estimate is available, or what it had to do without (a coarser
+                                     // solve failed, a finer one could not be made, rods at the span limit)
 };
 
 struct Simulation {

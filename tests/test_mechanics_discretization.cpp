@@ -223,7 +223,14 @@ TEST_CASE("when the solve on half the spans fails, the estimate compares with tw
   CHECK((tip(*none.problem, none.solution.state) - exact).norm() > 4 * error);  // the 16 spans' answer, kept
   CHECK_FALSE(none.estimate.available);
   CHECK(none.refinements == 0);
-  CHECK(none.estimate.note.rfind("the solve with half the spans failed: Newton did not converge", 0) == 0);
+  CHECK(none.estimate.note.rfind("the solve with half the spans failed (Newton did not converge (made to fail))", 0) == 0);
+  // Every rod at the span limit: no finer solve to compare with (not the same one again, which would
+  // claim no error at all).
+  accuracy.maxRefinements = 2;
+  const auto capped = mechanics::simulate(cantilever, rebuilt(6, mechanics::kMaxSpansPerRod), options, 5, accuracy, {}, coarseFails);
+  CHECK_FALSE(capped.estimate.available);
+  CHECK(capped.refinements == 0);
+  CHECK(capped.estimate.note.find("every rod has the most spans a rod may have (4096)") != std::string::npos);
 }
 
 TEST_CASE("automatic spans grow with slenderness, drawn turning and a falling modulus", "[mechanics]") {
