@@ -1,5 +1,6 @@
 #include "common/quoted_text.hpp"
 
+#include <charconv>
 #include <cstdio>
 
 namespace rodfab::common {
@@ -72,6 +73,12 @@ std::string quotedFromFile(std::string_view text, std::size_t maxBytes) {
   out += printableFromFile(text, maxBytes);  // not "'" + ...: GCC 12 warns of a false overlap there (-Wrestrict)
   out += '\'';
   return out;
+}
+
+std::string exactNumber(double v) {
+  char text[32];
+  const auto result = std::to_chars(text, text + sizeof text, v);
+  return std::string(text, result.ptr);
 }
 
 }  // namespace rodfab::common

@@ -1,6 +1,6 @@
 // Text from an input file placed in a message: a hostile file's bytes must not reach the terminal
 // as control sequences (an ESC in a PLY element name would be a command to the technician's
-// terminal), nor flood it.
+// terminal), nor flood it. And numbers a message names as limits, exactly.
 #pragma once
 
 #include <cstddef>
@@ -19,5 +19,10 @@ std::string printableFromFile(std::string_view text, std::size_t maxBytes = 40);
 bool holdsControlCharacters(std::string_view text);
 // The same between apostrophes, as a message shows a file's word: 'floz', 'x\x1b[2J'.
 std::string quotedFromFile(std::string_view text, std::size_t maxBytes = 40);
+
+// The shortest text that reads back as `v` (std::to_chars): a limit a message names is the limit, not
+// a rounding that a value just past it would print as ("outside [8, 2017.46]" for 2017.4567). 1e+300,
+// inf, nan as to_chars writes them. Thread-safe.
+std::string exactNumber(double v);
 
 }  // namespace rodfab::common

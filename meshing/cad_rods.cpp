@@ -2,6 +2,7 @@
 // Built into the CAD reader process (rodfab-cad-reader, cad_reader_main.cpp), which rodsFromCad
 // (cad_process.cpp) runs for each file.
 #include "common/interrupt.hpp"
+#include "common/quoted_text.hpp"
 #include "geometry/design_reader.hpp"
 #include "geometry/design_writer.hpp"
 #include "meshing/cad_checks.hpp"
@@ -225,11 +226,6 @@ std::string endName(const std::vector<Vec3>& ends, const std::vector<EdgeRef>& e
   return edgeOfRod[end / 2].name() + "'s " + (end % 2 == 0 ? "start" : "end") + " at " + formatPoint(gp_Pnt(p.x(), p.y(), p.z()));
 }
 
-// A chain of ends, each within the tolerance of the next, can be far wider than the tolerance (a star
-// of 10 mm lines whose tips are 1.3 mm apart, at a tolerance of 5 mm, chains into one lump), and moving
-// its ends onto one point would move them farther than the tolerance promises: such a chain is
-// refused, naming its two ends farthest apart. Ends of a group no wider than the tolerance move by at
-// most the tolerance (their mean lies in their convex hull).
 // `width` (mm) with the fewest significant digits, 3 at least, that still read as more than `limit`:
 // a joint 1.0004 mm across at a 1 mm tolerance is not "1 mm across".
 std::string widthAbove(double width, double limit) {
@@ -241,6 +237,11 @@ std::string widthAbove(double width, double limit) {
   return text;
 }
 
+// A chain of ends, each within the tolerance of the next, can be far wider than the tolerance (a star
+// of 10 mm lines whose tips are 1.3 mm apart, at a tolerance of 5 mm, chains into one lump), and moving
+// its ends onto one point would move them farther than the tolerance promises: such a chain is
+// refused, naming its two ends farthest apart. Ends of a group no wider than the tolerance move by at
+// most the tolerance (their mean lies in their convex hull).
 void requireCompactJoint(const std::vector<Vec3>& ends, const std::vector<std::size_t>& group, double tolerance,
                          const std::filesystem::path& file, const std::vector<EdgeRef>& edgeOfRod) {
   const Vec3 mean = meanOf(ends, group);
@@ -251,12 +252,11 @@ void requireCompactJoint(const std::vector<Vec3>& ends, const std::vector<std::s
   const double width = (ends[a] - ends[b]).norm();
   if (width <= tolerance) return;
   const std::string across = widthAbove(width, tolerance);
-  char counts[200];
-  std::snprintf(counts, sizeof counts, "%zu curve ends chain into one joint %s mm across, each within the joint tolerance (%g mm) of another: ",
-                group.size(), across.c_str(), tolerance);
-  throw MeshError(file, counts + endName(ends, edgeOfRod, a) + " and " + endName(ends, edgeOfRod, b) + " are " + across + " mm apart" +
-                            ", and one joint would move ends farther than the tolerance; give a --joint-tolerance below the "
-                            "distance between ends that are not to meet (or close the gaps in the model)");
+  throw MeshError(file, std::to_string(group.size()) + " curve ends chain into one joint " + across + " mm across, each within the " +
+                            "joint tolerance (" + common::exactNumber(tolerance) + " mm) of another: " + endName(ends, edgeOfRod, a) +
+                            " and " + endName(ends, edgeOfRod, b) + " are " + across + " mm apart, and one joint would move ends " +
+                            "farther than the tolerance; give a --joint-tolerance below the distance between ends that are not " +
+                            "to meet (or close the gaps in the model)");
 }
 
 // Joins the curve ends within `tolerance` of one another: each group of chained ends (refused when

@@ -1,6 +1,7 @@
 // DesignProblem: the training cases on a fixed discretization, their solves by continuation in E,
 // and the objective's adjoint gradient.
 #include "common/memory_budget.hpp"
+#include "common/quoted_text.hpp"
 #include "mechanics/mechanics_file.hpp"
 #include "optimize/objective.hpp"
 #include "optimize/optimize.hpp"
@@ -9,7 +10,6 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
-#include <sstream>
 
 namespace rodfab::optimize {
 
@@ -312,9 +312,9 @@ Eigen::VectorXd startingModulus(const DesignProblem& problem, const Start& start
   const Settings& s = problem.settings();
   const double value = start.mpa > 0 ? start.mpa : std::clamp(std::sqrt(s.lowerMpa * s.upperMpa), s.lowerMpa, s.upperMpa);
   if (value < s.lowerMpa || value > s.upperMpa) {
-    std::ostringstream m;
-    m << "--start uniform=" << value << ": outside the bounds [" << s.lowerMpa << ", " << s.upperMpa << "] MPa";
-    throw OptimizeError(m.str());
+    using common::exactNumber;
+    throw OptimizeError("--start uniform=" + exactNumber(value) + ": outside the bounds [" + exactNumber(s.lowerMpa) + ", " +
+                        exactNumber(s.upperMpa) + "] MPa");
   }
   return Eigen::VectorXd::Constant(static_cast<Eigen::Index>(problem.variableCount()), value);
 }

@@ -1,5 +1,6 @@
 #include "slicer/optimize_options.hpp"
 
+#include "common/quoted_text.hpp"
 #include "geometry/geometry.hpp"
 #include "mechanics/mechanics_file.hpp"
 #include "slicer/command.hpp"
@@ -7,7 +8,6 @@
 
 #include <filesystem>
 #include <iostream>
-#include <sstream>
 
 namespace rodfab::cli {
 
@@ -112,10 +112,10 @@ std::optional<optimize::Settings> optimizeSettingsOrReport(const OptimizeCommand
 
 std::string startOutsideBounds(const OptimizeCommand& c, const mechanics::Design& design, const optimize::Settings& settings) {
   if (!c.start.uniform || !(c.start.mpa > 0) || (c.start.mpa >= settings.lowerMpa && c.start.mpa <= settings.upperMpa)) return {};
-  std::ostringstream m;
-  m << "--start uniform=" << c.start.mpa << ": outside the bounds [" << settings.lowerMpa << ", " << settings.upperMpa << "] MPa ("
-    << (design.optimize.boundsMpa ? c.design + "'s optimize.bounds_mpa" : "the floor and stiffest mix of " + c.calibration) << ")";
-  return m.str();
+  using common::exactNumber;
+  return "--start uniform=" + exactNumber(c.start.mpa) + ": outside the bounds [" + exactNumber(settings.lowerMpa) + ", " +
+         exactNumber(settings.upperMpa) + "] MPa (" +
+         (design.optimize.boundsMpa ? c.design + "'s optimize.bounds_mpa" : "the floor and stiffest mix of " + c.calibration) + ")";
 }
 
 bool optimizeOutputsAllowed(const OptimizeCommand& c, const mechanics::Design& design) {

@@ -41,14 +41,14 @@ optimize::Settings optimizeSettings(const OptimizeCommand& c, const mechanics::D
 // reach beyond what the calibration can print (slicing would clamp those moduli).
 std::optional<optimize::Settings> optimizeSettingsOrReport(const OptimizeCommand& c, const mechanics::Design& design);
 
-// True when every output may be written (outputAllowed): never the design, its target designs, the
-// calibration or another output; an existing file only when rodfab wrote it (a design, or a plot or
-// render of optimize); false after printing why and "nothing was written".
 // --start uniform=MPa checked against the bounds `settings` took from the calibration or the design's
 // optimize.bounds_mpa: empty when within them (or not a uniform value), else the message saying which
 // bounds it is outside, for a usage error (exit 2: the command line asks what the design does not allow).
 std::string startOutsideBounds(const OptimizeCommand& c, const mechanics::Design& design, const optimize::Settings& settings);
 
+// True when every output may be written (outputAllowed): never the design, its target designs, the
+// calibration or another output; an existing file only when rodfab wrote it (a design, or a plot or
+// render of optimize); false after printing why and "nothing was written".
 bool optimizeOutputsAllowed(const OptimizeCommand& c, const mechanics::Design& design);
 
 }  // namespace rodfab::cli

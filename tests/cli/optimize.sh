@@ -239,7 +239,12 @@ json.dump(d, open(tmp + "/loose.json", "w"))
 d = json.load(open(tmp + "/start.json"))
 d["optimize"]["bounds_mpa"] = [190, 8]
 json.dump(d, open(tmp + "/bad-bounds.json", "w"))
+d["optimize"]["bounds_mpa"] = [10, 100.00000001]
+json.dump(d, open(tmp + "/narrow-bounds.json", "w"))
 PY
+# --start outside the design's own bounds: a usage error naming them to the last digit
+expect_failure 2 "--start uniform=100.0000001: outside the bounds [10, 100.00000001] MPa ($tmp/narrow-bounds.json's optimize.bounds_mpa)" \
+  "$tmp/narrow-bounds.json" -o "$tmp/optimized.json" --start uniform=100.0000001
 expect_failure 1 "mechanics.load_cases[0].target.design: cannot read the target design" "$tmp/missing-target.json" -o "$tmp/optimized.json"
 expect_failure 1 "optimize.bounds_mpa: expected the lowest modulus below the highest" "$tmp/bad-bounds.json" -o "$tmp/optimized.json"
 expect_failure 1 'load case "crush" (mechanics.load_cases[0]) does not converge' "$tmp/crush.json" -o "$tmp/optimized.json"
