@@ -184,20 +184,37 @@ std::optional<Measurement> readRow(const std::vector<std::string>& fields, const
   return m;
 }
 
-}  // namespace
+// Where the quote `line` leaves open was opened: the offset of that quote character (npos when none is open).
+std::size_t openQuoteAt(std::string_view line) {
+  std::size_t open = std::string_view::npos;
+  for (std::size_t i = 0; i < line.size(); ++i) {
+    if (line[i] == '\\') ++i;
+    else if (line[i] == '"') open = open == std::string_view::npos ? i : std::string_view::npos;
+  }
+  return open;
+}
 
-DataError::DataError(std::string file, std::vector<DataIssue> issues)
-    : IssueListError(formatIssues(file, issues), file, issues) {}
+// Whether the quote open at the end of `line` begins a field (after a comma or at the line's start,
+// blanks aside), as a spreadsheet quotes a cell holding a line break (RFC 4180). A quote inside a
+// field (5" coupon) joins nothing: the line is refused for its unbalanced quotes, as it was, rather
+// than swallowing the rows up to the next stray quote into one field.
+bool quoteOpensField(std::string_view line) {
+  const std::size_t at = openQuoteAt(line);
+  if (at == std::string_view::npos) return false;
+  const std::size_t before = line.find_last_not_of(" \t", at == 0 ? std::string_view::npos : at - 1);
+  return at == 0 || before == std::string_view::npos || line[before] == ',';
+}
 
-// A field quoted across line breaks (a spreadsheet's cell holding one) continues on the next lines:
-// they are joined to `record`, each break read as a space, while a quote is left open. False when
-// the text ends or the record outgrows kMaxRecordBytes with the quote still open.
+// A field quoted across line breaks continues on the next lines: they are joined to `record`, each
+// break read as a space, while its quote is open. Only a quote that opens a field (quoteOpensField)
+// joins lines. False when the text ends or the record outgrows kMaxRecordBytes with the quote still open.
 constexpr std::size_t kMaxRecordBytes = 64 * 1024;
 bool joinQuotedLines(std::istream& lines, std::string& record, int& lineNumber) {
+  if (!quoteOpensField(record)) return true;  // closed, or unbalanced within its line: splitFields says so
   std::string raw;
   // The quote's state carried line by line (splitFields checks the joined record again), so a long
   // record of short lines costs its length, not its length squared.
-  for (bool open = leavesQuoteOpen(record); open; open ^= leavesQuoteOpen(raw)) {
+  for (bool open = true; open; open ^= leavesQuoteOpen(raw)) {
     if (record.size() > kMaxRecordBytes || !std::getline(lines, raw)) return false;
     ++lineNumber;
     if (!raw.empty() && raw.back() == '\r') raw.pop_back();
@@ -206,6 +223,11 @@ bool joinQuotedLines(std::istream& lines, std::string& record, int& lineNumber) 
   }
   return true;
 }
+
+}  // namespace
+
+DataError::DataError(std::string file, std::vector<DataIssue> issues)
+    : IssueListError(formatIssues(file, issues), file, issues) {}
 
 DataSet parseData(std::string_view text, const std::string& sourceName) {
   DataSet data;

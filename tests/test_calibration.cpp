@@ -87,6 +87,14 @@ TEST_CASE("CSV details: a field quoted across line breaks is one field, each bre
   // A quote left open swallows the rest of the file: refused at the line that opened it.
   const std::string open = dataError("vero_fraction,modulus_mpa,specimen\n0,1,\"open\n0.5,3,b\n0.6,4,c\n");
   CHECK_THAT(open, Catch::Contains("line 2: unbalanced quotes: the quote opened in '0,1,\"open' is not closed by the end of the file"));
+  // A record is joined over at most 64 KiB of lines.
+  std::string longOpen = "vero_fraction,modulus_mpa,specimen\n0,1,\"open\n";
+  for (int i = 0; i < 40000; ++i) longOpen += "0.5,3,b\n";
+  CHECK_THAT(dataError(longOpen), Catch::Contains("line 2: unbalanced quotes: the quote opened in '0,1,\"open' is not closed within 64 KiB"));
+  // A quote inside a field opens nothing across lines: both rows are refused as before, not merged into
+  // one row whose text field swallows the second (its 40 MPa lost without a word).
+  const std::string inches = dataError("vero_fraction,modulus_mpa,specimen\n0.5,30,5\" coupon\n0.6,40,6\" coupon\n");
+  CHECK_THAT(inches, Catch::Contains("line 2: unbalanced quotes") && Catch::Contains("line 3: unbalanced quotes"));
 }
 
 TEST_CASE("a data set of more than kMaxMeasurements rows is refused at the first row past it", "[calibration][data]") {
