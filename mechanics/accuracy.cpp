@@ -59,8 +59,10 @@ public:
   // quarter of the asymptotic rate, as slender rods reach it late (mechanics/README.md).
   void estimate() {
     const Discretization coarse = scaled(out_.problem->discretization(), false);
-    if (coarse.perRod == out_.problem->discretization().perRod) {
-      out_.estimate.note = "every rod has a single span: there is no coarser discretization to compare with";
+    if (coarse.perRod == out_.problem->discretization().perRod) {  // every rod a single span
+      const std::string none = "every rod has a single span: no coarser discretization";
+      if (accuracy_.maxRefinements > 0 && refine()) addNote(none + "; the first level was compared with twice the spans instead");
+      else out_.estimate.note = none + " to compare with" + (out_.estimate.note.empty() ? "" : "; " + out_.estimate.note);
       return;
     }
     std::unique_ptr<StaticProblem> other;

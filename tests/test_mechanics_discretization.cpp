@@ -233,6 +233,23 @@ TEST_CASE("when the solve on half the spans fails, the estimate compares with tw
   CHECK(capped.estimate.note.find("every rod has the most spans a rod may have (4096)") != std::string::npos);
 }
 
+// With a single span a rod has no coarser level: the first is compared with twice the spans, as when
+// the coarser solve fails, and the estimate is honest against the elastica.
+TEST_CASE("a design of single-span rods is estimated against twice the spans", "[mechanics]") {
+  const double I = kPi * std::pow(kGradedDiameter, 4) / 64, M = 20.0 * I / kGradedLength;
+  const Vec3 exact = gradedTipUnderMoment(M);
+  mechanics::SolverOptions options;
+  options.loadSteps = 5;
+  const auto sim = mechanics::simulate(gradedCantilever(Vec3::Zero(), Vec3(0, 0, M)), rebuilt(6, 1), options, 5);
+  const double error = (tip(*sim.problem, sim.solution.state) - exact).norm();
+  INFO("spans " << sim.problem->discretization().perRod[0] << ", true error " << error << " mm, estimate "
+                << sim.estimate.positionError << " mm; " << sim.estimate.note);
+  REQUIRE(sim.estimate.available);
+  CHECK(sim.refinements >= 1);
+  CHECK(sim.estimate.note.rfind("every rod has a single span", 0) == 0);
+  CHECK(error <= sim.estimate.positionError + 1e-9 * (exact - Vec3(kGradedLength, 0, 0)).norm());
+}
+
 TEST_CASE("automatic spans grow with slenderness, drawn turning and a falling modulus", "[mechanics]") {
   auto spansOf = [](const Design& s) { return StaticProblem(s).discretization().perRod.at(0); };
   const auto stubby = cantilever(straight(Vec3::Zero(), Vec3(10, 0, 0), 1, 2), Section::circle(2), 100, Vec3::Zero(), Vec3::Zero());
