@@ -59,29 +59,35 @@ public:
   // quarter of the asymptotic rate, as slender rods reach it late (mechanics/README.md).
   void estimate() {
     const Discretization coarse = scaled(out_.problem->discretization(), false);
-    if (coarse.perRod == out_.problem->discretization().perRod) {  // every rod a single span
-      const std::string none = "every rod has a single span: no coarser discretization";
-      if (accuracy_.maxRefinements > 0 && refine()) addNote(none + "; the first level was compared with twice the spans instead");
-      else out_.estimate.note = none + " to compare with" + (out_.estimate.note.empty() ? "" : "; " + out_.estimate.note);
-      return;
-    }
     std::unique_ptr<StaticProblem> other;
     Solution o;
-    try {
+    std::string without;  // why the first level is not compared with a coarser one
+    if (coarse.perRod == out_.problem->discretization().perRod) without = "every rod has a single span: no coarser discretization";
+    else try {
       other = std::make_unique<StaticProblem>(design_, coarse);
-      if (onLevel_) onLevel_(Level::Estimate, *other);
-      o = solveFrom(*other, other->transferredState(*out_.problem, out_.solution.state), solver_, steps_);
+      // Spans added past kinks of E(s) on collocation points can make the halved counts the same basis
+      // again: compared with itself it would claim no error at all.
+      if (other->unknownCount() >= out_.problem->unknownCount()) {
+        without = "half the spans make no coarser basis (spans added past kinks of E(s))";
+      } else {
+        if (onLevel_) onLevel_(Level::Estimate, *other);
+        o = solveFrom(*other, other->transferredState(*out_.problem, out_.solution.state), solver_, steps_);
+      }
     } catch (const std::runtime_error& e) {  // ConvergenceError, MechanicsError
-      // Half the spans may not carry the load where the first level does (a tightly bent rod under-
-      // resolved): a solve on twice the spans is compared with the first level instead, and is the answer.
-      const std::string failed = std::string("the solve with half the spans failed (") + e.what() + ")";
-      if (accuracy_.maxRefinements > 0 && refine()) addNote(failed + "; the first level was compared with twice the spans instead");
-      else out_.estimate.note = failed + (out_.estimate.note.empty() ? "" : "; " + out_.estimate.note);
-      return;
+      // Half the spans may not carry the load where the first level does (a tightly bent rod under-resolved).
+      without = std::string("the solve with half the spans failed (") + e.what() + ")";
     }
+    if (!without.empty()) return compareWithFiner(without);
     last_ = compare(design_, *out_.problem, out_.solution.state, *other, o.state);
     compared_ = true;
     fill(aPrioriRatio(), other->unknownCount());
+  }
+
+  // Without a coarser level, a solve on twice the spans is compared with the first level instead, and
+  // is the answer (one of the refinements); with no refinement allowed, or none possible, no estimate.
+  void compareWithFiner(const std::string& why) {
+    if (accuracy_.maxRefinements > 0 && refine()) addNote(why + "; the first level was compared with twice the spans instead");
+    else out_.estimate.note = why + (out_.estimate.note.empty() ? "" : "; " + out_.estimate.note);
   }
 
   // Doubles every rod's spans (up to kMaxSpansPerRod) and solves again from the current solution;
@@ -101,6 +107,10 @@ public:
     Solution next;
     try {
       finerProblem = std::make_unique<StaticProblem>(design_, finerSpans);
+      if (finerProblem->unknownCount() <= out_.problem->unknownCount()) {
+        addNote("twice the spans make no finer basis: not refined further");
+        return false;
+      }
       if (onLevel_) onLevel_(Level::Refinement, *finerProblem);
       next = solveFrom(*finerProblem, finerProblem->transferredState(*out_.problem, out_.solution.state), solver_, steps_);
     } catch (const std::runtime_error& e) {
