@@ -184,14 +184,22 @@ std::optional<Measurement> readRow(const std::vector<std::string>& fields, const
   return m;
 }
 
-// Where the quote `line` leaves open was opened: the offset of that quote character (npos when none is open).
+// Where the quoting that `line` leaves open began (npos when none is open): a quote that reopens right
+// where the last one closed ("" inside a quoted field, RFC 4180's literal quote) continues the same run.
 std::size_t openQuoteAt(std::string_view line) {
-  std::size_t open = std::string_view::npos;
+  constexpr std::size_t none = std::string_view::npos;
+  std::size_t began = none, closed = none;
+  bool open = false;
   for (std::size_t i = 0; i < line.size(); ++i) {
-    if (line[i] == '\\') ++i;
-    else if (line[i] == '"') open = open == std::string_view::npos ? i : std::string_view::npos;
+    if (line[i] == '\\') {
+      ++i;
+    } else if (line[i] == '"') {
+      if (open) closed = i;
+      else if (closed == none || closed + 1 != i) began = i;
+      open = !open;
+    }
   }
-  return open;
+  return open ? began : none;
 }
 
 // Whether the quote open at the end of `line` begins a field (after a comma or at the line's start,
@@ -205,23 +213,42 @@ bool quoteOpensField(std::string_view line) {
   return at == 0 || before == std::string_view::npos || line[before] == ',';
 }
 
+// Where the last unescaped quote of `line` is (npos when it has none).
+std::size_t lastQuoteAt(std::string_view line) {
+  std::size_t last = std::string_view::npos;
+  for (std::size_t i = 0; i < line.size(); ++i) {
+    if (line[i] == '\\') ++i;
+    else if (line[i] == '"') last = i;
+  }
+  return last;
+}
+
 // A field quoted across line breaks continues on the next lines: they are joined to `record`, each
 // break read as a space, while its quote is open. Only a quote that opens a field (quoteOpensField)
-// joins lines. False when the text ends or the record outgrows kMaxRecordBytes with the quote still open.
+// joins lines, and it must close a field too: its closing quote followed by a comma or the line's end
+// (a missing closing quote, then a stray one inside a later field, would take the rows between into one
+// text field). Empty when joined or nothing to join, else how the quote fails: still open at the end of
+// the text or past kMaxRecordBytes, or closing inside a field.
 constexpr std::size_t kMaxRecordBytes = 64 * 1024;
-bool joinQuotedLines(std::istream& lines, std::string& record, int& lineNumber) {
-  if (!quoteOpensField(record)) return true;  // closed, or unbalanced within its line: splitFields says so
+std::string joinQuotedLines(std::istream& lines, std::string& record, int& lineNumber) {
+  if (!quoteOpensField(record)) return {};  // closed, or unbalanced within its line: splitFields says so
   std::string raw;
   // The quote's state carried line by line (splitFields checks the joined record again), so a long
   // record of short lines costs its length, not its length squared.
   for (bool open = true; open; open ^= leavesQuoteOpen(raw)) {
-    if (record.size() > kMaxRecordBytes || !std::getline(lines, raw)) return false;
+    if (record.size() > kMaxRecordBytes) return "is not closed within 64 KiB";
+    if (!std::getline(lines, raw)) return "is not closed by the end of the file";
     ++lineNumber;
     if (!raw.empty() && raw.back() == '\r') raw.pop_back();
     record += ' ';
     record += raw;
   }
-  return true;
+  // An odd count of quotes in the last line, starting inside the quote: its last one closes it.
+  const std::size_t after = raw.find_first_not_of(" \t", lastQuoteAt(raw) + 1);
+  if (after != std::string::npos && raw[after] != ',')
+    return "closes inside a field on line " + std::to_string(lineNumber) + " (" + common::quotedFromFile(raw) +
+           "), not at a comma or the line's end";
+  return {};
 }
 
 }  // namespace
@@ -248,10 +275,9 @@ DataSet parseData(std::string_view text, const std::string& sourceName) {
     std::string line = boost::algorithm::trim_copy(raw);
     if (line.empty() || line.front() == '#') continue;
     const int recordLine = lineNumber;
-    if (const std::string first = line; !joinQuotedLines(lines, line, lineNumber)) {
-      fail(recordLine, "unbalanced quotes: the quote opened in " + common::quotedFromFile(first) + " is not closed " +
-                           (line.size() > kMaxRecordBytes ? "within 64 KiB" : "by the end of the file"));
-      break;  // the rest of the text would be read inside the quote
+    if (const std::string first = line, why = joinQuotedLines(lines, line, lineNumber); !why.empty()) {
+      fail(recordLine, "unbalanced quotes: the quote opened in " + common::quotedFromFile(first) + " " + why);
+      break;  // what follows cannot be told apart from the inside of the quote
     }
     const auto fields = splitFields(line);
     if (!fields) {

@@ -84,6 +84,10 @@ TEST_CASE("CSV details: a field quoted across line breaks is one field, each bre
   CHECK(d.measurements[0].line == 2);
   CHECK(d.measurements[1].specimen == "b");
   CHECK(d.measurements[1].line == 5);
+  // Doubled quotes inside the quoted field ("say ""hi""") keep it the same field across the break.
+  const DataSet doubled = parseData("vero_fraction,modulus_mpa,specimen\n0.4,12.5,\"say \"\"hi\"\"\nthere\"\n0.1,3,b\n", "x.csv");
+  REQUIRE(doubled.measurements.size() == 2);
+  CHECK(doubled.measurements[1].line == 4);
   // A quote left open swallows the rest of the file: refused at the line that opened it.
   const std::string open = dataError("vero_fraction,modulus_mpa,specimen\n0,1,\"open\n0.5,3,b\n0.6,4,c\n");
   CHECK_THAT(open, Catch::Contains("line 2: unbalanced quotes: the quote opened in '0,1,\"open' is not closed by the end of the file"));
@@ -95,6 +99,12 @@ TEST_CASE("CSV details: a field quoted across line breaks is one field, each bre
   // one row whose text field swallows the second (its 40 MPa lost without a word).
   const std::string inches = dataError("vero_fraction,modulus_mpa,specimen\n0.5,30,5\" coupon\n0.6,40,6\" coupon\n");
   CHECK_THAT(inches, Catch::Contains("line 2: unbalanced quotes") && Catch::Contains("line 3: unbalanced quotes"));
+  // A field's quote left open, then a stray quote inside a later field: refused, not read as one row
+  // whose specimen holds the row between (the hostile-input review's file: a 8 MPa row lost, the
+  // floor moved from 30 to 35 % Vero).
+  const std::string swallowed = dataError("vero_fraction,modulus_mpa,specimen\n0.2,10,\"3 inch bar\n0.3,8,x\n0.4,20,4\" bar\n");
+  CHECK_THAT(swallowed, Catch::Contains("line 2: unbalanced quotes: the quote opened in '0.2,10,\"3 inch bar' closes inside a "
+                                        "field on line 4 ('0.4,20,4\" bar'), not at a comma or the line's end"));
 }
 
 TEST_CASE("a data set of more than kMaxMeasurements rows is refused at the first row past it", "[calibration][data]") {
