@@ -7,7 +7,7 @@
 #include "optimize/optimize.hpp"
 
 #include <algorithm>
-#include <cerrno>
+#include <charconv>
 #include <cmath>
 #include <cstdlib>
 
@@ -299,11 +299,11 @@ std::optional<Start> parseStart(const std::string& text) {
   if (text == "uniform") return Start{true, 0.0};
   const std::string prefix = "uniform=";
   if (text.rfind(prefix, 0) != 0 || text.size() == prefix.size() || text.size() > prefix.size() + 32) return std::nullopt;
-  const std::string number = text.substr(prefix.size());
-  char* end = nullptr;
-  errno = 0;
-  const double mpa = std::strtod(number.c_str(), &end);
-  if (end != number.c_str() + number.size() || errno == ERANGE || !std::isfinite(mpa) || !(mpa > 0)) return std::nullopt;
+  // A decimal number only (strtod took 0x10 as 16 MPa): from_chars reads no hex, sign or blank.
+  const std::string_view number = std::string_view(text).substr(prefix.size());
+  double mpa = 0.0;
+  const auto [end, error] = std::from_chars(number.data(), number.data() + number.size(), mpa);
+  if (error != std::errc() || end != number.data() + number.size() || !std::isfinite(mpa) || !(mpa > 0)) return std::nullopt;
   return Start{true, mpa};
 }
 

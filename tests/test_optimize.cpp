@@ -237,7 +237,8 @@ TEST_CASE("The start (--start): the design's modulus, or one modulus everywhere 
   CHECK(optimize::parseStart("uniform")->uniform);
   CHECK(optimize::parseStart("uniform")->mpa == 0.0);
   CHECK(optimize::parseStart("uniform=42.5")->mpa == 42.5);
-  for (const char* bad : {"", "flat", "uniform=", "uniform=0", "uniform=-1", "uniform=nan", "uniform=inf", "uniform=12x", "uniform=1e999"})
+  for (const char* bad : {"", "flat", "uniform=", "uniform=0", "uniform=-1", "uniform=nan", "uniform=inf", "uniform=12x", "uniform=1e999",
+                          "uniform=0x10", "uniform= 12"})
     CHECK_FALSE(optimize::parseStart(bad));
   const optimize::Settings settings = testSettings();
   optimize::DesignProblem problem(manufactured(settings, 3), settings);
