@@ -68,15 +68,26 @@ using Tokenizer = boost::tokenizer<boost::escaped_list_separator<char>>;
 // A line of more fields is not read on: a header of 20 million unknown columns took 1.3 GB as fields.
 constexpr std::size_t kMaxFields = 1024;
 
-// Whether `text` leaves a quote open: an odd count of unescaped quotes.
-bool leavesQuoteOpen(std::string_view text) {
-  std::size_t quotes = 0;
-  for (std::size_t i = 0; i < text.size(); ++i) {
-    if (text[i] == '\\') ++i;
-    else if (text[i] == '"') ++quotes;
+// Where the quoting that `line` leaves open began (npos when none is open): a quote that reopens right
+// where the last one closed ("" inside a quoted field, RFC 4180's literal quote) continues the same run.
+std::size_t openQuoteAt(std::string_view line) {
+  constexpr std::size_t none = std::string_view::npos;
+  std::size_t began = none, closed = none;
+  bool open = false;
+  for (std::size_t i = 0; i < line.size(); ++i) {
+    if (line[i] == '\\') {
+      ++i;
+    } else if (line[i] == '"') {
+      if (open) closed = i;
+      else if (closed == none || closed + 1 != i) began = i;
+      open = !open;
+    }
   }
-  return quotes % 2 != 0;
+  return open ? began : none;
 }
+
+// Whether `text` leaves a quote open: an odd count of unescaped quotes.
+bool leavesQuoteOpen(std::string_view text) { return openQuoteAt(text) != std::string_view::npos; }
 
 // Splits one CSV record (quotes allowed around fields); nullopt when the quoting is broken. Stops after
 // kMaxFields + 1 fields.
@@ -182,24 +193,6 @@ std::optional<Measurement> readRow(const std::vector<std::string>& fields, const
   m.date = text(Column::Date, "date");
   if (!ok) return std::nullopt;
   return m;
-}
-
-// Where the quoting that `line` leaves open began (npos when none is open): a quote that reopens right
-// where the last one closed ("" inside a quoted field, RFC 4180's literal quote) continues the same run.
-std::size_t openQuoteAt(std::string_view line) {
-  constexpr std::size_t none = std::string_view::npos;
-  std::size_t began = none, closed = none;
-  bool open = false;
-  for (std::size_t i = 0; i < line.size(); ++i) {
-    if (line[i] == '\\') {
-      ++i;
-    } else if (line[i] == '"') {
-      if (open) closed = i;
-      else if (closed == none || closed + 1 != i) began = i;
-      open = !open;
-    }
-  }
-  return open ? began : none;
 }
 
 // Whether the quote open at the end of `line` begins a field (after a comma or at the line's start,

@@ -79,7 +79,6 @@ public:
     }
     if (!without.empty()) return compareWithFiner(without);
     last_ = compare(design_, *out_.problem, out_.solution.state, *other, o.state);
-    compared_ = true;
     fill(aPrioriRatio(), other->unknownCount());
   }
 
@@ -118,10 +117,9 @@ public:
       return false;
     }
     const double previous = last_.difference;
-    const bool observed = compared_;  // a ratio needs two comparisons: the first is the a priori one
+    const bool observed = out_.estimate.available;  // a ratio needs two comparisons: the first has the a priori one
     StaticProblem& finer = *finerProblem;
     last_ = compare(design_, finer, next.state, *out_.problem, out_.solution.state);
-    compared_ = true;
     out_.estimate.ratio = observed && last_.difference > 0 ? previous / last_.difference : 0.0;
     const std::size_t compared = out_.problem->unknownCount();
     // The path's history (steps, critical points) stays the first level's.
@@ -169,8 +167,7 @@ private:
   Simulation& out_;
   int order_;
   double size_;  // bounding-box diagonal of the design, mm
-  Comparison last_;
-  bool compared_ = false;  // last_ holds a comparison of two levels
+  Comparison last_;  // of the last two levels compared, once the estimate is available
 };
 
 }  // namespace

@@ -4,7 +4,6 @@
 
 #include <chrono>
 #include <cmath>
-#include <iomanip>
 #include <limits>
 #include <optional>
 #include <sstream>
@@ -105,9 +104,7 @@ std::string PathFollower::singularReferenceMessage() const {
                         "loose rods)";
   const auto [rod, ratio] = problem_.mostSlenderRod();
   if (ratio >= 1e3) {
-    std::ostringstream text;
-    text << std::setprecision(3) << ratio;
-    message += ", or its rods are too slender for double precision: " + rod + " is " + text.str() +
+    message += ", or its rods are too slender for double precision: " + rod + " is " + format(ratio) +
                " times longer than thick (above about 1e4 the bending and stretching stiffnesses lie 1e8 apart); "
                "split it, thicken it or shorten it";
   }

@@ -106,11 +106,10 @@ double shortestCrossing(const Vec3& c0, const Vec3& c1, const Vec3& a, const Vec
 // The rod's path over its two faces: the quadratic Bezier curve from centroid c0 to centroid c1 whose
 // control point is the edge crossing, walked by arc length. On a flat pair of faces whose shortest
 // path crosses within the edge's middle half, the three points are in line and the path is that
-// straight segment. Where the
-// crossing is held back from a corner, the polyline c0 -> crossing -> c1 turned there, and the
-// interpolant through points on it bent about as tight as their spacing (a flat 50 mm plate at
-// --faces 1000: 164 of its rods tighter than a 1 mm rod's section, down to 0.002 mm); the curve turns
-// gradually instead, no tighter than a fraction of its legs' length.
+// straight segment. Where the crossing is held back from a corner, the polyline c0 -> crossing -> c1
+// turned there, and the interpolant through points on it bent about as tight as their spacing (a flat
+// 50 mm plate at --faces 1000: 164 of its rods tighter than a 1 mm rod's section, down to 0.002 mm);
+// the curve turns gradually instead, no tighter than a fraction of its legs' length.
 class CrossingPath {
 public:
   CrossingPath(const Vec3& c0, const Vec3& crossing, const Vec3& c1) : c0_(c0), crossing_(crossing), c1_(c1) {

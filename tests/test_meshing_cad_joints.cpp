@@ -33,6 +33,13 @@ std::string linesModel(const std::vector<std::pair<Vec3, Vec3>>& lines) {
   return stepModel("#15 = GEOMETRIC_CURVE_SET('',(" + members + "));\n" + data);
 }
 
+// linesModel(lines) written to the scratch file `name`.
+fs::path linesFile(const std::string& name, const std::vector<std::pair<Vec3, Vec3>>& lines) {
+  const fs::path file = scratch(name);
+  std::ofstream(file, std::ios::binary) << linesModel(lines);
+  return file;
+}
+
 // 50 lines from the origin to a circle of radius 10 mm: their tips 1.26 mm apart.
 std::vector<std::pair<Vec3, Vec3>> star() {
   std::vector<std::pair<Vec3, Vec3>> lines;
@@ -54,8 +61,7 @@ double largestEndMove(const meshing::CadRods& rods, const std::vector<std::pair<
 }  // namespace
 
 TEST_CASE("a star whose tips chain within the joint tolerance is refused, not collapsed into a lump", "[meshing][cad]") {
-  const fs::path file = scratch("star.step");
-  std::ofstream(file, std::ios::binary) << linesModel(star());
+  const fs::path file = linesFile("star.step", star());
   meshing::CadRodOptions wide;
   wide.jointTolerance = 5;  // each tip within 5 mm of its neighbours: a chain 20 mm across
   const std::string error = meshErrorOf(file, [&] { meshing::rodsFromCad(file, wide); });
@@ -84,8 +90,7 @@ TEST_CASE("a chain just wider than the joint tolerance says its width with the d
   const std::vector<std::pair<Vec3, Vec3>> lines = {{Vec3(0, 0, 0), Vec3(0, 10, 0)},
                                                      {Vec3(0.6, 0, 0), Vec3(0, 0, 10)},
                                                      {Vec3(1.0004, 0, 0), Vec3(10, 10, 0)}};
-  const fs::path file = scratch("just-wide.step");
-  std::ofstream(file, std::ios::binary) << linesModel(lines);
+  const fs::path file = linesFile("just-wide.step", lines);
   meshing::CadRodOptions options;
   options.jointTolerance = 1;
   const std::string error = meshErrorOf(file, [&] { meshing::rodsFromCad(file, options); });
@@ -98,8 +103,7 @@ TEST_CASE("ends within the joint tolerance become one point, each moved by at mo
   const std::vector<std::pair<Vec3, Vec3>> lines = {{Vec3(0, 0, 0), Vec3(10, 0, 0)},
                                                      {Vec3(0.0006, 0, 0), Vec3(0, 10, 0)},
                                                      {Vec3(0.0003, 0.0004, 0), Vec3(0, 0, 10)}};
-  const fs::path file = scratch("near.step");
-  std::ofstream(file, std::ios::binary) << linesModel(lines);
+  const fs::path file = linesFile("near.step", lines);
   const meshing::CadRods rods = meshing::rodsFromCad(file, {});
   CHECK(rods.report.joints == 1);
   const Vec3 mean = (lines[0].first + lines[1].first + lines[2].first) / 3;
