@@ -3,6 +3,8 @@
 // tolerance.
 #include "mechanics/mechanics.hpp"
 
+#include "common/interrupt.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -22,6 +24,7 @@ Comparison compare(const Design& design, const StaticProblem& a, const Eigen::Ve
                    const StaticProblem& b, const Eigen::VectorXd& xb) {
   Comparison c;
   for (std::size_t r = 0; r < design.rods.size(); ++r) {
+    common::throwIfInterrupted();
     const geometry::NurbsCurve& curve = design.rods[r].centerline();
     const int designSpans = static_cast<int>(curve.breakpoints().size()) - 1;
     const int spans = a.discretization().perRod[r] * (a.discretization().degree > 0 ? 1 : designSpans);
@@ -73,6 +76,8 @@ public:
         if (onLevel_) onLevel_(Level::Estimate, *other);
         o = solveFrom(*other, other->transferredState(*out_.problem, out_.solution.state), solver_, steps_);
       }
+    } catch (const common::Interrupted&) {
+      throw;
     } catch (const std::runtime_error& e) {  // ConvergenceError, MechanicsError
       // Half the spans may not carry the load where the first level does (a tightly bent rod under-resolved).
       without = std::string("the solve with half the spans failed (") + e.what() + ")";
@@ -112,6 +117,8 @@ public:
       }
       if (onLevel_) onLevel_(Level::Refinement, *finerProblem);
       next = solveFrom(*finerProblem, finerProblem->transferredState(*out_.problem, out_.solution.state), solver_, steps_);
+    } catch (const common::Interrupted&) {
+      throw;
     } catch (const std::runtime_error& e) {
       addNote(std::string("refining further failed: ") + e.what());
       return false;

@@ -4,6 +4,11 @@
 //
 // Units follow the design file: mm, MPa, N, N mm. Loads and prescribed displacements and rotations
 // grow linearly with the load factor from 0 (the design as drawn, stress-free) to 1.
+//
+// Interrupts: building a StaticProblem (per rod), every Newton iteration and the error estimate's
+// comparison (per rod) poll common::throwIfInterrupted(), so solve(), solveFrom() and simulate()
+// throw common::Interrupted within a few tenths of a second of SIGINT / SIGTERM, whatever they
+// would otherwise throw; nothing they return is then made.
 #pragma once
 
 #include "geometry/rod.hpp"

@@ -2,6 +2,8 @@
 // (critical points, stability) and optionally switching onto a stable branch after a bifurcation.
 #include "mechanics/mechanics.hpp"
 
+#include "common/interrupt.hpp"
+
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -116,6 +118,7 @@ std::string PathFollower::singularReferenceMessage() const {
 // turn an exactly singular matrix into tiny pivots instead of a zero one, so solving J v = J 1 must
 // also give back v = 1.
 void PathFollower::factorizeReference() {
+  common::throwIfInterrupted();
   const Eigen::VectorXd& x0 = problem_.referenceState();
   problem_.evaluate(x0, 0.0, residual_, &jacobian_);
   referenceSign_ = 1;
@@ -137,6 +140,7 @@ Outcome PathFollower::newton(Eigen::VectorXd& x, double load, LoadStepReport& re
   bool chord = false;          // the next correction reuses the last factorization
   Eigen::VectorXd beforeChord;  // the state before the last chord step, empty if the last was full
   for (int iteration = 0;; ++iteration) {
+    common::throwIfInterrupted();  // an iteration of a large structure takes up to a few tenths of a second
     const auto t = std::chrono::steady_clock::now();
     problem_.evaluate(x, load, residual_);
     solution_.assembleSeconds += seconds(t);

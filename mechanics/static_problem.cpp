@@ -1,6 +1,8 @@
 // StaticProblem: builds the discrete structure and evaluates its residual and Jacobian.
 #include "mechanics/discrete_structure.hpp"
 
+#include "common/interrupt.hpp"
+
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
@@ -35,7 +37,10 @@ StaticProblem::StaticProblem(const Design& structure, const Discretization& disc
   if (!structure.mechanics.present)
     m.fail("mechanics", "the design has no \"mechanics\" block: give at least its supports (and loads) to simulate it");
   m.findInteriorSites(structure);
-  for (std::size_t i = 0; i < structure.rods.size(); ++i) m.buildRod(structure, i, discretization);
+  for (std::size_t i = 0; i < structure.rods.size(); ++i) {
+    common::throwIfInterrupted();  // thousands of rods, each interpolated, take seconds
+    m.buildRod(structure, i, discretization);
+  }
   m.size = std::max(1e-12, structure.bounds().diagonal().norm());
   m.buildNodes(structure);
   m.keepSpec(structure);

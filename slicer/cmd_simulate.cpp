@@ -1,6 +1,7 @@
 // rodfab simulate: the mechanics block of a design solved along its load path, with an error
 // estimate, stability along the path, and the deformed design written. The solver's options are
 // slicer/solver_options.hpp; what it prints is slicer/simulation_summary.hpp.
+#include "common/interrupt.hpp"
 #include "common/memory_budget.hpp"
 #include "geometry/geometry.hpp"
 #include "mechanics/mechanics.hpp"
@@ -119,6 +120,8 @@ int simulateDesign(const SimulateSettings& s, const mechanics::Design& design) {
     mechanics::Design deformed = sim->problem->deformedStructure(sim->solution.state);
     deformed.optimize = design.optimize;  // the design's "optimize" block too, so it can be optimized again
     mechanics::writeDesign(deformed, s.output, "deformed by rodfab simulate from " + s.design);
+  } catch (const common::Interrupted&) {
+    throw;
   } catch (const std::exception& e) {
     std::cerr << s.output << ": cannot write: " << e.what() << '\n';
     return kFailed;

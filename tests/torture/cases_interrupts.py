@@ -118,9 +118,10 @@ def cases(ctx) -> list[Case]:
                           ("sigint-while-writing", (signal.SIGINT, new_entry())),
                           ("sigterm-while-writing", (signal.SIGTERM, new_entry())),
                       ], ".vdb")
-    m = {"m.json": json.dumps(cantilever(), indent=1)}
-    cs += interrupted("simulate", lambda o: ["simulate", "m.json", "-o", o, "--spans", "2000"], ["ref.json"], m, False,
-                      "simulate a 2000-span cantilever", [
+    # Long enough (~3 s) that a solve which does not poll is ended by the watchdog, which is a failure.
+    m = {"m.json": json.dumps(cantilever(steps=20), indent=1)}
+    cs += interrupted("simulate", lambda o: ["simulate", "m.json", "-o", o, "--spans", "4000"], ["ref.json"], m, False,
+                      "simulate a 4000-span cantilever in 20 load steps", [
                           ("sigint-while-writing", (signal.SIGINT, any_new())),
                       ], ".json")
     data = {"data.csv": csv_rows(dma_rows(1600))}

@@ -446,6 +446,11 @@ def check_step(ctx: Context, step: Step, o: Outcome, cwd: Path) -> list[str]:
             problems.append(f"{sig.Signals(o.sent).name} not honoured: exited {o.exit_after_signal:.1f} s after it, having "
                             f"used {o.cpu_after_signal:.1f} s of CPU meanwhile (allowed {SIGNAL_GRACE * TIME_SCALE:.1f} s "
                             f"per core in use), {o.describe()}")
+        # The watchdog's exit (common/interrupt.hpp) keeps the promise but means the work did not poll for
+        # 0.6 s: a step that can run that long without looking (simulate's solves did) is a defect.
+        if "did not stop within the grace time" in o.stderr:
+            problems.append(f"{sig.Signals(o.sent).name} at {o.sent_after:.2f} s was not noticed by the work: the watchdog "
+                            f"ended it ({_excerpt(o.stderr)})")
         # Before main, while the dynamic loader maps ~80 libraries, the signal's default action ends the
         # process: nothing is written yet and a shell reports the same 128 + N (the leftover check still runs).
         in_loader = o.signal == o.sent and o.sent_after <= LOADER_WINDOW * TIME_SCALE
