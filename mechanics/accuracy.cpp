@@ -196,6 +196,7 @@ Simulation simulate(const Design& design, Discretization discretization, const S
     while (refiner.needsRefinement() && refiner.refine()) {
     }
   }
+  out.underResolved = out.problem->leastResolvedRod();
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
 }

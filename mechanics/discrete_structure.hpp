@@ -29,6 +29,9 @@ Basis rationalBasis(const geometry::NurbsCurve& curve, double u);
 // The same from the span that ends at u (the limit from below): differs at a C0 knot.
 Basis rationalBasisBelow(const geometry::NurbsCurve& curve, double u);
 
+// The spans collocation at `degree` needs on `rod` for the relative accuracy `tolerance` by the a
+// priori model of solver_basis.cpp (locking of slender and curved rods, steep E(s)), unrounded.
+double aPrioriSpans(const geometry::Rod& rod, int degree, double tolerance);
 // The automatic span count of a rebuilt rod (solver_basis.cpp); above kMaxSpansPerRod when the
 // degree converges too slowly for `tolerance`.
 int automaticSpans(const geometry::Rod& rod, int degree, double tolerance);

@@ -146,8 +146,8 @@ double modulusLength(const geometry::Rod& rod) {
 // `tolerance`, with s = (1e-4 / tolerance)^(1/q):
 //   N = max(c_q (L/d)^(2/q) max(theta, 1.2) s, e_q (L / (E / |dE/ds|)) s),
 // theta at least 1.2 rad because the load bends straight rods too; c_q and e_q were fitted to reach
-// 1e-4 on every measured case. At least 4 spans, one per design span and two per span of E(s).
-int automaticSpans(const geometry::Rod& rod, int degree, double tolerance) {
+// 1e-4 on every measured case.
+double aPrioriSpans(const geometry::Rod& rod, int degree, double tolerance) {
   const int q = collocationOrder(degree);
   const double c = q <= 2 ? 57.0 : q <= 4 ? 8.1 : 3.0;
   const double e = q <= 2 ? 60.0 : q <= 4 ? 11.0 : 3.0;
@@ -156,11 +156,17 @@ int automaticSpans(const geometry::Rod& rod, int degree, double tolerance) {
   const double theta = std::max(drawnTurning(rod.centerline()), 1.2);
   const double locking = c * std::pow(slenderness, 2.0 / q) * theta * scale;
   const double grading = e * rod.length() / modulusLength(rod) * scale;
+  return std::max(locking, grading);
+}
+
+// The a priori spans, at least 4, one per design span and two per span of E(s).
+int automaticSpans(const geometry::Rod& rod, int degree, double tolerance) {
   const int designSpans = static_cast<int>(rod.centerline().breakpoints().size()) - 1;
   const int modulusSpans = rod.modulus().isConstant()
                                ? 0
                                : static_cast<int>(rod.modulus().values().size()) - rod.modulus().degree();
-  const double spans = std::max({4.0, std::ceil(locking), std::ceil(grading), double(designSpans), 2.0 * modulusSpans});
+  const double spans =
+      std::max({4.0, std::ceil(aPrioriSpans(rod, degree, tolerance)), double(designSpans), 2.0 * modulusSpans});
   return spans > kMaxSpansPerRod ? kMaxSpansPerRod + 1 : static_cast<int>(spans);
 }
 

@@ -113,6 +113,20 @@ int StaticProblem::convergenceOrder() const {
   for (const DiscreteRod& rod : structure_->rods) order = std::min(order, rod.degree % 2 == 0 ? rod.degree : rod.degree - 1);
   return order;
 }
+std::optional<UnderResolvedRod> StaticProblem::leastResolvedRod() const {
+  std::optional<UnderResolvedRod> least;
+  double shortest = 1.0;  // spans over those needed
+  for (const DiscreteRod& rod : structure_->rods) {
+    const int spans = static_cast<int>(rod.curve.breakpoints().size()) - 1;
+    const double needed = aPrioriSpans(*rod.source, rod.degree, 1e-2);
+    if (spans < needed && spans / needed < shortest) {
+      shortest = spans / needed;
+      least = UnderResolvedRod{rod.path + " \"" + rod.name + "\"", rod.degree, spans, needed};
+    }
+  }
+  return least;
+}
+
 const Eigen::VectorXd& StaticProblem::referenceState() const { return structure_->reference; }
 
 void StaticProblem::evaluate(const Eigen::VectorXd& x, double load, Eigen::VectorXd& residual,

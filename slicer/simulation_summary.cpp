@@ -1,6 +1,7 @@
 #include "slicer/simulation_summary.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 namespace rodfab::cli {
@@ -64,6 +65,23 @@ void printAccuracy(const mechanics::ErrorEstimate& e, const mechanics::AccuracyO
   if (accuracy.estimate && (!e.available || e.relative > accuracy.tolerance))
     std::fprintf(stderr, "warning: the discretization error may exceed --accuracy %g; give more --spans (or --max-refinements)\n",
                  accuracy.tolerance);
+}
+
+nlohmann::json underResolvedJson(const std::optional<mechanics::UnderResolvedRod>& u) {
+  if (!u) return nullptr;
+  return {{"rod", u->rod}, {"degree", u->degree}, {"spans", u->spans}, {"spans_for_1_percent", std::ceil(u->needed)}};
+}
+
+// The warning when a rod has too few spans for its degree to be past locking: the estimate cannot
+// see it (it compares levels that lock alike), so it is said whatever the estimate claims.
+void printUnderResolved(const std::optional<mechanics::UnderResolvedRod>& u) {
+  if (!u) return;
+  std::fprintf(stderr,
+               "warning: %s has %d spans of degree %d where the a priori model asks about %.0f for even 1 %% accuracy "
+               "(mechanics/README.md, \"Automatic spans\"): collocation still locks on it, so the answer can be far off "
+               "(even bent the wrong way) and the error estimate far too small; give more --spans (--refine on the "
+               "design's basis) or leave them to the automatic choice\n",
+               u->rod.c_str(), u->spans, u->degree, std::ceil(u->needed));
 }
 
 // The stability line, and the warning when the final state is not known to be stable.
@@ -131,6 +149,7 @@ nlohmann::json simulationJson(const SimulationSummary& s) {
           {"load_steps", s.history}, {"newton_iterations", sol.newtonIterations}, {"chord_iterations", sol.chordIterations},
           {"stability", stabilityName(sol.stability)}, {"critical_points", criticalPointsJson(sol.criticalPoints)},
           {"error_estimate", estimateJson(s.simulation, s.settings.accuracy)},
+          {"under_resolved", underResolvedJson(s.simulation.underResolved)},
           {"largest_displacement_mm", s.largest.mm}, {"largest_displacement_rod", s.largest.rod},
           {"seconds", {{"total", s.simulation.seconds}, {"assemble", sol.assembleSeconds}, {"factorize_and_solve", sol.factorizeSeconds}}},
           {"memory", {{"estimate_bytes", s.memoryEstimate}}}};
@@ -145,6 +164,7 @@ void printSimulationSummary(const SimulationSummary& s) {
   if (sim.refinements > 0) std::printf("basis:     refined %d time%s: %s\n", sim.refinements, sim.refinements > 1 ? "s" : "",
                                        basisSummary(*sim.problem, s.settings.discretization).c_str());
   printAccuracy(sim.estimate, s.settings.accuracy);
+  printUnderResolved(sim.underResolved);
   printStability(sol, s.settings.solver.followStableBranch);
   std::printf("largest displacement: %.6g mm (rod '%s')\n", s.largest.mm, s.largest.rod.c_str());
   std::printf("wrote:     %s\n", s.output.c_str());

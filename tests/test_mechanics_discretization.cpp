@@ -315,6 +315,41 @@ TEST_CASE("the design's own basis (degree 0) is refined or refused, never used a
   CHECK(StaticProblem(quartic, designBasis(0)).discretization().perRod[0] == 1);
 }
 
+TEST_CASE("a basis far too coarse for its degree is flagged as locking, whatever the estimate claims", "[mechanics]") {
+  // A 50 mm cubic cantilever, 1 mm round, E 100, bent into an arc of 1 rad by an end moment: the
+  // exact tip is (sin 1, 1 - cos 1) R with R = E I / M. On its own cubic basis (collocation order 2)
+  // the a priori model asks 57 (L/d)^(2/2) max(theta, 1.2) (1e-4 / 1e-2)^(1/2) = 342 spans for 1 %.
+  const double I = kPi / 64, radius = 50.0, moment = 100.0 * I / radius;
+  const Design s = cantilever(straight(Vec3::Zero(), Vec3(50, 0, 0)), Section::circle(1.0), 100.0, Vec3::Zero(),
+                              Vec3(0, 0, moment));
+  const Vec3 exact = radius * Vec3(std::sin(1.0), 1.0 - std::cos(1.0), 0.0);
+  mechanics::SolverOptions options;
+  options.loadSteps = 20;
+  const mechanics::Simulation coarse = mechanics::simulate(s, designBasis(3), options, 20);
+  REQUIRE(coarse.underResolved.has_value());
+  CHECK(coarse.underResolved->rod == "rods[0] \"beam\"");
+  CHECK(coarse.underResolved->degree == 3);
+  CHECK(coarse.underResolved->spans == 4 << coarse.refinements);
+  CHECK(coarse.underResolved->needed == Approx(342.0).epsilon(1e-9));
+  // What the flag is for: the answer is off by more than 1 % of the displacement, and by more than
+  // the estimate says (it compares levels that lock alike).
+  const Vec3 t = tip(*coarse.problem, coarse.solution.state);
+  const double displacement = (exact - Vec3(50, 0, 0)).norm();
+  CHECK((t - exact).norm() > 1e-2 * displacement);
+  CHECK((t - exact).norm() > 2 * coarse.estimate.positionError);
+  // Enough spans of the same basis, or the automatic choice (degree 6), are not flagged.
+  mechanics::AccuracyOptions once;
+  once.estimate = false;
+  CHECK_FALSE(mechanics::simulate(s, designBasis(511), options, 20, once).underResolved);
+  const mechanics::Simulation automatic = mechanics::simulate(s, {}, options, 20);
+  CHECK_FALSE(automatic.underResolved);
+  CHECK((tip(*automatic.problem, automatic.solution.state) - exact).norm() < 1e-3 * displacement);
+  // Nor are rods on the automatic counts of other kinds: graded, curved.
+  CHECK_FALSE(StaticProblem(gradedCantilever(Vec3::Zero(), Vec3::Zero())).leastResolvedRod());
+  CHECK_FALSE(StaticProblem(batheBolourchi()).leastResolvedRod());
+  CHECK(StaticProblem(batheBolourchi(), rebuilt(4, 4)).leastResolvedRod());
+}
+
 TEST_CASE("weights more than 100 apart are refused: the parameter they make runs too unevenly to collocate in", "[mechanics]") {
   // A straight 20 mm quadratic whose middle weight w tucks its ends into hooks: at w = 0.001 the
   // cantilever bent 15 times too little while its error estimate said a third of that.
