@@ -254,23 +254,24 @@ std::vector<CaseAccuracy> DesignProblem::accuracyAt(const Eigen::VectorXd& modul
   if (static_cast<std::size_t>(modulus.size()) != variableCount())
     throw std::invalid_argument("DesignProblem::accuracyAt: " + std::to_string(variableCount()) + " values expected");
   const std::vector<geometry::Rod> rods = m.rodsWith(modulus);
-  mechanics::AccuracyOptions once;
-  once.estimate = false;  // the optimizer's discretization as it is
   std::vector<CaseAccuracy> out;
   for (const Impl::Case& c : m.cases) {
     if (poll) poll();
     mechanics::Design s = *c.structure;
     s.rods = rods;
     mechanics::ErrorEstimate e;
+    // The spans were chosen for the starting E(s): a steeper optimum may need more (told, not refined).
+    const mechanics::StaticProblem kept(s, c.problem->discretization());
+    const std::optional<mechanics::UnderResolvedRod> underResolved = kept.leastResolvedRod();
     try {
-      const mechanics::Simulation sim = mechanics::simulate(s, c.problem->discretization(), m.settings.solver, c.loadSteps, once,
-                                                            [&](const mechanics::LoadStepReport&, const Eigen::VectorXd&) { if (poll) poll(); });
+      const mechanics::Solution sol = mechanics::solve(kept, m.settings.solver, c.loadSteps,
+                                                       [&](const mechanics::LoadStepReport&, const Eigen::VectorXd&) { if (poll) poll(); });
       mechanics::Discretization finer = c.problem->discretization();
       for (int& spans : finer.perRod) spans = std::min(2 * spans, mechanics::kMaxSpansPerRod);
       const mechanics::StaticProblem fine(s, finer);
       if (poll) poll();
-      const mechanics::Solution f = mechanics::solveFrom(fine, fine.transferredState(*sim.problem, sim.solution.state), m.settings.solver, c.loadSteps);
-      const auto [difference, displacement] = displacementDifference(s, *sim.problem, sim.solution.state, fine, f.state);
+      const mechanics::Solution f = mechanics::solveFrom(fine, fine.transferredState(kept, sol.state), m.settings.solver, c.loadSteps);
+      const auto [difference, displacement] = displacementDifference(s, kept, sol.state, fine, f.state);
       const double ratio = std::max(2.0, std::ldexp(1.0, c.problem->convergenceOrder() - 2));
       e.available = true;
       e.positionError = difference * ratio / (ratio - 1.0);
@@ -281,7 +282,7 @@ std::vector<CaseAccuracy> DesignProblem::accuracyAt(const Eigen::VectorXd& modul
       e.available = false;
       e.note = std::string("a solve does not converge: ") + err.what();
     }
-    out.push_back({c.name, e});
+    out.push_back({c.name, e, underResolved});
   }
   return out;
 }

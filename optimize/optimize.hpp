@@ -84,6 +84,7 @@ struct Evaluation {
 struct CaseAccuracy {
   std::string name;
   mechanics::ErrorEstimate estimate;  // available == false with a note when it could not be made
+  std::optional<mechanics::UnderResolvedRod> underResolved;  // StaticProblem::leastResolvedRod at the optimum
 };
 
 // The training cases of a design, each a discretized structure with its targets.

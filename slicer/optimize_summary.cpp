@@ -1,5 +1,7 @@
 #include "slicer/optimize_summary.hpp"
 
+#include "slicer/simulation_summary.hpp"
+
 #include <algorithm>
 #include <cstdio>
 
@@ -19,7 +21,8 @@ nlohmann::json casesJson(const optimize::Result& r, const std::vector<optimize::
     const optimize::CaseObjective &a = r.initial.cases[i], &b = r.final.cases[i];
     cases.push_back({{"name", b.name}, {"weight", b.weight}, {"objective_initial", a.total()}, {"objective_final", b.total()},
                      {"position_final", b.position}, {"curvature_final", b.curvature},
-                     {"error_estimate", estimateJson(accuracy.at(i).estimate)}});
+                     {"error_estimate", estimateJson(accuracy.at(i).estimate)},
+                     {"under_resolved", underResolvedJson(accuracy.at(i).underResolved)}});
   }
   return cases;
 }
@@ -58,6 +61,7 @@ void printAccuracy(const std::vector<optimize::CaseAccuracy>& accuracy) {
       std::fprintf(stderr, "warning: case \"%s\": the optimum's equilibrium is estimated accurate to %.2g of its displacement, "
                            "above the %.2g simulate refines to; check the optimized design with rodfab simulate\n",
                    a.name.c_str(), e.relative, target);
+    warnUnderResolved(a.underResolved, "case \"" + a.name + "\": ");
   }
 }
 

@@ -67,23 +67,6 @@ void printAccuracy(const mechanics::ErrorEstimate& e, const mechanics::AccuracyO
                  accuracy.tolerance);
 }
 
-nlohmann::json underResolvedJson(const std::optional<mechanics::UnderResolvedRod>& u) {
-  if (!u) return nullptr;
-  return {{"rod", u->rod}, {"degree", u->degree}, {"spans", u->spans}, {"spans_for_1_percent", std::ceil(u->needed)}};
-}
-
-// The warning when a rod has too few spans for its degree to be past locking: the estimate cannot
-// see it (it compares levels that lock alike), so it is said whatever the estimate claims.
-void printUnderResolved(const std::optional<mechanics::UnderResolvedRod>& u) {
-  if (!u) return;
-  std::fprintf(stderr,
-               "warning: %s has %d spans of degree %d where the a priori model asks about %.0f for even 1 %% accuracy "
-               "(mechanics/README.md, \"Automatic spans\"): collocation still locks on it, so the answer can be far off "
-               "(even bent the wrong way) and the error estimate far too small; give more --spans (--refine on the "
-               "design's basis) or leave them to the automatic choice\n",
-               u->rod.c_str(), u->spans, u->degree, std::ceil(u->needed));
-}
-
 // The stability line, and the warning when the final state is not known to be stable.
 void printStability(const mechanics::Solution& sol, bool followStableBranch) {
   std::printf("stability: %s", stabilityName(sol.stability));
@@ -164,10 +147,26 @@ void printSimulationSummary(const SimulationSummary& s) {
   if (sim.refinements > 0) std::printf("basis:     refined %d time%s: %s\n", sim.refinements, sim.refinements > 1 ? "s" : "",
                                        basisSummary(*sim.problem, s.settings.discretization).c_str());
   printAccuracy(sim.estimate, s.settings.accuracy);
-  printUnderResolved(sim.underResolved);
+  warnUnderResolved(sim.underResolved);
   printStability(sol, s.settings.solver.followStableBranch);
   std::printf("largest displacement: %.6g mm (rod '%s')\n", s.largest.mm, s.largest.rod.c_str());
   std::printf("wrote:     %s\n", s.output.c_str());
+}
+
+nlohmann::json underResolvedJson(const std::optional<mechanics::UnderResolvedRod>& u) {
+  if (!u) return nullptr;
+  return {{"rod", u->rod}, {"degree", u->degree}, {"spans", u->spans}, {"spans_for_1_percent", std::ceil(u->needed)}};
+}
+
+// Said whatever the error estimate claims: it compares levels that lock alike, so it cannot see this.
+void warnUnderResolved(const std::optional<mechanics::UnderResolvedRod>& u, const std::string& context) {
+  if (!u) return;
+  std::fprintf(stderr,
+               "warning: %s%s has %d spans of degree %d where the a priori model asks about %.0f for even 1 %% accuracy "
+               "(mechanics/README.md, \"Automatic spans\"): collocation still locks on it, so the answer can be far off "
+               "(even bent the wrong way) and the error estimate far too small; give more --spans (--refine on the "
+               "design's basis) or leave them to the automatic choice\n",
+               context.c_str(), u->rod.c_str(), u->spans, u->degree, std::ceil(u->needed));
 }
 
 }  // namespace rodfab::cli

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdint>
+#include <optional>
 #include <string>
 
 namespace rodfab::cli {
@@ -34,6 +35,12 @@ struct LargestDisplacement {
 LargestDisplacement largestDisplacement(const mechanics::Design& design, const mechanics::StaticProblem& problem,
                                         const Eigen::VectorXd& state);
 
+// A rod whose spans lie below what its degree needs for 1 % (StaticProblem::leastResolvedRod): as
+// JSON {rod, degree, spans, spans_for_1_percent} (null when none), and the warning on stderr,
+// prefixed by `context` (e.g. `case "fold": `; nothing when none). simulate and optimize both say it.
+nlohmann::json underResolvedJson(const std::optional<mechanics::UnderResolvedRod>& rod);
+void warnUnderResolved(const std::optional<mechanics::UnderResolvedRod>& rod, const std::string& context = "");
+
 // A finished simulation, as the summary reports it.
 struct SimulationSummary {
   const std::string& design;  // the files as given
@@ -50,7 +57,8 @@ struct SimulationSummary {
 nlohmann::json simulationJson(const SimulationSummary& summary);
 
 // The summary lines on stdout; warnings on stderr when the error estimate is above --accuracy (or
-// missing) and when the final state is unstable or undetermined.
+// missing), when a rod is under-resolved (warnUnderResolved) and when the final state is unstable or
+// undetermined.
 void printSimulationSummary(const SimulationSummary& summary);
 
 }  // namespace rodfab::cli
