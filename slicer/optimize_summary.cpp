@@ -61,7 +61,8 @@ void printAccuracy(const std::vector<optimize::CaseAccuracy>& accuracy) {
       std::fprintf(stderr, "warning: case \"%s\": the optimum's equilibrium is estimated accurate to %.2g of its displacement, "
                            "above the %.2g simulate refines to; check the optimized design with rodfab simulate\n",
                    a.name.c_str(), e.relative, target);
-    warnUnderResolved(a.underResolved, "case \"" + a.name + "\": ");
+    warnUnderResolved(a.underResolved, "case \"" + a.name + "\": at the optimum's E(s), ",
+                      "simulate the optimized design (its spans chosen for its own E(s)) before trusting its shape");
   }
 }
 

@@ -147,7 +147,8 @@ void printSimulationSummary(const SimulationSummary& s) {
   if (sim.refinements > 0) std::printf("basis:     refined %d time%s: %s\n", sim.refinements, sim.refinements > 1 ? "s" : "",
                                        basisSummary(*sim.problem, s.settings.discretization).c_str());
   printAccuracy(sim.estimate, s.settings.accuracy);
-  warnUnderResolved(sim.underResolved);
+  warnUnderResolved(sim.underResolved, "",
+                    "give more --spans (--refine on the design's basis) or leave them to the automatic choice");
   printStability(sol, s.settings.solver.followStableBranch);
   std::printf("largest displacement: %.6g mm (rod '%s')\n", s.largest.mm, s.largest.rod.c_str());
   std::printf("wrote:     %s\n", s.output.c_str());
@@ -159,14 +160,13 @@ nlohmann::json underResolvedJson(const std::optional<mechanics::UnderResolvedRod
 }
 
 // Said whatever the error estimate claims: it compares levels that lock alike, so it cannot see this.
-void warnUnderResolved(const std::optional<mechanics::UnderResolvedRod>& u, const std::string& context) {
+void warnUnderResolved(const std::optional<mechanics::UnderResolvedRod>& u, const std::string& context, const std::string& remedy) {
   if (!u) return;
   std::fprintf(stderr,
                "warning: %s%s has %d spans of degree %d where the a priori model asks about %.0f for even 1 %% accuracy "
                "(mechanics/README.md, \"Automatic spans\"): collocation still locks on it, so the answer can be far off "
-               "(even bent the wrong way) and the error estimate far too small; give more --spans (--refine on the "
-               "design's basis) or leave them to the automatic choice\n",
-               context.c_str(), u->rod.c_str(), u->spans, u->degree, std::ceil(u->needed));
+               "(even bent the wrong way) and the error estimate far too small; %s\n",
+               context.c_str(), u->rod.c_str(), u->spans, u->degree, std::ceil(u->needed), remedy.c_str());
 }
 
 }  // namespace rodfab::cli

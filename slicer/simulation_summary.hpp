@@ -37,9 +37,10 @@ LargestDisplacement largestDisplacement(const mechanics::Design& design, const m
 
 // A rod whose spans lie below what its degree needs for 1 % (StaticProblem::leastResolvedRod): as
 // JSON {rod, degree, spans, spans_for_1_percent} (null when none), and the warning on stderr,
-// prefixed by `context` (e.g. `case "fold": `; nothing when none). simulate and optimize both say it.
+// prefixed by `context` (e.g. `case "fold": `) and ending with what to do (nothing when none).
+// simulate and optimize both say it.
 nlohmann::json underResolvedJson(const std::optional<mechanics::UnderResolvedRod>& rod);
-void warnUnderResolved(const std::optional<mechanics::UnderResolvedRod>& rod, const std::string& context = "");
+void warnUnderResolved(const std::optional<mechanics::UnderResolvedRod>& rod, const std::string& context, const std::string& remedy);
 
 // A finished simulation, as the summary reports it.
 struct SimulationSummary {
