@@ -260,4 +260,28 @@ d = json.load(open(sys.argv[1]))
 at = d["mechanics"]["loads"][0]["at"]
 assert at["rod"] == "square10-edge0" and abs(at["parameter"] - 0.5) < 1e-9, at
 PY
+# The same rod drawn as one cubic span and solved on its own basis at --refine 3 (16 spans after
+# refining, where the a priori model asks 57 x 20 x 1.2 x 0.1 = 137 for 1 %): told, on stderr and in
+# --json, whatever the estimate says.
+python3 - "$tmp/roll.json" "$tmp/cubic.json" <<'PY'
+import json, sys
+d = json.load(open(sys.argv[1]))
+d["rods"][0]["centerline"] = {"degree": 3, "knots": [0, 0, 0, 0, 1, 1, 1, 1], "points": [[0, 0, 0], [20 / 3, 0, 0], [40 / 3, 0, 0], [20, 0, 0]]}
+json.dump(d, open(sys.argv[2], "w"))
+PY
+"$rodfab" simulate "$tmp/cubic.json" --degree 0 --refine 3 -o "$tmp/cubic-out.json" > "$tmp/out" 2> "$tmp/err" ||
+  fail "cubic on its own basis: $(cat "$tmp/err")"
+grep -q '^warning: rods\[0\] "beam" has 16 spans of degree 3 where the a priori model asks about 137 for even 1 % accuracy' "$tmp/err" ||
+  fail "no under-resolved warning: $(cat "$tmp/err")"
+"$rodfab" simulate "$tmp/cubic.json" --degree 0 --refine 3 --json -o "$tmp/cubic-out.json" > "$tmp/out" 2> "$tmp/err" ||
+  fail "cubic --json: $(cat "$tmp/err")"
+python3 - "$tmp/out" <<'PY' || fail "under_resolved in --json: $(head -c 2000 "$tmp/out")"
+import json, sys
+u = json.load(open(sys.argv[1]))["under_resolved"]
+assert u == {"rod": 'rods[0] "beam"', "degree": 3, "spans": 16, "spans_for_1_percent": 137}, u
+PY
+"$rodfab" simulate "$tmp/roll.json" --json -o "$tmp/rolled.json" > "$tmp/out" 2> "$tmp/err" || fail "--json: $(cat "$tmp/err")"
+python3 -c 'import json, sys; assert json.load(open(sys.argv[1]))["under_resolved"] is None' "$tmp/out" ||
+  fail "the automatic spans reported under-resolved"
+
 echo "simulate: OK"
