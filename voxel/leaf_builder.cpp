@@ -3,6 +3,7 @@
 #include <emmintrin.h>
 #include <xmmintrin.h>
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 
@@ -101,18 +102,37 @@ Candidate LeafBuilder::exact(int rod, int pieceIndex, int i, int j, int k) {
   return {hit.depth, 0.0f, static_cast<float>(r.modulus().value(hit.u)), rod, pieceIndex};
 }
 
+namespace {
+
+// Both surely inside, with values that agree within the tolerance the pieces' own estimates of E keep
+// (1e-6 relative, rod_pieces.cpp): whichever of the two the exact test would pick, the voxel is active
+// and its value the same to within what an estimate may be off.
+bool sameVoxelEitherWay(const Candidate& s, const Candidate& c) {
+  const double a = s.value, b = c.value;
+  return s.depth > double(s.errorBound) && c.depth > double(c.errorBound) &&
+         std::abs(a - b) <= 1e-6 * std::max({std::abs(a), std::abs(b), 1e-3});
+}
+
+}  // namespace
+
 // The overlap rule between filled slot n and candidate c (cEncodedDepth: c's depth as the slot would
 // store it). Near ties between approximate depths are settled on exact depths, so the winner is the
-// one the exact test would pick; depths within kTieTolerance are equal (lower rod wins), which spares
-// the exact test where round caps of rods meeting at a node coincide.
+// one the exact test would pick, unless either winner makes the same voxel (sameVoxelEitherWay): then
+// as a tie. Depths within kTieTolerance are equal (lower rod wins), which spares the exact test where
+// round caps of rods meeting at a node coincide; the same values spare it where a rod is listed twice
+// a hair apart (every voxel they share ties; a copy of a helix at 0.02 mm cost 4-7 s of exact tests).
 void LeafBuilder::resolveOverlap(int n, Candidate c, double cEncodedDepth, int i, int j, int k) {
   const int sRod = static_cast<int>(owner_[n] >> 32);
   Candidate s{decodedDepth(encodedDepth_[n], errorBound_[n], sRod), errorBound_[n], value_[n], sRod,
               static_cast<int>(owner_[n] & 0xffffffffu)};
   double sEncodedDepth = encodedDepth_[n];
   bool sChanged = false;
-  if (std::abs(s.depth - c.depth) <= double(s.errorBound) + double(c.errorBound) + kTieTolerance &&
-      (s.errorBound > 0.0f || c.errorBound > 0.0f)) {
+  const bool nearTie = std::abs(s.depth - c.depth) <= double(s.errorBound) + double(c.errorBound) + kTieTolerance;
+  if (nearTie && (s.errorBound > 0.0f || c.errorBound > 0.0f) && sameVoxelEitherWay(s, c)) {
+    if (takesSlot(0.0, c, s.rod, s.piece)) replaceSlot(n, cEncodedDepth, c.errorBound, c.value, c.rod, c.piece, s.rod);
+    return;
+  }
+  if (nearTie && (s.errorBound > 0.0f || c.errorBound > 0.0f)) {
     if (s.errorBound > 0.0f) {
       s = exact(s.rod, s.piece, i, j, k);
       sEncodedDepth = s.depth;
