@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <span>
 #include <sstream>
 
 namespace rodfab::mechanics {
@@ -66,14 +67,25 @@ private:
   int relativeSign_ = 1;      // sign of det J at the last factorization relative to the reference
   int previousSign_ = 1;      // at the last converged step
   int signChanges_ = 0;       // since the start or the last branch switch
+  std::vector<double> factorizedValues_;  // of the matrix lu_ holds (jacobian_'s pattern); empty if none
   Solution solution_;
 };
 
 bool PathFollower::factorize(JacobianLU::Pivoting pivoting) {
+  // The matrix factorized last, asked again (a dead-load structure's J where a step ended, at the next
+  // step's load): the factorization stands.
+  const std::span<const double> values(jacobian_.valuePtr(), static_cast<std::size_t>(jacobian_.nonZeros()));
+  if (pivoting == JacobianLU::Pivoting::Reuse && factorizedValues_.size() == values.size() &&
+      std::equal(values.begin(), values.end(), factorizedValues_.begin()))
+    return true;
   const auto t = std::chrono::steady_clock::now();
   const bool ok = lu_->factorize(jacobian_, pivoting);
   solution_.factorizeSeconds += seconds(t);
-  if (ok) relativeSign_ = lu_->determinantSign() * referenceSign_;
+  factorizedValues_.clear();
+  if (ok) {
+    relativeSign_ = lu_->determinantSign() * referenceSign_;
+    factorizedValues_.assign(values.begin(), values.end());
+  }
   return ok;
 }
 
@@ -296,6 +308,10 @@ Solution PathFollower::run(int steps, const StepCallback& onStep) {
     Eigen::VectorXd x = solution_.state;
     LoadStepReport report;
     if (newton(x, target, report) == Outcome::Converged) {
+      // det J's sign where the step ended: Newton's last factorization was at an iterate before its last
+      // correction (on a nearly linear path the previous step's state), which put critical points one
+      // step late. With dead loads the next step's first factorization is this one again (factorize).
+      factorizeAt(x, target);
       checkCriticalPoint(x, load, target);
       previousSign_ = relativeSign_;
       solution_.state = std::move(x);

@@ -167,6 +167,44 @@ TEST_CASE("a strip below its lateral-torsional buckling load is stable, above it
   }
 }
 
+TEST_CASE("an Euler column's bifurcation is bracketed where it is, whatever the load steps", "[mechanics]") {
+  // Clamped-free, 50 mm, a 1 x 0.8 mm rectangle (weak axis about d2), E 100: Pcr = pi^2 EI / (4 L^2);
+  // loaded by 1.3 Pcr the path crosses it at load factor 1 / 1.3 (shortening and shear move it by
+  // under 2e-4). The sign of det J was read before Newton's last correction, a step late: brackets
+  // [0.8, 0.8008] at 10 steps, [0.857, 0.858] at 7, none at 4.
+  const double L = 50, E = 100, I = 1.0 * std::pow(0.8, 3) / 12, critical = kPi * kPi * E * I / (4 * L * L);
+  const Design column = cantilever(straight(Vec3::Zero(), Vec3(L, 0, 0), 1, 2), Section::rectangle(1.0, 0.8), E,
+                                   Vec3(-1.3 * critical, 0, 0), Vec3::Zero(), Vec3(0, 0, 1));
+  const StaticProblem problem(column);
+  for (const int steps : {4, 7, 10}) {
+    INFO(steps << " load steps");
+    mechanics::SolverOptions options;
+    const auto solution = mechanics::solve(problem, options, steps);
+    REQUIRE(solution.criticalPoints.size() == 1);
+    const auto& c = solution.criticalPoints[0];
+    CHECK(c.kind == mechanics::CriticalPoint::Kind::Bifurcation);
+    CHECK(c.fromLoad <= 1 / 1.3 + 2e-4);
+    CHECK(c.toLoad >= 1 / 1.3 - 2e-4);
+    CHECK(solution.stability == mechanics::Stability::Unstable);
+    // Each step's sign is that of its own state: negative from the first step past the critical load.
+    for (const auto& step : solution.steps) CHECK(step.determinantSign == (step.loadFactor > 1 / 1.3 ? -1 : 1));
+  }
+  // Continued on the stable branch: the buckled elastica. lambda L = K(k) with lambda^2 = P / EI,
+  // tip deflection 2 k / lambda, tip abscissa (2 E(k) - K(k)) / lambda.
+  mechanics::SolverOptions options;
+  options.followStableBranch = true;
+  const auto buckled = mechanics::solve(problem, options, 10);
+  CHECK(buckled.stability == mechanics::Stability::Stable);
+  const double lambdaL = kPi / 2 * std::sqrt(1.3);
+  double lo = 0, hi = 0.999;
+  for (int i = 0; i < 200; ++i) (std::comp_ellint_1(0.5 * (lo + hi)) < lambdaL ? lo : hi) = 0.5 * (lo + hi);
+  const double k = 0.5 * (lo + hi), K = std::comp_ellint_1(k), Ek = std::comp_ellint_2(k);
+  const Vec3 t = tip(problem, buckled.state);
+  INFO("buckled tip " << t.transpose() << ", elastica x " << (2 * Ek - K) * L / K << ", deflection " << 2 * k * L / K);
+  CHECK(t.x() == Approx((2 * Ek - K) * L / K).margin(0.05));
+  CHECK(std::abs(t.y()) == Approx(2 * k * L / K).margin(0.05));
+}
+
 TEST_CASE("load steps: the planned number lands exactly on 1, cuts are reported", "[mechanics]") {
   const double L = 1.0, d = 0.1, E = 1000.0, EI = E * kPi * std::pow(d, 4) / 64;
   const Design s = cantilever(straight(Vec3::Zero(), Vec3(L, 0, 0), 1, 2), Section::circle(d), E, Vec3::Zero(),
