@@ -219,6 +219,12 @@ Site DiscreteStructure::siteOf(int number) const {
 
 namespace {
 
+// Where a place is on the drawn design.
+Vec3 placePoint(const Design& structure, const Place& place) {
+  const geometry::Rod& rod = structure.rods[static_cast<std::size_t>(place.rod)];
+  return place.end == Site::kInterior ? rod.centerline().point(place.u) : designEnd(rod, place.end);
+}
+
 const Vec3& endPoint(const DiscreteRod& rod, int end) { return end == 0 ? rod.curve.points().front() : rod.curve.points().back(); }
 
 // A rod whose two ends the tolerance joins is a closed loop only if they nearly meet (within a
@@ -254,14 +260,23 @@ void joinSites(const DiscreteStructure& s, const Design& structure, SiteSets& se
     return;
   }
   std::map<int, std::string> listed;
-  for (std::size_t j = 0; j < spec.joints.size(); ++j)
+  for (std::size_t j = 0; j < spec.joints.size(); ++j) {
+    const Vec3 meeting = placePoint(structure, s.locate(spec.joints[j][0], structure));
     for (std::size_t k = 0; k < spec.joints[j].size(); ++k) {
-      const int site = s.siteNumber(s.locate(spec.joints[j][k], structure));
+      const Place place = s.locate(spec.joints[j][k], structure);
+      const int site = s.siteNumber(place);
       const std::string where = spec.joints[j][k].path;
       if (auto [it, fresh] = listed.emplace(site, where); !fresh)
         s.fail(where, "this rod end or point is already in a joint (" + it->second + ")");
+      // The joint ties its members' positions: members apart would be held apart by nothing (no link
+      // carries the moment of the gap), an answer no structure gives.
+      if (const double gap = (placePoint(structure, place) - meeting).norm(); gap > spec.jointTolerance)
+        s.fail(where, "lies " + format(gap) + " mm from the joint's first member (" + spec.joints[j][0].path +
+                          "): a joint's members must meet, within joint_tolerance " + format(spec.jointTolerance) +
+                          " mm; join places apart with a rod between them");
       sets.unite(s.siteNumber(s.locate(spec.joints[j][0], structure)), site);
     }
+  }
 }
 
 }  // namespace

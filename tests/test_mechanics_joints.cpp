@@ -286,6 +286,24 @@ TEST_CASE("listed joints join interior points too", "[mechanics][joints]") {
   CHECK((ma - mb).norm() < 1e-9 * mb.norm());
 }
 
+TEST_CASE("listed joints whose members do not meet are refused, naming the member", "[mechanics][joints][errors]") {
+  // A joint ties positions: members 1 mm apart were held at equal displacements with nothing carrying
+  // the moment of the gap (an answer no structure gives), and a rod's own two ends made it clamped.
+  Design s = tFrame(false, Vec3(0, 0, -1e-3));
+  s.mechanics.inferJoints = false;
+  SECTION("the stem's start listed with a point of the bar 0.25 of it away") {
+    s.mechanics.joints = {{at("stem", RodEnd::Start, "mechanics.joints[0][0]"), atParameter("bar", 0.75, "mechanics.joints[0][1]")}};
+    REQUIRE_THROWS_WITH(StaticProblem(s), Catch::Contains("mechanics.joints[0][1]: lies 0.5 mm from the joint's first member "
+                                                          "(mechanics.joints[0][0])") &&
+                                              Catch::Contains("within joint_tolerance 0.001 mm"));
+  }
+  SECTION("a rod's two ends") {
+    s.mechanics.joints = {{at("stem", RodEnd::Start, "mechanics.joints[0][0]"), atParameter("bar", 0.5, "mechanics.joints[0][1]")},
+                          {at("bar", RodEnd::Start, "mechanics.joints[1][0]"), at("bar", RodEnd::End, "mechanics.joints[1][1]")}};
+    REQUIRE_THROWS_WITH(StaticProblem(s), Catch::Contains("mechanics.joints[1][1]: lies 2 mm from"));
+  }
+}
+
 TEST_CASE("the analytic Jacobian at T-joints and interior places matches central differences", "[mechanics][joints]") {
   // A rational arc with a stem ending on its interior (a T-joint), a load with a moment at another
   // interior point, a clamped support with a rotation at the stem's far end, a graded modulus, in a
