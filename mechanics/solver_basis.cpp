@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 namespace rodfab::mechanics::detail {
 
@@ -70,9 +71,11 @@ Vec3 sideTangent(const geometry::NurbsCurve& c, double u, int side) {
 // second derivatives. A knot repeated `degree` times or more makes the curve only C0 there: on the
 // design's own basis that is refused; a rebuilt rod (`rebuild`) interpolates the curve anyway and
 // only a real corner (the tangent turning there) is refused. At an interior site (`sites`) the
-// solver's basis is C0 anyway: a corner there is fine (a deformed design's T-joint has one).
-void checkCenterline(const DiscreteStructure& s, const geometry::NurbsCurve& c0, int p, bool rebuild, const std::string& path,
+// solver's basis is C0 anyway: a kink there is accepted as long as the frame need not turn with it
+// (a deformed design's T-joint has one, its orientation given).
+void checkCenterline(const DiscreteStructure& s, const geometry::Rod& rod, int p, bool rebuild, const std::string& path,
                      const std::vector<double>& sites) {
+  const geometry::NurbsCurve& c0 = rod.centerline();
   if (p > geometry::kMaxDegree) s.fail("", "degree " + std::to_string(p) + " is above the supported " + std::to_string(geometry::kMaxDegree));
   if (p < 2)
     s.fail(path + ".centerline.degree", "the rod solver collocates second derivatives and needs degree >= 2 (even "
@@ -87,8 +90,20 @@ void checkCenterline(const DiscreteStructure& s, const geometry::NurbsCurve& c0,
   for (std::size_t i = q + 1; i < n0;) {
     std::size_t m = 1;
     while (i + m < n0 && k0[i + m] == k0[i]) ++m;
-    const bool corner = sideTangent(c0, k0[i], -1).dot(sideTangent(c0, k0[i], 1)) < std::cos(1e-6);
+    const double turn = std::acos(std::clamp(sideTangent(c0, k0[i], -1).dot(sideTangent(c0, k0[i], 1)), -1.0, 1.0));
+    const bool corner = turn > 1e-6;
     const bool site = std::binary_search(sites.begin(), sites.end(), k0[i]);
+    // At a site the rod has one rotation, which cannot follow a frame that turns there with the
+    // tangent (rotation-minimizing: a 90-degree corner loaded there was 2.5 % off at any spans; a
+    // milliradian costs under 2e-5). A given orientation is continuous, and the kink a reference shear
+    // (a deformed design's at a T-joint: 0.46 degrees in the tests), up to a tenth of a radian.
+    const double largest = rod.frame().kind() == geometry::RodFrame::Kind::Orientation ? 0.1 : 1e-3;
+    if (m >= static_cast<std::size_t>(q) && site && turn > largest)
+      s.fail(path + ".centerline.knots[" + std::to_string(i) + "]",
+             "the centerline turns by " + format(turn * 180 / std::numbers::pi) + " degrees at u = " + format(k0[i]) +
+                 ", where a load, support or joint acts on it, and its frame with it (at most " +
+                 format(largest * 180 / std::numbers::pi) + " degrees there): the rod's one rotation there cannot "
+                 "follow both sides; split the rod there (rods joined at a corner are coupled rigidly)");
     if (m >= static_cast<std::size_t>(q) && (!rebuild || corner) && !site)
       s.fail(path + ".centerline.knots[" + std::to_string(i) + "]",
              "knot " + format(k0[i]) + " repeated " + std::to_string(m) + " times makes " +
@@ -245,7 +260,7 @@ RodBasisChoice chooseBasis(const DiscreteStructure& s, const geometry::Rod& rod,
   RodBasisChoice choice;
   choice.rebuild = d.degree > 0;
   choice.degree = choice.rebuild ? d.degree : c0.degree();
-  checkCenterline(s, c0, choice.degree, choice.rebuild, path, s.interiorSites[index]);
+  checkCenterline(s, rod, choice.degree, choice.rebuild, path, s.interiorSites[index]);
   const int designSpans = static_cast<int>(c0.breakpoints().size()) - 1;
   if (index < d.perRod.size()) choice.spans = d.perRod[index];
   else if (choice.rebuild && d.spans > 0) choice.spans = d.spans;
