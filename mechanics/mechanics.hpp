@@ -181,6 +181,9 @@ public:
   Eigen::SparseMatrix<double> modulusJacobian(const Eigen::VectorXd& x, double load) const;
   // The collocation parameters of rod `rod` (the design's parameter), ends included.
   const std::vector<double>& collocationPoints(std::size_t rod) const;
+  // The parameters of rod `rod`'s interior sites (T-joints, interior loads and supports), increasing;
+  // each is also a collocation point, where the basis is C0 and stateJet() gives the side above it.
+  const std::vector<double>& interiorSites(std::size_t rod) const;
   // The state at one parameter as a linear function of x, for shape objectives: r(u), r'(u),
   // q(u), q'(u) (u-derivatives, q not normalized) and, per control point k of the basis there,
   // the index of its first unknown (position at +0..2, quaternion at +3..6) and its basis

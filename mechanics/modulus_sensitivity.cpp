@@ -180,6 +180,7 @@ Eigen::SparseMatrix<double> StaticProblem::modulusJacobian(const Eigen::VectorXd
 }
 
 const std::vector<double>& StaticProblem::collocationPoints(std::size_t rod) const { return structure_->rods.at(rod).tau; }
+const std::vector<double>& StaticProblem::interiorSites(std::size_t rod) const { return structure_->rods.at(rod).sites; }
 
 StaticProblem::StateJet StaticProblem::stateJet(const Eigen::VectorXd& x, std::size_t rod, double u) const {
   const DiscreteRod& r = structure_->rods.at(rod);

@@ -14,16 +14,25 @@ namespace {
 
 using geometry::Vec3;
 
+// The rotation from frame a to frame b as an axis times its angle, in a's axes.
+Eigen::Vector3d turn(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
+  const Eigen::AngleAxisd t(a.transpose() * b);
+  return t.axis() * t.angle();
+}
+
 // Material curvature per arc length, axial(R^T dR/ds), of the frame field `frameAt` along a curve
 // whose speed at u is `speed`: central difference of the rotation (second order), one-sided at
-// the domain's ends.
+// the domain's ends; `fromAbove`: from above u only, second order (2 t(h) - t(2h) / 2) / h, where
+// the curvature jumps at u (an interior site, whose state the solver's basis gives from above).
 template <class FrameAt>
-Eigen::Vector3d frameCurvature(const FrameAt& frameAt, double u, double begin, double end, double speed) {
+Eigen::Vector3d frameCurvature(const FrameAt& frameAt, double u, double begin, double end, double speed, bool fromAbove) {
   const double h = 1e-5 * (end - begin);
+  if (fromAbove && u + 2 * h <= end) {
+    const Eigen::Matrix3d r0 = frameAt(u);
+    return (2.0 * turn(r0, frameAt(u + h)) - 0.5 * turn(r0, frameAt(u + 2 * h))) / (h * speed);
+  }
   const double a = std::max(begin, u - h), b = std::min(end, u + h);
-  const Eigen::Matrix3d ra = frameAt(a), rb = frameAt(b);
-  const Eigen::AngleAxisd turn(ra.transpose() * rb);
-  return turn.axis() * turn.angle() / ((b - a) * speed);
+  return turn(frameAt(a), frameAt(b)) / ((b - a) * speed);
 }
 
 Eigen::Matrix3d frameMatrix(const geometry::Frame& f) {
@@ -45,13 +54,13 @@ struct TargetSampler {
     if (target.orientation) return target.orientation->rotation(v).toRotationMatrix();
     return frameMatrix(frame.at(target.centerline, v));
   }
-  void sample(double v, Eigen::Vector3d& position, Eigen::Vector3d& curvature) const {
+  void sample(double v, bool fromAbove, Eigen::Vector3d& position, Eigen::Vector3d& curvature) const {
     const auto& c = target.centerline;
     Vec3 d[2];
     c.derivatives(v, 1, d);
     position = d[0];
     // d/dv of the target's parameter, per arc length of the target.
-    curvature = frameCurvature([&](double w) { return rotation(w); }, v, c.domainBegin(), c.domainEnd(), d[1].norm());
+    curvature = frameCurvature([&](double w) { return rotation(w); }, v, c.domainBegin(), c.domainEnd(), d[1].norm(), fromAbove);
   }
 };
 
@@ -83,9 +92,10 @@ std::vector<RodTarget> sampleTargets(const mechanics::Design& design, const std:
     rt.rod = found->second;
     rt.length = rod.length();
     const double begin = rod.centerline().domainBegin(), end = rod.centerline().domainEnd();
+    const std::vector<double>& sites = problem.interiorSites(rt.rod);
     for (double u : problem.collocationPoints(rt.rod)) {
       Eigen::Vector3d p, k;
-      sampler.sample(sampler.map(u, begin, end), p, k);
+      sampler.sample(sampler.map(u, begin, end), std::binary_search(sites.begin(), sites.end(), u), p, k);
       rt.position.push_back(p);
       rt.curvature.push_back(k);
     }
