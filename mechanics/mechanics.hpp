@@ -267,7 +267,8 @@ struct SolverOptions {
   int loadSteps = 0;        // 0: the design's mechanics.load_steps
   int maxIterations = 30;   // Newton iterations per load step before the step is cut
   // Converged when the scaled residual's largest entry or the last Newton correction (stepNorm)
-  // is below this. Rounding keeps the residual of very slender rods near 1e-16 (L / r)^2, so the
+  // is below this (the residual below 1e-8 of the full load's scaled size if that is smaller: tiny
+  // loads). Rounding keeps the residual of very slender rods near 1e-16 (L / r)^2, so the
   // correction is what tells convergence there.
   double tolerance = 1e-10;
   int maxStepCuts = 16;     // halvings of the planned load step before giving up
