@@ -131,6 +131,11 @@ public:
   // the wrong way, critical points where there are none) and the error estimate far too small. The
   // automatic span counts aim at 1e-4, so only counts given by hand (--spans, --refine) fall short.
   std::optional<UnderResolvedRod> leastResolvedRod() const;
+  // What the sign of det J cannot see in this structure (mechanics/README.md, "Stability"), none if
+  // nothing: follower loads (not conservative: the sign does not decide stability), else the first
+  // rod with equal bending stiffnesses (a round or square section, whose two buckling modes cross
+  // zero together and leave the sign as it was).
+  std::optional<std::string> stabilityBlindSpot() const;
 
   // The undeformed configuration (a solution at load 0).
   const Eigen::VectorXd& referenceState() const;

@@ -47,6 +47,11 @@ nlohmann::json estimateJson(const mechanics::Simulation& sim, const mechanics::A
   return j;
 }
 
+nlohmann::json blindSpotJson(const mechanics::StaticProblem& problem) {
+  const std::optional<std::string> blind = problem.stabilityBlindSpot();
+  return blind ? nlohmann::json(*blind) : nlohmann::json(nullptr);
+}
+
 nlohmann::json criticalPointsJson(const std::vector<mechanics::CriticalPoint>& points) {
   nlohmann::json critical = nlohmann::json::array();
   for (const auto& c : points)
@@ -68,8 +73,10 @@ void printAccuracy(const mechanics::ErrorEstimate& e, const mechanics::AccuracyO
 }
 
 // The stability line, and the warning when the final state is not known to be stable.
-void printStability(const mechanics::Solution& sol, bool followStableBranch) {
+void printStability(const mechanics::Solution& sol, const mechanics::StaticProblem& problem, bool followStableBranch) {
   std::printf("stability: %s", stabilityName(sol.stability));
+  if (const auto blind = problem.stabilityBlindSpot(); blind && sol.stability == mechanics::Stability::Stable)
+    std::printf(" as far as the sign of det J tells (%s)", blind->c_str());
   for (const auto& c : sol.criticalPoints) std::printf("; %s", describe(c).c_str());
   std::printf("\n");
   if (sol.stability == mechanics::Stability::Unstable)
@@ -130,7 +137,8 @@ nlohmann::json simulationJson(const SimulationSummary& s) {
           {"supports", p.supportCount()}, {"unknowns", p.unknownCount()},
           {"discretization", {{"degree", p.discretization().degree}, {"spans_per_rod", p.discretization().perRod}}},
           {"load_steps", s.history}, {"newton_iterations", sol.newtonIterations}, {"chord_iterations", sol.chordIterations},
-          {"stability", stabilityName(sol.stability)}, {"critical_points", criticalPointsJson(sol.criticalPoints)},
+          {"stability", stabilityName(sol.stability)}, {"stability_blind_spot", blindSpotJson(p)},
+          {"critical_points", criticalPointsJson(sol.criticalPoints)},
           {"error_estimate", estimateJson(s.simulation, s.settings.accuracy)},
           {"under_resolved", underResolvedJson(s.simulation.underResolved)},
           {"largest_displacement_mm", s.largest.mm}, {"largest_displacement_rod", s.largest.rod},
@@ -149,7 +157,7 @@ void printSimulationSummary(const SimulationSummary& s) {
   printAccuracy(sim.estimate, s.settings.accuracy);
   warnUnderResolved(sim.underResolved, "",
                     "give more --spans (--refine on the design's basis) or leave them to the automatic choice");
-  printStability(sol, s.settings.solver.followStableBranch);
+  printStability(sol, *sim.problem, s.settings.solver.followStableBranch);
   std::printf("largest displacement: %.6g mm (rod '%s')\n", s.largest.mm, s.largest.rod.c_str());
   std::printf("wrote:     %s\n", s.output.c_str());
 }
