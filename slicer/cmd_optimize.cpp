@@ -8,9 +8,11 @@
 #include "slicer/optimize_summary.hpp"
 #include "slicer/options.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <variant>
 
 namespace rodfab::cli {
@@ -27,6 +29,16 @@ struct Outcome {
   std::vector<optimize::CaseAccuracy> accuracy;
 };
 
+// The design's own E(s) starts the run within the bounds: said when that moved it.
+void printClampedStart(const mechanics::Design& design, const optimize::Settings& settings) {
+  double lowest = std::numeric_limits<double>::infinity(), highest = -lowest;
+  for (const geometry::Rod& rod : design.rods)
+    for (double v : rod.modulus().values()) lowest = std::min(lowest, v), highest = std::max(highest, v);
+  if (lowest < settings.lowerMpa || highest > settings.upperMpa)
+    std::printf("start:     the design's E(s) (control values %g .. %g MPa) clamped into the bounds [%g, %g] MPa\n", lowest, highest,
+                settings.lowerMpa, settings.upperMpa);
+}
+
 // Sets up and runs the optimization, the shapes and the accuracy estimate; kOk, or kFailed after
 // saying why.
 int runOptimization(const OptimizeCommand& c, const mechanics::Design& design, const optimize::Settings& settings, Outcome& o) {
@@ -39,6 +51,7 @@ int runOptimization(const OptimizeCommand& c, const mechanics::Design& design, c
       std::printf("design:    %s: %zu rods, %zu load cases, %zu unknowns per case, %zu design variables, E in [%g, %g] MPa\n",
                   c.design.c_str(), p.rodCount(), p.caseCount(), p.unknownCount(), p.variableCount(), settings.lowerMpa, settings.upperMpa);
     o.start = optimize::startingModulus(p, c.start);
+    if (!c.json && !c.start.uniform) printClampedStart(design, settings);
     o.result = optimize::optimize(p, [&](const optimize::Iteration& it) {
       common::throwIfInterrupted();
       if (it.index == 0 && !c.render.empty()) o.shapes = optimize::startingShapes(design, p, o.start);
@@ -47,7 +60,7 @@ int runOptimization(const OptimizeCommand& c, const mechanics::Design& design, c
     if (!c.render.empty()) optimize::addOptimizedShapes(design, p, o.result.modulus, o.shapes);
     o.accuracy = p.accuracyAt(o.result.modulus, [] { common::throwIfInterrupted(); });
   } catch (const optimize::OptimizeError& e) {
-    std::cerr << e.what() << "\nnothing was written\n";
+    std::cerr << e.what() << "\n" << c.design << ": nothing was written\n";
     return kFailed;
   } catch (const mechanics::MechanicsError& e) {
     std::cerr << e.what() << "\n" << c.design << ": cannot optimize this design; nothing was written\n";
@@ -62,6 +75,8 @@ int writeOutputs(const OptimizeCommand& c, const mechanics::Design& design, cons
   try {
     mechanics::writeDesign(optimize::optimizedDesign(*o.problem, o.result.modulus, design, c.design, c.output), c.output,
                            "optimized by rodfab optimize from " + c.design);
+  } catch (const common::Interrupted&) {
+    throw;
   } catch (const std::exception& e) {
     std::cerr << c.output << ": cannot write: " << e.what() << '\n';
     return kFailed;

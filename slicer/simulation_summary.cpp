@@ -158,7 +158,8 @@ void printSimulationSummary(const SimulationSummary& s) {
   warnUnderResolved(sim.underResolved, "",
                     "give more --spans (--refine on the design's basis) or leave them to the automatic choice");
   printStability(sol, *sim.problem, s.settings.solver.followStableBranch);
-  std::printf("largest displacement: %.6g mm (rod '%s')\n", s.largest.mm, s.largest.rod.c_str());
+  if (s.largest.rod.empty()) std::printf("largest displacement: 0 mm (nothing moved)\n");
+  else std::printf("largest displacement: %.6g mm (rod '%s')\n", s.largest.mm, s.largest.rod.c_str());
   std::printf("wrote:     %s\n", s.output.c_str());
 }
 

@@ -366,7 +366,7 @@ TEST_CASE("the analytic Jacobian at T-joints and interior places matches central
   }
 }
 
-TEST_CASE("a load at a corner of one rod framed by its tangent is refused: split it there", "[mechanics][joints][errors]") {
+TEST_CASE("a corner of a tangent-framed rod with a load on it is refused (split it)", "[mechanics][joints][errors]") {
   // (0,0,0) -> (10,0,0) -> (10,10,0) as one polyline, loaded at the corner: its rotation-minimizing
   // frame turns by a right angle there, which the site's one rotation cannot follow (the tip was
   // 2.5 % off at 2,048 spans, where the same corner as two joined rods is exact).
