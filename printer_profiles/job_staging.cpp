@@ -96,9 +96,33 @@ long stagingPid(const std::string& name) {
   return digits ? pid : 0;
 }
 
+namespace {
+
+// Without RENAME_EXCHANGE the commit moves the job it replaces into its staging folder ("replaced")
+// before renaming the new one into place: a writer killed between the two left the output's name
+// empty and the only copy of the old job in a folder this function removed. It goes back under its
+// name, or, the name taken since, beside it as a previous version (`.NAME.rodfab-old-PID-0`, which
+// the commands report and never remove).
+void recoverReplacedJob(const fs::path& staging, long pid) {
+  const fs::path replaced = staging / "replaced";
+  std::error_code ec;
+  if (!fs::exists(fs::symlink_status(replaced, ec))) return;
+  const std::string name = staging.filename().string();
+  const std::string output = name.substr(1, name.rfind(kPartialTag) - 1);
+  if (::renameat2(AT_FDCWD, replaced.c_str(), AT_FDCWD, (staging.parent_path() / output).c_str(), RENAME_NOREPLACE) == 0) return;
+  if (errno != EEXIST && errno != EINVAL && errno != ENOSYS && errno != ENOTSUP) return;
+  std::string kept = ".";  // appended piecewise: GCC 12 warns falsely (-Wrestrict) on "." + string
+  kept.append(output).append(".rodfab-old-").append(std::to_string(pid)).append("-0");
+  if (!fs::exists(fs::symlink_status(staging.parent_path() / kept, ec)))
+    ::rename(replaced.c_str(), (staging.parent_path() / kept).c_str());
+}
+
+}  // namespace
+
 // Leftovers of writers that died (killed, crashed) in `folder`, whatever job they were writing: only
 // entries named exactly like staging folders (or older versions' temporaries), only when their writer
-// is gone; a link is never followed.
+// is gone; a link is never followed. A job such a writer had moved aside to replace it is recovered
+// first (recoverReplacedJob).
 void removeDeadStaging(const fs::path& folder) {
   std::error_code ec;
   for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
@@ -109,7 +133,10 @@ void removeDeadStaging(const fs::path& folder) {
     const fs::file_status status = it->symlink_status(statusError);
     if (statusError) continue;
     std::error_code ignored;
-    if (fs::is_directory(status) && writerGone(it->path(), pid)) fs::remove_all(it->path(), ignored);
+    if (fs::is_directory(status) && writerGone(it->path(), pid)) {
+      recoverReplacedJob(it->path(), pid);
+      fs::remove_all(it->path(), ignored);
+    }
     else if (fs::is_regular_file(status) && !processAlive(pid)) fs::remove(it->path(), ignored);
   }
 }

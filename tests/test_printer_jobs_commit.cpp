@@ -302,3 +302,31 @@ TEST_CASE("Staging folders of dead writers go, whatever their target, live ones 
   for (int fd : {toChild[0], toChild[1], toParent[0], toParent[1]}) ::close(fd);
 }
 
+
+TEST_CASE("A job a dead writer had moved aside to replace it is put back, not removed with its staging", "[job][atomic]") {
+  // Without RENAME_EXCHANGE (vfat, exFAT, NFS) the commit moves the old job into the staging folder
+  // ("replaced"), then renames the new one into place: SIGKILL between the two left neither under the
+  // output's name, and the next run in the folder removed the staging folder with the only copy.
+  const fs::path dir = scratch("replaced-recovery");
+  const auto grid = overhangPart(26);
+  writeJob(*grid, specFor(*grid, dir / "seed.zip"), 24);
+  const Bytes old = readAll(dir / "seed.zip");
+  const pid_t dead = ::fork();
+  REQUIRE(dead >= 0);
+  if (dead == 0) ::_exit(0);
+  int status = 0;
+  ::waitpid(dead, &status, 0);
+  const std::string pid = std::to_string(dead);
+  for (const std::string target : {"lost.zip", "taken.zip"}) {
+    const fs::path staging = dir / ("." + target + ".rodfab-partial-" + pid + "-0");
+    fs::create_directories(staging / "previews");
+    fs::copy_file(dir / "seed.zip", staging / "replaced");
+  }
+  writeAll(dir / "taken.zip", Bytes{'n', 'e', 'w'});  // the name taken since (by hand, or a later run)
+  writeJob(*grid, specFor(*grid, dir / "other.zip"), 24);  // any run in the folder cleans dead staging
+  CHECK(readAll(dir / "lost.zip") == old);
+  CHECK(inspectJob(dir / "lost.zip").ok());
+  CHECK((readAll(dir / "taken.zip") == Bytes{'n', 'e', 'w'}));
+  CHECK(readAll(dir / (".taken.zip.rodfab-old-" + pid + "-0")) == old);
+  for (const auto& e : fs::directory_iterator(dir)) CHECK_FALSE(e.path().filename().string().find(".rodfab-partial-") != std::string::npos);
+}
