@@ -257,14 +257,42 @@ AtomicOutput::~AtomicOutput() {
   unregisterCleanup(temporary_);
 }
 
+namespace {
+
+// fsync or syncfs on `path` opened with `flags`: see syncToDevice.
+void flush(const fs::path& path, int flags, bool wholeFileSystem) {
+  const int fd = ::open(path.c_str(), flags | O_CLOEXEC);
+  if (fd < 0) throw std::runtime_error(quoted(path) + ": cannot open it to flush it to disk (" + std::strerror(errno) + ")");
+  const int result = wholeFileSystem ? ::syncfs(fd) : ::fsync(fd);
+  const int error = errno;
+  ::close(fd);
+  if (result != 0 && error != EINVAL && error != EROFS)
+    throw std::runtime_error(quoted(path) + ": cannot flush it to disk (" + std::strerror(error) + "); nothing was replaced");
+}
+
+}  // namespace
+
+void syncToDevice(const fs::path& path) {
+  struct stat st {};
+  if (::lstat(path.c_str(), &st) != 0) throw std::runtime_error(quoted(path) + ": cannot flush it to disk (" + std::strerror(errno) + ")");
+  if (S_ISDIR(st.st_mode)) flush(path, O_RDONLY | O_DIRECTORY, true);
+  else flush(path, O_RDONLY, false);
+}
+
+bool syncFolderEntries(const fs::path& folder) {
+  const int fd = ::open((folder.empty() ? fs::path(".") : folder).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return false;
+  const bool synced = ::fsync(fd) == 0 || errno == EINVAL || errno == EROFS;
+  ::close(fd);
+  return synced;
+}
+
 void AtomicOutput::commit() {
-  if (const int fd = ::open(temporary_.c_str(), O_RDONLY | O_CLOEXEC); fd >= 0) {
-    ::fsync(fd);  // the data is on disk before the name points at it
-    ::close(fd);
-  }
+  syncToDevice(temporary_);  // the data is on disk before the name points at it (an error replaces nothing)
   requireAsChecked(final_);
   commitRegistered(temporary_, final_, renameInto);
   committed_ = true;
+  syncFolderEntries(final_.parent_path());
   recordAsChecked(final_);  // a second commit of the same output replaces this one
 }
 

@@ -81,6 +81,15 @@ std::optional<std::string> readRegularFileAtMost(const std::filesystem::path& fi
 // JSON object whose bytes after the seal's line are the ones sealed. False for anything unreadable.
 bool isSealedJsonObject(const std::filesystem::path& file, std::size_t maxBytes = std::size_t{256} << 20);
 
+// Flushes what was written to `path` to its device before a name is given to it, so that a crash or
+// power loss never leaves a name pointing at lost data: a regular file's data (fsync), or for a folder
+// the whole file system it is on (syncfs: one flush for thousands of files). A file system that
+// cannot sync (EINVAL, EROFS) passes; an I/O error throws std::runtime_error naming `path`.
+void syncToDevice(const std::filesystem::path& path);
+// Flushes a folder's entries (the names a rename gave) after the rename, so that the new name
+// survives a power loss; false when that failed (the rename itself stands either way).
+bool syncFolderEntries(const std::filesystem::path& folder);
+
 // A temporary beside `final` that becomes `final` on commit(); removed by the destructor (or on
 // interrupt) if never committed. commit() throws Interrupted when a signal is pending (the
 // temporary is then removed). While a common::CommandOutputs lives (common/interrupt.hpp: main holds

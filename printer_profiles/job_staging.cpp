@@ -1,6 +1,7 @@
 #include "printer_profiles/job_staging.hpp"
 
 #include "common/interrupt.hpp"
+#include "common/output_file.hpp"
 
 #include <fcntl.h>
 #include <sys/file.h>
@@ -195,6 +196,9 @@ void Staging::lock() {
 }
 
 Commit commitJob(const fs::path& built, const fs::path& target, bool force, const Staging& staging) {
+  // On the device before a name points at it: after a power loss the name holds the whole job, or the
+  // old one (a zip: its data; a folder: its file system, in one flush); an I/O error replaces nothing.
+  common::syncToDevice(built);
   Commit c;
   struct stat st {};
   if (::lstat(built.c_str(), &st) != 0) throw std::system_error(errno, std::generic_category(), built.string());
@@ -208,6 +212,7 @@ Commit commitJob(const fs::path& built, const fs::path& target, bool force, cons
         throw std::runtime_error(target.string() + ": appeared while the job was being written; it was left as it is");
       renameOrThrow(built, target);
     }
+    common::syncFolderEntries(target.parent_path());
     return c;
   }
   if (!force)
@@ -224,6 +229,7 @@ Commit commitJob(const fs::path& built, const fs::path& target, bool force, cons
       renameWith(c.oldJob, target, RENAME_EXCHANGE);
       throw std::runtime_error(target.string() + ": changed while the job was being written; nothing was replaced");
     }
+    common::syncFolderEntries(target.parent_path());
     return c;
   }
   // No exchange on this file system: the old job is moved aside into the staging folder first.
@@ -235,6 +241,7 @@ Commit commitJob(const fs::path& built, const fs::path& target, bool force, cons
     renameOrThrow(c.oldJob, target);
     throw;
   }
+  common::syncFolderEntries(target.parent_path());
   return c;
 }
 

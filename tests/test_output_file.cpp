@@ -170,3 +170,16 @@ TEST_CASE("copies a killed run kept beside an output are reported, never removed
   CHECK(leftoverPreviousVersions(dir.path / "job/") == std::vector<fs::path>{keptJob});
   CHECK(fs::exists(keptJob / "layers"));
 }
+
+TEST_CASE("what is written is flushed to the device before a name points at it, and a failure is said") {
+  const fs::path dir = fs::temp_directory_path() / ("rodfab-sync-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir / "job");
+  writeFileAtomically(dir / "a.json", "{}");
+  CHECK_NOTHROW(syncToDevice(dir / "a.json"));
+  CHECK_NOTHROW(syncToDevice(dir / "job"));  // a folder job: its file system in one flush
+  CHECK(syncFolderEntries(dir));
+  CHECK_THROWS_WITH(syncToDevice(dir / "gone.zip"), Catch::Contains("gone.zip: cannot flush it to disk"));
+  CHECK_FALSE(syncFolderEntries(dir / "gone"));
+  fs::remove_all(dir);
+}
