@@ -2,6 +2,8 @@
 // document itself is read in profile_reader.cpp.
 #include "printer_profiles/profile_validator.hpp"
 
+#include "printer_profiles/job_archive.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -272,8 +274,9 @@ void checkTrayVoxels(Validator& v, const Profile& p) {
 
 // Every file a job holds must have a name of its own on case-insensitive file systems too.
 void checkNamesUnique(Validator& v, const Profile& p) {
-  // manifest.json and previews/ are the job writer's own names.
-  std::map<std::string, std::string> taken = {{"manifest.json", "the job manifest"}, {"previews", "the previews folder"}};
+  // manifest.json, report.html and previews/ are the job writer's own names.
+  std::map<std::string, std::string> taken = {
+      {kManifestName, "the job manifest"}, {kReportName, "the job report"}, {"previews", "the previews folder"}};
   if (!p.buildFileName.empty())
     if (auto [at, fresh] = taken.emplace(lower(p.buildFileName), "build_file.name"); !fresh)
       v.fail("build_file.name", "\"" + p.buildFileName + "\" is the name of " + at->second +

@@ -45,6 +45,7 @@ hostile backslash 'd["build_file"]["name"] = "..\\evil.txt"' 'build_file.name: .
 hostile drive 'd["build_file"]["name"] = "C:evil.txt"' "build_file.name: .*a drive letter"
 hostile device 'd["build_file"]["name"] = "aux.txt"' "build_file.name: .*device name on Windows"
 hostile case 'd["materials"][0]["name"] = "Vero"; d["materials"][1]["name"] = "VERO"' "materials\[1\].name: .*case-insensitive"
+hostile report 'd["build_file"]["name"] = "REPORT.HTML"' 'build_file.name: "REPORT.HTML" is the name of the job report'
 hostile padding 'd["image"]["padding_voxels"] = [100000, 16]' "image.padding_voxels\[0\]: expected a margin in voxels (an integer in 0..65536)"
 hostile tray 'd["tray_mm"] = [2000, 390, 200]' "tray_mm: a full tray makes a layer image"
 hostile columns 'd["tray_mm"] = [3000, 390, 200]' "tray_mm\\[0\\]: the tray holds 70921 image columns"
