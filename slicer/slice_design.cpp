@@ -212,7 +212,8 @@ SliceMemoryPlan planSliceMemory(const geometry::RodStructure& design, const prin
   const SliceMemoryInputs inputs{part.dim(), ditherer, stageConcurrency(), writer, slicingKeptTrees(ditherer), pieces};
   const voxel::RasterProfile layers(design, grid);
   const auto estimate = [&](int bandLayers) { return SliceMemoryPlan{bandLayers, sliceMemoryBytes(layers, bandLayers, inputs)}; };
-  const std::string images = std::to_string(part.dim().x()) + " x " + std::to_string(part.dim().y()) + " pixels";
+  const printer_profiles::JobGeometry job = printer_profiles::planJob(profile, part);
+  const std::string images = std::to_string(job.width) + " x " + std::to_string(job.height) + " pixels";
   if (writer > common::memoryBudget()) {
     const std::uint64_t least = estimate(1).bytes;  // what the smallest band would need in all
     common::requireMemory(writer, {.what = "writing the job of " + name + " for the " + profile.printer + " (its layer images of " +
@@ -223,9 +224,12 @@ SliceMemoryPlan planSliceMemory(const geometry::RodStructure& design, const prin
   SliceMemoryPlan plan = estimate(settings.bandLayers > 0 ? settings.bandLayers : automaticBandLayers(part));
   const std::string what = "slicing " + name + " (" + std::to_string(design.rods.size()) + " rod(s), layer images of " + images + ")";
   if (settings.bandLayers > 0) {
-    const std::string remedy = plan.bandLayers > kLeafLayers ? "use fewer --band-layers (" + std::to_string(kLeafLayers) +
-                                                                   " at least), or raise --max-memory if the machine has more"
-                                                             : "slice a smaller design, or raise --max-memory if the machine has more";
+    int fits = 0;  // the most layers a band of which fits, if any
+    for (int n = plan.bandLayers - 1; n >= 1 && fits == 0 && plan.bytes > common::memoryBudget(); --n)
+      if (estimate(n).bytes <= common::memoryBudget()) fits = n;
+    const std::string remedy = fits > 0 ? "use --band-layers " + std::to_string(fits) +
+                                              " or fewer, or raise --max-memory if the machine has more"
+                                        : "slice a smaller design, or raise --max-memory if the machine has more";
     common::requireMemory(plan.bytes, {.what = what + " in bands of " + std::to_string(plan.bandLayers) + " layers", .remedy = remedy});
     return plan;
   }

@@ -43,8 +43,11 @@ TEST_CASE("sliceDesign refuses a slice over the memory budget before any band, w
   settings.designFile = "plate.json";
   settings.bandLayers = 64;
   settings.job.output = tmp.path / "plate.zip";
+  // Not even a band of one layer fits: fewer --band-layers would not help, and the message does not say so.
+  REQUIRE(slicer::sliceMemoryBytes(design, grid, 1, *ditherer, 1, writer) > common::memoryBudget());
   CHECK_THAT(memoryRefusal(design, cal, *ditherer, settings), Catch::Contains("plate.json") && Catch::Contains("bands of 64 layers") &&
-                                                                 Catch::Contains("--band-layers") && Catch::Contains("--max-memory"));
+                                                                 Catch::Contains("slice a smaller design") && Catch::Contains("--max-memory") &&
+                                                                 !Catch::Contains("--band-layers"));
   CHECK(fs::is_empty(tmp.path));  // no job, nothing staged
 }
 
@@ -163,7 +166,8 @@ TEST_CASE("sliceDesign refuses when no band size fits the memory budget, naming 
   const std::string message = memoryRefusal(design, cal, *ditherer, settings);
   const voxel::PrinterGrid grid = voxel::makePrinterGrid(design, connex3().voxelSize());
   const openvdb::CoordBBox part = slicer::designVoxelBounds(design, grid);
-  const std::string images = std::to_string(part.dim().x()) + " x " + std::to_string(part.dim().y()) + " pixels";
+  const printer_profiles::JobGeometry job = printer_profiles::planJob(connex3(), part);  // the images, margins included
+  const std::string images = std::to_string(job.width) + " x " + std::to_string(job.height) + " pixels";
   CHECK_THAT(message, Catch::Contains("slicing plate.json (1 rod(s), layer images of " + images + ") needs about ") &&
                           Catch::Contains(" even in bands of 1 layer (the smallest band size tried), more than the memory budget") &&
                           Catch::Contains("raise --max-memory to at least ") && !Catch::Contains("--band-layers"));

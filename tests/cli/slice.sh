@@ -332,8 +332,15 @@ grep -q -- "--band-layers" "$tmp/err" && fail "a budget under the writer's share
 # A budget above the writer's share but below what the smallest band needs (white noise, mapped as it dithers:
 # 135 MiB in bands of 1 layer, 2026-12-03): refused naming the design, its
 # images and the smallest band size tried, with a --max-memory value that would do.
-expect 1 "slicing buckling-spring.json (312 rod(s), layer images of 728 x 364 pixels) needs about .* even in bands of 1 layer (the smallest band size tried), more than the memory budget of 125 MiB .* raise --max-memory to at least [0-9]*M" "$src/examples/buckling-spring.json" -o "$tmp/out/x.zip" --max-memory 125M
+expect 1 "slicing buckling-spring.json (312 rod(s), layer images of 800 x 396 pixels) needs about .* even in bands of 1 layer (the smallest band size tried), more than the memory budget of 125 MiB .* raise --max-memory to at least [0-9]*M" "$src/examples/buckling-spring.json" -o "$tmp/out/x.zip" --max-memory 125M
 grep -q -- "--band-layers" "$tmp/err" && fail "a budget no band size fits suggested --band-layers: $(cat "$tmp/err")"
+# A band size given that is over the budget where a smaller one fits: the refusal names the job's own
+# image size and the largest band size that fits, and that one slices within the budget.
+expect 1 "slicing arm-cast.json (191 rod(s), layer images of 1792 x 753 pixels) in bands of 48 layers needs about .*; use --band-layers [0-9]* or fewer" "$src/examples/arm-cast.json" -o "$tmp/out/x.zip" --band-layers 48 --max-memory 300M --quiet
+fits=$(sed -n 's/.*use --band-layers \([0-9]*\) or fewer.*/\1/p' "$tmp/err")
+"$rodfab" slice "$src/examples/arm-cast.json" -o "$tmp/fits.zip" --band-layers "$fits" --max-memory 300M --quiet > /dev/null 2> "$tmp/err" ||
+  fail "the band size suggested ($fits) does not fit: $(cat "$tmp/err")"
+rm -f "$tmp/fits.zip"
 # A profile whose build file would escape the job folder on Windows.
 sed 's/"name": "build.txt"/"name": "..\\\\evil.txt"/' "$src/printer_profiles/stratasys-objet500-connex3.json" > "$tmp/evil-profile.json"
 expect 1 "evil-profile.json: build_file.name: .* is not a portable file name" "$src/examples/unfolding-box.json" -o "$tmp/out/x.zip" --profile "$tmp/evil-profile.json"
