@@ -239,6 +239,22 @@ std::optional<std::string> firstZipStranger(zip_t* za, const ManifestSummary& ma
   return std::nullopt;
 }
 
+// A comment in the zip `za` (rodfab writes none): a note someone added to the archive or to one of
+// its entries (`zip -z`, `zip -c`), which replacing the job would lose.
+std::optional<std::string> firstZipComment(zip_t* za) {
+  int archiveLength = 0;
+  if (zip_get_archive_comment(za, &archiveLength, ZIP_FL_ENC_RAW) && archiveLength > 0) return std::string("the archive");
+  const zip_int64_t entries = zip_get_num_entries(za, 0);
+  for (zip_int64_t n = 0; n < entries; ++n) {
+    zip_uint32_t length = 0;
+    if (zip_file_get_comment(za, static_cast<zip_uint64_t>(n), &length, ZIP_FL_ENC_RAW) && length > 0) {
+      const char* name = zip_get_name(za, static_cast<zip_uint64_t>(n), ZIP_FL_ENC_RAW);
+      return "its entry " + inQuotes(name ? name : "?");
+    }
+  }
+  return std::nullopt;
+}
+
 // The manifest entry's text, empty when it is missing, too large or unreadable.
 std::string zipManifestText(zip_t* za) {
   std::string text;
@@ -276,9 +292,11 @@ std::string examineZip(const fs::path& path, const struct stat& st) {
   file.release();  // libzip owns it now
   const std::optional<ManifestSummary> manifest = summarizeManifest(zipManifestText(za));
   const std::optional<std::string> stranger = manifest ? firstZipStranger(za, *manifest) : std::nullopt;
+  const std::optional<std::string> comment = manifest ? firstZipComment(za) : std::nullopt;
   zip_discard(za);
   if (!manifest) return std::string("a zip archive whose ") + kManifestName + " is not a rodfab job manifest (" + kJobFormat + ")";
   if (stranger) return "a zip archive holding a rodfab job and also " + inQuotes(*stranger) + ", which is not part of that job";
+  if (comment) return "a zip archive holding a rodfab job with a comment added to " + *comment + " (rodfab writes none)";
   if (auto change = firstChangedFile(path, *manifest)) return "a zip archive holding a rodfab job in which " + *change;
   return "";
 }

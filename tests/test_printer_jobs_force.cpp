@@ -62,6 +62,17 @@ std::string copyZipReplacingLast(const fs::path& from, const fs::path& to, const
   return name;
 }
 
+// A copy of the zip `from` with a comment on the archive (entry < 0) or on entry `entry`.
+void copyZipCommented(const fs::path& from, const fs::path& to, int entry, const std::string& text) {
+  fs::copy_file(from, to);
+  int error = 0;
+  zip_t* za = zip_open(to.c_str(), 0, &error);
+  REQUIRE(za);
+  if (entry < 0) REQUIRE(zip_set_archive_comment(za, text.data(), static_cast<zip_uint16_t>(text.size())) == 0);
+  else REQUIRE(zip_file_set_comment(za, static_cast<zip_uint64_t>(entry), text.data(), static_cast<zip_uint16_t>(text.size()), 0) == 0);
+  REQUIRE(zip_close(za) == 0);
+}
+
 void appendText(const fs::path& file, const std::string& text) {
   std::ofstream out(file, std::ios::app | std::ios::binary);
   out << text;
@@ -129,6 +140,9 @@ TEST_CASE("Force replaces only rodfab jobs: anything else is refused and left by
   const std::string rewritten = copyZipReplacingLast(dir / "real.zip", dir / "zip-noted.zip", "my notes");
   writeTestZip(dir / "listed-manifest.zip", {{"manifest.json", std::string("{\"format\": \"") + kJobFormat + "\", \"files\": {\"thesis.txt\": {}}}"},
                                              {"thesis.txt", "the only copy"}});
+  // Notes written into the zip itself (zip -z, zip -c): replacing the job would lose them.
+  copyZipCommented(dir / "real.zip", dir / "zip-commented.zip", -1, "printed on tray 2; nozzle 3 clogged");
+  copyZipCommented(dir / "real.zip", dir / "entry-commented.zip", 1, "this layer curled");
   REQUIRE(::mkfifo((dir / "pipe").c_str(), 0600) == 0);
   const auto before = snapshot(dir);
 
@@ -151,6 +165,8 @@ TEST_CASE("Force replaces only rodfab jobs: anything else is refused and left by
       {"job-touched", "'" + firstLayerImage(dir / "job-touched").filename().string() + "' was changed since rodfab wrote it"},
       {"zip-noted.zip", "'" + rewritten + "' was changed since rodfab wrote it"},
       {"listed-manifest.zip", "'thesis.txt' was changed since rodfab wrote it"},
+      {"zip-commented.zip", "a rodfab job with a comment added to the archive"},
+      {"entry-commented.zip", "a rodfab job with a comment added to its entry"},
   };
   for (const auto& [name, what] : cases)
     for (const bool force : {true, false}) {
