@@ -16,12 +16,14 @@
 #include "common/output_file.hpp"
 #include "common/xxh128.hpp"
 
+#include <limits.h>
 #include <sys/stat.h>
 
 #include <algorithm>
 #include <array>
 #include <atomic>
 #include <cstdio>
+#include <cstring>
 #include <map>
 #include <sstream>
 #include <stdexcept>
@@ -83,6 +85,13 @@ fs::path checkJobOutput(const JobOptions& options) {
                                                              ? ": is not a directory; the job needs a folder to go in"
                                                              : ": the output directory does not exist"));
   common::checkOutputNameLength(t);  // its staging folder's name is longer: refused now, not after the work
+  // So are the staging folder's deepest files: job/previews/ and a file name further (at most NAME_MAX).
+  const std::size_t deepest = stagingPath(t, 0).string().size() + 12 + std::strlen("/job/previews/") + NAME_MAX;
+  if (deepest >= PATH_MAX)
+    throw std::runtime_error(t.string() + ": the path is " + std::to_string(t.string().size()) +
+                             " bytes long (as an absolute path); the job's files are written in a hidden folder beside it, up to " +
+                             std::to_string(deepest - t.string().size()) + " bytes deeper, and the system allows paths of at most " +
+                             std::to_string(PATH_MAX - 1) + " bytes: use a shorter path");
   const OutputOccupant occupant = examineOutput(t);
   if (occupant.kind == OutputOccupant::Kind::Other) throw std::runtime_error(refusal(t, occupant));
   if (occupant.kind == OutputOccupant::Kind::RodfabJob && !options.force)

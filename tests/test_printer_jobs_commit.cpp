@@ -330,3 +330,15 @@ TEST_CASE("A job a dead writer had moved aside to replace it is put back, not re
   CHECK(readAll(dir / (".taken.zip.rodfab-old-" + pid + "-0")) == old);
   for (const auto& e : fs::directory_iterator(dir)) CHECK_FALSE(e.path().filename().string().find(".rodfab-partial-") != std::string::npos);
 }
+
+TEST_CASE("An output whose staging files would pass the system's path limit is refused before any work", "[job][atomic]") {
+  // A 3,900-byte folder path: the job's name fits, but its staging folder's previews would not
+  // (ENAMETOOLONG after the whole slice, said as "disk full or no permission?").
+  fs::path deep = scratch("deep-output");
+  while (deep.string().size() < 3900) deep /= std::string(60, 'd');
+  fs::create_directories(deep);
+  const auto grid = overhangPart(12);
+  CHECK_THROWS_WITH(JobWriter(specFor(*grid, deep / "j.zip")), Catch::Contains("j.zip: the path is ") &&
+                                                                   Catch::Contains("bytes deeper, and the system allows paths of at most 4095"));
+  CHECK(fs::is_empty(deep));
+}
