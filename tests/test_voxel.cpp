@@ -315,31 +315,32 @@ TEST_CASE("Overlapping rods: the deepest wins, ties go to the lower rod index", 
     REQUIRE(shell.voxelsPerRod[2] > 0);
     requireMatchesExactTest(wider, g, shell);
   }
-  SECTION("rods listed twice a hair apart: the same E settles their ties without the exact test, another E does not") {
-    // A control point 1e-9 mm off: no copy (solidKey), so every voxel the two share is a near tie.
-    const NurbsCurve c = helix(1.0, 0.8, 0.5);
-    std::vector<Vec3> moved = c.points();
-    moved[2].x() += 1e-9;
-    const NurbsCurve nearCopy(c.degree(), c.knots(), moved);
-    const Rod a = circularRod(c, 0.3, CapStyle::Round, BSplineField::constant(33, 0, 1));
-    const RodStructure same = design({a, circularRod(nearCopy, 0.3, CapStyle::Round, BSplineField::constant(33, 0, 1))});
-    const PrinterGrid g = voxel::makePrinterGrid(same, kTestVoxel);
-    const voxel::Rasterization alone = voxel::rasterize(design({a}), g);
-    const voxel::Rasterization twice = voxel::rasterize(same, g);
-    requireMatchesExactTest(same, g, twice);
-    for (auto it = twice.grid->cbeginValueOn(); it; ++it) REQUIRE(*it == 33.0f);
-    REQUIRE(twice.grid->activeVoxelCount() == alone.grid->activeVoxelCount());
-    // Ties go to the lower rod; only the shells where membership is in doubt are tested again: the
-    // copy adds at most as many exact tests as the rod alone made (it made one per voxel shared before).
-    REQUIRE(twice.voxelsPerRod[0] > 0.99 * double(twice.grid->activeVoxelCount()));
-    REQUIRE(twice.exactEvaluations <= 2 * alone.exactEvaluations);
-    REQUIRE(twice.exactEvaluations < twice.grid->activeVoxelCount() / 4);
-    // With another E the winner matters: the near ties go to the exact test, and match it.
-    const RodStructure other = design({a, circularRod(nearCopy, 0.3, CapStyle::Round, BSplineField::constant(77, 0, 1))});
-    const voxel::Rasterization differing = voxel::rasterize(other, g);
-    requireMatchesExactTest(other, g, differing);
-    REQUIRE(differing.exactEvaluations > twice.grid->activeVoxelCount() / 2);
-  }
+}
+
+TEST_CASE("Rods listed twice a hair apart: the same E settles their ties without the exact test", "[voxel][overlap]") {
+  // A control point 1e-9 mm off: no copy (solidKey), so every voxel the two share is a near tie.
+  const NurbsCurve c = helix(1.0, 0.8, 0.5);
+  std::vector<Vec3> moved = c.points();
+  moved[2].x() += 1e-9;
+  const NurbsCurve nearCopy(c.degree(), c.knots(), moved);
+  const Rod a = circularRod(c, 0.3, CapStyle::Round, BSplineField::constant(33, 0, 1));
+  const RodStructure same = design({a, circularRod(nearCopy, 0.3, CapStyle::Round, BSplineField::constant(33, 0, 1))});
+  const PrinterGrid g = voxel::makePrinterGrid(same, kTestVoxel);
+  const voxel::Rasterization alone = voxel::rasterize(design({a}), g);
+  const voxel::Rasterization twice = voxel::rasterize(same, g);
+  requireMatchesExactTest(same, g, twice);
+  for (auto it = twice.grid->cbeginValueOn(); it; ++it) REQUIRE(*it == 33.0f);
+  REQUIRE(twice.grid->activeVoxelCount() == alone.grid->activeVoxelCount());
+  // Ties go to the lower rod; only the shells where membership is in doubt are tested again: the
+  // copy adds at most as many exact tests as the rod alone made (it made one per voxel shared before).
+  REQUIRE(twice.voxelsPerRod[0] > 0.99 * double(twice.grid->activeVoxelCount()));
+  REQUIRE(twice.exactEvaluations <= 2 * alone.exactEvaluations);
+  REQUIRE(twice.exactEvaluations < twice.grid->activeVoxelCount() / 4);
+  // With another E the winner matters: the near ties go to the exact test, and match it.
+  const RodStructure other = design({a, circularRod(nearCopy, 0.3, CapStyle::Round, BSplineField::constant(77, 0, 1))});
+  const voxel::Rasterization differing = voxel::rasterize(other, g);
+  requireMatchesExactTest(other, g, differing);
+  REQUIRE(differing.exactEvaluations > twice.grid->activeVoxelCount() / 2);
 }
 
 TEST_CASE("The grid is identical for 1 and 2 threads and for any band of layers", "[voxel][determinism]") {
