@@ -262,7 +262,8 @@ namespace {
 // fsync or syncfs on `path` opened with `flags`: see syncToDevice.
 void flush(const fs::path& path, int flags, bool wholeFileSystem) {
   const int fd = ::open(path.c_str(), flags | O_CLOEXEC);
-  if (fd < 0) throw std::runtime_error(quoted(path) + ": cannot open it to flush it to disk (" + std::strerror(errno) + ")");
+  if (fd < 0 && errno == EACCES) return;  // written but not readable by us (a umask): left to the kernel's writeback
+  if (fd < 0) throw std::runtime_error(quoted(path) + ": cannot open it to flush it to disk (" + std::strerror(errno) + "); nothing was replaced");
   const int result = wholeFileSystem ? ::syncfs(fd) : ::fsync(fd);
   const int error = errno;
   ::close(fd);

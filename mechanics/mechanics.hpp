@@ -97,10 +97,11 @@ struct SolveMemory {
 // Const members may be called from several threads at once.
 // A rod with fewer spans than its degree needs for even 1 % accuracy (StaticProblem::leastResolvedRod).
 struct UnderResolvedRod {
-  std::string rod;   // `rods[i] "NAME"`
-  int degree = 0;    // of its solver basis
-  int spans = 0;     // of its solver basis, over the whole rod
-  double needed = 0; // spans the a priori model asks for 1e-2 (may exceed kMaxSpansPerRod)
+  std::string rod;         // `rods[i] "NAME"`
+  int degree = 0;          // of its solver basis
+  int spans = 0;           // of its solver basis, over the whole rod
+  double needed = 0;       // spans the a priori model asks for `relative` (may exceed kMaxSpansPerRod)
+  double relative = 1e-2;  // the accuracy that count is for: 1e-2, or the discretization's tolerance if looser
 };
 
 class StaticProblem {
@@ -126,8 +127,8 @@ public:
   // and that ratio: past about 1e4 its stiffness is singular to double precision (E A L^2 / E I over 1e8).
   std::pair<std::string, double> mostSlenderRod() const;
   // The rod whose solver basis falls furthest short of the spans the a priori model
-  // (mechanics/README.md, "Spans") asks at its degree for a relative accuracy of 1e-2; none if every
-  // rod has them. Below them collocation of slender rods still locks: answers can be far off (bent
+  // (mechanics/README.md, "Automatic spans") asks at its degree for a relative accuracy of 1e-2 (or the
+  // discretization's tolerance, if looser); none if every rod has them. Below them collocation of slender rods still locks: answers can be far off (bent
   // the wrong way, critical points where there are none) and the error estimate far too small. The
   // automatic span counts aim at 1e-4, so only counts given by hand (--spans, --refine) fall short.
   std::optional<UnderResolvedRod> leastResolvedRod() const;

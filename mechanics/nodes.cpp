@@ -261,6 +261,7 @@ void joinSites(const DiscreteStructure& s, const Design& structure, SiteSets& se
   }
   std::map<int, std::string> listed;
   for (std::size_t j = 0; j < spec.joints.size(); ++j) {
+    if (spec.joints[j].empty()) continue;  // the reader refuses them; a joint built in code may be
     const Vec3 meeting = placePoint(structure, s.locate(spec.joints[j][0], structure));
     for (std::size_t k = 0; k < spec.joints[j].size(); ++k) {
       const Place place = s.locate(spec.joints[j][k], structure);

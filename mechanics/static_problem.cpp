@@ -116,12 +116,13 @@ int StaticProblem::convergenceOrder() const {
 std::optional<UnderResolvedRod> StaticProblem::leastResolvedRod() const {
   std::optional<UnderResolvedRod> least;
   double shortest = 1.0;  // spans over those needed
+  const double relative = std::max(1e-2, structure_->discretization.tolerance);
   for (const DiscreteRod& rod : structure_->rods) {
     const int spans = static_cast<int>(rod.curve.breakpoints().size()) - 1;
-    const double needed = aPrioriSpans(*rod.source, rod.degree, 1e-2);
+    const double needed = aPrioriSpans(*rod.source, rod.degree, relative);
     if (spans < needed && spans / needed < shortest) {
       shortest = spans / needed;
-      least = UnderResolvedRod{rod.path + " \"" + rod.name + "\"", rod.degree, spans, needed};
+      least = UnderResolvedRod{rod.path + " \"" + rod.name + "\"", rod.degree, spans, needed, relative};
     }
   }
   return least;

@@ -151,7 +151,9 @@ void Inspector::indexEntries() {
     reported_.insert(name);
   }
   if (reader_->truncated())
-    findings_.whole("holds more than " + std::to_string(limits_.maxEntries) + " entries, more than any job can; the rest were not listed");
+    findings_.whole("holds more than " + std::to_string(limits_.maxEntries) + " entries, more than a job of " +
+                    (options_.profile ? "that profile" : "any bundled profile (a job of another: inspect it with --profile FILE)") +
+                    " can; the rest were not listed");
 }
 
 bool Inspector::readManifest() {

@@ -102,20 +102,27 @@ namespace {
 // Without RENAME_EXCHANGE the commit moves the job it replaces into its staging folder ("replaced")
 // before renaming the new one into place: a writer killed between the two left the output's name
 // empty and the only copy of the old job in a folder this function removed. It goes back under its
-// name, or, the name taken since, beside it as a previous version (`.NAME.rodfab-old-PID-0`, which
-// the commands report and never remove).
-void recoverReplacedJob(const fs::path& staging, long pid) {
+// name, or, the name taken since, beside it as a previous version (`.NAME.rodfab-old-PID-N`, which
+// the commands report and never remove). False when it could be neither: the folder must then stay.
+bool recoverReplacedJob(const fs::path& staging, long pid) {
   const fs::path replaced = staging / "replaced";
   std::error_code ec;
-  if (!fs::exists(fs::symlink_status(replaced, ec))) return;
+  if (!fs::exists(fs::symlink_status(replaced, ec))) return true;
   const std::string name = staging.filename().string();
   const std::string output = name.substr(1, name.rfind(kPartialTag) - 1);
-  if (::renameat2(AT_FDCWD, replaced.c_str(), AT_FDCWD, (staging.parent_path() / output).c_str(), RENAME_NOREPLACE) == 0) return;
-  if (errno != EEXIST && errno != EINVAL && errno != ENOSYS && errno != ENOTSUP) return;
-  std::string kept = ".";  // appended piecewise: GCC 12 warns falsely (-Wrestrict) on "." + string
-  kept.append(output).append(".rodfab-old-").append(std::to_string(pid)).append("-0");
-  if (!fs::exists(fs::symlink_status(staging.parent_path() / kept, ec)))
-    ::rename(replaced.c_str(), (staging.parent_path() / kept).c_str());
+  const fs::path home = staging.parent_path() / output;
+  if (::renameat2(AT_FDCWD, replaced.c_str(), AT_FDCWD, home.c_str(), RENAME_NOREPLACE) == 0) return true;
+  // Without RENAME_NOREPLACE (NFS refuses renameat2's flags): a plain rename onto a name found free.
+  if ((errno == EINVAL || errno == ENOSYS || errno == ENOTSUP) && !fs::exists(fs::symlink_status(home, ec)) &&
+      ::rename(replaced.c_str(), home.c_str()) == 0)
+    return true;
+  for (int n = 0; n < 1000; ++n) {
+    std::string kept = ".";  // appended piecewise: GCC 12 warns falsely (-Wrestrict) on "." + string
+    kept.append(output).append(".rodfab-old-").append(std::to_string(pid)).append("-").append(std::to_string(n));
+    if (fs::exists(fs::symlink_status(staging.parent_path() / kept, ec))) continue;
+    return ::rename(replaced.c_str(), (staging.parent_path() / kept).c_str()) == 0;
+  }
+  return false;
 }
 
 }  // namespace
@@ -135,8 +142,7 @@ void removeDeadStaging(const fs::path& folder) {
     if (statusError) continue;
     std::error_code ignored;
     if (fs::is_directory(status) && writerGone(it->path(), pid)) {
-      recoverReplacedJob(it->path(), pid);
-      fs::remove_all(it->path(), ignored);
+      if (recoverReplacedJob(it->path(), pid)) fs::remove_all(it->path(), ignored);
     }
     else if (fs::is_regular_file(status) && !processAlive(pid)) fs::remove(it->path(), ignored);
   }

@@ -84,6 +84,9 @@ fs::path checkJobOutput(const JobOptions& options) {
     throw std::runtime_error(t.parent_path().string() + (fs::exists(t.parent_path())
                                                              ? ": is not a directory; the job needs a folder to go in"
                                                              : ": the output directory does not exist"));
+  // Dead writers' leftovers first: a job one of them had moved aside goes back under its name, and the
+  // output is examined as the commit will find it.
+  removeDeadStaging(t.parent_path());
   common::checkOutputNameLength(t);  // its staging folder's name is longer: refused now, not after the work
   // So are the staging folder's deepest files: job/previews/ and a file name further (at most NAME_MAX).
   const std::size_t deepest = stagingPath(t, 0).string().size() + 12 + std::strlen("/job/previews/") + NAME_MAX;
@@ -149,7 +152,6 @@ struct JobWriter::Impl {
     nextK = geometry.firstLayerK;
     layers.resize(static_cast<std::size_t>(geometry.layers));
     previews = std::make_unique<Previews>(geometry, spec.profile, spec.options.contactSheetLayers);
-    removeDeadStaging(target.parent_path());
     staging = std::make_unique<Staging>(target);  // if anything below throws, its destructor removes the folder
     filesDir = staging->files();
     encoder = std::make_unique<BandEncoder>(BandEncoderSetup{spec.profile, {geometry, imageFormat, support, emitted},

@@ -120,7 +120,9 @@ struct JobResult {
 // The absolute path a job with these options will have. Throws std::runtime_error naming it when its
 // folder does not exist, when something is there that is not a rodfab job (saying what it is), or a
 // rodfab job without options.force; std::invalid_argument for an empty path. The writer checks this
-// again when it starts and when it commits; commands call it early to refuse before any work.
+// again when it starts and when it commits; commands call it early to refuse before any work. First
+// it cleans the folder of dead writers' staging (removeDeadStaging), putting back a job one of them had
+// moved aside to replace it, so the output is examined as the commit will find it.
 std::filesystem::path checkJobOutput(const JobOptions& options);
 
 // Bytes a job's previews hold at the most while it is written (views and contact tiles), for a job

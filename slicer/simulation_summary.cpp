@@ -165,17 +165,18 @@ void printSimulationSummary(const SimulationSummary& s) {
 
 nlohmann::json underResolvedJson(const std::optional<mechanics::UnderResolvedRod>& u) {
   if (!u) return nullptr;
-  return {{"rod", u->rod}, {"degree", u->degree}, {"spans", u->spans}, {"spans_for_1_percent", std::ceil(u->needed)}};
+  const nlohmann::json needed = std::isfinite(u->needed) ? nlohmann::json(static_cast<long long>(std::ceil(u->needed))) : nlohmann::json(nullptr);
+  return {{"rod", u->rod}, {"degree", u->degree}, {"spans", u->spans}, {"spans_needed", needed}, {"relative_error", u->relative}};
 }
 
 // Said whatever the error estimate claims: it compares levels that lock alike, so it cannot see this.
 void warnUnderResolved(const std::optional<mechanics::UnderResolvedRod>& u, const std::string& context, const std::string& remedy) {
   if (!u) return;
   std::fprintf(stderr,
-               "warning: %s%s has %d spans of degree %d where the a priori model asks about %.0f for even 1 %% accuracy "
+               "warning: %s%s has %d spans of degree %d where the a priori model asks about %.0f for even %g %% accuracy "
                "(mechanics/README.md, \"Automatic spans\"): collocation still locks on it, so the answer can be far off "
                "(even bent the wrong way) and the error estimate far too small; %s\n",
-               context.c_str(), u->rod.c_str(), u->spans, u->degree, std::ceil(u->needed), remedy.c_str());
+               context.c_str(), u->rod.c_str(), u->spans, u->degree, std::ceil(u->needed), 100 * u->relative, remedy.c_str());
 }
 
 }  // namespace rodfab::cli

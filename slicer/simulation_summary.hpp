@@ -36,7 +36,7 @@ LargestDisplacement largestDisplacement(const mechanics::Design& design, const m
                                         const Eigen::VectorXd& state);
 
 // A rod whose spans lie below what its degree needs for 1 % (StaticProblem::leastResolvedRod): as
-// JSON {rod, degree, spans, spans_for_1_percent} (null when none), and the warning on stderr,
+// JSON {rod, degree, spans, spans_needed, relative_error} (null when none), and the warning on stderr,
 // prefixed by `context` (e.g. `case "fold": `) and ending with what to do (nothing when none).
 // simulate and optimize both say it.
 nlohmann::json underResolvedJson(const std::optional<mechanics::UnderResolvedRod>& rod);

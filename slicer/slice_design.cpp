@@ -227,8 +227,10 @@ SliceMemoryPlan planSliceMemory(const geometry::RodStructure& design, const prin
     int fits = 0;  // the most layers a band of which fits, if any
     for (int n = plan.bandLayers - 1; n >= 1 && fits == 0 && plan.bytes > common::memoryBudget(); --n)
       if (estimate(n).bytes <= common::memoryBudget()) fits = n;
+    // The estimate does not fall with every layer less (bands hold whole leaves of 8 layers): the size
+    // found is named, not a range.
     const std::string remedy = fits > 0 ? "use --band-layers " + std::to_string(fits) +
-                                              " or fewer, or raise --max-memory if the machine has more"
+                                              " (the largest that fits), or raise --max-memory if the machine has more"
                                         : "slice a smaller design, or raise --max-memory if the machine has more";
     common::requireMemory(plan.bytes, {.what = what + " in bands of " + std::to_string(plan.bandLayers) + " layers", .remedy = remedy});
     return plan;

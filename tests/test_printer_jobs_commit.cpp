@@ -317,17 +317,21 @@ TEST_CASE("A job a dead writer had moved aside to replace it is put back, not re
   int status = 0;
   ::waitpid(dead, &status, 0);
   const std::string pid = std::to_string(dead);
-  for (const std::string target : {"lost.zip", "taken.zip"}) {
+  for (const std::string target : {"lost.zip", "taken.zip", "clash.zip"}) {
     const fs::path staging = dir / ("." + target + ".rodfab-partial-" + pid + "-0");
     fs::create_directories(staging / "previews");
     fs::copy_file(dir / "seed.zip", staging / "replaced");
   }
   writeAll(dir / "taken.zip", Bytes{'n', 'e', 'w'});  // the name taken since (by hand, or a later run)
+  writeAll(dir / "clash.zip", Bytes{'n', 'e', 'w'});  // and the first previous-version name too (a pid reused)
+  writeAll(dir / (".clash.zip.rodfab-old-" + pid + "-0"), Bytes{'e', 'a', 'r', 'l', 'i', 'e', 'r'});
   writeJob(*grid, specFor(*grid, dir / "other.zip"), 24);  // any run in the folder cleans dead staging
   CHECK(readAll(dir / "lost.zip") == old);
   CHECK(inspectJob(dir / "lost.zip").ok());
   CHECK((readAll(dir / "taken.zip") == Bytes{'n', 'e', 'w'}));
   CHECK(readAll(dir / (".taken.zip.rodfab-old-" + pid + "-0")) == old);
+  CHECK((readAll(dir / (".clash.zip.rodfab-old-" + pid + "-0")) == Bytes{'e', 'a', 'r', 'l', 'i', 'e', 'r'}));
+  CHECK(readAll(dir / (".clash.zip.rodfab-old-" + pid + "-1")) == old);
   for (const auto& e : fs::directory_iterator(dir)) CHECK_FALSE(e.path().filename().string().find(".rodfab-partial-") != std::string::npos);
 }
 

@@ -281,7 +281,7 @@ grep -q '^warning: rods\[0\] "beam" has 16 spans of degree 3 where the a priori 
 python3 - "$tmp/out" <<'PY' || fail "under_resolved in --json: $(head -c 2000 "$tmp/out")"
 import json, sys
 u = json.load(open(sys.argv[1]))["under_resolved"]
-assert u == {"rod": 'rods[0] "beam"', "degree": 3, "spans": 16, "spans_for_1_percent": 137}, u
+assert u == {"rod": 'rods[0] "beam"', "degree": 3, "spans": 16, "spans_needed": 137, "relative_error": 0.01}, u
 PY
 "$rodfab" simulate "$tmp/roll.json" --json -o "$tmp/rolled.json" > "$tmp/out" 2> "$tmp/err" || fail "--json: $(cat "$tmp/err")"
 python3 -c 'import json, sys; assert json.load(open(sys.argv[1]))["under_resolved"] is None' "$tmp/out" ||
