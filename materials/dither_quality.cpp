@@ -1,5 +1,7 @@
 #include "materials/dither_quality.hpp"
 
+#include "common/interrupt.hpp"
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -77,6 +79,7 @@ std::vector<double> convolveAxis(const std::vector<double>& in, const DenseRegio
   const std::size_t lines = region.dim[other1] * region.dim[other2];
   const auto radius = static_cast<std::ptrdiff_t>(kernel.size() / 2);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, lines), [&](const tbb::blocked_range<std::size_t>& r) {
+    common::throwIfInterrupted();  // a 192^3 region's convolutions take tens of seconds
     for (std::size_t line = r.begin(); line != r.end(); ++line) {
       const std::size_t base = (line % region.dim[other1]) * s[other1] + (line / region.dim[other1]) * s[other2];
       for (std::ptrdiff_t x = 0; x < static_cast<std::ptrdiff_t>(n); ++x) {

@@ -30,7 +30,8 @@ struct DitherQuality {
   std::array<double, 3> meanRunLength{0.0, 0.0, 0.0};
 };
 
-// Throws std::invalid_argument when the grids' active voxels differ or the region is too large.
+// Throws std::invalid_argument when the grids' active voxels differ or the region is too large, and
+// common::Interrupted on SIGINT / SIGTERM (the low-pass convolutions poll it per chunk of lines).
 DitherQuality measureDitherQuality(const openvdb::FloatGrid& fraction, const openvdb::BoolGrid& material);
 
 // RMS over the region of the low-passed error: with e = material - fraction and m = 1 inside the

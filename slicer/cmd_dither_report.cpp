@@ -1,6 +1,7 @@
 // rodfab dither-report: every ditherer's quality (bias, low-pass error, clustering, runs, speed) on
 // uniform blocks and a thin rod made at the profile's voxel (slicer/dither_report.hpp measures and
 // prints; materials/dither_quality.hpp defines the figures).
+#include "common/interrupt.hpp"
 #include "common/memory_budget.hpp"
 #include "materials/materials.hpp"
 #include "slicer/command.hpp"
@@ -86,6 +87,7 @@ int runDitherReport(const std::vector<std::string>& args) {
                          .remedy = "use a smaller --block, fewer --fractions or a shorter --rod-length"});
   materials::DitherOptions ditherOptions;
   ditherOptions.seed = vm["seed"].as<Seed>().value;
+  ditherOptions.checkInterrupt = [] { common::throwIfInterrupted(); };  // within a leaf's or a layer's work of a signal
   if (vm.count("mask")) {
     try {
       ditherOptions.mask = std::make_shared<const materials::BlueNoiseMask>(materials::BlueNoiseMask::load(vm["mask"].as<std::string>()));

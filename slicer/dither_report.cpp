@@ -1,5 +1,6 @@
 #include "slicer/dither_report.hpp"
 
+#include "common/interrupt.hpp"
 #include "common/memory_budget.hpp"
 #include "common/stopwatch.hpp"
 #include "materials/materials.hpp"
@@ -72,6 +73,7 @@ void printDitherReport(const DitherReportRequest& r, const openvdb::Vec3d& voxel
                 "rms@100um", "rms@250um", "cluster", "runs x/y/z", "Mvox/s");
   for (const std::string& method : r.methods) {
     for (const Region& region : regions) {
+      common::throwIfInterrupted();  // measuring a region reads all of it
       const auto ditherer = materials::makeDitherer(method, ditherOptions);
       const auto start = std::chrono::steady_clock::now();
       const openvdb::BoolGrid::Ptr material = ditherer->dither(*region.fraction);

@@ -124,6 +124,10 @@ def cases(ctx) -> list[Case]:
                       "simulate a 4000-span cantilever in 20 load steps", [
                           ("sigint-while-writing", (signal.SIGINT, any_new())),
                       ], ".json")
+    # No output file: a report on stdout, whose low-pass measurements take seconds (the watchdog ended
+    # them before they polled).
+    cs += interrupted("dither-report", lambda o: ["dither-report", "--block", "96x96x96", "--dither", "white"], [], {}, False,
+                      "dither-report on a 96^3 block", [], "")
     data = {"data.csv": csv_rows(dma_rows(1600))}
     cs += interrupted("calibrate", lambda o: ["calibrate", "data.csv", "-o", o, "--plot", _plot(o)],
                       ["ref.json", "ref-fit.png"], data, False, "calibrate 1,600 rows with a plot", [
