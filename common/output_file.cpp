@@ -259,16 +259,15 @@ AtomicOutput::~AtomicOutput() {
 
 namespace {
 
-// fsync or syncfs on `path` opened with `flags`: see syncToDevice.
-void flush(const fs::path& path, int flags, bool wholeFileSystem) {
+// fsync or syncfs on `path` opened with `flags`: 0, or the errno of what failed (opening or
+// flushing). A file system that cannot sync (EINVAL, EROFS) counts as flushed.
+int flush(const fs::path& path, int flags, bool wholeFileSystem) {
   const int fd = ::open(path.c_str(), flags | O_CLOEXEC);
-  if (fd < 0 && errno == EACCES) return;  // written but not readable by us (a umask): left to the kernel's writeback
-  if (fd < 0) throw std::runtime_error(quoted(path) + ": cannot open it to flush it to disk (" + std::strerror(errno) + "); nothing was replaced");
+  if (fd < 0) return errno;
   const int result = wholeFileSystem ? ::syncfs(fd) : ::fsync(fd);
   const int error = errno;
   ::close(fd);
-  if (result != 0 && error != EINVAL && error != EROFS)
-    throw std::runtime_error(quoted(path) + ": cannot flush it to disk (" + std::strerror(error) + "); nothing was replaced");
+  return result == 0 || error == EINVAL || error == EROFS ? 0 : error;
 }
 
 }  // namespace
@@ -276,16 +275,14 @@ void flush(const fs::path& path, int flags, bool wholeFileSystem) {
 void syncToDevice(const fs::path& path) {
   struct stat st {};
   if (::lstat(path.c_str(), &st) != 0) throw std::runtime_error(quoted(path) + ": cannot flush it to disk (" + std::strerror(errno) + ")");
-  if (S_ISDIR(st.st_mode)) flush(path, O_RDONLY | O_DIRECTORY, true);
-  else flush(path, O_RDONLY, false);
+  const int error = S_ISDIR(st.st_mode) ? flush(path, O_RDONLY | O_DIRECTORY, true) : flush(path, O_RDONLY, false);
+  // EACCES: written but not readable by us (a umask), left to the kernel's writeback.
+  if (error != 0 && error != EACCES)
+    throw std::runtime_error(quoted(path) + ": cannot flush it to disk (" + std::strerror(error) + "); nothing was replaced");
 }
 
 bool syncFolderEntries(const fs::path& folder) {
-  const int fd = ::open((folder.empty() ? fs::path(".") : folder).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return false;
-  const bool synced = ::fsync(fd) == 0 || errno == EINVAL || errno == EROFS;
-  ::close(fd);
-  return synced;
+  return flush(folder.empty() ? fs::path(".") : folder, O_RDONLY | O_DIRECTORY, false) == 0;
 }
 
 void AtomicOutput::commit() {

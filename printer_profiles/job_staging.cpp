@@ -218,7 +218,6 @@ Commit commitJob(const fs::path& built, const fs::path& target, bool force, cons
         throw std::runtime_error(target.string() + ": appeared while the job was being written; it was left as it is");
       renameOrThrow(built, target);
     }
-    common::syncFolderEntries(target.parent_path());
     return c;
   }
   if (!force)
@@ -235,7 +234,6 @@ Commit commitJob(const fs::path& built, const fs::path& target, bool force, cons
       renameWith(c.oldJob, target, RENAME_EXCHANGE);
       throw std::runtime_error(target.string() + ": changed while the job was being written; nothing was replaced");
     }
-    common::syncFolderEntries(target.parent_path());
     return c;
   }
   // No exchange on this file system: the old job is moved aside into the staging folder first.
@@ -247,7 +245,6 @@ Commit commitJob(const fs::path& built, const fs::path& target, bool force, cons
     renameOrThrow(c.oldJob, target);
     throw;
   }
-  common::syncFolderEntries(target.parent_path());
   return c;
 }
 

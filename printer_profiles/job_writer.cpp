@@ -330,6 +330,7 @@ struct JobWriter::Impl {
 
     checkInterrupt();  // the last moment at which nothing was written
     const Commit commit = commitJob(built, target, spec.options.force, *staging);
+    common::syncFolderEntries(target.parent_path());  // the new name survives a power loss too
     // When a common::CommandOutputs owns the command's outputs, the job this one replaced is kept
     // beside it until the command ends, and put back if the command fails or is interrupted (a signal
     // after this function returned removed the new job and the old one was gone); without an owner it
