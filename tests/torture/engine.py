@@ -578,8 +578,14 @@ def run_case(ctx: Context, case: Case, keep: bool = False) -> tuple[list[str], l
             if n == 0:
                 first = o.seconds
             record(n, step, argv, o)
+            if any("inconclusive:" in p for p in problems):
+                break
         for n, step, argv, running in background:
             record(n, step, argv, running.wait())
+        if any("inconclusive:" in p for p in problems):
+            # A moment that never came leaves what the uninterrupted run made (its output, which the
+            # later steps never see): nothing else about this attempt says anything.
+            return [p for p in problems if "inconclusive:" in p], log
         after = snapshot(cwd)
         problems += check_folder(before, after, allowed, required, replaceable)
         left = sorted(os.listdir(tmpdir))
