@@ -19,6 +19,13 @@ namespace rodfab::common {
 
 namespace fs = std::filesystem;
 
+fs::path previousVersionName(const fs::path& file, long pid, int n) {
+  std::string hidden = ".";  // appended piecewise: GCC 12 warns falsely (-Wrestrict) on "." + string
+  hidden.append(file.filename().string()).append(".rodfab-old-").append(std::to_string(pid));
+  hidden.append("-").append(std::to_string(n));
+  return file.parent_path() / hidden;
+}
+
 namespace {
 
 std::atomic<int> pendingSignal{0};
@@ -73,13 +80,10 @@ void forgetRegisteredLocked() {
 // Live CommandOutputs objects (0 or 1), under registryMutex.
 int owners = 0;
 
-// A hidden name beside `file` for the file a commit replaces: `.NAME.rodfab-old-PID-N`.
-fs::path previousVersionName(const fs::path& file) {
+// This process's next hidden name beside `file` for the file a commit replaces.
+fs::path nextPreviousVersionName(const fs::path& file) {
   static std::atomic<int> counter{0};
-  std::string hidden = ".";  // appended piecewise: GCC 12 warns falsely (-Wrestrict) on "." + string
-  hidden.append(file.filename().string()).append(".rodfab-old-").append(std::to_string(::getpid()));
-  hidden.append("-").append(std::to_string(counter++));
-  return file.parent_path() / hidden;
+  return previousVersionName(file, ::getpid(), counter++);
 }
 
 // Keeps the regular file at `file` (one a commit is about to replace) under a hidden name beside it: a
@@ -89,7 +93,7 @@ fs::path previousVersionName(const fs::path& file) {
 fs::path keepPreviousVersion(const fs::path& file) {
   struct stat st {};
   if (::lstat(file.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return {};
-  const fs::path kept = previousVersionName(file);
+  const fs::path kept = nextPreviousVersionName(file);
   if (::link(file.c_str(), kept.c_str()) != 0 && ::rename(file.c_str(), kept.c_str()) != 0)
     throw std::runtime_error(file.string() + ": cannot keep the file it replaces until the command ends (" + std::strerror(errno) +
                              "); nothing was replaced");
@@ -188,7 +192,7 @@ bool keepCommitted(const fs::path& committed, const fs::path& replaced) {
   if (owners == 0) return false;
   fs::path kept;
   if (!replaced.empty()) {
-    kept = previousVersionName(committed);
+    kept = nextPreviousVersionName(committed);
     // Beside the output, on its file system (the writer's staging folder is beside it too).
     if (::rename(replaced.c_str(), kept.c_str()) != 0)
       throw std::runtime_error(committed.string() + ": cannot keep what it replaced until the command ends (" + std::strerror(errno) + ")");

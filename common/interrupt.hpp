@@ -86,6 +86,10 @@ void commitRegistered(const std::filesystem::path& temporary, const std::filesys
 // where it was and nothing registered, when it cannot be moved.
 bool keepCommitted(const std::filesystem::path& committed, const std::filesystem::path& replaced);
 
+// `.NAME.rodfab-old-PID-N` beside `file`: the name under which process `pid` keeps the n-th file its
+// commits replaced (and a job writer's recovery keeps a dead writer's, when NAME is taken).
+std::filesystem::path previousVersionName(const std::filesystem::path& file, long pid, int n);
+
 // Takes back an output committed through commitRegistered (a command whose later outputs failed: all
 // or none): removed, and the file it replaced put back. Does nothing for a path not registered.
 void withdrawCommitted(const std::filesystem::path& committed);

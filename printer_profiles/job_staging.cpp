@@ -117,10 +117,9 @@ bool recoverReplacedJob(const fs::path& staging, long pid) {
       ::rename(replaced.c_str(), home.c_str()) == 0)
     return true;
   for (int n = 0; n < 1000; ++n) {
-    std::string kept = ".";  // appended piecewise: GCC 12 warns falsely (-Wrestrict) on "." + string
-    kept.append(output).append(".rodfab-old-").append(std::to_string(pid)).append("-").append(std::to_string(n));
-    if (fs::exists(fs::symlink_status(staging.parent_path() / kept, ec))) continue;
-    return ::rename(replaced.c_str(), (staging.parent_path() / kept).c_str()) == 0;
+    const fs::path kept = common::previousVersionName(home, pid, n);
+    if (fs::exists(fs::symlink_status(kept, ec))) continue;
+    return ::rename(replaced.c_str(), kept.c_str()) == 0;
   }
   return false;
 }
