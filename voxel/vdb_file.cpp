@@ -1,6 +1,7 @@
 #include "voxel/vdb_file.hpp"
 
 #include "common/file_hasher.hpp"
+#include "common/interrupt.hpp"
 #include "common/output_file.hpp"
 
 #include <openvdb/io/Archive.h>
@@ -31,16 +32,39 @@ void initializeOpenVdb() {
   std::call_once(once, [] { openvdb::initialize(); });
 }
 
+// A file buffer that stops the writing it serves on SIGINT or SIGTERM: OpenVDB compresses and
+// writes node by node without looking, and a large grid took over a second of CPU after the signal
+// (the watchdog then cut it short). Interrupted thrown here comes out of the stream's write
+// (badbit is in its exceptions) and through OpenVDB.
+class InterruptibleFileBuffer final : public std::filebuf {
+protected:
+  std::streamsize xsputn(const char* bytes, std::streamsize count) override {
+    common::throwIfInterrupted();
+    return std::filebuf::xsputn(bytes, count);
+  }
+  int_type overflow(int_type c) override {
+    common::throwIfInterrupted();
+    return std::filebuf::overflow(c);
+  }
+};
+
 // What io::File::write does (Archive::write on a seekable stream), on a stream of ours that is checked
 // once written: io::File never looks at its stream, so a full disk left a truncated file that was then
 // put in place with exit 0.
 class GridArchive final : public openvdb::io::Archive {
 public:
   void writeFile(const std::filesystem::path& file, const openvdb::GridCPtrVec& grids, const openvdb::MetaMap& metadata) const {
-    std::ofstream out(file, std::ios::binary | std::ios::trunc);
-    if (!out) throw std::runtime_error("cannot create " + file.string());
-    write(out, grids, /*seekable=*/true, metadata);
-    out.close();  // flushes: a failed write or flush leaves failbit set
+    InterruptibleFileBuffer buffer;
+    if (!buffer.open(file, std::ios::out | std::ios::binary | std::ios::trunc)) throw std::runtime_error("cannot create " + file.string());
+    std::ostream out(&buffer);
+    out.exceptions(std::ios::badbit);
+    try {
+      write(out, grids, /*seekable=*/true, metadata);
+      out.exceptions(std::ios::goodbit);
+    } catch (const std::ios_base::failure&) {  // a write failed: badbit
+      out.exceptions(std::ios::goodbit);
+    }
+    if (!buffer.close()) out.setstate(std::ios::failbit);
     if (!out) throw std::runtime_error("writing " + file.string() + " failed (disk full?)");
   }
 };
@@ -98,6 +122,8 @@ void writeGridFile(const std::string& path, const openvdb::GridBase& grid, const
     metadata.insertMeta(kWriterKey, openvdb::StringMetadata("rodfab"));
     GridArchive().writeFile(output.temporary(), {grid.copyGrid()}, metadata);
     giveContentUuid(output.temporary());
+  } catch (const common::Interrupted&) {
+    throw;
   } catch (const std::exception& e) {
     throw std::runtime_error(path + ": cannot write the grid: " + e.what());
   }
