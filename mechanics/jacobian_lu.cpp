@@ -111,6 +111,15 @@ struct JacobianLU::Factors {
     for (int i = 0; i < n; ++i) s = u[i] < 0 ? -s : s;
     return s;  // the row scaling KLU applies is positive and does not change it
   }
+  // KLU factors R \ (P A Q) = L U with L unit lower triangular, so |det A| = prod Rs * prod |U_ii|.
+  double logAbsDeterminant() const {
+    const int n = symbolic->n;
+    const double* u = static_cast<const double*>(numeric->Udiag);
+    const double* rs = numeric->Rs;
+    double sum = 0.0;
+    for (int i = 0; i < n; ++i) sum += std::log(std::abs(u[i])) + (rs ? std::log(rs[i]) : 0.0);
+    return sum;
+  }
   void analyse(const Eigen::SparseMatrix<double>& m, int block);
 };
 
@@ -211,6 +220,9 @@ Eigen::VectorXd JacobianLU::solve(const Eigen::VectorXd& b, bool transposed) con
 Eigen::VectorXd JacobianLU::solve(const Eigen::VectorXd& b) const { return solve(b, false); }
 Eigen::VectorXd JacobianLU::solveTransposed(const Eigen::VectorXd& b) const { return solve(b, true); }
 int JacobianLU::determinantSign() const { return factors_->sign; }
+double JacobianLU::logAbsDeterminant() const {
+  return factors_->sign ? factors_->logAbsDeterminant() : std::numeric_limits<double>::quiet_NaN();
+}
 bool JacobianLU::pivotsReused() const { return factors_->sign != 0 && factors_->reused; }
 double JacobianLU::pivotRatio() const { return factors_->sign ? factors_->common.rcond : 0.0; }
 

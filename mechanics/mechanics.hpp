@@ -132,10 +132,8 @@ public:
   // the wrong way, critical points where there are none) and the error estimate far too small. The
   // automatic span counts aim at 1e-4, so only counts given by hand (--spans, --refine) fall short.
   std::optional<UnderResolvedRod> leastResolvedRod() const;
-  // What the sign of det J cannot see in this structure (mechanics/README.md, "Stability"), none if
-  // nothing: follower loads (not conservative: the sign does not decide stability), else the first
-  // rod with equal bending stiffnesses (a round or square section, whose two buckling modes cross
-  // zero together and leave the sign as it was).
+  // What det J cannot see in this structure (mechanics/README.md, "Stability"), none if nothing:
+  // follower loads (not conservative: neither det J's sign nor its dips decide stability).
   std::optional<std::string> stabilityBlindSpot() const;
 
   // The undeformed configuration (a solution at load 0).
@@ -247,6 +245,9 @@ public:
   Eigen::VectorXd solveTransposed(const Eigen::VectorXd& b) const;
   // Sign of det J: +1 or -1 (0 before a successful factorize).
   int determinantSign() const;
+  // ln |det J| (the row scaling KLU applies included); NaN before a successful factorize. Where two
+  // eigenvalues cross zero together det J keeps its sign and only its size tells (a dip to zero).
+  double logAbsDeterminant() const;
   // min |U_ii| / max |U_ii|: a crude reciprocal condition estimate of J.
   double pivotRatio() const;
   // Entries of L and U in the last factorization (0 before a successful one).
@@ -285,25 +286,34 @@ struct SolverOptions {
   // perturb the state along the critical mode and continue on the branch that is stable again.
   bool followStableBranch = false;
   // A critical point found between two load steps is bracketed by bisection (Newton solves) to
-  // this width in load factor; 1 or more: not bisected.
+  // this width in load factor, and a dip of |det J| with no change of sign (two eigenvalues crossing
+  // zero together) by a golden-section search; 1 or more: neither (a dip is then not looked into).
   double criticalLoadTolerance = 1e-3;
 };
 
-// A point where det J changed sign between two converged load steps: an eigenvalue of the
-// tangent crossed zero (bifurcation or limit point).
+// A point where an eigenvalue of the tangent crossed zero (bifurcation or limit point): det J changed
+// sign between two converged load steps, or, for two eigenvalues crossing together (the two buckling
+// modes of a round or square section, which leave det J's sign as it was), |det J| dipped to zero:
+// a local minimum of |det J| over the steps whose golden-section search ends at least ten times below
+// |det J| four bracket widths either side (a double zero gives 30 times and more; a smooth dip, 1).
 struct CriticalPoint {
   double fromLoad = 0.0, toLoad = 0.0;  // load factors bracketing it (SolverOptions::criticalLoadTolerance)
+  int crossings = 1;  // eigenvalues crossing zero there: 2 where det J kept its sign
   enum class Kind { Bifurcation, LimitPoint } kind = Kind::Bifurcation;
   // |psi . dF/dload| / (|psi| |dF/dload|), psi the critical left eigenvector (of J^T): near 0 at a
   // bifurcation (the load does not drive the critical mode), of order 1 at a limit point.
   double loadAlignment = 0.0;
   bool branchSwitched = false;  // followStableBranch moved the solution onto a stable branch here
+  // A limit point the load path jumped past onto another branch (snap-through: under load control
+  // the structure would snap there), found at the bottom of a dip of |det J| where the branch ends.
+  bool snapThrough = false;
 };
 
 enum class Stability {
-  Stable,        // det J kept the reference state's sign all along: no critical point passed
-  Unstable,      // det J has the opposite sign: an odd number of critical points passed
-  Undetermined,  // det J is back to the reference sign after an even number of sign changes
+  Stable,        // no critical point passed (det J kept the reference state's sign and never dipped to zero)
+  Unstable,      // det J has the opposite sign (an odd number of crossings), or the only critical point
+                 // passed was two eigenvalues crossing together
+  Undetermined,  // det J is back to the reference sign after more than one critical point
 };
 
 struct LoadStepReport {

@@ -4,6 +4,7 @@
 
 #include "common/interrupt.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -41,9 +42,9 @@ Eigen::VectorXd startVector(Eigen::Index n) {
 // and the reference state passed for its solution: 21 % off, the estimate claiming 3e-11), but not
 // below the drawn state's own rounding (without loads it is the solution, and Newton on rounding
 // would move it).
-double residualTolerance(const StaticProblem& problem, double tolerance) {
-  Eigen::VectorXd unloaded, loaded;
-  problem.evaluate(problem.referenceState(), 0.0, unloaded);
+// `unloaded` is the residual of the drawn state at load 0.
+double residualTolerance(const StaticProblem& problem, const Eigen::VectorXd& unloaded, double tolerance) {
+  Eigen::VectorXd loaded;
   problem.evaluate(problem.referenceState(), 1.0, loaded);
   const double load = (loaded - unloaded).lpNorm<Eigen::Infinity>(), rounding = unloaded.lpNorm<Eigen::Infinity>();
   return std::min(tolerance, std::max(1e-8 * load, 4 * rounding));
@@ -53,8 +54,7 @@ double residualTolerance(const StaticProblem& problem, double tolerance) {
 class PathFollower {
 public:
   PathFollower(const StaticProblem& problem, const SolverOptions& options)
-      : problem_(problem), options_(options), lu_(std::make_shared<JacobianLU>(7)),
-        residualTolerance_(residualTolerance(problem, options.tolerance)) {}
+      : problem_(problem), options_(options), lu_(std::make_shared<JacobianLU>(7)) {}
   Solution run(int steps, const StepCallback& onStep);
   std::optional<Solution> runFrom(const Eigen::VectorXd& start);
 
@@ -72,6 +72,22 @@ private:
   bool factorizeAt(const Eigen::VectorXd& x, double load);
   void finish();
 
+  // A converged state on the path, with ln |det J| and the relative sign of det J there.
+  struct Sample {
+    double load = 0.0, logDet = 0.0;
+    int sign = 1;
+    Eigen::VectorXd state;
+  };
+  Sample sampleHere(const Eigen::VectorXd& x, double load) const;
+  std::optional<Sample> sampleAt(Eigen::VectorXd x, double load);
+  void lookForDips(const Eigen::VectorXd& x, double load, bool branchSwitched);
+  void lookForDipAtEnd();
+  void searchDip(Sample lo, Sample best, Sample hi);
+  bool narrowDip(Sample& lo, Sample& best, Sample& hi, double width);
+  CriticalPoint bisectCrossing(Sample low, Sample high);
+  bool isDoubleZero(const Sample& best, double width);
+  bool branchEndsAfter(const Sample& below, const Sample& best, double width);
+
   const StaticProblem& problem_;
   const SolverOptions& options_;
   std::shared_ptr<JacobianLU> lu_;
@@ -80,9 +96,12 @@ private:
   int referenceSign_ = 0;
   int relativeSign_ = 1;      // sign of det J at the last factorization relative to the reference
   int previousSign_ = 1;      // at the last converged step
-  int signChanges_ = 0;       // since the start or the last branch switch
+  int signChanges_ = 0;       // since the start or the last branch switch, two for each paired crossing
+  int pairedCrossings_ = 0;   // critical points with two crossings, since the start or the last branch switch
+  std::vector<Sample> recent_;  // the last three converged states (none before the reference is factorized)
   std::vector<double> factorizedValues_;  // of the matrix lu_ holds (jacobian_'s pattern); empty if none
-  double residualTolerance_;
+  double residualTolerance_ = 0.0;  // set by factorizeReference, which every solve starts with
+  int maxIterations_ = options_.maxIterations;  // Newton's, lower while sampling a dip (sampleAt)
   Solution solution_;
 };
 
@@ -118,7 +137,9 @@ void PathFollower::finish() {
     throw ConvergenceError(problem_.source() + ": the Jacobian is singular at the converged state of load factor 1: the "
                            "structure is exactly at a critical (buckling) point; change the load slightly", 1.0);
   if (!solution_.steps.empty()) solution_.steps.back().determinantSign = relativeSign_;
-  if (relativeSign_ < 0) solution_.stability = Stability::Unstable;
+  // From the stable reference the first critical point passed always leaves it unstable: one crossing
+  // flips det J's sign, two together (a paired crossing) do not but leave two modes unstable.
+  if (relativeSign_ < 0 || (signChanges_ == 2 && pairedCrossings_ == 1)) solution_.stability = Stability::Unstable;
   else solution_.stability = signChanges_ == 0 ? Stability::Stable : Stability::Undetermined;
   solution_.tangent = lu_;
   solution_.factorizations = lu_->factorizations();
@@ -148,6 +169,7 @@ void PathFollower::factorizeReference() {
   common::throwIfInterrupted();
   const Eigen::VectorXd& x0 = problem_.referenceState();
   problem_.evaluate(x0, 0.0, residual_, &jacobian_);
+  residualTolerance_ = residualTolerance(problem_, residual_, options_.tolerance);
   referenceSign_ = 1;
   bool regular = factorize();
   if (regular) {
@@ -185,7 +207,7 @@ Outcome PathFollower::newton(Eigen::VectorXd& x, double load, LoadStepReport& re
     // Before any correction only a residual within the tolerance itself counts: the rounding floor
     // converged() allows can exceed a tiny load's whole residual, and the start is then no solution.
     if (iteration == 0 ? report.residuals.back() <= residualTolerance_ : converged(x)) return Outcome::Converged;
-    if (iteration >= options_.maxIterations) return Outcome::Diverged;
+    if (iteration >= maxIterations_) return Outcome::Diverged;
     // Growth far beyond the step's starting residual means Newton left the basin of attraction.
     if (iteration >= 3 && report.residuals.back() > 1e3 * std::max(report.residuals.front(), options_.tolerance))
       return Outcome::Diverged;
@@ -289,7 +311,7 @@ void PathFollower::checkCriticalPoint(Eigen::VectorXd& x, double fromLoad, doubl
   if (options_.followStableBranch && point.kind == CriticalPoint::Kind::Bifurcation && after < 0 &&
       switchBranch(x, toLoad)) {
     point.branchSwitched = true;
-    signChanges_ = 0;
+    signChanges_ = pairedCrossings_ = 0;
   }
   solution_.criticalPoints.push_back(point);
 }
@@ -311,10 +333,167 @@ bool PathFollower::switchBranch(Eigen::VectorXd& x, double load) {
   return false;
 }
 
+PathFollower::Sample PathFollower::sampleHere(const Eigen::VectorXd& x, double load) const {
+  return {load, lu_->logAbsDeterminant(), relativeSign_, x};
+}
+
+// The equilibrium at `load` by Newton from x, and det J there; none when Newton fails.
+std::optional<PathFollower::Sample> PathFollower::sampleAt(Eigen::VectorXd x, double load) {
+  LoadStepReport scratch;
+  // From a nearby equilibrium Newton converges in a few iterations or, past a branch's end, not at all:
+  // a dozen tell which (the step's own limit is 30).
+  maxIterations_ = std::min(options_.maxIterations, 12);
+  const bool ok = newton(x, load, scratch) == Outcome::Converged && factorizeAt(x, load);
+  maxIterations_ = options_.maxIterations;
+  if (!ok) return std::nullopt;
+  return sampleHere(x, load);
+}
+
+// ln |det J| changes below this are rounding, not a dip (a search takes some thirty Newton solves,
+// each of a few iterations from a nearby equilibrium).
+constexpr double kLogDetNoise = 1e-6;
+
+// After each converged step (x at `load`, factorized): a step whose |det J| lies below both its
+// neighbours', all of one sign, is searched (searchDip) for what det J's sign cannot show: two
+// eigenvalues crossing zero together, or a limit point the path jumped past. The first step also
+// probes just past the reference: |det J| may dip before it.
+void PathFollower::lookForDips(const Eigen::VectorXd& x, double load, bool branchSwitched) {
+  if (branchSwitched) recent_.clear();  // another branch: nothing before it is comparable
+  recent_.push_back(sampleHere(x, load));
+  if (recent_.size() > 3) recent_.erase(recent_.begin());
+  if (options_.criticalLoadTolerance >= 1) return;
+  const bool oneSign = std::all_of(recent_.begin(), recent_.end(), [&](const Sample& s) { return s.sign == recent_.front().sign; });
+  if (!oneSign || recent_.size() < 2) return;
+  bool searched = false;
+  if (recent_.size() == 2 && recent_[0].load == 0.0 && recent_[1].logDet > recent_[0].logDet + kLogDetNoise) {
+    const Sample& start = recent_[0];
+    std::optional<Sample> probe = sampleAt(start.state, std::min(options_.criticalLoadTolerance, 0.5 * load));
+    if (probe && probe->sign == start.sign && probe->logDet < start.logDet - kLogDetNoise) {
+      searchDip(start, std::move(*probe), recent_[1]);
+      searched = true;
+    }
+  } else if (recent_.size() == 3 && recent_[1].logDet < std::min(recent_[0].logDet, recent_[2].logDet) - kLogDetNoise) {
+    searchDip(recent_[0], recent_[1], recent_[2]);
+    searched = true;
+  }
+  if (searched) factorizeAt(x, load);  // the step's own factorization and sign again
+}
+
+// At load 1, a |det J| still falling may have passed its bottom within the last step: a probe just
+// before the end tells.
+void PathFollower::lookForDipAtEnd() {
+  if (options_.criticalLoadTolerance >= 1 || recent_.size() < 2) return;
+  const Sample& last = recent_.back();
+  const Sample& before = recent_[recent_.size() - 2];
+  if (last.sign != before.sign || !(last.logDet < before.logDet - kLogDetNoise)) return;
+  std::optional<Sample> probe =
+      sampleAt(last.state, last.load - std::min(options_.criticalLoadTolerance, 0.5 * (last.load - before.load)));
+  if (probe && probe->sign == last.sign && probe->logDet < last.logDet - kLogDetNoise) searchDip(before, std::move(*probe), last);
+}
+
+// Narrows the dip bracketed by lo and hi (best below both) by golden-section search to `width`; true
+// when a sample between shows the other sign of det J (two single crossings close together), which
+// then is best.
+bool PathFollower::narrowDip(Sample& lo, Sample& best, Sample& hi, double width) {
+  constexpr double kGoldenSection = 0.3819660112501051;  // (3 - sqrt 5) / 2
+  for (int i = 0; i < 200 && hi.load - lo.load > width; ++i) {
+    const bool right = hi.load - best.load > best.load - lo.load;
+    const double t = right ? best.load + kGoldenSection * (hi.load - best.load) : best.load - kGoldenSection * (best.load - lo.load);
+    std::optional<Sample> s = sampleAt(best.state, t);
+    if (!s) s = Sample{t, std::numeric_limits<double>::infinity(), best.sign, {}};  // past the branch's end: a bound
+    const bool flipped = s->sign != best.sign;
+    if (flipped || s->logDet < best.logDet) {
+      (right ? lo : hi) = std::move(best);
+      best = std::move(*s);
+    } else {
+      (right ? hi : lo) = std::move(*s);
+    }
+    if (flipped) return true;
+  }
+  return false;
+}
+
+// The bottom of a dip of |det J| bracketed by lo and hi (best below both). Critical points when a
+// sample between shows the other sign (two single crossings, each then bisected), when the branch
+// ends just past the bottom (a limit point the load path jumped past: snap-through,
+// branchEndsAfter), or when |det J| falls as the square of the distance to the bottom (isDoubleZero)
+// both at the load tolerance and a hundred times closer: a smooth dip flattens out within its core
+// (an arch's near-snap: 2e-4 of the load). Closer still, Newton itself fails next to a double zero
+// (1e-6 on a column).
+void PathFollower::searchDip(Sample lo, Sample best, Sample hi) {
+  const double tolerance = options_.criticalLoadTolerance;
+  bool flipped = narrowDip(lo, best, hi, tolerance);
+  const double width = std::max(hi.load - lo.load, tolerance);
+  CriticalPoint point;
+  if (!flipped && branchEndsAfter(lo, best, width)) {
+    point.snapThrough = true;
+    point.fromLoad = best.load, point.toLoad = best.load + width;
+  } else {
+    if (!flipped && !isDoubleZero(best, width)) return;
+    if (!flipped) flipped = narrowDip(lo, best, hi, 1e-2 * tolerance);
+    if (flipped) {
+      solution_.criticalPoints.push_back(bisectCrossing(lo, best));
+      solution_.criticalPoints.push_back(bisectCrossing(best, hi));
+      signChanges_ += 2;
+      return;
+    }
+    if (!isDoubleZero(best, std::max(hi.load - lo.load, 1e-2 * tolerance))) return;
+    point.fromLoad = lo.load, point.toLoad = hi.load, point.crossings = 2;
+    signChanges_ += 2, ++pairedCrossings_;
+  }
+  if (factorizeAt(best.state, best.load)) point.loadAlignment = loadAlignment(best.state, best.load, criticalMode(true));
+  point.kind = point.loadAlignment < 1e-2 && !point.snapThrough ? CriticalPoint::Kind::Bifurcation : CriticalPoint::Kind::LimitPoint;
+  solution_.criticalPoints.push_back(point);
+}
+
+// One crossing between equilibria `low` and `high` (by load) of opposite signs of det J, bisected to
+// the load tolerance and classified as checkCriticalPoint does.
+CriticalPoint PathFollower::bisectCrossing(Sample low, Sample high) {
+  for (int i = 0; i < 60 && high.load - low.load > options_.criticalLoadTolerance; ++i) {
+    std::optional<Sample> middle = sampleAt(low.state, 0.5 * (low.load + high.load));
+    if (!middle) break;
+    (middle->sign == low.sign ? low : high) = std::move(*middle);
+  }
+  CriticalPoint point;
+  point.fromLoad = low.load, point.toLoad = high.load;
+  if (factorizeAt(high.state, high.load)) point.loadAlignment = loadAlignment(high.state, high.load, criticalMode(true));
+  point.kind = point.loadAlignment < 1e-2 ? CriticalPoint::Kind::Bifurcation : CriticalPoint::Kind::LimitPoint;
+  return point;
+}
+
+// The branch through `best` ends within `width` above it: Newton finds no equilibrium there, or one a
+// jump away (ten times further per unit of load than `below`, an equilibrium of the same branch
+// below best). Under load control a limit point cannot be passed on its branch, and a step across it
+// lands on another.
+bool PathFollower::branchEndsAfter(const Sample& below, const Sample& best, double width) {
+  if (best.load + width > 1 || below.state.size() == 0 || !(below.load < best.load)) return false;
+  const std::optional<Sample> above = sampleAt(best.state, best.load + width);
+  if (!above) return true;
+  const double rateBelow = problem_.stepNorm(best.state - below.state) / (best.load - below.load);
+  return problem_.stepNorm(above->state - best.state) > 10 * rateBelow * width + 1e-6;
+}
+
+// Near a double zero |det J| grows as the square of the distance: from 4 to 40 bracket widths
+// (`width`; the zero lies within one of best) by a factor of 60 to 190 (ln: 4.1 to 5.2) on either
+// side. Past a smooth dip's core it does so too; inside it, hardly at all.
+bool PathFollower::isDoubleZero(const Sample& best, double width) {
+  int sides = 0;
+  for (const double direction : {-1.0, 1.0}) {
+    const double nearLoad = best.load + direction * 4 * width, farLoad = best.load + direction * 40 * width;
+    if (farLoad < 0 || farLoad > 1) continue;
+    const std::optional<Sample> nearer = sampleAt(best.state, nearLoad);
+    const std::optional<Sample> farther = nearer ? sampleAt(nearer->state, farLoad) : std::nullopt;
+    if (!farther || farther->logDet - nearer->logDet < 0.75 * 2 * std::log(10.0)) return false;
+    ++sides;
+  }
+  return sides > 0;
+}
+
 Solution PathFollower::run(int steps, const StepCallback& onStep) {
   const auto start = std::chrono::steady_clock::now();
   solution_.state = problem_.referenceState();
   factorizeReference();
+  recent_ = {sampleHere(solution_.state, 0.0)};
   const double planned = 1.0 / steps;
   double load = 0.0, step = planned;
   int halvings = 0;  // of the planned step, in force
@@ -329,8 +508,10 @@ Solution PathFollower::run(int steps, const StepCallback& onStep) {
       // correction (on a nearly linear path the previous step's state), which put critical points one
       // step late. With dead loads the next step's first factorization is this one again (factorize).
       factorizeAt(x, target);
+      const std::size_t pointsBefore = solution_.criticalPoints.size();
       checkCriticalPoint(x, load, target);
       previousSign_ = relativeSign_;
+      lookForDips(x, target, solution_.criticalPoints.size() > pointsBefore && solution_.criticalPoints.back().branchSwitched);
       solution_.state = std::move(x);
       report.index = static_cast<int>(solution_.steps.size()) + 1;
       report.increment = target - load;
@@ -351,6 +532,7 @@ Solution PathFollower::run(int steps, const StepCallback& onStep) {
                              load);
     step = planned / std::ldexp(1.0, halvings);
   }
+  lookForDipAtEnd();
   finish();
   solution_.totalSeconds = seconds(start);
   return std::move(solution_);

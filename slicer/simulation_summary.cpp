@@ -19,9 +19,11 @@ const char* stabilityName(mechanics::Stability s) {
 
 std::string describe(const mechanics::CriticalPoint& c) {
   char buf[256];
-  std::snprintf(buf, sizeof buf, "%s between load factors %.6g and %.6g%s",
-                c.kind == mechanics::CriticalPoint::Kind::Bifurcation ? "bifurcation" : "limit point", c.fromLoad, c.toLoad,
-                c.branchSwitched ? " (continued on the stable branch)" : "");
+  std::snprintf(buf, sizeof buf, "%s%s between load factors %.6g and %.6g%s%s",
+                c.kind == mechanics::CriticalPoint::Kind::Bifurcation ? "bifurcation" : "limit point",
+                c.crossings == 2 ? " of two modes at once (det J kept its sign)" : "", c.fromLoad, c.toLoad,
+                c.branchSwitched ? " (continued on the stable branch)" : "",
+                c.snapThrough ? " (snap-through: the load path jumped past it onto another branch)" : "");
   return buf;
 }
 
@@ -56,8 +58,9 @@ nlohmann::json criticalPointsJson(const std::vector<mechanics::CriticalPoint>& p
   nlohmann::json critical = nlohmann::json::array();
   for (const auto& c : points)
     critical.push_back({{"kind", c.kind == mechanics::CriticalPoint::Kind::Bifurcation ? "bifurcation" : "limit_point"},
-                        {"from_load", c.fromLoad}, {"to_load", c.toLoad}, {"load_alignment", c.loadAlignment},
-                        {"branch_switched", c.branchSwitched}});
+                        {"from_load", c.fromLoad}, {"to_load", c.toLoad}, {"crossings", c.crossings},
+                        {"load_alignment", c.loadAlignment},
+                        {"branch_switched", c.branchSwitched}, {"snap_through", c.snapThrough}});
   return critical;
 }
 
@@ -76,14 +79,23 @@ void printAccuracy(const mechanics::ErrorEstimate& e, const mechanics::AccuracyO
 void printStability(const mechanics::Solution& sol, const mechanics::StaticProblem& problem, bool followStableBranch) {
   std::printf("stability: %s", stabilityName(sol.stability));
   if (const auto blind = problem.stabilityBlindSpot(); blind && sol.stability == mechanics::Stability::Stable)
-    std::printf(" as far as the sign of det J tells (%s)", blind->c_str());
+    std::printf(" as far as det J tells (%s)", blind->c_str());
   for (const auto& c : sol.criticalPoints) std::printf("; %s", describe(c).c_str());
   std::printf("\n");
+  const bool paired = !sol.criticalPoints.empty() && sol.criticalPoints.back().crossings == 2;
   if (sol.stability == mechanics::Stability::Unstable)
-    std::fprintf(stderr, "warning: the final state is an unstable equilibrium (det J changed sign along the path)%s\n",
-                 followStableBranch ? "" : "; --follow-stable-branch continues on the stable (buckled) branch");
+    std::fprintf(stderr, "warning: the final state is an unstable equilibrium (%s along the path)%s\n",
+                 paired ? "two modes crossed zero together" : "det J changed sign",
+                 paired ? "; --follow-stable-branch does not continue past two modes at once: load the design off its symmetry "
+                          "(or add a small lateral load) to follow the buckled branch"
+                 : followStableBranch ? "" : "; --follow-stable-branch continues on the stable (buckled) branch");
   else if (sol.stability == mechanics::Stability::Undetermined)
     std::fprintf(stderr, "warning: %zu critical points passed: the final state may be unstable\n", sol.criticalPoints.size());
+  for (const auto& c : sol.criticalPoints)
+    if (c.snapThrough)
+      std::fprintf(stderr, "warning: the structure snaps through near load factor %.4g (a limit point: its branch ends there); "
+                   "the load path jumped onto another branch, which the real structure reaches dynamically, and other "
+                   "--load-steps may land on another one\n", c.fromLoad);
 }
 
 }  // namespace

@@ -16,8 +16,11 @@ using geometry::Section;
 using geometry::Vec3;
 using mechanics::Design;
 using mechanics::StaticProblem;
+using test::arc;
 using test::at;
+using test::atParameter;
 using test::cantilever;
+using test::clamp;
 using test::kPi;
 using test::straight;
 using test::tip;
@@ -66,6 +69,8 @@ TEST_CASE("JacobianLU solves, solves transposed and gives the determinant's sign
     const Eigen::VectorXd y = lu.solveTransposed(b);
     CHECK((dense.transpose() * y - b).norm() < 1e-10 * b.norm());
     CHECK(lu.determinantSign() == (reference.determinant() > 0 ? 1 : -1));
+    // ln |det J| from KLU's scaled factors against the dense LU's diagonal.
+    CHECK(lu.logAbsDeterminant() == Approx(reference.matrixLU().diagonal().cwiseAbs().array().log().sum()).epsilon(1e-10));
   }
   CHECK(lu.analyses() == 1);
   CHECK(lu.refactorizations() + lu.factorizations() == 4);
@@ -203,6 +208,112 @@ TEST_CASE("an Euler column's bifurcation is bracketed where it is, whatever the 
   INFO("buckled tip " << t.transpose() << ", elastica x " << (2 * Ek - K) * L / K << ", deflection " << 2 * k * L / K);
   CHECK(t.x() == Approx((2 * Ek - K) * L / K).margin(0.05));
   CHECK(std::abs(t.y()) == Approx(2 * k * L / K).margin(0.05));
+}
+
+TEST_CASE("a round or square column's two buckling modes, crossing together, are found though det J keeps its sign",
+          "[mechanics]") {
+  // Clamped-free, 50 mm, E 100, Pcr = pi^2 EI / (4 L^2) about both axes alike: the two modes cross zero
+  // at one load, det J never changes sign, and the straight column above Pcr was called stable.
+  const double L = 50, E = 100;
+  const auto column = [&](const Section& section, double I, double times) {
+    const double critical = kPi * kPi * E * I / (4 * L * L);
+    return cantilever(straight(Vec3::Zero(), Vec3(L, 0, 0), 1, 2), section, E, Vec3(-times * critical, 0, 0), Vec3::Zero(),
+                      Vec3(0, 0, 1));
+  };
+  const std::vector<std::tuple<std::string, Section, double>> sections = {
+      {"round 1 mm", Section::circle(1.0), kPi / 64}, {"square 0.8 mm", Section::rectangle(0.8, 0.8), std::pow(0.8, 4) / 12}};
+  for (const auto& [name, section, I] : sections) {
+    for (const double times : {1.3, 5.0}) {
+      const StaticProblem problem(column(section, I, times));
+      for (const int steps : {4, 7, 10}) {
+        INFO(name << " at " << times << " Pcr, " << steps << " load steps");
+        const auto solution = mechanics::solve(problem, {}, steps);
+        REQUIRE(solution.criticalPoints.size() == 1);
+        const auto& c = solution.criticalPoints[0];
+        INFO("bracket [" << c.fromLoad << ", " << c.toLoad << "]");
+        CHECK(c.crossings == 2);
+        CHECK(c.kind == mechanics::CriticalPoint::Kind::Bifurcation);
+        CHECK(c.toLoad - c.fromLoad <= 1e-3 + 1e-12);
+        CHECK(c.fromLoad <= 1 / times + 2e-4);
+        CHECK(c.toLoad >= 1 / times - 2e-4);
+        CHECK(solution.stability == mechanics::Stability::Unstable);
+        for (const auto& step : solution.steps) CHECK(step.determinantSign == 1);
+      }
+    }
+    const StaticProblem below(column(section, I, 0.9));
+    const auto solution = mechanics::solve(below, {}, 10);
+    CHECK(solution.criticalPoints.empty());
+    CHECK(solution.stability == mechanics::Stability::Stable);
+  }
+}
+
+TEST_CASE("two buckling modes a few per cent apart within one load step are both found", "[mechanics]") {
+  // A 1 x 0.98 mm rectangle: the weak mode at 1 / 1.3 = 0.769 of the load, the other at 0.769 / 0.9604
+  // = 0.801. Four steps put both between 0.75 and 1: det J's sign at the steps never changes.
+  const double L = 50, E = 100, I = std::pow(0.98, 3) / 12, critical = kPi * kPi * E * I / (4 * L * L);
+  const StaticProblem problem(cantilever(straight(Vec3::Zero(), Vec3(L, 0, 0), 1, 2), Section::rectangle(1.0, 0.98), E,
+                                         Vec3(-1.3 * critical, 0, 0), Vec3::Zero(), Vec3(0, 0, 1)));
+  const auto solution = mechanics::solve(problem, {}, 4);
+  for (const auto& step : solution.steps) CHECK(step.determinantSign == 1);
+  REQUIRE(solution.criticalPoints.size() == 2);
+  const double expected[] = {1 / 1.3, 1 / 1.3 / 0.9604};
+  for (int i = 0; i < 2; ++i) {
+    const auto& c = solution.criticalPoints[i];
+    INFO("critical point " << i << ": bracket [" << c.fromLoad << ", " << c.toLoad << "]");
+    CHECK(c.crossings == 1);
+    CHECK(c.kind == mechanics::CriticalPoint::Kind::Bifurcation);
+    CHECK(c.toLoad - c.fromLoad <= 1e-3 + 1e-12);
+    CHECK(c.fromLoad <= expected[i] + 2e-4);
+    CHECK(c.toLoad >= expected[i] - 2e-4);
+  }
+  // Two crossings: whether the second undid the first, the sign cannot tell.
+  CHECK(solution.stability == mechanics::Stability::Undetermined);
+}
+
+TEST_CASE("a shallow arch that snaps through: the limit point the load path jumped past is reported where load "
+          "control ends", "[mechanics]") {
+  // A 30-degree circular arch of radius 100 mm (1 mm deep in its plane, 3 mm across), clamped at both
+  // ends, pushed down at its crown. Load control from its drawn shape ends at a limit point (Newton
+  // finds no equilibrium beyond it at any step); with a larger load and coarse steps Newton instead
+  // lands on the snapped shape, and det J has the same sign there: before, that was "stable" and
+  // nothing more.
+  const auto arch = [](double force) {
+    Design s;
+    s.source = "arch";
+    s.rods.push_back(test::rod("arch", arc(100, kPi / 2 - kPi / 12, kPi / 2 + kPi / 12), Section::rectangle(3, 1), 100, Vec3(0, 0, 1)));
+    s.mechanics.present = true;
+    s.mechanics.poissonRatio = 0.3;
+    clamp(s, at("arch", mechanics::RodEnd::Start));
+    clamp(s, at("arch", mechanics::RodEnd::End));
+    test::load(s, atParameter("arch", 0.5), Vec3(0, -force, 0));
+    return s;
+  };
+  // Where load control ends, by steps of 1e-3 N halved down to 1e-8 N.
+  double limitForce = 0;
+  try {
+    const StaticProblem slow(arch(0.2));
+    mechanics::solve(slow, {}, 200);
+  } catch (const mechanics::ConvergenceError& e) {
+    limitForce = 0.2 * e.lastConvergedLoad();
+  }
+  INFO("load control ends at " << limitForce << " N");
+  REQUIRE(limitForce > 0.1);
+  const StaticProblem problem(arch(1.0));
+  for (const int steps : {4, 10}) {
+    INFO(steps << " load steps");
+    const auto solution = mechanics::solve(problem, {}, steps);
+    REQUIRE(solution.criticalPoints.size() == 1);
+    const auto& c = solution.criticalPoints[0];
+    INFO("bracket [" << c.fromLoad << ", " << c.toLoad << "]");
+    CHECK(c.snapThrough);
+    CHECK(c.kind == mechanics::CriticalPoint::Kind::LimitPoint);
+    CHECK(c.crossings == 1);
+    CHECK(c.toLoad - c.fromLoad <= 1e-3 + 1e-12);
+    CHECK(c.fromLoad <= limitForce + 1e-6);
+    CHECK(c.toLoad >= limitForce - 1e-6);
+    // The snapped arch hangs below its supports.
+    CHECK(problem.position(solution.state, 0, 0.5).y() < problem.position(problem.referenceState(), 0, 0.0).y());
+  }
 }
 
 TEST_CASE("a load far below the rod's bending scale still moves it as beam theory says", "[mechanics]") {
