@@ -20,6 +20,9 @@ inline constexpr const char* kDesignFormat = "rodfab.design/1";
 // The largest Young's modulus a design may give (MPa): 1 TPa, above any printable material and far
 // inside the float range the voxel grids store moduli in.
 inline constexpr double kMaxModulusMpa = 1e6;
+// The smallest (MPa): 1 Pa, softer than any solid that keeps a shape. Below it the solver's stiffness
+// lies beneath its rounding (bounds of 1e-300 MPa were taken and failed in Newton without a word why).
+inline constexpr double kMinModulusMpa = 1e-6;
 // The largest section dimension (diameter, width, height) a design may give, in mm: a kilometre, so
 // that stiffnesses (E I grows as the fourth power) and bounding boxes stay finite.
 inline constexpr double kMaxSectionMm = 1e6;

@@ -210,6 +210,11 @@ std::optional<double> DesignReader::youngsModulus(const json& j, const std::stri
                    " MPa (stiffer than any printable material), got " + describe(j));
     return std::nullopt;
   }
+  if (v && *v < kMinModulusMpa) {
+    fail(path, "expected a Young's modulus of at least " + describe(json(kMinModulusMpa)) +
+                   " MPa (1 Pa: softer than any solid that keeps a shape), got " + describe(j));
+    return std::nullopt;
+  }
   return v;
 }
 
