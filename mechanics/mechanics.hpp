@@ -292,10 +292,10 @@ struct SolverOptions {
 };
 
 // A point where an eigenvalue of the tangent crossed zero (bifurcation or limit point): det J changed
-// sign between two converged load steps, or, for two eigenvalues crossing together (the two buckling
-// modes of a round or square section, which leave det J's sign as it was), |det J| dipped to zero:
-// a local minimum of |det J| over the steps whose golden-section search ends at least ten times below
-// |det J| four bracket widths either side (a double zero gives 30 times and more; a smooth dip, 1).
+// sign between two converged load steps, or |det J| dipped between steps (mechanics/README.md,
+// "What the sign cannot show"): to zero as the square of the load distance where two eigenvalues
+// cross together (the two buckling modes of a round or square section, which leave det J's sign as
+// it was), or towards zero before a branch's end that the load path jumped past (snap-through).
 struct CriticalPoint {
   double fromLoad = 0.0, toLoad = 0.0;  // load factors bracketing it (SolverOptions::criticalLoadTolerance)
   int crossings = 1;  // eigenvalues crossing zero there: 2 where det J kept its sign

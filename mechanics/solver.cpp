@@ -69,7 +69,7 @@ private:
   Eigen::VectorXd criticalMode(bool transposed) const;
   double loadAlignment(const Eigen::VectorXd& x, double load, const Eigen::VectorXd& psi) const;
   bool switchBranch(Eigen::VectorXd& x, double load);
-  bool factorizeAt(const Eigen::VectorXd& x, double load);
+  bool factorizeAt(const Eigen::VectorXd& x, double load, JacobianLU::Pivoting pivoting = JacobianLU::Pivoting::Reuse);
   void finish();
 
   // A converged state on the path, with ln |det J| and the relative sign of det J there.
@@ -79,13 +79,14 @@ private:
     Eigen::VectorXd state;
   };
   Sample sampleHere(const Eigen::VectorXd& x, double load) const;
-  std::optional<Sample> sampleAt(Eigen::VectorXd x, double load);
+  std::optional<Sample> sampleAt(Eigen::VectorXd x, double load, int iterations = 12);
   void lookForDips(const Eigen::VectorXd& x, double load, bool branchSwitched);
   void lookForDipAtEnd();
   void searchDip(Sample lo, Sample best, Sample hi);
   bool narrowDip(Sample& lo, Sample& best, Sample& hi, double width);
   CriticalPoint bisectCrossing(Sample low, Sample high);
-  bool isDoubleZero(const Sample& best, double width);
+  enum class Verdict { Yes, No, Unknown };
+  Verdict isDoubleZeroAt(const Sample& best, double width);
   bool branchEndsAfter(const Sample& below, const Sample& best, double width);
 
   const StaticProblem& problem_;
@@ -102,6 +103,7 @@ private:
   std::vector<double> factorizedValues_;  // of the matrix lu_ holds (jacobian_'s pattern); empty if none
   double residualTolerance_ = 0.0;  // set by factorizeReference, which every solve starts with
   int maxIterations_ = options_.maxIterations;  // Newton's, lower while sampling a dip (sampleAt)
+  bool sampledSinceFresh_ = false;  // factorizations near singular matrices since the last with fresh pivots
   Solution solution_;
 };
 
@@ -123,17 +125,21 @@ bool PathFollower::factorize(JacobianLU::Pivoting pivoting) {
   return ok;
 }
 
-bool PathFollower::factorizeAt(const Eigen::VectorXd& x, double load) {
+bool PathFollower::factorizeAt(const Eigen::VectorXd& x, double load, JacobianLU::Pivoting pivoting) {
   const auto t = std::chrono::steady_clock::now();
   problem_.evaluate(x, load, residual_, &jacobian_);
   solution_.assembleSeconds += seconds(t);
-  return factorize();
+  if (pivoting == JacobianLU::Pivoting::Fresh) sampledSinceFresh_ = false;
+  return factorize(pivoting);
 }
 
 // The final state's factorization (for adjoints) and sign of det J, exact there rather than at the
 // last Newton iterate.
 void PathFollower::finish() {
-  if (!factorizeAt(solution_.state, 1.0))
+  // After a dip's samples, fresh pivots: reusing those of a nearly singular matrix passes the reuse
+  // test too easily, and this factorization serves the adjoints.
+  const auto pivoting = sampledSinceFresh_ ? JacobianLU::Pivoting::Fresh : JacobianLU::Pivoting::Reuse;
+  if (!factorizeAt(solution_.state, 1.0, pivoting))
     throw ConvergenceError(problem_.source() + ": the Jacobian is singular at the converged state of load factor 1: the "
                            "structure is exactly at a critical (buckling) point; change the load slightly", 1.0);
   if (!solution_.steps.empty()) solution_.steps.back().determinantSign = relativeSign_;
@@ -338,11 +344,12 @@ PathFollower::Sample PathFollower::sampleHere(const Eigen::VectorXd& x, double l
 }
 
 // The equilibrium at `load` by Newton from x, and det J there; none when Newton fails.
-std::optional<PathFollower::Sample> PathFollower::sampleAt(Eigen::VectorXd x, double load) {
+std::optional<PathFollower::Sample> PathFollower::sampleAt(Eigen::VectorXd x, double load, int iterations) {
   LoadStepReport scratch;
   // From a nearby equilibrium Newton converges in a few iterations or, past a branch's end, not at all:
   // a dozen tell which (the step's own limit is 30).
-  maxIterations_ = std::min(options_.maxIterations, 12);
+  maxIterations_ = std::min(options_.maxIterations, iterations);
+  sampledSinceFresh_ = true;
   const bool ok = newton(x, load, scratch) == Outcome::Converged && factorizeAt(x, load);
   maxIterations_ = options_.maxIterations;
   if (!ok) return std::nullopt;
@@ -364,19 +371,17 @@ void PathFollower::lookForDips(const Eigen::VectorXd& x, double load, bool branc
   if (options_.criticalLoadTolerance >= 1) return;
   const bool oneSign = std::all_of(recent_.begin(), recent_.end(), [&](const Sample& s) { return s.sign == recent_.front().sign; });
   if (!oneSign || recent_.size() < 2) return;
-  bool searched = false;
+  bool sampled = false;
   if (recent_.size() == 2 && recent_[0].load == 0.0 && recent_[1].logDet > recent_[0].logDet + kLogDetNoise) {
     const Sample& start = recent_[0];
     std::optional<Sample> probe = sampleAt(start.state, std::min(options_.criticalLoadTolerance, 0.5 * load));
-    if (probe && probe->sign == start.sign && probe->logDet < start.logDet - kLogDetNoise) {
-      searchDip(start, std::move(*probe), recent_[1]);
-      searched = true;
-    }
+    sampled = true;
+    if (probe && probe->sign == start.sign && probe->logDet < start.logDet - kLogDetNoise) searchDip(start, std::move(*probe), recent_[1]);
   } else if (recent_.size() == 3 && recent_[1].logDet < std::min(recent_[0].logDet, recent_[2].logDet) - kLogDetNoise) {
     searchDip(recent_[0], recent_[1], recent_[2]);
-    searched = true;
+    sampled = true;
   }
-  if (searched) factorizeAt(x, load);  // the step's own factorization and sign again
+  if (sampled) factorizeAt(x, load, JacobianLU::Pivoting::Fresh);  // the step's own factorization and sign again
 }
 
 // At load 1, a |det J| still falling may have passed its bottom within the last step: a probe just
@@ -400,8 +405,8 @@ bool PathFollower::narrowDip(Sample& lo, Sample& best, Sample& hi, double width)
     const bool right = hi.load - best.load > best.load - lo.load;
     const double t = right ? best.load + kGoldenSection * (hi.load - best.load) : best.load - kGoldenSection * (best.load - lo.load);
     std::optional<Sample> s = sampleAt(best.state, t);
-    if (!s) s = Sample{t, std::numeric_limits<double>::infinity(), best.sign, {}};  // past the branch's end: a bound
-    const bool flipped = s->sign != best.sign;
+    if (!s) s = Sample{t, std::numeric_limits<double>::infinity(), 0, {}};  // past the branch's end: a bound, sign unknown
+    const bool flipped = s->sign != 0 && s->sign != best.sign;
     if (flipped || s->logDet < best.logDet) {
       (right ? lo : hi) = std::move(best);
       best = std::move(*s);
@@ -415,11 +420,10 @@ bool PathFollower::narrowDip(Sample& lo, Sample& best, Sample& hi, double width)
 
 // The bottom of a dip of |det J| bracketed by lo and hi (best below both). Critical points when a
 // sample between shows the other sign (two single crossings, each then bisected), when the branch
-// ends just past the bottom (a limit point the load path jumped past: snap-through,
-// branchEndsAfter), or when |det J| falls as the square of the distance to the bottom (isDoubleZero)
-// both at the load tolerance and a hundred times closer: a smooth dip flattens out within its core
-// (an arch's near-snap: 2e-4 of the load). Closer still, Newton itself fails next to a double zero
-// (1e-6 on a column).
+// ends just past the bottom (a limit point the path jumped past: snap-through, branchEndsAfter), or
+// when |det J| falls as the
+// square of the distance to the bottom (isDoubleZeroAt) both at the load tolerance and a hundred
+// times closer: a smooth dip flattens out within its core (an arch's near-snap: 2e-4 of the load).
 void PathFollower::searchDip(Sample lo, Sample best, Sample hi) {
   const double tolerance = options_.criticalLoadTolerance;
   bool flipped = narrowDip(lo, best, hi, tolerance);
@@ -429,15 +433,19 @@ void PathFollower::searchDip(Sample lo, Sample best, Sample hi) {
     point.snapThrough = true;
     point.fromLoad = best.load, point.toLoad = best.load + width;
   } else {
-    if (!flipped && !isDoubleZero(best, width)) return;
+    if (!flipped && isDoubleZeroAt(best, width) != Verdict::Yes) return;
     if (!flipped) flipped = narrowDip(lo, best, hi, 1e-2 * tolerance);
     if (flipped) {
-      solution_.criticalPoints.push_back(bisectCrossing(lo, best));
-      solution_.criticalPoints.push_back(bisectCrossing(best, hi));
-      signChanges_ += 2;
+      for (const auto& [low, high] : {std::pair(&lo, &best), std::pair(&best, &hi)}) {
+        if (low->state.size() == 0 || high->state.size() == 0) continue;  // a bound where Newton failed: no crossing known
+        solution_.criticalPoints.push_back(bisectCrossing(*low, *high));
+        ++signChanges_;
+      }
       return;
     }
-    if (!isDoubleZero(best, std::max(hi.load - lo.load, 1e-2 * tolerance))) return;
+    // Closer than 1e-5 Newton itself may fail next to a double zero (a slender square column): the
+    // law held at the tolerance, and a matrix that singular is no smooth dip's.
+    if (isDoubleZeroAt(best, std::max(hi.load - lo.load, 1e-2 * tolerance)) == Verdict::No) return;
     point.fromLoad = lo.load, point.toLoad = hi.load, point.crossings = 2;
     signChanges_ += 2, ++pairedCrossings_;
   }
@@ -447,10 +455,11 @@ void PathFollower::searchDip(Sample lo, Sample best, Sample hi) {
 }
 
 // One crossing between equilibria `low` and `high` (by load) of opposite signs of det J, bisected to
-// the load tolerance and classified as checkCriticalPoint does.
+// the load tolerance (Newton with the step's own iteration limit) and classified as
+// checkCriticalPoint does.
 CriticalPoint PathFollower::bisectCrossing(Sample low, Sample high) {
   for (int i = 0; i < 60 && high.load - low.load > options_.criticalLoadTolerance; ++i) {
-    std::optional<Sample> middle = sampleAt(low.state, 0.5 * (low.load + high.load));
+    std::optional<Sample> middle = sampleAt(low.state, 0.5 * (low.load + high.load), options_.maxIterations);
     if (!middle) break;
     (middle->sign == low.sign ? low : high) = std::move(*middle);
   }
@@ -461,32 +470,42 @@ CriticalPoint PathFollower::bisectCrossing(Sample low, Sample high) {
   return point;
 }
 
-// The branch through `best` ends within `width` above it: Newton finds no equilibrium there, or one a
-// jump away (ten times further per unit of load than `below`, an equilibrium of the same branch
-// below best). Under load control a limit point cannot be passed on its branch, and a step across it
-// lands on another.
+// The branch through `best` ends within `width` above it: Newton (with the step's own iteration limit,
+// in one step or two halves) finds no equilibrium there, or one a jump away (below). Under load control a limit point
+// cannot be passed on its branch, and a step across it lands on another. An imperfect column's sharp
+// but smooth turn needed more than a dozen iterations there, and took them.
 bool PathFollower::branchEndsAfter(const Sample& below, const Sample& best, double width) {
   if (best.load + width > 1 || below.state.size() == 0 || !(below.load < best.load)) return false;
-  const std::optional<Sample> above = sampleAt(best.state, best.load + width);
+  std::optional<Sample> above = sampleAt(best.state, best.load + width, options_.maxIterations);
+  if (!above) {
+    const std::optional<Sample> half = sampleAt(best.state, best.load + 0.5 * width, options_.maxIterations);
+    if (half) above = sampleAt(half->state, best.load + width, options_.maxIterations);
+  }
   if (!above) return true;
-  const double rateBelow = problem_.stepNorm(best.state - below.state) / (best.load - below.load);
-  return problem_.stepNorm(above->state - best.state) > 10 * rateBelow * width + 1e-6;
+  // A jump: three times the move below, scaled to `width` linearly or, if more, as the square root
+  // (towards a limit point the state runs as the root of the load distance), onto a state where |det J|
+  // is ten times larger (the branch's end is a zero of it; the far branch's is not).
+  const double movedBelow = problem_.stepNorm(best.state - below.state), spanBelow = best.load - below.load;
+  const double allowed = 3 * movedBelow * std::max(width / spanBelow, std::sqrt(width / spanBelow));
+  return problem_.stepNorm(above->state - best.state) > allowed + 1e-6 && above->logDet > best.logDet + std::log(10.0);
 }
 
 // Near a double zero |det J| grows as the square of the distance: from 4 to 40 bracket widths
 // (`width`; the zero lies within one of best) by a factor of 60 to 190 (ln: 4.1 to 5.2) on either
-// side. Past a smooth dip's core it does so too; inside it, hardly at all.
-bool PathFollower::isDoubleZero(const Sample& best, double width) {
+// side. Past a smooth dip's core it does so too; inside it, hardly at all. Unknown when Newton finds
+// no equilibrium at one of those loads.
+PathFollower::Verdict PathFollower::isDoubleZeroAt(const Sample& best, double width) {
   int sides = 0;
   for (const double direction : {-1.0, 1.0}) {
     const double nearLoad = best.load + direction * 4 * width, farLoad = best.load + direction * 40 * width;
     if (farLoad < 0 || farLoad > 1) continue;
     const std::optional<Sample> nearer = sampleAt(best.state, nearLoad);
     const std::optional<Sample> farther = nearer ? sampleAt(nearer->state, farLoad) : std::nullopt;
-    if (!farther || farther->logDet - nearer->logDet < 0.75 * 2 * std::log(10.0)) return false;
+    if (!farther) return Verdict::Unknown;
+    if (farther->logDet - nearer->logDet < 0.75 * 2 * std::log(10.0)) return Verdict::No;
     ++sides;
   }
-  return sides > 0;
+  return sides > 0 ? Verdict::Yes : Verdict::Unknown;
 }
 
 Solution PathFollower::run(int steps, const StepCallback& onStep) {

@@ -316,6 +316,49 @@ TEST_CASE("a shallow arch that snaps through: the limit point the load path jump
   }
 }
 
+TEST_CASE("dips of |det J| next to Newton's failures neither crash nor invent critical points", "[mechanics]") {
+  const double E = 100;
+  const auto euler = [&](double L, double I) { return kPi * kPi * E * I / (4 * L * L); };
+  const auto column = [&](mechanics::Design d) {  // the reproducers' Poisson ratio
+    d.mechanics.poissonRatio = 0.4;
+    return d;
+  };
+  SECTION("a 400 mm column of 1 x 0.9999965 mm at 3 Pcr in two steps: a search bound where Newton failed") {
+    // A bound without an equilibrium was bisected as if it had one: "wrong state size", nothing written.
+    const double I = std::pow(0.9999965, 3) / 12;
+    const StaticProblem problem(column(cantilever(straight(Vec3::Zero(), Vec3(400, 0, 0), 1, 2), Section::rectangle(1.0, 0.9999965),
+                                                  E, Vec3(-3 * euler(400, I), 0, 0), Vec3::Zero(), Vec3(0, 0, 1))));
+    const auto solution = mechanics::solve(problem, {}, 2);
+    REQUIRE_FALSE(solution.criticalPoints.empty());
+    for (const auto& c : solution.criticalPoints) {
+      INFO("bracket [" << c.fromLoad << ", " << c.toLoad << "]");
+      CHECK(c.fromLoad <= 1 / 3.0 + 2e-4);
+      CHECK(c.toLoad >= 1 / 3.0 - 2e-4);
+    }
+    CHECK(solution.stability != mechanics::Stability::Stable);
+  }
+  SECTION("a slender square column (L / h = 200) at 2 Pcr in one step: Newton fails next to the double zero") {
+    const StaticProblem problem(column(cantilever(straight(Vec3::Zero(), Vec3(200, 0, 0), 1, 2), Section::rectangle(1, 1), E,
+                                                  Vec3(-2 * euler(200, 1.0 / 12), 0, 0), Vec3::Zero(), Vec3(0, 0, 1))));
+    const auto solution = mechanics::solve(problem, {}, 1);
+    REQUIRE(solution.criticalPoints.size() == 1);
+    const auto& c = solution.criticalPoints[0];
+    CHECK(c.crossings == 2);
+    CHECK(c.fromLoad <= 0.5 + 2e-4);
+    CHECK(c.toLoad >= 0.5 - 2e-4);
+    CHECK(solution.stability == mechanics::Stability::Unstable);
+  }
+  SECTION("a round column bowed by 2e-4 of its length at 1.5 Pcr: a smooth turn onto the buckled shape, no snap") {
+    // Newton needed more than the search's dozen iterations where the path turns, which read as the
+    // branch's end: "snap-through" at the Euler load.
+    const geometry::NurbsCurve bowed(2, {0, 0, 0, 1, 1, 1}, {Vec3::Zero(), Vec3(25, 0.01, 0), Vec3(50, 0, 0)});
+    const StaticProblem problem(column(cantilever(bowed, Section::circle(1.0), E, Vec3(-1.5 * euler(50, kPi / 64), 0, 0), Vec3::Zero())));
+    const auto solution = mechanics::solve(problem, {}, 50);
+    CHECK(solution.criticalPoints.empty());
+    CHECK(solution.stability == mechanics::Stability::Stable);
+  }
+}
+
 TEST_CASE("a load far below the rod's bending scale still moves it as beam theory says", "[mechanics]") {
   // 50 mm, 1 mm round, E 100: E I / L^2 = 2e-3 N. A tip force of 1e-12 N left a residual below the
   // absolute tolerance before any iteration: the drawn state passed for the solution (21 % off).

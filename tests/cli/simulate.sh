@@ -32,7 +32,9 @@ grep -q "largest displacement" "$tmp/out" || fail "no summary: $(cat "$tmp/out")
 grep -q "^basis:     degree 6, 32 spans per rod (--spans); 266 unknowns" "$tmp/out" || fail "no basis line: $(cat "$tmp/out")"
 grep -q "^accuracy:  estimated position error .* of the largest displacement (--accuracy 0.0001)" "$tmp/out" ||
   fail "no error estimate: $(cat "$tmp/out")"
-grep -q '^stability: stable$' "$tmp/out" || fail "no stability verdict: $(cat "$tmp/out")"
+# Three load steps: the verdict says |det J| was looked at too seldom to see every dip.
+grep -q '^stability: stable as far as det J tells (det J was looked at after 3 load steps only: ' "$tmp/out" ||
+  fail "no stability verdict with its caveat: $(cat "$tmp/out")"
 grep -q "warning" "$tmp/out" && fail "unexpected warning: $(cat "$tmp/out")"
 "$rodfab" validate "$tmp/rolled.json" > /dev/null 2>&1 || fail "the deformed design does not validate"
 python3 - "$tmp/rolled.json" <<'PY' || fail "deformed design content"
@@ -77,7 +79,7 @@ assert abs(j["largest_displacement_mm"] - ((20 - 40 / 3.141592653589793) ** 2 + 
 e = j["error_estimate"]
 assert e["available"] and e["within_tolerance"] and e["position_error_mm"] < 1e-3 and e["tolerance"] == 1e-4, e
 assert j["stability"] == "stable" and j["critical_points"] == []
-assert j["stability_blind_spot"] is None, j["stability_blind_spot"]
+assert j["stability_blind_spot"].startswith("det J was looked at after 3 load steps only"), j["stability_blind_spot"]
 PY
 
 # Ten load steps print ten steps; a step that Newton cannot take is cut, visibly.
