@@ -426,6 +426,7 @@ bool PathFollower::narrowDip(Sample& lo, Sample& best, Sample& hi, double width)
 // times closer: a smooth dip flattens out within its core (an arch's near-snap: 2e-4 of the load).
 void PathFollower::searchDip(Sample lo, Sample best, Sample hi) {
   const double tolerance = options_.criticalLoadTolerance;
+  const Sample outerLo = lo, outerHi = hi;  // equilibria both (steps or probes), whatever bounds replace them
   bool flipped = narrowDip(lo, best, hi, tolerance);
   const double width = std::max(hi.load - lo.load, tolerance);
   CriticalPoint point;
@@ -435,12 +436,10 @@ void PathFollower::searchDip(Sample lo, Sample best, Sample hi) {
   } else {
     if (!flipped && isDoubleZeroAt(best, width) != Verdict::Yes) return;
     if (!flipped) flipped = narrowDip(lo, best, hi, 1e-2 * tolerance);
-    if (flipped) {
-      for (const auto& [low, high] : {std::pair(&lo, &best), std::pair(&best, &hi)}) {
-        if (low->state.size() == 0 || high->state.size() == 0) continue;  // a bound where Newton failed: no crossing known
-        solution_.criticalPoints.push_back(bisectCrossing(*low, *high));
-        ++signChanges_;
-      }
+    if (flipped) {  // a bound where Newton failed has no state: the equilibrium beyond it brackets instead
+      solution_.criticalPoints.push_back(bisectCrossing(lo.state.size() ? lo : outerLo, best));
+      solution_.criticalPoints.push_back(bisectCrossing(best, hi.state.size() ? hi : outerHi));
+      signChanges_ += 2;
       return;
     }
     // Closer than 1e-5 Newton itself may fail next to a double zero (a slender square column): the
@@ -459,8 +458,10 @@ void PathFollower::searchDip(Sample lo, Sample best, Sample hi) {
 // checkCriticalPoint does.
 CriticalPoint PathFollower::bisectCrossing(Sample low, Sample high) {
   for (int i = 0; i < 60 && high.load - low.load > options_.criticalLoadTolerance; ++i) {
-    std::optional<Sample> middle = sampleAt(low.state, 0.5 * (low.load + high.load), options_.maxIterations);
-    if (!middle) break;
+    const double load = 0.5 * (low.load + high.load);
+    std::optional<Sample> middle = sampleAt(low.state, load, options_.maxIterations);
+    if (!middle) middle = sampleAt(high.state, load, options_.maxIterations);  // from the other side
+    if (!middle) break;  // the bracket stays as wide as it is
     (middle->sign == low.sign ? low : high) = std::move(*middle);
   }
   CriticalPoint point;
@@ -492,20 +493,20 @@ bool PathFollower::branchEndsAfter(const Sample& below, const Sample& best, doub
 
 // Near a double zero |det J| grows as the square of the distance: from 4 to 40 bracket widths
 // (`width`; the zero lies within one of best) by a factor of 60 to 190 (ln: 4.1 to 5.2) on either
-// side. Past a smooth dip's core it does so too; inside it, hardly at all. Unknown when Newton finds
-// no equilibrium at one of those loads.
+// side. Past a smooth dip's core it does so too; inside it, hardly at all. No if either side says so,
+// Unknown when Newton finds no equilibrium at those loads on either side.
 PathFollower::Verdict PathFollower::isDoubleZeroAt(const Sample& best, double width) {
-  int sides = 0;
+  int held = 0;
   for (const double direction : {-1.0, 1.0}) {
     const double nearLoad = best.load + direction * 4 * width, farLoad = best.load + direction * 40 * width;
     if (farLoad < 0 || farLoad > 1) continue;
     const std::optional<Sample> nearer = sampleAt(best.state, nearLoad);
     const std::optional<Sample> farther = nearer ? sampleAt(nearer->state, farLoad) : std::nullopt;
-    if (!farther) return Verdict::Unknown;
+    if (!farther) continue;  // this side tells nothing
     if (farther->logDet - nearer->logDet < 0.75 * 2 * std::log(10.0)) return Verdict::No;
-    ++sides;
+    ++held;
   }
-  return sides > 0 ? Verdict::Yes : Verdict::Unknown;
+  return held > 0 ? Verdict::Yes : Verdict::Unknown;
 }
 
 Solution PathFollower::run(int steps, const StepCallback& onStep) {
