@@ -115,14 +115,14 @@ def cases(ctx) -> list[Case]:
     cs.append(mesh_case("more-faces-than-the-mesh", "s.obj", sphere, ["fewer than"], faces=100000))
     cs.append(mesh_case("max-memory-too-small", "s.obj", sphere_obj(400), ["memory"], faces=100,
                         extra=["--max-memory", "64M"], timeout=120, note="640,000 triangles in 64 MiB"))
-    # Interrupt while a big mesh is simplified: exit 130, no design left behind. At 2.5 s: the collapses
+    # Interrupt while a big mesh is simplified: exit 130, no design left behind. At 3.5 s: the collapses
     # (about 6 s of this mesh on an idle machine, polled per collapse and while collecting). At 1 s a
     # loaded machine was still orienting the triangles (CGAL's orient_polygon_soup, 0.5 s that cannot
     # poll), which the watchdog cut short.
     cs.append(Case("interrupt-during-simplification",
                    [Step(["rods-from-mesh", "s.obj", "--faces", "200", "--diameter", "1", "-o", "d.json"], outputs=["d.json"],
-                         signal=(signal.SIGINT, 2.5), timeout=120)],
-                   files={"s.obj": sphere_obj(300)}, note="SIGINT after 2.5 s of 360,000 triangles"))
+                         signal=(signal.SIGINT, 3.5), timeout=120)],
+                   files={"s.obj": sphere_obj(300)}, note="SIGINT after 3.5 s of 360,000 triangles"))
     # Options.
     for bad in (["--faces", "0"], ["--faces", "-5"], ["--faces", "99999999999"], ["--subdivisions", "100000"],
                 ["--diameter", "inf"], ["--surface-tolerance", "-1"], ["--breadth", "1"]):
