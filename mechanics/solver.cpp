@@ -1,6 +1,6 @@
 // Newton's method with load stepping and step cutting, tracking the sign of det J along the path
 // (critical points, stability) and optionally switching onto a stable branch after a bifurcation.
-#include "mechanics/mechanics.hpp"
+#include "mechanics/path_follower.hpp"
 
 #include "common/interrupt.hpp"
 
@@ -27,8 +27,6 @@ std::string format(double v) {
   return s.str();
 }
 
-enum class Outcome { Converged, Diverged };
-
 // A fixed start vector for inverse iteration, with no symmetry that could make it orthogonal to
 // the mode sought.
 Eigen::VectorXd startVector(Eigen::Index n) {
@@ -50,62 +48,9 @@ double residualTolerance(const StaticProblem& problem, const Eigen::VectorXd& un
   return std::min(tolerance, std::max(1e-8 * load, 4 * rounding));
 }
 
-// Follows the load path of one problem; one object per solve.
-class PathFollower {
-public:
-  PathFollower(const StaticProblem& problem, const SolverOptions& options)
-      : problem_(problem), options_(options), lu_(std::make_shared<JacobianLU>(7)) {}
-  Solution run(int steps, const StepCallback& onStep);
-  std::optional<Solution> runFrom(const Eigen::VectorXd& start);
+}  // namespace
 
-private:
-  void factorizeReference();
-  std::string singularReferenceMessage() const;
-  Outcome newton(Eigen::VectorXd& x, double load, LoadStepReport& report);
-  bool converged(const Eigen::VectorXd& x) const;
-  bool factorize(JacobianLU::Pivoting pivoting = JacobianLU::Pivoting::Reuse);
-  Eigen::VectorXd correction();
-  void checkCriticalPoint(Eigen::VectorXd& x, double fromLoad, double toLoad);
-  Eigen::VectorXd criticalMode(bool transposed) const;
-  double loadAlignment(const Eigen::VectorXd& x, double load, const Eigen::VectorXd& psi) const;
-  bool switchBranch(Eigen::VectorXd& x, double load);
-  bool factorizeAt(const Eigen::VectorXd& x, double load, JacobianLU::Pivoting pivoting = JacobianLU::Pivoting::Reuse);
-  void finish();
-
-  // A converged state on the path, with ln |det J| and the relative sign of det J there.
-  struct Sample {
-    double load = 0.0, logDet = 0.0;
-    int sign = 1;
-    Eigen::VectorXd state;
-  };
-  Sample sampleHere(const Eigen::VectorXd& x, double load) const;
-  std::optional<Sample> sampleAt(Eigen::VectorXd x, double load, int iterations = 12);
-  void lookForDips(const Eigen::VectorXd& x, double load, bool branchSwitched);
-  void lookForDipAtEnd();
-  void searchDip(Sample lo, Sample best, Sample hi);
-  bool narrowDip(Sample& lo, Sample& best, Sample& hi, double width);
-  CriticalPoint bisectCrossing(Sample low, Sample high);
-  enum class Verdict { Yes, No, Unknown };
-  Verdict isDoubleZeroAt(const Sample& best, double width);
-  bool branchEndsAfter(const Sample& below, const Sample& best, double width);
-
-  const StaticProblem& problem_;
-  const SolverOptions& options_;
-  std::shared_ptr<JacobianLU> lu_;
-  Eigen::SparseMatrix<double> jacobian_;
-  Eigen::VectorXd residual_;
-  int referenceSign_ = 0;
-  int relativeSign_ = 1;      // sign of det J at the last factorization relative to the reference
-  int previousSign_ = 1;      // at the last converged step
-  int signChanges_ = 0;       // since the start or the last branch switch, two for each paired crossing
-  int pairedCrossings_ = 0;   // critical points with two crossings, since the start or the last branch switch
-  std::vector<Sample> recent_;  // the last three converged states (none before the reference is factorized)
-  std::vector<double> factorizedValues_;  // of the matrix lu_ holds (jacobian_'s pattern); empty if none
-  double residualTolerance_ = 0.0;  // set by factorizeReference, which every solve starts with
-  int maxIterations_ = options_.maxIterations;  // Newton's, lower while sampling a dip (sampleAt)
-  bool sampledSinceFresh_ = false;  // factorizations near singular matrices since the last with fresh pivots
-  Solution solution_;
-};
+namespace detail {
 
 bool PathFollower::factorize(JacobianLU::Pivoting pivoting) {
   // The matrix factorized last, asked again (a dead-load structure's J where a step ended, at the next
@@ -291,6 +236,14 @@ double PathFollower::loadAlignment(const Eigen::VectorXd& x, double load, const 
   return scale > 0 && std::isfinite(scale) ? std::abs(psi.dot(dF)) / scale : 0.0;
 }
 
+// The point's load alignment, from the critical left eigenvector at (x, load), and its kind: a
+// bifurcation when the load does not drive the mode (below 1e-2), else (and always for a
+// snap-through) a limit point.
+void PathFollower::classify(CriticalPoint& point, const Eigen::VectorXd& x, double load) {
+  if (factorizeAt(x, load)) point.loadAlignment = loadAlignment(x, load, criticalMode(true));
+  point.kind = point.loadAlignment < 1e-2 && !point.snapThrough ? CriticalPoint::Kind::Bifurcation : CriticalPoint::Kind::LimitPoint;
+}
+
 // Called after each converged step, x being the new state at `toLoad` and solution_.state the
 // previous one: a change of sign of det J between them means a critical point, which is bracketed
 // by bisection, classified, and (followStableBranch) left for a stable branch.
@@ -310,9 +263,7 @@ void PathFollower::checkCriticalPoint(Eigen::VectorXd& x, double fromLoad, doubl
     if (relativeSign_ == before) point.fromLoad = middle, low = std::move(trial);
     else point.toLoad = middle, nearest = std::move(trial);
   }
-  if (factorizeAt(nearest, point.toLoad))
-    point.loadAlignment = loadAlignment(nearest, point.toLoad, criticalMode(true));
-  point.kind = point.loadAlignment < 1e-2 ? CriticalPoint::Kind::Bifurcation : CriticalPoint::Kind::LimitPoint;
+  classify(point, nearest, point.toLoad);
   factorizeAt(x, toLoad);
   if (options_.followStableBranch && point.kind == CriticalPoint::Kind::Bifurcation && after < 0 &&
       switchBranch(x, toLoad)) {
@@ -337,176 +288,6 @@ bool PathFollower::switchBranch(Eigen::VectorXd& x, double load) {
       }
     }
   return false;
-}
-
-PathFollower::Sample PathFollower::sampleHere(const Eigen::VectorXd& x, double load) const {
-  return {load, lu_->logAbsDeterminant(), relativeSign_, x};
-}
-
-// The equilibrium at `load` by Newton from x, and det J there; none when Newton fails.
-std::optional<PathFollower::Sample> PathFollower::sampleAt(Eigen::VectorXd x, double load, int iterations) {
-  LoadStepReport scratch;
-  // From a nearby equilibrium Newton converges in a few iterations or, past a branch's end, not at all:
-  // a dozen tell which (the step's own limit is 30).
-  maxIterations_ = std::min(options_.maxIterations, iterations);
-  sampledSinceFresh_ = true;
-  const bool ok = newton(x, load, scratch) == Outcome::Converged && factorizeAt(x, load);
-  maxIterations_ = options_.maxIterations;
-  if (!ok) return std::nullopt;
-  return sampleHere(x, load);
-}
-
-// ln |det J| changes below this are rounding, not a dip (a search takes some thirty Newton solves,
-// each of a few iterations from a nearby equilibrium).
-constexpr double kLogDetNoise = 1e-6;
-
-// After each converged step (x at `load`, factorized): a step whose |det J| lies below both its
-// neighbours', all of one sign, is searched (searchDip) for what det J's sign cannot show: two
-// eigenvalues crossing zero together, or a limit point the path jumped past. The first step also
-// probes just past the reference: |det J| may dip before it.
-void PathFollower::lookForDips(const Eigen::VectorXd& x, double load, bool branchSwitched) {
-  if (branchSwitched) recent_.clear();  // another branch: nothing before it is comparable
-  recent_.push_back(sampleHere(x, load));
-  if (recent_.size() > 3) recent_.erase(recent_.begin());
-  if (options_.criticalLoadTolerance >= 1) return;
-  const bool oneSign = std::all_of(recent_.begin(), recent_.end(), [&](const Sample& s) { return s.sign == recent_.front().sign; });
-  if (!oneSign || recent_.size() < 2) return;
-  bool sampled = false;
-  if (recent_.size() == 2 && recent_[0].load == 0.0 && recent_[1].logDet > recent_[0].logDet + kLogDetNoise) {
-    const Sample& start = recent_[0];
-    std::optional<Sample> probe = sampleAt(start.state, std::min(options_.criticalLoadTolerance, 0.5 * load));
-    sampled = true;
-    if (probe && probe->sign == start.sign && probe->logDet < start.logDet - kLogDetNoise) searchDip(start, std::move(*probe), recent_[1]);
-  } else if (recent_.size() == 3 && recent_[1].logDet < std::min(recent_[0].logDet, recent_[2].logDet) - kLogDetNoise) {
-    searchDip(recent_[0], recent_[1], recent_[2]);
-    sampled = true;
-  }
-  if (sampled) factorizeAt(x, load, JacobianLU::Pivoting::Fresh);  // the step's own factorization and sign again
-}
-
-// At load 1, a |det J| still falling may have passed its bottom within the last step: a probe just
-// before the end tells.
-void PathFollower::lookForDipAtEnd() {
-  if (options_.criticalLoadTolerance >= 1 || recent_.size() < 2) return;
-  const Sample& last = recent_.back();
-  const Sample& before = recent_[recent_.size() - 2];
-  if (last.sign != before.sign || !(last.logDet < before.logDet - kLogDetNoise)) return;
-  std::optional<Sample> probe =
-      sampleAt(last.state, last.load - std::min(options_.criticalLoadTolerance, 0.5 * (last.load - before.load)));
-  if (probe && probe->sign == last.sign && probe->logDet < last.logDet - kLogDetNoise) searchDip(before, std::move(*probe), last);
-}
-
-// Narrows the dip bracketed by lo and hi (best below both) by golden-section search to `width`; true
-// when a sample between shows the other sign of det J (two single crossings close together), which
-// then is best.
-bool PathFollower::narrowDip(Sample& lo, Sample& best, Sample& hi, double width) {
-  constexpr double kGoldenSection = 0.3819660112501051;  // (3 - sqrt 5) / 2
-  for (int i = 0; i < 200 && hi.load - lo.load > width; ++i) {
-    const bool right = hi.load - best.load > best.load - lo.load;
-    const double t = right ? best.load + kGoldenSection * (hi.load - best.load) : best.load - kGoldenSection * (best.load - lo.load);
-    std::optional<Sample> s = sampleAt(best.state, t);
-    if (!s) s = Sample{t, std::numeric_limits<double>::infinity(), 0, {}};  // past the branch's end: a bound, sign unknown
-    const bool flipped = s->sign != 0 && s->sign != best.sign;
-    if (flipped || s->logDet < best.logDet) {
-      (right ? lo : hi) = std::move(best);
-      best = std::move(*s);
-    } else {
-      (right ? hi : lo) = std::move(*s);
-    }
-    if (flipped) return true;
-  }
-  return false;
-}
-
-// The bottom of a dip of |det J| bracketed by lo and hi (best below both). Critical points when a
-// sample between shows the other sign (two single crossings, each then bisected), when the branch
-// ends just past the bottom (a limit point the path jumped past: snap-through, branchEndsAfter), or
-// when |det J| falls as the
-// square of the distance to the bottom (isDoubleZeroAt) both at the load tolerance and a hundred
-// times closer: a smooth dip flattens out within its core (an arch's near-snap: 2e-4 of the load).
-void PathFollower::searchDip(Sample lo, Sample best, Sample hi) {
-  const double tolerance = options_.criticalLoadTolerance;
-  const Sample outerLo = lo, outerHi = hi;  // equilibria both (steps or probes), whatever bounds replace them
-  bool flipped = narrowDip(lo, best, hi, tolerance);
-  const double width = std::max(hi.load - lo.load, tolerance);
-  CriticalPoint point;
-  if (!flipped && branchEndsAfter(lo, best, width)) {
-    point.snapThrough = true;
-    point.fromLoad = best.load, point.toLoad = best.load + width;
-  } else {
-    if (!flipped && isDoubleZeroAt(best, width) != Verdict::Yes) return;
-    if (!flipped) flipped = narrowDip(lo, best, hi, 1e-2 * tolerance);
-    if (flipped) {  // a bound where Newton failed has no state: the equilibrium beyond it brackets instead
-      solution_.criticalPoints.push_back(bisectCrossing(lo.state.size() ? lo : outerLo, best));
-      solution_.criticalPoints.push_back(bisectCrossing(best, hi.state.size() ? hi : outerHi));
-      signChanges_ += 2;
-      return;
-    }
-    // Closer than 1e-5 Newton itself may fail next to a double zero (a slender square column): the
-    // law held at the tolerance, and a matrix that singular is no smooth dip's.
-    if (isDoubleZeroAt(best, std::max(hi.load - lo.load, 1e-2 * tolerance)) == Verdict::No) return;
-    point.fromLoad = lo.load, point.toLoad = hi.load, point.crossings = 2;
-    signChanges_ += 2, ++pairedCrossings_;
-  }
-  if (factorizeAt(best.state, best.load)) point.loadAlignment = loadAlignment(best.state, best.load, criticalMode(true));
-  point.kind = point.loadAlignment < 1e-2 && !point.snapThrough ? CriticalPoint::Kind::Bifurcation : CriticalPoint::Kind::LimitPoint;
-  solution_.criticalPoints.push_back(point);
-}
-
-// One crossing between equilibria `low` and `high` (by load) of opposite signs of det J, bisected to
-// the load tolerance (Newton with the step's own iteration limit) and classified as
-// checkCriticalPoint does.
-CriticalPoint PathFollower::bisectCrossing(Sample low, Sample high) {
-  for (int i = 0; i < 60 && high.load - low.load > options_.criticalLoadTolerance; ++i) {
-    const double load = 0.5 * (low.load + high.load);
-    std::optional<Sample> middle = sampleAt(low.state, load, options_.maxIterations);
-    if (!middle) middle = sampleAt(high.state, load, options_.maxIterations);  // from the other side
-    if (!middle) break;  // the bracket stays as wide as it is
-    (middle->sign == low.sign ? low : high) = std::move(*middle);
-  }
-  CriticalPoint point;
-  point.fromLoad = low.load, point.toLoad = high.load;
-  if (factorizeAt(high.state, high.load)) point.loadAlignment = loadAlignment(high.state, high.load, criticalMode(true));
-  point.kind = point.loadAlignment < 1e-2 ? CriticalPoint::Kind::Bifurcation : CriticalPoint::Kind::LimitPoint;
-  return point;
-}
-
-// The branch through `best` ends within `width` above it: Newton (with the step's own iteration limit,
-// in one step or two halves) finds no equilibrium there, or one a jump away (below). Under load control a limit point
-// cannot be passed on its branch, and a step across it lands on another. An imperfect column's sharp
-// but smooth turn needed more than a dozen iterations there, and took them.
-bool PathFollower::branchEndsAfter(const Sample& below, const Sample& best, double width) {
-  if (best.load + width > 1 || below.state.size() == 0 || !(below.load < best.load)) return false;
-  std::optional<Sample> above = sampleAt(best.state, best.load + width, options_.maxIterations);
-  if (!above) {
-    const std::optional<Sample> half = sampleAt(best.state, best.load + 0.5 * width, options_.maxIterations);
-    if (half) above = sampleAt(half->state, best.load + width, options_.maxIterations);
-  }
-  if (!above) return true;
-  // A jump: three times the move below, scaled to `width` linearly or, if more, as the square root
-  // (towards a limit point the state runs as the root of the load distance), onto a state where |det J|
-  // is ten times larger (the branch's end is a zero of it; the far branch's is not).
-  const double movedBelow = problem_.stepNorm(best.state - below.state), spanBelow = best.load - below.load;
-  const double allowed = 3 * movedBelow * std::max(width / spanBelow, std::sqrt(width / spanBelow));
-  return problem_.stepNorm(above->state - best.state) > allowed + 1e-6 && above->logDet > best.logDet + std::log(10.0);
-}
-
-// Near a double zero |det J| grows as the square of the distance: from 4 to 40 bracket widths
-// (`width`; the zero lies within one of best) by a factor of 60 to 190 (ln: 4.1 to 5.2) on either
-// side. Past a smooth dip's core it does so too; inside it, hardly at all. No if either side says so,
-// Unknown when Newton finds no equilibrium at those loads on either side.
-PathFollower::Verdict PathFollower::isDoubleZeroAt(const Sample& best, double width) {
-  int held = 0;
-  for (const double direction : {-1.0, 1.0}) {
-    const double nearLoad = best.load + direction * 4 * width, farLoad = best.load + direction * 40 * width;
-    if (farLoad < 0 || farLoad > 1) continue;
-    const std::optional<Sample> nearer = sampleAt(best.state, nearLoad);
-    const std::optional<Sample> farther = nearer ? sampleAt(nearer->state, farLoad) : std::nullopt;
-    if (!farther) continue;  // this side tells nothing
-    if (farther->logDet - nearer->logDet < 0.75 * 2 * std::log(10.0)) return Verdict::No;
-    ++held;
-  }
-  return held > 0 ? Verdict::Yes : Verdict::Unknown;
 }
 
 Solution PathFollower::run(int steps, const StepCallback& onStep) {
@@ -574,18 +355,18 @@ std::optional<Solution> PathFollower::runFrom(const Eigen::VectorXd& start) {
   return std::move(solution_);
 }
 
-}  // namespace
+}  // namespace detail
 
 Solution solveFrom(const StaticProblem& problem, const Eigen::VectorXd& start, const SolverOptions& options,
                    int designLoadSteps) {
   if (start.size() != problem.referenceState().size()) throw std::invalid_argument("solveFrom: a state of the wrong size");
-  if (std::optional<Solution> direct = PathFollower(problem, options).runFrom(start)) return std::move(*direct);
+  if (std::optional<Solution> direct = detail::PathFollower(problem, options).runFrom(start)) return std::move(*direct);
   return solve(problem, options, designLoadSteps);
 }
 
 Solution solve(const StaticProblem& problem, const SolverOptions& options, int designLoadSteps, const StepCallback& onStep) {
   const int steps = options.loadSteps > 0 ? options.loadSteps : std::max(1, designLoadSteps);
-  return PathFollower(problem, options).run(steps, onStep);
+  return detail::PathFollower(problem, options).run(steps, onStep);
 }
 
 }  // namespace rodfab::mechanics
