@@ -107,7 +107,9 @@ void Inspector::run() {
     return finish();
   }
   indexEntries();
-  if (readManifest() && resolveProfile() && readJobLayout()) {
+  const bool profileKnown = readManifest() && resolveProfile();
+  if (truncatedPastBundled_ && report_.checked()) findings_.whole(tooManyEntries());
+  if (profileKnown && readJobLayout()) {
     checkEntries();
     if (!gcvf()) checkBuildFile();
     checkPreviews();
@@ -150,20 +152,36 @@ void Inspector::indexEntries() {
     files_.erase(name);
     reported_.insert(name);
   }
-  if (reader_->truncated())
-    findings_.whole("holds more than " + std::to_string(limits_.maxEntries) + " entries, more than a job of " +
-                    (options_.profile ? "that profile" : "any bundled profile (a job of another: inspect it with --profile FILE)") +
-                    " can; the rest were not listed");
+  if (!reader_->truncated()) return;
+  if (options_.profile) findings_.whole(tooManyEntries());
+  else truncatedPastBundled_ = true;  // a defect unless the job's profile turns out not to be bundled (run)
+}
+
+std::string Inspector::tooManyEntries() const {
+  return "holds more than " + std::to_string(limits_.maxEntries) + " entries, more than a job of " +
+         (options_.profile ? "that profile" : "any bundled profile") + " can; the rest were not listed";
+}
+
+// The manifest's entry: listed, or looked up by name when the listing stopped before it (then kept as a
+// listed file, or reported as indexEntries reports what no job holds). nullptr after a finding.
+const JobEntry* Inspector::manifestEntry() {
+  if (const auto it = files_.find(kManifestName); it != files_.end()) return it->second;
+  if (reported_.count(kManifestName)) return nullptr;
+  if (reader_->truncated()) unlistedManifest_ = reader_->findUnlisted(kManifestName);
+  if (unlistedManifest_ && unlistedManifest_->kind == EntryKind::File) return files_[kManifestName] = &*unlistedManifest_;
+  if (unlistedManifest_)
+    findings_.at(kManifestName, "is " + (unlistedManifest_->kind == EntryKind::Directory ? std::string("a folder") : unlistedManifest_->otherWhat) +
+                                    "; a job holds only regular files and folders (it was not opened)");
+  else findings_.whole(std::string("no ") + kManifestName + ": not a finished rodfab job");
+  reported_.insert(kManifestName);
+  return nullptr;
 }
 
 bool Inspector::readManifest() {
-  const auto it = files_.find(kManifestName);
-  if (it == files_.end()) {
-    if (!reported_.count(kManifestName)) findings_.whole(std::string("no ") + kManifestName + ": not a finished rodfab job");
-    return false;
-  }
+  const JobEntry* entry = manifestEntry();
+  if (!entry) return false;
   try {
-    const Bytes text = reader_->read(*it->second, limits_.maxManifestBytes);
+    const Bytes text = reader_->read(*entry, limits_.maxManifestBytes);
     report_.manifest = parseUntrustedJson(text, limits_.maxManifestValues);
     return true;
   } catch (const JobReadError& e) {
@@ -205,16 +223,21 @@ bool Inspector::findProfile() {
     findings_.at(kManifestName, "profile.name: missing; expected the name of a bundled printer profile");
     return false;
   }
+  const std::string named = name->get<std::string>();
   for (const Profile& p : candidates_)
-    if (p.name == name->get<std::string>()) {
+    if (p.name == named) {
       profile_ = p;
       return true;
     }
+  if (const std::string problem = portableNameProblem(named); !problem.empty()) {
+    findings_.at(kManifestName, "profile.name: \"" + printableName(named) + "\" cannot name any printer profile (" + problem + ")");
+    return false;
+  }
+  // Not a defect: a job made with a profile file is checked against that file, which only the caller can name.
   const std::string bundled =
       boost::algorithm::join(candidates_ | boost::adaptors::transformed([](const Profile& p) { return p.name; }), ", ");
-  findings_.at(kManifestName, "profile.name: \"" + printableName(name->get<std::string>()) +
-                                  "\" is not a bundled profile (bundled: " + (bundled.empty() ? "none" : bundled) +
-                                  "); inspect --profile FILE checks a job made with another profile file");
+  report_.notChecked = "made with printer profile \"" + printableName(named) + "\", which is not bundled (bundled: " + (bundled.empty() ? "none" : bundled) +
+                       "); inspect --profile FILE checks it against that profile's file";
   return false;
 }
 

@@ -81,8 +81,14 @@ struct InspectReport {
   std::size_t blankCopiesComparedStored = 0;
   int width = 0, height = 0, layers = 0;
   std::vector<MaterialTotals> materials;  // counted from the decoded images, in the job's material order
+  // Why the job could not be checked, empty when it was: the manifest names a printer profile that is
+  // not bundled and none was given (InspectOptions::profile), so its layout is unknown. Such a job is
+  // not sound as far as anyone can tell, nor found defective; `defects` still lists what no job of any
+  // profile may hold (unsafe names, duplicate entries, links).
+  std::string notChecked;
 
-  bool ok() const { return defects.empty(); }
+  bool checked() const { return notChecked.empty(); }
+  bool ok() const { return defects.empty() && checked(); }
 };
 
 // Never throws for a damaged or hostile job: every problem becomes a defect. A path with the emitter's

@@ -68,6 +68,8 @@ private:
 
   // Names every entry that no job may hold; keeps the safe, unique, regular files for reading.
   void indexEntries();
+  std::string tooManyEntries() const;
+  const JobEntry* manifestEntry();
   bool readManifest();
 
   // The profile comes from the caller or, by name only, from the bundled ones: never from a path.
@@ -134,6 +136,10 @@ private:
   std::vector<Profile> candidates_;
   ProfileLimits limits_;
   std::unique_ptr<JobReader> reader_;
+  // Without InspectOptions::profile, a listing cut at the bundled profiles' widest limit is a defect only
+  // once the manifest names a bundled profile (a profile file's jobs may hold more).
+  bool truncatedPastBundled_ = false;
+  std::optional<JobEntry> unlistedManifest_;  // the manifest, looked up by name when the listing stopped before it
   std::map<std::string, const JobEntry*> files_;  // safe, unambiguous regular files by name
   std::set<std::string> folders_;                 // safe folder entries ("previews/")
   std::set<std::string> reported_;                // names already found wanting

@@ -110,6 +110,12 @@ public:
       throw JobReadError(where + ": was replaced by " + describeMode(st.st_mode) + " while the job was being inspected");
     streamFd(fd.fd, where, maxBytes, sink);
   }
+  std::optional<JobEntry> findUnlisted(const std::string& name) override {
+    struct stat st{};
+    if (name.empty() || name.find('/') != std::string::npos || ::fstatat(dirs_[0], name.c_str(), &st, AT_SYMLINK_NOFOLLOW) != 0)
+      return std::nullopt;
+    return entryFor(0, name, "", st);
+  }
 
 private:
   struct Found {
@@ -140,27 +146,32 @@ private:
     if (roomForEntry()) addEntry(std::move(entry));
   }
 
+  // The entry `leaf` of folder dirs_[dir] (named prefix + leaf in the job) as fstatat found it; a
+  // regular file is remembered for reading.
+  JobEntry entryFor(std::size_t dir, const std::string& leaf, const std::string& prefix, const struct stat& st) {
+    JobEntry entry{prefix + leaf, EntryKind::Other, static_cast<std::uint64_t>(st.st_size), describeMode(st.st_mode), 0};
+    if (S_ISREG(st.st_mode)) {
+      entry.kind = EntryKind::File;
+      entry.index = found_.size();
+      found_.push_back({dir, leaf, st.st_dev, st.st_ino});
+    } else if (S_ISDIR(st.st_mode)) {
+      entry.kind = EntryKind::Directory;
+      entry.name += '/';
+      entry.declaredBytes = 0;
+    }
+    return entry;
+  }
+
   void walk(std::size_t dir, const std::string& prefix, int depth) {
     for (const std::string& leaf : sortedNames(dirs_[dir])) {
       if (truncated()) return;
       struct stat st{};
       if (::fstatat(dirs_[dir], leaf.c_str(), &st, AT_SYMLINK_NOFOLLOW) != 0)
         throw JobReadError(path().string() + ": " + printableName(prefix + leaf) + ": cannot be examined (" + errnoText() + ")");
-      JobEntry entry{prefix + leaf, EntryKind::Other, static_cast<std::uint64_t>(st.st_size), describeMode(st.st_mode), 0};
-      if (S_ISREG(st.st_mode)) {
-        entry.kind = EntryKind::File;
-        entry.index = found_.size();
-        found_.push_back({dir, leaf, st.st_dev, st.st_ino});
-        add(std::move(entry));
-      } else if (S_ISDIR(st.st_mode)) {
-        entry.kind = EntryKind::Directory;
-        entry.name += '/';
-        entry.declaredBytes = 0;
-        add(std::move(entry));
-        if (depth < maxDepth_) descend(dir, leaf, prefix + leaf + "/", depth + 1);
-      } else {
-        add(std::move(entry));  // never opened
-      }
+      JobEntry entry = entryFor(dir, leaf, prefix, st);  // anything but a file or folder is never opened
+      const bool folder = entry.kind == EntryKind::Directory;
+      add(std::move(entry));
+      if (folder && depth < maxDepth_) descend(dir, leaf, prefix + leaf + "/", depth + 1);
     }
   }
 
@@ -226,6 +237,14 @@ public:
     return {st.comp_method == ZIP_CM_DEFLATE, st.size, st.crc};
   }
 
+  std::optional<JobEntry> findUnlisted(const std::string& name) override {
+    if (name.empty() || name.find('/') != std::string::npos) return std::nullopt;
+    const ZipPool::Lease za(pool_);
+    const zip_int64_t index = zip_name_locate(za.get(), name.c_str(), ZIP_FL_ENC_RAW);
+    if (index < 0) return std::nullopt;
+    return entryAt(za.get(), static_cast<zip_uint64_t>(index));
+  }
+
 private:
   // Through a read-ahead source (zip_input.hpp), which owns fd from here.
   zip_t* adopt(int fd, int checks) const {
@@ -247,18 +266,19 @@ private:
 
   void list(zip_t* za) {
     const zip_int64_t count = zip_get_num_entries(za, 0);
-    for (zip_int64_t n = 0; n < count && roomForEntry(); ++n) {
-      const auto index = static_cast<zip_uint64_t>(n);
-      zip_stat_t st;
-      zip_stat_init(&st);
-      if (zip_stat_index(za, index, ZIP_FL_ENC_RAW, &st) != 0 || !(st.valid & ZIP_STAT_NAME))
-        throw JobReadError(path().string() + ": entry " + std::to_string(n) + " of the archive cannot be read (" +
-                           zip_strerror(za) + ")");
-      JobEntry entry{st.name, EntryKind::File, (st.valid & ZIP_STAT_SIZE) ? st.size : 0, "", index};
-      if (!entry.name.empty() && entry.name.back() == '/') entry.kind = EntryKind::Directory;
-      classify(za, st, entry);
-      addEntry(std::move(entry));
-    }
+    for (zip_int64_t n = 0; n < count && roomForEntry(); ++n) addEntry(entryAt(za, static_cast<zip_uint64_t>(n)));
+  }
+
+  JobEntry entryAt(zip_t* za, zip_uint64_t index) const {
+    zip_stat_t st;
+    zip_stat_init(&st);
+    if (zip_stat_index(za, index, ZIP_FL_ENC_RAW, &st) != 0 || !(st.valid & ZIP_STAT_NAME))
+      throw JobReadError(path().string() + ": entry " + std::to_string(index) + " of the archive cannot be read (" +
+                         zip_strerror(za) + ")");
+    JobEntry entry{st.name, EntryKind::File, (st.valid & ZIP_STAT_SIZE) ? st.size : 0, "", index};
+    if (!entry.name.empty() && entry.name.back() == '/') entry.kind = EntryKind::Directory;
+    classify(za, st, entry);
+    return entry;
   }
 
   // Marks entries no job holds: links and devices (by their Unix mode), encryption, other compressions.

@@ -79,6 +79,12 @@ public:
   // stream() into memory (at most maxBytes are ever held).
   Bytes read(const JobEntry& entry, std::uint64_t maxBytes) const;
 
+  // The entry `name` at the top of the job (no '/' in it), looked up by name where the listing was
+  // truncated before reaching it (a folder lists in no particular order once it holds more than
+  // maxEntries), and classified as a listed entry would be; never followed. nullopt when there is
+  // none. Not safe while other threads read from the reader.
+  virtual std::optional<JobEntry> findUnlisted(const std::string& name) = 0;
+
 protected:
   JobReader(std::filesystem::path path, ArchiveFormat format, std::size_t maxEntries)
       : path_(std::move(path)), format_(format), maxEntries_(maxEntries) {}

@@ -16,6 +16,8 @@ nlohmann::json reportJson(const pp::InspectReport& report) {
   const pp::InspectSummary& s = report.summary;
   return {{"job", report.job.string()},
           {"ok", report.ok()},
+          {"checked", report.checked()},
+          {"not_checked", report.checked() ? nlohmann::json() : nlohmann::json(report.notChecked)},
           {"defects", report.defects},
           {"profile", s.profile},
           {"files_checked", report.filesChecked},
@@ -50,7 +52,10 @@ void printReport(const pp::InspectReport& report) {
   else
     std::printf("files checked: %zu\n", report.filesChecked);
   for (const std::string& d : report.defects) std::fprintf(stderr, "defect: %s\n", d.c_str());
-  std::printf("verdict:       %s\n", report.ok() ? "OK" : "DEFECTIVE");
+  if (!report.checked()) std::fprintf(stderr, "not checked: %s: %s\n", report.job.c_str(), report.notChecked.c_str());
+  // Defects found without the profile are defects of any job; otherwise a job that could not be
+  // checked is neither sound nor defective.
+  std::printf("verdict:       %s\n", !report.defects.empty() ? "DEFECTIVE" : report.checked() ? "OK" : "NOT CHECKED");
 }
 
 }  // namespace

@@ -3,11 +3,13 @@
 // are chosen by name or by the caller, and both checksum algorithms are read. Hostile jobs:
 // test_inspect_hostile.cpp. Helpers: tests/inspect_fixture.hpp.
 #include "common/sha256.hpp"
-#include "printer_profiles/job_staging.hpp"  // kPartialTag
+#include "printer_profiles/inspect_layout.hpp"  // limitsOf
+#include "printer_profiles/job_staging.hpp"     // kPartialTag
 #include "tests/inspect_fixture.hpp"
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cstdlib>
 #include <string>
 
@@ -129,25 +131,85 @@ TEST_CASE("The profile comes from the bundled ones by name or from the caller, n
   writeSmallJob(dir / "job.zip");
   const auto files = unzip(dir / "job.zip");
   const HangGuard guard(60);
-  for (const std::string name : {"/dev/stdin", "/dev/zero", "../../../../dev/zero", "stratasys-objet500-connex3.json", ""}) {
+  // No profile can have these names: a defect, whatever the job was made with.
+  for (const std::string name : {"/dev/stdin", "/dev/zero", "../../../../dev/zero", ""}) {
     rezip(dir / "hostile.zip", tampered(files, [&](json& m) { m["profile"]["name"] = name; }));
     const InspectReport report = inspectJob(dir / "hostile.zip");
     CHECK_FALSE(report.ok());
-    CHECK(hasDefect(report, "hostile.zip: manifest.json: profile.name: \"" + name + "\" is not a bundled profile"));
+    CHECK(hasDefect(report, "hostile.zip: manifest.json: profile.name: \"" + name + "\" cannot name any printer profile ("));
   }
+  // A portable name of no bundled profile: the file is never read, and the job is not checked.
+  rezip(dir / "file-name.zip", tampered(files, [&](json& m) { m["profile"]["name"] = "stratasys-objet500-connex3.json"; }));
+  const InspectReport fileName = inspectJob(dir / "file-name.zip");
+  CHECK_FALSE(fileName.ok());
+  CHECK(fileName.defects.empty());
+  CHECK_THAT(fileName.notChecked, Catch::StartsWith("made with printer profile \"stratasys-objet500-connex3.json\", which is not bundled"));
 
-  // A job written for a profile file of another name passes only when that profile is given.
+  // A job written for a profile file of another name passes only when that profile is given; without
+  // it the job is not checked, which is not a defect.
   Profile custom = connex3();
   custom.name = "my-connex3";
   // (The writer's own verification cannot know the profile until it passes it in InspectOptions.)
   writeSmallJob(dir / "custom.zip", {.profile = &custom, .verify = false});
-  CHECK(hasDefect(inspectJob(dir / "custom.zip"), "\"my-connex3\" is not a bundled profile"));
+  const InspectReport unchecked = inspectJob(dir / "custom.zip");
+  CHECK_FALSE(unchecked.ok());
+  CHECK_FALSE(unchecked.checked());
+  CHECK(unchecked.defects.empty());
+  CHECK_THAT(unchecked.notChecked, Catch::Contains("\"my-connex3\", which is not bundled") &&
+                                       Catch::Contains("inspect --profile FILE checks it"));
   InspectOptions options;
   options.profile = custom;
   CHECK(inspectJob(dir / "custom.zip", options).ok());
   // ...and the bundled profile given explicitly for it is a mismatch, named.
   options.profile = connex3();
   CHECK(hasDefect(inspectJob(dir / "custom.zip", options), "manifest.json: profile.name: expected \"stratasys-objet500-connex3\""));
+}
+
+// Without --profile the listing stops at the most entries a job of any bundled profile can hold; a
+// profile file with thinner layers makes jobs of more (until 2026-12-07 such a sound job was reported
+// DEFECTIVE for its entry count).
+TEST_CASE("A job of a profile file with more entries than any bundled profile allows is not checked without it",
+          "[inspect]") {
+  const fs::path dir = scratch("fine-layers");
+  std::size_t bundledMost = 0;
+  for (const std::string& name : bundledProfileNames()) bundledMost = std::max(bundledMost, limitsOf(loadProfile(name)).maxEntries);
+  Profile fine = connex3();
+  fine.name = "fine-connex3";
+  fine.voxelSizeMm[2] = 0.01;
+  const int layers = static_cast<int>(bundledMost / 2) + 50;  // two files a layer (the printer makes the support)
+  REQUIRE(layers < fine.trayMm[2] / fine.voxelSizeMm[2]);
+  writeSmallJob(dir / "fine.zip", {.profile = &fine, .verify = false, .layers = layers});
+  auto entries = unzip(dir / "fine.zip");
+  REQUIRE(entries.size() > bundledMost);
+  // The manifest last, beyond where the listing stops: looked up by name.
+  std::rotate(entries.begin(), entries.begin() + 1, entries.end());
+  REQUIRE(entries.back().first == "manifest.json");
+  rezip(dir / "manifest-last.zip", entries);
+  // A folder lists in no particular order once it holds too many entries: the manifest may be beyond.
+  writeSmallJob(dir / "fine", {.archive = ArchiveFormat::Directory, .profile = &fine, .verify = false, .layers = layers});
+  for (const char* job : {"fine.zip", "manifest-last.zip", "fine"}) {
+    INFO(job);
+    const InspectReport report = inspectJob(dir / job);
+    CHECK(report.defects.empty());
+    CHECK_THAT(report.notChecked, Catch::StartsWith("made with printer profile \"fine-connex3\", which is not bundled"));
+    InspectOptions withFile;
+    withFile.profile = fine;
+    const InspectReport checkedReport = inspectJob(dir / job, withFile);
+    INFO((checkedReport.defects.empty() ? "" : checkedReport.defects[0]));
+    CHECK(checkedReport.ok());
+    CHECK(checkedReport.layers == layers);
+  }
+  // The same count under a bundled profile's name is a defect of the job.
+  auto bundledName = entries;
+  for (auto& [name, data] : bundledName)
+    if (name == "manifest.json") {
+      json m = json::parse(data.begin(), data.end());
+      m["profile"]["name"] = "stratasys-objet500-connex3";
+      const std::string text = m.dump(1);
+      data.assign(text.begin(), text.end());
+    }
+  rezip(dir / "bundled-name.zip", bundledName);
+  CHECK(hasDefect(inspectJob(dir / "bundled-name.zip"), "entries, more than a job of any bundled profile can; the rest were not listed"));
 }
 
 

@@ -90,8 +90,8 @@ hostile() {  # JOB PATTERN: exit 1 within 60 s, a defect matching PATTERN
   grep -q "verdict:       DEFECTIVE" "$tmp/out" || fail "inspect $1: no DEFECTIVE verdict"
   grep -q -- "$2" "$tmp/err" || fail "inspect $1: no defect matching '$2': $(cat "$tmp/err")"
 }
-hostile profile-stdin.zip 'profile-stdin.zip: manifest.json: profile.name: "/dev/stdin" is not a bundled profile'
-hostile profile-zero.zip 'profile.name: "/dev/zero" is not a bundled profile'
+hostile profile-stdin.zip 'profile-stdin.zip: manifest.json: profile.name: "/dev/stdin" cannot name any printer profile'
+hostile profile-zero.zip 'profile.name: "/dev/zero" cannot name any printer profile'
 hostile bomb.zip 'bomb.zip: bomb.bin: unexpected entry'
 hostile huge.zip 'huge.zip: VeroWhitePlus_0000.bmp: declares 4026531840 bytes'
 hostile dotdot.zip "dotdot.zip: ../../x: unsafe entry name: it has a '..' component"
@@ -115,6 +115,27 @@ PY
 [ $? -eq 1 ] || fail "inspect --json of a hostile job: expected exit 1"
 python3 -c 'import json,sys; r = json.load(open(sys.argv[1])); assert r["ok"] is False and r["defects"], r' "$tmp/out" ||
   fail "inspect --json output: $(head -c 300 "$tmp/out")"
+
+# A job made with a profile file is not checked without that file: neither OK nor DEFECTIVE.
+python3 - "$src/printer_profiles/stratasys-objet500-connex3.json" "$tmp/my-connex3.json" <<'PY'
+import json, sys
+d = json.load(open(sys.argv[1]))
+d["name"] = "my-connex3"
+json.dump(d, open(sys.argv[2], "w"))
+PY
+"$rodfab" slice "$src/examples/unfolding-box.json" --profile "$tmp/my-connex3.json" --output "$tmp/mine.zip" > /dev/null 2>&1 ||
+  fail "slice with a profile file"
+"$rodfab" inspect "$tmp/mine.zip" > "$tmp/out" 2> "$tmp/err"
+[ $? -eq 1 ] || fail "inspect of a profile file's job without it: expected exit 1"
+grep -q "verdict:       NOT CHECKED" "$tmp/out" || fail "no NOT CHECKED verdict: $(cat "$tmp/out")"
+grep -q 'not checked: .*mine.zip: made with printer profile "my-connex3", which is not bundled' "$tmp/err" ||
+  fail "not-checked reason: $(cat "$tmp/err")"
+grep -q "defect" "$tmp/err" && fail "defects reported for a sound job: $(cat "$tmp/err")"
+"$rodfab" inspect --json "$tmp/mine.zip" > "$tmp/out"
+python3 -c 'import json,sys; r = json.load(open(sys.argv[1])); assert r["ok"] is False and r["checked"] is False and not r["defects"] and "my-connex3" in r["not_checked"], r' \
+  "$tmp/out" || fail "inspect --json of a profile file's job: $(head -c 400 "$tmp/out")"
+"$rodfab" inspect --profile "$tmp/my-connex3.json" "$tmp/mine.zip" > "$tmp/out" 2>&1 || fail "inspect --profile FILE: $(cat "$tmp/out")"
+grep -q "verdict:       OK" "$tmp/out" || fail "no OK verdict with the profile file"
 
 "$rodfab" inspect 2> /dev/null
 [ $? -eq 2 ] || fail "inspect without a job: expected usage exit 2"
