@@ -28,7 +28,14 @@ private:
   bool converged(const Eigen::VectorXd& x) const;
   bool factorize(JacobianLU::Pivoting pivoting = JacobianLU::Pivoting::Reuse);
   Eigen::VectorXd correction();
+  // A converged state on the path, with ln |det J| and the relative sign of det J there.
+  struct Sample {
+    double load = 0.0, logDet = 0.0;
+    int sign = 1;
+    Eigen::VectorXd state;
+  };
   void checkCriticalPoint(Eigen::VectorXd& x, double fromLoad, double toLoad);
+  CriticalPoint bisectCrossing(Sample low, Sample high);
   Eigen::VectorXd criticalMode(bool transposed) const;
   double loadAlignment(const Eigen::VectorXd& x, double load, const Eigen::VectorXd& psi) const;
   bool switchBranch(Eigen::VectorXd& x, double load);
@@ -36,20 +43,13 @@ private:
   void classify(CriticalPoint& point, const Eigen::VectorXd& x, double load);
   void finish();
 
-  // Dips of |det J| (path_follower_dips.cpp). A converged state on the path, with ln |det J| and the
-  // relative sign of det J there.
-  struct Sample {
-    double load = 0.0, logDet = 0.0;
-    int sign = 1;
-    Eigen::VectorXd state;
-  };
+  // Dips of |det J| (path_follower_dips.cpp).
   Sample sampleHere(const Eigen::VectorXd& x, double load) const;
   std::optional<Sample> sampleAt(Eigen::VectorXd x, double load, int iterations = 12);
   void lookForDips(const Eigen::VectorXd& x, double load, bool branchSwitched);
   void lookForDipAtEnd();
   void searchDip(Sample lo, Sample best, Sample hi);
   bool narrowDip(Sample& lo, Sample& best, Sample& hi, double width);
-  CriticalPoint bisectCrossing(Sample low, Sample high);
   enum class Verdict { Yes, No, Unknown };
   Verdict isDoubleZeroAt(const Sample& best, double width);
   bool branchEndsAfter(const Sample& below, const Sample& best, double width);

@@ -123,23 +123,6 @@ void PathFollower::searchDip(Sample lo, Sample best, Sample hi) {
   solution_.criticalPoints.push_back(point);
 }
 
-// One crossing between equilibria `low` and `high` (by load) of opposite signs of det J, bisected to
-// the load tolerance (Newton with the step's own iteration limit) and classified as
-// checkCriticalPoint does.
-CriticalPoint PathFollower::bisectCrossing(Sample low, Sample high) {
-  for (int i = 0; i < 60 && high.load - low.load > options_.criticalLoadTolerance; ++i) {
-    const double load = 0.5 * (low.load + high.load);
-    std::optional<Sample> middle = sampleAt(low.state, load, options_.maxIterations);
-    if (!middle) middle = sampleAt(high.state, load, options_.maxIterations);  // from the other side
-    if (!middle) break;  // the bracket stays as wide as it is
-    (middle->sign == low.sign ? low : high) = std::move(*middle);
-  }
-  CriticalPoint point;
-  point.fromLoad = low.load, point.toLoad = high.load;
-  classify(point, high.state, high.load);
-  return point;
-}
-
 // The branch through `best` ends within `width` above it: Newton (with the step's own iteration limit,
 // in one step or two halves) finds no equilibrium there, or one a jump away (below). Under load control a limit point
 // cannot be passed on its branch, and a step across it lands on another. An imperfect column's sharp

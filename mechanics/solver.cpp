@@ -244,6 +244,23 @@ void PathFollower::classify(CriticalPoint& point, const Eigen::VectorXd& x, doub
   point.kind = point.loadAlignment < 1e-2 && !point.snapThrough ? CriticalPoint::Kind::Bifurcation : CriticalPoint::Kind::LimitPoint;
 }
 
+// One crossing between equilibria `low` and `high` (by load) of opposite signs of det J, bisected to
+// the load tolerance (Newton with the step's own iteration limit, from the side below or, where it
+// fails there, from the side above) and classified at the equilibrium nearest past it.
+CriticalPoint PathFollower::bisectCrossing(Sample low, Sample high) {
+  for (int i = 0; i < 60 && high.load - low.load > options_.criticalLoadTolerance; ++i) {
+    const double load = 0.5 * (low.load + high.load);
+    std::optional<Sample> middle = sampleAt(low.state, load, options_.maxIterations);
+    if (!middle) middle = sampleAt(high.state, load, options_.maxIterations);  // from the other side
+    if (!middle) break;  // the bracket stays as wide as it is
+    (middle->sign == low.sign ? low : high) = std::move(*middle);
+  }
+  CriticalPoint point;
+  point.fromLoad = low.load, point.toLoad = high.load;
+  classify(point, high.state, high.load);
+  return point;
+}
+
 // Called after each converged step, x being the new state at `toLoad` and solution_.state the
 // previous one: a change of sign of det J between them means a critical point, which is bracketed
 // by bisection, classified, and (followStableBranch) left for a stable branch.
@@ -251,19 +268,7 @@ void PathFollower::checkCriticalPoint(Eigen::VectorXd& x, double fromLoad, doubl
   const int before = previousSign_, after = relativeSign_;
   if (before == after) return;
   ++signChanges_;
-  CriticalPoint point;
-  Eigen::VectorXd nearest = x;  // converged state closest past the critical point
-  point.fromLoad = fromLoad, point.toLoad = toLoad;
-  Eigen::VectorXd low = solution_.state;
-  for (int i = 0; i < 60 && point.toLoad - point.fromLoad > options_.criticalLoadTolerance; ++i) {
-    const double middle = 0.5 * (point.fromLoad + point.toLoad);
-    Eigen::VectorXd trial = low;
-    LoadStepReport scratch;
-    if (newton(trial, middle, scratch) != Outcome::Converged || !factorizeAt(trial, middle)) break;
-    if (relativeSign_ == before) point.fromLoad = middle, low = std::move(trial);
-    else point.toLoad = middle, nearest = std::move(trial);
-  }
-  classify(point, nearest, point.toLoad);
+  CriticalPoint point = bisectCrossing({fromLoad, 0.0, before, solution_.state}, {toLoad, 0.0, after, x});
   factorizeAt(x, toLoad);
   if (options_.followStableBranch && point.kind == CriticalPoint::Kind::Bifurcation && after < 0 &&
       switchBranch(x, toLoad)) {
