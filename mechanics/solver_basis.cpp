@@ -204,6 +204,25 @@ std::vector<double> modulusKinks(const geometry::BSplineField& e) {
   return kinks;
 }
 
+// Parameters inside the domain where the drawn centerline is at most C1 (a knot of multiplicity >= its
+// degree - 1: every knot of a quadratic, the double knots of the rational circle CAD writes): there
+// r(u) has a kink in r'' (the circle's parametric speed turns with it), which a rebuilt basis smooth
+// across it interpolates only to order h^2 (a 20 mm ring drawn so was 2e-3 mm off its own circle, the
+// written design with it, at the default spans).
+std::vector<double> drawnKinks(const geometry::NurbsCurve& c) {
+  std::vector<double> kinks;
+  const auto& k = c.knots();
+  const std::size_t count = c.points().size();
+  const auto least = static_cast<std::size_t>(std::max(1, c.degree() - 1));
+  for (std::size_t i = static_cast<std::size_t>(c.degree()) + 1; i < count;) {
+    std::size_t m = 1;
+    while (i + m < count && k[i + m] == k[i]) ++m;
+    if (m >= least) kinks.push_back(k[i]);
+    i += m;
+  }
+  return kinks;
+}
+
 // Knots of a rebuilt rod: `spans` spans, uniform between the breaks (modulus kinks and interior
 // sites), each piece getting spans in proportion to its length (at least one). At a kink of E the
 // solution's curvature has a kink too (kappa = m / (E I)): the knot is repeated p - 1 times there,
@@ -292,8 +311,9 @@ RodBasisChoice chooseBasis(const DiscreteStructure& s, const geometry::Rod& rod,
 geometry::NurbsCurve solverCurve(const geometry::Rod& rod, const RodBasisChoice& choice, const std::vector<double>& sites) {
   const geometry::NurbsCurve& c0 = rod.centerline();
   if (!choice.rebuild) return refinedWithSites(c0, choice.spans - 1, sites);
-  std::vector<double> knots =
-      rebuiltKnots(c0.domainBegin(), c0.domainEnd(), choice.degree, choice.spans, modulusKinks(rod.modulus()), sites);
+  std::vector<double> kinks = modulusKinks(rod.modulus());
+  for (double u : drawnKinks(c0)) kinks.push_back(u);
+  std::vector<double> knots = rebuiltKnots(c0.domainBegin(), c0.domainEnd(), choice.degree, choice.spans, kinks, sites);
   const std::size_t count = knots.size() - choice.degree - 1;
   return geometry::NurbsCurve(choice.degree, std::move(knots), std::vector<Vec3>(count, Vec3::Zero()));
 }
