@@ -117,7 +117,8 @@ void checkOffText(const std::string& bytes, const std::string& source) {
     if (!nextContentLine(in, line, number)) return;
     if (numbers(line).size() < 3) throw MeshError(source, where() + "a vertex needs 3 coordinates");
   }
-  for (double f = 0; f < nf && nextContentLine(in, line, number); ++f) {
+  double facesRead = 0;
+  for (; facesRead < nf && nextContentLine(in, line, number); ++facesRead) {
     const std::vector<double> entries = numbers(line);
     const double corners = entries.empty() ? 0 : entries[0];
     if (!(corners >= 3 && corners <= 1e6) || corners != std::floor(corners))
@@ -130,6 +131,10 @@ void checkOffText(const std::string& bytes, const std::string& source) {
       throw MeshError(source, where() + "a face of " + std::to_string(static_cast<long>(corners)) + " corners needs as many " +
                                   "indices (and 0, 1, 3 or 4 colour entries)");
   }
+  // CGAL stops at the declared count: faces past it (a stale count) were dropped without a word.
+  if (facesRead == nf && nextContentLine(in, line, number))
+    throw MeshError(source, where() + "more lines follow the " + std::to_string(static_cast<long long>(nf)) +
+                                " faces the header declares: its face count is smaller than the file's (nothing was read)");
 }
 
 // Calls f(line) for every line of `bytes`, without its line break and trailing white space.
@@ -186,13 +191,31 @@ void checkObjFaces(const std::string& bytes, const std::string& source) {
   });
 }
 
+// Text STL starts with "solid" and is text throughout; a binary header may start with "solid" too, but
+// its triangles' floats soon hold bytes no text has.
+bool looksLikeTextStl(const std::string& bytes) {
+  const std::size_t begin = std::min(bytes.find_first_not_of(" \t\r\n"), bytes.size());
+  if (bytes.compare(begin, 5, "solid") != 0) return false;
+  const std::size_t end = std::min<std::size_t>(bytes.size(), 1024);
+  return std::none_of(bytes.begin() + static_cast<std::ptrdiff_t>(begin), bytes.begin() + static_cast<std::ptrdiff_t>(std::max(begin, end)), [](char c) {
+    const auto u = static_cast<unsigned char>(c);
+    return u == 0 || (u < 32 && !std::isspace(u)) || u == 127;
+  });
+}
+
 // CGAL's STL reader merges corners through an ordered map, which a NaN corrupts (it compares equal to
 // everything): check a binary STL's floats before it is read.
 void checkBinaryStlNumbers(const std::string& bytes, const std::string& source) {
-  if (bytes.size() < 84) return;
+  if (bytes.size() < 84 || looksLikeTextStl(bytes)) return;
   std::uint32_t count = 0;
   std::memcpy(&count, bytes.data() + 80, 4);
-  if (84 + 50 * std::uint64_t(count) != bytes.size()) return;  // not binary STL (or truncated): CGAL decides
+  const std::uint64_t declared = 84 + 50 * std::uint64_t(count);
+  // CGAL reads `count` triangles and ignores the rest: triangles past a stale count were dropped
+  // without a word, and a truncated file failed saying nothing of why. A few bytes of padding pass.
+  if (bytes.size() < declared || bytes.size() >= declared + 50)
+    throw MeshError(source, "binary STL: its header declares " + std::to_string(count) + " triangles (" + std::to_string(declared) +
+                                " bytes), but the file holds " + std::to_string(bytes.size()) + " bytes: " +
+                                (bytes.size() > declared ? "the count is smaller than the data" : "was it cut short?") + " (nothing was read)");
   for (std::uint32_t t = 0; t < count; ++t)
     for (int k = 3; k < 12; ++k) {  // the 9 corner coordinates after the normal
       float v = 0;
@@ -406,22 +429,35 @@ void checkCrowdedVertices(const TriangleMesh& mesh, const std::string& source) {
                               "corner: triangulate it first, or remesh the surface so that no vertex is that crowded");
 }
 
+constexpr std::string_view kUtf8Mark = "\xEF\xBB\xBF";
+
+// What CGAL's readers would misread, changed in a copy (empty when nothing needs to change): a UTF-8
+// byte order mark before a text format (it glued to the first keyword: vertex 1 was lost, and a face
+// 99 lines on was blamed); in OBJ, tabs (its reader skips a face corner up to the next space, so a
+// tab-separated face lost corners) and line elements "l" (polylines, no surface: the reader failed the
+// whole file), made comments.
+std::string readerCopy(const std::string& bytes, const std::string& format) {
+  const bool mark = format != "stl" && bytes.starts_with(kUtf8Mark);
+  const bool obj = format == "obj";
+  const bool tabs = obj && bytes.find('\t') != std::string::npos;
+  const bool lines = obj && (bytes.starts_with("l ") || bytes.find("\nl ") != std::string::npos || bytes.find("\nl\t") != std::string::npos);
+  if (!mark && !tabs && !lines) return {};
+  std::string text = bytes.substr(mark ? kUtf8Mark.size() : 0);
+  if (tabs) std::replace(text.begin(), text.end(), '\t', ' ');
+  if (lines)
+    for (std::size_t at = 0; at < text.size(); at = std::min(text.find('\n', at), text.size()) + 1)
+      if (text.compare(at, 2, "l ") == 0) text[at] = '#';
+  return text;
+}
+
 TriangleMesh parseMesh(const std::string& bytes, const std::string& format, const std::string& source, ReadStats& stats) {
-  // CGAL's OBJ reader skips each face corner up to the next space, so a tab-separated face would lose
-  // corners: tabs become spaces (white space alike in OBJ), in a copy only where there are any, counted
-  // with the parse before anything is allocated.
-  const bool tabbedObj = format == "obj" && bytes.find('\t') != std::string::npos;
-  common::requireMemory(bytes.size() * (kParseBytesPerFileByte + (tabbedObj ? 1 : 0)),
-                        {.what = "reading the mesh " + source, .remedy = "simplify the mesh first"});
+  // A changed copy (readerCopy) is counted with the parse before anything is allocated.
+  common::requireMemory(bytes.size() * (kParseBytesPerFileByte + 1), {.what = "reading the mesh " + source, .remedy = "simplify the mesh first"});
   if (bytes.find_first_not_of(" \t\r\n") == std::string::npos) throw MeshError(source, "the file is empty: it holds no faces");
-  if (format == "off") checkOffText(bytes, source);
-  if (format == "ply") detail::checkPly(bytes, source);
-  std::string spaced;
-  if (tabbedObj) {
-    spaced = bytes;
-    std::replace(spaced.begin(), spaced.end(), '\t', ' ');
-  }
-  const std::string& text = spaced.empty() ? bytes : spaced;
+  const std::string copy = readerCopy(bytes, format);
+  const std::string& text = copy.empty() ? bytes : copy;
+  if (format == "off") checkOffText(text, source);
+  if (format == "ply") detail::checkPly(text, source);
   if (format == "obj") checkObjFaces(text, source);
   std::vector<Point> points;
   std::vector<Polygon> polygons;

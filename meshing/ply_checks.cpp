@@ -187,6 +187,13 @@ public:
     return true;
   }
 
+  // Bytes after the cursor other than white space in an ASCII body (binary: every byte counts).
+  std::size_t bytesAfter() const {
+    if (!ascii_) return bytes_.size() - at_;
+    const std::size_t next = bytes_.find_first_not_of(" \t\n\v\f\r", at_);
+    return next == std::string::npos ? 0 : bytes_.size() - next;
+  }
+
 private:
   static std::string formatCount(double count) {
     char text[32];
@@ -270,6 +277,12 @@ void checkPly(const std::string& bytes, const std::string& source) {
           throw MeshError(source, "PLY " + common::printableFromFile(element.name) + " " + std::to_string(i) + ": the file ends inside it (its " +
                                       std::to_string(bytes.size()) + " bytes hold less than the header declares: was it cut short?)");
     }
+  // CGAL stops at the declared counts: faces written past them (a header count left stale) were dropped
+  // without a word, half a sphere read as a whole one.
+  if (const std::size_t extra = body.bytesAfter(); extra > 0)
+    throw MeshError(source, "PLY: " + std::to_string(extra) + " bytes follow the elements the header declares (" +
+                                common::printableFromFile(header.elements.empty() ? std::string() : header.elements.back().name) +
+                                " last): a count in the header is smaller than the data (nothing was read)");
 }
 
 }  // namespace rodfab::meshing::detail

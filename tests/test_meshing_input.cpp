@@ -329,3 +329,71 @@ TEST_CASE("a PLY list longer than the file is refused before CGAL sizes it", "[m
                       Catch::StartsWith("t.ply: PLY face 3: the file ends inside it") && Catch::Contains("was it cut short?"));
   }
 }
+
+namespace {
+
+// The ellipsoid's 80 triangles as OBJ text, and as binary STL with `declared` in its count field.
+std::string ellipsoidObj() {
+  std::ostringstream obj;
+  const testing::SimpleMesh mesh = testing::ellipsoid(2, 3, 3, 3);
+  for (const auto& p : mesh.points) obj << "v " << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
+  for (const auto& t : mesh.triangles) obj << "f " << t[0] + 1 << ' ' << t[1] + 1 << ' ' << t[2] + 1 << '\n';
+  return obj.str();
+}
+std::string ellipsoidStl(std::uint32_t declared) {
+  const testing::SimpleMesh mesh = testing::ellipsoid(2, 3, 3, 3);
+  std::string out(80, ' ');
+  out.append(reinterpret_cast<const char*>(&declared), 4);
+  for (const auto& t : mesh.triangles) {
+    float values[12] = {};
+    for (int c = 0; c < 3; ++c)
+      for (int k = 0; k < 3; ++k) values[3 + 3 * c + k] = static_cast<float>(mesh.points[static_cast<std::size_t>(t[static_cast<std::size_t>(c)])][k]);
+    out.append(reinterpret_cast<const char*>(values), sizeof values);
+    out.append(2, '\0');
+  }
+  return out;
+}
+
+}  // namespace
+
+// CGAL's readers stop at the counts a header declares: faces past a stale count were dropped without a
+// word (a sphere of 1,280 triangles whose count said 640 made rods over half of it, exit 0).
+TEST_CASE("faces past the count a mesh file declares are refused, not dropped", "[meshing][hostile]") {
+  CHECK(meshing::checkMeshBytes(ellipsoidStl(80), "stl", "e.stl").faces == 80);
+  CHECK(meshing::checkMeshBytes(ellipsoidStl(80) + std::string(7, '\0'), "stl", "e.stl").faces == 80);  // padding
+  CHECK_THROWS_WITH(meshing::checkMeshBytes(ellipsoidStl(40), "stl", "e.stl"),
+                    "e.stl: binary STL: its header declares 40 triangles (2084 bytes), but the file holds 4084 bytes: the count is "
+                    "smaller than the data (nothing was read)");
+  CHECK_THROWS_WITH(meshing::checkMeshBytes(ellipsoidStl(81), "stl", "e.stl"), Catch::Contains("was it cut short?"));
+  std::string solidHeader = ellipsoidStl(40);  // a binary header may start with "solid" too
+  solidHeader.replace(0, 5, "solid");
+  CHECK_THROWS_WITH(meshing::checkMeshBytes(solidHeader, "stl", "e.stl"), Catch::Contains("the count is smaller than the data"));
+
+  const std::string tetrahedronOff = "OFF\n4 4 0\n0 0 0\n10 0 0\n0 10 0\n0 0 10\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n";
+  CHECK(meshing::checkMeshBytes(tetrahedronOff + "# a comment\n\n", "off", "t.off").faces == 4);
+  std::string stale = tetrahedronOff;
+  stale.replace(stale.find("4 4 0"), 5, "4 3 0");
+  CHECK_THROWS_WITH(meshing::checkMeshBytes(stale, "off", "t.off"),
+                    "t.off: OFF line 10: more lines follow the 3 faces the header declares: its face count is smaller than the file's "
+                    "(nothing was read)");
+
+  for (const std::string format : {"ascii", "binary_little_endian", "binary_big_endian"}) {
+    INFO(format);
+    std::string ply = tetrahedronPly(format, "uchar", 3);
+    ply.replace(ply.find("element face 4"), 14, "element face 3");
+    CHECK_THROWS_WITH(meshing::checkMeshBytes(ply, "ply", "t.ply"), Catch::Contains("t.ply: PLY: ") &&
+                                                                       Catch::Contains("bytes follow the elements the header declares (face last)"));
+  }
+}
+
+TEST_CASE("OBJ line elements and a UTF-8 byte order mark are read past, not failed on", "[meshing]") {
+  const std::string obj = ellipsoidObj();
+  // Polylines ("l") are no surface: CGAL's reader failed the whole file ("not a readable obj mesh").
+  const meshing::MeshCounts withLines = meshing::checkMeshBytes("l 1 2 3\n" + obj + "l 4 5\nl\t6 7\n", "obj", "l.obj");
+  CHECK(withLines.faces == 80);
+  CHECK(withLines.vertices == 42);
+  // A byte order mark glued itself to the first "v": vertex 1 was lost and a face 99 lines on blamed.
+  CHECK(meshing::checkMeshBytes("\xEF\xBB\xBF" + obj, "obj", "bom.obj").vertices == 42);
+  CHECK(meshing::checkMeshBytes("\xEF\xBB\xBF" "OFF\n4 4 0\n0 0 0\n10 0 0\n0 10 0\n0 0 10\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n", "off", "bom.off")
+            .faces == 4);
+}
