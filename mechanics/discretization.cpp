@@ -173,6 +173,56 @@ void refuseUnevenWeights(const DiscreteStructure& s, const geometry::Rod& src, c
                                              "solver, which collocates in it; re-fit the centerline with weights closer together");
 }
 
+// The parametric speed |dr/du| where it is least along the centerline: a dense sampling per span
+// (and at every breakpoint, where repeated control points stop it), its smallest sample then narrowed
+// by golden section between its neighbours.
+std::pair<double, double> slowestParameter(const geometry::NurbsCurve& c, double& fastest) {
+  const auto speed = [&](double u) {
+    Vec3 d[2];
+    c.derivatives(u, 1, d);
+    return d[1].norm();
+  };
+  const std::vector<double>& breaks = c.breakpoints();
+  constexpr int kPerSpan = 64;
+  std::vector<double> us;
+  for (std::size_t b = 0; b + 1 < breaks.size(); ++b)
+    for (int i = 0; i < kPerSpan; ++i) us.push_back(breaks[b] + (breaks[b + 1] - breaks[b]) * i / kPerSpan);
+  us.push_back(breaks.back());
+  std::size_t slowest = 0;
+  fastest = 0;
+  std::vector<double> speeds(us.size());
+  for (std::size_t i = 0; i < us.size(); ++i) {
+    speeds[i] = speed(us[i]);
+    fastest = std::max(fastest, speeds[i]);
+    if (speeds[i] < speeds[slowest]) slowest = i;
+  }
+  double lo = us[slowest > 0 ? slowest - 1 : 0], hi = us[std::min(slowest + 1, us.size() - 1)], best = us[slowest];
+  double bestSpeed = speeds[slowest];
+  for (int i = 0; i < 60 && hi - lo > 1e-15 * (1 + std::abs(best)); ++i) {  // golden section
+    const double a = hi - 0.6180339887498949 * (hi - lo), b = lo + 0.6180339887498949 * (hi - lo);
+    const double sa = speed(a), sb = speed(b);
+    if (sa < sb) hi = b; else lo = a;
+    const auto [u, v] = sa < sb ? std::pair{a, sa} : std::pair{b, sb};
+    if (v < bestSpeed) best = u, bestSpeed = v;
+  }
+  return {best, bestSpeed};
+}
+
+// A centerline whose parameter nearly stops (repeated control points, a cusp) is collocated there as
+// unevenly as under weights far apart (refuseUnevenWeights), and its derivative may vanish between the
+// collocation points: a straight rod with a repeated middle control point bent 10 % too little as a
+// cantilever, nothing said. Speeds more than 1,000 times apart (weights of 0.001 did 1,400) are refused.
+void refuseStoppingParameter(const DiscreteStructure& s, const geometry::Rod& src, const std::string& path) {
+  double fastest = 0;
+  const auto [u, slowest] = slowestParameter(src.centerline(), fastest);
+  if (slowest > 1e-3 * fastest) return;
+  s.fail(path + ".centerline", slowest <= 1e-12 * fastest
+                                   ? "the centerline's derivative vanishes at u = " + format(u) + " (control points repeated there?)"
+                                   : "its parameter runs " + format(fastest / slowest) + " times slower at u = " + format(u) +
+                                         " than where it is fastest (more than 1000: too unevenly for the solver, which "
+                                         "collocates in it); re-fit the centerline with its control points more evenly spaced");
+}
+
 }  // namespace
 
 void DiscreteStructure::buildRod(const Design& structure, std::size_t index,
@@ -183,6 +233,7 @@ void DiscreteStructure::buildRod(const Design& structure, std::size_t index,
   rod.path = "rods[" + std::to_string(index) + "]";
   rod.source = &src;
   refuseUnevenWeights(*this, src, rod.path);
+  refuseStoppingParameter(*this, src, rod.path);
   RodBasisChoice choice = chooseBasis(*this, src, index, discretization, rod.path);
   // Spans the user chose are kept (a kink on a collocation point is then refused); automatic ones
   // grow by one until no kink of E(s) is a collocation point.
