@@ -36,9 +36,11 @@ private:
   };
   void checkCriticalPoint(Eigen::VectorXd& x, double fromLoad, double toLoad);
   CriticalPoint bisectCrossing(Sample low, Sample high);
+  bool jumpedAcross(const Sample& outerLow, const Sample& outerHigh, const Sample& low, const Sample& high) const;
   Eigen::VectorXd criticalMode(bool transposed) const;
   double loadAlignment(const Eigen::VectorXd& x, double load, const Eigen::VectorXd& psi) const;
   bool switchBranch(Eigen::VectorXd& x, double load);
+  bool jumpPastBranchEnd(Eigen::VectorXd& x, double load, double smallest, double planned, double& target, LoadStepReport& report);
   bool factorizeAt(const Eigen::VectorXd& x, double load, JacobianLU::Pivoting pivoting = JacobianLU::Pivoting::Reuse);
   void classify(CriticalPoint& point, const Eigen::VectorXd& x, double load);
   void finish();
@@ -46,7 +48,7 @@ private:
   // Dips of |det J| (path_follower_dips.cpp).
   Sample sampleHere(const Eigen::VectorXd& x, double load) const;
   std::optional<Sample> sampleAt(Eigen::VectorXd x, double load, int iterations = 12);
-  void lookForDips(const Eigen::VectorXd& x, double load, bool branchSwitched);
+  void lookForDips(const Eigen::VectorXd& x, double load, bool otherBranch);
   void lookForDipAtEnd();
   void searchDip(Sample lo, Sample best, Sample hi);
   bool narrowDip(Sample& lo, Sample& best, Sample& hi, double width);
@@ -69,6 +71,7 @@ private:
   double residualTolerance_ = 0.0;  // set by factorizeReference, which every solve starts with
   int maxIterations_ = options_.maxIterations;  // Newton's, lower while sampling a dip (sampleAt)
   bool sampledSinceFresh_ = false;  // factorizations near singular matrices since the last with fresh pivots
+  Eigen::VectorXd uncutState_;  // where the last step of the planned size ended (jumpPastBranchEnd)
   Solution solution_;
 };
 

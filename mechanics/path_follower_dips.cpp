@@ -35,8 +35,8 @@ constexpr double kLogDetNoise = 1e-6;
 // neighbours', all of one sign, is searched (searchDip) for what det J's sign cannot show: two
 // eigenvalues crossing zero together, or a limit point the path jumped past. The first step also
 // probes just past the reference: |det J| may dip before it.
-void PathFollower::lookForDips(const Eigen::VectorXd& x, double load, bool branchSwitched) {
-  if (branchSwitched) recent_.clear();  // another branch: nothing before it is comparable
+void PathFollower::lookForDips(const Eigen::VectorXd& x, double load, bool otherBranch) {
+  if (otherBranch) recent_.clear();  // switched or jumped onto another branch: nothing before it is comparable
   recent_.push_back(sampleHere(x, load));
   if (recent_.size() > 3) recent_.erase(recent_.begin());
   if (options_.criticalLoadTolerance >= 1) return;

@@ -246,8 +246,12 @@ void PathFollower::classify(CriticalPoint& point, const Eigen::VectorXd& x, doub
 
 // One crossing between equilibria `low` and `high` (by load) of opposite signs of det J, bisected to
 // the load tolerance (Newton with the step's own iteration limit, from the side below or, where it
-// fails there, from the side above) and classified at the equilibrium nearest past it.
+// fails there, from the side above) and classified at the equilibrium nearest past it. When the
+// bracket's two sides lie on different branches it is a limit point the path jumped past (the branch
+// through `low` ends inside it), classified at that end: a clamped arch's snap passed as a
+// "bifurcation" with the snapped state's mode (jumpedAcross).
 CriticalPoint PathFollower::bisectCrossing(Sample low, Sample high) {
+  const Sample outerLow = low, outerHigh = high;
   for (int i = 0; i < 60 && high.load - low.load > options_.criticalLoadTolerance; ++i) {
     const double load = 0.5 * (low.load + high.load);
     std::optional<Sample> middle = sampleAt(low.state, load, options_.maxIterations);
@@ -257,8 +261,21 @@ CriticalPoint PathFollower::bisectCrossing(Sample low, Sample high) {
   }
   CriticalPoint point;
   point.fromLoad = low.load, point.toLoad = high.load;
-  classify(point, high.state, high.load);
+  point.snapThrough = jumpedAcross(outerLow, outerHigh, low, high);
+  const Sample& at = point.snapThrough ? low : high;
+  classify(point, at.state, at.load);
   return point;
+}
+
+// Whether the narrowed bracket [low, high] of [outerLow, outerHigh] spans a jump between branches: the
+// state across it moved more than three times the whole step's move scaled to its width as the
+// square root (towards a limit point a branch's state runs as the root of the load distance; across a
+// crossing on one branch it moves as the width). A bracket not narrowed at least fourfold tells nothing.
+bool PathFollower::jumpedAcross(const Sample& outerLow, const Sample& outerHigh, const Sample& low, const Sample& high) const {
+  const double outerWidth = outerHigh.load - outerLow.load, width = high.load - low.load;
+  if (!(width < 0.25 * outerWidth) || low.state.size() == 0 || high.state.size() == 0) return false;
+  const double outerMove = problem_.stepNorm(outerHigh.state - outerLow.state);
+  return problem_.stepNorm(high.state - low.state) > 3 * outerMove * std::sqrt(width / outerWidth) + 1e-9;
 }
 
 // Called after each converged step, x being the new state at `toLoad` and solution_.state the
@@ -270,6 +287,7 @@ void PathFollower::checkCriticalPoint(Eigen::VectorXd& x, double fromLoad, doubl
   ++signChanges_;
   CriticalPoint point = bisectCrossing({fromLoad, 0.0, before, solution_.state}, {toLoad, 0.0, after, x});
   factorizeAt(x, toLoad);
+  if (point.snapThrough) signChanges_ = pairedCrossings_ = 0;  // another branch: its sign alone tells, as after a switch
   if (options_.followStableBranch && point.kind == CriticalPoint::Kind::Bifurcation && after < 0 &&
       switchBranch(x, toLoad)) {
     point.branchSwitched = true;
@@ -300,6 +318,7 @@ Solution PathFollower::run(int steps, const StepCallback& onStep) {
   solution_.state = problem_.referenceState();
   factorizeReference();
   recent_ = {sampleHere(solution_.state, 0.0)};
+  uncutState_ = solution_.state;
   const double planned = 1.0 / steps;
   double load = 0.0, step = planned;
   int halvings = 0;  // of the planned step, in force
@@ -309,39 +328,76 @@ Solution PathFollower::run(int steps, const StepCallback& onStep) {
     if (target > 1.0 - 1e-9 * step) target = 1.0;
     Eigen::VectorXd x = solution_.state;
     LoadStepReport report;
-    if (newton(x, target, report) == Outcome::Converged) {
-      // det J's sign where the step ended: Newton's last factorization was at an iterate before its last
-      // correction (on a nearly linear path the previous step's state), which put critical points one
-      // step late. With dead loads the next step's first factorization is this one again (factorize).
-      factorizeAt(x, target);
-      const std::size_t pointsBefore = solution_.criticalPoints.size();
-      checkCriticalPoint(x, load, target);
-      previousSign_ = relativeSign_;
-      lookForDips(x, target, solution_.criticalPoints.size() > pointsBefore && solution_.criticalPoints.back().branchSwitched);
-      solution_.state = std::move(x);
-      report.index = static_cast<int>(solution_.steps.size()) + 1;
-      report.increment = target - load;
-      report.loadFactor = load = target;
-      report.cuts = halvings;
-      report.determinantSign = relativeSign_;
-      if (onStep) onStep(report, solution_.state);
-      // After a cut, grow the step back towards the planned one when Newton converged easily.
-      if (halvings > 0 && report.residuals.size() <= 5) step = planned / std::ldexp(1.0, --halvings);
-      solution_.steps.push_back(std::move(report));
+    const bool converged = newton(x, target, report) == Outcome::Converged;
+    const std::size_t pointsBefore = solution_.criticalPoints.size();
+    if (!converged && ++halvings <= options_.maxStepCuts) {
+      step = planned / std::ldexp(1.0, halvings);
       continue;
     }
-    if (++halvings > options_.maxStepCuts)
+    // The branch ends within the smallest step: under load control the structure snaps onto another
+    // branch there, which coarser steps had jumped onto (a clamped arch: 3 to 40 steps snapped, 60 or
+    // more stopped at the limit point with an error).
+    if (!converged && !jumpPastBranchEnd(x, load, step, planned, target, report))
       throw ConvergenceError(problem_.source() + ": Newton did not converge beyond load factor " + format(load) +
-                                 " even with the step cut to " + format(step / 2) +
+                                 " even with the step cut to " + format(step) +
                                  "; try more load steps (--load-steps), a finer discretization (--spans) or "
                                  "check the loads (a buckling or snap-through point?)",
                              load);
-    step = planned / std::ldexp(1.0, halvings);
+    // det J's sign where the step ended: Newton's last factorization was at an iterate before its last
+    // correction (on a nearly linear path the previous step's state), which put critical points one
+    // step late. With dead loads the next step's first factorization is this one again (factorize).
+    factorizeAt(x, target);
+    if (converged) checkCriticalPoint(x, load, target);
+    previousSign_ = relativeSign_;
+    const bool otherBranch = solution_.criticalPoints.size() > pointsBefore &&
+                             (solution_.criticalPoints.back().branchSwitched || solution_.criticalPoints.back().snapThrough);
+    lookForDips(x, target, otherBranch);
+    solution_.state = std::move(x);
+    report.index = static_cast<int>(solution_.steps.size()) + 1;
+    report.increment = target - load;
+    report.loadFactor = load = target;
+    report.cuts = halvings;
+    report.determinantSign = relativeSign_;
+    if (onStep) onStep(report, solution_.state);
+    // After a cut, grow the step back towards the planned one when Newton converged easily.
+    if (!converged) halvings = 0, step = planned;
+    else if (halvings > 0 && report.residuals.size() <= 5) step = planned / std::ldexp(1.0, --halvings);
+    if (halvings == 0) uncutState_ = solution_.state;
+    solution_.steps.push_back(std::move(report));
   }
   lookForDipAtEnd();
   finish();
   solution_.totalSeconds = seconds(start);
   return std::move(solution_);
+}
+
+// Where Newton finds no equilibrium from the last one (solution_.state at `load`) even `smallest` on:
+// the planned step and its doublings, up to load 1, until Newton lands on one (x, at `target`, its
+// `report`). Recorded as a snap-through between `load` and `load + smallest`, classified at the
+// branch's end, the path continuing on the new branch (its sign of det J alone tells). False when
+// none is found.
+bool PathFollower::jumpPastBranchEnd(Eigen::VectorXd& x, double load, double smallest, double planned, double& target,
+                                     LoadStepReport& report) {
+  // From the branch's end J is nearly singular and Newton's first correction flies off: the state
+  // where the steps began to be cut is tried too (a clamped arch jumped from there).
+  const auto lands = [&] {
+    for (const Eigen::VectorXd* from : {&solution_.state, &uncutState_})
+      for (double increment = planned; from->size() > 0; increment *= 2) {
+        target = std::min(1.0, load + increment);
+        x = *from;
+        report = LoadStepReport{};
+        if (newton(x, target, report) == Outcome::Converged) return true;
+        if (target >= 1.0) break;
+      }
+    return false;
+  };
+  if (!lands()) return false;
+  CriticalPoint point;
+  point.fromLoad = load, point.toLoad = load + smallest, point.snapThrough = true;
+  classify(point, solution_.state, load);
+  solution_.criticalPoints.push_back(point);
+  signChanges_ = pairedCrossings_ = 0;
+  return true;
 }
 
 // Newton at load 1 straight from `start`; none if it does not converge.

@@ -316,6 +316,42 @@ TEST_CASE("a shallow arch that snaps through: the limit point the load path jump
   }
 }
 
+TEST_CASE("a parabolic arch snaps through at one load whatever the step count: jumped, or stopped at its limit and "
+          "continued", "[mechanics]") {
+  // Clamped at both ends, span 100 mm, rise 2 mm, 1 mm round, E 100 MPa, 0.01 N down at its middle. Its
+  // symmetric branch ends at a limit point near 0.1753 of the load (after an asymmetric bifurcation
+  // near 0.154). Coarse steps jumped past it and det J's sign change was bisected across the two
+  // branches: a "bifurcation", no warning; 60 steps and more stopped there with an error.
+  Design s;
+  s.source = "arch";
+  s.rods.push_back(test::rod("arch", geometry::NurbsCurve(2, {0, 0, 0, 1, 1, 1}, {Vec3(-50, 0, 0), Vec3(0, 4, 0), Vec3(50, 0, 0)}),
+                             Section::circle(1.0), 100));
+  s.mechanics.present = true;
+  clamp(s, at("arch", mechanics::RodEnd::Start));
+  clamp(s, at("arch", mechanics::RodEnd::End));
+  test::load(s, atParameter("arch", 0.5), Vec3(0, -0.01, 0));
+  const StaticProblem problem(s);
+  std::optional<double> snappedMiddle;
+  for (const int steps : {3, 10, 40, 100, 300}) {
+    INFO(steps << " load steps");
+    const auto solution = mechanics::solve(problem, {}, steps);
+    std::vector<mechanics::CriticalPoint> snaps;
+    for (const auto& c : solution.criticalPoints)
+      if (c.snapThrough) snaps.push_back(c);
+    REQUIRE(snaps.size() == 1);
+    INFO("snap bracket [" << snaps[0].fromLoad << ", " << snaps[0].toLoad << "]");
+    CHECK(snaps[0].kind == mechanics::CriticalPoint::Kind::LimitPoint);
+    CHECK(snaps[0].toLoad - snaps[0].fromLoad <= 1e-3 + 1e-12);
+    CHECK(snaps[0].fromLoad <= 0.17535);
+    CHECK(snaps[0].toLoad >= 0.17534);
+    CHECK(solution.stability == mechanics::Stability::Stable);  // the snapped arch, below its supports
+    const double middle = problem.position(solution.state, 0, 0.5).y();
+    CHECK(middle < -2);
+    if (!snappedMiddle) snappedMiddle = middle;
+    CHECK(middle == Approx(*snappedMiddle).margin(1e-6));
+  }
+}
+
 TEST_CASE("dips of |det J| next to Newton's failures neither crash nor invent critical points", "[mechanics]") {
   const double E = 100;
   const auto euler = [&](double L, double I) { return kPi * kPi * E * I / (4 * L * L); };
