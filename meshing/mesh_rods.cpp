@@ -383,6 +383,7 @@ MeshRods rodsFromMesh(const std::filesystem::path& file, const MeshRodOptions& o
   original = translated(std::move(original), -origin);
   const TriangleMesh simplified = simplifies ? simplifyMesh(original, options.faces) : original;
   report.simplifiedVertices = simplified.points.size(), report.simplifiedFaces = simplified.triangles.size();
+  report.requestedFaces = static_cast<std::size_t>(options.faces);
   report.simplifySeconds = common::secondsSince(clock);
   clock = std::chrono::steady_clock::now();
   out.structure = buildRods(file, original, simplified, options, report, origin);

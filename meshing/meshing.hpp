@@ -64,6 +64,9 @@ struct MeshRodReport {
   std::size_t inputVertices = 0, inputFaces = 0;  // after welding duplicate vertices
   std::size_t weldedVertices = 0;                 // vertices removed by welding (STL repeats every corner)
   std::size_t simplifiedVertices = 0, simplifiedFaces = 0;
+  // The faces asked for (MeshRodOptions::faces). The simplification stops above them where every
+  // further collapse would turn a face's normal over (a plate thinner than its triangles are wide).
+  std::size_t requestedFaces = 0;
   std::size_t nodes = 0, rods = 0;
   std::size_t boundaryEdges = 0;   // edges of the simplified mesh with one face: no rod crosses them
   std::size_t components = 0;      // connected parts of the rod structure (1 for a connected mesh)

@@ -10,7 +10,7 @@ nlohmann::json meshRodsJson(const MeshRodsSummary& s) {
   const geometry::Box3 box = s.rods.bounds();
   return {{"mesh", s.mesh}, {"output", s.output},
           {"input", {{"vertices", r.inputVertices}, {"faces", r.inputFaces}, {"welded_vertices", r.weldedVertices}}},
-          {"simplified", {{"vertices", r.simplifiedVertices}, {"faces", r.simplifiedFaces}, {"boundary_edges", r.boundaryEdges}}},
+          {"simplified", {{"vertices", r.simplifiedVertices}, {"faces", r.simplifiedFaces}, {"faces_requested", r.requestedFaces}, {"boundary_edges", r.boundaryEdges}}},
           {"nodes", r.nodes}, {"rods", r.rods}, {"components", r.components},
           {"surface", {{"tolerance_mm", s.surfaceToleranceMm}, {"largest_distance_mm", r.largestSurfaceDistance},
                        {"refined_rods", r.refinedRods}, {"rods_above_tolerance", r.rodsAboveTolerance},
@@ -40,6 +40,10 @@ void printMeshRodsLines(const MeshRodsSummary& s) {
 
 void warnMeshRods(const MeshRodsSummary& s) {
   const meshing::MeshRodReport& r = s.report;
+  if (r.simplifiedFaces > r.requestedFaces)
+    std::fprintf(stderr, "warning: the mesh simplified to %zu faces, not the %zu asked for (--faces): every further edge "
+                 "collapse would turn a face over (a surface folded or thinner than its triangles are wide); the rods "
+                 "follow the %zu faces\n", r.simplifiedFaces, r.requestedFaces, r.simplifiedFaces);
   if (r.rodsAboveTolerance > r.rodsHeldOffCreases)
     std::fprintf(stderr, "warning: %zu rods leave the surface by up to %.3g mm, more than --surface-tolerance %g: "
                  "give more --faces or --subdivisions\n", r.rodsAboveTolerance - r.rodsHeldOffCreases, r.largestSurfaceDistance,

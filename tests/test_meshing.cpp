@@ -115,6 +115,20 @@ TEST_CASE("the dual of a closed mesh: F nodes of degree 3, 3F/2 rods, one connec
   }
 }
 
+TEST_CASE("a surface thinner than its triangles stops simplifying above the faces asked for, and says how many", "[meshing]") {
+  // Every collapse left would turn a face over (Bounded_normal_change_placement): a 100 mm disc-like
+  // ellipsoid 0.002 mm thick stops above --faces; the count asked for is reported beside the one made.
+  const fs::path file = scratch("wafer.obj");
+  testing::writeObj(testing::ellipsoid(12, 50, 50, 0.001), file);  // 2,880 triangles
+  meshing::MeshRodOptions options;
+  options.faces = 20;
+  const meshing::MeshRods result = meshing::rodsFromMesh(file, options);
+  INFO("simplified to " << result.report.simplifiedFaces);
+  CHECK(result.report.requestedFaces == 20);
+  CHECK(result.report.simplifiedFaces > 20);
+  CHECK(result.structure.rods.size() == 3 * result.report.simplifiedFaces / 2);
+}
+
 TEST_CASE("an open mesh: boundary edges give no rod", "[meshing]") {
   // The upper half of an ellipsoid (triangles with every corner at z >= 0).
   testing::SimpleMesh full = testing::ellipsoid(10, 20, 20, 10), half;
