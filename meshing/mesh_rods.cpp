@@ -160,14 +160,39 @@ struct FitMeasures {
   double bendRadius = std::numeric_limits<double>::infinity();      // mm, smallest radius of curvature
 };
 
-// The centerline's largest distance from the surface and its smallest radius of curvature, both at
-// kChecksPerSpan + 1 points of every knot span.
-FitMeasures measureFit(const geometry::NurbsCurve& curve, const SurfaceProjector& surface) {
+// The centerline's largest distance from the surface: sampled at kChecksPerSpan + 1 points of every
+// knot span, then each sample that is a local maximum within 0.7 of the largest narrowed by golden
+// section between its neighbours (the samples alone read 4 to 15 % low: a rod said to be within
+// 0.0275 mm of an icosphere reached 0.0316 mm between them).
+double largestSurfaceDistance(const geometry::NurbsCurve& curve, const SurfaceProjector& surface) {
   const std::vector<double> breaks = curve.breakpoints();
-  FitMeasures m;
+  std::vector<double> us, distances;
   for (std::size_t s = 0; s + 1 < breaks.size(); ++s)
-    for (int i = 0; i <= kChecksPerSpan; ++i)
-      m.surfaceDistance = std::max(m.surfaceDistance, surface.distance(curve.point(breaks[s] + (breaks[s + 1] - breaks[s]) * i / kChecksPerSpan)));
+    for (int i = s == 0 ? 0 : 1; i <= kChecksPerSpan; ++i) us.push_back(breaks[s] + (breaks[s + 1] - breaks[s]) * i / kChecksPerSpan);
+  for (double u : us) distances.push_back(surface.distance(curve.point(u)));
+  const double sampled = *std::max_element(distances.begin(), distances.end());
+  double largest = sampled;
+  const auto at = [&](double u) { return surface.distance(curve.point(u)); };
+  for (std::size_t i = 0; i < us.size(); ++i) {
+    const bool peak = (i == 0 || distances[i] >= distances[i - 1]) && (i + 1 == us.size() || distances[i] >= distances[i + 1]);
+    if (!peak || distances[i] < 0.7 * sampled) continue;
+    double lo = us[i > 0 ? i - 1 : 0], hi = us[std::min(i + 1, us.size() - 1)];
+    for (int k = 0; k < 40 && hi - lo > 1e-12; ++k) {
+      const double a = hi - 0.6180339887498949 * (hi - lo), b = lo + 0.6180339887498949 * (hi - lo);
+      const double da = at(a), db = at(b);
+      largest = std::max({largest, da, db});
+      if (da > db) hi = b;
+      else lo = a;
+    }
+  }
+  return largest;
+}
+
+// The centerline's largest distance from the surface and its smallest radius of curvature (at
+// kChecksPerSpan + 1 points of every knot span).
+FitMeasures measureFit(const geometry::NurbsCurve& curve, const SurfaceProjector& surface) {
+  FitMeasures m;
+  m.surfaceDistance = largestSurfaceDistance(curve, surface);
   m.bendRadius = smallestBendRadius(curve, kChecksPerSpan);
   return m;
 }
