@@ -51,6 +51,7 @@
 #include <map>
 #include <string>
 #include <string_view>
+#include <unordered_set>
 #include <vector>
 
 namespace rodfab::meshing::detail {
@@ -81,6 +82,8 @@ struct StepScan {
   char previous = 0;
   bool inId = false;  // after '#', reading digits
   long long id = 0;
+  bool idEnded = false;  // an id just read outside any list: a definition if '=' follows
+  std::unordered_set<long long> defined;  // ids of the entities defined so far ("#12 = ...")
   long long commas[kMaxStepNesting + 1] = {};  // in the open list at each depth
   double squares = 0;                          // sum of the closed lists' lengths squared
   std::string word;                            // the keyword being read (the entity type before its '(')
@@ -125,6 +128,15 @@ void scanChar(StepScan& s, char c, const std::filesystem::path& file) {
       return;
     }
     s.inId = false;
+    s.idEnded = s.depth == 0;
+  }
+  if (s.idEnded && c != ' ' && c != '\n' && c != '\r' && c != '\t') {
+    // OpenCASCADE keeps the first of two definitions of one id and says nothing: edges ended at the
+    // wrong point (a box's corner left open, exit 0).
+    s.idEnded = false;
+    if (c == '=' && !s.defined.insert(s.id).second)
+      throw MeshError(file, "line " + std::to_string(s.line) + ": entity #" + std::to_string(s.id) +
+                                " is defined a second time (STEP gives every entity one id; which one was meant cannot be told)");
   }
   if (s.inComment) {
     if (s.previous == '*' && c == '/') s.inComment = false, c = 0;  // "*/*" must not reopen

@@ -64,6 +64,15 @@ TEST_CASE("STEP files OpenCASCADE would crash on are refused, naming the entity 
   std::string noDirection = stepModel(splineData());
   noDirection.replace(noDirection.find("DIRECTION('',(0.,0.,1.))"), 24, "DIRECTION('',())");
   CHECK_THAT(cadError("nodirection.step", noDirection), Contains("an empty list in a DIRECTION, where STEP requires at least one"));
+  // An id defined twice: OpenCASCADE kept the first and said nothing (a box's corner left open, exit 0).
+  // References to an id (inside lists) are not definitions.
+  CHECK_THAT(cadError("twice.step", stepModel(splineData() + "#19 = CARTESIAN_POINT('',(5.,5.,5.));\n")),
+             Contains("entity #19 is defined a second time"));
+  CHECK(meshing::rodsFromCad([&] {
+          const fs::path file = scratch("references.step");
+          std::ofstream(file) << stepModel(splineData() + "#31 = GEOMETRIC_CURVE_SET('',(#17, #17));\n");
+          return file;
+        }(), {}).structure.rods.size() >= 1);
   // Text in strings and comments is not counted.
   const std::string hostile = "#99999999999999999999 " + std::string(100, '(');
   std::string named = splineData();
