@@ -250,11 +250,19 @@ FittedRod fitRod(const TriangleMesh& simplified, const SurfaceProjector& surface
 
 // The surface normal at the rod's first node, or the simplified face's normal where the surface's
 // normal lies too close to the centerline's tangent to seed a frame.
+// Where both lie along the tangent (a rod crossing the rim of a plate thinner than its faces are wide:
+// 1e-7 mm, every rim face's normal along the rod), the coordinate axis most across the tangent, made
+// perpendicular: the design was refused, "the reference normal is parallel to the centerline's tangent"
+// of a rod the user never drew.
 Vec3 referenceNormal(const geometry::NurbsCurve& curve, const Node& node, const Vec3& faceNormal) {
   Vec3 d[2];
   curve.derivatives(curve.domainBegin(), 1, d);
   const Vec3 t = d[1].normalized();
-  return std::abs(node.normal.dot(t)) < 0.9 ? node.normal : faceNormal;
+  for (const Vec3& n : {node.normal, faceNormal})
+    if (std::abs(n.dot(t)) < 0.9) return n;
+  Eigen::Index axis = 0;
+  t.cwiseAbs().minCoeff(&axis);
+  return (Vec3::Unit(axis) - t * t[axis]).normalized();
 }
 
 std::size_t countComponents(std::size_t faces, const std::vector<DualEdge>& edges) {

@@ -100,7 +100,8 @@ struct MeshRods {
 //    to the original surface, and a cubic NURBS
 //    interpolates the node, the points and the other node (chord-length parameters on [0, 1]);
 //  - boundary edges of an open mesh give no rod (their faces' nodes have fewer than 3 rods);
-//  - the frame's reference normal is the original surface's normal at the rod's first node.
+//  - the frame's reference normal is the original surface's normal at the rod's first node (the
+//    simplified face's, or an axis made perpendicular, where those lie along the rod).
 // Polygons with more than 3 corners are split into a fan of triangles from their first corner.
 // Throws MeshError when the file is unreadable, empty or not a mesh, has non-finite coordinates, a
 // degenerate face (two corners at one point, or zero area), an edge of more than two faces or a vertex
