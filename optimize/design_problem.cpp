@@ -260,12 +260,15 @@ std::vector<CaseAccuracy> DesignProblem::accuracyAt(const Eigen::VectorXd& modul
     mechanics::Design s = *c.structure;
     s.rods = rods;
     mechanics::ErrorEstimate e;
+    std::optional<mechanics::Stability> stability;
+    std::vector<mechanics::CriticalPoint> criticalPoints;
     // The spans were chosen for the starting E(s): a steeper optimum may need more (told, not refined).
     const mechanics::StaticProblem kept(s, c.problem->discretization());
     const std::optional<mechanics::UnderResolvedRod> underResolved = kept.leastResolvedRod();
     try {
       const mechanics::Solution sol = mechanics::solve(kept, m.settings.solver, c.loadSteps,
                                                        [&](const mechanics::LoadStepReport&, const Eigen::VectorXd&) { if (poll) poll(); });
+      stability = sol.stability, criticalPoints = sol.criticalPoints;
       mechanics::Discretization finer = c.problem->discretization();
       for (int& spans : finer.perRod) spans = std::min(2 * spans, mechanics::kMaxSpansPerRod);
       const mechanics::StaticProblem fine(s, finer);
@@ -282,7 +285,7 @@ std::vector<CaseAccuracy> DesignProblem::accuracyAt(const Eigen::VectorXd& modul
       e.available = false;
       e.note = std::string("a solve does not converge: ") + err.what();
     }
-    out.push_back({c.name, e, underResolved});
+    out.push_back({c.name, e, underResolved, stability, std::move(criticalPoints)});
   }
   return out;
 }

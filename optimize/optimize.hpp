@@ -85,6 +85,11 @@ struct CaseAccuracy {
   std::string name;
   mechanics::ErrorEstimate estimate;  // available == false with a note when it could not be made
   std::optional<mechanics::UnderResolvedRod> underResolved;  // StaticProblem::leastResolvedRod at the optimum
+  // What the load path from the drawn shape at the optimum's E(s) met (mechanics::solve): its critical
+  // points and the final state's stability; none when that solve did not converge. The optimizer's
+  // own solves continue from the previous E(s) and look for neither.
+  std::optional<mechanics::Stability> stability;
+  std::vector<mechanics::CriticalPoint> criticalPoints;
 };
 
 // The training cases of a design, each a discretized structure with its targets.
@@ -115,7 +120,8 @@ public:
   // The equilibrium states of the last evaluate(), per case.
   const Eigen::VectorXd& state(std::size_t c) const;
   // How accurate the equilibria at `modulus` are: per case, a fresh solve along the load path on the
-  // optimizer's discretization and one with twice the spans from it (Newton at full load); the
+  // optimizer's discretization (whose critical points and stability are kept) and one with twice the
+  // spans from it (Newton at full load); the
   // largest difference d of centerline displacements gives the optimizer's level's error
   // d r / (r - 1), r = 2^(order - 2) (optimize/README.md), at about three solves' cost. `poll`
   // (may be empty) is called before each case, after each load step and before the finer solve;

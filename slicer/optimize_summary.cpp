@@ -22,7 +22,9 @@ nlohmann::json casesJson(const optimize::Result& r, const std::vector<optimize::
     cases.push_back({{"name", b.name}, {"weight", b.weight}, {"objective_initial", a.total()}, {"objective_final", b.total()},
                      {"position_final", b.position}, {"curvature_final", b.curvature},
                      {"error_estimate", estimateJson(accuracy.at(i).estimate)},
-                     {"under_resolved", underResolvedJson(accuracy.at(i).underResolved)}});
+                     {"under_resolved", underResolvedJson(accuracy.at(i).underResolved)},
+                     {"stability", accuracy.at(i).stability ? nlohmann::json(stabilityName(*accuracy.at(i).stability)) : nlohmann::json()},
+                     {"critical_points", criticalPointsJson(accuracy.at(i).criticalPoints)}});
   }
   return cases;
 }
@@ -66,6 +68,25 @@ void printAccuracy(const std::vector<optimize::CaseAccuracy>& accuracy) {
   }
 }
 
+// Per case, what the load path at the optimum met: the trained shape is reached from the drawn one
+// under the case's loads, and an optimum past a snap-through or in an unstable state is no design
+// (the optimizer's own solves continue from the previous E(s) and see neither).
+void printStability(const std::vector<optimize::CaseAccuracy>& accuracy) {
+  for (const optimize::CaseAccuracy& a : accuracy) {
+    if (!a.stability) continue;
+    std::printf("stability: case \"%s\": %s", a.name.c_str(), stabilityName(*a.stability));
+    for (const mechanics::CriticalPoint& c : a.criticalPoints) std::printf("; %s", describeCriticalPoint(c).c_str());
+    std::printf("\n");
+    const bool snaps = std::any_of(a.criticalPoints.begin(), a.criticalPoints.end(), [](const auto& c) { return c.snapThrough; });
+    if (snaps || *a.stability != mechanics::Stability::Stable)
+      std::fprintf(stderr, "warning: case \"%s\": at the optimum's E(s) the load path %s: the trained shape may not be the one "
+                           "the printed part takes; check the optimized design with rodfab simulate\n",
+                   a.name.c_str(), snaps ? "snaps through onto another branch"
+                                         : *a.stability == mechanics::Stability::Unstable ? "ends in an unstable equilibrium"
+                                                                                          : "passes critical points (stability undetermined)");
+  }
+}
+
 }  // namespace
 
 void printOptimizeIteration(const optimize::Iteration& it) {
@@ -103,6 +124,7 @@ void printOptimizeSummary(const OptimizeSummary& summary) {
     std::printf("  case %-20s weight %-6g g %.6g -> %.6g\n", ("\"" + r.final.cases[i].name + "\"").c_str(),
                 r.final.cases[i].weight, r.initial.cases[i].total(), r.final.cases[i].total());
   printAccuracy(summary.accuracy);
+  printStability(summary.accuracy);
   // The fields' control values, which bound E(s) (a B-spline lies in their range) but are not its extremes.
   std::printf("modulus:   control values %.4g .. %.4g MPa (E(s) lies within them)\ntime:      %.2f s\nwrote:     %s\n",
               r.modulus.minCoeff(), r.modulus.maxCoeff(), r.seconds, c.output.c_str());

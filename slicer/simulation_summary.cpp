@@ -8,25 +8,6 @@ namespace rodfab::cli {
 
 namespace {
 
-const char* stabilityName(mechanics::Stability s) {
-  switch (s) {
-    case mechanics::Stability::Stable: return "stable";
-    case mechanics::Stability::Unstable: return "unstable";
-    case mechanics::Stability::Undetermined: return "undetermined";
-  }
-  return "?";
-}
-
-std::string describe(const mechanics::CriticalPoint& c) {
-  char buf[256];
-  std::snprintf(buf, sizeof buf, "%s%s between load factors %.6g and %.6g%s%s",
-                c.kind == mechanics::CriticalPoint::Kind::Bifurcation ? "bifurcation" : "limit point",
-                c.crossings == 2 ? " of two modes at once (det J kept its sign)" : "", c.fromLoad, c.toLoad,
-                c.branchSwitched ? " (continued on the stable branch)" : "",
-                c.snapThrough ? " (snap-through: the load path jumped past it onto another branch)" : "");
-  return buf;
-}
-
 std::string basisSummary(const mechanics::StaticProblem& problem, const mechanics::Discretization& asked) {
   const mechanics::Discretization& d = problem.discretization();
   const auto [lo, hi] = std::minmax_element(d.perRod.begin(), d.perRod.end());
@@ -65,16 +46,6 @@ nlohmann::json caveatJson(const std::optional<std::string>& caveat) {
   return caveat ? nlohmann::json(*caveat) : nlohmann::json(nullptr);
 }
 
-nlohmann::json criticalPointsJson(const std::vector<mechanics::CriticalPoint>& points) {
-  nlohmann::json critical = nlohmann::json::array();
-  for (const auto& c : points)
-    critical.push_back({{"kind", c.kind == mechanics::CriticalPoint::Kind::Bifurcation ? "bifurcation" : "limit_point"},
-                        {"from_load", c.fromLoad}, {"to_load", c.toLoad}, {"crossings", c.crossings},
-                        {"load_alignment", c.loadAlignment},
-                        {"branch_switched", c.branchSwitched}, {"snap_through", c.snapThrough}});
-  return critical;
-}
-
 // The accuracy line, and the warning when the estimate is missing or above the tolerance.
 void printAccuracy(const mechanics::ErrorEstimate& e, const mechanics::AccuracyOptions& accuracy) {
   if (!accuracy.estimate) std::printf("accuracy:  not estimated (--no-estimate)\n");
@@ -90,7 +61,7 @@ void printAccuracy(const mechanics::ErrorEstimate& e, const mechanics::AccuracyO
 void printStability(const mechanics::Solution& sol, const std::optional<std::string>& caveat, bool followStableBranch) {
   std::printf("stability: %s", stabilityName(sol.stability));
   if (caveat && sol.stability == mechanics::Stability::Stable) std::printf(" as far as det J tells (%s)", caveat->c_str());
-  for (const auto& c : sol.criticalPoints) std::printf("; %s", describe(c).c_str());
+  for (const auto& c : sol.criticalPoints) std::printf("; %s", describeCriticalPoint(c).c_str());
   std::printf("\n");
   const bool paired = !sol.criticalPoints.empty() && sol.criticalPoints.back().crossings == 2;
   if (sol.stability == mechanics::Stability::Unstable)
@@ -109,6 +80,35 @@ void printStability(const mechanics::Solution& sol, const std::optional<std::str
 }
 
 }  // namespace
+
+const char* stabilityName(mechanics::Stability s) {
+  switch (s) {
+    case mechanics::Stability::Stable: return "stable";
+    case mechanics::Stability::Unstable: return "unstable";
+    case mechanics::Stability::Undetermined: return "undetermined";
+  }
+  return "?";
+}
+
+std::string describeCriticalPoint(const mechanics::CriticalPoint& c) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "%s%s between load factors %.6g and %.6g%s%s",
+                c.kind == mechanics::CriticalPoint::Kind::Bifurcation ? "bifurcation" : "limit point",
+                c.crossings == 2 ? " of two modes at once (det J kept its sign)" : "", c.fromLoad, c.toLoad,
+                c.branchSwitched ? " (continued on the stable branch)" : "",
+                c.snapThrough ? " (snap-through: the load path jumped past it onto another branch)" : "");
+  return buf;
+}
+
+nlohmann::json criticalPointsJson(const std::vector<mechanics::CriticalPoint>& points) {
+  nlohmann::json critical = nlohmann::json::array();
+  for (const auto& c : points)
+    critical.push_back({{"kind", c.kind == mechanics::CriticalPoint::Kind::Bifurcation ? "bifurcation" : "limit_point"},
+                        {"from_load", c.fromLoad}, {"to_load", c.toLoad}, {"crossings", c.crossings},
+                        {"load_alignment", c.loadAlignment},
+                        {"branch_switched", c.branchSwitched}, {"snap_through", c.snapThrough}});
+  return critical;
+}
 
 void printLoadStep(const mechanics::LoadStepReport& r) {
   std::printf("step %3d  load %.4f  Newton:", r.index, r.loadFactor);

@@ -42,6 +42,14 @@ LargestDisplacement largestDisplacement(const mechanics::Design& design, const m
 nlohmann::json underResolvedJson(const std::optional<mechanics::UnderResolvedRod>& rod);
 void warnUnderResolved(const std::optional<mechanics::UnderResolvedRod>& rod, const std::string& context, const std::string& remedy);
 
+// The stability verdict's word ("stable", "unstable", "undetermined"); a critical point as the
+// summary describes it ("limit point between load factors A and B (snap-through: ...)"), and the
+// points as JSON {kind, from_load, to_load, crossings, load_alignment, branch_switched, snap_through}.
+// simulate and optimize both say them.
+const char* stabilityName(mechanics::Stability stability);
+std::string describeCriticalPoint(const mechanics::CriticalPoint& point);
+nlohmann::json criticalPointsJson(const std::vector<mechanics::CriticalPoint>& points);
+
 // A finished simulation, as the summary reports it.
 struct SimulationSummary {
   const std::string& design;  // the files as given

@@ -37,6 +37,7 @@ PY
 
 "$rodfab" optimize "$tmp/start.json" -o "$tmp/optimized.json" --plot "$tmp/history.png" --render "$tmp/shapes.png" > "$tmp/out" 2>&1 ||
   fail "optimize: $(cat "$tmp/out")"
+grep -q '^stability: case "push": stable$' "$tmp/out" || fail "no stability of the case at the optimum: $(cat "$tmp/out")"
 # The render, decoded by tests/cli/png_pixels.py (zlib and the PNG filters, not cairo's code): one
 # load case, three columns (target, start, optimized) of three 300-pixel views; the columns differ;
 # the target is drawn in one blue, the uniform start in the one colour of 60 MPa on viridis between
@@ -140,6 +141,7 @@ assert s["bounds_mpa"] == [8, 190] and s["scaling"] == "log"
 assert isinstance(s["line_search_fallbacks"], int) and s["line_search_fallbacks"] >= 0
 estimate = s["cases"][0]["error_estimate"]  # the equilibrium's accuracy at the optimum
 assert estimate["available"] and 0 < estimate["relative"] < 1e-2 and s["error_estimate_relative"] == estimate["relative"], estimate
+assert s["cases"][0]["stability"] == "stable" and s["cases"][0]["critical_points"] == [], s["cases"][0]  # the load path at the optimum
 assert len(s["history"]) == s["iterations"] + 1
 PY
 
