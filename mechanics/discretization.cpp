@@ -1,5 +1,6 @@
 // Each rod on its solver basis (solver_basis.cpp chooses it): the reference state interpolating
 // the design's centerline and frames at the collocation points, and the pointwise constants.
+#include "common/json_input.hpp"
 #include "mechanics/discrete_structure.hpp"
 #include "mechanics/section_properties.hpp"
 #include "mechanics/solver_basis.hpp"
@@ -223,6 +224,26 @@ void refuseStoppingParameter(const DiscreteStructure& s, const geometry::Rod& sr
                                          "collocates in it); re-fit the centerline with its control points more evenly spaced");
 }
 
+// Stiffness overrides far outside what any section can have: a torsion constant of 1e-300 mm^4 was
+// reported as "a mechanism (add supports)", a shear factor of 1e-300 as Newton failing. A solid
+// section's torsion constant lies below its polar moment I1 + I2, and shear factors near 5/6.
+void refuseAbsurdStiffness(const DiscreteStructure& s, const MechanicsSpec& spec, const geometry::Rod& src) {
+  const SectionProperties own = sectionProperties(src.section(), spec.poissonRatio);
+  const auto where = [&](const char* field) { return common::memberPath(common::memberPath("mechanics.rods", src.name()), field); };
+  for (const RodMechanics& over : spec.rods) {
+    if (over.rod != src.name()) continue;
+    const double polar = own.inertia1 + own.inertia2;
+    if (over.torsionConstant && !(*over.torsionConstant >= 1e-6 * own.torsionConstant && *over.torsionConstant <= 10 * polar))
+      s.fail(where("torsion_constant"), format(*over.torsionConstant) + " mm^4 is outside 1e-6 of the section's own (" +
+                                            format(own.torsionConstant) + " mm^4) to 10 times its polar moment (" + format(polar) +
+                                            " mm^4): no section of this size has it (units?)");
+    if (over.shearFactor && !(*over.shearFactor >= 1e-3 && *over.shearFactor <= 10))
+      s.fail(where("shear_factor"), format(*over.shearFactor) + " is outside 0.001 to 10 (a solid section's is near 5/6)");
+  }
+  if (spec.shearFactor && !(*spec.shearFactor >= 1e-3 && *spec.shearFactor <= 10))
+    s.fail("mechanics.shear_factor", format(*spec.shearFactor) + " is outside 0.001 to 10 (a solid section's is near 5/6)");
+}
+
 }  // namespace
 
 void DiscreteStructure::buildRod(const Design& structure, std::size_t index,
@@ -234,6 +255,7 @@ void DiscreteStructure::buildRod(const Design& structure, std::size_t index,
   rod.source = &src;
   refuseUnevenWeights(*this, src, rod.path);
   refuseStoppingParameter(*this, src, rod.path);
+  refuseAbsurdStiffness(*this, structure.mechanics, src);
   RodBasisChoice choice = chooseBasis(*this, src, index, discretization, rod.path);
   // Spans the user chose are kept (a kink on a collocation point is then refused); automatic ones
   // grow by one until no kink of E(s) is a collocation point.

@@ -434,6 +434,28 @@ TEST_CASE("a centerline whose parameter stops or nearly stops is refused, naming
                                          Section::circle(1.0), 100.0, Vec3(0, -0.01, 0), Vec3::Zero())));
 }
 
+TEST_CASE("stiffness overrides no section can have are refused, naming the field", "[mechanics]") {
+  // A torsion constant of 1e-300 mm^4 was "a mechanism (add supports)", a shear factor of 1e-300 a
+  // Newton failure.
+  const Design base = cantilever(straight(Vec3::Zero(), Vec3(20, 0, 0)), Section::circle(1.0), 100.0, Vec3(0, -0.01, 0), Vec3(0.01, 0, 0));
+  for (const double torsion : {1e-300, 1e300}) {
+    Design d = base;
+    mechanics::RodMechanics over;
+    over.rod = "beam", over.torsionConstant = torsion;
+    d.mechanics.rods.push_back(over);
+    CHECK_THROWS_WITH(StaticProblem(d), Catch::Contains("mechanics.rods.beam.torsion_constant: ") &&
+                                            Catch::Contains("outside 1e-6 of the section's own (0.0981748 mm^4)"));
+  }
+  Design shear = base;
+  shear.mechanics.shearFactor = 1e-300;
+  CHECK_THROWS_WITH(StaticProblem(shear), Catch::Contains("mechanics.shear_factor: 1e-300 is outside 0.001 to 10"));
+  Design fine = base;  // a thin-walled section's figures pass
+  mechanics::RodMechanics over;
+  over.rod = "beam", over.torsionConstant = 0.02, over.shearFactor = 0.4;
+  fine.mechanics.rods.push_back(over);
+  CHECK_NOTHROW(StaticProblem(fine));
+}
+
 TEST_CASE("a state moves between discretizations of one design", "[mechanics]") {
   const auto s = batheBolourchi();
   const StaticProblem coarse(s, rebuilt(6, 8)), fine(s, rebuilt(6, 20));
