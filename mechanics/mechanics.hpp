@@ -60,7 +60,8 @@ struct Discretization {
   // 0 keeps each centerline's degree and NURBS basis, refined exactly by knot insertion. Another
   // degree rebuilds each rod as a B-spline of that degree, interpolating the design's centerline at
   // the new collocation points (geometric error of order h^(degree+1)), its knots uniform between
-  // the kinks of the rod's modulus field, where they are repeated degree - 1 times.
+  // the kinks of the rod's modulus field and the knots where the drawn centerline is only C1, where
+  // they are repeated degree - 1 times.
   // Even degrees converge at order p, odd ones at p - 1; primal collocation locks in slender and
   // curved rods less the higher the order, hence 6 (mechanics/README.md).
   int degree = 6;

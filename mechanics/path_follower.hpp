@@ -35,7 +35,7 @@ private:
     Eigen::VectorXd state;
   };
   void checkCriticalPoint(Eigen::VectorXd& x, double fromLoad, double toLoad);
-  CriticalPoint bisectCrossing(Sample low, Sample high);
+  CriticalPoint bisectCrossing(Sample low, Sample high, bool mayJump);
   bool jumpedAcross(const Sample& outerLow, const Sample& outerHigh, const Sample& low, const Sample& high) const;
   Eigen::VectorXd criticalMode(bool transposed) const;
   double loadAlignment(const Eigen::VectorXd& x, double load, const Eigen::VectorXd& psi) const;
@@ -72,6 +72,7 @@ private:
   int maxIterations_ = options_.maxIterations;  // Newton's, lower while sampling a dip (sampleAt)
   bool sampledSinceFresh_ = false;  // factorizations near singular matrices since the last with fresh pivots
   Eigen::VectorXd uncutState_;  // where the last step of the planned size ended (jumpPastBranchEnd)
+  double uncutLogDet_ = 0.0;     // ln |det J| there
   Solution solution_;
 };
 

@@ -246,11 +246,11 @@ void PathFollower::classify(CriticalPoint& point, const Eigen::VectorXd& x, doub
 
 // One crossing between equilibria `low` and `high` (by load) of opposite signs of det J, bisected to
 // the load tolerance (Newton with the step's own iteration limit, from the side below or, where it
-// fails there, from the side above) and classified at the equilibrium nearest past it. When the
-// bracket's two sides lie on different branches it is a limit point the path jumped past (the branch
-// through `low` ends inside it), classified at that end: a clamped arch's snap passed as a
-// "bifurcation" with the snapped state's mode (jumpedAcross).
-CriticalPoint PathFollower::bisectCrossing(Sample low, Sample high) {
+// fails there, from the side above) and classified at the equilibrium nearest past it. With `mayJump`
+// (the two ends of a load step), when the bracket's two sides lie on different branches it is a limit
+// point the path jumped past (the branch through `low` ends inside it), classified at that end: a
+// clamped arch's snap passed as a "bifurcation" with the snapped state's mode (jumpedAcross).
+CriticalPoint PathFollower::bisectCrossing(Sample low, Sample high, bool mayJump) {
   const Sample outerLow = low, outerHigh = high;
   for (int i = 0; i < 60 && high.load - low.load > options_.criticalLoadTolerance; ++i) {
     const double load = 0.5 * (low.load + high.load);
@@ -261,7 +261,7 @@ CriticalPoint PathFollower::bisectCrossing(Sample low, Sample high) {
   }
   CriticalPoint point;
   point.fromLoad = low.load, point.toLoad = high.load;
-  point.snapThrough = jumpedAcross(outerLow, outerHigh, low, high);
+  point.snapThrough = mayJump && jumpedAcross(outerLow, outerHigh, low, high);
   const Sample& at = point.snapThrough ? low : high;
   classify(point, at.state, at.load);
   return point;
@@ -270,12 +270,15 @@ CriticalPoint PathFollower::bisectCrossing(Sample low, Sample high) {
 // Whether the narrowed bracket [low, high] of [outerLow, outerHigh] spans a jump between branches: the
 // state across it moved more than three times the whole step's move scaled to its width as the
 // square root (towards a limit point a branch's state runs as the root of the load distance; across a
-// crossing on one branch it moves as the width). A bracket not narrowed at least fourfold tells nothing.
+// crossing on one branch it moves as the width), onto a state where |det J| is ten times larger (the
+// branch's end is a zero of it; the far branch's is not), as branchEndsAfter asks. A bracket not
+// narrowed at least fourfold tells nothing.
 bool PathFollower::jumpedAcross(const Sample& outerLow, const Sample& outerHigh, const Sample& low, const Sample& high) const {
   const double outerWidth = outerHigh.load - outerLow.load, width = high.load - low.load;
   if (!(width < 0.25 * outerWidth) || low.state.size() == 0 || high.state.size() == 0) return false;
   const double outerMove = problem_.stepNorm(outerHigh.state - outerLow.state);
-  return problem_.stepNorm(high.state - low.state) > 3 * outerMove * std::sqrt(width / outerWidth) + 1e-9;
+  return problem_.stepNorm(high.state - low.state) > 3 * outerMove * std::sqrt(width / outerWidth) + 1e-6 &&
+         high.logDet > low.logDet + std::log(10.0);
 }
 
 // Called after each converged step, x being the new state at `toLoad` and solution_.state the
@@ -285,7 +288,8 @@ void PathFollower::checkCriticalPoint(Eigen::VectorXd& x, double fromLoad, doubl
   const int before = previousSign_, after = relativeSign_;
   if (before == after) return;
   ++signChanges_;
-  CriticalPoint point = bisectCrossing({fromLoad, 0.0, before, solution_.state}, {toLoad, 0.0, after, x});
+  const double lowLogDet = recent_.empty() ? 0.0 : recent_.back().logDet;  // solution_.state's (lookForDips)
+  CriticalPoint point = bisectCrossing({fromLoad, lowLogDet, before, solution_.state}, {toLoad, lu_->logAbsDeterminant(), after, x}, true);
   factorizeAt(x, toLoad);
   if (point.snapThrough) signChanges_ = pairedCrossings_ = 0;  // another branch: its sign alone tells, as after a switch
   if (options_.followStableBranch && point.kind == CriticalPoint::Kind::Bifurcation && after < 0 &&
@@ -318,7 +322,7 @@ Solution PathFollower::run(int steps, const StepCallback& onStep) {
   solution_.state = problem_.referenceState();
   factorizeReference();
   recent_ = {sampleHere(solution_.state, 0.0)};
-  uncutState_ = solution_.state;
+  uncutState_ = solution_.state, uncutLogDet_ = recent_.back().logDet;
   const double planned = 1.0 / steps;
   double load = 0.0, step = planned;
   int halvings = 0;  // of the planned step, in force
@@ -362,7 +366,7 @@ Solution PathFollower::run(int steps, const StepCallback& onStep) {
     // After a cut, grow the step back towards the planned one when Newton converged easily.
     if (!converged) halvings = 0, step = planned;
     else if (halvings > 0 && report.residuals.size() <= 5) step = planned / std::ldexp(1.0, --halvings);
-    if (halvings == 0) uncutState_ = solution_.state;
+    if (halvings == 0 || otherBranch) uncutState_ = solution_.state, uncutLogDet_ = recent_.back().logDet;
     solution_.steps.push_back(std::move(report));
   }
   lookForDipAtEnd();
@@ -378,6 +382,9 @@ Solution PathFollower::run(int steps, const StepCallback& onStep) {
 // none is found.
 bool PathFollower::jumpPastBranchEnd(Eigen::VectorXd& x, double load, double smallest, double planned, double& target,
                                      LoadStepReport& report) {
+  // A branch's end is a zero of det J: |det J| must have fallen tenfold since the cuts began (at the
+  // arch's limit, 2^-16 of a step away, it had fallen 250-fold), else Newton failed for another reason.
+  if (recent_.empty() || !(recent_.back().logDet < uncutLogDet_ - std::log(10.0))) return false;
   // From the branch's end J is nearly singular and Newton's first correction flies off: the state
   // where the steps began to be cut is tried too (a clamped arch jumped from there).
   const auto lands = [&] {

@@ -204,22 +204,27 @@ std::vector<double> modulusKinks(const geometry::BSplineField& e) {
   return kinks;
 }
 
-// Parameters inside the domain where the drawn centerline is at most C1 (a knot of multiplicity >= its
-// degree - 1: every knot of a quadratic, the double knots of the rational circle CAD writes): there
-// r(u) has a kink in r'' (the circle's parametric speed turns with it), which a rebuilt basis smooth
-// across it interpolates only to order h^2 (a 20 mm ring drawn so was 2e-3 mm off its own circle, the
-// written design with it, at the default spans).
-std::vector<double> drawnKinks(const geometry::NurbsCurve& c) {
+// Parameters inside the domain where a drawn centerline of degree 2 or more is only C0 or C1 (a knot
+// of multiplicity >= its degree - 1: every knot of a quadratic, the double knots of the rational
+// circle CAD writes): there r(u) has a kink in r'' (the circle's parametric speed turns with it), which
+// a rebuilt basis smooth across it interpolates only to order h^2 (a 20 mm ring drawn so was 2e-3 mm
+// off its own circle, the written design with it, at the default spans). A C1 knot of the rebuilt
+// basis follows it. Not for polylines (a C0 speed jump no C1 knot follows), and not where the drawing
+// has more such knots than the rebuilt rod has spans (a quadratic of 4,000 spans would multiply the
+// unknowns by p - 1 = 5): none are returned then.
+std::vector<double> drawnKinks(const geometry::NurbsCurve& c, int spans) {
   std::vector<double> kinks;
+  if (c.degree() < 2) return kinks;
   const auto& k = c.knots();
   const std::size_t count = c.points().size();
-  const auto least = static_cast<std::size_t>(std::max(1, c.degree() - 1));
+  const auto least = static_cast<std::size_t>(c.degree() - 1);
   for (std::size_t i = static_cast<std::size_t>(c.degree()) + 1; i < count;) {
     std::size_t m = 1;
     while (i + m < count && k[i + m] == k[i]) ++m;
     if (m >= least) kinks.push_back(k[i]);
     i += m;
   }
+  if (kinks.size() > static_cast<std::size_t>(spans)) kinks.clear();
   return kinks;
 }
 
@@ -312,7 +317,7 @@ geometry::NurbsCurve solverCurve(const geometry::Rod& rod, const RodBasisChoice&
   const geometry::NurbsCurve& c0 = rod.centerline();
   if (!choice.rebuild) return refinedWithSites(c0, choice.spans - 1, sites);
   std::vector<double> kinks = modulusKinks(rod.modulus());
-  for (double u : drawnKinks(c0)) kinks.push_back(u);
+  for (double u : drawnKinks(c0, choice.spans)) kinks.push_back(u);
   std::vector<double> knots = rebuiltKnots(c0.domainBegin(), c0.domainEnd(), choice.degree, choice.spans, kinks, sites);
   const std::size_t count = knots.size() - choice.degree - 1;
   return geometry::NurbsCurve(choice.degree, std::move(knots), std::vector<Vec3>(count, Vec3::Zero()));

@@ -130,7 +130,8 @@ void scanChar(StepScan& s, char c, const std::filesystem::path& file) {
     s.inId = false;
     s.idEnded = s.depth == 0;
   }
-  if (s.idEnded && c != ' ' && c != '\n' && c != '\r' && c != '\t') {
+  const bool comment = s.inComment || c == '/' || (c == '*' && s.previous == '/');  // "#23 /* moved */ = ..." too
+  if (s.idEnded && !comment && c != ' ' && c != '\n' && c != '\r' && c != '\t') {
     // OpenCASCADE keeps the first of two definitions of one id and says nothing: edges ended at the
     // wrong point (a box's corner left open, exit 0).
     s.idEnded = false;

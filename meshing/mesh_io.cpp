@@ -56,7 +56,7 @@ bool nextContentLine(std::istream& in, std::string& line, int& number) {
   while (std::getline(in, line)) {
     ++number;
     line = line.substr(0, line.find('#'));
-    if (line.find_first_not_of(" \t\r") != std::string::npos) return true;
+    if (line.find_first_not_of(" \t\r\x1a") != std::string::npos) return true;  // 0x1a: a DOS end-of-file mark
   }
   return false;
 }
@@ -213,7 +213,9 @@ void checkBinaryStlNumbers(const std::string& bytes, const std::string& source) 
   // CGAL reads `count` triangles and ignores the rest: triangles past a stale count were dropped
   // without a word, and a truncated file failed saying nothing of why. A few bytes of padding pass.
   if (bytes.size() < declared || bytes.size() >= declared + 50)
-    throw MeshError(source, "binary STL: its header declares " + std::to_string(count) + " triangles (" + std::to_string(declared) +
+    throw MeshError(source, std::string(bytes.compare(0, 5, "solid") == 0 ? "neither a text STL (it starts with \"solid\" but holds bytes "
+                                                                           "no text has) nor a " : "") +
+                                "binary STL: its header declares " + std::to_string(count) + " triangles (" + std::to_string(declared) +
                                 " bytes), but the file holds " + std::to_string(bytes.size()) + " bytes: " +
                                 (bytes.size() > declared ? "the count is smaller than the data" : "was it cut short?") + " (nothing was read)");
   for (std::uint32_t t = 0; t < count; ++t)
@@ -437,16 +439,22 @@ constexpr std::string_view kUtf8Mark = "\xEF\xBB\xBF";
 // tab-separated face lost corners) and line elements "l" (polylines, no surface: the reader failed the
 // whole file), made comments.
 std::string readerCopy(const std::string& bytes, const std::string& format) {
-  const bool mark = format != "stl" && bytes.starts_with(kUtf8Mark);
+  // A text STL's mark too (its "solid" then read as a binary count); never a binary STL's header bytes.
+  const bool mark = bytes.starts_with(kUtf8Mark) && (format != "stl" || looksLikeTextStl(bytes.substr(kUtf8Mark.size(), 1024)));
+  const std::string_view body = std::string_view(bytes).substr(mark ? kUtf8Mark.size() : 0);
   const bool obj = format == "obj";
-  const bool tabs = obj && bytes.find('\t') != std::string::npos;
-  const bool lines = obj && (bytes.starts_with("l ") || bytes.find("\nl ") != std::string::npos || bytes.find("\nl\t") != std::string::npos);
+  const bool tabs = obj && body.find('\t') != std::string_view::npos;
+  bool lines = false;  // a line whose first word (as CGAL reads it, after blanks) is "l"
+  if (obj) forEachLine(body, [&](std::string_view line) { lines = lines || keyword(line).first == "l"; });
   if (!mark && !tabs && !lines) return {};
-  std::string text = bytes.substr(mark ? kUtf8Mark.size() : 0);
+  std::string text(body);
   if (tabs) std::replace(text.begin(), text.end(), '\t', ' ');
   if (lines)
-    for (std::size_t at = 0; at < text.size(); at = std::min(text.find('\n', at), text.size()) + 1)
-      if (text.compare(at, 2, "l ") == 0) text[at] = '#';
+    for (std::size_t at = 0; at < text.size(); at = std::min(text.find('\n', at), text.size()) + 1) {
+      const std::size_t word = std::min(text.find_first_not_of(" \r", at), text.size());
+      if (text.compare(word, 2, "l ") == 0 || (text.compare(word, 1, "l") == 0 && (word + 1 == text.size() || text[word + 1] == '\n')))
+        text[word] = '#';
+    }
   return text;
 }
 

@@ -172,18 +172,21 @@ double largestSurfaceDistance(const geometry::NurbsCurve& curve, const SurfacePr
   for (double u : us) distances.push_back(surface.distance(curve.point(u)));
   const double sampled = *std::max_element(distances.begin(), distances.end());
   double largest = sampled;
+  if (!(sampled > 0)) return largest;  // on the surface throughout (a flat mesh): nothing to narrow
   const auto at = [&](double u) { return surface.distance(curve.point(u)); };
+  constexpr double kGolden = 0.6180339887498949;
   for (std::size_t i = 0; i < us.size(); ++i) {
-    const bool peak = (i == 0 || distances[i] >= distances[i - 1]) && (i + 1 == us.size() || distances[i] >= distances[i + 1]);
+    const bool peak = (i == 0 || distances[i] > distances[i - 1]) && (i + 1 == us.size() || distances[i] >= distances[i + 1]);
     if (!peak || distances[i] < 0.7 * sampled) continue;
+    // Golden section for the maximum, one new distance an iteration.
     double lo = us[i > 0 ? i - 1 : 0], hi = us[std::min(i + 1, us.size() - 1)];
+    double a = hi - kGolden * (hi - lo), b = lo + kGolden * (hi - lo), da = at(a), db = at(b);
     for (int k = 0; k < 40 && hi - lo > 1e-12; ++k) {
-      const double a = hi - 0.6180339887498949 * (hi - lo), b = lo + 0.6180339887498949 * (hi - lo);
-      const double da = at(a), db = at(b);
       largest = std::max({largest, da, db});
-      if (da > db) hi = b;
-      else lo = a;
+      if (da > db) hi = b, b = a, db = da, a = hi - kGolden * (hi - lo), da = at(a);
+      else lo = a, a = b, da = db, b = lo + kGolden * (hi - lo), db = at(b);
     }
+    largest = std::max({largest, da, db});
   }
   return largest;
 }

@@ -187,11 +187,13 @@ public:
     return true;
   }
 
-  // Bytes after the cursor other than white space in an ASCII body (binary: every byte counts).
+  // Bytes after the cursor other than white space (after a binary body: up to 16 bytes of line breaks
+  // and spaces, which some writers end the file with, pass too).
   std::size_t bytesAfter() const {
-    if (!ascii_) return bytes_.size() - at_;
+    const std::size_t left = bytes_.size() - at_;
     const std::size_t next = bytes_.find_first_not_of(" \t\n\v\f\r", at_);
-    return next == std::string::npos ? 0 : bytes_.size() - next;
+    if (next == std::string::npos) return ascii_ || left <= 16 ? 0 : left;  // white space only
+    return ascii_ ? bytes_.size() - next : left;
   }
 
 private:

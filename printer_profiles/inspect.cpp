@@ -77,7 +77,7 @@ std::vector<Profile> candidateProfiles(const InspectOptions& options) {
   for (const std::string& name : bundledProfileNames()) try {
       out.push_back(loadProfile(name));
     } catch (const ProfileError&) {
-      // A broken bundled profile cannot vouch for any job; jobs naming it are refused later.
+      // A broken bundled profile cannot vouch for any job: jobs naming it are not checked (findProfile).
     }
   return out;
 }
@@ -109,6 +109,9 @@ void Inspector::run() {
   indexEntries();
   const bool profileKnown = readManifest() && resolveProfile();
   if (truncatedPastBundled_ && report_.checked()) findings_.whole(tooManyEntries());
+  else if (truncatedPastBundled_)  // what lies past the listing (unsafe names, links) was not looked at either
+    report_.notChecked += "; it holds more than " + std::to_string(limits_.maxEntries) +
+                          " entries, more than a job of any bundled profile, and those past them were not examined";
   if (profileKnown && readJobLayout()) {
     checkEntries();
     if (!gcvf()) checkBuildFile();
@@ -236,8 +239,14 @@ bool Inspector::findProfile() {
   // Not a defect: a job made with a profile file is checked against that file, which only the caller can name.
   const std::string bundled =
       boost::algorithm::join(candidates_ | boost::adaptors::transformed([](const Profile& p) { return p.name; }), ", ");
-  report_.notChecked = "made with printer profile \"" + printableName(named) + "\", which is not bundled (bundled: " + (bundled.empty() ? "none" : bundled) +
-                       "); inspect --profile FILE checks it against that profile's file";
+  const std::vector<std::string> names = bundledProfileNames();
+  if (std::find(names.begin(), names.end(), named) != names.end())  // bundled, but it did not load
+    report_.notChecked = "made with the bundled printer profile \"" + printableName(named) +
+                         "\", which cannot be loaded here (a damaged installation?); inspect --profile FILE checks it against a copy";
+  else
+    report_.notChecked = "made with printer profile \"" + printableName(named) + "\", which is not bundled (bundled: " +
+                         (bundled.empty() ? "none could be loaded: a damaged installation?" : bundled) +
+                         "); inspect --profile FILE checks it against that profile's file";
   return false;
 }
 

@@ -68,6 +68,8 @@ TEST_CASE("STEP files OpenCASCADE would crash on are refused, naming the entity 
   // References to an id (inside lists) are not definitions.
   CHECK_THAT(cadError("twice.step", stepModel(splineData() + "#19 = CARTESIAN_POINT('',(5.,5.,5.));\n")),
              Contains("entity #19 is defined a second time"));
+  CHECK_THAT(cadError("twice-commented.step", stepModel(splineData() + "#19 /* moved */ = CARTESIAN_POINT('',(5.,5.,5.));\n")),
+             Contains("entity #19 is defined a second time"));
   CHECK(meshing::rodsFromCad([&] {
           const fs::path file = scratch("references.step");
           std::ofstream(file) << stepModel(splineData() + "#31 = GEOMETRIC_CURVE_SET('',(#17, #17));\n");

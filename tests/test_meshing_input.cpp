@@ -370,7 +370,7 @@ TEST_CASE("faces past the count a mesh file declares are refused, not dropped", 
   CHECK_THROWS_WITH(meshing::checkMeshBytes(solidHeader, "stl", "e.stl"), Catch::Contains("the count is smaller than the data"));
 
   const std::string tetrahedronOff = "OFF\n4 4 0\n0 0 0\n10 0 0\n0 10 0\n0 0 10\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n";
-  CHECK(meshing::checkMeshBytes(tetrahedronOff + "# a comment\n\n", "off", "t.off").faces == 4);
+  CHECK(meshing::checkMeshBytes(tetrahedronOff + "# a comment\n\n\x1a", "off", "t.off").faces == 4);  // and a DOS end-of-file mark
   std::string stale = tetrahedronOff;
   stale.replace(stale.find("4 4 0"), 5, "4 3 0");
   CHECK_THROWS_WITH(meshing::checkMeshBytes(stale, "off", "t.off"),
@@ -396,4 +396,16 @@ TEST_CASE("OBJ line elements and a UTF-8 byte order mark are read past, not fail
   CHECK(meshing::checkMeshBytes("\xEF\xBB\xBF" + obj, "obj", "bom.obj").vertices == 42);
   CHECK(meshing::checkMeshBytes("\xEF\xBB\xBF" "OFF\n4 4 0\n0 0 0\n10 0 0\n0 10 0\n0 0 10\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n", "off", "bom.off")
             .faces == 4);
+  // Indented, or right after the mark, as CGAL reads a line's first word.
+  CHECK(meshing::checkMeshBytes("\xEF\xBB\xBF" "l 1 2\n" + obj + "   l 3 4\nl\n", "obj", "l.obj").faces == 80);
+  // A text STL's mark: its "solid" was read as a binary triangle count.
+  const fs::path text = scratch("bom-text.stl");
+  testing::writeAsciiStl(testing::ellipsoid(2, 3, 3, 3), text.string());
+  std::ifstream in(text, std::ios::binary);
+  const std::string stl((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  CHECK(meshing::checkMeshBytes("\xEF\xBB\xBF" + stl, "stl", "bom.stl").faces == 80);
+  // A binary PLY ending in a line break or two, as some writers leave it.
+  CHECK(meshing::checkMeshBytes(tetrahedronPly("binary_little_endian", "uchar", 3) + "\r\n", "ply", "t.ply").faces == 4);
+  CHECK_THROWS_WITH(meshing::checkMeshBytes(tetrahedronPly("binary_little_endian", "uchar", 3) + std::string(17, '\n'), "ply", "t.ply"),
+                    Catch::Contains("17 bytes follow the elements the header declares"));
 }
