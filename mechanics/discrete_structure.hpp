@@ -219,6 +219,7 @@ struct DiscreteStructure {
   // MechanicsError for unresolvable or unsupported parts.
   void findInteriorSites(const Design& structure);
   void buildNodes(const Design& structure);
+  void refuseAbsurdLoads(const Design& structure) const;
   Place locate(const RodEndRef& ref, const Design& structure) const;
   int siteNumber(const Place& place) const;  // 2 rod + end, or after all ends the interior sites in order
   Site siteOf(int number) const;

@@ -3,6 +3,7 @@
 // node equations. Interior sites are found first, on the design, because each becomes a C0 knot of
 // its rod's solver basis.
 #include "mechanics/discrete_structure.hpp"
+#include "mechanics/section_properties.hpp"
 
 #include "common/quoted_text.hpp"
 
@@ -302,8 +303,47 @@ void DiscreteStructure::keepSpec(const Design& structure) {
   for (auto& load : spec.loads) byName(load.at);
 }
 
+namespace {
+
+// The JSON path of the load or support whose place `at` is ("mechanics.loads[0].at" -> "mechanics.loads[0]").
+std::string ownerPath(const RodEndRef& at) {
+  return at.path.ends_with(".at") ? at.path.substr(0, at.path.size() - 3) : at.path;
+}
+
+}  // namespace
+
+// Loads no rod of the design could bear and support motions far beyond its size, told by their field
+// before Newton fails on them ("did not converge beyond load factor 0", naming none, for 1e30 N): a
+// force above 1e4 times the stiffest rod's E A, a moment above that times the design's size, a support
+// moved 1e4 times the design's size or turned 1e4 rad.
+void DiscreteStructure::refuseAbsurdLoads(const Design& structure) const {
+  double stiffest = 0.0;  // N: the largest E A of any rod
+  for (const geometry::Rod& rod : structure.rods) {
+    const std::vector<double>& e = rod.modulus().values();
+    stiffest = std::max(stiffest, *std::max_element(e.begin(), e.end()) * sectionProperties(rod.section(), structure.mechanics.poissonRatio).area);
+  }
+  const double size = structure.bounds().diagonal().norm(), force = 1e4 * stiffest, moment = force * size;
+  const auto refuse = [&](const std::string& path, const char* what, double value, double limit, const std::string& unit) {
+    if (!(value <= limit))
+      fail(path, what + std::string(" of ") + format(value) + " " + unit + " is more than " + format(limit) + " " + unit +
+                     " (10,000 times what the stiffest rod, E A = " + format(stiffest) + " N, or the design's " + format(size) +
+                     " mm make plausible): no rod of this design bears it (units?)");
+  };
+  for (const PointLoad& l : structure.mechanics.loads) {
+    refuse(ownerPath(l.at) + ".force", "a force", l.force.stableNorm(), force, "N");
+    refuse(ownerPath(l.at) + ".moment", "a moment", l.moment.stableNorm(), moment, "N mm");
+  }
+  for (const DistributedLoad& d : structure.mechanics.distributedLoads)
+    refuse(d.path + ".force", "a force per length", d.force.stableNorm(), force / size, "N/mm");
+  for (const Support& s : structure.mechanics.supports) {
+    refuse(ownerPath(s.at) + ".displacement", "a displacement", s.displacement.stableNorm(), 1e4 * size, "mm");
+    refuse(ownerPath(s.at) + ".rotation", "a rotation", s.rotation.stableNorm(), 1e4, "rad");
+  }
+}
+
 void DiscreteStructure::buildNodes(const Design& structure) {
   const MechanicsSpec& spec = structure.mechanics;
+  refuseAbsurdLoads(structure);
   const int siteCount = siteBase.empty() ? 0 : siteBase.back() + static_cast<int>(rods.back().sites.size());
   SiteSets sets(siteCount);
   joinSites(*this, structure, sets);

@@ -456,6 +456,21 @@ TEST_CASE("stiffness overrides no section can have are refused, naming the field
   CHECK_NOTHROW(StaticProblem(fine));
 }
 
+TEST_CASE("loads no rod of the design bears are refused, naming the field", "[mechanics]") {
+  // A force of 1e30 N ended in "Newton did not converge beyond load factor 0", naming nothing.
+  const auto with = [](const Vec3& force, const Vec3& moment) {
+    return cantilever(straight(Vec3::Zero(), Vec3(20, 0, 0)), Section::circle(1.0), 100.0, force, moment);
+  };
+  CHECK_THROWS_WITH(StaticProblem(with(Vec3(0, -1e30, 0), Vec3::Zero())), Catch::Contains("force: a force of 1e+30 N is more than"));
+  CHECK_THROWS_WITH(StaticProblem(with(Vec3(0, -1e300, 0), Vec3::Zero())), Catch::Contains("a force of 1e+300 N"));
+  CHECK_THROWS_WITH(StaticProblem(with(Vec3::Zero(), Vec3(0, 0, 1e30))), Catch::Contains("moment: a moment of 1e+30 N mm is more than"));
+  Design moved = with(Vec3::Zero(), Vec3::Zero());
+  moved.mechanics.supports[0].displacement = Vec3(1e9, 0, 0);
+  CHECK_THROWS_WITH(StaticProblem(moved), Catch::Contains("displacement: a displacement of 1e+09 mm"));
+  // E A of this rod is 78.5 N: 100 N bends it far, as designs may, and passes.
+  CHECK_NOTHROW(StaticProblem(with(Vec3(0, -100, 0), Vec3(0, 0, 500))));
+}
+
 TEST_CASE("a state moves between discretizations of one design", "[mechanics]") {
   const auto s = batheBolourchi();
   const StaticProblem coarse(s, rebuilt(6, 8)), fine(s, rebuilt(6, 20));

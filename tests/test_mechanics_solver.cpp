@@ -316,8 +316,8 @@ TEST_CASE("a shallow arch that snaps through: the limit point the load path jump
   }
 }
 
-TEST_CASE("a parabolic arch snaps through at one load whatever the step count: jumped, or stopped at its limit and "
-          "continued", "[mechanics]") {
+TEST_CASE("a parabolic arch snaps through at one load whatever the step count (jumped, or stopped at its limit and "
+          "continued)", "[mechanics]") {
   // Clamped at both ends, span 100 mm, rise 2 mm, 1 mm round, E 100 MPa, 0.01 N down at its middle. Its
   // symmetric branch ends at a limit point near 0.1753 of the load (after an asymmetric bifurcation
   // near 0.154). Coarse steps jumped past it and det J's sign change was bisected across the two
