@@ -376,8 +376,8 @@ Solution PathFollower::run(int steps, const StepCallback& onStep) {
 }
 
 // Where Newton finds no equilibrium from the last one (solution_.state at `load`) even `smallest` on:
-// the planned step and its doublings, up to load 1, until Newton lands on one (x, at `target`, its
-// `report`). Recorded as a snap-through between `load` and `load + smallest`, classified at the
+// steps from a sixteenth of the planned one, doubling up to load 1, until Newton lands on one (x, at
+// `target`, its `report`). Recorded as a snap-through between `load` and `load + smallest`, classified at the
 // branch's end, the path continuing on the new branch (its sign of det J alone tells). False when
 // none is found.
 bool PathFollower::jumpPastBranchEnd(Eigen::VectorXd& x, double load, double smallest, double planned, double& target,
@@ -387,9 +387,11 @@ bool PathFollower::jumpPastBranchEnd(Eigen::VectorXd& x, double load, double sma
   if (recent_.empty() || !(recent_.back().logDet < uncutLogDet_ - std::log(10.0))) return false;
   // From the branch's end J is nearly singular and Newton's first correction flies off: the state
   // where the steps began to be cut is tried too (a clamped arch jumped from there).
+  // Increments from a sixteenth of the planned step up, doubling (a limit at 0.92 of the load with
+  // 0.1 steps: the only planned target, 1, was out of Newton's reach; 0.93 was not).
   const auto lands = [&] {
     for (const Eigen::VectorXd* from : {&solution_.state, &uncutState_})
-      for (double increment = planned; from->size() > 0; increment *= 2) {
+      for (double increment = std::max(planned / 16, 16 * smallest); from->size() > 0; increment *= 2) {
         target = std::min(1.0, load + increment);
         x = *from;
         report = LoadStepReport{};
@@ -398,7 +400,23 @@ bool PathFollower::jumpPastBranchEnd(Eigen::VectorXd& x, double load, double sma
       }
     return false;
   };
-  if (!lands()) return false;
+  // Else from the branch's end pushed along its critical mode (the way the structure snaps), a few
+  // amplitudes each way, as switchBranch pushes (a clamped arch at 0.92 of its load in 10 steps).
+  const auto landsPushed = [&] {
+    if (!factorizeAt(solution_.state, load)) return false;
+    Eigen::VectorXd mode = criticalMode(false);
+    mode /= std::max(problem_.stepNorm(mode), 1e-300);
+    for (double amplitude : {0.03, 0.1})
+      for (double direction : {1.0, -1.0})
+        for (double increment : {planned / 4, planned}) {
+          target = std::min(1.0, load + increment);
+          x = solution_.state + direction * amplitude * mode;
+          report = LoadStepReport{};
+          if (newton(x, target, report) == Outcome::Converged) return true;
+        }
+    return false;
+  };
+  if (!lands() && !landsPushed()) return false;
   CriticalPoint point;
   point.fromLoad = load, point.toLoad = load + smallest, point.snapThrough = true;
   classify(point, solution_.state, load);
