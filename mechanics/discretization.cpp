@@ -7,8 +7,11 @@
 
 #include <Eigen/Geometry>
 #include <Eigen/SparseLU>
+#include <boost/math/tools/minima.hpp>
 
 #include <algorithm>
+#include <cstdint>
+#include <limits>
 #include <sstream>
 
 namespace rodfab::mechanics::detail {
@@ -176,7 +179,7 @@ void refuseUnevenWeights(const DiscreteStructure& s, const geometry::Rod& src, c
 
 // The parametric speed |dr/du| where it is least along the centerline: a dense sampling per span
 // (and at every breakpoint, where repeated control points stop it), its smallest sample then narrowed
-// by golden section between its neighbours.
+// between its neighbours by Brent's method (Boost.Math, as calibration's fit).
 std::pair<double, double> slowestParameter(const geometry::NurbsCurve& c, double& fastest) {
   const auto speed = [&](double u) {
     Vec3 d[2];
@@ -189,24 +192,14 @@ std::pair<double, double> slowestParameter(const geometry::NurbsCurve& c, double
   for (std::size_t b = 0; b + 1 < breaks.size(); ++b)
     for (int i = 0; i < kPerSpan; ++i) us.push_back(breaks[b] + (breaks[b + 1] - breaks[b]) * i / kPerSpan);
   us.push_back(breaks.back());
-  std::size_t slowest = 0;
-  fastest = 0;
   std::vector<double> speeds(us.size());
-  for (std::size_t i = 0; i < us.size(); ++i) {
-    speeds[i] = speed(us[i]);
-    fastest = std::max(fastest, speeds[i]);
-    if (speeds[i] < speeds[slowest]) slowest = i;
-  }
-  double lo = us[slowest > 0 ? slowest - 1 : 0], hi = us[std::min(slowest + 1, us.size() - 1)], best = us[slowest];
-  double bestSpeed = speeds[slowest];
-  for (int i = 0; i < 60 && hi - lo > 1e-15 * (1 + std::abs(best)); ++i) {  // golden section
-    const double a = hi - 0.6180339887498949 * (hi - lo), b = lo + 0.6180339887498949 * (hi - lo);
-    const double sa = speed(a), sb = speed(b);
-    if (sa < sb) hi = b; else lo = a;
-    const auto [u, v] = sa < sb ? std::pair{a, sa} : std::pair{b, sb};
-    if (v < bestSpeed) best = u, bestSpeed = v;
-  }
-  return {best, bestSpeed};
+  std::transform(us.begin(), us.end(), speeds.begin(), speed);
+  fastest = *std::max_element(speeds.begin(), speeds.end());
+  const std::size_t slowest = static_cast<std::size_t>(std::min_element(speeds.begin(), speeds.end()) - speeds.begin());
+  std::uintmax_t iterations = 60;
+  const auto [u, v] = boost::math::tools::brent_find_minima(speed, us[slowest > 0 ? slowest - 1 : 0], us[std::min(slowest + 1, us.size() - 1)],
+                                                            std::numeric_limits<double>::digits / 2, iterations);
+  return v < speeds[slowest] ? std::pair{u, v} : std::pair{us[slowest], speeds[slowest]};
 }
 
 // A centerline whose parameter nearly stops (repeated control points, a cusp) is collocated there as
