@@ -281,6 +281,13 @@ void syncToDevice(const fs::path& path) {
     throw std::runtime_error(quoted(path) + ": cannot flush it to disk (" + std::strerror(error) + "); nothing was replaced");
 }
 
+void startWriteback(const fs::path& file) noexcept {
+  const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return;
+  ::sync_file_range(fd, 0, 0, SYNC_FILE_RANGE_WRITE);
+  ::close(fd);
+}
+
 bool syncFolderEntries(const fs::path& folder) {
   return flush(folder.empty() ? fs::path(".") : folder, O_RDONLY | O_DIRECTORY, false) == 0;
 }

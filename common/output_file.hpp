@@ -86,6 +86,10 @@ bool isSealedJsonObject(const std::filesystem::path& file, std::size_t maxBytes 
 // the whole file system it is on (syncfs: one flush for thousands of files). A file system that
 // cannot sync (EINVAL, EROFS) passes; an I/O error throws std::runtime_error naming `path`.
 void syncToDevice(const std::filesystem::path& path);
+// Starts writing a regular file's data to its device without waiting (sync_file_range), so that a
+// syncToDevice later, after other work, finds less to write. Only a hint: a file that cannot be
+// opened or a file system without it changes nothing, and nothing is promised until syncToDevice.
+void startWriteback(const std::filesystem::path& file) noexcept;
 // Flushes a folder's entries (the names a rename gave) after the rename, so that the new name
 // survives a power loss; false when that failed (the rename itself stands either way).
 bool syncFolderEntries(const std::filesystem::path& folder);

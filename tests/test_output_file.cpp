@@ -181,5 +181,12 @@ TEST_CASE("what is written is flushed to the device before a name points at it, 
   CHECK(syncFolderEntries(dir));
   CHECK_THROWS_WITH(syncToDevice(dir / "gone.zip"), Catch::Contains("gone.zip: cannot flush it to disk"));
   CHECK_FALSE(syncFolderEntries(dir / "gone"));
+  // Starting the writeback early is a hint: on a file it leaves the bytes as they were, and a file
+  // that is gone or a folder changes nothing and throws nothing.
+  startWriteback(dir / "a.json");
+  CHECK(readAll(dir / "a.json") == "{}");
+  startWriteback(dir / "gone.zip");
+  startWriteback(dir / "job");
+  CHECK_FALSE(fs::exists(dir / "gone.zip"));
   fs::remove_all(dir);
 }
