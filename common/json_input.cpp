@@ -152,7 +152,7 @@ private:
   }
   void count() {
     if (++values_ > maxValues_)
-      throw JsonInputError(path(), "the document holds more than " + std::to_string(maxValues_) + " values; expected fewer");
+      throw JsonTooManyValues(path(), "the document holds more than " + std::to_string(maxValues_) + " values; expected fewer");
     if (values_ % 65536 == 0) throwIfInterrupted();  // ~1 ms of values: a 256 MiB document reads for seconds
   }
   // Where the next value goes: the root, the end of the open array, or the member its key made.

@@ -27,11 +27,17 @@ struct JsonInputError : std::runtime_error {
   JsonInputError(std::string path, std::string message);
   std::string path, message;
 };
+// The document holds more values than the caller's `maxValues`: too large for what it should be, which
+// some callers tell apart from malformed text.
+struct JsonTooManyValues : JsonInputError {
+  using JsonInputError::JsonInputError;
+};
 
 // Parses `text` in one pass: the document nlohmann's own parser would build (the same values and
 // types), checked as it is built. Throws JsonInputError for malformed JSON, nesting deeper than
 // `maxDepth` arrays and objects, a duplicate key, more than `maxValues` values (scalars, arrays and
-// objects: a bound on the memory of the document built, which may be ~100 bytes per value), or text
+// objects: a bound on the memory of the document built, which may be ~100 bytes per value; thrown as
+// JsonTooManyValues), or text
 // longer than kMaxJsonBytes, or a number literal beyond the range of a double (1e400), reported at its
 // path. Checks for an interrupt every 65,536 values (throws common::Interrupted). Thread-safe.
 nlohmann::json parseJsonStrict(const std::string& text, int maxDepth = kMaxJsonDepth,

@@ -187,6 +187,12 @@ bool Inspector::readManifest() {
     const Bytes text = reader_->read(*entry, limits_.maxManifestBytes);
     report_.manifest = parseUntrustedJson(text, limits_.maxManifestValues);
     return true;
+  } catch (const EntryTooLarge& e) {
+    if (options_.profile) findings_.located(e.what());
+    else notCheckedAsTooLarge(std::to_string(limits_.maxManifestBytes) + " bytes");
+  } catch (const UntrustedJsonTooLarge& e) {
+    if (options_.profile) findings_.at(kManifestName, std::string("cannot be read: ") + e.what());
+    else notCheckedAsTooLarge(std::to_string(limits_.maxManifestValues) + " values");
   } catch (const JobReadError& e) {
     findings_.located(e.what());
   } catch (const std::runtime_error& e) {
@@ -194,6 +200,15 @@ bool Inspector::readManifest() {
   }
   report_.manifest = nullptr;
   return false;
+}
+
+// A manifest larger than the largest job's of the caller's profile is a defect; without one, larger
+// than any bundled profile's job may be the manifest of a profile file's job with more layers (whose
+// name could not be read without reading it all): the job is not checked.
+void Inspector::notCheckedAsTooLarge(const std::string& most) {
+  report_.notChecked = std::string("its ") + kManifestName + " holds more than " + most +
+                       ", more than a job of any bundled printer profile (a job made with a profile file with more "
+                       "layers?); inspect --profile FILE checks it against that profile's file";
 }
 
 // The profile comes from the caller or, by name only, from the bundled ones: never from a path.

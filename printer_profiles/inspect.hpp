@@ -37,7 +37,8 @@ struct StoredForm {
 struct InspectOptions {
   // The profile the job must match. Default: the bundled profile whose name the manifest gives (a
   // portable name that is not bundled leaves the job not checked, InspectReport::notChecked: pass the
-  // profile file's contents here instead; a name no profile can have is a defect).
+  // profile file's contents here instead; a name no profile can have is a defect. So does a manifest
+  // larger than any bundled profile's job can have, which is a defect when the profile is given).
   std::optional<Profile> profile;
   // For the writer's check of its own job (JobOptions::verify); `inspect` keeps the defaults, which
   // check everything. Layer images are decoded and checked (size, resolution, counts against the

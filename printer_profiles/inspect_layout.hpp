@@ -55,8 +55,11 @@ struct ProfileLimits {
 ProfileLimits limitsOf(const Profile& profile);
 
 // Parses untrusted JSON (common::parseJsonStrict): throws std::runtime_error (message safe to print)
-// when it is not JSON, nests deeper than common::kMaxJsonDepth, repeats a key in an object or holds
-// more than maxValues values; refused before the excess is built.
+// when it is not JSON, nests deeper than common::kMaxJsonDepth or repeats a key in an object, and
+// UntrustedJsonTooLarge (one) when it holds more than maxValues values; refused before the excess is built.
+struct UntrustedJsonTooLarge : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
 nlohmann::json parseUntrustedJson(std::span<const std::uint8_t> text, std::size_t maxValues);
 
 enum class EntryRole { Manifest, BuildFile, Preview, ContactSheet, Layer, Report };

@@ -46,7 +46,9 @@ json parseUntrustedJson(std::span<const std::uint8_t> text, std::size_t maxValue
     std::size_t cut = 57;  // not inside a UTF-8 character
     while (e.path.size() > 60 && cut > 0 && (static_cast<unsigned char>(e.path[cut]) & 0xc0) == 0x80) --cut;
     const std::string where = e.path.size() > 60 ? e.path.substr(0, cut) + "..." : e.path;
-    throw std::runtime_error(asciiOnly(e.message + (where.empty() ? "" : " (at " + where + ")")));
+    const std::string message = asciiOnly(e.message + (where.empty() ? "" : " (at " + where + ")"));
+    if (dynamic_cast<const common::JsonTooManyValues*>(&e)) throw UntrustedJsonTooLarge(message);
+    throw std::runtime_error(message);
   } catch (const json::exception& e) {  // a number beyond a double
     throw std::runtime_error("not JSON (" + asciiOnly(common::printableJsonError(e.what())) + ")");
   }

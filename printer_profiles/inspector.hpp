@@ -71,6 +71,7 @@ private:
   std::string tooManyEntries() const;
   const JobEntry* manifestEntry();
   bool readManifest();
+  void notCheckedAsTooLarge(const std::string& most);
 
   // The profile comes from the caller or, by name only, from the bundled ones: never from a path.
   bool resolveProfile();

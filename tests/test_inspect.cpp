@@ -214,6 +214,41 @@ TEST_CASE("A job of a profile file with more entries than any bundled profile al
 }
 
 
+// The same for a manifest: without --profile it is read within the largest bundled profile's bounds,
+// and one beyond them may be a profile file's job of more layers (until 2026-12-07 such a job was
+// reported DEFECTIVE, "manifest.json cannot be read"). With the profile, it is a defect.
+TEST_CASE("A manifest larger than any bundled profile's job is not checked without the profile file", "[inspect]") {
+  const fs::path dir = scratch("large-manifest");
+  ProfileLimits widest{};
+  for (const std::string& name : bundledProfileNames()) {
+    const ProfileLimits l = limitsOf(loadProfile(name));
+    widest.maxManifestBytes = std::max(widest.maxManifestBytes, l.maxManifestBytes);
+    widest.maxManifestValues = std::max(widest.maxManifestValues, l.maxManifestValues);
+  }
+  Profile custom = connex3();
+  custom.name = "my-connex3";
+  writeSmallJob(dir / "custom.zip", {.profile = &custom, .verify = false});
+  const auto files = unzip(dir / "custom.zip");
+  const HangGuard guard(60);
+  rezip(dir / "bytes.zip", tampered(files, [&](json& m) { m["metadata"]["note"] = std::string(widest.maxManifestBytes, 'x'); }));
+  rezip(dir / "values.zip", tampered(files, [&](json& m) { m["metadata"]["note"] = std::vector<int>(widest.maxManifestValues, 0); }));
+  for (const auto& [job, most] : {std::pair{"bytes.zip", std::to_string(widest.maxManifestBytes) + " bytes"},
+                                  std::pair{"values.zip", std::to_string(widest.maxManifestValues) + " values"}}) {
+    INFO(job);
+    const InspectReport report = inspectJob(dir / job);
+    CHECK_FALSE(report.ok());
+    CHECK(report.defects.empty());
+    CHECK_THAT(report.notChecked, Catch::StartsWith("its manifest.json holds more than " + most + ", more than a job of any bundled") &&
+                                      Catch::EndsWith("inspect --profile FILE checks it against that profile's file"));
+    InspectOptions withFile;
+    withFile.profile = custom;
+    const InspectReport checkedReport = inspectJob(dir / job, withFile);
+    CHECK(checkedReport.checked());
+    CHECK(hasDefect(checkedReport, "manifest.json"));
+    CHECK(hasDefect(checkedReport, "more than"));
+  }
+}
+
 // Jobs list XXH3-128 checksums since 2026-12-02 (common/xxh128.hpp) and SHA-256 before: both are read,
 // each file's row names exactly one, and a checksum of the wrong length or algorithm is refused.
 TEST_CASE("File checksums: XXH3-128, or SHA-256 in older jobs, one per file, each checked", "[inspect][hostile]") {
