@@ -7,6 +7,8 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <mutex>
+#include <optional>
 #include <sstream>
 
 #if defined(__SANITIZE_ADDRESS__)
@@ -23,6 +25,21 @@ namespace {
 
 constexpr std::uint64_t kMinimumBudget = std::uint64_t{64} << 20;
 std::uint64_t budget = 0;
+std::mutex liftMutex;
+int lifts = 0;  // DataLimitLifted objects alive
+
+// RLIMIT_DATA's soft limit to `bytes`, or to its hard limit; the hard limit is left as it is, so that
+// DataLimitLifted can raise the soft one again. Not under AddressSanitizer (its shadow memory).
+void setDataLimit([[maybe_unused]] std::optional<std::uint64_t> bytes) {
+#ifndef RODFAB_SANITIZED
+  rlimit current{};
+  if (::getrlimit(RLIMIT_DATA, &current) != 0) return;
+  if (!bytes) current.rlim_cur = current.rlim_max;
+  else if (current.rlim_max == RLIM_INFINITY || current.rlim_max >= *bytes) current.rlim_cur = static_cast<rlim_t>(*bytes);
+  else return;
+  ::setrlimit(RLIMIT_DATA, &current);
+#endif
+}
 
 std::uint64_t physicalMemory() {
   const long pages = ::sysconf(_SC_PHYS_PAGES), size = ::sysconf(_SC_PAGESIZE);
@@ -66,13 +83,19 @@ void setMemoryBudget(std::uint64_t bytes) {
   if (bytes < kMinimumBudget)
     throw std::invalid_argument("expected a memory budget of at least " + formatBytes(kMinimumBudget) + ", got " +
                                 formatBytes(bytes));
+  const std::lock_guard lock(liftMutex);
   budget = bytes;
-#ifndef RODFAB_SANITIZED
-  const rlimit limit{static_cast<rlim_t>(bytes), static_cast<rlim_t>(bytes)};
-  rlimit current{};
-  if (::getrlimit(RLIMIT_DATA, &current) == 0 && (current.rlim_max == RLIM_INFINITY || current.rlim_max >= bytes))
-    ::setrlimit(RLIMIT_DATA, &limit);
-#endif
+  if (lifts == 0) setDataLimit(bytes);
+}
+
+DataLimitLifted::DataLimitLifted() {
+  const std::lock_guard lock(liftMutex);
+  if (lifts++ == 0 && budget) setDataLimit(std::nullopt);
+}
+
+DataLimitLifted::~DataLimitLifted() {
+  const std::lock_guard lock(liftMutex);
+  if (--lifts == 0 && budget) setDataLimit(budget);
 }
 
 std::uint64_t memoryBudget() { return budget ? budget : defaultMemoryBudget(); }

@@ -26,9 +26,23 @@ struct OutOfMemory : std::runtime_error {
 // when one of those is lower.
 std::uint64_t defaultMemoryBudget();
 
-// Sets the budget (bytes, >= 64 MiB) and the data limit. Throws std::invalid_argument when too small.
+// Sets the budget (bytes, >= 64 MiB) and the data limit (RLIMIT_DATA's soft limit: the backstop that
+// turns an allocation past the budget into std::bad_alloc). Throws std::invalid_argument when too small.
 void setMemoryBudget(std::uint64_t bytes);
 std::uint64_t memoryBudget();
+
+// While one lives, the data limit setMemoryBudget set is lifted (to the hard limit), for a library that
+// cannot survive a failed allocation: cairo's scan converter jumps through a broken jmp_buf when one
+// fails (a segfault in cairo_stroke at --max-memory 64M). Its work must be bounded by what the caller
+// estimated or capped (a canvas of known size, a capped number of marks). Thread-safe; nests: the limit
+// comes back when the last one goes.
+class DataLimitLifted {
+public:
+  DataLimitLifted();
+  ~DataLimitLifted();
+  DataLimitLifted(const DataLimitLifted&) = delete;
+  DataLimitLifted& operator=(const DataLimitLifted&) = delete;
+};
 
 // What a refusal says besides the figures: "out of memory: WHAT needs about N CONDITION, more than the
 // memory budget of B (--max-memory); REMEDY". Filled with designated initializers:

@@ -1,5 +1,6 @@
 #include "printer_profiles/previews.hpp"
 
+#include "common/memory_budget.hpp"
 #include "printer_profiles/preview_scan.hpp"
 
 #include <cairo.h>
@@ -76,8 +77,10 @@ std::string format(const char* fmt, double v) {
   return buf;
 }
 
-// Owns a cairo surface and context for one preview image.
+// Owns a cairo surface and context for one preview image, the data limit lifted meanwhile (cairo cannot
+// survive a failed allocation; a preview's size is bounded: Previews::heldBytesAtMost).
 struct Canvas {
+  common::DataLimitLifted lifted;
   cairo_surface_t* surface;
   cairo_t* cr;
   Canvas(int w, int h) : surface(cairo_image_surface_create(CAIRO_FORMAT_ARGB32, w, h)), cr(cairo_create(surface)) {

@@ -11,7 +11,9 @@
 
 #include <catch2/catch.hpp>
 
+#include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cmath>
@@ -180,6 +182,41 @@ TEST_CASE("memory budget: requireMemory passes up to the budget and beyond it na
   CHECK_THROWS_MATCHES(requireMemory(over, {.what = "slicing x.json", .condition = "even in bands of 1 layer", .remedy = "r"}),
                        OutOfMemory,
                        Catch::Message("out of memory: slicing x.json needs about 3072.0 GiB even in bands of 1 layer, " + of + "r"));
+}
+
+// In a child process: setMemoryBudget lowers the process's data limit for good.
+TEST_CASE("memory budget: the data limit is lifted while a DataLimitLifted lives, and comes back with the last") {
+#if defined(__SANITIZE_ADDRESS__)
+  WARN("no data limit under AddressSanitizer");
+  return;
+#endif
+  const pid_t child = ::fork();
+  REQUIRE(child >= 0);
+  if (child == 0) {
+    const auto soft = [] {
+      rlimit l{};
+      ::getrlimit(RLIMIT_DATA, &l);
+      return l;
+    };
+    const rlim_t hard = soft().rlim_max, budget = rlim_t{512} << 20;
+    setMemoryBudget(budget);
+    int failures = soft().rlim_cur != budget || soft().rlim_max != hard;
+    {
+      const DataLimitLifted outer;
+      failures += soft().rlim_cur != hard;
+      {
+        const DataLimitLifted inner;
+        failures += soft().rlim_cur != hard;
+      }
+      failures += soft().rlim_cur != hard;  // the outer one still lives
+    }
+    failures += soft().rlim_cur != budget;
+    ::_exit(failures);
+  }
+  int status = 0;
+  REQUIRE(::waitpid(child, &status, 0) == child);
+  REQUIRE(WIFEXITED(status));
+  CHECK(WEXITSTATUS(status) == 0);
 }
 
 TEST_CASE("keepLocalTimeZone names glibc's default zone file only when TZ is unset, and times stay as they were") {

@@ -60,4 +60,15 @@ grep -q "expected pchip, lichtenecker or log-power" "$tmp/err" || fail "unknown 
 "$rodfab" calibrate "$csv" --floor-mpa -3 2> /dev/null
 [ $? -eq 2 ] || fail "negative floor: expected usage exit 2"
 "$rodfab" calibrate --help | grep -q "usage: rodfab calibrate" || fail "--help"
+
+# 100 replicates at each of 21 fractions, plotted within a small budget: cairo cannot survive a failed
+# allocation (its scan converter jumped through a broken jmp_buf: a segfault, the calibration file
+# left behind), so the budget's data limit is lifted while a plot is drawn (common::DataLimitLifted).
+awk 'BEGIN { print "vero_fraction,modulus_mpa,dither"
+             for (i = 0; i <= 20; i++) for (r = 0; r < 100; r++)
+               printf "%.2f,%.6g,random\n", i / 20, 0.57 * exp(i / 20 * log(2000 / 0.57)) * (1 + 0.03 * sin(r * 7.3 + i * 1.1)) }' > "$tmp/replicates.csv"
+"$rodfab" calibrate "$tmp/replicates.csv" --max-memory 64M -o "$tmp/replicates.json" --plot "$tmp/replicates.png" > "$tmp/out" 2>&1
+code=$?
+[ $code -eq 0 ] || fail "2,100 measurements plotted in 64 MiB: exit $code: $(tail -c 300 "$tmp/out")"
+[ "$(head -c 8 "$tmp/replicates.png" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ] || fail "replicates: plot is not a PNG"
 echo "calibrate CLI: all checks passed"
