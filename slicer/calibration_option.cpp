@@ -29,13 +29,14 @@ std::optional<ChosenCalibration> calibrationFromOptions(const std::string& comma
     std::cerr << "rodfab " << command << ": " << check.message << "\nno job was written\n";
     return std::nullopt;
   }
-  if (!materials::isDitherMethod(cal.record().dither)) {
+  const std::string& recorded = cal.record().dither;  // empty: the data named no ditherer (an optional column)
+  if (!recorded.empty() && !materials::isDitherMethod(recorded)) {
     // The default ditherer comes from this field: a bad one is the file's fault, not the command line's.
     std::cerr << "rodfab " << command << ": " << file << ": dither: unknown ditherer '" << cal.record().dither
               << "' (the coupons' ditherer), expected one of: " << materials::ditherMethodList() << "\nno job was written\n";
     return std::nullopt;
   }
-  const std::string couponDither = materials::canonicalDitherName(cal.record().dither);
+  const std::string couponDither = recorded.empty() ? "" : materials::canonicalDitherName(recorded);
   return ChosenCalibration{std::move(cal), file, fileName, sha256, check.message, couponDither};
 }
 

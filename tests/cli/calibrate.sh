@@ -71,4 +71,14 @@ awk 'BEGIN { print "vero_fraction,modulus_mpa,dither"
 code=$?
 [ $code -eq 0 ] || fail "2,100 measurements plotted in 64 MiB: exit $code: $(tail -c 300 "$tmp/out")"
 [ "$(head -c 8 "$tmp/replicates.png" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ] || fail "replicates: plot is not a PNG"
+# Data without the optional dither column: the calibration records no ditherer (null), and slice takes
+# its default or --dither (it refused the file: "dither: unknown ditherer ''").
+printf 'vero_fraction,modulus_mpa\n0,0.5\n0.3,8\n0.6,40\n1,190\n' > "$tmp/no-dither.csv"
+"$rodfab" calibrate "$tmp/no-dither.csv" -o "$tmp/no-dither.json" > /dev/null 2>&1 || fail "no dither column: calibrate"
+grep -q '"dither": null' "$tmp/no-dither.json" || fail "no dither column: expected \"dither\": null"
+for dither in "" "--dither blue"; do
+  # shellcheck disable=SC2086  # $dither: no option, or an option and its value
+  "$rodfab" slice "$src/examples/unfolding-box.json" -o "$tmp/no-dither${dither// /}.zip" --calibration "$tmp/no-dither.json" $dither --quiet \
+    > /dev/null 2> "$tmp/err" || fail "slice with a calibration that names no ditherer ($dither): $(cat "$tmp/err")"
+done
 echo "calibrate CLI: all checks passed"
