@@ -125,7 +125,10 @@ ExponentFit fitExponent(Model model, const std::vector<Group>& groups, std::opti
   // A refit whose optimum ran to the edge of its small bracket has moved further: search again whole.
   if (near && ((variable - lo < 1e-6 * step && lo > range.lo) || (hi - variable < 1e-6 * step && hi < range.hi)))
     return fitExponent(model, groups);
-  const bool atEdge = variable - range.lo < 1e-6 * step || range.hi - variable < 1e-6 * step;
+  // Brent never evaluates closer to a bound than its tolerance (~1e-7 of the exponent here), so an
+  // optimum run into the edge lands that far inside it: within a thousandth of a scan step is at it
+  // (1e-6 of a step missed the lower edges: a Lichtenecker a = -10 fitted as -4.000000).
+  const bool atEdge = variable - range.lo < 1e-3 * step || range.hi - variable < 1e-3 * step;
   return {range.logExponent ? std::exp(variable) : variable, atEdge};
 }
 

@@ -359,6 +359,12 @@ TEST_CASE("data that cannot make a calibration is refused with the reason", "[ca
   // Half Vero nearly as stiff as pure Vero: beyond the power mean of order 4 (841 MPa here).
   CHECK_THAT(fitError("vero_fraction,modulus_mpa\n0,1\n0.5,999\n1,1000\n", Model::Lichtenecker),
              Catch::Contains("lies at the edge of its range"));
+  // ...and at the lower edges (Brent stops ~1e-7 inside a bound; these fitted as a = -4.000000, n = 0.020000):
+  // half Vero nearly as soft as pure Tango (order -4 gives 1.19 MPa), and E(f) jumping to Vero's at once.
+  CHECK_THAT(fitError("vero_fraction,modulus_mpa\n0,1\n0.5,1.001\n1,1000\n", Model::Lichtenecker),
+             Catch::Contains("the best lichtenecker exponent lies at the edge of its range [-4, 4]"));
+  CHECK_THAT(fitError("vero_fraction,modulus_mpa\n0,0.5\n0.1,177.5\n0.5,186.1\n0.9,189.4\n1,190\n", Model::LogPower),
+             Catch::Contains("the best log-power exponent lies at the edge of its range [0.02, 50]"));
   // Two fractions: pchip is ln E linear in f.
   const Calibration line = fitText("vero_fraction,modulus_mpa\n0,1\n1,100\n", Model::Pchip, 1.0);
   CHECK(line.modulusMpa(0.5) == Approx(10.0).epsilon(1e-12));
