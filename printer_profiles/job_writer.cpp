@@ -37,9 +37,6 @@ using nlohmann::json;
 
 namespace {
 
-// The writer's verification decodes one layer in this many (and the first and last; see verify()).
-constexpr int kVerifyDecodeEvery = 32;
-
 std::string describeVoxelSize(const openvdb::Vec3d& v) {
   std::ostringstream s;
   s << v.x() << " x " << v.y() << " x " << v.z() << " mm";

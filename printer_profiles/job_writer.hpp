@@ -55,6 +55,9 @@ bool isDithererLabel(std::string_view label);
 using JobReportHook =
     std::function<Bytes(const nlohmann::json& manifest, const std::vector<std::pair<std::string, Bytes>>& previews)>;
 
+// JobOptions::verify decodes one layer in this many (layers 0, n, 2n, ... and the last).
+inline constexpr int kVerifyDecodeEvery = 32;
+
 struct JobOptions {
   std::filesystem::path output;                  // the job: "NAME.zip" or a directory
   ArchiveFormat archive = ArchiveFormat::Zip;
@@ -69,7 +72,7 @@ struct JobOptions {
   // bytes are the same either way.
   std::uint64_t zipFormsInMemory = std::uint64_t{256} << 20;
   // Re-open and inspect before the rename: the layout, manifest, build file and previews as `inspect`
-  // does; one layer in 32 (and the last) decoded and checked against the manifest; every other layer
+  // does; one layer in kVerifyDecodeEvery (and the last) decoded and checked against the manifest; every other layer
   // image's bytes as the zip stores them against the XXH3-128 the writer took when it staged them, and
   // its zip directory record (method, size, CRC-32) (folder jobs: every image's XXH3-128).
   bool verify = true;

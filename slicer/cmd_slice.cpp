@@ -35,14 +35,17 @@ Parsed<JobCommandOptions> parseSlice(const std::vector<std::string>& args, po::v
 }
 
 // --dither, or the ditherer the calibration's coupons were printed with (white when it does not say);
-// a warning when they differ. nullptr after a usage error.
-std::unique_ptr<materials::Ditherer> chooseDitherer(const po::variables_map& vm, const ChosenCalibration& cal) {
+// a warning when they differ, printed and kept for the job's report. nullptr after a usage error.
+std::unique_ptr<materials::Ditherer> chooseDitherer(const po::variables_map& vm, const ChosenCalibration& cal,
+                                                    std::vector<std::string>& warnings) {
   const std::string name = vm.count("dither") ? vm["dither"].as<std::string>() : (cal.couponDither.empty() ? "white" : cal.couponDither);
   std::unique_ptr<materials::Ditherer> ditherer = ditherFromName("slice", name, vm);
-  if (ditherer && !cal.couponDither.empty() && cal.couponDither != ditherer->name())
-    std::cerr << "rodfab slice: warning: " << cal.file << " was measured on coupons dithered '" << cal.calibration.record().dither
-              << "', this job dithers '" << ditherer->name()
-              << "': a mix's stiffness depends on its dithering, so print and fit coupons with this ditherer (rodfab coupons)\n";
+  if (ditherer && !cal.couponDither.empty() && cal.couponDither != ditherer->name()) {
+    warnings.push_back(cal.fileName + " was measured on coupons dithered '" + cal.calibration.record().dither + "', this job dithers '" +
+                       std::string(ditherer->name()) +
+                       "': a mix's stiffness depends on its dithering, so print and fit coupons with this ditherer (rodfab coupons)");
+    std::cerr << "rodfab slice: warning: " << warnings.back() << '\n';
+  }
   return ditherer;
 }
 
@@ -93,7 +96,8 @@ int slice(const po::variables_map& vm, const JobCommandOptions& options) {
   if (!profile) return profileFailure;
   const std::optional<ChosenCalibration> cal = calibrationFromOptions("slice", vm, *profile);
   if (!cal) return kFailed;
-  const std::unique_ptr<materials::Ditherer> ditherer = chooseDitherer(vm, *cal);
+  std::vector<std::string> inputWarnings;
+  const std::unique_ptr<materials::Ditherer> ditherer = chooseDitherer(vm, *cal, inputWarnings);
   if (!ditherer) return kUsage;
 
   // The output is refused now (a user's folder, a job without --force) rather than after the work.
@@ -103,6 +107,7 @@ int slice(const po::variables_map& vm, const JobCommandOptions& options) {
   SliceSummary summary{designFile, design->rods.size(), &*profile, &*cal, std::string(ditherer->name()),
                        vm["seed"].as<Seed>().value};
   slicer::SliceSettings settings = sliceSettings(designFile, *cal, summary.seed, options);
+  settings.inputWarnings = std::move(inputWarnings);
   BandProgress progress(options.quiet);
   settings.onBand = [&](int done, int total) {
     progress.update(done, total);

@@ -4,6 +4,7 @@
 #include "common/plot_canvas.hpp"
 
 #include "calibration/plot.hpp"
+#include "printer_profiles/job_writer.hpp"  // kVerifyDecodeEvery
 
 #include <cairo.h>
 #include <openssl/evp.h>
@@ -240,9 +241,10 @@ std::string verdictSection(const json& m, bool verified) {
   std::string s = "<section id=\"checksums\"><h2>Checksums</h2>\n";
   if (verified)
     s += "<p class=\"verdict ok\" id=\"checksum-verdict\">Verified when written: every file of this job (" + count(layerFiles) +
-         " layer images, the build file, the previews and this report) matched its size and SHA-256 in manifest.json, and the "
-         "layer images decoded to the voxel counts and orientation the manifest records. rodfab renames a job into place only "
-         "after this check passes.</p>\n";
+         " layer images, the build file, the previews and this report) matched its size and XXH3-128 checksum in manifest.json; "
+         "the images of one layer in " + std::to_string(printer_profiles::kVerifyDecodeEvery) +
+         " and of the last decoded to the voxel counts and orientation the manifest records, and every other layer image was "
+         "compared in its stored form with what was encoded. rodfab renames a job into place only after this check passes.</p>\n";
   else
     s += "<p class=\"verdict unknown\" id=\"checksum-verdict\">Not verified when written (verification was switched off): "
          "check the job before printing.</p>\n";

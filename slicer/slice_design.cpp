@@ -23,13 +23,15 @@ using common::secondsSince;
 
 // report.html (job_report.hpp), made when the writer finalizes the job: the bands are done by then.
 printer_profiles::JobReportHook reportHook(const SliceReport& report, const calibration::Calibration& calibration,
-                                           const ClampMap& clamps, bool verified) {
-  return [&report, &calibration, &clamps, verified](const nlohmann::json& manifest, const auto& previews) {
+                                           const ClampMap& clamps, const SliceSettings& settings, bool verified) {
+  return [&report, &calibration, &clamps, &settings, verified](const nlohmann::json& manifest, const auto& previews) {
     ReportInputs inputs;
     inputs.verified = verified;
     inputs.calibration = &calibration;
     inputs.clamps = &clamps;
-    inputs.warnings = report.warnings;
+    if (!settings.calibrationWarning.empty()) inputs.warnings.push_back(settings.calibrationWarning);
+    inputs.warnings.insert(inputs.warnings.end(), settings.inputWarnings.begin(), settings.inputWarnings.end());
+    inputs.warnings.insert(inputs.warnings.end(), report.warnings.begin(), report.warnings.end());
     const auto empty = std::count(report.voxelsPerRod.begin(), report.voxelsPerRod.end(), std::uint64_t{0});
     if (empty > 0)
       inputs.warnings.push_back(std::to_string(empty) + " rod(s) hold no voxel centre (thinner than the voxel or hidden in "
@@ -323,7 +325,7 @@ SliceReport sliceDesign(const geometry::RodStructure& design, const printer_prof
 
   report.voxelsPerRod.assign(design.rods.size(), 0);
   ClampMap clampMap(spec.partBounds, profile.voxelSizeMm, fractionMap.floorMpa(), fractionMap.maxModulusMpa());
-  spec.options.report = reportHook(report, calibration, clampMap, spec.options.verify);
+  spec.options.report = reportHook(report, calibration, clampMap, settings, spec.options.verify);
   SliceBands bands(rasterizer, fractionMap, ditherer, report, clampMap);
   const BandSource source = [&](int k0, int k1, bool withNextLayer) { return bands.make(k0, k1, withNextLayer); };
   PipelineOptions pipeline;

@@ -27,6 +27,9 @@ struct SliceSettings {
   // Why the calibration's materials are not the profile's, recorded in the manifest ("" when they are;
   // see checkCalibrationMaterials).
   std::string calibrationWarning;
+  // Said of the inputs before slicing (the ditherer is not the calibration coupons'): the job's report
+  // lists them, after calibrationWarning and before the slice's own (SliceReport::warnings).
+  std::vector<std::string> inputWarnings;
   std::uint64_t seed = 0;  // the ditherer's, recorded in the manifest
   int threads = 0;         // rasterizer workers (0 = all); callers limit TBB as a whole with global_control
   int bandLayers = 0;       // layers per band; 0: automatic (automaticBandLayers, fewer to fit the budget)

@@ -12,6 +12,7 @@ here), the ditherer and the checksums' verdict. A screenshot must show a page, n
 """
 import base64
 import hashlib
+import html
 import html.parser
 import json
 import os
@@ -219,6 +220,16 @@ with tempfile.TemporaryDirectory() as tmp:
     check(b"<h1>Job report</h1>" in coupons.read("report.html"), "a coupon job's report")
     check(subprocess.run([rodfab, "inspect", str(tmp / "coupons.zip")], capture_output=True).returncode == 0,
           "inspect passes the coupon job")
+
+    # Every warning slice says on stderr is in the report too (a J750 job on the stand-in calibration,
+    # dithered otherwise than its coupons: the report said "None").
+    run = subprocess.run([rodfab, "slice", str(tmp / "clamped.json"), "-o", str(tmp / "j750.zip"), "--profile",
+                          "stratasys-j750-j850", "--dither", "blue", "--quiet"], capture_output=True, text=True)
+    said = [line.split("warning: ", 1)[1] for line in run.stderr.splitlines() if line.startswith("rodfab slice: warning: ")]
+    section = re.search(r'<section id="warnings">(.*?)</section>', zipfile.ZipFile(tmp / "j750.zip").read("report.html").decode(), re.S)
+    listed = [html.unescape(item) for item in re.findall(r"<li>(.*?)</li>", section.group(1) if section else "", re.S)]
+    check(run.returncode == 0 and len(said) >= 2, f"the J750 job warns of its calibration and ditherer: {run.stderr[-400:]!r}")
+    check(sorted(said) == sorted(listed), f"the report lists what slice warned: said {said}, listed {listed}")
 
 if failures:
     sys.exit(f"{len(failures)} check(s) failed")
