@@ -40,10 +40,26 @@ Bytes encodeGcvfLayer(const Bitmap& rigid, const Bitmap& rubbery, const Profile&
   });
 }
 
+namespace {
+
+// Text for an XML comment: escaped, and no "--" in it nor a '-' at its end, which XML forbids there
+// (a printer named "J750 -- lab" made every job fail its own check: "Double hyphen within comment").
+std::string commentText(const std::string& text) {
+  std::string out;
+  for (const char c : common::escapeMarkup(text)) {
+    if (c == '-' && !out.empty() && out.back() == '-') out += ' ';
+    out += c;
+  }
+  if (!out.empty() && out.back() == '-') out += ' ';
+  return out;
+}
+
+}  // namespace
+
 std::string gcvfConfigXml(const Profile& p, int width, int height, int layers, const std::vector<GcvfMaterialCount>& counts) {
   std::ostringstream x;
   x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-    << "<!-- GCVF - GrabCAD Voxel Print File, written by rodfab for " << common::escapeMarkup(p.printer) << " -->\n"
+    << "<!-- GCVF - GrabCAD Voxel Print File, written by rodfab for " << commentText(p.printer) << " -->\n"
     << "<GCVF>\n"
     << "    <Version>" << p.gcvf.version << "</Version>\n"
     << "    <Resolution>\n"

@@ -325,6 +325,16 @@ TEST_CASE("The XML writer escapes text", "[gcvf][writer]") {
   p.printer = "J750 <lab & \"co\">";
   const std::string xml = gcvfConfigXml(p, 8, 8, 1, {});
   CHECK_THAT(xml, Catch::Contains("J750 &lt;lab &amp; &quot;co&quot;&gt;"));
+  // The name also goes into a comment, where XML allows no "--" and no '-' at the end: inspect's parser
+  // (libxml2) reads the file (it refused a printer named so, so that every job failed its own check).
+  for (const std::string name : {"J750 -- lab", "J750 ---", "J750-", "-"}) {
+    p.printer = name;
+    const std::string named = gcvfConfigXml(p, 64, 32, 7, {{&p.material(MaterialRole::Rigid), 10}, {&p.material(MaterialRole::Rubbery), 3}});
+    const std::vector<MaterialTotals> counted = {{"VeroUltraWhite", MaterialRole::Rigid, 10, 0, 0},
+                                                 {"Agilus30Black", MaterialRole::Rubbery, 3, 0, 0}};
+    INFO(name);
+    CHECK(checkGcvfConfig(std::span(reinterpret_cast<const std::uint8_t*>(named.data()), named.size()), p, 64, 32, 7, counted).empty());
+  }
 }
 
 TEST_CASE("Calibrations record their materials, another pair is refused unless forced or the bundled stand-in", "[gcvf][calibration]") {
