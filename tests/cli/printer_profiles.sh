@@ -137,6 +137,25 @@ python3 -c 'import json,sys; r = json.load(open(sys.argv[1])); assert r["ok"] is
 "$rodfab" inspect --profile "$tmp/my-connex3.json" "$tmp/mine.zip" > "$tmp/out" 2>&1 || fail "inspect --profile FILE: $(cat "$tmp/out")"
 grep -q "verdict:       OK" "$tmp/out" || fail "no OK verdict with the profile file"
 
+# A profile file may take a bundled profile's name only as a copy of it (inspect checks a job against the
+# bundled profile of its name: another tray under that name made jobs inspect called DEFECTIVE).
+python3 - "$src/printer_profiles/stratasys-objet500-connex3.json" "$tmp/same-name.json" <<'PY'
+import json, sys
+d = json.load(open(sys.argv[1]))
+d["tray_mm"][0] -= 10
+json.dump(d, open(sys.argv[2], "w"))
+PY
+"$rodfab" slice "$src/examples/unfolding-box.json" --profile "$tmp/same-name.json" --output "$tmp/same-name.zip" > /dev/null 2> "$tmp/err"
+[ $? -eq 1 ] || fail "a profile file under a bundled name: expected exit 1"
+grep -q 'same-name.json: name: "stratasys-objet500-connex3" is a bundled profile.s name, and this file is not that profile' "$tmp/err" ||
+  fail "bundled name taken: $(cat "$tmp/err")"
+[ -e "$tmp/same-name.zip" ] && fail "a job was written with a profile file under a bundled name"
+python3 -c 'import json,sys; json.dump(json.load(open(sys.argv[1])), open(sys.argv[2], "w"), indent=1)' \
+  "$src/printer_profiles/stratasys-objet500-connex3.json" "$tmp/copy.json"
+"$rodfab" slice "$src/examples/unfolding-box.json" --profile "$tmp/copy.json" --output "$tmp/copy.zip" > /dev/null 2>&1 ||
+  fail "a copy of a bundled profile (reformatted) is refused"
+"$rodfab" inspect "$tmp/copy.zip" > /dev/null 2>&1 || fail "inspect of a job made with a copy of a bundled profile"
+
 "$rodfab" inspect 2> /dev/null
 [ $? -eq 2 ] || fail "inspect without a job: expected usage exit 2"
 "$rodfab" profiles --bogus 2> /dev/null
