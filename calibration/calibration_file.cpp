@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -157,6 +158,12 @@ void readMaterials(const Reader& in, const json& j, FitRecord& r) {
   r.rigidMaterial = in.string(in.get(mat, "materials", "rigid", "the rigid material's name"), "materials.rigid", "a material name");
   r.rubberyMaterial = in.string(in.get(mat, "materials", "rubbery", "the rubbery material's name"), "materials.rubbery", "a material name");
   if (r.rigidMaterial.empty() || r.rubberyMaterial.empty()) in.fail("materials", "expected two non-empty material names");
+  // Named as printer profiles name materials (at most 64 characters; they become file names there), so
+  // that no control character or escape sequence reaches a terminal through slice's messages.
+  for (const auto& [key, name] : {std::pair{"rigid", &r.rigidMaterial}, std::pair{"rubbery", &r.rubberyMaterial}})
+    if (name->size() > 64 || std::any_of(name->begin(), name->end(), [](char c) { return static_cast<unsigned char>(c) < 0x20 || c == 0x7f; }))
+      in.fail(std::string("materials.") + key, "expected a material name of at most 64 characters without control characters, got " +
+                                                   describeJson(json(*name)));
 }
 
 void readMeasurements(const Reader& in, const json& rows, FitRecord& r) {

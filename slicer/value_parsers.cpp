@@ -1,5 +1,8 @@
 #include "slicer/value_parsers.hpp"
 
+#include "common/quoted_text.hpp"
+#include "printer_profiles/profile.hpp"
+
 #include <algorithm>
 #include <cerrno>
 #include <charconv>
@@ -141,9 +144,13 @@ std::array<std::string, 2> parseMaterialPair(const std::string& option, const st
   std::array<std::string, 2> pair;
   if (comma != std::string::npos) pair = {text.substr(0, comma), text.substr(comma + 1)};
   if (pair[0].empty() || pair[1].empty() || pair[1].find(',') != std::string::npos)
-    throw BadValue(option + ": expected RIGID,RUBBERY (two material names), got '" + text + "'");
+    throw BadValue(option + ": expected RIGID,RUBBERY (two material names), got " + common::quotedFromFile(text));
   if (pair[0] == pair[1])
-    throw BadValue(option + ": expected two different materials (the coupons mix a rigid and a rubbery one), got '" + text + "'");
+    throw BadValue(option + ": expected two different materials (the coupons mix a rigid and a rubbery one), got " + common::quotedFromFile(text));
+  // As printer profiles name materials: a calibration's materials are matched against a profile's.
+  for (const std::string& name : pair)
+    if (const std::string problem = printer_profiles::portableNameProblem(name); !problem.empty())
+      throw BadValue(option + ": expected material names as printer profiles give them, got " + common::quotedFromFile(name) + ": " + problem);
   return pair;
 }
 

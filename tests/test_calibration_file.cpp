@@ -88,6 +88,16 @@ TEST_CASE("bad calibration files name the file and the field", "[calibration][fi
   j = good;
   j["floor"]["modulus_mpa"] = 500;
   CHECK_THAT(error(j), Catch::Contains("the floor (500 MPa) must lie"));
+  // Material names: no control character (an escape sequence reached the terminal through slice), at
+  // most 64 characters, as printer profiles name materials.
+  j = good;
+  j["materials"] = {{"rigid", "Vero\x1b[31mX"}, {"rubbery", "TangoBlackPlus"}};
+  CHECK_THAT(error(j), Catch::StartsWith("cal.json: materials.rigid: expected a material name of at most 64 characters without control "
+                                         "characters, got \"Vero\\u001b[31mX\""));
+  j["materials"] = {{"rigid", "VeroWhitePlus"}, {"rubbery", std::string(65, 'T')}};
+  CHECK_THAT(error(j), Catch::StartsWith("cal.json: materials.rubbery: expected a material name of at most 64 characters"));
+  j["materials"] = {{"rigid", "VeroWhitePlus"}, {"rubbery", std::string(64, 'T')}};
+  CHECK(error(j) == "no error");
 
   TempDir dir;
   std::ofstream(dir.path / "broken.json") << "{ \"format\": ";

@@ -71,6 +71,13 @@ awk 'BEGIN { print "vero_fraction,modulus_mpa,dither"
 code=$?
 [ $code -eq 0 ] || fail "2,100 measurements plotted in 64 MiB: exit $code: $(tail -c 300 "$tmp/out")"
 [ "$(head -c 8 "$tmp/replicates.png" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ] || fail "replicates: plot is not a PNG"
+# --materials names as printer profiles give them: no escape sequence recorded to reach a terminal later.
+"$rodfab" calibrate "$csv" --materials "$(printf 'Vero\033[31mX,TangoBlackPlus')" -o "$tmp/escape.json" > /dev/null 2> "$tmp/err"
+[ $? -eq 2 ] || fail "--materials with an escape sequence: expected usage exit 2"
+grep -q "expected material names as printer profiles give them, got 'Vero.x1b\[31mX'" "$tmp/err" || fail "--materials escape: $(cat -v "$tmp/err")"
+grep -q "$(printf '\033')" "$tmp/err" && fail "--materials: a raw escape character in the message"
+[ -e "$tmp/escape.json" ] && fail "--materials with an escape sequence: a calibration was written"
+
 # Data without the optional dither column: the calibration records no ditherer (null), and slice takes
 # its default or --dither (it refused the file: "dither: unknown ditherer ''").
 printf 'vero_fraction,modulus_mpa\n0,0.5\n0.3,8\n0.6,40\n1,190\n' > "$tmp/no-dither.csv"
