@@ -16,6 +16,7 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <set>
 #include <stdexcept>
 #include <string_view>
 #include <system_error>
@@ -126,10 +127,26 @@ bool recoverReplacedJob(const fs::path& staging, long pid) {
 
 }  // namespace
 
+namespace {
+
+// Whether every entry of `folder` is one a staging folder holds (this version's, or "previews" of older
+// ones'): a folder named like one that holds anything else is someone's, whatever its name says (a
+// user's ".thesis.zip.rodfab-partial-99999-0" holding thesis.txt was removed with it).
+bool holdsOnlyStaging(const fs::path& folder) {
+  static const std::set<std::string> kOurs = {kLockName,  ".lock-init", "job",      "job.zip", "job.zip.part",
+                                              "layers.bin", "replaced",   "withdrawn", "previews"};
+  std::error_code ec;
+  for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec))
+    if (!kOurs.contains(it->path().filename().string())) return false;
+  return !ec;
+}
+
+}  // namespace
+
 // Leftovers of writers that died (killed, crashed) in `folder`, whatever job they were writing: only
-// entries named exactly like staging folders (or older versions' temporaries), only when their writer
-// is gone; a link is never followed. A job such a writer had moved aside to replace it is recovered
-// first (recoverReplacedJob).
+// entries named exactly like staging folders and holding only what those hold (or older versions'
+// temporary zips, "....zip"), only when their writer is gone; a link is never followed. A job such a
+// writer had moved aside to replace it is recovered first (recoverReplacedJob).
 void removeDeadStaging(const fs::path& folder) {
   std::error_code ec;
   for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
@@ -140,10 +157,10 @@ void removeDeadStaging(const fs::path& folder) {
     const fs::file_status status = it->symlink_status(statusError);
     if (statusError) continue;
     std::error_code ignored;
-    if (fs::is_directory(status) && writerGone(it->path(), pid)) {
+    if (fs::is_directory(status) && holdsOnlyStaging(it->path()) && writerGone(it->path(), pid)) {
       if (recoverReplacedJob(it->path(), pid)) fs::remove_all(it->path(), ignored);
     }
-    else if (fs::is_regular_file(status) && !processAlive(pid)) fs::remove(it->path(), ignored);
+    else if (fs::is_regular_file(status) && name.ends_with(".zip") && !processAlive(pid)) fs::remove(it->path(), ignored);
   }
 }
 

@@ -279,10 +279,17 @@ TEST_CASE("Staging folders of dead writers go, whatever their target, live ones 
   fs::create_directories(dir / ("..rodfab-partial-" + std::to_string(killed) + "-0"));
   fs::create_directories(dir / (".mine.zip.rodfab-partial-" + std::to_string(::getpid()) + "-7"));
   writeAll(dir / ".user.rodfab-partial-1-2.txt", Bytes{'u'});
+  // Named exactly like ours, of a dead pid, but holding what no staging folder holds, or a file that
+  // is not an older version's temporary zip: someone's (both were removed).
+  const std::string thesis = ".thesis.zip.rodfab-partial-" + std::to_string(killed) + "-5";
+  const std::string plain = ".b.zip.rodfab-partial-" + std::to_string(killed) + "-6";
+  fs::create_directories(dir / thesis / "previews");
+  writeAll(dir / thesis / "thesis.txt", Bytes{'m', 'y'});
+  writeAll(dir / plain, Bytes{'u'});
   const std::set<std::string> strangers = {".notes.rodfab-partial-abc", ".x.zip.rodfab-partial-",
                                            "..rodfab-partial-" + std::to_string(killed) + "-0",
                                            ".mine.zip.rodfab-partial-" + std::to_string(::getpid()) + "-7",
-                                           ".user.rodfab-partial-1-2.txt"};
+                                           ".user.rodfab-partial-1-2.txt", thesis, plain};
   // An older version's lock-less folder of a dead pid goes.
   fs::create_directories(dir / (".old.zip.rodfab-partial-" + std::to_string(killed) + "-3") / "previews");
 
@@ -290,6 +297,7 @@ TEST_CASE("Staging folders of dead writers go, whatever their target, live ones 
   std::set<std::string> left;
   for (const auto& e : fs::directory_iterator(dir)) left.insert(e.path().filename().string());
   for (const std::string& s : strangers) CHECK(left.contains(s));
+  CHECK((readAll(dir / thesis / "thesis.txt") == Bytes{'m', 'y'}));
   CHECK(left.contains("other.zip"));
   CHECK_FALSE(left.contains(dead[0].filename().string()));
   CHECK(std::count_if(left.begin(), left.end(), [&](const std::string& n) { return n.starts_with(".live.zip.rodfab-partial-"); }) == 1);
