@@ -234,6 +234,10 @@ json parseJsonStrict(const std::string& text, int maxDepth, std::size_t maxValue
   if (text.size() > kMaxJsonBytes)
     throw JsonInputError("", "the file is " + std::to_string(text.size() >> 20) + " MiB; expected at most " +
                                  std::to_string(kMaxJsonBytes >> 20) + " MiB of JSON");
+  // nlohmann's lexer takes a NUL byte for the end of the input (for C strings), and would ignore what
+  // follows: a design, profile or manifest with "\0garbage" appended read as valid. JSON holds none.
+  if (const std::size_t nul = text.find('\0'); nul != std::string::npos)
+    throw JsonInputError("", "malformed JSON at " + lineColumnText(text, nul) + ": a NUL byte (JSON text holds none)");
   try {
     json document;
     StrictDomBuilder builder(document, maxDepth, maxValues);

@@ -45,6 +45,14 @@ TEST_CASE("Duplicate keys, depth and the number of values are refused at a path"
   CHECK(parseJsonStrict(R"({"x": [1, 2, 3]})", 64, 5)["x"].size() == 3);
 }
 
+// nlohmann's lexer ends the input at a NUL byte: "{...}\0garbage" was a valid design, manifest or profile.
+TEST_CASE("A NUL byte anywhere is malformed JSON, located", "[common]") {
+  using namespace std::string_literals;
+  CHECK(errorOf("{\"a\": 1}\0garbage"s).message == "malformed JSON at line 1, column 9: a NUL byte (JSON text holds none)");
+  CHECK(errorOf("{\"a\":\n \"x\0y\"}"s).message == "malformed JSON at line 2, column 4: a NUL byte (JSON text holds none)");
+  CHECK(parseJsonStrict("{\"a\": \"x\\u0000y\"}")["a"].get<std::string>() == "x\0y"s);  // escaped, it is a character like any other
+}
+
 TEST_CASE("The document built in one pass is the one nlohmann's own parser builds", "[common]") {
   // parseJsonStrict builds the document from SAX events itself; nlohmann's DOM parser is the truth.
   const std::vector<std::string> texts = {
