@@ -154,9 +154,16 @@ struct PngIo {
   Bytes* out = nullptr;
   const std::uint8_t* in = nullptr;
   std::size_t inSize = 0, pos = 0;
+  std::size_t readLimit = SIZE_MAX;  // reading past this offset is an error (set once the rows are read)
   bool outOfMemory = false;
   char error[256] = {};
 };
+
+// What a PNG may still hold once its rows are read: the end of its deflate stream, IEND and a few small
+// chunks (and libpng's 8 KiB read ahead). libpng inflates whatever image data follows the rows (to
+// discard it), so a GCVF whose layers' data went on to inflate to 1 GB of zeros each kept inspect busy
+// for minutes; 32 KiB of deflate inflates to at most 33 MB.
+constexpr std::size_t kBytesAfterRows = std::size_t{32} << 10;
 
 void pngError(png_structp png, png_const_charp message) {
   auto* io = static_cast<PngIo*>(png_get_error_ptr(png));
@@ -179,6 +186,8 @@ void pngFlush(png_structp) {}
 void pngRead(png_structp png, png_bytep data, png_size_t length) {
   auto* io = static_cast<PngIo*>(png_get_io_ptr(png));
   if (io->inSize - io->pos < length) png_error(png, "file is truncated");
+  if (io->pos + length > io->readLimit)
+    png_error(png, "more than 32 KiB of data follow the image's rows (image data its rows do not need?)");
   std::memcpy(data, io->in + io->pos, length);
   io->pos += length;
 }
@@ -303,6 +312,7 @@ private:
   bool readEachRow(std::uint8_t* buffer, png_uint_32 height, const std::function<void(int, const std::uint8_t*)>& use) {
     if (setjmp(png_jmpbuf(png_))) return false;
     for (png_uint_32 r = 0; r < height; ++r) {
+      if (r + 1 == height) limitReadingAfterRows();
       png_read_row(png_, buffer, nullptr);
       use(static_cast<int>(r), buffer);
     }
@@ -311,9 +321,18 @@ private:
   }
   bool readRows(std::uint8_t* data, std::size_t stride, png_uint_32 height) {
     if (setjmp(png_jmpbuf(png_))) return false;
-    for (png_uint_32 r = 0; r < height; ++r) png_read_row(png_, data + r * stride, nullptr);
+    for (png_uint_32 r = 0; r < height; ++r) {
+      if (r + 1 == height) limitReadingAfterRows();
+      png_read_row(png_, data + r * stride, nullptr);
+    }
     png_read_end(png_, nullptr);
     return true;
+  }
+  // Before the last row is read: libpng discards the image data that follows it within that call.
+  // Room for the row itself, stored (deflate's 5 bytes per 64 KiB), and kBytesAfterRows.
+  void limitReadingAfterRows() {
+    const std::size_t row = png_get_rowbytes(png_, info_) + 1;
+    io_.readLimit = io_.pos + row + row / 8192 + 64 + kBytesAfterRows;
   }
 
   PngIo io_;

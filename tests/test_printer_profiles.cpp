@@ -4,7 +4,7 @@
 #include "printer_profiles/printer_profiles.hpp"
 #include "tests/printer_profiles_fixture.hpp"
 
-#include "printer_profiles/deflate.hpp"  // internal: zipCrc32
+#include "printer_profiles/deflate.hpp"  // internal: zipCrc32, deflateBytes
 
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
@@ -167,6 +167,35 @@ TEST_CASE("A PNG's declared size is checked before its bitmap is allocated", "[b
   // Within both bounds the header is read as before: the rows then run short, which libpng reports.
   CHECK_THROWS_AS(decodePng1(declaring(37, 14), 37 * 14), ImageError);
   CHECK(decodePng1(declaring(37, 13), 37 * 13).bitmap.width() == 37);
+}
+
+// libpng inflates whatever image data follows the last row, to discard it: a GCVF whose layers' data went
+// on to inflate to a GB of zeros each kept inspect busy for minutes.
+TEST_CASE("A PNG whose image data goes on past its rows is refused without inflating the rest", "[bitmap][png]") {
+  constexpr int kWidth = 64, kHeight = 8;
+  const auto rowOf = [](int, std::uint8_t* out) { std::memset(out, 0, kWidth * 4); };
+  const Bytes sound = encodePngRgba(kWidth, kHeight, 600, 300, rowOf);
+  const auto chunk = [](const char* type, const Bytes& data) {
+    Bytes c(4 + 4 + data.size() + 4);
+    for (int i = 0; i < 4; ++i) c[static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(data.size() >> (24 - 8 * i));
+    std::memcpy(c.data() + 4, type, 4);
+    std::copy(data.begin(), data.end(), c.begin() + 8);
+    const std::uint32_t crc = zipCrc32(std::span<const std::uint8_t>(c.data() + 4, 4 + data.size()));
+    for (int i = 0; i < 4; ++i) c[8 + data.size() + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(crc >> (24 - 8 * i));
+    return c;
+  };
+  const auto withImageData = [&](std::size_t rawBytes) {  // the rows (filter 0, zeros), then zeros to rawBytes
+    const Bytes idat = deflateBytes(Bytes(rawBytes, 0), 0, DeflateWrapper::Zlib);
+    Bytes png(sound.begin(), sound.begin() + 33);  // signature and IHDR
+    for (const Bytes& c : {chunk("IDAT", idat), chunk("IEND", {})}) png.insert(png.end(), c.begin(), c.end());
+    return png;
+  };
+  const std::size_t rows = kHeight * (1 + kWidth * 4);
+  int decoded = 0;
+  const auto decode = [&](const Bytes& png) { return decodePngRgba(png, kWidth * kHeight, [](const RgbaHeader&) {}, [&](int, const std::uint8_t*) { ++decoded; }); };
+  CHECK(decode(withImageData(rows)).width == kWidth);
+  CHECK(decoded == kHeight);
+  CHECK_THROWS_WITH(decode(withImageData(rows + (std::size_t{256} << 20))), Catch::Contains("PNG is damaged: more than 32 KiB of data follow the image's rows"));
 }
 
 TEST_CASE("RGB PNGs (the previews) decode to the pixels given, whole or fed in row batches", "[bitmap][png]") {
