@@ -259,6 +259,17 @@ void checkTrayVoxels(Validator& v, const Profile& p) {
     if (p.printModes[m].layerThicknessMm > 0 && std::floor(p.trayMm[2] / p.printModes[m].layerThicknessMm) > kMaxTrayVoxels)
       v.fail(memberPath(indexPath("resolution.print_modes", m), "layer_thickness_mm"),
              "the tray holds more than " + std::to_string(kMaxTrayVoxels) + " layers of it");
+  // Layer numbers are padded to image.layer_digits, the width the build file declares to the printer: a
+  // full tray's layers must fit it (1 digit wrote _0 .. _49 under a declared _x).
+  if (p.jobFormat != JobFormat::Gcvf) {
+    double layers = voxels[2];
+    for (const PrintMode& m : p.printModes)
+      if (m.layerThicknessMm > 0) layers = std::max(layers, std::floor(p.trayMm[2] / m.layerThicknessMm));
+    const std::size_t digits = std::to_string(static_cast<long long>(std::max(layers, 1.0)) - 1).size();
+    if (layers <= kMaxTrayVoxels && digits > static_cast<std::size_t>(p.layerDigits))
+      v.fail("image.layer_digits", "expected at least " + std::to_string(digits) + ": the tray holds up to " + number(layers) +
+                                       " layers, numbered from 0 in names as wide as the build file declares");
+  }
   const char* faces[3] = {"a layer image (columns x rows)", "the front preview (columns x layers)", "the side preview (rows x layers)"};
   const double pixels[3] = {voxels[0] * voxels[1], voxels[0] * voxels[2], voxels[1] * voxels[2]};
   for (int f = 0; f < 3 && ok; ++f)

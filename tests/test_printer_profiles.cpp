@@ -365,6 +365,9 @@ TEST_CASE("Every number of a profile is range-checked with its JSON path", "[pro
   refusedAt(with([](json& d) { d["resolution"]["x_dpi"] = 0; }), "resolution.x_dpi", "1..100000");
   refusedAt(with([](json& d) { d["resolution"]["voxel_size_mm"][2] = 1e-9; }), "resolution.voxel_size_mm[2]", ">= 0.0001");
   refusedAt(with([](json& d) { d["image"]["layer_digits"] = 10; }), "image.layer_digits", "1..9");
+  // As wide as a full tray's layer numbers (0 .. 6665 of 0.030 mm): the build file declares the width.
+  refusedAt(with([](json& d) { d["image"]["layer_digits"] = 3; }), "image.layer_digits", "expected at least 4: the tray holds up to 6666 layers");
+  CHECK_NOTHROW(parseProfile(with([](json& d) { d["tray_mm"][2] = 29.97; d["image"]["layer_digits"] = 3; }).dump(), "999.json"));
   refusedAt(with([](json& d) { d["image"]["column_alignment"] = 1 << 20; }), "image.column_alignment", "8..4096");
   refusedAt(with([](json& d) { d["model_material_slots"] = 17; }), "model_material_slots", "1..16");
   refusedAt(with([](json& d) { d["build_file"]["format_version"] = 0; }), "build_file.format_version", "1..1000");
