@@ -2,6 +2,7 @@
 
 #include "printer_profiles/deflate.hpp"
 #include "printer_profiles/zip_input.hpp"
+#include "printer_profiles/zip_layout_check.hpp"
 #include "printer_profiles/zip_pool.hpp"
 
 #include <zip.h>
@@ -207,8 +208,11 @@ public:
   ZipJobReader(fs::path file, int fd, const struct stat& st, std::size_t maxEntries)
       : JobReader(std::move(file), ArchiveFormat::Zip, maxEntries), dev_(st.st_dev), ino_(st.st_ino), size_(st.st_size),
         mtime_(st.st_mtim), pool_([this] { return reopen(); }) {
+    const Fd copy(::fcntl(fd, F_DUPFD_CLOEXEC, 0));  // adopt takes fd
     zip_t* za = adopt(fd, ZIP_CHECKCONS);
     pool_.giveBack(za);
+    if (copy.fd < 0) throw JobReadError(path().string() + ": cannot be read (" + errnoText() + ")");
+    checkLocalEntriesTile(copy.fd, static_cast<std::uint64_t>(size_), za, path().string());
     list(za);
   }
   void stream(const JobEntry& entry, std::uint64_t maxBytes,

@@ -15,6 +15,9 @@ writes into OUT_DIR:
   no-build.zip        no build file, and the manifest's file table without it
   no-rubbery.zip      every image of the rubbery material gone, and every mention of it in the manifest
   deep.zip            a manifest nested 60,000 levels deep
+  hidden-entry.zip    the job as written, with a second local entry of one layer's name (another layer's
+                      image) between two listed entries, which the central directory does not list: a
+                      streaming unzipper unpacks it, a directory reader does not
   fifo/               the folder job with a FIFO in place of a layer
   zero-link/          the folder job with a link to /dev/zero in place of a layer
 """
@@ -131,12 +134,49 @@ def folder_variants(folder, out):
             os.symlink("/dev/zero", os.path.join(target, layer))
 
 
+def hidden_local_entry(zip_job, out):
+    """Inserts, after the first layer image's local record, a local record of that name holding the same
+    material's last layer image, and moves every later offset of the central directory (and the directory's own) along."""
+    data = bytearray(open(zip_job, "rb").read())
+    with zipfile.ZipFile(zip_job) as z:
+        infos = sorted(z.infolist(), key=lambda i: i.header_offset)
+    layers = [i for i in infos if i.filename.endswith(".bmp")]
+    first = layers[0]
+    last = [i for i in layers if i.filename.rsplit("_", 1)[0] == first.filename.rsplit("_", 1)[0]][-1]  # same material
+
+    def record(info):  # local header, name, extra and data as they lie in the file
+        name_len, extra_len = struct.unpack("<HH", data[info.header_offset + 26:info.header_offset + 30])
+        return bytes(data[info.header_offset:info.header_offset + 30 + name_len + extra_len + info.compress_size])
+    if len(first.filename) != len(last.filename):
+        raise SystemExit("hidden-entry.zip: layer names of different lengths")
+    hidden = bytearray(record(last))
+    hidden[30:30 + len(first.filename)] = first.filename.encode()
+    at = first.header_offset + len(record(first))
+    data[at:at] = hidden
+    end = data.rfind(b"PK\x05\x06")
+    directory = struct.unpack("<I", data[end + 16:end + 20])[0]
+    struct.pack_into("<I", data, end + 16, directory + len(hidden))
+    p = directory + len(hidden)
+    while data[p:p + 4] == b"PK\x01\x02":
+        offset = struct.unpack("<I", data[p + 42:p + 46])[0]
+        if offset >= at:
+            struct.pack_into("<I", data, p + 42, offset + len(hidden))
+        n, m, k = struct.unpack("<HHH", data[p + 28:p + 34])
+        p += 46 + n + m + k
+    with open(os.path.join(out, "hidden-entry.zip"), "wb") as f:
+        f.write(data)
+    with zipfile.ZipFile(os.path.join(out, "hidden-entry.zip")) as z:  # still a sound zip to a directory reader
+        if z.testzip() is not None:
+            raise SystemExit("hidden-entry.zip: its listed entries do not read back")
+
+
 def main():
     zip_job, folder_job, out, mib = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
     os.makedirs(out, exist_ok=True)
     entries = read_zip(zip_job)
     zip_variants(entries, out)
     zip_bombs(entries, out, mib)
+    hidden_local_entry(zip_job, out)
     folder_variants(folder_job, out)
 
 

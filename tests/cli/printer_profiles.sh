@@ -99,6 +99,7 @@ hostile absolute.zip 'absolute.zip: /tmp/x: unsafe entry name: it is an absolute
 hostile no-build.zip 'no-build.zip: build.txt: missing'
 hostile no-rubbery.zip 'no-rubbery.zip: every TangoBlackPlus image is missing'
 hostile deep.zip 'deep.zip: manifest.json: cannot be read: nested deeper than 64 arrays and objects'
+hostile hidden-entry.zip 'hidden-entry.zip: not a consistent zip archive: .*_0000.bmp has a second local entry at byte'
 hostile fifo 'fifo: VeroWhitePlus_0001.bmp: is a FIFO'
 hostile zero-link 'zero-link: VeroWhitePlus_0001.bmp: is a symbolic link'
 exec 3>&-
