@@ -3,6 +3,7 @@
 #include "common/data_dir.hpp"
 #include "common/json_input.hpp"
 #include "common/output_file.hpp"
+#include "common/quoted_text.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -161,7 +162,7 @@ void readMaterials(const Reader& in, const json& j, FitRecord& r) {
   // Named as printer profiles name materials (at most 64 characters; they become file names there), so
   // that no control character or escape sequence reaches a terminal through slice's messages.
   for (const auto& [key, name] : {std::pair{"rigid", &r.rigidMaterial}, std::pair{"rubbery", &r.rubberyMaterial}})
-    if (name->size() > 64 || std::any_of(name->begin(), name->end(), [](char c) { return static_cast<unsigned char>(c) < 0x20 || c == 0x7f; }))
+    if (name->size() > 64 || common::holdsControlCharacters(*name))
       in.fail(std::string("materials.") + key, "expected a material name of at most 64 characters without control characters, got " +
                                                    describeJson(json(*name)));
 }

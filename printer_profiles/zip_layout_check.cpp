@@ -74,12 +74,17 @@ void checkLocalEntriesTile(int fd, std::uint64_t size, zip_t* za, const std::str
   const Walk walk(fd, size, where);
   const std::uint64_t directory = walk.directoryStart();
   const auto entries = static_cast<std::uint64_t>(std::max<zip_int64_t>(zip_get_num_entries(za, 0), 0));
-  // The directory's names as they lie in it (zip_name_locate did not find one holding a control character).
-  std::unordered_map<std::string, zip_uint64_t> listed;
+  // The directory's names as they lie in it (zip_name_locate did not find one holding a control
+  // character), with each entry's index and compressed size.
+  struct Listed {
+    zip_uint64_t index, compressedBytes;
+  };
+  std::unordered_map<std::string, Listed> listed;
   for (zip_uint64_t i = 0; i < entries; ++i) {
     zip_stat_t st;
     zip_stat_init(&st);
-    if (zip_stat_index(za, i, ZIP_FL_ENC_RAW, &st) == 0 && (st.valid & ZIP_STAT_NAME)) listed.emplace(st.name, i);
+    constexpr zip_uint64_t kNeeded = ZIP_STAT_NAME | ZIP_STAT_COMP_SIZE;
+    if (zip_stat_index(za, i, ZIP_FL_ENC_RAW, &st) == 0 && (st.valid & kNeeded) == kNeeded) listed.emplace(st.name, Listed{i, st.comp_size});
   }
   std::vector<bool> seen(entries, false);
   std::uint64_t at = 0, walked = 0;
@@ -94,19 +99,17 @@ void checkLocalEntriesTile(int fd, std::uint64_t size, zip_t* za, const std::str
                                               : walk.read(at + 30, nameBytes, "a local entry name");
     const std::string name(raw.begin(), raw.end());
     const auto found = listed.find(name);
-    const zip_uint64_t index = found == listed.end() ? 0 : found->second;
-    zip_stat_t st;
-    zip_stat_init(&st);
-    if (found == listed.end() || zip_stat_index(za, index, ZIP_FL_ENC_RAW, &st) != 0 || !(st.valid & ZIP_STAT_COMP_SIZE))
+    if (found == listed.end())
       walk.fail("a local entry " + printableName(name) + " at byte " + std::to_string(at) +
                 " that the central directory does not list (a streaming unzipper would unpack it)");
-    if (st.comp_size > size)
-      walk.fail(printableName(name) + ": its directory record says " + std::to_string(st.comp_size) + " bytes, more than the archive holds");
+    const auto [index, compressedBytes] = found->second;
+    if (compressedBytes > size)
+      walk.fail(printableName(name) + ": its directory record says " + std::to_string(compressedBytes) + " bytes, more than the archive holds");
     if (seen[index])
       walk.fail(printableName(name) + " has a second local entry at byte " + std::to_string(at) + " (a streaming unzipper would unpack both)");
     seen[index] = true;
     ++walked;
-    at += 30 + nameBytes + little(&h[28], 2) + st.comp_size;
+    at += 30 + nameBytes + little(&h[28], 2) + compressedBytes;
     if (little(&h[6], 2) & 8u)  // a data descriptor follows the data, with or without its signature
       at += little(walk.read(at, 4, "a data descriptor").data(), 4) == kDescriptor ? 16 : 12;
   }
